@@ -1,0 +1,1 @@
+"""Code generation layer: SymPy expressions → CasADi SX Functions → C files."""

@@ -1,0 +1,35 @@
+"""SymbolicFunction (SymPy) → casadi.Function (SX), inputs and outputs dense."""
+from __future__ import annotations
+
+import casadi as ca
+import sympy as sp
+
+from .sympy_to_casadi import SympyToCasadi
+
+__all__ = ["to_casadi_function", "shape_of"]
+
+
+def shape_of(mat) -> tuple:
+    """(rows, cols) of a SymPy Matrix (a scalar counts as 1×1)."""
+    return tuple(mat.shape) if isinstance(mat, sp.MatrixBase) else (1, 1)
+
+
+def to_casadi_function(sf, c_name: str | None = None, cse: bool = True) -> ca.Function:
+    """Build the CasADi Function of a :class:`~hydrogen.symbolic.functions.SymbolicFunction`.
+
+    Each input symbol maps to one element of a dense SX input; one converter
+    is shared by all outputs so their common subexpressions are one node.
+    """
+    table, sx_in = {}, []
+    for name, mat in sf.inputs:
+        rows, cols = shape_of(mat)
+        sym = ca.SX.sym(name, rows, cols)
+        for i in range(rows):
+            for j in range(cols):
+                table[mat[i, j]] = sym[i, j]
+        sx_in.append(sym)
+    conv = SympyToCasadi(table)
+    sx_out = [conv(sp.Matrix(expr) if not isinstance(expr, sp.MatrixBase) else expr)
+              for _, expr in sf.outputs]
+    return ca.Function(c_name or sf.name, sx_in, sx_out,
+                       [n for n, _ in sf.inputs], [n for n, _ in sf.outputs], {"cse": cse})

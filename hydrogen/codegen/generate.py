@@ -1,0 +1,170 @@
+"""Write the generated C for a model: one .c/.h pair per function and a manifest.
+
+Generation is deterministic: the same model and derivation code give
+byte-identical files (no timestamps; the manifest is sorted JSON). The output
+folder is replaced atomically under an inter-process lock, so an interrupted or
+concurrent generation never leaves a half-written folder.
+"""
+from __future__ import annotations
+
+import hashlib
+import json
+import re
+import tempfile
+from pathlib import Path
+
+import casadi as ca
+import sympy as sp
+
+from ..fileio import atomic_write, locked, recover_dir, replace_dir
+from ..symbolic.functions import derive_functions
+from .casadi_functions import shape_of, to_casadi_function
+
+__all__ = [
+    "generate", "check", "derivation_hash", "read_manifest", "expected_manifest_inputs",
+    "MANIFEST", "FORMAT_VERSION",
+]
+
+MANIFEST = "manifest.json"
+FORMAT_VERSION = 1
+CODEGEN_OPTIONS = {"with_header": True, "casadi_int": "long long int", "casadi_real": "double",
+                   "verbose": True}
+
+_PACKAGE = Path(__file__).resolve().parent.parent
+
+
+def derivation_hash() -> str:
+    """SHA-256 of the code that shapes generated output: the symbolic and codegen layers."""
+    h = hashlib.sha256()
+    for sub in ("symbolic", "codegen"):
+        for path in sorted((_PACKAGE / sub).glob("*.py")):
+            h.update(f"{sub}/{path.name}\0".encode())
+            h.update(path.read_bytes())
+    return h.hexdigest()
+
+
+def expected_manifest_inputs(model) -> dict:
+    """What a manifest must record for its files to be current for ``model``."""
+    return {"model_hash": model.baked_hash(), "derivation_hash": derivation_hash(),
+            "format": FORMAT_VERSION}
+
+
+_UNUSED_SIG = re.compile(
+    r"^(static int casadi_f\d+\(const casadi_real\*\* arg, casadi_real\*\* res, "
+    r"casadi_int\* iw, casadi_real\* w, int mem\) \{)$", re.M)
+_UNUSED_RELEASE = re.compile(r"^(CASADI_SYMBOL_EXPORT void \w+_release\(int mem\) \{)$", re.M)
+
+
+def _mark_unused(c_source: str) -> str:
+    """Mark the parameters CasADi leaves unused, so the C is clean under -Wall -Wextra -Werror."""
+    c_source = _UNUSED_SIG.sub(r"\1\n  (void)arg; (void)res; (void)iw; (void)w; (void)mem;", c_source)
+    return _UNUSED_RELEASE.sub(r"\1\n  (void)mem;", c_source)
+
+
+def c_name(model_name: str, fname: str) -> str:
+    """C symbol of a generated function: ``<model>_<function>``."""
+    return f"{model_name}_{fname}"
+
+
+def _write_function(sf, model_name: str, folder: Path) -> dict:
+    name = c_name(model_name, sf.name)
+    fun = to_casadi_function(sf, c_name=name)
+    cg = ca.CodeGenerator(f"{name}.c", dict(CODEGEN_OPTIONS))
+    cg.add(fun)
+    with tempfile.TemporaryDirectory() as tmp:
+        cg.generate(tmp + "/")
+        for ext in (".c", ".h"):
+            text = Path(tmp, name + ext).read_text()
+            if ext == ".c":
+                text = _mark_unused(text)
+            (folder / (name + ext)).write_text(text)
+    return {
+        "name": sf.name, "c_name": name, "doc": sf.doc,
+        "source": f"{name}.c", "header": f"{name}.h",
+        "inputs": [[n, *shape_of(m)] for n, m in sf.inputs],
+        "outputs": [[n, *shape_of(m)] for n, m in sf.outputs],
+        "instructions": fun.n_instructions(),
+    }
+
+
+def _sha256(path: Path) -> str:
+    return hashlib.sha256(path.read_bytes()).hexdigest()
+
+
+def render(model, folder: Path, functions=None) -> dict:
+    """Write every function's C and the manifest into an existing empty ``folder``."""
+    folder = Path(folder)
+    functions = derive_functions(model) if functions is None else functions
+    entries = [_write_function(sf, model.name, folder) for sf in functions]
+    manifest = {
+        **expected_manifest_inputs(model),
+        "model_name": model.name,
+        "casadi_version": ca.__version__,
+        "sympy_version": sp.__version__,
+        "casadi_int": CODEGEN_OPTIONS["casadi_int"],
+        "casadi_real": CODEGEN_OPTIONS["casadi_real"],
+        "functions": entries,
+        "files": {p.name: _sha256(p) for p in sorted(folder.iterdir())},
+    }
+    (folder / MANIFEST).write_text(json.dumps(manifest, indent=2, sort_keys=True) + "\n")
+    return manifest
+
+
+def generate(model, out_dir: Path, force: bool = False) -> bool:
+    """Generate C for ``model`` into ``out_dir`` unless it is already current.
+
+    Returns True when files were (re)written. The folder is swapped in whole
+    under a lock; concurrent callers wait, then find it current.
+    """
+    out_dir = Path(out_dir)
+    with locked(out_dir):
+        recover_dir(out_dir)
+        if not force and not check(model, out_dir):
+            return False
+        out_dir.parent.mkdir(parents=True, exist_ok=True)
+        staging = Path(tempfile.mkdtemp(prefix=f".{out_dir.name}.new-", dir=out_dir.parent))
+        staging.chmod(0o755)  # mkdtemp makes it private; generated code is for everyone
+        try:
+            render(model, staging)
+            replace_dir(staging, out_dir)
+        except BaseException:
+            import shutil
+            shutil.rmtree(staging, ignore_errors=True)
+            raise
+    return True
+
+
+def read_manifest(folder: Path) -> dict | None:
+    """The manifest of a generated folder, or None if absent or unreadable."""
+    try:
+        return json.loads((Path(folder) / MANIFEST).read_text())
+    except (OSError, ValueError):
+        return None
+
+
+def check(model, folder: Path) -> list:
+    """Reasons ``folder`` is stale for ``model`` (empty list: current).
+
+    Compares the recorded model and derivation hashes with the current ones,
+    and every file with the hash the manifest recorded for it.
+    """
+    folder = Path(folder)
+    manifest = read_manifest(folder)
+    if manifest is None:
+        return [f"{folder}: no readable {MANIFEST}"]
+    reasons = []
+    for key, value in expected_manifest_inputs(model).items():
+        if manifest.get(key) != value:
+            reasons.append(f"{folder}: {key} changed (recorded {str(manifest.get(key))[:12]}, "
+                           f"now {str(value)[:12]})")
+    recorded = manifest.get("files", {})
+    present = {p.name for p in folder.iterdir() if p.name != MANIFEST and not p.name.startswith(".")}
+    for name in sorted(present | set(recorded)):
+        path = folder / name
+        if name not in recorded:
+            reasons.append(f"{path}: not listed in the manifest")
+        elif not path.exists():
+            reasons.append(f"{path}: missing")
+        elif _sha256(path) != recorded[name]:
+            reasons.append(f"{path}: edited since generation (hash differs)")
+    return reasons

@@ -1,0 +1,152 @@
+"""Translate SymPy expressions into CasADi SX by walking the expression tree.
+
+No strings are evaluated and nothing is lambdified: every node type has an
+explicit rule. A memo keyed by the (hashable, structurally compared) SymPy node
+means a subexpression that occurs many times becomes one SX node, so shared
+work stays shared in the generated C. A node without a rule raises
+:class:`~hydrogen.errors.UnsupportedExpressionError` naming its type.
+"""
+from __future__ import annotations
+
+import casadi as ca
+import sympy as sp
+from sympy.functions.elementary.piecewise import ExprCondPair
+
+from ..errors import UnsupportedExpressionError
+
+__all__ = ["SympyToCasadi", "to_casadi"]
+
+_UNARY = {
+    sp.sin: ca.sin, sp.cos: ca.cos, sp.tan: ca.tan,
+    sp.asin: ca.asin, sp.acos: ca.acos, sp.atan: ca.atan,
+    sp.sinh: ca.sinh, sp.cosh: ca.cosh, sp.tanh: ca.tanh,
+    sp.exp: ca.exp, sp.log: ca.log, sp.Abs: ca.fabs, sp.sign: ca.sign,
+    sp.floor: ca.floor, sp.ceiling: ca.ceil,
+}
+
+_RELATIONAL = {
+    sp.StrictLessThan: lambda a, b: a < b,
+    sp.LessThan: lambda a, b: a <= b,
+    sp.StrictGreaterThan: lambda a, b: a > b,
+    sp.GreaterThan: lambda a, b: a >= b,
+    sp.Equality: lambda a, b: a == b,
+    sp.Unequality: lambda a, b: a != b,
+}
+
+
+class SympyToCasadi:
+    """Converter with a symbol table and a memo shared across calls.
+
+    Parameters
+    ----------
+    symbols : dict
+        Maps each SymPy Symbol to a scalar CasADi SX (usually an element of an
+        input vector).
+    """
+
+    def __init__(self, symbols: dict):
+        self._memo = dict(symbols)
+
+    def __call__(self, expr):
+        """Convert a SymPy scalar expression or Matrix (→ dense SX of the same shape)."""
+        if isinstance(expr, sp.MatrixBase):
+            out = ca.SX.zeros(*expr.shape)
+            for i in range(expr.shape[0]):
+                for j in range(expr.shape[1]):
+                    out[i, j] = self.scalar(expr[i, j])
+            return ca.densify(out)
+        return self.scalar(sp.sympify(expr))
+
+    def scalar(self, expr):
+        # Iterative post-order walk: deep expression trees must not hit Python's recursion limit.
+        memo = self._memo
+        stack = [(expr, False)]
+        while stack:
+            node, ready = stack.pop()
+            if node in memo:
+                continue
+            if not ready and node.args and not node.is_Atom:
+                stack.append((node, True))
+                stack.extend((a, False) for a in node.args if a not in memo)
+                continue
+            memo[node] = self._node(node)
+        return memo[expr]
+
+    def _node(self, node):
+        m = self._memo
+        if node.is_Symbol:
+            raise UnsupportedExpressionError(
+                f"symbol {node} has no CasADi input; declare it as an input of the function")
+        if node.is_Integer or node.is_Rational or node.is_Float:
+            return ca.SX(float(node))
+        if node is sp.pi:
+            return ca.SX(float(sp.pi))
+        if node is sp.E:
+            return ca.SX(float(sp.E))
+        if node in (sp.true, sp.false):
+            return ca.SX(1.0 if node is sp.true else 0.0)
+        if isinstance(node, sp.Add):
+            out = m[node.args[0]]
+            for a in node.args[1:]:
+                out = out + m[a]
+            return out
+        if isinstance(node, sp.Mul):
+            out = m[node.args[0]]
+            for a in node.args[1:]:
+                out = out * m[a]
+            return out
+        if isinstance(node, sp.Pow):
+            base, exp = node.args
+            b = m[base]
+            if exp.is_Integer:
+                return b ** int(exp)  # CasADi folds small integer powers into sq / products
+            if exp == sp.Rational(1, 2):
+                return ca.sqrt(b)
+            if exp == sp.Rational(-1, 2):
+                return 1 / ca.sqrt(b)
+            return ca.power(b, m[exp])
+        func = type(node)
+        if func in _UNARY:
+            return _UNARY[func](m[node.args[0]])
+        if func is sp.atan2:
+            return ca.atan2(m[node.args[0]], m[node.args[1]])
+        if func in (sp.Max, sp.Min):
+            op = ca.fmax if func is sp.Max else ca.fmin
+            out = m[node.args[0]]
+            for a in node.args[1:]:
+                out = op(out, m[a])
+            return out
+        if func in _RELATIONAL:
+            return _RELATIONAL[func](m[node.args[0]], m[node.args[1]])
+        if func is sp.And:
+            out = m[node.args[0]]
+            for a in node.args[1:]:
+                out = ca.logic_and(out, m[a])
+            return out
+        if func is sp.Or:
+            out = m[node.args[0]]
+            for a in node.args[1:]:
+                out = ca.logic_or(out, m[a])
+            return out
+        if func is sp.Not:
+            return ca.logic_not(m[node.args[0]])
+        if func is sp.Piecewise:
+            # Fold from the last branch: if c1 then e1 else (if c2 then e2 else …).
+            pairs = list(node.args)
+            expr_last, cond_last = pairs[-1]
+            if cond_last is not sp.true:
+                raise UnsupportedExpressionError(
+                    f"Piecewise without a final 'True' branch cannot be translated: {node}")
+            out = m[expr_last]
+            for e, c in reversed(pairs[:-1]):
+                out = ca.if_else(m[c], m[e], out)
+            return out
+        if isinstance(node, ExprCondPair):
+            return None  # handled by Piecewise through its children
+        raise UnsupportedExpressionError(
+            f"no CasADi translation for SymPy node {func.__name__}: {node}")
+
+
+def to_casadi(expr, symbols: dict):
+    """One-shot conversion of ``expr`` (scalar or Matrix) with the given symbol table."""
+    return SympyToCasadi(symbols)(expr)

@@ -1,0 +1,100 @@
+"""Compiled dynamics of a model: the user-facing numeric API (numpy in, numpy out).
+
+q = [x, y, z, ψ, θ, φ] in the base frame (m, z up; rad). θ = [M_p, I_x, I_y,
+I_z] (kg, kg m²). Leg lengths in m, pressures in Pa, spool positions in m.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from .errors import KinematicsError
+
+__all__ = ["Dynamics"]
+
+
+class Dynamics:
+    """Thin wrapper over the compiled library of one model (see :func:`hydrogen.build`)."""
+
+    def __init__(self, model, library):
+        self.model = model
+        self.library = library
+        f = library.functions
+        self._leg_lengths = f["leg_lengths"]
+        self._leg_jacobian = f["leg_jacobian"]
+        self._mass_matrix = f["mass_matrix"]
+        self._coriolis = f["coriolis"]
+        self._gravity = f["gravity"]
+        self._regressor = f["regressor"]
+        self.functions = f
+
+    # --- kinematics -------------------------------------------------------------------
+    def leg_lengths(self, q) -> np.ndarray:
+        """(6,) leg lengths l(q), m."""
+        return self._leg_lengths(q)
+
+    def leg_jacobian(self, q) -> np.ndarray:
+        """(6, 6) JL = ∂l/∂q."""
+        return self._leg_jacobian(q)
+
+    def forward_kinematics(self, l, q0=None, tol: float = 1e-12, max_iter: int = 50,
+                           max_cond: float = 1e8) -> np.ndarray:
+        """Pose q (6,) whose leg lengths are ``l`` (m), by Newton's method from ``q0``.
+
+        ``q0`` defaults to the model's neutral pose. Raises
+        :class:`~hydrogen.errors.KinematicsError` if JL becomes singular (condition
+        number above ``max_cond``) or the residual ‖l(q) − l‖ does not fall below
+        ``tol`` m within ``max_iter`` iterations.
+        """
+        l = np.asarray(l, dtype=float).reshape(6)
+        if not np.all(np.isfinite(l)):
+            raise KinematicsError(f"forward kinematics: leg lengths are not finite: {l}")
+        q = np.array(self.model.neutral_pose if q0 is None else q0, dtype=float).reshape(6)
+        for it in range(max_iter):
+            r = self._leg_lengths(q) - l
+            err = float(np.max(np.abs(r)))
+            if err < tol:
+                return q
+            J = self._leg_jacobian(q)
+            cond = np.linalg.cond(J)
+            if not np.isfinite(cond) or cond > max_cond:
+                raise KinematicsError(
+                    f"forward kinematics: JL is singular (cond {cond:.3g}) at q = {q} "
+                    f"(iteration {it}, leg lengths {l})")
+            q = q - np.linalg.solve(J, r)
+        raise KinematicsError(
+            f"forward kinematics did not converge in {max_iter} iterations for leg lengths {l}: "
+            f"residual {err:.3g} m at q = {q}")
+
+    # --- rigid body -------------------------------------------------------------------
+    def mass_matrix(self, q, theta) -> np.ndarray:
+        """(6, 6) D(q) for parameters θ."""
+        return self._mass_matrix(q, theta)
+
+    def coriolis(self, q, qdot, theta) -> np.ndarray:
+        """(6, 6) Christoffel-form C(q, q̇)."""
+        return self._coriolis(q, qdot, theta)
+
+    def gravity(self, q, theta) -> np.ndarray:
+        """(6,) G, N (generalised force; gravity along −z)."""
+        return self._gravity(q, theta)
+
+    def regressor(self, q, v, w, a) -> np.ndarray:
+        """(6, 4) Y(q, v, w, a): Y θ = D(q) a + C(q, v) w + G(q)."""
+        return self._regressor(q, v, w, a)
+
+    # --- hydraulics -------------------------------------------------------------------
+    def valve_flow(self, u, pc) -> np.ndarray:
+        """(6,) load flow per unit flow gain, q_l / c (eq. 57), for spool u (m) and p_c (Pa)."""
+        return self.functions["valve_flow"](u, pc)
+
+    def valve_inverse(self, ql_per_c, pc) -> np.ndarray:
+        """(6,) spool positions u (m) giving q_l / c = ``ql_per_c`` at control pressures p_c."""
+        return self.functions["valve_inverse"](ql_per_c, pc)
+
+    def pressure_rate(self, l, ldot, pc, u, gamma) -> np.ndarray:
+        """(6,) ṗ_c (Pa/s) of (56)-(57) with γ = [β, βc]."""
+        return self.functions["pressure_rate"](l, ldot, pc, u, gamma)
+
+    def leg_force(self, pc) -> np.ndarray:
+        """(6,) leg forces f = p_c A − p_s a, N."""
+        return self.functions["leg_force"](pc)

@@ -1,0 +1,64 @@
+"""``hydrogen.build``: find or generate the C for a model, compile it if needed, load it."""
+from __future__ import annotations
+
+from pathlib import Path
+
+from ..codegen.generate import check, generate, read_manifest
+from ..errors import BuildCacheError
+from ..model import Model, load_model
+from .compiler import Toolchain, cache_root, compile_library
+from .library import GeneratedLibrary
+
+__all__ = ["build", "repo_generated_dir", "generated_dir_for"]
+
+
+def repo_generated_dir() -> Path:
+    """The committed ``generated/`` folder of a source checkout (may not exist when installed)."""
+    return Path(__file__).resolve().parents[2] / "generated"
+
+
+def generated_dir_for(model: Model, cache: Path | None = None) -> Path:
+    """Where the C for ``model`` lives: the committed folder when current, else a cache folder.
+
+    The committed ``generated/<name>`` is used as it is when it matches the model
+    and the derivation code; otherwise code is generated into the cache, keyed by
+    the model hash, and the committed files are never touched by a library call.
+    """
+    committed = repo_generated_dir() / model.name
+    if committed.is_dir() and not check(model, committed):
+        return committed
+    return (cache or cache_root()) / "generated" / f"{model.name}-{model.baked_hash()[:16]}"
+
+
+def build(model: Model | str | Path | None = None, *, cc: str | None = None,
+          cflags: tuple | None = None, cache: Path | None = None, generated: Path | None = None):
+    """Generate if stale, compile if needed, load, and return a :class:`~hydrogen.dynamics.Dynamics`.
+
+    Parameters
+    ----------
+    model : Model, path or None
+        The model (default: the packaged one).
+    cc, cflags : str, tuple of str
+        C compiler and optimisation flags (default ``$CC`` or ``cc``; ``-O2 -fPIC -std=c99``).
+    cache : path
+        Cache root (default ``$HYDROGEN_CACHE_DIR`` or ``~/.cache/hydrogen``).
+    generated : path
+        Use (and regenerate if stale) this generated folder instead of the default.
+    """
+    from ..dynamics import Dynamics
+
+    if not isinstance(model, Model):
+        model = load_model(model)
+    folder = Path(generated) if generated else generated_dir_for(model, cache)
+    generate(model, folder)  # no-op when current
+    manifest = read_manifest(folder)
+    toolchain = Toolchain(**{k: v for k, v in (("cc", cc), ("cflags", cflags)) if v is not None})
+    sources = [folder / e["source"] for e in manifest["functions"]]
+    lib_path = compile_library(sources, model.name, toolchain, cache=cache)
+    try:
+        lib = GeneratedLibrary(lib_path, manifest)
+    except BuildCacheError:
+        # A cached build that does not match this runtime (other CasADi, other ABI): rebuild once.
+        lib_path = compile_library(sources, model.name, toolchain, cache=cache, force=True)
+        lib = GeneratedLibrary(lib_path, manifest)
+    return Dynamics(model, lib)

@@ -1,0 +1,147 @@
+"""Direct ctypes calls into CasADi-generated C functions, through buffers made once.
+
+A generated function has the C signature
+``int f(const double** arg, double** res, long long* iw, double* w, int mem)``.
+:class:`CompiledFunction` allocates the input and output arrays and the work
+vectors once, fills the pointer tables once, and per call only copies the
+inputs in, calls, and copies the outputs out. No CasADi Python object is
+touched on the call path.
+"""
+from __future__ import annotations
+
+import ctypes
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import BuildCacheError
+
+__all__ = ["GeneratedLibrary", "CompiledFunction"]
+
+_c_int = ctypes.c_longlong  # casadi_int, fixed by the code generator options
+_DOUBLE_P = ctypes.POINTER(ctypes.c_double)
+
+
+class CompiledFunction:
+    """One generated function, callable with numpy arrays; returns fresh arrays.
+
+    Matrices are column-major in CasADi; outputs come back as numpy arrays of
+    the recorded shape (C order copies), vectors as 1-D arrays.
+    """
+
+    def __init__(self, lib: ctypes.CDLL, entry: dict):
+        self.name = entry["name"]
+        self.c_name = entry["c_name"]
+        self.doc = entry.get("doc", "")
+        fn = getattr(lib, self.c_name)
+        fn.restype = ctypes.c_int
+        fn.argtypes = None  # pointer tables are passed as prepared ctypes objects
+        self._fn = fn
+        sz = [_c_int() for _ in range(4)]
+        getattr(lib, self.c_name + "_work")(*map(ctypes.byref, sz))
+        n_arg, n_res, n_iw, n_w = (s.value for s in sz)
+        self.in_shapes = [(int(r), int(c)) for _, r, c in entry["inputs"]]
+        self.out_shapes = [(int(r), int(c)) for _, r, c in entry["outputs"]]
+        self.in_names = [n for n, _, _ in entry["inputs"]]
+        self.out_names = [n for n, _, _ in entry["outputs"]]
+        self._check_sparsity(lib)
+        # Fortran-ordered buffers match CasADi's column-major dense layout.
+        self._in = [np.zeros(s, order="F") for s in self.in_shapes]
+        self._out = [np.zeros(s, order="F") for s in self.out_shapes]
+        self._arg = (ctypes.c_void_p * max(n_arg, len(self._in)))(*[b.ctypes.data for b in self._in])
+        self._res = (ctypes.c_void_p * max(n_res, len(self._out)))(*[b.ctypes.data for b in self._out])
+        self._iw = (_c_int * max(n_iw, 1))()
+        self._w = (ctypes.c_double * max(n_w, 1))()
+        self._mem = ctypes.c_int(0)
+        # Column vectors are seen as 1-D arrays by the user; matrices as 2-D (C-order copies out).
+        self._in_views = [b[:, 0] if b.shape[1] == 1 else b for b in self._in]
+        self._in_vshapes = [v.shape for v in self._in_views]
+        self._out_views = [b[:, 0] if b.shape[1] == 1 else b for b in self._out]
+        self._n_in = len(self._in)
+        self._single = len(self._out) == 1
+
+    def _check_sparsity(self, lib):
+        sp_out = getattr(lib, self.c_name + "_sparsity_out")
+        sp_out.restype = ctypes.POINTER(_c_int)
+        sp_in = getattr(lib, self.c_name + "_sparsity_in")
+        sp_in.restype = ctypes.POINTER(_c_int)
+        for getter, shapes, kind in ((sp_in, self.in_shapes, "input"), (sp_out, self.out_shapes, "output")):
+            for i, (r, c) in enumerate(shapes):
+                sp = getter(_c_int(i))
+                rows, cols = sp[0], sp[1]
+                # Dense patterns are stored compactly as {rows, cols, 1}; otherwise
+                # {rows, cols, colind[0]=0, …}, so the third entry tells them apart.
+                dense = sp[2] == 1 or (sp[2] == 0 and sp[2 + cols] == rows * cols)
+                if (rows, cols) != (r, c) or not dense:
+                    raise BuildCacheError(
+                        f"{self.c_name}: {kind} {i} is {rows}x{cols} (dense: {dense}) in the "
+                        f"library, manifest says dense {r}x{c}; regenerate")
+
+    def _bad_input(self, args):
+        if len(args) != len(self._in):
+            return TypeError(f"{self.name} takes {len(self._in)} inputs "
+                             f"({', '.join(self.in_names)}), got {len(args)}")
+        for view, x, name in zip(self._in_views, args, self.in_names):
+            if np.shape(x) != view.shape:
+                return ValueError(f"{self.name}: input '{name}' needs shape {view.shape}, "
+                                  f"got {np.shape(x)}")
+        return None
+
+    def call_into(self, *args):
+        """Copy inputs in and evaluate; results stay in the output buffers (returned, not copied)."""
+        # Hot path: one numpy copy per input, one ctypes call; shapes are checked
+        # exactly (no silent broadcasting of a scalar into a vector).
+        if len(args) != self._n_in:
+            raise self._bad_input(args)
+        for view, shape, x in zip(self._in_views, self._in_vshapes, args):
+            if getattr(x, "shape", None) != shape and np.shape(x) != shape:
+                raise self._bad_input(args)
+            view[...] = x
+        if self._fn(self._arg, self._res, self._iw, self._w, self._mem):
+            raise RuntimeError(f"{self.c_name} returned an error code")
+        return self._out_views
+
+    def __call__(self, *args):
+        """Evaluate; returns a fresh array (a tuple of them for several outputs)."""
+        outs = self.call_into(*args)
+        if self._single:
+            return outs[0].copy()
+        return tuple(o.copy() for o in outs)
+
+
+class GeneratedLibrary:
+    """A loaded shared library built from one generated folder (see its manifest)."""
+
+    def __init__(self, path: Path, manifest: dict):
+        self.path = Path(path)
+        try:
+            self._lib = ctypes.CDLL(str(self.path))
+        except OSError as exc:
+            raise BuildCacheError(f"{self.path}: cannot load compiled library: {exc}") from None
+        self.manifest = manifest
+        self._check_abi()
+        self.functions = {e["name"]: CompiledFunction(self._lib, e) for e in manifest["functions"]}
+
+    def _check_abi(self):
+        for entry in self.manifest["functions"]:
+            stem = Path(entry["source"]).stem
+            try:
+                int_size = getattr(self._lib, stem + "_casadi_int_size")
+                real_size = getattr(self._lib, stem + "_casadi_real_size")
+                version = getattr(self._lib, stem + "_casadi_version")
+            except AttributeError as exc:
+                raise BuildCacheError(f"{self.path}: missing symbol ({exc}); not a hydrogen build") from None
+            if int_size() != ctypes.sizeof(_c_int) or real_size() != ctypes.sizeof(ctypes.c_double):
+                raise BuildCacheError(
+                    f"{self.path}: {entry['c_name']} was built with casadi_int of {int_size()} bytes and "
+                    f"casadi_real of {real_size()} bytes; this runtime needs 8 and 8")
+            v = [ctypes.c_int() for _ in range(3)]
+            version(*map(ctypes.byref, v))
+            built = ".".join(str(x.value) for x in v)
+            if built != self.manifest["casadi_version"]:
+                raise BuildCacheError(
+                    f"{self.path}: {entry['c_name']} comes from CasADi {built}, the generated "
+                    f"folder from CasADi {self.manifest['casadi_version']}; rebuild")
+
+    def __getitem__(self, name) -> CompiledFunction:
+        return self.functions[name]

@@ -1,0 +1,1 @@
+"""Symbolic derivation layer (SymPy only; never touches files or compiled code)."""

@@ -1,0 +1,95 @@
+"""The list of functions derived for a model: names, symbolic inputs, expressions.
+
+This is the single place where the derivation is assembled (acados style:
+register everything, then code generation turns the whole list into C in one
+pass). Each :class:`SymbolicFunction` holds SymPy symbols and expressions only.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import sympy as sp
+
+from . import hydraulics as hyd
+from .kinematics import leg_jacobian, leg_lengths, pose_symbols, rate_symbols
+from .rigid_body import coriolis, gravity, mass_matrix, regressor, theta_symbols
+
+__all__ = ["SymbolicFunction", "derive_functions", "PRESSURE_EPS"]
+
+#: Pressure drops below this (Pa) are clipped inside the valve inverse: no root of a
+#: negative number, no division by zero when p_c reaches 0 or p_s.
+PRESSURE_EPS = 1.0
+
+
+@dataclass
+class SymbolicFunction:
+    """A function to generate: ``name``; inputs and outputs as (name, sympy Matrix) pairs."""
+
+    name: str
+    inputs: list
+    outputs: list
+    doc: str
+
+
+def _vec(prefix, n=6):
+    return rate_symbols(prefix, n)
+
+
+def kinematics_functions(model) -> list:
+    q = pose_symbols()
+    B, P = model.base_joints.tolist(), model.platform_joints.tolist()
+    B = [[sp.Float(repr(x)) for x in row] for row in B]
+    P = [[sp.Float(repr(x)) for x in row] for row in P]
+    l = leg_lengths(q, B, P)
+    return [
+        SymbolicFunction("leg_lengths", [("q", q)], [("l", l)],
+                         "Leg lengths l(q), m."),
+        SymbolicFunction("leg_jacobian", [("q", q)], [("JL", l.jacobian(q))],
+                         "JL = dl/dq (6x6)."),
+    ]
+
+
+def rigid_body_functions(model) -> list:
+    q, qd = pose_symbols(), _vec("qdot")
+    v, w, a = _vec("v"), _vec("w"), _vec("a")
+    th = theta_symbols()
+    g = sp.Float(repr(model.gravity))
+    D = mass_matrix(q, th)
+    return [
+        SymbolicFunction("mass_matrix", [("q", q), ("theta", th)], [("D", D)],
+                         "D(q), eq. (63)."),
+        SymbolicFunction("coriolis", [("q", q), ("qdot", qd), ("theta", th)],
+                         [("C", coriolis(D, q, qd))], "Christoffel-form C(q, qdot)."),
+        SymbolicFunction("gravity", [("q", q), ("theta", th)], [("G", gravity(th, g))],
+                         "G, eq. (65), N."),
+        SymbolicFunction("regressor", [("q", q), ("v", v), ("w", w), ("a", a)],
+                         [("Y", regressor(q, v, w, a, th, g))],
+                         "Y(q, v, w, a) (6x4): Y theta = D a + C(q, v) w + G."),
+    ]
+
+
+def hydraulic_functions(model) -> list:
+    u, pc, l, ld, wq = _vec("u"), _vec("pc"), _vec("l"), _vec("ldot"), _vec("w")
+    gam = sp.Matrix(sp.symbols("gamma_1 gamma_2", real=True))
+    ps, d = sp.Float(repr(model.supply_pressure)), sp.Float(repr(model.underlap))
+    A, a, L = (sp.Float(repr(x)) for x in (model.piston_area, model.rod_area, model.chamber_length))
+    flow = sp.Matrix([hyd.valve_flow_unit(u[i], pc[i], ps, d) for i in range(6)])
+    inv = sp.Matrix([hyd.valve_inverse_unit(wq[i], pc[i], ps, d, PRESSURE_EPS) for i in range(6)])
+    # ṗ_c with q_l = c · (unit flow), c = γ2/γ1, β = γ1.
+    rate = sp.Matrix([hyd.chamber_pressure_rate(l[i], ld[i], gam[1] / gam[0] * flow[i], A, L, gam[0])
+                      for i in range(6)])
+    force = sp.Matrix([hyd.leg_force(pc[i], ps, A, a) for i in range(6)])
+    return [
+        SymbolicFunction("valve_flow", [("u", u), ("pc", pc)], [("ql_per_c", flow)],
+                         "q_l / c of eq. (57) per leg, m sqrt(Pa)."),
+        SymbolicFunction("valve_inverse", [("ql_per_c", wq), ("pc", pc)], [("u", inv)],
+                         "Spool position u (m) with q_l / c = ql_per_c: inverse of (57)."),
+        SymbolicFunction("pressure_rate", [("l", l), ("ldot", ld), ("pc", pc), ("u", u), ("gamma", gam)],
+                         [("pc_dot", rate)], "Control-chamber pressure rate (56)-(57), Pa/s."),
+        SymbolicFunction("leg_force", [("pc", pc)], [("f", force)], "f = pc A - ps a, N."),
+    ]
+
+
+def derive_functions(model) -> list:
+    """Every function generated for ``model``, in a fixed order."""
+    return kinematics_functions(model) + rigid_body_functions(model) + hydraulic_functions(model)
