@@ -56,6 +56,7 @@ class Model:
     underlap: float
     flow_gain: float
     bulk_modulus: float
+    orifice_linear_below: float
     theta_min: np.ndarray
     theta_max: np.ndarray
     gamma1_min: float
@@ -87,6 +88,7 @@ class Model:
             "chamber_length": self.chamber_length,
             "supply_pressure": self.supply_pressure,
             "underlap": self.underlap,
+            "orifice_linear_below": self.orifice_linear_below,
         }
 
     def baked_hash(self) -> str:
@@ -113,6 +115,7 @@ _SCHEMA = {
     ("hydraulics", "underlap"): ("float", "nonnegative"),
     ("hydraulics", "flow_gain"): ("float", "positive"),
     ("hydraulics", "bulk_modulus"): ("float", "positive"),
+    ("hydraulics", "orifice_linear_below"): ("float", "positive"),
     ("adaptation", "theta_min"): ("vec4", "positive"),
     ("adaptation", "theta_max"): ("vec4", "positive"),
     ("adaptation", "gamma1_min"): ("float", "positive"),

@@ -75,8 +75,10 @@ def hydraulic_functions(model) -> list:
     A, a, L = (sp.Float(repr(x)) for x in (model.piston_area, model.rod_area, model.chamber_length))
     flow = sp.Matrix([hyd.valve_flow_unit(u[i], pc[i], ps, d) for i in range(6)])
     inv = sp.Matrix([hyd.valve_inverse_unit(wq[i], pc[i], ps, d, PRESSURE_EPS) for i in range(6)])
-    # ṗ_c with q_l = c · (unit flow), c = γ2/γ1, β = γ1.
-    rate = sp.Matrix([hyd.chamber_pressure_rate(l[i], ld[i], gam[1] / gam[0] * flow[i], A, L, gam[0])
+    # Plant: ṗ_c with q_l = c · (unit flow), c = γ2/γ1, β = γ1, orifice linearised near Δp = 0.
+    p_lin = sp.Float(repr(model.orifice_linear_below))
+    plant_flow = [hyd.valve_flow_unit_smooth(u[i], pc[i], ps, d, p_lin) for i in range(6)]
+    rate = sp.Matrix([hyd.chamber_pressure_rate(l[i], ld[i], gam[1] / gam[0] * plant_flow[i], A, L, gam[0])
                       for i in range(6)])
     force = sp.Matrix([hyd.leg_force(pc[i], ps, A, a) for i in range(6)])
     return [
@@ -85,7 +87,9 @@ def hydraulic_functions(model) -> list:
         SymbolicFunction("valve_inverse", [("ql_per_c", wq), ("pc", pc)], [("u", inv)],
                          "Spool position u (m) with q_l / c = ql_per_c: inverse of (57)."),
         SymbolicFunction("pressure_rate", [("l", l), ("ldot", ld), ("pc", pc), ("u", u), ("gamma", gam)],
-                         [("pc_dot", rate)], "Control-chamber pressure rate (56)-(57), Pa/s."),
+                         [("pc_dot", rate)],
+                         "Control-chamber pressure rate (56)-(57) of the simulated plant, Pa/s "
+                         "(orifice law linear below orifice_linear_below)."),
         SymbolicFunction("leg_force", [("pc", pc)], [("f", force)], "f = pc A - ps a, N."),
     ]
 

@@ -1,0 +1,67 @@
+import numpy as np
+import pytest
+import sympy as sp
+
+import hydrogen
+from hydrogen.symbolic import kinematics as K
+
+from conftest import workspace_poses
+from reference import T_matrix, leg_lengths, rotation, vee
+
+
+def test_T_maps_euler_rates_to_base_frame_angular_velocity(rng):
+    """S(ω) = Ṙ Rᵀ with ω = T η̇ (finite differences of R, numpy)."""
+    for _ in range(20):
+        eta = rng.uniform(-1.2, 1.2, 3)
+        eta_dot = rng.normal(size=3)
+        h = 1e-6
+        Rd = (rotation(*(eta + h * eta_dot)) - rotation(*(eta - h * eta_dot))) / (2 * h)
+        omega = vee(Rd @ rotation(*eta).T)
+        np.testing.assert_allclose(T_matrix(eta[1], eta[2]) @ eta_dot, omega, atol=1e-8)
+
+
+def test_symbolic_rotation_and_T_match_numpy(rng):
+    q = K.pose_symbols()
+    R, T, Tb = K.rotation(q), K.angular_velocity_map(q), K.body_angular_velocity_map(q)
+    for _ in range(5):
+        val = rng.uniform(-1, 1, 6)
+        sub = dict(zip(q, val))
+        Rn = np.array(R.subs(sub), dtype=float)
+        np.testing.assert_allclose(Rn, rotation(*val[3:]), atol=1e-14)
+        np.testing.assert_allclose(np.array(T.subs(sub), dtype=float), T_matrix(val[4], val[5]), atol=1e-14)
+        np.testing.assert_allclose(np.array(Tb.subs(sub), dtype=float), Rn.T @ T_matrix(val[4], val[5]),
+                                   atol=1e-14)
+
+
+def test_leg_lengths_match_geometry(dyn, model, rng):
+    for q in workspace_poses(model, 20, rng):
+        np.testing.assert_allclose(dyn.leg_lengths(q), leg_lengths(model, q), rtol=1e-14)
+
+
+def test_neutral_pose_is_mid_stroke(dyn, model):
+    l = dyn.leg_lengths(model.neutral_pose)
+    assert np.all(l > model.leg_min) and np.all(l < model.leg_max)
+
+
+def test_leg_jacobian_matches_finite_differences(dyn, model, rng):
+    h = 1e-6
+    for q in workspace_poses(model, 20, rng):
+        fd = np.column_stack([(leg_lengths(model, q + h * e) - leg_lengths(model, q - h * e)) / (2 * h)
+                              for e in np.eye(6)])
+        np.testing.assert_allclose(dyn.leg_jacobian(q), fd, atol=1e-8)
+
+
+def test_forward_kinematics_inverts_leg_lengths_on_a_grid(dyn, model):
+    axes = [np.linspace(-1, 1, 3)] * 6
+    grid = np.stack(np.meshgrid(*axes), -1).reshape(-1, 6)
+    poses = model.neutral_pose + grid * np.array([0.05, 0.05, 0.05, 0.12, 0.12, 0.12])
+    for q in poses:
+        np.testing.assert_allclose(dyn.forward_kinematics(dyn.leg_lengths(q)), q, atol=1e-10)
+
+
+def test_forward_kinematics_reports_failure(dyn, model):
+    impossible = np.full(6, 0.1)  # legs far shorter than the joint circles allow
+    with pytest.raises(hydrogen.KinematicsError, match="forward kinematics"):
+        dyn.forward_kinematics(impossible, max_iter=30)
+    with pytest.raises(hydrogen.KinematicsError, match="not finite"):
+        dyn.forward_kinematics(np.full(6, np.nan))
