@@ -19,6 +19,8 @@ def to_casadi_function(sf, c_name: str | None = None, cse: bool = True) -> ca.Fu
 
     Each input symbol maps to one element of a dense SX input; one converter
     is shared by all outputs so their common subexpressions are one node.
+    Intermediates ``(symbols, value)`` are converted in order and bound to their
+    symbols; ``value`` may be ``("inverse", M)`` for a numeric matrix inverse.
     """
     table, sx_in = {}, []
     for name, mat in sf.inputs:
@@ -29,6 +31,14 @@ def to_casadi_function(sf, c_name: str | None = None, cse: bool = True) -> ca.Fu
                 table[mat[i, j]] = sym[i, j]
         sx_in.append(sym)
     conv = SympyToCasadi(table)
+    for symbols, value in getattr(sf, "intermediates", []):
+        if isinstance(value, tuple) and value[0] == "inverse":
+            # A numeric inverse (CasADi's symbolic QR solve), never a SymPy closed form.
+            mat = conv(value[1])
+            sx = ca.solve(mat, ca.SX.eye(mat.shape[0]))
+        else:
+            sx = conv(value)
+        conv.define(symbols, sx)
     sx_out = [conv(sp.Matrix(expr) if not isinstance(expr, sp.MatrixBase) else expr)
               for _, expr in sf.outputs]
     return ca.Function(c_name or sf.name, sx_in, sx_out,

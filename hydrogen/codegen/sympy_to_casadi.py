@@ -47,6 +47,17 @@ class SympyToCasadi:
     def __init__(self, symbols: dict):
         self._memo = dict(symbols)
 
+    def define(self, symbols, value) -> None:
+        """Bind each SymPy symbol of the Matrix ``symbols`` to the matching entry of SX ``value``.
+
+        Used for intermediates: quantities computed numerically (e.g. a linear
+        solve) or once (e.g. an observer rate) and then referred to by symbol.
+        """
+        rows, cols = symbols.shape
+        for i in range(rows):
+            for j in range(cols):
+                self._memo[symbols[i, j]] = value[i, j]
+
     def __call__(self, expr):
         """Convert a SymPy scalar expression or Matrix (→ dense SX of the same shape)."""
         if isinstance(expr, sp.MatrixBase):

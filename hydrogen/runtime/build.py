@@ -27,7 +27,7 @@ def generated_dir_for(model: Model, cache: Path | None = None) -> Path:
     committed = repo_generated_dir() / model.name
     if committed.is_dir() and not check(model, committed):
         return committed
-    return (cache or cache_root()) / "generated" / f"{model.name}-{model.baked_hash()[:16]}"
+    return Path(cache or cache_root()) / "generated" / f"{model.name}-{model.baked_hash()[:16]}"
 
 
 def build(model: Model | str | Path | None = None, *, cc: str | None = None,

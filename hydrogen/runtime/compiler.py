@@ -119,7 +119,7 @@ def compile_library(sources: list, name: str, toolchain: Toolchain | None = None
     toolchain = toolchain or Toolchain()
     sources = [Path(s).resolve() for s in sources]
     key = build_key(sources, toolchain)
-    build_dir = (cache or cache_root()) / "build" / key
+    build_dir = Path(cache or cache_root()) / "build" / key
     with locked(build_dir):
         if not force:
             lib = cached_library(build_dir)

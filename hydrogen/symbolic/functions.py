@@ -6,12 +6,14 @@ pass). Each :class:`SymbolicFunction` holds SymPy symbols and expressions only.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import sympy as sp
 
 from . import hydraulics as hyd
+from . import controllers as ctl
 from .kinematics import leg_jacobian, leg_lengths, pose_symbols, rate_symbols
+from .plant import plant_rhs
 from .rigid_body import coriolis, gravity, mass_matrix, regressor, theta_symbols
 
 __all__ = ["SymbolicFunction", "derive_functions", "PRESSURE_EPS"]
@@ -29,6 +31,7 @@ class SymbolicFunction:
     inputs: list
     outputs: list
     doc: str
+    intermediates: list = field(default_factory=list)
 
 
 def _vec(prefix, n=6):
@@ -94,6 +97,37 @@ def hydraulic_functions(model) -> list:
     ]
 
 
-def derive_functions(model) -> list:
+def _joints(model):
+    B = [[sp.Float(repr(float(x))) for x in row] for row in model.base_joints.tolist()]
+    P = [[sp.Float(repr(float(x))) for x in row] for row in model.platform_joints.tolist()]
+    return B, P
+
+
+def plant_functions(model) -> list:
+    inputs, xdot, intermediates = plant_rhs(model, *_joints(model))
+    return [SymbolicFunction("plant_rhs", inputs, [("xdot", xdot)],
+                             "Plant state rate: x = [q, qdot, pc, spool] (24), SI units.", intermediates)]
+
+
+CONTROLLERS = {
+    "backstepping": (ctl.backstepping, "Theorem 1 (known parameters): spool command u, m."),
+    "adaptive_robust": (ctl.adaptive_robust, "Theorem 3: adaptive controller, robust sliding observer."),
+    "adaptive_observer": (ctl.adaptive_observer, "Theorem 2: adaptive controller, adaptive observer."),
+    "p": (ctl.p_controller, "P controller on leg lengths (the paper's baseline)."),
+}
+
+
+def controller_functions(model) -> list:
+    B, P = _joints(model)
+    out = []
+    for name, (make, doc) in CONTROLLERS.items():
+        parts = make(model, B, P)
+        out.append(SymbolicFunction(f"ctrl_{name}", parts.inputs, parts.outputs, doc, parts.intermediates))
+    return out
+
+
+def derive_functions(model, controllers: bool = True) -> list:
     """Every function generated for ``model``, in a fixed order."""
-    return kinematics_functions(model) + rigid_body_functions(model) + hydraulic_functions(model)
+    funcs = kinematics_functions(model) + rigid_body_functions(model) + hydraulic_functions(model) \
+        + plant_functions(model)
+    return funcs + controller_functions(model) if controllers else funcs

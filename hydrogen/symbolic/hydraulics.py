@@ -38,8 +38,9 @@ def signed_sqrt_linearised(x, x_lin) -> sp.Expr:
     Continuous at |x| = x_lin; used by the simulated plant only, never by a controller.
     """
     return sp.Piecewise(
-        (x / sp.sqrt(x_lin), sp.Abs(x) < x_lin),
+        (x / sp.sqrt(x_lin), sp.Lt(sp.Abs(x), x_lin, evaluate=False)),
         (sp.sign(x) * sp.sqrt(sp.Abs(x)), True),
+        evaluate=False,
     )
 
 
@@ -52,9 +53,10 @@ def valve_flow_unit_smooth(u, pc, ps, d, p_lin) -> sp.Expr:
     up = signed_sqrt_linearised(ps - pc, p_lin)
     down = signed_sqrt_linearised(pc, p_lin)
     return sp.Piecewise(
-        ((u - d) * down, u < -d),
-        ((u + d) * up + (u - d) * down, u <= d),
+        ((u - d) * down, sp.Lt(u, -d, evaluate=False)),
+        ((u + d) * up + (u - d) * down, sp.Le(u, d, evaluate=False)),
         ((u + d) * up, True),
+        evaluate=False,
     )
 
 
@@ -89,8 +91,10 @@ def valve_inverse_unit(w, pc, ps, d, eps) -> sp.Expr:
     sp_dn = sp.sqrt(sp.Max(pc, eps))
     w_hi = 2 * d * sp_up      # flow at u = +d
     w_lo = -2 * d * sp_dn     # flow at u = −d
+    # evaluate=False: w may be a large controller expression; SymPy must not try to order it.
     return sp.Piecewise(
-        (w / sp_up - d, w > w_hi),
-        (w / sp_dn + d, w < w_lo),
+        (w / sp_up - d, sp.Gt(w, w_hi, evaluate=False)),
+        (w / sp_dn + d, sp.Lt(w, w_lo, evaluate=False)),
         ((w - d * sp_up + d * sp_dn) / (sp_up + sp_dn), True),
+        evaluate=False,
     )

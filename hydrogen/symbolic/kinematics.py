@@ -88,3 +88,25 @@ def leg_lengths(q, base_joints, platform_joints) -> sp.Matrix:
 def leg_jacobian(q, base_joints, platform_joints) -> sp.Matrix:
     """JL = ∂l/∂q (6×6): l̇ = JL q̇; the generalised force of leg forces f is (JL)ᵀ f."""
     return leg_lengths(q, base_joints, platform_joints).jacobian(sp.Matrix(q))
+
+
+def leg_intermediates(q, qdot, base_joints, platform_joints):
+    """Leg lengths, JL and d/dt JL as intermediate symbols (keeps SymPy expressions small).
+
+    Returns ``(l, JL, JL_dot, intermediates)`` where ``l`` (6×1), ``JL`` and
+    ``JL_dot`` (6×6) are Matrices of symbols and ``intermediates`` lists
+    ``(symbols, expression)`` pairs to be evaluated in order: row i of JL is
+    vᵢᵀ ∂vᵢ/∂q / lᵢ for the leg vector vᵢ, and J̇L follows by the chain rule
+    through q (rate q̇) and l (rate JL q̇).
+    """
+    vs = leg_vectors(q, base_joints, platform_joints)
+    l = sp.Matrix([sp.Symbol(f"legl_{i}", real=True) for i in range(6)])
+    JL = sp.Matrix(6, 6, lambda i, j: sp.Symbol(f"JL_{i}{j}", real=True))
+    JL_dot = sp.Matrix(6, 6, lambda i, j: sp.Symbol(f"JLdot_{i}{j}", real=True))
+    qm = sp.Matrix(q)
+    l_value = sp.Matrix([sp.sqrt(v.dot(v)) for v in vs])
+    JL_value = sp.Matrix.vstack(*[(v.T * v.jacobian(qm)) / l[i] for i, v in enumerate(vs)])
+    ldot = JL * sp.Matrix(qdot)
+    JL_dot_value = sum((JL_value.diff(q[k]) * qdot[k] for k in range(6)), sp.zeros(6, 6)) \
+        + sum((JL_value.diff(l[i]) * ldot[i] for i in range(6)), sp.zeros(6, 6))
+    return l, JL, JL_dot, [(l, l_value), (JL, JL_value), (JL_dot, JL_dot_value)]

@@ -12,7 +12,8 @@ import sympy as sp
 from .kinematics import angular_velocity_map, body_angular_velocity_map, rotation
 
 __all__ = [
-    "theta_symbols", "mass_matrix", "coriolis", "gravity", "regressor", "coriolis_paper",
+    "theta_symbols", "mass_matrix", "mass_matrix_inverse", "coriolis", "gravity", "regressor",
+    "coriolis_paper",
 ]
 
 
@@ -29,6 +30,21 @@ def mass_matrix(q, theta) -> sp.Matrix:
     D[:3, :3] = Mp * sp.eye(3)
     D[3:, 3:] = Tb.T * sp.diag(Ix, Iy, Iz) * Tb
     return D
+
+
+def mass_matrix_inverse(q, theta) -> sp.Matrix:
+    """D(q)⁻¹ in closed form from the block structure: T_b⁻¹ ᵖI⁻¹ T_b⁻ᵀ (det T_b = cos θ).
+
+    Singular only at θ = ±90° (gimbal lock), far outside the platform's workspace.
+    """
+    Mp, Ix, Iy, Iz = theta
+    psi, th = q[3], q[4]
+    c, s, ct, tt = sp.cos(psi), sp.sin(psi), sp.cos(th), sp.tan(th)
+    Tb_inv = sp.Matrix([[1, s * tt, c * tt], [0, c, -s], [0, s / ct, c / ct]])
+    Dinv = sp.zeros(6, 6)
+    Dinv[:3, :3] = sp.eye(3) / Mp
+    Dinv[3:, 3:] = Tb_inv * sp.diag(1 / Ix, 1 / Iy, 1 / Iz) * Tb_inv.T
+    return Dinv
 
 
 def coriolis(D: sp.Matrix, q, qdot) -> sp.Matrix:

@@ -1,0 +1,1 @@
+"""Closed-loop simulation: scenarios, controller runtimes, the loop and its metrics (numpy only)."""

@@ -1,0 +1,59 @@
+"""Reference trajectories q_d(t) with analytic derivatives up to third order (base frame, SI)."""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+__all__ = ["MultiSine", "Step"]
+
+
+@dataclass(frozen=True)
+class MultiSine:
+    """q_d(t) = bias + Σ_k a_k sin(2π f_k t), per coordinate.
+
+    ``terms`` is a list of (coordinate index, amplitude, frequency Hz).
+    """
+
+    bias: np.ndarray
+    terms: tuple
+
+    def __call__(self, t: float):
+        """(q_d, q̇_d, q̈_d, q⃛_d) at time t (s), each (6,)."""
+        out = [np.array(self.bias, float), np.zeros(6), np.zeros(6), np.zeros(6)]
+        for i, a, f in self.terms:
+            w = 2 * np.pi * f
+            s, c = np.sin(w * t), np.cos(w * t)
+            out[0][i] += a * s
+            out[1][i] += a * w * c
+            out[2][i] -= a * w * w * s
+            out[3][i] -= a * w ** 3 * c
+        return out
+
+    def amplitude(self) -> np.ndarray:
+        """Per-coordinate sum of amplitudes (m or rad); the scale of the max-error percentages."""
+        amp = np.zeros(6)
+        for i, a, _ in self.terms:
+            amp[i] += abs(a)
+        return amp
+
+
+@dataclass(frozen=True)
+class Step:
+    """q_d = bias + height e_axis for t ≥ t_step (a raw step, derivatives zero, as in Fig. 8)."""
+
+    bias: np.ndarray
+    axis: int
+    height: float
+    t_step: float
+
+    def __call__(self, t: float):
+        q = np.array(self.bias, float)
+        if t >= self.t_step:
+            q[self.axis] += self.height
+        return [q, np.zeros(6), np.zeros(6), np.zeros(6)]
+
+    def amplitude(self) -> np.ndarray:
+        amp = np.zeros(6)
+        amp[self.axis] = abs(self.height)
+        return amp
