@@ -7,6 +7,8 @@ from __future__ import annotations
 
 import argparse
 import sys
+
+import numpy as np
 from pathlib import Path
 
 from .errors import HydrogenError
@@ -34,6 +36,46 @@ def _cmd_generate(args) -> int:
     return 0
 
 
+def _cmd_simulate(args) -> int:
+    import hydrogen
+    from .fileio import atomic_write
+    from .simulation.simulator import COORDS
+
+    res = hydrogen.simulate(args.scenario, args.controller, model=args.model, duration=args.duration)
+    m = res.metrics
+    print(f"scenario {res.scenario}, controller {res.controller}: {m['sim_time_s']:.2f} s simulated "
+          f"in {m['wall_time_s']:.2f} s wall ({m['sim_time_s'] / max(m['wall_time_s'], 1e-9):.0f}x real time)")
+    print(f"max tracking error over t >= {m['metric_start_s']} s (% of reference amplitude, absolute):")
+    for c in COORDS:
+        pct = m["max_error_pct"][c]
+        unit, scale = ("mm", 1e3) if c in "xyz" else ("mrad", 1e3)
+        print(f"  {c:>5}: {'-' if pct is None else f'{pct:7.2f} %'}   {m['max_error'][c] * scale:9.4f} {unit}")
+    names = ("Mp", "Ix", "Iy", "Iz")
+    print("theta_hat final:", ", ".join(f"{n} {v:.2f} ({e:+.1f} %)" for n, v, e in
+                                        zip(names, m["theta_hat_final"], m["theta_error_pct_final"])))
+    g1, g2 = np.mean(m["gamma_hat_final"][0]), np.mean(m["gamma_hat_final"][1])
+    print(f"gamma_hat final (mean over legs): beta {g1:.4g} Pa ({100 * (g1 / m['gamma_true'][0] - 1):+.1f} %), "
+          f"beta*c {g2:.4g} ({100 * (g2 / m['gamma_true'][1] - 1):+.1f} %)")
+    if args.json:
+        atomic_write(Path(args.json), res.to_json() + "\n")
+        print(f"metrics written to {args.json}")
+    if args.plot:
+        from .figures import plot_tracking_errors
+        plot_tracking_errors(res, Path(args.plot))
+        print(f"figure written to {args.plot}")
+    return 0
+
+
+def _cmd_figures(args) -> int:
+    import hydrogen
+    from .figures import make_all
+
+    paths = make_all(hydrogen.build(hydrogen.load_model(args.model)), Path(args.out))
+    for name, path in paths.items():
+        print(f"{name}: {path}")
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="hydrogen", description=__doc__.splitlines()[0])
     sub = parser.add_subparsers(dest="command", required=True)
@@ -44,6 +86,22 @@ def build_parser() -> argparse.ArgumentParser:
     g.add_argument("--check", action="store_true", help="exit 1 if the folder is stale; write nothing")
     g.add_argument("--force", action="store_true", help="regenerate even when up to date")
     g.set_defaults(func=_cmd_generate)
+    from .simulation.control import CONTROLLERS
+    from .simulation.scenarios import SCENARIOS
+    sim = sub.add_parser("simulate", help="run a scenario in closed loop and print its metrics",
+                         description="Simulate a scenario of the paper with one controller.")
+    sim.add_argument("--scenario", default="paper-sim", choices=SCENARIOS)
+    sim.add_argument("--controller", default="adaptive-robust", choices=CONTROLLERS)
+    sim.add_argument("--duration", type=float, help="simulated time, s (default: the scenario's)")
+    sim.add_argument("--model", help="model TOML file (default: the packaged model)")
+    sim.add_argument("--json", help="write the metrics as JSON to this file")
+    sim.add_argument("--plot", help="write the tracking-error figure (PNG) to this file")
+    sim.set_defaults(func=_cmd_simulate)
+    fig = sub.add_parser("figures", help="run every scenario and write the paper's figures and table",
+                         description="Counterparts of Figs. 2, 3, 5-8 (PNG) and the comparison table (Markdown).")
+    fig.add_argument("--out", default="figures", help="output folder (default: ./figures)")
+    fig.add_argument("--model", help="model TOML file (default: the packaged model)")
+    fig.set_defaults(func=_cmd_figures)
     return parser
 
 

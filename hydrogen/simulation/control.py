@@ -26,21 +26,21 @@ DEFAULT_GAINS = {
         "u_max": np.array([5.0e-3]),                 # m, spool travel
     },
     "adaptive-robust": {
-        "Ko": 200.0 * np.ones(6),
+        "Ko": 100.0 * np.ones(6),                    # 1/s
         "Gz_inv": 1.0 / (250 * _T + 45 * _R),        # observer weight Γ_z⁻¹ ≈ D⁻¹ (1/kg, 1/(kg m²))
-        "lambda_o": np.array([0.05, 0.0, 0.0, 0.0]),
-        "sat_width": np.array([0.01]),
-        "Gtheta_inv": np.array([2.0e4, 2.0e3, 2.0e3, 2.0e3]),
-        "Ggamma1_inv": 1.0e20 * np.ones(6),
-        "Ggamma2_inv": 1.0e11 * np.ones(6),
+        "lambda_o": np.array([1.0, 0.0, 0.0, 0.0]),  # λ0..λ3 of (55)
+        "sat_width": np.array([1.0e-3]),             # m/s, rad/s: sat(z̃/ε) in place of sgn(z̃)
+        "Gtheta_inv": np.array([1.0e3, 2.0e3, 2.0e3, 2.0e3]),
+        "Ggamma1_inv": 1.0e14 * np.ones(6),
+        "Ggamma2_inv": 2.0e7 * np.ones(6),
     },
     "adaptive-observer": {
         "Lambda2": 60.0 * np.ones(6),
         "Lp": 3000.0 * (250 * _T + 45 * _R),
         "Kd_obs": 60.0 * (250 * _T + 45 * _R),
-        "Gtheta_inv": np.array([2.0e4, 2.0e3, 2.0e3, 2.0e3]),
-        "Ggamma1_inv": 1.0e20 * np.ones(6),
-        "Ggamma2_inv": 1.0e11 * np.ones(6),
+        "Gtheta_inv": np.array([1.0e3, 2.0e3, 2.0e3, 2.0e3]),
+        "Ggamma1_inv": 1.0e14 * np.ones(6),
+        "Ggamma2_inv": 2.0e7 * np.ones(6),
     },
     "p": {"Kleg": 0.05 * np.ones(6), "u_max": np.array([3.0e-3])},
 }
@@ -83,6 +83,7 @@ class _Controller:
                                gamma2_min=np.array([m.gamma2_min]), gamma2_max=np.array([m.gamma2_max]))
         self._lo, self._hi = lo, hi
         self.tau_d = np.zeros(6)
+        self.tau_d_dot = np.zeros(6)
         self.f_d = np.zeros(6)
 
     def part(self, name):
@@ -111,7 +112,7 @@ class _Controller:
         u = out[0]
         if self.xc.size:
             self.xc_dot = out[1]
-        self.tau_d, self.f_d = out[-2], out[-1]
+        self.tau_d, self.tau_d_dot, self.f_d = out[-3], out[-2], out[-1]
         return u
 
     def advance(self, h):

@@ -21,7 +21,8 @@ class Scenario:
     from fixed-gain Kalman filters on the measured leg lengths (constant
     velocity model, white acceleration of spectral density ``kalman_accel``).
     theta0_factor / gamma0_factor scale the true parameters into the initial
-    estimates. Metrics are taken over t ≥ metric_start.
+    estimates. Metrics are taken over t ≥ metric_start. The platform starts at
+    rest at q_d(0) + q0_offset, its pressures holding it against gravity.
     """
 
     name: str
@@ -39,6 +40,7 @@ class Scenario:
     theta0_factor: tuple = (1.0, 1.0, 1.0, 1.0)
     gamma0_factor: tuple = (1.0, 1.0)
     metric_start: float = 0.0
+    q0_offset: tuple = (0.0,) * 6
     seed: int = 0
 
     def with_overrides(self, **kw):
@@ -57,7 +59,7 @@ def _paper_sim(neutral):
              (5, 0.0524, 1), (5, 0.0175, 2))
     return Scenario(
         name="paper-sim", reference=MultiSine(neutral, terms), duration=10.0,
-        control_rate=1000.0, substeps=4, t_adapt=0.5,
+        control_rate=1000.0, substeps=4, t_adapt=0.5, metric_start=8.0,
         theta0_factor=(1.2, 0.7, 1.3, 0.8), gamma0_factor=(0.7, 1.3))
 
 

@@ -134,7 +134,7 @@ def simulate(dyn, scenario, controller: str, *, gains=None, duration=None, check
         _check_reference(dyn, sc, n, h)
     ctrl = make_controller(dyn, controller, gains, theta0, gamma0)
 
-    q0 = sc.reference(0.0)[0]
+    q0 = sc.reference(0.0)[0] + np.asarray(sc.q0_offset, float)
     pc0 = equilibrium_pressures(dyn, q0, theta_true)
     x = np.concatenate([q0, np.zeros(6), pc0, np.zeros(6)])
     ctrl.reset(q0, np.zeros(6))

@@ -105,6 +105,7 @@ class _Common:
         stages.append((S["u_raw"], sp.Matrix([hyd.valve_inverse_unit(w[i], self.pc[i], self.ps, self.d,
                                                                      PRESSURE_EPS) for i in range(6)])))
         u = sp.Matrix([clip(S["u_raw"][i], -self.u_max, self.u_max) for i in range(6)])
+        self.taud_dot = S["taud_dot"]
         return S["fd"], ftil, f0, S["v"], u, S["taud"], stages
 
     def jit_intermediate(self):
@@ -148,7 +149,7 @@ def backstepping(model, B, P) -> ControllerParts:
     return ControllerParts(
         inputs=[*c.base_inputs(), ("theta", th), ("gamma", gam), *c.gain_inputs()],
         intermediates=[*c.kin, c.jit_intermediate(), (acc, acc_value), *stages],
-        outputs=[("u", u), ("tau_d", taud), ("f_d", fd)],
+        outputs=[("u", u), ("tau_d", taud), ("tau_d_dot", c.taud_dot), ("f_d", fd)],
     )
 
 
@@ -208,7 +209,7 @@ def adaptive_robust(model, B, P) -> ControllerParts:
         inputs=[*c.base_inputs(), ("xc", xc), *c.gain_inputs(), ("Ko", Ko), ("lambda_o", lam_o), ("Gz_inv", Gz_inv),
                 ("sat_width", sp.Matrix([eps])), ("Dbar_inv", Dbar_inv), ("Gbar", Gbar), *ad_inputs],
         intermediates=[*c.kin, c.jit_intermediate(), (z_dot, z_dot_value), (th_dot, th_dot_value), *stages],
-        outputs=[("u", u), ("xc_dot", xc_dot), ("tau_d", taud), ("f_d", fd)],
+        outputs=[("u", u), ("xc_dot", xc_dot), ("tau_d", taud), ("tau_d_dot", c.taud_dot), ("f_d", fd)],
     )
 
 
@@ -252,7 +253,7 @@ def adaptive_observer(model, B, P) -> ControllerParts:
         inputs=[*c.base_inputs(), ("xc", xc), *c.gain_inputs(), ("Lambda2", Lam2), ("Lp", Lp),
                 ("Kd_obs", Kd2), *ad_inputs],
         intermediates=[*c.kin, c.jit_intermediate(), (z_dot, z_dot_value), (th_dot, th_dot_value), *stages],
-        outputs=[("u", u), ("xc_dot", xc_dot), ("tau_d", taud), ("f_d", fd)],
+        outputs=[("u", u), ("xc_dot", xc_dot), ("tau_d", taud), ("tau_d_dot", c.taud_dot), ("f_d", fd)],
     )
 
 

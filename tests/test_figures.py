@@ -1,0 +1,111 @@
+"""Figures and table from synthetic results (no simulation runs)."""
+import numpy as np
+import pytest
+
+from hydrogen import figures
+from hydrogen.simulation.simulator import SimulationResult
+
+PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
+
+
+def _result(controller, scenario="z-1hz", n=200, err_scale=1e-3, step=False, seed=0):
+    rng = np.random.default_rng(seed)
+    t = np.linspace(0.0, 2.0, n)
+    bias = np.array([0.0, 0.0, -2.34, 0.0, 0.0, 0.0])
+    amp = np.array([0.0, 0.0, 0.05, 0.09, 0.0, 0.0])
+    q_d = np.tile(bias, (n, 1))
+    if step:
+        q_d[t >= 1.0, 2] += 0.02
+        amp = np.array([0.0, 0.0, 0.02, 0.0, 0.0, 0.0])
+    else:
+        q_d[:, 2] += 0.05 * np.sin(2 * np.pi * t)
+        q_d[:, 3] += 0.09 * np.sin(2 * np.pi * t)
+    q = q_d + err_scale * rng.standard_normal((n, 6))
+    theta_true = np.array([500.0, 80.0, 80.0, 120.0])
+    gamma_true = np.array([7e8, 7e8 * 1e-8])
+    decay = np.exp(-t)[:, None]
+    theta_hat = theta_true * (1.0 + 0.2 * decay * np.array([1.0, -0.3, 0.3, -0.2]))
+    gamma1_hat = gamma_true[0] * (1.0 - 0.3 * decay * np.ones(6))
+    gamma2_hat = gamma_true[1] * (1.0 + 0.3 * decay * np.ones(6))
+    res = SimulationResult(
+        scenario=scenario, controller=controller, t=t, q=q, q_d=q_d,
+        leg_lengths=np.full((n, 6), 2.0), leg_forces=np.zeros((n, 6)), pressures=np.full((n, 6), 1e7),
+        u=np.zeros((n, 6)), theta_hat=theta_hat, gamma1_hat=gamma1_hat, gamma2_hat=gamma2_hat,
+        theta_true=theta_true, gamma_true=gamma_true, amplitude=amp, metric_start=0.5)
+    res.compute_metrics()
+    return res
+
+
+def _check_png(path):
+    assert path.exists()
+    data = path.read_bytes()
+    assert data.startswith(PNG_SIGNATURE)
+    assert len(data) > 5000
+    # no temporary files left beside it
+    assert not [p for p in path.parent.iterdir() if p.name.endswith(".tmp")]
+
+
+def test_tracking_errors(tmp_path):
+    out = tmp_path / "fig2.png"
+    assert figures.plot_tracking_errors(_result("adaptive-robust", "paper-sim"), out, t_adapt=0.5) == out
+    _check_png(out)
+    out2 = tmp_path / "fig2_noline.png"
+    figures.plot_tracking_errors(_result("adaptive-robust", "paper-sim"), out2)
+    _check_png(out2)
+
+
+def test_parameter_errors(tmp_path):
+    out = tmp_path / "sub" / "fig3.png"  # missing folder is created
+    figures.plot_parameter_errors(_result("adaptive-robust", "paper-sim"), out)
+    _check_png(out)
+
+
+@pytest.mark.parametrize("coord", ["z", "psi"])
+def test_experiment(tmp_path, coord):
+    nl = _result("adaptive-robust", err_scale=1e-4, seed=1)
+    p = _result("p", err_scale=5e-3, seed=2)
+    assert nl.metrics["max_error_pct"][coord] < p.metrics["max_error_pct"][coord]
+    out = tmp_path / f"exp_{coord}.png"
+    figures.plot_experiment(nl, p, coord, out, title="test")
+    _check_png(out)
+
+
+def test_experiment_coord_without_amplitude(tmp_path):
+    # y has no reference amplitude: max_error_pct is None, shown as n/a
+    nl, p = _result("adaptive-robust"), _result("p")
+    assert nl.metrics["max_error_pct"]["y"] is None
+    out = tmp_path / "exp_y.png"
+    figures.plot_experiment(nl, p, "y", out)
+    _check_png(out)
+
+
+def test_experiment_rejects_unknown_coord(tmp_path):
+    with pytest.raises(KeyError, match="unknown coordinate"):
+        figures.plot_experiment(_result("adaptive-robust"), _result("p"), "w", tmp_path / "x.png")
+
+
+def test_step(tmp_path):
+    nl = _result("adaptive-robust", "z-step", step=True, err_scale=1e-4)
+    p = _result("p", "z-step", step=True, err_scale=2e-3)
+    out = tmp_path / "fig8.png"
+    figures.plot_step(nl, p, out)
+    _check_png(out)
+
+
+def test_figures_are_closed(tmp_path):
+    import matplotlib.pyplot as plt
+    before = len(plt.get_fignums())
+    figures.plot_tracking_errors(_result("adaptive-robust"), tmp_path / "a.png")
+    figures.plot_step(_result("a", step=True), _result("p", step=True), tmp_path / "b.png")
+    assert len(plt.get_fignums()) == before
+
+
+def test_comparison_table():
+    table = figures.comparison_table([("z 1 Hz", "z", 3.21, 40.0, 4, 43), ("psi 1 Hz", "psi", None, 41.5, 4, 41)])
+    lines = table.strip().splitlines()
+    assert lines[0].startswith("| scenario | coordinate |")
+    assert "nonlinear" in lines[0] and "paper" in lines[0]
+    assert set(lines[1]) <= set("|-: ")
+    assert "| z 1 Hz | z | 3.2 | 40.0 | 4.0 | 43.0 |" in lines
+    assert "| psi 1 Hz | psi | n/a | 41.5 | 4.0 | 41.0 |" in lines
+    assert len(lines) == 4

@@ -1,0 +1,208 @@
+"""Closed loop: plant integration, τ̇_d, the paper's qualitative claims, and failure reporting."""
+import json
+
+import casadi as ca
+import numpy as np
+import pytest
+import sympy as sp
+from scipy.integrate import solve_ivp
+
+import hydrogen
+from hydrogen.cli import main as cli
+from hydrogen.codegen.sympy_to_casadi import SympyToCasadi
+from hydrogen.simulation.control import make_controller
+from hydrogen.simulation.reference import MultiSine
+from hydrogen.simulation.scenarios import scenario
+from hydrogen.simulation.simulator import _rk4, equilibrium_pressures, simulate
+from hydrogen.symbolic import controllers as C
+from hydrogen.symbolic.functions import _joints
+
+FRIC, NO_LAG = np.array([100.0, 300.0, 1e-3]), np.array([0.0])
+
+
+def test_rk4_matches_a_stiff_adaptive_reference(dyn, model, rng):
+    q0 = model.neutral_pose + np.array([0.01, -0.01, 0.02, 0.03, -0.02, 0.01])
+    x0 = np.concatenate([q0, rng.normal(size=6) * 0.05, equilibrium_pressures(dyn, q0, model.theta),
+                         np.zeros(6)])
+    u = rng.uniform(-1, 1, 6) * 2e-4
+    rhs = lambda x: dyn.functions["plant_rhs"](x, u, model.theta, model.gamma, FRIC, NO_LAG)  # noqa: E731
+    T, h = 0.05, 1.0 / 4000
+    x = x0.copy()
+    for _ in range(int(round(T / h))):
+        x = _rk4(rhs, x, h)
+    ref = solve_ivp(lambda t, y: rhs(y), (0, T), x0, method="Radau", rtol=1e-10, atol=1e-12)
+    assert ref.success
+    scale = np.r_[np.full(6, 1e-3), np.full(6, 1e-2), np.full(6, 1e5), np.full(6, 1e-5)]
+    assert np.max(np.abs(x - ref.y[:, -1]) / scale) < 1e-3
+
+
+def test_plant_at_equilibrium_stays_still(dyn, model):
+    q0 = model.neutral_pose
+    x0 = np.concatenate([q0, np.zeros(6), equilibrium_pressures(dyn, q0, model.theta), np.zeros(6)])
+    pc0 = x0[12:18]
+    # spool at each leg's null position for its pressure: no net flow
+    d, ps = model.underlap, model.supply_pressure
+    r = np.sqrt(pc0 / (ps - pc0))
+    u = d * (r - 1) / (r + 1)
+    xdot = dyn.functions["plant_rhs"](x0, u, model.theta, model.gamma, np.zeros(3) + [0, 0, 1e-3], NO_LAG)
+    np.testing.assert_allclose(xdot[6:12], 0, atol=1e-9)
+    np.testing.assert_allclose(xdot[12:18], 0, atol=1e-3)
+
+
+def test_backstepping_errors_decay_exponentially(dyn, model):
+    const = MultiSine(model.neutral_pose, ())
+    sc = scenario("paper-sim", model).with_overrides(
+        reference=const, duration=1.2, q0_offset=(0.01, -0.01, 0.01, 0.02, -0.02, 0.02), metric_start=0.0)
+    res = simulate(dyn, sc, "backstepping")
+    err = np.linalg.norm(res.error, axis=1)
+    at = lambda t: err[np.searchsorted(res.t, t)]  # noqa: E731
+    samples = [at(t) for t in (0.2, 0.4, 0.6)]
+    assert samples[0] < 0.1 * err[0]
+    assert samples[1] < 0.1 * samples[0] and samples[2] < 0.1 * samples[1]  # geometric decay
+    assert err[-1] < 1e-8  # down to the integrator's floor
+
+
+def _parts_with_rates(kind, model):
+    make = {"backstepping": C.backstepping, "adaptive-robust": C.adaptive_robust,
+            "adaptive-observer": C.adaptive_observer}[kind]
+    parts = make(model, *_joints(model))
+    stage = {str(s[0]): (s, v) for s, v in parts.intermediates}
+    taud_sym, taud = stage["taud_0"]
+    _, taud_dot = stage["taud_dot_0"]
+    return parts, taud, taud_dot
+
+
+@pytest.mark.parametrize("kind", ["backstepping", "adaptive-robust", "adaptive-observer"])
+def test_tau_d_dot_matches_casadi_ad(kind, model, rng):
+    """SymPy's τ̇_d equals CasADi's forward AD of τ_d along the rates the controller assumes."""
+    parts, taud, taud_dot = _parts_with_rates(kind, model)
+    syms = sorted(taud.free_symbols | taud_dot.free_symbols, key=str)
+    X = ca.SX.sym("X", len(syms))
+    conv = SympyToCasadi({s: X[i] for i, s in enumerate(syms)})
+    tau_sx, tau_dot_sx = conv(taud), conv(taud_dot)
+    idx = {str(s): i for i, s in enumerate(syms)}
+    rate = ca.SX.zeros(len(syms))
+
+    def get(name):
+        return X[idx[name]] if name in idx else 0
+
+    for s in syms:
+        n = str(s)
+        base, _, k = n.rpartition("_")
+        if n.startswith("q_") and not n.startswith("q_hat"):
+            rate[idx[n]] = get(f"qdot_{'x y z psi theta phi'.split().index(n[2:])}")
+        elif base == "qdot":
+            rate[idx[n]] = get(f"acc_{k}")
+        elif base in ("qd0", "qd1", "qd2"):
+            rate[idx[n]] = get(f"qd{int(base[2]) + 1}_{k}")
+        elif base == "z":
+            rate[idx[n]] = get(f"zdot_{k}")
+        elif base == "theta_hat":
+            rate[idx[n]] = get(f"thetadot_{k}")
+        elif base == "q_hat":
+            i = int(k)
+            qn = f"q_{'x y z psi theta phi'.split()[i]}"
+            rate[idx[n]] = get(f"z_{i}") + get(f"Lambda2_{i}") * (get(qn) - X[idx[n]])
+    ad = ca.jtimes(tau_sx, X, rate)
+    f = ca.Function("f", [X], [ad, tau_dot_sx])
+    for _ in range(5):
+        x = rng.normal(size=len(syms))
+        for s, i in idx.items():
+            if s.startswith("q_") and not s.startswith("q_hat"):
+                x[i] = model.neutral_pose["x y z psi theta phi".split().index(s[2:])] + 0.05 * x[i]
+            if s.startswith("theta_hat"):
+                x[i] = 40 + abs(x[i])
+        a, b = (np.array(v).ravel() for v in f(x))
+        np.testing.assert_allclose(b, a, rtol=1e-9, atol=1e-9 * max(1, np.abs(a).max()))
+
+
+@pytest.mark.parametrize("kind", ["backstepping", "adaptive-robust"])
+def test_tau_d_dot_matches_finite_differences_along_a_trajectory(kind, dyn, model):
+    """Propagate plant and controller state ±δ around a simulated state; (τ_d⁺ − τ_d⁻)/2δ ≈ τ̇_d."""
+    sc = scenario("paper-sim", model)
+    res = simulate(dyn, sc, kind, duration=0.6, t_adapt=0.2)
+    ctrl = make_controller(dyn, kind, None, res.theta_hat[-1], model.gamma)
+    q, pc = res.q[-1], res.pressures[-1]
+    # rebuild a consistent state: velocity from the last two logged poses is not exact, so integrate
+    # the plant from the logged state with the logged command instead.
+    x = np.concatenate([q, (res.q[-1] - res.q[-2]) * sc.control_rate, pc, np.zeros(6)])
+    ctrl.reset(q, x[6:12])
+    t = res.t[-1]
+    u = ctrl.command(q, x[6:12], pc, dyn.leg_lengths(q), sc.reference(t), True)
+    tau_dot, xc, xc_dot = ctrl.tau_d_dot.copy(), ctrl.xc.copy(), ctrl.xc_dot.copy()
+    rhs = lambda xx: dyn.functions["plant_rhs"](xx, u, model.theta, model.gamma, np.array([0, 0, 1e-3]), NO_LAG)  # noqa
+    delta = 1e-6
+    taus = []
+    for sgn in (+1, -1):
+        xs = _rk4(rhs, x, sgn * delta)
+        ctrl.xc = xc + sgn * delta * xc_dot
+        ctrl.command(xs[:6], xs[6:12], xs[12:18], dyn.leg_lengths(xs[:6]), sc.reference(t + sgn * delta), True)
+        taus.append(ctrl.tau_d.copy())
+    fd = (taus[0] - taus[1]) / (2 * delta)
+    np.testing.assert_allclose(tau_dot, fd, rtol=1e-4, atol=1e-4 * np.abs(fd).max())
+
+
+def _window_ratio(res):
+    first = np.abs(res.error[res.t < 2.0]).max(axis=0)
+    last = np.abs(res.error[res.t >= res.t[-1] - 2.0]).max(axis=0)
+    return last / first
+
+
+@pytest.fixture(scope="module")
+def paper_runs(dyn):
+    return {k: simulate(dyn, "paper-sim", k) for k in ("adaptive-robust", "adaptive-observer")}
+
+
+@pytest.mark.parametrize("kind", ["adaptive-robust", "adaptive-observer"])
+def test_paper_sim_errors_shrink_twentyfold(paper_runs, kind):
+    ratio = _window_ratio(paper_runs[kind])
+    assert np.all(ratio <= 1 / 20), ratio
+
+
+def test_paper_sim_observer_controller_estimates_rigid_body_within_5_percent(paper_runs):
+    res = paper_runs["adaptive-observer"]
+    err = np.abs(res.theta_hat[-1] - res.theta_true) / res.theta_true
+    assert np.all(err < 0.05), err
+
+
+def test_paper_sim_robust_controller_estimates_mass_within_5_percent(paper_runs):
+    res = paper_runs["adaptive-robust"]
+    err = np.abs(res.theta_hat[-1] - res.theta_true) / res.theta_true
+    assert err[0] < 0.05 and err[2] < 0.05, err
+
+
+@pytest.mark.xfail(strict=True, reason="with the robust observer, I_x stops adapting once tracking errors "
+                   "reach their floor (~+19 % after 2 s, frozen): too little excitation; see README")
+def test_paper_sim_robust_controller_estimates_all_inertias_within_5_percent(paper_runs):
+    res = paper_runs["adaptive-robust"]
+    err = np.abs(res.theta_hat[-1] - res.theta_true) / res.theta_true
+    assert np.all(err < 0.05), err
+
+
+def test_divergence_stops_with_time_state_and_partial_result(dyn):
+    with pytest.raises(hydrogen.SimulationError) as err:
+        simulate(dyn, "paper-sim", "backstepping", duration=2.0,
+                 gains={"Ktau": 5e4, "u_max": 1.0}, control_rate=200.0, substeps=2)
+    msg = str(err.value)
+    assert "t = " in msg and "paper-sim" in msg
+    res = err.value.result
+    assert res is not None and 0 < len(res.t) < 401
+
+
+def test_reference_outside_workspace_is_rejected(dyn, model):
+    far = MultiSine(model.neutral_pose, ((2, 0.5, 1.0),))
+    sc = scenario("z-1hz", model).with_overrides(reference=far)
+    with pytest.raises(hydrogen.KinematicsError, match=r"leaves the workspace at t = .* leg \d"):
+        simulate(dyn, sc, "p")
+
+
+def test_cli_simulate_writes_json(tmp_path, capsys):
+    out = tmp_path / "m.json"
+    assert cli(["simulate", "--scenario", "z-1hz", "--controller", "p", "--duration", "0.5",
+                "--json", str(out)]) == 0
+    data = json.loads(out.read_text())
+    for key in ("max_error_pct", "rms_error", "theta_hat_final", "theta_true", "gamma_hat_final",
+                "gamma_true", "sim_time_s", "wall_time_s"):
+        assert key in data
+    assert set(data["max_error_pct"]) == {"x", "y", "z", "psi", "theta", "phi"}
+    assert data["max_error_pct"]["z"] > 0
