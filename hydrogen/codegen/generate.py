@@ -31,6 +31,9 @@ CODEGEN_OPTIONS = {"with_header": True, "casadi_int": "long long int", "casadi_r
                    "verbose": True}
 
 _PACKAGE = Path(__file__).resolve().parent.parent
+TEMPLATES = _PACKAGE.parent / "templates"
+#: C drivers rendered from templates/ next to the generated functions: (template, output suffix).
+DRIVERS = (("loop.h.j2", "_loop.h"), ("loop.c.j2", "_loop.c"))
 
 
 def derivation_hash() -> str:
@@ -40,7 +43,27 @@ def derivation_hash() -> str:
         for path in sorted((_PACKAGE / sub).glob("*.py")):
             h.update(f"{sub}/{path.name}\0".encode())
             h.update(path.read_bytes())
+    for name, _ in DRIVERS:
+        h.update(f"templates/{name}\0".encode())
+        h.update((TEMPLATES / name).read_bytes())
     return h.hexdigest()
+
+
+def render_drivers(model, folder: Path) -> list:
+    """Render the C drivers of templates/ for ``model`` into ``folder``; returns their file names."""
+    import jinja2
+
+    env = jinja2.Environment(loader=jinja2.FileSystemLoader(str(TEMPLATES)), undefined=jinja2.StrictUndefined,
+                             keep_trailing_newline=True)
+    ctx = {"model": model.name, "p": model.name, "P": model.name.upper(),
+           "guard": f"{model.name.upper()}_LOOP_H",
+           "piston_area": repr(float(model.piston_area)), "rod_area": repr(float(model.rod_area))}
+    names = []
+    for template, suffix in DRIVERS:
+        name = model.name + suffix
+        (Path(folder) / name).write_text(env.get_template(template).render(**ctx))
+        names.append(name)
+    return names
 
 
 def expected_manifest_inputs(model) -> dict:
@@ -96,6 +119,7 @@ def render(model, folder: Path, functions=None) -> dict:
     folder = Path(folder)
     functions = derive_functions(model) if functions is None else functions
     entries = [_write_function(sf, model.name, folder) for sf in functions]
+    drivers = render_drivers(model, folder)
     manifest = {
         **expected_manifest_inputs(model),
         "model_name": model.name,
@@ -104,6 +128,7 @@ def render(model, folder: Path, functions=None) -> dict:
         "casadi_int": CODEGEN_OPTIONS["casadi_int"],
         "casadi_real": CODEGEN_OPTIONS["casadi_real"],
         "functions": entries,
+        "drivers": [d for d in drivers if d.endswith(".c")],
         "files": {p.name: _sha256(p) for p in sorted(folder.iterdir())},
     }
     (folder / MANIFEST).write_text(json.dumps(manifest, indent=2, sort_keys=True) + "\n")

@@ -53,7 +53,7 @@ def build(model: Model | str | Path | None = None, *, cc: str | None = None,
     generate(model, folder)  # no-op when current
     manifest = read_manifest(folder)
     toolchain = Toolchain(**{k: v for k, v in (("cc", cc), ("cflags", cflags)) if v is not None})
-    sources = [folder / e["source"] for e in manifest["functions"]]
+    sources = [folder / e["source"] for e in manifest["functions"]] + [folder / d for d in manifest.get("drivers", [])]
     lib_path = compile_library(sources, model.name, toolchain, cache=cache)
     try:
         lib = GeneratedLibrary(lib_path, manifest)

@@ -79,28 +79,6 @@ def equilibrium_pressures(dyn, q, theta) -> np.ndarray:
     return (f + m.supply_pressure * m.rod_area) / m.piston_area
 
 
-class _KalmanRate:
-    """Fixed-gain Kalman filters (one per leg) for [l, l̇] from noisy l, constant-velocity model."""
-
-    def __init__(self, h, noise_l, accel, l0):
-        F = np.array([[1.0, h], [0.0, 1.0]])
-        Q = accel * np.array([[h ** 3 / 3, h ** 2 / 2], [h ** 2 / 2, h]])
-        R = max(noise_l, 1e-9) ** 2
-        P = np.eye(2) * 1e-6
-        for _ in range(5000):  # steady-state Riccati iteration (2×2: cheap and exact enough)
-            P = F @ P @ F.T + Q
-            K = P[:, 0] / (P[0, 0] + R)
-            P = P - np.outer(K, P[0, :])
-        self.F, self.K = F, K
-        self.x = np.vstack([l0, np.zeros(6)])  # (2, 6)
-
-    def update(self, l_meas):
-        x = self.F @ self.x
-        x += np.outer(self.K, l_meas - x[0])
-        self.x = x
-        return x[1].copy()
-
-
 def _rk4(rhs, x, h):
     k1 = rhs(x)
     k2 = rhs(x + 0.5 * h * k1)
@@ -110,19 +88,23 @@ def _rk4(rhs, x, h):
 
 
 def simulate(dyn, scenario, controller: str, *, gains=None, duration=None, check_workspace=True,
-             **overrides) -> SimulationResult:
+             engine: str = "c", **overrides) -> SimulationResult:
     """Run ``controller`` on ``scenario`` (a name or a :class:`Scenario`) with compiled dynamics ``dyn``.
 
-    ``overrides`` replace scenario fields (e.g. ``t_adapt=1.0``). A run whose
-    state becomes non-finite raises :class:`~hydrogen.errors.SimulationError`
-    naming the time and the state; ``err.result`` holds the partial result.
+    ``engine="c"`` (default) runs the whole loop in the compiled C driver;
+    ``engine="python"`` runs the same loop step by step in Python (the slow
+    reference: same sensors, same noise samples). ``overrides`` replace scenario
+    fields (e.g. ``t_adapt=1.0``). A run whose state becomes non-finite raises
+    :class:`~hydrogen.errors.SimulationError` naming the time and the state;
+    ``err.result`` holds the partial result.
     """
     model = dyn.model
     sc = named_scenario(scenario, model) if isinstance(scenario, str) else scenario
     if duration is not None:
         overrides["duration"] = float(duration)
     sc = sc.with_overrides(**overrides) if overrides else sc
-    rng = np.random.default_rng(sc.seed)
+    if engine not in ("c", "python"):
+        raise ValueError(f"engine must be 'c' or 'python', not {engine!r}")
     h = 1.0 / sc.control_rate
     n = int(round(sc.duration * sc.control_rate)) + 1
     theta_true, gamma_true = model.theta, model.gamma
@@ -133,70 +115,124 @@ def simulate(dyn, scenario, controller: str, *, gains=None, duration=None, check
     if check_workspace:
         _check_reference(dyn, sc, n, h)
     ctrl = make_controller(dyn, controller, gains, theta0, gamma0)
-
     q0 = sc.reference(0.0)[0] + np.asarray(sc.q0_offset, float)
-    pc0 = equilibrium_pressures(dyn, q0, theta_true)
-    x = np.concatenate([q0, np.zeros(6), pc0, np.zeros(6)])
+    x0 = np.concatenate([q0, np.zeros(6), equilibrium_pressures(dyn, q0, theta_true), np.zeros(6)])
     ctrl.reset(q0, np.zeros(6))
+    # One noise table for both engines: rows [leg length noise (6), pressure noise (6)].
+    rng = np.random.default_rng(sc.seed)
+    noise = np.zeros((n, 12))
+    if sc.noise_l:
+        noise[:, :6] = sc.noise_l * rng.standard_normal((n, 6))
+    if sc.noise_p:
+        noise[:, 6:] = sc.noise_p * rng.standard_normal((n, 6))
+    kf_gain = _kalman_gain(h, sc.noise_l, sc.kalman_accel) if sc.kalman else None
+    log = {k: np.full((n, w), np.nan) for k, w in (("q", 6), ("q_d", 6), ("l", 6), ("f", 6), ("pc", 6),
+                                                      ("u", 6), ("xc", max(ctrl.xc.size, 1)))}
+    t_log = np.arange(n) * h
+    start = time.perf_counter()
+    run = _run_c if engine == "c" else _run_python
+    k_done, failure = run(dyn, sc, ctrl, x0, q0, noise, kf_gain, log, n, h)
+    wall = time.perf_counter() - start
+    res = _result(sc, controller, ctrl, t_log, log, k_done, theta0, gamma0, theta_true, gamma_true, wall)
+    if failure:
+        raise SimulationError(f"simulation '{sc.name}' with '{controller}' {failure}", result=res)
+    return res
+
+
+def _kalman_gain(h, noise_l, accel):
+    """Steady-state gain [K_l, K_ldot] of the constant-velocity Kalman filter (Riccati iteration)."""
+    F = np.array([[1.0, h], [0.0, 1.0]])
+    Q = accel * np.array([[h ** 3 / 3, h ** 2 / 2], [h ** 2 / 2, h]])
+    R = max(noise_l, 1e-9) ** 2
+    P = np.eye(2) * 1e-6
+    for _ in range(5000):  # 2×2: cheap and converged long before the end
+        P = F @ P @ F.T + Q
+        K = P[:, 0] / (P[0, 0] + R)
+        P = P - np.outer(K, P[0, :])
+    return K
+
+
+def _describe(x, t):
+    bad = [i for i in range(x.size) if not np.isfinite(x[i])]
+    return (f"diverged at t = {t:.4f} s: non-finite plant state entries {bad} "
+            f"(x = [q, qdot, pc, spool]); state = {x.tolist()}")
+
+
+def _run_c(dyn, sc, ctrl, x0, q0, noise, kf_gain, log, n, h):
+    from ..runtime.loop import LOOP_FK_FAILED, LOOP_NONFINITE, LOOP_OK, LoopRunner
+    runner = LoopRunner(dyn, ctrl, h=h, substeps=sc.substeps, t_adapt=sc.t_adapt, theta=dyn.model.theta,
+                        gamma=dyn.model.gamma, friction=sc.friction, valve_lag=sc.valve_lag,
+                        reference=sc.reference, kalman_gain=kf_gain)
+    runner.reset(x0, q0, dyn.leg_lengths(q0), ctrl.xc)
+    xc_log = log["xc"] if ctrl.xc.size else None
+    logs = {k: log[k] for k in ("q", "q_d", "l", "f", "pc", "u")}
+    if xc_log is not None:
+        logs["xc"] = xc_log
+    code = runner.run(n, noise, logs)
+    k = runner.state.k
+    if code == LOOP_OK:
+        return n, None
+    if code == LOOP_NONFINITE:
+        return k + 1, _describe(runner.plant_state, k * h)
+    if code == LOOP_FK_FAILED:
+        return k, (f"stopped at t = {k * h:.4f} s: forward kinematics did not converge (or JL is singular) "
+                   f"for the measured leg lengths; state = {runner.plant_state.tolist()}")
+    return k, f"stopped at t = {k * h:.4f} s: a generated function returned an error"
+
+
+def _run_python(dyn, sc, ctrl, x, q0, noise, kf_gain, log, n, h):
+    model = dyn.model
     rhs_fn = dyn.functions["plant_rhs"]
+    theta_true, gamma_true = model.theta, model.gamma
     fric, tau_v = np.asarray(sc.friction, float), np.array([sc.valve_lag])
     ps = model.supply_pressure
-    kf = _KalmanRate(h, sc.noise_l, sc.kalman_accel, dyn.leg_lengths(q0)) if sc.kalman else None
-
-    log = {k: np.full((n, w), np.nan) for k, w in (("q", 6), ("q_d", 6), ("l", 6), ("f", 6), ("pc", 6),
-                                                      ("u", 6), ("th", 4), ("g1", 6), ("g2", 6))}
-    t_log = np.arange(n) * h
+    kf = np.vstack([dyn.leg_lengths(q0), np.zeros(6)]) if kf_gain is not None else None
+    F = np.array([[1.0, h], [0.0, 1.0]])
     q_meas = q0.copy()
-    start = time.perf_counter()
-    k_done = 0
-    try:
-        for k in range(n):
-            t = k * h
-            q, qdot, pc = x[:6], x[6:12], x[12:18]
-            l_true = dyn.leg_lengths(q)
-            l_meas = l_true + sc.noise_l * rng.standard_normal(6) if sc.noise_l else l_true
-            pc_meas = np.clip(pc + sc.noise_p * rng.standard_normal(6), 0, ps) if sc.noise_p else pc
-            ldot = kf.update(l_meas) if kf else dyn.leg_jacobian(q) @ qdot
+    for k in range(n):
+        t = k * h
+        q, qdot, pc = x[:6], x[6:12], x[12:18]
+        l_true = dyn.leg_lengths(q)
+        l_meas = l_true + noise[k, :6]
+        pc_meas = np.clip(pc + noise[k, 6:], 0, ps) if sc.noise_p else pc
+        if kf is not None:
+            kf = F @ kf
+            kf += np.outer(kf_gain, l_meas - kf[0])
+            ldot = kf[1].copy()
+        else:
+            ldot = dyn.leg_jacobian(q) @ qdot
+        try:
             q_meas = dyn.forward_kinematics(l_meas, q0=q_meas)
-            qdot_meas = np.linalg.solve(dyn.leg_jacobian(q_meas), ldot)
-            ref = sc.reference(t)
-            u = ctrl.command(q_meas, qdot_meas, pc_meas, l_meas, ref, t >= sc.t_adapt)
-            log["q"][k], log["q_d"][k], log["l"][k], log["pc"][k], log["u"][k] = q, ref[0], l_true, pc, u
-            log["f"][k] = pc * model.piston_area - ps * model.rod_area
-            th = ctrl.part("theta_hat")
-            log["th"][k] = th if th is not None else theta0
-            g1, g2 = ctrl.part("gamma1_hat"), ctrl.part("gamma2_hat")
-            log["g1"][k] = g1 if g1 is not None else gamma0[0]
-            log["g2"][k] = g2 if g2 is not None else gamma0[1]
-            k_done = k + 1
-            if k == n - 1:
-                break
-            rhs = lambda xx: rhs_fn(xx, u, theta_true, gamma_true, fric, tau_v)  # noqa: E731
-            hs = h / sc.substeps
-            for _ in range(sc.substeps):
-                x = _rk4(rhs, x, hs)
-                np.clip(x[12:18], 0.0, ps, out=x[12:18])  # 0 ≤ p_c ≤ p_s
-            ctrl.advance(h)
-            if not np.all(np.isfinite(x)) or not np.all(np.isfinite(ctrl.xc)):
-                bad = [i for i in range(24) if not np.isfinite(x[i])]
-                raise SimulationError(
-                    f"simulation '{sc.name}' with '{controller}' diverged at t = {t + h:.4f} s: "
-                    f"non-finite plant state entries {bad} (x = [q, qdot, pc, spool]); state = {x.tolist()}")
-    except (SimulationError, KinematicsError) as exc:
-        res = _result(sc, controller, t_log, log, k_done, theta_true, gamma_true, time.perf_counter() - start)
-        if isinstance(exc, SimulationError):
-            exc.result = res
-            raise
-        raise SimulationError(f"simulation '{sc.name}' with '{controller}' stopped at t = {k * h:.4f} s: {exc}",
-                              result=res) from exc
-    return _result(sc, controller, t_log, log, k_done, theta_true, gamma_true, time.perf_counter() - start)
+        except KinematicsError as exc:
+            return k, f"stopped at t = {t:.4f} s: {exc}"
+        qdot_meas = np.linalg.solve(dyn.leg_jacobian(q_meas), ldot)
+        ref = sc.reference(t)
+        u = ctrl.command(q_meas, qdot_meas, pc_meas, l_meas, ref, t >= sc.t_adapt)
+        log["q"][k], log["q_d"][k], log["l"][k], log["pc"][k], log["u"][k] = q, ref[0], l_true, pc, u
+        log["f"][k] = pc * model.piston_area - ps * model.rod_area
+        if ctrl.xc.size:
+            log["xc"][k] = ctrl.xc
+        rhs = lambda xx: rhs_fn(xx, u, theta_true, gamma_true, fric, tau_v)  # noqa: E731
+        hs = h / sc.substeps
+        for _ in range(sc.substeps):
+            x = _rk4(rhs, x, hs)
+            np.clip(x[12:18], 0.0, ps, out=x[12:18])  # 0 ≤ p_c ≤ p_s
+        ctrl.advance(h)
+        if not np.all(np.isfinite(x)) or not np.all(np.isfinite(ctrl.xc)):
+            return k + 1, _describe(x, t + h)
+    return n, None
 
 
-def _result(sc, controller, t, log, k, theta_true, gamma_true, wall):
+def _result(sc, controller, ctrl, t, log, k, theta0, gamma0, theta_true, gamma_true, wall):
+    def est(name, width, default):
+        s = ctrl._slices.get(name)
+        return log["xc"][:k, s] if s is not None else np.tile(default, (k, 1)) * np.ones((k, width))
+
     res = SimulationResult(
         scenario=sc.name, controller=controller, t=t[:k], q=log["q"][:k], q_d=log["q_d"][:k],
         leg_lengths=log["l"][:k], leg_forces=log["f"][:k], pressures=log["pc"][:k], u=log["u"][:k],
-        theta_hat=log["th"][:k], gamma1_hat=log["g1"][:k], gamma2_hat=log["g2"][:k],
+        theta_hat=est("theta_hat", 4, theta0), gamma1_hat=est("gamma1_hat", 6, gamma0[0]),
+        gamma2_hat=est("gamma2_hat", 6, gamma0[1]),
         theta_true=theta_true, gamma_true=gamma_true, amplitude=sc.reference.amplitude(),
         metric_start=sc.metric_start, wall_time_s=wall)
     if k:

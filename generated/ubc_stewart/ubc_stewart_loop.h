@@ -1,0 +1,84 @@
+/* Closed-loop driver for model ubc_stewart: plant, sensors, forward kinematics, controller.
+ * Rendered by hydrogen from templates/loop.h.j2; plain C99, no dependency but libm. */
+#ifndef UBC_STEWART_LOOP_H
+#define UBC_STEWART_LOOP_H
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+typedef int (*ubc_stewart_casadi_fn)(const double** arg, double** res, long long int* iw, double* w, int mem);
+
+/* Input slots of a controller, in this order, in hg_loop_config.slot (-1: not an input). */
+enum { UBC_STEWART_SLOT_Q, UBC_STEWART_SLOT_QDOT, UBC_STEWART_SLOT_PC, UBC_STEWART_SLOT_L, UBC_STEWART_SLOT_QD0, UBC_STEWART_SLOT_QD1,
+       UBC_STEWART_SLOT_QD2, UBC_STEWART_SLOT_QD3, UBC_STEWART_SLOT_XC, UBC_STEWART_SLOT_ADAPT, UBC_STEWART_N_SLOTS };
+
+/* Return codes of ubc_stewart_loop_run. */
+enum { UBC_STEWART_OK = 0, UBC_STEWART_NONFINITE = 1, UBC_STEWART_FK_FAILED = 2, UBC_STEWART_CTRL_FAILED = 3 };
+
+typedef struct {
+    /* timing: control period h (s), plant RK4 sub-steps per period, adaptation on for t >= t_adapt */
+    double h;
+    long long substeps;
+    double t_adapt;
+    /* plant (SI): true theta [Mp Ix Iy Iz], gamma [beta, beta c], friction [Fc, b, v_s], valve lag (s) */
+    const double* theta;
+    const double* gamma;
+    const double* friction;
+    const double* tau_valve;
+    double supply_pressure;
+    /* sensors: fixed-gain Kalman filter on leg lengths (use_kalman != 0), gain [K_l, K_ldot] */
+    long long use_kalman;
+    double kf_gain[2];
+    /* reference: bias + sum of amplitude sin(2 pi f t) over terms (index, amplitude, frequency),
+     * plus a raw step of step_height on step_axis (>= 0) at t_step */
+    const double* bias;
+    long long n_terms;
+    const double* terms;
+    long long step_axis;
+    double step_height;
+    double t_step;
+    /* controller: generated function, its argument/result tables, work vectors */
+    ubc_stewart_casadi_fn ctrl;
+    double** ctrl_arg;
+    double** ctrl_res;
+    long long int* ctrl_iw;
+    double* ctrl_w;
+    long long slot[UBC_STEWART_N_SLOTS];
+    long long n_xc;              /* controller state size; result 1 is its rate when n_xc > 0 */
+    const double* xc_lo;         /* projection bounds of the controller state */
+    const double* xc_hi;
+    /* forward kinematics (Newton) */
+    double fk_tol;
+    long long fk_max_iter;
+} ubc_stewart_loop_config;
+
+typedef struct {
+    double t;                    /* s */
+    long long k;                 /* control periods done */
+    double x[24];                /* plant: q, qdot, pc, spool */
+    double q_meas[6];            /* last measured pose (Newton's warm start) */
+    double kf[12];               /* Kalman state: leg lengths, leg rates */
+    double* xc;                  /* controller state, n_xc entries */
+} ubc_stewart_loop_state;
+
+typedef struct {                 /* each may be NULL; rows of 6 (xc: n_xc) per control period */
+    double* t;
+    double* q;
+    double* q_d;
+    double* l;
+    double* f;
+    double* pc;
+    double* u;
+    double* xc;
+} ubc_stewart_loop_log;
+
+/* Advance n control periods from st. noise: n rows of [leg length noise (6, m), pressure noise (6, Pa)],
+ * or NULL. Returns UBC_STEWART_OK, or a code with st left at the failing period. */
+int ubc_stewart_loop_run(const ubc_stewart_loop_config* cfg, ubc_stewart_loop_state* st, long long n,
+                     const double* noise, ubc_stewart_loop_log* log);
+
+#ifdef __cplusplus
+}
+#endif
+#endif
