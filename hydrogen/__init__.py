@@ -5,7 +5,7 @@ from .errors import (BuildCacheError, CompilerError, HydrogenError, KinematicsEr
 from .model import Model, load_model
 
 __all__ = [
-    "load_model", "Model", "build", "simulate",
+    "load_model", "Model", "build", "simulate", "stepper", "sweep",
     "HydrogenError", "ModelError", "UnsupportedExpressionError", "CompilerError",
     "BuildCacheError", "StaleGeneratedCodeError", "KinematicsError", "SimulationError",
 ]
@@ -30,10 +30,24 @@ def simulate(scenario="paper-sim", controller="adaptive-robust", *, model=None, 
     ``build(model)``, built once per process and model.
     """
     from .simulation.simulator import simulate as _simulate
-    if dyn is None:
-        m = model if isinstance(model, Model) else load_model(model)
-        key = m.source, m.baked_hash()
-        if key not in _DEFAULT_DYN:
-            _DEFAULT_DYN[key] = build(m)
-        dyn = _DEFAULT_DYN[key]
-    return _simulate(dyn, scenario, controller, **overrides)
+    return _simulate(dyn or _default_dyn(model), scenario, controller, **overrides)
+
+
+def _default_dyn(model=None):
+    m = model if isinstance(model, Model) else load_model(model)
+    key = m.source, m.baked_hash()
+    if key not in _DEFAULT_DYN:
+        _DEFAULT_DYN[key] = build(m)
+    return _DEFAULT_DYN[key]
+
+
+def stepper(scenario="paper-sim", controller="adaptive-robust", *, model=None, dyn=None, **overrides):
+    """A :class:`~hydrogen.simulation.simulator.Stepper`: the closed loop one control period per call."""
+    from .simulation.simulator import Stepper
+    return Stepper(dyn or _default_dyn(model), scenario, controller, **overrides)
+
+
+def sweep(runs, *, executor=None, max_workers=None, model=None):
+    """Run many simulations in parallel: see :func:`hydrogen.simulation.sweep.sweep`."""
+    from .simulation.sweep import sweep as _sweep
+    return _sweep(runs, executor=executor, max_workers=max_workers, model=model)

@@ -219,3 +219,35 @@ def test_c_loop_matches_python_loop(dyn, scenario_name, kind):
     np.testing.assert_allclose(c.u, py.u, atol=1e-10)
     np.testing.assert_allclose(c.pressures, py.pressures, rtol=1e-9, atol=1e-3)
     np.testing.assert_allclose(c.theta_hat, py.theta_hat, rtol=1e-8)
+
+
+@pytest.mark.parametrize("name,coord,paper_nonlinear", [("z-1hz", "z", 4.0), ("z-2hz", "z", 14.0),
+                                                         ("psi-1hz", "psi", 4.0)])
+def test_experiments_nonlinear_beats_paper_and_p_is_several_times_worse(dyn, name, coord, paper_nonlinear):
+    nl = simulate(dyn, name, "adaptive-robust").metrics["max_error_pct"][coord]
+    p = simulate(dyn, name, "p").metrics["max_error_pct"][coord]
+    assert nl < paper_nonlinear
+    assert p > 3 * nl
+
+
+def test_stepper_reproduces_simulate(dyn):
+    res = simulate(dyn, "z-1hz", "adaptive-robust", duration=0.5)
+    st = hydrogen.stepper("z-1hz", "adaptive-robust", dyn=dyn, duration=0.5)
+    for _ in range(100):
+        st.step()
+    np.testing.assert_allclose(st.q, res.q[100], atol=1e-12)
+    assert st.t == pytest.approx(100 / 512)
+    np.testing.assert_allclose(st.xc[6:10], res.theta_hat[100], rtol=1e-12)
+
+
+def test_sweep_any_executor_and_errors_in_place(dyn):
+    from concurrent.futures import ThreadPoolExecutor
+    runs = [dict(scenario="z-1hz", controller="p", gains={"Kleg": k}, duration=1.0) for k in (0.02, 0.04)]
+    runs.append(dict(scenario="paper-sim", controller="backstepping", duration=1.0,
+                     gains={"Ktau": 5e4, "u_max": 1.0}, control_rate=200.0, substeps=2))
+    with ThreadPoolExecutor(2) as ex:
+        out = hydrogen.sweep(runs, executor=ex)
+    assert out[0]["max_error_pct"]["z"] > out[1]["max_error_pct"]["z"]  # more gain, less error
+    assert "error" in out[2] and "t = " in out[2]["error"]
+    again = hydrogen.sweep(runs[:2], max_workers=2)  # default: a local process pool
+    assert again[0]["max_error_pct"] == out[0]["max_error_pct"]

@@ -11,7 +11,7 @@ from ..errors import KinematicsError, SimulationError
 from .control import make_controller
 from .scenarios import Scenario, scenario as named_scenario
 
-__all__ = ["simulate", "SimulationResult", "COORDS", "equilibrium_pressures"]
+__all__ = ["simulate", "SimulationResult", "COORDS", "equilibrium_pressures", "Stepper"]
 
 COORDS = ("x", "y", "z", "psi", "theta", "phi")
 
@@ -37,6 +37,7 @@ class SimulationResult:
     amplitude: np.ndarray
     metric_start: float
     wall_time_s: float = 0.0
+    u_max: float = 0.0
     metrics: dict = field(default_factory=dict)
 
     @property
@@ -98,27 +99,59 @@ def simulate(dyn, scenario, controller: str, *, gains=None, duration=None, check
     :class:`~hydrogen.errors.SimulationError` naming the time and the state;
     ``err.result`` holds the partial result.
     """
+    p = _prepare(dyn, scenario, controller, gains, duration, check_workspace, overrides)
+    sc, ctrl, n, h = p.sc, p.ctrl, p.n, p.h
+    if engine not in ("c", "python"):
+        raise ValueError(f"engine must be 'c' or 'python', not {engine!r}")
+    log = {k: np.full((n, w), np.nan) for k, w in (("q", 6), ("q_d", 6), ("l", 6), ("f", 6), ("pc", 6),
+                                                      ("u", 6), ("xc", max(ctrl.xc.size, 1)))}
+    t_log = np.arange(n) * h
+    start = time.perf_counter()
+    run = _run_c if engine == "c" else _run_python
+    k_done, failure = run(dyn, sc, ctrl, p.x0, p.q0, p.noise, p.kf_gain, log, n, h)
+    wall = time.perf_counter() - start
+    res = _result(sc, controller, ctrl, t_log, log, k_done, p.theta0, p.gamma0, dyn.model.theta,
+                  dyn.model.gamma, wall)
+    if failure:
+        raise SimulationError(f"simulation '{sc.name}' with '{controller}' {failure}", result=res)
+    return res
+
+
+@dataclass
+class _Prepared:
+    sc: Scenario
+    ctrl: object
+    n: int
+    h: float
+    x0: np.ndarray
+    q0: np.ndarray
+    noise: np.ndarray
+    kf_gain: object
+    theta0: np.ndarray
+    gamma0: np.ndarray
+
+
+def _prepare(dyn, scenario, controller, gains, duration, check_workspace, overrides) -> _Prepared:
+    """Scenario, controller runtime, initial state and noise table shared by every engine."""
     model = dyn.model
     sc = named_scenario(scenario, model) if isinstance(scenario, str) else scenario
+    overrides = dict(overrides)
     if duration is not None:
         overrides["duration"] = float(duration)
     sc = sc.with_overrides(**overrides) if overrides else sc
-    if engine not in ("c", "python"):
-        raise ValueError(f"engine must be 'c' or 'python', not {engine!r}")
     h = 1.0 / sc.control_rate
     n = int(round(sc.duration * sc.control_rate)) + 1
-    theta_true, gamma_true = model.theta, model.gamma
-    theta0 = theta_true * np.asarray(sc.theta0_factor)
-    gamma0 = gamma_true * np.asarray(sc.gamma0_factor)
+    theta0 = model.theta * np.asarray(sc.theta0_factor)
+    gamma0 = model.gamma * np.asarray(sc.gamma0_factor)
     if controller == "backstepping":
-        theta0, gamma0 = theta_true, gamma_true
+        theta0, gamma0 = model.theta, model.gamma
     if check_workspace:
         _check_reference(dyn, sc, n, h)
-    ctrl = make_controller(dyn, controller, gains, theta0, gamma0)
+    ctrl = make_controller(dyn, controller, {**sc.gains.get(controller, {}), **(gains or {})}, theta0, gamma0)
     q0 = sc.reference(0.0)[0] + np.asarray(sc.q0_offset, float)
-    x0 = np.concatenate([q0, np.zeros(6), equilibrium_pressures(dyn, q0, theta_true), np.zeros(6)])
+    x0 = np.concatenate([q0, np.zeros(6), equilibrium_pressures(dyn, q0, model.theta), np.zeros(6)])
     ctrl.reset(q0, np.zeros(6))
-    # One noise table for both engines: rows [leg length noise (6), pressure noise (6)].
+    # One noise table for every engine: rows [leg length noise (6), pressure noise (6)].
     rng = np.random.default_rng(sc.seed)
     noise = np.zeros((n, 12))
     if sc.noise_l:
@@ -126,17 +159,7 @@ def simulate(dyn, scenario, controller: str, *, gains=None, duration=None, check
     if sc.noise_p:
         noise[:, 6:] = sc.noise_p * rng.standard_normal((n, 6))
     kf_gain = _kalman_gain(h, sc.noise_l, sc.kalman_accel) if sc.kalman else None
-    log = {k: np.full((n, w), np.nan) for k, w in (("q", 6), ("q_d", 6), ("l", 6), ("f", 6), ("pc", 6),
-                                                      ("u", 6), ("xc", max(ctrl.xc.size, 1)))}
-    t_log = np.arange(n) * h
-    start = time.perf_counter()
-    run = _run_c if engine == "c" else _run_python
-    k_done, failure = run(dyn, sc, ctrl, x0, q0, noise, kf_gain, log, n, h)
-    wall = time.perf_counter() - start
-    res = _result(sc, controller, ctrl, t_log, log, k_done, theta0, gamma0, theta_true, gamma_true, wall)
-    if failure:
-        raise SimulationError(f"simulation '{sc.name}' with '{controller}' {failure}", result=res)
-    return res
+    return _Prepared(sc, ctrl, n, h, x0, q0, noise, kf_gain, theta0, gamma0)
 
 
 def _kalman_gain(h, noise_l, accel):
@@ -158,26 +181,41 @@ def _describe(x, t):
             f"(x = [q, qdot, pc, spool]); state = {x.tolist()}")
 
 
-def _run_c(dyn, sc, ctrl, x0, q0, noise, kf_gain, log, n, h):
-    from ..runtime.loop import LOOP_FK_FAILED, LOOP_NONFINITE, LOOP_OK, LoopRunner
+def _make_runner(dyn, sc, ctrl, x0, q0, kf_gain, h):
+    from ..runtime.loop import LoopRunner
     runner = LoopRunner(dyn, ctrl, h=h, substeps=sc.substeps, t_adapt=sc.t_adapt, theta=dyn.model.theta,
                         gamma=dyn.model.gamma, friction=sc.friction, valve_lag=sc.valve_lag,
                         reference=sc.reference, kalman_gain=kf_gain)
     runner.reset(x0, q0, dyn.leg_lengths(q0), ctrl.xc)
+    return runner
+
+
+def _loop_failure(code, runner, h):
+    """Message for a non-zero return code of the C loop (None for success)."""
+    from ..runtime.loop import LOOP_FK_FAILED, LOOP_NONFINITE, LOOP_OK
+    k = runner.state.k
+    if code == LOOP_OK:
+        return None
+    if code == LOOP_NONFINITE:
+        return _describe(runner.plant_state, k * h)
+    if code == LOOP_FK_FAILED:
+        return (f"stopped at t = {k * h:.4f} s: forward kinematics did not converge (or JL is singular) "
+                f"for the measured leg lengths; state = {runner.plant_state.tolist()}")
+    return f"stopped at t = {k * h:.4f} s: a generated function returned an error"
+
+
+def _run_c(dyn, sc, ctrl, x0, q0, noise, kf_gain, log, n, h):
+    from ..runtime.loop import LOOP_NONFINITE, LOOP_OK
+    runner = _make_runner(dyn, sc, ctrl, x0, q0, kf_gain, h)
     xc_log = log["xc"] if ctrl.xc.size else None
     logs = {k: log[k] for k in ("q", "q_d", "l", "f", "pc", "u")}
     if xc_log is not None:
         logs["xc"] = xc_log
     code = runner.run(n, noise, logs)
-    k = runner.state.k
     if code == LOOP_OK:
         return n, None
-    if code == LOOP_NONFINITE:
-        return k + 1, _describe(runner.plant_state, k * h)
-    if code == LOOP_FK_FAILED:
-        return k, (f"stopped at t = {k * h:.4f} s: forward kinematics did not converge (or JL is singular) "
-                   f"for the measured leg lengths; state = {runner.plant_state.tolist()}")
-    return k, f"stopped at t = {k * h:.4f} s: a generated function returned an error"
+    k = runner.state.k
+    return (k + 1 if code == LOOP_NONFINITE else k), _loop_failure(code, runner, h)
 
 
 def _run_python(dyn, sc, ctrl, x, q0, noise, kf_gain, log, n, h):
@@ -223,7 +261,7 @@ def _run_python(dyn, sc, ctrl, x, q0, noise, kf_gain, log, n, h):
     return n, None
 
 
-def _result(sc, controller, ctrl, t, log, k, theta0, gamma0, theta_true, gamma_true, wall):
+def _result(sc, controller, ctrl, t, log, k, theta0, gamma0, theta_true, gamma_true, wall):  # noqa: PLR0913
     def est(name, width, default):
         s = ctrl._slices.get(name)
         return log["xc"][:k, s] if s is not None else np.tile(default, (k, 1)) * np.ones((k, width))
@@ -234,7 +272,8 @@ def _result(sc, controller, ctrl, t, log, k, theta0, gamma0, theta_true, gamma_t
         theta_hat=est("theta_hat", 4, theta0), gamma1_hat=est("gamma1_hat", 6, gamma0[0]),
         gamma2_hat=est("gamma2_hat", 6, gamma0[1]),
         theta_true=theta_true, gamma_true=gamma_true, amplitude=sc.reference.amplitude(),
-        metric_start=sc.metric_start, wall_time_s=wall)
+        metric_start=sc.metric_start, wall_time_s=wall,
+        u_max=float(ctrl.values["u_max"][0]) if "u_max" in ctrl.values else 0.0)
     if k:
         res.compute_metrics()
     return res
@@ -251,3 +290,65 @@ def _check_reference(dyn, sc, n, h):
             raise KinematicsError(
                 f"reference of scenario '{sc.name}' leaves the workspace at t = {k * h:.3f} s: leg {i} would be "
                 f"{l[i]:.4f} m, stroke is [{m.leg_min}, {m.leg_max}] m")
+
+
+class Stepper:
+    """The closed loop one control period per call, for users who write their own loop in Python.
+
+    Each :meth:`step` is one direct call into the compiled loop driver (sensors,
+    forward kinematics, controller, plant sub-steps), with every buffer made
+    once here. Read the state through the properties between steps.
+
+    Examples
+    --------
+    >>> st = hydrogen.stepper("paper-sim", "adaptive-robust")
+    >>> for _ in range(1000):
+    ...     st.step()
+    >>> st.t, st.q
+    """
+
+    def __init__(self, dyn, scenario="paper-sim", controller="adaptive-robust", *, gains=None,
+                 duration=None, check_workspace=True, **overrides):
+        p = _prepare(dyn, scenario, controller, gains, duration, check_workspace, overrides)
+        self.scenario, self.controller, self.h, self.n_max = p.sc, p.ctrl, p.h, p.n
+        self._noise = p.noise
+        self._runner = _make_runner(dyn, p.sc, p.ctrl, p.x0, p.q0, p.kf_gain, p.h)
+        self._run = self._runner._run
+        self._cfg, self._st = self._runner._cfg_ref, self._runner._st_ref
+        self._noise_addr = self._noise.ctypes.data
+        self._row = self._noise.strides[0]
+        self._state = self._runner.state
+
+    def step(self) -> None:
+        """Advance one control period (raises SimulationError on divergence)."""
+        k = self._state.k
+        if k >= self.n_max:
+            raise IndexError(f"scenario '{self.scenario.name}' has {self.n_max} periods; pass a longer duration")
+        code = self._run(self._cfg, self._st, 1, self._noise_addr + k * self._row, None)
+        if code:
+            raise SimulationError(f"simulation '{self.scenario.name}' {_loop_failure(code, self._runner, self.h)}")
+
+    @property
+    def t(self) -> float:
+        """Time of the next period, s."""
+        return self._state.t
+
+    @property
+    def x(self) -> np.ndarray:
+        """Plant state [q, q̇, p_c, spool] (24,)."""
+        return self._runner.plant_state
+
+    @property
+    def q(self) -> np.ndarray:
+        """True pose (6,), base frame."""
+        return self._runner.plant_state[:6]
+
+    @property
+    def u(self) -> np.ndarray:
+        """Last spool command (6,), m."""
+        return np.array(self.controller.fn._out_views[0])
+
+    @property
+    def xc(self) -> np.ndarray:
+        """Controller state (observer and estimates)."""
+        return self._runner.xc[: self.controller.xc.size].copy()
