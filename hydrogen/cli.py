@@ -76,6 +76,12 @@ def _cmd_figures(args) -> int:
     return 0
 
 
+def _cmd_bench(args) -> int:
+    from .bench import run_suite
+    run_suite(quick=args.quick, json_path=args.json, only=args.only)
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="hydrogen", description=__doc__.splitlines()[0])
     sub = parser.add_subparsers(dest="command", required=True)
@@ -102,6 +108,13 @@ def build_parser() -> argparse.ArgumentParser:
     fig.add_argument("--out", default="figures", help="output folder (default: ./figures)")
     fig.add_argument("--model", help="model TOML file (default: the packaged model)")
     fig.set_defaults(func=_cmd_figures)
+    b = sub.add_parser("bench", help="run the benchmark suite (per-step cost, build times)",
+                       description="Per-period cost of the loop through four routes, C cost of each function, "
+                                   "generation and compile times, in one run.")
+    b.add_argument("--quick", action="store_true", help="fewer repeats (about 1 minute)")
+    b.add_argument("--json", help="write all results as JSON to this file")
+    b.add_argument("--only", nargs="*", help="run only these modules (bench_loop, bench_functions, bench_build)")
+    b.set_defaults(func=_cmd_bench)
     return parser
 
 

@@ -30,6 +30,14 @@ class MultiSine:
             out[3][i] -= a * w ** 3 * c
         return out
 
+    def positions(self, t) -> np.ndarray:
+        """q_d at each time of the array ``t`` (n, 6), vectorised."""
+        t = np.asarray(t, float)
+        out = np.tile(np.asarray(self.bias, float), (t.size, 1))
+        for i, a, f in self.terms:
+            out[:, i] += a * np.sin(2 * np.pi * f * t)
+        return out
+
     def amplitude(self) -> np.ndarray:
         """Per-coordinate sum of amplitudes (m or rad); the scale of the max-error percentages."""
         amp = np.zeros(6)
@@ -52,6 +60,12 @@ class Step:
         if t >= self.t_step:
             q[self.axis] += self.height
         return [q, np.zeros(6), np.zeros(6), np.zeros(6)]
+
+    def positions(self, t) -> np.ndarray:
+        t = np.asarray(t, float)
+        out = np.tile(np.asarray(self.bias, float), (t.size, 1))
+        out[t >= self.t_step, self.axis] += self.height
+        return out
 
     def amplitude(self) -> np.ndarray:
         amp = np.zeros(6)

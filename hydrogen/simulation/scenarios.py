@@ -67,7 +67,7 @@ def _paper_sim(neutral):
              "adaptive-robust": {**slow, "Ko": 100.0, "lambda_o": [1.0, 0.0, 0.0, 0.0]}}
     return Scenario(
         name="paper-sim", reference=MultiSine(neutral, terms), duration=10.0,
-        control_rate=1000.0, substeps=4, t_adapt=0.5, metric_start=8.0,
+        control_rate=1000.0, substeps=2, t_adapt=0.5, metric_start=8.0,
         theta0_factor=(1.2, 0.7, 1.3, 0.8), gamma0_factor=(0.7, 1.3), gains=gains)
 
 

@@ -282,8 +282,10 @@ def _result(sc, controller, ctrl, t, log, k, theta0, gamma0, theta_true, gamma_t
 def _check_reference(dyn, sc, n, h):
     """Reject a reference that leaves the legs' stroke, naming the time and the leg."""
     m = dyn.model
-    for k in range(0, n, max(1, n // 2000)):
-        l = dyn.leg_lengths(sc.reference(k * h)[0])
+    ks = np.arange(0, n, max(1, n // 2000))
+    poses = sc.reference.positions(ks * h)
+    for k, q in zip(ks, poses):
+        l = dyn.leg_lengths(q)
         bad = np.nonzero((l < m.leg_min) | (l > m.leg_max))[0]
         if bad.size:
             i = int(bad[0])

@@ -1,0 +1,320 @@
+"""How long it takes to get from the model to a loaded library, and how large the controller's code is.
+
+(a) generation from scratch: ``render(hydrogen.load_model(), tmpdir)`` in a fresh Python process,
+    so the imports are included; the same process also reports the import, the derivation alone
+    (``derive_functions(model)``) and the SymPy -> CasADi -> C part (``render`` given the derived
+    functions: exactly what ``render(model, tmpdir)`` does after deriving). The rendered files are
+    compared with the committed ``generated/<model>`` (generation is deterministic).
+(b) compilation from a clean cache: ``hydrogen.build(model, cache=<fresh dir>)`` in a fresh process
+    (every generated .c compiled in parallel, then one link, then loaded).
+(c) the same build again with nothing changed (``cache=<same dir>``), in a fresh process, timed
+    inside it with ``time.perf_counter`` around the ``build`` call.
+(d) Theorem 1's controller (``ctrl_backstepping``, leg-force mapping) in CasADi instructions: as
+    hydrogen generates it (tau_d_dot derived by SymPy) against the same law with tau_d_dot from
+    CasADi's forward AD (``jtimes``), both checked to give the same outputs at random points first,
+    both counted with ``{"cse": True}``.
+
+Times of (a) and (b) include a fresh interpreter; each is the median of its runs (1 run with
+``--quick``, 2 without; (c) 3 runs). A run takes about 25 s (``--quick``: about 15 s) on 2 cores.
+
+Run: ``python benchmarks/bench_build.py [--quick] [--json FILE]``
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import shutil
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+try:  # imported as benchmarks.bench_build
+    from . import common
+except ImportError:  # run as a script, or loaded from its path
+    sys.path.insert(0, str(Path(__file__).resolve().parent))
+    import common
+
+#: The figure quoted by the issue for Theorem 1 with leg-force mapping through CasADi's own AD.
+ISSUE_AD_INSTRUCTIONS = 8000
+AD_CHECK_POINTS = 5
+AD_CHECK_RTOL = 1e-9
+
+_GENERATE = """
+import time
+t0 = time.perf_counter()
+import hydrogen
+from hydrogen.codegen.generate import render
+from hydrogen.symbolic.functions import derive_functions
+t1 = time.perf_counter()
+model = hydrogen.load_model()
+t2 = time.perf_counter()
+functions = derive_functions(model)
+t3 = time.perf_counter()
+render(model, {out!r}, functions=functions)
+t4 = time.perf_counter()
+print("import_s", t1 - t0)
+print("load_model_s", t2 - t1)
+print("derive_s", t3 - t2)
+print("render_s", t4 - t3)
+print("total_s", t4 - t0)
+"""
+
+_BUILD = """
+import time
+t0 = time.perf_counter()
+import hydrogen
+model = hydrogen.load_model()
+t1 = time.perf_counter()
+dyn = hydrogen.build(model, cache={cache!r})
+t2 = time.perf_counter()
+print("import_s", t1 - t0)
+print("build_s", t2 - t1)
+print("n_functions", len(dyn.functions) if hasattr(dyn, "functions") else -1)
+"""
+
+
+def _committed_dir() -> Path:
+    return common.REPO / "generated" / "ubc_stewart"
+
+
+def _same_files(a: Path, b: Path) -> bool:
+    """The two generated folders hold the same files, byte for byte."""
+    names = {p.name for p in a.iterdir() if not p.name.startswith(".")}
+    if names != {p.name for p in b.iterdir() if not p.name.startswith(".")}:
+        return False
+    return all((a / n).read_bytes() == (b / n).read_bytes() for n in names)
+
+
+def bench_generate(runs: int) -> dict:
+    rows = []
+    for _ in range(runs):
+        with tempfile.TemporaryDirectory(prefix="bench_build_gen_") as tmp:
+            stdout, wall = common.run_python(_GENERATE.format(out=tmp))
+            r = common.parse_keyed(stdout)
+            r["process_wall_s"] = wall
+            r["files"] = len(list(Path(tmp).iterdir()))
+            committed = _committed_dir()
+            r["matches_committed"] = committed.is_dir() and _same_files(Path(tmp), committed)
+            rows.append(r)
+    keys = ("process_wall_s", "total_s", "import_s", "load_model_s", "derive_s", "render_s")
+    out = {k: common.median(r[k] for r in rows) for k in keys}
+    out.update(runs=rows, files=rows[-1]["files"], matches_committed=all(r["matches_committed"] for r in rows))
+    return out
+
+
+def _sources_compiled(cache: Path) -> int:
+    n = 0
+    for info in cache.glob("build/*/build.json"):
+        n += len(json.loads(info.read_text()).get("sources", []))
+    return n
+
+
+def bench_build_times(runs_clean: int, runs_warm: int) -> tuple[dict, dict]:
+    clean, warm = [], []
+    with tempfile.TemporaryDirectory(prefix="bench_build_cache_") as root:
+        for i in range(runs_clean):
+            cache = Path(root) / f"cache{i}"
+            stdout, wall = common.run_python(_BUILD.format(cache=str(cache)))
+            r = common.parse_keyed(stdout)
+            r["process_wall_s"] = wall
+            r["sources_compiled"] = _sources_compiled(cache)
+            # the committed generated/ folder was stale: build() generated into the cache first
+            r["generated_in_cache"] = (cache / "generated").is_dir()
+            clean.append(r)
+        cache = Path(root) / "cache0"
+        for _ in range(runs_warm):
+            stdout, wall = common.run_python(_BUILD.format(cache=str(cache)))
+            r = common.parse_keyed(stdout)
+            r["process_wall_s"] = wall
+            warm.append(r)
+        shutil.rmtree(root, ignore_errors=True)
+
+    def summary(rows):
+        return {"build_s": common.median(r["build_s"] for r in rows),
+                "process_wall_s": common.median(r["process_wall_s"] for r in rows),
+                "import_s": common.median(r["import_s"] for r in rows), "runs": rows}
+
+    c, w = summary(clean), summary(warm)
+    c["sources_compiled"] = clean[0]["sources_compiled"]
+    c["generated_in_cache"] = any(r["generated_in_cache"] for r in clean)
+    w["under_1s"] = max(r["build_s"] for r in warm) < 1.0
+    return c, w
+
+
+# ---------------------------------------------------------------------------------------------
+# (d) Theorem 1: SymPy's tau_d_dot against CasADi's forward AD
+# ---------------------------------------------------------------------------------------------
+def _stage(symbols) -> str:
+    """Stage name of an intermediate from its first symbol: ``taud_dot_0`` -> ``taud_dot``."""
+    return str(symbols[0]).rsplit("_", 1)[0]
+
+
+def backstepping_ad_function(parts, name: str = "ctrl_backstepping_ad"):
+    """The CasADi Function of ``parts`` built like ``to_casadi_function``, except that the
+    ``taud_dot`` stage is ``jtimes(tau_d, X, Xdot)``: X = [q, qdot, qd0, qd1, qd2],
+    Xdot = [qdot, q̈ (the acc stage), qd1, qd2, qd3]."""
+    import casadi as ca
+    import sympy as sp
+
+    from hydrogen.codegen.casadi_functions import shape_of
+    from hydrogen.codegen.sympy_to_casadi import SympyToCasadi
+
+    table, sx_in = {}, {}
+    for in_name, mat in parts.inputs:
+        rows, cols = shape_of(mat)
+        sym = ca.SX.sym(in_name, rows, cols)
+        for i in range(rows):
+            for j in range(cols):
+                table[mat[i, j]] = sym[i, j]
+        sx_in[in_name] = sym
+    conv = SympyToCasadi(table)
+    bound, seen = {}, []
+    for symbols, value in parts.intermediates:
+        stage = _stage(symbols)
+        seen.append(stage)
+        if isinstance(value, tuple) and value[0] == "inverse":
+            mat = conv(value[1])
+            sx = ca.solve(mat, ca.SX.eye(mat.shape[0]))
+        elif stage == "taud_dot":
+            if "taud" not in bound or "acc" not in bound:
+                raise RuntimeError(f"taud_dot before taud/acc in the intermediates: {seen}")
+            X = ca.vertcat(*(sx_in[k] for k in ("q", "qdot", "qd0", "qd1", "qd2")))
+            Xdot = ca.vertcat(sx_in["qdot"], bound["acc"], sx_in["qd1"], sx_in["qd2"], sx_in["qd3"])
+            sx = ca.jtimes(bound["taud"], X, Xdot)
+        else:
+            sx = conv(value)
+        bound[stage] = sx
+        conv.define(symbols, sx)
+    missing = {"acc", "taud", "taud_dot", "fd", "fd_dot", "v", "u_raw"} - set(bound)
+    if missing:
+        raise RuntimeError(f"intermediate stages {sorted(missing)} not found; stages are {seen}")
+    sx_out = [conv(sp.Matrix(e) if not isinstance(e, sp.MatrixBase) else e) for _, e in parts.outputs]
+    names_in = [n for n, _ in parts.inputs]
+    return ca.Function(name, [sx_in[n] for n in names_in], sx_out, names_in,
+                       [n for n, _ in parts.outputs], {"cse": True})
+
+
+def bench_ad() -> dict:
+    import hydrogen
+    from hydrogen.codegen.casadi_functions import shape_of, to_casadi_function
+    from hydrogen.symbolic.controllers import backstepping
+    from hydrogen.symbolic.functions import SymbolicFunction, _joints
+
+    model = hydrogen.load_model()
+    t0 = time.perf_counter()
+    parts = backstepping(model, *_joints(model))
+    t_derive = time.perf_counter() - t0
+    sf = SymbolicFunction("ctrl_backstepping", parts.inputs, parts.outputs, "", parts.intermediates)
+    t0 = time.perf_counter()
+    f_sympy = to_casadi_function(sf, cse=True)
+    t_sympy = time.perf_counter() - t0
+    t0 = time.perf_counter()
+    f_ad = backstepping_ad_function(parts)
+    t_ad = time.perf_counter() - t0
+
+    entry = {"inputs": [[n, *shape_of(m)] for n, m in parts.inputs]}
+    out_names = [n for n, _ in parts.outputs]
+    worst = {n: 0.0 for n in out_names}
+    for seed in range(AD_CHECK_POINTS):
+        args = [np.reshape(v, (r, c), order="F")
+                for (_, v), (_, r, c) in zip(common.function_inputs(entry, seed=100 + seed), entry["inputs"])]
+        a, b = f_sympy(*args), f_ad(*args)
+        for n, x, y in zip(out_names, a, b):
+            x, y = np.asarray(x.full()), np.asarray(y.full())
+            if not (np.all(np.isfinite(x)) and np.all(np.isfinite(y))):
+                raise AssertionError(f"{n}: non-finite output at check point {seed}")
+            rel = float(np.max(np.abs(x - y)) / max(float(np.max(np.abs(x))), 1e-300))
+            worst[n] = max(worst[n], rel)
+    bad = {n: e for n, e in worst.items() if e > AD_CHECK_RTOL}
+    if bad:
+        raise AssertionError(f"SymPy and CasADi-AD controllers disagree (max relative error): {bad}")
+
+    manifest = json.loads((_committed_dir() / "manifest.json").read_text())
+    in_manifest = next((f["instructions"] for f in manifest["functions"] if f["name"] == "ctrl_backstepping"),
+                       None)
+    n_sympy, n_ad = f_sympy.n_instructions(), f_ad.n_instructions()
+    return {
+        "sympy_instructions": n_sympy, "casadi_ad_instructions": n_ad,
+        "manifest_instructions": in_manifest, "ratio_ad_over_sympy": n_ad / n_sympy,
+        "issue_ad_instructions": ISSUE_AD_INSTRUCTIONS,
+        "no_larger_than_ad": n_sympy <= n_ad,
+        "check_points": AD_CHECK_POINTS, "max_relative_error": worst,
+        "sympy_nodes": f_sympy.n_nodes(), "casadi_ad_nodes": f_ad.n_nodes(),
+        "derive_parts_s": t_derive, "to_casadi_sympy_s": t_sympy, "to_casadi_ad_s": t_ad,
+    }
+
+
+def run(quick: bool = False) -> dict:
+    """(a)-(d) above; returns JSON-serialisable results."""
+    t_start = time.perf_counter()
+    runs = 1 if quick else 2
+    gen = bench_generate(runs)
+    clean, warm = bench_build_times(runs, 3)
+    ad = bench_ad()
+    return {"generate": gen, "build_clean": clean, "build_warm": warm, "controller_instructions": ad,
+            "quick": quick, "wall_s": time.perf_counter() - t_start, "machine": common.machine_info(),
+            "python": sys.executable, "cpu_count": os.cpu_count()}
+
+
+def print_table(res: dict) -> None:
+    m, g, c, w, d = (res[k] for k in ("machine", "generate", "build_clean", "build_warm",
+                                        "controller_instructions"))
+    print(f"machine : {m['processor']}, {m['cpu_count']} CPUs; python {m['python']}, sympy {m['sympy']}, "
+          f"casadi {m['casadi']}; {m['cc']}")
+    n = len(g["runs"])
+    print(f"build times (fresh Python process each; median of {n} run{'s' if n > 1 else ''} for (a), (b); "
+          f"{len(w['runs'])} for (c)):")
+    header = f"{'step':<58} {'seconds':>9}"
+    print(header)
+    print("-" * len(header))
+    rows = [
+        ("(a) generation from scratch: process wall", g["process_wall_s"]),
+        ("      inside: import hydrogen (+ sympy, casadi)", g["import_s"]),
+        ("      inside: load_model", g["load_model_s"]),
+        ("      inside: derive_functions (SymPy derivation alone)", g["derive_s"]),
+        ("      inside: render (SymPy -> CasADi -> C, manifest)", g["render_s"]),
+        (f"(b) build, clean cache ({c['sources_compiled']} sources): build()", c["build_s"]),
+        ("      process wall", c["process_wall_s"]),
+        ("(c) build again, nothing changed: build()", w["build_s"]),
+        ("      process wall", w["process_wall_s"]),
+    ]
+    for label, v in rows:
+        print(f"{label:<58} {v:>9.3f}")
+    print(f"(a) wrote {g['files']} files, identical to the committed generated/: {g['matches_committed']}")
+    if c["generated_in_cache"]:
+        print("(b) note: the committed generated/ was stale, so the clean build also generated the C")
+    print(f"(c) under 1 s: {w['under_1s']} (runs: " + ", ".join(f"{r['build_s']:.3f}" for r in w["runs"]) + ")")
+    print()
+    print("(d) Theorem 1 controller (ctrl_backstepping, leg-force mapping), CasADi instructions with cse:")
+    header = f"{'tau_d_dot by':<40} {'instructions':>12} {'SX nodes':>9}"
+    print(header)
+    print("-" * len(header))
+    print(f"{'SymPy (hydrogen, as generated)':<40} {d['sympy_instructions']:>12d} {d['sympy_nodes']:>9d}")
+    print(f"{'CasADi forward AD (jtimes)':<40} {d['casadi_ad_instructions']:>12d} {d['casadi_ad_nodes']:>9d}")
+    print(f"manifest ctrl_backstepping: {d['manifest_instructions']}; AD / SymPy = {d['ratio_ad_over_sympy']:.2f}; "
+          f"issue's AD figure ~{d['issue_ad_instructions']}; SymPy's no larger than AD: {d['no_larger_than_ad']}")
+    errs = ", ".join(f"{k} {v:.1e}" for k, v in d["max_relative_error"].items())
+    print(f"same outputs at {d['check_points']} random points (max relative error: {errs})")
+    print(f"whole benchmark {res['wall_s']:.1f} s")
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--quick", action="store_true", help="one run of (a) and (b) instead of two")
+    ap.add_argument("--json", type=Path, metavar="FILE", help="also write the results as JSON")
+    a = ap.parse_args(argv)
+    res = run(quick=a.quick)
+    print_table(res)
+    if a.json:
+        a.json.parent.mkdir(parents=True, exist_ok=True)
+        a.json.write_text(json.dumps(res, indent=2) + "\n")
+        print(f"wrote {a.json}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,42 @@
+"""``hydrogen bench``: run the benchmark suite of ``benchmarks/`` in one process and one run.
+
+The suite lives beside the package in a source checkout (``benchmarks/``); each module has
+``run(quick) -> dict`` and ``print_table(dict)``.
+"""
+from __future__ import annotations
+
+import importlib
+import json
+import sys
+from pathlib import Path
+
+from .errors import HydrogenError
+from .fileio import atomic_write
+
+__all__ = ["run_suite", "SUITE"]
+
+#: (module, what it measures)
+SUITE = (
+    ("bench_loop", "paper-sim loop per control period: lambdify, CasADi, stepping API, C loop; sweeps"),
+    ("bench_functions", "C-only cost of each generated function"),
+    ("bench_build", "generation and compilation times; SymPy vs CasADi-AD instruction counts"),
+)
+
+
+def run_suite(quick: bool = False, json_path: str | None = None, only=None) -> dict:
+    folder = Path(__file__).resolve().parents[1] / "benchmarks"
+    if not folder.is_dir():
+        raise HydrogenError(f"{folder}: no benchmarks folder; run 'hydrogen bench' from a source checkout")
+    sys.path.insert(0, str(folder))
+    results = {}
+    for name, what in SUITE:
+        if only and name not in only:
+            continue
+        print(f"\n== {name}: {what}", flush=True)
+        mod = importlib.import_module(name)
+        results[name] = mod.run(quick=quick)
+        mod.print_table(results[name])
+    if json_path:
+        atomic_write(Path(json_path), json.dumps(results, indent=2, default=str) + "\n")
+        print(f"\nresults written to {json_path}")
+    return results
