@@ -76,6 +76,16 @@ def _cmd_figures(args) -> int:
     return 0
 
 
+def _cmd_export(args) -> int:
+    import hydrogen
+    from .export import export
+
+    model = hydrogen.load_model(args.model)
+    out = export(Path(args.out), args.scenario, args.controller, model=model, duration=args.duration)
+    print(f"{out}: {args.controller} on {args.scenario}; build and run with 'make -C {out} run'")
+    return 0
+
+
 def _cmd_bench(args) -> int:
     from .bench import run_suite
     run_suite(quick=args.quick, json_path=args.json, only=args.only)
@@ -115,6 +125,15 @@ def build_parser() -> argparse.ArgumentParser:
     b.add_argument("--json", help="write all results as JSON to this file")
     b.add_argument("--only", nargs="*", help="run only these modules (bench_loop, bench_functions, bench_build)")
     b.set_defaults(func=_cmd_bench)
+    ex = sub.add_parser("export", help="write deployable C: sources, params.h, main.c, Makefile, CMakeLists.txt",
+                        description="A folder that builds with only a C compiler and runs one scenario's "
+                                    "closed loop, printing the tracking error.")
+    ex.add_argument("--out", required=True, help="output folder (replaced if it holds an earlier export)")
+    ex.add_argument("--scenario", default="z-1hz", choices=SCENARIOS)
+    ex.add_argument("--controller", default="adaptive-robust", choices=CONTROLLERS)
+    ex.add_argument("--duration", type=float, help="simulated time, s (default: the scenario's)")
+    ex.add_argument("--model", help="model TOML file (default: the packaged model)")
+    ex.set_defaults(func=_cmd_export)
     return parser
 
 

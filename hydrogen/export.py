@@ -1,0 +1,369 @@
+"""Export one scenario and controller as a self-contained C99 program for a real-time target.
+
+:func:`export` writes a folder holding copies of the generated C the closed
+loop needs (inverse kinematics, leg Jacobian, plant, the chosen controller and
+the loop driver rendered from ``templates/loop.*.j2``), a ``params.h`` with every
+number of the run (controller gains and bounds in the controller's manifest
+input order, matrices column-major; plant parameters; reference; timing;
+Kalman gain; initial states), a ``main.c`` that runs the whole scenario with
+the same C loop :func:`hydrogen.simulate` drives through ctypes, a
+``Makefile``, a ``CMakeLists.txt``, a ``README.txt`` and an ``export.json``.
+
+The exported program runs without sensor noise (noise is a simulator
+feature): its tracking errors equal those of
+``hydrogen.simulate(scenario, controller, noise_l=0, noise_p=0, ...)`` to
+rounding, because both call ``<model>_loop_run`` from the same sources with the
+same numbers. In particular the Kalman gain the program uses is the one the
+simulator designs for the noise-free scenario; ``params.h`` also carries the
+gain designed for the scenario's sensor noise (``P_KF_GAIN_SENSOR``, selected
+by compiling with ``-DHG_SENSOR_KF_GAIN``) for use on the rig.
+
+The folder is rendered into a hidden sibling and swapped in whole
+(:func:`hydrogen.fileio.replace_dir`), so it is never half-written.
+"""
+from __future__ import annotations
+
+import hashlib
+import json
+import re
+import shutil
+import tempfile
+import textwrap
+from pathlib import Path
+
+import numpy as np
+
+from .errors import HydrogenError
+
+__all__ = ["export", "EXPORT_MANIFEST", "TEMPLATE_NAMES", "COORDS"]
+
+#: Metadata file written into every export folder (also marks a folder as an export).
+EXPORT_MANIFEST = "export.json"
+#: Templates (in the repository's templates/) rendered into the folder: template -> output name.
+TEMPLATE_NAMES = {"export_params.h.j2": "params.h", "export_main.c.j2": "main.c",
+                  "Makefile.j2": "Makefile", "CMakeLists.txt.j2": "CMakeLists.txt"}
+#: Generated functions the loop driver calls (besides the controller).
+LOOP_FUNCTIONS = ("leg_lengths", "leg_jacobian", "plant_rhs")
+COORDS = ("x", "y", "z", "psi", "theta", "phi")
+#: Forward kinematics settings of the loop (the defaults of hydrogen.runtime.loop.LoopRunner).
+FK_TOL, FK_MAX_ITER = 1e-12, 50
+
+_IDENT = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*$")
+
+
+def _c_double(x) -> str:
+    """A C double literal that reads back to exactly ``x`` (shortest round-trip repr)."""
+    x = float(x)
+    if not np.isfinite(x):
+        raise HydrogenError(f"export: cannot write the non-finite value {x} into params.h")
+    return repr(x)
+
+
+def _c_doubles(a) -> str:
+    """Comma-separated C double literals of ``a`` flattened column-major (CasADi's dense layout)."""
+    flat = np.asarray(a, dtype=float)
+    flat = flat.ravel(order="F") if flat.ndim > 1 else flat.ravel()
+    return ", ".join(_c_double(v) for v in flat)
+
+
+def _sha256(data: bytes) -> str:
+    return hashlib.sha256(data).hexdigest()
+
+
+def _resolve_dyn(model, dyn):
+    import hydrogen
+
+    if dyn is None:
+        return hydrogen._default_dyn(model)
+    if model is not None:
+        m = model if isinstance(model, hydrogen.Model) else hydrogen.load_model(model)
+        if m.baked_hash() != dyn.model.baked_hash():
+            raise ValueError("export: 'model' and 'dyn' describe different models; pass one of them")
+    return dyn
+
+
+def _candidate_folders(dyn, generated):
+    """Generated folders that may hold the sources ``dyn`` was compiled from, most likely first."""
+    from .runtime.build import generated_dir_for
+
+    if generated is not None:
+        return [Path(generated)]
+    model = dyn.model
+    out = []
+    lib_path = Path(dyn.library.path)
+    if len(lib_path.parents) >= 3:  # <cache>/build/<key>/lib….so: the cache this library was built in
+        out.append(generated_dir_for(model, lib_path.parents[2]))
+    out.append(generated_dir_for(model))
+    seen, uniq = set(), []
+    for f in out:
+        if f not in seen:
+            seen.add(f)
+            uniq.append(f)
+    return uniq
+
+
+def _read_sources(dyn, names, generated) -> dict:
+    """Bytes of the generated files ``names``, exactly as the loaded library was compiled from them.
+
+    Each file is checked against the SHA-256 the library's manifest recorded, so
+    the export never mixes sources of another generation.
+    """
+    from .fileio import locked, recover_dir
+
+    recorded = dyn.library.manifest.get("files", {})
+    missing = [n for n in names if n not in recorded]
+    if missing:
+        raise HydrogenError(f"export: the compiled dynamics' manifest lists no {missing}; rebuild")
+    tried = []
+    for folder in _candidate_folders(dyn, generated):
+        if not folder.is_dir():
+            tried.append(f"{folder}: missing")
+            continue
+        with locked(folder):  # the generator swaps this folder under the same lock
+            recover_dir(folder)
+            data, bad = {}, []
+            for n in names:
+                p = folder / n
+                b = p.read_bytes() if p.is_file() else None
+                if b is None or _sha256(b) != recorded[n]:
+                    bad.append(n)
+                else:
+                    data[n] = b
+        if not bad:
+            return data
+        tried.append(f"{folder}: {', '.join(bad)} differ from what the library was compiled from")
+    raise HydrogenError("export: cannot find the generated sources of the loaded dynamics ("
+                        + "; ".join(tried) + "). Rebuild with hydrogen.build() or pass generated=<folder>.")
+
+
+def _env():
+    import jinja2
+
+    from .codegen.generate import TEMPLATES
+
+    return jinja2.Environment(loader=jinja2.FileSystemLoader(str(TEMPLATES)), undefined=jinja2.StrictUndefined,
+                              keep_trailing_newline=True, trim_blocks=True, lstrip_blocks=True)
+
+
+def _context(dyn, p, scenario_name, controller, prog, sources, headers, ctrl_header, sensor_gain):
+    """Everything the templates need, numbers already formatted as C literals."""
+    from .runtime.loop import SLOTS
+
+    model, sc, ctrl = dyn.model, p.sc, p.ctrl
+    fn = ctrl.fn
+    inputs = []
+    for i, (name, shape) in enumerate(zip(fn.in_names, fn.in_shapes)):
+        if not _IDENT.match(name):
+            raise HydrogenError(f"export: controller input '{name}' is not a C identifier")
+        size = int(shape[0]) * int(shape[1])
+        dynamic = name in SLOTS
+        entry = {"index": i, "name": name, "rows": int(shape[0]), "cols": int(shape[1]), "size": size,
+                 "dynamic": dynamic, "c_name": f"P_CTRL_{name}"}
+        if not dynamic:
+            if name not in ctrl.values:
+                raise HydrogenError(f"export: controller '{controller}' input '{name}' has no value")
+            value = np.reshape(np.asarray(ctrl.values[name], dtype=float), shape)
+            entry["data"] = _c_doubles(value)
+        inputs.append(entry)
+    slot_index = [fn.in_names.index(s) if s in fn.in_names else -1 for s in SLOTS]
+    n_xc = int(ctrl.xc.size)
+    lo = np.where(np.isfinite(ctrl._lo), ctrl._lo, -1e300)
+    hi = np.where(np.isfinite(ctrl._hi), ctrl._hi, 1e300)
+    ref = sc.reference
+    terms = list(getattr(ref, "terms", ()))
+    kf = p.kf_gain
+    return {
+        "model": model.name, "P": model.name.upper(), "scenario": scenario_name, "controller": controller,
+        "prog": prog, "sources": sources, "headers": headers, "ctrl_header": ctrl_header,
+        "ctrl_c_name": fn.c_name, "loop_header": f"{model.name}_loop.h",
+        "n_periods": int(p.n), "duration": _c_double(sc.duration), "control_rate": _c_double(sc.control_rate),
+        "h": _c_double(p.h), "substeps": int(sc.substeps), "t_adapt": _c_double(sc.t_adapt),
+        "metric_start": _c_double(sc.metric_start),
+        "theta": _c_doubles(model.theta), "gamma": _c_doubles(model.gamma),
+        "friction": _c_doubles(sc.friction), "tau_valve": _c_double(sc.valve_lag),
+        "supply_pressure": _c_double(model.supply_pressure),
+        "use_kalman": 1 if kf is not None else 0,
+        "kf_gain": _c_doubles(kf if kf is not None else np.zeros(2)),
+        "kf_gain_sensor": _c_doubles(sensor_gain if sensor_gain is not None else np.zeros(2)),
+        "noise_l": _c_double(sc.noise_l), "noise_p": _c_double(sc.noise_p),
+        "sensor_noise_l": _c_double(p.sensor_noise_l), "sensor_noise_p": _c_double(p.sensor_noise_p),
+        "kalman_accel": _c_double(sc.kalman_accel),
+        "bias": _c_doubles(ref.bias), "n_terms": len(terms),
+        "terms": [", ".join(_c_double(v) for v in t) for t in terms],
+        "step_axis": int(getattr(ref, "axis", -1)), "step_height": _c_double(getattr(ref, "height", 0.0)),
+        "t_step": _c_double(getattr(ref, "t_step", 0.0)),
+        "inputs": inputs, "n_in": len(inputs), "in_total": sum(e["size"] for e in inputs),
+        "outputs": [{"index": i, "name": nm, "rows": int(s[0]), "cols": int(s[1]), "size": int(s[0]) * int(s[1])}
+                    for i, (nm, s) in enumerate(zip(fn.out_names, fn.out_shapes))],
+        "out_total": sum(int(r) * int(c) for r, c in fn.out_shapes),
+        "slots": [{"name": s, "index": k} for s, k in zip(SLOTS, slot_index)], "n_slots": len(SLOTS),
+        "n_xc": n_xc, "xc_cap": max(n_xc, 1),
+        "xc0": _c_doubles(ctrl.xc if n_xc else np.zeros(1)),
+        "xc_lo": _c_doubles(lo if n_xc else np.zeros(1)), "xc_hi": _c_doubles(hi if n_xc else np.zeros(1)),
+        "x0": _c_doubles(p.x0), "q_meas0": _c_doubles(p.q0), "l0": _c_doubles(dyn.leg_lengths(p.q0)),
+        "fk_tol": _c_double(FK_TOL), "fk_max_iter": FK_MAX_ITER, "coords": COORDS,
+    }
+
+
+_README = """\
+Closed loop of model {model}: scenario {scenario}, controller {controller}
+Exported by hydrogen.export (hydrogen {version}). Plain C99, no dependency but libm.
+
+Files
+  main.c          sets up the controller's argument tables and the loop, runs the scenario
+                  ({n} control periods of {h_ms} ms, {substeps} RK4 plant sub-steps each) and prints the
+                  maximum absolute tracking error per coordinate over t >= {metric_start} s
+  params.h        every number of the run as C99 static const arrays (SI units, matrices
+                  column-major): the controller's static inputs in its input order, plant
+                  parameters, reference, timing, Kalman gain, initial states and bounds
+  {loop_c}, {loop_h}
+                  the closed-loop driver: sensors, Kalman filter, forward kinematics,
+                  reference, controller (zero-order hold), plant (RK4)
+  {ctrl_c}, {ctrl_h}
+                  the controller, generated by CasADi: int {ctrl_name}(arg, res, iw, w, mem)
+  {other}
+                  inverse kinematics, leg Jacobian and plant dynamics, generated by CasADi
+  Makefile, CMakeLists.txt   build files; export.json   what was exported, with SHA-256 of each file
+
+Build and run
+  make && make run            (cc -O2 -std=c99 -Wall -Wextra -Werror, links -lm)
+  or: cmake -S . -B build && cmake --build build && ./build/{prog}
+
+Output, one item per line:
+  max_error <coord> <value>   for x y z (m) and psi theta phi (rad)
+  periods <n>                 control periods run
+  status <code>               0 ok, 1 non-finite state, 2 forward kinematics failed, 3 a generated
+                              function failed (the exit status is non-zero unless status is 0)
+
+The program runs without sensor noise (leg-length and pressure noise are a simulator
+feature; the loop gets a NULL noise table). Its errors therefore equal those of
+  hydrogen.simulate("{scenario}", "{controller}", noise_l=0, noise_p=0{extra})
+to rounding.
+{kalman_note}
+
+On a real-time target, keep the controller call and its argument tables as main.c sets
+them up, write the measured pose, rates, pressures (or leg lengths) and the reference into
+the dynamic input buffers each period, and replace the simulated plant of the loop driver
+by the valves and sensors.
+"""
+
+
+def _sensor_kalman_gain(p):
+    from .simulation.simulator import _kalman_gain
+
+    if not p.sc.kalman:
+        return None
+    return _kalman_gain(p.h, p.sensor_noise_l, p.sc.kalman_accel)
+
+
+def export(out_dir, scenario="z-1hz", controller="adaptive-robust", model=None, duration=None, *,
+           dyn=None, gains=None, generated=None, check_workspace=True, **overrides) -> Path:
+    """Write a self-contained C99 program of ``controller`` on ``scenario`` into ``out_dir``.
+
+    Parameters
+    ----------
+    out_dir : path
+        Folder to write; replaced whole if it exists and is an earlier export (an existing
+        folder that is not an export, and not empty, is refused).
+    scenario, controller : str
+        As for :func:`hydrogen.simulate`.
+    model : Model, path or None
+        The model (default: the packaged one); ignored when ``dyn`` is given.
+    duration : float or None
+        Simulated time, s (default: the scenario's).
+    dyn : Dynamics, optional
+        Compiled dynamics to export from (default ``hydrogen.build(model)``).
+    gains : dict, optional
+        Controller gain overrides, as for :func:`hydrogen.simulate`.
+    generated : path, optional
+        The generated folder ``dyn`` was built from, when it is not the default one.
+    overrides
+        Scenario fields (e.g. ``metric_start=0.5``). The program always runs without sensor
+        noise: ``noise_l`` and ``noise_p`` only set the sensor-noise Kalman gain kept in params.h.
+
+    Returns
+    -------
+    Path of the written folder.
+    """
+    from . import __version__
+    from .fileio import locked, replace_dir
+    from .simulation.scenarios import scenario as named_scenario
+    from .simulation.simulator import _prepare
+
+    dyn = _resolve_dyn(model, dyn)
+    sc = named_scenario(scenario, dyn.model) if isinstance(scenario, str) else scenario
+    sc_name = sc.name
+    overrides = dict(overrides)
+    sensor = sc.with_overrides(**overrides) if overrides else sc
+    # The program runs noise-free: prepare exactly what simulate(..., noise_l=0, noise_p=0) prepares.
+    p = _prepare(dyn, sc, controller, gains, duration, check_workspace, {**overrides, "noise_l": 0.0, "noise_p": 0.0})
+    p.sensor_noise_l, p.sensor_noise_p = float(sensor.noise_l), float(sensor.noise_p)
+    sensor_gain = _sensor_kalman_gain(p)
+
+    mname = dyn.model.name
+    entries = {e["name"]: e for e in dyn.library.manifest["functions"]}
+    ctrl_entry = entries[p.ctrl.fn.name]
+    funcs = [entries[n] for n in LOOP_FUNCTIONS] + [ctrl_entry]
+    drivers = [d for d in dyn.library.manifest.get("drivers", []) if d == f"{mname}_loop.c"]
+    if not drivers:
+        raise HydrogenError(f"export: the compiled dynamics have no loop driver {mname}_loop.c; rebuild")
+    sources = [e["source"] for e in funcs] + [drivers[0]]
+    headers = [e["header"] for e in funcs] + [f"{mname}_loop.h"]
+    files = _read_sources(dyn, sources + headers, generated)
+
+    prog = f"{mname}_{controller.replace('-', '_')}"
+    ctx = _context(dyn, p, sc_name, controller, prog, sources, headers, ctrl_entry["header"], sensor_gain)
+    env = _env()
+    rendered = {out: env.get_template(t).render(**ctx) for t, out in TEMPLATE_NAMES.items()}
+    if p.kf_gain is not None:
+        kalman_note = ("The Kalman filter on the leg lengths still runs, with the gain the simulator designs "
+                       "for the noise-free scenario (P_KF_GAIN); compile with -DHG_SENSOR_KF_GAIN to use "
+                       f"P_KF_GAIN_SENSOR, designed for {p.sensor_noise_l:g} m leg-length noise, on the rig.")
+    else:
+        kalman_note = "Leg rates come from the plant's exact rates (this scenario has no Kalman filter)."
+    extra = "".join(f", {k}={v!r}" for k, v in sorted(overrides.items()) if k not in ("noise_l", "noise_p"))
+    if duration is not None:
+        extra = f", duration={float(duration)!r}" + extra
+    if gains:
+        extra += ", gains=..."
+    other = "\n                  ".join(f"{e['source']}, {e['header']}" for e in funcs[:-1])
+    kalman_note = textwrap.fill(kalman_note, width=96)
+    rendered["README.txt"] = _README.format(
+        model=mname, scenario=sc_name, controller=controller, version=__version__, n=p.n,
+        h_ms=f"{1e3 * p.h:.9g}", substeps=sc.substeps, metric_start=f"{p.sc.metric_start:g}",
+        loop_c=drivers[0], loop_h=f"{mname}_loop.h", ctrl_c=ctrl_entry["source"], ctrl_h=ctrl_entry["header"],
+        ctrl_name=ctrl_entry["c_name"], other=other, prog=prog, extra=extra, kalman_note=kalman_note)
+    contents = {**{n: files[n] for n in sources + headers}, **{n: t.encode() for n, t in rendered.items()}}
+    meta = {
+        "format": 1, "hydrogen_version": __version__, "model": mname, "model_hash": dyn.model.baked_hash(),
+        "derivation_hash": dyn.library.manifest.get("derivation_hash"),
+        "scenario": sc_name, "controller": controller, "program": prog,
+        "n_periods": int(p.n), "control_period_s": float(p.h), "duration_s": float(p.sc.duration),
+        "metric_start_s": float(p.sc.metric_start), "overrides": {k: _jsonable(v) for k, v in overrides.items()},
+        "gains": {k: _jsonable(v) for k, v in (gains or {}).items()},
+        "kalman_gain": None if p.kf_gain is None else [float(v) for v in p.kf_gain],
+        "kalman_gain_sensor": None if sensor_gain is None else [float(v) for v in sensor_gain],
+        "files": {n: _sha256(b) for n, b in sorted(contents.items())},
+    }
+    contents[EXPORT_MANIFEST] = (json.dumps(meta, indent=2, sort_keys=True) + "\n").encode()
+
+    out = Path(out_dir).absolute()
+    out.parent.mkdir(parents=True, exist_ok=True)
+    with locked(out.with_name(f".{out.name}")):  # hidden lock file beside the folder
+        if out.exists() and (not out.is_dir() or (any(out.iterdir()) and not (out / EXPORT_MANIFEST).is_file())):
+            raise FileExistsError(f"export: {out} exists and is not an earlier export; choose another folder")
+        staging = Path(tempfile.mkdtemp(prefix=f".{out.name}.new-", dir=out.parent))
+        try:
+            staging.chmod(0o755)
+            for name, data in contents.items():
+                (staging / name).write_bytes(data)
+            replace_dir(staging, out)
+        except BaseException:
+            shutil.rmtree(staging, ignore_errors=True)
+            raise
+    return out
+
+
+def _jsonable(v):
+    a = np.asarray(v)
+    return a.tolist() if a.dtype.kind in "fiub" else str(v)

@@ -1,0 +1,110 @@
+"""hydrogen.export: a self-contained C99 folder that builds with make and reproduces the simulator."""
+import json
+import shutil
+import subprocess
+
+import numpy as np
+import pytest
+
+from hydrogen.export import COORDS, EXPORT_MANIFEST, export
+from hydrogen.simulation.scenarios import scenario as named_scenario
+from hydrogen.simulation.simulator import simulate
+
+pytestmark = pytest.mark.skipif(shutil.which("make") is None or shutil.which("cc") is None,
+                                reason="needs make and cc")
+
+
+def _build(folder):
+    proc = subprocess.run(["make"], cwd=folder, capture_output=True, text=True, timeout=600)
+    assert proc.returncode == 0, proc.stdout + proc.stderr
+    return proc
+
+
+def _run(folder):
+    prog = json.loads((folder / EXPORT_MANIFEST).read_text())["program"]
+    proc = subprocess.run([str(folder / prog)], cwd=folder, capture_output=True, text=True, timeout=600)
+    out = {"max_error": {}}
+    for line in proc.stdout.splitlines():
+        key, *rest = line.split()
+        if key == "max_error":
+            out["max_error"][rest[0]] = float(rest[1])
+        else:
+            out[key] = rest[0]
+    assert proc.returncode == (0 if out.get("status") == "0" else 1), proc.stdout + proc.stderr
+    return out
+
+
+def _python_max_errors(dyn, scenario, controller, duration, metric_start):
+    res = simulate(dyn, scenario, controller, duration=duration, noise_l=0.0, noise_p=0.0,
+                   metric_start=metric_start)
+    sel = res.t >= metric_start - 1e-12
+    assert sel.any() and (~sel).any()  # the window starts inside the run
+    return np.abs(res.error[sel]).max(axis=0), len(res.t)
+
+
+@pytest.mark.parametrize("scenario, controller, duration, metric_start", [
+    ("z-1hz", "adaptive-robust", 1.0, 0.5),
+    ("z-step", "p", 1.5, 0.5),
+])
+def test_exported_program_matches_the_noise_free_simulation(tmp_path, dyn, scenario, controller, duration,
+                                                           metric_start):
+    folder = export(tmp_path / "export", scenario, controller, duration=duration, dyn=dyn,
+                    metric_start=metric_start)
+    build = _build(folder)
+    assert "-Werror" in build.stdout and "-std=c99" in build.stdout and "-lm" in build.stdout
+    out = _run(folder)
+    assert out["status"] == "0"
+    expected, n = _python_max_errors(dyn, scenario, controller, duration, metric_start)
+    assert int(out["periods"]) == n
+    got = np.array([out["max_error"][c] for c in COORDS])
+    np.testing.assert_allclose(got, expected, rtol=1e-9, atol=1e-13)
+    assert got.max() > 1e-5  # the reference is being tracked, not trivially zero
+
+
+def test_export_folder_contents(tmp_path, dyn):
+    folder = export(tmp_path / "out", "z-1hz", "adaptive-robust", duration=0.2, dyn=dyn)
+    meta = json.loads((folder / EXPORT_MANIFEST).read_text())
+    names = {p.name for p in folder.iterdir()}
+    m = dyn.model.name
+    expected = {"main.c", "params.h", "Makefile", "CMakeLists.txt", "README.txt", EXPORT_MANIFEST}
+    for f in ("leg_lengths", "leg_jacobian", "plant_rhs", "ctrl_adaptive_robust", "loop"):
+        expected |= {f"{m}_{f}.c", f"{m}_{f}.h"}
+    assert names == expected
+    # sources are byte copies of what the library was compiled from
+    for name, digest in dyn.library.manifest["files"].items():
+        if name in names:
+            assert meta["files"][name] == digest
+    params = (folder / "params.h").read_text()
+    sc = named_scenario("z-1hz", dyn.model)
+    assert f"#define P_N_PERIODS {int(round(0.2 * sc.control_rate)) + 1}LL" in params
+    for name in ("P_CTRL_Dbar_inv[36]", "P_CTRL_Lambda[6]", "P_XC0[P_XC_CAP]", "P_X0[24]", "P_L0[6]",
+                 "P_KF_GAIN[2]", "P_THETA[4]", "P_REF_TERMS"):
+        assert name in params
+    assert "noise" in (folder / "main.c").read_text() and "make run" in (folder / "README.txt").read_text()
+    assert not [p for p in tmp_path.iterdir() if p.name.startswith(".out.new-")]  # staging cleaned up
+
+
+def test_export_replaces_an_earlier_export_and_refuses_other_folders(tmp_path, dyn):
+    target = tmp_path / "out"
+    export(target, "z-step", "p", duration=0.1, dyn=dyn)
+    (target / "stale.txt").write_text("left from before")
+    export(target, "z-step", "p", duration=0.2, dyn=dyn)
+    assert not (target / "stale.txt").exists()
+    assert json.loads((target / EXPORT_MANIFEST).read_text())["duration_s"] == 0.2
+    other = tmp_path / "mine"
+    other.mkdir()
+    (other / "notes.txt").write_text("keep me")
+    with pytest.raises(FileExistsError):
+        export(other, "z-step", "p", duration=0.1, dyn=dyn)
+    assert (other / "notes.txt").read_text() == "keep me"
+
+
+@pytest.mark.skipif(shutil.which("cmake") is None, reason="needs cmake")
+def test_cmake_build_with_werror(tmp_path, dyn):
+    folder = export(tmp_path / "export", "z-step", "p", duration=0.5, dyn=dyn)
+    for argv in (["cmake", "-S", ".", "-B", "build", "-DHG_WERROR=ON"], ["cmake", "--build", "build"]):
+        proc = subprocess.run(argv, cwd=folder, capture_output=True, text=True, timeout=600)
+        assert proc.returncode == 0, proc.stdout + proc.stderr
+    prog = json.loads((folder / EXPORT_MANIFEST).read_text())["program"]
+    proc = subprocess.run([str(folder / "build" / prog)], capture_output=True, text=True, timeout=600)
+    assert proc.returncode == 0 and "status 0" in proc.stdout
