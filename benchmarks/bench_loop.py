@@ -24,6 +24,7 @@ import numpy as np
 import sympy as sp
 
 import hydrogen
+import hydrogen.simulation.scenarios
 from hydrogen.codegen.casadi_functions import to_casadi_function
 from hydrogen.dynamics import Dynamics
 from hydrogen.simulation import simulator as S
@@ -175,7 +176,9 @@ def run(quick: bool = False) -> dict:
 
 
 def print_table(res):
-    print(f"paper-sim loop with {CONTROLLER}, per control period (1 kHz, 4 RK4 sub-steps), medians:")
+    sc = hydrogen.simulation.scenarios.scenario(SCENARIO, hydrogen.load_model())
+    print(f"paper-sim loop with {CONTROLLER}, per control period ({sc.control_rate:.0f} Hz, "
+          f"{sc.substeps} RK4 sub-steps), medians:")
     print(f"{'route':28} {'us/period':>12} {'ratio to (d)':>14}")
     for k, v in res["per_period_us"].items():
         print(f"{k:28} {v:12.2f} {res['ratio_to_c_loop'][k]:14.1f}")

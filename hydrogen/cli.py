@@ -70,7 +70,7 @@ def _cmd_figures(args) -> int:
     import hydrogen
     from .figures import make_all
 
-    paths = make_all(hydrogen.build(hydrogen.load_model(args.model)), Path(args.out))
+    paths = make_all(hydrogen.build(hydrogen.load_model(args.model)), Path(args.out), quiet=args.quiet)
     for name, path in paths.items():
         print(f"{name}: {path}")
     return 0
@@ -117,6 +117,7 @@ def build_parser() -> argparse.ArgumentParser:
                          description="Counterparts of Figs. 2, 3, 5-8 (PNG) and the comparison table (Markdown).")
     fig.add_argument("--out", default="figures", help="output folder (default: ./figures)")
     fig.add_argument("--model", help="model TOML file (default: the packaged model)")
+    fig.add_argument("--quiet", action="store_true", help="no progress bar")
     fig.set_defaults(func=_cmd_figures)
     b = sub.add_parser("bench", help="run the benchmark suite (per-step cost, build times)",
                        description="Per-period cost of the loop through four routes, C cost of each function, "

@@ -286,12 +286,15 @@ def make_all(dyn, out_dir, quiet=True, *, durations=None, gains=None) -> dict:
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     durations, gains = dict(durations or {}), dict(gains or {})
+    from tqdm import tqdm
+
+    # A bar on a terminal only (disable=None), never with quiet.
+    bar = tqdm(total=9, desc="figures", unit="run", disable=True if quiet else None)
 
     def run(name, controller):
+        bar.set_postfix_str(f"{name} {controller}")
         res = simulate(dyn, name, controller, gains=gains.get(controller), duration=durations.get(name))
-        if not quiet:
-            print(f"{name:10s} {controller:16s} {res.t[-1] - res.t[0]:6.2f} s simulated "
-                  f"in {res.wall_time_s:6.1f} s", flush=True)
+        bar.update()
         return res
 
     paths = {}
@@ -319,4 +322,5 @@ def make_all(dyn, out_dir, quiet=True, *, durations=None, gains=None) -> dict:
              + comparison_table(rows))
     paths["table"] = out / "table.md"
     atomic_write(paths["table"], table)
+    bar.close()
     return paths
