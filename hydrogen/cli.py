@@ -86,6 +86,22 @@ def _cmd_export(args) -> int:
     return 0
 
 
+def _cmd_tune_p(args) -> int:
+    from .simulation.tuning import tune_p
+
+    res = tune_p(np.geomspace(args.min, args.max, args.n) if args.n else None, max_workers=args.workers)
+    print(f"{'scenario':9} {'Kleg':>8} {'max err %':>10} {'off-axis':>10} {'sat':>6}  stable")
+    for r in res["table"]:
+        if "max_error_pct" in r:
+            print(f"{r['scenario']:9} {r['Kleg']:8.4f} {r['max_error_pct']:10.1f} {r['off_axis_max'] * 1e3:10.3f} "
+                  f"{r['saturation']:6.3f}  {'yes' if r['stable'] else 'no: ' + r['reason']}")
+        else:
+            print(f"{r['scenario']:9} {r['Kleg']:8.4f} diverged: {r['reason'][:60]}")
+    print(f"well-tuned P gain (largest stable on every scenario): Kleg = {res['best']}; errors "
+          + ", ".join(f"{s} {v:.1f} %" for s, v in res["best_errors"].items()))
+    return 0
+
+
 def _cmd_bench(args) -> int:
     from .bench import run_suite
     run_suite(quick=args.quick, json_path=args.json, only=args.only)
@@ -126,6 +142,14 @@ def build_parser() -> argparse.ArgumentParser:
     b.add_argument("--json", help="write all results as JSON to this file")
     b.add_argument("--only", nargs="*", help="run only these modules (bench_loop, bench_functions, bench_build)")
     b.set_defaults(func=_cmd_bench)
+    tp = sub.add_parser("tune-p", help="the documented gain search for the P controller (parallel sweep)",
+                        description="Sweep the P gain on the experiment scenarios; pick the largest gain stable "
+                                    "on all (see hydrogen/simulation/tuning.py).")
+    tp.add_argument("--min", type=float, default=0.01)
+    tp.add_argument("--max", type=float, default=0.3)
+    tp.add_argument("--n", type=int, default=0, help="grid size (default: the documented 25-point grid)")
+    tp.add_argument("--workers", type=int, help="processes (default: the core count)")
+    tp.set_defaults(func=_cmd_tune_p)
     ex = sub.add_parser("export", help="write deployable C: sources, params.h, main.c, Makefile, CMakeLists.txt",
                         description="A folder that builds with only a C compiler and runs one scenario's "
                                     "closed loop, printing the tracking error.")

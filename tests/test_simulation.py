@@ -251,3 +251,12 @@ def test_sweep_any_executor_and_errors_in_place(dyn):
     assert "error" in out[2] and "t = " in out[2]["error"]
     again = hydrogen.sweep(runs[:2], max_workers=2)  # default: a local process pool
     assert again[0]["max_error_pct"] == out[0]["max_error_pct"]
+
+
+def test_p_default_gain_is_the_documented_search_result():
+    from hydrogen.simulation.control import DEFAULT_GAINS
+    from hydrogen.simulation.tuning import tune_p
+    res = tune_p(max_workers=2)
+    assert res["best"] == pytest.approx(DEFAULT_GAINS["p"]["Kleg"][0], rel=2e-3)
+    unstable_above = [r for r in res["table"] if r["Kleg"] > res["best"] and not r["stable"]]
+    assert unstable_above  # the search did find the edge

@@ -43,9 +43,9 @@ DEFAULT_GAINS = {
         "Ggamma1_inv": 1.0e14 * np.ones(6),
         "Ggamma2_inv": 2.0e7 * np.ones(6),
     },
-    # Best single gain of the documented sweep (README, benchmarks/tune_p.py): higher gains start a
-    # ~7 Hz off-axis oscillation on psi-1hz before they saturate the valves.
-    "p": {"Kleg": 0.035 * np.ones(6), "u_max": np.array([3.0e-3])},
+    # The documented search (hydrogen.simulation.tuning.tune_p, `hydrogen tune-p`): the largest gain
+    # stable on all three experiments; above it a ~7 Hz off-axis oscillation starts on psi-1hz.
+    "p": {"Kleg": 0.0358 * np.ones(6), "u_max": np.array([3.0e-3])},
 }
 
 CONTROLLERS = ("backstepping", "adaptive-robust", "adaptive-observer", "p")
