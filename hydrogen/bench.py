@@ -20,6 +20,7 @@ SUITE = (
     ("bench_loop", "paper-sim loop per control period: lambdify, CasADi, stepping API, C loop; sweeps"),
     ("bench_functions", "C-only cost of each generated function"),
     ("bench_build", "generation and compilation times; SymPy vs CasADi-AD instruction counts"),
+    ("bench_flags", "compiler flags: compile time and loop cost"),
 )
 
 

@@ -26,7 +26,9 @@ from ..fileio import atomic_write, locked
 
 __all__ = ["Toolchain", "cache_root", "compile_library", "DEFAULT_CFLAGS", "WARNING_FLAGS"]
 
-#: -O2 measured against -O3 in benchmarks/bench_compile_flags.py: same speed, faster build.
+#: Chosen by benchmarks/bench_flags.py (paper-sim loop per period / compile from clean): -O1 7.5 µs / 1.5 s,
+#: -O2 6.9 µs / 2.1 s, -O3 6.7 µs / 2.2 s, -O3 -march=native 6.2 µs / 2.2 s. -O3 gains 2.5 %, within the
+#: noise; -march=native ties the cache to one CPU, so it is left to the user (cflags=...).
 DEFAULT_CFLAGS = ("-O2", "-fPIC", "-std=c99")
 WARNING_FLAGS = ("-Wall", "-Wextra", "-Werror")
 
