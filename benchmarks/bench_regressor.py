@@ -43,6 +43,9 @@ import numpy as np
 import sympy
 
 import hydrogen
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from common import cc_version, cpu_name  # noqa: E402
 from hydrogen.codegen.casadi_functions import to_casadi_function
 from hydrogen.codegen.generate import check
 from hydrogen.symbolic.functions import derive_functions
@@ -64,27 +67,6 @@ A = np.array([0.8, -0.6, 1.1, -1.4, 0.9, 1.3])
 PERTURB = ("q", 3, 1e-12)
 
 ROUTES = ("sympy_lambdify", "casadi_python", "ctypes", "c_loop")
-
-
-def cc_version(cc: str) -> str:
-    try:
-        out = subprocess.run([cc, "--version"], capture_output=True, text=True, timeout=30)
-        return out.stdout.splitlines()[0] if out.stdout else "unknown"
-    except OSError:
-        return "unknown"
-
-
-def cpu_name() -> str:
-    name = platform.processor()
-    if name:
-        return name
-    try:
-        for line in Path("/proc/cpuinfo").read_text().splitlines():
-            if line.startswith("model name"):
-                return line.split(":", 1)[1].strip()
-    except OSError:
-        pass
-    return platform.machine()
 
 
 def time_python(fn, args, repeats: int, min_time: float) -> tuple[float, int]:
