@@ -1,0 +1,55 @@
+"""The symbolic helpers: forward-mode time derivative and the projection of Lemma 1."""
+import numpy as np
+import pytest
+import sympy as sp
+
+import hydrogen
+from hydrogen.symbolic.calculus import clip, projection, time_derivative
+
+
+def test_time_derivative_matches_the_chain_rule(rng):
+    x, y, z = sp.symbols("x y z", real=True)
+    xd, yd, zd = sp.symbols("xd yd zd", real=True)
+    exprs = sp.Matrix([x * y * z ** 2, sp.sin(x * y) * sp.cos(z) / (1 + x ** 2), sp.tan(y) - 3 * x ** 3 * z,
+                       sp.sqrt(2 + x ** 2) * y])
+    fwd = time_derivative(exprs, [((x, y, z), (xd, yd, zd))])
+    chain = exprs.jacobian([x, y, z]) * sp.Matrix([xd, yd, zd])
+    f = sp.lambdify([x, y, z, xd, yd, zd], list(fwd - chain))
+    for _ in range(20):
+        np.testing.assert_allclose(f(*rng.uniform(-1, 1, 6)), 0, atol=1e-12)
+
+
+def test_time_derivative_names_what_it_cannot_differentiate():
+    x = sp.Symbol("x")
+    with pytest.raises(hydrogen.UnsupportedExpressionError, match="gamma"):
+        time_derivative(sp.Matrix([sp.gamma(x)]), [((x,), (sp.Integer(1),))])
+
+
+@pytest.mark.parametrize("estimate,rho,expected", [
+    (0.5, -1.0, 0.0),   # at the lower bound, pushed down: stop
+    (0.5, 1.0, 1.0),    # at the lower bound, pushed up: move
+    (2.0, 1.0, 0.0),    # at the upper bound, pushed up: stop
+    (2.0, -1.0, -1.0),  # at the upper bound, pushed down: move
+    (1.0, -1.0, -1.0),  # inside: κ = 1
+])
+def test_projection_of_lemma_1(estimate, rho, expected):
+    th, r = sp.symbols("th r")
+    f = sp.lambdify([th, r], projection(th, r, 0.5, 2.0))
+    assert f(estimate, rho) == expected
+
+
+def test_projection_keeps_alpha_nonpositive(rng):
+    """Lemma 1: with θ̂̇ = κρ and a ≤ θ ≤ b, α = (θ − θ̂)ᵀ(ρ − θ̂̇) ≤ 0 at the bounds as well as inside."""
+    th, r = sp.symbols("th r")
+    f = sp.lambdify([th, r], projection(th, r, 0.5, 2.0))
+    for _ in range(200):
+        theta = rng.uniform(0.5, 2.0)
+        est = rng.choice([0.5, 2.0, rng.uniform(0.5, 2.0)])
+        rho = rng.normal()
+        assert (theta - est) * (rho - f(est, rho)) <= 1e-12
+
+
+def test_clip():
+    x = sp.Symbol("x")
+    f = sp.lambdify([x], clip(x, -1, 2))
+    assert [f(-5), f(0.5), f(7)] == [-1, 0.5, 2]
