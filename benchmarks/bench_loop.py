@@ -42,6 +42,9 @@ class _Fn:
         self._vec = [m.shape[1] == 1 for _, m in sf.outputs]
         self._single = len(sf.outputs) == 1
 
+    def clone(self):
+        return self  # no shared C buffers to separate
+
     def _pack(self, outs):
         outs = [np.asarray(o, float) for o in outs]
         outs = [o.reshape(-1) if v else o for o, v in zip(outs, self._vec)]

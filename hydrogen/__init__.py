@@ -1,13 +1,13 @@
 """hydrogen: symbolic model of a hydraulic Stewart platform → compiled C → control loop."""
 from .errors import (BuildCacheError, CompilerError, HydrogenError, KinematicsError,
-                     ModelError, SimulationError, StaleGeneratedCodeError,
+                     ModelError, ScenarioError, SimulationError, StaleGeneratedCodeError,
                      UnsupportedExpressionError)
 from .model import Model, load_model
 
 __all__ = [
     "load_model", "Model", "build", "simulate", "stepper", "sweep",
     "HydrogenError", "ModelError", "UnsupportedExpressionError", "CompilerError",
-    "BuildCacheError", "StaleGeneratedCodeError", "KinematicsError", "SimulationError",
+    "BuildCacheError", "StaleGeneratedCodeError", "KinematicsError", "SimulationError", "ScenarioError",
 ]
 __version__ = "0.1.0"
 
@@ -34,11 +34,14 @@ def simulate(scenario="paper-sim", controller="adaptive-robust", *, model=None, 
 
 
 def _default_dyn(model=None):
+    """Compiled dynamics for ``model``: the library is built once per process and baked model; the
+    returned Dynamics carries this very model, so its runtime parameters (θ, γ, bounds) are used."""
+    from .dynamics import Dynamics
     m = model if isinstance(model, Model) else load_model(model)
-    key = m.source, m.baked_hash()
+    key = m.baked_hash()
     if key not in _DEFAULT_DYN:
-        _DEFAULT_DYN[key] = build(m)
-    return _DEFAULT_DYN[key]
+        _DEFAULT_DYN[key] = build(m).library
+    return Dynamics(m, _DEFAULT_DYN[key])
 
 
 def stepper(scenario="paper-sim", controller="adaptive-robust", *, model=None, dyn=None, **overrides):

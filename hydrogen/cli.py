@@ -31,7 +31,7 @@ def _cmd_generate(args) -> int:
             return 1
         print(f"{out}: up to date")
         return 0
-    changed = generate(model, out, force=args.force)
+    changed = generate(model, out, force=args.force, progress=not args.quiet)
     print(f"{out}: {'generated' if changed else 'up to date, nothing regenerated'}")
     return 0
 
@@ -117,6 +117,7 @@ def build_parser() -> argparse.ArgumentParser:
     g.add_argument("--out", help="output folder (default: generated/<model name> of the checkout)")
     g.add_argument("--check", action="store_true", help="exit 1 if the folder is stale; write nothing")
     g.add_argument("--force", action="store_true", help="regenerate even when up to date")
+    g.add_argument("--quiet", action="store_true", help="no progress bar")
     g.set_defaults(func=_cmd_generate)
     from .simulation.control import CONTROLLERS
     from .simulation.scenarios import SCENARIOS

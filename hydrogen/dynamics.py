@@ -49,7 +49,10 @@ class Dynamics:
         if not np.all(np.isfinite(l)):
             raise KinematicsError(f"forward kinematics: leg lengths are not finite: {l}")
         q = np.array(self.model.neutral_pose if q0 is None else q0, dtype=float).reshape(6)
-        for it in range(max_iter):
+        if not np.all(np.isfinite(q)):
+            raise KinematicsError(f"forward kinematics: initial guess q0 is not finite: {q}")
+        err = np.inf
+        for it in range(max(int(max_iter), 1)):
             r = self._leg_lengths(q) - l
             err = float(np.max(np.abs(r)))
             if err < tol:

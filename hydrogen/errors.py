@@ -29,6 +29,10 @@ class KinematicsError(HydrogenError, ValueError):
     """A pose is outside the workspace, JL is singular, or forward kinematics failed."""
 
 
+class ScenarioError(HydrogenError, ValueError):
+    """A scenario setting (duration, rate, friction, noise, ...) is out of range."""
+
+
 class SimulationError(HydrogenError, RuntimeError):
     """A simulation diverged; carries the partial result."""
 

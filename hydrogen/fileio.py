@@ -67,5 +67,5 @@ def locked(path: Path, timeout: float = 600.0):
     """Hold an exclusive inter-process lock on ``path`` (a ``.lock`` file beside it)."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    with FileLock(str(path.with_name(path.name + ".lock")), timeout=timeout):
+    with FileLock(str(path.with_name(f".{path.name}.lock")), timeout=timeout):  # hidden, git-ignored
         yield

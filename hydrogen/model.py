@@ -194,6 +194,14 @@ def model_from_dict(data: dict, source: str = "<memory>") -> Model:
     for g in ("gamma1", "gamma2"):
         if values[f"{g}_min"] >= values[f"{g}_max"]:
             raise bad(f"[adaptation] {g}_min", f"must be < {g}_max")
+    # Lemma 1 assumes a ≤ θ ≤ b: the true parameters must lie inside their projection bounds.
+    theta = np.array([values["mass"], *values["inertia"]])
+    if np.any(theta < values["theta_min"]) or np.any(theta > values["theta_max"]):
+        raise bad("[adaptation] theta_min/theta_max",
+                  f"must contain the true [mass, inertia] {theta.tolist()} (Lemma 1 assumes a <= theta <= b)")
+    for g, true in (("gamma1", values["bulk_modulus"]), ("gamma2", values["bulk_modulus"] * values["flow_gain"])):
+        if not values[f"{g}_min"] <= true <= values[f"{g}_max"]:
+            raise bad(f"[adaptation] {g}_min/{g}_max", f"must contain the true value {true:.6g}")
     inertia = tuple(float(x) for x in values.pop("inertia"))
     return Model(inertia=inertia, source=source, raw=data, **values)
 

@@ -40,6 +40,8 @@ def _write_variant(tmp_path, old, new):
     ("gamma1_min = 3.5e8", "gamma1_min = 2.0e9", ["gamma1_min", "< gamma1_max"]),
     ("name = \"ubc_stewart\"", "name = \"ubc stewart; rm -rf\"", ["name"]),
     ("[hydraulics]", "[hydraulix]", ["[hydraulics]"]),
+    ("theta_max = [350.0, 65.0, 65.0, 65.0]", "theta_max = [240.0, 65.0, 65.0, 65.0]", ["contain the true"]),
+    ("gamma2_max = 2.2e5", "gamma2_max = 1.0e5", ["gamma2", "contain the true"]),
 ])
 def test_bad_model_files_name_file_and_key(tmp_path, old, new, words):
     path = _write_variant(tmp_path, old, new)

@@ -260,3 +260,53 @@ def test_p_default_gain_is_the_documented_search_result():
     assert res["best"] == pytest.approx(DEFAULT_GAINS["p"]["Kleg"][0], rel=2e-3)
     unstable_above = [r for r in res["table"] if r["Kleg"] > res["best"] and not r["stable"]]
     assert unstable_above  # the search did find the edge
+
+
+def test_two_steppers_on_one_library_keep_their_own_gains(dyn):
+    solo = hydrogen.stepper("z-1hz", "adaptive-robust", dyn=dyn, gains={"Lambda": 30.0})
+    a = hydrogen.stepper("z-1hz", "adaptive-robust", dyn=dyn, gains={"Lambda": 30.0})
+    b = hydrogen.stepper("z-1hz", "adaptive-robust", dyn=dyn, gains={"Lambda": 90.0})
+    for _ in range(300):
+        solo.step()
+        a.step()
+        b.step()
+        simulate(dyn, "z-1hz", "p", duration=0.01)  # another user of the same library in between
+    np.testing.assert_array_equal(a.q, solo.q)
+    assert np.abs(b.q - solo.q).max() > 1e-6
+
+
+def test_c_loop_divergence_keeps_only_finite_rows(dyn):
+    with pytest.raises(hydrogen.SimulationError) as err:
+        simulate(dyn, "paper-sim", "backstepping", duration=2.0,
+                 gains={"Ktau": 5e4, "u_max": 1.0}, control_rate=200.0, substeps=2)
+    res = err.value.result
+    assert np.all(np.isfinite(res.q)) and np.all(np.isfinite(res.u))
+    assert f"t = {res.t[-1] + 1 / 200.0:.4f} s" in str(err.value)
+
+
+def test_loop_runner_checks_its_arrays(dyn):
+    from hydrogen.simulation import simulator as S
+    p = S._prepare(dyn, "z-1hz", "p", None, 0.1, False, {})
+    runner = S._make_runner(dyn, p.sc, p.ctrl, p.x0, p.q0, p.kf_gain, p.h)
+    small = {"q": np.zeros((10, 6))}
+    assert runner.run(10, p.noise, small) == 0
+    with pytest.raises(ValueError, match="log 'q'"):
+        runner.run(5, None, small)  # rows 10..14 do not exist
+    with pytest.raises(ValueError, match="noise"):
+        runner.run(100, p.noise[:3], None)
+
+
+@pytest.mark.parametrize("override,field", [({"duration": -1.0}, "duration"), ({"duration": float("nan")}, "duration"),
+                                            ({"friction": (0.0, float("nan"), 1e-3)}, "friction"),
+                                            ({"substeps": 0}, "substeps"), ({"bogus": 1}, "bogus")])
+def test_bad_scenario_settings_are_named(dyn, override, field):
+    with pytest.raises(hydrogen.ScenarioError, match=field):
+        simulate(dyn, "z-1hz", "p", **override)
+
+
+def test_forward_kinematics_bad_arguments(dyn, model):
+    l = dyn.leg_lengths(model.neutral_pose)
+    with pytest.raises(hydrogen.KinematicsError, match="not finite"):
+        dyn.forward_kinematics(l, q0=np.full(6, np.nan))
+    with pytest.raises(hydrogen.KinematicsError, match="did not converge"):
+        dyn.forward_kinematics(l, q0=model.neutral_pose + 0.01, max_iter=0)

@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 
 import hydrogen
+import hydrogen.runtime.build
 from hydrogen.codegen import generate as gen
 from hydrogen.model import default_model_path
 from hydrogen.runtime.library import GeneratedLibrary
@@ -49,7 +50,7 @@ def test_two_processes_generating_at_once_leave_a_valid_folder(tmp_path, model):
         p.join(300)
         assert p.exitcode == 0
     assert gen.check(model, folder) == []
-    assert not [p for p in tmp_path.iterdir() if p.name.startswith(".gen.")]
+    assert not [p for p in tmp_path.iterdir() if p.name.startswith(".gen.") and p.name != ".gen.lock"]
 
 
 def _build_in(cache):
@@ -79,3 +80,16 @@ def test_library_from_another_casadi_version_is_reported(dyn):
 def test_missing_library_file_is_reported(tmp_path, dyn):
     with pytest.raises(hydrogen.BuildCacheError, match="cannot load"):
         GeneratedLibrary(tmp_path / "nope.so", dyn.library.manifest)
+
+
+def test_library_built_with_another_integer_size_is_detected(tmp_path, dyn):
+    """casadi_int of 4 bytes (a build with -Dcasadi_int=int) must not be called with 8-byte buffers."""
+    from hydrogen.runtime.compiler import Toolchain, compile_library
+    manifest = dyn.library.manifest
+    gen_dir = dyn.library.generated_dir
+    sources = [gen_dir / e["source"] for e in manifest["functions"]][:1]
+    entry = manifest["functions"][0]
+    lib = compile_library(sources, "abi_test", Toolchain(cflags=("-O0", "-fPIC", "-std=c99", "-Dcasadi_int=int")),
+                          cache=tmp_path)
+    with pytest.raises(hydrogen.BuildCacheError, match="casadi_int of 4 bytes"):
+        GeneratedLibrary(lib, {**manifest, "functions": [entry]})

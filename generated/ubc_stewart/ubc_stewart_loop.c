@@ -132,7 +132,7 @@ int ubc_stewart_loop_run(const ubc_stewart_loop_config* c, ubc_stewart_loop_stat
     long long step, j;
     int i;
     for (step = 0; step < n; ++step) {
-        const double* nz = noise ? noise + 12 * step : 0;
+        const double* nz = noise ? noise + 12 * step : 0;  /* row `step` of this call's table */
         const double t = (double)st->k * h;  /* k h, not a running sum: no drift */
         /* sensors */
         if (leg_lengths(x, l_true)) return UBC_STEWART_CTRL_FAILED;
@@ -194,12 +194,13 @@ int ubc_stewart_loop_run(const ubc_stewart_loop_config* c, ubc_stewart_loop_stat
         /* controller state: Euler, kept inside the projection bounds */
         for (j = 0; j < c->n_xc; ++j)
             st->xc[j] = clip(st->xc[j] + h * c->ctrl_res[1][j], c->xc_lo[j], c->xc_hi[j]);
-        st->k += 1;
-        st->t = (double)st->k * h;
+        /* a non-finite state stops the run with st->k at the period that produced it */
         for (i = 0; i < NX; ++i)
             if (!isfinite(x[i])) return UBC_STEWART_NONFINITE;
         for (j = 0; j < c->n_xc; ++j)
             if (!isfinite(st->xc[j])) return UBC_STEWART_NONFINITE;
+        st->k += 1;
+        st->t = (double)st->k * h;
     }
     return UBC_STEWART_OK;
 }

@@ -73,8 +73,10 @@ typedef struct {                 /* each may be NULL; rows of 6 (xc: n_xc) per c
     double* xc;
 } ubc_stewart_loop_log;
 
-/* Advance n control periods from st. noise: n rows of [leg length noise (6, m), pressure noise (6, Pa)],
- * or NULL. Returns UBC_STEWART_OK, or a code with st left at the failing period. */
+/* Advance n control periods from st. noise: n rows of [leg length noise (6, m), pressure noise (6, Pa)]
+ * for this call, or NULL. Logs are written at row st->k (periods since the start of the run), so each
+ * log needs at least st->k + n rows. Returns UBC_STEWART_OK, or a code with st->k at the failing period
+ * (its log row holds the state before the failing step). */
 int ubc_stewart_loop_run(const ubc_stewart_loop_config* cfg, ubc_stewart_loop_state* st, long long n,
                      const double* noise, ubc_stewart_loop_log* log);
 

@@ -10,18 +10,20 @@ from __future__ import annotations
 import hashlib
 import json
 import re
+import shutil
 import tempfile
 from pathlib import Path
 
 import casadi as ca
 import sympy as sp
 
-from ..fileio import atomic_write, locked, recover_dir, replace_dir
+from ..errors import StaleGeneratedCodeError
+from ..fileio import locked, recover_dir, replace_dir
 from ..symbolic.functions import derive_functions
 from .casadi_functions import shape_of, to_casadi_function
 
 __all__ = [
-    "generate", "check", "derivation_hash", "read_manifest", "expected_manifest_inputs",
+    "generate", "generate_locked", "check", "derivation_hash", "read_manifest", "expected_manifest_inputs",
     "MANIFEST", "FORMAT_VERSION",
 ]
 
@@ -44,8 +46,13 @@ def derivation_hash() -> str:
             h.update(f"{sub}/{path.name}\0".encode())
             h.update(path.read_bytes())
     for name, _ in DRIVERS:
+        path = TEMPLATES / name
+        if not path.is_file():
+            raise StaleGeneratedCodeError(
+                f"{path}: template not found; hydrogen generates code from a source checkout "
+                "(install it with 'pip install -e .' from the repository)")
         h.update(f"templates/{name}\0".encode())
-        h.update((TEMPLATES / name).read_bytes())
+        h.update(path.read_bytes())
     return h.hexdigest()
 
 
@@ -114,11 +121,20 @@ def _sha256(path: Path) -> str:
     return hashlib.sha256(path.read_bytes()).hexdigest()
 
 
-def render(model, folder: Path, functions=None) -> dict:
-    """Write every function's C and the manifest into an existing empty ``folder``."""
+def render(model, folder: Path, functions=None, progress: bool = False) -> dict:
+    """Write every function's C and the manifest into an existing empty ``folder``.
+
+    ``progress`` shows a bar on a terminal (nothing when stderr is not one).
+    """
+    from tqdm import tqdm
+
     folder = Path(folder)
-    functions = derive_functions(model) if functions is None else functions
-    entries = [_write_function(sf, model.name, folder) for sf in functions]
+    if functions is None:
+        with tqdm(total=1, desc="deriving (SymPy)", disable=None if progress else True) as bar:
+            functions = derive_functions(model)
+            bar.update()
+    entries = [_write_function(sf, model.name, folder)
+               for sf in tqdm(functions, desc="generating C", unit="fn", disable=None if progress else True)]
     drivers = render_drivers(model, folder)
     manifest = {
         **expected_manifest_inputs(model),
@@ -135,7 +151,7 @@ def render(model, folder: Path, functions=None) -> dict:
     return manifest
 
 
-def generate(model, out_dir: Path, force: bool = False) -> bool:
+def generate(model, out_dir: Path, force: bool = False, progress: bool = False) -> bool:
     """Generate C for ``model`` into ``out_dir`` unless it is already current.
 
     Returns True when files were (re)written. The folder is swapped in whole
@@ -143,19 +159,24 @@ def generate(model, out_dir: Path, force: bool = False) -> bool:
     """
     out_dir = Path(out_dir)
     with locked(out_dir):
-        recover_dir(out_dir)
-        if not force and not check(model, out_dir):
-            return False
-        out_dir.parent.mkdir(parents=True, exist_ok=True)
-        staging = Path(tempfile.mkdtemp(prefix=f".{out_dir.name}.new-", dir=out_dir.parent))
-        staging.chmod(0o755)  # mkdtemp makes it private; generated code is for everyone
-        try:
-            render(model, staging)
-            replace_dir(staging, out_dir)
-        except BaseException:
-            import shutil
-            shutil.rmtree(staging, ignore_errors=True)
-            raise
+        return generate_locked(model, out_dir, force, progress)
+
+
+def generate_locked(model, out_dir: Path, force: bool = False, progress: bool = False) -> bool:
+    """:func:`generate` for a caller that already holds ``locked(out_dir)``."""
+    out_dir = Path(out_dir)
+    recover_dir(out_dir)
+    if not force and not check(model, out_dir):
+        return False
+    out_dir.parent.mkdir(parents=True, exist_ok=True)
+    staging = Path(tempfile.mkdtemp(prefix=f".{out_dir.name}.new-", dir=out_dir.parent))
+    staging.chmod(0o755)  # mkdtemp makes it private; generated code is for everyone
+    try:
+        render(model, staging, progress=progress)
+        replace_dir(staging, out_dir)
+    except BaseException:
+        shutil.rmtree(staging, ignore_errors=True)
+        raise
     return True
 
 

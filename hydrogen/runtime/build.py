@@ -3,7 +3,8 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from ..codegen.generate import check, generate, read_manifest
+from ..codegen.generate import check, derivation_hash, generate_locked, read_manifest
+from ..fileio import locked
 from ..errors import BuildCacheError
 from ..model import Model, load_model
 from .compiler import Toolchain, cache_root, compile_library
@@ -27,7 +28,9 @@ def generated_dir_for(model: Model, cache: Path | None = None) -> Path:
     committed = repo_generated_dir() / model.name
     if committed.is_dir() and not check(model, committed):
         return committed
-    return Path(cache or cache_root()) / "generated" / f"{model.name}-{model.baked_hash()[:16]}"
+    # Keyed by the derivation too: two hydrogen versions sharing one cache never fight over a folder.
+    key = f"{model.name}-{model.baked_hash()[:16]}-{derivation_hash()[:8]}"
+    return Path(cache or cache_root()) / "generated" / key
 
 
 def build(model: Model | str | Path | None = None, *, cc: str | None = None,
@@ -50,15 +53,21 @@ def build(model: Model | str | Path | None = None, *, cc: str | None = None,
     if not isinstance(model, Model):
         model = load_model(model)
     folder = Path(generated) if generated else generated_dir_for(model, cache)
-    generate(model, folder)  # no-op when current
-    manifest = read_manifest(folder)
     toolchain = Toolchain(**{k: v for k, v in (("cc", cc), ("cflags", cflags)) if v is not None})
-    sources = [folder / e["source"] for e in manifest["functions"]] + [folder / d for d in manifest.get("drivers", [])]
-    lib_path = compile_library(sources, model.name, toolchain, cache=cache)
-    try:
-        lib = GeneratedLibrary(lib_path, manifest)
-    except BuildCacheError:
-        # A cached build that does not match this runtime (other CasADi, other ABI): rebuild once.
-        lib_path = compile_library(sources, model.name, toolchain, cache=cache, force=True)
-        lib = GeneratedLibrary(lib_path, manifest)
+    # One lock from generation through compilation: the manifest read and the sources compiled
+    # are the same generation even if another process regenerates the folder meanwhile.
+    with locked(folder):
+        generate_locked(model, folder)  # no-op when current
+        manifest = read_manifest(folder)
+        if manifest is None:
+            raise BuildCacheError(f"{folder}: generated folder has no readable manifest after generation")
+        sources = [folder / e["source"] for e in manifest["functions"]] \
+            + [folder / d for d in manifest.get("drivers", [])]
+        lib_path = compile_library(sources, model.name, toolchain, cache=cache)
+        try:
+            lib = GeneratedLibrary(lib_path, manifest, folder)
+        except BuildCacheError:
+            # A cached build that does not match this runtime (other CasADi, other ABI): rebuild once.
+            lib_path = compile_library(sources, model.name, toolchain, cache=cache, force=True)
+            lib = GeneratedLibrary(lib_path, manifest, folder)
     return Dynamics(model, lib)

@@ -10,6 +10,7 @@ touched on the call path.
 from __future__ import annotations
 
 import ctypes
+import threading
 from pathlib import Path
 
 import numpy as np
@@ -30,6 +31,8 @@ class CompiledFunction:
     """
 
     def __init__(self, lib: ctypes.CDLL, entry: dict):
+        self._lib, self._entry = lib, entry
+        self._lock = threading.Lock()  # ctypes releases the GIL: one caller at a time per buffer set
         self.name = entry["name"]
         self.c_name = entry["c_name"]
         self.doc = entry.get("doc", "")
@@ -102,18 +105,24 @@ class CompiledFunction:
         return self._out_views
 
     def __call__(self, *args):
-        """Evaluate; returns a fresh array (a tuple of them for several outputs)."""
-        outs = self.call_into(*args)
-        if self._single:
-            return outs[0].copy()
-        return tuple(o.copy() for o in outs)
+        """Evaluate; returns a fresh array (a tuple of them for several outputs). Thread-safe."""
+        with self._lock:
+            outs = self.call_into(*args)
+            if self._single:
+                return outs[0].copy()
+            return tuple(o.copy() for o in outs)
+
+    def clone(self) -> "CompiledFunction":
+        """The same function with buffers of its own (for a controller runtime or a loop runner)."""
+        return CompiledFunction(self._lib, self._entry)
 
 
 class GeneratedLibrary:
     """A loaded shared library built from one generated folder (see its manifest)."""
 
-    def __init__(self, path: Path, manifest: dict):
+    def __init__(self, path: Path, manifest: dict, generated_dir: Path | None = None):
         self.path = Path(path)
+        self.generated_dir = None if generated_dir is None else Path(generated_dir)
         try:
             self._lib = ctypes.CDLL(str(self.path))
         except OSError as exc:

@@ -119,12 +119,34 @@ class LoopRunner:
         st.kf[:] = list(np.concatenate([l0, np.zeros(6)]))
         self.xc[: xc0.size] = xc0
 
+    _LOG_WIDTH = {"t": 1, "q": 6, "q_d": 6, "l": 6, "f": 6, "pc": 6, "u": 6}
+
     def run(self, n: int, noise=None, logs: dict | None = None) -> int:
-        """Advance ``n`` periods; ``noise`` (n, 12) or None; ``logs`` maps names to (n, w) arrays."""
+        """Advance ``n`` periods; ``noise`` (≥ n, 12) or None; ``logs`` maps names to arrays with a row
+        per period of the whole run (rows st.k … st.k + n − 1 are written).
+
+        Shapes, dtype and layout are checked here, so the C code never writes or reads past an array.
+        """
+        n = int(n)
+        if n < 0:
+            raise ValueError(f"n must be >= 0, got {n}")
+        if noise is not None:
+            if (noise.dtype != np.float64 or not noise.flags.c_contiguous or noise.ndim != 2
+                    or noise.shape[1] != 12 or noise.shape[0] < n):
+                raise ValueError(f"noise must be a C-contiguous float64 array of shape (>= {n}, 12), "
+                                 f"got {noise.dtype} {noise.shape}")
         log = None
         if logs:
             log = _Log()
+            end = self.state.k + n
             for k, v in logs.items():
+                width = self.xc.size if k == "xc" else self._LOG_WIDTH.get(k)
+                if width is None:
+                    raise KeyError(f"unknown log '{k}'; logs are {sorted(self._LOG_WIDTH)} and 'xc'")
+                if (v.dtype != np.float64 or not v.flags.c_contiguous or v.size < end * width
+                        or (v.ndim == 2 and v.shape[1] != width)):
+                    raise ValueError(f"log '{k}' must be a C-contiguous float64 array with >= {end} rows "
+                                     f"of {width}, got {v.dtype} {v.shape}")
                 setattr(log, k, _ptr(v))
         nz = None if noise is None else noise.ctypes.data_as(C.c_void_p)
         return self._run(self._cfg_ref, self._st_ref, int(n), nz, None if log is None else C.byref(log))

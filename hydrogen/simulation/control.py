@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..errors import ScenarioError
 from ..symbolic.controllers import STATE_LAYOUT
 
 __all__ = ["make_controller", "DEFAULT_GAINS", "CONTROLLERS"]
@@ -56,15 +57,22 @@ def _gains(kind, overrides):
     g.update(DEFAULT_GAINS.get(kind, {}))
     for k, v in (overrides or {}).items():
         if k not in g:
-            raise KeyError(f"controller '{kind}' has no gain '{k}'; it has {sorted(g)}")
-        g[k] = np.broadcast_to(np.asarray(v, float), np.shape(g[k])).copy()
+            raise ScenarioError(f"controller '{kind}' has no gain '{k}'; it has {sorted(g)}")
+        try:
+            g[k] = np.broadcast_to(np.asarray(v, float), np.shape(g[k])).copy()
+        except (TypeError, ValueError):
+            raise ScenarioError(f"controller '{kind}': gain '{k}' needs shape {np.shape(g[k])} "
+                                f"(or a scalar), got {v!r}") from None
+        if not np.all(np.isfinite(g[k])):
+            raise ScenarioError(f"controller '{kind}': gain '{k}' must be finite, got {v!r}")
     return g
 
 
 class _Controller:
     def __init__(self, dyn, kind, gains, theta0, gamma0, model):
         self.kind = kind
-        self.fn = dyn.functions[f"ctrl_{kind.replace('-', '_')}"]
+        # Buffers of its own: runners, steppers and threads sharing one library never see each other's gains.
+        self.fn = dyn.functions[f"ctrl_{kind.replace('-', '_')}"].clone()
         self.values = dict(gains)
         self.layout = STATE_LAYOUT[kind]
         self.model = model
@@ -131,7 +139,7 @@ def make_controller(dyn, kind, gains=None, theta0=None, gamma0=None, dbar_pose=N
     ``dbar_pose`` (default: neutral) with ``theta0``.
     """
     if kind not in CONTROLLERS:
-        raise ValueError(f"unknown controller '{kind}'; choose one of {', '.join(CONTROLLERS)}")
+        raise ScenarioError(f"unknown controller '{kind}'; choose one of {', '.join(CONTROLLERS)}")
     model = dyn.model
     theta0 = model.theta if theta0 is None else theta0
     gamma0 = model.gamma if gamma0 is None else gamma0

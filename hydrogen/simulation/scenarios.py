@@ -5,6 +5,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
+from ..errors import ScenarioError
 from .reference import MultiSine, Step
 
 __all__ = ["Scenario", "scenario", "SCENARIOS"]
@@ -48,8 +49,27 @@ class Scenario:
     def with_overrides(self, **kw):
         unknown = set(kw) - set(self.__dataclass_fields__)
         if unknown:
-            raise KeyError(f"scenario has no field(s) {sorted(unknown)}; fields: {sorted(self.__dataclass_fields__)}")
-        return replace(self, **kw)
+            raise ScenarioError(f"scenario '{self.name}' has no field(s) {sorted(unknown)}; "
+                                f"fields: {sorted(self.__dataclass_fields__)}")
+        return replace(self, **kw).validated()
+
+    def validated(self) -> "Scenario":
+        """Self, or a :class:`ScenarioError` naming the field that is out of range."""
+        def need(ok, field, what):
+            if not ok:
+                raise ScenarioError(f"scenario '{self.name}': {field} {what}, got {getattr(self, field)!r}")
+        finite = lambda v: bool(np.all(np.isfinite(np.asarray(v, float))))  # noqa: E731
+        need(finite(self.duration) and self.duration > 0, "duration", "must be a finite number > 0 s")
+        need(finite(self.control_rate) and self.control_rate > 0, "control_rate", "must be > 0 Hz")
+        need(isinstance(self.substeps, int) and self.substeps >= 1, "substeps", "must be an integer >= 1")
+        need(finite(self.t_adapt), "t_adapt", "must be finite (use a large value to never adapt)")
+        fr = np.asarray(self.friction, float)
+        need(fr.shape == (3,) and finite(fr) and fr[0] >= 0 and fr[1] >= 0 and fr[2] > 0, "friction",
+             "must be (Coulomb >= 0 N, viscous >= 0 N s/m, smoothing speed > 0 m/s)")
+        for f in ("valve_lag", "noise_l", "noise_p", "kalman_accel"):
+            need(finite(getattr(self, f)) and getattr(self, f) >= 0, f, "must be finite and >= 0")
+        need(np.shape(self.q0_offset) == (6,) and finite(self.q0_offset), "q0_offset", "must be 6 finite numbers")
+        return self
 
 
 def _paper_sim(neutral):
@@ -94,7 +114,7 @@ def scenario(name: str, model) -> Scenario:
                                   metric_start=0.0),
     }
     if name not in builders:
-        raise KeyError(f"unknown scenario '{name}'; choose one of {', '.join(builders)}")
+        raise ScenarioError(f"unknown scenario '{name}'; choose one of {', '.join(builders)}")
     return builders[name]()
 
 

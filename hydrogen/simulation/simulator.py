@@ -197,7 +197,7 @@ def _loop_failure(code, runner, h):
     if code == LOOP_OK:
         return None
     if code == LOOP_NONFINITE:
-        return _describe(runner.plant_state, k * h)
+        return _describe(runner.plant_state, (k + 1) * h)
     if code == LOOP_FK_FAILED:
         return (f"stopped at t = {k * h:.4f} s: forward kinematics did not converge (or JL is singular) "
                 f"for the measured leg lengths; state = {runner.plant_state.tolist()}")

@@ -6,23 +6,17 @@ from concurrent.futures import Executor, ProcessPoolExecutor
 
 __all__ = ["sweep"]
 
-_DYN = {}
-
-
 def _run_one(job):
     """Worker: build (once per process) and run one simulation; return its metrics or its error."""
     import hydrogen
     from ..errors import HydrogenError
 
-    model_path, run = job
-    key = str(model_path)
-    if key not in _DYN:
-        _DYN[key] = hydrogen.build(hydrogen.load_model(model_path))
+    model, run = job
     run = dict(run)
     scenario = run.pop("scenario", "paper-sim")
     controller = run.pop("controller", "adaptive-robust")
     try:
-        res = hydrogen.simulate(scenario, controller, dyn=_DYN[key], **run)
+        res = hydrogen.simulate(scenario, controller, model=model, **run)
     except HydrogenError as exc:
         out = {"error": str(exc).splitlines()[0][:500]}
         if getattr(exc, "result", None) is not None and len(exc.result.t):
@@ -42,8 +36,10 @@ def sweep(runs, *, executor: Executor | None = None, max_workers: int | None = N
     executor spreads the sweep past one machine); by default a local process pool
     with ``max_workers`` (default: the core count) processes.
     """
-    model_path = getattr(model, "source", model)
-    jobs = [(model_path, r) for r in runs]
+    import hydrogen
+    # The Model itself goes to the workers (not its file name): in-memory edits are kept.
+    model = model if isinstance(model, hydrogen.Model) else hydrogen.load_model(model)
+    jobs = [(model, r) for r in runs]
     if executor is not None:
         return list(executor.map(_run_one, jobs))
     with ProcessPoolExecutor(max_workers=max_workers or os.cpu_count() or 1) as pool:
