@@ -310,3 +310,13 @@ def test_forward_kinematics_bad_arguments(dyn, model):
         dyn.forward_kinematics(l, q0=np.full(6, np.nan))
     with pytest.raises(hydrogen.KinematicsError, match="did not converge"):
         dyn.forward_kinematics(l, q0=model.neutral_pose + 0.01, max_iter=0)
+
+
+def test_thread_sweep_equals_serial_sweep(dyn):
+    from concurrent.futures import ThreadPoolExecutor
+    runs = [dict(scenario="z-1hz", controller="adaptive-robust", gains={"Lambda": lam}, duration=0.5)
+            for lam in (30.0, 50.0, 70.0, 90.0)]
+    serial = hydrogen.sweep(runs, max_workers=1)
+    with ThreadPoolExecutor(4) as ex:
+        threaded = hydrogen.sweep(runs, executor=ex)
+    assert [r["max_error"] for r in serial] == [r["max_error"] for r in threaded]
