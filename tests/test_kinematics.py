@@ -65,3 +65,22 @@ def test_forward_kinematics_reports_failure(dyn, model):
         dyn.forward_kinematics(impossible, max_iter=30)
     with pytest.raises(hydrogen.KinematicsError, match="not finite"):
         dyn.forward_kinematics(np.full(6, np.nan))
+
+
+def test_jl_dot_of_the_controllers_matches_finite_differences(dyn, model, rng):
+    """d/dt JL as the controllers derive it (chain rule through q and l) against FD of the compiled JL."""
+    from hydrogen.symbolic.functions import _joints
+    q, qd = K.pose_symbols(), K.rate_symbols("qd")
+    l, JL, JLdot, stages = K.leg_intermediates(q, qd, *_joints(model))
+    f_l = sp.lambdify([q], list(stages[0][1]))
+    f_J = sp.lambdify([q, l], list(stages[1][1]))
+    f_Jd = sp.lambdify([q, qd, l, JL], list(stages[2][1]))
+    h = 1e-6
+    for qv in workspace_poses(model, 10, rng):
+        v = rng.normal(size=6) * 0.2
+        lv = np.array(f_l(qv), float)
+        Jv = np.array(f_J(qv, lv), float).reshape(6, 6)
+        np.testing.assert_allclose(Jv, dyn.leg_jacobian(qv), atol=1e-12)
+        Jd = np.array(f_Jd(qv, v, lv, Jv.ravel()), float).reshape(6, 6)  # Matrix args flatten row-major
+        fd = (dyn.leg_jacobian(qv + h * v) - dyn.leg_jacobian(qv - h * v)) / (2 * h)
+        np.testing.assert_allclose(Jd, fd, atol=1e-7)

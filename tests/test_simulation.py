@@ -165,18 +165,18 @@ def test_paper_sim_observer_controller_estimates_rigid_body_within_5_percent(pap
     assert np.all(err < 0.05), err
 
 
-def test_paper_sim_robust_controller_estimates_mass_within_5_percent(paper_runs):
-    res = paper_runs["adaptive-robust"]
-    err = np.abs(res.theta_hat[-1] - res.theta_true) / res.theta_true
-    assert err[0] < 0.05 and err[2] < 0.05, err
-
-
-@pytest.mark.xfail(strict=True, reason="with the robust observer, the I_x estimate swings between about +10 % "
-                   "and +28 % with the 1 Hz trajectory instead of settling (README, 'What does not match')")
-def test_paper_sim_robust_controller_estimates_all_inertias_within_5_percent(paper_runs):
+def test_paper_sim_robust_controller_estimates_end_within_5_percent(paper_runs):
     res = paper_runs["adaptive-robust"]
     err = np.abs(res.theta_hat[-1] - res.theta_true) / res.theta_true
     assert np.all(err < 0.05), err
+
+
+@pytest.mark.xfail(strict=True, reason="with the robust observer the I_x estimate still swings with the 1 Hz "
+                   "trajectory (about +2 % to +17 % over the last 2 s) instead of settling (README)")
+def test_paper_sim_robust_controller_estimates_stay_within_5_percent_over_the_last_2_s(paper_runs):
+    res = paper_runs["adaptive-robust"]
+    err = np.abs(res.theta_hat[res.t >= 8.0] - res.theta_true) / res.theta_true
+    assert np.all(err < 0.05), err.max(axis=0)
 
 
 def test_divergence_stops_with_time_state_and_partial_result(dyn):

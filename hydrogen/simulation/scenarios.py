@@ -84,7 +84,7 @@ def _paper_sim(neutral):
     # controller drift to their bounds on this trajectory (README "Gains").
     slow = {"Lambda": 30.0, "Kd": 30.0 * np.array([250, 250, 250, 45, 45, 45.0])}
     gains = {"backstepping": slow, "adaptive-observer": slow,
-             "adaptive-robust": {**slow, "Ko": 100.0, "lambda_o": [1.0, 0.0, 0.0, 0.0]}}
+             "adaptive-robust": {**slow, "Ko": 300.0, "lambda_o": [1.0, 0.0, 0.0, 0.0]}}
     return Scenario(
         name="paper-sim", reference=MultiSine(neutral, terms), duration=10.0,
         control_rate=1000.0, substeps=2, t_adapt=0.5, metric_start=8.0,
