@@ -50,7 +50,7 @@ def stepper(scenario="paper-sim", controller="adaptive-robust", *, model=None, d
     return Stepper(dyn or _default_dyn(model), scenario, controller, **overrides)
 
 
-def sweep(runs, *, executor=None, max_workers=None, model=None):
+def sweep(runs, *, executor=None, max_workers=None, model=None, progress=False):
     """Run many simulations in parallel: see :func:`hydrogen.simulation.sweep.sweep`."""
     from .simulation.sweep import sweep as _sweep
-    return _sweep(runs, executor=executor, max_workers=max_workers, model=model)
+    return _sweep(runs, executor=executor, max_workers=max_workers, model=model, progress=progress)

@@ -89,7 +89,8 @@ def _cmd_export(args) -> int:
 def _cmd_tune_p(args) -> int:
     from .simulation.tuning import tune_p
 
-    res = tune_p(np.geomspace(args.min, args.max, args.n) if args.n else None, max_workers=args.workers)
+    res = tune_p(np.geomspace(args.min, args.max, args.n) if args.n else None, max_workers=args.workers,
+                 progress=not args.quiet)
     print(f"{'scenario':9} {'Kleg':>8} {'max err %':>10} {'off-axis':>10} {'sat':>6}  stable")
     for r in res["table"]:
         if "max_error_pct" in r:
@@ -150,6 +151,7 @@ def build_parser() -> argparse.ArgumentParser:
     tp.add_argument("--max", type=float, default=0.3)
     tp.add_argument("--n", type=int, default=0, help="grid size (default: the documented 25-point grid)")
     tp.add_argument("--workers", type=int, help="processes (default: the core count)")
+    tp.add_argument("--quiet", action="store_true", help="no progress bar")
     tp.set_defaults(func=_cmd_tune_p)
     ex = sub.add_parser("export", help="write deployable C: sources, params.h, main.c, Makefile, CMakeLists.txt",
                         description="A folder that builds with only a C compiler and runs one scenario's "

@@ -27,7 +27,8 @@ def _run_one(job):
     return m
 
 
-def sweep(runs, *, executor: Executor | None = None, max_workers: int | None = None, model=None) -> list:
+def sweep(runs, *, executor: Executor | None = None, max_workers: int | None = None, model=None,
+          progress: bool = False) -> list:
     """Run each of ``runs`` (dicts of :func:`hydrogen.simulate` arguments: scenario, controller,
     gains, duration, scenario overrides) and return their metrics in order.
 
@@ -39,8 +40,15 @@ def sweep(runs, *, executor: Executor | None = None, max_workers: int | None = N
     import hydrogen
     # The Model itself goes to the workers (not its file name): in-memory edits are kept.
     model = model if isinstance(model, hydrogen.Model) else hydrogen.load_model(model)
+    from tqdm import tqdm
+
     jobs = [(model, r) for r in runs]
+
+    def collect(ex):
+        return list(tqdm(ex.map(_run_one, jobs), total=len(jobs), desc="sweep", unit="run",
+                         disable=None if progress else True))
+
     if executor is not None:
-        return list(executor.map(_run_one, jobs))
+        return collect(executor)
     with ProcessPoolExecutor(max_workers=max_workers or os.cpu_count() or 1) as pool:
-        return list(pool.map(_run_one, jobs))
+        return collect(pool)

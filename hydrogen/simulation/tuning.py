@@ -18,7 +18,8 @@ __all__ = ["tune_p", "P_SCENARIOS"]
 P_SCENARIOS = {"z-1hz": "z", "z-2hz": "z", "psi-1hz": "psi"}
 
 
-def tune_p(gains=None, scenarios=None, *, executor=None, max_workers=None, model=None) -> dict:
+def tune_p(gains=None, scenarios=None, *, executor=None, max_workers=None, model=None,
+           progress: bool = False) -> dict:
     """Run the sweep; return {"gains", "table": [...], "best": K, "best_errors": {scenario: %}}."""
     from .sweep import sweep
 
@@ -26,7 +27,7 @@ def tune_p(gains=None, scenarios=None, *, executor=None, max_workers=None, model
     gains = np.sort(gains)
     scenarios = dict(scenarios or P_SCENARIOS)
     runs = [dict(scenario=s, controller="p", gains={"Kleg": float(k)}) for s in scenarios for k in gains]
-    out = iter(sweep(runs, executor=executor, max_workers=max_workers, model=model))
+    out = iter(sweep(runs, executor=executor, max_workers=max_workers, model=model, progress=progress))
     table, stable = [], {}
     for s, coord in scenarios.items():
         floor = None
