@@ -1,4 +1,4 @@
-"""Command line: ``hydrogen generate``, ``hydrogen simulate``.
+"""Command line of hydrogen: generate, simulate, figures, bench, tune-p, export.
 
 Errors that hydrogen raises on purpose are printed as one message (no
 traceback) and exit with status 2; ``--check`` exits 1 when generated code is stale.
