@@ -24,19 +24,24 @@ SUITE = (
 )
 
 
-def run_suite(quick: bool = False, json_path: str | None = None, only=None) -> dict:
+def run_suite(quick: bool = False, json_path: str | None = None, only=None, progress: bool = True) -> dict:
     folder = Path(__file__).resolve().parents[1] / "benchmarks"
     if not folder.is_dir():
         raise HydrogenError(f"{folder}: no benchmarks folder; run 'hydrogen bench' from a source checkout")
     sys.path.insert(0, str(folder))
+    from tqdm import tqdm
+
     results = {}
-    for name, what in SUITE:
-        if only and name not in only:
-            continue
-        print(f"\n== {name}: {what}", flush=True)
+    todo = [(n, w) for n, w in SUITE if not only or n in only]
+    bar = tqdm(total=len(todo), desc="bench", unit="module", disable=None if progress else True)
+    for name, what in todo:
+        bar.set_postfix_str(name)
         mod = importlib.import_module(name)
         results[name] = mod.run(quick=quick)
+        bar.update()
+        tqdm.write(f"\n== {name}: {what}")
         mod.print_table(results[name])
+    bar.close()
     if json_path:
         atomic_write(Path(json_path), json.dumps(results, indent=2, default=str) + "\n")
         print(f"\nresults written to {json_path}")

@@ -105,7 +105,7 @@ def _cmd_tune_p(args) -> int:
 
 def _cmd_bench(args) -> int:
     from .bench import run_suite
-    run_suite(quick=args.quick, json_path=args.json, only=args.only)
+    run_suite(quick=args.quick, json_path=args.json, only=args.only, progress=not args.quiet)
     return 0
 
 
@@ -142,7 +142,9 @@ def build_parser() -> argparse.ArgumentParser:
                                    "generation and compile times, in one run.")
     b.add_argument("--quick", action="store_true", help="fewer repeats (about 1 minute)")
     b.add_argument("--json", help="write all results as JSON to this file")
-    b.add_argument("--only", nargs="*", help="run only these modules (bench_loop, bench_functions, bench_build)")
+    b.add_argument("--only", nargs="*", help="run only these modules (bench_loop, bench_functions, bench_build, "
+                                              "bench_flags)")
+    b.add_argument("--quiet", action="store_true", help="no progress bar")
     b.set_defaults(func=_cmd_bench)
     tp = sub.add_parser("tune-p", help="the documented gain search for the P controller (parallel sweep)",
                         description="Sweep the P gain on the experiment scenarios; pick the largest gain stable "

@@ -84,3 +84,11 @@ def test_jl_dot_of_the_controllers_matches_finite_differences(dyn, model, rng):
         Jd = np.array(f_Jd(qv, v, lv, Jv.ravel()), float).reshape(6, 6)  # Matrix args flatten row-major
         fd = (dyn.leg_jacobian(qv + h * v) - dyn.leg_jacobian(qv - h * v)) / (2 * h)
         np.testing.assert_allclose(Jd, fd, atol=1e-7)
+
+
+def test_forward_kinematics_reports_a_singular_jacobian(dyn, model):
+    """At θ = 90° (gimbal lock) T, and so JL, loses rank: Newton must stop with a clear error."""
+    q0 = model.neutral_pose.copy()
+    q0[4] = np.pi / 2
+    with pytest.raises(hydrogen.KinematicsError, match="singular"):
+        dyn.forward_kinematics(dyn.leg_lengths(model.neutral_pose + 0.01), q0=q0)

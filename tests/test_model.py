@@ -70,3 +70,13 @@ def test_baked_hash_ignores_runtime_parameters(tmp_path, model):
     assert heavier.theta[0] == 300.0
     moved = hydrogen.load_model(_write_variant(tmp_path, "underlap = 55.4e-6", "underlap = 60e-6"))
     assert moved.baked_hash() != model.baked_hash()
+
+
+@pytest.mark.parametrize("old,new", [
+    ('name = "ubc_stewart"', 'name = "__import__(\'os\').system(\'true\')"'),
+    ("mass = 250.0", 'mass = "250.0 * 2"'),
+    ("gravity = 9.81", 'gravity = "9.81"'),
+])
+def test_model_text_is_never_evaluated(tmp_path, old, new):
+    with pytest.raises(hydrogen.ModelError):
+        hydrogen.load_model(_write_variant(tmp_path, old, new))
