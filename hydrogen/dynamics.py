@@ -87,7 +87,11 @@ class Dynamics:
 
     # --- hydraulics -------------------------------------------------------------------
     def valve_flow(self, u, pc) -> np.ndarray:
-        """(6,) load flow per unit flow gain, q_l / c (eq. 57), for spool u (m) and p_c (Pa)."""
+        """(6,) load flow per unit flow gain, q_l / c (eq. 57), for spool u (m) and p_c (Pa).
+
+        This is (57) as printed: its roots need 0 ≤ p_c ≤ P_s, and a pressure outside
+        that range gives NaN (the simulated plant uses its linearised, signed law instead).
+        """
         return self.functions["valve_flow"](u, pc)
 
     def valve_inverse(self, ql_per_c, pc) -> np.ndarray:
