@@ -19,7 +19,6 @@ import statistics
 import time
 from types import SimpleNamespace
 
-import casadi as ca
 import numpy as np
 import sympy as sp
 

@@ -1,6 +1,5 @@
 """Build cache, compiler selection and failure reporting of the runtime."""
 import os
-from pathlib import Path
 
 import numpy as np
 import pytest

@@ -4,7 +4,6 @@ import json
 import casadi as ca
 import numpy as np
 import pytest
-import sympy as sp
 from scipy.integrate import solve_ivp
 
 import hydrogen

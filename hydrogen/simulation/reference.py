@@ -1,7 +1,7 @@
 """Reference trajectories q_d(t) with analytic derivatives up to third order (base frame, SI)."""
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 

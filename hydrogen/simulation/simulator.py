@@ -261,7 +261,7 @@ def _run_python(dyn, sc, ctrl, x, q0, noise, kf_gain, log, n, h):
     return n, None
 
 
-def _result(sc, controller, ctrl, t, log, k, theta0, gamma0, theta_true, gamma_true, wall):  # noqa: PLR0913
+def _result(sc, controller, ctrl, t, log, k, theta0, gamma0, theta_true, gamma_true, wall):
     def est(name, width, default):
         s = ctrl._slices.get(name)
         return log["xc"][:k, s] if s is not None else np.tile(default, (k, 1)) * np.ones((k, width))

@@ -24,6 +24,7 @@ import sympy as sp
 
 from . import hydraulics as hyd
 from .calculus import clip, projection, time_derivative
+from .constants import PRESSURE_EPS, baked
 from .kinematics import leg_intermediates, leg_lengths, pose_symbols, rate_symbols
 from .rigid_body import coriolis, gravity, mass_matrix, mass_matrix_inverse, regressor, theta_symbols
 
@@ -63,10 +64,9 @@ class _Common:
     """Symbols and expressions shared by the model-based controllers."""
 
     def __init__(self, model, B, P):
-        F = lambda v: sp.Float(repr(float(v)))  # noqa: E731
-        self.ps, self.d, self.A, self.a, self.L = (F(v) for v in (
+        self.ps, self.d, self.A, self.a, self.L = (baked(v) for v in (
             model.supply_pressure, model.underlap, model.piston_area, model.rod_area, model.chamber_length))
-        self.g = F(model.gravity)
+        self.g = baked(model.gravity)
         self.q, self.qdot, self.pc = pose_symbols(), _sym("qdot"), _sym("pc")
         self.qd = [_sym(f"qd{k}") for k in range(4)]  # q_d and its first three derivatives
         self.Lam, self.Kp, self.Kd = _sym("Lambda"), _sym("Kp"), _sym("Kd")
@@ -87,7 +87,6 @@ class _Common:
         Each stage is bound to symbols so later stages (and τ̇_d's users) refer to
         a symbol, not to a copy of a large expression.
         """
-        from .functions import PRESSURE_EPS
         S = {n: _sym(n) for n in ("taud", "taud_dot", "fd", "fd_dot", "v", "u_raw")}
         stages = [
             (S["taud"], tau_d),

@@ -12,16 +12,12 @@ import sympy as sp
 
 from . import hydraulics as hyd
 from . import controllers as ctl
-from .kinematics import leg_jacobian, leg_lengths, pose_symbols, rate_symbols
+from .constants import PRESSURE_EPS, baked, joints
+from .kinematics import leg_lengths, pose_symbols, rate_symbols
 from .plant import plant_rhs
 from .rigid_body import coriolis, gravity, mass_matrix, regressor, theta_symbols
 
 __all__ = ["SymbolicFunction", "derive_functions", "PRESSURE_EPS"]
-
-#: Pressure drops below this (Pa) are clipped inside the valve inverse: no root of a
-#: negative number, no division by zero when p_c reaches 0 or p_s.
-PRESSURE_EPS = 1.0
-
 
 @dataclass
 class SymbolicFunction:
@@ -40,10 +36,7 @@ def _vec(prefix, n=6):
 
 def kinematics_functions(model) -> list:
     q = pose_symbols()
-    B, P = model.base_joints.tolist(), model.platform_joints.tolist()
-    B = [[sp.Float(repr(x)) for x in row] for row in B]
-    P = [[sp.Float(repr(x)) for x in row] for row in P]
-    l = leg_lengths(q, B, P)
+    l = leg_lengths(q, *joints(model))
     return [
         SymbolicFunction("leg_lengths", [("q", q)], [("l", l)],
                          "Leg lengths l(q), m."),
@@ -56,7 +49,7 @@ def rigid_body_functions(model) -> list:
     q, qd = pose_symbols(), _vec("qdot")
     v, w, a = _vec("v"), _vec("w"), _vec("a")
     th = theta_symbols()
-    g = sp.Float(repr(model.gravity))
+    g = baked(model.gravity)
     D = mass_matrix(q, th)
     return [
         SymbolicFunction("mass_matrix", [("q", q), ("theta", th)], [("D", D)],
@@ -74,12 +67,12 @@ def rigid_body_functions(model) -> list:
 def hydraulic_functions(model) -> list:
     u, pc, l, ld, wq = _vec("u"), _vec("pc"), _vec("l"), _vec("ldot"), _vec("w")
     gam = sp.Matrix(sp.symbols("gamma_1 gamma_2", real=True))
-    ps, d = sp.Float(repr(model.supply_pressure)), sp.Float(repr(model.underlap))
-    A, a, L = (sp.Float(repr(x)) for x in (model.piston_area, model.rod_area, model.chamber_length))
+    ps, d = baked(model.supply_pressure), baked(model.underlap)
+    A, a, L = (baked(x) for x in (model.piston_area, model.rod_area, model.chamber_length))
     flow = sp.Matrix([hyd.valve_flow_unit(u[i], pc[i], ps, d) for i in range(6)])
     inv = sp.Matrix([hyd.valve_inverse_unit(wq[i], pc[i], ps, d, PRESSURE_EPS) for i in range(6)])
     # Plant: ṗ_c with q_l = c · (unit flow), c = γ2/γ1, β = γ1, orifice linearised near Δp = 0.
-    p_lin = sp.Float(repr(model.orifice_linear_below))
+    p_lin = baked(model.orifice_linear_below)
     plant_flow = [hyd.valve_flow_unit_smooth(u[i], pc[i], ps, d, p_lin) for i in range(6)]
     rate = sp.Matrix([hyd.chamber_pressure_rate(l[i], ld[i], gam[1] / gam[0] * plant_flow[i], A, L, gam[0])
                       for i in range(6)])
@@ -97,10 +90,7 @@ def hydraulic_functions(model) -> list:
     ]
 
 
-def _joints(model):
-    B = [[sp.Float(repr(float(x))) for x in row] for row in model.base_joints.tolist()]
-    P = [[sp.Float(repr(float(x))) for x in row] for row in model.platform_joints.tolist()]
-    return B, P
+_joints = joints  # kept for the benchmarks and tests that import it from here
 
 
 def plant_functions(model) -> list:

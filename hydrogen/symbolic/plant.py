@@ -9,6 +9,7 @@ from __future__ import annotations
 import sympy as sp
 
 from . import hydraulics as hyd
+from .constants import baked
 from .kinematics import leg_intermediates, pose_symbols, rate_symbols
 from .rigid_body import coriolis, gravity, mass_matrix, mass_matrix_inverse, theta_symbols
 
@@ -24,10 +25,9 @@ def plant_rhs(model, B, P):
     fric = sp.Matrix(sp.symbols("F_coulomb b_viscous v_smooth", real=True))
     tau_v = sp.Symbol("tau_valve", real=True)
     x = sp.Matrix([*q, *qd, *pc, *spool])
-    F = lambda v: sp.Float(repr(float(v)))  # noqa: E731 - baked constants as exact Floats
-    ps, d, A, a, L = (F(v) for v in (model.supply_pressure, model.underlap, model.piston_area,
+    ps, d, A, a, L = (baked(v) for v in (model.supply_pressure, model.underlap, model.piston_area,
                                      model.rod_area, model.chamber_length))
-    p_lin, g = F(model.orifice_linear_below), F(model.gravity)
+    p_lin, g = baked(model.orifice_linear_below), baked(model.gravity)
 
     l, JL, _, kin = leg_intermediates(q, qd, B, P)
     kin = kin[:2]  # the plant needs no J̇L
