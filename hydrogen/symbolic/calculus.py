@@ -18,7 +18,8 @@ def time_derivative(expr, rates: list) -> sp.Matrix:
     This is what forward-mode AD computes, written out symbolically: the chain-rule
     form Σ ∂expr/∂s · ṡ gives the same values but materialises every partial
     derivative first and made the Theorem 1 controller 2.5 % larger in CasADi
-    instructions (benchmarks/bench_build.py compares against CasADi's own AD).
+    instructions. With the sign rule for (−1)·a·b below, the controllers are exactly as
+    large as with CasADi's own forward AD (benchmarks/bench_build.py, and a test).
     """
     rate_of = {}
     for syms, dots in rates:
@@ -59,6 +60,17 @@ def _forward(root, rate_of, memo):
         memo[n] = _forward_rule(n, rate_of, memo)
 
 
+def _product_rate(args, memo):
+    """Rate of the product of ``args`` folded from the left, as the SymPy → CasADi converter
+    evaluates an n-ary product: the partial products p are the converter's own nodes, so
+    CasADi's CSE shares them."""
+    p, dp = args[0], memo[args[0]]
+    for a in args[1:]:
+        dp = _add(_mul(dp, a), _mul(p, memo[a]))
+        p = sp.Mul(p, a, evaluate=False)
+    return dp
+
+
 def _forward_rule(n, rate_of, memo):
     if n.is_Symbol:
         r = rate_of.get(n, _ZERO)
@@ -68,13 +80,13 @@ def _forward_rule(n, rate_of, memo):
     if isinstance(n, sp.Add):
         return _add(*[memo[a] for a in n.args])
     if isinstance(n, sp.Mul):
-        # left fold, as the SymPy → CasADi converter evaluates an n-ary product: the partial
-        # products p are the converter's own nodes, so CasADi's CSE shares them
-        p, dp = n.args[0], memo[n.args[0]]
-        for a in n.args[1:]:
-            dp = _add(_mul(dp, a), _mul(p, memo[a]))
-            p = sp.Mul(p, a, evaluate=False)
-        return dp
+        args = n.args
+        if args[0] is sp.S.NegativeOne and len(args) > 1:
+            # −a·b·…: CasADi turns the converter's (−1·a)·b·… into −(a·b·…), so its rate is
+            # −d(a·b·…) and the sum that uses it subtracts one product rate, as CasADi's AD does
+            # (the plain fold would negate ȧ·b and a·ḃ separately: one more instruction).
+            return _mul(sp.S.NegativeOne, _product_rate(args[1:], memo))
+        return _product_rate(args, memo)
     if isinstance(n, sp.Pow):
         b, e = n.args
         db = memo[b]
