@@ -5,6 +5,8 @@ I_z] (kg, kg m²). Leg lengths in m, pressures in Pa, spool positions in m.
 """
 from __future__ import annotations
 
+import ctypes
+
 import numpy as np
 
 from .errors import KinematicsError
@@ -26,11 +28,29 @@ class Dynamics:
         self._gravity = f["gravity"]
         self._regressor = f["regressor"]
         self.functions = f
+        lib = getattr(library, "_lib", None)  # None for pure-Python stand-ins (benchmarks)
+        self._many = getattr(lib, f"{model.name}_leg_lengths_many", None) if lib is not None else None
+        if self._many is not None:
+            self._many.restype = ctypes.c_int
+            self._many.argtypes = [ctypes.c_void_p, ctypes.c_longlong, ctypes.c_void_p]
 
     # --- kinematics -------------------------------------------------------------------
     def leg_lengths(self, q) -> np.ndarray:
         """(6,) leg lengths l(q), m."""
         return self._leg_lengths(q)
+
+    def leg_lengths_many(self, qs) -> np.ndarray:
+        """(n, 6) leg lengths (m) of the n poses in the rows of ``qs`` (n, 6): one call into the
+        compiled loop driver for a whole trajectory."""
+        qs = np.ascontiguousarray(qs, dtype=float)
+        if qs.ndim != 2 or qs.shape[1] != 6:
+            raise ValueError(f"leg_lengths_many: poses must have shape (n, 6), got {qs.shape}")
+        if self._many is None:
+            return np.array([self._leg_lengths(q) for q in qs]).reshape(-1, 6)
+        out = np.empty_like(qs)
+        if self._many(qs.ctypes.data, len(qs), out.ctypes.data):
+            raise KinematicsError("leg_lengths_many: the generated leg_lengths function returned an error")
+        return out
 
     def leg_jacobian(self, q) -> np.ndarray:
         """(6, 6) JL = ∂l/∂q."""

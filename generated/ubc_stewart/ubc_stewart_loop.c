@@ -21,6 +21,13 @@ static int leg_lengths(const double* q, double* l) {
     return ubc_stewart_leg_lengths(arg, res, 0, 0, 0);
 }
 
+int ubc_stewart_leg_lengths_many(const double* q, long long n, double* l) {
+    long long k;
+    for (k = 0; k < n; ++k)
+        if (leg_lengths(q + 6 * k, l + 6 * k)) return 1;
+    return 0;
+}
+
 /* JL, column-major 6x6 */
 static int leg_jacobian(const double* q, double* J) {
     const double* arg[1];

@@ -80,6 +80,10 @@ typedef struct {                 /* each may be NULL; rows of 6 (xc: n_xc) per c
 int ubc_stewart_loop_run(const ubc_stewart_loop_config* cfg, ubc_stewart_loop_state* st, long long n,
                      const double* noise, ubc_stewart_loop_log* log);
 
+/* Leg lengths (m) of n poses: row k of q (6: m, rad) gives row k of l (6). One call for a whole
+ * trajectory (workspace checks). Returns 0, or 1 if the generated function failed. */
+int ubc_stewart_leg_lengths_many(const double* q, long long n, double* l);
+
 #ifdef __cplusplus
 }
 #endif
