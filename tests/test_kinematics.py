@@ -38,6 +38,14 @@ def test_leg_lengths_match_geometry(dyn, model, rng):
         np.testing.assert_allclose(dyn.leg_lengths(q), leg_lengths(model, q), rtol=1e-14)
 
 
+def test_leg_lengths_many_is_leg_lengths_row_by_row(dyn, model, rng):
+    qs = workspace_poses(model, 50, rng)
+    np.testing.assert_array_equal(dyn.leg_lengths_many(qs), np.array([dyn.leg_lengths(q) for q in qs]))
+    assert dyn.leg_lengths_many(np.zeros((0, 6))).shape == (0, 6)
+    with pytest.raises(ValueError, match=r"\(n, 6\)"):
+        dyn.leg_lengths_many(qs[:, :5])
+
+
 def test_neutral_pose_is_mid_stroke(dyn, model):
     l = dyn.leg_lengths(model.neutral_pose)
     assert np.all(l > model.leg_min) and np.all(l < model.leg_max)
