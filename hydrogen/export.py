@@ -43,7 +43,7 @@ EXPORT_MANIFEST = "export.json"
 TEMPLATE_NAMES = {"export_params.h.j2": "params.h", "export_main.c.j2": "main.c",
                   "Makefile.j2": "Makefile", "CMakeLists.txt.j2": "CMakeLists.txt"}
 #: Generated functions the loop driver calls (besides the controller).
-LOOP_FUNCTIONS = ("leg_lengths", "leg_jacobian", "plant_rhs")
+LOOP_FUNCTIONS = ("leg_lengths", "leg_kinematics", "plant_rhs")
 COORDS = ("x", "y", "z", "psi", "theta", "phi")
 #: Forward kinematics settings of the loop (the defaults of hydrogen.runtime.loop.LoopRunner).
 FK_TOL, FK_MAX_ITER = 1e-12, 50

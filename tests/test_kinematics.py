@@ -75,23 +75,53 @@ def test_forward_kinematics_reports_failure(dyn, model):
         dyn.forward_kinematics(np.full(6, np.nan))
 
 
+def _evaluate_stages(stages, values):
+    """Numeric value of every stage symbol, evaluating the (symbols, expression) stages in order."""
+    values = dict(values)
+    for syms, expr in stages:
+        free = sorted(expr.free_symbols, key=str)
+        out = np.array(sp.lambdify(free, list(expr))(*[values[s] for s in free]), float)
+        values.update(zip(list(syms), out))
+    return values
+
+
 def test_jl_dot_of_the_controllers_matches_finite_differences(dyn, model, rng):
-    """d/dt JL as the controllers derive it (chain rule through q and l) against FD of the compiled JL."""
+    """The controllers' staged l, JL and d/dt JL (forward mode through q, R and l) against the
+    compiled leg lengths and finite differences of the compiled JL."""
     from hydrogen.symbolic.functions import _joints
     q, qd = K.pose_symbols(), K.rate_symbols("qd")
     l, JL, JLdot, stages = K.leg_intermediates(q, qd, *_joints(model))
-    f_l = sp.lambdify([q], list(stages[0][1]))
-    f_J = sp.lambdify([q, l], list(stages[1][1]))
-    f_Jd = sp.lambdify([q, qd, l, JL], list(stages[2][1]))
     h = 1e-6
     for qv in workspace_poses(model, 10, rng):
         v = rng.normal(size=6) * 0.2
-        lv = np.array(f_l(qv), float)
-        Jv = np.array(f_J(qv, lv), float).reshape(6, 6)
+        val = _evaluate_stages(stages, {**dict(zip(q, qv)), **dict(zip(qd, v))})
+        lv = np.array([val[s] for s in l])
+        Jv = np.array([[val[JL[i, j]] for j in range(6)] for i in range(6)])
+        Jd = np.array([[val[JLdot[i, j]] for j in range(6)] for i in range(6)])
+        np.testing.assert_allclose(lv, dyn.leg_lengths(qv), rtol=1e-14)
         np.testing.assert_allclose(Jv, dyn.leg_jacobian(qv), atol=1e-12)
-        Jd = np.array(f_Jd(qv, v, lv, Jv.ravel()), float).reshape(6, 6)  # Matrix args flatten row-major
         fd = (dyn.leg_jacobian(qv + h * v) - dyn.leg_jacobian(qv - h * v)) / (2 * h)
         np.testing.assert_allclose(Jd, fd, atol=1e-7)
+
+
+def test_staged_jl_is_the_jacobian_of_the_leg_lengths(model, rng):
+    """JL as staged (unit leg vectors and moment arms through T) equals SymPy's own Jacobian of l(q)."""
+    from hydrogen.symbolic.functions import _joints
+    q = K.pose_symbols()
+    _, _, JL, stages = K.leg_stages(q, *_joints(model))
+    direct = sp.lambdify([q], K.leg_jacobian(q, *_joints(model)))
+    for qv in workspace_poses(model, 5, rng, scale=3.0):
+        val = _evaluate_stages(stages, dict(zip(q, qv)))
+        Jv = np.array([[val[JL[i, j]] for j in range(6)] for i in range(6)])
+        np.testing.assert_allclose(Jv, np.array(direct(qv), float), atol=1e-13)
+
+
+def test_leg_kinematics_is_leg_lengths_and_jacobian_in_one_call(dyn, model, rng):
+    fn = dyn.functions["leg_kinematics"]
+    for qv in workspace_poses(model, 5, rng):
+        lv, Jv = fn(qv)
+        np.testing.assert_array_equal(lv, dyn.leg_lengths(qv))
+        np.testing.assert_array_equal(Jv, dyn.leg_jacobian(qv))
 
 
 def test_forward_kinematics_reports_a_singular_jacobian(dyn, model):

@@ -7,7 +7,7 @@
 
 #include "ubc_stewart_loop.h"
 #include "ubc_stewart_leg_lengths.h"
-#include "ubc_stewart_leg_jacobian.h"
+#include "ubc_stewart_leg_kinematics.h"
 #include "ubc_stewart_plant_rhs.h"
 
 #define NX 24
@@ -28,13 +28,14 @@ int ubc_stewart_leg_lengths_many(const double* q, long long n, double* l) {
     return 0;
 }
 
-/* JL, column-major 6x6 */
-static int leg_jacobian(const double* q, double* J) {
+/* leg lengths and JL (column-major 6x6) in one call: they share the leg vectors */
+static int leg_kinematics(const double* q, double* l, double* J) {
     const double* arg[1];
-    double* res[1];
+    double* res[2];
     arg[0] = q;
-    res[0] = J;
-    return ubc_stewart_leg_jacobian(arg, res, 0, 0, 0);
+    res[0] = l;
+    res[1] = J;
+    return ubc_stewart_leg_kinematics(arg, res, 0, 0, 0);
 }
 
 /* Solve A x = b (A column-major n x n, overwritten), partial pivoting; returns 0 if singular. */
@@ -65,20 +66,21 @@ static int solve6(double* A, double* b) {
     return 1;
 }
 
-/* Newton's method for q with l(q) = l_meas, starting from q (updated in place). */
-static int forward_kinematics(const double* l_meas, double* q, double tol, long long max_iter) {
-    double l[6], r[6], J[36], err;
+/* Newton's method for q with l(q) = l_meas, starting from q (updated in place). On success J holds
+ * JL at the returned q (the converged iterate's own evaluation: no extra call for the velocities). */
+static int forward_kinematics(const double* l_meas, double* q, double tol, long long max_iter, double* J) {
+    double l[6], r[6], err;
     long long it;
     int i;
     for (it = 0; it <= max_iter; ++it) {
-        if (leg_lengths(q, l)) return 0;
+        if (leg_kinematics(q, l, J)) return 0;
         err = 0;
         for (i = 0; i < 6; ++i) {
             r[i] = l[i] - l_meas[i];
             if (fabs(r[i]) > err) err = fabs(r[i]);
         }
         if (err < tol) return 1;
-        if (it == max_iter || leg_jacobian(q, J) || !solve6(J, r)) return 0;
+        if (it == max_iter || !solve6(J, r)) return 0;  /* J is evaluated again next iteration */
         for (i = 0; i < 6; ++i) q[i] -= r[i];
     }
     return 0;
@@ -141,8 +143,8 @@ int ubc_stewart_loop_run(const ubc_stewart_loop_config* c, ubc_stewart_loop_stat
     for (step = 0; step < n; ++step) {
         const double* nz = noise ? noise + 12 * step : 0;  /* row `step` of this call's table */
         const double t = (double)st->k * h;  /* k h, not a running sum: no drift */
-        /* sensors */
-        if (leg_lengths(x, l_true)) return UBC_STEWART_CTRL_FAILED;
+        /* sensors (JL at the true pose only for the ideal leg-rate sensor) */
+        if (c->use_kalman ? leg_lengths(x, l_true) : leg_kinematics(x, l_true, J)) return UBC_STEWART_CTRL_FAILED;
         for (i = 0; i < 6; ++i) {
             l_meas[i] = l_true[i] + (nz ? nz[i] : 0);
             pc_meas[i] = nz ? clip(x[12 + i] + nz[6 + i], 0, ps) : x[12 + i];
@@ -155,15 +157,13 @@ int ubc_stewart_loop_run(const ubc_stewart_loop_config* c, ubc_stewart_loop_stat
                 ldot[i] = st->kf[6 + i];
             }
         } else {
-            if (leg_jacobian(x, J)) return UBC_STEWART_CTRL_FAILED;
             for (i = 0; i < 6; ++i) {
                 ldot[i] = 0;
                 for (j = 0; j < 6; ++j) ldot[i] += J[i + 6 * j] * x[6 + j];
             }
         }
         /* task space from leg space */
-        if (!forward_kinematics(l_meas, st->q_meas, c->fk_tol, c->fk_max_iter)) return UBC_STEWART_FK_FAILED;
-        if (leg_jacobian(st->q_meas, J)) return UBC_STEWART_CTRL_FAILED;
+        if (!forward_kinematics(l_meas, st->q_meas, c->fk_tol, c->fk_max_iter, J)) return UBC_STEWART_FK_FAILED;
         memcpy(qdot_meas, ldot, sizeof ldot);
         if (!solve6(J, qdot_meas)) return UBC_STEWART_FK_FAILED;
         /* controller */

@@ -26,10 +26,11 @@ from ..fileio import atomic_write, locked
 
 __all__ = ["Toolchain", "cache_root", "compile_library", "DEFAULT_CFLAGS", "WARNING_FLAGS"]
 
-#: Chosen by benchmarks/bench_flags.py (paper-sim loop per period / compile from clean): -O1 7.5 µs / 1.5 s,
-#: -O2 6.9 µs / 2.1 s, -O3 6.7 µs / 2.2 s, -O3 -march=native 6.2 µs / 2.2 s. -O3 gains 2.5 %, within the
-#: noise; -march=native ties the cache to one CPU, so it is left to the user (cflags=...).
-DEFAULT_CFLAGS = ("-O2", "-fPIC", "-std=c99")
+#: Chosen by benchmarks/bench_flags.py (README "Benchmarks"). -fno-semantic-interposition lets gcc
+#: and clang inline CasADi's exported one-line helpers (casadi_sq, casadi_fmin, ...) inside the shared
+#: library, where each was a call through the PLT: the paper-sim loop 12 % faster. -O3 adds little;
+#: -march=native ties the cache to one CPU, so it is left to the user (cflags=...).
+DEFAULT_CFLAGS = ("-O2", "-fPIC", "-std=c99", "-fno-semantic-interposition")
 WARNING_FLAGS = ("-Wall", "-Wextra", "-Werror")
 
 

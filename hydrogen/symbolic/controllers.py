@@ -25,7 +25,7 @@ import sympy as sp
 from . import hydraulics as hyd
 from .calculus import clip, projection, time_derivative
 from .constants import PRESSURE_EPS, baked
-from .kinematics import leg_intermediates, leg_lengths, pose_symbols, rate_symbols
+from .kinematics import leg_intermediates, leg_stages, pose_symbols, rate_symbols
 from .rigid_body import coriolis, gravity, mass_matrix, mass_matrix_inverse, regressor, theta_symbols
 
 __all__ = ["ControllerParts", "backstepping", "adaptive_robust", "adaptive_observer", "p_controller",
@@ -259,7 +259,7 @@ def adaptive_observer(model, B, P) -> ControllerParts:
 def p_controller(model, B, P) -> ControllerParts:
     """The paper's baseline: u = K (l_d − l) per leg, l_d = l(q_d), saturated at ±u_max."""
     l_meas, qd0, k, u_max = _sym("l"), _sym("qd0"), _sym("Kleg"), _scalar("u_max")
-    ld = leg_lengths(qd0, B, P)
+    _, ld, _, stages = leg_stages(qd0, B, P)
     u = sp.Matrix([clip(k[i] * (ld[i] - l_meas[i]), -u_max, u_max) for i in range(6)])
     return ControllerParts(inputs=[("l", l_meas), ("qd0", qd0), ("Kleg", k), ("u_max", sp.Matrix([u_max]))],
-                           outputs=[("u", u)])
+                           outputs=[("u", u)], intermediates=stages[:2])

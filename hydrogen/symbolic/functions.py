@@ -13,7 +13,7 @@ import sympy as sp
 from . import hydraulics as hyd
 from . import controllers as ctl
 from .constants import PRESSURE_EPS, baked, joints
-from .kinematics import leg_lengths, pose_symbols, rate_symbols
+from .kinematics import leg_stages, pose_symbols, rate_symbols
 from .plant import plant_rhs
 from .rigid_body import coriolis, gravity, mass_matrix, regressor, theta_symbols
 
@@ -36,12 +36,15 @@ def _vec(prefix, n=6):
 
 def kinematics_functions(model) -> list:
     q = pose_symbols()
-    l = leg_lengths(q, *joints(model))
+    _, l, JL, stages = leg_stages(q, *joints(model))
     return [
         SymbolicFunction("leg_lengths", [("q", q)], [("l", l)],
-                         "Leg lengths l(q), m."),
-        SymbolicFunction("leg_jacobian", [("q", q)], [("JL", l.jacobian(q))],
-                         "JL = dl/dq (6x6)."),
+                         "Leg lengths l(q), m.", stages[:2]),
+        SymbolicFunction("leg_jacobian", [("q", q)], [("JL", JL)],
+                         "JL = dl/dq (6x6).", stages),
+        SymbolicFunction("leg_kinematics", [("q", q)], [("l", l), ("JL", JL)],
+                         "Leg lengths l(q) (m) and JL = dl/dq together (one Newton step of forward "
+                         "kinematics).", stages),
     ]
 
 

@@ -29,8 +29,7 @@ def plant_rhs(model, B, P):
                                      model.rod_area, model.chamber_length))
     p_lin, g = baked(model.orifice_linear_below), baked(model.gravity)
 
-    l, JL, _, kin = leg_intermediates(q, qd, B, P)
-    kin = kin[:2]  # the plant needs no J̇L
+    l, JL, _, kin = leg_intermediates(q, qd, B, P, rates=False)  # the plant needs no J̇L
     ldot = rate_symbols("plant_ldot")
     ldot_value = JL * qd
     lagged = sp.Gt(tau_v, 0, evaluate=False)
