@@ -57,3 +57,17 @@ def test_outputs_are_fresh_arrays(dyn, model):
     a = dyn.leg_lengths(model.neutral_pose)
     b = dyn.leg_lengths(model.neutral_pose + 0.01)
     assert not np.allclose(a, b)
+
+
+def test_runtime_path_imports_neither_sympy_nor_casadi(dyn, cache):
+    """The thin runtime: loading a built library and simulating needs no SymPy, CasADi or jinja2
+    (a sweep worker or a CLI call starts in a fraction of the time)."""
+    import subprocess
+    import sys
+
+    code = ("import sys, hydrogen; dyn = hydrogen.build(cache=%r); "
+            "hydrogen.simulate('z-step', 'p', duration=0.1, dyn=dyn); "
+            "print(sorted(m for m in ('sympy', 'casadi', 'jinja2') if m in sys.modules))" % str(cache))
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300)
+    assert out.returncode == 0, out.stderr
+    assert out.stdout.strip() == "[]"

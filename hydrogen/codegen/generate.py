@@ -14,13 +14,11 @@ import shutil
 import tempfile
 from pathlib import Path
 
-import casadi as ca
-import sympy as sp
-
 from ..errors import StaleGeneratedCodeError
 from ..fileio import locked, recover_dir, replace_dir
-from ..symbolic.functions import derive_functions
-from .casadi_functions import shape_of, to_casadi_function
+
+# SymPy, CasADi and the derivation are imported where code is generated, not at import: the
+# runtime imports this module for the staleness check only, and stays free of both.
 
 __all__ = [
     "generate", "generate_locked", "check", "derivation_hash", "read_manifest", "expected_manifest_inputs",
@@ -97,6 +95,10 @@ def c_name(model_name: str, fname: str) -> str:
 
 
 def _write_function(sf, model_name: str, folder: Path) -> dict:
+    import casadi as ca
+
+    from .casadi_functions import shape_of, to_casadi_function
+
     name = c_name(model_name, sf.name)
     fun = to_casadi_function(sf, c_name=name)
     cg = ca.CodeGenerator(f"{name}.c", dict(CODEGEN_OPTIONS))
@@ -126,7 +128,11 @@ def render(model, folder: Path, functions=None, progress: bool = False) -> dict:
 
     ``progress`` shows a bar on a terminal (nothing when stderr is not one).
     """
+    import casadi as ca
+    import sympy as sp
     from tqdm import tqdm
+
+    from ..symbolic.functions import derive_functions
 
     folder = Path(folder)
     if functions is None:

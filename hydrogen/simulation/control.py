@@ -9,7 +9,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..errors import ScenarioError
-from ..symbolic.controllers import STATE_LAYOUT
+from ..symbolic.layout import STATE_LAYOUT
 
 __all__ = ["make_controller", "DEFAULT_GAINS", "CONTROLLERS"]
 

@@ -25,18 +25,13 @@ import sympy as sp
 from . import hydraulics as hyd
 from .calculus import clip, projection, time_derivative
 from .constants import PRESSURE_EPS, baked
+from .layout import STATE_LAYOUT
 from .kinematics import leg_intermediates, leg_stages, pose_symbols, rate_symbols
 from .rigid_body import coriolis, gravity, mass_matrix, mass_matrix_inverse, regressor, theta_symbols
 
 __all__ = ["ControllerParts", "backstepping", "adaptive_robust", "adaptive_observer", "p_controller",
            "STATE_LAYOUT"]
 
-STATE_LAYOUT = {
-    "backstepping": [],
-    "adaptive-robust": [("z", 6), ("theta_hat", 4), ("gamma1_hat", 6), ("gamma2_hat", 6)],
-    "adaptive-observer": [("q_hat", 6), ("z", 6), ("theta_hat", 4), ("gamma1_hat", 6), ("gamma2_hat", 6)],
-    "p": [],
-}
 
 
 @dataclass
