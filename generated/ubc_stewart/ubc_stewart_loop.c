@@ -66,14 +66,15 @@ static int solve6(double* A, double* b) {
     return 1;
 }
 
-/* Newton's method for q with l(q) = l_meas, starting from q (updated in place). On success J holds
- * JL at the returned q (the converged iterate's own evaluation: no extra call for the velocities). */
+/* Newton's method for q with l(q) = l_meas, starting from q (updated in place). Returns 1 with J holding
+ * JL at the returned q (the converged iterate's own evaluation: no extra call for the velocities),
+ * 0 if it does not converge or JL is singular, -1 if the generated function failed. */
 static int forward_kinematics(const double* l_meas, double* q, double tol, long long max_iter, double* J) {
     double l[6], r[6], err;
     long long it;
     int i;
     for (it = 0; it <= max_iter; ++it) {
-        if (leg_kinematics(q, l, J)) return 0;
+        if (leg_kinematics(q, l, J)) return -1;
         err = 0;
         for (i = 0; i < 6; ++i) {
             r[i] = l[i] - l_meas[i];
@@ -163,7 +164,11 @@ int ubc_stewart_loop_run(const ubc_stewart_loop_config* c, ubc_stewart_loop_stat
             }
         }
         /* task space from leg space */
-        if (!forward_kinematics(l_meas, st->q_meas, c->fk_tol, c->fk_max_iter, J)) return UBC_STEWART_FK_FAILED;
+        switch (forward_kinematics(l_meas, st->q_meas, c->fk_tol, c->fk_max_iter, J)) {
+            case 1: break;
+            case 0: return UBC_STEWART_FK_FAILED;
+            default: return UBC_STEWART_CTRL_FAILED;
+        }
         memcpy(qdot_meas, ldot, sizeof ldot);
         if (!solve6(J, qdot_meas)) return UBC_STEWART_FK_FAILED;
         /* controller */

@@ -36,7 +36,7 @@ class SimulationResult:
     gamma_true: np.ndarray
     amplitude: np.ndarray
     metric_start: float
-    wall_time_s: float = 0.0  # the whole simulate() call: setup, loop, result (s)
+    wall_time_s: float = 0.0  # the run: setup, loop, result, with the library already loaded (s)
     loop_wall_s: float = 0.0  # the closed loop alone (s)
     u_max: float = 0.0
     metrics: dict = field(default_factory=dict)

@@ -97,7 +97,7 @@ def _symbols(prefix, rows, cols=1):
     return sp.Matrix(rows, cols, lambda i, j: sp.Symbol(f"{prefix}_{i}{j}", real=True))
 
 
-def leg_stages(q, base_joints, platform_joints, prefix: str = ""):
+def leg_stages(q, base_joints, platform_joints):
     """Leg lengths and JL as intermediate symbols, in stages: ``(R, l, JL, stages)``.
 
     ``stages`` lists ``(symbols, expression)`` pairs to evaluate in order: the rotation R,
@@ -109,7 +109,7 @@ def leg_stages(q, base_joints, platform_joints, prefix: str = ""):
     instructions this way against 744 for the symbolic Jacobian of l(q).
     """
     qm = sp.Matrix(q)
-    R, l, JL = _symbols(f"{prefix}R", 3, 3), _symbols(f"{prefix}legl", 6), _symbols(f"{prefix}JL", 6, 6)
+    R, l, JL = _symbols("R", 3, 3), _symbols("legl", 6), _symbols("JL", 6, 6)
     T = angular_velocity_map(qm)
     l_value, JL_rows = [], []
     for i, (bj, pj) in enumerate(zip(base_joints, platform_joints)):
