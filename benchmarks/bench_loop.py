@@ -9,9 +9,8 @@ and how a parallel sweep scales. Every route runs the same loop (sensors, Newton
 kinematics, controller, 2 RK4 plant sub-steps) and is checked to give the same trajectory before
 it is timed.
 
-The sweep is timed in a fresh Python process, as a user's script would call it: this process
-holds the SymPy derivations of routes (a) and (b), and forking a pool from it costs more than the
-sweep itself would in a user's script.
+The sweep is timed in a fresh Python process, as a user's script would call it: timed in this
+process, right after the routes, it once scaled only 1.54x (cause not pinned down; README).
 
 Run: ``python benchmarks/bench_loop.py [--quick] [--json FILE]``
 """
