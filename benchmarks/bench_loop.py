@@ -20,7 +20,9 @@ import argparse
 import json
 import os
 import statistics
+import sys
 import time
+from pathlib import Path
 from types import SimpleNamespace
 
 import numpy as np
@@ -28,18 +30,16 @@ import sympy as sp
 
 import hydrogen
 import hydrogen.simulation.scenarios
-
-try:  # imported as benchmarks.bench_loop
-    from . import common
-except ImportError:  # run as a script, or loaded from its path
-    import sys
-    from pathlib import Path
-    sys.path.insert(0, str(Path(__file__).resolve().parent))
-    import common
 from hydrogen.codegen.casadi_functions import to_casadi_function
 from hydrogen.dynamics import Dynamics
 from hydrogen.simulation import simulator as S
 from hydrogen.symbolic.functions import derive_functions
+
+try:  # imported as benchmarks.bench_loop
+    from . import common
+except ImportError:  # run as a script, or loaded from its path
+    sys.path.insert(0, str(Path(__file__).resolve().parent))
+    import common
 
 SCENARIO, CONTROLLER = "paper-sim", "adaptive-robust"
 

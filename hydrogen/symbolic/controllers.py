@@ -26,7 +26,7 @@ from . import hydraulics as hyd
 from .calculus import clip, projection, time_derivative
 from .constants import PRESSURE_EPS, baked
 from .layout import STATE_LAYOUT
-from .kinematics import leg_intermediates, leg_stages, pose_symbols, rate_symbols
+from .kinematics import leg_intermediates, leg_stages, matrix_symbols, pose_symbols, rate_symbols
 from .rigid_body import coriolis, gravity, mass_matrix, mass_matrix_inverse, regressor, theta_symbols
 
 __all__ = ["ControllerParts", "backstepping", "adaptive_robust", "adaptive_observer", "p_controller",
@@ -70,7 +70,7 @@ class _Common:
         self.l, self.JL, self.JLdot, self.kin = leg_intermediates(self.q, self.qdot, B, P)
         self.ldot = self.JL * self.qdot
         self.f = sp.Matrix([hyd.leg_force(self.pc[i], self.ps, self.A, self.a) for i in range(6)])
-        self.Jit = sp.Matrix(6, 6, lambda i, j: sp.Symbol(f"JLinvT_{i}{j}", real=True))
+        self.Jit = matrix_symbols("JLinvT", 6, 6)
         self.e = self.q - self.qd[0]
 
     def desired_rates(self):
@@ -162,7 +162,7 @@ def adaptive_robust(model, B, P) -> ControllerParts:
     z, th_hat = _sym("z"), _sym("theta_hat", 4)
     g1, g2 = _sym("gamma1_hat"), _sym("gamma2_hat")
     Ko, lam_o, eps, Gz_inv = _sym("Ko"), _sym("lambda_o", 4), _scalar("sat_width"), _sym("Gz_inv")
-    Dbar_inv = sp.Matrix(6, 6, lambda i, j: sp.Symbol(f"Dbar_inv_{i}{j}", real=True))
+    Dbar_inv = matrix_symbols("Dbar_inv", 6, 6)
     Gbar = _sym("Gbar")
     vecs, scal, ad_inputs = _adaptive_inputs(c)
     z_dot, th_dot = _sym("zdot"), _sym("thetadot", 4)

@@ -11,7 +11,7 @@ import sympy as sp
 __all__ = [
     "pose_symbols", "rate_symbols", "rotation", "angular_velocity_map",
     "body_angular_velocity_map", "task_map", "leg_vectors", "leg_lengths", "leg_jacobian", "leg_stages",
-    "leg_intermediates",
+    "leg_intermediates", "matrix_symbols",
 ]
 
 
@@ -91,9 +91,8 @@ def leg_jacobian(q, base_joints, platform_joints) -> sp.Matrix:
     return leg_lengths(q, base_joints, platform_joints).jacobian(sp.Matrix(q))
 
 
-def _symbols(prefix, rows, cols=1):
-    if cols == 1:
-        return sp.Matrix([sp.Symbol(f"{prefix}_{i}", real=True) for i in range(rows)])
+def matrix_symbols(prefix: str, rows: int, cols: int) -> sp.Matrix:
+    """rows × cols real symbols ``prefix_ij`` (vectors: :func:`rate_symbols`)."""
     return sp.Matrix(rows, cols, lambda i, j: sp.Symbol(f"{prefix}_{i}{j}", real=True))
 
 
@@ -109,7 +108,7 @@ def leg_stages(q, base_joints, platform_joints):
     instructions this way against 744 for the symbolic Jacobian of l(q).
     """
     qm = sp.Matrix(q)
-    R, l, JL = _symbols("R", 3, 3), _symbols("legl", 6), _symbols("JL", 6, 6)
+    R, l, JL = matrix_symbols("R", 3, 3), rate_symbols("legl"), matrix_symbols("JL", 6, 6)
     T = angular_velocity_map(qm)
     l_value, JL_rows = [], []
     for i, (bj, pj) in enumerate(zip(base_joints, platform_joints)):
@@ -139,6 +138,6 @@ def leg_intermediates(q, qdot, base_joints, platform_joints, rates: bool = True)
     qm, qdm = sp.Matrix(q), sp.Matrix(qdot)
     w = angular_velocity_map(qm) * sp.Matrix(qdm[3:])
     S = sp.Matrix([[0, -w[2], w[1]], [w[2], 0, -w[0]], [-w[1], w[0], 0]])
-    R_dot, JL_dot = _symbols("Rdot", 3, 3), _symbols("JLdot", 6, 6)
+    R_dot, JL_dot = matrix_symbols("Rdot", 3, 3), matrix_symbols("JLdot", 6, 6)
     JL_dot_value = time_derivative(stages[2][1], [(qm, qdm), (R, R_dot), (l, JL * qdm)])
     return l, JL, JL_dot, [*stages, (R_dot, S * R), (JL_dot, JL_dot_value.reshape(6, 6))]
