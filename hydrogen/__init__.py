@@ -1,11 +1,11 @@
-"""hydrogen: symbolic model of a hydraulic Stewart platform → compiled C → control loop."""
+"""hydrogen: symbolic model of a hydraulic robot → compiled C → controller and simulator loop."""
 from .errors import (BuildCacheError, CompilerError, HydrogenError, KinematicsError,
                      ModelError, ScenarioError, SimulationError, StaleGeneratedCodeError,
                      UnsupportedExpressionError)
-from .model import Model, load_model
+from .model import Model, load_model, models
 
 __all__ = [
-    "load_model", "Model", "build", "simulate", "stepper", "sweep",
+    "load_model", "models", "Model", "build", "simulate", "stepper", "sweep",
     "HydrogenError", "ModelError", "UnsupportedExpressionError", "CompilerError",
     "BuildCacheError", "StaleGeneratedCodeError", "KinematicsError", "SimulationError", "ScenarioError",
 ]
@@ -24,8 +24,9 @@ _DEFAULT_DYN = {}
 def simulate(scenario="paper-sim", controller="adaptive-robust", *, model=None, dyn=None, **overrides):
     """Run a scenario in closed loop and return a :class:`~hydrogen.simulation.simulator.SimulationResult`.
 
-    ``scenario``: paper-sim, z-1hz, z-2hz, psi-1hz or z-step. ``controller``:
-    backstepping, adaptive-robust, adaptive-observer or p. ``overrides`` may set
+    ``scenario``: one of the model's scenarios (the Stewart platform's: paper-sim, z-1hz, z-2hz,
+    psi-1hz, z-step). ``controller``: backstepping, adaptive-robust, adaptive-observer or p.
+    ``model``: a built-in name (``hydrogen.models()``), a path or a Model (default: ubc_stewart). ``overrides`` may set
     ``duration`` (s), ``gains`` (dict), or any scenario field. ``dyn`` defaults to
     ``build(model)``, built once per process and model.
     """

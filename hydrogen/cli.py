@@ -39,7 +39,6 @@ def _cmd_generate(args) -> int:
 def _cmd_simulate(args) -> int:
     import hydrogen
     from .fileio import atomic_write
-    from .simulation.simulator import COORDS
 
     res = hydrogen.simulate(args.scenario, args.controller, model=args.model, duration=args.duration)
     m = res.metrics
@@ -47,16 +46,13 @@ def _cmd_simulate(args) -> int:
           f"in {m['wall_time_s'] * 1e3:.1f} ms ({m['sim_time_s'] / max(m['wall_time_s'], 1e-9):.0f}x real time; "
           f"the C loop {m['loop_wall_s'] * 1e3:.1f} ms, the rest setup)")
     print(f"max tracking error over t >= {m['metric_start_s']} s (% of reference amplitude, absolute):")
-    for c in COORDS:
+    for c in res.coordinates:
         pct = m["max_error_pct"][c]
-        unit, scale = ("mm", 1e3) if c in "xyz" else ("mrad", 1e3)
-        print(f"  {c:>5}: {'-' if pct is None else f'{pct:7.2f} %'}   {m['max_error'][c] * scale:9.4f} {unit}")
-    names = ("Mp", "Ix", "Iy", "Iz")
-    print("theta_hat final:", ", ".join(f"{n} {v:.2f} ({e:+.1f} %)" for n, v, e in
-                                        zip(names, m["theta_hat_final"], m["theta_error_pct_final"])))
-    g1, g2 = np.mean(m["gamma_hat_final"][0]), np.mean(m["gamma_hat_final"][1])
-    print(f"gamma_hat final (mean over legs): beta {g1:.4g} Pa ({100 * (g1 / m['gamma_true'][0] - 1):+.1f} %), "
-          f"beta*c {g2:.4g} ({100 * (g2 / m['gamma_true'][1] - 1):+.1f} %)")
+        print(f"  {c:>12}: {'-' if pct is None else f'{pct:7.2f} %'}   {m['max_error'][c] * 1e3:9.4f} (mm or mrad)")
+    print("theta_hat final:", ", ".join(f"{n} {v:.4g} ({e:+.1f} %)" for n, v, e in
+                                        zip(res.theta_names, m["theta_hat_final"], m["theta_error_pct_final"])))
+    err = [100 * np.mean(np.asarray(h) / np.asarray(t) - 1) for h, t in zip(m["gamma_hat_final"], m["gamma_true"])]
+    print(f"gamma_hat final (mean error over cylinders): beta {err[0]:+.1f} %, beta*c {err[1]:+.1f} %")
     if args.json:
         atomic_write(Path(args.json), res.to_json() + "\n")
         print(f"metrics written to {args.json}")
@@ -115,27 +111,26 @@ def build_parser() -> argparse.ArgumentParser:
     sub = parser.add_subparsers(dest="command", required=True)
     g = sub.add_parser("generate", help="derive the model and write its C into generated/",
                        description="Derive the model symbolically and write C, headers and a manifest.")
-    g.add_argument("--model", help="model TOML file (default: the packaged model)")
+    g.add_argument("--model", help="built-in model name (hydrogen.models()) or TOML file (default: ubc_stewart)")
     g.add_argument("--out", help="output folder (default: generated/<model name> of the checkout)")
     g.add_argument("--check", action="store_true", help="exit 1 if the folder is stale; write nothing")
     g.add_argument("--force", action="store_true", help="regenerate even when up to date")
     g.add_argument("--quiet", action="store_true", help="no progress bar")
     g.set_defaults(func=_cmd_generate)
-    from .simulation.control import CONTROLLERS
-    from .simulation.scenarios import SCENARIOS
+    from .controllers import CONTROLLERS
     sim = sub.add_parser("simulate", help="run a scenario in closed loop and print its metrics",
                          description="Simulate a scenario of the paper with one controller.")
-    sim.add_argument("--scenario", default="paper-sim", choices=SCENARIOS)
+    sim.add_argument("--scenario", default="paper-sim", help="a scenario of the model (default: paper-sim)")
     sim.add_argument("--controller", default="adaptive-robust", choices=CONTROLLERS)
     sim.add_argument("--duration", type=float, help="simulated time, s (default: the scenario's)")
-    sim.add_argument("--model", help="model TOML file (default: the packaged model)")
+    sim.add_argument("--model", help="built-in model name (hydrogen.models()) or TOML file (default: ubc_stewart)")
     sim.add_argument("--json", help="write the metrics as JSON to this file")
     sim.add_argument("--plot", help="write the tracking-error figure (PNG) to this file")
     sim.set_defaults(func=_cmd_simulate)
     fig = sub.add_parser("figures", help="run every scenario and write the paper's figures and table",
                          description="Counterparts of Figs. 2, 3, 5-8 (PNG) and the comparison table (Markdown).")
     fig.add_argument("--out", default="figures", help="output folder (default: ./figures)")
-    fig.add_argument("--model", help="model TOML file (default: the packaged model)")
+    fig.add_argument("--model", help="built-in model name (hydrogen.models()) or TOML file (default: ubc_stewart)")
     fig.add_argument("--quiet", action="store_true", help="no progress bar")
     fig.set_defaults(func=_cmd_figures)
     b = sub.add_parser("bench", help="run the benchmark suite (per-step cost, build times)",
@@ -160,10 +155,10 @@ def build_parser() -> argparse.ArgumentParser:
                         description="A folder that builds with only a C compiler and runs one scenario's "
                                     "closed loop, printing the tracking error.")
     ex.add_argument("--out", required=True, help="output folder (replaced if it holds an earlier export)")
-    ex.add_argument("--scenario", default="z-1hz", choices=SCENARIOS)
+    ex.add_argument("--scenario", default="z-1hz", help="a scenario of the model (default: z-1hz)")
     ex.add_argument("--controller", default="adaptive-robust", choices=CONTROLLERS)
     ex.add_argument("--duration", type=float, help="simulated time, s (default: the scenario's)")
-    ex.add_argument("--model", help="model TOML file (default: the packaged model)")
+    ex.add_argument("--model", help="built-in model name (hydrogen.models()) or TOML file (default: ubc_stewart)")
     ex.set_defaults(func=_cmd_export)
     return parser
 

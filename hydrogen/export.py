@@ -35,7 +35,7 @@ import numpy as np
 
 from .errors import HydrogenError
 
-__all__ = ["export", "EXPORT_MANIFEST", "TEMPLATE_NAMES", "COORDS"]
+__all__ = ["export", "EXPORT_MANIFEST", "TEMPLATE_NAMES"]
 
 #: Metadata file written into every export folder (also marks a folder as an export).
 EXPORT_MANIFEST = "export.json"
@@ -44,7 +44,6 @@ TEMPLATE_NAMES = {"export_params.h.j2": "params.h", "export_main.c.j2": "main.c"
                   "Makefile.j2": "Makefile", "CMakeLists.txt.j2": "CMakeLists.txt"}
 #: Generated functions the loop driver calls (besides the controller).
 LOOP_FUNCTIONS = ("leg_lengths", "leg_kinematics", "plant_rhs")
-COORDS = ("x", "y", "z", "psi", "theta", "phi")
 #: Forward kinematics settings of the loop (the defaults of hydrogen.runtime.loop.LoopRunner).
 FK_TOL, FK_MAX_ITER = 1e-12, 50
 
@@ -147,9 +146,10 @@ def _env():
 
 def _context(dyn, p, scenario_name, controller, prog, sources, headers, ctrl_header, sensor_gain):
     """Everything the templates need, numbers already formatted as C literals."""
-    from .runtime.loop import SLOTS
+    from .layout import SLOTS, loop_context
 
     model, sc, ctrl = dyn.model, p.sc, p.ctrl
+    loop = loop_context(dyn.library.manifest)
     fn = ctrl.fn
     inputs = []
     for i, (name, shape) in enumerate(zip(fn.in_names, fn.in_shapes)):
@@ -167,8 +167,8 @@ def _context(dyn, p, scenario_name, controller, prog, sources, headers, ctrl_hea
         inputs.append(entry)
     slot_index = [fn.in_names.index(s) if s in fn.in_names else -1 for s in SLOTS]
     n_xc = int(ctrl.xc.size)
-    lo = np.where(np.isfinite(ctrl._lo), ctrl._lo, -1e300)
-    hi = np.where(np.isfinite(ctrl._hi), ctrl._hi, 1e300)
+    lo = np.where(np.isfinite(ctrl.bounds[0]), ctrl.bounds[0], -1e300)
+    hi = np.where(np.isfinite(ctrl.bounds[1]), ctrl.bounds[1], 1e300)
     ref = sc.reference
     terms = list(getattr(ref, "terms", ()))
     kf = p.kf_gain
@@ -179,9 +179,10 @@ def _context(dyn, p, scenario_name, controller, prog, sources, headers, ctrl_hea
         "n_periods": int(p.n), "duration": _c_double(sc.duration), "control_rate": _c_double(sc.control_rate),
         "h": _c_double(p.h), "substeps": int(sc.substeps), "t_adapt": _c_double(sc.t_adapt),
         "metric_start": _c_double(sc.metric_start),
-        "theta": _c_doubles(model.theta), "gamma": _c_doubles(model.gamma),
+        "n": loop["n"], "m": loop["m"], "nx": loop["nx"], "p_theta": model.n_theta,
+        "theta_names": ", ".join(model.theta_names),
+        "theta": _c_doubles(model.theta), "gamma1": _c_doubles(model.gamma[0]), "gamma2": _c_doubles(model.gamma[1]),
         "friction": _c_doubles(sc.friction), "tau_valve": _c_double(sc.valve_lag),
-        "supply_pressure": _c_double(model.supply_pressure),
         "use_kalman": 1 if kf is not None else 0,
         "kf_gain": _c_doubles(kf if kf is not None else np.zeros(2)),
         "kf_gain_sensor": _c_doubles(sensor_gain if sensor_gain is not None else np.zeros(2)),
@@ -201,7 +202,7 @@ def _context(dyn, p, scenario_name, controller, prog, sources, headers, ctrl_hea
         "xc0": _c_doubles(ctrl.xc if n_xc else np.zeros(1)),
         "xc_lo": _c_doubles(lo if n_xc else np.zeros(1)), "xc_hi": _c_doubles(hi if n_xc else np.zeros(1)),
         "x0": _c_doubles(p.x0), "q_meas0": _c_doubles(p.q0), "l0": _c_doubles(dyn.leg_lengths(p.q0)),
-        "fk_tol": _c_double(FK_TOL), "fk_max_iter": FK_MAX_ITER, "coords": COORDS,
+        "fk_tol": _c_double(FK_TOL), "fk_max_iter": FK_MAX_ITER, "coords": model.coordinate_names,
     }
 
 
@@ -230,7 +231,7 @@ Build and run
   or: cmake -S . -B build && cmake --build build && ./build/{prog}
 
 Output, one item per line:
-  max_error <coord> <value>   for x y z (m) and psi theta phi (rad)
+  max_error <coord> <value>   per coordinate (m or rad)
   periods <n>                 control periods run
   status <code>               0 ok, 1 non-finite state, 2 forward kinematics failed, 3 a generated
                               function failed (the exit status is non-zero unless status is 0)

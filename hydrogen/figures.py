@@ -1,4 +1,4 @@
-"""Counterparts of the paper's figures (Figs. 2, 3, 5-8) and its comparison table, from simulation results.
+"""Counterparts of the paper's figures (Figs. 2, 3, 5-8) and its comparison table, for any model.
 
 Every plotting function takes :class:`~hydrogen.simulation.simulator.SimulationResult`
 objects and an output path, writes a PNG atomically (temporary file in the same
@@ -17,31 +17,28 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
 from .fileio import atomic_write  # noqa: E402
-from .simulation.simulator import COORDS  # noqa: E402
 
 __all__ = ["plot_tracking_errors", "plot_parameter_errors", "plot_experiment", "plot_step",
-           "comparison_table", "make_all", "PAPER_MAX_ERROR_PCT"]
+           "comparison_table", "make_all"]
 
-#: Units and scale (SI → plotted) per coordinate: mm for positions, mrad for angles.
-_UNITS = {c: ("mm" if c in ("x", "y", "z") else "mrad") for c in COORDS}
-_SCALE = 1e3
-_LABELS = {"x": "x", "y": "y", "z": "z", "psi": r"\psi", "theta": r"\theta", "phi": r"\phi"}
-_THETA_NAMES = (r"$M_p$", r"$I_x$", r"$I_y$", r"$I_z$")
+_SCALE = 1e3  # SI → mm or mrad
+_GREEK = {"psi": r"\psi", "theta": r"\theta", "phi": r"\phi"}
 _DPI = 110
 
-#: Maximum tracking errors (% of the reference amplitude) reported in section VI of the paper:
-#: scenario → (coordinate, nonlinear controller, P controller).
-PAPER_MAX_ERROR_PCT = {
-    "z-1hz": ("z", 4.0, 43.0),
-    "z-2hz": ("z", 14.0, 69.0),
-    "psi-1hz": ("psi", 4.0, 41.0),
-}
+
+def _unit(result, i) -> str:
+    units = result.units or ()
+    return "mrad" if i < len(units) and units[i] == "rad" else "mm"
 
 
-def _coord_index(coord: str) -> int:
-    if coord not in COORDS:
-        raise KeyError(f"unknown coordinate '{coord}'; choose one of {', '.join(COORDS)}")
-    return COORDS.index(coord)
+def _label(coord: str) -> str:
+    return _GREEK.get(coord, r"\mathrm{" + coord.replace("_", r"\_") + "}")
+
+
+def _coord_index(result, coord: str) -> int:
+    if coord not in result.coordinates:
+        raise KeyError(f"unknown coordinate '{coord}'; choose one of {', '.join(result.coordinates)}")
+    return result.coordinates.index(coord)
 
 
 def _save(fig, path) -> Path:
@@ -83,17 +80,19 @@ def plot_tracking_errors(result, path, *, t_adapt=None) -> Path:
     Returns
     -------
     Path
-        ``path``. Six stacked subplots: x, y, z errors in mm, ψ, θ, φ errors in mrad.
+        ``path``. One stacked subplot per coordinate: lengths in mm, angles in mrad.
     """
     t, err = np.asarray(result.t, float), np.asarray(result.error, float)
-    fig, axes = plt.subplots(6, 1, sharex=True, figsize=(7.0, 9.0))
-    for i, (ax, c) in enumerate(zip(axes, COORDS)):
+    n = err.shape[1]
+    fig, axes = plt.subplots(n, 1, sharex=True, figsize=(7.0, 1.5 * n + 1.0), squeeze=False)
+    axes = axes[:, 0]
+    for i, (ax, c) in enumerate(zip(axes, result.coordinates)):
         ax.plot(t, _SCALE * err[:, i], lw=0.9, color="C0")
         ax.axhline(0.0, color="0.6", lw=0.5)
         if t_adapt is not None:
             ax.axvline(t_adapt, color="k", ls="--", lw=0.8,
                        label="adaptation on" if i == 0 else None)
-        ax.set_ylabel(f"$e_{{{_LABELS[c]}}}$ ({_UNITS[c]})")
+        ax.set_ylabel(f"$e_{{{_label(c)}}}$ ({_unit(result, i)})")
         ax.grid(True, alpha=0.3)
     if t_adapt is not None:
         axes[0].legend(loc="upper right", fontsize=8)
@@ -109,30 +108,32 @@ def plot_parameter_errors(result, path) -> Path:
     Parameters
     ----------
     result : SimulationResult
-        A run; uses ``t`` (s), ``theta_hat`` (n, 4) estimates of [M_p kg, I_x, I_y, I_z kg m²],
-        ``theta_true`` (4,), ``gamma1_hat``, ``gamma2_hat`` (n, 6) per-leg estimates of
-        γ1 = β (Pa) and γ2 = βc, and ``gamma_true`` (2,).
+        A run; uses ``t`` (s), ``theta_hat`` (k, p) estimates of the adapted parameters
+        (``theta_names``), ``theta_true`` (p,), ``gamma1_hat``, ``gamma2_hat`` (k, m) per-cylinder
+        estimates of γ1 = β (Pa) and γ2 = βc, and ``gamma_true`` (2, m).
     path : str or Path
         Output PNG file.
 
     Returns
     -------
     Path
-        ``path``. Top: 100 (θ̂ − θ)/θ (%) for the four rigid-body parameters.
-        Bottom: 100 (mean over legs of γ̂_j / γ_j − 1) (%) for j = 1, 2.
+        ``path``. Top: 100 (θ̂ − θ)/|θ| (%) for each rigid-body parameter.
+        Bottom: 100 (mean over cylinders of γ̂_j / γ_j − 1) (%) for j = 1, 2.
     """
     t = np.asarray(result.t, float)
     th_hat, th = np.asarray(result.theta_hat, float), np.asarray(result.theta_true, float)
     g_true = np.asarray(result.gamma_true, float)
     fig, (ax1, ax2) = plt.subplots(2, 1, sharex=True, figsize=(7.0, 6.0))
-    th_err = 100.0 * (th_hat - th) / th
-    for j, name in enumerate(_THETA_NAMES):
+    th_err = 100.0 * (th_hat - th) / np.abs(th)
+    names = result.theta_names or tuple(f"theta{j}" for j in range(th.size))
+    for j, name in enumerate(names):
         ax1.plot(t, th_err[:, j], lw=1.0, label=name)
     ax1.set_ylabel("rigid-body error (%)")
-    ax1.legend(loc="upper right", fontsize=8, ncol=4)
+    ax1.legend(loc="upper right", fontsize=7, ncol=min(4, len(names)))
+    g_true = g_true.reshape(2, -1)
     for j, (g_hat, name) in enumerate(((result.gamma1_hat, r"$\gamma_1$"), (result.gamma2_hat, r"$\gamma_2$"))):
         ratio = np.mean(np.asarray(g_hat, float) / g_true[j], axis=1)
-        ax2.plot(t, 100.0 * (ratio - 1.0), lw=1.0, label=name + " (mean over legs)")
+        ax2.plot(t, 100.0 * (ratio - 1.0), lw=1.0, label=name + " (mean over cylinders)")
     ax2.set_ylabel("hydraulic error (%)")
     ax2.legend(loc="upper right", fontsize=8)
     ax2.set_xlabel("time (s)")
@@ -152,7 +153,7 @@ def plot_experiment(nonlinear, p, coord, path, title=None) -> Path:
     nonlinear, p : SimulationResult
         Runs of the same scenario with the nonlinear (adaptive-robust) and the P controller.
     coord : str
-        One of x, y, z, psi, theta, phi.
+        A coordinate name of the model.
     path : str or Path
         Output PNG file.
     title : str, optional
@@ -166,8 +167,8 @@ def plot_experiment(nonlinear, p, coord, path, title=None) -> Path:
         tracking errors (mm or mrad). Legends give each run's max error in % of the
         reference amplitude (``metrics["max_error_pct"][coord]``).
     """
-    i = _coord_index(coord)
-    unit = _UNITS[coord]
+    i = _coord_index(nonlinear, coord)
+    unit = _unit(nonlinear, i)
     bias = float(np.mean(nonlinear.q_d[:, i])) if len(nonlinear.t) else 0.0
     fig, (ax1, ax2) = plt.subplots(2, 1, sharex=True, figsize=(7.0, 6.0))
     ax1.plot(nonlinear.t, _SCALE * (nonlinear.q_d[:, i] - bias), "k--", lw=1.0, label="reference")
@@ -176,7 +177,7 @@ def plot_experiment(nonlinear, p, coord, path, title=None) -> Path:
         lab = f"{name} (max error {_fmt_pct(_max_pct(res, coord))})"
         ax1.plot(res.t, _SCALE * (res.q[:, i] - bias), color=color, lw=1.0, label=lab)
         ax2.plot(res.t, _SCALE * res.error[:, i], color=color, lw=1.0, label=lab)
-    sym = _LABELS[coord]
+    sym = _label(coord)
     ax1.set_ylabel(f"${sym} - \\bar{{{sym}}}_d$ ({unit})")
     ax2.set_ylabel(f"$e_{{{sym}}}$ ({unit})")
     ax2.set_xlabel("time (s)")
@@ -189,35 +190,40 @@ def plot_experiment(nonlinear, p, coord, path, title=None) -> Path:
     return _save(fig, path)
 
 
-def plot_step(nonlinear, p, path, title=None) -> Path:
-    """Step response along z, nonlinear vs P controller (counterpart of Fig. 8).
+def plot_step(nonlinear, p, path, title=None, coord=None) -> Path:
+    """Step response along one coordinate, nonlinear vs P controller (counterpart of Fig. 8).
 
     Parameters
     ----------
     nonlinear, p : SimulationResult
-        Runs of the z-step scenario with the nonlinear and the P controller.
+        Runs of a step scenario with the nonlinear and the P controller.
     path : str or Path
         Output PNG file.
     title : str, optional
-        Figure title; defaults to "<scenario>: z step response".
+        Figure title; defaults to "<scenario>: <coordinate> step response".
+    coord : str, optional
+        The stepped coordinate (default: the one whose reference moves most).
 
     Returns
     -------
     Path
-        ``path``. Reference and both z responses in mm, as offsets from the
+        ``path``. Reference and both responses (mm or mrad), as offsets from the
         reference's initial value.
     """
-    i = _coord_index("z")
+    if coord is None:
+        coord = nonlinear.coordinates[int(np.argmax(np.ptp(nonlinear.q_d, axis=0)))]
+    i = _coord_index(nonlinear, coord)
+    unit, sym = _unit(nonlinear, i), _label(coord)
     z0 = float(nonlinear.q_d[0, i]) if len(nonlinear.t) else 0.0
     fig, ax = plt.subplots(figsize=(7.0, 4.0))
     ax.plot(nonlinear.t, _SCALE * (nonlinear.q_d[:, i] - z0), "k--", lw=1.0, label="reference")
     ax.plot(nonlinear.t, _SCALE * (nonlinear.q[:, i] - z0), color="C0", lw=1.0, label="nonlinear")
     ax.plot(p.t, _SCALE * (p.q[:, i] - z0), color="C3", lw=1.0, label="P")
     ax.set_xlabel("time (s)")
-    ax.set_ylabel(r"$z - z_d(0)$ (mm)")
+    ax.set_ylabel(f"${sym} - {sym}_d(0)$ ({unit})")
     ax.grid(True, alpha=0.3)
     ax.legend(loc="lower right", fontsize=8)
-    ax.set_title(title if title is not None else f"{nonlinear.scenario}: z step response")
+    ax.set_title(title if title is not None else f"{nonlinear.scenario}: {coord} step response")
     fig.tight_layout()
     return _save(fig, path)
 
@@ -254,13 +260,15 @@ def comparison_table(rows) -> str:
     return "\n".join(lines) + "\n"
 
 
-def make_all(dyn, out_dir, quiet=True, *, durations=None, gains=None) -> dict:
-    """Run the paper's scenarios and write every figure and the comparison table into ``out_dir``.
+def make_all(dyn, out_dir, quiet=True, *, durations=None, gains=None, nonlinear="adaptive-robust") -> dict:
+    """Run the model's scenarios and write every figure and the comparison table into ``out_dir``.
 
-    Runs paper-sim with the adaptive-robust controller (Figs. 2, 3), and z-1hz,
-    z-2hz, psi-1hz and z-step with both the adaptive-robust and the P
-    controller (Figs. 5-8). A diverging run raises
-    :class:`~hydrogen.errors.SimulationError` (its ``result`` holds the partial run).
+    Driven by the description's scenarios: each scenario without the rig (the paper's section V
+    simulation, an arm's arm-sim) gives the tracking-error and parameter figures (Figs. 2, 3) with
+    the ``nonlinear`` controller; each rig scenario runs ``nonlinear`` and the P controller and gives
+    a tracking figure per moving coordinate (Figs. 5-7) or, for a step, a step response (Fig. 8),
+    and a table row per moving coordinate (with the paper's figures where the description gives
+    them). A diverging run raises :class:`~hydrogen.errors.SimulationError`.
 
     Parameters
     ----------
@@ -269,7 +277,7 @@ def make_all(dyn, out_dir, quiet=True, *, durations=None, gains=None) -> dict:
     out_dir : str or Path
         Output folder (created if missing).
     quiet : bool
-        If False, print one line per run.
+        If False, show a progress bar on a terminal.
     durations : dict, optional
         {scenario name: duration s} overriding the scenarios' durations (e.g. short runs in tests).
     gains : dict, optional
@@ -278,9 +286,10 @@ def make_all(dyn, out_dir, quiet=True, *, durations=None, gains=None) -> dict:
     Returns
     -------
     dict
-        {"fig2", "fig3", "fig5", "fig6", "fig7", "fig8", "table"} → Path of the written file.
+        {"<scenario>[_<coordinate>]" or "<scenario>_parameters" or "table"} → Path of the written file.
     """
-    from .simulation.scenarios import scenario as named_scenario
+    from .simulation.reference import Step
+    from .simulation.scenarios import scenario as named_scenario, scenario_names
     from .simulation.simulator import simulate
 
     out = Path(out_dir)
@@ -288,8 +297,12 @@ def make_all(dyn, out_dir, quiet=True, *, durations=None, gains=None) -> dict:
     durations, gains = dict(durations or {}), dict(gains or {})
     from tqdm import tqdm
 
+    model = dyn.model
+    scenarios = [named_scenario(nm, model) for nm in scenario_names(model)]
+    total = sum(1 if sc.friction[0] == 0 and not sc.kalman and not isinstance(sc.reference, Step) else 2
+                for sc in scenarios)
     # A bar on a terminal only (disable=None), never with quiet.
-    bar = tqdm(total=9, desc="figures", unit="run", disable=True if quiet else None)
+    bar = tqdm(total=total, desc="figures", unit="run", disable=True if quiet else None)
 
     def run(name, controller):
         bar.set_postfix_str(f"{name} {controller}")
@@ -297,29 +310,29 @@ def make_all(dyn, out_dir, quiet=True, *, durations=None, gains=None) -> dict:
         bar.update()
         return res
 
-    paths = {}
-    sim = run("paper-sim", "adaptive-robust")
-    t_adapt = named_scenario("paper-sim", dyn.model).t_adapt
-    paths["fig2"] = plot_tracking_errors(sim, out / "fig2_tracking_errors.png", t_adapt=t_adapt)
-    paths["fig3"] = plot_parameter_errors(sim, out / "fig3_parameters.png")
+    paths, rows = {}, []
+    for sc in scenarios:
+        rig = sc.kalman or sc.friction[0] > 0 or sc.noise_l > 0
+        if not rig and not isinstance(sc.reference, Step):
+            sim = run(sc.name, nonlinear)
+            paths[sc.name] = plot_tracking_errors(sim, out / f"{sc.name}_errors.png", t_adapt=sc.t_adapt)
+            paths[f"{sc.name}_parameters"] = plot_parameter_errors(sim, out / f"{sc.name}_parameters.png")
+            continue
+        nl, pp = run(sc.name, nonlinear), run(sc.name, "p")
+        moving = [c for c, a in zip(model.coordinate_names, sc.reference.amplitude()) if a > 0]
+        if isinstance(sc.reference, Step):
+            paths[sc.name] = plot_step(nl, pp, out / f"{sc.name}.png", coord=moving[0],
+                                       title=f"{sc.label}: step response, nonlinear vs P (simulation)")
+            continue
+        for coord in moving:
+            key = sc.name if len(moving) == 1 else f"{sc.name}_{coord}"
+            paths[key] = plot_experiment(nl, pp, coord, out / f"{key}.png",
+                                         title=f"{sc.label}: {coord} tracking, nonlinear vs P (simulation)")
+            paper = sc.paper.get(coord, (None, None))
+            rows.append((sc.label, coord, _max_pct(nl, coord), _max_pct(pp, coord), paper[0], paper[1]))
 
-    rows = []
-    experiments = (("fig5", "z-1hz", "fig5_z_1hz.png", "Fig. 5: z, 1 Hz"),
-                   ("fig6", "z-2hz", "fig6_z_2hz.png", "Fig. 6: z, 2 Hz"),
-                   ("fig7", "psi-1hz", "fig7_psi_1hz.png", "Fig. 7: psi, 1 Hz"))
-    for key, name, fname, label in experiments:
-        coord, paper_nl, paper_p = PAPER_MAX_ERROR_PCT[name]
-        nl, pp = run(name, "adaptive-robust"), run(name, "p")
-        paths[key] = plot_experiment(nl, pp, coord, out / fname,
-                                     title=f"{label} tracking, nonlinear vs P (simulation)")
-        rows.append((label, coord, _max_pct(nl, coord), _max_pct(pp, coord), paper_nl, paper_p))
-
-    nl, pp = run("z-step", "adaptive-robust"), run("z-step", "p")
-    paths["fig8"] = plot_step(nl, pp, out / "fig8_z_step.png",
-                              title="Fig. 8: z step response, nonlinear vs P (simulation)")
-
-    table = ("Maximum tracking error in % of the reference amplitude, simulation vs paper (section VI).\n\n"
-             + comparison_table(rows))
+    table = (f"Maximum tracking error in % of the reference amplitude, model {model.name}: simulation "
+             "vs paper (section VI) where it reports one.\n\n" + comparison_table(rows))
     paths["table"] = out / "table.md"
     atomic_write(paths["table"], table)
     bar.close()

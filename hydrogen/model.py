@@ -1,12 +1,17 @@
-"""Model data: Table I of the paper plus the platform geometry, loaded from TOML.
+"""Robot descriptions: a kinematic tree of rigid links, hydraulic cylinders between links, and
+which inertial parameters the controllers adapt. Loaded from TOML (the tree written there, or
+read from a URDF file the TOML names) and validated.
 
-A model is plain data. Everything under ``[geometry]`` and ``[hydraulics]`` is
-baked into the generated C (changing it regenerates code); the rigid-body
-parameters θ = [M_p, I_x, I_y, I_z] and the hydraulic parameters
-γ = [β, βc] are runtime inputs of every generated function, so the adaptive
-controllers can feed their estimates and a user can change masses without
-regenerating. Units are SI; frames: base frame z up, platform frame at the
-platform's centre of mass.
+A model is plain data. The tree, the cylinders' geometry and their hydraulic constants
+(A, a, L, P_s, d, the orifice threshold) and every inertial parameter that is NOT adapted are
+baked into the generated C (changing them regenerates code). The adapted parameters θ and the
+hydraulic parameters γ = [β, βc] per cylinder are runtime inputs of every generated function,
+so the adaptive controllers can feed their estimates and a user can change them without
+regenerating. Units are SI; base frame z up; a link's frame sits at its parent joint.
+
+Generalized coordinates q are the joints' coordinates in tree order: one per revolute or
+prismatic joint, six per floating joint ([x, y, z, ψ, θ, φ], position in the parent frame and
+R = Rz(φ) Ry(θ) Rx(ψ)), none for a fixed joint.
 """
 from __future__ import annotations
 
@@ -25,29 +30,101 @@ import numpy as np
 
 from .errors import ModelError
 
-__all__ = ["Model", "load_model", "default_model_path"]
+__all__ = ["Model", "Link", "Joint", "Cylinder", "load_model", "default_model_path", "models",
+           "model_path", "INERTIAL_PARAMETERS", "JOINT_TYPES"]
 
-DEFAULT_MODEL = "ubc_stewart.toml"
+DEFAULT_MODEL = "ubc_stewart"
+#: Pinocchio's dynamic parameters of a link: mass, first moments m·c (link frame, kg m) and the
+#: inertia about the link frame's origin (link axes, kg m²).
+INERTIAL_PARAMETERS = ("mass", "mcx", "mcy", "mcz", "Ixx", "Ixy", "Iyy", "Ixz", "Iyz", "Izz")
+#: Joint type -> number of coordinates. URDF's "continuous" is read as revolute.
+JOINT_TYPES = {"revolute": 1, "prismatic": 1, "fixed": 0, "floating": 6}
+FLOATING_COORDINATES = ("x", "y", "z", "psi", "theta", "phi")
+#: Cylinder constants: [hydraulics] gives defaults, each [[cylinders]] entry may override them.
+HYDRAULIC_KEYS = {
+    "piston_area": "positive", "rod_area": "positive", "chamber_length": "nonnegative",
+    "supply_pressure": "positive", "underlap": "nonnegative", "flow_gain": "positive",
+    "bulk_modulus": "positive", "orifice_linear_below": "positive", "stroke": None,
+}
+_MAX_QUOTE = 200  # characters of a bad value quoted in an error message
+
+
+def _quote(value) -> str:
+    text = repr(value)
+    return text if len(text) <= _MAX_QUOTE else text[:_MAX_QUOTE] + f"... ({len(text)} characters)"
 
 
 def default_model_path() -> Path:
     """Path of the default model file shipped inside the package."""
-    return Path(str(resources.files("hydrogen") / "data" / DEFAULT_MODEL))
+    return model_path(DEFAULT_MODEL)
+
+
+def _data_dir() -> Path:
+    return Path(str(resources.files("hydrogen") / "data"))
+
+
+def models() -> list:
+    """Names of the built-in models (``hydrogen.load_model(name)`` loads one)."""
+    return sorted(p.stem for p in _data_dir().glob("*.toml"))
+
+
+def model_path(name_or_path) -> Path:
+    """The file of a built-in model given its name, or ``name_or_path`` itself as a path."""
+    text = str(name_or_path)
+    if text in models():
+        return _data_dir() / f"{text}.toml"
+    return Path(text)
 
 
 @dataclass(frozen=True)
-class Model:
-    """A hydraulic Stewart platform. All values SI; see the module docstring."""
+class Link:
+    """A rigid link: mass (kg), centre of mass ``com`` (link frame, m), ``inertia`` (3×3, kg m²)
+    about the centre of mass in link axes."""
 
     name: str
     mass: float
-    inertia: tuple
-    gravity: float
-    base_joints: np.ndarray      # (6, 3) base frame, m
-    platform_joints: np.ndarray  # (6, 3) platform frame, m
-    neutral_pose: np.ndarray     # (6,) [x y z ψ θ φ]
-    leg_min: float
-    leg_max: float
+    com: np.ndarray
+    inertia: np.ndarray
+
+    def parameters(self) -> dict:
+        """Pinocchio's dynamic parameters: mass, m·c and the inertia about the link origin."""
+        m, c, I = self.mass, np.asarray(self.com, float), np.asarray(self.inertia, float)
+        Io = I + m * (c @ c * np.eye(3) - np.outer(c, c))
+        return {"mass": m, "mcx": m * c[0], "mcy": m * c[1], "mcz": m * c[2],
+                "Ixx": Io[0, 0], "Ixy": Io[0, 1], "Iyy": Io[1, 1], "Ixz": Io[0, 2], "Iyz": Io[1, 2],
+                "Izz": Io[2, 2]}
+
+
+@dataclass(frozen=True)
+class Joint:
+    """A joint from ``parent`` to ``child``: origin (xyz m, rpy rad) in the parent frame, unit
+    ``axis`` in the joint frame (revolute, prismatic)."""
+
+    name: str
+    type: str
+    parent: str
+    child: str
+    origin_xyz: np.ndarray
+    origin_rpy: np.ndarray
+    axis: np.ndarray
+
+    @property
+    def dof(self) -> int:
+        return JOINT_TYPES[self.type]
+
+
+@dataclass(frozen=True)
+class Cylinder:
+    """A three-way-valve cylinder pinned at ``point_from`` on ``link_from`` and ``point_to`` on
+    ``link_to`` (each in its link's frame, m). Its length l is pin to pin; the control chamber
+    (cap side, area A) has volume A (l − L); the rod side (area a) is at P_s; force
+    f = p_c A − P_s a (positive extends)."""
+
+    name: str
+    link_from: str
+    point_from: np.ndarray
+    link_to: str
+    point_to: np.ndarray
     piston_area: float
     rod_area: float
     chamber_length: float
@@ -56,38 +133,110 @@ class Model:
     flow_gain: float
     bulk_modulus: float
     orifice_linear_below: float
+    stroke_min: float
+    stroke_max: float
+
+
+def _stack(name):
+    return property(lambda self: np.array([getattr(c, name) for c in self.cylinders], float),
+                    doc=f"Per-cylinder {name} (m,), SI.")
+
+
+@dataclass(frozen=True)
+class Model:
+    """A hydraulic manipulator. All values SI; see the module docstring."""
+
+    name: str
+    gravity: float
+    root: str
+    links: tuple
+    joints: tuple
+    cylinders: tuple
+    coordinate_names: tuple
+    neutral_pose: np.ndarray
+    theta_names: tuple
     theta_min: np.ndarray
     theta_max: np.ndarray
     gamma1_min: float
     gamma1_max: float
     gamma2_min: float
     gamma2_max: float
+    joint_encoders: bool = False
+    scale: np.ndarray = None
+    gains: dict = field(default_factory=dict, repr=False, compare=False)
+    scenarios: dict = field(default_factory=dict, repr=False, compare=False)
     source: str = "<memory>"
+    urdf: Path | None = None
     raw: dict = field(default=None, repr=False, compare=False)
 
+    # --- sizes ---------------------------------------------------------------------------
+    @property
+    def n(self) -> int:
+        """Number of generalized coordinates."""
+        return len(self.coordinate_names)
+
+    @property
+    def coordinate_units(self) -> tuple:
+        """"m" or "rad" per coordinate (prismatic and floating translations are lengths)."""
+        out = []
+        for j in self.joints:
+            out += {"revolute": ["rad"], "prismatic": ["m"], "fixed": [],
+                    "floating": ["m"] * 3 + ["rad"] * 3}[j.type]
+        return tuple(out)
+
+    @property
+    def n_cylinders(self) -> int:
+        return len(self.cylinders)
+
+    @property
+    def n_theta(self) -> int:
+        return len(self.theta_names)
+
+    def link(self, name: str) -> Link:
+        return next(lk for lk in self.links if lk.name == name)
+
+    # --- parameters -----------------------------------------------------------------------
     @property
     def theta(self) -> np.ndarray:
-        """True rigid-body parameters [M_p kg, I_x, I_y, I_z kg m²]."""
-        return np.array([self.mass, *self.inertia], dtype=float)
+        """True values of the adapted inertial parameters θ (``theta_names``), SI."""
+        return np.array([self.link(n.split(".")[0]).parameters()[n.split(".")[1]] for n in self.theta_names])
 
     @property
     def gamma(self) -> np.ndarray:
-        """True hydraulic parameters [γ1, γ2] = [β Pa, βc] (the same for every leg)."""
-        return np.array([self.bulk_modulus, self.bulk_modulus * self.flow_gain])
+        """True hydraulic parameters (2, m): rows γ1 = β (Pa) and γ2 = βc per cylinder."""
+        return np.array([[c.bulk_modulus for c in self.cylinders],
+                         [c.bulk_modulus * c.flow_gain for c in self.cylinders]])
 
+    piston_area = _stack("piston_area")
+    rod_area = _stack("rod_area")
+    chamber_length = _stack("chamber_length")
+    supply_pressure = _stack("supply_pressure")
+    underlap = _stack("underlap")
+    flow_gain = _stack("flow_gain")
+    bulk_modulus = _stack("bulk_modulus")
+    orifice_linear_below = _stack("orifice_linear_below")
+    leg_min = _stack("stroke_min")
+    leg_max = _stack("stroke_max")
+
+    def inertial_parameters(self) -> dict:
+        """Every link's dynamic parameters: ``"link.param"`` -> value (see INERTIAL_PARAMETERS)."""
+        return {f"{lk.name}.{k}": v for lk in self.links for k, v in lk.parameters().items()}
+
+    # --- the part compiled into C ---------------------------------------------------------
     def baked(self) -> dict:
-        """The part of the model compiled into C (geometry and actuator constants)."""
+        """The part of the model compiled into C: the tree, the cylinders (without β and c, which
+        are runtime γ), the inertial parameters that are not adapted, gravity."""
+        adapted = set(self.theta_names)
         return {
-            "name": self.name,
-            "gravity": self.gravity,
-            "base_joints": np.asarray(self.base_joints).tolist(),
-            "platform_joints": np.asarray(self.platform_joints).tolist(),
-            "piston_area": self.piston_area,
-            "rod_area": self.rod_area,
-            "chamber_length": self.chamber_length,
-            "supply_pressure": self.supply_pressure,
-            "underlap": self.underlap,
-            "orifice_linear_below": self.orifice_linear_below,
+            "name": self.name, "gravity": self.gravity, "root": self.root,
+            "joints": [[j.name, j.type, j.parent, j.child, np.asarray(j.origin_xyz).tolist(),
+                        np.asarray(j.origin_rpy).tolist(), np.asarray(j.axis).tolist()] for j in self.joints],
+            "inertial": {k: (None if k in adapted else v) for k, v in self.inertial_parameters().items()},
+            "theta_names": list(self.theta_names),
+            "cylinders": [[c.name, c.link_from, np.asarray(c.point_from).tolist(), c.link_to,
+                           np.asarray(c.point_to).tolist(), c.piston_area, c.rod_area, c.chamber_length,
+                           c.supply_pressure, c.underlap, c.orifice_linear_below] for c in self.cylinders],
+            "coordinates": list(self.coordinate_names),
         }
 
     def baked_hash(self) -> str:
@@ -96,133 +245,436 @@ class Model:
         return hashlib.sha256(text.encode()).hexdigest()
 
 
-# key -> (section, kind, constraint); kinds: 'float', 'vec3', 'vec4', 'vec6', 'mat63', 'str'
-_SCHEMA = {
-    ("", "name"): ("str", None),
-    ("rigid_body", "mass"): ("float", "positive"),
-    ("rigid_body", "inertia"): ("vec3", "positive"),
-    ("rigid_body", "gravity"): ("float", "nonnegative"),
-    ("geometry", "base_joints"): ("mat63", None),
-    ("geometry", "platform_joints"): ("mat63", None),
-    ("geometry", "neutral_pose"): ("vec6", None),
-    ("geometry", "leg_min"): ("float", "positive"),
-    ("geometry", "leg_max"): ("float", "positive"),
-    ("hydraulics", "piston_area"): ("float", "positive"),
-    ("hydraulics", "rod_area"): ("float", "positive"),
-    ("hydraulics", "chamber_length"): ("float", "nonnegative"),
-    ("hydraulics", "supply_pressure"): ("float", "positive"),
-    ("hydraulics", "underlap"): ("float", "nonnegative"),
-    ("hydraulics", "flow_gain"): ("float", "positive"),
-    ("hydraulics", "bulk_modulus"): ("float", "positive"),
-    ("hydraulics", "orifice_linear_below"): ("float", "positive"),
-    ("adaptation", "theta_min"): ("vec4", "positive"),
-    ("adaptation", "theta_max"): ("vec4", "positive"),
-    ("adaptation", "gamma1_min"): ("float", "positive"),
-    ("adaptation", "gamma1_max"): ("float", "positive"),
-    ("adaptation", "gamma2_min"): ("float", "positive"),
-    ("adaptation", "gamma2_max"): ("float", "positive"),
-}
-
-_SHAPES = {"vec3": (3,), "vec4": (4,), "vec6": (6,), "mat63": (6, 3)}
+# ------------------------------------------------------------------------------------------
+# Parsing and validation
 
 
 def _is_number(v) -> bool:
     return isinstance(v, (int, float)) and not isinstance(v, bool)
 
 
-def _check_value(where: str, kind: str, constraint, value):
-    if kind == "str":
-        if not isinstance(value, str) or not value.isidentifier():
-            raise ModelError(f"{where}: expected a name (letters, digits, underscores), got {value!r}")
-        return value
-    if kind == "float":
+class _Reader:
+    """Reads typed values out of parsed TOML, every error naming the file and the key."""
+
+    def __init__(self, source: str):
+        self.source = source
+
+    def error(self, where: str, msg: str) -> ModelError:
+        return ModelError(f"{self.source}: {where}: {msg}")
+
+    def number(self, where, value, constraint=None) -> float:
         if not _is_number(value):
-            raise ModelError(f"{where}: expected a number, got {type(value).__name__} {value!r}")
-        arr = np.array(float(value))
+            raise self.error(where, f"expected a number, got {type(value).__name__} {_quote(value)}")
+        return self._check(where, np.array(float(value)), constraint, value).item()
+
+    def vector(self, where, value, size=None, constraint=None) -> np.ndarray:
+        if not isinstance(value, list) or not all(_is_number(x) for x in value) \
+                or (size is not None and len(value) != size):
+            want = f"a list of {size} numbers" if size is not None else "a list of numbers"
+            raise self.error(where, f"expected {want}, got {_quote(value)}")
+        return self._check(where, np.array(value, float), constraint, value)
+
+    def _check(self, where, arr, constraint, value):
+        if not np.all(np.isfinite(arr)):
+            raise self.error(where, f"must be finite, got {_quote(value)}")
+        if constraint == "positive" and not np.all(arr > 0):
+            raise self.error(where, f"must be > 0, got {_quote(value)}")
+        if constraint == "nonnegative" and not np.all(arr >= 0):
+            raise self.error(where, f"must be >= 0, got {_quote(value)}")
+        return arr
+
+    def name(self, where, value) -> str:
+        if not isinstance(value, str) or not value:
+            raise self.error(where, f"expected a name (string), got {_quote(value)}")
+        return value
+
+    def table(self, data, key, where=None, required=True) -> dict:
+        value = data.get(key)
+        if value is None:
+            if required:
+                raise ModelError(f"{self.source}: missing table [{key}]" if where is None
+                                 else f"{self.source}: {where}: missing key '{key}'")
+            return {}
+        if not isinstance(value, dict):
+            raise self.error(where or f"[{key}]", f"expected a table, got {_quote(value)}")
+        return value
+
+    def known(self, data: dict, keys, where: str):
+        for key in data:
+            if key not in keys:
+                raise self.error(where, f"unknown key '{key}' (known: {', '.join(sorted(keys))})")
+
+    def require(self, data: dict, key: str, where: str):
+        if key not in data:
+            raise self.error(where, f"missing key '{key}'")
+        return data[key]
+
+
+def check_model_name(source: str, value) -> str:
+    """A model name becomes C symbols and file names: letters, digits and single underscores,
+    starting with a letter, at most 64 characters."""
+    import re
+    if not isinstance(value, str) or not re.fullmatch(r"[A-Za-z](?:_?[A-Za-z0-9])*", value) or len(value) > 64:
+        raise ModelError(f"{source}: name: expected a name of ASCII letters, digits and single underscores, "
+                         f"starting with a letter and not ending with '_', at most 64 characters; "
+                         f"got {_quote(value)}")
+    return value
+
+
+def _inertia_matrix(r: _Reader, where, value) -> np.ndarray:
+    v = r.vector(where, value)
+    if v.size == 3:
+        I = np.diag(v)
+    elif v.size == 6:  # Ixx Iyy Izz Ixy Ixz Iyz
+        I = np.array([[v[0], v[3], v[4]], [v[3], v[1], v[5]], [v[4], v[5], v[2]]])
     else:
-        shape = _SHAPES[kind]
-        try:
-            arr = np.array(value, dtype=float)
-        except (TypeError, ValueError):
-            raise ModelError(f"{where}: expected numbers of shape {shape}, got {value!r}") from None
-        flat = value if len(shape) == 1 else [x for row in value for x in (row if isinstance(row, list) else [row])]
-        if arr.shape != shape or not all(_is_number(x) for x in flat):
-            raise ModelError(f"{where}: expected numbers of shape {shape}, got {value!r}")
-    if not np.all(np.isfinite(arr)):
-        raise ModelError(f"{where}: must be finite, got {value!r}")
-    if constraint == "positive" and not np.all(arr > 0):
-        raise ModelError(f"{where}: must be > 0, got {value!r}")
-    if constraint == "nonnegative" and not np.all(arr >= 0):
-        raise ModelError(f"{where}: must be >= 0, got {value!r}")
-    return float(arr) if kind == "float" else arr
+        raise r.error(where, f"expected [Ixx, Iyy, Izz] or [Ixx, Iyy, Izz, Ixy, Ixz, Iyz], got {_quote(value)}")
+    return _positive_inertia(r, where, I)
 
 
-def model_from_dict(data: dict, source: str = "<memory>") -> Model:
-    """Validate parsed TOML data and build a :class:`Model`; errors name source and key."""
-    values = {}
-    for (section, key), (kind, constraint) in _SCHEMA.items():
-        table = data if not section else data.get(section)
-        dotted = f"{section}.{key}" if section else key
-        where = f"{source}: [{section}] {key}" if section else f"{source}: {key}"
-        if section and not isinstance(table, dict):
-            raise ModelError(f"{source}: missing table [{section}] (needed for key '{dotted}')")
-        if key not in table:
-            raise ModelError(f"{where}: missing key '{dotted}'")
-        values[key] = _check_value(where, kind, constraint, table[key])
-    known = {s for s, _ in _SCHEMA if s} | {k for s, k in _SCHEMA if not s}
-    for key in data:
-        if key not in known:
-            raise ModelError(f"{source}: unknown key or table '{key}'")
-    for section in {s for s, _ in _SCHEMA if s}:
-        for key in data[section]:
-            if (section, key) not in _SCHEMA:
-                raise ModelError(f"{source}: [{section}] unknown key '{key}'")
+def _positive_inertia(r: _Reader, where, I) -> np.ndarray:
+    eig = np.linalg.eigvalsh(I)
+    if not np.all(eig > 0):
+        raise r.error(where, f"the inertia tensor must be positive definite (principal moments {eig.tolist()})")
+    # the triangle inequality of a physical body's principal moments
+    if eig[0] + eig[1] < eig[2] * (1 - 1e-9):
+        raise r.error(where, f"principal moments {eig.tolist()} violate I1 + I2 >= I3 (no rigid body has them)")
+    return I
 
-    def bad(key, msg):
-        return ModelError(f"{source}: {key}: {msg}")
 
-    if values["leg_min"] >= values["leg_max"]:
-        raise bad("[geometry] leg_min", f"must be < leg_max ({values['leg_min']} >= {values['leg_max']})")
-    if values["chamber_length"] >= values["leg_min"]:
-        raise bad("[hydraulics] chamber_length",
-                  "must be < [geometry] leg_min so the control chamber keeps a positive volume")
-    if values["rod_area"] >= values["piston_area"]:
-        raise bad("[hydraulics] rod_area", "must be < piston_area")
-    if np.any(values["theta_min"] >= values["theta_max"]):
-        raise bad("[adaptation] theta_min", "each lower bound must be < the upper bound theta_max")
+def _tree_from_toml(r: _Reader, data: dict):
+    links, joints = [], []
+    raw_links = data.get("links")
+    if not isinstance(raw_links, list) or not raw_links:
+        raise r.error("[[links]]", "expected at least one [[links]] table (or a 'urdf' file)")
+    for i, lk in enumerate(raw_links):
+        w = f"[[links]] #{i + 1}"
+        if not isinstance(lk, dict):
+            raise r.error(w, f"expected a table, got {_quote(lk)}")
+        name = r.name(f"{w} name", r.require(lk, "name", w))
+        w = f"[[links]] '{name}'"
+        r.known(lk, {"name", "mass", "com", "inertia"}, w)
+        mass = r.number(f"{w} mass", r.require(lk, "mass", w), "positive")
+        com = r.vector(f"{w} com", lk.get("com", [0.0, 0.0, 0.0]), 3)
+        inertia = _inertia_matrix(r, f"{w} inertia", r.require(lk, "inertia", w))
+        links.append(Link(name, mass, com, inertia))
+    raw_joints = data.get("joints")
+    if not isinstance(raw_joints, list) or not raw_joints:
+        raise r.error("[[joints]]", "expected at least one [[joints]] table")
+    for i, jt in enumerate(raw_joints):
+        w = f"[[joints]] #{i + 1}"
+        if not isinstance(jt, dict):
+            raise r.error(w, f"expected a table, got {_quote(jt)}")
+        name = r.name(f"{w} name", r.require(jt, "name", w))
+        w = f"[[joints]] '{name}'"
+        r.known(jt, {"name", "type", "parent", "child", "origin_xyz", "origin_rpy", "axis"}, w)
+        jtype = _joint_type(r, w, r.require(jt, "type", w))
+        joints.append(Joint(name, jtype, r.name(f"{w} parent", r.require(jt, "parent", w)),
+                            r.name(f"{w} child", r.require(jt, "child", w)),
+                            r.vector(f"{w} origin_xyz", jt.get("origin_xyz", [0.0, 0.0, 0.0]), 3),
+                            r.vector(f"{w} origin_rpy", jt.get("origin_rpy", [0.0, 0.0, 0.0]), 3),
+                            _axis(r, f"{w} axis", jt.get("axis", [0.0, 0.0, 1.0]))))
+    return links, joints
+
+
+def _joint_type(r: _Reader, where, value) -> str:
+    t = r.name(f"{where} type", value)
+    t = "revolute" if t == "continuous" else t
+    if t not in JOINT_TYPES:
+        raise r.error(f"{where} type", f"joint type '{t}' is not supported (supported: revolute, continuous, "
+                                      f"prismatic, fixed, floating; planar and spherical are not)")
+    return t
+
+
+def _axis(r: _Reader, where, value) -> np.ndarray:
+    a = r.vector(where, list(map(float, value)) if isinstance(value, (list, np.ndarray)) else value, 3)
+    norm = np.linalg.norm(a)
+    if not norm > 0:
+        raise r.error(where, "the joint axis must not be zero")
+    return a / norm
+
+
+def _tree_from_urdf(r: _Reader, path: Path):
+    """Links and joints of a URDF file, read with yourdfpy (a maintained URDF parser; its dataclasses
+    give origins as 4×4 transforms and inertias as 3×3 tensors, without loading meshes)."""
+    from lxml import etree
+    try:
+        etree.parse(str(path), etree.XMLParser(remove_blank_text=True))  # strict: yourdfpy would recover
+    except OSError as exc:
+        raise ModelError(f"{path}: cannot read URDF file ({exc})") from None
+    except etree.XMLSyntaxError as exc:
+        raise ModelError(f"{path}: URDF does not parse: {exc}") from None
+    import logging
+
+    import yourdfpy
+    logging.getLogger("yourdfpy").setLevel(logging.CRITICAL)  # its warnings are about meshes we do not load
+    try:
+        robot = yourdfpy.URDF.load(str(path), build_scene_graph=False, load_meshes=False,
+                                   build_collision_scene_graph=False, load_collision_meshes=False).robot
+    except Exception as exc:  # noqa: BLE001 - any parser failure is a bad description
+        raise ModelError(f"{path}: URDF does not parse: {exc}") from None
+    ur = _Reader(str(path))
+    links = []
+    children = {j.child for j in robot.joints}
+    for lk in robot.links:
+        w = f"link '{lk.name}'"
+        if lk.inertial is None or lk.inertial.mass is None:
+            if lk.name in children:
+                raise ur.error(w, "a moving link needs an <inertial> with a mass")
+            continue  # the root may be massless: it is the fixed base
+        T = np.asarray(lk.inertial.origin if lk.inertial.origin is not None else np.eye(4), float)
+        mass = ur.number(f"{w} mass", float(lk.inertial.mass), "positive")
+        I = T[:3, :3] @ np.asarray(lk.inertial.inertia, float) @ T[:3, :3].T
+        links.append(Link(lk.name, mass, T[:3, 3].copy(), _positive_inertia(ur, f"{w} inertia", I)))
+    joints = []
+    for jt in robot.joints:
+        w = f"joint '{jt.name}'"
+        jtype = _joint_type(ur, w, jt.type)
+        T = np.asarray(jt.origin if jt.origin is not None else np.eye(4), float)
+        axis = jt.axis if jt.axis is not None else [1.0, 0.0, 0.0]
+        joints.append(Joint(jt.name, jtype, jt.parent, jt.child, T[:3, 3].copy(), _rpy_of(T[:3, :3]),
+                            _axis(ur, f"{w} axis", list(np.asarray(axis, float)))))
+    return links, joints
+
+
+def _rpy_of(R) -> np.ndarray:
+    """Roll, pitch, yaw with R = Rz(y) Ry(p) Rx(r) (URDF's convention)."""
+    p = np.arcsin(-np.clip(R[2, 0], -1, 1))
+    return np.array([np.arctan2(R[2, 1], R[2, 2]), p, np.arctan2(R[1, 0], R[0, 0])])
+
+
+def _order_tree(r: _Reader, links, joints, where):
+    """Joints in tree order (parents before children), the root link's name; checks the tree."""
+    names = [lk.name for lk in links]
+    for n in names:
+        if names.count(n) > 1:
+            raise r.error(where, f"link '{n}' is defined twice")
+    seen_children = {}
+    for j in joints:
+        if j.child in seen_children:
+            raise r.error(f"joint '{j.name}'", f"link '{j.child}' already has a parent joint "
+                                               f"('{seen_children[j.child]}'): a loop or a second parent")
+        if j.parent == j.child:
+            raise r.error(f"joint '{j.name}'", f"joins link '{j.parent}' to itself")
+        seen_children[j.child] = j.name
+    parents = {j.parent for j in joints}
+    roots = sorted(parents - set(seen_children))
+    if len(roots) != 1:
+        if not roots:
+            raise r.error(where, "the joints form a loop: every link has a parent joint, so there is no fixed root")
+        raise r.error(where, f"the tree has several roots {roots}: every link but one must hang from a joint")
+    root = roots[0]
+    link_names = set(names) | {root}
+    for j in joints:
+        if j.child not in link_names:
+            raise r.error(f"joint '{j.name}'", f"child link '{j.child}' is not defined")
+    ordered, frontier = [], [root]
+    by_parent = {}
+    for j in joints:
+        by_parent.setdefault(j.parent, []).append(j)
+    while frontier:
+        p = frontier.pop(0)
+        for j in by_parent.get(p, []):
+            ordered.append(j)
+            frontier.append(j.child)
+    if len(ordered) != len(joints):
+        done = {j.name for j in ordered}
+        loose = [j.name for j in joints if j.name not in done]
+        raise r.error(where, f"joints {loose} are not connected to the root '{root}' (a loop in the tree)")
+    moving = [lk for lk in links if lk.name != root]
+    for lk in moving:
+        if lk.name not in seen_children:
+            raise r.error(f"link '{lk.name}'", "no joint connects it to the tree")
+    return root, tuple(ordered), tuple(moving)
+
+
+def _cylinders(r: _Reader, data: dict, link_names: set):
+    defaults = r.table(data, "hydraulics", required=False)
+    r.known(defaults, set(HYDRAULIC_KEYS), "[hydraulics]")
+    raw = data.get("cylinders")
+    if not isinstance(raw, list) or not raw:
+        raise r.error("[[cylinders]]", "expected one [[cylinders]] table per coordinate")
+    out, names = [], set()
+    for i, cy in enumerate(raw):
+        w = f"[[cylinders]] #{i + 1}"
+        if not isinstance(cy, dict):
+            raise r.error(w, f"expected a table, got {_quote(cy)}")
+        name = r.name(f"{w} name", r.require(cy, "name", w))
+        w = f"[[cylinders]] '{name}'"
+        if name in names:
+            raise r.error(w, "a second cylinder of this name")
+        names.add(name)
+        r.known(cy, {"name", "from", "to", *HYDRAULIC_KEYS}, w)
+        ends = []
+        for end in ("from", "to"):
+            e = r.require(cy, end, w)
+            we = f"{w} {end}"
+            if not isinstance(e, dict):
+                raise r.error(we, f"expected {{ link = ..., point = [x, y, z] }}, got {_quote(e)}")
+            r.known(e, {"link", "point"}, we)
+            link = r.name(f"{we}.link", r.require(e, "link", we))
+            if link not in link_names:
+                raise r.error(f"{we}.link", f"link '{link}' is not in the tree (links: {', '.join(sorted(link_names))})")
+            ends.append((link, r.vector(f"{we}.point", r.require(e, "point", we), 3)))
+        if ends[0][0] == ends[1][0]:
+            raise r.error(w, f"both ends are on link '{ends[0][0]}': a cylinder must join two links")
+        vals = {}
+        for key, constraint in HYDRAULIC_KEYS.items():
+            if key in cy:
+                value, wk = cy[key], f"{w} {key}"
+            elif key in defaults:
+                value, wk = defaults[key], f"[hydraulics] {key}"
+            else:
+                raise r.error(w, f"missing key '{key}' (give it here or in [hydraulics])")
+            vals[key] = r.vector(wk, value, 2, "positive") if key == "stroke" else r.number(wk, value, constraint)
+        smin, smax = vals.pop("stroke")
+        if smin >= smax:
+            raise r.error(f"{w} stroke", f"must be [shortest, longest] with shortest < longest, got {[smin, smax]}")
+        if vals["chamber_length"] >= smin:
+            raise r.error(f"{w} chamber_length", f"must be < the shortest length {smin} m so the control chamber "
+                                                 "keeps a positive volume")
+        if vals["rod_area"] >= vals["piston_area"]:
+            raise r.error(f"{w} rod_area", "must be < piston_area")
+        out.append(Cylinder(name, ends[0][0], ends[0][1], ends[1][0], ends[1][1], stroke_min=smin,
+                            stroke_max=smax, **vals))
+    return tuple(out)
+
+
+def model_from_dict(data: dict, source: str = "<memory>", base_dir: Path | None = None) -> Model:
+    """Validate parsed TOML data and build a :class:`Model`; errors name the source and the key."""
+    r = _Reader(source)
+    top = {"name", "urdf", "gravity", "links", "joints", "coordinates", "hydraulics", "cylinders",
+           "adaptation", "sensors", "control", "gains", "rig", "scenarios"}
+    r.known(data, top, "top level")
+    name = check_model_name(source, r.require(data, "name", "top level"))
+    gravity = r.number("gravity", r.require(data, "gravity", "top level"), "nonnegative")
+    urdf = None
+    if "urdf" in data:
+        if "links" in data or "joints" in data:
+            raise r.error("urdf", "give the tree either as a URDF file or as [[links]]/[[joints]], not both")
+        rel = r.name("urdf", data["urdf"])
+        urdf = (Path(base_dir) if base_dir else Path.cwd()) / rel
+        if not urdf.is_file():
+            raise r.error("urdf", f"URDF file not found: {urdf}")
+        links, joints = _tree_from_urdf(r, urdf)
+    else:
+        links, joints = _tree_from_toml(r, data)
+    root, joints, links = _order_tree(r, links, joints, "tree" if urdf is None else f"URDF {urdf}")
+    link_names = {root} | {lk.name for lk in links}
+    # coordinates
+    coords = r.table(data, "coordinates")
+    r.known(coords, {"names", "neutral"}, "[coordinates]")
+    default_names = []
+    for j in joints:
+        default_names += [f"{j.name}_{c}" for c in FLOATING_COORDINATES] if j.type == "floating" else \
+            ([j.name] if j.dof else [])
+    n = len(default_names)
+    if n == 0:
+        raise r.error("tree", "no joint moves: the robot needs at least one revolute, prismatic or floating joint")
+    names = coords.get("names", default_names)
+    if not isinstance(names, list) or len(names) != n or not all(isinstance(x, str) and x for x in names) \
+            or len(set(names)) != n:
+        raise r.error("[coordinates] names", f"expected {n} distinct names (one per coordinate), got {_quote(names)}")
+    neutral = r.vector("[coordinates] neutral", r.require(coords, "neutral", "[coordinates]"), n)
+    cylinders = _cylinders(r, data, link_names)
+    if len(cylinders) != n:
+        raise r.error("[[cylinders]]", f"{len(cylinders)} cylinders for {n} coordinates: the method needs one "
+                                       "cylinder per coordinate (a square JL)")
+    # adaptation
+    ad = r.table(data, "adaptation")
+    r.known(ad, {"parameters", "theta_min", "theta_max", "gamma1_min", "gamma1_max", "gamma2_min",
+                 "gamma2_max"}, "[adaptation]")
+    params = r.require(ad, "parameters", "[adaptation]")
+    if not isinstance(params, list) or not params or not all(isinstance(p, str) for p in params) \
+            or len(set(params)) != len(params):
+        raise r.error("[adaptation] parameters", f"expected distinct names 'link.parameter', got {_quote(params)}")
+    for p in params:
+        lk, _, key = p.partition(".")
+        if lk not in {x.name for x in links} or key not in INERTIAL_PARAMETERS:
+            raise r.error("[adaptation] parameters", f"'{p}' is not '<moving link>.<{'|'.join(INERTIAL_PARAMETERS)}>'")
+    p_count = len(params)
+    tmin = r.vector("[adaptation] theta_min", r.require(ad, "theta_min", "[adaptation]"), p_count)
+    tmax = r.vector("[adaptation] theta_max", r.require(ad, "theta_max", "[adaptation]"), p_count)
+    if np.any(tmin >= tmax):
+        raise r.error("[adaptation] theta_min", "each lower bound must be < the upper bound theta_max")
+    gb = {k: r.number(f"[adaptation] {k}", r.require(ad, k, "[adaptation]"), "positive")
+          for k in ("gamma1_min", "gamma1_max", "gamma2_min", "gamma2_max")}
     for g in ("gamma1", "gamma2"):
-        if values[f"{g}_min"] >= values[f"{g}_max"]:
-            raise bad(f"[adaptation] {g}_min", f"must be < {g}_max")
+        if gb[f"{g}_min"] >= gb[f"{g}_max"]:
+            raise r.error(f"[adaptation] {g}_min", f"must be < {g}_max")
+    sensors = r.table(data, "sensors", required=False)
+    r.known(sensors, {"joint_encoders"}, "[sensors]")
+    enc = sensors.get("joint_encoders", False)
+    if not isinstance(enc, bool):
+        raise r.error("[sensors] joint_encoders", f"expected true or false, got {_quote(enc)}")
+    control = r.table(data, "control", required=False)
+    r.known(control, {"scale"}, "[control]")
+    scale = r.vector("[control] scale", control["scale"], n, "positive") if "scale" in control else None
+    gains = r.table(data, "gains", required=False)
+    scen = r.table(data, "scenarios", required=False)
+    rig = r.table(data, "rig", required=False)
+    model = Model(name=name, gravity=gravity, root=root, links=links, joints=joints, cylinders=cylinders,
+                  coordinate_names=tuple(names), neutral_pose=neutral, theta_names=tuple(params),
+                  theta_min=tmin, theta_max=tmax, joint_encoders=enc, scale=scale, gains=gains,
+                  scenarios={"rig": rig, **scen}, source=source, urdf=urdf, raw=data, **gb)
+    _check_bounds(r, model)
+    _check_neutral(r, model)
+    return model
+
+
+def _check_bounds(r: _Reader, m: Model):
     # Lemma 1 assumes a ≤ θ ≤ b: the true parameters must lie inside their projection bounds.
-    theta = np.array([values["mass"], *values["inertia"]])
-    if np.any(theta < values["theta_min"]) or np.any(theta > values["theta_max"]):
-        raise bad("[adaptation] theta_min/theta_max",
-                  f"must contain the true [mass, inertia] {theta.tolist()} (Lemma 1 assumes a <= theta <= b)")
-    for g, true in (("gamma1", values["bulk_modulus"]), ("gamma2", values["bulk_modulus"] * values["flow_gain"])):
-        if not values[f"{g}_min"] <= true <= values[f"{g}_max"]:
-            raise bad(f"[adaptation] {g}_min/{g}_max", f"must contain the true value {true:.6g}")
-    inertia = tuple(float(x) for x in values.pop("inertia"))
-    return Model(inertia=inertia, source=source, raw=data, **values)
+    theta = m.theta
+    if np.any(theta < m.theta_min) or np.any(theta > m.theta_max):
+        bad = [n for n, t, a, b in zip(m.theta_names, theta, m.theta_min, m.theta_max) if not a <= t <= b]
+        raise r.error("[adaptation] theta_min/theta_max",
+                      f"must contain the true values (Lemma 1 assumes a <= theta <= b); outside: "
+                      + ", ".join(f"{n} = {v:.6g}" for n, v in zip(m.theta_names, theta) if n in bad))
+    for g, true in (("gamma1", m.gamma[0]), ("gamma2", m.gamma[1])):
+        lo, hi = getattr(m, f"{g}_min"), getattr(m, f"{g}_max")
+        if np.any(true < lo) or np.any(true > hi):
+            raise r.error(f"[adaptation] {g}_min/{g}_max", f"must contain the true values {true.tolist()}")
+
+
+def _check_neutral(r: _Reader, m: Model):
+    """Cylinders inside their stroke and JL well conditioned at the neutral pose."""
+    from .tree import cylinder_jacobian, cylinder_lengths
+    q0 = m.neutral_pose
+    lengths = cylinder_lengths(m, q0)
+    for c, l in zip(m.cylinders, lengths):
+        if not c.stroke_min <= l <= c.stroke_max:
+            raise r.error(f"[[cylinders]] '{c.name}'", f"length {l:.4f} m at the neutral pose is outside its stroke "
+                                                       f"[{c.stroke_min}, {c.stroke_max}] m")
+    J = cylinder_jacobian(m, q0)
+    cond = np.linalg.cond(J)
+    if not np.isfinite(cond) or cond > 1e8:
+        raise r.error("[[cylinders]]", f"JL = dl/dq is singular at the neutral pose (condition number {cond:.3g}): "
+                                       "the cylinders cannot move every coordinate (check the pin points)")
 
 
 def load_model(path: str | Path | None = None) -> Model:
-    """Load a model from a TOML file (the packaged default when ``path`` is None).
+    """Load a model: a built-in name (``hydrogen.models()``), a TOML file, or the default when None.
 
     Raises
     ------
     ModelError
-        The file is missing, is not valid TOML, or a key is missing, of the wrong
-        type, or out of range; the message names the file and the key.
+        The file is missing, is not valid TOML, or a key is missing, of the wrong type, or out
+        of range; the message names the file and the key, link, joint or cylinder.
     """
-    path = default_model_path() if path is None else Path(path)
+    if isinstance(path, Model):
+        return path
+    if path is not None and not isinstance(path, (str, Path)):
+        raise ModelError(f"model must be a built-in name ({', '.join(models())}), a path or a Model, "
+                         f"got {type(path).__name__} {_quote(path)}")
+    path = default_model_path() if path is None else model_path(path)
     try:
         text = path.read_bytes().decode("utf-8")
     except FileNotFoundError:
-        raise ModelError(f"{path}: model file not found") from None
+        raise ModelError(f"{path}: model file not found (built-in models: {', '.join(models())})") from None
     except (OSError, UnicodeDecodeError) as exc:
         raise ModelError(f"{path}: cannot read model file: {exc}") from None
     try:
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
         raise ModelError(f"{path}: malformed TOML: {exc}") from None
-    return model_from_dict(data, source=str(path))
+    return model_from_dict(data, source=str(path), base_dir=path.parent)

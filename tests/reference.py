@@ -1,4 +1,4 @@
-"""Independent numeric references (numpy only): rotation, T, leg lengths, Newton-Euler."""
+"""Independent numeric references (numpy only): rotation, T, Newton-Euler for one rigid body."""
 import numpy as np
 
 
@@ -22,9 +22,11 @@ def vee(S):
 
 
 def leg_lengths(model, q):
+    """Stewart platform: base point to platform point, with the paper's rotation (numpy)."""
     R = rotation(*q[3:])
-    legs = q[:3] + model.platform_joints @ R.T - model.base_joints
-    return np.linalg.norm(legs, axis=1)
+    base = np.array([c.point_from for c in model.cylinders])
+    plat = np.array([c.point_to for c in model.cylinders])
+    return np.linalg.norm(q[:3] + plat @ R.T - base, axis=1)
 
 
 def newton_euler(model, theta, q, qd, qdd, h=1e-5):

@@ -17,68 +17,82 @@ from hydrogen.codegen.casadi_functions import to_casadi_function
 from hydrogen.runtime.build import repo_generated_dir
 from hydrogen.symbolic.functions import derive_functions
 
+from conftest import MODELS
 
-def _random_input(name, shape, model, rng):
-    n = shape[0] * shape[1]
+
+def _random_input(name, shape, model, rng, fname=""):
+    """A plausible value of a generated function's input, from the model (any robot)."""
+    from hydrogen.controllers import CONTROLLERS, controller, function_name
+    from conftest import workspace_poses
+
+    size = shape[0] * shape[1]
+    n, m, p = model.n, model.n_cylinders, model.n_theta
     ps, d = model.supply_pressure, model.underlap
-    if name == "q":
-        x = model.neutral_pose + rng.uniform(-1, 1, 6) * [0.05, 0.05, 0.05, 0.15, 0.15, 0.15]
+    if name in ("q", "qd0", "q_hat"):
+        x = workspace_poses(model, 1, rng)[0]
     elif name == "theta":
-        x = np.array([250.0, 45, 45, 43]) * rng.uniform(0.7, 1.3, 4)
-    elif name == "gamma":
-        x = model.gamma * rng.uniform(0.7, 1.3, 2)
+        x = model.theta * rng.uniform(0.7, 1.3, p)
+    elif name in ("gamma1", "gamma2"):
+        x = model.gamma[0 if name == "gamma1" else 1] * rng.uniform(0.7, 1.3, m)
     elif name == "pc":
-        x = rng.uniform(0.02, 0.98, n) * ps
+        x = rng.uniform(0.02, 0.98, m) * ps
     elif name == "u":
-        x = rng.uniform(-4, 4, n) * d
+        x = rng.uniform(-4, 4, m) * d
     elif name == "l":
-        x = rng.uniform(model.leg_min, model.leg_max, n)
+        x = rng.uniform(model.leg_min, model.leg_max)
     elif name == "x":  # plant state [q, qdot, pc, spool]
-        x = np.concatenate([_random_input("q", (6, 1), model, rng).ravel(), rng.normal(size=6) * 0.1,
-                            rng.uniform(0.02, 0.98, 6) * ps, rng.uniform(-4, 4, 6) * d])
-    elif name == "xc":  # controller state: [q_hat,] z, theta_hat, gamma1_hat, gamma2_hat
-        tail = np.concatenate([rng.normal(size=6) * 0.1, _random_input("theta", (4, 1), model, rng).ravel(),
-                               model.gamma[0] * rng.uniform(0.7, 1.3, 6), model.gamma[1] * rng.uniform(0.7, 1.3, 6)])
-        x = tail if n == 22 else np.concatenate([_random_input("q", (6, 1), model, rng).ravel(), tail])
+        x = np.concatenate([workspace_poses(model, 1, rng)[0], rng.normal(size=n) * 0.1,
+                            rng.uniform(0.02, 0.98, m) * ps, rng.uniform(-4, 4, m) * d])
+    elif name == "xc":  # controller state, from the controller's layout
+        kind = next(k for k in CONTROLLERS if function_name(k) == fname)
+        parts = {"z": lambda k: rng.normal(size=k) * 0.1,
+                 "q_hat": lambda k: workspace_poses(model, 1, rng)[0],
+                 "theta_hat": lambda k: model.theta * rng.uniform(0.7, 1.3, k),
+                 "gamma1_hat": lambda k: model.gamma[0] * rng.uniform(0.7, 1.3, k),
+                 "gamma2_hat": lambda k: model.gamma[1] * rng.uniform(0.7, 1.3, k)}
+        x = np.concatenate([parts[b](k) for b, k in controller(kind).state_layout(model)])
     elif name in ("friction",):
         x = np.array([100.0, 300.0, 1e-3])
     elif name in ("tau_valve", "sat_width", "u_max"):
-        x = rng.uniform(1e-3, 1e-2, n)
+        x = rng.uniform(1e-3, 1e-2, size)
     elif name in ("Lambda", "Kp", "Kd", "Ktau", "Gtau_inv", "Ko", "Lambda2", "Lp", "Kd_obs", "Gz_inv",
                   "Gtheta_inv", "Ggamma1_inv", "Ggamma2_inv", "Kleg", "lambda_o"):
-        x = rng.uniform(0.5, 2.0, n) * {"Kp": 1e4, "Kd": 1e3, "Gtau_inv": 1e4, "Lp": 1e5, "Kd_obs": 1e3,
-                                        "Ggamma1_inv": 1e18, "Ggamma2_inv": 1e10, "Kleg": 0.05,
-                                        "Gz_inv": 0.01, "lambda_o": 0.01}.get(name, 30.0)
+        x = rng.uniform(0.5, 2.0, size) * {"Kp": 1e4, "Kd": 1e3, "Gtau_inv": 1e4, "Lp": 1e5, "Kd_obs": 1e3,
+                                           "Ggamma1_inv": 1e18, "Ggamma2_inv": 1e10, "Kleg": 0.05,
+                                           "Gz_inv": 0.01, "lambda_o": 0.01}.get(name, 30.0)
     elif name in ("theta_min", "theta_max"):
-        x = np.array([250.0, 45, 45, 43]) * (0.6 if name == "theta_min" else 1.4)
+        lo, hi = np.minimum(model.theta * 0.6, model.theta * 1.4), np.maximum(model.theta * 0.6, model.theta * 1.4)
+        x = lo if name == "theta_min" else hi
     elif name in ("gamma1_min", "gamma1_max", "gamma2_min", "gamma2_max"):
-        g = model.gamma[0] if name.startswith("gamma1") else model.gamma[1]
+        g = model.gamma[0 if name.startswith("gamma1") else 1].mean()
         x = np.array([g * (0.5 if name.endswith("min") else 2.0)])
     elif name == "adapt":
         x = np.array([1.0])
     elif name == "Dbar_inv":
-        x = np.diag(1 / np.array([250.0, 250, 250, 45, 45, 43]))
+        x = np.eye(n) * 1e-2
     elif name == "Gbar":
-        x = np.array([0, 0, 250 * 9.81, 0, 0, 0])
-    elif name in ("qd0", "q_hat"):
-        x = _random_input("q", (6, 1), model, rng).ravel()
+        x = rng.normal(size=n) * 100.0
     elif name == "ql_per_c":
-        x = rng.uniform(-4, 4, n) * d * np.sqrt(ps)
+        x = rng.uniform(-4, 4, m) * d * np.sqrt(ps)
     else:
-        x = rng.normal(size=n)
+        x = rng.normal(size=size)
     return np.asarray(x, float).reshape(shape, order="F")
 
 
-_DERIVED = {f.name: f for f in derive_functions(hydrogen.load_model())}
+_DERIVED = {name: {f.name: f for f in derive_functions(hydrogen.load_model(name))} for name in MODELS}
+_CASES = [(name, fname) for name in MODELS for fname in _DERIVED[name]]
 
 
 def _sympy_numeric(sf, values: dict) -> list:
     """Evaluate ``sf`` with SymPy's own numeric path (lambdify, math module), stage by stage."""
     values = dict(values)
     for symbols, expr in sf.intermediates:
-        if isinstance(expr, tuple):  # ("inverse", M)
+        if isinstance(expr, tuple) and expr[0] == "inverse":
             M = np.array(_lam(values, expr[1]), float).reshape(expr[1].shape)
             val = np.linalg.inv(M)
+        elif isinstance(expr, tuple):  # ("solve", A, b)
+            A = np.array(_lam(values, expr[1]), float).reshape(expr[1].shape)
+            val = np.linalg.solve(A, np.array(_lam(values, expr[2]), float))
         else:
             val = np.array(_lam(values, expr), float)
         values.update({s: float(v) for s, v in zip(symbols, val.ravel())})  # row-major, like Matrix
@@ -89,13 +103,15 @@ def _lam(values, matrix):
     return sp.lambdify(list(values), list(matrix), "math")(*values.values())
 
 
-@pytest.mark.parametrize("fname", list(_DERIVED))
-def test_compiled_equals_casadi_equals_sympy(fname, dyn, model, rng):
-    sf = _DERIVED[fname]
+@pytest.mark.parametrize("mname,fname", _CASES)
+def test_compiled_equals_casadi_equals_sympy(mname, fname, cache, rng):
+    model = hydrogen.load_model(mname)
+    dyn = hydrogen.build(model, cache=cache)
+    sf = _DERIVED[mname][fname]
     fun = to_casadi_function(sf)
     compiled = dyn.functions[fname]
     for _ in range(3):
-        args = [_random_input(n, m.shape, model, rng) for n, m in sf.inputs]
+        args = [_random_input(n, m.shape, model, rng, fname) for n, m in sf.inputs]
         sub = {s: float(v) for (_, m), a in zip(sf.inputs, args) for s, v in zip(m.T, a.T.ravel())}
         out_c = compiled(*[a[:, 0] if a.shape[1] == 1 else a for a in args])
         out_c = out_c if isinstance(out_c, tuple) else (out_c,)
@@ -125,12 +141,13 @@ def test_generation_is_deterministic(tmp_path, model):
         assert (a / name).read_bytes() == (b / name).read_bytes(), name
 
 
-def test_committed_generated_code_is_current(model):
-    folder = repo_generated_dir() / model.name
-    assert gen.check(model, folder) == []
+def test_committed_generated_code_is_current(robot_model):
+    folder = repo_generated_dir() / robot_model.name
+    assert gen.check(robot_model, folder) == []
 
 
-def test_committed_generated_code_is_byte_identical_to_fresh(tmp_path, model):
+def test_committed_generated_code_is_byte_identical_to_fresh(tmp_path, robot_model):
+    model = robot_model
     folder = repo_generated_dir() / model.name
     manifest = gen.read_manifest(folder)
     if manifest["casadi_version"] != ca.__version__ or manifest["sympy_version"] != sp.__version__:
@@ -140,8 +157,8 @@ def test_committed_generated_code_is_byte_identical_to_fresh(tmp_path, model):
         assert (folder / name).read_bytes() == (tmp_path / name).read_bytes(), name
 
 
-def test_generated_c_compiles_warning_free(tmp_path, model):
-    folder = repo_generated_dir() / model.name
+def test_generated_c_compiles_warning_free(tmp_path, robot_model):
+    folder = repo_generated_dir() / robot_model.name
     for src in sorted(folder.glob("*.c")):
         proc = subprocess.run(["cc", "-std=c99", "-Wall", "-Wextra", "-Werror", "-pedantic", "-O1",
                                "-c", str(src), "-o", str(tmp_path / (src.stem + ".o"))],

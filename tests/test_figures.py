@@ -22,16 +22,18 @@ def _result(controller, scenario="z-1hz", n=200, err_scale=1e-3, step=False, see
         q_d[:, 3] += 0.09 * np.sin(2 * np.pi * t)
     q = q_d + err_scale * rng.standard_normal((n, 6))
     theta_true = np.array([500.0, 80.0, 80.0, 120.0])
-    gamma_true = np.array([7e8, 7e8 * 1e-8])
+    gamma_true = np.array([[7e8] * 6, [7e8 * 1e-8] * 6])
     decay = np.exp(-t)[:, None]
     theta_hat = theta_true * (1.0 + 0.2 * decay * np.array([1.0, -0.3, 0.3, -0.2]))
-    gamma1_hat = gamma_true[0] * (1.0 - 0.3 * decay * np.ones(6))
-    gamma2_hat = gamma_true[1] * (1.0 + 0.3 * decay * np.ones(6))
+    gamma1_hat = gamma_true[0] * (1.0 - 0.3 * decay)
+    gamma2_hat = gamma_true[1] * (1.0 + 0.3 * decay)
     res = SimulationResult(
         scenario=scenario, controller=controller, t=t, q=q, q_d=q_d,
         leg_lengths=np.full((n, 6), 2.0), leg_forces=np.zeros((n, 6)), pressures=np.full((n, 6), 1e7),
         u=np.zeros((n, 6)), theta_hat=theta_hat, gamma1_hat=gamma1_hat, gamma2_hat=gamma2_hat,
-        theta_true=theta_true, gamma_true=gamma_true, amplitude=amp, metric_start=0.5)
+        theta_true=theta_true, gamma_true=gamma_true, amplitude=amp, metric_start=0.5,
+        coordinates=("x", "y", "z", "psi", "theta", "phi"), units=("m",) * 3 + ("rad",) * 3,
+        theta_names=("platform.mass", "platform.Ixx", "platform.Iyy", "platform.Izz"))
     res.compute_metrics()
     return res
 

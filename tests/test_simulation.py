@@ -13,8 +13,7 @@ from hydrogen.simulation.control import make_controller
 from hydrogen.simulation.reference import MultiSine
 from hydrogen.simulation.scenarios import scenario
 from hydrogen.simulation.simulator import _rk4, equilibrium_pressures, simulate
-from hydrogen.symbolic import controllers as C
-from hydrogen.symbolic.functions import _joints
+from hydrogen.controllers import controller as controller_module
 
 FRIC, NO_LAG = np.array([100.0, 300.0, 1e-3]), np.array([0.0])
 
@@ -24,7 +23,7 @@ def test_rk4_matches_a_stiff_adaptive_reference(dyn, model, rng):
     x0 = np.concatenate([q0, rng.normal(size=6) * 0.05, equilibrium_pressures(dyn, q0, model.theta),
                          np.zeros(6)])
     u = rng.uniform(-1, 1, 6) * 2e-4
-    rhs = lambda x: dyn.functions["plant_rhs"](x, u, model.theta, model.gamma, FRIC, NO_LAG)  # noqa: E731
+    rhs = lambda x: dyn.functions["plant_rhs"](x, u, model.theta, *model.gamma, FRIC, NO_LAG)  # noqa: E731
     T, h = 0.05, 1.0 / 4000
     x = x0.copy()
     for _ in range(int(round(T / h))):
@@ -43,7 +42,7 @@ def test_plant_at_equilibrium_stays_still(dyn, model):
     d, ps = model.underlap, model.supply_pressure
     r = np.sqrt(pc0 / (ps - pc0))
     u = d * (r - 1) / (r + 1)
-    xdot = dyn.functions["plant_rhs"](x0, u, model.theta, model.gamma, np.zeros(3) + [0, 0, 1e-3], NO_LAG)
+    xdot = dyn.functions["plant_rhs"](x0, u, model.theta, *model.gamma, np.zeros(3) + [0, 0, 1e-3], NO_LAG)
     np.testing.assert_allclose(xdot[6:12], 0, atol=1e-9)
     np.testing.assert_allclose(xdot[12:18], 0, atol=1e-3)
 
@@ -62,9 +61,7 @@ def test_backstepping_errors_decay_exponentially(dyn, model):
 
 
 def _parts_with_rates(kind, model):
-    make = {"backstepping": C.backstepping, "adaptive-robust": C.adaptive_robust,
-            "adaptive-observer": C.adaptive_observer}[kind]
-    parts = make(model, *_joints(model))
+    parts = controller_module(kind).derive(model)
     stage = {str(s[0]): (s, v) for s, v in parts.intermediates}
     taud_sym, taud = stage["taud_0"]
     _, taud_dot = stage["taud_dot_0"]
@@ -88,7 +85,7 @@ def _tau_d_dot_and_ad(kind, model):
         n = str(s)
         base, _, k = n.rpartition("_")
         if n.startswith("q_") and not n.startswith("q_hat"):
-            rate[idx[n]] = get(f"qdot_{'x y z psi theta phi'.split().index(n[2:])}")
+            rate[idx[n]] = get(f"qdot_{model.coordinate_names.index(n[2:])}")
         elif base == "qdot":
             rate[idx[n]] = get(f"acc_{k}")
         elif base in ("qd0", "qd1", "qd2"):
@@ -99,7 +96,7 @@ def _tau_d_dot_and_ad(kind, model):
             rate[idx[n]] = get(f"thetadot_{k}")
         elif base == "q_hat":
             i = int(k)
-            qn = f"q_{'x y z psi theta phi'.split()[i]}"
+            qn = f"q_{model.coordinate_names[i]}"
             rate[idx[n]] = get(f"z_{i}") + get(f"Lambda2_{i}") * (get(qn) - X[idx[n]])
     return X, idx, tau_dot_sx, ca.jtimes(tau_sx, X, rate)
 
@@ -113,7 +110,7 @@ def test_tau_d_dot_matches_casadi_ad(kind, model, rng):
         x = rng.normal(size=X.numel())
         for s, i in idx.items():
             if s.startswith("q_") and not s.startswith("q_hat"):
-                x[i] = model.neutral_pose["x y z psi theta phi".split().index(s[2:])] + 0.05 * x[i]
+                x[i] = model.neutral_pose[model.coordinate_names.index(s[2:])] + 0.05 * x[i]
             if s.startswith("theta_hat"):
                 x[i] = 40 + abs(x[i])
         a, b = (np.array(v).ravel() for v in f(x))
@@ -144,7 +141,7 @@ def test_tau_d_dot_matches_finite_differences_along_a_trajectory(kind, dyn, mode
     t = res.t[-1]
     u = ctrl.command(q, x[6:12], pc, dyn.leg_lengths(q), sc.reference(t), True)
     tau_dot, xc, xc_dot = ctrl.tau_d_dot.copy(), ctrl.xc.copy(), ctrl.xc_dot.copy()
-    rhs = lambda xx: dyn.functions["plant_rhs"](xx, u, model.theta, model.gamma, np.array([0, 0, 1e-3]), NO_LAG)  # noqa
+    rhs = lambda xx: dyn.functions["plant_rhs"](xx, u, model.theta, *model.gamma, np.array([0, 0, 1e-3]), NO_LAG)  # noqa
     delta = 1e-6
     taus = []
     for sgn in (+1, -1):
@@ -216,7 +213,8 @@ def test_reference_outside_workspace_is_rejected(dyn, model):
         bad = np.nonzero((legs < model.leg_min) | (legs > model.leg_max))[0]
         if bad.size:
             break
-    with pytest.raises(hydrogen.KinematicsError, match=rf"leaves the workspace at t = {k * h:.3f} s: leg {bad[0]} "):
+    with pytest.raises(hydrogen.KinematicsError,
+                       match=rf"leaves the workspace at t = {k * h:.3f} s: cylinder '{model.cylinders[bad[0]].name}' "):
         simulate(dyn, sc, "p")
 
 
@@ -278,10 +276,9 @@ def test_sweep_any_executor_and_errors_in_place(dyn):
 
 
 def test_p_default_gain_is_the_documented_search_result():
-    from hydrogen.simulation.control import DEFAULT_GAINS
     from hydrogen.simulation.tuning import tune_p
     res = tune_p(max_workers=2)
-    assert res["best"] == pytest.approx(DEFAULT_GAINS["p"]["Kleg"][0], rel=2e-3)
+    assert res["best"] == pytest.approx(hydrogen.load_model().gains["p"]["Kleg"], rel=2e-3)
     unstable_above = [r for r in res["table"] if r["Kleg"] > res["best"] and not r["stable"]]
     assert unstable_above  # the search did find the edge
 

@@ -22,7 +22,7 @@ def _edited_model(tmp_path, old, new):
 
 
 def test_geometry_edit_reaches_the_compiled_functions(tmp_path, model, dyn):
-    mine = _edited_model(tmp_path, "0.150000]", "0.200000]")  # platform joints 5 cm higher
+    mine = _edited_model(tmp_path, "0.15] }", "0.2] }")  # platform joints 5 cm higher
     d2 = hydrogen.build(mine, cache=tmp_path / "cache")
     q = model.neutral_pose
     assert np.all(d2.leg_lengths(q) < dyn.leg_lengths(q) - 0.04)

@@ -10,8 +10,15 @@
 #include "ubc_stewart_leg_kinematics.h"
 #include "ubc_stewart_plant_rhs.h"
 
-#define NX 24
+#define NQ UBC_STEWART_NQ
+#define NL UBC_STEWART_NL
+#define NX UBC_STEWART_NX
+#define NNOISE UBC_STEWART_NNOISE
 static const double TWO_PI = 6.283185307179586;
+/* baked cylinder constants: cap area A (m^2), annulus area a (m^2), supply pressure P_s (Pa) */
+static const double PISTON_AREA[NL] = { 0.00114, 0.00114, 0.00114, 0.00114, 0.00114, 0.00114 };
+static const double ROD_AREA[NL] = { 0.000633, 0.000633, 0.000633, 0.000633, 0.000633, 0.000633 };
+static const double SUPPLY_PRESSURE[NL] = { 10340000.0, 10340000.0, 10340000.0, 10340000.0, 10340000.0, 10340000.0 };
 
 static int leg_lengths(const double* q, double* l) {
     const double* arg[1];
@@ -24,11 +31,11 @@ static int leg_lengths(const double* q, double* l) {
 int ubc_stewart_leg_lengths_many(const double* q, long long n, double* l) {
     long long k;
     for (k = 0; k < n; ++k)
-        if (leg_lengths(q + 6 * k, l + 6 * k)) return 1;
+        if (leg_lengths(q + NQ * k, l + NL * k)) return 1;
     return 0;
 }
 
-/* leg lengths and JL (column-major 6x6) in one call: they share the leg vectors */
+/* cylinder lengths and JL (column-major NL x NQ) in one call: they share the link poses */
 static int leg_kinematics(const double* q, double* l, double* J) {
     const double* arg[1];
     double* res[2];
@@ -38,30 +45,30 @@ static int leg_kinematics(const double* q, double* l, double* J) {
     return ubc_stewart_leg_kinematics(arg, res, 0, 0, 0);
 }
 
-/* Solve A x = b (A column-major n x n, overwritten), partial pivoting; returns 0 if singular. */
-static int solve6(double* A, double* b) {
+/* Solve A x = b (A column-major NQ x NQ, overwritten), partial pivoting; returns 0 if singular. */
+static int solve_n(double* A, double* b) {
     int i, j, k, piv;
     double m, tmp;
-    for (k = 0; k < 6; ++k) {
+    for (k = 0; k < NQ; ++k) {
         piv = k;
-        for (i = k + 1; i < 6; ++i)
-            if (fabs(A[i + 6 * k]) > fabs(A[piv + 6 * k])) piv = i;
-        if (!(fabs(A[piv + 6 * k]) > 1e-12)) return 0;
+        for (i = k + 1; i < NQ; ++i)
+            if (fabs(A[i + NQ * k]) > fabs(A[piv + NQ * k])) piv = i;
+        if (!(fabs(A[piv + NQ * k]) > 1e-12)) return 0;
         if (piv != k) {
-            for (j = 0; j < 6; ++j) {
-                tmp = A[k + 6 * j]; A[k + 6 * j] = A[piv + 6 * j]; A[piv + 6 * j] = tmp;
+            for (j = 0; j < NQ; ++j) {
+                tmp = A[k + NQ * j]; A[k + NQ * j] = A[piv + NQ * j]; A[piv + NQ * j] = tmp;
             }
             tmp = b[k]; b[k] = b[piv]; b[piv] = tmp;
         }
-        for (i = k + 1; i < 6; ++i) {
-            m = A[i + 6 * k] / A[k + 6 * k];
-            for (j = k; j < 6; ++j) A[i + 6 * j] -= m * A[k + 6 * j];
+        for (i = k + 1; i < NQ; ++i) {
+            m = A[i + NQ * k] / A[k + NQ * k];
+            for (j = k; j < NQ; ++j) A[i + NQ * j] -= m * A[k + NQ * j];
             b[i] -= m * b[k];
         }
     }
-    for (k = 5; k >= 0; --k) {
-        for (j = k + 1; j < 6; ++j) b[k] -= A[k + 6 * j] * b[j];
-        b[k] /= A[k + 6 * k];
+    for (k = NQ - 1; k >= 0; --k) {
+        for (j = k + 1; j < NQ; ++j) b[k] -= A[k + NQ * j] * b[j];
+        b[k] /= A[k + NQ * k];
     }
     return 1;
 }
@@ -70,46 +77,52 @@ static int solve6(double* A, double* b) {
  * JL at the returned q (the converged iterate's own evaluation: no extra call for the velocities),
  * 0 if it does not converge or JL is singular, -1 if the generated function failed. */
 static int forward_kinematics(const double* l_meas, double* q, double tol, long long max_iter, double* J) {
-    double l[6], r[6], err;
+    double l[NL], r[NL], err;
     long long it;
     int i;
     for (it = 0; it <= max_iter; ++it) {
         if (leg_kinematics(q, l, J)) return -1;
         err = 0;
-        for (i = 0; i < 6; ++i) {
+        for (i = 0; i < NL; ++i) {
             r[i] = l[i] - l_meas[i];
             if (fabs(r[i]) > err) err = fabs(r[i]);
         }
         if (err < tol) return 1;
-        if (it == max_iter || !solve6(J, r)) return 0;  /* J is evaluated again next iteration */
-        for (i = 0; i < 6; ++i) q[i] -= r[i];
+        if (it == max_iter || !solve_n(J, r)) return 0;  /* J is evaluated again next iteration */
+        for (i = 0; i < NQ; ++i) q[i] -= r[i];
     }
     return 0;
 }
 
-static void reference(const ubc_stewart_loop_config* c, double t, double* qd /* 4 x 6 */) {
+static void reference(const ubc_stewart_loop_config* c, double t, double* qd /* 4 x NQ */) {
     long long j;
     int i;
-    for (i = 0; i < 6; ++i) {
+    for (i = 0; i < NQ; ++i) {
         qd[i] = c->bias[i];
-        qd[6 + i] = qd[12 + i] = qd[18 + i] = 0;
+        qd[NQ + i] = qd[2 * NQ + i] = qd[3 * NQ + i] = 0;
     }
     for (j = 0; j < c->n_terms; ++j) {
-        int ax = (int)c->terms[3 * j];
+        double axis = c->terms[3 * j];
         double a = c->terms[3 * j + 1], w = TWO_PI * c->terms[3 * j + 2];
-        double s = sin(w * t), co = cos(w * t);
+        double s, co;
+        int ax;
+        if (!(axis >= 0 && axis < NQ)) continue;  /* never index with an unchecked value */
+        ax = (int)axis;
+        s = sin(w * t);
+        co = cos(w * t);
         qd[ax] += a * s;
-        qd[6 + ax] += a * w * co;
-        qd[12 + ax] -= a * w * w * s;
-        qd[18 + ax] -= a * w * w * w * co;
+        qd[NQ + ax] += a * w * co;
+        qd[2 * NQ + ax] -= a * w * w * s;
+        qd[3 * NQ + ax] -= a * w * w * w * co;
     }
-    if (c->step_axis >= 0 && t >= c->t_step) qd[c->step_axis] += c->step_height;
+    if (c->step_axis >= 0 && c->step_axis < NQ && t >= c->t_step) qd[c->step_axis] += c->step_height;
 }
 
 static int plant_rhs(const ubc_stewart_loop_config* c, const double* x, const double* u, double* xdot) {
-    const double* arg[6];
+    const double* arg[7];
     double* res[1];
-    arg[0] = x; arg[1] = u; arg[2] = c->theta; arg[3] = c->gamma; arg[4] = c->friction; arg[5] = c->tau_valve;
+    arg[0] = x; arg[1] = u; arg[2] = c->theta; arg[3] = c->gamma1; arg[4] = c->gamma2;
+    arg[5] = c->friction; arg[6] = c->tau_valve;
     res[0] = xdot;
     return ubc_stewart_plant_rhs(arg, res, 0, 0, 0);
 }
@@ -136,72 +149,72 @@ static double clip(double v, double lo, double hi) { return v < lo ? lo : (v > h
 
 int ubc_stewart_loop_run(const ubc_stewart_loop_config* c, ubc_stewart_loop_state* st, long long n,
                      const double* noise, ubc_stewart_loop_log* log) {
-    double l_true[6], l_meas[6], pc_meas[6], ldot[6], qdot_meas[6], J[36], qd[24], u[6], adapt;
+    double l_true[NL], l_meas[NL], pc_meas[NL], ldot[NL], qdot_meas[NQ], J[NL * NQ], qd[4 * NQ], u[NL], adapt;
     double* x = st->x;
-    const double h = c->h, hs = c->h / (double)c->substeps, ps = c->supply_pressure;
+    const double h = c->h, hs = c->h / (double)c->substeps;
     long long step, j;
     int i;
     for (step = 0; step < n; ++step) {
-        const double* nz = noise ? noise + 12 * step : 0;  /* row `step` of this call's table */
+        const double* nz = noise ? noise + NNOISE * step : 0;  /* row `step` of this call's table */
         const double t = (double)st->k * h;  /* k h, not a running sum: no drift */
-        /* sensors (JL at the true pose only for the ideal leg-rate sensor) */
+        /* sensors (JL at the true pose only for the ideal cylinder-rate sensor) */
         if (c->use_kalman ? leg_lengths(x, l_true) : leg_kinematics(x, l_true, J)) return UBC_STEWART_CTRL_FAILED;
-        for (i = 0; i < 6; ++i) {
+        for (i = 0; i < NL; ++i) {
             l_meas[i] = l_true[i] + (nz ? nz[i] : 0);
-            pc_meas[i] = nz ? clip(x[12 + i] + nz[6 + i], 0, ps) : x[12 + i];
+            pc_meas[i] = nz ? clip(x[2 * NQ + i] + nz[NL + i], 0, SUPPLY_PRESSURE[i]) : x[2 * NQ + i];
         }
         if (c->use_kalman) {
-            for (i = 0; i < 6; ++i) {  /* predict with [1 h; 0 1], correct with the fixed gain */
-                double lp = st->kf[i] + h * st->kf[6 + i], vp = st->kf[6 + i], r = l_meas[i] - lp;
+            for (i = 0; i < NL; ++i) {  /* predict with [1 h; 0 1], correct with the fixed gain */
+                double lp = st->kf[i] + h * st->kf[NL + i], vp = st->kf[NL + i], r = l_meas[i] - lp;
                 st->kf[i] = lp + c->kf_gain[0] * r;
-                st->kf[6 + i] = vp + c->kf_gain[1] * r;
-                ldot[i] = st->kf[6 + i];
+                st->kf[NL + i] = vp + c->kf_gain[1] * r;
+                ldot[i] = st->kf[NL + i];
             }
         } else {
-            for (i = 0; i < 6; ++i) {
+            for (i = 0; i < NL; ++i) {
                 ldot[i] = 0;
-                for (j = 0; j < 6; ++j) ldot[i] += J[i + 6 * j] * x[6 + j];
+                for (j = 0; j < NQ; ++j) ldot[i] += J[i + NL * j] * x[NQ + j];
             }
         }
-        /* task space from leg space */
+        /* pose from cylinder lengths */
         switch (forward_kinematics(l_meas, st->q_meas, c->fk_tol, c->fk_max_iter, J)) {
             case 1: break;
             case 0: return UBC_STEWART_FK_FAILED;
             default: return UBC_STEWART_CTRL_FAILED;
         }
         memcpy(qdot_meas, ldot, sizeof ldot);
-        if (!solve6(J, qdot_meas)) return UBC_STEWART_FK_FAILED;
+        if (!solve_n(J, qdot_meas)) return UBC_STEWART_FK_FAILED;
         /* controller */
         reference(c, t, qd);
         adapt = t >= c->t_adapt ? 1.0 : 0.0;
-        set_slot(c, UBC_STEWART_SLOT_Q, st->q_meas, 6);
-        set_slot(c, UBC_STEWART_SLOT_QDOT, qdot_meas, 6);
-        set_slot(c, UBC_STEWART_SLOT_PC, pc_meas, 6);
-        set_slot(c, UBC_STEWART_SLOT_L, l_meas, 6);
-        set_slot(c, UBC_STEWART_SLOT_QD0, qd, 6);
-        set_slot(c, UBC_STEWART_SLOT_QD1, qd + 6, 6);
-        set_slot(c, UBC_STEWART_SLOT_QD2, qd + 12, 6);
-        set_slot(c, UBC_STEWART_SLOT_QD3, qd + 18, 6);
+        set_slot(c, UBC_STEWART_SLOT_Q, st->q_meas, NQ);
+        set_slot(c, UBC_STEWART_SLOT_QDOT, qdot_meas, NQ);
+        set_slot(c, UBC_STEWART_SLOT_PC, pc_meas, NL);
+        set_slot(c, UBC_STEWART_SLOT_L, l_meas, NL);
+        set_slot(c, UBC_STEWART_SLOT_QD0, qd, NQ);
+        set_slot(c, UBC_STEWART_SLOT_QD1, qd + NQ, NQ);
+        set_slot(c, UBC_STEWART_SLOT_QD2, qd + 2 * NQ, NQ);
+        set_slot(c, UBC_STEWART_SLOT_QD3, qd + 3 * NQ, NQ);
         set_slot(c, UBC_STEWART_SLOT_XC, st->xc, c->n_xc);
         set_slot(c, UBC_STEWART_SLOT_ADAPT, &adapt, 1);
         if (c->ctrl((const double**)c->ctrl_arg, c->ctrl_res, c->ctrl_iw, c->ctrl_w, 0)) return UBC_STEWART_CTRL_FAILED;
         memcpy(u, c->ctrl_res[0], sizeof u);
         if (log) {
             if (log->t) log->t[st->k] = t;
-            if (log->q) memcpy(log->q + 6 * st->k, x, 6 * sizeof(double));
-            if (log->q_d) memcpy(log->q_d + 6 * st->k, qd, 6 * sizeof(double));
-            if (log->l) memcpy(log->l + 6 * st->k, l_true, 6 * sizeof(double));
-            if (log->pc) memcpy(log->pc + 6 * st->k, x + 12, 6 * sizeof(double));
-            if (log->u) memcpy(log->u + 6 * st->k, u, 6 * sizeof(double));
+            if (log->q) memcpy(log->q + NQ * st->k, x, NQ * sizeof(double));
+            if (log->q_d) memcpy(log->q_d + NQ * st->k, qd, NQ * sizeof(double));
+            if (log->l) memcpy(log->l + NL * st->k, l_true, NL * sizeof(double));
+            if (log->pc) memcpy(log->pc + NL * st->k, x + 2 * NQ, NL * sizeof(double));
+            if (log->u) memcpy(log->u + NL * st->k, u, NL * sizeof(double));
             if (log->f)
-                for (i = 0; i < 6; ++i)
-                    log->f[6 * st->k + i] = x[12 + i] * 0.00114 - ps * 0.000633;
+                for (i = 0; i < NL; ++i)
+                    log->f[NL * st->k + i] = x[2 * NQ + i] * PISTON_AREA[i] - SUPPLY_PRESSURE[i] * ROD_AREA[i];
             if (log->xc && c->n_xc) memcpy(log->xc + c->n_xc * st->k, st->xc, (size_t)c->n_xc * sizeof(double));
         }
         /* plant, zero-order hold on u; 0 <= pc <= ps */
         for (j = 0; j < c->substeps; ++j) {
             if (!rk4(c, x, u, hs)) return UBC_STEWART_CTRL_FAILED;
-            for (i = 12; i < 18; ++i) x[i] = clip(x[i], 0, ps);
+            for (i = 0; i < NL; ++i) x[2 * NQ + i] = clip(x[2 * NQ + i], 0, SUPPLY_PRESSURE[i]);
         }
         /* controller state: Euler, kept inside the projection bounds */
         for (j = 0; j < c->n_xc; ++j)

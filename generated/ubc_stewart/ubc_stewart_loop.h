@@ -1,5 +1,6 @@
 /* Closed-loop driver for model ubc_stewart: plant, sensors, forward kinematics, controller.
- * Rendered by hydrogen from templates/loop.h.j2; plain C99, no dependency but libm. */
+ * Rendered by hydrogen from templates/loop.h.j2; plain C99, no dependency but libm.
+ * Sizes: 6 coordinates, 6 cylinders; plant state x = [q, qdot, pc, spool] (24). */
 #ifndef UBC_STEWART_LOOP_H
 #define UBC_STEWART_LOOP_H
 
@@ -7,31 +8,37 @@
 extern "C" {
 #endif
 
+#define UBC_STEWART_NQ 6   /* generalized coordinates */
+#define UBC_STEWART_NL 6   /* cylinders */
+#define UBC_STEWART_NX 24  /* plant state */
+#define UBC_STEWART_NNOISE 12  /* noise row: cylinder lengths (m), pressures (Pa) */
+
 typedef int (*ubc_stewart_casadi_fn)(const double** arg, double** res, long long int* iw, double* w, int mem);
 
 /* Input slots of a controller, in this order, in hg_loop_config.slot (-1: not an input). */
-enum { UBC_STEWART_SLOT_Q, UBC_STEWART_SLOT_QDOT, UBC_STEWART_SLOT_PC, UBC_STEWART_SLOT_L, UBC_STEWART_SLOT_QD0, UBC_STEWART_SLOT_QD1,
-       UBC_STEWART_SLOT_QD2, UBC_STEWART_SLOT_QD3, UBC_STEWART_SLOT_XC, UBC_STEWART_SLOT_ADAPT, UBC_STEWART_N_SLOTS };
+enum { UBC_STEWART_SLOT_Q, UBC_STEWART_SLOT_QDOT, UBC_STEWART_SLOT_PC, UBC_STEWART_SLOT_L, UBC_STEWART_SLOT_QD0, UBC_STEWART_SLOT_QD1, UBC_STEWART_SLOT_QD2, UBC_STEWART_SLOT_QD3, UBC_STEWART_SLOT_XC, UBC_STEWART_SLOT_ADAPT, UBC_STEWART_N_SLOTS };
 
 /* Return codes of ubc_stewart_loop_run. */
 enum { UBC_STEWART_OK = 0, UBC_STEWART_NONFINITE = 1, UBC_STEWART_FK_FAILED = 2, UBC_STEWART_CTRL_FAILED = 3 };
 
 typedef struct {
-    /* timing: control period h (s), plant RK4 sub-steps per period, adaptation on for t >= t_adapt */
+    /* timing: control period h (s), plant RK4 sub-steps per control period, adaptation on for t >= t_adapt */
     double h;
     long long substeps;
     double t_adapt;
-    /* plant (SI): true theta [Mp Ix Iy Iz], gamma [beta, beta c], friction [Fc, b, v_s], valve lag (s) */
+    /* plant (SI): true theta (platform.mass, platform.Ixx, platform.Iyy, platform.Izz), gamma1 = beta and gamma2 = beta c per cylinder,
+     * friction [Fc, b, v_s], valve lag (s) */
     const double* theta;
-    const double* gamma;
+    const double* gamma1;
+    const double* gamma2;
     const double* friction;
     const double* tau_valve;
-    double supply_pressure;
-    /* sensors: fixed-gain Kalman filter on leg lengths (use_kalman != 0), gain [K_l, K_ldot] */
+    /* sensors: fixed-gain Kalman filter on cylinder lengths (use_kalman != 0), gain [K_l, K_ldot] */
     long long use_kalman;
     double kf_gain[2];
-    /* reference: bias + sum of amplitude sin(2 pi f t) over terms (index, amplitude, frequency),
-     * plus a raw step of step_height on step_axis (>= 0) at t_step */
+    /* reference: bias + sum of amplitude sin(2 pi f t) over terms (coordinate, amplitude, frequency),
+     * plus a raw step of step_height on coordinate step_axis (>= 0) at t_step; a coordinate outside
+     * 0..NQ-1 is ignored (the runtime refuses it before a run) */
     const double* bias;
     long long n_terms;
     const double* terms;
@@ -56,31 +63,31 @@ typedef struct {
 typedef struct {
     double t;                    /* s */
     long long k;                 /* control periods done */
-    double x[24];                /* plant: q, qdot, pc, spool */
-    double q_meas[6];            /* last measured pose (Newton's warm start) */
-    double kf[12];               /* Kalman state: leg lengths, leg rates */
+    double x[UBC_STEWART_NX];         /* plant: q, qdot, pc, spool */
+    double q_meas[UBC_STEWART_NQ];    /* last measured pose (Newton's warm start) */
+    double kf[2 * UBC_STEWART_NL];    /* Kalman state: cylinder lengths, cylinder rates */
     double* xc;                  /* controller state, n_xc entries */
 } ubc_stewart_loop_state;
 
-typedef struct {                 /* each may be NULL; rows of 6 (xc: n_xc) per control period */
-    double* t;
-    double* q;
-    double* q_d;
-    double* l;
-    double* f;
-    double* pc;
-    double* u;
-    double* xc;
+typedef struct {                 /* each may be NULL; rows per control period (widths below) */
+    double* t;  /* 1: time, s */
+    double* q;  /* 6: true pose */
+    double* q_d;  /* 6: reference */
+    double* l;  /* 6: true cylinder lengths, m */
+    double* f;  /* 6: cylinder forces, N */
+    double* pc;  /* 6: control pressures, Pa */
+    double* u;  /* 6: spool commands, m */
+    double* xc;  /* n_xc: controller state */
 } ubc_stewart_loop_log;
 
-/* Advance n control periods from st. noise: n rows of [leg length noise (6, m), pressure noise (6, Pa)]
- * for this call, or NULL. Logs are written at row st->k (periods since the start of the run), so each
- * log needs at least st->k + n rows. Returns UBC_STEWART_OK, or a code with st->k at the failing period
- * (its log row holds the state before the failing step). */
+/* Advance n control periods from st. noise: n rows of NNOISE for this call, or NULL. Logs are
+ * written at row st->k (periods since the start of the run), so each log needs at least st->k + n
+ * rows. Returns UBC_STEWART_OK, or a code with st->k at the failing period (its log row holds the state
+ * before the failing step). */
 int ubc_stewart_loop_run(const ubc_stewart_loop_config* cfg, ubc_stewart_loop_state* st, long long n,
                      const double* noise, ubc_stewart_loop_log* log);
 
-/* Leg lengths (m) of n poses: row k of q (6: m, rad) gives row k of l (6). One call for a whole
+/* Cylinder lengths (m) of n poses: row k of q (NQ) gives row k of l (NL). One call for a whole
  * trajectory (workspace checks). Returns 0, or 1 if the generated function failed. */
 int ubc_stewart_leg_lengths_many(const double* q, long long n, double* l);
 

@@ -20,7 +20,8 @@ def to_casadi_function(sf, c_name: str | None = None, cse: bool = True) -> ca.Fu
     Each input symbol maps to one element of a dense SX input; one converter
     is shared by all outputs so their common subexpressions are one node.
     Intermediates ``(symbols, value)`` are converted in order and bound to their
-    symbols; ``value`` may be ``("inverse", M)`` for a numeric matrix inverse.
+    symbols; ``value`` may be ``("inverse", M)`` for a numeric matrix inverse or
+    ``("solve", A, b)`` for the solution of A x = b.
     """
     table, sx_in = {}, []
     for name, mat in sf.inputs:
@@ -36,6 +37,8 @@ def to_casadi_function(sf, c_name: str | None = None, cse: bool = True) -> ca.Fu
             # A numeric inverse (CasADi's symbolic QR solve), never a SymPy closed form.
             mat = conv(value[1])
             sx = ca.solve(mat, ca.SX.eye(mat.shape[0]))
+        elif isinstance(value, tuple) and value[0] == "solve":
+            sx = ca.solve(conv(value[1]), conv(value[2]))  # A x = b without forming A⁻¹
         else:
             sx = conv(value)
         conv.define(symbols, sx)

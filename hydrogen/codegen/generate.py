@@ -39,7 +39,8 @@ DRIVERS = (("loop.h.j2", "_loop.h"), ("loop.c.j2", "_loop.c"))
 def derivation_hash() -> str:
     """SHA-256 of the code that shapes generated output: the symbolic and codegen layers."""
     h = hashlib.sha256()
-    for sub in ("symbolic", "codegen"):
+    h.update((_PACKAGE / "layout.py").read_bytes())
+    for sub in ("symbolic", "codegen", "controllers"):
         for path in sorted((_PACKAGE / sub).glob("*.py")):
             h.update(f"{sub}/{path.name}\0".encode())
             h.update(path.read_bytes())
@@ -54,18 +55,19 @@ def derivation_hash() -> str:
     return h.hexdigest()
 
 
-def render_drivers(model, folder: Path) -> list:
-    """Render the C drivers of templates/ for ``model`` into ``folder``; returns their file names."""
+def render_drivers(manifest: dict, folder: Path) -> list:
+    """Render the C drivers of templates/ into ``folder`` from the manifest's one template context
+    (:func:`hydrogen.layout.loop_context`); returns their file names."""
     import jinja2
 
+    from ..layout import loop_context
+
     env = jinja2.Environment(loader=jinja2.FileSystemLoader(str(TEMPLATES)), undefined=jinja2.StrictUndefined,
-                             keep_trailing_newline=True)
-    ctx = {"model": model.name, "p": model.name, "P": model.name.upper(),
-           "guard": f"{model.name.upper()}_LOOP_H",
-           "piston_area": repr(float(model.piston_area)), "rod_area": repr(float(model.rod_area))}
+                             keep_trailing_newline=True, trim_blocks=True, lstrip_blocks=True)
+    ctx = loop_context(manifest)
     names = []
     for template, suffix in DRIVERS:
-        name = model.name + suffix
+        name = ctx["model"] + suffix
         (Path(folder) / name).write_text(env.get_template(template).render(**ctx))
         names.append(name)
     return names
@@ -139,12 +141,16 @@ def render(model, folder: Path, functions=None, progress: bool = False) -> dict:
         with tqdm(total=1, desc="deriving (SymPy)", disable=None if progress else True) as bar:
             functions = derive_functions(model)
             bar.update()
+    from ..layout import model_summary
+
     entries = [_write_function(sf, model.name, folder)
                for sf in tqdm(functions, desc="generating C", unit="fn", disable=None if progress else True)]
-    drivers = render_drivers(model, folder)
+    summary = model_summary(model)
+    drivers = render_drivers({"model": summary}, folder)
     manifest = {
         **expected_manifest_inputs(model),
         "model_name": model.name,
+        "model": summary,
         "casadi_version": ca.__version__,
         "sympy_version": sp.__version__,
         "casadi_int": CODEGEN_OPTIONS["casadi_int"],

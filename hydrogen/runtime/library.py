@@ -112,6 +112,29 @@ class CompiledFunction:
                 return outs[0].copy()
             return tuple(o.copy() for o in outs)
 
+    def set_inputs(self, values: dict) -> None:
+        """Write inputs by name into this function's own buffers (for callers that then evaluate
+        through :meth:`c_tables`, such as the C loop); shapes are checked."""
+        for name, value in values.items():
+            i = self.in_names.index(name)
+            view = self._in_views[i]
+            try:
+                view[...] = np.reshape(np.asarray(value, float), view.shape)
+            except ValueError:
+                raise ValueError(f"{self.name}: input '{name}' needs shape {view.shape}, "
+                                 f"got {np.shape(value)}") from None
+
+    def c_tables(self) -> dict:
+        """The C entry point and the argument, result and work tables this object owns, as
+        ``c_void_p`` (fn, arg, res, iw, w): for C code that calls the function on these buffers."""
+        return {"fn": ctypes.cast(self._fn, ctypes.c_void_p), "arg": ctypes.cast(self._arg, ctypes.c_void_p),
+                "res": ctypes.cast(self._res, ctypes.c_void_p), "iw": ctypes.cast(self._iw, ctypes.c_void_p),
+                "w": ctypes.cast(self._w, ctypes.c_void_p)}
+
+    def output(self, k: int = 0) -> np.ndarray:
+        """A copy of output ``k`` from the last evaluation on this object's buffers."""
+        return np.array(self._out_views[k])
+
     def clone(self) -> "CompiledFunction":
         """The same function with buffers of its own (for a controller runtime or a loop runner)."""
         return CompiledFunction(self._lib, self._entry)
@@ -151,6 +174,13 @@ class GeneratedLibrary:
                 raise BuildCacheError(
                     f"{self.path}: {entry['c_name']} comes from CasADi {built}, the generated "
                     f"folder from CasADi {self.manifest['casadi_version']}; rebuild")
+
+    def symbol(self, name: str):
+        """A C symbol of the library (ctypes function), e.g. the loop driver's entry points."""
+        try:
+            return getattr(self._lib, name)
+        except AttributeError:
+            raise BuildCacheError(f"{self.path}: no symbol '{name}'; rebuild") from None
 
     def __getitem__(self, name) -> CompiledFunction:
         return self.functions[name]

@@ -1,4 +1,4 @@
-"""Reference trajectories q_d(t) with analytic derivatives up to third order (base frame, SI)."""
+"""Reference trajectories q_d(t) with analytic derivatives up to third order (generalized coordinates, SI)."""
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -19,8 +19,9 @@ class MultiSine:
     terms: tuple
 
     def __call__(self, t: float):
-        """(q_d, q̇_d, q̈_d, q⃛_d) at time t (s), each (6,)."""
-        out = [np.array(self.bias, float), np.zeros(6), np.zeros(6), np.zeros(6)]
+        """(q_d, q̇_d, q̈_d, q⃛_d) at time t (s), each (n,)."""
+        n = len(self.bias)
+        out = [np.array(self.bias, float), np.zeros(n), np.zeros(n), np.zeros(n)]
         for i, a, f in self.terms:
             w = 2 * np.pi * f
             s, c = np.sin(w * t), np.cos(w * t)
@@ -31,7 +32,7 @@ class MultiSine:
         return out
 
     def positions(self, t) -> np.ndarray:
-        """q_d at each time of the array ``t`` (n, 6), vectorised."""
+        """q_d at each time of the array ``t`` (k, n), vectorised."""
         t = np.asarray(t, float)
         out = np.tile(np.asarray(self.bias, float), (t.size, 1))
         for i, a, f in self.terms:
@@ -40,7 +41,7 @@ class MultiSine:
 
     def amplitude(self) -> np.ndarray:
         """Per-coordinate sum of amplitudes (m or rad); the scale of the max-error percentages."""
-        amp = np.zeros(6)
+        amp = np.zeros(len(self.bias))
         for i, a, _ in self.terms:
             amp[i] += abs(a)
         return amp
@@ -59,7 +60,8 @@ class Step:
         q = np.array(self.bias, float)
         if t >= self.t_step:
             q[self.axis] += self.height
-        return [q, np.zeros(6), np.zeros(6), np.zeros(6)]
+        n = q.size
+        return [q, np.zeros(n), np.zeros(n), np.zeros(n)]
 
     def positions(self, t) -> np.ndarray:
         t = np.asarray(t, float)
@@ -68,6 +70,6 @@ class Step:
         return out
 
     def amplitude(self) -> np.ndarray:
-        amp = np.zeros(6)
+        amp = np.zeros(len(self.bias))
         amp[self.axis] = abs(self.height)
         return amp

@@ -1,4 +1,6 @@
-"""The paper's scenarios: section V's simulation and section VI's experiments, in simulation."""
+"""Scenarios: a reference, a rate, a plant and sensors, initial estimates. Each robot's scenarios live
+in its description (``[scenarios.<name>]``, over the shared ``[rig]`` table); for the Stewart platform
+they are section V's simulation and section VI's experiments, in simulation."""
 from __future__ import annotations
 
 from dataclasses import dataclass, field, replace
@@ -8,7 +10,7 @@ import numpy as np
 from ..errors import ScenarioError
 from .reference import MultiSine, Step
 
-__all__ = ["Scenario", "scenario", "SCENARIOS"]
+__all__ = ["Scenario", "scenario", "scenario_names"]
 
 
 @dataclass(frozen=True)
@@ -39,12 +41,14 @@ class Scenario:
     noise_p: float = 0.0
     kalman: bool = False
     kalman_accel: float = 50.0
-    theta0_factor: tuple = (1.0, 1.0, 1.0, 1.0)
+    theta0_factor: tuple = ()
     gamma0_factor: tuple = (1.0, 1.0)
     metric_start: float = 0.0
-    q0_offset: tuple = (0.0,) * 6
+    q0_offset: tuple = ()
     seed: int = 0
     gains: dict = field(default_factory=dict)  # controller name -> gain overrides for this scenario
+    label: str = ""        # caption in figures and tables (e.g. the paper's figure it reproduces)
+    paper: dict = field(default_factory=dict)  # published max errors (%): {coordinate: [nonlinear, P]}
 
     def with_overrides(self, **kw):
         unknown = set(kw) - set(self.__dataclass_fields__)
@@ -68,54 +72,79 @@ class Scenario:
              "must be (Coulomb >= 0 N, viscous >= 0 N s/m, smoothing speed > 0 m/s)")
         for f in ("valve_lag", "noise_l", "noise_p", "kalman_accel"):
             need(finite(getattr(self, f)) and getattr(self, f) >= 0, f, "must be finite and >= 0")
-        need(np.shape(self.q0_offset) == (6,) and finite(self.q0_offset), "q0_offset", "must be 6 finite numbers")
+        n = len(np.asarray(self.reference.bias))
+        need(np.shape(self.q0_offset) == (n,) and finite(self.q0_offset), "q0_offset",
+             f"must be {n} finite numbers (one per coordinate)")
         return self
 
 
-def _paper_sim(neutral):
-    # Section V: x, z, ψ, θ, φ multi-sines (m, rad); y_d = 0.
-    terms = ((0, 0.02, 1), (0, 0.01, 2), (0, 0.01, 3),
-             (2, 0.02, 1), (2, 0.01, 2),
-             (3, 0.0873, 1), (3, 0.0349, 2),
-             (4, 0.0524, 1), (4, 0.0175, 2),
-             (5, 0.0524, 1), (5, 0.0175, 2))
-    # Simulation tuning: a softer position loop and a sharper sliding observer than the experiment
-    # defaults; with the experiments' linear observer (λ0 = 0) the rigid-body estimates of the robust
-    # controller drift to their bounds on this trajectory (README "Gains").
-    slow = {"Lambda": 30.0, "Kd": 30.0 * np.array([250, 250, 250, 45, 45, 45.0])}
-    gains = {"backstepping": slow, "adaptive-observer": slow,
-             "adaptive-robust": {**slow, "Ko": 300.0, "lambda_o": [1.0, 0.0, 0.0, 0.0]}}
-    return Scenario(
-        name="paper-sim", reference=MultiSine(neutral, terms), duration=10.0,
-        control_rate=1000.0, substeps=2, t_adapt=0.5, metric_start=8.0,
-        theta0_factor=(1.2, 0.7, 1.3, 0.8), gamma0_factor=(0.7, 1.3), gains=gains)
+_FIELDS = ("duration", "control_rate", "substeps", "t_adapt", "friction", "valve_lag", "noise_l", "noise_p",
+           "kalman", "kalman_accel", "theta0_factor", "gamma0_factor", "metric_start", "q0_offset", "seed")
 
 
-#: Section VI's rig in simulation: Teflon-sealed legs (Coulomb 100 N, viscous 300 N s/m),
-#: 80 Hz valves (first-order lag 2 ms), 5 µm leg-length and 20 kPa pressure noise.
-_EXPERIMENT = dict(control_rate=512.0, substeps=8, t_adapt=0.5, friction=(100.0, 300.0, 1e-3),
-                   valve_lag=0.002, noise_l=5e-6, noise_p=2e4, kalman=True,
-                   theta0_factor=(1.05, 0.95, 0.95, 1.05), gamma0_factor=(0.9, 1.1), metric_start=2.0)
+def _reference(model, where, spec, neutral):
+    """A reference from its description: ``sines = [[coordinate, amplitude, Hz], ...]`` or
+    ``step = { coordinate, height, time }``; coordinates by name or index, offsets from neutral."""
+    def axis(c):
+        if isinstance(c, str) and c in model.coordinate_names:
+            return model.coordinate_names.index(c)
+        if isinstance(c, int) and not isinstance(c, bool) and 0 <= c < model.n:
+            return c
+        raise ScenarioError(f"{where}: coordinate {c!r} is not one of {list(model.coordinate_names)}")
+
+    if not isinstance(spec, dict) or len(spec) != 1 or next(iter(spec)) not in ("sines", "step"):
+        raise ScenarioError(f"{where}: expected reference.sines = [[coordinate, amplitude, Hz], ...] or "
+                            f"reference.step = {{ coordinate, height, time }}, got {spec!r}")
+    kind, value = next(iter(spec.items()))
+    try:
+        if kind == "sines":
+            terms = tuple((axis(c), float(a), float(f)) for c, a, f in value)
+            return MultiSine(neutral, terms)
+        return Step(neutral, axis(value["coordinate"]), float(value["height"]), float(value["time"]))
+    except (TypeError, ValueError, KeyError) as exc:
+        raise ScenarioError(f"{where}: malformed reference.{kind} ({exc})") from None
 
 
-def _experiment(name, neutral, ref, duration=6.0):
-    return Scenario(name=name, reference=ref, duration=duration, **_EXPERIMENT)
+def scenario_names(model) -> tuple:
+    """Names of the scenarios the model's description defines."""
+    return tuple(k for k in (model.scenarios or {}) if k != "rig")
 
 
 def scenario(name: str, model) -> Scenario:
-    """The named scenario for ``model`` (references are offsets from its neutral pose)."""
+    """The named scenario of ``model``'s description (references are offsets from its neutral pose).
+
+    A scenario table sets any :class:`Scenario` field; ``rig = true`` starts from the model's
+    ``[rig]`` table (the experiment-like rig); ``gains.<controller>`` tunes a controller for it.
+    """
+    tables = model.scenarios or {}
+    names = scenario_names(model)
+    if not isinstance(name, str) or name not in names:
+        raise ScenarioError(f"unknown scenario {name!r} for model '{model.name}'; choose one of {', '.join(names)}")
+    where = f"{model.source}: [scenarios.{name}]"
+    spec = dict(tables[name])
+    fields = {}
+    if spec.pop("rig", False):
+        fields.update(tables.get("rig") or {})
+    gains = spec.pop("gains", {})
+    ref = spec.pop("reference", None)
+    label = spec.pop("label", name)
+    paper = spec.pop("paper", {})
+    fields.update(spec)
+    unknown = set(fields) - set(_FIELDS)
+    if unknown:
+        raise ScenarioError(f"{where}: unknown field(s) {sorted(unknown)}; fields: {sorted(_FIELDS)}")
+    if ref is None:
+        raise ScenarioError(f"{where}: missing reference")
+    for k in ("friction", "theta0_factor", "gamma0_factor", "q0_offset"):
+        if k in fields and isinstance(fields[k], list):
+            fields[k] = tuple(fields[k])
+    n = model.n
+    fields.setdefault("theta0_factor", (1.0,) * model.n_theta)
+    fields.setdefault("q0_offset", (0.0,) * n)
     neutral = np.asarray(model.neutral_pose, float)
-    builders = {
-        "paper-sim": lambda: _paper_sim(neutral),
-        "z-1hz": lambda: _experiment("z-1hz", neutral, MultiSine(neutral, ((2, 0.05, 1),))),
-        "z-2hz": lambda: _experiment("z-2hz", neutral, MultiSine(neutral, ((2, 0.02, 2),))),
-        "psi-1hz": lambda: _experiment("psi-1hz", neutral, MultiSine(neutral, ((3, 0.09, 1),))),
-        "z-step": lambda: replace(_experiment("z-step", neutral, Step(neutral, 2, 0.02, 1.0), duration=3.0),
-                                  metric_start=0.0),
-    }
-    if name not in builders:
-        raise ScenarioError(f"unknown scenario '{name}'; choose one of {', '.join(builders)}")
-    return builders[name]()
-
-
-SCENARIOS = ("paper-sim", "z-1hz", "z-2hz", "psi-1hz", "z-step")
+    try:
+        sc = Scenario(name=name, reference=_reference(model, where, ref, neutral), gains=dict(gains),
+                      label=str(label), paper=dict(paper), **fields)
+    except TypeError as exc:
+        raise ScenarioError(f"{where}: {exc}") from None
+    return sc.validated()

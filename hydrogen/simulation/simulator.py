@@ -11,14 +11,13 @@ from ..errors import KinematicsError, SimulationError
 from .control import make_controller
 from .scenarios import Scenario, scenario as named_scenario
 
-__all__ = ["simulate", "SimulationResult", "COORDS", "equilibrium_pressures", "Stepper"]
-
-COORDS = ("x", "y", "z", "psi", "theta", "phi")
+__all__ = ["simulate", "SimulationResult", "equilibrium_pressures", "Stepper"]
 
 
 @dataclass
 class SimulationResult:
-    """Time series (one row per control period) and metrics of one run. SI units, base frame."""
+    """Time series (one row per control period) and metrics of one run. SI units; q in the model's
+    generalized coordinates (``coordinates``), cylinder quantities one column per cylinder."""
 
     scenario: str
     controller: str
@@ -36,6 +35,9 @@ class SimulationResult:
     gamma_true: np.ndarray
     amplitude: np.ndarray
     metric_start: float
+    coordinates: tuple = ()
+    units: tuple = ()
+    theta_names: tuple = ()
     wall_time_s: float = 0.0  # the run: setup, loop, result, with the library already loaded (s)
     loop_wall_s: float = 0.0  # the closed loop alone (s)
     u_max: float = 0.0
@@ -43,7 +45,7 @@ class SimulationResult:
 
     @property
     def error(self) -> np.ndarray:
-        """Tracking error q − q_d, (n, 6)."""
+        """Tracking error q − q_d, (k, n)."""
         return self.q - self.q_d
 
     def compute_metrics(self) -> dict:
@@ -51,14 +53,17 @@ class SimulationResult:
         final parameter estimates, over t ≥ metric_start."""
         sel = self.t >= self.metric_start - 1e-12
         e = self.error[sel] if sel.any() else self.error
-        max_abs = np.abs(e).max(axis=0) if len(e) else np.full(6, np.nan)
-        rms = np.sqrt((e ** 2).mean(axis=0)) if len(e) else np.full(6, np.nan)
-        pct = {c: (float(100 * m / a) if a > 0 else None) for c, m, a in zip(COORDS, max_abs, self.amplitude)}
+        n = self.q.shape[1]
+        coords = self.coordinates or tuple(f"q{i}" for i in range(n))
+        max_abs = np.abs(e).max(axis=0) if len(e) else np.full(n, np.nan)
+        rms = np.sqrt((e ** 2).mean(axis=0)) if len(e) else np.full(n, np.nan)
+        pct = {c: (float(100 * m / a) if a > 0 else None) for c, m, a in zip(coords, max_abs, self.amplitude)}
         self.metrics = {
             "scenario": self.scenario, "controller": self.controller,
             "max_error_pct": pct,
-            "max_error": dict(zip(COORDS, map(float, max_abs))),
-            "rms_error": dict(zip(COORDS, map(float, rms))),
+            "max_error": dict(zip(coords, map(float, max_abs))),
+            "rms_error": dict(zip(coords, map(float, rms))),
+            "theta_names": list(self.theta_names),
             "theta_hat_final": self.theta_hat[-1].tolist(),
             "theta_true": self.theta_true.tolist(),
             "theta_error_pct_final": (100 * (self.theta_hat[-1] - self.theta_true) / self.theta_true).tolist(),
@@ -76,7 +81,7 @@ class SimulationResult:
 
 
 def equilibrium_pressures(dyn, q, theta) -> np.ndarray:
-    """Control pressures (Pa) whose leg forces hold the platform still at pose q: (JL)ᵀ f = G."""
+    """Control pressures (Pa) whose cylinder forces hold the robot still at q: (JL)ᵀ f = G."""
     m = dyn.model
     f = np.linalg.solve(dyn.leg_jacobian(q).T, dyn.gravity(q, theta))
     return (f + m.supply_pressure * m.rod_area) / m.piston_area
@@ -106,8 +111,9 @@ def simulate(dyn, scenario, controller: str, *, gains=None, duration=None, check
     sc, ctrl, n, h = p.sc, p.ctrl, p.n, p.h
     if engine not in ("c", "python"):
         raise ValueError(f"engine must be 'c' or 'python', not {engine!r}")
-    log = {k: np.full((n, w), np.nan) for k, w in (("q", 6), ("q_d", 6), ("l", 6), ("f", 6), ("pc", 6),
-                                                      ("u", 6), ("xc", max(ctrl.xc.size, 1)))}
+    nq, m = dyn.model.n, dyn.model.n_cylinders
+    log = {k: np.full((n, w), np.nan) for k, w in (("q", nq), ("q_d", nq), ("l", m), ("f", m), ("pc", m),
+                                                      ("u", m), ("xc", max(ctrl.xc.size, 1)))}
     t_log = np.arange(n) * h
     start = time.perf_counter()
     run = _run_c if engine == "c" else _run_python
@@ -148,22 +154,24 @@ def _prepare(dyn, scenario, controller, gains, duration, check_workspace, overri
     h = 1.0 / sc.control_rate
     n = int(round(sc.duration * sc.control_rate)) + 1
     theta0 = model.theta * np.asarray(sc.theta0_factor)
-    gamma0 = model.gamma * np.asarray(sc.gamma0_factor)
+    gamma0 = model.gamma * np.asarray(sc.gamma0_factor, float)[:, None]
     if controller == "backstepping":
         theta0, gamma0 = model.theta, model.gamma
     if check_workspace:
         _check_reference(dyn, sc, n, h)
     ctrl = make_controller(dyn, controller, {**sc.gains.get(controller, {}), **(gains or {})}, theta0, gamma0)
+    nq, m = model.n, model.n_cylinders
     q0 = sc.reference(0.0)[0] + np.asarray(sc.q0_offset, float)
-    x0 = np.concatenate([q0, np.zeros(6), equilibrium_pressures(dyn, q0, model.theta), np.zeros(6)])
-    ctrl.reset(q0, np.zeros(6))
-    # One noise table for every engine: rows [leg length noise (6), pressure noise (6)].
+    x0 = np.concatenate([q0, np.zeros(nq), equilibrium_pressures(dyn, q0, model.theta), np.zeros(m)])
+    ctrl.reset(q0, np.zeros(nq))
+    # One noise table for every engine: rows [cylinder length noise (m), pressure noise (m)], then the
+    # joint-encoder noise (n) when the robot has encoders (zero here).
     rng = np.random.default_rng(sc.seed)
-    noise = np.zeros((n, 12))
+    noise = np.zeros((n, 2 * m + (nq if model.joint_encoders else 0)))
     if sc.noise_l:
-        noise[:, :6] = sc.noise_l * rng.standard_normal((n, 6))
+        noise[:, :m] = sc.noise_l * rng.standard_normal((n, m))
     if sc.noise_p:
-        noise[:, 6:] = sc.noise_p * rng.standard_normal((n, 6))
+        noise[:, m:2 * m] = sc.noise_p * rng.standard_normal((n, m))
     kf_gain = _kalman_gain(h, sc.noise_l, sc.kalman_accel) if sc.kalman else None
     return _Prepared(sc, ctrl, n, h, x0, q0, noise, kf_gain, theta0, gamma0)
 
@@ -184,7 +192,7 @@ def _kalman_gain(h, noise_l, accel):
 def _describe(x, t):
     bad = [i for i in range(x.size) if not np.isfinite(x[i])]
     return (f"diverged at t = {t:.4f} s: non-finite plant state entries {bad} "
-            f"(x = [q, qdot, pc, spool]); state = {x.tolist()}")
+            f"(x = [q, qdot, pc, spool]); state = {np.array2string(x, precision=6, threshold=60)}")
 
 
 def _make_runner(dyn, sc, ctrl, x0, q0, kf_gain, h):
@@ -230,25 +238,29 @@ def _run_python(dyn, sc, ctrl, x, q0, noise, kf_gain, log, n, h):
     theta_true, gamma_true = model.theta, model.gamma
     fric, tau_v = np.asarray(sc.friction, float), np.array([sc.valve_lag])
     ps = model.supply_pressure
-    kf = np.vstack([dyn.leg_lengths(q0), np.zeros(6)]) if kf_gain is not None else None
+    nq, m = model.n, model.n_cylinders
+    kf = np.vstack([dyn.leg_lengths(q0), np.zeros(m)]) if kf_gain is not None else None
     F = np.array([[1.0, h], [0.0, 1.0]])
     q_meas = q0.copy()
     for k in range(n):
         t = k * h
-        q, qdot, pc = x[:6], x[6:12], x[12:18]
+        q, qdot, pc = x[:nq], x[nq:2 * nq], x[2 * nq:2 * nq + m]
         l_true = dyn.leg_lengths(q)
-        l_meas = l_true + noise[k, :6]
-        pc_meas = np.clip(pc + noise[k, 6:], 0, ps) if sc.noise_p else pc
+        l_meas = l_true + noise[k, :m]
+        pc_meas = np.clip(pc + noise[k, m:2 * m], 0, ps) if sc.noise_p else pc
         if kf is not None:
             kf = F @ kf
             kf += np.outer(kf_gain, l_meas - kf[0])
             ldot = kf[1].copy()
         else:
             ldot = dyn.leg_jacobian(q) @ qdot
-        try:
-            q_meas = dyn.forward_kinematics(l_meas, q0=q_meas)
-        except KinematicsError as exc:
-            return k, f"stopped at t = {t:.4f} s: {exc}"
+        if model.joint_encoders:
+            q_meas = q + noise[k, 2 * m:]
+        else:
+            try:
+                q_meas = dyn.forward_kinematics(l_meas, q0=q_meas)
+            except KinematicsError as exc:
+                return k, f"stopped at t = {t:.4f} s: {exc}"
         qdot_meas = np.linalg.solve(dyn.leg_jacobian(q_meas), ldot)
         ref = sc.reference(t)
         u = ctrl.command(q_meas, qdot_meas, pc_meas, l_meas, ref, t >= sc.t_adapt)
@@ -256,11 +268,11 @@ def _run_python(dyn, sc, ctrl, x, q0, noise, kf_gain, log, n, h):
         log["f"][k] = pc * model.piston_area - ps * model.rod_area
         if ctrl.xc.size:
             log["xc"][k] = ctrl.xc
-        rhs = lambda xx: rhs_fn(xx, u, theta_true, gamma_true, fric, tau_v)  # noqa: E731
+        rhs = lambda xx: rhs_fn(xx, u, theta_true, gamma_true[0], gamma_true[1], fric, tau_v)  # noqa: E731
         hs = h / sc.substeps
         for _ in range(sc.substeps):
             x = _rk4(rhs, x, hs)
-            np.clip(x[12:18], 0.0, ps, out=x[12:18])  # 0 ≤ p_c ≤ p_s
+            np.clip(x[2 * nq:2 * nq + m], 0.0, ps, out=x[2 * nq:2 * nq + m])  # 0 ≤ p_c ≤ p_s
         ctrl.advance(h)
         if not np.all(np.isfinite(x)) or not np.all(np.isfinite(ctrl.xc)):
             return k + 1, _describe(x, t + h)
@@ -268,17 +280,20 @@ def _run_python(dyn, sc, ctrl, x, q0, noise, kf_gain, log, n, h):
 
 
 def _result(sc, controller, ctrl, t, log, k, theta0, gamma0, theta_true, gamma_true, wall):
-    def est(name, width, default):
-        s = ctrl._slices.get(name)
-        return log["xc"][:k, s] if s is not None else np.tile(default, (k, 1)) * np.ones((k, width))
+    def est(name, default):
+        s = ctrl.slices.get(name)
+        default = np.atleast_1d(np.asarray(default, float))
+        return log["xc"][:k, s] if s is not None else np.tile(default, (k, 1))
 
+    model = ctrl.model
     res = SimulationResult(
         scenario=sc.name, controller=controller, t=t[:k], q=log["q"][:k], q_d=log["q_d"][:k],
         leg_lengths=log["l"][:k], leg_forces=log["f"][:k], pressures=log["pc"][:k], u=log["u"][:k],
-        theta_hat=est("theta_hat", 4, theta0), gamma1_hat=est("gamma1_hat", 6, gamma0[0]),
-        gamma2_hat=est("gamma2_hat", 6, gamma0[1]),
+        theta_hat=est("theta_hat", theta0), gamma1_hat=est("gamma1_hat", gamma0[0]),
+        gamma2_hat=est("gamma2_hat", gamma0[1]),
         theta_true=theta_true, gamma_true=gamma_true, amplitude=sc.reference.amplitude(),
-        metric_start=sc.metric_start, wall_time_s=wall, loop_wall_s=wall,
+        metric_start=sc.metric_start, coordinates=tuple(model.coordinate_names), units=model.coordinate_units,
+        theta_names=tuple(model.theta_names), wall_time_s=wall, loop_wall_s=wall,
         u_max=float(ctrl.values["u_max"][0]) if "u_max" in ctrl.values else 0.0)
     if k:
         res.compute_metrics()
@@ -286,16 +301,16 @@ def _result(sc, controller, ctrl, t, log, k, theta0, gamma0, theta_true, gamma_t
 
 
 def _check_reference(dyn, sc, n, h):
-    """Reject a reference that leaves the legs' stroke at any control period, naming the time and
-    the leg (one compiled call for the whole trajectory)."""
+    """Reject a reference that leaves the cylinders' stroke at any control period, naming the time and
+    the cylinder (one compiled call for the whole trajectory)."""
     m = dyn.model
     legs = dyn.leg_lengths_many(sc.reference.positions(np.arange(n) * h))
     bad = (legs < m.leg_min) | (legs > m.leg_max)
     if bad.any():
         k, i = (int(v[0]) for v in np.nonzero(bad))
         raise KinematicsError(
-            f"reference of scenario '{sc.name}' leaves the workspace at t = {k * h:.3f} s: leg {i} would be "
-            f"{legs[k, i]:.4f} m, stroke is [{m.leg_min}, {m.leg_max}] m")
+            f"reference of scenario '{sc.name}' leaves the workspace at t = {k * h:.3f} s: cylinder "
+            f"'{m.cylinders[i].name}' would be {legs[k, i]:.4f} m, stroke is [{m.leg_min[i]}, {m.leg_max[i]}] m")
 
 
 class Stepper:
@@ -319,10 +334,7 @@ class Stepper:
         self.scenario, self.controller, self.h, self.n_max = p.sc, p.ctrl, p.h, p.n
         self._noise = p.noise
         self._runner = _make_runner(dyn, p.sc, p.ctrl, p.x0, p.q0, p.kf_gain, p.h)
-        self._run = self._runner._run
-        self._cfg, self._st = self._runner._cfg_ref, self._runner._st_ref
-        self._noise_addr = self._noise.ctypes.data
-        self._row = self._noise.strides[0]
+        self._step = self._runner.stepper(self._noise)
         self._state = self._runner.state
 
     def step(self) -> None:
@@ -330,7 +342,7 @@ class Stepper:
         k = self._state.k
         if k >= self.n_max:
             raise IndexError(f"scenario '{self.scenario.name}' has {self.n_max} periods; pass a longer duration")
-        code = self._run(self._cfg, self._st, 1, self._noise_addr + k * self._row, None)
+        code = self._step(k)
         if code:
             raise SimulationError(f"simulation '{self.scenario.name}' {_loop_failure(code, self._runner, self.h)}")
 
@@ -341,18 +353,18 @@ class Stepper:
 
     @property
     def x(self) -> np.ndarray:
-        """Plant state [q, q̇, p_c, spool] (24,)."""
+        """Plant state [q, q̇, p_c, spool] (2n + 2m,)."""
         return self._runner.plant_state
 
     @property
     def q(self) -> np.ndarray:
-        """True pose (6,), base frame."""
-        return self._runner.plant_state[:6]
+        """True coordinates (n,)."""
+        return self._runner.plant_state[: self.controller.model.n]
 
     @property
     def u(self) -> np.ndarray:
-        """Last spool command (6,), m."""
-        return np.array(self.controller.fn._out_views[0])
+        """Last spool command (m,), m."""
+        return self.controller.fn.output(0)
 
     @property
     def xc(self) -> np.ndarray:

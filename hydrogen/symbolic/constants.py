@@ -3,7 +3,7 @@ from __future__ import annotations
 
 import sympy as sp
 
-__all__ = ["baked", "joints", "PRESSURE_EPS"]
+__all__ = ["baked", "PRESSURE_EPS"]
 
 #: Pressure drops below this (Pa) are clipped inside the valve inverse: no root of a
 #: negative number, no division by zero when p_c reaches 0 or p_s.
@@ -13,9 +13,3 @@ PRESSURE_EPS = 1.0
 def baked(value) -> sp.Float:
     """A model number as an exact SymPy Float (shortest round-trip repr, so the C is deterministic)."""
     return sp.Float(repr(float(value)))
-
-
-def joints(model):
-    """Base and platform joint coordinates (6×3 each, m) as nested lists of baked Floats."""
-    return ([[baked(x) for x in row] for row in model.base_joints.tolist()],
-            [[baked(x) for x in row] for row in model.platform_joints.tolist()])

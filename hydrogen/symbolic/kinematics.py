@@ -1,8 +1,7 @@
-"""Kinematics of the Stewart platform (SymPy).
+"""Kinematics (SymPy): rotations of a floating joint, coordinate symbols, the cylinders' stages.
 
-q = [x, y, z, ψ, θ, φ]: platform centre-of-mass position in the base frame (m,
-z up) and angles (rad) with R = Rz(φ) Ry(θ) Rx(ψ) mapping platform-frame
-vectors to the base frame.
+A floating joint's coordinates are [x, y, z, ψ, θ, φ]: position in the parent frame (m) and
+angles (rad) with R = Rz(φ) Ry(θ) Rx(ψ) mapping child-frame vectors to the parent frame.
 """
 from __future__ import annotations
 
@@ -10,18 +9,16 @@ import sympy as sp
 
 __all__ = [
     "pose_symbols", "rate_symbols", "rotation", "angular_velocity_map",
-    "body_angular_velocity_map", "task_map", "leg_vectors", "leg_lengths", "leg_jacobian", "leg_stages",
-    "leg_intermediates", "matrix_symbols",
+    "body_angular_velocity_map", "task_map", "leg_stages", "leg_intermediates", "matrix_symbols",
 ]
 
 
-def pose_symbols(prefix: str = "q") -> sp.Matrix:
-    """Column of the six pose symbols ``prefix_x … prefix_phi``."""
-    names = ("x", "y", "z", "psi", "theta", "phi")
-    return sp.Matrix([sp.Symbol(f"{prefix}_{n}", real=True) for n in names])
+def pose_symbols(model, prefix: str = "q") -> sp.Matrix:
+    """Column of the model's coordinate symbols ``prefix_<coordinate name>``."""
+    return sp.Matrix([sp.Symbol(f"{prefix}_{n}", real=True) for n in model.coordinate_names])
 
 
-def rate_symbols(prefix: str, n: int = 6) -> sp.Matrix:
+def rate_symbols(prefix: str, n: int) -> sp.Matrix:
     """Column of ``n`` real symbols ``prefix_0 … prefix_{n-1}``."""
     return sp.Matrix([sp.Symbol(f"{prefix}_{i}", real=True) for i in range(n)])
 
@@ -74,70 +71,61 @@ def task_map(q) -> sp.Matrix:
     return L
 
 
-def leg_vectors(q, base_joints, platform_joints) -> list:
-    """Base joint → platform joint vectors (base frame, m), one 3×1 Matrix per leg."""
-    R = rotation(q)
-    p = sp.Matrix(q[:3])
-    return [p + R * sp.Matrix(pj) - sp.Matrix(bj) for bj, pj in zip(base_joints, platform_joints)]
-
-
-def leg_lengths(q, base_joints, platform_joints) -> sp.Matrix:
-    """l(q): the six leg lengths, m."""
-    return sp.Matrix([sp.sqrt(v.dot(v)) for v in leg_vectors(q, base_joints, platform_joints)])
-
-
-def leg_jacobian(q, base_joints, platform_joints) -> sp.Matrix:
-    """JL = ∂l/∂q (6×6): l̇ = JL q̇; the generalised force of leg forces f is (JL)ᵀ f."""
-    return leg_lengths(q, base_joints, platform_joints).jacobian(sp.Matrix(q))
-
-
 def matrix_symbols(prefix: str, rows: int, cols: int) -> sp.Matrix:
     """rows × cols real symbols ``prefix_ij`` (vectors: :func:`rate_symbols`)."""
     return sp.Matrix(rows, cols, lambda i, j: sp.Symbol(f"{prefix}_{i}{j}", real=True))
 
 
-def leg_stages(q, base_joints, platform_joints):
-    """Leg lengths and JL as intermediate symbols, in stages: ``(R, l, JL, stages)``.
+def leg_stages(model, q, prefix: str = ""):
+    """Cylinder lengths and JL as intermediate symbols: ``(l, JL, stages)``.
 
-    ``stages`` lists ``(symbols, expression)`` pairs to evaluate in order: the rotation R,
-    then l_i = ‖v_i‖ with v_i = p + R p_i − b_i, then row i of JL,
-    [n_iᵀ, ((R p_i) × n_i)ᵀ T] with n_i = v_i / l_i: the leg force along n_i acts on the
-    platform's centre as a force n_i and a moment (R p_i) × n_i, and T maps Euler rates to ω
-    (l̇_i = n_iᵀ (ṗ + ω × R p_i)). Each leg refers to the nine symbols of R instead of
-    SymPy's expanded products of sines and cosines, so the legs share R: JL takes 392 CasADi
-    instructions this way against 744 for the symbolic Jacobian of l(q).
+    See :meth:`hydrogen.symbolic.tree.SymbolicTree.cylinder_stages`: each link's rotation once,
+    then per cylinder l_i = ‖v_i‖ and its row of JL from the unit vector n_i and the pins' lever
+    arms. For the floating platform the row is [n_iᵀ, ((R p_i) × n_i)ᵀ T]: the leg force along n_i
+    acts on the platform's centre as a force n_i and a moment (R p_i) × n_i, and T maps Euler rates
+    to ω. Each leg refers to the nine symbols of R instead of SymPy's expanded products of sines
+    and cosines, so the legs share R: JL takes 392 CasADi instructions this way against 744 for
+    the symbolic Jacobian of l(q) on the Stewart platform.
     """
-    qm = sp.Matrix(q)
-    R, l, JL = matrix_symbols("R", 3, 3), rate_symbols("legl"), matrix_symbols("JL", 6, 6)
-    T = angular_velocity_map(qm)
-    l_value, JL_rows = [], []
-    for i, (bj, pj) in enumerate(zip(base_joints, platform_joints)):
-        r = R * sp.Matrix(pj)
-        v = sp.Matrix(qm[:3]) + r - sp.Matrix(bj)
-        l_value.append(sp.sqrt(v.dot(v)))
-        n = v / l[i]
-        JL_rows.append(sp.Matrix([*n, *(T.T * r.cross(n))]).T)
-    stages = [(R, rotation(qm)), (l, sp.Matrix(l_value)), (JL, sp.Matrix.vstack(*JL_rows))]
-    return R, l, JL, stages
+    from .rigid_body import theta_symbols
+    from .tree import SymbolicTree
+
+    tree = SymbolicTree(model, q, theta_symbols(model))
+    l, JL, stages, _ = tree.cylinder_stages(prefix)
+    return l, JL, stages
 
 
-def leg_intermediates(q, qdot, base_joints, platform_joints, rates: bool = True):
-    """Leg lengths, JL and d/dt JL as intermediate symbols (keeps SymPy expressions small).
+def leg_intermediates(model, q, qdot, rates: bool = True):
+    """Cylinder lengths, JL and d/dt JL as intermediate symbols (keeps SymPy expressions small).
 
-    Returns ``(l, JL, JL_dot, stages)``: ``l`` (6×1), ``JL`` and ``JL_dot`` (6×6) are Matrices
+    Returns ``(l, JL, JL_dot, stages)``: ``l`` (m×1), ``JL`` and ``JL_dot`` (m×n) are Matrices
     of symbols and ``stages`` lists ``(symbols, expression)`` pairs to evaluate in order (see
     :func:`leg_stages`). J̇L is the forward-mode time derivative of JL's stage, with q̇ for q,
-    Ṙ = S(ω) R for R (ω = T η̇) and l̇ = JL q̇ for l. With ``rates=False`` (the plant) there
-    is no J̇L: ``JL_dot`` is None and its stages are left out.
+    Ṙ = S(ω) R for each link's R (ω its angular velocity, base frame), ṗ by forward mode for each
+    staged link origin, and l̇ = JL q̇ for l. With ``rates=False`` (the plant) there is no J̇L:
+    ``JL_dot`` is None and its stages are left out.
     """
     from .calculus import time_derivative
+    from .rigid_body import theta_symbols
+    from .tree import SymbolicTree, skew
 
-    R, l, JL, stages = leg_stages(q, base_joints, platform_joints)
+    tree = SymbolicTree(model, q, theta_symbols(model))
+    l, JL, stages, links = tree.cylinder_stages(qdot=qdot)
     if not rates:
         return l, JL, None, stages
     qm, qdm = sp.Matrix(q), sp.Matrix(qdot)
-    w = angular_velocity_map(qm) * sp.Matrix(qdm[3:])
-    S = sp.Matrix([[0, -w[2], w[1]], [w[2], 0, -w[0]], [-w[1], w[0], 0]])
-    R_dot, JL_dot = matrix_symbols("Rdot", 3, 3), matrix_symbols("JLdot", 6, 6)
-    JL_dot_value = time_derivative(stages[2][1], [(qm, qdm), (R, R_dot), (l, JL * qdm)])
-    return l, JL, JL_dot, [*stages, (R_dot, S * R), (JL_dot, JL_dot_value.reshape(6, 6))]
+    rate_pairs, rate_stages = [(qm, qdm)], []
+    staged_p = {id(sym) for sym, _ in stages}
+    values = {id(sym): val for sym, val in stages}
+    for k, (link, (R, p, w, _)) in enumerate(links.items()):
+        tag = f"{k}" if len(links) > 1 else ""
+        R_dot = matrix_symbols(f"Rdot{tag}", 3, 3)
+        rate_stages.append((R_dot, skew(w) * R))
+        rate_pairs.append((R, R_dot))
+        if id(p) in staged_p:
+            p_dot = matrix_symbols(f"pdot{tag}", 3, 1)
+            rate_stages.append((p_dot, time_derivative(values[id(p)], list(rate_pairs))))
+            rate_pairs.append((p, p_dot))
+    JL_dot = matrix_symbols("JLdot", *JL.shape)
+    JL_dot_value = time_derivative(stages[-1][1], [*rate_pairs, (l, JL * qdm)])
+    return l, JL, JL_dot, [*stages, *rate_stages, (JL_dot, JL_dot_value.reshape(*JL.shape))]

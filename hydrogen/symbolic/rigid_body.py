@@ -1,50 +1,50 @@
-"""Rigid-body dynamics of the platform in task space (SymPy), eqs. (60)-(69).
+"""Rigid-body dynamics of a description's tree (SymPy), eqs. (1)-(3) and (60)-(69).
 
-D(q) q̈ + C(q, q̇) q̇ + G = (JL)ᵀ f, θ = [M_p, I_x, I_y, I_z]. C is derived from
-D by Christoffel symbols, so that Ḋ − 2C is skew and C(q, x) y = C(q, y) x
-(properties (i), (ii) of eq. (3)); the paper's c22 of eq. (64) gives the same
-C(q, q̇) q̇ and is kept for comparison.
+D(q) q̈ + C(q, q̇) q̇ + G(q) = (JL)ᵀ f. D and G come from the tree
+(:class:`~hydrogen.symbolic.tree.SymbolicTree`); C is derived from D by Christoffel symbols, so
+that Ḋ − 2C is skew and C(q, x) y = C(q, y) x (properties (i), (ii) of eq. (3)); the paper's c22
+of eq. (64) for the floating platform gives the same C(q, q̇) q̇ and is kept for comparison.
+θ are the adapted inertial parameters (``model.theta_names``); D, C, G are affine in θ, and the
+regressor Y = ∂(D a + C(q, v) w + G)/∂θ.
 """
 from __future__ import annotations
 
 import sympy as sp
 
-from .kinematics import angular_velocity_map, body_angular_velocity_map, rotation
+from .constants import baked
+from .kinematics import angular_velocity_map, rotation
+from .tree import SymbolicTree
 
 __all__ = [
     "theta_symbols", "mass_matrix", "mass_matrix_inverse", "coriolis", "gravity", "regressor",
-    "coriolis_paper",
+    "regressor_offset", "coriolis_paper", "symbolic_tree",
 ]
 
-
-def theta_symbols(prefix: str = "theta") -> sp.Matrix:
-    """[M_p, I_x, I_y, I_z] as symbols."""
-    return sp.Matrix([sp.Symbol(f"{prefix}_{n}", real=True) for n in ("Mp", "Ix", "Iy", "Iz")])
+_TREES = {}
 
 
-def mass_matrix(q, theta) -> sp.Matrix:
-    """D(q) of eq. (63), using Tᵀ R ᵖI Rᵀ T = T_bᵀ ᵖI T_b (T_b = Rᵀ T)."""
-    Mp, Ix, Iy, Iz = theta
-    Tb = body_angular_velocity_map(q)
-    D = sp.zeros(6, 6)
-    D[:3, :3] = Mp * sp.eye(3)
-    D[3:, 3:] = Tb.T * sp.diag(Ix, Iy, Iz) * Tb
-    return D
+def theta_symbols(model, prefix: str = "theta") -> sp.Matrix:
+    """The adapted parameters θ as symbols ``prefix_0 …`` (``model.theta_names`` order)."""
+    return sp.Matrix([sp.Symbol(f"{prefix}_{k}", real=True) for k in range(len(model.theta_names))])
 
 
-def mass_matrix_inverse(q, theta) -> sp.Matrix:
-    """D(q)⁻¹ in closed form from the block structure: T_b⁻¹ ᵖI⁻¹ T_b⁻ᵀ (det T_b = cos θ).
+def symbolic_tree(model, q, theta) -> SymbolicTree:
+    """The :class:`SymbolicTree` for these symbols, built once (its closed form is reused)."""
+    key = (model.baked_hash(), tuple(sp.Matrix(q)), tuple(sp.Matrix(theta)))
+    if key not in _TREES:
+        _TREES[key] = SymbolicTree(model, q, theta)
+    return _TREES[key]
 
-    Singular only at θ = ±90° (gimbal lock), far outside the platform's workspace.
-    """
-    Mp, Ix, Iy, Iz = theta
-    psi, th = q[3], q[4]
-    c, s, ct, tt = sp.cos(psi), sp.sin(psi), sp.cos(th), sp.tan(th)
-    Tb_inv = sp.Matrix([[1, s * tt, c * tt], [0, c, -s], [0, s / ct, c / ct]])
-    Dinv = sp.zeros(6, 6)
-    Dinv[:3, :3] = sp.eye(3) / Mp
-    Dinv[3:, 3:] = Tb_inv * sp.diag(1 / Ix, 1 / Iy, 1 / Iz) * Tb_inv.T
-    return Dinv
+
+def mass_matrix(model, q, theta) -> sp.Matrix:
+    """D(q) (n×n) for parameters θ."""
+    return symbolic_tree(model, q, theta).mass_matrix()
+
+
+def mass_matrix_inverse(model, q, theta):
+    """D(q)⁻¹ in closed form where the tree allows it (a single floating body at its centre of
+    mass: singular only at θ = ±90°, gimbal lock), else None: solve numerically."""
+    return symbolic_tree(model, q, theta).mass_matrix_inverse()
 
 
 def coriolis(D: sp.Matrix, q, qdot) -> sp.Matrix:
@@ -60,20 +60,30 @@ def coriolis(D: sp.Matrix, q, qdot) -> sp.Matrix:
     return C
 
 
-def gravity(theta, g) -> sp.Matrix:
-    """G of eq. (65): [0, 0, M_p g, 0, 0, 0] (gravity along −z)."""
-    return sp.Matrix([0, 0, theta[0] * g, 0, 0, 0])
+def gravity(model, q, theta) -> sp.Matrix:
+    """G(q) = ∂V/∂q, gravity along −z of the base frame (N or N m)."""
+    return symbolic_tree(model, q, theta).gravity(baked(model.gravity))
 
 
-def regressor(q, v, w, a, theta, g) -> sp.Matrix:
-    """Y(q, v, w, a) (6×4) with Y θ = D(q) a + C(q, v) w + G(q)."""
-    D = mass_matrix(q, theta)
-    expr = D * sp.Matrix(a) + coriolis(D, q, v) * sp.Matrix(w) + gravity(theta, g)
-    return expr.jacobian(sp.Matrix(theta))
+def _dynamics(model, q, v, w, a, theta):
+    D = mass_matrix(model, q, theta)
+    return D * sp.Matrix(a) + coriolis(D, q, v) * sp.Matrix(w) + gravity(model, q, theta)
+
+
+def regressor(model, q, v, w, a, theta) -> sp.Matrix:
+    """Y(q, v, w, a) (n×p) with Y θ + y0 = D(q) a + C(q, v) w + G(q) (y0: the parts of the
+    non-adapted parameters; zero when θ holds every parameter that moves the robot)."""
+    return _dynamics(model, q, v, w, a, theta).jacobian(sp.Matrix(theta))
+
+
+def regressor_offset(model, q, v, w, a, theta) -> sp.Matrix:
+    """y0 = D a + C(q, v) w + G − Y θ: the non-adapted parameters' share (n), at θ = 0."""
+    return _dynamics(model, q, v, w, a, theta).subs({t: 0 for t in sp.Matrix(theta)})
 
 
 def coriolis_paper(q, qdot, theta) -> sp.Matrix:
-    """C of eq. (64) with c22 = Tᵀ S(ω) ᵇI T + Tᵀ ᵇI Ṫ (right C q̇, but not property (ii))."""
+    """C of eq. (64) for the floating platform, θ = [M_p, I_x, I_y, I_z]:
+    c22 = Tᵀ S(ω) ᵇI T + Tᵀ ᵇI Ṫ (the right C q̇, but not property (ii))."""
     Mp, Ix, Iy, Iz = theta
     R = rotation(q)
     T = angular_velocity_map(q)

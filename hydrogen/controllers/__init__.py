@@ -1,0 +1,43 @@
+"""The controllers: one module each, registered here.
+
+A controller module defines
+
+* ``NAME`` (the user-facing name) and ``DOC``;
+* ``state_layout(model)``: the blocks of its state xc, ``[(block, size)]`` in order;
+* ``default_gains(model, scale)``: its gains (numpy arrays, SI), ``scale`` being the
+  per-coordinate inertia scale of the model;
+* ``static_inputs(dyn, theta0, gamma0)``: numeric inputs computed once per run (may be empty);
+* ``derive(model)``: its symbolic derivation (imports SymPy when called), returning
+  :class:`~hydrogen.symbolic.control_laws.ControllerParts` whose inputs name the signals it needs
+  (``q``, ``qdot``, ``pc``, ``l``, ``qd0`` … ``qd3``, ``xc``, ``adapt``) besides its gains.
+
+The generated C function is ``ctrl_<module name>``. Adding a controller: write the module, add
+it to ``_MODULES`` below, regenerate (``hydrogen generate``), add its tests. Importing this
+package imports neither SymPy nor CasADi.
+"""
+from __future__ import annotations
+
+import importlib
+
+__all__ = ["CONTROLLERS", "controller", "function_name"]
+
+#: Module names, in the order functions are generated.
+_MODULES = ("backstepping", "adaptive_robust", "adaptive_observer", "p")
+
+_REGISTRY = {}
+for _mod in _MODULES:
+    _m = importlib.import_module(f"{__name__}.{_mod}")
+    _REGISTRY[_m.NAME] = _m
+
+#: User-facing controller names.
+CONTROLLERS = tuple(_REGISTRY)
+
+
+def controller(name: str):
+    """The module of controller ``name`` (KeyError if unknown)."""
+    return _REGISTRY[name]
+
+
+def function_name(name: str) -> str:
+    """Name of the generated function of controller ``name``: ``ctrl_<module>``."""
+    return "ctrl_" + _REGISTRY[name].__name__.rsplit(".", 1)[1]

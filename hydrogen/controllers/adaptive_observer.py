@@ -1,0 +1,71 @@
+"""Theorem 2: adaptive controller with the adaptive passivity-based observer (19)-(25)."""
+from __future__ import annotations
+
+import numpy as np
+
+from .common import adaptation_gains, model_gains
+
+NAME = "adaptive-observer"
+DOC = "Theorem 2: adaptive controller, adaptive observer."
+
+
+def state_layout(model) -> list:
+    n, m = model.n, model.n_cylinders
+    return [("q_hat", n), ("z", n), ("theta_hat", model.n_theta), ("gamma1_hat", m), ("gamma2_hat", m)]
+
+
+def default_gains(model, scale) -> dict:
+    scale = np.asarray(scale, float)
+    return {**model_gains(model, scale), **adaptation_gains(model),
+            "Lambda2": 60.0 * np.ones(model.n), "Lp": 3000.0 * scale, "Kd_obs": 60.0 * scale}
+
+
+def static_inputs(dyn, theta0, gamma0) -> dict:
+    return {}
+
+
+def derive(model):
+    import sympy as sp
+
+    from ..symbolic.calculus import time_derivative
+    from ..symbolic.control_laws import Common, ControllerParts, diag, solve_or_inverse, vector
+
+    c = Common(model)
+    n = c.n
+    q_hat, z, th_hat = vector("q_hat", n), vector("z", n), c.theta()
+    g1, g2 = vector("gamma1_hat", c.m), vector("gamma2_hat", c.m)
+    Lam2, Lp, Kd2 = vector("Lambda2", n), vector("Lp", n), vector("Kd_obs", n)
+    vecs, scal, ad_inputs = c.adaptive_inputs()
+    z_dot, th_dot = vector("zdot", n), vector("thetadot", c.p)
+    Lam1, Kd = diag(c.Lam), diag(c.Kd)
+    D_hat = c.D(th_hat)
+    qtil = c.q - q_hat
+    q_hat_dot = z + diag(Lam2) * qtil
+    qr_dot = c.qd[1] - Lam1 * (q_hat - c.qd[0])
+    qr_ddot = c.qd[2] - Lam1 * (q_hat_dot - c.qd[1])
+    s1 = c.qdot - qr_dot
+    s2 = c.qdot - z  # q̇_o = q̂̇ − Λ2 q̃ = z
+    # (22): holds q, q̂, z and the reference; τ̇_d needs ż, never q̈.
+    tau_d = D_hat * qr_ddot + c.C(th_hat, qr_dot) * qr_dot + c.G(th_hat) - Kd * (z - qr_dot) - diag(c.Kp) * c.e
+    tau_d_dot = time_derivative(tau_d, [(c.q, c.qdot), (q_hat, q_hat_dot), (z, z_dot), (th_hat, th_dot),
+                                        *c.desired_rates()])
+    tau = c.JL.T * c.f
+    rhs = tau - c.C(th_hat, c.qdot) * z - c.G(th_hat) + diag(Lp) * qtil + Kd * s1 + diag(Kd2) * s2
+    z_dot_value, solve_stages = solve_or_inverse(model, c.q, th_hat, rhs, "zdot_solve")
+    Y1 = c.Y(qr_dot, qr_dot, qr_ddot, th_hat)
+    Y2 = c.Y(c.qdot, z, z_dot, th_hat)
+    rho = -diag(vecs["Gtheta_inv"]) * (Y1.T * s1 + Y2.T * s2)
+    th_dot_value = c.theta_rate(rho, th_hat, vecs, scal["adapt"])
+    fd, ftil, f0, v, u, taud, stages = c.force_loop(tau_d, tau_d_dot, s1, g1, g2)
+    g1_dot, g2_dot = c.hydraulic_adaptation(
+        ftil, f0, v, g1, g2, scal["adapt"], vecs["Ggamma1_inv"], vecs["Ggamma2_inv"],
+        scal["gamma1_min"], scal["gamma1_max"], scal["gamma2_min"], scal["gamma2_max"])
+    xc = sp.Matrix([*q_hat, *z, *th_hat, *g1, *g2])
+    xc_dot = sp.Matrix([*q_hat_dot, *z_dot, *th_dot, *g1_dot, *g2_dot])
+    return ControllerParts(
+        inputs=[*c.base_inputs(), ("xc", xc), *c.gain_inputs(), ("Lambda2", Lam2), ("Lp", Lp),
+                ("Kd_obs", Kd2), *ad_inputs],
+        intermediates=[*c.kin, c.jit_intermediate(), *solve_stages, (z_dot, sp.Matrix(z_dot_value)),
+                       (th_dot, th_dot_value), *stages],
+        outputs=[("u", u), ("xc_dot", xc_dot), ("tau_d", taud), ("tau_d_dot", c.taud_dot), ("f_d", fd)],
+    )

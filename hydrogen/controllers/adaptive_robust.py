@@ -1,0 +1,88 @@
+"""Theorem 3: adaptive controller with the robust sliding observer (40)-(46), as reconstructed in
+READING-NOTES; sgn replaced by a saturation of width ``sat_width`` (m/s, rad/s).
+
+Observer (40)-(42), (55): ż = K_o z̃ + Λ_o sat(z̃/ε) − Γ_z⁻¹ Wᵀ s + D̄⁻¹ (τ − Ḡ), C̄ = 0. Γ_z
+weights the observer term ½ z̃ᵀ Γ_z z̃ of V1 (the paper has Γ_z = I). Wᵀ s is a force and ż an
+acceleration, so Γ_z ≈ D makes the units agree and keeps τ̇_d calm.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from .common import adaptation_gains, model_gains
+
+NAME = "adaptive-robust"
+DOC = "Theorem 3: adaptive controller, robust sliding observer."
+
+
+def state_layout(model) -> list:
+    n, m = model.n, model.n_cylinders
+    return [("z", n), ("theta_hat", model.n_theta), ("gamma1_hat", m), ("gamma2_hat", m)]
+
+
+def default_gains(model, scale) -> dict:
+    n = model.n
+    return {**model_gains(model, scale), **adaptation_gains(model),
+            "Ko": 30.0 * np.ones(n),                    # 1/s
+            "Gz_inv": 1.0 / np.asarray(scale, float),   # Γ_z⁻¹ ≈ D⁻¹
+            "lambda_o": np.zeros(4),                    # λ0..λ3 of (55): the sliding term off
+            "sat_width": np.array([1.0e-3])}            # m/s, rad/s: sat(z̃/ε) in place of sgn(z̃)
+
+
+def static_inputs(dyn, theta0, gamma0) -> dict:
+    """The observer's constant D̄⁻¹ and Ḡ: D and G at the neutral pose with the initial θ̂."""
+    pose = dyn.model.neutral_pose
+    return {"Dbar_inv": np.linalg.inv(dyn.mass_matrix(pose, theta0)), "Gbar": dyn.gravity(pose, theta0)}
+
+
+def derive(model):
+    import sympy as sp
+
+    from ..symbolic.calculus import clip, time_derivative
+    from ..symbolic.control_laws import Common, ControllerParts, diag, scalar, vector
+    from ..symbolic.kinematics import matrix_symbols
+
+    c = Common(model)
+    n = c.n
+    z, th_hat = vector("z", n), c.theta()
+    g1, g2 = vector("gamma1_hat", c.m), vector("gamma2_hat", c.m)
+    Ko, lam_o, eps, Gz_inv = vector("Ko", n), vector("lambda_o", 4), scalar("sat_width"), vector("Gz_inv", n)
+    Dbar_inv = matrix_symbols("Dbar_inv", n, n)
+    Gbar = vector("Gbar", n)
+    vecs, scal, ad_inputs = c.adaptive_inputs()
+    z_dot, th_dot = vector("zdot", n), vector("thetadot", c.p)
+    Lam, Kd = diag(c.Lam), diag(c.Kd)
+    D_hat = c.D(th_hat)
+    qr_dot = c.qd[1] - Lam * c.e
+    qr_ddot = c.qd[2] - Lam * (c.qdot - c.qd[1])
+    s = c.qdot - qr_dot
+    ztil = c.qdot - z
+    # (44) as read in the notes: holds q and z, never the measured q̇.
+    tau_d = D_hat * (c.qd[2] - Lam * (z - c.qd[1])) + c.C(th_hat, z) * qr_dot \
+        + c.G(th_hat) - Kd * (z - qr_dot) - diag(c.Kp) * c.e
+    tau_d_dot = time_derivative(tau_d, [(c.q, c.qdot), (z, z_dot), (th_hat, th_dot), *c.desired_rates()])
+    tau = c.JL.T * c.f
+    qn2 = sum((x ** 2 for x in c.qdot), sp.S.Zero)
+    Lam_o = lam_o[0] + lam_o[1] * qn2 + lam_o[2] * sp.sqrt(sum((x ** 2 for x in tau), sp.S.Zero)) \
+        + lam_o[3] * sp.sqrt(qn2)
+    W = -D_hat * Lam + c.C(th_hat, qr_dot) - Kd
+    qdd_bar = Dbar_inv * (tau - Gbar)
+    WTs = W.T * s
+    z_dot_value = sp.Matrix([Ko[i] * ztil[i] + Lam_o * clip(ztil[i] / eps, -1, 1) - Gz_inv[i] * WTs[i]
+                             + qdd_bar[i] for i in range(n)])
+    # (45): θ̂̇ = −κ Γ_θ⁻¹ Yᵀ(q, q̇, q̇_r, q̈_r) s
+    rho = -diag(vecs["Gtheta_inv"]) * c.Y(c.qdot, qr_dot, qr_ddot, th_hat).T * s
+    th_dot_value = c.theta_rate(rho, th_hat, vecs, scal["adapt"])
+    fd, ftil, f0, v, u, taud, stages = c.force_loop(tau_d, tau_d_dot, s, g1, g2)
+    g1_dot, g2_dot = c.hydraulic_adaptation(
+        ftil, f0, v, g1, g2, scal["adapt"], vecs["Ggamma1_inv"], vecs["Ggamma2_inv"],
+        scal["gamma1_min"], scal["gamma1_max"], scal["gamma2_min"], scal["gamma2_max"])
+    xc = sp.Matrix([*z, *th_hat, *g1, *g2])
+    xc_dot = sp.Matrix([*z_dot, *th_dot, *g1_dot, *g2_dot])
+    return ControllerParts(
+        inputs=[*c.base_inputs(), ("xc", xc), *c.gain_inputs(), ("Ko", Ko), ("lambda_o", lam_o),
+                ("Gz_inv", Gz_inv), ("sat_width", sp.Matrix([eps])), ("Dbar_inv", Dbar_inv), ("Gbar", Gbar),
+                *ad_inputs],
+        intermediates=[*c.kin, c.jit_intermediate(), (z_dot, z_dot_value), (th_dot, th_dot_value), *stages],
+        outputs=[("u", u), ("xc_dot", xc_dot), ("tau_d", taud), ("tau_d_dot", c.taud_dot), ("f_d", fd)],
+    )

@@ -1,0 +1,57 @@
+"""Sizes, names and signal layouts of a generated model, from its manifest (plain data).
+
+The one template context: the loop driver and its header (codegen), the ctypes structures of the
+loop runner (runtime) and the export bundle are all built from :func:`loop_context`, which reads
+only the manifest's ``model`` summary (written by :func:`model_summary` at generation). Imports
+neither SymPy, CasADi nor numpy.
+"""
+from __future__ import annotations
+
+__all__ = ["SLOTS", "model_summary", "loop_context", "log_widths", "c_double"]
+
+#: Signals the loop writes into a controller's inputs, by input name, in this order.
+SLOTS = ("q", "qdot", "pc", "l", "qd0", "qd1", "qd2", "qd3", "xc", "adapt")
+
+
+def c_double(x) -> str:
+    """A C double literal that reads back to exactly ``x`` (shortest round-trip repr)."""
+    return repr(float(x))
+
+
+def model_summary(model) -> dict:
+    """What the manifest records about the model for the drivers and the runtime."""
+    return {
+        "name": model.name,
+        "n": model.n, "m": model.n_cylinders, "p": model.n_theta,
+        "coordinates": list(model.coordinate_names),
+        "cylinders": [c.name for c in model.cylinders],
+        "theta_names": list(model.theta_names),
+        "piston_area": [float(c.piston_area) for c in model.cylinders],
+        "rod_area": [float(c.rod_area) for c in model.cylinders],
+        "supply_pressure": [float(c.supply_pressure) for c in model.cylinders],
+        "joint_encoders": bool(model.joint_encoders),
+    }
+
+
+def log_widths(summary: dict) -> dict:
+    """Row width of each log of the loop (``xc``'s is the controller's state size)."""
+    n, m = summary["n"], summary["m"]
+    return {"t": 1, "q": n, "q_d": n, "l": m, "f": m, "pc": m, "u": m}
+
+
+def loop_context(manifest: dict) -> dict:
+    """Everything the loop templates and the ctypes structures need, from a manifest."""
+    s = manifest["model"]
+    n, m, name = s["n"], s["m"], s["name"]
+    what = {"t": "time, s", "q": "true pose", "q_d": "reference", "l": "true cylinder lengths, m",
+            "f": "cylinder forces, N", "pc": "control pressures, Pa", "u": "spool commands, m"}
+    logs = [(k, w, what[k]) for k, w in log_widths(s).items()] + [("xc", "n_xc", "controller state")]
+    return {
+        "model": name, "p": name, "P": name.upper(), "guard": f"{name.upper()}_LOOP_H",
+        "n": n, "m": m, "nx": 2 * n + 2 * m, "n_noise": 2 * m + (n if s["joint_encoders"] else 0),
+        "encoders": bool(s["joint_encoders"]), "slots": SLOTS, "logs": logs,
+        "p_theta": ", ".join(s["theta_names"]),
+        "piston_area": ", ".join(map(c_double, s["piston_area"])),
+        "rod_area": ", ".join(map(c_double, s["rod_area"])),
+        "supply_pressure": ", ".join(map(c_double, s["supply_pressure"])),
+    }

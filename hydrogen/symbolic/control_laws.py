@@ -1,0 +1,168 @@
+"""Building blocks shared by the paper's controllers (SymPy), in cylinder-force form.
+
+Joint-space (or task-space) design, cylinder-space actuation (READING-NOTES "Leg forces and task
+space"): τ_d (generalized forces) maps to cylinder forces f_d = (JL)⁻ᵀ τ_d, with
+ḟ_d = (JL)⁻ᵀ (τ̇_d − d/dt[(JL)ᵀ] f_d), and the backstepping term reads Γ_τ⁻¹ (JL) s. The spool
+position u solves g0(u) γ̂2 = v per cylinder, with
+
+    v = ḟ_d − f0 γ̂1 − Γ_τ⁻¹ JL s − K_τ f̃,   f̃ = f − f_d,
+
+so the force error obeys ḟ̃ = −Γ_τ⁻¹ JL s − K_τ f̃ (+ parameter-error terms). (JL)⁻ᵀ is an
+intermediate computed numerically (CasADi linear solve); every other quantity, including τ̇_d,
+is derived in closed form. Sizes come from the model: n coordinates, m = n cylinders, p adapted
+parameters. Each controller is one module of :mod:`hydrogen.controllers`.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import sympy as sp
+
+from . import hydraulics as hyd
+from .calculus import clip, projection
+from .constants import PRESSURE_EPS, baked
+from .kinematics import leg_intermediates, matrix_symbols, pose_symbols, rate_symbols
+from .rigid_body import coriolis, gravity, mass_matrix, mass_matrix_inverse, regressor, theta_symbols
+
+__all__ = ["ControllerParts", "Common", "diag", "vector", "scalar", "solve_or_inverse"]
+
+
+@dataclass
+class ControllerParts:
+    """Inputs, intermediates (symbols defined numerically, in order) and outputs of a controller."""
+
+    inputs: list
+    outputs: list
+    intermediates: list = field(default_factory=list)
+
+
+def diag(v):
+    return sp.diag(*list(v))
+
+
+def vector(name, n):
+    return rate_symbols(name, n)
+
+
+def scalar(name):
+    return sp.Symbol(name, real=True)
+
+
+def solve_or_inverse(model, q, theta, rhs, name):
+    """D(q, θ)⁻¹ rhs: the closed form where the tree has one, else an intermediate symbol vector
+    defined by a numeric linear solve. Returns (value, intermediates)."""
+    Dinv = mass_matrix_inverse(model, q, theta)
+    if Dinv is not None:
+        return Dinv * rhs, []
+    x = vector(name, len(rhs))
+    return x, [(x, ("solve", mass_matrix(model, q, theta), rhs))]
+
+
+class Common:
+    """Symbols and expressions shared by the model-based controllers."""
+
+    def __init__(self, model):
+        self.model = model
+        n, m = model.n, model.n_cylinders
+        self.n, self.m, self.p = n, m, model.n_theta
+        c = model.cylinders
+        self.ps = [baked(x.supply_pressure) for x in c]
+        self.d = [baked(x.underlap) for x in c]
+        self.A = [baked(x.piston_area) for x in c]
+        self.a = [baked(x.rod_area) for x in c]
+        self.L = [baked(x.chamber_length) for x in c]
+        self.g = baked(model.gravity)
+        self.q, self.qdot, self.pc = pose_symbols(model), vector("qdot", n), vector("pc", m)
+        self.qd = [vector(f"qd{k}", n) for k in range(4)]  # q_d and its first three derivatives
+        self.Lam, self.Kp, self.Kd = vector("Lambda", n), vector("Kp", n), vector("Kd", n)
+        self.Ktau, self.Gtau_inv = vector("Ktau", m), vector("Gtau_inv", m)
+        self.u_max = scalar("u_max")
+        self.l, self.JL, self.JLdot, self.kin = leg_intermediates(model, self.q, self.qdot)
+        self.ldot = self.JL * self.qdot
+        self.f = sp.Matrix([hyd.leg_force(self.pc[i], self.ps[i], self.A[i], self.a[i]) for i in range(m)])
+        self.Jit = matrix_symbols("JLinvT", n, m)
+        self.e = self.q - self.qd[0]
+
+    def theta(self, prefix="theta_hat"):
+        return vector(prefix, self.p)
+
+    def D(self, theta):
+        return mass_matrix(self.model, self.q, theta)
+
+    def C(self, theta, v):
+        return coriolis(self.D(theta), self.q, v)
+
+    def G(self, theta):
+        return gravity(self.model, self.q, theta)
+
+    def Y(self, v, w, a, theta):
+        return regressor(self.model, self.q, v, w, a, theta)
+
+    def desired_rates(self):
+        return [(self.qd[k], self.qd[k + 1]) for k in range(3)]
+
+    def force_loop(self, tau_d, tau_d_dot, s, g1, g2):
+        """Stages of the cylinder-force loop as intermediates; returns (f_d, f̃, f0, v, u, τ_d, stages).
+
+        Each stage is bound to symbols so later stages (and τ̇_d's users) refer to
+        a symbol, not to a copy of a large expression.
+        """
+        n, m = self.n, self.m
+        S = {k: vector(k, n) for k in ("taud", "taud_dot")}
+        S.update({k: vector(k, m) for k in ("fd", "fd_dot", "v", "u_raw")})
+        stages = [
+            (S["taud"], tau_d),
+            (S["taud_dot"], tau_d_dot),
+            (S["fd"], self.Jit * S["taud"]),
+            (S["fd_dot"], self.Jit * (S["taud_dot"] - self.JLdot.T * S["fd"])),
+        ]
+        ftil = self.f - S["fd"]
+        f0 = sp.Matrix([hyd.f0(self.l[i], self.ldot[i], self.A[i], self.L[i]) for i in range(m)])
+        Js = self.JL * s
+        stages.append((S["v"], sp.Matrix([S["fd_dot"][i] - f0[i] * g1[i] - self.Gtau_inv[i] * Js[i]
+                                          - self.Ktau[i] * ftil[i] for i in range(m)])))
+        # g0 γ̂2 = v  ⇔  q_l / c = v (l − L) / γ̂2, then invert (57) for u.
+        w = [S["v"][i] * (self.l[i] - self.L[i]) / g2[i] for i in range(m)]
+        stages.append((S["u_raw"], sp.Matrix([hyd.valve_inverse_unit(w[i], self.pc[i], self.ps[i], self.d[i],
+                                                                     PRESSURE_EPS) for i in range(m)])))
+        u = sp.Matrix([clip(S["u_raw"][i], -self.u_max, self.u_max) for i in range(m)])
+        self.taud_dot = S["taud_dot"]
+        return S["fd"], ftil, f0, S["v"], u, S["taud"], stages
+
+    def jit_intermediate(self):
+        return (self.Jit, ("inverse", self.JL.T))
+
+    def hydraulic_adaptation(self, ftil, f0, v, g1, g2, adapt, Gg1_inv, Gg2_inv, g1_lo, g1_hi, g2_lo, g2_hi):
+        """γ̂̇1 = κ Γ_γ1⁻¹ Γ_τ f0 f̃,  γ̂̇2 = κ Γ_γ2⁻¹ Γ_τ Π(f̃/γ̂2) v (per cylinder, with projection)."""
+        m = self.m
+        g1_dot = sp.Matrix([adapt * projection(g1[i], Gg1_inv[i] / self.Gtau_inv[i] * f0[i] * ftil[i],
+                                               g1_lo, g1_hi) for i in range(m)])
+        g2_dot = sp.Matrix([adapt * projection(g2[i], Gg2_inv[i] / self.Gtau_inv[i] * ftil[i] / g2[i] * v[i],
+                                               g2_lo, g2_hi) for i in range(m)])
+        return g1_dot, g2_dot
+
+    def adaptive_inputs(self):
+        """Adaptation gains and projection bounds: (vectors, scalars, input list)."""
+        p, m = self.p, self.m
+        names = ("Gtheta_inv", p), ("Ggamma1_inv", m), ("Ggamma2_inv", m), ("theta_min", p), ("theta_max", p)
+        vecs = {k: vector(k, size) for k, size in names}
+        scal = {k: scalar(k) for k in ("gamma1_min", "gamma1_max", "gamma2_min", "gamma2_max", "adapt")}
+        inputs = [(k, vecs[k]) for k, _ in names] + [(k, sp.Matrix([scal[k]])) for k in scal]
+        return vecs, scal, inputs
+
+    def theta_rate(self, rho, th_hat, vecs, adapt):
+        return sp.Matrix([adapt * projection(th_hat[k], rho[k], vecs["theta_min"][k], vecs["theta_max"][k])
+                          for k in range(self.p)])
+
+    def base_inputs(self):
+        return [("q", self.q), ("qdot", self.qdot), ("pc", self.pc),
+                *[(f"qd{k}", self.qd[k]) for k in range(4)]]
+
+    def gain_inputs(self):
+        return [("Lambda", self.Lam), ("Kp", self.Kp), ("Kd", self.Kd), ("Ktau", self.Ktau),
+                ("Gtau_inv", self.Gtau_inv), ("u_max", sp.Matrix([self.u_max]))]
+
+
+def rigid_theta(model):
+    """The symbols of the true θ (backstepping's known parameters)."""
+    return theta_symbols(model)

@@ -1,0 +1,286 @@
+"""The kinematic tree of a description, symbolically: link poses, Jacobians, D, G, cylinder lengths.
+
+Any tree of revolute, prismatic, fixed and floating joints. Two forms of the same kinematics:
+
+* closed form (:meth:`SymbolicTree.mass_matrix`, :meth:`SymbolicTree.potential`): every link's
+  world rotation R, origin p and Jacobians as expressions of q, for D(q) and G(q), which are
+  differentiated symbolically (Christoffel symbols, ∂V/∂q);
+* staged (:meth:`SymbolicTree.cylinder_stages`): each link's R and p are intermediate symbols
+  defined from its parent's, so the cylinders' lengths, JL and J̇L refer to a few symbols instead of
+  expanded products of sines and cosines (CasADi evaluates the stages in order).
+
+Inertial parameters are Pinocchio's: mass m, first moment h = m c (link frame) and the inertia
+I_o about the link origin (link axes). The adapted ones are the symbols θ; the others are baked
+numbers. The kinetic energy of a link is ½ m |v_o|² + v_oᵀ R (ω_b × h) + ½ ω_bᵀ I_o ω_b, with v_o
+the origin's velocity (base frame) and ω_b the angular velocity in link axes, so
+D = Σ m J_vᵀ J_v − (X + Xᵀ) + J_ωᵀ I_o J_ω with X = J_vᵀ R S(h) J_ω, linear in the parameters.
+"""
+from __future__ import annotations
+
+import sympy as sp
+
+from .constants import baked
+from .kinematics import angular_velocity_map, body_angular_velocity_map, matrix_symbols, rotation
+
+__all__ = ["SymbolicTree", "skew"]
+
+
+def skew(v) -> sp.Matrix:
+    """S(v) with S(v) x = v × x."""
+    return sp.Matrix([[0, -v[2], v[1]], [v[2], 0, -v[0]], [-v[1], v[0], 0]])
+
+
+def _rot_xyz(rpy) -> sp.Matrix:
+    """Origin rotation Rz(yaw) Ry(pitch) Rx(roll) of numbers (identity stays exact)."""
+    if all(float(v) == 0.0 for v in rpy):
+        return sp.eye(3)
+    return rotation([0, 0, 0, baked(rpy[0]), baked(rpy[1]), baked(rpy[2])])
+
+
+def _axis_rotation(axis, angle) -> sp.Matrix:
+    """Rotation by ``angle`` about the unit ``axis`` (numbers); exact for coordinate axes."""
+    k = [baked(a) if float(a) not in (0.0, 1.0, -1.0) else sp.Integer(int(a)) for a in axis]
+    K = skew(k)
+    return sp.eye(3) + sp.sin(angle) * K + (1 - sp.cos(angle)) * K * K
+
+
+def _vec(values) -> sp.Matrix:
+    return sp.Matrix([baked(v) if float(v) != 0.0 else sp.S.Zero for v in values])
+
+
+class SymbolicTree:
+    """Symbolic kinematics and rigid-body dynamics of ``model``'s tree at coordinates ``q``.
+
+    ``theta`` are the symbols of the adapted parameters (``model.theta_names`` order).
+    """
+
+    def __init__(self, model, q, theta):
+        self.model = model
+        self.q = sp.Matrix(q)
+        self.n = len(self.q)
+        subst = dict(zip(model.theta_names, list(theta)))
+        self.params = {}
+        for lk in model.links:
+            values = lk.parameters()
+            p = {k: subst.get(f"{lk.name}.{k}", baked(v) if v != 0.0 else sp.S.Zero) for k, v in values.items()}
+            self.params[lk.name] = p
+        self.columns = {}  # joint name -> first coordinate index
+        i = 0
+        for j in model.joints:
+            self.columns[j.name] = i
+            i += j.dof
+        self.parent_joint = {j.child: j for j in model.joints}
+        self._closed = None
+
+    # --- paths ----------------------------------------------------------------------------
+    def path(self, link: str) -> list:
+        """Joints from the root down to ``link``."""
+        out = []
+        while link in self.parent_joint:
+            j = self.parent_joint[link]
+            out.append(j)
+            link = j.parent
+        return out[::-1]
+
+    def single_floating_body(self) -> bool:
+        """True for one floating body on the root with its frame at its centre of mass, whose mass
+        matrix has a closed-form inverse (the Stewart platform's structure)."""
+        joints = self.model.joints
+        if len(joints) != 1 or joints[0].type != "floating" or joints[0].parent != self.model.root:
+            return False
+        p = self.params[joints[0].child]
+        return all(p[k] is sp.S.Zero for k in ("mcx", "mcy", "mcz", "Ixy", "Ixz", "Iyz")) \
+            and all(float(v) == 0.0 for v in (*joints[0].origin_rpy,))
+
+    # --- closed form ----------------------------------------------------------------------
+    def closed_form(self) -> dict:
+        """Per link: world rotation R, origin p, J_v (3×n, base frame) and J_ω (3×n, link axes)."""
+        if self._closed is not None:
+            return self._closed
+        n, q = self.n, self.q
+        root = self.model.root
+        out = {root: (sp.eye(3), sp.zeros(3, 1), sp.zeros(3, n), sp.zeros(3, n), sp.zeros(3, n))}
+        for j in self.model.joints:
+            R_p, p_p, Jv_p, Jw_p, Jww_p = out[j.parent]  # Jww: angular velocity Jacobian, base frame
+            R_o, xyz, i = _rot_xyz(j.origin_rpy), _vec(j.origin_xyz), self.columns[j.name]
+            lever = R_p * xyz
+            Jv = Jv_p - skew(lever) * Jww_p if any(x != 0 for x in lever) else Jv_p
+            Jv, Jww = sp.Matrix(Jv), sp.Matrix(Jww_p)
+            if j.type == "revolute":
+                R_rel = R_o * _axis_rotation(j.axis, q[i])
+                R, p = R_p * R_rel, p_p + lever
+                a_w = R_p * R_o * _vec(j.axis)
+                Jww[:, i] = Jww[:, i] + a_w
+                Jw = R_rel.T * Jw_p
+                Jw[:, i] = Jw[:, i] + _vec(j.axis)
+            elif j.type == "prismatic":
+                R, p = R_p * R_o, p_p + lever + R_p * R_o * _vec(j.axis) * q[i]
+                Jv[:, i] = Jv[:, i] + R_p * R_o * _vec(j.axis)
+                Jw = R_o.T * Jw_p
+            elif j.type == "floating":
+                eta = q[i + 3:i + 6, 0]
+                R_rel = R_o * rotation([0, 0, 0, *eta])
+                R, p = R_p * R_rel, p_p + lever + R_p * q[i:i + 3, 0]
+                Jv[:, i:i + 3] = Jv[:, i:i + 3] + R_p
+                Jww[:, i + 3:i + 6] = Jww[:, i + 3:i + 6] + R_p * R_o * angular_velocity_map([0, 0, 0, *eta])
+                Jw = R_rel.T * Jw_p
+                Jw[:, i + 3:i + 6] = Jw[:, i + 3:i + 6] + body_angular_velocity_map([0, 0, 0, *eta])
+            else:  # fixed
+                R, p, Jw = R_p * R_o, p_p + lever, R_o.T * Jw_p
+            out[j.child] = (R, p, Jv, Jw, Jww)
+        self._closed = out
+        return out
+
+    def _inertia(self, link):
+        p = self.params[link]
+        h = sp.Matrix([p["mcx"], p["mcy"], p["mcz"]])
+        I = sp.Matrix([[p["Ixx"], p["Ixy"], p["Ixz"]], [p["Ixy"], p["Iyy"], p["Iyz"]],
+                       [p["Ixz"], p["Iyz"], p["Izz"]]])
+        return p["mass"], h, I
+
+    def mass_matrix(self) -> sp.Matrix:
+        """D(q) (n×n), linear in the inertial parameters."""
+        cf = self.closed_form()
+        D = sp.zeros(self.n, self.n)
+        for lk in self.model.links:
+            R, _, Jv, Jw, _ = cf[lk.name]
+            m, h, I = self._inertia(lk.name)
+            D += m * (Jv.T * Jv) + Jw.T * I * Jw
+            if any(x != 0 for x in h):
+                X = Jv.T * R * skew(h) * Jw
+                D -= X + X.T
+        return D
+
+    def potential(self, g) -> sp.Expr:
+        """V(q) = g Σ (m p_z + (R h)_z): potential energy with gravity ``g`` along −z, J."""
+        cf = self.closed_form()
+        V = sp.S.Zero
+        for lk in self.model.links:
+            R, p, _, _, _ = cf[lk.name]
+            m, h, _ = self._inertia(lk.name)
+            V += m * p[2] + (R[2, :] * h)[0, 0]
+        return g * V
+
+    def gravity(self, g) -> sp.Matrix:
+        """G(q) = ∂V/∂q (n), N or N m."""
+        return sp.Matrix([self.potential(g)]).jacobian(self.q).T
+
+    def mass_matrix_inverse(self):
+        """D⁻¹ in closed form for a single floating body at its centre of mass (block structure:
+        m⁻¹ I and T_b⁻¹ I_o⁻¹ T_b⁻ᵀ, det T_b = cos θ), else None (solve numerically)."""
+        if not self.single_floating_body():
+            return None
+        j = self.model.joints[0]
+        i = self.columns[j.name]
+        m, _, I = self._inertia(j.child)
+        psi, th = self.q[i + 3], self.q[i + 4]
+        c, s, ct, tt = sp.cos(psi), sp.sin(psi), sp.cos(th), sp.tan(th)
+        Tb_inv = sp.Matrix([[1, s * tt, c * tt], [0, c, -s], [0, s / ct, c / ct]])
+        Dinv = sp.zeros(self.n, self.n)
+        Dinv[i:i + 3, i:i + 3] = sp.eye(3) / m
+        Dinv[i + 3:i + 6, i + 3:i + 6] = Tb_inv * sp.diag(1 / I[0, 0], 1 / I[1, 1], 1 / I[2, 2]) * Tb_inv.T
+        return Dinv
+
+    # --- staged cylinder kinematics -------------------------------------------------------
+    def cylinder_stages(self, prefix: str = "", qdot=None):
+        """Cylinder lengths and JL as intermediate symbols: ``(l, JL, stages, link_stages)``.
+
+        ``stages`` lists ``(symbols, expression)`` pairs to evaluate in order: the rotation R (and,
+        below the first level, the origin p) of every link a cylinder hangs on or hangs below,
+        then l_i = ‖v_i‖, v_i the vector between the pins, then row i of JL: n_iᵀ (J_B − J_A) with
+        n_i = v_i / l_i and J the velocity Jacobian of each pin. A revolute joint contributes
+        a·(r × n) (a its axis, r from the joint to the pin), a prismatic one a·n, a floating one
+        [R_pᵀ n, Tᵀ R_pᵀ (r × n)]; joints on both pins' paths cancel and are skipped.
+        ``link_stages`` maps each staged link to (R symbols, p symbols or expression, ω expression,
+        parent), for the time derivative.
+        """
+        model, q = self.model, self.q
+        self._qdot = None if qdot is None else sp.Matrix(qdot)
+        m_cyl = len(model.cylinders)
+        needed = set()
+        for c in model.cylinders:
+            for link in (c.link_from, c.link_to):
+                needed |= {j.child for j in self.path(link)}
+        poses = {model.root: (sp.eye(3), sp.zeros(3, 1), sp.zeros(3, 1))}  # R, p, ω (base frame)
+        stages, link_stages = [], {}
+        for k, j in enumerate(model.joints):
+            if j.child not in needed:
+                continue
+            R_p, p_p, w_p = poses[j.parent]
+            R_o, xyz, i = _rot_xyz(j.origin_rpy), _vec(j.origin_xyz), self.columns[j.name]
+            lever = R_p * xyz
+            if j.type == "revolute":
+                R_val = R_p * R_o * _axis_rotation(j.axis, q[i])
+                p_val = p_p + lever
+                w = w_p + R_p * R_o * _vec(j.axis) * self._rate(i)
+            elif j.type == "prismatic":
+                R_val = R_p * R_o
+                p_val = p_p + lever + R_p * R_o * _vec(j.axis) * q[i]
+                w = w_p
+            elif j.type == "floating":
+                eta = q[i + 3:i + 6, 0]
+                R_val = R_p * R_o * rotation([0, 0, 0, *eta])
+                p_val = p_p + lever + R_p * q[i:i + 3, 0]
+                w = w_p + R_p * R_o * angular_velocity_map([0, 0, 0, *eta]) * self._rates(i + 3, 3)
+            else:
+                R_val, p_val, w = R_p * R_o, p_p + lever, w_p
+            tag = f"{prefix}{k}" if len(model.joints) > 1 else prefix
+            R = matrix_symbols(f"R{tag}", 3, 3)
+            stages.append((R, R_val))
+            if j.parent == model.root:
+                p = p_val  # an expression of q: nothing to stage
+            else:
+                p = matrix_symbols(f"p{tag}", 3, 1)
+                stages.append((p, p_val))
+            poses[j.child] = (R, p, w)
+            link_stages[j.child] = (R, p, w, j)
+        l = sp.Matrix([sp.Symbol(f"{prefix}legl_{i}", real=True) for i in range(m_cyl)])
+        JL = matrix_symbols(f"{prefix}JL", m_cyl, self.n)
+        l_value, rows = [], []
+        for ci, c in enumerate(model.cylinders):
+            R_a, p_a, _ = poses[c.link_from]
+            R_b, p_b, _ = poses[c.link_to]
+            r_b = R_b * _vec(c.point_to)
+            r_a = R_a * _vec(c.point_from)
+            v = p_b + r_b - (p_a + r_a)
+            l_value.append(sp.sqrt(v.dot(v)))
+            nvec = v / l[ci]
+            row = sp.zeros(1, self.n)
+            path_a, path_b = self.path(c.link_from), self.path(c.link_to)
+            common = {j.name for j in path_a} & {j.name for j in path_b}
+            for sign, path, link, r_local in ((1, path_b, c.link_to, r_b), (-1, path_a, c.link_from, r_a)):
+                for j in path:
+                    if j.name in common:
+                        continue
+                    row += sign * self._row_part(j, link, r_local, nvec, poses)
+            rows.append(row)
+        stages += [(l, sp.Matrix(l_value)), (JL, sp.Matrix.vstack(*rows))]
+        return l, JL, stages, link_stages
+
+    def _rate(self, i):
+        qdot = getattr(self, "_qdot", None)
+        return sp.Symbol(f"qdot_{i}", real=True) if qdot is None else qdot[i]
+
+    def _rates(self, i, k):
+        return sp.Matrix([self._rate(i + t) for t in range(k)])
+
+    def _row_part(self, j, link, r_local, nvec, poses):
+        """Contribution of joint ``j`` to n · (velocity of a pin on ``link``), a 1×n row."""
+        R_c, p_c, _ = poses[j.child]
+        R_p, _, _ = poses[j.parent]
+        p_l = poses[link][1]
+        r = r_local if j.child == link else r_local + (p_l - p_c)
+        i = self.columns[j.name]
+        part = sp.zeros(1, self.n)
+        R_o = _rot_xyz(j.origin_rpy)
+        if j.type == "revolute":
+            a = R_c * _vec(j.axis)  # the axis is fixed by the rotation about it
+            part[0, i] = a.dot(r.cross(nvec))
+        elif j.type == "prismatic":
+            part[0, i] = (R_p * R_o * _vec(j.axis)).dot(nvec)
+        elif j.type == "floating":
+            eta = self.q[i + 3:i + 6, 0]
+            T = angular_velocity_map([0, 0, 0, *eta])
+            part[0, i:i + 3] = (R_p.T * nvec).T
+            part[0, i + 3:i + 6] = (T.T * (R_p * R_o).T * r.cross(nvec)).T
+        return part
