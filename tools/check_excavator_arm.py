@@ -58,9 +58,10 @@ REFERENCES = {
         (1, -0.35, 0.20),
         (2, -0.40, 0.20), (2, 0.08, 0.40))),
 }
-#: Bucket tooth tip in the bucket frame, m, and the Cat 320 working ranges to compare with (m).
+#: Bucket tooth tip in the bucket frame, m, and the Cat 320 working ranges to compare with
+#: (reach boom, R2.9 stick: 32.3 ft, 22 ft, 30.7 ft; docs/excavator_arm.md), m.
 TIP = np.array([1.47, 0.0, 0.0])
-CAT320_RANGES = {"max reach at ground level": 9.86, "max digging depth": 6.72, "max cutting height": 9.36}
+CAT320_RANGES = {"max reach at ground level": 9.85, "max digging depth": 6.71, "max cutting height": 9.36}
 
 
 def load(toml_path: Path):
