@@ -10,12 +10,12 @@ def _mid(model):
 
 
 def _settle(dyn, model, u, p0):
-    """Integrate ṗ_c with the piston blocked (l̇ = 0) for 30 time constants at the null point
-    (the slowest cylinder's), with a stiff solver."""
+    """Integrate ṗ_c with the piston blocked (l̇ = 0) for 60 s (about 30 time constants at the null
+    point of the slowest cylinder shipped, the excavator's boom), with a stiff solver."""
     m = model.n_cylinders
     u = np.broadcast_to(u, (m,)).astype(float)
     sol = solve_ivp(lambda t, p: dyn.pressure_rate(_mid(model), np.zeros(m), p, u, model.gamma),
-                    (0, 6.0), np.broadcast_to(p0, (m,)).astype(float), method="BDF", rtol=1e-8, atol=1.0)
+                    (0, 60.0), np.broadcast_to(p0, (m,)).astype(float), method="BDF", rtol=1e-8, atol=1.0)
     assert sol.success
     return sol.y[:, -1]
 

@@ -38,6 +38,7 @@ class Scenario:
     friction: tuple = (0.0, 0.0, 1e-3)
     valve_lag: float = 0.0
     noise_l: float = 0.0
+    noise_q: float = 0.0   # joint-encoder noise (rad or m), robots with [sensors] joint_encoders
     noise_p: float = 0.0
     kalman: bool = False
     kalman_accel: float = 50.0
@@ -70,7 +71,7 @@ class Scenario:
         fr = np.asarray(self.friction, float)
         need(fr.shape == (3,) and finite(fr) and fr[0] >= 0 and fr[1] >= 0 and fr[2] > 0, "friction",
              "must be (Coulomb >= 0 N, viscous >= 0 N s/m, smoothing speed > 0 m/s)")
-        for f in ("valve_lag", "noise_l", "noise_p", "kalman_accel"):
+        for f in ("valve_lag", "noise_l", "noise_q", "noise_p", "kalman_accel"):
             need(finite(getattr(self, f)) and getattr(self, f) >= 0, f, "must be finite and >= 0")
         n = len(np.asarray(self.reference.bias))
         need(np.shape(self.q0_offset) == (n,) and finite(self.q0_offset), "q0_offset",
@@ -78,7 +79,7 @@ class Scenario:
         return self
 
 
-_FIELDS = ("duration", "control_rate", "substeps", "t_adapt", "friction", "valve_lag", "noise_l", "noise_p",
+_FIELDS = ("duration", "control_rate", "substeps", "t_adapt", "friction", "valve_lag", "noise_l", "noise_q", "noise_p",
            "kalman", "kalman_accel", "theta0_factor", "gamma0_factor", "metric_start", "q0_offset", "seed")
 
 

@@ -165,13 +165,15 @@ def _prepare(dyn, scenario, controller, gains, duration, check_workspace, overri
     x0 = np.concatenate([q0, np.zeros(nq), equilibrium_pressures(dyn, q0, model.theta), np.zeros(m)])
     ctrl.reset(q0, np.zeros(nq))
     # One noise table for every engine: rows [cylinder length noise (m), pressure noise (m)], then the
-    # joint-encoder noise (n) when the robot has encoders (zero here).
+    # joint-encoder noise (n) when the robot has encoders.
     rng = np.random.default_rng(sc.seed)
     noise = np.zeros((n, 2 * m + (nq if model.joint_encoders else 0)))
     if sc.noise_l:
         noise[:, :m] = sc.noise_l * rng.standard_normal((n, m))
     if sc.noise_p:
         noise[:, m:2 * m] = sc.noise_p * rng.standard_normal((n, m))
+    if sc.noise_q and model.joint_encoders:
+        noise[:, 2 * m:] = sc.noise_q * rng.standard_normal((n, nq))
     kf_gain = _kalman_gain(h, sc.noise_l, sc.kalman_accel) if sc.kalman else None
     return _Prepared(sc, ctrl, n, h, x0, q0, noise, kf_gain, theta0, gamma0)
 

@@ -1,0 +1,210 @@
+/* Closed-loop driver for model excavator_arm (see excavator_arm_loop.h).
+ * Rendered by hydrogen from templates/loop.c.j2; plain C99, no dependency but libm.
+ * One control period: measure (noise, Kalman filter), joint encoders, reference,
+ * controller (zero-order hold), RK4 sub-steps of the plant, Euler step of the controller state. */
+#include <math.h>
+#include <string.h>
+
+#include "excavator_arm_loop.h"
+#include "excavator_arm_leg_lengths.h"
+#include "excavator_arm_leg_kinematics.h"
+#include "excavator_arm_plant_rhs.h"
+
+#define NQ EXCAVATOR_ARM_NQ
+#define NL EXCAVATOR_ARM_NL
+#define NX EXCAVATOR_ARM_NX
+#define NNOISE EXCAVATOR_ARM_NNOISE
+static const double TWO_PI = 6.283185307179586;
+/* baked cylinder constants: cap area A (m^2), annulus area a (m^2), supply pressure P_s (Pa) */
+static const double PISTON_AREA[NL] = { 0.022619, 0.015394, 0.01131 };
+static const double ROD_AREA[NL] = { 0.009896, 0.0075398, 0.0056352 };
+static const double SUPPLY_PRESSURE[NL] = { 35000000.0, 35000000.0, 35000000.0 };
+
+static int leg_lengths(const double* q, double* l) {
+    const double* arg[1];
+    double* res[1];
+    arg[0] = q;
+    res[0] = l;
+    return excavator_arm_leg_lengths(arg, res, 0, 0, 0);
+}
+
+int excavator_arm_leg_lengths_many(const double* q, long long n, double* l) {
+    long long k;
+    for (k = 0; k < n; ++k)
+        if (leg_lengths(q + NQ * k, l + NL * k)) return 1;
+    return 0;
+}
+
+/* cylinder lengths and JL (column-major NL x NQ) in one call: they share the link poses */
+static int leg_kinematics(const double* q, double* l, double* J) {
+    const double* arg[1];
+    double* res[2];
+    arg[0] = q;
+    res[0] = l;
+    res[1] = J;
+    return excavator_arm_leg_kinematics(arg, res, 0, 0, 0);
+}
+
+/* Solve A x = b (A column-major NQ x NQ, overwritten), partial pivoting; returns 0 if singular. */
+static int solve_n(double* A, double* b) {
+    int i, j, k, piv;
+    double m, tmp;
+    for (k = 0; k < NQ; ++k) {
+        piv = k;
+        for (i = k + 1; i < NQ; ++i)
+            if (fabs(A[i + NQ * k]) > fabs(A[piv + NQ * k])) piv = i;
+        if (!(fabs(A[piv + NQ * k]) > 1e-12)) return 0;
+        if (piv != k) {
+            for (j = 0; j < NQ; ++j) {
+                tmp = A[k + NQ * j]; A[k + NQ * j] = A[piv + NQ * j]; A[piv + NQ * j] = tmp;
+            }
+            tmp = b[k]; b[k] = b[piv]; b[piv] = tmp;
+        }
+        for (i = k + 1; i < NQ; ++i) {
+            m = A[i + NQ * k] / A[k + NQ * k];
+            for (j = k; j < NQ; ++j) A[i + NQ * j] -= m * A[k + NQ * j];
+            b[i] -= m * b[k];
+        }
+    }
+    for (k = NQ - 1; k >= 0; --k) {
+        for (j = k + 1; j < NQ; ++j) b[k] -= A[k + NQ * j] * b[j];
+        b[k] /= A[k + NQ * k];
+    }
+    return 1;
+}
+
+static void reference(const excavator_arm_loop_config* c, double t, double* qd /* 4 x NQ */) {
+    long long j;
+    int i;
+    for (i = 0; i < NQ; ++i) {
+        qd[i] = c->bias[i];
+        qd[NQ + i] = qd[2 * NQ + i] = qd[3 * NQ + i] = 0;
+    }
+    for (j = 0; j < c->n_terms; ++j) {
+        double axis = c->terms[3 * j];
+        double a = c->terms[3 * j + 1], w = TWO_PI * c->terms[3 * j + 2];
+        double s, co;
+        int ax;
+        if (!(axis >= 0 && axis < NQ)) continue;  /* never index with an unchecked value */
+        ax = (int)axis;
+        s = sin(w * t);
+        co = cos(w * t);
+        qd[ax] += a * s;
+        qd[NQ + ax] += a * w * co;
+        qd[2 * NQ + ax] -= a * w * w * s;
+        qd[3 * NQ + ax] -= a * w * w * w * co;
+    }
+    if (c->step_axis >= 0 && c->step_axis < NQ && t >= c->t_step) qd[c->step_axis] += c->step_height;
+}
+
+static int plant_rhs(const excavator_arm_loop_config* c, const double* x, const double* u, double* xdot) {
+    const double* arg[7];
+    double* res[1];
+    arg[0] = x; arg[1] = u; arg[2] = c->theta; arg[3] = c->gamma1; arg[4] = c->gamma2;
+    arg[5] = c->friction; arg[6] = c->tau_valve;
+    res[0] = xdot;
+    return excavator_arm_plant_rhs(arg, res, 0, 0, 0);
+}
+
+static int rk4(const excavator_arm_loop_config* c, double* x, const double* u, double h) {
+    double k1[NX], k2[NX], k3[NX], k4[NX], y[NX];
+    int i;
+    if (plant_rhs(c, x, u, k1)) return 0;
+    for (i = 0; i < NX; ++i) y[i] = x[i] + 0.5 * h * k1[i];
+    if (plant_rhs(c, y, u, k2)) return 0;
+    for (i = 0; i < NX; ++i) y[i] = x[i] + 0.5 * h * k2[i];
+    if (plant_rhs(c, y, u, k3)) return 0;
+    for (i = 0; i < NX; ++i) y[i] = x[i] + h * k3[i];
+    if (plant_rhs(c, y, u, k4)) return 0;
+    for (i = 0; i < NX; ++i) x[i] += h / 6.0 * (k1[i] + 2 * k2[i] + 2 * k3[i] + k4[i]);
+    return 1;
+}
+
+static void set_slot(const excavator_arm_loop_config* c, int s, const double* v, long long n) {
+    if (c->slot[s] >= 0) memcpy(c->ctrl_arg[c->slot[s]], v, (size_t)n * sizeof(double));
+}
+
+static double clip(double v, double lo, double hi) { return v < lo ? lo : (v > hi ? hi : v); }
+
+int excavator_arm_loop_run(const excavator_arm_loop_config* c, excavator_arm_loop_state* st, long long n,
+                     const double* noise, excavator_arm_loop_log* log) {
+    double l_true[NL], l_meas[NL], pc_meas[NL], ldot[NL], qdot_meas[NQ], J[NL * NQ], qd[4 * NQ], u[NL], adapt;
+    double* x = st->x;
+    const double h = c->h, hs = c->h / (double)c->substeps;
+    long long step, j;
+    int i;
+    for (step = 0; step < n; ++step) {
+        const double* nz = noise ? noise + NNOISE * step : 0;  /* row `step` of this call's table */
+        const double t = (double)st->k * h;  /* k h, not a running sum: no drift */
+        /* sensors (JL at the true pose only for the ideal cylinder-rate sensor) */
+        if (c->use_kalman ? leg_lengths(x, l_true) : leg_kinematics(x, l_true, J)) return EXCAVATOR_ARM_CTRL_FAILED;
+        for (i = 0; i < NL; ++i) {
+            l_meas[i] = l_true[i] + (nz ? nz[i] : 0);
+            pc_meas[i] = nz ? clip(x[2 * NQ + i] + nz[NL + i], 0, SUPPLY_PRESSURE[i]) : x[2 * NQ + i];
+        }
+        if (c->use_kalman) {
+            for (i = 0; i < NL; ++i) {  /* predict with [1 h; 0 1], correct with the fixed gain */
+                double lp = st->kf[i] + h * st->kf[NL + i], vp = st->kf[NL + i], r = l_meas[i] - lp;
+                st->kf[i] = lp + c->kf_gain[0] * r;
+                st->kf[NL + i] = vp + c->kf_gain[1] * r;
+                ldot[i] = st->kf[NL + i];
+            }
+        } else {
+            for (i = 0; i < NL; ++i) {
+                ldot[i] = 0;
+                for (j = 0; j < NQ; ++j) ldot[i] += J[i + NL * j] * x[NQ + j];
+            }
+        }
+        /* joint encoders: the pose is measured; JL at the measured pose for the velocities */
+        for (i = 0; i < NQ; ++i) st->q_meas[i] = x[i] + (nz ? nz[2 * NL + i] : 0);
+        {
+            double l_tmp[NL];
+            if (leg_kinematics(st->q_meas, l_tmp, J)) return EXCAVATOR_ARM_CTRL_FAILED;
+        }
+        memcpy(qdot_meas, ldot, sizeof ldot);
+        if (!solve_n(J, qdot_meas)) return EXCAVATOR_ARM_FK_FAILED;
+        /* controller */
+        reference(c, t, qd);
+        adapt = t >= c->t_adapt ? 1.0 : 0.0;
+        set_slot(c, EXCAVATOR_ARM_SLOT_Q, st->q_meas, NQ);
+        set_slot(c, EXCAVATOR_ARM_SLOT_QDOT, qdot_meas, NQ);
+        set_slot(c, EXCAVATOR_ARM_SLOT_PC, pc_meas, NL);
+        set_slot(c, EXCAVATOR_ARM_SLOT_L, l_meas, NL);
+        set_slot(c, EXCAVATOR_ARM_SLOT_QD0, qd, NQ);
+        set_slot(c, EXCAVATOR_ARM_SLOT_QD1, qd + NQ, NQ);
+        set_slot(c, EXCAVATOR_ARM_SLOT_QD2, qd + 2 * NQ, NQ);
+        set_slot(c, EXCAVATOR_ARM_SLOT_QD3, qd + 3 * NQ, NQ);
+        set_slot(c, EXCAVATOR_ARM_SLOT_XC, st->xc, c->n_xc);
+        set_slot(c, EXCAVATOR_ARM_SLOT_ADAPT, &adapt, 1);
+        if (c->ctrl((const double**)c->ctrl_arg, c->ctrl_res, c->ctrl_iw, c->ctrl_w, 0)) return EXCAVATOR_ARM_CTRL_FAILED;
+        memcpy(u, c->ctrl_res[0], sizeof u);
+        if (log) {
+            if (log->t) log->t[st->k] = t;
+            if (log->q) memcpy(log->q + NQ * st->k, x, NQ * sizeof(double));
+            if (log->q_d) memcpy(log->q_d + NQ * st->k, qd, NQ * sizeof(double));
+            if (log->l) memcpy(log->l + NL * st->k, l_true, NL * sizeof(double));
+            if (log->pc) memcpy(log->pc + NL * st->k, x + 2 * NQ, NL * sizeof(double));
+            if (log->u) memcpy(log->u + NL * st->k, u, NL * sizeof(double));
+            if (log->f)
+                for (i = 0; i < NL; ++i)
+                    log->f[NL * st->k + i] = x[2 * NQ + i] * PISTON_AREA[i] - SUPPLY_PRESSURE[i] * ROD_AREA[i];
+            if (log->xc && c->n_xc) memcpy(log->xc + c->n_xc * st->k, st->xc, (size_t)c->n_xc * sizeof(double));
+        }
+        /* plant, zero-order hold on u; 0 <= pc <= ps */
+        for (j = 0; j < c->substeps; ++j) {
+            if (!rk4(c, x, u, hs)) return EXCAVATOR_ARM_CTRL_FAILED;
+            for (i = 0; i < NL; ++i) x[2 * NQ + i] = clip(x[2 * NQ + i], 0, SUPPLY_PRESSURE[i]);
+        }
+        /* controller state: Euler, kept inside the projection bounds */
+        for (j = 0; j < c->n_xc; ++j)
+            st->xc[j] = clip(st->xc[j] + h * c->ctrl_res[1][j], c->xc_lo[j], c->xc_hi[j]);
+        /* a non-finite state stops the run with st->k at the period that produced it */
+        for (i = 0; i < NX; ++i)
+            if (!isfinite(x[i])) return EXCAVATOR_ARM_NONFINITE;
+        for (j = 0; j < c->n_xc; ++j)
+            if (!isfinite(st->xc[j])) return EXCAVATOR_ARM_NONFINITE;
+        st->k += 1;
+        st->t = (double)st->k * h;
+    }
+    return EXCAVATOR_ARM_OK;
+}

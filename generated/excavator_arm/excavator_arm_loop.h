@@ -1,0 +1,97 @@
+/* Closed-loop driver for model excavator_arm: plant, sensors, joint encoders, controller.
+ * Rendered by hydrogen from templates/loop.h.j2; plain C99, no dependency but libm.
+ * Sizes: 3 coordinates, 3 cylinders; plant state x = [q, qdot, pc, spool] (12). */
+#ifndef EXCAVATOR_ARM_LOOP_H
+#define EXCAVATOR_ARM_LOOP_H
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+#define EXCAVATOR_ARM_NQ 3   /* generalized coordinates */
+#define EXCAVATOR_ARM_NL 3   /* cylinders */
+#define EXCAVATOR_ARM_NX 12  /* plant state */
+#define EXCAVATOR_ARM_NNOISE 9  /* noise row: cylinder lengths (m), pressures (Pa), joint angles */
+
+typedef int (*excavator_arm_casadi_fn)(const double** arg, double** res, long long int* iw, double* w, int mem);
+
+/* Input slots of a controller, in this order, in hg_loop_config.slot (-1: not an input). */
+enum { EXCAVATOR_ARM_SLOT_Q, EXCAVATOR_ARM_SLOT_QDOT, EXCAVATOR_ARM_SLOT_PC, EXCAVATOR_ARM_SLOT_L, EXCAVATOR_ARM_SLOT_QD0, EXCAVATOR_ARM_SLOT_QD1, EXCAVATOR_ARM_SLOT_QD2, EXCAVATOR_ARM_SLOT_QD3, EXCAVATOR_ARM_SLOT_XC, EXCAVATOR_ARM_SLOT_ADAPT, EXCAVATOR_ARM_N_SLOTS };
+
+/* Return codes of excavator_arm_loop_run. */
+enum { EXCAVATOR_ARM_OK = 0, EXCAVATOR_ARM_NONFINITE = 1, EXCAVATOR_ARM_FK_FAILED = 2, EXCAVATOR_ARM_CTRL_FAILED = 3 };
+
+typedef struct {
+    /* timing: control period h (s), plant RK4 sub-steps per control period, adaptation on for t >= t_adapt */
+    double h;
+    long long substeps;
+    double t_adapt;
+    /* plant (SI): true theta (boom.mcx, boom.mcz, boom.Iyy, stick.mcx, stick.mcz, stick.Iyy, bucket.mcx, bucket.mcz, bucket.Iyy), gamma1 = beta and gamma2 = beta c per cylinder,
+     * friction [Fc, b, v_s], valve lag (s) */
+    const double* theta;
+    const double* gamma1;
+    const double* gamma2;
+    const double* friction;
+    const double* tau_valve;
+    /* sensors: fixed-gain Kalman filter on cylinder lengths (use_kalman != 0), gain [K_l, K_ldot] */
+    long long use_kalman;
+    double kf_gain[2];
+    /* reference: bias + sum of amplitude sin(2 pi f t) over terms (coordinate, amplitude, frequency),
+     * plus a raw step of step_height on coordinate step_axis (>= 0) at t_step; a coordinate outside
+     * 0..NQ-1 is ignored (the runtime refuses it before a run) */
+    const double* bias;
+    long long n_terms;
+    const double* terms;
+    long long step_axis;
+    double step_height;
+    double t_step;
+    /* controller: generated function, its argument/result tables, work vectors */
+    excavator_arm_casadi_fn ctrl;
+    double** ctrl_arg;
+    double** ctrl_res;
+    long long int* ctrl_iw;
+    double* ctrl_w;
+    long long slot[EXCAVATOR_ARM_N_SLOTS];
+    long long n_xc;              /* controller state size; result 1 is its rate when n_xc > 0 */
+    const double* xc_lo;         /* projection bounds of the controller state */
+    const double* xc_hi;
+    /* forward kinematics (Newton) */
+    double fk_tol;
+    long long fk_max_iter;
+} excavator_arm_loop_config;
+
+typedef struct {
+    double t;                    /* s */
+    long long k;                 /* control periods done */
+    double x[EXCAVATOR_ARM_NX];         /* plant: q, qdot, pc, spool */
+    double q_meas[EXCAVATOR_ARM_NQ];    /* last measured pose (Newton's warm start) */
+    double kf[2 * EXCAVATOR_ARM_NL];    /* Kalman state: cylinder lengths, cylinder rates */
+    double* xc;                  /* controller state, n_xc entries */
+} excavator_arm_loop_state;
+
+typedef struct {                 /* each may be NULL; rows per control period (widths below) */
+    double* t;  /* 1: time, s */
+    double* q;  /* 3: true pose */
+    double* q_d;  /* 3: reference */
+    double* l;  /* 3: true cylinder lengths, m */
+    double* f;  /* 3: cylinder forces, N */
+    double* pc;  /* 3: control pressures, Pa */
+    double* u;  /* 3: spool commands, m */
+    double* xc;  /* n_xc: controller state */
+} excavator_arm_loop_log;
+
+/* Advance n control periods from st. noise: n rows of NNOISE for this call, or NULL. Logs are
+ * written at row st->k (periods since the start of the run), so each log needs at least st->k + n
+ * rows. Returns EXCAVATOR_ARM_OK, or a code with st->k at the failing period (its log row holds the state
+ * before the failing step). */
+int excavator_arm_loop_run(const excavator_arm_loop_config* cfg, excavator_arm_loop_state* st, long long n,
+                     const double* noise, excavator_arm_loop_log* log);
+
+/* Cylinder lengths (m) of n poses: row k of q (NQ) gives row k of l (NL). One call for a whole
+ * trajectory (workspace checks). Returns 0, or 1 if the generated function failed. */
+int excavator_arm_leg_lengths_many(const double* q, long long n, double* l);
+
+#ifdef __cplusplus
+}
+#endif
+#endif

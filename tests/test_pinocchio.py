@@ -1,0 +1,72 @@
+"""D, C, G and the regressor of every URDF-described robot against Pinocchio built from the same URDF."""
+import numpy as np
+import pytest
+
+import hydrogen
+from hydrogen.model import INERTIAL_PARAMETERS
+
+from conftest import MODELS, workspace_poses
+
+pin = pytest.importorskip("pinocchio")
+URDF_MODELS = [m for m in MODELS if hydrogen.load_model(m).urdf is not None]
+
+
+@pytest.fixture(scope="module", params=URDF_MODELS)
+def robot(request, cache):
+    model = hydrogen.load_model(request.param)
+    dyn = hydrogen.build(model, cache=cache)
+    pm = pin.buildModelFromUrdf(str(model.urdf))
+    assert pm.nq == model.n and pm.nv == model.n  # same coordinates: revolute/prismatic joints in tree order
+    return model, dyn, pm, pm.createData()
+
+
+def _states(model, rng, n=10):
+    for q in workspace_poses(model, n, rng, scale=2.0):
+        yield q, rng.normal(size=model.n), rng.normal(size=model.n)
+
+
+def _close(a, b):
+    np.testing.assert_allclose(a, b, rtol=1e-9, atol=1e-9 * max(1.0, np.abs(b).max()))
+
+
+def test_inverse_dynamics_equals_rnea(robot, rng):
+    model, dyn, pm, data = robot
+    th = model.theta
+    for q, v, a in _states(model, rng):
+        tau = pin.rnea(pm, data, q, v, a)
+        _close(dyn.mass_matrix(q, th) @ a + dyn.coriolis(q, v, th) @ v + dyn.gravity(q, th), tau)
+
+
+def test_mass_matrix_equals_crba(robot, rng):
+    model, dyn, pm, data = robot
+    for q, _, _ in _states(model, rng):
+        M = pin.crba(pm, data, q)
+        M = np.triu(M) + np.triu(M, 1).T
+        _close(dyn.mass_matrix(q, model.theta), M)
+
+
+def test_coriolis_and_gravity_equal_pinocchios(robot, rng):
+    model, dyn, pm, data = robot
+    for q, v, _ in _states(model, rng):
+        _close(dyn.gravity(q, model.theta), pin.computeGeneralizedGravity(pm, data, q))
+        _close(dyn.coriolis(q, v, model.theta) @ v,
+               pin.nonLinearEffects(pm, data, q, v) - pin.computeGeneralizedGravity(pm, data, q))
+        _close(dyn.coriolis(q, v, model.theta), pin.computeCoriolisMatrix(pm, data, q, v))
+
+
+def test_regressor_columns_equal_pinocchios_joint_torque_regressor(robot, rng):
+    """Y's column for parameter 'link.p' is Pinocchio's column for that link's dynamic parameter p."""
+    model, dyn, pm, data = robot
+    child = {j.name: j.child for j in model.joints}
+    cols = {}
+    for jid in range(1, pm.njoints):
+        link = child[pm.names[jid]]
+        for k, p in enumerate(INERTIAL_PARAMETERS):
+            cols[f"{link}.{p}"] = 10 * (jid - 1) + k
+    # Pinocchio's parameters must be ours: same inertias from the same URDF
+    pi = np.concatenate([pm.inertias[j].toDynamicParameters() for j in range(1, pm.njoints)])
+    _close(model.theta, pi[[cols[n] for n in model.theta_names]])
+    for q, v, a in _states(model, rng):
+        R = pin.computeJointTorqueRegressor(pm, data, q, v, a)
+        _close(dyn.regressor(q, v, v, a), R[:, [cols[n] for n in model.theta_names]])
+        _close(dyn.regressor(q, v, v, a) @ model.theta + dyn.regressor_offset(q, v, v, a), R @ pi)
