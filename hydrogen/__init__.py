@@ -1,13 +1,14 @@
 """hydrogen: symbolic model of a hydraulic Stewart platform → compiled C → control loop."""
 from .errors import (BuildCacheError, CompilerError, HydrogenError, KinematicsError,
                      ModelError, ScenarioError, SimulationError, StaleGeneratedCodeError,
-                     UnsupportedExpressionError)
+                     OutputPathError, UnsupportedExpressionError)
 from .model import Model, load_model
 
 __all__ = [
     "load_model", "Model", "build", "simulate", "stepper", "sweep",
     "HydrogenError", "ModelError", "UnsupportedExpressionError", "CompilerError",
     "BuildCacheError", "StaleGeneratedCodeError", "KinematicsError", "SimulationError", "ScenarioError",
+    "OutputPathError",
 ]
 __version__ = "0.1.0"
 

@@ -134,7 +134,7 @@ def _check_value(where: str, kind: str, constraint, value):
     if kind == "str":
         if not isinstance(value, str) or not value.isidentifier():
             raise ModelError(f"{where}: expected a name (letters, digits, underscores), got {value!r}")
-        return value
+        from .names import check_identifier; return check_identifier(value, where)  # noqa: E702
     if kind == "float":
         if not _is_number(value):
             raise ModelError(f"{where}: expected a number, got {type(value).__name__} {value!r}")
