@@ -10,6 +10,7 @@ import numpy as np
 
 from ..errors import ScenarioError
 from ..symbolic.layout import STATE_LAYOUT
+from .checks import check_gain_values
 
 __all__ = ["make_controller", "DEFAULT_GAINS", "CONTROLLERS"]
 
@@ -144,6 +145,7 @@ def make_controller(dyn, kind, gains=None, theta0=None, gamma0=None, dbar_pose=N
     theta0 = model.theta if theta0 is None else theta0
     gamma0 = model.gamma if gamma0 is None else gamma0
     g = _gains(kind, gains)
+    check_gain_values(kind, g)
     if kind == "backstepping":
         g.update(theta=np.asarray(theta0, float), gamma=np.asarray(gamma0, float))
     if kind == "adaptive-robust":

@@ -6,6 +6,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from ..errors import ScenarioError
+from .checks import check_fields
 from .reference import MultiSine, Step
 
 __all__ = ["Scenario", "scenario", "SCENARIOS"]
@@ -58,6 +59,7 @@ class Scenario:
         def need(ok, field, what):
             if not ok:
                 raise ScenarioError(f"scenario '{self.name}': {field} {what}, got {getattr(self, field)!r}")
+        check_fields(self)  # types first (a string where a number belongs), then the ranges below
         finite = lambda v: bool(np.all(np.isfinite(np.asarray(v, float))))  # noqa: E731
         need(finite(self.duration) and self.duration > 0, "duration", "must be a finite number > 0 s")
         need(finite(self.control_rate) and self.control_rate > 0, "control_rate", "must be > 0 Hz")
@@ -113,8 +115,8 @@ def scenario(name: str, model) -> Scenario:
         "z-step": lambda: replace(_experiment("z-step", neutral, Step(neutral, 2, 0.02, 1.0), duration=3.0),
                                   metric_start=0.0),
     }
-    if name not in builders:
-        raise ScenarioError(f"unknown scenario '{name}'; choose one of {', '.join(builders)}")
+    if not isinstance(name, str) or name not in builders:
+        raise ScenarioError(f"unknown scenario {name!r}; choose one of {', '.join(builders)}")
     return builders[name]()
 
 
