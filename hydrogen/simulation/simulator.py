@@ -197,7 +197,7 @@ def _describe(x, t, ctrl=None, xc=None, u=None):
         u = np.asarray(u, float)
         bad_u = np.flatnonzero(~np.isfinite(u)).tolist()
         if bad_u:
-            parts.append(f"the command u (spool positions) at entries {bad_u}: u = {u.tolist()}")
+            parts.append(f"the command u (spool positions) is non-finite at entries {bad_u}: u = {u.tolist()}")
     if xc is not None and np.size(xc):
         xc = np.asarray(xc, float)
         names = [""] * xc.size
@@ -206,13 +206,13 @@ def _describe(x, t, ctrl=None, xc=None, u=None):
                 names[i] = f"{block}[{j}]"
         bad_c = np.flatnonzero(~np.isfinite(xc)).tolist()
         if bad_c:
-            parts.append(f"the controller state at {[names[i] or i for i in bad_c]}: xc = {xc.tolist()}")
+            parts.append(f"the controller state is non-finite at {[names[i] or i for i in bad_c]}: xc = {xc.tolist()}")
     bad = np.flatnonzero(~np.isfinite(x)).tolist()
     if bad:
-        parts.append(f"the plant state at entries {bad} (x = [q, qdot, pc, spool]): x = {x.tolist()}")
+        parts.append(f"the plant state is non-finite at entries {bad} (x = [q, qdot, pc, spool]): x = {x.tolist()}")
     if not parts:
-        parts.append(f"a non-finite value inside a step (all signals finite at its end): x = {x.tolist()}")
-    return f"diverged at t = {t:.4f} s: non-finite " + "; ".join(parts)
+        parts.append(f"a value went non-finite inside the step (every signal is finite at its end): x = {x.tolist()}")
+    return f"diverged at t = {t:.4f} s: " + "; ".join(parts)
 
 
 def _make_runner(dyn, sc, ctrl, x0, q0, kf_gain, h):
