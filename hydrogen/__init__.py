@@ -1,13 +1,14 @@
 """hydrogen: symbolic model of a hydraulic robot → compiled C → controller and simulator loop."""
 from .errors import (BuildCacheError, CompilerError, HydrogenError, KinematicsError,
                      ModelError, ScenarioError, SimulationError, StaleGeneratedCodeError,
-                     UnsupportedExpressionError)
+                     OutputPathError, UnsupportedExpressionError)
 from .model import Model, load_model, models
 
 __all__ = [
     "load_model", "models", "Model", "build", "simulate", "stepper", "sweep",
     "HydrogenError", "ModelError", "UnsupportedExpressionError", "CompilerError",
     "BuildCacheError", "StaleGeneratedCodeError", "KinematicsError", "SimulationError", "ScenarioError",
+    "OutputPathError",
 ]
 __version__ = "0.1.0"
 
@@ -38,7 +39,8 @@ def _default_dyn(model=None):
     """Compiled dynamics for ``model``: the library is built once per process and baked model; the
     returned Dynamics carries this very model, so its runtime parameters (θ, γ, bounds) are used."""
     from .dynamics import Dynamics
-    m = model if isinstance(model, Model) else load_model(model)
+    from .simulation.sweep import _model_path
+    m = model if isinstance(model, Model) else load_model(_model_path(model))
     key = m.baked_hash()
     if key not in _DEFAULT_DYN:
         _DEFAULT_DYN[key] = build(m).library

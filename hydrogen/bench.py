@@ -25,6 +25,9 @@ SUITE = (
 
 
 def run_suite(quick: bool = False, json_path: str | None = None, only=None, progress: bool = True) -> dict:
+    unknown = sorted(set(only or ()) - {n for n, _ in SUITE})
+    if unknown:
+        raise HydrogenError(f"unknown benchmark module(s) {unknown}; the suite has {', '.join(n for n, _ in SUITE)}")
     folder = Path(__file__).resolve().parents[1] / "benchmarks"
     if not folder.is_dir():
         raise HydrogenError(f"{folder}: no benchmarks folder; run 'hydrogen bench' from a source checkout")

@@ -38,13 +38,34 @@ def _cmd_generate(args) -> int:
 
 def _cmd_simulate(args) -> int:
     import hydrogen
-    from .fileio import atomic_write
 
-    res = hydrogen.simulate(args.scenario, args.controller, model=args.model, duration=args.duration)
+    from .errors import SimulationError
+    from .outputs import check_output_file, check_plot_path
+    from .simulation.checks import check_run_size
+    from .simulation.scenarios import scenario as named_scenario
+
+    # Everything that can be refused is refused before the run: outputs, then the run's size.
+    if args.json:
+        check_output_file(args.json, "--json")
+    if args.plot:
+        check_plot_path(args.plot, "--plot")
+    model = hydrogen.load_model(args.model)
+    sc = named_scenario(args.scenario, model)
+    if args.duration is not None:
+        sc = sc.with_overrides(duration=args.duration)
+    check_run_size(sc, model, args.controller)
+    try:
+        res = hydrogen.simulate(args.scenario, args.controller, model=model, duration=args.duration)
+    except SimulationError as exc:
+        if exc.result is not None and len(exc.result.t):
+            _write_outputs(args, exc.result, diverged=str(exc))
+        raise
     m = res.metrics
     print(f"scenario {res.scenario}, controller {res.controller}: {m['sim_time_s']:.2f} s simulated "
           f"in {m['wall_time_s'] * 1e3:.1f} ms ({m['sim_time_s'] / max(m['wall_time_s'], 1e-9):.0f}x real time; "
           f"the C loop {m['loop_wall_s'] * 1e3:.1f} ms, the rest setup)")
+    if m.get("metric_note"):
+        print(f"note: {m['metric_note']}")
     print(f"max tracking error over t >= {m['metric_start_s']} s (% of reference amplitude, absolute):")
     for c in res.coordinates:
         pct = m["max_error_pct"][c]
@@ -53,20 +74,36 @@ def _cmd_simulate(args) -> int:
                                         zip(res.theta_names, m["theta_hat_final"], m["theta_error_pct_final"])))
     err = [100 * np.mean(np.asarray(h) / np.asarray(t) - 1) for h, t in zip(m["gamma_hat_final"], m["gamma_true"])]
     print(f"gamma_hat final (mean error over cylinders): beta {err[0]:+.1f} %, beta*c {err[1]:+.1f} %")
+    _write_outputs(args, res)
+    return 0
+
+
+def _write_outputs(args, res, diverged=None) -> None:
+    """--json and --plot of ``res``; a run that diverged is written as far as it went, marked
+    ``"diverged": true`` with the message."""
+    import json
+
+    from .fileio import atomic_write
+
     if args.json:
-        atomic_write(Path(args.json), res.to_json() + "\n")
-        print(f"metrics written to {args.json}")
+        metrics = dict(res.metrics or (res.compute_metrics() if len(res.t) else {}))
+        metrics["diverged"] = diverged is not None
+        if diverged is not None:
+            metrics["error"] = diverged
+        atomic_write(Path(args.json), json.dumps(metrics, indent=2, sort_keys=True) + "\n")
+        print(f"metrics written to {args.json}" + (" (diverged run, as far as it went)" if diverged else ""))
     if args.plot:
         from .figures import plot_tracking_errors
         plot_tracking_errors(res, Path(args.plot))
-        print(f"figure written to {args.plot}")
-    return 0
+        print(f"figure written to {args.plot}" + (" (diverged run, as far as it went)" if diverged else ""))
 
 
 def _cmd_figures(args) -> int:
     import hydrogen
     from .figures import make_all
+    from .outputs import check_output_dir
 
+    check_output_dir(args.out, "figures --out")
     paths = make_all(hydrogen.build(hydrogen.load_model(args.model)), Path(args.out), quiet=args.quiet)
     for name, path in paths.items():
         print(f"{name}: {path}")
@@ -86,7 +123,10 @@ def _cmd_export(args) -> int:
 def _cmd_tune_p(args) -> int:
     from .simulation.tuning import tune_p
 
-    res = tune_p(np.geomspace(args.min, args.max, args.n) if args.n else None, max_workers=args.workers,
+    if args.min >= args.max:
+        raise HydrogenError(f"--min ({args.min:g}) must be below --max ({args.max:g})")
+    custom = args.n or (args.min, args.max) != (_TUNE_MIN, _TUNE_MAX)
+    res = tune_p(np.geomspace(args.min, args.max, args.n or 25) if custom else None, max_workers=args.workers,
                  progress=not args.quiet)
     print(f"{'scenario':9} {'Kleg':>8} {'max err %':>10} {'off-axis':>10} {'sat':>6}  stable")
     for r in res["table"]:
@@ -102,8 +142,33 @@ def _cmd_tune_p(args) -> int:
 
 def _cmd_bench(args) -> int:
     from .bench import run_suite
+    if args.json:
+        from .outputs import check_output_file
+        check_output_file(args.json, "--json")
     run_suite(quick=args.quick, json_path=args.json, only=args.only, progress=not args.quiet)
     return 0
+
+
+_TUNE_MIN, _TUNE_MAX = 0.01, 0.3
+
+
+def _number(kind, low=None, strict=True, high=None):
+    """An argparse type: a finite ``kind`` (> low, or >= low unless strict; <= high), refused with
+    a message naming the value (argparse names the argument and exits with status 2)."""
+    def parse(text):
+        try:
+            value = kind(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"{text!r} is not {'an integer' if kind is int else 'a number'}")
+        if value != value or value in (float("inf"), float("-inf")):
+            raise argparse.ArgumentTypeError(f"{text!r} must be finite")
+        if low is not None and (value <= low if strict else value < low):
+            raise argparse.ArgumentTypeError(f"{text!r} must be {'>' if strict else '>='} {low:g}")
+        if high is not None and value > high:
+            raise argparse.ArgumentTypeError(f"{text!r} must be <= {high:g}")
+        return value
+    parse.__name__ = kind.__name__  # argparse's "invalid int value" wording
+    return parse
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -122,10 +187,11 @@ def build_parser() -> argparse.ArgumentParser:
                          description="Simulate a scenario of the paper with one controller.")
     sim.add_argument("--scenario", default="paper-sim", help="a scenario of the model (default: paper-sim)")
     sim.add_argument("--controller", default="adaptive-robust", choices=CONTROLLERS)
-    sim.add_argument("--duration", type=float, help="simulated time, s (default: the scenario's)")
+    sim.add_argument("--duration", type=_number(float, 0), help="simulated time, s (default: the scenario's)")
     sim.add_argument("--model", help="built-in model name (hydrogen.models()) or TOML file (default: ubc_stewart)")
     sim.add_argument("--json", help="write the metrics as JSON to this file")
-    sim.add_argument("--plot", help="write the tracking-error figure (PNG) to this file")
+    sim.add_argument("--plot", help="write the tracking-error figure to this file; the extension names the "
+                                    "format (.png, .pdf, .svg, ...)")
     sim.set_defaults(func=_cmd_simulate)
     fig = sub.add_parser("figures", help="run every scenario and write the paper's figures and table",
                          description="Counterparts of Figs. 2, 3, 5-8 (PNG) and the comparison table (Markdown).")
@@ -138,17 +204,19 @@ def build_parser() -> argparse.ArgumentParser:
                                    "generation and compile times, in one run.")
     b.add_argument("--quick", action="store_true", help="fewer repeats (about 1 minute)")
     b.add_argument("--json", help="write all results as JSON to this file")
-    b.add_argument("--only", nargs="*", help="run only these modules (bench_loop, bench_functions, bench_build, "
-                                              "bench_flags)")
+    from .bench import SUITE
+    b.add_argument("--only", nargs="*", choices=[n for n, _ in SUITE], metavar="MODULE",
+                   help="run only these modules (bench_loop, bench_functions, bench_build, bench_flags)")
     b.add_argument("--quiet", action="store_true", help="no progress bar")
     b.set_defaults(func=_cmd_bench)
     tp = sub.add_parser("tune-p", help="the documented gain search for the P controller (parallel sweep)",
                         description="Sweep the P gain on the experiment scenarios; pick the largest gain stable "
                                     "on all (see hydrogen/simulation/tuning.py).")
-    tp.add_argument("--min", type=float, default=0.01)
-    tp.add_argument("--max", type=float, default=0.3)
-    tp.add_argument("--n", type=int, default=0, help="grid size (default: the documented 25-point grid)")
-    tp.add_argument("--workers", type=int, help="processes (default: the core count)")
+    tp.add_argument("--min", type=_number(float, 0), default=_TUNE_MIN, help="smallest gain, m/m (> 0)")
+    tp.add_argument("--max", type=_number(float, 0), default=_TUNE_MAX, help="largest gain, m/m (> --min)")
+    tp.add_argument("--n", type=_number(int, 0, strict=False), default=0,
+                    help="grid size (default: the documented 25-point grid)")
+    tp.add_argument("--workers", type=_number(int, 1, strict=False), help="processes (default: the core count)")
     tp.add_argument("--quiet", action="store_true", help="no progress bar")
     tp.set_defaults(func=_cmd_tune_p)
     ex = sub.add_parser("export", help="write deployable C: sources, params.h, main.c, Makefile, CMakeLists.txt",
@@ -157,7 +225,7 @@ def build_parser() -> argparse.ArgumentParser:
     ex.add_argument("--out", required=True, help="output folder (replaced if it holds an earlier export)")
     ex.add_argument("--scenario", default="z-1hz", help="a scenario of the model (default: z-1hz)")
     ex.add_argument("--controller", default="adaptive-robust", choices=CONTROLLERS)
-    ex.add_argument("--duration", type=float, help="simulated time, s (default: the scenario's)")
+    ex.add_argument("--duration", type=_number(float, 0), help="simulated time, s (default: the scenario's)")
     ex.add_argument("--model", help="built-in model name (hydrogen.models()) or TOML file (default: ubc_stewart)")
     ex.set_defaults(func=_cmd_export)
     return parser
@@ -169,6 +237,9 @@ def main(argv=None) -> int:
     try:
         return args.func(args)
     except HydrogenError as exc:
+        print(f"hydrogen {args.command}: error: {exc}", file=sys.stderr)
+        return 2
+    except OSError as exc:  # a file or folder the system refused: one message naming it
         print(f"hydrogen {args.command}: error: {exc}", file=sys.stderr)
         return 2
 

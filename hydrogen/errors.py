@@ -1,8 +1,25 @@
 """Exceptions raised by hydrogen. Each says what went wrong and where."""
 
 
+#: Longest message an error keeps (characters): a message quoting a huge value (a model array of
+#: millions of numbers) is cut in the middle, keeping where it happened and how it ends.
+MAX_MESSAGE_CHARS = 4000
+
+
+def _shorten(message, limit):
+    if not isinstance(message, str) or len(message) <= limit:
+        return message
+    head, tail = message[: limit * 3 // 4], message[-(limit // 5):]
+    return f"{head} [... {len(message) - len(head) - len(tail):,} characters cut ...] {tail}"
+
+
 class HydrogenError(Exception):
     """Base class of every error hydrogen raises on purpose."""
+
+    max_chars = MAX_MESSAGE_CHARS
+
+    def __init__(self, *args):
+        super().__init__(*(_shorten(a, self.max_chars) for a in args))
 
 
 class ModelError(HydrogenError, ValueError):
@@ -14,7 +31,9 @@ class UnsupportedExpressionError(HydrogenError, TypeError):
 
 
 class CompilerError(HydrogenError, RuntimeError):
-    """No C compiler, or the compiler rejected the generated code."""
+    """No C compiler, the compiler rejected the generated code, or it did not finish in time."""
+
+    max_chars = 20000  # the compiler's own output is the useful part
 
 
 class BuildCacheError(HydrogenError, RuntimeError):
@@ -39,3 +58,8 @@ class SimulationError(HydrogenError, RuntimeError):
     def __init__(self, message, result=None):
         super().__init__(message)
         self.result = result
+
+
+class OutputPathError(HydrogenError, FileExistsError):
+    """An output path cannot be written as asked: a file where a folder is needed (or the other way
+    round), a folder holding files hydrogen did not write, or a folder that cannot be written."""

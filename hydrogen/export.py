@@ -39,6 +39,8 @@ __all__ = ["export", "EXPORT_MANIFEST", "TEMPLATE_NAMES"]
 
 #: Metadata file written into every export folder (also marks a folder as an export).
 EXPORT_MANIFEST = "export.json"
+#: Keys of export.json that mark a folder as an earlier export (which may be replaced whole).
+EXPORT_KEYS = ("program", "model_hash", "files")
 #: Templates (in the repository's templates/) rendered into the folder: template -> output name.
 TEMPLATE_NAMES = {"export_params.h.j2": "params.h", "export_main.c.j2": "main.c",
                   "Makefile.j2": "Makefile", "CMakeLists.txt.j2": "CMakeLists.txt"}
@@ -291,9 +293,19 @@ def export(out_dir, scenario="z-1hz", controller="adaptive-robust", model=None, 
     from .simulation.scenarios import scenario as named_scenario
     from .simulation.simulator import _prepare
 
+    from .errors import OutputPathError, ScenarioError
+    from .names import check_identifier, check_label
+    from .outputs import check_replaceable_dir
+
+    # Refused before anything is built or run: the folder must be new, empty or an earlier export.
+    check_replaceable_dir(Path(out_dir).absolute(), EXPORT_MANIFEST, EXPORT_KEYS, "an earlier hydrogen export",
+                          "export --out")
     dyn = _resolve_dyn(model, dyn)
     sc = named_scenario(scenario, dyn.model) if isinstance(scenario, str) else scenario
-    sc_name = sc.name
+    sc_name = getattr(sc, "name", None)
+    # Both names are written into the Makefile, CMakeLists.txt, params.h and main.c.
+    check_identifier(dyn.model.name, "export: model name")
+    check_label(sc_name, "export: scenario name", error=ScenarioError)
     overrides = dict(overrides)
     sensor = sc.with_overrides(**overrides) if overrides else sc
     # The program runs noise-free: prepare exactly what simulate(..., noise_l=0, noise_p=0) prepares.
@@ -352,7 +364,7 @@ def export(out_dir, scenario="z-1hz", controller="adaptive-robust", model=None, 
     out.parent.mkdir(parents=True, exist_ok=True)
     with locked(out.with_name(f".{out.name}")):  # hidden lock file beside the folder
         if out.exists() and (not out.is_dir() or (any(out.iterdir()) and not (out / EXPORT_MANIFEST).is_file())):
-            raise FileExistsError(f"export: {out} exists and is not an earlier export; choose another folder")
+            raise OutputPathError(f"export: {out} exists and is not an earlier export; choose another folder")
         staging = Path(tempfile.mkdtemp(prefix=f".{out.name}.new-", dir=out.parent))
         try:
             staging.chmod(0o755)

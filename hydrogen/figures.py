@@ -42,11 +42,16 @@ def _coord_index(result, coord: str) -> int:
 
 
 def _save(fig, path) -> Path:
-    """Render ``fig`` as PNG into ``path`` atomically and close it; returns the path."""
+    """Render ``fig`` into ``path`` atomically, in the format its extension names (PNG without one), and
+    close it; returns the path. An extension matplotlib cannot write raises OutputPathError."""
     path = Path(path)
     try:
+        fmt = path.suffix[1:].lower() or "png"
+        if fmt not in fig.canvas.get_supported_filetypes():
+            from .outputs import check_plot_path
+            check_plot_path(path)  # raises, naming the formats there are
         buf = io.BytesIO()
-        fig.savefig(buf, format="png", dpi=_DPI)
+        fig.savefig(buf, format=fmt, dpi=_DPI)
         atomic_write(path, buf.getvalue())
     finally:
         plt.close(fig)

@@ -3,13 +3,14 @@ from __future__ import annotations
 
 import os
 import shutil
+import sys
 import tempfile
 from contextlib import contextmanager
 from pathlib import Path
 
 from filelock import FileLock
 
-__all__ = ["atomic_write", "replace_dir", "locked", "recover_dir"]
+__all__ = ["atomic_write", "replace_dir", "locked", "recover_dir", "remove_stale_staging", "lock_timeout"]
 
 
 def atomic_write(path: Path, data: bytes | str) -> None:
@@ -35,9 +36,31 @@ def _backup_of(target: Path) -> Path:
     return target.with_name(f".{target.name}.previous")
 
 
-def recover_dir(target: Path) -> None:
-    """Finish an interrupted :func:`replace_dir`: restore the previous folder if the new one is missing."""
+def remove_stale_staging(target: Path, keep: Path | None = None) -> list:
+    """Remove the hidden staging folders ``.<name>.new-*`` that an interrupted writer of ``target``
+    (killed before its swap) left beside it. Call with the lock of ``target`` held: a staging
+    folder lives only while its writer holds that lock, so any found then is stale."""
     target = Path(target)
+    removed = []
+    try:
+        stale = list(target.parent.glob(f".{target.name}.new-*"))
+    except OSError:
+        return removed
+    for path in stale:
+        if keep is not None and path.name == Path(keep).name:
+            continue  # the staging folder being swapped in right now
+        if path.is_dir() and not path.is_symlink():
+            shutil.rmtree(path, ignore_errors=True)
+            removed.append(path)
+    return removed
+
+
+def recover_dir(target: Path, keep: Path | None = None) -> None:
+    """Finish an interrupted :func:`replace_dir`: restore the previous folder if the new one is missing,
+    and remove staging folders (but ``keep``) left by a writer that was killed (callers hold
+    ``locked(target)``)."""
+    target = Path(target)
+    remove_stale_staging(target, keep)
     backup = _backup_of(target)
     if backup.exists():
         if target.exists():
@@ -54,7 +77,7 @@ def replace_dir(staging: Path, target: Path) -> None:
     (:func:`recover_dir` restores the old one if the swap was cut in half).
     """
     target, staging = Path(target), Path(staging)
-    recover_dir(target)
+    recover_dir(target, keep=staging)
     backup = _backup_of(target)
     if target.exists():
         os.replace(target, backup)
@@ -62,10 +85,70 @@ def replace_dir(staging: Path, target: Path) -> None:
     shutil.rmtree(backup, ignore_errors=True)
 
 
+#: Longest wait for a lock another process holds, s (``$HYDROGEN_LOCK_TIMEOUT`` overrides).
+LOCK_TIMEOUT = 600.0
+#: After this long waiting, say on stderr who holds the lock, s.
+LOCK_NOTICE_AFTER = 1.0
+
+
+def lock_timeout() -> float:
+    """``$HYDROGEN_LOCK_TIMEOUT`` (seconds) if set to a number > 0, else :data:`LOCK_TIMEOUT`."""
+    try:
+        value = float(os.environ.get("HYDROGEN_LOCK_TIMEOUT", ""))
+    except ValueError:
+        return LOCK_TIMEOUT
+    return value if value > 0 and value == value else LOCK_TIMEOUT
+
+
+def _owner_file(lock_file: Path) -> Path:
+    # Not "<lock>.pid": nothing but the lock itself may start with ".<name>." beside a folder.
+    return lock_file.with_name(lock_file.name[:-len(".lock")] + "-lock.owner")
+
+
 @contextmanager
-def locked(path: Path, timeout: float = 600.0):
-    """Hold an exclusive inter-process lock on ``path`` (a ``.lock`` file beside it)."""
+def locked(path: Path, timeout: float | None = None):
+    """Hold an exclusive inter-process lock on ``path`` (a ``.lock`` file beside it).
+
+    The holder writes its PID into a hidden ``-lock.owner`` file beside the lock. A
+    process that waits more than a second says so on stderr ("waiting for the build
+    lock on FOLDER (held by PID n)"); after ``timeout`` s (default :func:`lock_timeout`)
+    it gives up with a :class:`~hydrogen.errors.BuildCacheError`.
+    """
+    from filelock import Timeout
+
+    from .errors import BuildCacheError
+
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    with FileLock(str(path.with_name(f".{path.name}.lock")), timeout=timeout):  # hidden, git-ignored
+    timeout = lock_timeout() if timeout is None else float(timeout)
+    lock_file = path.with_name(f".{path.name}.lock")  # hidden, git-ignored
+    owner = _owner_file(lock_file)
+    lock = FileLock(str(lock_file))
+    try:
+        lock.acquire(timeout=min(LOCK_NOTICE_AFTER, timeout))
+    except Timeout:
+        try:
+            holder = f"PID {int(owner.read_text().split()[0])}"
+        except (OSError, ValueError, IndexError):
+            holder = "another process"
+        print(f"hydrogen: waiting for the build lock on {path} (held by {holder}; "
+              f"giving up after {timeout:g} s)", file=sys.stderr, flush=True)
+        try:
+            lock.acquire(timeout=max(timeout - LOCK_NOTICE_AFTER, 0.0))
+        except Timeout:
+            raise BuildCacheError(
+                f"{path}: gave up waiting {timeout:g} s for its lock {lock_file} (held by {holder}). "
+                "Wait for that process to finish or stop it; set HYDROGEN_LOCK_TIMEOUT (seconds) to wait "
+                "longer") from None
+    try:
+        try:
+            owner.write_text(f"{os.getpid()}\n")
+        except OSError:
+            pass  # the PID is a courtesy for waiters; the lock itself is held
         yield
+    finally:
+        try:
+            owner.unlink(missing_ok=True)
+        except OSError:
+            pass
+        lock.release()

@@ -311,14 +311,9 @@ class _Reader:
 
 
 def check_model_name(source: str, value) -> str:
-    """A model name becomes C symbols and file names: letters, digits and single underscores,
-    starting with a letter, at most 64 characters."""
-    import re
-    if not isinstance(value, str) or not re.fullmatch(r"[A-Za-z](?:_?[A-Za-z0-9])*", value) or len(value) > 64:
-        raise ModelError(f"{source}: name: expected a name of ASCII letters, digits and single underscores, "
-                         f"starting with a letter and not ending with '_', at most 64 characters; "
-                         f"got {_quote(value)}")
-    return value
+    """A model name becomes C symbols and file names (:func:`hydrogen.names.check_identifier`)."""
+    from .names import check_identifier
+    return check_identifier(value, f"{source}: name")
 
 
 def _inertia_matrix(r: _Reader, where, value) -> np.ndarray:

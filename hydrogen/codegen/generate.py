@@ -16,6 +16,9 @@ from pathlib import Path
 
 from ..errors import StaleGeneratedCodeError
 from ..fileio import locked, recover_dir, replace_dir
+from ..names import check_identifier
+from ..outputs import check_replaceable_dir
+from ..resources import templates_dir
 
 # SymPy, CasADi and the derivation are imported where code is generated, not at import: the
 # runtime imports this module for the staleness check only, and stays free of both.
@@ -26,12 +29,14 @@ __all__ = [
 ]
 
 MANIFEST = "manifest.json"
+#: Keys every manifest holds: a folder whose manifest has them is a generated folder (may be replaced).
+GENERATED_KEYS = ("model_hash", "derivation_hash", "functions")
 FORMAT_VERSION = 1
 CODEGEN_OPTIONS = {"with_header": True, "casadi_int": "long long int", "casadi_real": "double",
                    "verbose": True}
 
 _PACKAGE = Path(__file__).resolve().parent.parent
-TEMPLATES = _PACKAGE.parent / "templates"
+TEMPLATES = templates_dir()  # top-level templates/ of a checkout, hydrogen/_templates when installed
 #: C drivers rendered from templates/ next to the generated functions: (template, output suffix).
 DRIVERS = (("loop.h.j2", "_loop.h"), ("loop.c.j2", "_loop.c"))
 
@@ -48,8 +53,8 @@ def derivation_hash() -> str:
         path = TEMPLATES / name
         if not path.is_file():
             raise StaleGeneratedCodeError(
-                f"{path}: template not found; hydrogen generates code from a source checkout "
-                "(install it with 'pip install -e .' from the repository)")
+                f"{path}: template not found; the installation is incomplete (reinstall hydrogen: "
+                "'pip install .' or 'pip install -e .' from the repository, or the wheel)")
         h.update(f"templates/{name}\0".encode())
         h.update(path.read_bytes())
     return h.hexdigest()
@@ -170,6 +175,7 @@ def generate(model, out_dir: Path, force: bool = False, progress: bool = False) 
     under a lock; concurrent callers wait, then find it current.
     """
     out_dir = Path(out_dir)
+    check_replaceable_dir(out_dir, MANIFEST, GENERATED_KEYS, "a hydrogen generated folder")  # before the lock file
     with locked(out_dir):
         return generate_locked(model, out_dir, force, progress)
 
@@ -177,9 +183,11 @@ def generate(model, out_dir: Path, force: bool = False, progress: bool = False) 
 def generate_locked(model, out_dir: Path, force: bool = False, progress: bool = False) -> bool:
     """:func:`generate` for a caller that already holds ``locked(out_dir)``."""
     out_dir = Path(out_dir)
+    check_identifier(model.name, "model name")  # it becomes C symbols, file names and build-file text
     recover_dir(out_dir)
     if not force and not check(model, out_dir):
         return False
+    check_replaceable_dir(out_dir, MANIFEST, GENERATED_KEYS, "a hydrogen generated folder", probe=False)  # even forced
     out_dir.parent.mkdir(parents=True, exist_ok=True)
     staging = Path(tempfile.mkdtemp(prefix=f".{out_dir.name}.new-", dir=out_dir.parent))
     staging.chmod(0o755)  # mkdtemp makes it private; generated code is for everyone

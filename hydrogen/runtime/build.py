@@ -4,9 +4,9 @@ from __future__ import annotations
 from pathlib import Path
 
 from ..codegen.generate import check, derivation_hash, generate_locked, read_manifest
-from ..fileio import locked
 from ..errors import BuildCacheError
 from ..model import Model, load_model
+from .cachedir import cache_errors, check_cache_root, folder_lock, warm_library
 from .compiler import Toolchain, cache_root, compile_library
 from .library import GeneratedLibrary
 
@@ -14,8 +14,9 @@ __all__ = ["build", "repo_generated_dir", "generated_dir_for"]
 
 
 def repo_generated_dir() -> Path:
-    """The committed ``generated/`` folder of a source checkout (may not exist when installed)."""
-    return Path(__file__).resolve().parents[2] / "generated"
+    """The committed ``generated/`` folder (``hydrogen/_generated`` when installed from a wheel)."""
+    from ..resources import committed_generated_dir
+    return committed_generated_dir()
 
 
 def generated_dir_for(model: Model, cache: Path | None = None) -> Path:
@@ -52,11 +53,16 @@ def build(model: Model | str | Path | None = None, *, cc: str | None = None,
 
     if not isinstance(model, Model):
         model = load_model(model)
+    root = check_cache_root(Path(cache or cache_root()))
     folder = Path(generated) if generated else generated_dir_for(model, cache)
     toolchain = Toolchain(**{k: v for k, v in (("cc", cc), ("cflags", cflags)) if v is not None})
+    warm = warm_library(model, folder, toolchain, root)  # no lock, no write: a read-only cache works
+    if warm is not None:
+        return Dynamics(model, warm)
+    committed = generated is None and folder == repo_generated_dir() / model.name
     # One lock from generation through compilation: the manifest read and the sources compiled
     # are the same generation even if another process regenerates the folder meanwhile.
-    with locked(folder):
+    with cache_errors(root), folder_lock(folder, current=committed):
         generate_locked(model, folder)  # no-op when current
         manifest = read_manifest(folder)
         if manifest is None:

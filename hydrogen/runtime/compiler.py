@@ -43,13 +43,58 @@ def cache_root() -> Path:
     return (Path(xdg) if xdg else Path.home() / ".cache") / "hydrogen"
 
 
+#: Longest one compiler call may take, s (``$HYDROGEN_CC_TIMEOUT`` or ``Toolchain(timeout=...)`` overrides).
+COMPILE_TIMEOUT = 600.0
+
+
+def _default_timeout() -> float:
+    text = os.environ.get("HYDROGEN_CC_TIMEOUT")
+    if text is None:
+        return COMPILE_TIMEOUT
+    try:
+        value = float(text)
+    except ValueError:
+        value = float("nan")
+    if not (value > 0 and value < float("inf")):
+        raise CompilerError(f"HYDROGEN_CC_TIMEOUT must be a number of seconds > 0, got {text!r}")
+    return value
+
+
+def _flags(value, what: str) -> tuple:
+    """Compiler flags as a tuple of strings: a string is split as a shell would split it."""
+    if isinstance(value, str):
+        return tuple(shlex.split(value))
+    try:
+        flags = tuple(value)
+    except TypeError:
+        raise CompilerError(f"{what} must be a string or a sequence of strings, got {value!r}") from None
+    if not all(isinstance(f, str) for f in flags):
+        raise CompilerError(f"{what} must hold strings only, got {value!r}")
+    return flags
+
+
 @dataclass(frozen=True)
 class Toolchain:
-    """A C compiler and its flags. ``cc`` defaults to ``$CC`` or ``cc``."""
+    """A C compiler and its flags. ``cc`` defaults to ``$CC`` or ``cc``.
+
+    ``cflags`` and ``warnings`` may be sequences of strings or one string (split like a shell
+    would: ``"-O2 -fPIC"``). ``timeout`` bounds each compiler call (default 600 s, or
+    ``$HYDROGEN_CC_TIMEOUT``); a compiler that takes longer is stopped with a :class:`CompilerError`.
+    """
 
     cc: str = field(default_factory=lambda: os.environ.get("CC", "cc"))
     cflags: tuple = DEFAULT_CFLAGS
     warnings: tuple = WARNING_FLAGS
+    timeout: float = field(default_factory=_default_timeout, compare=False)
+
+    def __post_init__(self):
+        if not isinstance(self.cc, str) or not self.cc.strip():
+            raise CompilerError(f"cc must be the compiler's name or path (a string), got {self.cc!r}")
+        object.__setattr__(self, "cflags", _flags(self.cflags, "cflags"))
+        object.__setattr__(self, "warnings", _flags(self.warnings, "warnings"))
+        t = self.timeout
+        if isinstance(t, bool) or not isinstance(t, (int, float)) or not (0 < t < float("inf")):
+            raise CompilerError(f"timeout must be a number of seconds > 0, got {t!r}")
 
     def executable(self) -> str:
         argv = shlex.split(self.cc)
@@ -64,9 +109,13 @@ class Toolchain:
         """The compiler's own version text, part of the cache key."""
         exe = self.executable()
         try:
-            out = subprocess.run([exe, "--version"], capture_output=True, text=True, timeout=30)
+            out = subprocess.run([exe, "--version"], capture_output=True, text=True,
+                                 timeout=min(30.0, self.timeout))
         except OSError as exc:
             raise CompilerError(f"C compiler '{exe}' cannot be run: {exc}") from None
+        except subprocess.TimeoutExpired:
+            raise CompilerError(f"C compiler '{exe} --version' did not answer within "
+                                f"{min(30.0, self.timeout):g} s") from None
         return f"{exe}\n{out.stdout}"
 
     def argv(self) -> list:
@@ -87,11 +136,15 @@ def _sha256(path: Path) -> str:
     return hashlib.sha256(Path(path).read_bytes()).hexdigest()
 
 
-def _run(argv: list, what: str):
+def _run(argv: list, what: str, timeout: float | None = None):
     try:
-        proc = subprocess.run(argv, capture_output=True, text=True)
+        proc = subprocess.run(argv, capture_output=True, text=True, timeout=timeout)
     except OSError as exc:
         raise CompilerError(f"cannot run the C compiler for {what}: {exc}") from None
+    except subprocess.TimeoutExpired:
+        raise CompilerError(
+            f"C compiler did not finish {what} within {timeout:g} s and was stopped:\n$ {shlex.join(argv)}\n"
+            "Set HYDROGEN_CC_TIMEOUT (seconds) or Toolchain(timeout=...) to allow longer.") from None
     if proc.returncode != 0:
         raise CompilerError(
             f"C compiler failed on {what} (exit {proc.returncode}):\n$ {shlex.join(argv)}\n"
@@ -131,15 +184,20 @@ def compile_library(sources: list, name: str, toolchain: Toolchain | None = None
         build_dir.mkdir(parents=True, exist_ok=True)
         for old in build_dir.glob("*.so"):  # a corrupt or superseded build
             old.unlink(missing_ok=True)
+        for old in build_dir.glob("tmp*"):  # object folders of a build that was killed (we hold the lock)
+            if old.is_dir():
+                shutil.rmtree(old, ignore_errors=True)
         argv = toolchain.argv()
         with tempfile.TemporaryDirectory(dir=build_dir) as tmp:
             objects = [Path(tmp) / (s.stem + ".o") for s in sources]
             with ThreadPoolExecutor(max_workers=jobs or os.cpu_count() or 1) as pool:
-                list(pool.map(lambda so: _run([*argv, "-c", str(so[0]), "-o", str(so[1])], so[0].name),
+                list(pool.map(lambda so: _run([*argv, "-c", str(so[0]), "-o", str(so[1])], so[0].name,
+                                              toolchain.timeout),
                               zip(sources, objects)))
             lib_name = f"lib{name}_{key[:16]}_{secrets.token_hex(4)}.so"
             tmp_lib = Path(tmp) / lib_name
-            _run([*argv, "-shared", *map(str, objects), "-o", str(tmp_lib), "-lm"], f"linking {lib_name}")
+            _run([*argv, "-shared", *map(str, objects), "-o", str(tmp_lib), "-lm"], f"linking {lib_name}",
+                 toolchain.timeout)
             os.replace(tmp_lib, build_dir / lib_name)
         atomic_write(build_dir / "build.json", json.dumps(
             {"library": lib_name, "sha256": _sha256(build_dir / lib_name),

@@ -54,6 +54,18 @@ def _ptr(a: np.ndarray):
     return a.ctypes.data_as(_D)
 
 
+def _check_reference_indices(ref, n):
+    """Refuse, before any C runs, a reference whose bias or axes would index the C arrays out of range."""
+    if np.shape(ref.bias) != (n,):
+        raise ValueError(f"reference bias must hold {n} numbers, got shape {np.shape(ref.bias)}")
+    axes = [t[0] for t in getattr(ref, "terms", ())]
+    if hasattr(ref, "axis"):
+        axes.append(ref.axis)
+    for a in axes:
+        if isinstance(a, bool) or not float(a).is_integer() or not 0 <= int(a) < n:
+            raise ValueError(f"reference axis {a!r} is outside 0..{n - 1}; the C loop would index out of range")
+
+
 class LoopRunner:
     """One configured closed loop: plant parameters, reference, sensors and a controller runtime.
 
@@ -96,6 +108,7 @@ class LoopRunner:
         if kalman_gain is not None:
             cfg.kf_gain[0], cfg.kf_gain[1] = kalman_gain
         ref = reference
+        _check_reference_indices(ref, len(dyn.model.neutral_pose))  # the C loop indexes qd[] with them
         cfg.bias = _ptr(arr(ref.bias))
         terms = getattr(ref, "terms", ())
         cfg.n_terms = len(terms)

@@ -12,6 +12,7 @@ import numpy as np
 
 from ..controllers import CONTROLLERS, controller as controller_module, function_name
 from ..errors import ScenarioError
+from .checks import check_gain_values
 
 __all__ = ["make_controller", "default_gains", "CONTROLLERS", "gain_scale"]
 
@@ -141,5 +142,6 @@ def make_controller(dyn, kind, gains=None, theta0=None, gamma0=None):
     theta0 = model.theta if theta0 is None else np.asarray(theta0, float)
     gamma0 = model.gamma if gamma0 is None else np.asarray(gamma0, float)
     g = _gains(dyn, kind, gains)
+    check_gain_values(kind, g)
     g.update(controller_module(kind).static_inputs(dyn, theta0, gamma0))
     return _Controller(dyn, kind, g, theta0, gamma0, model)

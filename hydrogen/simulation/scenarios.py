@@ -8,6 +8,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from ..errors import ScenarioError
+from .checks import check_fields
 from .reference import MultiSine, Step
 
 __all__ = ["Scenario", "scenario", "scenario_names"]
@@ -63,6 +64,7 @@ class Scenario:
         def need(ok, field, what):
             if not ok:
                 raise ScenarioError(f"scenario '{self.name}': {field} {what}, got {getattr(self, field)!r}")
+        check_fields(self)  # types first (a string where a number belongs), then the ranges below
         finite = lambda v: bool(np.all(np.isfinite(np.asarray(v, float))))  # noqa: E731
         need(finite(self.duration) and self.duration > 0, "duration", "must be a finite number > 0 s")
         need(finite(self.control_rate) and self.control_rate > 0, "control_rate", "must be > 0 Hz")
@@ -73,9 +75,7 @@ class Scenario:
              "must be (Coulomb >= 0 N, viscous >= 0 N s/m, smoothing speed > 0 m/s)")
         for f in ("valve_lag", "noise_l", "noise_q", "noise_p", "kalman_accel"):
             need(finite(getattr(self, f)) and getattr(self, f) >= 0, f, "must be finite and >= 0")
-        n = len(np.asarray(self.reference.bias))
-        need(np.shape(self.q0_offset) == (n,) and finite(self.q0_offset), "q0_offset",
-             f"must be {n} finite numbers (one per coordinate)")
+        need(finite(self.q0_offset), "q0_offset", "must be finite numbers (one per coordinate)")
         return self
 
 

@@ -8,6 +8,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..errors import KinematicsError, SimulationError
+from .checks import check_against_model, check_call, check_run_size, checked_float, metric_window
 from .control import make_controller
 from .scenarios import Scenario, scenario as named_scenario
 
@@ -51,8 +52,8 @@ class SimulationResult:
     def compute_metrics(self) -> dict:
         """Max error in % of each coordinate's reference amplitude (None where it has none), RMS error,
         final parameter estimates, over t ≥ metric_start."""
-        sel = self.t >= self.metric_start - 1e-12
-        e = self.error[sel] if sel.any() else self.error
+        sel, start, note = metric_window(self.t, self.metric_start)  # clamped to the run, and said so
+        e = self.error[sel]
         n = self.q.shape[1]
         coords = self.coordinates or tuple(f"q{i}" for i in range(n))
         max_abs = np.abs(e).max(axis=0) if len(e) else np.full(n, np.nan)
@@ -72,8 +73,10 @@ class SimulationResult:
             "sim_time_s": float(self.t[-1] - self.t[0]) if len(self.t) else 0.0,
             "wall_time_s": float(self.wall_time_s),
             "loop_wall_s": float(self.loop_wall_s),
-            "metric_start_s": self.metric_start,
+            "metric_start_s": start,
         }
+        if note:
+            self.metrics["metric_note"] = note
         return self.metrics
 
     def to_json(self) -> str:
@@ -143,16 +146,20 @@ class _Prepared:
     gamma0: np.ndarray
 
 
-def _prepare(dyn, scenario, controller, gains, duration, check_workspace, overrides) -> _Prepared:
-    """Scenario, controller runtime, initial state and noise table shared by every engine."""
+def _prepare(dyn, scenario, controller, gains, duration, check_workspace, overrides, *,
+             keep_logs=True) -> _Prepared:
+    """Scenario, controller runtime, initial state and noise table shared by every engine
+    (``keep_logs``: the caller keeps a log row per period, counted in the memory bound)."""
     model = dyn.model
+    check_call(scenario, controller, gains, duration, check_workspace)
     sc = named_scenario(scenario, model) if isinstance(scenario, str) else scenario
     overrides = dict(overrides)
     if duration is not None:
-        overrides["duration"] = float(duration)
-    sc = sc.with_overrides(**overrides) if overrides else sc
+        overrides["duration"] = checked_float(duration, "duration", sc.name)
+    sc = sc.with_overrides(**overrides) if overrides else sc.validated()
+    check_against_model(sc, model, controller, dyn)
     h = 1.0 / sc.control_rate
-    n = int(round(sc.duration * sc.control_rate)) + 1
+    n = check_run_size(sc, model, controller, keep_logs)  # before any table of n rows is made
     theta0 = model.theta * np.asarray(sc.theta0_factor)
     gamma0 = model.gamma * np.asarray(sc.gamma0_factor, float)[:, None]
     if controller == "backstepping":
@@ -191,10 +198,31 @@ def _kalman_gain(h, noise_l, accel):
     return K
 
 
-def _describe(x, t):
-    bad = [i for i in range(x.size) if not np.isfinite(x[i])]
-    return (f"diverged at t = {t:.4f} s: non-finite plant state entries {bad} "
-            f"(x = [q, qdot, pc, spool]); state = {np.array2string(x, precision=6, threshold=60)}")
+def _describe(x, t, ctrl=None, xc=None, u=None):
+    """Which signal went non-finite (the command, the controller state, the plant state), where, and
+    the values: the first of them named is where the divergence shows first."""
+    x = np.asarray(x, float)
+    parts = []
+    if u is not None:
+        u = np.asarray(u, float)
+        bad_u = np.flatnonzero(~np.isfinite(u)).tolist()
+        if bad_u:
+            parts.append(f"the command u (spool positions) is non-finite at entries {bad_u}: u = {u.tolist()}")
+    if xc is not None and np.size(xc):
+        xc = np.asarray(xc, float)
+        names = [""] * xc.size
+        for block, sl in (getattr(ctrl, "slices", None) or {}).items():
+            for j, i in enumerate(range(*sl.indices(xc.size))):
+                names[i] = f"{block}[{j}]"
+        bad_c = np.flatnonzero(~np.isfinite(xc)).tolist()
+        if bad_c:
+            parts.append(f"the controller state is non-finite at {[names[i] or i for i in bad_c]}: xc = {xc.tolist()}")
+    bad = np.flatnonzero(~np.isfinite(x)).tolist()
+    if bad:
+        parts.append(f"the plant state is non-finite at entries {bad} (x = [q, qdot, pc, spool]): x = {np.array2string(x, precision=6, threshold=60)}")
+    if not parts:
+        parts.append(f"a value went non-finite inside the step (every signal is finite at its end): x = {np.array2string(x, precision=6, threshold=60)}")
+    return f"diverged at t = {t:.4f} s: " + "; ".join(parts)
 
 
 def _make_runner(dyn, sc, ctrl, x0, q0, kf_gain, h):
@@ -213,7 +241,8 @@ def _loop_failure(code, runner, h):
     if code == LOOP_OK:
         return None
     if code == LOOP_NONFINITE:
-        return _describe(runner.plant_state, (k + 1) * h)
+        return _describe(runner.plant_state, (k + 1) * h, runner.ctrl, runner.xc[: runner.ctrl.xc.size],
+                         np.array(runner.fn._out_views[0]))
     if code == LOOP_FK_FAILED:
         return (f"stopped at t = {k * h:.4f} s: forward kinematics did not converge (or JL is singular) "
                 f"for the measured leg lengths; state = {runner.plant_state.tolist()}")
@@ -277,7 +306,7 @@ def _run_python(dyn, sc, ctrl, x, q0, noise, kf_gain, log, n, h):
             np.clip(x[2 * nq:2 * nq + m], 0.0, ps, out=x[2 * nq:2 * nq + m])  # 0 ≤ p_c ≤ p_s
         ctrl.advance(h)
         if not np.all(np.isfinite(x)) or not np.all(np.isfinite(ctrl.xc)):
-            return k + 1, _describe(x, t + h)
+            return k + 1, _describe(x, t + h, ctrl, ctrl.xc, u)
     return n, None
 
 
@@ -332,7 +361,7 @@ class Stepper:
 
     def __init__(self, dyn, scenario="paper-sim", controller="adaptive-robust", *, gains=None,
                  duration=None, check_workspace=True, **overrides):
-        p = _prepare(dyn, scenario, controller, gains, duration, check_workspace, overrides)
+        p = _prepare(dyn, scenario, controller, gains, duration, check_workspace, overrides, keep_logs=False)
         self.scenario, self.controller, self.h, self.n_max = p.sc, p.ctrl, p.h, p.n
         self._noise = p.noise
         self._runner = _make_runner(dyn, p.sc, p.ctrl, p.x0, p.q0, p.kf_gain, p.h)

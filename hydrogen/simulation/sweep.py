@@ -2,9 +2,31 @@
 from __future__ import annotations
 
 import os
+from collections.abc import Mapping
 from concurrent.futures import Executor, ProcessPoolExecutor
 
 __all__ = ["sweep"]
+
+#: Keys an entry may hold besides the Scenario fields.
+_ENTRY_KEYS = ("scenario", "controller", "gains", "duration", "check_workspace", "engine")
+
+
+def entry_problem(run) -> str | None:
+    """Why one sweep entry cannot run (None when it can): not a dict, an unknown key, or ``model``/
+    ``dyn`` set per entry (the model is one per sweep: ``sweep(..., model=...)``)."""
+    from .scenarios import Scenario
+
+    if not isinstance(run, Mapping):
+        return f"entry must be a dict of simulate() arguments, got {type(run).__name__} {str(run)[:100]!r}"
+    for key in ("model", "dyn"):
+        if key in run:
+            return f"entry sets '{key}'; a sweep runs one model, pass it as sweep(..., model=...)"
+    unknown = sorted(str(k) for k in run if k not in _ENTRY_KEYS and k not in Scenario.__dataclass_fields__)
+    if unknown:
+        return (f"entry has unknown key(s) {unknown}; keys are {', '.join(_ENTRY_KEYS)} and the scenario "
+                f"fields {', '.join(sorted(Scenario.__dataclass_fields__))}")
+    return None
+
 
 def _run_one(job):
     """Worker: build (once per process) and run one simulation; return its metrics or its error."""
@@ -12,6 +34,9 @@ def _run_one(job):
     from ..errors import HydrogenError
 
     model, run = job
+    problem = entry_problem(run)
+    if problem:
+        return {"error": problem}
     run = dict(run)
     scenario = run.pop("scenario", "paper-sim")
     controller = run.pop("controller", "adaptive-robust")
@@ -22,6 +47,8 @@ def _run_one(job):
         if getattr(exc, "result", None) is not None and len(exc.result.t):
             out["failed_at_s"] = float(exc.result.t[-1])
         return out
+    except Exception as exc:  # noqa: BLE001 - one bad entry must not cost the others their results
+        return {"error": f"{type(exc).__name__}: {str(exc).splitlines()[0][:500] if str(exc) else ''}"}
     m = dict(res.metrics)
     m["u_saturation_frac"] = float((abs(res.u) >= 0.999 * res.u_max).mean()) if res.u_max else 0.0
     return m
@@ -32,23 +59,59 @@ def sweep(runs, *, executor: Executor | None = None, max_workers: int | None = N
     """Run each of ``runs`` (dicts of :func:`hydrogen.simulate` arguments: scenario, controller,
     gains, duration, scenario overrides) and return their metrics in order.
 
-    A run that diverges gives ``{"error": message}`` instead of stopping the sweep.
+    A run that fails (it diverges, or its entry is not valid: not a dict, an unknown key, a bad
+    value) gives ``{"error": message}`` in its place and the others still run. Only a malformed
+    call raises (``runs`` not a list of entries, a bad ``executor``, ``max_workers`` or ``model``).
     ``executor`` may be any :class:`concurrent.futures.Executor` (a Dask or Ray
     executor spreads the sweep past one machine); by default a local process pool
     with ``max_workers`` (default: the core count) processes.
     """
     import hydrogen
+    from ..errors import ScenarioError
+
+    if isinstance(runs, (str, bytes, Mapping)) or not hasattr(runs, "__iter__"):
+        raise ScenarioError(f"sweep: runs must be a list of dicts (one per run), got {type(runs).__name__}")
+    if executor is not None and not callable(getattr(executor, "submit", None)):
+        raise ScenarioError(f"sweep: executor must be a concurrent.futures.Executor, got {executor!r}")
+    if max_workers is not None and (isinstance(max_workers, bool) or not isinstance(max_workers, int)
+                                    or max_workers < 1):
+        raise ScenarioError(f"sweep: max_workers must be an integer >= 1, got {max_workers!r}")
     # The Model itself goes to the workers (not its file name): in-memory edits are kept.
-    model = model if isinstance(model, hydrogen.Model) else hydrogen.load_model(model)
+    model = model if isinstance(model, hydrogen.Model) else hydrogen.load_model(_model_path(model))
     from tqdm import tqdm
 
     jobs = [(model, r) for r in runs]
 
     def collect(ex):
-        return list(tqdm(ex.map(_run_one, jobs), total=len(jobs), desc="sweep", unit="run",
-                         disable=None if progress else True))
+        futures = []
+        for job in jobs:
+            try:
+                futures.append(ex.submit(_run_one, job))
+            except Exception as exc:  # noqa: BLE001 - e.g. an entry that cannot be pickled
+                futures.append(exc)
+        out = []
+        for f in tqdm(futures, total=len(jobs), desc="sweep", unit="run", disable=None if progress else True):
+            try:
+                if isinstance(f, Exception):
+                    raise f
+                out.append(f.result())
+            except Exception as exc:  # noqa: BLE001 - this entry's error, in its place
+                out.append({"error": f"{type(exc).__name__}: {str(exc)[:500]}"})
+        return out
 
     if executor is not None:
         return collect(executor)
     with ProcessPoolExecutor(max_workers=max_workers or os.cpu_count() or 1) as pool:
         return collect(pool)
+
+
+def _model_path(model):
+    """``model`` if it can name a model file (None, str or path), else a ScenarioError."""
+    import os
+
+    from ..errors import ScenarioError
+
+    if model is None or isinstance(model, (str, os.PathLike)):
+        return model
+    raise ScenarioError(f"model must be a hydrogen.Model, a path to a model TOML file or None, "
+                        f"got {type(model).__name__} {model!r}"[:300])

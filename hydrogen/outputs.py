@@ -1,0 +1,109 @@
+"""Output paths checked before any work: a run's results are never lost to a path that cannot be written.
+
+Each check raises :class:`~hydrogen.errors.OutputPathError` (a ``FileExistsError`` and a
+``HydrogenError``: the command line prints it as one message, exit status 2) naming the path.
+"""
+from __future__ import annotations
+
+import os
+import tempfile
+from pathlib import Path
+
+from .errors import OutputPathError
+
+__all__ = ["check_output_file", "check_output_dir", "check_replaceable_dir", "plot_formats", "check_plot_path"]
+
+
+def _nearest_existing(path: Path) -> Path:
+    for p in (path, *path.parents):
+        if p.exists() or p.is_symlink():
+            return p
+    return Path(".")
+
+
+def _check_parent(path: Path, what: str) -> None:
+    """The folder that will hold ``path`` exists or can be made, and a file can be created in it."""
+    base = _nearest_existing(path.parent)
+    if not base.is_dir():
+        raise OutputPathError(f"{what} {path}: {base} is a file, so no folder can be made there")
+    try:  # the honest test (permissions, read-only file systems, root): create a file there, remove it
+        fd, probe = tempfile.mkstemp(dir=base, prefix=".hydrogen-probe-")
+        os.close(fd)
+        os.unlink(probe)
+    except OSError as exc:
+        raise OutputPathError(f"{what} {path}: cannot write in {base} ({exc.strerror})") from None
+
+
+def check_output_file(path, what: str = "output file") -> Path:
+    """``path`` can be written as a file: not a folder, not under a file, in a writable folder."""
+    path = Path(path)
+    if str(path) == "" or path.name in ("", ".", ".."):
+        raise OutputPathError(f"{what} {str(path)!r}: needs a file name")
+    if path.is_dir():
+        raise OutputPathError(f"{what} {path}: is a folder; give a file name")
+    if path.exists() and not path.is_file():
+        raise OutputPathError(f"{what} {path}: exists and is not a regular file")
+    _check_parent(path, what)
+    return path
+
+
+def check_output_dir(path, what: str = "output folder") -> Path:
+    """``path`` can be used as a folder hydrogen writes files into: not a file, not under a file, writable."""
+    path = Path(path)
+    if path.exists() and not path.is_dir():
+        raise OutputPathError(f"{what} {path}: is a file; give a folder")
+    if path.is_dir():
+        _check_parent(path / "x", what)
+    else:
+        _check_parent(path, what)
+    return path
+
+
+def check_replaceable_dir(path, marker: str, keys, kind: str, what: str = "output folder", *,
+                          probe: bool = True) -> Path:
+    """``path`` may be replaced whole: missing, empty, or a ``kind`` folder (its JSON ``marker`` file
+    is an object holding every one of ``keys``, as hydrogen writes it). A file, or a folder holding
+    anything else, is refused: its files are never deleted. ``probe``: also check a file can be
+    created beside it."""
+    import json
+
+    path = Path(path)
+    if path.is_symlink() or (path.exists() and not path.is_dir()):
+        raise OutputPathError(f"{what} {path}: is a file (or a link), not a folder; nothing was written. "
+                              "Give a new or empty folder")
+    if path.is_dir():
+        try:
+            entries = [p.name for p in path.iterdir()]
+        except OSError as exc:
+            raise OutputPathError(f"{what} {path}: cannot be read ({exc.strerror})") from None
+        if entries:
+            try:
+                data = json.loads((path / marker).read_text())
+                ok = isinstance(data, dict) and all(k in data for k in keys)
+            except (OSError, ValueError):
+                ok = False
+            if not ok:
+                raise OutputPathError(
+                    f"{what} {path}: holds {len(entries)} entries and is not {kind} (no readable {marker}); "
+                    "it would be replaced whole, so nothing was written. Give a new or empty folder")
+    if probe:
+        _check_parent(path, what)
+    return path
+
+
+def plot_formats() -> dict:
+    """File extensions matplotlib can write (without the dot) -> description."""
+    from matplotlib.figure import Figure
+
+    return dict(Figure().canvas.get_supported_filetypes())
+
+
+def check_plot_path(path, what: str = "--plot") -> Path:
+    """An output file whose extension names a format matplotlib writes (png, pdf, svg, ...)."""
+    path = check_output_file(path, what)
+    ext = path.suffix[1:].lower()
+    formats = plot_formats()
+    if ext not in formats:
+        raise OutputPathError(f"{what} {path}: unknown figure format {path.suffix or '(no extension)'!r}; "
+                              f"use one of {', '.join('.' + f for f in sorted(formats))}")
+    return path

@@ -1,0 +1,96 @@
+"""Cache folder trouble as one message naming the folder, and the lock-free load of a warm build.
+
+* :func:`check_cache_root` refuses a cache root that is a file or sits under one.
+* :func:`cache_errors` turns an ``OSError`` met while generating or compiling into the cache
+  (read-only folder, folder removed meanwhile) into a :class:`~hydrogen.errors.BuildCacheError`
+  that names the folder and how to fix it.
+* :func:`warm_library` loads a library that is already built, for a generated folder that is
+  current, without taking any lock or writing anything: a read-only cache (or a read-only
+  installed package) stays usable once warm.
+* :func:`folder_lock` takes a generated folder's lock, or none for a current folder that
+  cannot be written (the committed code of a read-only installation: nobody regenerates it).
+"""
+from __future__ import annotations
+
+import errno
+from contextlib import ExitStack, contextmanager
+from pathlib import Path
+
+from ..errors import BuildCacheError, CompilerError
+
+__all__ = ["check_cache_root", "cache_errors", "warm_library", "folder_lock"]
+
+_HINT = "set HYDROGEN_CACHE_DIR (or build(cache=...)) to a folder you can write"
+_READ_ONLY = (errno.EACCES, errno.EPERM, errno.EROFS)
+
+
+def check_cache_root(root: Path) -> Path:
+    """``root`` if it can be a cache folder (it may not exist yet), else a BuildCacheError naming it."""
+    root = Path(root)
+    for p in (root, *root.parents):
+        try:
+            if p.exists() and not p.is_dir():
+                what = "is a file" if p == root else f"sits under the file {p}"
+                raise BuildCacheError(f"cache folder {root} {what}; {_HINT}")
+        except OSError as exc:
+            raise BuildCacheError(f"cache folder {root}: cannot inspect {p} ({exc.strerror}); {_HINT}") from None
+    return root
+
+
+@contextmanager
+def cache_errors(root: Path):
+    """Report an ``OSError`` (or a compiler failing because the cache vanished) as one message."""
+    root = Path(root)
+    try:
+        yield
+    except OSError as exc:
+        if isinstance(exc, BuildCacheError):
+            raise
+        where = f" ({exc.filename})" if exc.filename else ""
+        if not root.exists():
+            raise BuildCacheError(f"cache folder {root} was removed during the build{where}; "
+                                  "run again (it is recreated)") from None
+        if exc.errno in _READ_ONLY:
+            raise BuildCacheError(f"cache folder {root} cannot be written{where}: {exc.strerror}; {_HINT} "
+                                  "(a cache that already holds this build is used read-only)") from None
+        raise BuildCacheError(f"cache folder {root}: {exc.strerror or exc}{where}; {_HINT}") from None
+    except CompilerError:
+        if not root.exists():
+            raise BuildCacheError(f"cache folder {root} was removed during the build; "
+                                  "run again (it is recreated)") from None
+        raise
+
+
+def warm_library(model, folder: Path, toolchain, cache_root: Path):
+    """The loaded library already built for the current ``folder``, or None; takes no lock, writes nothing."""
+    from ..codegen.generate import check, read_manifest
+    from .compiler import build_key, cached_library
+    from .library import GeneratedLibrary
+
+    try:
+        folder = Path(folder)
+        if not folder.is_dir() or check(model, folder):
+            return None
+        manifest = read_manifest(folder)
+        sources = [folder / e["source"] for e in manifest["functions"]] \
+            + [folder / d for d in manifest.get("drivers", [])]
+        lib_path = cached_library(Path(cache_root) / "build" / build_key(sources, toolchain))
+        if lib_path is None:
+            return None
+        return GeneratedLibrary(lib_path, manifest, folder)
+    except (OSError, KeyError, TypeError, BuildCacheError):
+        return None  # anything odd: the locked path decides (and reports)
+
+
+@contextmanager
+def folder_lock(folder: Path, current: bool):
+    """``locked(folder)``; for a ``current`` folder whose lock file cannot be created (read-only), no lock."""
+    from ..fileio import locked
+
+    with ExitStack() as stack:
+        try:
+            stack.enter_context(locked(folder))
+        except OSError as exc:
+            if not (current and exc.errno in _READ_ONLY):
+                raise
+        yield

@@ -1,0 +1,252 @@
+"""Every setting of a run checked before anything runs, each failure a ScenarioError naming the field.
+
+Called by :class:`~hydrogen.simulation.scenarios.Scenario` (types and values that need no
+model) and by the simulator's preparation (sizes against the model, initial estimates against
+the projection bounds, the start pose against the legs' stroke, the memory one run may take).
+Robot sizes always come from the model (``len(model.neutral_pose)``, ``len(model.theta)``, the
+number of legs), never from literals.
+"""
+from __future__ import annotations
+
+import numbers
+import os
+from collections.abc import Mapping
+
+import numpy as np
+
+from ..errors import ScenarioError
+
+__all__ = ["check_fields", "check_reference", "check_call", "check_against_model", "check_gain_values",
+           "check_run_size", "run_doubles_per_period", "metric_window", "max_run_bytes", "checked_float",
+           "MAX_RUN_BYTES"]
+
+#: Most memory one run may allocate for its noise table, workspace check and logs, bytes
+#: (``$HYDROGEN_MAX_RUN_BYTES`` overrides). paper-sim's 10 s take about 7 MB.
+MAX_RUN_BYTES = 2 * 1024 ** 3
+
+
+def _shown(v) -> str:
+    text = repr(v)
+    return text if len(text) <= 120 else text[:100] + f"... ({len(text)} characters)"
+
+
+def _fail(name, field, what, value):
+    raise ScenarioError(f"scenario '{name}': {field} {what}, got {_shown(value)}")
+
+
+def _is_real(v) -> bool:
+    return isinstance(v, numbers.Real) and not isinstance(v, (bool, np.bool_))
+
+
+def checked_float(value, field: str, name: str = "(run)") -> float:
+    """``value`` as a float if it is a real number (not a bool, not a string), else ScenarioError."""
+    if not _is_real(value):
+        _fail(name, field, "must be a number", value)
+    return float(value)
+
+
+def _vector(name, field, value, what="must be a sequence of finite numbers") -> np.ndarray:
+    if isinstance(value, (str, bytes)) or isinstance(value, Mapping):
+        _fail(name, field, what, value)
+    try:
+        arr = np.asarray(value)
+    except (TypeError, ValueError):
+        _fail(name, field, what, value)
+    if arr.ndim != 1 or arr.dtype.kind not in "iuf" or not np.all(np.isfinite(arr)):
+        _fail(name, field, what, value)
+    return arr.astype(float)
+
+
+def _finite_ints_axis(name, field, axis, n):
+    if isinstance(axis, (bool, np.bool_)) or not isinstance(axis, numbers.Integral) or not 0 <= int(axis) < n:
+        _fail(name, field, f"must be a coordinate index 0..{n - 1}", axis)
+
+
+def check_reference(ref, name: str, n: int | None = None) -> None:
+    """A MultiSine or Step whose every field the C loop may use is valid: bias of ``n`` finite numbers,
+    axes in 0..n-1 (integers), amplitudes, frequencies, heights and step times finite."""
+    from .reference import MultiSine, Step
+
+    if not isinstance(ref, (MultiSine, Step)):
+        _fail(name, "reference", "must be a hydrogen.simulation.reference.MultiSine or Step", ref)
+    bias = _vector(name, "reference.bias", ref.bias)
+    n = len(bias) if n is None else n
+    if len(bias) != n:
+        _fail(name, "reference.bias", f"must hold {n} numbers (one per coordinate of the model)", ref.bias)
+    if isinstance(ref, MultiSine):
+        terms = ref.terms
+        if isinstance(terms, (str, bytes)) or not hasattr(terms, "__iter__"):
+            _fail(name, "reference.terms", "must be a sequence of (axis, amplitude, frequency Hz)", terms)
+        for j, term in enumerate(terms):
+            if isinstance(term, (str, bytes)) or not hasattr(term, "__len__") or len(term) != 3:
+                _fail(name, f"reference.terms[{j}]", "must be (axis, amplitude, frequency Hz)", term)
+            axis, amp, freq = term
+            _finite_ints_axis(name, f"reference.terms[{j}] axis", axis, n)
+            for what, v in (("amplitude", amp), ("frequency", freq)):
+                if not _is_real(v) or not np.isfinite(v):
+                    _fail(name, f"reference.terms[{j}] {what}", "must be a finite number", v)
+    else:
+        _finite_ints_axis(name, "reference.axis", ref.axis, n)
+        for what in ("height", "t_step"):
+            v = getattr(ref, what)
+            if not _is_real(v) or not np.isfinite(v):
+                _fail(name, f"reference.{what}", "must be a finite number", v)
+
+
+def check_fields(sc) -> None:
+    """Types and values of a Scenario's fields that need no model (called by ``Scenario.validated``)."""
+    name = sc.name
+    if not isinstance(name, str) or not name:
+        raise ScenarioError(f"scenario name must be a non-empty string, got {_shown(name)}")
+    for f in ("duration", "control_rate", "t_adapt", "valve_lag", "noise_l", "noise_p", "kalman_accel",
+              "metric_start"):
+        v = getattr(sc, f)
+        if not _is_real(v) or not np.isfinite(v):
+            _fail(name, f, "must be a finite number", v)
+    if sc.metric_start < 0:
+        _fail(name, "metric_start", "must be >= 0 s", sc.metric_start)
+    if isinstance(sc.substeps, (bool, np.bool_)) or not isinstance(sc.substeps, numbers.Integral):
+        _fail(name, "substeps", "must be an integer >= 1", sc.substeps)
+    if not isinstance(sc.kalman, (bool, np.bool_)):
+        _fail(name, "kalman", "must be True or False", sc.kalman)
+    seed = sc.seed
+    if seed is not None and (isinstance(seed, (bool, np.bool_)) or not isinstance(seed, numbers.Integral)
+                             or seed < 0):
+        _fail(name, "seed", "must be an integer >= 0", seed)
+    _vector(name, "friction", sc.friction, "must be (Coulomb N, viscous N s/m, smoothing speed m/s)")
+    _vector(name, "q0_offset", sc.q0_offset)
+    for f in ("theta0_factor", "gamma0_factor"):
+        v = _vector(name, f, getattr(sc, f), "must be a sequence of finite numbers > 0")
+        if not np.all(v > 0):
+            _fail(name, f, "must be a sequence of finite numbers > 0 (factors on the true parameters)",
+                  getattr(sc, f))
+    if not isinstance(sc.gains, Mapping) or not all(isinstance(g, Mapping) for g in sc.gains.values()):
+        _fail(name, "gains", "must be a dict {controller: {gain: value}}", sc.gains)
+    check_reference(sc.reference, name)
+
+
+def check_call(scenario, controller, gains, duration, check_workspace) -> None:
+    """The arguments of simulate/stepper/export, before anything is built from them."""
+    from .control import CONTROLLERS
+    from .scenarios import Scenario
+
+    if not isinstance(scenario, (str, Scenario)):
+        raise ScenarioError(f"scenario must be a scenario name or a Scenario, got {_shown(scenario)}")
+    if not isinstance(controller, str) or controller not in CONTROLLERS:
+        raise ScenarioError(f"unknown controller {_shown(controller)}; choose one of {', '.join(CONTROLLERS)}")
+    if gains is not None and (not isinstance(gains, Mapping) or not all(isinstance(k, str) for k in gains)):
+        raise ScenarioError(f"gains must be a dict {{gain name: value}}, got {_shown(gains)}")
+    if duration is not None:
+        checked_float(duration, "duration")
+    if not isinstance(check_workspace, (bool, np.bool_)):
+        raise ScenarioError(f"check_workspace must be True or False, got {_shown(check_workspace)}")
+
+
+def _layout(controller, model) -> list:
+    from ..controllers import CONTROLLERS, controller as controller_module
+
+    return controller_module(controller).state_layout(model) if controller in CONTROLLERS else []
+
+
+def _uses_estimates(controller, model) -> bool:
+    return any(block == "theta_hat" for block, _ in _layout(controller, model))
+
+
+def check_against_model(sc, model, controller, dyn=None) -> None:
+    """Sizes against the model, initial estimates inside the projection bounds (controllers that
+    adapt), and the start pose inside the legs' stroke (with ``dyn``)."""
+    name = sc.name
+    n = len(model.neutral_pose)
+    check_reference(sc.reference, name, n)
+    if len(sc.q0_offset) != n:
+        _fail(name, "q0_offset", f"must hold {n} numbers (one per coordinate)", sc.q0_offset)
+    for f, size in (("theta0_factor", model.n_theta), ("gamma0_factor", len(model.gamma))):
+        if len(getattr(sc, f)) != size:
+            _fail(name, f, f"must hold {size} factors (one per parameter)", getattr(sc, f))
+    if _uses_estimates(controller, model):
+        theta0 = model.theta * np.asarray(sc.theta0_factor, float)
+        gamma0 = model.gamma * np.asarray(sc.gamma0_factor, float)[:, None]
+        lo, hi = np.asarray(model.theta_min, float), np.asarray(model.theta_max, float)
+        if np.any(theta0 < lo) or np.any(theta0 > hi):
+            _fail(name, "theta0_factor", f"puts the initial estimates {theta0.tolist()} outside the model's "
+                  f"projection bounds [{lo.tolist()}, {hi.tolist()}]", sc.theta0_factor)
+        bounds = ((model.gamma1_min, model.gamma1_max), (model.gamma2_min, model.gamma2_max))
+        for i, (g, (a, b)) in enumerate(zip(gamma0, bounds)):
+            if np.any(g < a) or np.any(g > b):
+                _fail(name, "gamma0_factor", f"puts gamma{i + 1}'s initial estimates {g.tolist()} outside the "
+                      f"model's projection bounds [{a:.6g}, {b:.6g}]", sc.gamma0_factor)
+    if dyn is not None:
+        q0 = np.asarray(sc.reference(0.0)[0], float) + np.asarray(sc.q0_offset, float)
+        legs = np.asarray(dyn.leg_lengths(q0))
+        bad = ~((legs >= model.leg_min) & (legs <= model.leg_max))
+        if bad.any():
+            i = int(np.nonzero(bad)[0][0])
+            _fail(name, "q0_offset", f"puts the start pose outside the cylinders' stroke (cylinder "
+                  f"'{model.cylinders[i].name}' would be {legs[i]:.4f} m, stroke is [{model.leg_min[i]}, "
+                  f"{model.leg_max[i]}] m)", sc.q0_offset)
+
+
+#: Gains that must be > 0 (divisors or limits); every other gain must be >= 0.
+_POSITIVE_GAINS = ("u_max", "sat_width")
+
+
+def check_gain_values(kind: str, gains: dict) -> None:
+    """No negative gain (a negative gain turns feedback into positive feedback), and u_max, sat_width > 0."""
+    for k, v in gains.items():
+        a = np.asarray(v, float)
+        if k in _POSITIVE_GAINS and not np.all(a > 0):
+            raise ScenarioError(f"controller '{kind}': gain '{k}' must be > 0, got {_shown(v)}")
+        if not np.all(a >= 0):
+            raise ScenarioError(f"controller '{kind}': gain '{k}' must be >= 0, got {_shown(v)}")
+
+
+def max_run_bytes() -> int:
+    """``$HYDROGEN_MAX_RUN_BYTES`` if set to a positive number, else :data:`MAX_RUN_BYTES`."""
+    try:
+        v = float(os.environ.get("HYDROGEN_MAX_RUN_BYTES", ""))
+    except ValueError:
+        return MAX_RUN_BYTES
+    return int(v) if v > 0 and np.isfinite(v) else MAX_RUN_BYTES
+
+
+def run_doubles_per_period(model, controller, keep_logs: bool) -> int:
+    """Doubles one control period costs: the noise table and the workspace check, plus the logs."""
+    n, legs = model.n, model.n_cylinders
+    noise, workspace = 2 * legs + (n if model.joint_encoders else 0), n + legs
+    if not keep_logs:
+        return noise + workspace
+    n_xc = sum(size for _, size in _layout(controller, model))
+    return noise + workspace + 1 + 2 * n + 4 * legs + max(n_xc, 1)  # t, q, q_d, l, f, pc, u, xc
+
+
+def check_run_size(sc, model, controller, keep_logs: bool = True) -> int:
+    """The number of control periods of ``sc``, or a ScenarioError when the run would need more memory
+    than :func:`max_run_bytes`, stating the limit and how to run longer."""
+    periods = float(sc.duration) * float(sc.control_rate)
+    limit = max_run_bytes()
+    per = 8 * run_doubles_per_period(model, controller, keep_logs)
+    lean = 8 * run_doubles_per_period(model, controller, False)
+    if periods + 1 > limit / per:
+        need = (periods + 1) * per
+        longer = (f"Run longer with hydrogen.stepper(...), which keeps no logs ({lean} B per period, up to "
+                  f"{limit // lean:,} periods), reading what you need between steps; "
+                  if keep_logs else "")
+        raise ScenarioError(
+            f"scenario '{sc.name}': duration {sc.duration:g} s at {sc.control_rate:g} Hz is {periods + 1:.4g} "
+            f"control periods, which need {need / 1e9:.3g} GB ({per} B per period); one run may use at most "
+            f"{limit / 1e9:.3g} GB (HYDROGEN_MAX_RUN_BYTES), that is {limit // per:,} periods. {longer}"
+            "split the run into shorter runs (chunks); or raise HYDROGEN_MAX_RUN_BYTES if the memory is there.")
+    return int(round(periods)) + 1
+
+
+def metric_window(t, metric_start: float):
+    """(selection, start, note) for metrics over t >= metric_start. A window that starts after the
+    last simulated period is clamped to the whole run, and ``note`` says so (else None)."""
+    t = np.asarray(t)
+    sel = t >= metric_start - 1e-12
+    if sel.any() or not len(t):
+        return sel, float(metric_start), None
+    end = float(t[-1])
+    note = (f"metric window t >= {metric_start:g} s starts after the last simulated period ({end:g} s); "
+            f"metrics are over the whole run, t >= {float(t[0]):g} s")
+    return np.ones_like(sel), float(t[0]), note
