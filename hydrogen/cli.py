@@ -17,14 +17,14 @@ __all__ = ["main"]
 
 
 def _cmd_generate(args) -> int:
-    from .codegen.generate import check, generate
+    from .codegen.generate import check_output, generate
     from .model import load_model
     from .runtime.build import repo_generated_dir
 
     model = load_model(args.model)
     out = Path(args.out) if args.out else repo_generated_dir() / model.name
     if args.check:
-        reasons = check(model, out)
+        reasons = check_output(model, out)
         if reasons:
             print(f"generated code in {out} is stale:", *reasons, sep="\n  ", file=sys.stderr)
             print("run 'hydrogen generate' to regenerate", file=sys.stderr)
