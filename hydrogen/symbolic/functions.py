@@ -15,7 +15,7 @@ from . import controllers as ctl
 from .constants import PRESSURE_EPS, baked, joints
 from .kinematics import leg_stages, pose_symbols, rate_symbols
 from .plant import plant_rhs
-from .rigid_body import coriolis, gravity, mass_matrix, regressor, theta_symbols
+from .rigid_body import coriolis, gravity, mass_matrix, mass_matrix_inverse, regressor, theta_symbols
 
 __all__ = ["SymbolicFunction", "derive_functions", "PRESSURE_EPS"]
 
@@ -50,7 +50,7 @@ def kinematics_functions(model) -> list:
 
 def rigid_body_functions(model) -> list:
     q, qd = pose_symbols(), _vec("qdot")
-    v, w, a = _vec("v"), _vec("w"), _vec("a")
+    v, w, a, tau = _vec("v"), _vec("w"), _vec("a"), _vec("tau")
     th = theta_symbols()
     g = baked(model.gravity)
     D = mass_matrix(q, th)
@@ -64,6 +64,9 @@ def rigid_body_functions(model) -> list:
         SymbolicFunction("regressor", [("q", q), ("v", v), ("w", w), ("a", a)],
                          [("Y", regressor(q, v, w, a, th, g))],
                          "Y(q, v, w, a) (6x4): Y theta = D a + C(q, v) w + G."),
+        SymbolicFunction("forward_dynamics", [("q", q), ("qdot", qd), ("tau", tau), ("theta", th)],
+                         [("qddot", mass_matrix_inverse(q, th) * (tau - coriolis(D, q, qd) * qd - gravity(th, g)))],
+                         "Forward dynamics qddot = D^-1 (tau - C(q, qdot) qdot - G)."),
     ]
 
 
