@@ -8,6 +8,7 @@ from ..fileio import locked
 from ..errors import BuildCacheError
 from ..model import Model, load_model
 from .compiler import Toolchain, cache_root, compile_library
+from .extension import attach_extension
 from .library import GeneratedLibrary
 
 __all__ = ["build", "repo_generated_dir", "generated_dir_for"]
@@ -34,7 +35,8 @@ def generated_dir_for(model: Model, cache: Path | None = None) -> Path:
 
 
 def build(model: Model | str | Path | None = None, *, cc: str | None = None,
-          cflags: tuple | None = None, cache: Path | None = None, generated: Path | None = None):
+          cflags: tuple | None = None, cache: Path | None = None, generated: Path | None = None,
+          backend: str = "auto"):
     """Generate if stale, compile if needed, load, and return a :class:`~hydrogen.dynamics.Dynamics`.
 
     Parameters
@@ -47,6 +49,10 @@ def build(model: Model | str | Path | None = None, *, cc: str | None = None,
         Cache root (default ``$HYDROGEN_CACHE_DIR`` or ``~/.cache/hydrogen``).
     generated : path
         Use (and regenerate if stale) this generated folder instead of the default.
+    backend : "auto", "extension" or "ctypes"
+        How Python calls the compiled functions: "auto" builds and caches a CPython extension
+        for direct calls and falls back to ctypes (with a warning) when it cannot be built;
+        "extension" makes that an error. ``Dynamics.backend`` tells which is in use.
     """
     from ..dynamics import Dynamics
 
@@ -70,4 +76,5 @@ def build(model: Model | str | Path | None = None, *, cc: str | None = None,
             # A cached build that does not match this runtime (other CasADi, other ABI): rebuild once.
             lib_path = compile_library(sources, model.name, toolchain, cache=cache, force=True)
             lib = GeneratedLibrary(lib_path, manifest, folder)
+    attach_extension(lib, toolchain, cache=cache, backend=backend)
     return Dynamics(model, lib)
