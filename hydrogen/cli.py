@@ -143,8 +143,8 @@ def build_parser() -> argparse.ArgumentParser:
                                    "generation and compile times, in one run.")
     b.add_argument("--quick", action="store_true", help="fewer repeats (about 1 minute)")
     b.add_argument("--json", help="write all results as JSON to this file")
-    b.add_argument("--only", nargs="*", help="run only these modules (bench_loop, bench_functions, bench_build, "
-                                              "bench_flags)")
+    b.add_argument("--only", nargs="*", help="run only these modules (bench_loop, bench_functions, bench_calls, "
+                                              "bench_build, bench_flags)")
     b.add_argument("--quiet", action="store_true", help="no progress bar")
     b.set_defaults(func=_cmd_bench)
     tp = sub.add_parser("tune-p", help="the documented gain search for the P controller (parallel sweep)",
