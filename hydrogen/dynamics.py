@@ -48,7 +48,7 @@ class Dynamics:
     # --- kinematics -------------------------------------------------------------------
     def leg_lengths(self, q, out=None) -> np.ndarray:
         """(6,) leg lengths l(q), m."""
-        return self._leg_lengths(q, out=out)
+        return self._leg_lengths(q) if out is None else self._leg_lengths(q, out=out)
 
     def leg_lengths_many(self, qs) -> np.ndarray:
         """(n, 6) leg lengths (m) of the n poses in the rows of ``qs`` (n, 6): one call into the
@@ -65,7 +65,7 @@ class Dynamics:
 
     def leg_jacobian(self, q, out=None) -> np.ndarray:
         """(6, 6) JL = ∂l/∂q."""
-        return self._leg_jacobian(q, out=out)
+        return self._leg_jacobian(q) if out is None else self._leg_jacobian(q, out=out)
 
     def forward_kinematics(self, l, q0=None, tol: float = 1e-12, max_iter: int = 50,
                            max_cond: float = 1e8) -> np.ndarray:
@@ -102,19 +102,19 @@ class Dynamics:
     # --- rigid body -------------------------------------------------------------------
     def mass_matrix(self, q, theta, out=None) -> np.ndarray:
         """(6, 6) D(q) for parameters θ."""
-        return self._mass_matrix(q, theta, out=out)
+        return self._mass_matrix(q, theta) if out is None else self._mass_matrix(q, theta, out=out)
 
     def coriolis(self, q, qdot, theta, out=None) -> np.ndarray:
         """(6, 6) Christoffel-form C(q, q̇)."""
-        return self._coriolis(q, qdot, theta, out=out)
+        return self._coriolis(q, qdot, theta) if out is None else self._coriolis(q, qdot, theta, out=out)
 
     def gravity(self, q, theta, out=None) -> np.ndarray:
         """(6,) G, N (generalised force; gravity along −z)."""
-        return self._gravity(q, theta, out=out)
+        return self._gravity(q, theta) if out is None else self._gravity(q, theta, out=out)
 
     def regressor(self, q, v, w, a, out=None) -> np.ndarray:
         """(6, 4) Y(q, v, w, a): Y θ = D(q) a + C(q, v) w + G(q)."""
-        return self._regressor(q, v, w, a, out=out)
+        return self._regressor(q, v, w, a) if out is None else self._regressor(q, v, w, a, out=out)
 
     def forward_dynamics(self, q, qdot, tau, theta, out=None) -> np.ndarray:
         """q̈ = D(q)⁻¹ (τ − C(q, q̇) q̇ − G) for generalised forces τ: one generated function.
@@ -122,7 +122,8 @@ class Dynamics:
         Like every method here it takes a batch too: q, q̇, τ of shape (n, …) (θ shared or
         stacked) give q̈ of shape (n, …) from one call into C.
         """
-        return self._forward_dynamics(q, qdot, tau, theta, out=out)
+        f = self._forward_dynamics
+        return f(q, qdot, tau, theta) if out is None else f(q, qdot, tau, theta, out=out)
 
     # --- hydraulics -------------------------------------------------------------------
     def valve_flow(self, u, pc, out=None) -> np.ndarray:
@@ -131,16 +132,19 @@ class Dynamics:
         This is (57) as printed: its roots need 0 ≤ p_c ≤ P_s, and a pressure outside
         that range gives NaN (the simulated plant uses its linearised, signed law instead).
         """
-        return self.functions["valve_flow"](u, pc, out=out)
+        f = self.functions["valve_flow"]
+        return f(u, pc) if out is None else f(u, pc, out=out)
 
     def valve_inverse(self, ql_per_c, pc, out=None) -> np.ndarray:
         """(6,) spool positions u (m) giving q_l / c = ``ql_per_c`` at control pressures p_c."""
-        return self.functions["valve_inverse"](ql_per_c, pc, out=out)
+        f = self.functions["valve_inverse"]
+        return f(ql_per_c, pc) if out is None else f(ql_per_c, pc, out=out)
 
     def pressure_rate(self, l, ldot, pc, u, gamma, out=None) -> np.ndarray:
         """(6,) ṗ_c (Pa/s) of (56)-(57) with γ = [β, βc]."""
-        return self.functions["pressure_rate"](l, ldot, pc, u, gamma, out=out)
+        f = self.functions["pressure_rate"]
+        return f(l, ldot, pc, u, gamma) if out is None else f(l, ldot, pc, u, gamma, out=out)
 
     def leg_force(self, pc, out=None) -> np.ndarray:
         """(6,) leg forces f = p_c A − p_s a, N."""
-        return self.functions["leg_force"](pc, out=out)
+        return self.functions["leg_force"](pc) if out is None else self.functions["leg_force"](pc, out=out)
