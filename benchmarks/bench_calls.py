@@ -14,10 +14,10 @@ One process, one run, side by side, at the inputs of ``benchmarks/common.py``:
   * batches: per-state cost of one call with n = 1, 10, 100, 1000, 10000 stacked states, through
     the extension (new output arrays each call), against the C cost.
 
-Times from Python are timeit repeats (7) of at least 0.02 s each (0.005 s with ``--quick``), the C
-cost the driver's 5 repeats. Both the median and the fastest repeat are recorded; overheads (a
-route's per-call time minus the C cost) and ratios use the fastest repeat on both sides, the one
-least disturbed by other work on a shared machine. No timing is asserted anywhere.
+Times are 31 repeats (11 with ``--quick``) of at least 2 ms each, from Python by timeit and in C by
+the driver (the same template, run with these repeats). Both the median and the fastest repeat are
+recorded; overheads (a route's per-call time minus the C cost) and ratios use the fastest repeat on
+both sides, the one least disturbed by other work on a shared machine. No timing is asserted anywhere.
 
 Run: ``python benchmarks/bench_calls.py [--quick] [--json FILE]`` or ``hydrogen bench --only bench_calls``.
 """
@@ -44,33 +44,34 @@ except ImportError:  # run as a script, or loaded from its path
 
 FUNCTIONS = ("regressor", "forward_dynamics")
 BATCH_SIZES = (1, 10, 100, 1000, 10000)
-REPEATS = 7
-MIN_TIME_S, QUICK_MIN_TIME_S = 0.02, 0.005
+#: Many short repeats, on the Python side and in the C driver alike: on a shared machine the fastest
+#: of them is the one no other process interrupted.
+REPEATS, QUICK_REPEATS = 31, 11
+MIN_TIME_S = 0.002
 
 
-def _time(fn, min_time: float) -> dict:
-    """Seconds per call of ``fn()``: calls per repeat doubled until one repeat takes min_time."""
+def _time(fn, repeats: int) -> dict:
+    """Seconds per call of ``fn()``: calls per repeat doubled until one repeat takes MIN_TIME_S."""
     number = 1
     while True:
         t = timeit.timeit(fn, number=number)
-        if t >= min_time:
+        if t >= MIN_TIME_S:
             break
         number *= 2
-    times = [timeit.timeit(fn, number=number) / number for _ in range(REPEATS)]
+    times = [timeit.timeit(fn, number=number) / number for _ in range(repeats)]
     return {"s": statistics.median(times), "min_s": min(times), "number": number}
 
 
-def c_costs(entries: list, gen_dir: Path, quick: bool) -> dict:
+def c_costs(entries: list, gen_dir: Path, repeats: int) -> dict:
     """ns per call of each entry's generated C (median and min of the repeats), from the driver of
     bench_functions.py."""
     cc = common.require_cc("cc")
-    min_time = bench_functions.QUICK_MIN_TIME_S if quick else bench_functions.MIN_TIME_S
     out = {}
     with tempfile.TemporaryDirectory(prefix="bench_calls_") as tmp:
         for entry in entries:
             driver, exe = Path(tmp) / f"{entry['name']}.c", Path(tmp) / entry["name"]
             driver.write_text(bench_functions.render_driver(entry, common.function_inputs(entry),
-                                                            bench_functions.REPEATS, min_time))
+                                                            repeats, MIN_TIME_S))
             argv = [cc, *common.CFLAGS, "-I", str(gen_dir), str(driver), str(gen_dir / entry["source"]),
                     "-o", str(exe), "-lm"]
             _, proc = bench_functions._compile(argv)
@@ -79,7 +80,7 @@ def c_costs(entries: list, gen_dir: Path, quick: bool) -> dict:
             run = subprocess.run([str(exe)], capture_output=True, text=True, timeout=300)
             if run.returncode != 0:
                 raise RuntimeError(f"the driver of {entry['c_name']} failed:\n{run.stderr}")
-            r = bench_functions._parse(run.stdout, entry, bench_functions.REPEATS)
+            r = bench_functions._parse(run.stdout, entry, repeats)
             out[entry["name"]] = {"median": common.median(r["ns"]), "min": min(r["ns"])}
     return out
 
@@ -99,7 +100,7 @@ def _pinocchio_body(theta):
 
     model = pin.Model()
     joint = model.addJoint(0, pin.JointModelFreeFlyer(), pin.SE3.Identity(), "platform")
-    model.appendBodyToJoint(joint, pin.Inertia(float(theta[0]), np.zeros(3), np.diag(theta[1:4])),
+    model.appendBodyToJoint(joint, pin.Inertia(float(theta[0]), np.zeros(3), np.diag(theta[1:])),
                             pin.SE3.Identity())
     return pin, model, model.createData()
 
@@ -110,13 +111,13 @@ def run(quick: bool = False) -> dict:
     import hydrogen
 
     t_start = time.perf_counter()
-    min_time = QUICK_MIN_TIME_S if quick else MIN_TIME_S
+    repeats = QUICK_REPEATS if quick else REPEATS
     dyn = hydrogen.build()
     dyn_ctypes = hydrogen.build(backend="ctypes")
     manifest = dyn.library.manifest
     gen_dir = Path(dyn.library.generated_dir)
     entries = {e["name"]: e for e in manifest["functions"]}
-    c_ns = c_costs([entries[f] for f in FUNCTIONS], gen_dir, quick)
+    c_ns = c_costs([entries[f] for f in FUNCTIONS], gen_dir, repeats)
     theta = dyn.model.theta
 
     per_call = {}
@@ -147,7 +148,7 @@ def run(quick: bool = False) -> dict:
 
             np.testing.assert_allclose(solve_route(), want, rtol=1e-9)
             routes["D_C_G_then_numpy_solve"] = solve_route
-        per_call[name] = {k: _time(f, min_time) for k, f in routes.items()}
+        per_call[name] = {k: _time(f, repeats) for k, f in routes.items()}
 
     pin_res = None
     try:
@@ -158,13 +159,13 @@ def run(quick: bool = False) -> dict:
         rng = np.random.default_rng(0)
         quat = rng.standard_normal(4)
         qp = np.concatenate([[0.01, -0.02, -2.3], quat / np.linalg.norm(quat)])
-        vp, ap, taup = (0.1 * rng.standard_normal(6) for _ in range(3))
+        vp, ap, taup = (0.1 * rng.standard_normal(pmodel.nv) for _ in range(3))
         pin_res = {
             "version": pin.__version__,
-            "rnea": _time(lambda: pin.rnea(pmodel, pdata, qp, vp, ap), min_time),
+            "rnea": _time(lambda: pin.rnea(pmodel, pdata, qp, vp, ap), repeats),
             "computeJointTorqueRegressor": _time(
-                lambda: pin.computeJointTorqueRegressor(pmodel, pdata, qp, vp, ap), min_time),
-            "aba": _time(lambda: pin.aba(pmodel, pdata, qp, vp, taup), min_time),
+                lambda: pin.computeJointTorqueRegressor(pmodel, pdata, qp, vp, ap), repeats),
+            "aba": _time(lambda: pin.aba(pmodel, pdata, qp, vp, taup), repeats),
         }
 
     batches = {}
@@ -178,14 +179,14 @@ def run(quick: bool = False) -> dict:
                 stacked = [b + 1e-6 * rng.standard_normal((n,) + b.shape) for b in base]
                 if name == "forward_dynamics":
                     stacked[-1] = base[-1]  # one θ for all states
-                t = _time(lambda: method(*stacked), min_time)
+                t = _time(lambda: method(*stacked), repeats)
                 rows[str(n)] = {"per_state_ns": 1e9 * t["s"] / n, "per_state_min_ns": 1e9 * t["min_s"] / n,
                                 "ratio_to_c": 1e9 * t["min_s"] / n / c_ns[name]["min"]}
             batches[name] = rows
 
     return {
         "backend": dyn.backend, "c_ns": c_ns, "per_call": per_call, "pinocchio": pin_res,
-        "batches": batches, "batch_sizes": list(BATCH_SIZES), "repeats": REPEATS, "min_time_s": min_time,
+        "batches": batches, "batch_sizes": list(BATCH_SIZES), "repeats": repeats, "min_time_s": MIN_TIME_S,
         "quick": quick, "wall_s": time.perf_counter() - t_start, "machine": common.machine_info(),
     }
 

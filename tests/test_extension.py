@@ -113,7 +113,7 @@ def test_batch_equals_the_loop_over_states(either, model, rng):
 
 
 def test_one_unstacked_input_broadcasts(either, model, rng):
-    n = 6
+    n = 7
     entry = next(e for e in _entries(either) if e["name"] == "mass_matrix")
     q = _inputs(entry, model, rng, n=n)[0]
     D = either.mass_matrix(q, model.theta)
@@ -188,6 +188,9 @@ def test_nan_rows_are_listed(either, model, rng):
     assert "input 'q' has NaN in 2 of 20 rows: [3, 11]" in msg and "input 'a' has NaN in 1 of 20 rows: [7]" in msg
     with pytest.raises(ValueError, match=r"input 'theta' \(one value shared by all 20 states\) contains NaN"):
         either.mass_matrix(np.nan_to_num(q), np.full(model.theta.size, np.nan))
+    with pytest.raises(ValueError) as err:  # a NaN in a shared input is reported alone
+        either.mass_matrix(q, np.full(model.theta.size, np.nan))
+    assert "shared by all 20 states" in str(err.value) and "rows" not in str(err.value)
     many = np.full_like(q, np.nan)
     with pytest.raises(ValueError, match=r"has NaN in 20 of 20 rows: \[0, 1, .*, 9\] \.\.\."):
         either.leg_lengths(many)

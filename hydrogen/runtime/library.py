@@ -203,19 +203,18 @@ _MAX_LISTED = 10
 
 
 def _check_nan_rows(fn, arrays, batched, n):
-    msgs = []
-    for a, b, name in zip(arrays, batched, fn.in_names):
-        if not n:
-            break
-        if not b:
-            if np.isnan(a).any():
-                msgs.append(f"input '{name}' (one value shared by all {n} states) contains NaN")
-            continue
-        rows = np.flatnonzero(np.isnan(a.reshape(n, -1)).any(axis=1))
-        if rows.size:
-            listed = [int(k) for k in rows[:_MAX_LISTED]]
-            msgs.append(f"input '{name}' has NaN in {rows.size} of {n} rows: {listed}"
-                        f"{' ...' if rows.size > _MAX_LISTED else ''}")
+    """As the extension: a NaN in a shared input is reported alone; else every NaN row of each input."""
+    if not n:
+        return
+    msgs = [f"input '{name}' (one value shared by all {n} states) contains NaN"
+            for a, b, name in zip(arrays, batched, fn.in_names) if not b and np.isnan(a).any()]
+    if not msgs:
+        for a, b, name in zip(arrays, batched, fn.in_names):
+            rows = np.flatnonzero(np.isnan(a.reshape(n, -1)).any(axis=1)) if b else ()
+            if len(rows):
+                listed = [int(k) for k in rows[:_MAX_LISTED]]
+                msgs.append(f"input '{name}' has NaN in {len(rows)} of {n} rows: {listed}"
+                            f"{' ...' if len(rows) > _MAX_LISTED else ''}")
     if msgs:
         raise ValueError(f"{fn.name}: NaN states in a batch: {'; '.join(msgs)}")
 
