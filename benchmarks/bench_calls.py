@@ -12,7 +12,10 @@ One process, one run, side by side, at the inputs of ``benchmarks/common.py``:
   * Pinocchio, when ``import pinocchio`` works: ``pin.rnea``, ``pin.computeJointTorqueRegressor``
     and ``pin.aba`` on one free-flying body with the platform's mass and inertia (θ);
   * batches: per-state cost of one call with n = 1, 10, 100, 1000, 10000 stacked states, through
-    the extension (new output arrays each call), against the C cost.
+    the extension (new output arrays each call), against the C cost; and, timed interleaved, the
+    leg_lengths batch against the library's own C loop over states (``leg_lengths_many``).
+
+The routes of one table are timed interleaved (round robin over their repeats).
 
 Times are 31 repeats (11 with ``--quick``) of at least 2 ms each, from Python by timeit and in C by
 the driver (the same template, run with these repeats). Both the median and the fastest repeat are
@@ -50,16 +53,34 @@ REPEATS, QUICK_REPEATS = 31, 11
 MIN_TIME_S = 0.002
 
 
-def _time(fn, repeats: int) -> dict:
-    """Seconds per call of ``fn()``: calls per repeat doubled until one repeat takes MIN_TIME_S."""
+def _calls_per_repeat(fn) -> int:
     number = 1
-    while True:
-        t = timeit.timeit(fn, number=number)
-        if t >= MIN_TIME_S:
-            break
+    while timeit.timeit(fn, number=number) < MIN_TIME_S:
         number *= 2
-    times = [timeit.timeit(fn, number=number) / number for _ in range(repeats)]
-    return {"s": statistics.median(times), "min_s": min(times), "number": number}
+    return number
+
+
+def _time_all(routes: dict, repeats: int) -> dict:
+    """Seconds per call of each ``fn()`` in ``routes``, the routes' repeats interleaved (round robin),
+    so a change of load on the machine hits them all alike."""
+    numbers = {k: _calls_per_repeat(fn) for k, fn in routes.items()}
+    times = {k: [] for k in routes}
+    for _ in range(repeats):
+        for k, fn in routes.items():
+            times[k].append(timeit.timeit(fn, number=numbers[k]) / numbers[k])
+    return {k: {"s": statistics.median(t), "min_s": min(t), "number": numbers[k]} for k, t in times.items()}
+
+
+def _time(fn, repeats: int) -> dict:
+    return _time_all({"fn": fn}, repeats)["fn"]
+
+
+def _call(fn, args, out=None):
+    """A lambda making the literal call ``fn(x0, x1, ...)`` (or with ``out=o``), as a user writes it:
+    ``lambda: fn(*args, out=out)`` would time the unpacking and a kwargs dict as well."""
+    names = [f"x{i}" for i in range(len(args))]
+    env = {"fn": fn, "o": out, **dict(zip(names, args))}
+    return eval(f"lambda: fn({', '.join(names)}{', out=o' if out is not None else ''})", env)
 
 
 def c_costs(entries: list, gen_dir: Path, repeats: int) -> dict:
@@ -128,15 +149,15 @@ def run(quick: bool = False) -> dict:
         want = method(*args)
         out = np.empty_like(want)
         routes = {
-            "extension": lambda: method(*args),
-            "extension_out": lambda: method(*args, out=out),
-            "extension_function": (lambda f: lambda: f(*args))(dyn.functions[name]),
-            "ctypes": (lambda m: lambda: m(*args))(getattr(dyn_ctypes, name)),
+            "extension": _call(method, args),
+            "extension_out": _call(method, args, out),
+            "extension_function": _call(dyn.functions[name], args),
+            "ctypes": _call(getattr(dyn_ctypes, name), args),
         }
         if dyn.backend != "extension":
             routes = {"ctypes": routes["ctypes"]}
         ext_fn = casadi.external(entry["c_name"], str(dyn.library.path))
-        routes["casadi_external"] = lambda: ext_fn(*args)
+        routes["casadi_external"] = _call(ext_fn, args)
         np.testing.assert_allclose(np.array(ext_fn(*args)).reshape(want.shape, order="F") if want.ndim == 2
                                    else np.array(ext_fn(*args)).ravel(), want, rtol=1e-12)
         if name == "forward_dynamics":
@@ -148,7 +169,7 @@ def run(quick: bool = False) -> dict:
 
             np.testing.assert_allclose(solve_route(), want, rtol=1e-9)
             routes["D_C_G_then_numpy_solve"] = solve_route
-        per_call[name] = {k: _time(f, repeats) for k, f in routes.items()}
+        per_call[name] = _time_all(routes, repeats)
 
     pin_res = None
     try:
@@ -160,15 +181,16 @@ def run(quick: bool = False) -> dict:
         quat = rng.standard_normal(4)
         qp = np.concatenate([[0.01, -0.02, -2.3], quat / np.linalg.norm(quat)])
         vp, ap, taup = (0.1 * rng.standard_normal(pmodel.nv) for _ in range(3))
-        pin_res = {
-            "version": pin.__version__,
-            "rnea": _time(lambda: pin.rnea(pmodel, pdata, qp, vp, ap), repeats),
-            "computeJointTorqueRegressor": _time(
-                lambda: pin.computeJointTorqueRegressor(pmodel, pdata, qp, vp, ap), repeats),
-            "aba": _time(lambda: pin.aba(pmodel, pdata, qp, vp, taup), repeats),
-        }
+        d1, d2, d3 = pdata, pmodel.createData(), pmodel.createData()  # one Data per algorithm
+        pin_res = {"version": pin.__version__, **_time_all({
+            "rnea": lambda: pin.rnea(pmodel, d1, qp, vp, ap),
+            "computeJointTorqueRegressor": lambda: pin.computeJointTorqueRegressor(pmodel, d2, qp, vp, ap),
+            "aba": lambda: pin.aba(pmodel, d3, qp, vp, taup),
+            "dyn_regressor": _call(dyn.regressor, _user_inputs(entries["regressor"])),
+            "dyn_forward_dynamics": _call(dyn.forward_dynamics, _user_inputs(entries["forward_dynamics"])),
+        }, repeats)}
 
-    batches = {}
+    batches, reference = {}, {}
     if dyn.backend == "extension":
         rng = np.random.default_rng(1)
         for name in FUNCTIONS:
@@ -179,14 +201,24 @@ def run(quick: bool = False) -> dict:
                 stacked = [b + 1e-6 * rng.standard_normal((n,) + b.shape) for b in base]
                 if name == "forward_dynamics":
                     stacked[-1] = base[-1]  # one θ for all states
-                t = _time(lambda: method(*stacked), repeats)
+                t = _time(_call(method, stacked), repeats)
                 rows[str(n)] = {"per_state_ns": 1e9 * t["s"] / n, "per_state_min_ns": 1e9 * t["min_s"] / n,
                                 "ratio_to_c": 1e9 * t["min_s"] / n / c_ns[name]["min"]}
             batches[name] = rows
+        # Same conditions, same moment: the batch through the extension against the library's own
+        # C loop over states (the loop driver's <model>_leg_lengths_many, called once through ctypes).
+        if dyn._many is not None:
+            base = _user_inputs(entries["leg_lengths"])[0]
+            for n in BATCH_SIZES[-2:]:
+                stacked = base + 1e-6 * rng.standard_normal((n,) + base.shape)
+                t = _time_all({"extension": _call(dyn.leg_lengths, [stacked]),
+                               "c_loop": _call(dyn.leg_lengths_many, [stacked])}, repeats)
+                reference[str(n)] = {k: 1e9 * v["min_s"] / n for k, v in t.items()}
 
     return {
+        "empty_lambda": _time(lambda: None, repeats),
         "backend": dyn.backend, "c_ns": c_ns, "per_call": per_call, "pinocchio": pin_res,
-        "batches": batches, "batch_sizes": list(BATCH_SIZES), "repeats": repeats, "min_time_s": MIN_TIME_S,
+        "batches": batches, "batch_vs_c_loop": reference, "batch_sizes": list(BATCH_SIZES), "repeats": repeats, "min_time_s": MIN_TIME_S,
         "quick": quick, "wall_s": time.perf_counter() - t_start, "machine": common.machine_info(),
     }
 
@@ -210,14 +242,13 @@ def print_table(res: dict) -> None:
         print(f"Pinocchio {p['version']}, one free-flying body with the platform's mass and inertia:")
         for route in ("rnea", "computeJointTorqueRegressor", "aba"):
             print(f"{'':<18} {'pin.' + route:<26} {1e9 * p[route]['s']:>9.0f} {1e9 * p[route]['min_s']:>8.0f}")
-        ext = res["per_call"]["regressor"].get("extension")
-        if ext:
-            print(f"  dyn.regressor (extension) / pin.rnea: {ext['min_s'] / p['rnea']['min_s']:.2f}; "
-                  f"/ pin.computeJointTorqueRegressor: {ext['min_s'] / p['computeJointTorqueRegressor']['min_s']:.2f}"
-                  " (mins)")
-        fd = res["per_call"]["forward_dynamics"].get("extension")
-        if fd:
-            print(f"  dyn.forward_dynamics (extension) / pin.aba: {fd['min_s'] / p['aba']['min_s']:.2f} (mins)")
+        # hydrogen's calls timed again in the same round as Pinocchio's
+        reg, fd = p["dyn_regressor"], p["dyn_forward_dynamics"]
+        print(f"{'':<18} {'dyn.regressor':<26} {1e9 * reg['s']:>9.0f} {1e9 * reg['min_s']:>8.0f}")
+        print(f"{'':<18} {'dyn.forward_dynamics':<26} {1e9 * fd['s']:>9.0f} {1e9 * fd['min_s']:>8.0f}")
+        print(f"  ({res['backend']}) dyn.regressor / pin.rnea: {reg['min_s'] / p['rnea']['min_s']:.2f}; "
+              f"/ pin.computeJointTorqueRegressor: {reg['min_s'] / p['computeJointTorqueRegressor']['min_s']:.2f}; "
+              f"dyn.forward_dynamics / pin.aba: {fd['min_s'] / p['aba']['min_s']:.2f} (mins)")
     else:
         print("Pinocchio: not importable, not measured")
     if res["batches"]:
@@ -230,6 +261,14 @@ def print_table(res: dict) -> None:
             print(f"{name + ' ns':<18} " + " ".join(f"{rows[str(n)]['per_state_min_ns']:>10.1f}"
                                                     for n in res["batch_sizes"]))
             print(f"{'  x C':<18} " + " ".join(f"{rows[str(n)]['ratio_to_c']:>10.2f}" for n in res["batch_sizes"]))
+    if res.get("batch_vs_c_loop"):
+        print("leg_lengths batch through the extension vs the library's C loop over states (leg_lengths_many), "
+              "interleaved, min ns per state:")
+        for n, r in res["batch_vs_c_loop"].items():
+            print(f"  n={n:<6} extension {r['extension']:.1f}, C loop {r['c_loop']:.1f}: "
+                  f"ratio {r['extension'] / r['c_loop']:.2f}")
+    print(f"every Python time includes timeit's call of a lambda: {1e9 * res['empty_lambda']['min_s']:.0f} ns "
+          f"(min) for an empty one; not subtracted above")
     print(f"whole benchmark {res['wall_s']:.1f} s")
 
 
