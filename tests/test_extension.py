@@ -279,6 +279,20 @@ def test_failed_extension_build_falls_back_to_ctypes(model, cache, monkeypatch):
 
 
 @NEEDS_EXTENSION
+def test_any_extension_failure_falls_back_but_not_when_the_extension_is_required(model, cache, monkeypatch):
+    def broken_render(context):
+        raise KeyError("a template variable")
+
+    key = ext.abi_key()
+    monkeypatch.setattr(ext, "abi_key", lambda: {**key, "test": "render-raises"})
+    monkeypatch.setattr(ext, "render", broken_render)
+    with pytest.warns(RuntimeWarning, match="using ctypes calls .*KeyError"):
+        assert hydrogen.build(model, cache=cache).backend == "ctypes"
+    with pytest.raises(hydrogen.BuildCacheError, match="cannot be used: KeyError"):
+        hydrogen.build(model, cache=cache, backend="extension")
+
+
+@NEEDS_EXTENSION
 def test_extension_is_rebuilt_when_the_python_abi_changes(model, cache, dyn, monkeypatch):
     first = dyn.library.extension_path
     assert hydrogen.build(model, cache=cache).library.extension_path == first  # cached

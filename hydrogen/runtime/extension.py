@@ -20,7 +20,7 @@ import sysconfig
 import warnings
 from pathlib import Path
 
-from ..errors import BuildCacheError, CompilerError
+from ..errors import BuildCacheError
 from .compiler import Toolchain, compile_extension
 
 __all__ = ["attach_extension", "build_extension", "load_extension", "bind_functions", "abi_key",
@@ -164,8 +164,9 @@ def attach_extension(library, toolchain: Toolchain | None = None, cache: Path | 
             library.extension_functions = bind_functions(module, library)
             library.extension_path, library.backend = path, "extension"
             return "extension"
-        except (CompilerError, BuildCacheError, ImportError, OSError) as exc:
-            reason = f"{type(exc).__name__}: {str(exc).strip().splitlines()[0] if str(exc).strip() else ''}"
+        except Exception as exc:  # noqa: BLE001 - an optional accelerator: any failure means ctypes
+            text = str(exc).strip()
+            reason = f"{type(exc).__name__}: {text.splitlines()[0] if text else ''}"
     if backend == "extension":
         raise BuildCacheError(f"the compiled Python extension cannot be used: {reason}")
     warnings.warn(f"hydrogen: using ctypes calls (slower) instead of the compiled extension: {reason}",
