@@ -206,7 +206,7 @@ def build_parser() -> argparse.ArgumentParser:
     b.add_argument("--json", help="write all results as JSON to this file")
     from .bench import SUITE
     b.add_argument("--only", nargs="*", choices=[n for n, _ in SUITE], metavar="MODULE",
-                   help="run only these modules (bench_loop, bench_functions, bench_build, bench_flags)")
+                   help="run only these modules (see 'hydrogen bench --help')")
     b.add_argument("--quiet", action="store_true", help="no progress bar")
     b.set_defaults(func=_cmd_bench)
     tp = sub.add_parser("tune-p", help="the documented gain search for the P controller (parallel sweep)",
