@@ -1,13 +1,14 @@
 """hydrogen: symbolic model of a hydraulic Stewart platform → compiled C → control loop."""
-from .errors import (BuildCacheError, CompilerError, HydrogenError, KinematicsError,
+from .errors import (BuildCacheError, CompilerError, HydrogenError, IdentificationError, KinematicsError,
                      ModelError, ScenarioError, SimulationError, StaleGeneratedCodeError,
                      UnsupportedExpressionError)
 from .model import Model, load_model
 
 __all__ = [
-    "load_model", "Model", "build", "simulate", "stepper", "sweep",
+    "load_model", "Model", "build", "simulate", "stepper", "sweep", "identify",
     "HydrogenError", "ModelError", "UnsupportedExpressionError", "CompilerError",
     "BuildCacheError", "StaleGeneratedCodeError", "KinematicsError", "SimulationError", "ScenarioError",
+    "IdentificationError",
 ]
 __version__ = "0.1.0"
 
@@ -54,3 +55,10 @@ def sweep(runs, *, executor=None, max_workers=None, model=None, progress=False):
     """Run many simulations in parallel: see :func:`hydrogen.simulation.sweep.sweep`."""
     from .simulation.sweep import sweep as _sweep
     return _sweep(runs, executor=executor, max_workers=max_workers, model=model, progress=progress)
+
+
+def identify(log, model=None, *, dyn=None, **options):
+    """Estimate θ (and γ) by least squares from a rig's log (leg lengths, pressures, spool commands):
+    see :func:`hydrogen.identification.identify` for the log's columns, the pipeline and ``options``."""
+    from .identification import identify as _identify
+    return _identify(log, model, dyn=dyn, **options)

@@ -1,4 +1,4 @@
-"""Command line of hydrogen: generate, simulate, figures, bench, tune-p, export.
+"""Command line of hydrogen: generate, simulate, identify, figures, bench, tune-p, export.
 
 Errors that hydrogen raises on purpose are printed as one message (no
 traceback) and exit with status 2; ``--check`` exits 1 when generated code is stale.
@@ -64,6 +64,24 @@ def _cmd_simulate(args) -> int:
         from .figures import plot_tracking_errors
         plot_tracking_errors(res, Path(args.plot))
         print(f"figure written to {args.plot}")
+    if args.log:
+        res.save_log(Path(args.log), noise_l=args.log_noise_l, noise_p=args.log_noise_p, seed=args.log_seed)
+        print(f"log written to {args.log} ({len(res.t)} samples; sensor noise added: leg lengths "
+              f"{args.log_noise_l:g} m, pressures {args.log_noise_p:g} Pa)")
+    return 0
+
+
+def _cmd_identify(args) -> int:
+    import json
+
+    import hydrogen
+    from .fileio import atomic_write
+
+    res = hydrogen.identify(Path(args.log), model=args.model, cutoff_hz=args.cutoff)
+    print(res.summary())
+    if args.json:
+        atomic_write(Path(args.json), json.dumps(res.to_dict(), indent=2, sort_keys=True) + "\n")
+        print(f"results written to {args.json}")
     return 0
 
 
@@ -131,7 +149,22 @@ def build_parser() -> argparse.ArgumentParser:
     sim.add_argument("--model", help="model TOML file (default: the packaged model)")
     sim.add_argument("--json", help="write the metrics as JSON to this file")
     sim.add_argument("--plot", help="write the tracking-error figure (PNG) to this file")
+    sim.add_argument("--log", help="write the run as a rig log CSV (t, l*, pc*, u*, q*) for 'hydrogen identify'")
+    sim.add_argument("--log-noise-l", type=float, default=5e-6,
+                     help="std of the white noise added to the logged leg lengths, m (default: the rig's 5e-6)")
+    sim.add_argument("--log-noise-p", type=float, default=2e4,
+                     help="std of the white noise added to the logged pressures, Pa (default: the rig's 2e4)")
+    sim.add_argument("--log-seed", type=int, default=0, help="seed of that noise (default 0)")
     sim.set_defaults(func=_cmd_simulate)
+    ident = sub.add_parser("identify", help="estimate theta (and gamma) by least squares from a rig log CSV",
+                           description="Least-squares identification of the rigid-body parameters theta and the "
+                                       "hydraulic parameters gamma from measured leg lengths, pressures and spool "
+                                       "commands (columns t, l0.., pc0.., u0..; see README 'Identification').")
+    ident.add_argument("log", help="log CSV file")
+    ident.add_argument("--json", help="write the estimates, standard errors and conditioning as JSON to this file")
+    ident.add_argument("--model", help="model TOML file (default: the packaged model)")
+    ident.add_argument("--cutoff", type=float, help="low-pass cutoff for theta, Hz (default: from the trajectory)")
+    ident.set_defaults(func=_cmd_identify)
     fig = sub.add_parser("figures", help="run every scenario and write the paper's figures and table",
                          description="Counterparts of Figs. 2, 3, 5-8 (PNG) and the comparison table (Markdown).")
     fig.add_argument("--out", default="figures", help="output folder (default: ./figures)")
