@@ -145,13 +145,13 @@ class Identification:
 
     def summary(self) -> str:
         lines = [f"{self.source}: {self.n_samples} samples at {self.sample_rate_hz:.6g} Hz; zero-phase low-pass "
-                 f"at {self.cutoff_hz:.3g} Hz; {self.edge_samples} samples dropped at each end; every "
-                 f"{self.decimate}th sample used ({self.samples_used})"]
+                 f"at {self.cutoff_hz:.3g} Hz; {self.edge_samples} samples dropped at each end; 1 in every "
+                 f"{self.decimate} used ({self.samples_used})"]
         lines += self.theta.describe("theta")
         if self.gamma is not None:
             lines += self.gamma.describe("gamma")
         if self.gamma_note:
-            lines.append(f"gamma: {self.gamma_note}")
+            lines.append(f"  (gamma {self.gamma_note})")
         return "\n".join(lines)
 
 
@@ -381,8 +381,8 @@ def identify(log, model=None, *, dyn=None, cutoff_hz: float | None = None, order
         idx_g = np.arange(edge, len(t) - edge - 1, step_g)
         gamma_fit, per_leg = _identify_gamma(dyn, L, PC, U, F, h, butter(order, fc_g, fs=fs, output="sos"),
                                              idx_g, max_cond, _true(log.meta, "gamma_true", len(GAMMA_NAMES)))
-        note = (f"low-pass at {fc_g:.3g} Hz (twice the highest oil-column mode, {mode:.3g} Hz at the mean pose, "
-                f"within [cutoff, f_s/10]), every {step_g}th sample")
+        note = (f"low-pass at {fc_g:.3g} Hz: twice the highest oil-column mode, {mode:.3g} Hz at the mean pose, "
+                f"within [cutoff, f_s/10]; 1 in every {step_g} samples")
         timings["gamma"] = time.perf_counter() - t0
     timings["total"] = time.perf_counter() - t_start
     return Identification(theta, gamma_fit, per_leg, fs, fc, edge, step, len(t), len(idx), log.source, note,
