@@ -77,7 +77,8 @@ def _cmd_identify(args) -> int:
     import hydrogen
     from .fileio import atomic_write
 
-    res = hydrogen.identify(Path(args.log), model=args.model, cutoff_hz=args.cutoff)
+    res = hydrogen.identify(Path(args.log), model=args.model, cutoff_hz=args.cutoff,
+                            zoh_correction=args.zoh_correction)
     print(res.summary())
     if args.json:
         atomic_write(Path(args.json), json.dumps(res.to_dict(), indent=2, sort_keys=True) + "\n")
@@ -164,6 +165,9 @@ def build_parser() -> argparse.ArgumentParser:
     ident.add_argument("--json", help="write the estimates, standard errors and conditioning as JSON to this file")
     ident.add_argument("--model", help="model TOML file (default: the packaged model)")
     ident.add_argument("--cutoff", type=float, help="low-pass cutoff for theta, Hz (default: from the trajectory)")
+    ident.add_argument("--zoh-correction", action="store_true",
+                       help="pressures sampled where the held spool command changes, ideal valve (hydrogen's "
+                            "paper-sim): correct for the pressure's curve within the period")
     ident.set_defaults(func=_cmd_identify)
     fig = sub.add_parser("figures", help="run every scenario and write the paper's figures and table",
                          description="Counterparts of Figs. 2, 3, 5-8 (PNG) and the comparison table (Markdown).")
@@ -177,7 +181,7 @@ def build_parser() -> argparse.ArgumentParser:
     b.add_argument("--quick", action="store_true", help="fewer repeats (about 1 minute)")
     b.add_argument("--json", help="write all results as JSON to this file")
     b.add_argument("--only", nargs="*", help="run only these modules (bench_loop, bench_functions, bench_build, "
-                                              "bench_flags)")
+                                              "bench_flags, bench_sweep)")
     b.add_argument("--quiet", action="store_true", help="no progress bar")
     b.set_defaults(func=_cmd_bench)
     tp = sub.add_parser("tune-p", help="the documented gain search for the P controller (parallel sweep)",
