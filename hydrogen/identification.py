@@ -100,8 +100,9 @@ class ParameterFit:
         return None if self.true is None else 100.0 * (self.estimate - self.true) / self.true
 
     def to_dict(self) -> dict:
-        d = {"names": list(self.names), "estimate": self.estimate.tolist(), "std_error": self.std_error.tolist(),
-             "cond": self.cond, "identifiable": self.identifiable, "direction": self.direction,
+        """Plain JSON data (an infinite condition number or standard error becomes null)."""
+        d = {"names": list(self.names), "estimate": self.estimate.tolist(), "std_error": _finite(self.std_error),
+             "cond": _finite(self.cond), "identifiable": self.identifiable, "direction": self.direction,
              "unexcited": self.unexcited, "residual_rms": self.residual_rms, "rows": self.rows}
         if self.true is not None:
             d["true"] = self.true.tolist()
@@ -161,6 +162,12 @@ class Identification:
         if self.gamma_note:
             lines.append(f"  (gamma {self.gamma_note})")
         return "\n".join(lines)
+
+
+def _finite(x):
+    if np.ndim(x):
+        return [_finite(v) for v in np.asarray(x, float)]
+    return float(x) if np.isfinite(x) else None
 
 
 def _direction_text(direction) -> str:
