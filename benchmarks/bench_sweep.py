@@ -2,8 +2,9 @@
 LocalCluster, side by side in one run; and identification time for the paper-sim log.
 
 Sweeps run in a fresh Python process, as a user's script calls them (``bench_loop`` explains why):
-8 P-gain runs of z-1hz, the median of ``repeats`` sweeps per route, after one warm-up sweep on the
-persistent executors (the workers import hydrogen and load the library once):
+8 P-gain runs of z-1hz, the median of ``repeats`` sweeps per route, the routes interleaved (so a
+change in the machine's load reaches all alike), after one warm-up sweep on the persistent
+executors (the workers import hydrogen and load the library once):
 
 * ``pool_new``: ``hydrogen.sweep(runs, max_workers=2)``, the default: a new process pool per call,
   so every sweep pays the workers' start-up;
@@ -45,33 +46,40 @@ runs = [dict(scenario="z-1hz", controller="p", gains={{"Kleg": float(k)}}, durat
         for k in np.geomspace(0.02, 0.3, 8)]
 hydrogen.simulate(**runs[0])  # build once, as any first call does
 
-def rate(executor=None):
-    rates = []
-    for _ in range({repeats}):
-        t0 = time.perf_counter()
-        hydrogen.sweep(runs, executor=executor, max_workers={workers})
-        rates.append(len(runs) / (time.perf_counter() - t0))
-    return statistics.median(rates)
+def timed(executor=None):
+    t0 = time.perf_counter()
+    hydrogen.sweep(runs, executor=executor, max_workers={workers})
+    return len(runs) / (time.perf_counter() - t0)
 
 if __name__ == "__main__":
-    print("runs_per_s_pool_new", rate())
+    routes = {{"pool_new": None}}
     with ProcessPoolExecutor({workers}) as pool:
         hydrogen.sweep(runs[:{workers}], executor=pool)  # warm-up
-        print("runs_per_s_pool_persistent", rate(pool))
-    try:
-        from dask.distributed import Client, LocalCluster
-    except ImportError:
-        print("dask_missing 1")
-    else:
-        t0 = time.perf_counter()
-        with LocalCluster(n_workers={workers}, processes=True, threads_per_worker=1,
-                          dashboard_address=None) as cluster, Client(cluster) as client:
-            print("dask_cluster_start_s", time.perf_counter() - t0)
-            ex = client.get_executor()
+        routes["pool_persistent"] = pool
+        try:
+            from dask.distributed import Client, LocalCluster
+        except ImportError:
+            print("dask_missing 1")
+            cluster = None
+        else:
             t0 = time.perf_counter()
-            hydrogen.sweep(runs[:{workers}], executor=ex)  # warm-up: import and load in each worker
+            cluster = LocalCluster(n_workers={workers}, processes=True, threads_per_worker=1, dashboard_address=None)
+            client = Client(cluster)
+            print("dask_cluster_start_s", time.perf_counter() - t0)
+            routes["dask"] = client.get_executor()
+            t0 = time.perf_counter()
+            hydrogen.sweep(runs[:{workers}], executor=routes["dask"])  # warm-up: import and load in each worker
             print("dask_first_sweep_s", time.perf_counter() - t0)
-            print("runs_per_s_dask", rate(ex))
+        # interleaved, so a change in the machine's load reaches every route alike
+        rates = {{k: [] for k in routes}}
+        for _ in range({repeats}):
+            for k, ex in routes.items():
+                rates[k].append(timed(ex))
+        for k, v in rates.items():
+            print(f"runs_per_s_{{k}}", statistics.median(v))
+        if cluster is not None:
+            client.close()
+            cluster.close()
 """
 
 
@@ -92,7 +100,7 @@ def identification_time(repeats: int) -> dict:
 
 
 def run(quick: bool = False) -> dict:
-    repeats = 3 if quick else 5
+    repeats = 3 if quick else 9
     load_before = os.getloadavg()[0]
     code = _SWEEP.format(duration=2.0 if quick else 6.0, repeats=repeats, workers=WORKERS)
     stdout, _ = common.run_python(code)

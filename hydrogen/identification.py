@@ -3,10 +3,10 @@
 Pipeline (the log's columns are described in :mod:`hydrogen.logs`):
 
 1. **Pose.** q_k by Newton forward kinematics from the measured leg lengths l_k, each sample warm
-   started from the previous one (the first from the model's neutral pose).
+   started from the previous one (the first from the model's neutral pose; :func:`_poses`).
 2. **Zero-phase low-pass.** A Butterworth low-pass of order ``order`` (default 4) run forwards and
-   backwards (``scipy.signal.sosfiltfilt``: no phase lag, squared magnitude 1/(1 + (f/f_c)^16) for
-   order 4). The cutoff f_c defaults to 4 × the frequency below which 99.9 % of the power of the
+   backwards (``scipy.signal.sosfiltfilt``: no phase lag, magnitude 1/(1 + (f/f_c)^8) for order
+   4). The cutoff f_c defaults to 4 × the frequency below which 99.9 % of the power of the
    (mean-removed) leg lengths lies, clipped to [10/T, f_s/10] (T the log's duration, f_s its sample
    rate): the trajectory's content is then passed with a gain error below 2·10⁻⁵ (at f_c/4), and
    the differentiated sensor noise, which grows as f_c^2.5, is cut above f_c. For paper-sim
@@ -356,14 +356,7 @@ def identify(log, model=None, *, dyn=None, cutoff_hz: float | None = None, order
 
     # 1. pose by forward kinematics, warm started
     t0 = time.perf_counter()
-    Q = np.empty((len(t), n))
-    q = np.asarray(model.neutral_pose, float)
-    for k in range(len(t)):
-        try:
-            q = dyn.forward_kinematics(L[k], q0=q)
-        except KinematicsError as exc:
-            raise IdentificationError(f"{log.source}: sample {k} (t = {t[k]!r} s): {exc}") from None
-        Q[k] = q
+    Q = _poses(dyn, L, t, log.source)
     timings["forward_kinematics"] = time.perf_counter() - t0
 
     # 2-3. zero-phase low-pass, derivatives
@@ -411,6 +404,40 @@ def identify(log, model=None, *, dyn=None, cutoff_hz: float | None = None, order
     timings["total"] = time.perf_counter() - t_start
     return Identification(theta, gamma_fit, per_leg, fs, fc, edge, step, len(t), len(idx), log.source, note,
                           fc_g, timings)
+
+
+def _poses(dyn, L, t, source, tol: float = 1e-12, chord_steps: int = 4, refresh: int = 8) -> np.ndarray:
+    """q at every row of the leg lengths ``L`` by Newton's method, each sample warm started from the
+    previous one. Between samples the pose moves little, so an inverse Jacobian of a recent solution
+    (refreshed every ``refresh`` samples) is reused (chord iterations: one ``leg_lengths`` call and a
+    matrix product each); when
+    they do not reach ``tol`` (m) within ``chord_steps``, the sample is solved by
+    ``dyn.forward_kinematics`` (fresh Jacobians, singularity checks, its error messages)."""
+    model = dyn.model
+    Q = np.empty((len(L), len(model.neutral_pose)))
+    q = np.asarray(model.neutral_pose, float)
+    Jinv = None
+    for k in range(len(L)):
+        done = False
+        if Jinv is not None:
+            qk = q
+            for _ in range(chord_steps):
+                r = dyn.leg_lengths(qk) - L[k]
+                if np.max(np.abs(r)) < tol:
+                    done = True
+                    break
+                qk = qk - Jinv @ r
+        if done:
+            q = qk
+        else:
+            try:
+                q = dyn.forward_kinematics(L[k], q0=q, tol=tol)
+            except KinematicsError as exc:
+                raise IdentificationError(f"{source}: sample {k} (t = {t[k]!r} s): {exc}") from None
+        if not done or k % refresh == 0:
+            Jinv = np.linalg.inv(dyn.leg_jacobian(q))
+        Q[k] = q
+    return Q
 
 
 def _true(meta, key, size):

@@ -119,6 +119,22 @@ def test_noise_level_is_estimated_from_the_log(paper_sim):
     assert np.all(noise_std(paper_sim.leg_lengths) < 1e-8)
 
 
+def test_poses_equal_newton_forward_kinematics_sample_by_sample(dyn, paper_sim_log):
+    from hydrogen.identification import _poses
+    m = dyn.leg_lengths(dyn.model.neutral_pose).size
+    L = paper_sim_log.group("l", m)[:1500]
+    Q = _poses(dyn, L, paper_sim_log.t, "log")
+    q, ref = dyn.model.neutral_pose, []
+    for l in L:
+        q = dyn.forward_kinematics(l, q0=q)
+        ref.append(q)
+    np.testing.assert_allclose(Q, ref, rtol=0, atol=1e-10)
+    bad = L.copy()
+    bad[700] = -1.0  # no pose has negative leg lengths
+    with pytest.raises(IdentificationError, match="sample 700"):
+        _poses(dyn, bad, paper_sim_log.t, "log")
+
+
 def test_per_sample_uses_a_batched_function_when_there_is_one(dyn):
     calls = []
 
