@@ -2,15 +2,11 @@
 
 A log holds, per sample k (one row), at a uniform sample rate:
 
-==================  =====  ===============================================================
-column              unit   what
-==================  =====  ===============================================================
-``t``               s      sample time, strictly increasing, uniform spacing (jitter ≤ 1 %)
-``l0`` … ``l{m-1}`` m      measured cylinder (leg) lengths
-``pc0`` … ``pc{m-1}`` Pa   measured control-chamber (cap side) pressures
-``u0`` … ``u{m-1}`` m      spool commands, each held from t_k to t_{k+1} (zero-order hold);
-                           optional: without them only θ is estimated, not γ
-==================  =====  ===============================================================
+* ``t`` (s): sample time, strictly increasing, uniform spacing (jitter ≤ 1 %);
+* ``l0`` … ``l{m-1}`` (m): measured cylinder (leg) lengths;
+* ``pc0`` … ``pc{m-1}`` (Pa): measured control-chamber (cap side) pressures;
+* ``u0`` … ``u{m-1}`` (m): spool commands, each held from t_k to t_{k+1} (zero-order hold);
+  optional: without them only θ is estimated, not γ.
 
 m is the number of cylinders of the model. Other columns are ignored (a simulated log also carries
 the true pose ``q0`` … ``q{n-1}``). Lines starting with ``#`` are comments; a log written by
@@ -33,11 +29,8 @@ import numpy as np
 from .errors import IdentificationError
 from .fileio import atomic_write
 
-__all__ = ["Log", "log_from_result", "write_log", "read_log", "as_log", "LOG_COLUMNS"]
+__all__ = ["Log", "log_from_result", "write_log", "read_log", "as_log"]
 
-#: Column groups of a log, by prefix: (prefix, unit, what); each group has one column per cylinder.
-LOG_COLUMNS = (("l", "m", "leg lengths"), ("pc", "Pa", "control-chamber pressures"),
-               ("u", "m", "spool commands"))
 _MAGIC = "# hydrogen log"
 
 
