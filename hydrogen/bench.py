@@ -23,6 +23,7 @@ SUITE = (
                     "against the C cost"),
     ("bench_build", "generation and compilation times; SymPy vs CasADi-AD instruction counts"),
     ("bench_flags", "compiler flags: compile time and loop cost"),
+    ("bench_sweep", "sweep throughput on 2 workers: process pool and Dask LocalCluster; identification time"),
 )
 
 

@@ -52,6 +52,10 @@ class ScenarioError(HydrogenError, ValueError):
     """A scenario setting (duration, rate, friction, noise, ...) is out of range."""
 
 
+class IdentificationError(HydrogenError, ValueError):
+    """A log cannot be used for identification: a missing column, too few samples, a bad value."""
+
+
 class SimulationError(HydrogenError, RuntimeError):
     """A simulation diverged; carries the partial result."""
 
