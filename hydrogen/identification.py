@@ -395,11 +395,11 @@ def identify(log, model=None, *, dyn=None, cutoff_hz: float | None = None, order
         idx_g = np.arange(edge, len(t) - edge - 1, step_g)
         gamma_fit, per_leg = _identify_gamma(dyn, L, PC, U, F, h, butter(order, fc_g, fs=fs, output="sos"),
                                              idx_g, max_cond, _true(log.meta, "gamma_true", len(GAMMA_NAMES)))
-        if not np.allclose(model.gamma, model.gamma[:, :1]):
-            note = ("pooled over cylinders whose valves differ in the model: read gamma_per_leg, one [beta, "
-                    "beta*c] per cylinder")
         note = (f"low-pass at {fc_g:.3g} Hz: twice the highest oil-column mode, {mode:.3g} Hz at the mean pose, "
                 f"within [cutoff, f_s/10]; 1 in every {step_g} samples")
+        if not np.allclose(model.gamma, model.gamma[:, :1]):
+            note += ("; POOLED over cylinders whose valves differ in the model, so the pooled value is not "
+                     "any cylinder's: read gamma_per_leg, one [beta, beta*c] per cylinder")
         timings["gamma"] = time.perf_counter() - t0
     timings["total"] = time.perf_counter() - t_start
     return Identification(theta, gamma_fit, per_leg, fs, fc, edge, step, len(t), len(idx), log.source, note,
