@@ -138,9 +138,29 @@ def _cmd_export(args) -> int:
     import hydrogen
     from .export import export
 
+    if args.format == "fmu":
+        return _cmd_export_fmu(args)
+    if args.part is not None or args.step is not None:
+        raise HydrogenError("--part and --step are options of --format fmu")
     model = hydrogen.load_model(args.model)
     out = export(Path(args.out), args.scenario, args.controller, model=model, duration=args.duration)
     print(f"{out}: {args.controller} on {args.scenario}; build and run with 'make -C {out} run'")
+    return 0
+
+
+def _cmd_export_fmu(args) -> int:
+    import hydrogen
+    from .errors import FmuError
+    from .fmu import PARTS, export_fmu
+
+    if args.part is None:
+        raise FmuError(f"--format fmu needs --part: one of {', '.join(PARTS)}")
+    model = hydrogen.load_model(args.model)
+    out = export_fmu(Path(args.out), args.part, args.scenario, args.controller, model=model, duration=args.duration,
+                     step=args.step)
+    what = "plant" if args.part == "plant" else f"{args.part} ({args.controller})"
+    print(f"{out}: FMI 2.0 co-simulation FMU of the {what} on {args.scenario}; check it with "
+          f"'python -m fmpy validate {out}'")
     return 0
 
 
@@ -261,10 +281,18 @@ def build_parser() -> argparse.ArgumentParser:
     tp.add_argument("--workers", type=_number(int, 1, strict=False), help="processes (default: the core count)")
     tp.add_argument("--quiet", action="store_true", help="no progress bar")
     tp.set_defaults(func=_cmd_tune_p)
-    ex = sub.add_parser("export", help="write deployable C: sources, params.h, main.c, Makefile, CMakeLists.txt",
+    ex = sub.add_parser("export", help="write deployable C (sources, params.h, main.c, Makefile) or an FMU",
                         description="A folder that builds with only a C compiler and runs one scenario's "
-                                    "closed loop, printing the tracking error.")
-    ex.add_argument("--out", required=True, help="output folder (replaced if it holds an earlier export)")
+                                    "closed loop, printing the tracking error; or (--format fmu) an FMI 2.0 "
+                                    "co-simulation FMU of the plant, a controller or the closed loop.")
+    ex.add_argument("--out", required=True, help="output folder (replaced if it holds an earlier export); with "
+                                                 "--format fmu, a new .fmu file")
+    ex.add_argument("--format", choices=("c", "fmu"), default="c",
+                    help="c: a C99 folder with main.c and a Makefile (default); fmu: an FMI 2.0 co-simulation FMU")
+    ex.add_argument("--part", help="with --format fmu: plant, controller or closed-loop")
+    ex.add_argument("--step", type=_number(float, 0),
+                    help="with --format fmu: the FMU's default communication step, s, a whole number of control "
+                         "periods (default: one period)")
     ex.add_argument("--scenario", default="z-1hz", help="a scenario of the model (default: z-1hz)")
     ex.add_argument("--controller", default="adaptive-robust", choices=CONTROLLERS)
     ex.add_argument("--duration", type=_number(float, 0), help="simulated time, s (default: the scenario's)")

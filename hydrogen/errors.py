@@ -67,3 +67,8 @@ class SimulationError(HydrogenError, RuntimeError):
 class OutputPathError(HydrogenError, FileExistsError):
     """An output path cannot be written as asked: a file where a folder is needed (or the other way
     round), a folder holding files hydrogen did not write, or a folder that cannot be written."""
+
+
+class FmuError(HydrogenError, ValueError):
+    """An FMU export asked for something an FMU cannot be: an unknown part, a communication step that is
+    not a whole number of control periods, no FMI headers (fmpy missing), an unsupported platform."""
