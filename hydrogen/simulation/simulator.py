@@ -248,7 +248,7 @@ def _loop_failure(code, runner, h):
         return None
     if code == LOOP_NONFINITE:
         return _describe(runner.plant_state, (k + 1) * h, runner.ctrl, runner.xc[: runner.ctrl.xc.size],
-                         np.array(runner.fn._out_views[0]))
+                         runner.fn.output(0))
     if code == LOOP_FK_FAILED:
         return (f"stopped at t = {k * h:.4f} s: forward kinematics did not converge (or JL is singular) "
                 f"for the measured leg lengths; state = {runner.plant_state.tolist()}")
