@@ -51,6 +51,7 @@ class Scenario:
     gains: dict = field(default_factory=dict)  # controller name -> gain overrides for this scenario
     label: str = ""        # caption in figures and tables (e.g. the paper's figure it reproduces)
     paper: dict = field(default_factory=dict)  # published max errors (%): {coordinate: [nonlinear, P]}
+    estimator_update: str = "semi-implicit"  # controller state: "semi-implicit" (default) or "euler"
 
     def with_overrides(self, **kw):
         unknown = set(kw) - set(self.__dataclass_fields__)
@@ -76,11 +77,13 @@ class Scenario:
         for f in ("valve_lag", "noise_l", "noise_q", "noise_p", "kalman_accel"):
             need(finite(getattr(self, f)) and getattr(self, f) >= 0, f, "must be finite and >= 0")
         need(finite(self.q0_offset), "q0_offset", "must be finite numbers (one per coordinate)")
+        need(self.estimator_update in ("semi-implicit", "euler"), "estimator_update",
+             "must be 'semi-implicit' or 'euler'")
         return self
 
 
 _FIELDS = ("duration", "control_rate", "substeps", "t_adapt", "friction", "valve_lag", "noise_l", "noise_q", "noise_p",
-           "kalman", "kalman_accel", "theta0_factor", "gamma0_factor", "metric_start", "q0_offset", "seed")
+           "kalman", "kalman_accel", "theta0_factor", "gamma0_factor", "metric_start", "q0_offset", "seed", "estimator_update")
 
 
 def _reference(model, where, spec, neutral):
