@@ -231,6 +231,44 @@ def test_normalised_adaptation_gains_and_raw_names(dyn, model):
     np.testing.assert_allclose(raw.values["Gtheta_inv"], 5.0)
 
 
+@pytest.fixture(scope="module")
+def arm_runs():
+    return {k: hydrogen.simulate("arm-sim", k, model="excavator_arm") for k in ("adaptive-robust", "adaptive-observer")}
+
+
+@pytest.mark.slow
+def test_arm_sim_robust_controller_errors_shrink_twentyfold(arm_runs):
+    ratio = _window_ratio(arm_runs["adaptive-robust"])
+    assert np.all(ratio <= 1 / 20), ratio
+
+
+@pytest.mark.slow
+@pytest.mark.xfail(strict=True, reason="the adaptive-observer controller needs rate_theta <= 1e-4 on the arm "
+                   "(above it the estimates hit their bounds within 0.2 s and the valves saturate); then the "
+                   "bucket's error shrinks only about 12-fold (README)")
+def test_arm_sim_observer_controller_errors_shrink_twentyfold(arm_runs):
+    ratio = _window_ratio(arm_runs["adaptive-observer"])
+    assert np.all(ratio <= 1 / 20), ratio
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("kind", ["adaptive-robust", "adaptive-observer"])
+@pytest.mark.xfail(strict=True, reason="arm-sim excites theta weakly (lambda_min/lambda_max 1e-3, four directions "
+                   "below 6e-3: boom.mcz, stick.mcx/Iyy, stick.mcz): boom.mcz and boom.Iyy keep their initial "
+                   "error (README)")
+def test_arm_sim_estimates_end_within_5_percent(arm_runs, kind):
+    res = arm_runs[kind]
+    err = np.abs(res.theta_hat[-1] - res.theta_true) / res.theta_true
+    assert np.all(err < 0.05), err
+
+
+@pytest.mark.slow
+def test_arm_sim_excitation_is_reported_and_weaker_than_paper_sims(arm_runs, paper_runs):
+    arm = arm_runs["adaptive-robust"].metrics["excitation"]["theta"]
+    stewart = paper_runs["adaptive-robust"].metrics["excitation"]["theta"]
+    assert 0 < arm < stewart / 3, (arm, stewart)
+
+
 def test_divergence_stops_with_time_state_and_partial_result(dyn):
     with pytest.raises(hydrogen.SimulationError) as err:
         simulate(dyn, "paper-sim", "backstepping", duration=2.0,

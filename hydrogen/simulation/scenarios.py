@@ -25,7 +25,9 @@ class Scenario:
     from fixed-gain Kalman filters on the measured leg lengths (constant
     velocity model, white acceleration of spectral density ``kalman_accel``).
     theta0_factor / gamma0_factor scale the true parameters into the initial
-    estimates. Metrics are taken over t ≥ metric_start. ``gains`` holds this
+    estimates. Metrics are taken over t ≥ metric_start. ``estimator_update``: the controller state is
+    updated "semi-implicit" (default: from this period's measurement, then the command) or by
+    forward "euler" after the plant step. ``gains`` holds this
     scenario's tuning per controller, under any gains the caller passes. The platform starts at
     rest at q_d(0) + q0_offset, its pressures holding it against gravity.
     """
