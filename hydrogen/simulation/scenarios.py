@@ -25,7 +25,9 @@ class Scenario:
     from fixed-gain Kalman filters on the measured leg lengths (constant
     velocity model, white acceleration of spectral density ``kalman_accel``).
     theta0_factor / gamma0_factor scale the true parameters into the initial
-    estimates. Metrics are taken over t ≥ metric_start. ``gains`` holds this
+    estimates. Metrics are taken over t ≥ metric_start. ``estimator_update``: the controller state is
+    updated "semi-implicit" (default: from this period's measurement, then the command) or by
+    forward "euler" after the plant step. ``gains`` holds this
     scenario's tuning per controller, under any gains the caller passes. The platform starts at
     rest at q_d(0) + q0_offset, its pressures holding it against gravity.
     """
@@ -51,6 +53,7 @@ class Scenario:
     gains: dict = field(default_factory=dict)  # controller name -> gain overrides for this scenario
     label: str = ""        # caption in figures and tables (e.g. the paper's figure it reproduces)
     paper: dict = field(default_factory=dict)  # published max errors (%): {coordinate: [nonlinear, P]}
+    estimator_update: str = "semi-implicit"  # controller state: "semi-implicit" (default) or "euler"
 
     def with_overrides(self, **kw):
         unknown = set(kw) - set(self.__dataclass_fields__)
@@ -76,11 +79,13 @@ class Scenario:
         for f in ("valve_lag", "noise_l", "noise_q", "noise_p", "kalman_accel"):
             need(finite(getattr(self, f)) and getattr(self, f) >= 0, f, "must be finite and >= 0")
         need(finite(self.q0_offset), "q0_offset", "must be finite numbers (one per coordinate)")
+        need(self.estimator_update in ("semi-implicit", "euler"), "estimator_update",
+             "must be 'semi-implicit' or 'euler'")
         return self
 
 
 _FIELDS = ("duration", "control_rate", "substeps", "t_adapt", "friction", "valve_lag", "noise_l", "noise_q", "noise_p",
-           "kalman", "kalman_accel", "theta0_factor", "gamma0_factor", "metric_start", "q0_offset", "seed")
+           "kalman", "kalman_accel", "theta0_factor", "gamma0_factor", "metric_start", "q0_offset", "seed", "estimator_update")
 
 
 def _reference(model, where, spec, neutral):
