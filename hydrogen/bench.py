@@ -21,6 +21,7 @@ SUITE = (
     ("bench_functions", "C-only cost of each generated function"),
     ("bench_build", "generation and compilation times; SymPy vs CasADi-AD instruction counts"),
     ("bench_flags", "compiler flags: compile time and loop cost"),
+    ("bench_release", "side by side with the previous release: trajectories, instruction counts, loop, generation"),
 )
 
 
