@@ -42,7 +42,7 @@ FIXED = {
     "Dbar_inv": np.diag(1.0 / INERTIA6).ravel(order="F"),
     "Gbar": np.array([0.0, 0.0, 250.0 * 9.81, 0.0, 0.0, 0.0]),
     "friction": np.array([100.0, 300.0, 1e-3]),
-    "tau_valve": np.array([0.0]),
+    "valve": np.zeros(3),
     "adapt": np.array([1.0]),
     "u_max": np.array([5e-3]),
     "sat_width": np.array([1e-3]),
@@ -76,8 +76,9 @@ def input_value(name: str, rows: int, cols: int, rng: np.random.Generator) -> np
         return 5.0e6 + small(2.0e5)
     if name == "l" and n == 6:
         return LEG_LENGTH + small(0.02)
-    if name == "x" and n == 24:  # plant state [q, qdot, pc, spool]
-        return np.concatenate([NEUTRAL_POSE + DQ, small(0.1)[:6], 5.0e6 + small(2.0e5)[:6], small(1e-3)[:6]])
+    if name == "x" and n == 30:  # plant state [q, qdot, pc, spool, spool rate]
+        return np.concatenate([NEUTRAL_POSE + DQ, small(0.1)[:6], 5.0e6 + small(2.0e5)[:6], small(1e-3)[:6],
+                               small(1e-2)[:6]])
     if name == "xc" and n in (22, 28):  # [q_hat (6)], z (6), theta_hat (4), gamma1_hat (6), gamma2_hat (6)
         xc = [np.full(6, 0.01), THETA, np.full(6, GAMMA[0]), np.full(6, GAMMA[1])]
         if n == 28:
