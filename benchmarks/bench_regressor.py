@@ -147,7 +147,7 @@ def main(argv=None) -> int:
     in_syms = [list(mat) for _, mat in sf.inputs]  # flat symbol lists unpack from 1-D arrays
     f_lambdify = sympy.lambdify(in_syms, Y_expr, modules="numpy")
     f_casadi = to_casadi_function(sf)
-    dyn = hydrogen.build(model)
+    dyn = hydrogen.build(model, backend="ctypes")  # route (c) is the ctypes call; bench_calls.py times the extension
 
     q = np.asarray(model.neutral_pose, dtype=float) + DQ
     point = {"q": q, "v": V, "w": W, "a": A}

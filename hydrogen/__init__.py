@@ -1,14 +1,15 @@
 """hydrogen: symbolic model of a hydraulic robot → compiled C → controller and simulator loop."""
-from .errors import (BuildCacheError, CompilerError, HydrogenError, KinematicsError,
+from .errors import (BuildCacheError, CompilerError, HydrogenError, IdentificationError,
+                     KinematicsError,
                      ModelError, ScenarioError, SimulationError, StaleGeneratedCodeError,
                      OutputPathError, UnsupportedExpressionError)
 from .model import Model, load_model, models
 
 __all__ = [
-    "load_model", "models", "Model", "build", "simulate", "stepper", "sweep",
+    "load_model", "models", "Model", "build", "simulate", "stepper", "sweep", "identify",
     "HydrogenError", "ModelError", "UnsupportedExpressionError", "CompilerError",
     "BuildCacheError", "StaleGeneratedCodeError", "KinematicsError", "SimulationError", "ScenarioError",
-    "OutputPathError",
+    "OutputPathError", "IdentificationError",
 ]
 __version__ = "0.1.0"
 
@@ -57,3 +58,10 @@ def sweep(runs, *, executor=None, max_workers=None, model=None, progress=False):
     """Run many simulations in parallel: see :func:`hydrogen.simulation.sweep.sweep`."""
     from .simulation.sweep import sweep as _sweep
     return _sweep(runs, executor=executor, max_workers=max_workers, model=model, progress=progress)
+
+
+def identify(log, model=None, *, dyn=None, **options):
+    """Estimate θ (and γ) by least squares from a rig's log (leg lengths, pressures, spool commands):
+    see :func:`hydrogen.identification.identify` for the log's columns, the pipeline and ``options``."""
+    from .identification import identify as _identify
+    return _identify(log, model, dyn=dyn, **options)

@@ -19,8 +19,11 @@ __all__ = ["run_suite", "SUITE"]
 SUITE = (
     ("bench_loop", "paper-sim loop per control period: lambdify, CasADi, stepping API, C loop; sweeps"),
     ("bench_functions", "C-only cost of each generated function"),
+    ("bench_calls", "per call from Python by route (extension, ctypes, CasADi, Pinocchio) and batches, "
+                    "against the C cost"),
     ("bench_build", "generation and compilation times; SymPy vs CasADi-AD instruction counts"),
     ("bench_flags", "compiler flags: compile time and loop cost"),
+    ("bench_sweep", "sweep throughput on 2 workers: process pool and Dask LocalCluster; identification time"),
 )
 
 

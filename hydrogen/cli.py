@@ -1,4 +1,4 @@
-"""Command line of hydrogen: generate, simulate, figures, bench, tune, tune-p, margins, export.
+"""Command line of hydrogen: generate, simulate, identify, figures, bench, tune, tune-p, margins, export.
 
 Errors that hydrogen raises on purpose are printed as one message (no
 traceback) and exit with status 2; ``--check`` exits 1 when generated code is stale.
@@ -17,14 +17,14 @@ __all__ = ["main"]
 
 
 def _cmd_generate(args) -> int:
-    from .codegen.generate import check, generate
+    from .codegen.generate import check_output, generate
     from .model import load_model
     from .runtime.build import repo_generated_dir
 
     model = load_model(args.model)
     out = Path(args.out) if args.out else repo_generated_dir() / model.name
     if args.check:
-        reasons = check(model, out)
+        reasons = check_output(model, out)
         if reasons:
             print(f"generated code in {out} is stale:", *reasons, sep="\n  ", file=sys.stderr)
             print("run 'hydrogen generate' to regenerate", file=sys.stderr)
@@ -49,6 +49,8 @@ def _cmd_simulate(args) -> int:
         check_output_file(args.json, "--json")
     if args.plot:
         check_plot_path(args.plot, "--plot")
+    if args.log:
+        check_output_file(args.log, "--log")
     model = hydrogen.load_model(args.model)
     sc = named_scenario(args.scenario, model)
     if args.duration is not None:
@@ -96,6 +98,28 @@ def _write_outputs(args, res, diverged=None) -> None:
         from .figures import plot_tracking_errors
         plot_tracking_errors(res, Path(args.plot))
         print(f"figure written to {args.plot}" + (" (diverged run, as far as it went)" if diverged else ""))
+    if args.log:
+        res.save_log(Path(args.log), noise_l=args.log_noise_l, noise_p=args.log_noise_p, seed=args.log_seed)
+        print(f"log written to {args.log} ({len(res.t)} samples; sensor noise added: cylinder lengths "
+              f"{args.log_noise_l:g} m, pressures {args.log_noise_p:g} Pa)")
+
+
+def _cmd_identify(args) -> int:
+    import json
+
+    import hydrogen
+    from .fileio import atomic_write
+    from .outputs import check_output_file
+
+    if args.json:
+        check_output_file(args.json, "--json")
+    res = hydrogen.identify(Path(args.log), model=args.model, cutoff_hz=args.cutoff,
+                            zoh_correction=args.zoh_correction)
+    print(res.summary())
+    if args.json:
+        atomic_write(Path(args.json), json.dumps(res.to_dict(), indent=2, sort_keys=True) + "\n")
+        print(f"results written to {args.json}")
+    return 0
 
 
 def _cmd_figures(args) -> int:
@@ -114,9 +138,29 @@ def _cmd_export(args) -> int:
     import hydrogen
     from .export import export
 
+    if args.format == "fmu":
+        return _cmd_export_fmu(args)
+    if args.part is not None or args.step is not None:
+        raise HydrogenError("--part and --step are options of --format fmu")
     model = hydrogen.load_model(args.model)
     out = export(Path(args.out), args.scenario, args.controller, model=model, duration=args.duration)
     print(f"{out}: {args.controller} on {args.scenario}; build and run with 'make -C {out} run'")
+    return 0
+
+
+def _cmd_export_fmu(args) -> int:
+    import hydrogen
+    from .errors import FmuError
+    from .fmu import PARTS, export_fmu
+
+    if args.part is None:
+        raise FmuError(f"--format fmu needs --part: one of {', '.join(PARTS)}")
+    model = hydrogen.load_model(args.model)
+    out = export_fmu(Path(args.out), args.part, args.scenario, args.controller, model=model, duration=args.duration,
+                     step=args.step)
+    what = "plant" if args.part == "plant" else f"{args.part} ({args.controller})"
+    print(f"{out}: FMI 2.0 co-simulation FMU of the {what} on {args.scenario}; check it with "
+          f"'python -m fmpy validate {out}'")
     return 0
 
 
@@ -234,7 +278,25 @@ def build_parser() -> argparse.ArgumentParser:
     sim.add_argument("--json", help="write the metrics as JSON to this file")
     sim.add_argument("--plot", help="write the tracking-error figure to this file; the extension names the "
                                     "format (.png, .pdf, .svg, ...)")
+    sim.add_argument("--log", help="write the run as a rig log CSV (t, l*, pc*, u*, q*) for 'hydrogen identify'")
+    sim.add_argument("--log-noise-l", type=_number(float, 0, strict=False), default=5e-6,
+                     help="std of the white noise added to the logged cylinder lengths, m (default: 5e-6)")
+    sim.add_argument("--log-noise-p", type=_number(float, 0, strict=False), default=2e4,
+                     help="std of the white noise added to the logged pressures, Pa (default: 2e4)")
+    sim.add_argument("--log-seed", type=int, default=0, help="seed of that noise (default 0)")
     sim.set_defaults(func=_cmd_simulate)
+    ident = sub.add_parser("identify", help="estimate theta (and gamma) by least squares from a rig log CSV",
+                           description="Least-squares identification of the rigid-body parameters theta and the "
+                                       "hydraulic parameters gamma from measured leg lengths, pressures and spool "
+                                       "commands (columns t, l0.., pc0.., u0..; see README 'Identification').")
+    ident.add_argument("log", help="log CSV file")
+    ident.add_argument("--json", help="write the estimates, standard errors and conditioning as JSON to this file")
+    ident.add_argument("--model", help="built-in model name (hydrogen.models()) or TOML file (default: ubc_stewart)")
+    ident.add_argument("--cutoff", type=_number(float, 0), help="low-pass cutoff for theta, Hz (default: from the trajectory)")
+    ident.add_argument("--zoh-correction", action="store_true",
+                       help="pressures sampled where the held spool command changes, ideal valve (hydrogen's "
+                            "paper-sim): correct for the pressure's curve within the period")
+    ident.set_defaults(func=_cmd_identify)
     fig = sub.add_parser("figures", help="run every scenario and write the paper's figures and table",
                          description="Counterparts of Figs. 2, 3, 5-8 (PNG) and the comparison table (Markdown).")
     fig.add_argument("--out", default="figures", help="output folder (default: ./figures)")
@@ -248,7 +310,7 @@ def build_parser() -> argparse.ArgumentParser:
     b.add_argument("--json", help="write all results as JSON to this file")
     from .bench import SUITE
     b.add_argument("--only", nargs="*", choices=[n for n, _ in SUITE], metavar="MODULE",
-                   help="run only these modules (bench_loop, bench_functions, bench_build, bench_flags)")
+                   help="run only these modules (see 'hydrogen bench --help')")
     b.add_argument("--quiet", action="store_true", help="no progress bar")
     b.set_defaults(func=_cmd_bench)
     def tune_args(sp):
@@ -278,10 +340,18 @@ def build_parser() -> argparse.ArgumentParser:
     mg.add_argument("--workers", type=_number(int, 1, strict=False), help="processes (default: the core count)")
     mg.add_argument("--quiet", action="store_true", help="no progress bar")
     mg.set_defaults(func=_cmd_margins)
-    ex = sub.add_parser("export", help="write deployable C: sources, params.h, main.c, Makefile, CMakeLists.txt",
+    ex = sub.add_parser("export", help="write deployable C (sources, params.h, main.c, Makefile) or an FMU",
                         description="A folder that builds with only a C compiler and runs one scenario's "
-                                    "closed loop, printing the tracking error.")
-    ex.add_argument("--out", required=True, help="output folder (replaced if it holds an earlier export)")
+                                    "closed loop, printing the tracking error; or (--format fmu) an FMI 2.0 "
+                                    "co-simulation FMU of the plant, a controller or the closed loop.")
+    ex.add_argument("--out", required=True, help="output folder (replaced if it holds an earlier export); with "
+                                                 "--format fmu, a new .fmu file")
+    ex.add_argument("--format", choices=("c", "fmu"), default="c",
+                    help="c: a C99 folder with main.c and a Makefile (default); fmu: an FMI 2.0 co-simulation FMU")
+    ex.add_argument("--part", help="with --format fmu: plant, controller or closed-loop")
+    ex.add_argument("--step", type=_number(float, 0),
+                    help="with --format fmu: the FMU's default communication step, s, a whole number of control "
+                         "periods (default: one period)")
     ex.add_argument("--scenario", default="z-1hz", help="a scenario of the model (default: z-1hz)")
     ex.add_argument("--controller", default="adaptive-robust", choices=CONTROLLERS)
     ex.add_argument("--duration", type=_number(float, 0), help="simulated time, s (default: the scenario's)")

@@ -16,18 +16,29 @@ __all__ = ["Dynamics"]
 
 
 class Dynamics:
-    """Thin wrapper over the compiled library of one model (see :func:`hydrogen.build`)."""
+    """Thin wrapper over the compiled library of one model (see :func:`hydrogen.build`).
+
+    Every function takes one state, or a batch: inputs stacked as (n, …) (an unstacked input
+    is shared by all n states) give outputs of shape (n, …) from one call into C. ``out=``
+    writes into given arrays (C-contiguous float64 of the output's shape) and returns them.
+    ``backend`` tells how the compiled code is called: "extension" or "ctypes".
+    """
 
     def __init__(self, model, library):
         self.model = model
         self.library = library
-        f = library.functions
+        # The compiled extension's functions when built (hydrogen.runtime.extension), else ctypes.
+        fast = getattr(library, "extension_functions", None)
+        #: "extension" (direct calls through the compiled CPython extension) or "ctypes"
+        self.backend = "extension" if fast else "ctypes"
+        f = fast or library.functions
         self._leg_lengths = f["leg_lengths"]
         self._leg_jacobian = f["leg_jacobian"]
         self._mass_matrix = f["mass_matrix"]
         self._coriolis = f["coriolis"]
         self._gravity = f["gravity"]
         self._regressor = f["regressor"]
+        self._forward_dynamics = f.get("forward_dynamics")
         self.functions = f
         symbol = getattr(library, "symbol", None)  # absent for pure-Python stand-ins (benchmarks)
         self._many = symbol(f"{model.name}_leg_lengths_many") if symbol is not None else None
@@ -36,9 +47,9 @@ class Dynamics:
             self._many.argtypes = [ctypes.c_void_p, ctypes.c_longlong, ctypes.c_void_p]
 
     # --- kinematics -------------------------------------------------------------------
-    def leg_lengths(self, q) -> np.ndarray:
+    def leg_lengths(self, q, out=None) -> np.ndarray:
         """(m,) cylinder lengths l(q), m."""
-        return self._leg_lengths(q)
+        return self._leg_lengths(q) if out is None else self._leg_lengths(q, out=out)
 
     def leg_lengths_many(self, qs) -> np.ndarray:
         """(k, m) cylinder lengths (m) of the k poses in the rows of ``qs`` (k, n): one call into the
@@ -54,9 +65,9 @@ class Dynamics:
             raise KinematicsError("leg_lengths_many: the generated leg_lengths function returned an error")
         return out
 
-    def leg_jacobian(self, q) -> np.ndarray:
+    def leg_jacobian(self, q, out=None) -> np.ndarray:
         """(m, n) JL = ∂l/∂q."""
-        return self._leg_jacobian(q)
+        return self._leg_jacobian(q) if out is None else self._leg_jacobian(q, out=out)
 
     def forward_kinematics(self, l, q0=None, tol: float = 1e-12, max_iter: int = 50,
                            max_cond: float = 1e8) -> np.ndarray:
@@ -96,22 +107,31 @@ class Dynamics:
             f"residual {err:.3g} m at q = {q}")
 
     # --- rigid body -------------------------------------------------------------------
-    def mass_matrix(self, q, theta) -> np.ndarray:
+    def mass_matrix(self, q, theta, out=None) -> np.ndarray:
         """(n, n) D(q) for parameters θ."""
-        return self._mass_matrix(q, theta)
+        return self._mass_matrix(q, theta) if out is None else self._mass_matrix(q, theta, out=out)
 
-    def coriolis(self, q, qdot, theta) -> np.ndarray:
+    def coriolis(self, q, qdot, theta, out=None) -> np.ndarray:
         """(n, n) Christoffel-form C(q, q̇)."""
-        return self._coriolis(q, qdot, theta)
+        return self._coriolis(q, qdot, theta) if out is None else self._coriolis(q, qdot, theta, out=out)
 
-    def gravity(self, q, theta) -> np.ndarray:
+    def gravity(self, q, theta, out=None) -> np.ndarray:
         """(n,) G, N or N m (generalised force; gravity along −z)."""
-        return self._gravity(q, theta)
+        return self._gravity(q, theta) if out is None else self._gravity(q, theta, out=out)
 
-    def regressor(self, q, v, w, a) -> np.ndarray:
+    def regressor(self, q, v, w, a, out=None) -> np.ndarray:
         """(n, p) Y(q, v, w, a): Y θ + y0 = D(q) a + C(q, v) w + G(q), where y0 (the share of the
         parameters that are not adapted; zero when θ holds them all) is :meth:`regressor_offset`."""
-        return self._regressor(q, v, w, a)
+        return self._regressor(q, v, w, a) if out is None else self._regressor(q, v, w, a, out=out)
+
+    def forward_dynamics(self, q, qdot, tau, theta, out=None) -> np.ndarray:
+        """q̈ = D(q)⁻¹ (τ − C(q, q̇) q̇ − G) for generalised forces τ: one generated function.
+
+        Like every method here it takes a batch too: q, q̇, τ of shape (n, …) (θ shared or
+        stacked) give q̈ of shape (n, …) from one call into C.
+        """
+        f = self._forward_dynamics
+        return f(q, qdot, tau, theta) if out is None else f(q, qdot, tau, theta, out=out)
 
     def regressor_offset(self, q, v, w, a) -> np.ndarray:
         """(n,) y0 = D a + C(q, v) w + G − Y θ (zeros when every parameter that moves the robot is in θ)."""
@@ -119,23 +139,26 @@ class Dynamics:
         return np.zeros(self.model.n) if f is None else f(q, v, w, a)
 
     # --- hydraulics -------------------------------------------------------------------
-    def valve_flow(self, u, pc) -> np.ndarray:
+    def valve_flow(self, u, pc, out=None) -> np.ndarray:
         """(m,) load flow per unit flow gain, q_l / c (eq. 57), for spool u (m) and p_c (Pa).
 
         This is (57) as printed: its roots need 0 ≤ p_c ≤ P_s, and a pressure outside
         that range gives NaN (the simulated plant uses its linearised, signed law instead).
         """
-        return self.functions["valve_flow"](u, pc)
+        f = self.functions["valve_flow"]
+        return f(u, pc) if out is None else f(u, pc, out=out)
 
-    def valve_inverse(self, ql_per_c, pc) -> np.ndarray:
+    def valve_inverse(self, ql_per_c, pc, out=None) -> np.ndarray:
         """(m,) spool positions u (m) giving q_l / c = ``ql_per_c`` at control pressures p_c."""
-        return self.functions["valve_inverse"](ql_per_c, pc)
+        f = self.functions["valve_inverse"]
+        return f(ql_per_c, pc) if out is None else f(ql_per_c, pc, out=out)
 
-    def pressure_rate(self, l, ldot, pc, u, gamma) -> np.ndarray:
+    def pressure_rate(self, l, ldot, pc, u, gamma, out=None) -> np.ndarray:
         """(m,) ṗ_c (Pa/s) of (56)-(57) with γ = [β, βc] per cylinder, shape (2, m) (or (2,) for all)."""
         g = np.broadcast_to(np.asarray(gamma, float).reshape(2, -1), (2, self.model.n_cylinders))
-        return self.functions["pressure_rate"](l, ldot, pc, u, g[0], g[1])
+        f = self.functions["pressure_rate"]
+        return f(l, ldot, pc, u, g[0], g[1]) if out is None else f(l, ldot, pc, u, g[0], g[1], out=out)
 
-    def leg_force(self, pc) -> np.ndarray:
+    def leg_force(self, pc, out=None) -> np.ndarray:
         """(m,) cylinder forces f = p_c A − p_s a, N."""
-        return self.functions["leg_force"](pc)
+        return self.functions["leg_force"](pc) if out is None else self.functions["leg_force"](pc, out=out)

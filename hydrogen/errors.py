@@ -52,6 +52,10 @@ class ScenarioError(HydrogenError, ValueError):
     """A scenario setting (duration, rate, friction, noise, ...) is out of range."""
 
 
+class IdentificationError(HydrogenError, ValueError):
+    """A log cannot be used for identification: a missing column, too few samples, a bad value."""
+
+
 class SimulationError(HydrogenError, RuntimeError):
     """A simulation diverged; carries the partial result."""
 
@@ -63,3 +67,8 @@ class SimulationError(HydrogenError, RuntimeError):
 class OutputPathError(HydrogenError, FileExistsError):
     """An output path cannot be written as asked: a file where a folder is needed (or the other way
     round), a folder holding files hydrogen did not write, or a folder that cannot be written."""
+
+
+class FmuError(HydrogenError, ValueError):
+    """An FMU export asked for something an FMU cannot be: an unknown part, a communication step that is
+    not a whole number of control periods, no FMI headers (fmpy missing), an unsupported platform."""

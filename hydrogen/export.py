@@ -311,7 +311,8 @@ def export(out_dir, scenario="z-1hz", controller="adaptive-robust", model=None, 
     overrides = dict(overrides)
     sensor = sc.with_overrides(**overrides) if overrides else sc
     # The program runs noise-free: prepare exactly what simulate(..., noise_l=0, noise_p=0) prepares.
-    p = _prepare(dyn, sc, controller, gains, duration, check_workspace, {**overrides, "noise_l": 0.0, "noise_p": 0.0})
+    p = _prepare(dyn, sc, controller, gains, duration, check_workspace,
+                 {**overrides, "noise_l": 0.0, "noise_p": 0.0, "noise_q": 0.0})
     p.sensor_noise_l, p.sensor_noise_p = float(sensor.noise_l), float(sensor.noise_p)
     sensor_gain = _sensor_kalman_gain(p)
 
@@ -336,7 +337,7 @@ def export(out_dir, scenario="z-1hz", controller="adaptive-robust", model=None, 
                        f"P_KF_GAIN_SENSOR, designed for {p.sensor_noise_l:g} m leg-length noise, on the rig.")
     else:
         kalman_note = "Leg rates come from the plant's exact rates (this scenario has no Kalman filter)."
-    extra = "".join(f", {k}={v!r}" for k, v in sorted(overrides.items()) if k not in ("noise_l", "noise_p"))
+    extra = "".join(f", {k}={v!r}" for k, v in sorted(overrides.items()) if k not in ("noise_l", "noise_p", "noise_q"))
     if duration is not None:
         extra = f", duration={float(duration)!r}" + extra
     if gains:

@@ -205,3 +205,16 @@ def test_cli_prints_model_errors_without_traceback(tmp_path, capsys):
     assert cli(["generate", "--model", str(bad), "--out", str(tmp_path / "x")]) == 2
     err = capsys.readouterr().err
     assert "malformed TOML" in err and str(bad) in err and "Traceback" not in err
+
+
+def test_check_compares_output_not_source_text(tmp_path, model, monkeypatch):
+    """A derivation edit that changes nothing generated (a comment) does not make the folder stale
+    for ``generate --check``; an edited file still does."""
+    out = tmp_path / "gen"
+    gen.generate(model, out)
+    monkeypatch.setattr(gen, "derivation_hash", lambda: "0" * 64)  # as after a comment edit
+    assert gen.check(model, out) and all("derivation_hash" in r for r in gen.check(model, out))
+    assert gen.check_output(model, out) == []
+    victim = next(out.glob("*_gravity.c"))
+    victim.write_text(victim.read_text() + "\n/* hand edit */\n")
+    assert any(victim.name in r for r in gen.check_output(model, out))

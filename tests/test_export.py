@@ -35,19 +35,23 @@ def _run(folder):
 
 
 def _python_max_errors(dyn, scenario, controller, duration, metric_start):
-    res = simulate(dyn, scenario, controller, duration=duration, noise_l=0.0, noise_p=0.0,
+    res = simulate(dyn, scenario, controller, duration=duration, noise_l=0.0, noise_p=0.0, noise_q=0.0,
                    metric_start=metric_start)
     sel = res.t >= metric_start - 1e-12
     assert sel.any() and (~sel).any()  # the window starts inside the run
     return np.abs(res.error[sel]).max(axis=0), len(res.t)
 
 
-@pytest.mark.parametrize("scenario, controller, duration, metric_start", [
-    ("z-1hz", "adaptive-robust", 1.0, 0.5),
-    ("z-step", "p", 1.5, 0.5),
+@pytest.mark.parametrize("model_name, scenario, controller, duration, metric_start", [
+    ("ubc_stewart", "z-1hz", "adaptive-robust", 1.0, 0.5),
+    ("ubc_stewart", "z-step", "p", 1.5, 0.5),
+    ("excavator_arm", "arm-dig", "adaptive-observer", 1.0, 0.5),
+    ("excavator_arm", "arm-sim", "backstepping", 1.0, 0.5),
 ])
-def test_exported_program_matches_the_noise_free_simulation(tmp_path, dyn, scenario, controller, duration,
-                                                           metric_start):
+def test_exported_program_matches_the_noise_free_simulation(tmp_path, cache, model_name, scenario, controller,
+                                                           duration, metric_start):
+    import hydrogen
+    dyn = hydrogen.build(hydrogen.load_model(model_name), cache=cache)
     folder = export(tmp_path / "export", scenario, controller, duration=duration, dyn=dyn,
                     metric_start=metric_start)
     build = _build(folder)

@@ -230,10 +230,14 @@ def test_cli_simulate_writes_json(tmp_path, capsys):
     assert data["max_error_pct"]["z"] > 0
 
 
-@pytest.mark.parametrize("scenario_name,kind", [("paper-sim", "adaptive-robust"), ("z-1hz", "adaptive-observer"),
-                                                ("z-2hz", "p"), ("z-step", "backstepping")])
-def test_c_loop_matches_python_loop(dyn, scenario_name, kind):
-    """The whole loop in C and the same loop stepped from Python agree (same noise samples)."""
+@pytest.mark.parametrize("model_name,scenario_name,kind", [
+    ("ubc_stewart", "paper-sim", "adaptive-robust"), ("ubc_stewart", "z-1hz", "adaptive-observer"),
+    ("ubc_stewart", "z-2hz", "p"), ("ubc_stewart", "z-step", "backstepping"),
+    ("excavator_arm", "arm-dig", "adaptive-robust"), ("excavator_arm", "arm-sim", "p")])
+def test_c_loop_matches_python_loop(cache, model_name, scenario_name, kind):
+    """The whole loop in C and the same loop stepped from Python agree (same noise samples), with
+    forward kinematics (the platform) and with joint encoders (the arm)."""
+    dyn = hydrogen.build(hydrogen.load_model(model_name), cache=cache)
     c = simulate(dyn, scenario_name, kind, duration=0.8)
     py = simulate(dyn, scenario_name, kind, duration=0.8, engine="python")
     assert c.t.shape == py.t.shape

@@ -24,7 +24,7 @@ from ..resources import templates_dir
 # runtime imports this module for the staleness check only, and stays free of both.
 
 __all__ = [
-    "generate", "generate_locked", "check", "derivation_hash", "read_manifest", "expected_manifest_inputs",
+    "generate", "generate_locked", "check", "check_output", "derivation_hash", "read_manifest", "expected_manifest_inputs",
     "MANIFEST", "FORMAT_VERSION",
 ]
 
@@ -206,6 +206,37 @@ def read_manifest(folder: Path) -> dict | None:
         return json.loads((Path(folder) / MANIFEST).read_text())
     except (OSError, ValueError):
         return None
+
+
+def check_output(model, folder: Path) -> list:
+    """Reasons ``folder`` is stale for ``model``, judged by the generated output (``generate --check``).
+
+    When only the derivation code's hash differs (an edit that may not change what is generated,
+    such as a comment), the code is generated again into a temporary folder and compared byte for
+    byte, the manifest without its derivation hash: identical output is current.
+    """
+    reasons = check(model, folder)
+    derivation_only = reasons and all("derivation_hash changed" in r for r in reasons)
+    if not derivation_only:
+        return reasons
+    folder = Path(folder)
+    with tempfile.TemporaryDirectory() as tmp:
+        render(model, Path(tmp))
+        fresh = {p.name: p.read_bytes() for p in Path(tmp).iterdir()}
+    present = {p.name for p in folder.iterdir() if not p.name.startswith(".")}
+    out = []
+    for name in sorted(present | set(fresh)):
+        if name not in fresh or name not in present:
+            out.append(f"{folder / name}: {'not generated any more' if name not in fresh else 'missing'}")
+        elif name == MANIFEST:
+            old, new = (json.loads(b) for b in ((folder / name).read_bytes(), fresh[name]))
+            old.pop("derivation_hash", None)
+            new.pop("derivation_hash", None)
+            if old != new:
+                out.append(f"{folder / name}: differs from a fresh generation")
+        elif (folder / name).read_bytes() != fresh[name]:
+            out.append(f"{folder / name}: differs from a fresh generation")
+    return out
 
 
 def check(model, folder: Path) -> list:

@@ -8,6 +8,7 @@ from ..errors import BuildCacheError
 from ..model import Model, load_model
 from .cachedir import cache_errors, check_cache_root, folder_lock, warm_library
 from .compiler import Toolchain, cache_root, compile_library
+from .extension import attach_extension
 from .library import GeneratedLibrary
 
 __all__ = ["build", "repo_generated_dir", "generated_dir_for"]
@@ -35,7 +36,8 @@ def generated_dir_for(model: Model, cache: Path | None = None) -> Path:
 
 
 def build(model: Model | str | Path | None = None, *, cc: str | None = None,
-          cflags: tuple | None = None, cache: Path | None = None, generated: Path | None = None):
+          cflags: tuple | None = None, cache: Path | None = None, generated: Path | None = None,
+          backend: str = "auto"):
     """Generate if stale, compile if needed, load, and return a :class:`~hydrogen.dynamics.Dynamics`.
 
     Parameters
@@ -48,6 +50,10 @@ def build(model: Model | str | Path | None = None, *, cc: str | None = None,
         Cache root (default ``$HYDROGEN_CACHE_DIR`` or ``~/.cache/hydrogen``).
     generated : path
         Use (and regenerate if stale) this generated folder instead of the default.
+    backend : "auto", "extension" or "ctypes"
+        How Python calls the compiled functions: "auto" builds and caches a CPython extension
+        for direct calls and falls back to ctypes (with a warning) when it cannot be built;
+        "extension" makes that an error. ``Dynamics.backend`` tells which is in use.
     """
     from ..dynamics import Dynamics
 
@@ -58,6 +64,7 @@ def build(model: Model | str | Path | None = None, *, cc: str | None = None,
     toolchain = Toolchain(**{k: v for k, v in (("cc", cc), ("cflags", cflags)) if v is not None})
     warm = warm_library(model, folder, toolchain, root)  # no lock, no write: a read-only cache works
     if warm is not None:
+        attach_extension(warm, toolchain, cache=cache, backend=backend)
         return Dynamics(model, warm)
     committed = generated is None and folder == repo_generated_dir() / model.name
     # One lock from generation through compilation: the manifest read and the sources compiled
@@ -76,4 +83,5 @@ def build(model: Model | str | Path | None = None, *, cc: str | None = None,
             # A cached build that does not match this runtime (other CasADi, other ABI): rebuild once.
             lib_path = compile_library(sources, model.name, toolchain, cache=cache, force=True)
             lib = GeneratedLibrary(lib_path, manifest, folder)
+    attach_extension(lib, toolchain, cache=cache, backend=backend)
     return Dynamics(model, lib)

@@ -16,6 +16,7 @@ import secrets
 import shlex
 import shutil
 import subprocess
+import sys
 import tempfile
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
@@ -24,7 +25,7 @@ from pathlib import Path
 from ..errors import CompilerError
 from ..fileio import atomic_write, locked
 
-__all__ = ["Toolchain", "cache_root", "compile_library", "DEFAULT_CFLAGS", "WARNING_FLAGS"]
+__all__ = ["Toolchain", "cache_root", "compile_library", "compile_extension", "DEFAULT_CFLAGS", "WARNING_FLAGS"]
 
 #: Chosen by benchmarks/bench_flags.py (README "Benchmarks"). -fno-semantic-interposition lets gcc
 #: and clang inline CasADi's exported one-line helpers (casadi_sq, casadi_fmin, ...) inside the shared
@@ -202,4 +203,50 @@ def compile_library(sources: list, name: str, toolchain: Toolchain | None = None
         atomic_write(build_dir / "build.json", json.dumps(
             {"library": lib_name, "sha256": _sha256(build_dir / lib_name),
              "sources": [s.name for s in sources], "argv": argv}, indent=2, sort_keys=True))
+        return build_dir / lib_name
+
+
+def compile_extension(render, key_material: str, module: str, toolchain: Toolchain | None = None,
+                      cache: Path | None = None, include_dirs: tuple = (), force: bool = False) -> Path:
+    """Compile a CPython extension module into the build cache and return its path.
+
+    ``render()`` returns the module's C source; it is called only when no intact cached build
+    exists, so a cached load needs no template engine. ``key_material`` must cover everything
+    the source and the binary depend on besides the toolchain (template, render context, Python
+    version and ABI, header folders): with the toolchain identity, flags and ``include_dirs``
+    it makes the cache key. Cached in ``<cache>/extension/<key>/``, laid out as
+    :func:`compile_library`'s folders (``build.json``, a new file name per build). The toolchain's flags are used without ``-Werror`` (headers of other
+    Python or numpy versions must not turn a warning into the ctypes fallback), and the header
+    folders are ``-isystem``.
+    """
+    toolchain = toolchain or Toolchain()
+    h = hashlib.sha256(b"extension\0" + key_material.encode())
+    h.update(toolchain.identity().encode())
+    h.update(json.dumps([toolchain.cc, list(toolchain.cflags), list(toolchain.warnings),
+                         [str(d) for d in include_dirs]]).encode())
+    key = h.hexdigest()
+    build_dir = Path(cache or cache_root()) / "extension" / key
+    with locked(build_dir):
+        if not force:
+            lib = cached_library(build_dir)
+            if lib is not None:
+                return lib
+        build_dir.mkdir(parents=True, exist_ok=True)
+        for old in build_dir.glob("*.so"):
+            old.unlink(missing_ok=True)
+        argv = [toolchain.executable(), *shlex.split(toolchain.cc)[1:], *toolchain.cflags,
+                *(w for w in toolchain.warnings if w != "-Werror")]
+        for d in include_dirs:
+            argv += ["-isystem", str(d)]
+        link = ["-undefined", "dynamic_lookup"] if sys.platform == "darwin" else []
+        with tempfile.TemporaryDirectory(dir=build_dir) as tmp:
+            src, obj = Path(tmp) / f"{module}.c", Path(tmp) / f"{module}.o"
+            src.write_text(render())
+            _run([*argv, "-c", str(src), "-o", str(obj)], src.name)
+            lib_name = f"{module}_{key[:16]}_{secrets.token_hex(4)}.so"
+            _run([*argv, "-shared", str(obj), *link, "-o", str(Path(tmp) / lib_name)], f"linking {lib_name}")
+            os.replace(Path(tmp) / lib_name, build_dir / lib_name)
+        atomic_write(build_dir / "build.json", json.dumps(
+            {"library": lib_name, "sha256": _sha256(build_dir / lib_name), "module": module,
+             "argv": argv}, indent=2, sort_keys=True))
         return build_dir / lib_name

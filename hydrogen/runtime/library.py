@@ -36,6 +36,7 @@ class CompiledFunction:
         self.name = entry["name"]
         self.c_name = entry["c_name"]
         self.doc = entry.get("doc", "")
+        self.backend = "ctypes"
         fn = getattr(lib, self.c_name)
         fn.restype = ctypes.c_int
         fn.argtypes = None  # pointer tables are passed as prepared ctypes objects
@@ -104,13 +105,86 @@ class CompiledFunction:
             raise RuntimeError(f"{self.c_name} returned an error code")
         return self._out_views
 
-    def __call__(self, *args):
-        """Evaluate; returns a fresh array (a tuple of them for several outputs). Thread-safe."""
+    def __call__(self, *args, out=None):
+        """Evaluate; returns a fresh array (a tuple of them for several outputs). Thread-safe.
+
+        Inputs of shape (n, ...) are a batch of n states (unstacked inputs are shared by all);
+        ``out=`` (an array, or a tuple of arrays) receives the results and is returned. Same
+        semantics and messages as the compiled extension, but a batch is a Python loop here.
+        """
         with self._lock:
-            outs = self.call_into(*args)
-            if self._single:
-                return outs[0].copy()
-            return tuple(o.copy() for o in outs)
+            if out is None and len(args) == self._n_in and all(
+                    getattr(x, "shape", None) == shape for x, shape in zip(args, self._in_vshapes)):
+                outs = self.call_into(*args)
+                if self._single:
+                    return outs[0].copy()
+                return tuple(o.copy() for o in outs)
+            return self._call_general(args, out)
+
+    def _call_general(self, args, out):
+        if len(args) != self._n_in:
+            raise self._bad_input(args)
+        arrays, batched, n = [], [], None
+        for i, (x, name, (r, c)) in enumerate(zip(args, self.in_names, self.in_shapes)):
+            try:
+                a = np.asarray(x)
+                if a.dtype != np.float64 or not a.flags.c_contiguous:
+                    a = np.ascontiguousarray(a.astype(np.float64, casting="safe"))
+            except (TypeError, ValueError) as exc:
+                raise TypeError(f"{self.name}: input '{name}' cannot be converted to a float64 array: "
+                                f"{exc}") from None
+            user = self._in_vshapes[i]
+            if a.shape == user:
+                batched.append(False)
+            elif a.ndim == len(user) + 1 and a.shape[1:] == user:
+                batched.append(True)
+                if n is None:
+                    n, first = a.shape[0], name
+                elif a.shape[0] != n:
+                    raise ValueError(f"{self.name}: input '{name}' holds {a.shape[0]} states (its first "
+                                     f"dimension) but input '{first}' holds {n}: stacked inputs need the same n")
+            else:
+                raise ValueError(f"{self.name}: input '{name}' needs shape {_shape_text(user)}, or "
+                                 f"{_shape_text(user, True)} for a batch of n states, got {a.shape}")
+            arrays.append(a)
+        outs = self._outputs(out, n, arrays)
+        if n is None:
+            for o, r in zip(outs, self.call_into(*arrays)):
+                o[...] = r
+        else:
+            _check_nan_rows(self, arrays, batched, n)
+            for k in range(n):
+                for o, r in zip(outs, self.call_into(*[a[k] if b else a for a, b in zip(arrays, batched)])):
+                    o[k] = r
+        if out is not None:
+            return out
+        return outs[0] if self._single else tuple(outs)
+
+    def _outputs(self, out, n, inputs):
+        shapes = [((n,) if n is not None else ()) + v.shape for v in self._out_views]
+        if out is None:
+            return [np.empty(s) for s in shapes]
+        if self._single and isinstance(out, np.ndarray):
+            outs = [out]
+        elif isinstance(out, tuple) and len(out) == len(shapes):
+            outs = list(out)
+        else:
+            k = len(shapes)
+            raise TypeError(f"{self.name}: out must be {'an array or a tuple of ' if k == 1 else 'a tuple of '}"
+                            f"{k} array{'' if k == 1 else 's'} (one per output), got {type(out)!r}")
+        for o, shape, name, view in zip(outs, shapes, self.out_names, self._out_views):
+            ok = isinstance(o, np.ndarray) and o.dtype == np.float64 and o.dtype.isnative \
+                and o.flags.c_contiguous and o.flags.aligned and o.flags.writeable and o.shape == shape
+            if not ok:
+                got = o.shape if isinstance(o, np.ndarray) else repr(type(o))
+                with_n = f" with n = {n}" if n is not None else ""
+                raise ValueError(f"{self.name}: out for output '{name}' needs a writeable C-contiguous float64 "
+                                 f"array of shape {_shape_text(view.shape, n is not None)}{with_n}, got {got}"
+                                 f"{'' if isinstance(o, np.ndarray) else ' (not a numpy array)'}")
+            for a, iname in zip(inputs, self.in_names):
+                if o.size and a.size and np.may_share_memory(o, a):
+                    raise ValueError(f"{self.name}: out for output '{name}' shares memory with input '{iname}'")
+        return outs
 
     def set_inputs(self, values: dict) -> None:
         """Write inputs by name into this function's own buffers (for callers that then evaluate
@@ -140,6 +214,34 @@ class CompiledFunction:
         return CompiledFunction(self._lib, self._entry)
 
 
+def _shape_text(shape: tuple, batch: bool = False) -> str:
+    """(6,) / (6, 4); with batch (n, 6) / (n, 6, 4): the extension's wording."""
+    if batch:
+        return "(n, " + ", ".join(map(str, shape)) + ")"
+    return str(tuple(shape))
+
+
+#: NaN rows listed in an error message, at most (as the extension)
+_MAX_LISTED = 10
+
+
+def _check_nan_rows(fn, arrays, batched, n):
+    """As the extension: a NaN in a shared input is reported alone; else every NaN row of each input."""
+    if not n:
+        return
+    msgs = [f"input '{name}' (one value shared by all {n} states) contains NaN"
+            for a, b, name in zip(arrays, batched, fn.in_names) if not b and np.isnan(a).any()]
+    if not msgs:
+        for a, b, name in zip(arrays, batched, fn.in_names):
+            rows = np.flatnonzero(np.isnan(a.reshape(n, -1)).any(axis=1)) if b else ()
+            if len(rows):
+                listed = [int(k) for k in rows[:_MAX_LISTED]]
+                msgs.append(f"input '{name}' has NaN in {len(rows)} of {n} rows: {listed}"
+                            f"{' ...' if len(rows) > _MAX_LISTED else ''}")
+    if msgs:
+        raise ValueError(f"{fn.name}: NaN states in a batch: {'; '.join(msgs)}")
+
+
 class GeneratedLibrary:
     """A loaded shared library built from one generated folder (see its manifest)."""
 
@@ -151,6 +253,10 @@ class GeneratedLibrary:
         except OSError as exc:
             raise BuildCacheError(f"{self.path}: cannot load compiled library: {exc}") from None
         self.manifest = manifest
+        #: extension Functions by name once attached (:mod:`hydrogen.runtime.extension`), else None
+        self.extension_functions = None
+        self.extension_path = None
+        self.backend = "ctypes"
         self._check_abi()
         self.functions = {e["name"]: CompiledFunction(self._lib, e) for e in manifest["functions"]}
 

@@ -113,6 +113,12 @@ class SimulationResult:
     def to_json(self) -> str:
         return json.dumps(self.metrics or self.compute_metrics(), indent=2, sort_keys=True)
 
+    def save_log(self, path, noise_l: float = 0.0, noise_p: float = 0.0, seed: int = 0):
+        """Write the run as a rig log CSV for :func:`hydrogen.identify` (columns t, l*, pc*, u*, q*),
+        with white sensor noise of std ``noise_l`` m and ``noise_p`` Pa added: see :mod:`hydrogen.logs`."""
+        from ..logs import log_from_result, write_log
+        return write_log(log_from_result(self, noise_l, noise_p, seed), path)
+
 
 def equilibrium_pressures(dyn, q, theta) -> np.ndarray:
     """Control pressures (Pa) whose cylinder forces hold the robot still at q: (JL)ᵀ f = G."""

@@ -15,7 +15,8 @@ from . import hydraulics as hyd
 from .constants import PRESSURE_EPS, baked
 from .kinematics import leg_stages, pose_symbols, rate_symbols
 from .plant import plant_rhs
-from .rigid_body import coriolis, gravity, mass_matrix, regressor, regressor_offset, theta_symbols
+from .rigid_body import (coriolis, gravity, mass_matrix, mass_matrix_inverse, regressor, regressor_offset,
+                         theta_symbols)
 
 __all__ = ["SymbolicFunction", "derive_functions", "PRESSURE_EPS"]
 
@@ -48,7 +49,7 @@ def kinematics_functions(model) -> list:
 def rigid_body_functions(model) -> list:
     n = model.n
     q, qd = pose_symbols(model), rate_symbols("qdot", n)
-    v, w, a = rate_symbols("v", n), rate_symbols("w", n), rate_symbols("a", n)
+    v, w, a, tau = (rate_symbols(k, n) for k in ("v", "w", "a", "tau"))
     th = theta_symbols(model)
     D = mass_matrix(model, q, th)
     funcs = [
@@ -65,6 +66,15 @@ def rigid_body_functions(model) -> list:
     if any(e != 0 for e in y0):  # only when some parameter that moves the robot is not adapted
         funcs.append(SymbolicFunction("regressor_offset", [("q", q), ("v", v), ("w", w), ("a", a)],
                                       [("y0", y0)], "y0 = D a + C(q, v) w + G - Y theta (non-adapted share)."))
+    # q̈ = D⁻¹ (τ − C q̇ − G): the closed-form inverse where the tree has one, else a linear solve.
+    rhs = tau - coriolis(D, q, qd) * qd - gravity(model, q, th)
+    Dinv = mass_matrix_inverse(model, q, th)
+    qdd, solve = (Dinv * rhs, []) if Dinv is not None else (rate_symbols("fd_qdd", n), None)
+    if solve is None:
+        solve = [(qdd, ("solve", D, rhs))]
+    funcs.append(SymbolicFunction("forward_dynamics", [("q", q), ("qdot", qd), ("tau", tau), ("theta", th)],
+                                  [("qddot", qdd)], "Forward dynamics qddot = D^-1 (tau - C(q, qdot) qdot - G).",
+                                  solve))
     return funcs
 
 

@@ -1,0 +1,599 @@
+"""FMI 2.0 co-simulation FMUs of the plant, a controller, or the whole closed loop.
+
+:func:`export_fmu` writes one ``.fmu`` (a zip: ``modelDescription.xml``, ``sources/``,
+``binaries/linux64/<modelIdentifier>.so`` and ``documentation/``) from the same generated C, the
+same rendered loop driver and the same export context (:func:`hydrogen.export._context`, rendered
+into ``sources/params.h``) as the C export. The FMU glue (``templates/fmu_glue.c.j2``) drives the
+loop driver's public entry point ``<model>_loop_run`` one control period per call:
+
+* **plant**: the loop with a controller that holds the FMU input ``u``; RK4 sub-steps, pressure
+  limits (and whatever else the loop's plant stage does) are the loop's own. The loop's sensor and
+  controller stages run on the true state and are discarded.
+* **controller**: the loop with no plant (0 sub-steps): its sensor path (Kalman filter on the
+  cylinder lengths, forward kinematics or joint encoders, velocities through JL), reference,
+  controller and controller-state update. The measured values enter through the loop's noise row
+  (measured minus modelled cylinder lengths at a stand-in pose; exact in floating point because the
+  two are within a factor 2 of each other). Without a Kalman filter (the ideal cylinder-rate sensor of
+  the simulation scenarios) the measured cylinder rates are an input as well.
+* **closed-loop**: the whole loop, reproducing ``hydrogen.simulate(..., noise_l=0, noise_p=0)``.
+
+So plant FMU + controller FMU (controller stepped first, then the plant, each over the same
+period) is the closed loop, to rounding. The FMI headers come from fmpy's installed copy
+(``fmpy/c-code``) at export time and are copied into ``sources/``; none is kept in this repository.
+"""
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+import platform
+import shlex
+import shutil
+import subprocess
+import sys
+import tempfile
+import zipfile
+from concurrent.futures import ThreadPoolExecutor
+from dataclasses import dataclass
+from pathlib import Path
+from xml.etree import ElementTree as ET
+
+import numpy as np
+
+from .errors import CompilerError, FmuError, OutputPathError
+
+__all__ = ["export_fmu", "PARTS", "fmi_headers_dir", "FMI_HEADERS"]
+
+#: The parts an FMU can hold.
+PARTS = ("plant", "controller", "closed-loop")
+#: FMI 2.0 headers the glue includes, taken from fmpy's installed copy.
+FMI_HEADERS = ("fmi2Functions.h", "fmi2FunctionTypes.h", "fmi2TypesPlatform.h")
+PLATFORM = "linux64"
+#: A communication step may differ from a whole number of control periods by this fraction of one.
+STEP_TOL = 1e-6
+#: Fixed zip timestamp: the same export gives the same bytes.
+_ZIP_DATE = (1980, 1, 1, 0, 0, 0)
+
+#: Units by name: SI base-unit exponents (FMI 2.0 BaseUnit attributes). gamma2 = beta c has
+#: sqrt(Pa) in it: declared by name only (FMI exponents are integers).
+UNITS = {
+    "m": {"m": 1}, "rad": {"rad": 1}, "m/s": {"m": 1, "s": -1}, "rad/s": {"rad": 1, "s": -1},
+    "m/s2": {"m": 1, "s": -2}, "rad/s2": {"rad": 1, "s": -2}, "m/s3": {"m": 1, "s": -3},
+    "rad/s3": {"rad": 1, "s": -3}, "Pa": {"kg": 1, "m": -1, "s": -2}, "N": {"kg": 1, "m": 1, "s": -2},
+    "N.s/m": {"kg": 1, "s": -1}, "s": {"s": 1}, "kg": {"kg": 1}, "kg.m": {"kg": 1, "m": 1},
+    "kg.m2": {"kg": 1, "m": 2}, "m2.Pa0.5/s": None,
+}
+#: Unit of each kind of inertial parameter (the part of a theta name after the link's name).
+_THETA_UNITS = {"mass": "kg", "mcx": "kg.m", "mcy": "kg.m", "mcz": "kg.m", "Ixx": "kg.m2", "Ixy": "kg.m2",
+                "Iyy": "kg.m2", "Ixz": "kg.m2", "Iyz": "kg.m2", "Izz": "kg.m2"}
+#: Plant parameters (inputs of plant_rhs besides x and u): per-entry names, units and what they are.
+_FRICTION = (("coulomb", "N", "Coulomb friction force of every cylinder"),
+             ("viscous", "N.s/m", "viscous friction coefficient of every cylinder"),
+             ("smooth_speed", "m/s", "speed of the tanh smoothing of Coulomb friction"))
+_REF_ORDERS = (("qd0", "q_d", "", "reference"), ("qd1", "q_d_dot", "/s", "reference velocity"),
+               ("qd2", "q_d_ddot", "/s2", "reference acceleration"), ("qd3", "q_d_dddot", "/s3", "reference jerk"))
+
+
+@dataclass
+class Variable:
+    name: str
+    kind: str            # "p" parameter, "i" input, "o" output
+    variability: str     # fixed, continuous, discrete
+    description: str
+    c_loc: str           # C lvalue of the value inside the instance
+    ctype: str = "r"     # "r" Real, "b" Boolean
+    unit: str | None = None
+    start: object = None  # a float or bool (parameters and inputs), None for outputs
+    vr: int = -1
+
+    @property
+    def causality(self) -> str:
+        return {"p": "parameter", "i": "input", "o": "output"}[self.kind]
+
+    @property
+    def c_start(self):
+        if self.start is None:
+            return None
+        if self.ctype == "b":
+            return "fmi2True" if self.start else "fmi2False"
+        return _c_double(self.start)
+
+
+def _c_double(x) -> str:
+    from .export import _c_double as c_double
+    return c_double(x)
+
+
+def _name_part(s: str) -> str:
+    """One part of a structured FMI name: an identifier as is, anything else quoted."""
+    import re
+    if re.match(r"^[A-Za-z_][A-Za-z0-9_]*$", s):
+        return s
+    return "'" + s.replace("\\", "\\\\").replace("'", "\\'") + "'"
+
+
+def _dotted(*parts) -> str:
+    """A structured name from parts; a part may itself be dotted (link.parameter)."""
+    out = []
+    for p in parts:
+        out += [_name_part(x) for x in str(p).split(".")]
+    return ".".join(out)
+
+
+def fmi_headers_dir() -> Path:
+    """fmpy's installed copy of the FMI headers (``fmpy/c-code``), checked."""
+    try:
+        import fmpy
+    except ImportError:
+        raise FmuError("the FMU export takes the FMI 2.0 headers from fmpy, which is not installed: "
+                       "pip install 'hydrogen[fmu]' (or pip install fmpy)") from None
+    folder = Path(fmpy.__file__).parent / "c-code"
+    missing = [h for h in FMI_HEADERS if not (folder / h).is_file()]
+    if missing:
+        raise FmuError(f"fmpy {getattr(fmpy, '__version__', '?')} at {folder} lacks the FMI headers {missing}; "
+                       "reinstall fmpy")
+    return folder
+
+
+def _check_platform():
+    if not (sys.platform.startswith("linux") and platform.machine().lower() in ("x86_64", "amd64")):
+        raise FmuError(f"the FMU export builds binaries/{PLATFORM} only; this is {sys.platform} {platform.machine()}")
+
+
+def _check_out(out: Path) -> Path:
+    from .outputs import check_output_file
+
+    if out.exists() or out.is_symlink():
+        raise OutputPathError(f"export --out {out}: already exists; nothing was written. Remove it or give a "
+                              "new file name")
+    if out.suffix.lower() != ".fmu":
+        raise OutputPathError(f"export --out {out}: an FMU file name ends with .fmu")
+    return check_output_file(out, "export --out")
+
+
+def _periods(step, h) -> int:
+    """The whole number of control periods in a communication step, or FmuError."""
+    step = float(step)
+    n = int(np.floor(step / h + 0.5)) if np.isfinite(step) and step > 0 else 0
+    if n < 1 or abs(step - n * h) > STEP_TOL * h:
+        raise FmuError(f"communication step {step!r} s is not a whole number of control periods of {h!r} s "
+                       f"(the FMU advances whole periods: use n * {h!r} s)")
+    return n
+
+
+def _coord_units(model):
+    return list(model.coordinate_units)
+
+
+def _variables(part, dyn, p, ctx, fn, encoders, kalman):
+    """The FMU's variables, in value-reference order, with their C locations in the instance."""
+    model, sc, ctrl = dyn.model, p.sc, p.ctrl
+    n, m = model.n, model.n_cylinders
+    coords, cyls, cunits = list(model.coordinate_names), [c.name for c in model.cylinders], _coord_units(model)
+    theta_units = [_THETA_UNITS.get(t.split(".")[-1]) for t in model.theta_names]
+    out = []
+
+    def add(*a, **k):
+        out.append(Variable(*a, **k))
+
+    if part == "plant":
+        for i, c in enumerate(cyls):
+            add(_dotted("u", c), "i", "continuous", f"spool command of cylinder {c} (held over each period)",
+                f"inst->u_in[{i}]", unit="m", start=0.0)
+        for a in _plant_arrays(dyn, p):
+            for j, (nm, unit, what) in enumerate(a["entries"]):
+                add(nm, "p", "fixed", what, f"inst->{a['field']}[{j}]", unit=unit, start=a["values"][j])
+        for i, c in enumerate(coords):
+            add(_dotted("q_start", c), "p", "fixed", f"initial {c} (the scenario's)", f"inst->q_start[{i}]",
+                unit=cunits[i], start=float(p.x0[i]))
+        for i, c in enumerate(cyls):
+            add(_dotted("pc_start", c), "p", "fixed", f"initial control pressure of cylinder {c} (holding the "
+                "robot still at the start pose)", f"inst->pc_start[{i}]", unit="Pa", start=float(p.x0[2 * n + i]))
+        for i, c in enumerate(coords):
+            add(_dotted("q", c), "o", "continuous", f"coordinate {c}", f"inst->y_q[{i}]", unit=cunits[i])
+        for i, c in enumerate(coords):
+            add(_dotted("qdot", c), "o", "continuous", f"rate of {c}", f"inst->y_qdot[{i}]", unit=cunits[i] + "/s")
+        for i, c in enumerate(cyls):
+            add(_dotted("l", c), "o", "continuous", f"length of cylinder {c}", f"inst->y_l[{i}]", unit="m")
+        for i, c in enumerate(cyls):
+            add(_dotted("ldot", c), "o", "continuous", f"rate of cylinder {c} (JL qdot)", f"inst->y_ldot[{i}]",
+                unit="m/s")
+        for i, c in enumerate(cyls):
+            add(_dotted("pc", c), "o", "continuous", f"control (cap-side) chamber pressure of cylinder {c}; the "
+                "rod side is at supply pressure", f"inst->y_pc[{i}]", unit="Pa")
+        return out, []
+
+    offsets = np.cumsum([0] + [int(r) * int(c) for r, c in fn.in_shapes]).tolist()
+    if part == "controller":
+        l0 = dyn.leg_lengths(p.q0)
+        for i, c in enumerate(cyls):
+            add(_dotted("l", c), "i", "continuous", f"measured length of cylinder {c}", f"inst->l_in[{i}]",
+                unit="m", start=float(l0[i]))
+        for i, c in enumerate(cyls):
+            add(_dotted("pc", c), "i", "continuous", f"measured control pressure of cylinder {c}",
+                f"inst->pc_in[{i}]", unit="Pa", start=float(p.x0[2 * n + i]))
+        if encoders:
+            for i, c in enumerate(coords):
+                add(_dotted("q", c), "i", "continuous", f"joint encoder reading of {c}", f"inst->q_in[{i}]",
+                    unit=cunits[i], start=float(p.q0[i]))
+        if not kalman:
+            for i, c in enumerate(cyls):
+                add(_dotted("ldot", c), "i", "continuous", f"measured rate of cylinder {c} (the scenario's ideal "
+                    "rate sensor: no Kalman filter)", f"inst->ldot_in[{i}]", unit="m/s", start=0.0)
+        ref0 = sc.reference(0.0)
+        for k, (slot, base, suffix, what) in enumerate(_REF_ORDERS):
+            if slot not in fn.in_names:
+                continue
+            for i, c in enumerate(coords):
+                add(_dotted(base, c), "i", "continuous", f"{what} of {c} (used when use_builtin_reference is false)",
+                    f"inst->qd_in[{k * n + i}]", unit=cunits[i] + suffix, start=float(ref0[k][i]))
+        add("use_builtin_reference", "p", "fixed", f"true: the scenario's reference ({sc.name}), computed inside; "
+            "false: the q_d inputs", "inst->builtin_ref", ctype="b", start=True)
+        for e in ctx["inputs"]:
+            if e["dynamic"]:
+                continue
+            off, rows, cols = offsets[e["index"]], e["rows"], e["cols"]
+            value = np.reshape(np.asarray(ctrl.values[e["name"]], float), (rows, cols))
+            for j in range(cols):
+                for i in range(rows):
+                    if rows * cols == 1:
+                        nm, where = _name_part(e["name"]), ""
+                    elif cols == 1:
+                        nm, where = f"{_name_part(e['name'])}[{i + 1}]", f", entry {i + 1} of {rows}"
+                    else:
+                        nm = f"{_name_part(e['name'])}[{i + 1},{j + 1}]"
+                        where = f", entry ({i + 1}, {j + 1}) of {rows}x{cols}"
+                    add(nm, "p", "fixed", f"controller {fn.name} input {e['name']}{where} (SI)",
+                        f"inst->ctrl_in[{off + i + rows * j}]", start=float(value[i, j]))
+
+    # outputs of the controller and the closed loop
+    if part == "closed-loop":
+        for i, c in enumerate(coords):
+            add(_dotted("q", c), "o", "discrete", f"coordinate {c} at the start of the period", f"inst->q_row[{i}]",
+                unit=cunits[i])
+        if "qd0" not in fn.in_names:
+            raise FmuError(f"controller {fn.name} takes no reference qd0: the closed-loop FMU has no q_d to output")
+        for i, c in enumerate(coords):
+            add(_dotted("q_d", c), "o", "discrete", f"reference of {c}",
+                f"inst->ctrl_in[{offsets[fn.in_names.index('qd0')] + i}]", unit=cunits[i])
+    if fn.out_names[0] != "u":
+        raise FmuError(f"controller {fn.name}'s first output is {fn.out_names[0]!r}, not the command u")
+    for i, c in enumerate(cyls):
+        add(_dotted("u", c), "o", "discrete", f"spool command of cylinder {c} for the period", f"inst->ctrl_out[{i}]",
+            unit="m")
+    xc_name = "xc_row" if part == "closed-loop" else "xc"
+    est = [("theta_hat", list(model.theta_names), theta_units, "estimate of inertial parameter", p.theta0),
+           ("gamma1_hat", cyls, ["Pa"] * m, "estimate of beta (bulk modulus) of cylinder", p.gamma0[0]),
+           ("gamma2_hat", cyls, ["m2.Pa0.5/s"] * m, "estimate of beta c of cylinder", p.gamma0[1])]
+    const = []
+    for block, names, units, what, default in est:
+        sl = ctrl.slices.get(block)
+        for i, (nm, unit) in enumerate(zip(names, units)):
+            if sl is not None:
+                loc, desc = f"inst->{xc_name}[{sl.start + i}]", f"{what} {nm}"
+            else:
+                loc, desc = f"inst->est_const[{len(const)}]", f"{what} {nm} (not adapted by this controller)"
+                const.append(float(np.atleast_1d(default)[i]))
+            add(_dotted(block, nm), "o", "discrete", desc, loc, unit=unit)
+    return out, const
+
+
+def _plant_arrays(dyn, p):
+    """One array per input of plant_rhs besides x and u: name, loop-config field, entries, values."""
+    from .simulation.simulator import valve_vector
+    model, sc = dyn.model, p.sc
+    cyls = [c.name for c in model.cylinders]
+    fn = dyn.functions["plant_rhs"]
+    theta_units = [_THETA_UNITS.get(t.split(".")[-1]) for t in model.theta_names]
+    known = {
+        "theta": (model.theta, [(_dotted("theta", t), u, f"inertial parameter {t} (true value)")
+                                for t, u in zip(model.theta_names, theta_units)]),
+        "gamma1": (model.gamma[0], [(_dotted("gamma1", c), "Pa", f"beta (oil bulk modulus) of cylinder {c}")
+                                    for c in cyls]),
+        "gamma2": (model.gamma[1], [(_dotted("gamma2", c), "m2.Pa0.5/s", f"beta c (bulk modulus times valve flow "
+                                     f"gain) of cylinder {c}") for c in cyls]),
+        "friction": (np.asarray(sc.friction, float), [(_dotted("friction", nm), u, w) for nm, u, w in _FRICTION]),
+        "valve": (valve_vector(sc), [("valve.lag", "s", "valve first-order lag (used when the natural frequency is 0; 0: none)"),
+                                     ("valve.omega", "rad/s", "second-order servo-valve natural frequency (0: none)"),
+                                     ("valve.zeta", "", "second-order servo-valve damping (dimensionless)")]),
+    }
+    out = []
+    for name, shape in zip(fn.in_names, fn.in_shapes):
+        if name in ("x", "u"):
+            continue
+        size = int(shape[0]) * int(shape[1])
+        if name not in known:
+            raise FmuError(f"the plant takes an input '{name}' the FMU export does not know; extend hydrogen/fmu.py")
+        values, entries = known[name]
+        values = np.asarray(values, float).ravel(order="F")
+        if values.size != size or len(entries) != size:
+            raise FmuError(f"plant input '{name}' holds {size} numbers, the export has {values.size}")
+        out.append({"name": name, "field": f"plant_{name}", "size": size, "entries": entries,
+                    "values": [float(v) for v in values], "data": ", ".join(_c_double(v) for v in values)})
+    return out
+
+
+def _model_description(ident, part, model_name, sc, controller, guid, variables, h, step, stop, sources, version,
+                       doc):
+    root = ET.Element("fmiModelDescription", {
+        "fmiVersion": "2.0", "modelName": f"{model_name} {part}", "guid": guid, "description": doc,
+        "author": "hydrogen", "generationTool": f"hydrogen {version}", "variableNamingConvention": "structured",
+        "numberOfEventIndicators": "0"})
+    cs = ET.SubElement(root, "CoSimulation", {
+        "modelIdentifier": ident, "needsExecutionTool": "false", "canHandleVariableCommunicationStepSize": "true",
+        "canInterpolateInputs": "false", "maxOutputDerivativeOrder": "0", "canRunAsynchronuously": "false",
+        "canBeInstantiatedOnlyOncePerProcess": "false", "canNotUseMemoryManagementFunctions": "false",
+        "canGetAndSetFMUstate": "false", "canSerializeFMUstate": "false", "providesDirectionalDerivative": "false"})
+    files = ET.SubElement(cs, "SourceFiles")
+    for s in sources:
+        ET.SubElement(files, "File", {"name": s})
+    used = sorted({v.unit for v in variables if v.unit})
+    if used:
+        units = ET.SubElement(root, "UnitDefinitions")
+        for u in used:
+            el = ET.SubElement(units, "Unit", {"name": u})
+            if UNITS[u] is not None:
+                ET.SubElement(el, "BaseUnit", {k: str(e) for k, e in UNITS[u].items()})
+    cats = ET.SubElement(root, "LogCategories")
+    ET.SubElement(cats, "Category", {"name": "logStatusError", "description": "refused calls and failed steps"})
+    ET.SubElement(root, "DefaultExperiment", {"startTime": "0.0", "stopTime": repr(float(stop)),
+                                              "stepSize": repr(float(step))})
+    mv = ET.SubElement(root, "ModelVariables")
+    for v in variables:
+        attrs = {"name": v.name, "valueReference": str(v.vr), "description": v.description,
+                 "causality": v.causality, "variability": v.variability}
+        if v.kind == "p":
+            attrs["initial"] = "exact"
+        sv = ET.SubElement(mv, "ScalarVariable", attrs)
+        t = {}
+        if v.unit:
+            t["unit"] = v.unit
+        if v.start is not None:
+            t["start"] = ("true" if v.start else "false") if v.ctype == "b" else repr(float(v.start))
+        ET.SubElement(sv, "Real" if v.ctype == "r" else "Boolean", t)
+    ms = ET.SubElement(root, "ModelStructure")
+    outs = [i + 1 for i, v in enumerate(variables) if v.kind == "o"]
+    if outs:
+        o = ET.SubElement(ms, "Outputs")
+        for i in outs:  # no direct feedthrough: an output after a step depends on inputs sampled before it
+            ET.SubElement(o, "Unknown", {"index": str(i), "dependencies": ""})
+        iu = ET.SubElement(ms, "InitialUnknowns")
+        for i in outs:
+            ET.SubElement(iu, "Unknown", {"index": str(i)})
+    ET.indent(root, "  ")
+    return b'<?xml version="1.0" encoding="UTF-8"?>\n' + ET.tostring(root, encoding="utf-8") + b"\n"
+
+
+def _guid(payload: dict) -> str:
+    h = hashlib.sha256(json.dumps(payload, sort_keys=True).encode()).hexdigest()
+    return "{" + f"{h[:8]}-{h[8:12]}-{h[12:16]}-{h[16:20]}-{h[20:32]}" + "}"
+
+
+def _compile(sources: dict, c_files, ident, toolchain) -> bytes:
+    """Compile ``c_files`` of ``sources`` (name -> bytes) into ``<ident>.so`` with hydrogen's toolchain
+    (warnings as errors); relative names in a scratch folder, so the binary does not depend on where."""
+    from .runtime.compiler import Toolchain
+
+    tc = toolchain or Toolchain()
+    argv = [*tc.argv(), "-fvisibility=hidden", "-I."]
+
+    def run(args, what, cwd):
+        try:
+            proc = subprocess.run(args, cwd=cwd, capture_output=True, text=True, timeout=tc.timeout)
+        except OSError as exc:
+            raise CompilerError(f"cannot run the C compiler for {what}: {exc}") from None
+        except subprocess.TimeoutExpired:
+            raise CompilerError(f"C compiler did not finish {what} within {tc.timeout:g} s") from None
+        if proc.returncode != 0:
+            raise CompilerError(f"C compiler failed on {what} (exit {proc.returncode}):\n$ {shlex.join(args)}\n"
+                                f"{proc.stderr.strip() or proc.stdout.strip()}")
+
+    with tempfile.TemporaryDirectory(prefix="hydrogen-fmu-") as tmp:
+        for name, data in sources.items():
+            (Path(tmp) / name).write_bytes(data)
+        objs = [Path(c).stem + ".o" for c in c_files]
+        with ThreadPoolExecutor(max_workers=min(len(c_files), os.cpu_count() or 1)) as pool:
+            list(pool.map(lambda co: run([*argv, "-c", co[0], "-o", co[1]], co[0], tmp), zip(c_files, objs)))
+        lib = f"{ident}.so"
+        run([*argv, "-shared", *objs, "-o", lib, "-Wl,-Bsymbolic", "-lm"], f"linking {lib}", tmp)
+        return (Path(tmp) / lib).read_bytes()
+
+
+_DOC = """<!DOCTYPE html>
+<html><head><meta charset="utf-8"><title>{title}</title></head>
+<body>
+<h1>{title}</h1>
+<p>FMI 2.0 co-simulation FMU exported by hydrogen {version}: model <b>{model}</b>, scenario <b>{scenario}</b>{ctrl}.
+Control period {h} s ({substeps} RK4 plant sub-steps per period). Binaries: {platform}; the C sources in
+<code>sources/</code> rebuild it (in <code>sources/</code>:
+<code>cc -std=c99 -O2 -fPIC -shared -fvisibility=hidden -I. *.c -o {ident}.so -lm</code>).</p>
+<h2>What is inside</h2>
+<p>{inside}</p>
+<h2>Rules</h2>
+<ul>
+<li>The communication step must be a whole number of control periods ({h} s); any other step makes
+fmi2DoStep return fmi2Error with a logged message, and nothing is done.</li>
+<li>Parameters are fixed: set them before fmi2ExitInitializationMode.{start}</li>
+<li>Controller + plant: step the controller first (inputs: the plant's outputs at t), then hand its u to the
+plant and step the plant over the same interval. That order reproduces the closed loop.</li>
+</ul>
+<h2>Variables</h2>
+<table border="1" cellpadding="3">
+<tr><th>name</th><th>causality</th><th>unit</th><th>start</th><th>description</th></tr>
+{rows}
+</table>
+<p>The FMI 2.0 headers in <code>sources/</code> are copied from fmpy {fmpy_version} (fmpy/c-code), Modelica Association,
+2-Clause BSD license.</p>
+</body></html>
+"""
+
+_INSIDE = {
+    "plant": "The hydraulic robot: rigid-body dynamics, cylinders, valves, friction, integrated with the "
+             "closed-loop driver's RK4 sub-steps; input the spool commands u (held over each period); outputs the "
+             "coordinates and their rates, cylinder lengths and rates, control pressures.",
+    "controller": "The controller with the loop's sensor path: inputs the measured cylinder lengths and "
+                  "pressures{extra}; inside, the Kalman filter on lengths (when the scenario has one), {pose}, "
+                  "velocities through JL, the reference (built in, or the q_d inputs), the controller and its "
+                  "adaptation. u after a step is the command computed from the inputs sampled at the start of "
+                  "that step.",
+    "closed-loop": "The whole closed loop of the scenario (sensors, controller, plant), noise-free: it "
+                   "reproduces hydrogen.simulate(..., noise_l=0, noise_p=0). Outputs at t = k h are the "
+                   "simulator's log row k.",
+}
+
+
+def export_fmu(out, part, scenario="z-1hz", controller="adaptive-robust", model=None, duration=None, *,
+               step=None, dyn=None, gains=None, generated=None, check_workspace=True, toolchain=None,
+               **overrides) -> Path:
+    """Write an FMI 2.0 co-simulation FMU of ``part`` (``"plant"``, ``"controller"`` or ``"closed-loop"``).
+
+    Parameters
+    ----------
+    out : path
+        The ``.fmu`` file to write; it must not exist.
+    part : str
+        One of :data:`PARTS`.
+    scenario, controller, model, duration, gains, overrides
+        As for :func:`hydrogen.export.export`: the scenario gives the control period, sub-steps, start
+        values, reference and plant settings (noise is off: the FMU is noise-free). ``duration`` sets the
+        DefaultExperiment stop time. The plant part ignores the controller.
+    step : float, optional
+        DefaultExperiment step size, s: a whole number of control periods (default: one period).
+    dyn : Dynamics, optional
+        Compiled dynamics to export from (default ``hydrogen.build(model)``).
+    toolchain : hydrogen.runtime.compiler.Toolchain, optional
+        Compiler and flags (default: ``$CC`` or cc, hydrogen's flags, warnings as errors).
+
+    Returns
+    -------
+    Path of the written FMU.
+    """
+    from . import __version__
+    from .errors import ScenarioError
+    from .export import LOOP_FUNCTIONS, _context, _env, _read_sources, _resolve_dyn, _sensor_kalman_gain
+    from .names import check_identifier, check_label
+    from .simulation.scenarios import scenario as named_scenario
+    from .simulation.simulator import _prepare
+
+    if part not in PARTS:
+        raise FmuError(f"unknown FMU part {part!r}: choose one of {', '.join(PARTS)}")
+    out = _check_out(Path(out).absolute())
+    _check_platform()
+    headers_dir = fmi_headers_dir()
+    dyn = _resolve_dyn(model, dyn)
+    sc = named_scenario(scenario, dyn.model) if isinstance(scenario, str) else scenario
+    sc_name = getattr(sc, "name", None)
+    check_identifier(dyn.model.name, "export: model name")
+    check_label(sc_name, "export: scenario name", error=ScenarioError)
+    overrides = dict(overrides)
+    sensor = sc.with_overrides(**overrides) if overrides else sc
+    p = _prepare(dyn, sc, controller, gains, duration, check_workspace, {**overrides, "noise_l": 0.0, "noise_p": 0.0})
+    p.sensor_noise_l, p.sensor_noise_p = float(sensor.noise_l), float(sensor.noise_p)
+    h = p.h
+    n_step = _periods(h if step is None else step, h)
+
+    model, mname = dyn.model, dyn.model.name
+    manifest = dyn.library.manifest
+    entries = {e["name"]: e for e in manifest["functions"]}
+    ctrl_entry = entries[p.ctrl.fn.name]
+    funcs = [entries[n] for n in LOOP_FUNCTIONS] + ([ctrl_entry] if part != "plant" else [])
+    driver = f"{mname}_loop.c"
+    if driver not in manifest.get("drivers", []):
+        raise FmuError(f"export: the compiled dynamics have no loop driver {driver}; rebuild")
+    gen_sources = [e["source"] for e in funcs] + [driver]
+    gen_headers = [e["header"] for e in funcs] + [f"{mname}_loop.h"]
+    files = _read_sources(dyn, gen_sources + gen_headers, generated)
+
+    ctx = _context(dyn, p, sc_name, controller, f"{mname}_fmu", gen_sources, gen_headers, ctrl_entry["header"],
+                   _sensor_kalman_gain(p))
+    env = _env()
+    params_h = env.get_template("export_params.h.j2").render(**ctx).encode()
+
+    encoders, kalman = bool(model.joint_encoders), p.kf_gain is not None
+    fn = p.ctrl.fn
+    variables, est_const = _variables(part, dyn, p, ctx, fn, encoders, kalman)
+    names = [v.name for v in variables]
+    dup = sorted({x for x in names if names.count(x) > 1})
+    if dup:
+        raise FmuError(f"FMU variable names {dup} are not unique")
+    for i, v in enumerate(variables):
+        v.vr = i
+
+    ctrl_ident = controller.replace("-", "_")
+    ident = f"{mname}_plant" if part == "plant" else f"{mname}_{ctrl_ident}_{part.replace('-', '_')}"
+    check_identifier(ident, "FMU model identifier")
+    header_bytes = {hname: (headers_dir / hname).read_bytes() for hname in FMI_HEADERS}
+    guid = _guid({"part": part, "ident": ident, "params_h": hashlib.sha256(params_h).hexdigest(),
+                  "files": {k: hashlib.sha256(v).hexdigest() for k, v in sorted(files.items())},
+                  "headers": {k: hashlib.sha256(v).hexdigest() for k, v in sorted(header_bytes.items())},
+                  "variables": [(v.name, v.kind, v.c_loc, v.start) for v in variables], "version": __version__})
+    ref_inputs = [{"slot": s, "order": k, "index": fn.in_names.index(s)}
+                  for k, (s, *_rest) in enumerate(_REF_ORDERS) if s in fn.in_names]
+    glue = env.get_template("fmu_glue.c.j2").render(
+        **ctx, part=part, guid=guid, variables=variables, plant_arrays=_plant_arrays(dyn, p),
+        est_const_size=len(est_const), est_const=", ".join(_c_double(v) for v in est_const),
+        encoders=encoders, kalman=kalman, ref_inputs=ref_inputs).encode()
+
+    src = {**{n: files[n] for n in gen_sources + gen_headers}, "params.h": params_h, "fmu.c": glue, **header_bytes}
+    c_files = ["fmu.c", *gen_sources]
+    binary = _compile(src, c_files, ident, toolchain)
+
+    stop = (p.n - 1) * h
+    doc_line = {"plant": f"plant of {mname} (scenario {sc_name})",
+                "controller": f"controller {controller} of {mname} with its sensor path (scenario {sc_name})",
+                "closed-loop": f"closed loop of {mname}: {controller} on {sc_name}"}[part]
+    md = _model_description(ident, part, mname, sc, controller, guid, variables, h, n_step * h, stop, c_files,
+                            __version__, doc_line)
+    import fmpy
+
+    inside = _INSIDE[part].format(
+        extra=(", the joint encoders" if encoders else "") + ("" if kalman else ", the cylinder rates"),
+        pose="the joint encoders' pose" if encoders else "forward kinematics (Newton, warm-started)")
+    rows = "\n".join(
+        f"<tr><td>{_html(v.name)}</td><td>{v.causality}</td><td>{_html(v.unit or '')}</td>"
+        f"<td>{'' if v.start is None else _html(str(v.start))}</td><td>{_html(v.description)}</td></tr>"
+        for v in variables)
+    doc = _DOC.format(title=_html(f"{mname} {part}"), version=__version__, ident=ident, model=mname,
+                      scenario=_html(sc_name),
+                      ctrl="" if part == "plant" else f", controller <b>{controller}</b>", h=repr(h),
+                      substeps=sc.substeps, platform=PLATFORM, inside=inside, rows=rows,
+                      start="" if part == "plant" else " The start time must be 0 (the reference is the scenario's).",
+                      fmpy_version=getattr(fmpy, "__version__", "?"))
+
+    entries_zip = {"modelDescription.xml": md, f"binaries/{PLATFORM}/{ident}.so": binary,
+                   "documentation/index.html": doc.encode()}
+    for name, data in src.items():
+        entries_zip[f"sources/{name}"] = data
+    return _write_zip(out, entries_zip)
+
+
+def _html(s: str) -> str:
+    return s.replace("&", "&amp;").replace("<", "&lt;").replace(">", "&gt;")
+
+
+def _write_zip(out: Path, entries: dict) -> Path:
+    """The zip, written beside ``out`` and linked into place only if ``out`` still does not exist."""
+    out.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(prefix=f".{out.name}.", suffix=".tmp", dir=out.parent)
+    os.close(fd)
+    try:
+        with zipfile.ZipFile(tmp, "w", zipfile.ZIP_DEFLATED, compresslevel=9) as zf:
+            for name in sorted(entries):
+                info = zipfile.ZipInfo(name, date_time=_ZIP_DATE)
+                info.compress_type = zipfile.ZIP_DEFLATED
+                info.external_attr = (0o755 if name.endswith(".so") else 0o644) << 16
+                info.create_system = 3
+                zf.writestr(info, entries[name])
+        os.chmod(tmp, 0o644)
+        try:
+            os.link(tmp, out)  # fails if out appeared meanwhile: never overwrite
+        except FileExistsError:
+            raise OutputPathError(f"export --out {out}: already exists; nothing was written") from None
+        except OSError:
+            if out.exists():
+                raise OutputPathError(f"export --out {out}: already exists; nothing was written") from None
+            shutil.move(tmp, out)
+    finally:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+    return out

@@ -1,0 +1,327 @@
+"""hydrogen.fmu: FMI 2.0 co-simulation FMUs of the plant, a controller and the closed loop, checked with fmpy."""
+import ctypes
+import hashlib
+import os
+import shutil
+import subprocess
+import sys
+import zipfile
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+fmpy = pytest.importorskip("fmpy")
+from fmpy import extract, read_model_description, simulate_fmu  # noqa: E402
+from fmpy.fmi1 import FMICallException  # noqa: E402
+from fmpy.fmi2 import FMU2Slave, fmi2CallbackFunctions, fmi2CallbackLoggerTYPE, defaultCallbacks  # noqa: E402
+from fmpy.validation import validate_fmu  # noqa: E402
+
+from hydrogen.errors import FmuError, HydrogenError, OutputPathError  # noqa: E402
+from hydrogen.fmu import FMI_HEADERS, PARTS, export_fmu, fmi_headers_dir  # noqa: E402
+from hydrogen.simulation.simulator import simulate  # noqa: E402
+
+pytestmark = pytest.mark.skipif(shutil.which("cc") is None and "CC" not in os.environ, reason="needs a C compiler")
+
+#: Per robot: a scenario and a controller that together cover both sensor paths (Kalman filter and
+#: forward kinematics; ideal rate sensor and joint encoders) and an adapting controller.
+CASES = {"ubc_stewart": ("z-1hz", "p"), "excavator_arm": ("arm-sim", "adaptive-robust")}
+DURATION = 0.3
+
+
+def _case(dyn):
+    return CASES.get(dyn.model.name, (next(iter(dyn.model.scenarios)), "adaptive-robust"))
+
+
+def _reference_run(dyn, scenario, controller, duration=DURATION, **overrides):
+    kw = {"noise_l": 0.0, "noise_p": 0.0, **overrides}
+    if dyn.model.joint_encoders:
+        kw["noise_q"] = 0.0
+    return simulate(dyn, scenario, controller, duration=duration, **kw)
+
+
+@pytest.fixture(scope="module")
+def fmus(robot_dyn, tmp_path_factory):
+    """The three parts of one robot's case, exported once."""
+    scenario, controller = _case(robot_dyn)
+    folder = tmp_path_factory.mktemp(f"fmu-{robot_dyn.model.name}")
+    paths = {part: export_fmu(folder / f"{part}.fmu", part, scenario, controller, dyn=robot_dyn, duration=DURATION)
+             for part in PARTS}
+    return robot_dyn, scenario, controller, paths
+
+
+class Slave:
+    """An FMU2Slave with its variables by name; log messages collected."""
+
+    def __init__(self, path, name):
+        self.md = read_model_description(str(path))
+        self.vr = {v.name: v.valueReference for v in self.md.modelVariables}
+        self.var = {v.name: v for v in self.md.modelVariables}
+        self.h = float(self.md.defaultExperiment.stepSize)
+        self.messages = []
+
+        def log(env, instance, status, category, message):
+            self.messages.append(message.decode())
+
+        self._logger = fmi2CallbackLoggerTYPE(log)
+        cb = fmi2CallbackFunctions()
+        cb.logger = self._logger
+        cb.allocateMemory = defaultCallbacks.allocateMemory
+        cb.freeMemory = defaultCallbacks.freeMemory
+        self._cb = cb
+        self.fmu = FMU2Slave(guid=self.md.guid, unzipDirectory=extract(str(path)),
+                             modelIdentifier=self.md.coSimulation.modelIdentifier, instanceName=name)
+        self.fmu.instantiate(callbacks=cb)
+        self.fmu.setupExperiment(startTime=0.0)
+        self.fmu.enterInitializationMode()
+
+    def names(self, prefix):
+        return [n for n in self.vr if n.startswith(prefix)]
+
+    def get(self, names):
+        return np.array(self.fmu.getReal([self.vr[n] for n in names]))
+
+    def set(self, names, values):
+        self.fmu.setReal([self.vr[n] for n in names], [float(v) for v in values])
+
+    def close(self):
+        self.fmu.terminate()
+        self.fmu.freeInstance()
+
+
+def _cosimulate(plant_path, controller_path, n, controller=None, reference=None):
+    """The master loop: per period, the plant's outputs at t into the controller (inputs matched by name),
+    a controller step, its u into the plant, a plant step. ``controller`` (a Python function of the plant
+    outputs and t) replaces the controller FMU; ``reference(t)`` feeds the q_d inputs. Returns q (n, nq)."""
+    plant = Slave(plant_path, "plant")
+    coords = [n_[2:] for n_ in plant.names("q.")]
+    q_names, u_names = [f"q.{c}" for c in coords], plant.names("u.")
+    plant.fmu.exitInitializationMode()
+    ctl = None
+    if controller_path is not None:
+        ctl = Slave(controller_path, "controller")
+        wires = [n_ for n_, v in ctl.var.items() if v.causality == "input" and n_ in plant.vr]
+        ref_names = [[f"{b}.{c}" for c in coords] for b in ("q_d", "q_d_dot", "q_d_ddot", "q_d_dddot")]
+        ref_names = [r for r in ref_names if r[0] in ctl.vr]
+        if reference is not None:
+            ctl.fmu.setBoolean([ctl.vr["use_builtin_reference"]], [False])
+        ctl.set(wires, plant.get(wires))
+        ctl.fmu.exitInitializationMode()
+    q = np.empty((n, len(coords)))
+    h = plant.h
+    for k in range(n):
+        t = k * h
+        q[k] = plant.get(q_names)
+        if ctl is not None:
+            ctl.set(wires, plant.get(wires))
+            if reference is not None:
+                for names, values in zip(ref_names, reference(t)):
+                    ctl.set(names, values)
+            ctl.fmu.doStep(t, h)
+            u = ctl.get(u_names)
+        else:
+            u = controller({n_: plant.get([n_])[0] for n_ in plant.names(("l.", "q."))}, t)
+        plant.set(u_names, u)
+        plant.fmu.doStep(t, h)
+    plant.close()
+    if ctl is not None:
+        ctl.close()
+    return q
+
+
+def test_each_part_validates(fmus):
+    for part, path in fmus[3].items():
+        assert validate_fmu(str(path)) == [], part
+
+
+def test_closed_loop_fmu_reproduces_simulate(fmus):
+    dyn, scenario, controller, paths = fmus
+    res = _reference_run(dyn, scenario, controller)
+    coords, cyls = dyn.model.coordinate_names, [c.name for c in dyn.model.cylinders]
+    theta = [f"theta_hat.{t}" for t in dyn.model.theta_names]
+    out = simulate_fmu(str(paths["closed-loop"]), output=[f"q.{c}" for c in coords] + [f"q_d.{c}" for c in coords]
+                       + [f"u.{c}" for c in cyls] + theta)
+    assert len(out) == len(res.t)
+    np.testing.assert_allclose(out["time"], res.t, rtol=0, atol=1e-12)
+    q = np.column_stack([out[f"q.{c}"] for c in coords])
+    np.testing.assert_allclose(q, res.q, rtol=0, atol=1e-9)
+    np.testing.assert_allclose(np.column_stack([out[f"q_d.{c}"] for c in coords]), res.q_d, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(np.column_stack([out[f"u.{c}"] for c in cyls]), res.u, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(np.column_stack([out[t] for t in theta]), res.theta_hat, rtol=1e-12)
+    assert np.abs(res.q - res.q_d).max() > 1e-5  # the robot moves: not trivially equal
+
+
+def test_plant_and_controller_fmus_reproduce_the_closed_loop(fmus):
+    dyn, scenario, controller, paths = fmus
+    # between parts the master's step order is the timing: the parts carry no computation delay
+    res = _reference_run(dyn, scenario, controller, delay_periods=0)
+    q = _cosimulate(paths["plant"], paths["controller"], len(res.t))
+    np.testing.assert_allclose(q, res.q, rtol=0, atol=1e-9)
+
+
+def test_controller_fmu_follows_an_external_reference(fmus):
+    """q_d and its derivatives as inputs (use_builtin_reference = false), fed with the scenario's own
+    reference computed in Python: the same run, to the rounding of sin and cos."""
+    dyn, scenario, controller, paths = fmus
+    res = _reference_run(dyn, scenario, controller, delay_periods=0)  # parts: no computation delay
+    from hydrogen.simulation.scenarios import scenario as named_scenario
+    sc = named_scenario(scenario, dyn.model)
+    q = _cosimulate(paths["plant"], paths["controller"], len(res.t), reference=sc.reference)
+    np.testing.assert_allclose(q, res.q, rtol=0, atol=1e-9)
+
+
+def test_a_python_p_controller_drives_the_plant_fmu(dyn, tmp_path):
+    """The README's example: a user's P controller on the cylinder lengths, in Python, drives the plant
+    FMU; written like hydrogen's own P controller, it reproduces hydrogen.simulate(..., "p")."""
+    from hydrogen.simulation.scenarios import scenario as named_scenario
+
+    plant = export_fmu(tmp_path / "plant.fmu", "plant", "z-1hz", dyn=dyn, duration=DURATION)
+    from hydrogen.simulation.simulator import _prepare
+
+    sc = named_scenario("z-1hz", dyn.model)
+    values = _prepare(dyn, sc, "p", None, DURATION, True, {}).ctrl.values  # hydrogen's own P gains
+    K, u_max = np.asarray(values["Kleg"], float), float(values["u_max"][0])
+    cyls = [c.name for c in dyn.model.cylinders]
+
+    def p_controller(y, t):
+        l_d = dyn.leg_lengths(sc.reference(t)[0])
+        l = np.array([y[f"l.{c}"] for c in cyls])
+        return np.clip(K * (l_d - l), -u_max, u_max)
+
+    # the Python master applies each command at once, on exact lengths: no delay, no quantisation
+    res = _reference_run(dyn, "z-1hz", "p", delay_periods=0, quantization_l=0.0)
+    q = _cosimulate(plant, None, len(res.t), controller=p_controller)
+    np.testing.assert_allclose(q, res.q, rtol=0, atol=1e-9)
+    assert np.abs(q - res.q_d).max() > 1e-5
+
+
+def test_step_must_be_whole_periods(fmus):
+    dyn, scenario, controller, paths = fmus
+    plant = Slave(paths["plant"], "plant")
+    plant.fmu.exitInitializationMode()
+    h = plant.h
+    with pytest.raises(FMICallException):
+        plant.fmu.doStep(0.0, 1.5 * h)
+    assert any("not a whole number of control periods" in m for m in plant.messages), plant.messages
+    q0 = plant.get(plant.names("q."))
+    plant.fmu.doStep(0.0, 3 * h)  # nothing was done by the refused step; three periods at once are fine
+    q3 = plant.get(plant.names("q."))
+    with pytest.raises(FMICallException):
+        plant.fmu.doStep(0.0, h)  # not the FMU's time
+    assert any("is not this FMU's time" in m for m in plant.messages)
+    with pytest.raises(FMICallException):  # parameters are fixed after initialization
+        plant.set([plant.names("theta.")[0]], [1.0])
+    assert any("is fixed" in m for m in plant.messages)
+    plant.close()
+    # the same three periods one at a time
+    again = Slave(paths["plant"], "again")
+    again.fmu.exitInitializationMode()
+    for k in range(3):
+        again.fmu.doStep(k * h, h)
+    np.testing.assert_array_equal(again.get(again.names("q.")), q3)
+    again.close()
+    assert np.all(np.isfinite(q0))
+
+
+def test_model_description(fmus):
+    dyn, scenario, controller, paths = fmus
+    model = dyn.model
+    coords, cyls = list(model.coordinate_names), [c.name for c in model.cylinders]
+    from hydrogen.simulation.scenarios import scenario as named_scenario
+    sc = named_scenario(scenario, model)
+    for part, path in paths.items():
+        md = read_model_description(str(path))
+        assert md.fmiVersion == "2.0" and md.coSimulation is not None and md.modelExchange is None
+        assert float(md.defaultExperiment.stepSize) == 1.0 / sc.control_rate
+        units = {u.name for u in md.unitDefinitions}
+        assert {"m", "Pa"} <= units
+        by = {v.name: v for v in md.modelVariables}
+        for v in md.modelVariables:
+            assert v.description
+            if v.causality in ("input", "parameter"):
+                assert v.start is not None
+                assert v.variability == ("continuous" if v.causality == "input" else "fixed")
+        assert all(by[f"u.{c}"].unit == "m" for c in cyls)
+        with zipfile.ZipFile(path) as zf:
+            names = set(zf.namelist())
+            ident = md.coSimulation.modelIdentifier
+            assert {"modelDescription.xml", f"binaries/linux64/{ident}.so", "documentation/index.html",
+                    f"sources/{model.name}_loop.c", "sources/fmu.c", "sources/params.h"} <= names
+            for h in FMI_HEADERS:  # taken from fmpy's installed copy, byte for byte
+                assert zf.read(f"sources/{h}") == (fmi_headers_dir() / h).read_bytes()
+            for name, digest in dyn.library.manifest["files"].items():
+                if f"sources/{name}" in names:
+                    assert hashlib.sha256(zf.read(f"sources/{name}")).hexdigest() == digest
+        if part == "plant":
+            assert {f"q.{c}" for c in coords} | {f"l.{c}" for c in cyls} | {f"pc.{c}" for c in cyls} <= set(by)
+            assert by[f"q_start.{coords[0]}"].causality == "parameter"
+            q0 = sc.reference(0.0)[0] + np.asarray(sc.q0_offset, float)
+            assert [float(by[f"q_start.{c}"].start) for c in coords] == q0.tolist()
+            assert [by[f"q.{c}"].unit for c in coords] == list(model.coordinate_units)
+            assert by[f"theta.{model.theta_names[0]}"].causality == "parameter"
+            assert by[f"u.{cyls[0]}"].causality == "input"
+        elif part == "controller":
+            assert by["use_builtin_reference"].type == "Boolean"
+            assert by[f"l.{cyls[0]}"].causality == "input" and by[f"u.{cyls[0]}"].causality == "output"
+            assert f"theta_hat.{model.theta_names[0]}" in by and f"gamma1_hat.{cyls[0]}" in by
+            assert (f"q.{coords[0]}" in by) == bool(model.joint_encoders)
+        else:
+            assert not [v for v in md.modelVariables if v.causality in ("input", "parameter")]
+
+
+def test_export_is_deterministic(dyn, tmp_path):
+    a = export_fmu(tmp_path / "a.fmu", "plant", "z-1hz", dyn=dyn)
+    b = export_fmu(tmp_path / "b.fmu", "plant", "z-1hz", dyn=dyn)
+    assert a.read_bytes() == b.read_bytes()
+
+
+def test_bad_input_is_refused_before_any_work(dyn, tmp_path):
+    with pytest.raises(FmuError, match="unknown FMU part 'sensor'"):
+        export_fmu(tmp_path / "x.fmu", "sensor", "z-1hz", dyn=dyn)
+    existing = tmp_path / "old.fmu"
+    existing.write_bytes(b"keep me")
+    with pytest.raises(OutputPathError, match="already exists"):
+        export_fmu(existing, "plant", "z-1hz", dyn=dyn)
+    assert existing.read_bytes() == b"keep me"
+    with pytest.raises(FmuError, match="not a whole number of control periods"):
+        export_fmu(tmp_path / "y.fmu", "plant", "z-1hz", dyn=dyn, step=0.0015)
+    assert not (tmp_path / "x.fmu").exists() and not (tmp_path / "y.fmu").exists()
+    assert issubclass(FmuError, HydrogenError)
+
+
+@pytest.mark.parametrize("args, message", [
+    (["--part", "sensor"], "unknown FMU part 'sensor'"),
+    (["--part", "plant", "--step", "0.0015"], "not a whole number of control periods"),
+    (["--part", "plant", "--out-exists"], "already exists"),
+    ([], "--format fmu needs --part"),
+])
+def test_cli_errors_are_one_line_with_status_2(tmp_path, args, message):
+    out = tmp_path / "a.fmu"
+    if "--out-exists" in args:
+        args = [a for a in args if a != "--out-exists"]
+        out.write_bytes(b"")
+    proc = subprocess.run([sys.executable, "-m", "hydrogen.cli", "export", "--format", "fmu", "--scenario", "z-1hz",
+                           "--out", str(out), *args], capture_output=True, text=True, timeout=300)
+    assert proc.returncode == 2, proc.stderr
+    assert message in proc.stderr and "Traceback" not in proc.stderr
+    assert len(proc.stderr.strip().splitlines()) == 1
+
+
+def test_missing_fmpy_is_one_clear_error(monkeypatch):
+    monkeypatch.setitem(sys.modules, "fmpy", None)
+    with pytest.raises(FmuError, match=r"hydrogen\[fmu\]"):
+        fmi_headers_dir()
+
+
+def test_the_binary_exports_only_fmi_symbols(fmus):
+    """Two FMUs of the same model in one process must not see each other's generated functions."""
+    path = fmus[3]["controller"]
+    md = read_model_description(str(path))
+    lib = Path(extract(str(path))) / "binaries" / "linux64" / f"{md.coSimulation.modelIdentifier}.so"
+    nm = shutil.which("nm")
+    if nm is None:
+        pytest.skip("needs nm")
+    syms = subprocess.run([nm, "-D", "--defined-only", str(lib)], capture_output=True, text=True).stdout.split()
+    exported = {s for s in syms if s.startswith(("fmi2", fmus[0].model.name))}
+    assert exported and all(s.startswith("fmi2") for s in exported)
+    ctypes.CDLL(str(lib)).fmi2GetVersion  # loads
