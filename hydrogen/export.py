@@ -202,7 +202,7 @@ def _context(dyn, p, scenario_name, controller, prog, sources, headers, ctrl_hea
                     for i, (nm, s) in enumerate(zip(fn.out_names, fn.out_shapes))],
         "out_total": sum(int(r) * int(c) for r, c in fn.out_shapes),
         "slots": [{"name": s, "index": k} for s, k in zip(SLOTS, slot_index)], "n_slots": len(SLOTS),
-        "n_xc": n_xc, "xc_cap": max(n_xc, 1),
+        "n_xc": n_xc, "xc_cap": max(n_xc, 1), "xc_euler": 1 if sc.estimator_update == "euler" else 0,
         "xc0": _c_doubles(ctrl.xc if n_xc else np.zeros(1)),
         "xc_lo": _c_doubles(lo if n_xc else np.zeros(1)), "xc_hi": _c_doubles(hi if n_xc else np.zeros(1)),
         "x0": _c_doubles(p.x0), "q_meas0": _c_doubles(p.q0), "l0": _c_doubles(dyn.leg_lengths(p.q0)),

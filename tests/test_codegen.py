@@ -70,10 +70,6 @@ def _random_input(name, shape, model, rng, fname=""):
         x = np.array([g * (0.5 if name.endswith("min") else 2.0)])
     elif name == "adapt":
         x = np.array([1.0])
-    elif name == "Dbar_inv":
-        x = np.eye(n) * 1e-2
-    elif name == "Gbar":
-        x = rng.normal(size=n) * 100.0
     elif name == "ql_per_c":
         x = rng.uniform(-4, 4, m) * d * np.sqrt(ps)
     else:

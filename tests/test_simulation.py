@@ -182,12 +182,91 @@ def test_paper_sim_robust_controller_estimates_end_within_5_percent(paper_runs):
     assert np.all(err < 0.05), err
 
 
-@pytest.mark.xfail(strict=True, reason="with the robust observer the I_x estimate still swings with the 1 Hz "
-                   "trajectory (about +2 % to +17 % over the last 2 s) instead of settling (README)")
 def test_paper_sim_robust_controller_estimates_stay_within_5_percent_over_the_last_2_s(paper_runs):
+    """With the observer's D̄, Ḡ from the current estimate (Theorem 3) the rigid-body estimates settle."""
     res = paper_runs["adaptive-robust"]
     err = np.abs(res.theta_hat[res.t >= 8.0] - res.theta_true) / res.theta_true
     assert np.all(err < 0.05), err.max(axis=0)
+
+
+def test_paper_sim_hydraulic_estimates_keep_the_valve_gain_but_not_beta(paper_runs):
+    """What the hydraulic estimates can and cannot learn on paper-sim (README "What does not match").
+
+    The excited direction is the valve gain c = γ2/γ1: its estimate ends within 6 %. The β
+    direction (γ1 and γ2 scaled together) is excited 1e-3 to 1e-5 times less (the excitation metric),
+    so β̂ stays where the initial error and the gains leave it: this asserts the evidence, not
+    convergence."""
+    for kind, res in paper_runs.items():
+        c_hat = res.gamma2_hat[-1] / res.gamma1_hat[-1]
+        c = res.gamma_true[1] / res.gamma_true[0]
+        assert np.all(np.abs(c_hat / c - 1) < 0.06), (kind, c_hat / c)
+        exc = res.metrics["excitation"]
+        assert exc["theta"] > 1e-3
+        assert max(exc["gamma"]) < 1e-2 and min(exc["gamma"]) < 1e-3, exc["gamma"]
+
+
+def test_semi_implicit_estimator_update_is_stable_where_forward_euler_is_not(dyn):
+    """Balanced hydraulic adaptation rates (3e-3 /J for both γ families): with the forward-Euler update
+    of the controller state at 1 kHz the estimates oscillate to their bounds and the spool saturates;
+    the semi-implicit update (state from this period's measurement, then the command) stays calm."""
+    gains = {"rate_gamma1": 3e-3, "rate_gamma2": 3e-3}
+    res = {upd: simulate(dyn, "paper-sim", "adaptive-observer", gains=gains, estimator_update=upd)
+           for upd in ("euler", "semi-implicit")}
+    th_err = {k: np.abs(r.theta_hat[-1] / r.theta_true - 1).max() for k, r in res.items()}
+    sat = {k: (np.abs(r.u) >= 0.999 * r.u_max).mean() for k, r in res.items()}
+    assert th_err["euler"] > 0.3 and sat["euler"] > 0.005, (th_err, sat)
+    assert th_err["semi-implicit"] < 0.05 and sat["semi-implicit"] < 0.001, (th_err, sat)
+    assert np.all(_window_ratio(res["semi-implicit"]) <= 1 / 20)
+
+
+def test_normalised_adaptation_gains_and_raw_names(dyn, model):
+    """Γ⁻¹ = rate · x_ref² per family (θ_ref: bound midpoints, γ_ref: initial estimates); the raw
+    names still override."""
+    g0 = model.gamma * np.array([0.7, 1.3])[:, None]
+    ctrl = make_controller(dyn, "adaptive-robust", {"rate_theta": 2.0, "rate_gamma2": 1e-4}, model.theta, g0)
+    mid = 0.5 * (model.theta_min + model.theta_max)
+    np.testing.assert_allclose(ctrl.values["Gtheta_inv"], 2.0 * mid ** 2)
+    np.testing.assert_allclose(ctrl.values["Ggamma2_inv"], 1e-4 * g0[1] ** 2)
+    raw = make_controller(dyn, "adaptive-robust", {"Gtheta_inv": 5.0}, model.theta, g0)
+    np.testing.assert_allclose(raw.values["Gtheta_inv"], 5.0)
+
+
+@pytest.fixture(scope="module")
+def arm_runs():
+    return {k: hydrogen.simulate("arm-sim", k, model="excavator_arm") for k in ("adaptive-robust", "adaptive-observer")}
+
+
+@pytest.mark.slow
+def test_arm_sim_robust_controller_errors_shrink_twentyfold(arm_runs):
+    ratio = _window_ratio(arm_runs["adaptive-robust"])
+    assert np.all(ratio <= 1 / 20), ratio
+
+
+@pytest.mark.slow
+@pytest.mark.xfail(strict=True, reason="the adaptive-observer controller needs rate_theta <= 1e-4 on the arm "
+                   "(above it the estimates hit their bounds within 0.2 s and the valves saturate); then the "
+                   "bucket's error shrinks only about 12-fold (README)")
+def test_arm_sim_observer_controller_errors_shrink_twentyfold(arm_runs):
+    ratio = _window_ratio(arm_runs["adaptive-observer"])
+    assert np.all(ratio <= 1 / 20), ratio
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("kind", ["adaptive-robust", "adaptive-observer"])
+@pytest.mark.xfail(strict=True, reason="arm-sim excites theta weakly (lambda_min/lambda_max 1e-3, four directions "
+                   "below 6e-3: boom.mcz, stick.mcx/Iyy, stick.mcz): boom.mcz and boom.Iyy keep their initial "
+                   "error (README)")
+def test_arm_sim_estimates_end_within_5_percent(arm_runs, kind):
+    res = arm_runs[kind]
+    err = np.abs(res.theta_hat[-1] - res.theta_true) / res.theta_true
+    assert np.all(err < 0.05), err
+
+
+@pytest.mark.slow
+def test_arm_sim_excitation_is_reported_and_weaker_than_paper_sims(arm_runs, paper_runs):
+    arm = arm_runs["adaptive-robust"].metrics["excitation"]["theta"]
+    stewart = paper_runs["adaptive-robust"].metrics["excitation"]["theta"]
+    assert 0 < arm < stewart / 3, (arm, stewart)
 
 
 def test_divergence_stops_with_time_state_and_partial_result(dyn):
@@ -243,24 +322,36 @@ def test_c_loop_matches_python_loop(cache, model_name, scenario_name, kind):
     assert c.t.shape == py.t.shape
     np.testing.assert_allclose(c.q, py.q, atol=1e-10)
     np.testing.assert_allclose(c.u, py.u, atol=1e-10)
-    np.testing.assert_allclose(c.pressures, py.pressures, rtol=1e-9, atol=1e-3)
+    # rounding (C vs numpy) grows to ~1.5e-9 relative in a pressure on the rig-tuned adaptive-observer
+    np.testing.assert_allclose(c.pressures, py.pressures, rtol=1e-8, atol=1e-3)
     np.testing.assert_allclose(c.theta_hat, py.theta_hat, rtol=1e-8)
+
+
+@pytest.mark.parametrize("update", ["euler", "semi-implicit"])
+def test_c_loop_matches_python_loop_for_both_estimator_updates(dyn, update):
+    c = simulate(dyn, "paper-sim", "adaptive-observer", duration=0.8, t_adapt=0.1, estimator_update=update)
+    py = simulate(dyn, "paper-sim", "adaptive-observer", duration=0.8, t_adapt=0.1, estimator_update=update,
+                  engine="python")
+    np.testing.assert_allclose(c.u, py.u, atol=1e-10)
+    np.testing.assert_allclose(c.theta_hat, py.theta_hat, rtol=1e-8)
+    np.testing.assert_allclose(c.gamma2_hat, py.gamma2_hat, rtol=1e-8)
 
 
 _RIG_XFAIL = ("issue 11: on the honest rig (one-period delay, 80 Hz second-order valves, quantised "
               "encoders, a real Kalman filter) and with a gain margin of 2, the adaptive-robust controller "
-              "reaches 10.8 % on z-1hz and 11.7 % on psi-1hz (README 'Results')")
+              "reaches 5.8 / 45.9 / 11.3 % on z-1hz / z-2hz / psi-1hz (README 'Results')")
+_XFAIL = pytest.mark.xfail(strict=True, reason=_RIG_XFAIL)
 
 
 @pytest.mark.parametrize("name,coord,paper_nonlinear", [
-    pytest.param("z-1hz", "z", 4.0, marks=pytest.mark.xfail(strict=True, reason=_RIG_XFAIL)),
-    ("z-2hz", "z", 14.0),
-    pytest.param("psi-1hz", "psi", 4.0, marks=pytest.mark.xfail(strict=True, reason=_RIG_XFAIL))])
+    pytest.param("z-1hz", "z", 4.0, marks=_XFAIL), pytest.param("z-2hz", "z", 14.0, marks=_XFAIL),
+    pytest.param("psi-1hz", "psi", 4.0, marks=_XFAIL)])
 def test_experiments_nonlinear_below_the_papers_error(dyn, name, coord, paper_nonlinear):
     assert simulate(dyn, name, "adaptive-robust").metrics["max_error_pct"][coord] < paper_nonlinear
 
 
-@pytest.mark.parametrize("name,coord", [("z-1hz", "z"), ("z-2hz", "z"), ("psi-1hz", "psi")])
+@pytest.mark.parametrize("name,coord", [("z-1hz", "z"), pytest.param("z-2hz", "z", marks=_XFAIL),
+                                        ("psi-1hz", "psi")])
 def test_experiments_p_is_at_least_3x_worse_than_nonlinear(dyn, name, coord):
     nl = simulate(dyn, name, "adaptive-robust").metrics["max_error_pct"][coord]
     p = simulate(dyn, name, "p").metrics["max_error_pct"][coord]
@@ -268,10 +359,10 @@ def test_experiments_p_is_at_least_3x_worse_than_nonlinear(dyn, name, coord):
 
 
 @pytest.mark.parametrize("kind", [
-    "backstepping",
+    "backstepping", "adaptive-observer",
     pytest.param("adaptive-robust", marks=pytest.mark.xfail(strict=True, reason=(
         "issue 11: no gain of the search completes arm-dig without saturating the valves with the "
-        "adaptive laws of this branch (README 'What does not match')")))])
+        "robust controller (README 'Results')")))])
 def test_arm_dig_nonlinear_is_at_least_3x_better_than_p(kind):
     dyn = hydrogen.build(hydrogen.load_model("excavator_arm"))
     nl = max(v for v in simulate(dyn, "arm-dig", kind).metrics["max_error_pct"].values() if v is not None)

@@ -60,6 +60,8 @@ typedef struct {
     long long n_xc;              /* controller state size; result 1 is its rate when n_xc > 0 */
     const double* xc_lo;         /* projection bounds of the controller state */
     const double* xc_hi;
+    long long xc_euler;          /* 0: semi-implicit update (state from this period's measurement, then the
+                                  * command); 1: forward Euler after the plant step (the paper-era loop) */
     /* forward kinematics (Newton) */
     double fk_tol;
     long long fk_max_iter;

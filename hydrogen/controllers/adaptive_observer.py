@@ -58,7 +58,7 @@ def derive(model):
     th_dot_value = c.theta_rate(rho, th_hat, vecs, scal["adapt"])
     fd, ftil, f0, v, u, taud, stages = c.force_loop(tau_d, tau_d_dot, s1, g1, g2)
     g1_dot, g2_dot = c.hydraulic_adaptation(
-        ftil, f0, v, g1, g2, scal["adapt"], vecs["Ggamma1_inv"], vecs["Ggamma2_inv"],
+        ftil, f0, u, g1, g2, scal["adapt"], vecs["Ggamma1_inv"], vecs["Ggamma2_inv"],
         scal["gamma1_min"], scal["gamma1_max"], scal["gamma2_min"], scal["gamma2_max"])
     xc = sp.Matrix([*q_hat, *z, *th_hat, *g1, *g2])
     xc_dot = sp.Matrix([*q_hat_dot, *z_dot, *th_dot, *g1_dot, *g2_dot])

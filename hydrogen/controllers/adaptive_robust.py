@@ -1,8 +1,10 @@
 """Theorem 3: adaptive controller with the robust sliding observer (40)-(46), as reconstructed in
 READING-NOTES; sgn replaced by a saturation of width ``sat_width`` (m/s, rad/s).
 
-Observer (40)-(42), (55): ż = K_o z̃ + Λ_o sat(z̃/ε) − Γ_z⁻¹ Wᵀ s + D̄⁻¹ (τ − Ḡ), C̄ = 0. Γ_z
-weights the observer term ½ z̃ᵀ Γ_z z̃ of V1 (the paper has Γ_z = I). Wᵀ s is a force and ż an
+Observer (40)-(42), (55): ż = K_o z̃ + Λ_o sat(z̃/ε) − Γ_z⁻¹ Wᵀ s + D̄⁻¹ (τ − Ḡ), C̄ = 0, with the
+rough model taken from the current estimate: D̄ = D(q, θ̂), Ḡ = G(q, θ̂) (the paper's constant D̄, Ḡ
+built from the wrong θ₀ at the neutral pose left a model error larger than Λ_o, so (55) failed).
+Γ_z weights the observer term ½ z̃ᵀ Γ_z z̃ of V1 (the paper has Γ_z = I). Wᵀ s is a force and ż an
 acceleration, so Γ_z ≈ D makes the units agree and keeps τ̇_d calm.
 """
 from __future__ import annotations
@@ -26,29 +28,24 @@ def default_gains(model, scale) -> dict:
             "Ko": 30.0 * np.ones(n),                    # 1/s
             "Gz_inv": 1.0 / np.asarray(scale, float),   # Γ_z⁻¹ ≈ D⁻¹
             "lambda_o": np.zeros(4),                    # λ0..λ3 of (55): the sliding term off
-            "sat_width": np.array([1.0e-3])}            # m/s, rad/s: sat(z̃/ε) in place of sgn(z̃)
+            "sat_width": 1.0e-3 * np.ones(n)}           # per coordinate, its own unit (m/s or rad/s): sat(z̃/ε)
 
 
 def static_inputs(dyn, theta0, gamma0) -> dict:
-    """The observer's constant D̄⁻¹ and Ḡ: D and G at the neutral pose with the initial θ̂."""
-    pose = dyn.model.neutral_pose
-    return {"Dbar_inv": np.linalg.inv(dyn.mass_matrix(pose, theta0)), "Gbar": dyn.gravity(pose, theta0)}
+    return {}
 
 
 def derive(model):
     import sympy as sp
 
     from ..symbolic.calculus import clip, time_derivative
-    from ..symbolic.control_laws import Common, ControllerParts, diag, scalar, vector
-    from ..symbolic.kinematics import matrix_symbols
+    from ..symbolic.control_laws import Common, ControllerParts, diag, solve_or_inverse, vector
 
     c = Common(model)
     n = c.n
     z, th_hat = vector("z", n), c.theta()
     g1, g2 = vector("gamma1_hat", c.m), vector("gamma2_hat", c.m)
-    Ko, lam_o, eps, Gz_inv = vector("Ko", n), vector("lambda_o", 4), scalar("sat_width"), vector("Gz_inv", n)
-    Dbar_inv = matrix_symbols("Dbar_inv", n, n)
-    Gbar = vector("Gbar", n)
+    Ko, lam_o, eps, Gz_inv = vector("Ko", n), vector("lambda_o", 4), vector("sat_width", n), vector("Gz_inv", n)
     vecs, scal, ad_inputs = c.adaptive_inputs()
     z_dot, th_dot = vector("zdot", n), vector("thetadot", c.p)
     Lam, Kd = diag(c.Lam), diag(c.Kd)
@@ -66,23 +63,25 @@ def derive(model):
     Lam_o = lam_o[0] + lam_o[1] * qn2 + lam_o[2] * sp.sqrt(sum((x ** 2 for x in tau), sp.S.Zero)) \
         + lam_o[3] * sp.sqrt(qn2)
     W = -D_hat * Lam + c.C(th_hat, qr_dot) - Kd
-    qdd_bar = Dbar_inv * (tau - Gbar)
+    # q̈̄ = D̄⁻¹ (τ − C̄ q̇ − Ḡ) with D̄ = D(q, θ̂), Ḡ = G(q, θ̂), C̄ = 0
+    qdd_value, solve_stages = solve_or_inverse(model, c.q, th_hat, tau - c.G(th_hat), "qdd_bar")
+    qdd_bar = vector("qddbar", n)
     WTs = W.T * s
-    z_dot_value = sp.Matrix([Ko[i] * ztil[i] + Lam_o * clip(ztil[i] / eps, -1, 1) - Gz_inv[i] * WTs[i]
+    z_dot_value = sp.Matrix([Ko[i] * ztil[i] + Lam_o * clip(ztil[i] / eps[i], -1, 1) - Gz_inv[i] * WTs[i]
                              + qdd_bar[i] for i in range(n)])
     # (45): θ̂̇ = −κ Γ_θ⁻¹ Yᵀ(q, q̇, q̇_r, q̈_r) s
     rho = -diag(vecs["Gtheta_inv"]) * c.Y(c.qdot, qr_dot, qr_ddot, th_hat).T * s
     th_dot_value = c.theta_rate(rho, th_hat, vecs, scal["adapt"])
     fd, ftil, f0, v, u, taud, stages = c.force_loop(tau_d, tau_d_dot, s, g1, g2)
     g1_dot, g2_dot = c.hydraulic_adaptation(
-        ftil, f0, v, g1, g2, scal["adapt"], vecs["Ggamma1_inv"], vecs["Ggamma2_inv"],
+        ftil, f0, u, g1, g2, scal["adapt"], vecs["Ggamma1_inv"], vecs["Ggamma2_inv"],
         scal["gamma1_min"], scal["gamma1_max"], scal["gamma2_min"], scal["gamma2_max"])
     xc = sp.Matrix([*z, *th_hat, *g1, *g2])
     xc_dot = sp.Matrix([*z_dot, *th_dot, *g1_dot, *g2_dot])
     return ControllerParts(
         inputs=[*c.base_inputs(), ("xc", xc), *c.gain_inputs(), ("Ko", Ko), ("lambda_o", lam_o),
-                ("Gz_inv", Gz_inv), ("sat_width", sp.Matrix([eps])), ("Dbar_inv", Dbar_inv), ("Gbar", Gbar),
-                *ad_inputs],
-        intermediates=[*c.kin, c.jit_intermediate(), (z_dot, z_dot_value), (th_dot, th_dot_value), *stages],
+                ("Gz_inv", Gz_inv), ("sat_width", eps), *ad_inputs],
+        intermediates=[*c.kin, c.jit_intermediate(), *solve_stages, (qdd_bar, sp.Matrix(qdd_value)),
+                       (z_dot, z_dot_value), (th_dot, th_dot_value), *stages],
         outputs=[("u", u), ("xc_dot", xc_dot), ("tau_d", taud), ("tau_d_dot", c.taud_dot), ("f_d", fd)],
     )

@@ -122,12 +122,11 @@ def bind_functions(module, library) -> dict:
         raise BuildCacheError(f"{module.__file__}: the extension's functions differ from the manifest's; rebuild")
     if module.CASADI_INT_SIZE != ctypes.sizeof(ctypes.c_longlong):
         raise BuildCacheError(f"{module.__file__}: casadi_int of {module.CASADI_INT_SIZE} bytes; runtime needs 8")
-    lib = library._lib
     out = {}
     for index, entry in enumerate(manifest["functions"]):
         c_name = entry["c_name"]
-        addr = ctypes.cast(getattr(lib, c_name), ctypes.c_void_p).value
-        work = ctypes.cast(getattr(lib, c_name + "_work"), ctypes.c_void_p).value
+        addr = ctypes.cast(library.symbol(c_name), ctypes.c_void_p).value
+        work = ctypes.cast(library.symbol(c_name + "_work"), ctypes.c_void_p).value
         fn = module.bind(index, addr, work, library)
         slow = library.functions[entry["name"]]
         fn.__doc__ = entry.get("doc", "")

@@ -36,7 +36,7 @@ def _structs(ctx: dict):
             ("t_step", C.c_double),
             ("ctrl", C.c_void_p), ("ctrl_arg", C.c_void_p), ("ctrl_res", C.c_void_p), ("ctrl_iw", C.c_void_p),
             ("ctrl_w", C.c_void_p), ("slot", _LL * len(ctx["slots"])), ("n_xc", _LL), ("xc_lo", _D),
-            ("xc_hi", _D), ("fk_tol", C.c_double), ("fk_max_iter", _LL),
+            ("xc_hi", _D), ("xc_euler", _LL), ("fk_tol", C.c_double), ("fk_max_iter", _LL),
         ]
 
     class State(C.Structure):
@@ -79,7 +79,8 @@ class LoopRunner:
     """
 
     def __init__(self, dyn, ctrl, *, h, substeps, t_adapt, theta, gamma, friction, valve,
-                 reference, kalman_gain=None, delay=0, quantization_l=0.0, fk_tol=1e-12, fk_max_iter=50):
+                 reference, kalman_gain=None, delay=0, quantization_l=0.0, fk_tol=1e-12, fk_max_iter=50,
+                 estimator_update="semi-implicit"):
         manifest = dyn.library.manifest
         self.context = ctx = loop_context(manifest)
         self._log_width = log_widths(manifest["model"])
@@ -133,6 +134,7 @@ class LoopRunner:
         lo, hi = ctrl.bounds
         cfg.xc_lo, cfg.xc_hi = _ptr(arr(np.where(np.isfinite(lo), lo, -1e300))), \
             _ptr(arr(np.where(np.isfinite(hi), hi, 1e300)))
+        cfg.xc_euler = 1 if estimator_update == "euler" else 0
         cfg.fk_tol, cfg.fk_max_iter = fk_tol, fk_max_iter
         self.cfg = cfg
         self.state = State()

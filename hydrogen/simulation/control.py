@@ -1,8 +1,10 @@
 """Controller runtimes: bind gains and state to a generated controller and step it at a fixed rate.
 
-Every controller has the same contract, ``command(meas, ref, adapt) -> u`` then
-``advance(h)`` (forward Euler on the controller state over one control period,
-estimates kept inside their projection bounds), so the loop treats them alike. What differs
+Every controller has the same contract, so the loop treats them alike: per control period,
+``update(h, meas, ref, adapt)`` (the semi-implicit update: the state of this period from the
+rate at this period's measurement and the previous state, kept inside the projection bounds),
+then ``command(meas, ref, adapt) -> u`` with the updated state. The forward-Euler variant
+(scenario ``estimator_update = "euler"``) calls ``command`` then ``advance(h)``. What differs
 between controllers (state layout, default gains, numeric inputs made once) comes from the
 controller's module in :mod:`hydrogen.controllers`.
 """
@@ -11,6 +13,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..controllers import CONTROLLERS, controller as controller_module, function_name
+from ..controllers.common import normalised_adaptation
 from ..errors import ScenarioError
 from .checks import check_gain_values
 
@@ -125,7 +128,14 @@ class _Controller:
         self.tau_d, self.tau_d_dot, self.f_d = out[-3], out[-2], out[-1]
         return u
 
+    def update(self, h, q, qdot, pc, l, ref, adapt):
+        """Semi-implicit step: xc ← clip(xc + h F(measurement, xc)) (the C loop's "controller state" block)."""
+        if self.xc.size:
+            self.command(q, qdot, pc, l, ref, adapt)
+            np.clip(self.xc + h * self.xc_dot, *self.bounds, out=self.xc)
+
     def advance(self, h):
+        """Forward Euler with the rate of the last command."""
         if self.xc.size:
             np.clip(self.xc + h * self.xc_dot, *self.bounds, out=self.xc)
 
@@ -142,6 +152,7 @@ def make_controller(dyn, kind, gains=None, theta0=None, gamma0=None):
     theta0 = model.theta if theta0 is None else np.asarray(theta0, float)
     gamma0 = model.gamma if gamma0 is None else np.asarray(gamma0, float)
     g = _gains(dyn, kind, gains)
+    g = normalised_adaptation(model, g, theta0, gamma0)  # Γ⁻¹ from the rates where not given raw
     check_gain_values(kind, g)
     g.update(controller_module(kind).static_inputs(dyn, theta0, gamma0))
     return _Controller(dyn, kind, g, theta0, gamma0, model)

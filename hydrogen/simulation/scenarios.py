@@ -34,7 +34,9 @@ class Scenario:
     m²/s³; measurement variance noise_l² + quantization_l²/12; steady-state gain
     from the discrete algebraic Riccati equation).
     theta0_factor / gamma0_factor scale the true parameters into the initial
-    estimates. Metrics are taken over t ≥ metric_start. ``gains`` holds this
+    estimates. Metrics are taken over t ≥ metric_start. ``estimator_update``: the controller state is
+    updated "semi-implicit" (default: from this period's measurement, then the command) or by
+    forward "euler" after the plant step. ``gains`` holds this
     scenario's tuning per controller, under any gains the caller passes. The platform starts at
     rest at q_d(0) + q0_offset, its pressures holding it against gravity.
     """
@@ -64,6 +66,7 @@ class Scenario:
     gains: dict = field(default_factory=dict)  # controller name -> gain overrides for this scenario
     label: str = ""        # caption in figures and tables (e.g. the paper's figure it reproduces)
     paper: dict = field(default_factory=dict)  # published max errors (%): {coordinate: [nonlinear, P]}
+    estimator_update: str = "semi-implicit"  # controller state: "semi-implicit" (default) or "euler"
 
     def with_overrides(self, **kw):
         unknown = set(kw) - set(self.__dataclass_fields__)
@@ -96,12 +99,15 @@ class Scenario:
         need(2 * np.pi * self.valve_bandwidth_hz / (self.control_rate * self.substeps) <= 1.0, "valve_bandwidth_hz",
              "must be <= control_rate * substeps / (2 pi) (raise substeps)")
         need(finite(self.q0_offset), "q0_offset", "must be finite numbers (one per coordinate)")
+        need(self.estimator_update in ("semi-implicit", "euler"), "estimator_update",
+             "must be 'semi-implicit' or 'euler'")
         return self
 
 
 _FIELDS = ("duration", "control_rate", "substeps", "t_adapt", "friction", "valve_lag", "valve_bandwidth_hz",
            "valve_damping", "delay_periods", "quantization_l", "noise_l", "noise_q", "noise_p",
-           "kalman", "kalman_accel", "theta0_factor", "gamma0_factor", "metric_start", "q0_offset", "seed")
+           "kalman", "kalman_accel", "theta0_factor", "gamma0_factor", "metric_start", "q0_offset", "seed",
+           "estimator_update")
 
 
 def _reference(model, where, spec, neutral):

@@ -13,7 +13,7 @@ from .control import make_controller
 from .scenarios import Scenario, scenario as named_scenario
 
 __all__ = ["simulate", "SimulationResult", "equilibrium_pressures", "Stepper", "kalman_gain", "dare",
-           "valve_vector", "length_noise_variance"]
+           "valve_vector", "length_noise_variance", "excitation"]
 
 
 @dataclass
@@ -162,6 +162,8 @@ def simulate(dyn, scenario, controller: str, *, gains=None, duration=None, check
     wall = time.perf_counter() - start
     res = _result(sc, controller, ctrl, t_log, log, k_done, p.theta0, p.gamma0, dyn.model.theta,
                   dyn.model.gamma, wall)
+    if res.metrics:
+        res.metrics["excitation"] = excitation(dyn, res, ctrl)
     res.wall_time_s = time.perf_counter() - call_start
     if res.metrics:
         res.metrics["wall_time_s"] = res.wall_time_s
@@ -299,7 +301,7 @@ def _make_runner(dyn, sc, ctrl, x0, q0, kf_gain, h):
     runner = LoopRunner(dyn, ctrl, h=h, substeps=sc.substeps, t_adapt=sc.t_adapt, theta=dyn.model.theta,
                         gamma=dyn.model.gamma, friction=sc.friction, valve=valve_vector(sc),
                         reference=sc.reference, kalman_gain=kf_gain, delay=sc.delay_periods,
-                        quantization_l=sc.quantization_l)
+                        quantization_l=sc.quantization_l, estimator_update=sc.estimator_update)
     runner.reset(x0, q0, dyn.leg_lengths(q0), ctrl.xc)
     return runner
 
@@ -312,7 +314,7 @@ def _loop_failure(code, runner, h):
         return None
     if code == LOOP_NONFINITE:
         return _describe(runner.plant_state, (k + 1) * h, runner.ctrl, runner.xc[: runner.ctrl.xc.size],
-                         np.array(runner.fn._out_views[0]))
+                         runner.fn.output(0))
     if code == LOOP_FK_FAILED:
         return (f"stopped at t = {k * h:.4f} s: forward kinematics did not converge (or JL is singular) "
                 f"for the measured leg lengths; state = {runner.plant_state.tolist()}")
@@ -369,6 +371,8 @@ def _run_python(dyn, sc, ctrl, x, q0, noise, kf_gain, log, n, h):
                 return k, f"stopped at t = {t:.4f} s: {exc}"
         qdot_meas = np.linalg.solve(dyn.leg_jacobian(q_meas), ldot)
         ref = sc.reference(t)
+        if k and sc.estimator_update != "euler":  # semi-implicit: state from this measurement, then command
+            ctrl.update(h, q_meas, qdot_meas, pc_meas, l_meas, ref, t >= sc.t_adapt)
         u = ctrl.command(q_meas, qdot_meas, pc_meas, l_meas, ref, t >= sc.t_adapt)
         if delay > 0:
             u_app = u_hist[(k - delay) % MAX_DELAY].copy()
@@ -385,7 +389,8 @@ def _run_python(dyn, sc, ctrl, x, q0, noise, kf_gain, log, n, h):
         for _ in range(sc.substeps):
             x = _rk4(rhs, x, hs)
             np.clip(x[2 * nq:2 * nq + m], 0.0, ps, out=x[2 * nq:2 * nq + m])  # 0 ≤ p_c ≤ p_s
-        ctrl.advance(h)
+        if sc.estimator_update == "euler":
+            ctrl.advance(h)
         if not np.all(np.isfinite(x)) or not np.all(np.isfinite(ctrl.xc)):
             return k + 1, _describe(x, t + h, ctrl, ctrl.xc, u)
     return n, None
@@ -411,6 +416,49 @@ def _result(sc, controller, ctrl, t, log, k, theta0, gamma0, theta_true, gamma_t
     if k:
         res.compute_metrics()
     return res
+
+
+def _ratio(M):
+    ev = np.linalg.eigvalsh(0.5 * (M + M.T))
+    return float(max(ev[0], 0.0) / ev[-1]) if ev[-1] > 0 else 0.0
+
+
+def excitation(dyn, res, ctrl=None) -> dict:
+    """How well a run excites the adapted parameters: λmin/λmax of the normalised information matrices
+    accumulated over the run (1 = every direction equally, 0 = a direction not excited at all).
+
+    * ``theta``: M = Σ h (Y Θ)ᵀ S⁻¹ (Y Θ), Y = Y(q, q̇, q̇, q̈) along the run (velocities and
+      accelerations by central differences of the logged pose), Θ = diag(|θ|) (the columns in units
+      of each parameter's own magnitude), S = the per-coordinate inertia scale (rows of different
+      units made commensurate).
+    * ``gamma``: per cylinder, M_i = Σ h φ_iᵀ φ_i with φ_i = [β f0, βc g0(u, p_c)] the regressor of
+      ḟ = γ1 f0 + γ2 g0 (59) along the run (l̇ by central differences, u and p_c as applied).
+    """
+    from .control import gain_scale
+
+    model = dyn.model
+    t, q = res.t, res.q
+    if len(t) < 3:
+        return {}
+    h = float(t[1] - t[0])
+    qd = np.gradient(q, h, axis=0)
+    qdd = np.gradient(qd, h, axis=0)
+    Theta = np.abs(model.theta)
+    S_inv = 1.0 / gain_scale(dyn)
+    M = np.zeros((model.n_theta, model.n_theta))
+    for k in range(len(t)):
+        Yn = dyn.regressor(q[k], qd[k], qd[k], qdd[k]) * Theta
+        M += h * Yn.T @ (S_inv[:, None] * Yn)
+    out = {"theta": _ratio(M)}
+    l, u, pc = res.leg_lengths, res.u, res.pressures
+    ld = np.gradient(l, h, axis=0)
+    A, L = model.piston_area, np.array([c.chamber_length for c in model.cylinders])
+    flow = np.array([dyn.valve_flow(u[k], pc[k]) for k in range(len(t))])
+    g1, g2 = model.gamma
+    phi = np.stack([g1 * (-A * ld / (l - L)), g2 * flow / (l - L)], axis=-1)  # (k, m, 2)
+    Mg = np.einsum("kia,kib->iab", phi, phi) * h
+    out["gamma"] = [_ratio(Mi) for Mi in Mg]
+    return out
 
 
 def _check_reference(dyn, sc, n, h):

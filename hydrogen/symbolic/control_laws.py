@@ -109,7 +109,7 @@ class Common:
         """
         n, m = self.n, self.m
         S = {k: vector(k, n) for k in ("taud", "taud_dot")}
-        S.update({k: vector(k, m) for k in ("fd", "fd_dot", "v", "u_raw")})
+        S.update({k: vector(k, m) for k in ("fd", "fd_dot", "v", "u_raw", "u_app", "g0_app")})
         stages = [
             (S["taud"], tau_d),
             (S["taud_dot"], tau_d_dot),
@@ -125,19 +125,31 @@ class Common:
         w = [S["v"][i] * (self.l[i] - self.L[i]) / g2[i] for i in range(m)]
         stages.append((S["u_raw"], sp.Matrix([hyd.valve_inverse_unit(w[i], self.pc[i], self.ps[i], self.d[i],
                                                                      PRESSURE_EPS) for i in range(m)])))
-        u = sp.Matrix([clip(S["u_raw"][i], -self.u_max, self.u_max) for i in range(m)])
+        stages.append((S["u_app"], sp.Matrix([clip(S["u_raw"][i], -self.u_max, self.u_max) for i in range(m)])))
+        u = S["u_app"]
+        # g0 of (59) at the applied (clipped) spool: the γ̂2 law's regressor (hydraulic_adaptation).
+        stages.append((S["g0_app"], sp.Matrix([hyd.g0(self.l[i], hyd.valve_flow_unit(u[i], self.pc[i], self.ps[i],
+                                                                                       self.d[i]), self.L[i])
+                                               for i in range(m)])))
+        self.g0_applied = S["g0_app"]
         self.taud_dot = S["taud_dot"]
         return S["fd"], ftil, f0, S["v"], u, S["taud"], stages
 
     def jit_intermediate(self):
         return (self.Jit, ("inverse", self.JL.T))
 
-    def hydraulic_adaptation(self, ftil, f0, v, g1, g2, adapt, Gg1_inv, Gg2_inv, g1_lo, g1_hi, g2_lo, g2_hi):
-        """γ̂̇1 = κ Γ_γ1⁻¹ Γ_τ f0 f̃,  γ̂̇2 = κ Γ_γ2⁻¹ Γ_τ Π(f̃/γ̂2) v (per cylinder, with projection)."""
+    def hydraulic_adaptation(self, ftil, f0, u, g1, g2, adapt, Gg1_inv, Gg2_inv, g1_lo, g1_hi, g2_lo, g2_hi):
+        """γ̂̇1 = κ Γ_γ1⁻¹ Γ_τ f0 f̃,  γ̂̇2 = κ Γ_γ2⁻¹ Γ_τ g0(u) f̃ (per cylinder, with projection).
+
+        The paper's γ̂2 law has Π(f̃/γ̂2) v, i.e. the regressor v/γ̂2 = g0(u) of the commanded spool;
+        here g0 is evaluated at the spool position actually applied (``u`` after the ±u_max clip),
+        which is the regressor of γ̃2 in the force-error equation ḟ̃ = … + f0 γ̃1 + g0(u) γ̃2 also
+        when the valve saturates (README "Deviations")."""
         m = self.m
+        g0 = self.g0_applied  # bound by force_loop to g0(clip(u_raw)), the spool actually applied
         g1_dot = sp.Matrix([adapt * projection(g1[i], Gg1_inv[i] / self.Gtau_inv[i] * f0[i] * ftil[i],
                                                g1_lo, g1_hi) for i in range(m)])
-        g2_dot = sp.Matrix([adapt * projection(g2[i], Gg2_inv[i] / self.Gtau_inv[i] * ftil[i] / g2[i] * v[i],
+        g2_dot = sp.Matrix([adapt * projection(g2[i], Gg2_inv[i] / self.Gtau_inv[i] * ftil[i] * g0[i],
                                                g2_lo, g2_hi) for i in range(m)])
         return g1_dot, g2_dot
 

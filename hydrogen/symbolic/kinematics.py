@@ -87,12 +87,24 @@ def leg_stages(model, q, prefix: str = ""):
     and cosines, so the legs share R: JL takes 392 CasADi instructions this way against 744 for
     the symbolic Jacobian of l(q) on the Stewart platform.
     """
+    l, JL, stages, _ = _cylinder_stages(model, q, None, prefix)
+    return l, JL, stages
+
+
+_STAGES = {}
+
+
+def _cylinder_stages(model, q, qdot, prefix=""):
+    """The tree's cylinder stages for these symbols, derived once per process (SymPy expressions are
+    immutable, so every function that needs them shares one copy)."""
     from .rigid_body import theta_symbols
     from .tree import SymbolicTree
 
-    tree = SymbolicTree(model, q, theta_symbols(model))
-    l, JL, stages, _ = tree.cylinder_stages(prefix)
-    return l, JL, stages
+    key = (model.baked_hash(), tuple(sp.Matrix(q)), None if qdot is None else tuple(sp.Matrix(qdot)), prefix)
+    if key not in _STAGES:
+        tree = SymbolicTree(model, q, theta_symbols(model))
+        _STAGES[key] = tree.cylinder_stages(prefix, qdot=qdot)
+    return _STAGES[key]
 
 
 def leg_intermediates(model, q, qdot, rates: bool = True):
@@ -106,11 +118,9 @@ def leg_intermediates(model, q, qdot, rates: bool = True):
     ``JL_dot`` is None and its stages are left out.
     """
     from .calculus import time_derivative
-    from .rigid_body import theta_symbols
-    from .tree import SymbolicTree, skew
+    from .tree import skew
 
-    tree = SymbolicTree(model, q, theta_symbols(model))
-    l, JL, stages, links = tree.cylinder_stages(qdot=qdot)
+    l, JL, stages, links = _cylinder_stages(model, q, qdot)
     if not rates:
         return l, JL, None, stages
     qm, qdm = sp.Matrix(q), sp.Matrix(qdot)

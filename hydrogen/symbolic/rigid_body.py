@@ -70,15 +70,30 @@ def _dynamics(model, q, v, w, a, theta):
     return D * sp.Matrix(a) + coriolis(D, q, v) * sp.Matrix(w) + gravity(model, q, theta)
 
 
+def _dynamics_of(tree, q, v, w, a, g):
+    D = tree.mass_matrix()
+    return D * sp.Matrix(a) + coriolis(D, q, v) * sp.Matrix(w) + tree.gravity(g)
+
+
 def regressor(model, q, v, w, a, theta) -> sp.Matrix:
     """Y(q, v, w, a) (n×p) with Y θ + y0 = D(q) a + C(q, v) w + G(q) (y0: the parts of the
-    non-adapted parameters; zero when θ holds every parameter that moves the robot)."""
-    return _dynamics(model, q, v, w, a, theta).jacobian(sp.Matrix(theta))
+    non-adapted parameters; zero when θ holds every parameter that moves the robot).
+
+    D, C and G are linear in the inertial parameters, so column k is the dynamics of a robot whose
+    only parameter is θ_k = 1: small expressions, where differentiating the whole dynamics by θ
+    costs SymPy seconds per controller on a serial arm."""
+    p, g = len(model.theta_names), baked(model.gravity)
+    cols = []
+    for k in range(p):
+        unit = [sp.S.One if i == k else sp.S.Zero for i in range(p)]
+        cols.append(_dynamics_of(SymbolicTree(model, q, unit, baked_parameters=False), q, v, w, a, g))
+    return sp.Matrix.hstack(*cols)
 
 
 def regressor_offset(model, q, v, w, a, theta) -> sp.Matrix:
-    """y0 = D a + C(q, v) w + G − Y θ: the non-adapted parameters' share (n), at θ = 0."""
-    return _dynamics(model, q, v, w, a, theta).subs({t: 0 for t in sp.Matrix(theta)})
+    """y0 = D a + C(q, v) w + G − Y θ: the non-adapted parameters' share (n), the dynamics at θ = 0."""
+    zero = [sp.S.Zero] * len(model.theta_names)
+    return _dynamics_of(SymbolicTree(model, q, zero), q, v, w, a, baked(model.gravity))
 
 
 def coriolis_paper(q, qdot, theta) -> sp.Matrix:

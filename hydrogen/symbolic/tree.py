@@ -44,6 +44,20 @@ def _axis_rotation(axis, angle) -> sp.Matrix:
     return sp.eye(3) + sp.sin(angle) * K + (1 - sp.cos(angle)) * K * K
 
 
+_EYE = sp.eye(3)
+
+
+def _mm(*factors):
+    """The product of matrices, skipping exact identities (the root's rotation, an origin without
+    rotation): multiplying large expressions by 1 and 0 costs SymPy seconds for nothing."""
+    out = None
+    for f in factors:
+        if isinstance(f, sp.MatrixBase) and f.shape == (3, 3) and f == _EYE:
+            continue
+        out = f if out is None else out * f
+    return _EYE if out is None else out
+
+
 def _vec(values) -> sp.Matrix:
     return sp.Matrix([baked(v) if float(v) != 0.0 else sp.S.Zero for v in values])
 
@@ -54,7 +68,7 @@ class SymbolicTree:
     ``theta`` are the symbols of the adapted parameters (``model.theta_names`` order).
     """
 
-    def __init__(self, model, q, theta):
+    def __init__(self, model, q, theta, baked_parameters: bool = True):
         self.model = model
         self.q = sp.Matrix(q)
         self.n = len(self.q)
@@ -62,7 +76,9 @@ class SymbolicTree:
         self.params = {}
         for lk in model.links:
             values = lk.parameters()
-            p = {k: subst.get(f"{lk.name}.{k}", baked(v) if v != 0.0 else sp.S.Zero) for k, v in values.items()}
+            # baked_parameters=False zeroes every parameter that is not adapted: the share of θ alone
+            p = {k: subst.get(f"{lk.name}.{k}", baked(v) if v != 0.0 and baked_parameters else sp.S.Zero)
+                 for k, v in values.items()}
             self.params[lk.name] = p
         self.columns = {}  # joint name -> first coordinate index
         i = 0
@@ -103,30 +119,30 @@ class SymbolicTree:
         for j in self.model.joints:
             R_p, p_p, Jv_p, Jw_p, Jww_p = out[j.parent]  # Jww: angular velocity Jacobian, base frame
             R_o, xyz, i = _rot_xyz(j.origin_rpy), _vec(j.origin_xyz), self.columns[j.name]
-            lever = R_p * xyz
+            lever = _mm(R_p, xyz)
             Jv = Jv_p - skew(lever) * Jww_p if any(x != 0 for x in lever) else Jv_p
             Jv, Jww = sp.Matrix(Jv), sp.Matrix(Jww_p)
             if j.type == "revolute":
-                R_rel = R_o * _axis_rotation(j.axis, q[i])
-                R, p = R_p * R_rel, p_p + lever
-                a_w = R_p * R_o * _vec(j.axis)
+                R_rel = _mm(R_o, _axis_rotation(j.axis, q[i]))
+                R, p = _mm(R_p, R_rel), p_p + lever
+                a_w = _mm(R_p, R_o, _vec(j.axis))
                 Jww[:, i] = Jww[:, i] + a_w
-                Jw = R_rel.T * Jw_p
+                Jw = _mm(R_rel.T, Jw_p)
                 Jw[:, i] = Jw[:, i] + _vec(j.axis)
             elif j.type == "prismatic":
-                R, p = R_p * R_o, p_p + lever + R_p * R_o * _vec(j.axis) * q[i]
-                Jv[:, i] = Jv[:, i] + R_p * R_o * _vec(j.axis)
-                Jw = R_o.T * Jw_p
+                R, p = _mm(R_p, R_o), p_p + lever + _mm(R_p, R_o, _vec(j.axis)) * q[i]
+                Jv[:, i] = Jv[:, i] + _mm(R_p, R_o, _vec(j.axis))
+                Jw = _mm(R_o.T, Jw_p)
             elif j.type == "floating":
                 eta = q[i + 3:i + 6, 0]
-                R_rel = R_o * rotation([0, 0, 0, *eta])
-                R, p = R_p * R_rel, p_p + lever + R_p * q[i:i + 3, 0]
+                R_rel = _mm(R_o, rotation([0, 0, 0, *eta]))
+                R, p = _mm(R_p, R_rel), p_p + lever + _mm(R_p, q[i:i + 3, 0])
                 Jv[:, i:i + 3] = Jv[:, i:i + 3] + R_p
-                Jww[:, i + 3:i + 6] = Jww[:, i + 3:i + 6] + R_p * R_o * angular_velocity_map([0, 0, 0, *eta])
-                Jw = R_rel.T * Jw_p
+                Jww[:, i + 3:i + 6] = Jww[:, i + 3:i + 6] + _mm(R_p, R_o, angular_velocity_map([0, 0, 0, *eta]))
+                Jw = _mm(R_rel.T, Jw_p)
                 Jw[:, i + 3:i + 6] = Jw[:, i + 3:i + 6] + body_angular_velocity_map([0, 0, 0, *eta])
             else:  # fixed
-                R, p, Jw = R_p * R_o, p_p + lever, R_o.T * Jw_p
+                R, p, Jw = _mm(R_p, R_o), p_p + lever, _mm(R_o.T, Jw_p)
             out[j.child] = (R, p, Jv, Jw, Jww)
         self._closed = out
         return out
@@ -208,22 +224,22 @@ class SymbolicTree:
                 continue
             R_p, p_p, w_p = poses[j.parent]
             R_o, xyz, i = _rot_xyz(j.origin_rpy), _vec(j.origin_xyz), self.columns[j.name]
-            lever = R_p * xyz
+            lever = _mm(R_p, xyz)
             if j.type == "revolute":
-                R_val = R_p * R_o * _axis_rotation(j.axis, q[i])
+                R_val = _mm(R_p, R_o, _axis_rotation(j.axis, q[i]))
                 p_val = p_p + lever
-                w = w_p + R_p * R_o * _vec(j.axis) * self._rate(i)
+                w = w_p + _mm(R_p, R_o, _vec(j.axis)) * self._rate(i)
             elif j.type == "prismatic":
-                R_val = R_p * R_o
-                p_val = p_p + lever + R_p * R_o * _vec(j.axis) * q[i]
+                R_val = _mm(R_p, R_o)
+                p_val = p_p + lever + _mm(R_p, R_o, _vec(j.axis)) * q[i]
                 w = w_p
             elif j.type == "floating":
                 eta = q[i + 3:i + 6, 0]
-                R_val = R_p * R_o * rotation([0, 0, 0, *eta])
-                p_val = p_p + lever + R_p * q[i:i + 3, 0]
-                w = w_p + R_p * R_o * angular_velocity_map([0, 0, 0, *eta]) * self._rates(i + 3, 3)
+                R_val = _mm(R_p, R_o, rotation([0, 0, 0, *eta]))
+                p_val = p_p + lever + _mm(R_p, q[i:i + 3, 0])
+                w = w_p + _mm(R_p, R_o, angular_velocity_map([0, 0, 0, *eta])) * self._rates(i + 3, 3)
             else:
-                R_val, p_val, w = R_p * R_o, p_p + lever, w_p
+                R_val, p_val, w = _mm(R_p, R_o), p_p + lever, w_p
             tag = f"{prefix}{k}" if len(model.joints) > 1 else prefix
             R = matrix_symbols(f"R{tag}", 3, 3)
             stages.append((R, R_val))
@@ -240,8 +256,8 @@ class SymbolicTree:
         for ci, c in enumerate(model.cylinders):
             R_a, p_a, _ = poses[c.link_from]
             R_b, p_b, _ = poses[c.link_to]
-            r_b = R_b * _vec(c.point_to)
-            r_a = R_a * _vec(c.point_from)
+            r_b = _mm(R_b, _vec(c.point_to))
+            r_a = _mm(R_a, _vec(c.point_from))
             v = p_b + r_b - (p_a + r_a)
             l_value.append(sp.sqrt(v.dot(v)))
             nvec = v / l[ci]
@@ -274,13 +290,13 @@ class SymbolicTree:
         part = sp.zeros(1, self.n)
         R_o = _rot_xyz(j.origin_rpy)
         if j.type == "revolute":
-            a = R_c * _vec(j.axis)  # the axis is fixed by the rotation about it
+            a = _mm(R_c, _vec(j.axis))  # the axis is fixed by the rotation about it
             part[0, i] = a.dot(r.cross(nvec))
         elif j.type == "prismatic":
-            part[0, i] = (R_p * R_o * _vec(j.axis)).dot(nvec)
+            part[0, i] = _mm(R_p, R_o, _vec(j.axis)).dot(nvec)
         elif j.type == "floating":
             eta = self.q[i + 3:i + 6, 0]
             T = angular_velocity_map([0, 0, 0, *eta])
-            part[0, i:i + 3] = (R_p.T * nvec).T
-            part[0, i + 3:i + 6] = (T.T * (R_p * R_o).T * r.cross(nvec)).T
+            part[0, i:i + 3] = _mm(R_p.T, nvec).T
+            part[0, i + 3:i + 6] = _mm(T.T, _mm(R_p, R_o).T, r.cross(nvec)).T
         return part
