@@ -1,12 +1,15 @@
-"""How long it takes to get from the model to a loaded library, and how large the controller's code is.
+"""How long it takes to get from a robot's description to a loaded library, and how large its
+controller's code is, for every shipped robot (``hydrogen.models()``).
 
-(a) generation from scratch: ``render(hydrogen.load_model(), tmpdir)`` in a fresh Python process,
+(a) generation from scratch: ``render(hydrogen.load_model(name), tmpdir)`` in a fresh Python process,
     so the imports are included; the same process also reports the import, the derivation alone
     (``derive_functions(model)``) and the SymPy -> CasADi -> C part (``render`` given the derived
     functions: exactly what ``render(model, tmpdir)`` does after deriving). The rendered files are
-    compared with the committed ``generated/<model>`` (generation is deterministic).
-(b) compilation from a clean cache: ``hydrogen.build(model, cache=<fresh dir>)`` in a fresh process
-    (every generated .c compiled in parallel, then one link, then loaded).
+    compared with the committed ``generated/<model>`` (generation is deterministic; the manifest
+    is compared without its derivation hash, as ``hydrogen generate --check`` does).
+(b) compilation from a clean cache: ``hydrogen.build(model, cache=<fresh dir>, generated=<the folder
+    (a) rendered>)`` in a fresh process (every generated .c compiled in parallel, then one link,
+    then loaded): a compile only, even when the committed folder is stale by its hash.
 (c) the same build again with nothing changed (``cache=<same dir>``), in a fresh process, timed
     inside it with ``time.perf_counter`` around the ``build`` call.
 (d) Theorem 1's controller (``ctrl_backstepping``, leg-force mapping) in CasADi instructions: as
@@ -15,7 +18,8 @@
     both counted with ``{"cse": True}``.
 
 Times of (a) and (b) include a fresh interpreter; each is the median of its runs (1 run with
-``--quick``, 2 without; (c) 3 runs). A run takes about 25 s (``--quick``: about 15 s) on 2 cores.
+``--quick``, 2 without; (c) 3 runs). A run takes about 25 s per robot (``--quick``: about 15 s) on
+2 quiet cores.
 
 Run: ``python benchmarks/bench_build.py [--quick] [--json FILE]``
 """
@@ -38,8 +42,6 @@ except ImportError:  # run as a script, or loaded from its path
     sys.path.insert(0, str(Path(__file__).resolve().parent))
     import common
 
-#: The figure quoted by the issue for Theorem 1 with leg-force mapping through CasADi's own AD.
-ISSUE_AD_INSTRUCTIONS = 8000
 AD_CHECK_POINTS = 5
 AD_CHECK_RTOL = 1e-9
 
@@ -50,7 +52,7 @@ import hydrogen
 from hydrogen.codegen.generate import render
 from hydrogen.symbolic.functions import derive_functions
 t1 = time.perf_counter()
-model = hydrogen.load_model()
+model = hydrogen.load_model({model!r})
 t2 = time.perf_counter()
 functions = derive_functions(model)
 t3 = time.perf_counter()
@@ -67,9 +69,9 @@ _BUILD = """
 import time
 t0 = time.perf_counter()
 import hydrogen
-model = hydrogen.load_model()
+model = hydrogen.load_model({model!r})
 t1 = time.perf_counter()
-dyn = hydrogen.build(model, cache={cache!r})
+dyn = hydrogen.build(model, cache={cache!r}, generated={generated!r})
 t2 = time.perf_counter()
 print("import_s", t1 - t0)
 print("build_s", t2 - t1)
@@ -77,28 +79,40 @@ print("n_functions", len(dyn.functions) if hasattr(dyn, "functions") else -1)
 """
 
 
-def _committed_dir() -> Path:
-    return common.REPO / "generated" / "ubc_stewart"
+def _committed_dir(name: str) -> Path:
+    return common.REPO / "generated" / name
 
 
 def _same_files(a: Path, b: Path) -> bool:
-    """The two generated folders hold the same files, byte for byte."""
+    """The two generated folders hold the same files, byte for byte (the manifest without its
+    derivation hash: an edit of the derivation code that changes nothing generated is current)."""
     names = {p.name for p in a.iterdir() if not p.name.startswith(".")}
     if names != {p.name for p in b.iterdir() if not p.name.startswith(".")}:
         return False
-    return all((a / n).read_bytes() == (b / n).read_bytes() for n in names)
+    for n in names:
+        x, y = (a / n).read_bytes(), (b / n).read_bytes()
+        if n == "manifest.json":
+            x, y = (json.loads(v) for v in (x, y))
+            x.pop("derivation_hash", None)
+            y.pop("derivation_hash", None)
+        if x != y:
+            return False
+    return True
 
 
-def bench_generate(runs: int) -> dict:
+def bench_generate(name: str, runs: int, keep: Path) -> dict:
+    """(a) for robot ``name``; the last run's folder is copied to ``keep`` for (b)."""
     rows = []
     for _ in range(runs):
         with tempfile.TemporaryDirectory(prefix="bench_build_gen_") as tmp:
-            stdout, wall = common.run_python(_GENERATE.format(out=tmp))
+            stdout, wall = common.run_python(_GENERATE.format(out=tmp, model=name))
             r = common.parse_keyed(stdout)
             r["process_wall_s"] = wall
             r["files"] = len(list(Path(tmp).iterdir()))
-            committed = _committed_dir()
+            committed = _committed_dir(name)
             r["matches_committed"] = committed.is_dir() and _same_files(Path(tmp), committed)
+            shutil.rmtree(keep, ignore_errors=True)
+            shutil.copytree(tmp, keep)
             rows.append(r)
     keys = ("process_wall_s", "total_s", "import_s", "load_model_s", "derive_s", "render_s")
     out = {k: common.median(r[k] for r in rows) for k in keys}
@@ -113,21 +127,19 @@ def _sources_compiled(cache: Path) -> int:
     return n
 
 
-def bench_build_times(runs_clean: int, runs_warm: int) -> tuple[dict, dict]:
+def bench_build_times(name: str, generated: Path, runs_clean: int, runs_warm: int) -> tuple[dict, dict]:
     clean, warm = [], []
     with tempfile.TemporaryDirectory(prefix="bench_build_cache_") as root:
         for i in range(runs_clean):
             cache = Path(root) / f"cache{i}"
-            stdout, wall = common.run_python(_BUILD.format(cache=str(cache)))
+            stdout, wall = common.run_python(_BUILD.format(cache=str(cache), model=name, generated=str(generated)))
             r = common.parse_keyed(stdout)
             r["process_wall_s"] = wall
             r["sources_compiled"] = _sources_compiled(cache)
-            # the committed generated/ folder was stale: build() generated into the cache first
-            r["generated_in_cache"] = (cache / "generated").is_dir()
             clean.append(r)
         cache = Path(root) / "cache0"
         for _ in range(runs_warm):
-            stdout, wall = common.run_python(_BUILD.format(cache=str(cache)))
+            stdout, wall = common.run_python(_BUILD.format(cache=str(cache), model=name, generated=str(generated)))
             r = common.parse_keyed(stdout)
             r["process_wall_s"] = wall
             warm.append(r)
@@ -140,7 +152,6 @@ def bench_build_times(runs_clean: int, runs_warm: int) -> tuple[dict, dict]:
 
     c, w = summary(clean), summary(warm)
     c["sources_compiled"] = clean[0]["sources_compiled"]
-    c["generated_in_cache"] = any(r["generated_in_cache"] for r in clean)
     w["under_1s"] = max(r["build_s"] for r in warm) < 1.0
     return c, w
 
@@ -179,6 +190,8 @@ def backstepping_ad_function(parts, name: str = "ctrl_backstepping_ad"):
         if isinstance(value, tuple) and value[0] == "inverse":
             mat = conv(value[1])
             sx = ca.solve(mat, ca.SX.eye(mat.shape[0]))
+        elif isinstance(value, tuple) and value[0] == "solve":
+            sx = ca.solve(conv(value[1]), conv(value[2]))
         elif stage == "taud_dot":
             if "taud" not in bound or "acc" not in bound:
                 raise RuntimeError(f"taud_dot before taud/acc in the intermediates: {seen}")
@@ -198,30 +211,32 @@ def backstepping_ad_function(parts, name: str = "ctrl_backstepping_ad"):
                        [n for n, _ in parts.outputs], {"cse": True})
 
 
-def bench_ad() -> dict:
+def bench_ad(name: str) -> dict:
     import hydrogen
     from hydrogen.codegen.casadi_functions import shape_of, to_casadi_function
-    from hydrogen.symbolic.controllers import backstepping
-    from hydrogen.symbolic.functions import SymbolicFunction, _joints
+    from hydrogen.controllers import controller, function_name
+    from hydrogen.symbolic.functions import SymbolicFunction
 
-    model = hydrogen.load_model()
+    model = hydrogen.load_model(name)
+    fname = function_name("backstepping")
     t0 = time.perf_counter()
-    parts = backstepping(model, *_joints(model))
+    parts = controller("backstepping").derive(model)
     t_derive = time.perf_counter() - t0
-    sf = SymbolicFunction("ctrl_backstepping", parts.inputs, parts.outputs, "", parts.intermediates)
+    sf = SymbolicFunction(fname, parts.inputs, parts.outputs, "", parts.intermediates)
     t0 = time.perf_counter()
     f_sympy = to_casadi_function(sf, cse=True)
     t_sympy = time.perf_counter() - t0
     t0 = time.perf_counter()
     f_ad = backstepping_ad_function(parts)
     t_ad = time.perf_counter() - t0
+    values = common.InputValues(hydrogen.build(model))
 
-    entry = {"inputs": [[n, *shape_of(m)] for n, m in parts.inputs]}
+    entry = {"name": fname, "inputs": [[n, *shape_of(m)] for n, m in parts.inputs]}
     out_names = [n for n, _ in parts.outputs]
     worst = {n: 0.0 for n in out_names}
     for seed in range(AD_CHECK_POINTS):
         args = [np.reshape(v, (r, c), order="F")
-                for (_, v), (_, r, c) in zip(common.function_inputs(entry, seed=100 + seed), entry["inputs"])]
+                for (_, v), (_, r, c) in zip(values.function_inputs(entry, seed=100 + seed), entry["inputs"])]
         a, b = f_sympy(*args), f_ad(*args)
         for n, x, y in zip(out_names, a, b):
             x, y = np.asarray(x.full()), np.asarray(y.full())
@@ -231,16 +246,14 @@ def bench_ad() -> dict:
             worst[n] = max(worst[n], rel)
     bad = {n: e for n, e in worst.items() if e > AD_CHECK_RTOL}
     if bad:
-        raise AssertionError(f"SymPy and CasADi-AD controllers disagree (max relative error): {bad}")
+        raise AssertionError(f"{name}: SymPy and CasADi-AD controllers disagree (max relative error): {bad}")
 
-    manifest = json.loads((_committed_dir() / "manifest.json").read_text())
-    in_manifest = next((f["instructions"] for f in manifest["functions"] if f["name"] == "ctrl_backstepping"),
-                       None)
+    manifest = json.loads((_committed_dir(name) / "manifest.json").read_text())
+    in_manifest = next((f["instructions"] for f in manifest["functions"] if f["name"] == fname), None)
     n_sympy, n_ad = f_sympy.n_instructions(), f_ad.n_instructions()
     return {
         "sympy_instructions": n_sympy, "casadi_ad_instructions": n_ad,
         "manifest_instructions": in_manifest, "ratio_ad_over_sympy": n_ad / n_sympy,
-        "issue_ad_instructions": ISSUE_AD_INSTRUCTIONS,
         "no_larger_than_ad": n_sympy <= n_ad,
         "check_points": AD_CHECK_POINTS, "max_relative_error": worst,
         "sympy_nodes": f_sympy.n_nodes(), "casadi_ad_nodes": f_ad.n_nodes(),
@@ -248,26 +261,44 @@ def bench_ad() -> dict:
     }
 
 
-def run(quick: bool = False) -> dict:
-    """(a)-(d) above; returns JSON-serialisable results."""
-    t_start = time.perf_counter()
+def run_robot(name: str, quick: bool = False) -> dict:
+    """(a)-(d) above for robot ``name``."""
     runs = 1 if quick else 2
-    gen = bench_generate(runs)
-    clean, warm = bench_build_times(runs, 3)
-    ad = bench_ad()
-    return {"generate": gen, "build_clean": clean, "build_warm": warm, "controller_instructions": ad,
-            "quick": quick, "wall_s": time.perf_counter() - t_start, "machine": common.machine_info(),
-            "python": sys.executable, "cpu_count": os.cpu_count()}
+    with tempfile.TemporaryDirectory(prefix="bench_build_keep_") as keep:
+        folder = Path(keep) / name
+        gen = bench_generate(name, runs, folder)
+        clean, warm = bench_build_times(name, folder, runs, 3)
+    import hydrogen
+    from hydrogen.codegen.generate import check
+
+    committed = _committed_dir(name)
+    stale = check(hydrogen.load_model(name), committed) if committed.is_dir() else ["missing"]
+    return {"model": name, "generate": gen, "build_clean": clean, "build_warm": warm,
+            "committed_stale_by_hash": stale, "controller_instructions": bench_ad(name)}
+
+
+def run(quick: bool = False) -> dict:
+    """(a)-(d) above for every shipped robot; returns JSON-serialisable results."""
+    t_start = time.perf_counter()
+    robots = {name: run_robot(name, quick) for name in common.robots()}
+    return {"robots": robots, "quick": quick, "wall_s": time.perf_counter() - t_start,
+            "machine": common.machine_info(), "python": sys.executable, "cpu_count": os.cpu_count()}
 
 
 def print_table(res: dict) -> None:
-    m, g, c, w, d = (res[k] for k in ("machine", "generate", "build_clean", "build_warm",
-                                        "controller_instructions"))
+    m = res["machine"]
     print(f"machine : {m['processor']}, {m['cpu_count']} CPUs; python {m['python']}, sympy {m['sympy']}, "
           f"casadi {m['casadi']}; {m['cc']}")
+    for r in res["robots"].values():
+        _print_robot(r)
+    print(f"whole benchmark {res['wall_s']:.1f} s")
+
+
+def _print_robot(res: dict) -> None:
+    g, c, w, d = (res[k] for k in ("generate", "build_clean", "build_warm", "controller_instructions"))
     n = len(g["runs"])
-    print(f"build times (fresh Python process each; median of {n} run{'s' if n > 1 else ''} for (a), (b); "
-          f"{len(w['runs'])} for (c)):")
+    print(f"\n{res['model']}: build times (fresh Python process each; median of {n} run{'s' if n > 1 else ''} "
+          f"for (a), (b); {len(w['runs'])} for (c)):")
     header = f"{'step':<58} {'seconds':>9}"
     print(header)
     print("-" * len(header))
@@ -284,22 +315,22 @@ def print_table(res: dict) -> None:
     ]
     for label, v in rows:
         print(f"{label:<58} {v:>9.3f}")
-    print(f"(a) wrote {g['files']} files, identical to the committed generated/: {g['matches_committed']}")
-    if c["generated_in_cache"]:
-        print("(b) note: the committed generated/ was stale, so the clean build also generated the C")
+    print(f"(a) wrote {g['files']} files, identical to the committed generated/ (manifest without its "
+          f"derivation hash): {g['matches_committed']}")
+    if res["committed_stale_by_hash"]:
+        print(f"    note: the committed generated/{res['model']} is stale by its hash (build() regenerates it into "
+              f"the cache): {'; '.join(res['committed_stale_by_hash'])}")
     print(f"(c) under 1 s: {w['under_1s']} (runs: " + ", ".join(f"{r['build_s']:.3f}" for r in w["runs"]) + ")")
-    print()
-    print("(d) Theorem 1 controller (ctrl_backstepping, leg-force mapping), CasADi instructions with cse:")
+    print(f"(d) Theorem 1 controller (ctrl_backstepping, leg-force mapping), CasADi instructions with cse:")
     header = f"{'tau_d_dot by':<40} {'instructions':>12} {'SX nodes':>9}"
     print(header)
     print("-" * len(header))
     print(f"{'SymPy (hydrogen, as generated)':<40} {d['sympy_instructions']:>12d} {d['sympy_nodes']:>9d}")
     print(f"{'CasADi forward AD (jtimes)':<40} {d['casadi_ad_instructions']:>12d} {d['casadi_ad_nodes']:>9d}")
     print(f"manifest ctrl_backstepping: {d['manifest_instructions']}; AD / SymPy = {d['ratio_ad_over_sympy']:.2f}; "
-          f"issue's AD figure ~{d['issue_ad_instructions']}; SymPy's no larger than AD: {d['no_larger_than_ad']}")
+          f"SymPy's no larger than AD: {d['no_larger_than_ad']}")
     errs = ", ".join(f"{k} {v:.1e}" for k, v in d["max_relative_error"].items())
     print(f"same outputs at {d['check_points']} random points (max relative error: {errs})")
-    print(f"whole benchmark {res['wall_s']:.1f} s")
 
 
 def main(argv=None) -> int:

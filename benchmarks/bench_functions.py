@@ -1,15 +1,17 @@
-"""C-only cost of every generated function, one timing driver per function.
+"""C-only cost of every generated function of every shipped robot, one timing driver per function.
 
-For each function listed in ``generated/<model>/manifest.json`` a C driver is rendered from
-``templates/bench_function.c.j2`` with plausible inputs (neutral pose plus small offsets,
-Table I parameters, the default-sized gains and bounds; see ``benchmarks/common.py``), compiled
+For each robot (``hydrogen.models()``) and each function listed in its committed
+``generated/<model>/manifest.json`` a C driver is rendered from ``templates/bench_function.c.j2``
+with plausible inputs sized from the manifest (neutral pose plus small offsets, the model's true
+θ and γ, each controller's gains, bounds and static inputs as the simulator gives them; see
+``common.InputValues``), compiled
 together with the function's generated ``.c`` in one ``cc -O2 -std=c99 -Wall -Wextra -Werror``
 invocation (the drivers compile in parallel), and run. Each driver calls its function in a loop,
 perturbing one input entry by a tiny amount every iteration so no call can be hoisted, and
 accumulates a checksum it prints. The number of calls per repeat is doubled until one repeat
 takes at least 0.05 s (0.01 s with ``--quick``); the reported cost is the median of 5 repeats,
 in nanoseconds per call, next to the function's CasADi instruction count from the manifest.
-The drivers run one after the other (never in parallel). A run takes about 10-15 s.
+The drivers run one after the other (never in parallel). A run takes about 10-15 s per robot.
 
 Run: ``python benchmarks/bench_functions.py [--quick] [--json FILE]``
 """
@@ -86,32 +88,32 @@ def _parse(stdout: str, entry: dict, repeats: int) -> dict:
             "non_finite_outputs": sum(not math.isfinite(v) for v in values), "n_outputs": len(values)}
 
 
-def run(quick: bool = False, cc: str = "cc", gen_dir: Path | None = None) -> dict:
-    """Time every generated function in C; returns JSON-serialisable results."""
+def run_robot(model, quick: bool = False, cc: str = "cc", gen_dir: Path | None = None) -> dict:
+    """Time every generated function of ``model`` in C; returns JSON-serialisable results."""
+    import hydrogen
+    from hydrogen.codegen.generate import check
+
     t_start = time.perf_counter()
     cc_path = common.require_cc(cc)
-    gen_dir = Path(gen_dir) if gen_dir else common.REPO / "generated" / "ubc_stewart"
+    gen_dir = Path(gen_dir) if gen_dir else common.REPO / "generated" / model.name
     manifest = json.loads((gen_dir / "manifest.json").read_text())
     stale = []
     try:
-        import hydrogen
-        from hydrogen.codegen.generate import check
-
-        model = hydrogen.load_model()
         if model.name == manifest.get("model_name"):
             stale = check(model, gen_dir)
     except Exception as exc:  # the timing does not depend on it; report and go on
         stale = [f"could not check the generated folder: {exc}"]
     if stale:
-        print("warning: the generated C is stale for the current model/derivation; it is timed as it "
-              "is:\n  " + "\n  ".join(stale), file=sys.stderr)
+        print(f"warning: the generated C of {model.name} is stale for the current model/derivation; it is "
+              "timed as it is:\n  " + "\n  ".join(stale), file=sys.stderr)
+    values = common.InputValues(hydrogen.build(model))
     min_time = QUICK_MIN_TIME_S if quick else MIN_TIME_S
     entries = manifest["functions"]
     results = {}
     with tempfile.TemporaryDirectory(prefix="bench_functions_") as tmp:
         jobs = []
         for entry in entries:
-            inputs = common.function_inputs(entry)
+            inputs = values.function_inputs(entry)
             driver = Path(tmp) / f"bench_{entry['name']}.c"
             exe = Path(tmp) / f"bench_{entry['name']}"
             driver.write_text(render_driver(entry, inputs, REPEATS, min_time))
@@ -144,20 +146,34 @@ def run(quick: bool = False, cc: str = "cc", gen_dir: Path | None = None) -> dic
             }
     order = sorted(results, key=lambda n: results[n]["ns_per_call"], reverse=True)
     return {
-        "generated": str(gen_dir), "stale": stale, "cflags": list(common.CFLAGS),
-        "repeats": REPEATS, "min_time_s": min_time, "quick": quick,
+        "model": model.name, "n": model.n, "generated": str(gen_dir), "stale": stale,
+        "cflags": list(common.CFLAGS), "repeats": REPEATS, "min_time_s": min_time, "quick": quick,
         "functions": {n: results[n] for n in order},
         "total_ns_per_call": sum(r["ns_per_call"] for r in results.values()),
         "compile_wall_s": compile_wall, "wall_s": time.perf_counter() - t_start,
-        "machine": common.machine_info(cc),
     }
+
+
+def run(quick: bool = False, cc: str = "cc") -> dict:
+    """:func:`run_robot` for every shipped robot, from its committed generated folder."""
+    import hydrogen
+
+    robots = {name: run_robot(hydrogen.load_model(name), quick=quick, cc=cc) for name in common.robots()}
+    return {"robots": robots, "quick": quick, "machine": common.machine_info(cc)}
 
 
 def print_table(res: dict) -> None:
     m = res["machine"]
     print(f"machine : {m['processor']}, {m['cpu_count']} CPUs; {m['cc']}")
-    print(f"C cost of each generated function ({res['generated']}), sorted by cost: median of "
-          f"{res['repeats']} repeats, >= {res['min_time_s']:g} s each; {' '.join(res['cflags'])}")
+    for rob in res["robots"].values():
+        _print_robot(rob)
+
+
+def _print_robot(res: dict) -> None:
+    print(f"\n{res['model']} (n = {res['n']}): C cost of each generated function ({res['generated']}), sorted "
+          f"by cost: median of {res['repeats']} repeats, >= {res['min_time_s']:g} s each; {' '.join(res['cflags'])}")
+    if res["stale"]:
+        print(f"  (stale generated folder, timed as it is: {len(res['stale'])} reason(s))")
     header = (f"{'function':<24} {'instructions':>12} {'ns/call':>11} {'spread %':>9} "
               f"{'ns/instr':>9} {'calls/repeat':>13} {'compile s':>10}")
     print(header)
@@ -171,7 +187,7 @@ def print_table(res: dict) -> None:
         print(f"{name:<24} {r['instructions']:>12d} {r['ns_per_call']:>11.1f} {spread:>9.1f} {per:>9} "
               f"{r['calls_per_repeat']:>13d} {r['compile_s']:>10.2f}{flag}")
     print(f"sum of one call of each: {res['total_ns_per_call'] / 1e3:.2f} us; drivers compiled in "
-          f"{res['compile_wall_s']:.1f} s (parallel), whole benchmark {res['wall_s']:.1f} s")
+          f"{res['compile_wall_s']:.1f} s (parallel), {res['model']} benchmark {res['wall_s']:.1f} s")
 
 
 def main(argv=None) -> int:

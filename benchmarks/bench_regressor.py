@@ -1,11 +1,12 @@
-"""Per-call cost of the regressor Y(q, v, w, a) (6x4; q, v, w, a are 6-vectors) through four routes.
+"""Per-call cost of the regressor Y(q, v, w, a) (n x p; q, v, w, a are n-vectors) through four routes,
+for every shipped robot (or the one ``--model`` names).
 
   (a) sympy_lambdify  ``sympy.lambdify`` (numpy module) of the symbolic expression
   (b) casadi_python   the CasADi Function (SX) called from Python with numpy inputs
                       (returns a casadi.DM; the ``.full()`` conversion is not timed)
   (c) ctypes          ``hydrogen.build(...).regressor``: one ctypes call into the compiled library
   (d) c_loop          a C driver (rendered from ``templates/bench_loop.c.j2``) calling the
-                      generated ``generated/ubc_stewart/ubc_stewart_regressor.c`` N times in a
+                      generated ``generated/<model>/<model>_regressor.c`` N times in a
                       loop, timed with clock_gettime(CLOCK_MONOTONIC)
 
 All four are first checked to give the same Y at the benchmark point (rtol 1e-9). Each
@@ -45,7 +46,7 @@ import sympy
 import hydrogen
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from common import cc_version, cpu_name  # noqa: E402
+from common import cc_version, cpu_name, pose_offset, robots  # noqa: E402
 from hydrogen.codegen.casadi_functions import to_casadi_function
 from hydrogen.codegen.generate import check
 from hydrogen.symbolic.functions import derive_functions
@@ -56,14 +57,16 @@ FUNCTION = "regressor"
 CFLAGS = ("-O2", "-std=c99", "-Wall", "-Wextra", "-Werror")
 RTOL = 1e-9
 
-#: Offset from the model's neutral pose and the rates: every entry non-zero, away from
-#: singular or symmetric configurations.
-DQ = np.array([0.012, -0.021, 0.034, 0.051, -0.043, 0.027])
-V = np.array([0.11, -0.07, 0.05, 0.31, -0.22, 0.17])
-W = np.array([-0.09, 0.13, 0.06, -0.24, 0.19, 0.28])
-A = np.array([0.8, -0.6, 1.1, -1.4, 0.9, 1.3])
+def point_of(model) -> dict:
+    """The benchmark point: the neutral pose plus offsets and rates, every entry non-zero, away from
+    singular or symmetric configurations (sized from the model)."""
+    k = np.arange(model.n)
+    return {"q": np.asarray(model.neutral_pose, dtype=float) + pose_offset(model.n),
+            "v": 0.2 * np.sin(1.3 * k + 0.4), "w": 0.2 * np.cos(1.7 * k + 0.3), "a": 1.2 * np.sin(0.9 * k + 0.8)}
 
-#: Input perturbed in the C loop (psi: it enters through sin/cos, so the call is realistic).
+
+#: Input perturbed in the C loop: q, entry 3 (psi on the Stewart platform: it enters through
+#: sin/cos, so the call is realistic) or the last one of a smaller model.
 PERTURB = ("q", 3, 1e-12)
 
 ROUTES = ("sympy_lambdify", "casadi_python", "ctypes", "c_loop")
@@ -83,7 +86,7 @@ def time_python(fn, args, repeats: int, min_time: float) -> tuple[float, int]:
 
 
 def c_loop(c_name: str, gen_dir: Path, inputs: list, n_out: int, repeats: int,
-           min_time: float, cc: str) -> dict:
+           min_time: float, cc: str, perturb_index: int = PERTURB[1]) -> dict:
     """Render, compile and run the C driver; return its output Y entries and timings."""
     env = jinja2.Environment(loader=jinja2.FileSystemLoader(str(TEMPLATES)),
                              undefined=jinja2.StrictUndefined, trim_blocks=True,
@@ -92,7 +95,7 @@ def c_loop(c_name: str, gen_dir: Path, inputs: list, n_out: int, repeats: int,
         c_name=c_name, header=f"{c_name}.h", n_out=n_out, repeats=repeats,
         min_time_s=repr(float(min_time)),
         inputs=[(name, [repr(float(x)) for x in vals]) for name, vals in inputs],
-        perturb_input=PERTURB[0], perturb_index=PERTURB[1], perturb_step=repr(PERTURB[2]))
+        perturb_input=PERTURB[0], perturb_index=perturb_index, perturb_step=repr(PERTURB[2]))
     if shutil.which(cc) is None:
         sys.exit(f"error: C compiler '{cc}' not found on PATH")
     with tempfile.TemporaryDirectory(prefix="bench_regressor_") as tmp:
@@ -130,11 +133,23 @@ def main(argv=None) -> int:
     ap.add_argument("--min-time", type=float, default=0.2,
                     help="minimum seconds per repeat (default 0.2)")
     ap.add_argument("--cc", default="cc", help="C compiler for the C loop (default: cc)")
+    ap.add_argument("--model", help="a built-in model's name or a path (default: every shipped robot)")
     args = ap.parse_args(argv)
     if args.repeats < 1 or args.min_time <= 0:
         ap.error("--repeats must be >= 1 and --min-time > 0")
+    results = {}
+    for name in ([args.model] if args.model else robots()):
+        results[name] = bench_model(hydrogen.load_model(name), args)
+        print()
+    if args.json:
+        args.json.parent.mkdir(parents=True, exist_ok=True)
+        args.json.write_text(json.dumps(results, indent=2) + "\n")
+        print(f"wrote {args.json}")
+    return 0
 
-    model = hydrogen.load_model()
+
+def bench_model(model, args) -> dict:
+    """The four routes for ``model``'s regressor; prints the table, returns the results."""
     gen_dir = REPO / "generated" / model.name
     c_name = f"{model.name}_{FUNCTION}"
     stale = check(model, gen_dir)
@@ -149,14 +164,14 @@ def main(argv=None) -> int:
     f_casadi = to_casadi_function(sf)
     dyn = hydrogen.build(model, backend="ctypes")  # route (c) is the ctypes call; bench_calls.py times the extension
 
-    q = np.asarray(model.neutral_pose, dtype=float) + DQ
-    point = {"q": q, "v": V, "w": W, "a": A}
+    point = point_of(model)
     xs = [point[name] for name, _ in sf.inputs]
     shape = tuple(Y_expr.shape)
 
     # --- same Y from every route --------------------------------------------------------
     c_res = c_loop(c_name, gen_dir, list(zip([n for n, _ in sf.inputs], xs)),
-                   int(np.prod(shape)), args.repeats, args.min_time, args.cc)
+                   int(np.prod(shape)), args.repeats, args.min_time, args.cc,
+                   perturb_index=min(PERTURB[1], model.n - 1))
     Ys = {
         "sympy_lambdify": np.asarray(f_lambdify(*xs), dtype=float),
         "casadi_python": np.asarray(f_casadi(*xs).full()),
@@ -200,20 +215,16 @@ def main(argv=None) -> int:
     for r in ROUTES:
         print(f"{r:<16} {us[r]:>12.4f} {ratio[r]:>16.1f} {calls[r]:>13d}")
 
-    if args.json:
-        result = {
-            "function": c_name,
-            "routes": {r: {"us_per_call": us[r], "ratio_to_c_loop": ratio[r],
-                           "calls_per_repeat": calls[r]} for r in ROUTES},
-            "repeats": args.repeats, "min_time_s": args.min_time,
-            "c_loop_cflags": list(CFLAGS), "c_loop_checksum": c_res["checksum"],
-            "machine": machine, "versions": versions,
-            "point": {k: v.tolist() for k, v in point.items()},
-        }
-        args.json.parent.mkdir(parents=True, exist_ok=True)
-        args.json.write_text(json.dumps(result, indent=2) + "\n")
-        print(f"\nwrote {args.json}")
-    return 0
+    result = {
+        "function": c_name,
+        "routes": {r: {"us_per_call": us[r], "ratio_to_c_loop": ratio[r],
+                       "calls_per_repeat": calls[r]} for r in ROUTES},
+        "repeats": args.repeats, "min_time_s": args.min_time,
+        "c_loop_cflags": list(CFLAGS), "c_loop_checksum": c_res["checksum"],
+        "machine": machine, "versions": versions,
+        "point": {k: v.tolist() for k, v in point.items()},
+    }
+    return result
 
 
 if __name__ == "__main__":

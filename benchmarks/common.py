@@ -1,4 +1,5 @@
-"""Helpers shared by the benchmark modules: paths, machine description, C drivers, plausible inputs.
+"""Helpers shared by the benchmark modules: paths, machine description, C drivers, plausible inputs,
+the shipped robots and their scenarios.
 
 Importable both as ``benchmarks.common`` (from the repository root or through ``hydrogen bench``)
 and as ``common`` when a benchmark is run as a script from ``benchmarks/``.
@@ -21,41 +22,11 @@ TEMPLATES = REPO / "templates"
 CFLAGS = ("-O2", "-std=c99", "-Wall", "-Wextra", "-Werror")
 
 # ---------------------------------------------------------------------------------------------
-# plausible input values, by input name (model: generated/ubc_stewart, SI units)
+# plausible input values, by input name, for any model (SI units)
 # ---------------------------------------------------------------------------------------------
-NEUTRAL_POSE = np.array([0.0, 0.0, -2.34, 0.0, 0.0, 0.0])
-#: Offsets from the neutral pose: every entry non-zero, away from symmetric configurations.
-DQ = np.array([0.012, -0.021, 0.034, 0.051, -0.043, 0.027])
-THETA = np.array([250.0, 45.0, 45.0, 43.0])     # [M_p kg, I_x, I_y, I_z kg m^2]
-GAMMA = np.array([7.0e8, 1.05e5])               # [beta Pa, beta c]
-INERTIA6 = np.array([250.0, 250.0, 250.0, 45.0, 45.0, 43.0])
-LEG_LENGTH = 1.843                              # m, every leg at the neutral pose
-
-#: Fixed values (gains, bounds, model parameters): name -> values (column-major when a matrix).
-FIXED = {
-    "theta": THETA,
-    "gamma": GAMMA,
-    "theta_min": np.array([150.0, 25.0, 25.0, 25.0]),
-    "theta_max": np.array([350.0, 65.0, 65.0, 65.0]),
-    "gamma1_min": np.array([3.5e8]), "gamma1_max": np.array([1.4e9]),
-    "gamma2_min": np.array([5.0e4]), "gamma2_max": np.array([2.2e5]),
-    "Dbar_inv": np.diag(1.0 / INERTIA6).ravel(order="F"),
-    "Gbar": np.array([0.0, 0.0, 250.0 * 9.81, 0.0, 0.0, 0.0]),
-    "friction": np.array([100.0, 300.0, 1e-3]),
-    "valve": np.zeros(3),
-    "adapt": np.array([1.0]),
-    "u_max": np.array([5e-3]),
-    "sat_width": np.array([1e-3]),
-    # gains: positive, of the order of the defaults in hydrogen/simulation/control.py
-    "Lambda": np.full(6, 60.0), "Lambda2": np.full(6, 60.0),
-    "Kp": np.full(6, 3000.0), "Kd": np.full(6, 600.0), "Kd_obs": np.full(6, 600.0),
-    "Ktau": np.full(6, 150.0), "Gtau_inv": np.full(6, 1.0e4),
-    "Ko": np.full(6, 30.0), "lambda_o": np.array([1.0, 2.0, 3.0, 4.0]),
-    "Gz_inv": 1.0 / INERTIA6, "Lp": np.full(6, 3000.0),
-    "Gtheta_inv": np.array([1.0e3, 2.0e3, 2.0e3, 2.0e3]),
-    "Ggamma1_inv": np.full(6, 1.0e4), "Ggamma2_inv": np.full(6, 1.0e3),
-    "Kleg": np.full(6, 0.035),
-}
+#: Fixed values of the plant-only inputs (friction: Coulomb N, viscous N s/m, tanh speed m/s).
+#: valve: [first-order lag s, natural frequency rad/s, damping], the ideal valve.
+FIXED = {"friction": np.array([100.0, 300.0, 1e-3]), "valve": np.zeros(3), "adapt": np.array([1.0])}
 
 #: Scale of the small random values of the remaining (state-like) inputs.
 RANDOM_SCALE = {
@@ -64,33 +35,126 @@ RANDOM_SCALE = {
 }
 
 
-def input_value(name: str, rows: int, cols: int, rng: np.random.Generator) -> np.ndarray:
-    """Plausible values (flat, column-major) for the input ``name`` of shape rows x cols."""
-    n = rows * cols
-    small = lambda s=0.05: s * rng.uniform(-1.0, 1.0, n)  # noqa: E731
-    if name in ("q", "qd0", "q_hat") and n == 6:
-        return NEUTRAL_POSE + DQ + small(0.005)
-    if name in FIXED and FIXED[name].size == n:
-        return np.array(FIXED[name], float)
-    if name == "pc":
-        return 5.0e6 + small(2.0e5)
-    if name == "l" and n == 6:
-        return LEG_LENGTH + small(0.02)
-    if name == "x" and n == 30:  # plant state [q, qdot, pc, spool, spool rate]
-        return np.concatenate([NEUTRAL_POSE + DQ, small(0.1)[:6], 5.0e6 + small(2.0e5)[:6], small(1e-3)[:6],
-                               small(1e-2)[:6]])
-    if name == "xc" and n in (22, 28):  # [q_hat (6)], z (6), theta_hat (4), gamma1_hat (6), gamma2_hat (6)
-        xc = [np.full(6, 0.01), THETA, np.full(6, GAMMA[0]), np.full(6, GAMMA[1])]
-        if n == 28:
-            xc.insert(0, NEUTRAL_POSE + DQ + small(0.005)[:6])
-        return np.concatenate(xc)
-    return small(RANDOM_SCALE.get(name, 0.05))
+def pose_offset(n: int) -> np.ndarray:
+    """Offsets from the neutral pose (m or rad): every entry non-zero, away from symmetric poses."""
+    k = np.arange(n)
+    return 0.03 * np.sin(2.1 * k + 0.5)
 
 
-def function_inputs(entry: dict, seed: int = 0) -> list:
-    """[(name, flat column-major values)] for a manifest function entry (inputs [[name, rows, cols]])."""
-    rng = np.random.default_rng(seed)
-    return [(name, input_value(name, int(r), int(c), rng)) for name, r, c in entry["inputs"]]
+class InputValues:
+    """Plausible values of every generated function's inputs for the model of ``dyn``.
+
+    The pose is the neutral pose plus :func:`pose_offset`; cylinder lengths follow from it;
+    control pressures sit near half the supply pressure; θ and γ are the model's true values;
+    a controller's gains, bounds, static inputs and initial state are what the simulator gives
+    it (:func:`hydrogen.simulation.control.make_controller` with the true parameters).
+    """
+
+    def __init__(self, dyn):
+        from hydrogen.controllers import CONTROLLERS, function_name
+        from hydrogen.simulation.control import make_controller
+
+        self.dyn, self.model = dyn, dyn.model
+        m = self.model
+        self.q = np.asarray(m.neutral_pose, float) + pose_offset(m.n)
+        self.ctrl = {}
+        for kind in CONTROLLERS:
+            self.ctrl[function_name(kind)] = make_controller(dyn, kind, None, m.theta, m.gamma)
+
+    def value(self, fname: str, name: str, rows: int, cols: int, rng: np.random.Generator) -> np.ndarray:
+        """Flat (column-major) values of input ``name`` (rows x cols) of function ``fname``."""
+        from hydrogen.tree import cylinder_lengths
+
+        m = self.model
+        n, nc, size = m.n, m.n_cylinders, rows * cols
+        small = lambda s=0.05, k=size: s * rng.uniform(-1.0, 1.0, k)  # noqa: E731
+        ps = np.asarray(m.supply_pressure, float)
+        pc = ps * (0.48 + 0.02 * rng.uniform(-1.0, 1.0, nc))
+        q = self.q + small(0.005, n)
+        ctrl = self.ctrl.get(fname)
+        out = None
+        if name in ("q", "qd0", "q_hat"):
+            out = q
+        elif name == "l":
+            out = cylinder_lengths(m, q) + small(0.002, nc)
+        elif name == "pc":
+            out = pc
+        elif name == "x":  # plant state [q, qdot, pc, spool, spool rate]
+            out = np.concatenate([q, small(0.1, n), pc, small(1e-3, nc), small(1e-2, nc)])
+        elif name == "xc" and ctrl is not None:
+            ctrl.reset(q, small(RANDOM_SCALE["z"], n))
+            out = ctrl.xc.copy()
+        elif ctrl is not None and name in ctrl.values:
+            out = np.asarray(ctrl.values[name], float).ravel(order="F")
+        elif name == "theta":
+            out = m.theta
+        elif name in ("gamma1", "gamma2"):
+            out = m.gamma[0 if name == "gamma1" else 1]
+        elif name in FIXED:
+            out = FIXED[name]
+        if out is None or np.size(out) != size:
+            out = small(RANDOM_SCALE.get(name, 0.05))
+        return np.array(out, float).ravel()
+
+    def function_inputs(self, entry: dict, seed: int = 0) -> list:
+        """[(name, flat column-major values)] for a manifest function entry (inputs [[name, rows, cols]])."""
+        rng = np.random.default_rng(seed)
+        return [(name, self.value(entry["name"], name, int(r), int(c), rng)) for name, r, c in entry["inputs"]]
+
+
+# ---------------------------------------------------------------------------------------------
+# robots and their scenarios
+# ---------------------------------------------------------------------------------------------
+def robots() -> list:
+    """Every shipped robot's name (``hydrogen.models()``), the default model first."""
+    import hydrogen
+    from hydrogen.model import DEFAULT_MODEL
+
+    names = list(hydrogen.models())
+    return sorted(names, key=lambda x: (x != DEFAULT_MODEL, x))
+
+
+def _scenario_tables(model) -> list:
+    from hydrogen.simulation.scenarios import scenario_names
+
+    return [(name, model.scenarios[name]) for name in scenario_names(model)]
+
+
+def sim_scenario(model) -> str:
+    """The robot's simulation scenario: the first one of its description on the ideal plant
+    (not ``rig = true``): paper-sim for the Stewart platform, arm-sim for the arm."""
+    for name, table in _scenario_tables(model):
+        if not table.get("rig", False):
+            return name
+    raise RuntimeError(f"model '{model.name}' has no simulation scenario (every scenario is on the rig)")
+
+
+def rig_scenario(model) -> str | None:
+    """The robot's first experiment-like scenario (``rig = true``), or None."""
+    return next((name for name, table in _scenario_tables(model) if table.get("rig", False)), None)
+
+
+def periods_per_s(dyn, scenario: str) -> float:
+    from hydrogen.simulation.scenarios import scenario as named
+
+    return named(scenario, dyn.model).control_rate
+
+
+def c_loop_per_period(dyn, scenario: str, controller: str, n_periods: int) -> float:
+    """Seconds per period of the C loop (no logs), over ``n_periods`` periods of ``scenario``."""
+    import time
+
+    from hydrogen.simulation import simulator as S
+
+    rate = periods_per_s(dyn, scenario)
+    p = S._prepare(dyn, scenario, controller, None, n_periods / rate, False, {})
+    runner = S._make_runner(dyn, p.sc, p.ctrl, p.x0, p.q0, p.kf_gain, p.h)
+    t0 = time.perf_counter()
+    code = runner.run(p.n, p.noise, None)
+    wall = time.perf_counter() - t0
+    if code != 0:
+        raise RuntimeError(f"the C loop of {dyn.model.name} {scenario} {controller} stopped with code {code}")
+    return wall / p.n
 
 
 # ---------------------------------------------------------------------------------------------
@@ -157,13 +221,15 @@ def python_env() -> dict:
     return env
 
 
-def run_python(code: str, timeout: float = 600.0, env: dict | None = None) -> tuple[str, float]:
-    """Run ``code`` with this interpreter in a fresh process; return (stdout, wall seconds)."""
+def run_python(code: str, timeout: float = 600.0, env: dict | None = None,
+               cwd: Path | None = None) -> tuple[str, float]:
+    """Run ``code`` with this interpreter in a fresh process, in ``cwd`` (default: the repository,
+    whose folder comes first on ``sys.path``); return (stdout, wall seconds)."""
     import time
 
     t0 = time.perf_counter()
     proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
-                          timeout=timeout, env=env or python_env(), cwd=str(REPO))
+                          timeout=timeout, env=env or python_env(), cwd=str(cwd or REPO))
     wall = time.perf_counter() - t0
     if proc.returncode != 0:
         raise RuntimeError(f"benchmark subprocess failed (exit {proc.returncode}):\n{code}\n"

@@ -24,6 +24,8 @@ SUITE = (
     ("bench_build", "generation and compilation times; SymPy vs CasADi-AD instruction counts"),
     ("bench_flags", "compiler flags: compile time and loop cost"),
     ("bench_sweep", "sweep throughput on 2 workers: process pool and Dask LocalCluster; identification time"),
+    ("bench_release", "side by side with the previous release: trajectories, instruction counts, loop, generation"),
+    ("bench_scaling", "how cost grows with the robot: planar chains of n = 2 ... 7 links"),
 )
 
 

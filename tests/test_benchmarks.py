@@ -1,0 +1,116 @@
+"""Cheap checks of the benchmark suite (benchmarks/): every module loads, the helpers give what each
+robot needs, and the comparisons of bench_release and the partial profiles of bench_scaling read
+right. The benchmarks themselves (minutes each) run with ``hydrogen bench``."""
+import importlib
+import json
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import hydrogen
+from hydrogen.bench import SUITE
+from hydrogen.simulation.scenarios import scenario, scenario_names
+
+BENCH = Path(__file__).resolve().parents[1] / "benchmarks"
+sys.path.insert(0, str(BENCH))
+
+import bench_release  # noqa: E402
+import bench_scaling  # noqa: E402
+import common  # noqa: E402
+
+
+@pytest.mark.parametrize("name", [n for n, _ in SUITE])
+def test_every_suite_module_loads(name):
+    if not (BENCH / f"{name}.py").is_file():
+        pytest.skip(f"{name} is not in this checkout")
+    mod = importlib.import_module(name)
+    assert callable(mod.run) and callable(mod.print_table)
+
+
+def test_robots_lists_every_shipped_model_default_first():
+    names = common.robots()
+    assert sorted(names) == sorted(hydrogen.models())
+    assert names[0] == hydrogen.load_model().name
+
+
+def test_each_robot_has_a_simulation_scenario(robot_model):
+    sim = common.sim_scenario(robot_model)
+    assert sim in scenario_names(robot_model)
+    assert not robot_model.scenarios[sim].get("rig", False)
+    rig = common.rig_scenario(robot_model)
+    assert rig is None or robot_model.scenarios[rig].get("rig") is True
+
+
+def test_input_values_fit_every_generated_function(robot_dyn):
+    values = common.InputValues(robot_dyn)
+    for entry in robot_dyn.library.manifest["functions"]:
+        for (name, vals), (_, r, c) in zip(values.function_inputs(entry), entry["inputs"]):
+            assert vals.shape == (int(r) * int(c),), (entry["name"], name)
+            assert np.all(np.isfinite(vals)), (entry["name"], name)
+    # the controllers' inputs are what the simulator gives them, not random numbers
+    entry = next(e for e in robot_dyn.library.manifest["functions"] if e["name"] == "ctrl_backstepping")
+    got = dict(values.function_inputs(entry))
+    np.testing.assert_array_equal(got["theta"], robot_dyn.model.theta)
+    np.testing.assert_array_equal(got["gamma1"], robot_dyn.model.gamma[0])
+
+
+@pytest.mark.parametrize("n", range(2, 8))
+def test_scaling_chain_loads_with_a_well_conditioned_jl(n):
+    from hydrogen.tree import cylinder_jacobian, cylinder_lengths
+
+    model = bench_scaling.chain_model(n)  # model_from_dict checks strokes and JL at the neutral pose
+    assert (model.n, model.n_cylinders, model.n_theta) == (n, n, 3 * n)
+    np.testing.assert_allclose(cylinder_lengths(model, model.neutral_pose), 1.0, atol=1e-12)
+    J = cylinder_jacobian(model, model.neutral_pose)
+    assert np.linalg.cond(J) < 1.001  # diagonal, 0.25 m lever arms (J numeric here)
+    sc = scenario(bench_scaling.SCENARIO, model)
+    assert len(sc.theta0_factor) == model.n_theta
+
+
+def test_scaling_reports_the_stage_a_stopped_process_was_in():
+    r = bench_scaling._parse("import_s 1.5\nstart kinematics\nstage kinematics 0.4\nstart rigid_body\n"
+                             "start rigid_body.D\nstage rigid_body.D 0.1\nops_D 167\nstart rigid_body.C\n")
+    assert r["running"] == "rigid_body.C" and r["stages"]["rigid_body.D"] == 0.1 and r["sizes"] == {"D": 167}
+
+
+def test_scaling_stops_at_the_budget():
+    r = bench_scaling.run_one(2, budget=0.5, quick=True)
+    assert r["timed_out"] and "derive_s" not in r
+
+
+def _runs_file(path, q_shift=0.0, duration=10.0, theta_scale=1.0):
+    t = np.arange(5) * 1e-3
+    arrays = {"s__c__t": t, "s__c__q": np.ones((5, 2)) + q_shift, "s__c__q_d": np.ones((5, 2)),
+              "s__c__theta_hat": np.full((5, 3), 2.0) * theta_scale, "s__c__gamma1_hat": np.ones((5, 2)),
+              "s__c__gamma2_hat": np.ones(5)}
+    np.savez(str(path), **arrays)
+    info = {"s__c": {"scenario": "s", "controller": "c", "error": None,
+                     "fields": {"duration": duration, "noise_q": 0.0, "gains": {"c": {"Lambda": 30.0}}}}}
+    Path(str(path) + ".json").write_text(json.dumps(info))
+    return path
+
+
+def test_release_trajectory_comparison(tmp_path):
+    prev = _runs_file(tmp_path / "a.npz")
+    (_runs_file(tmp_path / "b.npz"))
+    assert bench_release.compare_runs(prev, tmp_path / "b.npz")["s__c"]["status"] == "ok"
+    _runs_file(tmp_path / "c.npz", q_shift=1e-7)
+    row = bench_release.compare_runs(prev, tmp_path / "c.npz")["s__c"]
+    assert row["status"] == "FAIL" and row["max_abs_dq"] == pytest.approx(1e-7)
+    _runs_file(tmp_path / "d.npz", theta_scale=1 + 1e-6)
+    assert bench_release.compare_runs(prev, tmp_path / "d.npz")["s__c"]["max_rel_dtheta"] == pytest.approx(1e-6)
+    _runs_file(tmp_path / "e.npz", duration=6.0)
+    row = bench_release.compare_runs(prev, tmp_path / "e.npz")["s__c"]
+    assert row["status"] == "scenario changed" and row["scenario_changed"] == ["duration"]
+
+
+def test_release_instruction_bounds():
+    prev = {"regressor": 182, "ctrl_backstepping": 3021, "plant_rhs": 1084, "valve_flow": 129}
+    cur = {"regressor": 183, "ctrl_backstepping": 3031, "plant_rhs": 1200, "valve_flow": 400, "new_fn": 5}
+    out = bench_release.compare_instructions(prev, cur)
+    assert out["regressor"]["status"] == "FAIL"
+    assert out["ctrl_backstepping"]["status"] == "ok"
+    assert out["plant_rhs"]["status"] == "FAIL"
+    assert out["valve_flow"]["status"] == "-" and out["new_fn"]["status"] == "new"
