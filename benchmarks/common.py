@@ -25,7 +25,8 @@ CFLAGS = ("-O2", "-std=c99", "-Wall", "-Wextra", "-Werror")
 # plausible input values, by input name, for any model (SI units)
 # ---------------------------------------------------------------------------------------------
 #: Fixed values of the plant-only inputs (friction: Coulomb N, viscous N s/m, tanh speed m/s).
-FIXED = {"friction": np.array([100.0, 300.0, 1e-3]), "tau_valve": np.array([0.0]), "adapt": np.array([1.0])}
+#: valve: [first-order lag s, natural frequency rad/s, damping], the ideal valve.
+FIXED = {"friction": np.array([100.0, 300.0, 1e-3]), "valve": np.zeros(3), "adapt": np.array([1.0])}
 
 #: Scale of the small random values of the remaining (state-like) inputs.
 RANDOM_SCALE = {
@@ -78,8 +79,8 @@ class InputValues:
             out = cylinder_lengths(m, q) + small(0.002, nc)
         elif name == "pc":
             out = pc
-        elif name == "x":  # plant state [q, qdot, pc, spool]
-            out = np.concatenate([q, small(0.1, n), pc, small(1e-3, nc)])
+        elif name == "x":  # plant state [q, qdot, pc, spool, spool rate]
+            out = np.concatenate([q, small(0.1, n), pc, small(1e-3, nc), small(1e-2, nc)])
         elif name == "xc" and ctrl is not None:
             ctrl.reset(q, small(RANDOM_SCALE["z"], n))
             out = ctrl.xc.copy()

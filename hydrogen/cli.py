@@ -1,4 +1,4 @@
-"""Command line of hydrogen: generate, simulate, identify, figures, bench, tune-p, export.
+"""Command line of hydrogen: generate, simulate, identify, figures, bench, tune, tune-p, margins, export.
 
 Errors that hydrogen raises on purpose are printed as one message (no
 traceback) and exit with status 2; ``--check`` exits 1 when generated code is stale.
@@ -63,7 +63,7 @@ def _cmd_simulate(args) -> int:
             _write_outputs(args, exc.result, diverged=str(exc))
         raise
     m = res.metrics
-    print(f"scenario {res.scenario}, controller {res.controller}: {m['sim_time_s']:.2f} s simulated "
+    print(f"scenario {res.scenario_name}, controller {res.controller}: {m['sim_time_s']:.2f} s simulated "
           f"in {m['wall_time_s'] * 1e3:.1f} ms ({m['sim_time_s'] / max(m['wall_time_s'], 1e-9):.0f}x real time; "
           f"the C loop {m['loop_wall_s'] * 1e3:.1f} ms, the rest setup)")
     if m.get("metric_note"):
@@ -164,23 +164,66 @@ def _cmd_export_fmu(args) -> int:
     return 0
 
 
-def _cmd_tune_p(args) -> int:
-    from .simulation.tuning import tune_p
+def _cmd_tune(args, controller=None) -> int:
+    from .simulation.tuning import default_grid, tune
 
-    if args.min >= args.max:
+    controller = controller or args.controller
+    if args.min is not None and args.max is not None and args.min >= args.max:
         raise HydrogenError(f"--min ({args.min:g}) must be below --max ({args.max:g})")
-    custom = args.n or (args.min, args.max) != (_TUNE_MIN, _TUNE_MAX)
-    res = tune_p(np.geomspace(args.min, args.max, args.n or 25) if custom else None, max_workers=args.workers,
-                 progress=not args.quiet)
-    print(f"{'scenario':9} {'Kleg':>8} {'max err %':>10} {'off-axis':>10} {'sat':>6}  stable")
+    grid = None
+    if args.n or args.min is not None or args.max is not None:
+        d = default_grid(controller)
+        lo, hi = args.min if args.min is not None else d[0], args.max if args.max is not None else d[-1]
+        if lo >= hi:
+            raise HydrogenError(f"--min ({lo:g}) must be below --max ({hi:g})")
+        grid = np.geomspace(lo, hi, args.n or 25)
+    res = tune(controller, grid, model=args.model, max_workers=args.workers, progress=not args.quiet)
+    name = res["main_gain"]
+    print(f"{controller} on model {res['model']}: main gain {name}")
+    sec = list(res["secondary"])
+    print(f"{'scenario':12} {name:>9} " + "".join(f"{k:>8} " for k in sec) + f"{'max err %':>10} {'hf err %':>9} "
+          f"{'sat':>6}  stable")
     for r in res["table"]:
+        head = f"{r['scenario']:12} {r['gain']:9.4g} " + "".join(f"{r[k]:8.4g} " for k in sec)
         if "max_error_pct" in r:
-            print(f"{r['scenario']:9} {r['Kleg']:8.4f} {r['max_error_pct']:10.1f} {r['off_axis_max'] * 1e3:10.3f} "
+            print(head + f"{r['max_error_pct']:10.2f} {100 * r['hf_error']:9.3f} "
                   f"{r['saturation']:6.3f}  {'yes' if r['stable'] else 'no: ' + r['reason']}")
         else:
-            print(f"{r['scenario']:9} {r['Kleg']:8.4f} diverged: {r['reason'][:60]}")
-    print(f"well-tuned P gain (largest stable on every scenario): Kleg = {res['best']}; errors "
-          + ", ".join(f"{s} {v:.1f} %" for s, v in res["best_errors"].items()))
+            print(head + r["reason"][:70])
+    print(f"largest gain stable on every scenario (at the tuned {', '.join(sec) or 'point'}): "
+          f"{name} = {res['largest_stable']}")
+    if res["best"] is None:
+        print("no point of the grid completes every scenario without saturating")
+        return 0
+    if not res["margin_ok"]:
+        print("NO gain of the grid has a gain margin of 2 on every scenario (the loop rings at every gain); "
+              "the least bad point (smallest worst-case error without saturation) follows")
+    what = "smallest worst-case error with a gain margin >= 2" if res["margin_ok"] else "least bad, margin < 2"
+    print(f"tuned ({what}): {name} = {res['best']:.6g} "
+          + "".join(f", {k} = {v:.6g}" for k, v in res["best_secondary"].items()) + "; errors "
+          + ", ".join(f"{s} {v:.2f} %" for s, v in res["best_errors"].items() if v is not None))
+    g = res["best_gains"]
+    print(f"[gains.{controller}]")
+    for k, v in g.items():
+        print(f"{k} = {np.round(v, 6).tolist() if isinstance(v, list) else round(v, 6)}")
+    return 0
+
+
+def _cmd_tune_p(args) -> int:
+    return _cmd_tune(args, "p")
+
+
+def _cmd_margins(args) -> int:
+    from .simulation.tuning import margins
+
+    res = margins(args.controller or None, model=args.model, max_workers=args.workers, progress=not args.quiet)
+    print(f"stability margins on model {res['model']}: factor by which the main gain can grow while stable")
+    print(f"| controller | scenario | main gain | value | margin | first unstable because |")
+    print("|---|---|---|---|---|---|")
+    for r in res["rows"]:
+        m = f">= {r['margin']:.3g}" if r["margin_capped"] else f"{r['margin']:.3g}"
+        print(f"| {r['controller']} | {r['scenario']} | {r['main_gain']} | {r['gain']:.4g} | {m} | "
+              f"{r['limit_reason'] or '-'} |")
     return 0
 
 
@@ -193,7 +236,6 @@ def _cmd_bench(args) -> int:
     return 0
 
 
-_TUNE_MIN, _TUNE_MAX = 0.01, 0.3
 
 
 def _number(kind, low=None, strict=True, high=None):
@@ -271,16 +313,33 @@ def build_parser() -> argparse.ArgumentParser:
                    help="run only these modules (see 'hydrogen bench --help')")
     b.add_argument("--quiet", action="store_true", help="no progress bar")
     b.set_defaults(func=_cmd_bench)
-    tp = sub.add_parser("tune-p", help="the documented gain search for the P controller (parallel sweep)",
-                        description="Sweep the P gain on the experiment scenarios; pick the largest gain stable "
-                                    "on all (see hydrogen/simulation/tuning.py).")
-    tp.add_argument("--min", type=_number(float, 0), default=_TUNE_MIN, help="smallest gain, m/m (> 0)")
-    tp.add_argument("--max", type=_number(float, 0), default=_TUNE_MAX, help="largest gain, m/m (> --min)")
-    tp.add_argument("--n", type=_number(int, 0, strict=False), default=0,
-                    help="grid size (default: the documented 25-point grid)")
-    tp.add_argument("--workers", type=_number(int, 1, strict=False), help="processes (default: the core count)")
-    tp.add_argument("--quiet", action="store_true", help="no progress bar")
+    def tune_args(sp):
+        sp.add_argument("--model", help="built-in model name (hydrogen.models()) or TOML file (default: ubc_stewart)")
+        sp.add_argument("--min", type=_number(float, 0), help="smallest gain of the grid (> 0; default: documented)")
+        sp.add_argument("--max", type=_number(float, 0), help="largest gain of the grid (> --min)")
+        sp.add_argument("--n", type=_number(int, 0, strict=False), default=0,
+                        help="grid size (default: the documented grid, 4 points per octave)")
+        sp.add_argument("--workers", type=_number(int, 1, strict=False), help="processes (default: the core count)")
+        sp.add_argument("--quiet", action="store_true", help="no progress bar")
+
+    tn = sub.add_parser("tune", help="the documented gain search for a controller on the model's rig (parallel sweep)",
+                        description="Sweep a controller's main gain on the model's rig scenarios; pick the gain with "
+                                    "the smallest error whose double is still stable (hydrogen/simulation/tuning.py).")
+    tn.add_argument("--controller", required=True, choices=CONTROLLERS)
+    tune_args(tn)
+    tn.set_defaults(func=_cmd_tune)
+    tp = sub.add_parser("tune-p", help="hydrogen tune --controller p",
+                        description="The documented search for the P controller (hydrogen tune --controller p).")
+    tune_args(tp)
     tp.set_defaults(func=_cmd_tune_p)
+    mg = sub.add_parser("margins", help="stability margin of each controller's main gain on the rig scenarios",
+                        description="For each controller and rig scenario, the factor by which the main gain of the "
+                                    "robot's gains can grow before the loop goes unstable (bisection over sweeps).")
+    mg.add_argument("--model", help="built-in model name (hydrogen.models()) or TOML file (default: ubc_stewart)")
+    mg.add_argument("--controller", nargs="*", choices=CONTROLLERS, help="controllers (default: all)")
+    mg.add_argument("--workers", type=_number(int, 1, strict=False), help="processes (default: the core count)")
+    mg.add_argument("--quiet", action="store_true", help="no progress bar")
+    mg.set_defaults(func=_cmd_margins)
     ex = sub.add_parser("export", help="write deployable C (sources, params.h, main.c, Makefile) or an FMU",
                         description="A folder that builds with only a C compiler and runs one scenario's "
                                     "closed loop, printing the tracking error; or (--format fmu) an FMI 2.0 "

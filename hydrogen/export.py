@@ -149,6 +149,7 @@ def _env():
 def _context(dyn, p, scenario_name, controller, prog, sources, headers, ctrl_header, sensor_gain):
     """Everything the templates need, numbers already formatted as C literals."""
     from .layout import SLOTS, loop_context
+    from .simulation.simulator import valve_vector
 
     model, sc, ctrl = dyn.model, p.sc, p.ctrl
     loop = loop_context(dyn.library.manifest)
@@ -184,7 +185,8 @@ def _context(dyn, p, scenario_name, controller, prog, sources, headers, ctrl_hea
         "n": loop["n"], "m": loop["m"], "nx": loop["nx"], "p_theta": model.n_theta,
         "theta_names": ", ".join(model.theta_names),
         "theta": _c_doubles(model.theta), "gamma1": _c_doubles(model.gamma[0]), "gamma2": _c_doubles(model.gamma[1]),
-        "friction": _c_doubles(sc.friction), "tau_valve": _c_double(sc.valve_lag),
+        "friction": _c_doubles(sc.friction), "valve": _c_doubles(valve_vector(sc)),
+        "delay_periods": int(sc.delay_periods), "quantization_l": _c_double(sc.quantization_l),
         "use_kalman": 1 if kf is not None else 0,
         "kf_gain": _c_doubles(kf if kf is not None else np.zeros(2)),
         "kf_gain_sensor": _c_doubles(sensor_gain if sensor_gain is not None else np.zeros(2)),
@@ -252,11 +254,11 @@ by the valves and sensors.
 
 
 def _sensor_kalman_gain(p):
-    from .simulation.simulator import _kalman_gain
+    from .simulation.simulator import kalman_gain, length_noise_variance
 
     if not p.sc.kalman:
         return None
-    return _kalman_gain(p.h, p.sensor_noise_l, p.sc.kalman_accel)
+    return kalman_gain(p.h, length_noise_variance(p.sensor_noise_l, p.sc.quantization_l), p.sc.kalman_accel)
 
 
 def export(out_dir, scenario="z-1hz", controller="adaptive-robust", model=None, duration=None, *,

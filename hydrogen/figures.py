@@ -102,7 +102,7 @@ def plot_tracking_errors(result, path, *, t_adapt=None) -> Path:
     if t_adapt is not None:
         axes[0].legend(loc="upper right", fontsize=8)
     axes[-1].set_xlabel("time (s)")
-    axes[0].set_title(f"Tracking errors: {result.controller} on {result.scenario}")
+    axes[0].set_title(f"Tracking errors: {result.controller} on {result.scenario_name}")
     fig.tight_layout()
     return _save(fig, path)
 
@@ -145,7 +145,7 @@ def plot_parameter_errors(result, path) -> Path:
     for ax in (ax1, ax2):
         ax.axhline(0.0, color="0.6", lw=0.5)
         ax.grid(True, alpha=0.3)
-    ax1.set_title(f"Parameter estimation errors: {result.controller} on {result.scenario}")
+    ax1.set_title(f"Parameter estimation errors: {result.controller} on {result.scenario_name}")
     fig.tight_layout()
     return _save(fig, path)
 
@@ -190,7 +190,7 @@ def plot_experiment(nonlinear, p, coord, path, title=None) -> Path:
         ax.axhline(0.0, color="0.6", lw=0.5)
         ax.grid(True, alpha=0.3)
         ax.legend(loc="upper right", fontsize=8)
-    ax1.set_title(title if title is not None else f"{nonlinear.scenario}: {coord} tracking")
+    ax1.set_title(title if title is not None else f"{nonlinear.scenario_name}: {coord} tracking")
     fig.tight_layout()
     return _save(fig, path)
 
@@ -228,7 +228,7 @@ def plot_step(nonlinear, p, path, title=None, coord=None) -> Path:
     ax.set_ylabel(f"${sym} - {sym}_d(0)$ ({unit})")
     ax.grid(True, alpha=0.3)
     ax.legend(loc="lower right", fontsize=8)
-    ax.set_title(title if title is not None else f"{nonlinear.scenario}: {coord} step response")
+    ax.set_title(title if title is not None else f"{nonlinear.scenario_name}: {coord} step response")
     fig.tight_layout()
     return _save(fig, path)
 
@@ -240,8 +240,9 @@ def comparison_table(rows) -> str:
     ----------
     rows : iterable of tuple
         (scenario label, coordinate, nonlinear max error %, P max error %,
-        paper nonlinear %, paper P %). Percentages are of the reference
-        amplitude; None (or NaN) is shown as "n/a".
+        paper nonlinear %, paper P %[, backstepping max error %]). Percentages are of the reference
+        amplitude; None (or NaN) is shown as "n/a". The last column (backstepping with the true
+        parameters: the nonlinear design without estimation) appears when a row has it.
 
     Returns
     -------
@@ -257,11 +258,17 @@ def comparison_table(rows) -> str:
             return str(v)
         return "n/a" if not np.isfinite(v) else f"{v:.1f}"
 
+    rows = [tuple(r) for r in rows]
+    extra = any(len(r) > 6 for r in rows)
     lines = ["| scenario | coordinate | nonlinear max error (%) | P max error (%) "
-             "| paper nonlinear (%) | paper P (%) |",
-             "|---|---|---:|---:|---:|---:|"]
-    for label, coord, nl, pp, paper_nl, paper_p in rows:
-        lines.append(f"| {label} | {coord} | {cell(nl)} | {cell(pp)} | {cell(paper_nl)} | {cell(paper_p)} |")
+             "| paper nonlinear (%) | paper P (%) |" + (" backstepping, true parameters (%) |" if extra else ""),
+             "|---|---|---:|---:|---:|---:|" + ("---:|" if extra else "")]
+    for r in rows:
+        label, coord, nl, pp, paper_nl, paper_p = r[:6]
+        line = f"| {label} | {coord} | {cell(nl)} | {cell(pp)} | {cell(paper_nl)} | {cell(paper_p)} |"
+        if extra:
+            line += f" {cell(r[6] if len(r) > 6 else None)} |"
+        lines.append(line)
     return "\n".join(lines) + "\n"
 
 
@@ -273,7 +280,7 @@ def make_all(dyn, out_dir, quiet=True, *, durations=None, gains=None, nonlinear=
     the ``nonlinear`` controller; each rig scenario runs ``nonlinear`` and the P controller and gives
     a tracking figure per moving coordinate (Figs. 5-7) or, for a step, a step response (Fig. 8),
     and a table row per moving coordinate (with the paper's figures where the description gives
-    them). A diverging run raises :class:`~hydrogen.errors.SimulationError`.
+    them, and backstepping with the true parameters for reference). A diverging run raises :class:`~hydrogen.errors.SimulationError`.
 
     Parameters
     ----------
@@ -304,8 +311,8 @@ def make_all(dyn, out_dir, quiet=True, *, durations=None, gains=None, nonlinear=
 
     model = dyn.model
     scenarios = [named_scenario(nm, model) for nm in scenario_names(model)]
-    total = sum(1 if sc.friction[0] == 0 and not sc.kalman and not isinstance(sc.reference, Step) else 2
-                for sc in scenarios)
+    total = sum(1 if sc.friction[0] == 0 and not sc.kalman and not isinstance(sc.reference, Step)
+                else (2 if isinstance(sc.reference, Step) else 3) for sc in scenarios)
     # A bar on a terminal only (disable=None), never with quiet.
     bar = tqdm(total=total, desc="figures", unit="run", disable=True if quiet else None)
 
@@ -329,12 +336,14 @@ def make_all(dyn, out_dir, quiet=True, *, durations=None, gains=None, nonlinear=
             paths[sc.name] = plot_step(nl, pp, out / f"{sc.name}.png", coord=moving[0],
                                        title=f"{sc.label}: step response, nonlinear vs P (simulation)")
             continue
+        bs = run(sc.name, "backstepping") if nonlinear != "backstepping" else nl
         for coord in moving:
             key = sc.name if len(moving) == 1 else f"{sc.name}_{coord}"
             paths[key] = plot_experiment(nl, pp, coord, out / f"{key}.png",
                                          title=f"{sc.label}: {coord} tracking, nonlinear vs P (simulation)")
             paper = sc.paper.get(coord, (None, None))
-            rows.append((sc.label, coord, _max_pct(nl, coord), _max_pct(pp, coord), paper[0], paper[1]))
+            rows.append((sc.label, coord, _max_pct(nl, coord), _max_pct(pp, coord), paper[0], paper[1],
+                         _max_pct(bs, coord)))
 
     table = (f"Maximum tracking error in % of the reference amplitude, model {model.name}: simulation "
              "vs paper (section VI) where it reports one.\n\n" + comparison_table(rows))

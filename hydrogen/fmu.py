@@ -280,6 +280,7 @@ def _variables(part, dyn, p, ctx, fn, encoders, kalman):
 
 def _plant_arrays(dyn, p):
     """One array per input of plant_rhs besides x and u: name, loop-config field, entries, values."""
+    from .simulation.simulator import valve_vector
     model, sc = dyn.model, p.sc
     cyls = [c.name for c in model.cylinders]
     fn = dyn.functions["plant_rhs"]
@@ -292,7 +293,9 @@ def _plant_arrays(dyn, p):
         "gamma2": (model.gamma[1], [(_dotted("gamma2", c), "m2.Pa0.5/s", f"beta c (bulk modulus times valve flow "
                                      f"gain) of cylinder {c}") for c in cyls]),
         "friction": (np.asarray(sc.friction, float), [(_dotted("friction", nm), u, w) for nm, u, w in _FRICTION]),
-        "tau_valve": (np.array([sc.valve_lag]), [("tau_valve", "s", "valve first-order lag (0: none)")]),
+        "valve": (valve_vector(sc), [("valve.lag", "s", "valve first-order lag (used when the natural frequency is 0; 0: none)"),
+                                     ("valve.omega", "rad/s", "second-order servo-valve natural frequency (0: none)"),
+                                     ("valve.zeta", "", "second-order servo-valve damping (dimensionless)")]),
     }
     out = []
     for name, shape in zip(fn.in_names, fn.in_shapes):

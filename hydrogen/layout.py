@@ -7,10 +7,15 @@ neither SymPy, CasADi nor numpy.
 """
 from __future__ import annotations
 
-__all__ = ["SLOTS", "model_summary", "loop_context", "log_widths", "c_double"]
+__all__ = ["SLOTS", "MAX_DELAY", "model_summary", "loop_context", "log_widths", "c_double"]
 
 #: Signals the loop writes into a controller's inputs, by input name, in this order.
 SLOTS = ("q", "qdot", "pc", "l", "qd0", "qd1", "qd2", "qd3", "xc", "adapt")
+
+#: Longest computation delay the loop's command ring buffer holds, control periods (a scenario's
+#: ``delay_periods`` is refused above it). A real-time target applies a command one period after the
+#: measurement it came from; 8 leaves room for slower targets and delay-margin studies.
+MAX_DELAY = 8
 
 
 def c_double(x) -> str:
@@ -36,7 +41,7 @@ def model_summary(model) -> dict:
 def log_widths(summary: dict) -> dict:
     """Row width of each log of the loop (``xc``'s is the controller's state size)."""
     n, m = summary["n"], summary["m"]
-    return {"t": 1, "q": n, "q_d": n, "l": m, "f": m, "pc": m, "u": m}
+    return {"t": 1, "q": n, "q_d": n, "l": m, "f": m, "pc": m, "u": m, "u_applied": m, "l_meas": m}
 
 
 def loop_context(manifest: dict) -> dict:
@@ -44,11 +49,13 @@ def loop_context(manifest: dict) -> dict:
     s = manifest["model"]
     n, m, name = s["n"], s["m"], s["name"]
     what = {"t": "time, s", "q": "true pose", "q_d": "reference", "l": "true cylinder lengths, m",
-            "f": "cylinder forces, N", "pc": "control pressures, Pa", "u": "spool commands, m"}
+            "f": "cylinder forces, N", "pc": "control pressures, Pa", "u": "spool commands computed, m",
+            "u_applied": "spool commands applied (delay_periods later), m",
+            "l_meas": "measured cylinder lengths (noise, quantisation), m"}
     logs = [(k, w, what[k]) for k, w in log_widths(s).items()] + [("xc", "n_xc", "controller state")]
     return {
         "model": name, "p": name, "P": name.upper(), "guard": f"{name.upper()}_LOOP_H",
-        "n": n, "m": m, "nx": 2 * n + 2 * m, "n_noise": 2 * m + (n if s["joint_encoders"] else 0),
+        "n": n, "m": m, "nx": 2 * n + 3 * m, "max_delay": MAX_DELAY, "n_noise": 2 * m + (n if s["joint_encoders"] else 0),
         "encoders": bool(s["joint_encoders"]), "slots": SLOTS, "logs": logs,
         "p_theta": ", ".join(s["theta_names"]),
         "piston_area": ", ".join(map(c_double, s["piston_area"])),

@@ -74,15 +74,15 @@ def log_from_result(res, noise_l: float = 0.0, noise_p: float = 0.0, seed: int =
     l_meas = l + noise_l * rng.standard_normal(l.shape) if noise_l else l.copy()
     pc_meas = pc + noise_p * rng.standard_normal(pc.shape) if noise_p else pc.copy()
     cols = {}
-    for prefix, arr in (("l", l_meas), ("pc", pc_meas), ("u", np.asarray(res.u, float)),
+    for prefix, arr in (("l", l_meas), ("pc", pc_meas), ("u", np.asarray(getattr(res, "u_applied", res.u), float)),
                         ("q", np.asarray(res.q, float))):
         for i in range(arr.shape[1]):
             cols[f"{prefix}{i}"] = arr[:, i]
-    meta = {"scenario": res.scenario, "controller": res.controller, "noise_l": float(noise_l),
+    meta = {"scenario": res.scenario_name, "controller": res.controller, "noise_l": float(noise_l),
             "noise_p": float(noise_p), "seed": int(seed), "theta_true": np.asarray(res.theta_true).tolist(),
             "gamma_true": np.asarray(res.gamma_true).tolist(),
             "note": "l and pc are the simulated true values plus the sensor noise above; q is the true pose"}
-    return Log(np.asarray(res.t, float).copy(), cols, meta, source=f"simulation {res.scenario}/{res.controller}")
+    return Log(np.asarray(res.t, float).copy(), cols, meta, source=f"simulation {res.scenario_name}/{res.controller}")
 
 
 def write_log(log, path) -> Path:

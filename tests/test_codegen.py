@@ -40,9 +40,9 @@ def _random_input(name, shape, model, rng, fname=""):
         x = rng.uniform(-4, 4, m) * d
     elif name == "l":
         x = rng.uniform(model.leg_min, model.leg_max)
-    elif name == "x":  # plant state [q, qdot, pc, spool]
+    elif name == "x":  # plant state [q, qdot, pc, spool, spool rate]
         x = np.concatenate([workspace_poses(model, 1, rng)[0], rng.normal(size=n) * 0.1,
-                            rng.uniform(0.02, 0.98, m) * ps, rng.uniform(-4, 4, m) * d])
+                            rng.uniform(0.02, 0.98, m) * ps, rng.uniform(-4, 4, m) * d, rng.normal(size=m) * 0.01])
     elif name == "xc":  # controller state, from the controller's layout
         kind = next(k for k in CONTROLLERS if function_name(k) == fname)
         parts = {"z": lambda k: rng.normal(size=k) * 0.1,
@@ -53,7 +53,9 @@ def _random_input(name, shape, model, rng, fname=""):
         x = np.concatenate([parts[b](k) for b, k in controller(kind).state_layout(model)])
     elif name in ("friction",):
         x = np.array([100.0, 300.0, 1e-3])
-    elif name in ("tau_valve", "sat_width", "u_max"):
+    elif name == "valve":  # [lag s, natural frequency rad/s, damping]: the second-order valve
+        x = np.array([0.0, 2 * np.pi * rng.uniform(30, 100), rng.uniform(0.5, 1.0)])
+    elif name in ("sat_width", "u_max"):
         x = rng.uniform(1e-3, 1e-2, size)
     elif name in ("Lambda", "Kp", "Kd", "Ktau", "Gtau_inv", "Ko", "Lambda2", "Lp", "Kd_obs", "Gz_inv",
                   "Gtheta_inv", "Ggamma1_inv", "Ggamma2_inv", "Kleg", "lambda_o"):

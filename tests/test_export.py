@@ -81,7 +81,7 @@ def test_export_folder_contents(tmp_path, dyn):
     params = (folder / "params.h").read_text()
     sc = named_scenario("z-1hz", dyn.model)
     assert f"#define P_N_PERIODS {int(round(0.2 * sc.control_rate)) + 1}LL" in params
-    for name in ("P_CTRL_Gz_inv[6]", "P_CTRL_Lambda[6]", "P_XC0[P_XC_CAP]", "P_X0[24]", "P_L0[6]",
+    for name in ("P_CTRL_Gz_inv[6]", "P_CTRL_Lambda[6]", "P_XC0[P_XC_CAP]", "P_X0[30]", "P_L0[6]",
                  "P_KF_GAIN[2]", "P_THETA[4]", "P_REF_TERMS"):
         assert name in params
     assert "noise" in (folder / "main.c").read_text() and "make run" in (folder / "README.txt").read_text()

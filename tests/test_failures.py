@@ -77,7 +77,7 @@ def test_the_loop_runtime_refuses_an_out_of_range_axis_before_calling_c(dyn):
     for ref in (MultiSine(bias, ((-1, 0.01, 1),)), Step(bias, len(bias), 0.01, 0.0)):
         with pytest.raises(ValueError, match="axis"):
             LoopRunner(dyn, ctrl, h=1e-3, substeps=1, t_adapt=0.0, theta=dyn.model.theta, gamma=dyn.model.gamma,
-                       friction=(0.0, 0.0, 1e-3), valve_lag=0.0, reference=ref)
+                       friction=(0.0, 0.0, 1e-3), valve=(0.0, 0.0, 0.7), reference=ref)
 
 
 # 3 -------------------------------------------------------------------------------------------------
@@ -477,6 +477,10 @@ _BAD = [
     ["tune-p", "--min", "nan"],
     ["tune-p", "--min", "0"],
     ["tune-p", "--min", "0.2", "--max", "0.1"],
+    ["tune", "--controller", "bogus"],
+    ["tune", "--controller", "p", "--model", "{missing}"],
+    ["margins", "--workers", "0"],
+    ["margins", "--controller", "bogus"],
 ]
 
 
@@ -499,6 +503,7 @@ def test_every_subcommand_refuses_bad_arguments_with_status_2(tmp_path):
         assert proc.returncode == 2, (args, out)
         assert "Traceback" not in out, (args, out)
         assert "error" in out, (args, out)
-    assert {c for c, *_ in _BAD} == {"generate", "simulate", "figures", "bench", "export", "tune-p"}
+    assert {c for c, *_ in _BAD} == {"generate", "simulate", "figures", "bench", "export", "tune-p", "tune",
+                                       "margins"}
     assert a_file.read_text() == "keep" and (full / "keep").read_text() == "keep"
     assert not (tmp_path / "cache" / "build").exists()  # refused before anything was compiled

@@ -2,7 +2,9 @@
 import numpy as np
 import pytest
 
+import hydrogen
 from hydrogen import figures
+from hydrogen.simulation.scenarios import scenario as named_scenario
 from hydrogen.simulation.simulator import SimulationResult
 
 PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
@@ -28,9 +30,9 @@ def _result(controller, scenario="z-1hz", n=200, err_scale=1e-3, step=False, see
     gamma1_hat = gamma_true[0] * (1.0 - 0.3 * decay)
     gamma2_hat = gamma_true[1] * (1.0 + 0.3 * decay)
     res = SimulationResult(
-        scenario=scenario, controller=controller, t=t, q=q, q_d=q_d,
+        scenario=named_scenario(scenario, hydrogen.load_model()), controller=controller, t=t, q=q, q_d=q_d,
         leg_lengths=np.full((n, 6), 2.0), leg_forces=np.zeros((n, 6)), pressures=np.full((n, 6), 1e7),
-        u=np.zeros((n, 6)), theta_hat=theta_hat, gamma1_hat=gamma1_hat, gamma2_hat=gamma2_hat,
+        u=np.zeros((n, 6)), u_applied=np.zeros((n, 6)), leg_lengths_measured=np.full((n, 6), 2.0), theta_hat=theta_hat, gamma1_hat=gamma1_hat, gamma2_hat=gamma2_hat,
         theta_true=theta_true, gamma_true=gamma_true, amplitude=amp, metric_start=0.5,
         coordinates=("x", "y", "z", "psi", "theta", "phi"), units=("m",) * 3 + ("rad",) * 3,
         theta_names=("platform.mass", "platform.Ixx", "platform.Iyy", "platform.Izz"))

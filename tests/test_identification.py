@@ -73,7 +73,8 @@ def test_csv_round_trip_gives_the_same_estimate(dyn, paper_sim_log, tmp_path):
 
 def test_a_mapping_of_columns_and_a_result_are_logs_too(dyn, paper_sim):
     short = dataclasses.replace(paper_sim, t=paper_sim.t[:2000], leg_lengths=paper_sim.leg_lengths[:2000],
-                                pressures=paper_sim.pressures[:2000], u=paper_sim.u[:2000], q=paper_sim.q[:2000])
+                                pressures=paper_sim.pressures[:2000], u=paper_sim.u[:2000], q=paper_sim.q[:2000],
+                                u_applied=paper_sim.u_applied[:2000])
     from_result = hydrogen.identify(short, dyn=dyn)  # true values, no noise added
     m = short.leg_lengths.shape[1]
     cols = {"t": short.t, **{f"l{i}": short.leg_lengths[:, i] for i in range(m)},

@@ -1,6 +1,6 @@
 /* Closed-loop driver for model excavator_arm: plant, sensors, joint encoders, controller.
  * Rendered by hydrogen from templates/loop.h.j2; plain C99, no dependency but libm.
- * Sizes: 3 coordinates, 3 cylinders; plant state x = [q, qdot, pc, spool] (12). */
+ * Sizes: 3 coordinates, 3 cylinders; plant state x = [q, qdot, pc, spool, spool rate] (15). */
 #ifndef EXCAVATOR_ARM_LOOP_H
 #define EXCAVATOR_ARM_LOOP_H
 
@@ -10,7 +10,8 @@ extern "C" {
 
 #define EXCAVATOR_ARM_NQ 3   /* generalized coordinates */
 #define EXCAVATOR_ARM_NL 3   /* cylinders */
-#define EXCAVATOR_ARM_NX 12  /* plant state */
+#define EXCAVATOR_ARM_NX 15  /* plant state */
+#define EXCAVATOR_ARM_MAX_DELAY 8  /* longest computation delay, control periods */
 #define EXCAVATOR_ARM_NNOISE 9  /* noise row: cylinder lengths (m), pressures (Pa), joint angles */
 
 typedef int (*excavator_arm_casadi_fn)(const double** arg, double** res, long long int* iw, double* w, int mem);
@@ -22,18 +23,22 @@ enum { EXCAVATOR_ARM_SLOT_Q, EXCAVATOR_ARM_SLOT_QDOT, EXCAVATOR_ARM_SLOT_PC, EXC
 enum { EXCAVATOR_ARM_OK = 0, EXCAVATOR_ARM_NONFINITE = 1, EXCAVATOR_ARM_FK_FAILED = 2, EXCAVATOR_ARM_CTRL_FAILED = 3 };
 
 typedef struct {
-    /* timing: control period h (s), plant RK4 sub-steps per control period, adaptation on for t >= t_adapt */
+    /* timing: control period h (s), plant RK4 sub-steps per control period, adaptation on for t >= t_adapt;
+     * the command computed at period k is applied from period k + delay (0..MAX_DELAY) */
     double h;
     long long substeps;
     double t_adapt;
+    long long delay;
     /* plant (SI): true theta (boom.mcx, boom.mcz, boom.Iyy, stick.mcx, stick.mcz, stick.Iyy, bucket.mcx, bucket.mcz, bucket.Iyy), gamma1 = beta and gamma2 = beta c per cylinder,
-     * friction [Fc, b, v_s], valve lag (s) */
+     * friction [Fc, b, v_s], valve [first-order lag s, second-order natural frequency rad/s, damping] */
     const double* theta;
     const double* gamma1;
     const double* gamma2;
     const double* friction;
-    const double* tau_valve;
-    /* sensors: fixed-gain Kalman filter on cylinder lengths (use_kalman != 0), gain [K_l, K_ldot] */
+    const double* valve;
+    /* sensors: cylinder-length resolution quant_l (m, 0: none; lengths rounded to its grid after the noise);
+     * fixed-gain Kalman filter on cylinder lengths (use_kalman != 0), gain [K_l, K_ldot] */
+    double quant_l;
     long long use_kalman;
     double kf_gain[2];
     /* reference: bias + sum of amplitude sin(2 pi f t) over terms (coordinate, amplitude, frequency),
@@ -65,9 +70,10 @@ typedef struct {
 typedef struct {
     double t;                    /* s */
     long long k;                 /* control periods done */
-    double x[EXCAVATOR_ARM_NX];         /* plant: q, qdot, pc, spool */
+    double x[EXCAVATOR_ARM_NX];         /* plant: q, qdot, pc, spool, spool rate */
     double q_meas[EXCAVATOR_ARM_NQ];    /* last measured pose (Newton's warm start) */
     double kf[2 * EXCAVATOR_ARM_NL];    /* Kalman state: cylinder lengths, cylinder rates */
+    double u_hist[EXCAVATOR_ARM_MAX_DELAY * EXCAVATOR_ARM_NL];  /* commands of past periods: ring, slot k % MAX_DELAY (0 at reset) */
     double* xc;                  /* controller state, n_xc entries */
 } excavator_arm_loop_state;
 
@@ -78,7 +84,9 @@ typedef struct {                 /* each may be NULL; rows per control period (w
     double* l;  /* 3: true cylinder lengths, m */
     double* f;  /* 3: cylinder forces, N */
     double* pc;  /* 3: control pressures, Pa */
-    double* u;  /* 3: spool commands, m */
+    double* u;  /* 3: spool commands computed, m */
+    double* u_applied;  /* 3: spool commands applied (delay_periods later), m */
+    double* l_meas;  /* 3: measured cylinder lengths (noise, quantisation), m */
     double* xc;  /* n_xc: controller state */
 } excavator_arm_loop_log;
 

@@ -1,7 +1,8 @@
 /* Closed-loop driver for model ubc_stewart (see ubc_stewart_loop.h).
  * Rendered by hydrogen from templates/loop.c.j2; plain C99, no dependency but libm.
- * One control period: measure (noise, Kalman filter), forward kinematics, reference,
- * controller state update and command (zero-order hold), RK4 sub-steps of the plant. */
+ * One control period: measure (noise, quantisation, Kalman filter), forward kinematics,
+ * reference, controller state update and command, the command of delay periods ago (zero-order
+ * hold), RK4 sub-steps of the plant. */
 #include <math.h>
 #include <string.h>
 
@@ -14,6 +15,7 @@
 #define NL UBC_STEWART_NL
 #define NX UBC_STEWART_NX
 #define NNOISE UBC_STEWART_NNOISE
+#define MAX_DELAY UBC_STEWART_MAX_DELAY
 static const double TWO_PI = 6.283185307179586;
 /* baked cylinder constants: cap area A (m^2), annulus area a (m^2), supply pressure P_s (Pa) */
 static const double PISTON_AREA[NL] = { 0.00114, 0.00114, 0.00114, 0.00114, 0.00114, 0.00114 };
@@ -122,7 +124,7 @@ static int plant_rhs(const ubc_stewart_loop_config* c, const double* x, const do
     const double* arg[7];
     double* res[1];
     arg[0] = x; arg[1] = u; arg[2] = c->theta; arg[3] = c->gamma1; arg[4] = c->gamma2;
-    arg[5] = c->friction; arg[6] = c->tau_valve;
+    arg[5] = c->friction; arg[6] = c->valve;
     res[0] = xdot;
     return ubc_stewart_plant_rhs(arg, res, 0, 0, 0);
 }
@@ -149,11 +151,13 @@ static double clip(double v, double lo, double hi) { return v < lo ? lo : (v > h
 
 int ubc_stewart_loop_run(const ubc_stewart_loop_config* c, ubc_stewart_loop_state* st, long long n,
                      const double* noise, ubc_stewart_loop_log* log) {
-    double l_true[NL], l_meas[NL], pc_meas[NL], ldot[NL], qdot_meas[NQ], J[NL * NQ], qd[4 * NQ], u[NL], adapt;
+    double l_true[NL], l_meas[NL], pc_meas[NL], ldot[NL], qdot_meas[NQ], J[NL * NQ], qd[4 * NQ], u[NL], u_app[NL];
+    double adapt;
     double* x = st->x;
     const double h = c->h, hs = c->h / (double)c->substeps;
     long long step, j;
     int i;
+    if (c->delay < 0 || c->delay > MAX_DELAY) return UBC_STEWART_CTRL_FAILED;  /* the ring holds MAX_DELAY periods */
     for (step = 0; step < n; ++step) {
         const double* nz = noise ? noise + NNOISE * step : 0;  /* row `step` of this call's table */
         const double t = (double)st->k * h;  /* k h, not a running sum: no drift */
@@ -161,6 +165,7 @@ int ubc_stewart_loop_run(const ubc_stewart_loop_config* c, ubc_stewart_loop_stat
         if (c->use_kalman ? leg_lengths(x, l_true) : leg_kinematics(x, l_true, J)) return UBC_STEWART_CTRL_FAILED;
         for (i = 0; i < NL; ++i) {
             l_meas[i] = l_true[i] + (nz ? nz[i] : 0);
+            if (c->quant_l > 0) l_meas[i] = c->quant_l * floor(l_meas[i] / c->quant_l + 0.5);
             pc_meas[i] = nz ? clip(x[2 * NQ + i] + nz[NL + i], 0, SUPPLY_PRESSURE[i]) : x[2 * NQ + i];
         }
         if (c->use_kalman) {
@@ -210,6 +215,15 @@ int ubc_stewart_loop_run(const ubc_stewart_loop_config* c, ubc_stewart_loop_stat
         }
         if (c->ctrl((const double**)c->ctrl_arg, c->ctrl_res, c->ctrl_iw, c->ctrl_w, 0)) return UBC_STEWART_CTRL_FAILED;
         memcpy(u, c->ctrl_res[0], sizeof u);
+        /* computation delay: apply the command of `delay` periods ago (0 before the start), keep this one */
+        if (c->delay > 0) {
+            long long r = (st->k - c->delay) % MAX_DELAY, w = st->k % MAX_DELAY;
+            if (r < 0) r += MAX_DELAY;
+            memcpy(u_app, st->u_hist + NL * r, sizeof u_app);
+            memcpy(st->u_hist + NL * w, u, sizeof u);
+        } else {
+            memcpy(u_app, u, sizeof u);
+        }
         if (log) {
             if (log->t) log->t[st->k] = t;
             if (log->q) memcpy(log->q + NQ * st->k, x, NQ * sizeof(double));
@@ -217,14 +231,16 @@ int ubc_stewart_loop_run(const ubc_stewart_loop_config* c, ubc_stewart_loop_stat
             if (log->l) memcpy(log->l + NL * st->k, l_true, NL * sizeof(double));
             if (log->pc) memcpy(log->pc + NL * st->k, x + 2 * NQ, NL * sizeof(double));
             if (log->u) memcpy(log->u + NL * st->k, u, NL * sizeof(double));
+            if (log->u_applied) memcpy(log->u_applied + NL * st->k, u_app, NL * sizeof(double));
+            if (log->l_meas) memcpy(log->l_meas + NL * st->k, l_meas, NL * sizeof(double));
             if (log->f)
                 for (i = 0; i < NL; ++i)
                     log->f[NL * st->k + i] = x[2 * NQ + i] * PISTON_AREA[i] - SUPPLY_PRESSURE[i] * ROD_AREA[i];
             if (log->xc && c->n_xc) memcpy(log->xc + c->n_xc * st->k, st->xc, (size_t)c->n_xc * sizeof(double));
         }
-        /* plant, zero-order hold on u; 0 <= pc <= ps */
+        /* plant, zero-order hold on the applied command; 0 <= pc <= ps */
         for (j = 0; j < c->substeps; ++j) {
-            if (!rk4(c, x, u, hs)) return UBC_STEWART_CTRL_FAILED;
+            if (!rk4(c, x, u_app, hs)) return UBC_STEWART_CTRL_FAILED;
             for (i = 0; i < NL; ++i) x[2 * NQ + i] = clip(x[2 * NQ + i], 0, SUPPLY_PRESSURE[i]);
         }
         /* controller state, forward Euler variant (xc_euler): rate of this period, after the plant step,

@@ -1,6 +1,6 @@
 /* Closed-loop driver for model ubc_stewart: plant, sensors, forward kinematics, controller.
  * Rendered by hydrogen from templates/loop.h.j2; plain C99, no dependency but libm.
- * Sizes: 6 coordinates, 6 cylinders; plant state x = [q, qdot, pc, spool] (24). */
+ * Sizes: 6 coordinates, 6 cylinders; plant state x = [q, qdot, pc, spool, spool rate] (30). */
 #ifndef UBC_STEWART_LOOP_H
 #define UBC_STEWART_LOOP_H
 
@@ -10,7 +10,8 @@ extern "C" {
 
 #define UBC_STEWART_NQ 6   /* generalized coordinates */
 #define UBC_STEWART_NL 6   /* cylinders */
-#define UBC_STEWART_NX 24  /* plant state */
+#define UBC_STEWART_NX 30  /* plant state */
+#define UBC_STEWART_MAX_DELAY 8  /* longest computation delay, control periods */
 #define UBC_STEWART_NNOISE 12  /* noise row: cylinder lengths (m), pressures (Pa) */
 
 typedef int (*ubc_stewart_casadi_fn)(const double** arg, double** res, long long int* iw, double* w, int mem);
@@ -22,18 +23,22 @@ enum { UBC_STEWART_SLOT_Q, UBC_STEWART_SLOT_QDOT, UBC_STEWART_SLOT_PC, UBC_STEWA
 enum { UBC_STEWART_OK = 0, UBC_STEWART_NONFINITE = 1, UBC_STEWART_FK_FAILED = 2, UBC_STEWART_CTRL_FAILED = 3 };
 
 typedef struct {
-    /* timing: control period h (s), plant RK4 sub-steps per control period, adaptation on for t >= t_adapt */
+    /* timing: control period h (s), plant RK4 sub-steps per control period, adaptation on for t >= t_adapt;
+     * the command computed at period k is applied from period k + delay (0..MAX_DELAY) */
     double h;
     long long substeps;
     double t_adapt;
+    long long delay;
     /* plant (SI): true theta (platform.mass, platform.Ixx, platform.Iyy, platform.Izz), gamma1 = beta and gamma2 = beta c per cylinder,
-     * friction [Fc, b, v_s], valve lag (s) */
+     * friction [Fc, b, v_s], valve [first-order lag s, second-order natural frequency rad/s, damping] */
     const double* theta;
     const double* gamma1;
     const double* gamma2;
     const double* friction;
-    const double* tau_valve;
-    /* sensors: fixed-gain Kalman filter on cylinder lengths (use_kalman != 0), gain [K_l, K_ldot] */
+    const double* valve;
+    /* sensors: cylinder-length resolution quant_l (m, 0: none; lengths rounded to its grid after the noise);
+     * fixed-gain Kalman filter on cylinder lengths (use_kalman != 0), gain [K_l, K_ldot] */
+    double quant_l;
     long long use_kalman;
     double kf_gain[2];
     /* reference: bias + sum of amplitude sin(2 pi f t) over terms (coordinate, amplitude, frequency),
@@ -65,9 +70,10 @@ typedef struct {
 typedef struct {
     double t;                    /* s */
     long long k;                 /* control periods done */
-    double x[UBC_STEWART_NX];         /* plant: q, qdot, pc, spool */
+    double x[UBC_STEWART_NX];         /* plant: q, qdot, pc, spool, spool rate */
     double q_meas[UBC_STEWART_NQ];    /* last measured pose (Newton's warm start) */
     double kf[2 * UBC_STEWART_NL];    /* Kalman state: cylinder lengths, cylinder rates */
+    double u_hist[UBC_STEWART_MAX_DELAY * UBC_STEWART_NL];  /* commands of past periods: ring, slot k % MAX_DELAY (0 at reset) */
     double* xc;                  /* controller state, n_xc entries */
 } ubc_stewart_loop_state;
 
@@ -78,7 +84,9 @@ typedef struct {                 /* each may be NULL; rows per control period (w
     double* l;  /* 6: true cylinder lengths, m */
     double* f;  /* 6: cylinder forces, N */
     double* pc;  /* 6: control pressures, Pa */
-    double* u;  /* 6: spool commands, m */
+    double* u;  /* 6: spool commands computed, m */
+    double* u_applied;  /* 6: spool commands applied (delay_periods later), m */
+    double* l_meas;  /* 6: measured cylinder lengths (noise, quantisation), m */
     double* xc;  /* n_xc: controller state */
 } ubc_stewart_loop_log;
 

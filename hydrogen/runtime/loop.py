@@ -23,15 +23,15 @@ _STRUCTS = {}
 def _structs(ctx: dict):
     """ctypes mirrors of the loop's config, state and log structs, sized from the template context
     (the same context the C was rendered from)."""
-    key = (ctx["n"], ctx["m"], ctx["nx"], len(ctx["slots"]), tuple(n for n, _, _ in ctx["logs"]))
+    key = (ctx["n"], ctx["m"], ctx["nx"], ctx["max_delay"], len(ctx["slots"]), tuple(n for n, _, _ in ctx["logs"]))
     if key in _STRUCTS:
         return _STRUCTS[key]
 
     class Config(C.Structure):
         _fields_ = [
-            ("h", C.c_double), ("substeps", _LL), ("t_adapt", C.c_double),
-            ("theta", _D), ("gamma1", _D), ("gamma2", _D), ("friction", _D), ("tau_valve", _D),
-            ("use_kalman", _LL), ("kf_gain", C.c_double * 2),
+            ("h", C.c_double), ("substeps", _LL), ("t_adapt", C.c_double), ("delay", _LL),
+            ("theta", _D), ("gamma1", _D), ("gamma2", _D), ("friction", _D), ("valve", _D),
+            ("quant_l", C.c_double), ("use_kalman", _LL), ("kf_gain", C.c_double * 2),
             ("bias", _D), ("n_terms", _LL), ("terms", _D), ("step_axis", _LL), ("step_height", C.c_double),
             ("t_step", C.c_double),
             ("ctrl", C.c_void_p), ("ctrl_arg", C.c_void_p), ("ctrl_res", C.c_void_p), ("ctrl_iw", C.c_void_p),
@@ -41,7 +41,8 @@ def _structs(ctx: dict):
 
     class State(C.Structure):
         _fields_ = [("t", C.c_double), ("k", _LL), ("x", C.c_double * ctx["nx"]), ("q_meas", C.c_double * ctx["n"]),
-                    ("kf", C.c_double * (2 * ctx["m"])), ("xc", _D)]
+                    ("kf", C.c_double * (2 * ctx["m"])), ("u_hist", C.c_double * (ctx["max_delay"] * ctx["m"])),
+                    ("xc", _D)]
 
     class Log(C.Structure):
         _fields_ = [(name, _D) for name, _, _ in ctx["logs"]]
@@ -77,8 +78,9 @@ class LoopRunner:
         Its static inputs (gains, bounds, θ for backstepping) are copied in once.
     """
 
-    def __init__(self, dyn, ctrl, *, h, substeps, t_adapt, theta, gamma, friction, valve_lag,
-                 reference, kalman_gain=None, fk_tol=1e-12, fk_max_iter=50, estimator_update="semi-implicit"):
+    def __init__(self, dyn, ctrl, *, h, substeps, t_adapt, theta, gamma, friction, valve,
+                 reference, kalman_gain=None, delay=0, quantization_l=0.0, fk_tol=1e-12, fk_max_iter=50,
+                 estimator_update="semi-implicit"):
         manifest = dyn.library.manifest
         self.context = ctx = loop_context(manifest)
         self._log_width = log_widths(manifest["model"])
@@ -103,7 +105,13 @@ class LoopRunner:
         cfg.h, cfg.substeps, cfg.t_adapt = h, int(substeps), float(t_adapt)
         gamma = np.asarray(gamma, float)
         cfg.theta, cfg.gamma1, cfg.gamma2 = _ptr(arr(theta)), _ptr(arr(gamma[0])), _ptr(arr(gamma[1]))
-        cfg.friction, cfg.tau_valve = _ptr(arr(friction)), _ptr(arr([valve_lag]))
+        valve = np.asarray(valve, float)
+        if valve.shape != (3,):
+            raise ValueError(f"valve must be [lag s, natural frequency rad/s, damping], got {valve!r}")
+        if not 0 <= int(delay) <= ctx["max_delay"]:
+            raise ValueError(f"delay must be 0..{ctx['max_delay']} control periods, got {delay!r}")
+        cfg.friction, cfg.valve = _ptr(arr(friction)), _ptr(arr(valve))
+        cfg.delay, cfg.quant_l = int(delay), float(quantization_l)
         cfg.use_kalman = 1 if kalman_gain is not None else 0
         if kalman_gain is not None:
             cfg.kf_gain[0], cfg.kf_gain[1] = kalman_gain
@@ -141,6 +149,7 @@ class LoopRunner:
         st.x[:] = list(np.asarray(x0, float))
         st.q_meas[:] = list(np.asarray(q_meas0, float))
         st.kf[:] = list(np.concatenate([l0, np.zeros(len(l0))]))
+        C.memset(st.u_hist, 0, C.sizeof(st.u_hist))
         self.xc[: xc0.size] = xc0
 
     def run(self, n: int, noise=None, logs: dict | None = None) -> int:

@@ -18,12 +18,21 @@ __all__ = ["Scenario", "scenario", "scenario_names"]
 class Scenario:
     """Everything a run needs besides the controller. Units SI.
 
-    control_rate (Hz) with zero-order hold; the plant takes ``substeps`` RK4
-    steps per control period. friction = (Coulomb N, viscous N s/m, tanh
-    smoothing speed m/s) per leg. noise_l (m) and noise_p (Pa) are standard
-    deviations of white measurement noise. With ``kalman`` the leg rates come
+    control_rate (Hz) with zero-order hold; the command computed from the
+    measurement of period k is applied from period k + ``delay_periods`` (the
+    computation delay of a real-time target; 0: at once). The plant takes
+    ``substeps`` RK4 steps per control period. friction = (Coulomb N, viscous
+    N s/m, tanh smoothing speed m/s) per leg. Valve: a second-order servo-valve
+    of natural frequency ``valve_bandwidth_hz`` (Hz, where the spool lags 90°)
+    and damping ``valve_damping`` when the bandwidth is > 0; else a first-order
+    lag ``valve_lag`` (s) when > 0; else ideal. noise_l (m) and noise_p (Pa)
+    are standard deviations of white measurement noise; ``quantization_l`` (m,
+    0: none) is the cylinder-length encoders' resolution (measured lengths are
+    rounded to its grid after the noise). With ``kalman`` the leg rates come
     from fixed-gain Kalman filters on the measured leg lengths (constant
-    velocity model, white acceleration of spectral density ``kalman_accel``).
+    velocity model, white acceleration of spectral density ``kalman_accel``
+    m²/s³; measurement variance noise_l² + quantization_l²/12; steady-state gain
+    from the discrete algebraic Riccati equation).
     theta0_factor / gamma0_factor scale the true parameters into the initial
     estimates. Metrics are taken over t ≥ metric_start. ``estimator_update``: the controller state is
     updated "semi-implicit" (default: from this period's measurement, then the command) or by
@@ -40,6 +49,10 @@ class Scenario:
     t_adapt: float
     friction: tuple = (0.0, 0.0, 1e-3)
     valve_lag: float = 0.0
+    valve_bandwidth_hz: float = 0.0
+    valve_damping: float = 0.7
+    delay_periods: int = 0
+    quantization_l: float = 0.0
     noise_l: float = 0.0
     noise_q: float = 0.0   # joint-encoder noise (rad or m), robots with [sensors] joint_encoders
     noise_p: float = 0.0
@@ -76,16 +89,25 @@ class Scenario:
         fr = np.asarray(self.friction, float)
         need(fr.shape == (3,) and finite(fr) and fr[0] >= 0 and fr[1] >= 0 and fr[2] > 0, "friction",
              "must be (Coulomb >= 0 N, viscous >= 0 N s/m, smoothing speed > 0 m/s)")
-        for f in ("valve_lag", "noise_l", "noise_q", "noise_p", "kalman_accel"):
+        for f in ("valve_lag", "valve_bandwidth_hz", "noise_l", "noise_q", "noise_p", "quantization_l",
+                  "kalman_accel"):
             need(finite(getattr(self, f)) and getattr(self, f) >= 0, f, "must be finite and >= 0")
+        need(finite(self.valve_damping) and self.valve_damping > 0, "valve_damping", "must be > 0")
+        need(not (self.valve_lag > 0 and self.valve_bandwidth_hz > 0), "valve_lag",
+             "must be 0 when valve_bandwidth_hz is set (one valve model: second order, or the first-order lag)")
+        # RK4 on the spool's second-order dynamics: keep omega * sub-step well inside its stability region
+        need(2 * np.pi * self.valve_bandwidth_hz / (self.control_rate * self.substeps) <= 1.0, "valve_bandwidth_hz",
+             "must be <= control_rate * substeps / (2 pi) (raise substeps)")
         need(finite(self.q0_offset), "q0_offset", "must be finite numbers (one per coordinate)")
         need(self.estimator_update in ("semi-implicit", "euler"), "estimator_update",
              "must be 'semi-implicit' or 'euler'")
         return self
 
 
-_FIELDS = ("duration", "control_rate", "substeps", "t_adapt", "friction", "valve_lag", "noise_l", "noise_q", "noise_p",
-           "kalman", "kalman_accel", "theta0_factor", "gamma0_factor", "metric_start", "q0_offset", "seed", "estimator_update")
+_FIELDS = ("duration", "control_rate", "substeps", "t_adapt", "friction", "valve_lag", "valve_bandwidth_hz",
+           "valve_damping", "delay_periods", "quantization_l", "noise_l", "noise_q", "noise_p",
+           "kalman", "kalman_accel", "theta0_factor", "gamma0_factor", "metric_start", "q0_offset", "seed",
+           "estimator_update")
 
 
 def _reference(model, where, spec, neutral):

@@ -12,7 +12,8 @@ from .checks import check_against_model, check_call, check_run_size, checked_flo
 from .control import make_controller
 from .scenarios import Scenario, scenario as named_scenario
 
-__all__ = ["simulate", "SimulationResult", "equilibrium_pressures", "Stepper", "excitation"]
+__all__ = ["simulate", "SimulationResult", "equilibrium_pressures", "Stepper", "kalman_gain", "dare",
+           "valve_vector", "length_noise_variance", "excitation"]
 
 
 @dataclass
@@ -20,7 +21,7 @@ class SimulationResult:
     """Time series (one row per control period) and metrics of one run. SI units; q in the model's
     generalized coordinates (``coordinates``), cylinder quantities one column per cylinder."""
 
-    scenario: str
+    scenario: Scenario     # the scenario actually run (overrides applied); its name: scenario_name
     controller: str
     t: np.ndarray
     q: np.ndarray
@@ -28,7 +29,9 @@ class SimulationResult:
     leg_lengths: np.ndarray
     leg_forces: np.ndarray
     pressures: np.ndarray
-    u: np.ndarray
+    u: np.ndarray            # commands as computed at each period
+    u_applied: np.ndarray    # commands the valves received at each period (delay_periods later)
+    leg_lengths_measured: np.ndarray  # cylinder lengths as the sensors gave them (noise, quantisation)
     theta_hat: np.ndarray
     gamma1_hat: np.ndarray
     gamma2_hat: np.ndarray
@@ -43,6 +46,11 @@ class SimulationResult:
     loop_wall_s: float = 0.0  # the closed loop alone (s)
     u_max: float = 0.0
     metrics: dict = field(default_factory=dict)
+
+    @property
+    def scenario_name(self) -> str:
+        """Name of the scenario run."""
+        return self.scenario.name
 
     @property
     def error(self) -> np.ndarray:
@@ -60,8 +68,9 @@ class SimulationResult:
         rms = np.sqrt((e ** 2).mean(axis=0)) if len(e) else np.full(n, np.nan)
         pct = {c: (float(100 * m / a) if a > 0 else None) for c, m, a in zip(coords, max_abs, self.amplitude)}
         self.metrics = {
-            "scenario": self.scenario, "controller": self.controller,
+            "scenario": self.scenario_name, "controller": self.controller,
             "max_error_pct": pct,
+            "amplitude": dict(zip(coords, map(float, self.amplitude))),
             "max_error": dict(zip(coords, map(float, max_abs))),
             "rms_error": dict(zip(coords, map(float, rms))),
             "theta_names": list(self.theta_names),
@@ -75,9 +84,31 @@ class SimulationResult:
             "loop_wall_s": float(self.loop_wall_s),
             "metric_start_s": start,
         }
+        hf = self.high_frequency_error()
+        if hf is not None:
+            self.metrics["hf_error_rms"] = dict(zip(coords, map(float, hf)))
         if note:
             self.metrics["metric_note"] = note
         return self.metrics
+
+    #: An error component above this many times the reference's highest frequency is an oscillation
+    #: of the loop, not tracking lag or its harmonics (hydrogen.simulation.tuning).
+    HF_FACTOR = 5.0
+
+    def high_frequency_error(self):
+        """RMS (n,) over t ≥ metric_start of the error's content above HF_FACTOR × the reference's highest
+        frequency: where an oscillation of the loop shows first. None for a reference without
+        frequencies (a step) or a window shorter than 8 periods."""
+        terms = getattr(getattr(self.scenario, "reference", None), "terms", ())
+        f_max = max((abs(f) for _, a, f in terms if a), default=0.0)
+        sel, _, _ = metric_window(self.t, self.metric_start)
+        e = self.error[sel]
+        if f_max <= 0 or len(e) < 8:
+            return None
+        h = float(self.t[1] - self.t[0])
+        spec = np.fft.rfft(e - e.mean(axis=0), axis=0)
+        spec[np.fft.rfftfreq(len(e), h) <= self.HF_FACTOR * f_max] = 0
+        return np.sqrt((np.fft.irfft(spec, n=len(e), axis=0) ** 2).mean(axis=0))
 
     def to_json(self) -> str:
         return json.dumps(self.metrics or self.compute_metrics(), indent=2, sort_keys=True)
@@ -122,7 +153,8 @@ def simulate(dyn, scenario, controller: str, *, gains=None, duration=None, check
         raise ValueError(f"engine must be 'c' or 'python', not {engine!r}")
     nq, m = dyn.model.n, dyn.model.n_cylinders
     log = {k: np.full((n, w), np.nan) for k, w in (("q", nq), ("q_d", nq), ("l", m), ("f", m), ("pc", m),
-                                                      ("u", m), ("xc", max(ctrl.xc.size, 1)))}
+                                                      ("u", m), ("u_applied", m), ("l_meas", m),
+                                                      ("xc", max(ctrl.xc.size, 1)))}
     t_log = np.arange(n) * h
     start = time.perf_counter()
     run = _run_c if engine == "c" else _run_python
@@ -177,7 +209,7 @@ def _prepare(dyn, scenario, controller, gains, duration, check_workspace, overri
     ctrl = make_controller(dyn, controller, {**sc.gains.get(controller, {}), **(gains or {})}, theta0, gamma0)
     nq, m = model.n, model.n_cylinders
     q0 = sc.reference(0.0)[0] + np.asarray(sc.q0_offset, float)
-    x0 = np.concatenate([q0, np.zeros(nq), equilibrium_pressures(dyn, q0, model.theta), np.zeros(m)])
+    x0 = np.concatenate([q0, np.zeros(nq), equilibrium_pressures(dyn, q0, model.theta), np.zeros(2 * m)])
     ctrl.reset(q0, np.zeros(nq))
     # One noise table for every engine: rows [cylinder length noise (m), pressure noise (m)], then the
     # joint-encoder noise (n) when the robot has encoders.
@@ -189,21 +221,52 @@ def _prepare(dyn, scenario, controller, gains, duration, check_workspace, overri
         noise[:, m:2 * m] = sc.noise_p * rng.standard_normal((n, m))
     if sc.noise_q and model.joint_encoders:
         noise[:, 2 * m:] = sc.noise_q * rng.standard_normal((n, nq))
-    kf_gain = _kalman_gain(h, sc.noise_l, sc.kalman_accel) if sc.kalman else None
+    kf_gain = kalman_gain(h, length_noise_variance(sc.noise_l, sc.quantization_l), sc.kalman_accel) \
+        if sc.kalman else None
     return _Prepared(sc, ctrl, n, h, x0, q0, noise, kf_gain, theta0, gamma0)
 
 
-def _kalman_gain(h, noise_l, accel):
-    """Steady-state gain [K_l, K_ldot] of the constant-velocity Kalman filter (Riccati iteration)."""
+def length_noise_variance(noise_l, quantization_l) -> float:
+    """Variance of a measured cylinder length, m²: white noise plus the encoder's quantisation
+    (uniform over one step Δ: Δ²/12); a floor of (1 nm)² keeps the filter defined without either."""
+    return max(float(noise_l) ** 2 + float(quantization_l) ** 2 / 12.0, 1e-18)
+
+
+def dare(A, B, Q, R, tol=1e-13, max_iter=100):
+    """Stabilising solution X of the discrete algebraic Riccati equation
+    X = Aᵀ X A − Aᵀ X B (R + Bᵀ X B)⁻¹ Bᵀ X A + Q (control form, as ``scipy.linalg.solve_discrete_are``),
+    by the structure-preserving doubling algorithm (numpy only; converges quadratically)."""
+    A, B, Q, R = (np.atleast_2d(np.asarray(v, float)) for v in (A, B, Q, R))
+    G = B @ np.linalg.solve(R, B.T)
+    H, I = Q.copy(), np.eye(A.shape[0])
+    for _ in range(max_iter):
+        W = np.linalg.inv(I + G @ H)
+        A_next, G_next, H_next = A @ W @ A, G + A @ W @ G @ A.T, H + A.T @ H @ W @ A
+        done = np.abs(H_next - H).max() <= tol * max(np.abs(H_next).max(), 1e-300)
+        A, G, H = A_next, G_next, H_next
+        if done:
+            break
+    return 0.5 * (H + H.T)
+
+
+def kalman_gain(h, r, accel):
+    """Steady-state gain [K_l, K_l̇] of the fixed-gain Kalman filter on one cylinder length.
+
+    Process model: constant velocity driven by white acceleration of spectral density ``accel``
+    (m²/s³), exactly discretised over the control period h: F = [1 h; 0 1],
+    Q = accel [h³/3 h²/2; h²/2 h]. Measurement: the length, variance ``r`` (m²). The predicted
+    covariance P solves the filter's DARE; K = P Hᵀ (H P Hᵀ + r)⁻¹, applied after each prediction.
+    """
     F = np.array([[1.0, h], [0.0, 1.0]])
     Q = accel * np.array([[h ** 3 / 3, h ** 2 / 2], [h ** 2 / 2, h]])
-    R = max(noise_l, 1e-9) ** 2
-    P = np.eye(2) * 1e-6
-    for _ in range(5000):  # 2×2: cheap and converged long before the end
-        P = F @ P @ F.T + Q
-        K = P[:, 0] / (P[0, 0] + R)
-        P = P - np.outer(K, P[0, :])
-    return K
+    H = np.array([[1.0, 0.0]])
+    P = dare(F.T, H.T, Q, np.array([[r]]))
+    return P[:, 0] / (P[0, 0] + r)
+
+
+def valve_vector(sc) -> np.ndarray:
+    """The plant's valve input [first-order lag s, natural frequency rad/s, damping] of a scenario."""
+    return np.array([sc.valve_lag, 2 * np.pi * sc.valve_bandwidth_hz, sc.valve_damping], float)
 
 
 def _describe(x, t, ctrl=None, xc=None, u=None):
@@ -227,7 +290,7 @@ def _describe(x, t, ctrl=None, xc=None, u=None):
             parts.append(f"the controller state is non-finite at {[names[i] or i for i in bad_c]}: xc = {xc.tolist()}")
     bad = np.flatnonzero(~np.isfinite(x)).tolist()
     if bad:
-        parts.append(f"the plant state is non-finite at entries {bad} (x = [q, qdot, pc, spool]): x = {np.array2string(x, precision=6, threshold=60)}")
+        parts.append(f"the plant state is non-finite at entries {bad} (x = [q, qdot, pc, spool, spool rate]): x = {np.array2string(x, precision=6, threshold=60)}")
     if not parts:
         parts.append(f"a value went non-finite inside the step (every signal is finite at its end): x = {np.array2string(x, precision=6, threshold=60)}")
     return f"diverged at t = {t:.4f} s: " + "; ".join(parts)
@@ -236,8 +299,9 @@ def _describe(x, t, ctrl=None, xc=None, u=None):
 def _make_runner(dyn, sc, ctrl, x0, q0, kf_gain, h):
     from ..runtime.loop import LoopRunner
     runner = LoopRunner(dyn, ctrl, h=h, substeps=sc.substeps, t_adapt=sc.t_adapt, theta=dyn.model.theta,
-                        gamma=dyn.model.gamma, friction=sc.friction, valve_lag=sc.valve_lag,
-                        reference=sc.reference, kalman_gain=kf_gain, estimator_update=sc.estimator_update)
+                        gamma=dyn.model.gamma, friction=sc.friction, valve=valve_vector(sc),
+                        reference=sc.reference, kalman_gain=kf_gain, delay=sc.delay_periods,
+                        quantization_l=sc.quantization_l, estimator_update=sc.estimator_update)
     runner.reset(x0, q0, dyn.leg_lengths(q0), ctrl.xc)
     return runner
 
@@ -261,7 +325,7 @@ def _run_c(dyn, sc, ctrl, x0, q0, noise, kf_gain, log, n, h):
     from ..runtime.loop import LOOP_NONFINITE, LOOP_OK
     runner = _make_runner(dyn, sc, ctrl, x0, q0, kf_gain, h)
     xc_log = log["xc"] if ctrl.xc.size else None
-    logs = {k: log[k] for k in ("q", "q_d", "l", "f", "pc", "u")}
+    logs = {k: log[k] for k in ("q", "q_d", "l", "f", "pc", "u", "u_applied", "l_meas")}
     if xc_log is not None:
         logs["xc"] = xc_log
     code = runner.run(n, noise, logs)
@@ -275,9 +339,12 @@ def _run_python(dyn, sc, ctrl, x, q0, noise, kf_gain, log, n, h):
     model = dyn.model
     rhs_fn = dyn.functions["plant_rhs"]
     theta_true, gamma_true = model.theta, model.gamma
-    fric, tau_v = np.asarray(sc.friction, float), np.array([sc.valve_lag])
+    from ..layout import MAX_DELAY
+    fric, valve = np.asarray(sc.friction, float), valve_vector(sc)
     ps = model.supply_pressure
     nq, m = model.n, model.n_cylinders
+    delay, quant = sc.delay_periods, sc.quantization_l
+    u_hist = np.zeros((MAX_DELAY, m))  # the C loop's ring: command of period k in slot k % MAX_DELAY
     kf = np.vstack([dyn.leg_lengths(q0), np.zeros(m)]) if kf_gain is not None else None
     F = np.array([[1.0, h], [0.0, 1.0]])
     q_meas = q0.copy()
@@ -286,6 +353,8 @@ def _run_python(dyn, sc, ctrl, x, q0, noise, kf_gain, log, n, h):
         q, qdot, pc = x[:nq], x[nq:2 * nq], x[2 * nq:2 * nq + m]
         l_true = dyn.leg_lengths(q)
         l_meas = l_true + noise[k, :m]
+        if quant > 0:
+            l_meas = quant * np.floor(l_meas / quant + 0.5)
         pc_meas = np.clip(pc + noise[k, m:2 * m], 0, ps) if sc.noise_p else pc
         if kf is not None:
             kf = F @ kf
@@ -305,11 +374,17 @@ def _run_python(dyn, sc, ctrl, x, q0, noise, kf_gain, log, n, h):
         if k and sc.estimator_update != "euler":  # semi-implicit: state from this measurement, then command
             ctrl.update(h, q_meas, qdot_meas, pc_meas, l_meas, ref, t >= sc.t_adapt)
         u = ctrl.command(q_meas, qdot_meas, pc_meas, l_meas, ref, t >= sc.t_adapt)
+        if delay > 0:
+            u_app = u_hist[(k - delay) % MAX_DELAY].copy()
+            u_hist[k % MAX_DELAY] = u
+        else:
+            u_app = u
         log["q"][k], log["q_d"][k], log["l"][k], log["pc"][k], log["u"][k] = q, ref[0], l_true, pc, u
+        log["u_applied"][k], log["l_meas"][k] = u_app, l_meas
         log["f"][k] = pc * model.piston_area - ps * model.rod_area
         if ctrl.xc.size:
             log["xc"][k] = ctrl.xc
-        rhs = lambda xx: rhs_fn(xx, u, theta_true, gamma_true[0], gamma_true[1], fric, tau_v)  # noqa: E731
+        rhs = lambda xx: rhs_fn(xx, u_app, theta_true, gamma_true[0], gamma_true[1], fric, valve)  # noqa: E731
         hs = h / sc.substeps
         for _ in range(sc.substeps):
             x = _rk4(rhs, x, hs)
@@ -329,8 +404,9 @@ def _result(sc, controller, ctrl, t, log, k, theta0, gamma0, theta_true, gamma_t
 
     model = ctrl.model
     res = SimulationResult(
-        scenario=sc.name, controller=controller, t=t[:k], q=log["q"][:k], q_d=log["q_d"][:k],
+        scenario=sc, controller=controller, t=t[:k], q=log["q"][:k], q_d=log["q_d"][:k],
         leg_lengths=log["l"][:k], leg_forces=log["f"][:k], pressures=log["pc"][:k], u=log["u"][:k],
+        u_applied=log["u_applied"][:k], leg_lengths_measured=log["l_meas"][:k],
         theta_hat=est("theta_hat", theta0), gamma1_hat=est("gamma1_hat", gamma0[0]),
         gamma2_hat=est("gamma2_hat", gamma0[1]),
         theta_true=theta_true, gamma_true=gamma_true, amplitude=sc.reference.amplitude(),
@@ -438,7 +514,7 @@ class Stepper:
 
     @property
     def x(self) -> np.ndarray:
-        """Plant state [q, q̇, p_c, spool] (2n + 2m,)."""
+        """Plant state [q, q̇, p_c, spool, spool rate] (2n + 3m,)."""
         return self._runner.plant_state
 
     @property

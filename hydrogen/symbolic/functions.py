@@ -109,7 +109,7 @@ def hydraulic_functions(model) -> list:
 def plant_functions(model) -> list:
     inputs, xdot, intermediates = plant_rhs(model)
     return [SymbolicFunction("plant_rhs", inputs, [("xdot", xdot)],
-                             "Plant state rate: x = [q, qdot, pc, spool] (2n + 2m), SI units.", intermediates)]
+                             "Plant state rate: x = [q, qdot, pc, spool, spool rate] (2n + 3m), SI units; valve = [lag s, natural frequency rad/s, damping].", intermediates)]
 
 
 def controller_functions(model) -> list:

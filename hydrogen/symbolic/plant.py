@@ -1,8 +1,12 @@
 """The simulated plant: rigid bodies driven by the cylinders, chamber pressures (56)-(57).
 
-State x = [q (n), q̇ (n), p_c (m), spool (m)]; input u = spool command (m, metres).
+State x = [q (n), q̇ (n), p_c (m), spool (m), spool rate (m)]; input u = spool command (m, metres).
 Cylinder friction: f_fric = F_c tanh(l̇ / v_s) + b l̇ opposing the cylinder's motion (N).
-Valve: first-order lag spool̇ = (u − spool)/τ_v when τ_v > 0, else spool = u.
+Valve, input ``valve`` = [τ_v, ω_v, ζ_v]:
+- ω_v > 0: second-order servo-valve, spool̈ = ω_v² (u − spool) − 2 ζ_v ω_v spool̇ (ω_v rad/s, the
+  natural frequency, where the spool lags the command by 90°);
+- else τ_v > 0: first-order lag spool̇ = (u − spool)/τ_v (the spool rate state stays 0);
+- else the ideal valve, spool = u (both spool states stay 0).
 """
 from __future__ import annotations
 
@@ -24,8 +28,9 @@ def plant_rhs(model):
     th = theta_symbols(model)
     g1, g2 = rate_symbols("gamma1", m), rate_symbols("gamma2", m)
     fric = sp.Matrix(sp.symbols("F_coulomb b_viscous v_smooth", real=True))
-    tau_v = sp.Symbol("tau_valve", real=True)
-    x = sp.Matrix([*q, *qd, *pc, *spool])
+    spool_rate = rate_symbols("spool_rate", m)
+    tau_v, w_v, z_v = valve = sp.symbols("tau_valve omega_valve zeta_valve", real=True)
+    x = sp.Matrix([*q, *qd, *pc, *spool, *spool_rate])
     cyl = model.cylinders
     ps, d, A, a, L, p_lin = ([baked(getattr(c, k)) for c in cyl] for k in (
         "supply_pressure", "underlap", "piston_area", "rod_area", "chamber_length", "orifice_linear_below"))
@@ -33,14 +38,17 @@ def plant_rhs(model):
     l, JL, _, kin = leg_intermediates(model, q, qd, rates=False)  # the plant needs no J̇L
     ldot = rate_symbols("plant_ldot", m)
     ldot_value = JL * qd
+    second = sp.Gt(w_v, 0, evaluate=False)
     lagged = sp.Gt(tau_v, 0, evaluate=False)
     # The effective spool position is an intermediate symbol: nesting its Piecewise
     # inside the valve law's would make SymPy merge conditions (slow, and ITE nodes).
     spool_eff = rate_symbols("spool_eff", m)
-    spool_eff_value = sp.Matrix([sp.Piecewise((spool[i], lagged), (u[i], True), evaluate=False)
+    spool_eff_value = sp.Matrix([sp.Piecewise((spool[i], second), (spool[i], lagged), (u[i], True), evaluate=False)
                                  for i in range(m)])
-    spool_dot = sp.Matrix([sp.Piecewise(((u[i] - spool[i]) / tau_v, lagged), (0, True), evaluate=False)
-                           for i in range(m)])
+    spool_dot = sp.Matrix([sp.Piecewise((spool_rate[i], second), ((u[i] - spool[i]) / tau_v, lagged), (0, True),
+                                        evaluate=False) for i in range(m)])
+    spool_ddot = sp.Matrix([sp.Piecewise((w_v ** 2 * (u[i] - spool[i]) - 2 * z_v * w_v * spool_rate[i], second),
+                                         (0, True), evaluate=False) for i in range(m)])
     f_leg = rate_symbols("plant_fleg", m)
     f_leg_value = sp.Matrix([hyd.leg_force(pc[i], ps[i], A[i], a[i])
                              - fric[0] * sp.tanh(ldot[i] / fric[2]) - fric[1] * ldot[i] for i in range(m)])
@@ -56,7 +64,7 @@ def plant_rhs(model):
     pc_dot = sp.Matrix([hyd.chamber_pressure_rate(
         l[i], ldot[i], g2[i] / g1[i] * hyd.valve_flow_unit_smooth(spool_eff[i], pc[i], ps[i], d[i], p_lin[i]),
         A[i], L[i], g1[i]) for i in range(m)])
-    xdot = sp.Matrix([*qd, *qdd, *pc_dot, *spool_dot])
+    xdot = sp.Matrix([*qd, *qdd, *pc_dot, *spool_dot, *spool_ddot])
     inputs = [("x", x), ("u", u), ("theta", th), ("gamma1", g1), ("gamma2", g2), ("friction", fric),
-              ("tau_valve", sp.Matrix([tau_v]))]
+              ("valve", sp.Matrix(valve))]
     return inputs, xdot, [*kin, (ldot, ldot_value), (f_leg, f_leg_value), (spool_eff, spool_eff_value), *solve]
