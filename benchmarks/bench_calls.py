@@ -83,7 +83,7 @@ def _call(fn, args, out=None):
     return eval(f"lambda: fn({', '.join(names)}{', out=o' if out is not None else ''})", env)
 
 
-def c_costs(entries: list, gen_dir: Path, repeats: int) -> dict:
+def c_costs(entries: list, gen_dir: Path, repeats: int, values) -> dict:
     """ns per call of each entry's generated C (median and min of the repeats), from the driver of
     bench_functions.py."""
     cc = common.require_cc("cc")
@@ -91,7 +91,7 @@ def c_costs(entries: list, gen_dir: Path, repeats: int) -> dict:
     with tempfile.TemporaryDirectory(prefix="bench_calls_") as tmp:
         for entry in entries:
             driver, exe = Path(tmp) / f"{entry['name']}.c", Path(tmp) / entry["name"]
-            driver.write_text(bench_functions.render_driver(entry, common.function_inputs(entry),
+            driver.write_text(bench_functions.render_driver(entry, values.function_inputs(entry),
                                                             repeats, MIN_TIME_S))
             argv = [cc, *common.CFLAGS, "-I", str(gen_dir), str(driver), str(gen_dir / entry["source"]),
                     "-o", str(exe), "-lm"]
@@ -106,10 +106,10 @@ def c_costs(entries: list, gen_dir: Path, repeats: int) -> dict:
     return out
 
 
-def _user_inputs(entry: dict) -> list:
-    """common.function_inputs as the arrays a user passes: (rows,) vectors, C-order matrices."""
+def _user_inputs(entry: dict, values) -> list:
+    """The driver's inputs as the arrays a user passes: (rows,) vectors, C-order matrices."""
     out = []
-    for (name, r, c), (_, flat) in zip(entry["inputs"], common.function_inputs(entry)):
+    for (name, r, c), (_, flat) in zip(entry["inputs"], values.function_inputs(entry)):
         x = np.asarray(flat, float).reshape((int(r), int(c)), order="F")
         out.append(np.ascontiguousarray(x[:, 0] if int(c) == 1 else x))
     return out
@@ -138,13 +138,14 @@ def run(quick: bool = False) -> dict:
     manifest = dyn.library.manifest
     gen_dir = Path(dyn.library.generated_dir)
     entries = {e["name"]: e for e in manifest["functions"]}
-    c_ns = c_costs([entries[f] for f in FUNCTIONS], gen_dir, repeats)
+    values = common.InputValues(dyn)
+    c_ns = c_costs([entries[f] for f in FUNCTIONS], gen_dir, repeats, values)
     theta = dyn.model.theta
 
     per_call = {}
     for name in FUNCTIONS:
         entry = entries[name]
-        args = _user_inputs(entry)
+        args = _user_inputs(entry, values)
         method = getattr(dyn, name)
         want = method(*args)
         out = np.empty_like(want)
@@ -186,15 +187,15 @@ def run(quick: bool = False) -> dict:
             "rnea": lambda: pin.rnea(pmodel, d1, qp, vp, ap),
             "computeJointTorqueRegressor": lambda: pin.computeJointTorqueRegressor(pmodel, d2, qp, vp, ap),
             "aba": lambda: pin.aba(pmodel, d3, qp, vp, taup),
-            "dyn_regressor": _call(dyn.regressor, _user_inputs(entries["regressor"])),
-            "dyn_forward_dynamics": _call(dyn.forward_dynamics, _user_inputs(entries["forward_dynamics"])),
+            "dyn_regressor": _call(dyn.regressor, _user_inputs(entries["regressor"], values)),
+            "dyn_forward_dynamics": _call(dyn.forward_dynamics, _user_inputs(entries["forward_dynamics"], values)),
         }, repeats)}
 
     batches, reference = {}, {}
     if dyn.backend == "extension":
         rng = np.random.default_rng(1)
         for name in FUNCTIONS:
-            base = _user_inputs(entries[name])
+            base = _user_inputs(entries[name], values)
             method = getattr(dyn, name)
             rows = {}
             for n in BATCH_SIZES:
@@ -208,7 +209,7 @@ def run(quick: bool = False) -> dict:
         # Same conditions, same moment: the batch through the extension against the library's own
         # C loop over states (the loop driver's <model>_leg_lengths_many, called once through ctypes).
         if dyn._many is not None:
-            base = _user_inputs(entries["leg_lengths"])[0]
+            base = _user_inputs(entries["leg_lengths"], values)[0]
             for n in BATCH_SIZES[-2:]:
                 stacked = base + 1e-6 * rng.standard_normal((n,) + base.shape)
                 t = _time_all({"extension": _call(dyn.leg_lengths, [stacked]),

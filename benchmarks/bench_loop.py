@@ -136,12 +136,10 @@ def proxy_dynamics(model, kind, functions=None):
 def python_loop_per_period(dyn, scenario, n_periods):
     """Seconds per period of the Python loop (engine 'python') over ``n_periods`` periods; and its q."""
     rate = common.periods_per_s(dyn, scenario)
-    p = S._prepare(dyn, scenario, CONTROLLER, None, (n_periods - 1) / rate, False, {})
-    n, m = dyn.model.n, dyn.model.n_cylinders
-    log = {k: np.full((p.n, w), np.nan) for k, w in (("q", n), ("q_d", n), ("l", m), ("f", m), ("pc", m),
-                                                        ("u", m), ("xc", max(p.ctrl.xc.size, 1)))}
+    p = S.prepare_run(dyn, scenario, CONTROLLER, None, (n_periods - 1) / rate, False, {})
+    log = S.new_logs(dyn.model, p.n, p.ctrl.xc.size)
     t0 = time.perf_counter()
-    k, failure = S._run_python(dyn, p.sc, p.ctrl, p.x0, p.q0, p.noise, p.kf_gain, log, p.n, p.h)
+    k, failure = S.run_python_loop(dyn, p.sc, p.ctrl, p.x0, p.q0, p.noise, p.kf_gain, log, p.n, p.h)
     wall = time.perf_counter() - t0
     if failure:
         raise RuntimeError(f"{dyn.model.name} {scenario}: the Python loop {failure}")

@@ -33,10 +33,10 @@ def simulate(scenario="paper-sim", controller="adaptive-robust", *, model=None, 
     ``build(model)``, built once per process and model.
     """
     from .simulation.simulator import simulate as _simulate
-    return _simulate(dyn or _default_dyn(model), scenario, controller, **overrides)
+    return _simulate(dyn or default_dynamics(model), scenario, controller, **overrides)
 
 
-def _default_dyn(model=None):
+def default_dynamics(model=None):
     """Compiled dynamics for ``model``: the library is built once per process and baked model; the
     returned Dynamics carries this very model, so its runtime parameters (θ, γ, bounds) are used."""
     from .dynamics import Dynamics
@@ -51,7 +51,7 @@ def _default_dyn(model=None):
 def stepper(scenario="paper-sim", controller="adaptive-robust", *, model=None, dyn=None, **overrides):
     """A :class:`~hydrogen.simulation.simulator.Stepper`: the closed loop one control period per call."""
     from .simulation.simulator import Stepper
-    return Stepper(dyn or _default_dyn(model), scenario, controller, **overrides)
+    return Stepper(dyn or default_dynamics(model), scenario, controller, **overrides)
 
 
 def sweep(runs, *, executor=None, max_workers=None, model=None, progress=False):

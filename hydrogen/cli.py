@@ -218,7 +218,7 @@ def _cmd_margins(args) -> int:
 
     res = margins(args.controller or None, model=args.model, max_workers=args.workers, progress=not args.quiet)
     print(f"stability margins on model {res['model']}: factor by which the main gain can grow while stable")
-    print(f"| controller | scenario | main gain | value | margin | first unstable because |")
+    print("| controller | scenario | main gain | value | margin | first unstable because |")
     print("|---|---|---|---|---|---|")
     for r in res["rows"]:
         m = f">= {r['margin']:.3g}" if r["margin_capped"] else f"{r['margin']:.3g}"

@@ -35,7 +35,8 @@ import numpy as np
 
 from .errors import HydrogenError
 
-__all__ = ["export", "EXPORT_MANIFEST", "TEMPLATE_NAMES"]
+__all__ = ["export", "EXPORT_MANIFEST", "TEMPLATE_NAMES", "export_context", "template_env", "read_sources", "resolve_dyn",
+           "sensor_kalman_gain", "c_double", "c_doubles"]
 
 #: Metadata file written into every export folder (also marks a folder as an export).
 EXPORT_MANIFEST = "export.json"
@@ -52,7 +53,7 @@ FK_TOL, FK_MAX_ITER = 1e-12, 50
 _IDENT = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*$")
 
 
-def _c_double(x) -> str:
+def c_double(x) -> str:
     """A C double literal that reads back to exactly ``x`` (shortest round-trip repr)."""
     x = float(x)
     if not np.isfinite(x):
@@ -60,22 +61,22 @@ def _c_double(x) -> str:
     return repr(x)
 
 
-def _c_doubles(a) -> str:
+def c_doubles(a) -> str:
     """Comma-separated C double literals of ``a`` flattened column-major (CasADi's dense layout)."""
     flat = np.asarray(a, dtype=float)
     flat = flat.ravel(order="F") if flat.ndim > 1 else flat.ravel()
-    return ", ".join(_c_double(v) for v in flat)
+    return ", ".join(c_double(v) for v in flat)
 
 
 def _sha256(data: bytes) -> str:
     return hashlib.sha256(data).hexdigest()
 
 
-def _resolve_dyn(model, dyn):
+def resolve_dyn(model, dyn):
     import hydrogen
 
     if dyn is None:
-        return hydrogen._default_dyn(model)
+        return hydrogen.default_dynamics(model)
     if model is not None:
         m = model if isinstance(model, hydrogen.Model) else hydrogen.load_model(model)
         if m.baked_hash() != dyn.model.baked_hash():
@@ -103,7 +104,7 @@ def _candidate_folders(dyn, generated):
     return uniq
 
 
-def _read_sources(dyn, names, generated) -> dict:
+def read_sources(dyn, names, generated) -> dict:
     """Bytes of the generated files ``names``, exactly as the loaded library was compiled from them.
 
     Each file is checked against the SHA-256 the library's manifest recorded, so
@@ -137,7 +138,7 @@ def _read_sources(dyn, names, generated) -> dict:
                         + "; ".join(tried) + "). Rebuild with hydrogen.build() or pass generated=<folder>.")
 
 
-def _env():
+def template_env():
     import jinja2
 
     from .codegen.generate import TEMPLATES
@@ -146,7 +147,7 @@ def _env():
                               keep_trailing_newline=True, trim_blocks=True, lstrip_blocks=True)
 
 
-def _context(dyn, p, scenario_name, controller, prog, sources, headers, ctrl_header, sensor_gain):
+def export_context(dyn, p, scenario_name, controller, prog, sources, headers, ctrl_header, sensor_gain):
     """Everything the templates need, numbers already formatted as C literals."""
     from .layout import SLOTS, loop_context
     from .simulation.simulator import valve_vector
@@ -166,7 +167,7 @@ def _context(dyn, p, scenario_name, controller, prog, sources, headers, ctrl_hea
             if name not in ctrl.values:
                 raise HydrogenError(f"export: controller '{controller}' input '{name}' has no value")
             value = np.reshape(np.asarray(ctrl.values[name], dtype=float), shape)
-            entry["data"] = _c_doubles(value)
+            entry["data"] = c_doubles(value)
         inputs.append(entry)
     slot_index = [fn.in_names.index(s) if s in fn.in_names else -1 for s in SLOTS]
     n_xc = int(ctrl.xc.size)
@@ -179,34 +180,34 @@ def _context(dyn, p, scenario_name, controller, prog, sources, headers, ctrl_hea
         "model": model.name, "P": model.name.upper(), "scenario": scenario_name, "controller": controller,
         "prog": prog, "sources": sources, "headers": headers, "ctrl_header": ctrl_header,
         "ctrl_c_name": fn.c_name, "loop_header": f"{model.name}_loop.h",
-        "n_periods": int(p.n), "duration": _c_double(sc.duration), "control_rate": _c_double(sc.control_rate),
-        "h": _c_double(p.h), "substeps": int(sc.substeps), "t_adapt": _c_double(sc.t_adapt),
-        "metric_start": _c_double(sc.metric_start),
+        "n_periods": int(p.n), "duration": c_double(sc.duration), "control_rate": c_double(sc.control_rate),
+        "h": c_double(p.h), "substeps": int(sc.substeps), "t_adapt": c_double(sc.t_adapt),
+        "metric_start": c_double(sc.metric_start),
         "n": loop["n"], "m": loop["m"], "nx": loop["nx"], "p_theta": model.n_theta,
         "theta_names": ", ".join(model.theta_names),
-        "theta": _c_doubles(model.theta), "gamma1": _c_doubles(model.gamma[0]), "gamma2": _c_doubles(model.gamma[1]),
-        "friction": _c_doubles(sc.friction), "valve": _c_doubles(valve_vector(sc)),
-        "delay_periods": int(sc.delay_periods), "quantization_l": _c_double(sc.quantization_l),
+        "theta": c_doubles(model.theta), "gamma1": c_doubles(model.gamma[0]), "gamma2": c_doubles(model.gamma[1]),
+        "friction": c_doubles(sc.friction), "valve": c_doubles(valve_vector(sc)),
+        "delay_periods": int(sc.delay_periods), "quantization_l": c_double(sc.quantization_l),
         "use_kalman": 1 if kf is not None else 0,
-        "kf_gain": _c_doubles(kf if kf is not None else np.zeros(2)),
-        "kf_gain_sensor": _c_doubles(sensor_gain if sensor_gain is not None else np.zeros(2)),
-        "noise_l": _c_double(sc.noise_l), "noise_p": _c_double(sc.noise_p),
-        "sensor_noise_l": _c_double(p.sensor_noise_l), "sensor_noise_p": _c_double(p.sensor_noise_p),
-        "kalman_accel": _c_double(sc.kalman_accel),
-        "bias": _c_doubles(ref.bias), "n_terms": len(terms),
-        "terms": [", ".join(_c_double(v) for v in t) for t in terms],
-        "step_axis": int(getattr(ref, "axis", -1)), "step_height": _c_double(getattr(ref, "height", 0.0)),
-        "t_step": _c_double(getattr(ref, "t_step", 0.0)),
+        "kf_gain": c_doubles(kf if kf is not None else np.zeros(2)),
+        "kf_gain_sensor": c_doubles(sensor_gain if sensor_gain is not None else np.zeros(2)),
+        "noise_l": c_double(sc.noise_l), "noise_p": c_double(sc.noise_p),
+        "sensor_noise_l": c_double(p.sensor_noise_l), "sensor_noise_p": c_double(p.sensor_noise_p),
+        "kalman_accel": c_double(sc.kalman_accel),
+        "bias": c_doubles(ref.bias), "n_terms": len(terms),
+        "terms": [", ".join(c_double(v) for v in t) for t in terms],
+        "step_axis": int(getattr(ref, "axis", -1)), "step_height": c_double(getattr(ref, "height", 0.0)),
+        "t_step": c_double(getattr(ref, "t_step", 0.0)),
         "inputs": inputs, "n_in": len(inputs), "in_total": sum(e["size"] for e in inputs),
         "outputs": [{"index": i, "name": nm, "rows": int(s[0]), "cols": int(s[1]), "size": int(s[0]) * int(s[1])}
                     for i, (nm, s) in enumerate(zip(fn.out_names, fn.out_shapes))],
         "out_total": sum(int(r) * int(c) for r, c in fn.out_shapes),
         "slots": [{"name": s, "index": k} for s, k in zip(SLOTS, slot_index)], "n_slots": len(SLOTS),
         "n_xc": n_xc, "xc_cap": max(n_xc, 1), "xc_euler": 1 if sc.estimator_update == "euler" else 0,
-        "xc0": _c_doubles(ctrl.xc if n_xc else np.zeros(1)),
-        "xc_lo": _c_doubles(lo if n_xc else np.zeros(1)), "xc_hi": _c_doubles(hi if n_xc else np.zeros(1)),
-        "x0": _c_doubles(p.x0), "q_meas0": _c_doubles(p.q0), "l0": _c_doubles(dyn.leg_lengths(p.q0)),
-        "fk_tol": _c_double(FK_TOL), "fk_max_iter": FK_MAX_ITER, "coords": model.coordinate_names,
+        "xc0": c_doubles(ctrl.xc if n_xc else np.zeros(1)),
+        "xc_lo": c_doubles(lo if n_xc else np.zeros(1)), "xc_hi": c_doubles(hi if n_xc else np.zeros(1)),
+        "x0": c_doubles(p.x0), "q_meas0": c_doubles(p.q0), "l0": c_doubles(dyn.leg_lengths(p.q0)),
+        "fk_tol": c_double(FK_TOL), "fk_max_iter": FK_MAX_ITER, "coords": model.coordinate_names,
     }
 
 
@@ -253,7 +254,7 @@ by the valves and sensors.
 """
 
 
-def _sensor_kalman_gain(p):
+def sensor_kalman_gain(p):
     from .simulation.simulator import kalman_gain, length_noise_variance
 
     if not p.sc.kalman:
@@ -293,7 +294,7 @@ def export(out_dir, scenario="z-1hz", controller="adaptive-robust", model=None, 
     from . import __version__
     from .fileio import locked, replace_dir
     from .simulation.scenarios import scenario as named_scenario
-    from .simulation.simulator import _prepare
+    from .simulation.simulator import prepare_run
 
     from .errors import OutputPathError, ScenarioError
     from .names import check_identifier, check_label
@@ -302,7 +303,7 @@ def export(out_dir, scenario="z-1hz", controller="adaptive-robust", model=None, 
     # Refused before anything is built or run: the folder must be new, empty or an earlier export.
     check_replaceable_dir(Path(out_dir).absolute(), EXPORT_MANIFEST, EXPORT_KEYS, "an earlier hydrogen export",
                           "export --out")
-    dyn = _resolve_dyn(model, dyn)
+    dyn = resolve_dyn(model, dyn)
     sc = named_scenario(scenario, dyn.model) if isinstance(scenario, str) else scenario
     sc_name = getattr(sc, "name", None)
     # Both names are written into the Makefile, CMakeLists.txt, params.h and main.c.
@@ -311,10 +312,10 @@ def export(out_dir, scenario="z-1hz", controller="adaptive-robust", model=None, 
     overrides = dict(overrides)
     sensor = sc.with_overrides(**overrides) if overrides else sc
     # The program runs noise-free: prepare exactly what simulate(..., noise_l=0, noise_p=0) prepares.
-    p = _prepare(dyn, sc, controller, gains, duration, check_workspace,
+    p = prepare_run(dyn, sc, controller, gains, duration, check_workspace,
                  {**overrides, "noise_l": 0.0, "noise_p": 0.0, "noise_q": 0.0})
     p.sensor_noise_l, p.sensor_noise_p = float(sensor.noise_l), float(sensor.noise_p)
-    sensor_gain = _sensor_kalman_gain(p)
+    sensor_gain = sensor_kalman_gain(p)
 
     mname = dyn.model.name
     entries = {e["name"]: e for e in dyn.library.manifest["functions"]}
@@ -325,11 +326,11 @@ def export(out_dir, scenario="z-1hz", controller="adaptive-robust", model=None, 
         raise HydrogenError(f"export: the compiled dynamics have no loop driver {mname}_loop.c; rebuild")
     sources = [e["source"] for e in funcs] + [drivers[0]]
     headers = [e["header"] for e in funcs] + [f"{mname}_loop.h"]
-    files = _read_sources(dyn, sources + headers, generated)
+    files = read_sources(dyn, sources + headers, generated)
 
     prog = f"{mname}_{controller.replace('-', '_')}"
-    ctx = _context(dyn, p, sc_name, controller, prog, sources, headers, ctrl_entry["header"], sensor_gain)
-    env = _env()
+    ctx = export_context(dyn, p, sc_name, controller, prog, sources, headers, ctrl_entry["header"], sensor_gain)
+    env = template_env()
     rendered = {out: env.get_template(t).render(**ctx) for t, out in TEMPLATE_NAMES.items()}
     if p.kf_gain is not None:
         kalman_note = ("The Kalman filter on the leg lengths still runs, with the gain the simulator designs "

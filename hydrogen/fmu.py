@@ -2,7 +2,7 @@
 
 :func:`export_fmu` writes one ``.fmu`` (a zip: ``modelDescription.xml``, ``sources/``,
 ``binaries/linux64/<modelIdentifier>.so`` and ``documentation/``) from the same generated C, the
-same rendered loop driver and the same export context (:func:`hydrogen.export._context`, rendered
+same rendered loop driver and the same export context (:func:`hydrogen.export.export_context`, rendered
 into ``sources/params.h``) as the C export. The FMU glue (``templates/fmu_glue.c.j2``) drives the
 loop driver's public entry point ``<model>_loop_run`` one control period per call:
 
@@ -96,11 +96,11 @@ class Variable:
             return None
         if self.ctype == "b":
             return "fmi2True" if self.start else "fmi2False"
-        return _c_double(self.start)
+        return c_double(self.start)
 
 
-def _c_double(x) -> str:
-    from .export import _c_double as c_double
+def c_double(x) -> str:
+    from .export import c_double as c_double
     return c_double(x)
 
 
@@ -309,7 +309,7 @@ def _plant_arrays(dyn, p):
         if values.size != size or len(entries) != size:
             raise FmuError(f"plant input '{name}' holds {size} numbers, the export has {values.size}")
         out.append({"name": name, "field": f"plant_{name}", "size": size, "entries": entries,
-                    "values": [float(v) for v in values], "data": ", ".join(_c_double(v) for v in values)})
+                    "values": [float(v) for v in values], "data": ", ".join(c_double(v) for v in values)})
     return out
 
 
@@ -470,24 +470,24 @@ def export_fmu(out, part, scenario="z-1hz", controller="adaptive-robust", model=
     """
     from . import __version__
     from .errors import ScenarioError
-    from .export import LOOP_FUNCTIONS, _context, _env, _read_sources, _resolve_dyn, _sensor_kalman_gain
+    from .export import LOOP_FUNCTIONS, export_context, template_env, read_sources, resolve_dyn, sensor_kalman_gain
     from .names import check_identifier, check_label
     from .simulation.scenarios import scenario as named_scenario
-    from .simulation.simulator import _prepare
+    from .simulation.simulator import prepare_run
 
     if part not in PARTS:
         raise FmuError(f"unknown FMU part {part!r}: choose one of {', '.join(PARTS)}")
     out = _check_out(Path(out).absolute())
     _check_platform()
     headers_dir = fmi_headers_dir()
-    dyn = _resolve_dyn(model, dyn)
+    dyn = resolve_dyn(model, dyn)
     sc = named_scenario(scenario, dyn.model) if isinstance(scenario, str) else scenario
     sc_name = getattr(sc, "name", None)
     check_identifier(dyn.model.name, "export: model name")
     check_label(sc_name, "export: scenario name", error=ScenarioError)
     overrides = dict(overrides)
     sensor = sc.with_overrides(**overrides) if overrides else sc
-    p = _prepare(dyn, sc, controller, gains, duration, check_workspace, {**overrides, "noise_l": 0.0, "noise_p": 0.0})
+    p = prepare_run(dyn, sc, controller, gains, duration, check_workspace, {**overrides, "noise_l": 0.0, "noise_p": 0.0})
     p.sensor_noise_l, p.sensor_noise_p = float(sensor.noise_l), float(sensor.noise_p)
     h = p.h
     n_step = _periods(h if step is None else step, h)
@@ -502,11 +502,11 @@ def export_fmu(out, part, scenario="z-1hz", controller="adaptive-robust", model=
         raise FmuError(f"export: the compiled dynamics have no loop driver {driver}; rebuild")
     gen_sources = [e["source"] for e in funcs] + [driver]
     gen_headers = [e["header"] for e in funcs] + [f"{mname}_loop.h"]
-    files = _read_sources(dyn, gen_sources + gen_headers, generated)
+    files = read_sources(dyn, gen_sources + gen_headers, generated)
 
-    ctx = _context(dyn, p, sc_name, controller, f"{mname}_fmu", gen_sources, gen_headers, ctrl_entry["header"],
-                   _sensor_kalman_gain(p))
-    env = _env()
+    ctx = export_context(dyn, p, sc_name, controller, f"{mname}_fmu", gen_sources, gen_headers, ctrl_entry["header"],
+                   sensor_kalman_gain(p))
+    env = template_env()
     params_h = env.get_template("export_params.h.j2").render(**ctx).encode()
 
     encoders, kalman = bool(model.joint_encoders), p.kf_gain is not None
@@ -531,7 +531,7 @@ def export_fmu(out, part, scenario="z-1hz", controller="adaptive-robust", model=
                   for k, (s, *_rest) in enumerate(_REF_ORDERS) if s in fn.in_names]
     glue = env.get_template("fmu_glue.c.j2").render(
         **ctx, part=part, guid=guid, variables=variables, plant_arrays=_plant_arrays(dyn, p),
-        est_const_size=len(est_const), est_const=", ".join(_c_double(v) for v in est_const),
+        est_const_size=len(est_const), est_const=", ".join(c_double(v) for v in est_const),
         encoders=encoders, kalman=kalman, ref_inputs=ref_inputs).encode()
 
     src = {**{n: files[n] for n in gen_sources + gen_headers}, "params.h": params_h, "fmu.c": glue, **header_bytes}

@@ -307,9 +307,9 @@ def identify(log, model=None, *, dyn=None, cutoff_hz: float | None = None, order
     timings = {}
     log = as_log(log)
     if dyn is None:
-        dyn = hydrogen._default_dyn(model)
+        dyn = hydrogen.default_dynamics(model)
     model = dyn.model
-    n, p = len(model.neutral_pose), len(model.theta)
+    p = len(model.theta)
     m = len(dyn.leg_lengths(np.asarray(model.neutral_pose, float)))
     t = np.asarray(log.t, float)
     L = log.group("l", m)

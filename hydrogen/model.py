@@ -623,7 +623,7 @@ def _check_bounds(r: _Reader, m: Model):
     if np.any(theta < m.theta_min) or np.any(theta > m.theta_max):
         bad = [n for n, t, a, b in zip(m.theta_names, theta, m.theta_min, m.theta_max) if not a <= t <= b]
         raise r.error("[adaptation] theta_min/theta_max",
-                      f"must contain the true values (Lemma 1 assumes a <= theta <= b); outside: "
+                      "must contain the true values (Lemma 1 assumes a <= theta <= b); outside: "
                       + ", ".join(f"{n} = {v:.6g}" for n, v in zip(m.theta_names, theta) if n in bad))
     for g, true in (("gamma1", m.gamma[0]), ("gamma2", m.gamma[1])):
         lo, hi = getattr(m, f"{g}_min"), getattr(m, f"{g}_max")

@@ -176,10 +176,10 @@ def test_a_python_p_controller_drives_the_plant_fmu(dyn, tmp_path):
     from hydrogen.simulation.scenarios import scenario as named_scenario
 
     plant = export_fmu(tmp_path / "plant.fmu", "plant", "z-1hz", dyn=dyn, duration=DURATION)
-    from hydrogen.simulation.simulator import _prepare
+    from hydrogen.simulation.simulator import prepare_run
 
     sc = named_scenario("z-1hz", dyn.model)
-    values = _prepare(dyn, sc, "p", None, DURATION, True, {}).ctrl.values  # hydrogen's own P gains
+    values = prepare_run(dyn, sc, "p", None, DURATION, True, {}).ctrl.values  # hydrogen's own P gains
     K, u_max = np.asarray(values["Kleg"], float), float(values["u_max"][0])
     cyls = [c.name for c in dyn.model.cylinders]
 

@@ -59,7 +59,7 @@ def test_blocked_piston_settles(robot_dyn, robot_model, u_over_d, expected):
 
 def test_valve_flow_is_continuous_and_increasing_in_u(robot_dyn, robot_model):
     dyn, model = robot_dyn, robot_model
-    m, d = model.n_cylinders, model.underlap
+    d = model.underlap
     for frac in np.linspace(0.05, 0.95, 5):
         pc = frac * model.supply_pressure
         u = np.linspace(-5, 5, 6000)[:, None] * d

@@ -105,7 +105,6 @@ def test_jl_dot_of_the_controllers_matches_finite_differences(dyn, model, rng):
 
 def test_staged_jl_is_the_jacobian_of_the_leg_lengths(model, rng):
     """JL as staged (unit leg vectors and moment arms through T) equals SymPy's own Jacobian of l(q)."""
-    from reference import rotation
     q = K.pose_symbols(model)
     _, JL, stages = K.leg_stages(model, q)
     R = K.rotation(q)

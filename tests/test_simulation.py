@@ -417,8 +417,8 @@ def test_c_loop_divergence_keeps_only_finite_rows(dyn):
 
 def test_loop_runner_checks_its_arrays(dyn):
     from hydrogen.simulation import simulator as S
-    p = S._prepare(dyn, "z-1hz", "p", None, 0.1, False, {})
-    runner = S._make_runner(dyn, p.sc, p.ctrl, p.x0, p.q0, p.kf_gain, p.h)
+    p = S.prepare_run(dyn, "z-1hz", "p", None, 0.1, False, {})
+    runner = S.make_runner(dyn, p.sc, p.ctrl, p.x0, p.q0, p.kf_gain, p.h)
     small = {"q": np.zeros((10, 6))}
     assert runner.run(10, p.noise, small) == 0
     with pytest.raises(ValueError, match="log 'q'"):

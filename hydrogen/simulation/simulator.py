@@ -12,7 +12,8 @@ from .checks import check_against_model, check_call, check_run_size, checked_flo
 from .control import make_controller
 from .scenarios import Scenario, scenario as named_scenario
 
-__all__ = ["simulate", "SimulationResult", "equilibrium_pressures", "Stepper", "kalman_gain", "dare",
+__all__ = ["simulate", "SimulationResult", "equilibrium_pressures", "Stepper", "prepare_run", "new_logs",
+           "make_runner", "run_python_loop", "kalman_gain", "dare",
            "valve_vector", "length_noise_variance", "excitation"]
 
 
@@ -147,17 +148,14 @@ def simulate(dyn, scenario, controller: str, *, gains=None, duration=None, check
     ``err.result`` holds the partial result.
     """
     call_start = time.perf_counter()
-    p = _prepare(dyn, scenario, controller, gains, duration, check_workspace, overrides)
+    p = prepare_run(dyn, scenario, controller, gains, duration, check_workspace, overrides)
     sc, ctrl, n, h = p.sc, p.ctrl, p.n, p.h
     if engine not in ("c", "python"):
         raise ValueError(f"engine must be 'c' or 'python', not {engine!r}")
-    nq, m = dyn.model.n, dyn.model.n_cylinders
-    log = {k: np.full((n, w), np.nan) for k, w in (("q", nq), ("q_d", nq), ("l", m), ("f", m), ("pc", m),
-                                                      ("u", m), ("u_applied", m), ("l_meas", m),
-                                                      ("xc", max(ctrl.xc.size, 1)))}
+    log = new_logs(dyn.model, n, ctrl.xc.size)
     t_log = np.arange(n) * h
     start = time.perf_counter()
-    run = _run_c if engine == "c" else _run_python
+    run = _run_c if engine == "c" else run_python_loop
     k_done, failure = run(dyn, sc, ctrl, p.x0, p.q0, p.noise, p.kf_gain, log, n, h)
     wall = time.perf_counter() - start
     res = _result(sc, controller, ctrl, t_log, log, k_done, p.theta0, p.gamma0, dyn.model.theta,
@@ -186,7 +184,15 @@ class _Prepared:
     gamma0: np.ndarray
 
 
-def _prepare(dyn, scenario, controller, gains, duration, check_workspace, overrides, *,
+def new_logs(model, n: int, n_xc: int) -> dict:
+    """The logs of a run of ``n`` periods (NaN-filled rows), as both engines write them."""
+    nq, m = model.n, model.n_cylinders
+    return {k: np.full((n, w), np.nan) for k, w in (("q", nq), ("q_d", nq), ("l", m), ("f", m), ("pc", m),
+                                                    ("u", m), ("u_applied", m), ("l_meas", m),
+                                                    ("xc", max(n_xc, 1)))}
+
+
+def prepare_run(dyn, scenario, controller, gains, duration, check_workspace, overrides, *,
              keep_logs=True) -> _Prepared:
     """Scenario, controller runtime, initial state and noise table shared by every engine
     (``keep_logs``: the caller keeps a log row per period, counted in the memory bound)."""
@@ -296,7 +302,7 @@ def _describe(x, t, ctrl=None, xc=None, u=None):
     return f"diverged at t = {t:.4f} s: " + "; ".join(parts)
 
 
-def _make_runner(dyn, sc, ctrl, x0, q0, kf_gain, h):
+def make_runner(dyn, sc, ctrl, x0, q0, kf_gain, h):
     from ..runtime.loop import LoopRunner
     runner = LoopRunner(dyn, ctrl, h=h, substeps=sc.substeps, t_adapt=sc.t_adapt, theta=dyn.model.theta,
                         gamma=dyn.model.gamma, friction=sc.friction, valve=valve_vector(sc),
@@ -323,7 +329,7 @@ def _loop_failure(code, runner, h):
 
 def _run_c(dyn, sc, ctrl, x0, q0, noise, kf_gain, log, n, h):
     from ..runtime.loop import LOOP_NONFINITE, LOOP_OK
-    runner = _make_runner(dyn, sc, ctrl, x0, q0, kf_gain, h)
+    runner = make_runner(dyn, sc, ctrl, x0, q0, kf_gain, h)
     xc_log = log["xc"] if ctrl.xc.size else None
     logs = {k: log[k] for k in ("q", "q_d", "l", "f", "pc", "u", "u_applied", "l_meas")}
     if xc_log is not None:
@@ -335,7 +341,7 @@ def _run_c(dyn, sc, ctrl, x0, q0, noise, kf_gain, log, n, h):
     return (k + 1 if code == LOOP_NONFINITE else k), _loop_failure(code, runner, h)
 
 
-def _run_python(dyn, sc, ctrl, x, q0, noise, kf_gain, log, n, h):
+def run_python_loop(dyn, sc, ctrl, x, q0, noise, kf_gain, log, n, h):
     model = dyn.model
     rhs_fn = dyn.functions["plant_rhs"]
     theta_true, gamma_true = model.theta, model.gamma
@@ -445,15 +451,14 @@ def excitation(dyn, res, ctrl=None) -> dict:
     qdd = np.gradient(qd, h, axis=0)
     Theta = np.abs(model.theta)
     S_inv = 1.0 / gain_scale(dyn)
-    M = np.zeros((model.n_theta, model.n_theta))
-    for k in range(len(t)):
-        Yn = dyn.regressor(q[k], qd[k], qd[k], qdd[k]) * Theta
-        M += h * Yn.T @ (S_inv[:, None] * Yn)
+    # one batched call for the whole run (k, n, p), not a call per period
+    Yn = np.asarray(dyn.regressor(q, qd, qd, qdd)).reshape(len(t), model.n, model.n_theta) * Theta
+    M = h * np.einsum("kia,i,kib->ab", Yn, S_inv, Yn)
     out = {"theta": _ratio(M)}
     l, u, pc = res.leg_lengths, res.u, res.pressures
     ld = np.gradient(l, h, axis=0)
     A, L = model.piston_area, np.array([c.chamber_length for c in model.cylinders])
-    flow = np.array([dyn.valve_flow(u[k], pc[k]) for k in range(len(t))])
+    flow = np.asarray(dyn.valve_flow(u, pc)).reshape(len(t), -1)
     g1, g2 = model.gamma
     phi = np.stack([g1 * (-A * ld / (l - L)), g2 * flow / (l - L)], axis=-1)  # (k, m, 2)
     Mg = np.einsum("kia,kib->iab", phi, phi) * h
@@ -491,10 +496,10 @@ class Stepper:
 
     def __init__(self, dyn, scenario="paper-sim", controller="adaptive-robust", *, gains=None,
                  duration=None, check_workspace=True, **overrides):
-        p = _prepare(dyn, scenario, controller, gains, duration, check_workspace, overrides, keep_logs=False)
+        p = prepare_run(dyn, scenario, controller, gains, duration, check_workspace, overrides, keep_logs=False)
         self.scenario, self.controller, self.h, self.n_max = p.sc, p.ctrl, p.h, p.n
         self._noise = p.noise
-        self._runner = _make_runner(dyn, p.sc, p.ctrl, p.x0, p.q0, p.kf_gain, p.h)
+        self._runner = make_runner(dyn, p.sc, p.ctrl, p.x0, p.q0, p.kf_gain, p.h)
         self._step = self._runner.stepper(self._noise)
         self._state = self._runner.state
 
