@@ -36,7 +36,7 @@ import numpy as np
 from .errors import HydrogenError
 
 __all__ = ["export", "EXPORT_MANIFEST", "TEMPLATE_NAMES", "export_context", "template_env", "read_sources", "resolve_dyn",
-           "sensor_kalman_gain", "c_double", "c_doubles"]
+           "sensor_kalman_gain", "c_double", "c_doubles", "prepare_export"]
 
 #: Metadata file written into every export folder (also marks a folder as an export).
 EXPORT_MANIFEST = "export.json"
@@ -254,6 +254,32 @@ by the valves and sensors.
 """
 
 
+def prepare_export(model, dyn, scenario, controller, gains, duration, check_workspace, overrides):
+    """What an exported program (C folder or FMU) runs: ``(dyn, scenario, its name, the prepared run)``.
+
+    The names are checked, as they are written into generated files; the run is prepared exactly
+    as ``simulate(..., noise_l=0, noise_p=0, noise_q=0)`` prepares it (exported programs run
+    noise-free), and it keeps the scenario's sensor noise for the Kalman gain meant for the rig.
+    """
+    from .errors import ScenarioError
+    from .names import check_identifier, check_label
+    from .simulation.scenarios import scenario as named_scenario
+    from .simulation.simulator import prepare_run
+
+    dyn = resolve_dyn(model, dyn)
+    sc = named_scenario(scenario, dyn.model) if isinstance(scenario, str) else scenario
+    sc_name = getattr(sc, "name", None)
+    # Both names are written into the Makefile, CMakeLists.txt, params.h and main.c (or the FMU).
+    check_identifier(dyn.model.name, "export: model name")
+    check_label(sc_name, "export: scenario name", error=ScenarioError)
+    overrides = dict(overrides)
+    sensor = sc.with_overrides(**overrides) if overrides else sc
+    p = prepare_run(dyn, sc, controller, gains, duration, check_workspace,
+                    {**overrides, "noise_l": 0.0, "noise_p": 0.0, "noise_q": 0.0})
+    p.sensor_noise_l, p.sensor_noise_p = float(sensor.noise_l), float(sensor.noise_p)
+    return dyn, sc, sc_name, p
+
+
 def sensor_kalman_gain(p):
     from .simulation.simulator import kalman_gain, length_noise_variance
 
@@ -292,29 +318,16 @@ def export(out_dir, scenario="z-1hz", controller="adaptive-robust", model=None, 
     Path of the written folder.
     """
     from . import __version__
+    from .errors import OutputPathError
     from .fileio import locked, replace_dir
-    from .simulation.scenarios import scenario as named_scenario
-    from .simulation.simulator import prepare_run
-
-    from .errors import OutputPathError, ScenarioError
-    from .names import check_identifier, check_label
     from .outputs import check_replaceable_dir
 
     # Refused before anything is built or run: the folder must be new, empty or an earlier export.
     check_replaceable_dir(Path(out_dir).absolute(), EXPORT_MANIFEST, EXPORT_KEYS, "an earlier hydrogen export",
                           "export --out")
-    dyn = resolve_dyn(model, dyn)
-    sc = named_scenario(scenario, dyn.model) if isinstance(scenario, str) else scenario
-    sc_name = getattr(sc, "name", None)
-    # Both names are written into the Makefile, CMakeLists.txt, params.h and main.c.
-    check_identifier(dyn.model.name, "export: model name")
-    check_label(sc_name, "export: scenario name", error=ScenarioError)
+    dyn, sc, sc_name, p = prepare_export(model, dyn, scenario, controller, gains, duration, check_workspace,
+                                         overrides)
     overrides = dict(overrides)
-    sensor = sc.with_overrides(**overrides) if overrides else sc
-    # The program runs noise-free: prepare exactly what simulate(..., noise_l=0, noise_p=0) prepares.
-    p = prepare_run(dyn, sc, controller, gains, duration, check_workspace,
-                 {**overrides, "noise_l": 0.0, "noise_p": 0.0, "noise_q": 0.0})
-    p.sensor_noise_l, p.sensor_noise_p = float(sensor.noise_l), float(sensor.noise_p)
     sensor_gain = sensor_kalman_gain(p)
 
     mname = dyn.model.name

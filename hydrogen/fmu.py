@@ -469,26 +469,17 @@ def export_fmu(out, part, scenario="z-1hz", controller="adaptive-robust", model=
     Path of the written FMU.
     """
     from . import __version__
-    from .errors import ScenarioError
-    from .export import LOOP_FUNCTIONS, export_context, template_env, read_sources, resolve_dyn, sensor_kalman_gain
-    from .names import check_identifier, check_label
-    from .simulation.scenarios import scenario as named_scenario
-    from .simulation.simulator import prepare_run
+    from .export import LOOP_FUNCTIONS, export_context, prepare_export, read_sources, sensor_kalman_gain, template_env
+    from .names import check_identifier
 
     if part not in PARTS:
         raise FmuError(f"unknown FMU part {part!r}: choose one of {', '.join(PARTS)}")
     out = _check_out(Path(out).absolute())
     _check_platform()
     headers_dir = fmi_headers_dir()
-    dyn = resolve_dyn(model, dyn)
-    sc = named_scenario(scenario, dyn.model) if isinstance(scenario, str) else scenario
-    sc_name = getattr(sc, "name", None)
-    check_identifier(dyn.model.name, "export: model name")
-    check_label(sc_name, "export: scenario name", error=ScenarioError)
+    dyn, sc, sc_name, p = prepare_export(model, dyn, scenario, controller, gains, duration, check_workspace,
+                                         overrides)
     overrides = dict(overrides)
-    sensor = sc.with_overrides(**overrides) if overrides else sc
-    p = prepare_run(dyn, sc, controller, gains, duration, check_workspace, {**overrides, "noise_l": 0.0, "noise_p": 0.0})
-    p.sensor_noise_l, p.sensor_noise_p = float(sensor.noise_l), float(sensor.noise_p)
     h = p.h
     n_step = _periods(h if step is None else step, h)
 
