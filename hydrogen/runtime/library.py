@@ -215,7 +215,7 @@ class CompiledFunction:
 
 
 def _shape_text(shape: tuple, batch: bool = False) -> str:
-    """(6,) / (6, 4); with batch (n, 6) / (n, 6, 4): the extension's wording."""
+    """A shape as the extension words it, e.g. (m,) or (n, p); with batch, (k, m) or (k, n, p)."""
     if batch:
         return "(n, " + ", ".join(map(str, shape)) + ")"
     return str(tuple(shape))
