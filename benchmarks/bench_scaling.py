@@ -128,9 +128,9 @@ def timed(stage, f, size=None):
         return out
     return wrapper
 
-for name, size in (("mass_matrix", "D"), ("coriolis", "C"), ("gravity", None), ("regressor", None),
+for name, size in (("mass_matrix", "D"), ("coriolis_matrix", "C"), ("gravity", None), ("regressor", None),
                    ("regressor_offset", None)):
-    setattr(F, name, timed("rigid_body." + {{"mass_matrix": "D", "coriolis": "C", "gravity": "G",
+    setattr(F, name, timed("rigid_body." + {{"mass_matrix": "D", "coriolis_matrix": "C", "gravity": "G",
                                              "regressor": "Y", "regressor_offset": "y0"}}[name],
                            getattr(F, name), size))
 for name, stage in (("kinematics_functions", "kinematics"), ("rigid_body_functions", "rigid_body"),

@@ -48,7 +48,7 @@ def derive(model):
     # (22): holds q, q̂, z and the reference; τ̇_d needs ż, never q̈.
     tau_d = D_hat * qr_ddot + c.C(th_hat, qr_dot) * qr_dot + c.G(th_hat) - Kd * (z - qr_dot) - diag(c.Kp) * c.e
     tau_d_dot = time_derivative(tau_d, [(c.q, c.qdot), (q_hat, q_hat_dot), (z, z_dot), (th_hat, th_dot),
-                                        *c.desired_rates()])
+                                        *c.desired_rates(), *c.pose_rates])
     tau = c.JL.T * c.f
     rhs = tau - c.C(th_hat, c.qdot) * z - c.G(th_hat) + diag(Lp) * qtil + Kd * s1 + diag(Kd2) * s2
     z_dot_value, solve_stages = solve_or_inverse(model, c.q, th_hat, rhs, "zdot_solve")

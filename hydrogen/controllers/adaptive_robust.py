@@ -57,7 +57,8 @@ def derive(model):
     # (44) as read in the notes: holds q and z, never the measured q̇.
     tau_d = D_hat * (c.qd[2] - Lam * (z - c.qd[1])) + c.C(th_hat, z) * qr_dot \
         + c.G(th_hat) - Kd * (z - qr_dot) - diag(c.Kp) * c.e
-    tau_d_dot = time_derivative(tau_d, [(c.q, c.qdot), (z, z_dot), (th_hat, th_dot), *c.desired_rates()])
+    tau_d_dot = time_derivative(tau_d, [(c.q, c.qdot), (z, z_dot), (th_hat, th_dot), *c.desired_rates(),
+                                        *c.pose_rates])
     tau = c.JL.T * c.f
     qn2 = sum((x ** 2 for x in c.qdot), sp.S.Zero)
     Lam_o = lam_o[0] + lam_o[1] * qn2 + lam_o[2] * sp.sqrt(sum((x ** 2 for x in tau), sp.S.Zero)) \

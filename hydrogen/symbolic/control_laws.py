@@ -21,8 +21,8 @@ import sympy as sp
 from . import hydraulics as hyd
 from .calculus import clip, projection
 from .constants import PRESSURE_EPS, baked
-from .kinematics import leg_intermediates, matrix_symbols, pose_symbols, rate_symbols
-from .rigid_body import coriolis, gravity, mass_matrix, mass_matrix_inverse, regressor, theta_symbols
+from .kinematics import leg_intermediates, matrix_symbols, pose_rates, pose_symbols, rate_symbols
+from .rigid_body import coriolis_matrix, gravity, mass_matrix, mass_matrix_inverse, regressor, theta_symbols
 
 __all__ = ["ControllerParts", "Common", "diag", "vector", "scalar", "solve_or_inverse"]
 
@@ -78,6 +78,8 @@ class Common:
         self.Ktau, self.Gtau_inv = vector("Ktau", m), vector("Gtau_inv", m)
         self.u_max = scalar("u_max")
         self.l, self.JL, self.JLdot, self.kin = leg_intermediates(model, self.q, self.qdot)
+        # (R, Ṙ), (p, ṗ) of the link poses in kin, which D, C, G, Y of a staged tree hold: time_derivative needs them
+        self.pose_rates = pose_rates(model, self.q, self.qdot)
         self.ldot = self.JL * self.qdot
         self.f = sp.Matrix([hyd.leg_force(self.pc[i], self.ps[i], self.A[i], self.a[i]) for i in range(m)])
         self.Jit = matrix_symbols("JLinvT", n, m)
@@ -90,7 +92,7 @@ class Common:
         return mass_matrix(self.model, self.q, theta)
 
     def C(self, theta, v):
-        return coriolis(self.D(theta), self.q, v)
+        return coriolis_matrix(self.model, self.q, v, theta)
 
     def G(self, theta):
         return gravity(self.model, self.q, theta)

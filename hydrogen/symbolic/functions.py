@@ -15,8 +15,8 @@ from . import hydraulics as hyd
 from .constants import PRESSURE_EPS, baked
 from .kinematics import leg_stages, pose_symbols, rate_symbols
 from .plant import plant_rhs
-from .rigid_body import (coriolis, gravity, mass_matrix, mass_matrix_inverse, regressor, regressor_offset,
-                         theta_symbols)
+from .rigid_body import (bias_forces, coriolis_matrix, gravity, mass_matrix, mass_matrix_inverse, regressor,
+                         regressor_offset, rigid_body_stages, theta_symbols)
 
 __all__ = ["SymbolicFunction", "derive_functions", "PRESSURE_EPS"]
 
@@ -52,29 +52,31 @@ def rigid_body_functions(model) -> list:
     v, w, a, tau = (rate_symbols(k, n) for k in ("v", "w", "a", "tau"))
     th = theta_symbols(model)
     D = mass_matrix(model, q, th)
+    poses = rigid_body_stages(model, q)  # the link poses a staged tree's expressions refer to
     funcs = [
-        SymbolicFunction("mass_matrix", [("q", q), ("theta", th)], [("D", D)], "D(q) (n x n)."),
+        SymbolicFunction("mass_matrix", [("q", q), ("theta", th)], [("D", D)], "D(q) (n x n).", poses),
         SymbolicFunction("coriolis", [("q", q), ("qdot", qd), ("theta", th)],
-                         [("C", coriolis(D, q, qd))], "Christoffel-form C(q, qdot)."),
+                         [("C", coriolis_matrix(model, q, qd, th))], "Christoffel-form C(q, qdot).", poses),
         SymbolicFunction("gravity", [("q", q), ("theta", th)], [("G", gravity(model, q, th))],
-                         "G(q), N or N m."),
+                         "G(q), N or N m.", poses),
         SymbolicFunction("regressor", [("q", q), ("v", v), ("w", w), ("a", a)],
                          [("Y", regressor(model, q, v, w, a, th))],
-                         "Y(q, v, w, a) (n x p): Y theta + y0 = D a + C(q, v) w + G."),
+                         "Y(q, v, w, a) (n x p): Y theta + y0 = D a + C(q, v) w + G.", poses),
     ]
     y0 = regressor_offset(model, q, v, w, a, th)
     if any(e != 0 for e in y0):  # only when some parameter that moves the robot is not adapted
         funcs.append(SymbolicFunction("regressor_offset", [("q", q), ("v", v), ("w", w), ("a", a)],
-                                      [("y0", y0)], "y0 = D a + C(q, v) w + G - Y theta (non-adapted share)."))
+                                      [("y0", y0)], "y0 = D a + C(q, v) w + G - Y theta (non-adapted share).",
+                                      poses))
     # q̈ = D⁻¹ (τ − C q̇ − G): the closed-form inverse where the tree has one, else a linear solve.
-    rhs = tau - coriolis(D, q, qd) * qd - gravity(model, q, th)
+    rhs = tau - bias_forces(model, q, qd, th)
     Dinv = mass_matrix_inverse(model, q, th)
     qdd, solve = (Dinv * rhs, []) if Dinv is not None else (rate_symbols("fd_qdd", n), None)
     if solve is None:
         solve = [(qdd, ("solve", D, rhs))]
     funcs.append(SymbolicFunction("forward_dynamics", [("q", q), ("qdot", qd), ("tau", tau), ("theta", th)],
                                   [("qddot", qdd)], "Forward dynamics qddot = D^-1 (tau - C(q, qdot) qdot - G).",
-                                  solve))
+                                  [*poses, *solve]))
     return funcs
 
 

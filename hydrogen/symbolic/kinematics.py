@@ -9,7 +9,7 @@ import sympy as sp
 
 __all__ = [
     "pose_symbols", "rate_symbols", "rotation", "angular_velocity_map",
-    "body_angular_velocity_map", "task_map", "leg_stages", "leg_intermediates", "matrix_symbols",
+    "body_angular_velocity_map", "task_map", "leg_stages", "leg_intermediates", "matrix_symbols", "pose_rates",
 ]
 
 
@@ -107,6 +107,42 @@ def _cylinder_stages(model, q, qdot, prefix=""):
     return _STAGES[key]
 
 
+def _pose_rates(model, q, qdot):
+    """(pairs, stages): each staged link's (R, Ṙ) and (p, ṗ) symbol pairs and the stages defining
+    Ṙ = S(ω) R and ṗ (forward mode), derived once per process."""
+    from .calculus import time_derivative
+    from .tree import skew
+
+    key = (model.baked_hash(), tuple(sp.Matrix(q)), tuple(sp.Matrix(qdot)), "rates")
+    if key in _STAGES:
+        return _STAGES[key]
+    _, _, stages, links = _cylinder_stages(model, q, qdot)
+    rate_pairs, pairs, rate_stages = [(sp.Matrix(q), sp.Matrix(qdot))], [], []
+    staged_p = {id(sym) for sym, _ in stages}
+    values = {id(sym): val for sym, val in stages}
+    for k, (link, (R, p, w, _)) in enumerate(links.items()):
+        tag = f"{k}" if len(links) > 1 else ""
+        R_dot = matrix_symbols(f"Rdot{tag}", 3, 3)
+        rate_stages.append((R_dot, skew(w) * R))
+        rate_pairs.append((R, R_dot))
+        pairs.append((R, R_dot))
+        if id(p) in staged_p:
+            p_dot = matrix_symbols(f"pdot{tag}", 3, 1)
+            rate_stages.append((p_dot, time_derivative(values[id(p)], list(rate_pairs))))
+            rate_pairs.append((p, p_dot))
+            pairs.append((p, p_dot))
+    _STAGES[key] = (pairs, rate_stages)
+    return _STAGES[key]
+
+
+def pose_rates(model, q, qdot) -> list:
+    """(symbols, rate symbols) pairs of the staged link poses, (R, Ṙ) and (p, ṗ), for
+    :func:`~hydrogen.symbolic.calculus.time_derivative` of expressions that hold them (the cylinder
+    kinematics, and the rigid body of a staged tree); their stages are part of
+    :func:`leg_intermediates`' list (with rates)."""
+    return list(_pose_rates(model, q, qdot)[0])
+
+
 def leg_intermediates(model, q, qdot, rates: bool = True):
     """Cylinder lengths, JL and d/dt JL as intermediate symbols (keeps SymPy expressions small).
 
@@ -118,24 +154,13 @@ def leg_intermediates(model, q, qdot, rates: bool = True):
     ``JL_dot`` is None and its stages are left out.
     """
     from .calculus import time_derivative
-    from .tree import skew
 
-    l, JL, stages, links = _cylinder_stages(model, q, qdot)
+    l, JL, stages, _ = _cylinder_stages(model, q, qdot)
     if not rates:
         return l, JL, None, stages
     qm, qdm = sp.Matrix(q), sp.Matrix(qdot)
-    rate_pairs, rate_stages = [(qm, qdm)], []
-    staged_p = {id(sym) for sym, _ in stages}
-    values = {id(sym): val for sym, val in stages}
-    for k, (link, (R, p, w, _)) in enumerate(links.items()):
-        tag = f"{k}" if len(links) > 1 else ""
-        R_dot = matrix_symbols(f"Rdot{tag}", 3, 3)
-        rate_stages.append((R_dot, skew(w) * R))
-        rate_pairs.append((R, R_dot))
-        if id(p) in staged_p:
-            p_dot = matrix_symbols(f"pdot{tag}", 3, 1)
-            rate_stages.append((p_dot, time_derivative(values[id(p)], list(rate_pairs))))
-            rate_pairs.append((p, p_dot))
+    pairs, rate_stages = _pose_rates(model, q, qdot)
+    rate_pairs = [(qm, qdm), *pairs]
     JL_dot = matrix_symbols("JLdot", *JL.shape)
     JL_dot_value = time_derivative(stages[-1][1], [*rate_pairs, (l, JL * qdm)])
     return l, JL, JL_dot, [*stages, *rate_stages, (JL_dot, JL_dot_value.reshape(*JL.shape))]

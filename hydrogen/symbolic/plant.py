@@ -15,7 +15,7 @@ import sympy as sp
 from . import hydraulics as hyd
 from .constants import baked
 from .kinematics import leg_intermediates, pose_symbols, rate_symbols
-from .rigid_body import coriolis, gravity, mass_matrix, mass_matrix_inverse, theta_symbols
+from .rigid_body import bias_forces, mass_matrix, mass_matrix_inverse, theta_symbols
 
 __all__ = ["plant_rhs"]
 
@@ -53,7 +53,7 @@ def plant_rhs(model):
     f_leg_value = sp.Matrix([hyd.leg_force(pc[i], ps[i], A[i], a[i])
                              - fric[0] * sp.tanh(ldot[i] / fric[2]) - fric[1] * ldot[i] for i in range(m)])
     D = mass_matrix(model, q, th)
-    rhs = JL.T * f_leg - coriolis(D, q, qd) * qd - gravity(model, q, th)
+    rhs = JL.T * f_leg - bias_forces(model, q, qd, th)  # (the link poses are in kin)
     Dinv = mass_matrix_inverse(model, q, th)
     solve = []
     if Dinv is not None:

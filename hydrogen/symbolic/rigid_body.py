@@ -1,9 +1,16 @@
 """Rigid-body dynamics of a description's tree (SymPy), eqs. (1)-(3) and (60)-(69).
 
 D(q) q̈ + C(q, q̇) q̇ + G(q) = (JL)ᵀ f. D and G come from the tree
-(:class:`~hydrogen.symbolic.tree.SymbolicTree`); C is derived from D by Christoffel symbols, so
-that Ḋ − 2C is skew and C(q, x) y = C(q, y) x (properties (i), (ii) of eq. (3)); the paper's c22
-of eq. (64) for the floating platform gives the same C(q, q̇) q̇ and is kept for comparison.
+(:class:`~hydrogen.symbolic.tree.SymbolicTree`); C is the Christoffel one, so that Ḋ − 2C is skew
+and C(q, x) y = C(q, y) x (properties (i), (ii) of eq. (3)); the paper's c22 of eq. (64) for the
+floating platform gives the same C(q, q̇) q̇ and is kept for comparison.
+
+Two forms, chosen by the tree (:meth:`SymbolicTree.staged`): the closed form (D from expanded
+link Jacobians, C by differentiating D, G = ∂V/∂q) for short chains and floating bodies, and the
+staged form for deeper chains (D, C, G and Y by spatial algebra over link poses bound to
+intermediate symbols; :func:`rigid_body_stages` lists those stages, which every function using
+these expressions must evaluate first, and :func:`~hydrogen.symbolic.kinematics.pose_rates` their
+time derivatives).
 θ are the adapted inertial parameters (``model.theta_names``); D, C, G are affine in θ, and the
 regressor Y = ∂(D a + C(q, v) w + G)/∂θ.
 """
@@ -16,8 +23,8 @@ from .kinematics import angular_velocity_map, rotation
 from .tree import SymbolicTree
 
 __all__ = [
-    "theta_symbols", "mass_matrix", "mass_matrix_inverse", "coriolis", "gravity", "regressor",
-    "regressor_offset", "coriolis_paper", "symbolic_tree",
+    "theta_symbols", "mass_matrix", "mass_matrix_inverse", "coriolis", "coriolis_matrix", "gravity", "regressor",
+    "regressor_offset", "coriolis_paper", "symbolic_tree", "inverse_dynamics", "bias_forces", "rigid_body_stages",
 ]
 
 _TREES = {}
@@ -36,9 +43,17 @@ def symbolic_tree(model, q, theta) -> SymbolicTree:
     return _TREES[key]
 
 
+def rigid_body_stages(model, q) -> list:
+    """The intermediate stages the rigid-body expressions of this module refer to: every link's
+    pose (:meth:`SymbolicTree.pose_stages`) for a staged tree, none for the closed form."""
+    tree = symbolic_tree(model, q, theta_symbols(model))
+    return tree.pose_stages() if tree.staged() else []
+
+
 def mass_matrix(model, q, theta) -> sp.Matrix:
     """D(q) (n×n) for parameters θ."""
-    return symbolic_tree(model, q, theta).mass_matrix()
+    tree = symbolic_tree(model, q, theta)
+    return tree.staged_mass_matrix() if tree.staged() else tree.mass_matrix()
 
 
 def mass_matrix_inverse(model, q, theta):
@@ -47,8 +62,16 @@ def mass_matrix_inverse(model, q, theta):
     return symbolic_tree(model, q, theta).mass_matrix_inverse()
 
 
+def coriolis_matrix(model, q, qdot, theta) -> sp.Matrix:
+    """Christoffel-form C(q, q̇) (n×n) for parameters θ, in the tree's form."""
+    tree = symbolic_tree(model, q, theta)
+    if tree.staged():
+        return tree.staged_coriolis(sp.Matrix(qdot))
+    return coriolis(mass_matrix(model, q, theta), q, qdot)
+
+
 def coriolis(D: sp.Matrix, q, qdot) -> sp.Matrix:
-    """Christoffel-form C(q, q̇): C_ij = Σ_k ½(∂D_ij/∂q_k + ∂D_ik/∂q_j − ∂D_jk/∂q_i) q̇_k."""
+    """Christoffel-form C(q, q̇) of an explicit D(q): C_ij = Σ_k ½(∂D_ij/∂q_k + ∂D_ik/∂q_j − ∂D_jk/∂q_i) q̇_k."""
     n = D.shape[0]
     dD = [D.diff(q[k]) for k in range(n)]  # dD[k][i, j] = ∂D_ij/∂q_k
     C = sp.zeros(n, n)
@@ -62,15 +85,27 @@ def coriolis(D: sp.Matrix, q, qdot) -> sp.Matrix:
 
 def gravity(model, q, theta) -> sp.Matrix:
     """G(q) = ∂V/∂q, gravity along −z of the base frame (N or N m)."""
-    return symbolic_tree(model, q, theta).gravity(baked(model.gravity))
+    tree = symbolic_tree(model, q, theta)
+    g = baked(model.gravity)
+    return tree.staged_gravity(g) if tree.staged() else tree.gravity(g)
 
 
-def _dynamics(model, q, v, w, a, theta):
-    D = mass_matrix(model, q, theta)
-    return D * sp.Matrix(a) + coriolis(D, q, v) * sp.Matrix(w) + gravity(model, q, theta)
+def inverse_dynamics(model, q, v, w, a, theta) -> sp.Matrix:
+    """D(q) a + C(q, v) w + G(q) (n) for parameters θ: one Newton-Euler pass on a staged tree."""
+    return _dynamics_of(symbolic_tree(model, q, theta), q, v, w, a, baked(model.gravity))
+
+
+def bias_forces(model, q, qdot, theta) -> sp.Matrix:
+    """C(q, q̇) q̇ + G(q) (n), N or N m: the forces q̈ = D⁻¹ (τ − C q̇ − G) subtracts."""
+    tree = symbolic_tree(model, q, theta)
+    if tree.staged():
+        return tree.staged_inverse_dynamics(qdot, qdot, sp.zeros(len(qdot), 1), baked(model.gravity))
+    return coriolis(mass_matrix(model, q, theta), q, qdot) * sp.Matrix(qdot) + gravity(model, q, theta)
 
 
 def _dynamics_of(tree, q, v, w, a, g):
+    if tree.staged():
+        return tree.staged_inverse_dynamics(sp.Matrix(v), sp.Matrix(w), sp.Matrix(a), g)
     D = tree.mass_matrix()
     return D * sp.Matrix(a) + coriolis(D, q, v) * sp.Matrix(w) + tree.gravity(g)
 

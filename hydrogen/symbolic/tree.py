@@ -210,13 +210,45 @@ class SymbolicTree:
         ``link_stages`` maps each staged link to (R symbols, p symbols or expression, ω expression,
         parent), for the time derivative.
         """
-        model, q = self.model, self.q
+        model = self.model
         self._qdot = None if qdot is None else sp.Matrix(qdot)
         m_cyl = len(model.cylinders)
         needed = set()
         for c in model.cylinders:
             for link in (c.link_from, c.link_to):
                 needed |= {j.child for j in self.path(link)}
+        if self.staged():
+            # the staged rigid body refers to every link's pose: one set of pose symbols for both
+            needed |= {j.child for j in model.joints}
+        poses, stages, link_stages = self._pose_stages(needed, prefix)
+        l = sp.Matrix([sp.Symbol(f"{prefix}legl_{i}", real=True) for i in range(m_cyl)])
+        JL = matrix_symbols(f"{prefix}JL", m_cyl, self.n)
+        l_value, rows = [], []
+        for ci, c in enumerate(model.cylinders):
+            R_a, p_a, _ = poses[c.link_from]
+            R_b, p_b, _ = poses[c.link_to]
+            r_b = _mm(R_b, _vec(c.point_to))
+            r_a = _mm(R_a, _vec(c.point_from))
+            v = p_b + r_b - (p_a + r_a)
+            l_value.append(sp.sqrt(v.dot(v)))
+            nvec = v / l[ci]
+            row = sp.zeros(1, self.n)
+            path_a, path_b = self.path(c.link_from), self.path(c.link_to)
+            common = {j.name for j in path_a} & {j.name for j in path_b}
+            for sign, path, link, r_local in ((1, path_b, c.link_to, r_b), (-1, path_a, c.link_from, r_a)):
+                for j in path:
+                    if j.name in common:
+                        continue
+                    row += sign * self._row_part(j, link, r_local, nvec, poses)
+            rows.append(row)
+        stages += [(l, sp.Matrix(l_value)), (JL, sp.Matrix.vstack(*rows))]
+        return l, JL, stages, link_stages
+
+    def _pose_stages(self, needed, prefix: str):
+        """Poses of the links in ``needed`` as stages: ``(poses, stages, link_stages)``; ``poses`` maps
+        each link (and the root) to (R, p, ω): R and p symbols (p an expression of q on the root's
+        children), ω the angular velocity (base frame) as an expression of q̇."""
+        model, q = self.model, self.q
         poses = {model.root: (sp.eye(3), sp.zeros(3, 1), sp.zeros(3, 1))}  # R, p, ω (base frame)
         stages, link_stages = [], {}
         for k, j in enumerate(model.joints):
@@ -250,28 +282,7 @@ class SymbolicTree:
                 stages.append((p, p_val))
             poses[j.child] = (R, p, w)
             link_stages[j.child] = (R, p, w, j)
-        l = sp.Matrix([sp.Symbol(f"{prefix}legl_{i}", real=True) for i in range(m_cyl)])
-        JL = matrix_symbols(f"{prefix}JL", m_cyl, self.n)
-        l_value, rows = [], []
-        for ci, c in enumerate(model.cylinders):
-            R_a, p_a, _ = poses[c.link_from]
-            R_b, p_b, _ = poses[c.link_to]
-            r_b = _mm(R_b, _vec(c.point_to))
-            r_a = _mm(R_a, _vec(c.point_from))
-            v = p_b + r_b - (p_a + r_a)
-            l_value.append(sp.sqrt(v.dot(v)))
-            nvec = v / l[ci]
-            row = sp.zeros(1, self.n)
-            path_a, path_b = self.path(c.link_from), self.path(c.link_to)
-            common = {j.name for j in path_a} & {j.name for j in path_b}
-            for sign, path, link, r_local in ((1, path_b, c.link_to, r_b), (-1, path_a, c.link_from, r_a)):
-                for j in path:
-                    if j.name in common:
-                        continue
-                    row += sign * self._row_part(j, link, r_local, nvec, poses)
-            rows.append(row)
-        stages += [(l, sp.Matrix(l_value)), (JL, sp.Matrix.vstack(*rows))]
-        return l, JL, stages, link_stages
+        return poses, stages, link_stages
 
     def _rate(self, i):
         qdot = getattr(self, "_qdot", None)
@@ -300,3 +311,230 @@ class SymbolicTree:
             part[0, i:i + 3] = _mm(R_p.T, nvec).T
             part[0, i + 3:i + 6] = _mm(T.T, _mm(R_p, R_o).T, r.cross(nvec)).T
         return part
+
+    # --- staged rigid body ----------------------------------------------------------------
+    def depth(self) -> int:
+        """The most moving joints on one path from the root (the chain's length)."""
+        return max((sum(1 for j in self.path(lk.name) if j.dof) for lk in self.model.links), default=0)
+
+    def staged(self) -> bool:
+        """Whether D, C, G and Y are computed from staged link poses (spatial algebra over the tree)
+        rather than from the closed form: for trees of revolute, prismatic and fixed joints at least
+        :data:`STAGE_DEPTH` moving joints deep. The closed form's expressions grow about 3.5× per link
+        of depth (products of every ancestor's sines and cosines, then differentiated for C); the staged
+        ones grow polynomially, but cost more instructions than the closed form on short chains."""
+        if any(j.type not in ("revolute", "prismatic", "fixed") for j in self.model.joints):
+            return False
+        return self.depth() >= STAGE_DEPTH
+
+    def _staged_poses(self):
+        """Every link's (R, p) as the symbols of :meth:`cylinder_stages` (prefix ""), and their stages."""
+        if getattr(self, "_staged_cache", None) is None:
+            poses, stages, _ = self._pose_stages({j.child for j in self.model.joints}, "")
+            self._staged_cache = ({k: v[:2] for k, v in poses.items()}, stages)
+        return self._staged_cache
+
+    def pose_stages(self) -> list:
+        """The ``(symbols, expression)`` stages the staged rigid body refers to (every link's R, p)."""
+        return list(self._staged_poses()[1])
+
+    def motion_axes(self) -> dict:
+        """Per moving joint, its motion axis S (6×1, base frame, Plücker coordinates about the base
+        origin: [ω; velocity of the body point at the origin] per unit rate): [a; p × a] for a revolute
+        joint (a the world axis, p the child's origin, on the axis), [0; a] for a prismatic one."""
+        if getattr(self, "_axes", None) is not None:
+            return self._axes
+        poses = self._staged_poses()[0]
+        out = {}
+        for j in self.model.joints:
+            if not j.dof:
+                continue
+            R, p = poses[j.child]
+            a = _mm(R, _vec(j.axis))  # the child's rotation about its axis leaves the axis fixed
+            out[j.name] = sp.Matrix([*a, *p.cross(a)]) if j.type == "revolute" else sp.Matrix([0, 0, 0, *a])
+        self._axes = out
+        return out
+
+    def spatial_inertia(self, link: str):
+        """The link's inertia about the base origin, base axes: (m, c, Ī) with c = m p + R h the first
+        moment (kg m) and Ī = R I_o Rᵀ − m S(p)² − S(p) S(R h) − S(R h) S(p) (kg m²); linear in the
+        parameters. As a 6×6 matrix: [[Ī, S(c)], [S(c)ᵀ, m 1]]."""
+        cache = self.__dict__.setdefault("_spatial", {})
+        if link in cache:
+            return cache[link]
+        R, p = self._staged_poses()[0][link]
+        m, h, I = self._inertia(link)
+        Rh = _mm(R, h) if any(x != 0 for x in h) else sp.zeros(3, 1)
+        Sp, SRh = skew(p), skew(Rh)
+        Ibar = _mm(R, I, R.T) - m * Sp * Sp - Sp * SRh - SRh * Sp
+        cache[link] = (m, m * p + Rh, Ibar)
+        return cache[link]
+
+    def staged_mass_matrix(self) -> sp.Matrix:
+        """D(q) by composite rigid bodies: D_ij = S_iᵀ I^c_k S_j, k the deeper of joints i and j on one
+        path, I^c_k the inertia of the subtree below joint k (base frame)."""
+        S, comp = self.motion_axes(), self._composites()
+        D = sp.zeros(self.n, self.n)
+        for j in self.model.joints:
+            if not j.dof:
+                continue
+            F = _apply_inertia(comp[j.child], S[j.name])
+            c = self.columns[j.name]
+            for i in self.path(j.child):
+                if i.dof:
+                    D[self.columns[i.name], c] = D[c, self.columns[i.name]] = _dot(S[i.name], F)
+        return D
+
+    def staged_gravity(self, g) -> sp.Matrix:
+        """G(q) = ∂V/∂q: G_i = S_iᵀ I^c_i [0, 0, 0, 0, 0, g] (the base accelerating up at g), N or N m."""
+        S, comp = self.motion_axes(), self._composites()
+        G = sp.zeros(self.n, 1)
+        for j in self.model.joints:
+            if j.dof:
+                m, c, _ = comp[j.child]
+                s = S[j.name]
+                G[self.columns[j.name]] = _scale(g, s[0] * c[1] - s[1] * c[0] + m * s[5])
+        return G
+
+    def staged_coriolis(self, v) -> sp.Matrix:
+        """Christoffel C(q, v): column j is :meth:`staged_inverse_dynamics` at w = e_j, a = 0, g = 0,
+        summed per link as f_L = I_L (v_j × S_j) + B_L(v_L) S_j on the links below joint j; see there."""
+        S, vel = self.motion_axes(), self._velocities(v)
+        C = sp.zeros(self.n, self.n)
+        below = self._subtrees()
+        for j in self.model.joints:
+            if not j.dof:
+                continue
+            s, c = S[j.name], self.columns[j.name]
+            f = {lk: _zero6() for lk in below[j.child]}
+            dS = _cross_motion(vel[j.child], s)
+            for lk in below[j.child]:
+                inertia = self.spatial_inertia(lk)
+                f[lk] = _apply_inertia(inertia, dS) + _b_term(inertia, vel[lk], s)
+            # rows: the joints above j (and j) see every link below j; joints below j their own subtree
+            total = _sum6(f.values())
+            for i in self.path(j.child):
+                if i.dof:
+                    C[self.columns[i.name], c] = _dot(S[i.name], total)
+            for i in self.model.joints:
+                if i.dof and i.child in below[j.child] and i.child != j.child:
+                    C[self.columns[i.name], c] = _dot(S[i.name], _sum6(f[lk] for lk in below[i.child]))
+        return C
+
+    def staged_inverse_dynamics(self, v, w, a, g) -> sp.Matrix:
+        """τ = D(q) a + C(q, v) w + G(q) with the Christoffel C, by one Newton-Euler pass (n).
+
+        Forward, per link L (base frame, Plücker about the base origin): the velocities v_L, w_L of
+        the rates v and w, the acceleration α_L = Σ S_j a_j + [0, 0, 0, 0, 0, g] and the bias
+        ζ_L = Σ (v_j × S_j) w_j (v_j the velocity of joint j's child, so v_j × S_j = Ṡ_j at rate v);
+        the force f_L = I_L (α_L + ζ_L) + B_L(v_L) w_L with the body Coriolis factor
+        B(v) x = ½ [v ×* (I x) − I (v × x) + x ×* (I v)]. Backward: τ_i = S_iᵀ Σ_{L below i} f_L.
+        At w = v this is Newton-Euler (B(v) v = v ×* I v); the f's difference under v ↔ w is
+        I (v × w) − I (v × w) = 0, so C(q, v) w = C(q, w) v: the unique C with that symmetry and
+        the right C(q, q̇) q̇, the Christoffel one (Echeandia & Wensing 2021 give this factorisation).
+        İ − 2B(v) = −(I v) ×̄* is skew, so Ḋ − 2C is skew."""
+        S, vv, ww = self.motion_axes(), self._velocities(v), self._velocities(w)
+        root = self.model.root
+        acc = {root: sp.Matrix([0, 0, 0, 0, 0, g])}
+        bias = {root: _zero6()}
+        force = {}
+        for j in self.model.joints:
+            acc[j.child], bias[j.child] = acc[j.parent], bias[j.parent]
+            if j.dof:
+                i, s = self.columns[j.name], S[j.name]
+                acc[j.child] = acc[j.child] + s * a[i]
+                bias[j.child] = bias[j.child] + _cross_motion(vv[j.parent], s) * w[i]
+            inertia = self.spatial_inertia(j.child)
+            force[j.child] = _apply_inertia(inertia, acc[j.child] + bias[j.child]) \
+                + _b_term(inertia, vv[j.child], ww[j.child])
+        tau = sp.zeros(self.n, 1)
+        total = dict(force)
+        for j in reversed(self.model.joints):
+            if j.parent != root:
+                total[j.parent] = total[j.parent] + total[j.child]
+            if j.dof:
+                tau[self.columns[j.name]] = _dot(S[j.name], total[j.child])
+        return tau
+
+    def _velocities(self, rates) -> dict:
+        """Per link, its spatial velocity (6×1, base frame) for joint rates ``rates``."""
+        S = self.motion_axes()
+        out = {self.model.root: _zero6()}
+        for j in self.model.joints:
+            out[j.child] = out[j.parent] + S[j.name] * rates[self.columns[j.name]] if j.dof else out[j.parent]
+        return out
+
+    def _subtrees(self) -> dict:
+        """Per link, the links at or below it (tree order)."""
+        out = {}
+        for lk in [self.model.root] + [j.child for j in self.model.joints]:
+            for above in [lk] + [j.parent for j in self.path(lk)]:
+                out.setdefault(above, []).append(lk)
+        return out
+
+    def _composites(self) -> dict:
+        """Per link, the inertia (m, c, Ī) of the subtree at or below it (base frame)."""
+        out = {}
+        for j in reversed(self.model.joints):
+            m, c, I = self.spatial_inertia(j.child)
+            for k in (x.child for x in self.model.joints if x.parent == j.child):
+                mk, ck, Ik = out[k]
+                m, c, I = m + mk, c + ck, I + Ik
+            out[j.child] = (m, c, I)
+        return out
+
+
+#: The depth (moving joints on a path) from which the rigid body is staged: below it the closed
+#: form's code is smaller; see :meth:`SymbolicTree.staged`.
+STAGE_DEPTH = 4
+
+
+def _zero6():
+    return sp.zeros(6, 1)
+
+
+def _sum6(vectors):
+    out = _zero6()
+    for x in vectors:
+        out = out + x
+    return out
+
+
+def _cross_motion(v, m):
+    """v × m for motion vectors [ω; u] (6×1)."""
+    w, u, w2, u2 = v[:3, 0], v[3:, 0], m[:3, 0], m[3:, 0]
+    return sp.Matrix([*w.cross(w2), *(w.cross(u2) + u.cross(w2))])
+
+
+def _cross_force(v, f):
+    """v ×* f for a motion vector v = [ω; u] and a force f = [n; f_l] (6×1)."""
+    w, u, n, fl = v[:3, 0], v[3:, 0], f[:3, 0], f[3:, 0]
+    return sp.Matrix([*(w.cross(n) + u.cross(fl)), *w.cross(fl)])
+
+
+def _apply_inertia(inertia, x):
+    """I x for the spatial inertia (m, c, Ī) and a motion vector x = [ω; u]: [Ī ω + c × u; m u − c × ω]."""
+    m, c, I = inertia
+    w, u = x[:3, 0], x[3:, 0]
+    Iw = [_dot(I[r, :], w) for r in range(3)]  # not Matrix * Matrix: its zero tests query SymPy's assumptions
+    return sp.Matrix([*(sp.Matrix(Iw) + c.cross(u)), *(sp.Matrix([_scale(m, x) for x in u]) - c.cross(w))])
+
+
+def _b_term(inertia, v, x):
+    """B(v) x = ½ [v ×* (I x) − I (v × x) + x ×* (I v)], the body's Coriolis factor (Christoffel)."""
+    v = v / 2  # B is linear in v: halving v's short entries, not the long sum
+    return (_cross_force(v, _apply_inertia(inertia, x)) - _apply_inertia(inertia, _cross_motion(v, x))
+            + _cross_force(x, _apply_inertia(inertia, v)))
+
+
+def _scale(k, e):
+    """k e without SymPy distributing a number k over a long sum e (one product, not one per term)."""
+    k = sp.sympify(k)
+    if k.is_Number and isinstance(e, sp.Add):
+        return sp.Mul(k, e, evaluate=False)
+    return k * e
+
+
+def _dot(a, b):
+    """aᵀ b of two columns, as one sum."""
+    return sp.Add(*[x * y for x, y in zip(a, b) if x != 0 and y != 0])

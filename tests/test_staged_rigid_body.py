@@ -1,0 +1,192 @@
+"""The staged rigid body (link poses as intermediate symbols, spatial algebra over the tree) on the
+synthetic planar chain of benchmarks/bench_scaling.py, against Pinocchio built from the same
+description, and the properties (3) of the paper's controllers: Ḋ − 2C skew, C symmetric in its
+two velocity slots; τ̇_d of the controllers against CasADi's AD through the pose stages.
+
+The functions are evaluated as CasADi Functions straight from the derivation (no C compile)."""
+import sys
+from pathlib import Path
+
+import casadi as ca
+import numpy as np
+import pytest
+
+from hydrogen.codegen.casadi_functions import to_casadi_function
+from hydrogen.codegen.sympy_to_casadi import SympyToCasadi
+from hydrogen.model import INERTIAL_PARAMETERS
+from hydrogen.symbolic import kinematics as K
+from hydrogen.symbolic import rigid_body as RB
+from hydrogen.symbolic.functions import SymbolicFunction, rigid_body_functions
+from hydrogen.symbolic.tree import SymbolicTree
+
+sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "benchmarks"))
+from bench_scaling import chain_model  # noqa: E402
+
+pin = pytest.importorskip("pinocchio")
+N = 4
+
+
+@pytest.fixture(scope="module")
+def chain():
+    return chain_model(N)
+
+
+@pytest.fixture(scope="module")
+def funcs(chain):
+    """The rigid-body functions of the chain as CasADi Functions, by name."""
+    return {sf.name: to_casadi_function(sf) for sf in rigid_body_functions(chain)}
+
+
+def _pinocchio(model):
+    """Pinocchio's model of a revolute/prismatic/fixed tree description, parameters included."""
+    pm = pin.Model()
+    ids = {model.root: 0}
+    for j in model.joints:
+        placement = pin.SE3(pin.rpy.rpyToMatrix(*np.asarray(j.origin_rpy, float)), np.asarray(j.origin_xyz, float))
+        axis = np.asarray(j.axis, float)
+        joint = pin.JointModelRevoluteUnaligned(axis) if j.type == "revolute" else pin.JointModelPrismaticUnaligned(axis)
+        assert j.type in ("revolute", "prismatic")
+        ids[j.child] = pm.addJoint(ids[j.parent], joint, placement, j.name)
+        p = model.link(j.child).parameters()
+        pm.appendBodyToJoint(ids[j.child], pin.Inertia.FromDynamicParameters(
+            np.array([p[k] for k in INERTIAL_PARAMETERS])), pin.SE3.Identity())
+    pm.gravity.linear = np.array([0.0, 0.0, -model.gravity])
+    return pm
+
+
+def _states(model, rng, count=6):
+    for _ in range(count):
+        yield (model.neutral_pose + rng.uniform(-1, 1, model.n), rng.normal(size=model.n),
+               rng.normal(size=model.n), rng.normal(size=model.n))
+
+
+def _close(a, b):
+    b = np.asarray(b, float)
+    a = np.asarray(a, float).reshape(b.shape)  # CasADi returns columns as n×1
+    np.testing.assert_allclose(a, b, rtol=1e-9, atol=1e-9 * max(1.0, np.abs(b).max()))
+
+
+def test_the_chain_is_staged_and_the_shipped_arm_is_not(chain):
+    import hydrogen
+
+    q = K.pose_symbols(chain)
+    assert SymbolicTree(chain, q, RB.theta_symbols(chain)).staged()
+    assert RB.rigid_body_stages(chain, q)  # the functions evaluate the pose stages first
+    for name in hydrogen.models():  # the closed form where it is smaller (short chains, a floating body)
+        m = hydrogen.load_model(name)
+        assert not SymbolicTree(m, K.pose_symbols(m), RB.theta_symbols(m)).staged()
+
+
+def test_staged_rigid_body_equals_pinocchio(chain, funcs, rng):
+    pm = _pinocchio(chain)
+    data = pm.createData()
+    th = chain.theta
+    child = {j.name: j.child for j in chain.joints}
+    cols = {f"{child[pm.names[jid]]}.{p}": 10 * (jid - 1) + k
+            for jid in range(1, pm.njoints) for k, p in enumerate(INERTIAL_PARAMETERS)}
+    pi = np.concatenate([pm.inertias[j].toDynamicParameters() for j in range(1, pm.njoints)])
+    sel = [cols[n] for n in chain.theta_names]
+    _close(th, pi[sel])
+    for q, v, w, a in _states(chain, rng):
+        M = pin.crba(pm, data, q)
+        _close(funcs["mass_matrix"](q, th), np.triu(M) + np.triu(M, 1).T)
+        _close(funcs["coriolis"](q, v, th), pin.computeCoriolisMatrix(pm, data, q, v))
+        _close(funcs["gravity"](q, th), pin.computeGeneralizedGravity(pm, data, q))
+        R = pin.computeJointTorqueRegressor(pm, data, q, v, a)
+        _close(funcs["regressor"](q, v, v, a), R[:, sel])
+        _close(np.asarray(funcs["regressor"](q, v, v, a)) @ th + np.asarray(funcs["regressor_offset"](q, v, v, a)).ravel(),
+               pin.rnea(pm, data, q, v, a))
+        tau = rng.normal(size=chain.n) * 100
+        _close(funcs["forward_dynamics"](q, v, tau, th), pin.aba(pm, data, q, v, tau))
+
+
+def test_staged_regressor_slots_are_D_C_G(chain, funcs, rng):
+    """Y(q, v, w, a) θ + y0 = D a + C(q, v) w + G with w ≠ v: the slots, not only Newton-Euler."""
+    th = chain.theta * rng.uniform(0.5, 1.5, chain.n_theta)
+    for q, v, w, a in _states(chain, rng):
+        D, C, G = (np.asarray(x) for x in (funcs["mass_matrix"](q, th), funcs["coriolis"](q, v, th),
+                                           funcs["gravity"](q, th)))
+        got = np.asarray(funcs["regressor"](q, v, w, a)) @ th + np.asarray(funcs["regressor_offset"](q, v, w, a)).ravel()
+        _close(got, D @ a + C @ w + G.ravel())
+
+
+def test_staged_Ddot_minus_2C_is_skew_and_C_symmetric_in_its_slots(chain, funcs, rng):
+    h = 1e-6
+    for q, v, w, _ in _states(chain, rng):
+        th = chain.theta * rng.uniform(0.5, 1.5, chain.n_theta)
+        Ddot = (np.asarray(funcs["mass_matrix"](q + h * v, th)) - np.asarray(funcs["mass_matrix"](q - h * v, th))) / (2 * h)
+        N = Ddot - 2 * np.asarray(funcs["coriolis"](q, v, th))
+        np.testing.assert_allclose(N + N.T, 0, atol=1e-6 * np.abs(N).max())
+        assert np.abs(N).max() > 1e-3  # N itself is not zero: the test has teeth
+        _close(np.asarray(funcs["coriolis"](q, v, th)) @ w, np.asarray(funcs["coriolis"](q, w, th)) @ v)
+
+
+def test_staged_matches_the_closed_form(chain, rng):
+    """The same D, C, G from both forms of one tree (the closed form differentiates D for C)."""
+    q, th = K.pose_symbols(chain), RB.theta_symbols(chain)
+    v = K.rate_symbols("v", chain.n)
+    tree = SymbolicTree(chain, q, th)
+    g = chain.gravity
+    inputs = [("q", q), ("v", v), ("th", th)]
+    staged = to_casadi_function(SymbolicFunction("s", inputs, [
+        ("D", tree.staged_mass_matrix()), ("C", tree.staged_coriolis(v)), ("G", tree.staged_gravity(g))], "",
+        tree.pose_stages()))
+    D = tree.mass_matrix()
+    closed = to_casadi_function(SymbolicFunction("c", inputs, [
+        ("D", D), ("C", RB.coriolis(D, q, v)), ("G", tree.gravity(g))], ""))
+    for q0, v0, _, _ in _states(chain, rng, 3):
+        th0 = chain.theta * rng.uniform(0.5, 1.5, chain.n_theta)
+        for a, b in zip(staged(q0, v0, th0), closed(q0, v0, th0)):
+            _close(a, b)
+
+
+def _rate_map(model, syms, X, idx):
+    """Each symbol's rate along the controllers' assumptions (q → q̇, q̇ → acc, q_d,k → q_d,k+1, ...)."""
+    rate = ca.SX.zeros(len(syms))
+    get = lambda name: X[idx[name]] if name in idx else 0  # noqa: E731
+    for s in syms:
+        n = str(s)
+        base, _, k = n.rpartition("_")
+        if n.startswith("q_") and not n.startswith("q_hat"):
+            rate[idx[n]] = get(f"qdot_{model.coordinate_names.index(n[2:])}")
+        elif base == "qdot":
+            rate[idx[n]] = get(f"acc_{k}")
+        elif base in ("qd0", "qd1", "qd2"):
+            rate[idx[n]] = get(f"qd{int(base[2]) + 1}_{k}")
+        elif base == "z":
+            rate[idx[n]] = get(f"zdot_{k}")
+        elif base == "theta_hat":
+            rate[idx[n]] = get(f"thetadot_{k}")
+    return rate
+
+
+@pytest.mark.parametrize("kind", ["backstepping", "adaptive-robust"])
+def test_staged_tau_d_dot_matches_casadi_ad_through_the_pose_stages(kind, chain, rng):
+    """τ̇_d, derived by forward mode with the pose rates (Ṙ = S(ω) R, ṗ), equals CasADi's forward AD
+    of τ_d when the poses are evaluated from q (their stages), not held fixed."""
+    from hydrogen.controllers import controller
+    from hydrogen.symbolic.control_laws import Common
+
+    parts = controller(kind).derive(chain)
+    stage = {str(s[0]): (s, v) for s, v in parts.intermediates}
+    _, taud = stage["taud_0"]
+    _, taud_dot = stage["taud_dot_0"]
+    kin = Common(chain).kin
+    defined = {s for syms, _ in kin for s in syms}
+    free = set().union(*(v.free_symbols for _, v in kin if not isinstance(v, tuple)))
+    syms = sorted((taud.free_symbols | taud_dot.free_symbols | free) - defined, key=str)
+    X = ca.SX.sym("X", len(syms))
+    conv = SympyToCasadi({s: X[i] for i, s in enumerate(syms)})
+    for symbols, value in kin:
+        conv.define(symbols, conv(value))
+    assert taud.free_symbols & defined  # τ_d holds pose symbols: the stages matter
+    idx = {str(s): i for i, s in enumerate(syms)}
+    tau_sx, tau_dot_sx = conv(taud), conv(taud_dot)
+    f = ca.Function("f", [X], [ca.jtimes(tau_sx, X, _rate_map(chain, syms, X, idx)), tau_dot_sx])
+    for _ in range(3):
+        x = rng.normal(size=X.numel())
+        for s, i in idx.items():
+            if s.startswith("theta_hat"):
+                x[i] = 40 + abs(x[i])
+        a, b = (np.array(v).ravel() for v in f(x))
+        np.testing.assert_allclose(b, a, rtol=1e-9, atol=1e-9 * max(1, np.abs(a).max()))
