@@ -53,3 +53,18 @@ def test_clip():
     x = sp.Symbol("x")
     f = sp.lambdify([x], clip(x, -1, 2))
     assert [f(-5), f(0.5), f(7)] == [-1, 0.5, 2]
+
+
+def test_projection_equals_its_direct_construction():
+    """The projection puts ρ into a stand-in's canonical structure: the same expression as building
+    it directly, for each type of ρ (a sum, a product with a sign, a symbol)."""
+    from hydrogen.symbolic.calculus import _projection, projection
+
+    a, lo, hi, x, y, z = sp.symbols("a lo hi x y z", real=True)
+    for rho in (x * y + z, -x * (y + z) * 3, x, x * y - z ** 2 + sp.sin(x)):
+        got, want = projection(a, rho, lo, hi), _projection(a, rho, lo, hi)
+        assert got == want and sp.srepr(got) == sp.srepr(want)
+    rho = x * y + z  # the law itself: zero when pushing outward at a bound, else ρ
+    f = sp.lambdify([a, x, y, z], projection(a, rho, 0.5, 1.5))
+    assert f(0.4, 1.0, -2.0, 0.0) == 0.0 and f(0.4, 1.0, 2.0, 0.0) == 2.0
+    assert f(1.6, 1.0, 2.0, 0.0) == 0.0 and f(1.6, 1.0, -2.0, 0.0) == -2.0 and f(1.0, 1.0, -2.0, 0.0) == -2.0

@@ -38,7 +38,6 @@ def derive(model):
     vecs, scal, ad_inputs = c.adaptive_inputs()
     z_dot, th_dot = vector("zdot", n), vector("thetadot", c.p)
     Lam1, Kd = diag(c.Lam), diag(c.Kd)
-    D_hat = c.D(th_hat)
     qtil = c.q - q_hat
     q_hat_dot = z + diag(Lam2) * qtil
     qr_dot = c.qd[1] - Lam1 * (q_hat - c.qd[0])
@@ -46,11 +45,11 @@ def derive(model):
     s1 = c.qdot - qr_dot
     s2 = c.qdot - z  # q̇_o = q̂̇ − Λ2 q̃ = z
     # (22): holds q, q̂, z and the reference; τ̇_d needs ż, never q̈.
-    tau_d = D_hat * qr_ddot + c.C(th_hat, qr_dot) * qr_dot + c.G(th_hat) - Kd * (z - qr_dot) - diag(c.Kp) * c.e
+    tau_d = c.dynamics(th_hat, qr_dot, qr_dot, qr_ddot) - Kd * (z - qr_dot) - diag(c.Kp) * c.e
     tau_d_dot = time_derivative(tau_d, [(c.q, c.qdot), (q_hat, q_hat_dot), (z, z_dot), (th_hat, th_dot),
                                         *c.desired_rates(), *c.pose_rates])
     tau = c.JL.T * c.f
-    rhs = tau - c.C(th_hat, c.qdot) * z - c.G(th_hat) + diag(Lp) * qtil + Kd * s1 + diag(Kd2) * s2
+    rhs = tau - c.dynamics(th_hat, c.qdot, z) + diag(Lp) * qtil + Kd * s1 + diag(Kd2) * s2
     z_dot_value, solve_stages = solve_or_inverse(model, c.q, th_hat, rhs, "zdot_solve")
     Y1 = c.Y(qr_dot, qr_dot, qr_ddot, th_hat)
     Y2 = c.Y(c.qdot, z, z_dot, th_hat)

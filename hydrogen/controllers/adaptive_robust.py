@@ -55,8 +55,7 @@ def derive(model):
     s = c.qdot - qr_dot
     ztil = c.qdot - z
     # (44) as read in the notes: holds q and z, never the measured q̇.
-    tau_d = D_hat * (c.qd[2] - Lam * (z - c.qd[1])) + c.C(th_hat, z) * qr_dot \
-        + c.G(th_hat) - Kd * (z - qr_dot) - diag(c.Kp) * c.e
+    tau_d = c.dynamics(th_hat, z, qr_dot, c.qd[2] - Lam * (z - c.qd[1])) - Kd * (z - qr_dot) - diag(c.Kp) * c.e
     tau_d_dot = time_derivative(tau_d, [(c.q, c.qdot), (z, z_dot), (th_hat, th_dot), *c.desired_rates(),
                                         *c.pose_rates])
     tau = c.JL.T * c.f

@@ -37,9 +37,9 @@ def derive(model):
     qr_dot = c.qd[1] - Lam * c.e
     qr_ddot = c.qd[2] - Lam * (c.qdot - c.qd[1])
     s = c.qdot - qr_dot
-    tau_d = c.D(th) * qr_ddot + c.C(th, c.qdot) * qr_dot + c.G(th) - diag(c.Kp) * c.e - diag(c.Kd) * s
+    tau_d = c.dynamics(th, c.qdot, qr_dot, qr_ddot) - diag(c.Kp) * c.e - diag(c.Kd) * s
     tau_d_dot = time_derivative(tau_d, [(c.q, c.qdot), (c.qdot, acc), *c.desired_rates(), *c.pose_rates])
-    acc_value, acc_stages = solve_or_inverse(model, c.q, th, c.JL.T * c.f - c.C(th, c.qdot) * c.qdot - c.G(th),
+    acc_value, acc_stages = solve_or_inverse(model, c.q, th, c.JL.T * c.f - c.dynamics(th, c.qdot, c.qdot),
                                              "acc_solve")
     fd, _, _, _, u, taud, stages = c.force_loop(tau_d, tau_d_dot, s, g1, g2)
     return ControllerParts(

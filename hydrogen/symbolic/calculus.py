@@ -108,13 +108,37 @@ def _forward_rule(n, rate_of, memo):
 
 
 def projection(estimate, rho, lower, upper) -> sp.Expr:
-    """κ(a, b, ρ) ρ of Lemma 1 (eq. 18) for one parameter: stop at a bound when pushing outward."""
+    """κ(a, b, ρ) ρ of Lemma 1 (eq. 18) for one parameter: stop at a bound when pushing outward.
+
+    Built on a two-symbol stand-in for a long ρ, then ρ put in its place node by node without
+    SymPy's canonicalisation: And, Or and Piecewise sort and search their arguments by walking
+    them as trees, which for the regressor's ρ of a deep chain cost minutes. The stand-in has ρ's
+    type, and the canonical order of these arguments depends on nothing else (a test checks the
+    result equals the direct construction)."""
+    rho = sp.sympify(rho)
+    if rho.is_Atom or type(rho) not in (sp.Add, sp.Mul):
+        return _projection(estimate, rho, lower, upper)
+    a, b = sp.Dummy("a", real=True), sp.Dummy("b", real=True)
+    stand_in = type(rho)(a, b)
+    return _put(_projection(estimate, stand_in, lower, upper), stand_in, rho)
+
+
+def _projection(estimate, rho, lower, upper):
     # evaluate=False throughout: SymPy would otherwise query assumptions on the (large) ρ
     # to try to decide the conditions, which costs minutes and can never succeed here.
     le, ge = (lambda a, b: sp.Le(a, b, evaluate=False)), (lambda a, b: sp.Ge(a, b, evaluate=False))
     stop = sp.Or(sp.And(le(estimate, lower), le(rho, 0), evaluate=False),
                  sp.And(ge(estimate, upper), ge(rho, 0), evaluate=False), evaluate=False)
     return sp.Piecewise((sp.S.Zero, stop), (rho, True), evaluate=False)
+
+
+def _put(expr, old, new):
+    """``expr`` with the node ``old`` replaced by ``new``, every node rebuilt as it is (no re-sorting)."""
+    if expr == old:
+        return new
+    if expr.is_Atom or not expr.has(old):
+        return expr
+    return sp.Basic.__new__(type(expr), *[_put(x, old, new) for x in expr.args])
 
 
 def clip(x, lower, upper) -> sp.Expr:

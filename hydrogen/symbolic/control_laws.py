@@ -22,7 +22,8 @@ from . import hydraulics as hyd
 from .calculus import clip, projection
 from .constants import PRESSURE_EPS, baked
 from .kinematics import leg_intermediates, matrix_symbols, pose_rates, pose_symbols, rate_symbols
-from .rigid_body import coriolis_matrix, gravity, mass_matrix, mass_matrix_inverse, regressor, theta_symbols
+from .rigid_body import (coriolis_matrix, gravity, inverse_dynamics, mass_matrix, mass_matrix_inverse, regressor,
+                         rigid_body_stages, theta_symbols)
 
 __all__ = ["ControllerParts", "Common", "diag", "vector", "scalar", "solve_or_inverse"]
 
@@ -80,6 +81,7 @@ class Common:
         self.l, self.JL, self.JLdot, self.kin = leg_intermediates(model, self.q, self.qdot)
         # (R, Ṙ), (p, ṗ) of the link poses in kin, which D, C, G, Y of a staged tree hold: time_derivative needs them
         self.pose_rates = pose_rates(model, self.q, self.qdot)
+        self.staged = bool(rigid_body_stages(model, self.q))
         self.ldot = self.JL * self.qdot
         self.f = sp.Matrix([hyd.leg_force(self.pc[i], self.ps[i], self.A[i], self.a[i]) for i in range(m)])
         self.Jit = matrix_symbols("JLinvT", n, m)
@@ -96,6 +98,15 @@ class Common:
 
     def G(self, theta):
         return gravity(self.model, self.q, theta)
+
+    def dynamics(self, theta, v, w, a=None):
+        """D(q, θ) a + C(q, θ, v) w + G(q, θ) (n; no D a term when ``a`` is None): one Newton-Euler
+        pass on a staged tree, where the products of the n×n D and C with vectors cost SymPy most of
+        a controller's derivation; the same expression as the products on the closed form."""
+        if not self.staged:
+            out = self.C(theta, v) * w + self.G(theta)
+            return out if a is None else self.D(theta) * a + out
+        return inverse_dynamics(self.model, self.q, v, w, sp.zeros(self.n, 1) if a is None else a, theta)
 
     def Y(self, v, w, a, theta):
         return regressor(self.model, self.q, v, w, a, theta)

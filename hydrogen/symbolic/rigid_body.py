@@ -118,6 +118,9 @@ def regressor(model, q, v, w, a, theta) -> sp.Matrix:
     only parameter is θ_k = 1: small expressions, where differentiating the whole dynamics by θ
     costs SymPy seconds per controller on a serial arm."""
     p, g = len(model.theta_names), baked(model.gravity)
+    tree = symbolic_tree(model, q, theta)
+    if tree.staged():  # one pass over the links' motion, each column one link's unit-parameter force
+        return tree.staged_regressor(sp.Matrix(v), sp.Matrix(w), sp.Matrix(a), g, model.theta_names)
     cols = []
     for k in range(p):
         unit = [sp.S.One if i == k else sp.S.Zero for i in range(p)]

@@ -147,8 +147,8 @@ class SymbolicTree:
         self._closed = out
         return out
 
-    def _inertia(self, link):
-        p = self.params[link]
+    def _inertia(self, link, unit=None):
+        p = self.params[link] if unit is None else {k: unit.get(k, sp.S.Zero) for k in self.params[link]}
         h = sp.Matrix([p["mcx"], p["mcy"], p["mcz"]])
         I = sp.Matrix([[p["Ixx"], p["Ixy"], p["Ixz"]], [p["Ixy"], p["Iyy"], p["Iyz"]],
                        [p["Ixz"], p["Iyz"], p["Izz"]]])
@@ -355,20 +355,22 @@ class SymbolicTree:
         self._axes = out
         return out
 
-    def spatial_inertia(self, link: str):
+    def spatial_inertia(self, link: str, unit=None):
         """The link's inertia about the base origin, base axes: (m, c, Ī) with c = m p + R h the first
         moment (kg m) and Ī = R I_o Rᵀ − m S(p)² − S(p) S(R h) − S(R h) S(p) (kg m²); linear in the
-        parameters. As a 6×6 matrix: [[Ī, S(c)], [S(c)ᵀ, m 1]]."""
+        parameters. As a 6×6 matrix: [[Ī, S(c)], [S(c)ᵀ, m 1]]. ``unit`` ({name: 1}) replaces the
+        link's parameters by that one alone (a regressor column)."""
         cache = self.__dict__.setdefault("_spatial", {})
-        if link in cache:
-            return cache[link]
+        key = (link, None if unit is None else tuple(unit))
+        if key in cache:
+            return cache[key]
         R, p = self._staged_poses()[0][link]
-        m, h, I = self._inertia(link)
+        m, h, I = self._inertia(link, unit)
         Rh = _mm(R, h) if any(x != 0 for x in h) else sp.zeros(3, 1)
         Sp, SRh = skew(p), skew(Rh)
         Ibar = _mm(R, I, R.T) - m * Sp * Sp - Sp * SRh - SRh * Sp
-        cache[link] = (m, m * p + Rh, Ibar)
-        return cache[link]
+        cache[key] = (m, sp.Matrix([_scale(m, x) for x in p]) + Rh, Ibar)
+        return cache[key]
 
     def staged_mass_matrix(self) -> sp.Matrix:
         """D(q) by composite rigid bodies: D_ij = S_iᵀ I^c_k S_j, k the deeper of joints i and j on one
@@ -433,20 +435,10 @@ class SymbolicTree:
         I (v × w) − I (v × w) = 0, so C(q, v) w = C(q, w) v: the unique C with that symmetry and
         the right C(q, q̇) q̇, the Christoffel one (Echeandia & Wensing 2021 give this factorisation).
         İ − 2B(v) = −(I v) ×̄* is skew, so Ḋ − 2C is skew."""
-        S, vv, ww = self.motion_axes(), self._velocities(v), self._velocities(w)
-        root = self.model.root
-        acc = {root: sp.Matrix([0, 0, 0, 0, 0, g])}
-        bias = {root: _zero6()}
-        force = {}
-        for j in self.model.joints:
-            acc[j.child], bias[j.child] = acc[j.parent], bias[j.parent]
-            if j.dof:
-                i, s = self.columns[j.name], S[j.name]
-                acc[j.child] = acc[j.child] + s * a[i]
-                bias[j.child] = bias[j.child] + _cross_motion(vv[j.parent], s) * w[i]
-            inertia = self.spatial_inertia(j.child)
-            force[j.child] = _apply_inertia(inertia, acc[j.child] + bias[j.child]) \
-                + _b_term(inertia, vv[j.child], ww[j.child])
+        motion = self._link_motion(v, w, a, g)
+        force = {lk: _apply_inertia(self.spatial_inertia(lk), acc) + _b_term(self.spatial_inertia(lk), vv, ww)
+                 for lk, (acc, vv, ww) in motion.items()}
+        S, root = self.motion_axes(), self.model.root
         tau = sp.zeros(self.n, 1)
         total = dict(force)
         for j in reversed(self.model.joints):
@@ -455,6 +447,38 @@ class SymbolicTree:
             if j.dof:
                 tau[self.columns[j.name]] = _dot(S[j.name], total[j.child])
         return tau
+
+    def staged_regressor(self, v, w, a, g, names) -> sp.Matrix:
+        """Y (n×p): column k is :meth:`staged_inverse_dynamics` of a robot whose only parameter is the
+        one named ``names[k]`` ("link.parameter"), set to 1: that link's force f = I (α + ζ) + B(v) w
+        with its unit inertia, on the joints above it. The links' motion is computed once."""
+        motion, S = self._link_motion(v, w, a, g), self.motion_axes()
+        Y = sp.zeros(self.n, len(names))
+        for k, name in enumerate(names):
+            link, par = name.rsplit(".", 1)
+            inertia = self.spatial_inertia(link, {par: sp.S.One})
+            acc, vv, ww = motion[link]
+            f = _apply_inertia(inertia, acc) + _b_term(inertia, vv, ww)
+            for j in self.path(link):
+                if j.dof:
+                    Y[self.columns[j.name], k] = _dot(S[j.name], f)
+        return Y
+
+    def _link_motion(self, v, w, a, g) -> dict:
+        """Per link: (α + ζ, v_L, w_L) of :meth:`staged_inverse_dynamics` (base frame)."""
+        S, vv, ww = self.motion_axes(), self._velocities(v), self._velocities(w)
+        root = self.model.root
+        acc = {root: sp.Matrix([0, 0, 0, 0, 0, g])}
+        bias = {root: _zero6()}
+        out = {}
+        for j in self.model.joints:
+            acc[j.child], bias[j.child] = acc[j.parent], bias[j.parent]
+            if j.dof:
+                i, s = self.columns[j.name], S[j.name]
+                acc[j.child] = acc[j.child] + s * a[i]
+                bias[j.child] = bias[j.child] + _cross_motion(vv[j.parent], s) * w[i]
+            out[j.child] = (acc[j.child] + bias[j.child], vv[j.child], ww[j.child])
+        return out
 
     def _velocities(self, rates) -> dict:
         """Per link, its spatial velocity (6×1, base frame) for joint rates ``rates``."""
@@ -500,16 +524,27 @@ def _sum6(vectors):
     return out
 
 
+# The products below skip exact zeros themselves: SymPy's 0 · x asks whether x is finite, which on a
+# long expression walks it through the assumptions system (seconds per controller on a deep chain).
+def _mul(a, b):
+    return sp.S.Zero if a is sp.S.Zero or b is sp.S.Zero else a * b
+
+
+def _cross(a, b):
+    return sp.Matrix([sp.Add(_mul(a[1], b[2]), -_mul(a[2], b[1])), sp.Add(_mul(a[2], b[0]), -_mul(a[0], b[2])),
+                      sp.Add(_mul(a[0], b[1]), -_mul(a[1], b[0]))])
+
+
 def _cross_motion(v, m):
     """v × m for motion vectors [ω; u] (6×1)."""
     w, u, w2, u2 = v[:3, 0], v[3:, 0], m[:3, 0], m[3:, 0]
-    return sp.Matrix([*w.cross(w2), *(w.cross(u2) + u.cross(w2))])
+    return sp.Matrix([*_cross(w, w2), *(_cross(w, u2) + _cross(u, w2))])
 
 
 def _cross_force(v, f):
     """v ×* f for a motion vector v = [ω; u] and a force f = [n; f_l] (6×1)."""
     w, u, n, fl = v[:3, 0], v[3:, 0], f[:3, 0], f[3:, 0]
-    return sp.Matrix([*(w.cross(n) + u.cross(fl)), *w.cross(fl)])
+    return sp.Matrix([*(_cross(w, n) + _cross(u, fl)), *_cross(w, fl)])
 
 
 def _apply_inertia(inertia, x):
@@ -517,7 +552,7 @@ def _apply_inertia(inertia, x):
     m, c, I = inertia
     w, u = x[:3, 0], x[3:, 0]
     Iw = [_dot(I[r, :], w) for r in range(3)]  # not Matrix * Matrix: its zero tests query SymPy's assumptions
-    return sp.Matrix([*(sp.Matrix(Iw) + c.cross(u)), *(sp.Matrix([_scale(m, x) for x in u]) - c.cross(w))])
+    return sp.Matrix([*(sp.Matrix(Iw) + _cross(c, u)), *(sp.Matrix([_scale(m, x) for x in u]) - _cross(c, w))])
 
 
 def _b_term(inertia, v, x):
@@ -530,6 +565,8 @@ def _b_term(inertia, v, x):
 def _scale(k, e):
     """k e without SymPy distributing a number k over a long sum e (one product, not one per term)."""
     k = sp.sympify(k)
+    if k is sp.S.Zero or e is sp.S.Zero:
+        return sp.S.Zero
     if k.is_Number and isinstance(e, sp.Add):
         return sp.Mul(k, e, evaluate=False)
     return k * e
@@ -537,4 +574,4 @@ def _scale(k, e):
 
 def _dot(a, b):
     """aᵀ b of two columns, as one sum."""
-    return sp.Add(*[x * y for x, y in zip(a, b) if x != 0 and y != 0])
+    return sp.Add(*[x * y for x, y in zip(a, b) if x is not sp.S.Zero and y is not sp.S.Zero])
