@@ -38,18 +38,24 @@ def funcs(chain):
 
 
 def _pinocchio(model):
-    """Pinocchio's model of a revolute/prismatic/fixed tree description, parameters included."""
+    """Pinocchio's model of a revolute/prismatic/fixed tree description, parameters included (a
+    link on a fixed joint is merged into its parent joint's body at its placement)."""
     pm = pin.Model()
-    ids = {model.root: 0}
+    frame = {model.root: (0, pin.SE3.Identity())}  # link -> (Pinocchio joint, placement in that joint)
     for j in model.joints:
-        placement = pin.SE3(pin.rpy.rpyToMatrix(*np.asarray(j.origin_rpy, float)), np.asarray(j.origin_xyz, float))
+        parent, above = frame[j.parent]
+        placement = above * pin.SE3(pin.rpy.rpyToMatrix(*np.asarray(j.origin_rpy, float)),
+                                    np.asarray(j.origin_xyz, float))
         axis = np.asarray(j.axis, float)
-        joint = pin.JointModelRevoluteUnaligned(axis) if j.type == "revolute" else pin.JointModelPrismaticUnaligned(axis)
-        assert j.type in ("revolute", "prismatic")
-        ids[j.child] = pm.addJoint(ids[j.parent], joint, placement, j.name)
+        if j.type == "fixed":
+            frame[j.child] = (parent, placement)
+        else:
+            joint = {"revolute": pin.JointModelRevoluteUnaligned,
+                     "prismatic": pin.JointModelPrismaticUnaligned}[j.type](axis)
+            frame[j.child] = (pm.addJoint(parent, joint, placement, j.name), pin.SE3.Identity())
         p = model.link(j.child).parameters()
-        pm.appendBodyToJoint(ids[j.child], pin.Inertia.FromDynamicParameters(
-            np.array([p[k] for k in INERTIAL_PARAMETERS])), pin.SE3.Identity())
+        pid, at = frame[j.child]
+        pm.appendBodyToJoint(pid, pin.Inertia.FromDynamicParameters(np.array([p[k] for k in INERTIAL_PARAMETERS])), at)
     pm.gravity.linear = np.array([0.0, 0.0, -model.gravity])
     return pm
 
@@ -190,3 +196,67 @@ def test_staged_tau_d_dot_matches_casadi_ad_through_the_pose_stages(kind, chain,
                 x[i] = 40 + abs(x[i])
         a, b = (np.array(v).ravel() for v in f(x))
         np.testing.assert_allclose(b, a, rtol=1e-9, atol=1e-9 * max(1, np.abs(a).max()))
+
+
+def _branching_tree(rng):
+    """A tree with every joint type the staged form takes: revolute (about coordinate and skew axes),
+    prismatic, fixed, a branch and rotated origins; 4 moving joints deep (staged). Random inertias."""
+    from dataclasses import replace
+
+    from hydrogen.model import Joint, Link
+
+    def link(name):
+        A = rng.normal(size=(3, 3))
+        return Link(name, float(rng.uniform(1, 5)), rng.normal(size=3) * 0.3, A @ A.T + np.eye(3))
+
+    spec = [("j1", "revolute", "base", "a", [0, 0, 0.3], [0.2, 0, 0], [0, 0, 1]),
+            ("j2", "prismatic", "a", "b", [0.5, 0, 0], [0.1, -0.2, 0.3], [1, 0, 0]),
+            ("j3", "revolute", "b", "c", [0, 0.4, 0], [0, 0, 0], [0, 1, 0]),
+            ("j4", "fixed", "c", "d", [0.3, 0, 0.1], [0.4, 0.1, -0.2], [1, 0, 0]),
+            ("j5", "revolute", "d", "e", [0, 0, 0.5], [0, 0, 0], [2 ** -0.5, 2 ** -0.5, 0]),
+            ("j6", "revolute", "b", "f", [0, -0.4, 0], [0, 0.3, 0], [1, 0, 0])]
+    joints = tuple(Joint(n, t, p, c, np.array(x, float), np.array(r, float), np.array(ax, float))
+                   for n, t, p, c, x, r, ax in spec)
+    links = (Link("base", 0.0, np.zeros(3), np.zeros((3, 3))),) + tuple(link(x) for x in "abcdef")
+    names = ("a.Izz", "b.mass", "c.mcx", "c.Ixy", "e.mcz", "e.Iyy", "f.mass", "f.Ixx")
+    m = replace(chain_model(4), name="tree", links=links, joints=joints, cylinders=(),
+                coordinate_names=("j1", "j2", "j3", "j5", "j6"), theta_names=names)
+    return m, np.array([m.link(x.split(".")[0]).parameters()[x.split(".")[1]] for x in names])
+
+
+def test_staged_tree_with_every_joint_type_equals_pinocchio_and_the_closed_form(rng):
+    model, theta = _branching_tree(rng)
+    n = len(model.coordinate_names)
+    q, th = K.rate_symbols("q", n), RB.theta_symbols(model)
+    v, w, a = (K.rate_symbols(k, n) for k in "vwa")
+    tree = SymbolicTree(model, q, th)
+    assert tree.staged() and tree.depth() == 4
+    g = model.gravity
+    inputs = [("q", q), ("v", v), ("w", w), ("a", a), ("th", th)]
+    D = tree.mass_matrix()
+    closed = to_casadi_function(SymbolicFunction("c", inputs, [("D", D), ("C", RB.coriolis(D, q, v)),
+                                                               ("G", tree.gravity(g))], ""))
+    zero = SymbolicTree(model, q, [0] * len(th))
+    staged = to_casadi_function(SymbolicFunction("s", inputs, [
+        ("D", tree.staged_mass_matrix()), ("C", tree.staged_coriolis(v)), ("G", tree.staged_gravity(g)),
+        ("tau", tree.staged_inverse_dynamics(v, w, a, g)),
+        ("Y", tree.staged_regressor(v, w, a, g, model.theta_names)),
+        ("y0", zero.staged_inverse_dynamics(v, w, a, g))], "", tree.pose_stages()))
+    pm = _pinocchio(model)
+    data = pm.createData()
+    moving = [j.child for j in model.joints if j.type != "fixed"]
+    cols = [10 * moving.index(x.split(".")[0]) + INERTIAL_PARAMETERS.index(x.split(".")[1])
+            for x in model.theta_names]
+    for _ in range(5):
+        q0, v0, w0, a0 = (rng.normal(size=n) for _ in range(4))
+        Ds, Cs, Gs, tau, Y, y0 = staged(q0, v0, w0, a0, theta)
+        for x, y in zip((Ds, Cs, Gs), closed(q0, v0, w0, a0, theta)):
+            _close(x, y)
+        M = pin.crba(pm, data, q0)
+        _close(Ds, np.triu(M) + np.triu(M, 1).T)
+        _close(Cs, pin.computeCoriolisMatrix(pm, data, q0, v0))
+        _close(Gs, pin.computeGeneralizedGravity(pm, data, q0))
+        _close(tau, np.asarray(Ds) @ a0 + np.asarray(Cs) @ w0 + np.asarray(Gs).ravel())
+        _close(np.asarray(Y) @ theta + np.asarray(y0).ravel(), np.asarray(tau).ravel())
+        # at w = v, Y's columns are Pinocchio's for those parameters
+        _close(staged(q0, v0, v0, a0, theta)[4], pin.computeJointTorqueRegressor(pm, data, q0, v0, a0)[:, cols])

@@ -128,7 +128,14 @@ class SymbolicTree:
             R_p, p_p, Jv_p, Jw_p, Jww_p = out[j.parent]  # Jww: angular velocity Jacobian, base frame
             R_o, xyz, i = _rot_xyz(j.origin_rpy), _vec(j.origin_xyz), self.columns[j.name]
             lever = _mm(R_p, xyz)
-            Jv = Jv_p - skew(lever) * Jww_p if any(x != 0 for x in lever) else Jv_p
+            # the child origin's offset from the parent's: a prismatic or floating joint's own
+            # displacement moves it too (the lever of the ancestors' angular velocity)
+            arm = lever
+            if j.type == "prismatic":
+                arm = lever + _mm(R_p, R_o, _vec(j.axis)) * q[i]
+            elif j.type == "floating":
+                arm = lever + _mm(R_p, q[i:i + 3, 0])
+            Jv = Jv_p - skew(arm) * Jww_p if any(x != 0 for x in arm) and any(x != 0 for x in Jww_p) else Jv_p
             Jv, Jww = sp.Matrix(Jv), sp.Matrix(Jww_p)
             if j.type == "revolute":
                 R_rel = _mm(R_o, _axis_rotation(j.axis, q[i]))
