@@ -156,7 +156,7 @@ def plot_experiment(nonlinear, p, coord, path, title=None) -> Path:
     Parameters
     ----------
     nonlinear, p : SimulationResult
-        Runs of the same scenario with the nonlinear (adaptive-robust) and the P controller.
+        Runs of the same scenario with the nonlinear controller (the legend names it) and the P controller.
     coord : str
         A coordinate name of the model.
     path : str or Path
@@ -177,7 +177,7 @@ def plot_experiment(nonlinear, p, coord, path, title=None) -> Path:
     bias = float(np.mean(nonlinear.q_d[:, i])) if len(nonlinear.t) else 0.0
     fig, (ax1, ax2) = plt.subplots(2, 1, sharex=True, figsize=(7.0, 6.0))
     ax1.plot(nonlinear.t, _SCALE * (nonlinear.q_d[:, i] - bias), "k--", lw=1.0, label="reference")
-    runs = ((nonlinear, "nonlinear", "C0"), (p, "P", "C3"))
+    runs = ((nonlinear, f"nonlinear ({nonlinear.controller})", "C0"), (p, "P", "C3"))
     for res, name, color in runs:
         lab = f"{name} (max error {_fmt_pct(_max_pct(res, coord))})"
         ax1.plot(res.t, _SCALE * (res.q[:, i] - bias), color=color, lw=1.0, label=lab)
@@ -222,7 +222,8 @@ def plot_step(nonlinear, p, path, title=None, coord=None) -> Path:
     z0 = float(nonlinear.q_d[0, i]) if len(nonlinear.t) else 0.0
     fig, ax = plt.subplots(figsize=(7.0, 4.0))
     ax.plot(nonlinear.t, _SCALE * (nonlinear.q_d[:, i] - z0), "k--", lw=1.0, label="reference")
-    ax.plot(nonlinear.t, _SCALE * (nonlinear.q[:, i] - z0), color="C0", lw=1.0, label="nonlinear")
+    ax.plot(nonlinear.t, _SCALE * (nonlinear.q[:, i] - z0), color="C0", lw=1.0,
+            label=f"nonlinear ({nonlinear.controller})")
     ax.plot(p.t, _SCALE * (p.q[:, i] - z0), color="C3", lw=1.0, label="P")
     ax.set_xlabel("time (s)")
     ax.set_ylabel(f"${sym} - {sym}_d(0)$ ({unit})")
@@ -272,7 +273,7 @@ def comparison_table(rows) -> str:
     return "\n".join(lines) + "\n"
 
 
-def make_all(dyn, out_dir, quiet=True, *, durations=None, gains=None, nonlinear="adaptive-robust") -> dict:
+def make_all(dyn, out_dir, quiet=True, *, durations=None, gains=None, nonlinear=None) -> dict:
     """Run the model's scenarios and write every figure and the comparison table into ``out_dir``.
 
     Driven by the description's scenarios: each scenario without the rig (the paper's section V
@@ -294,12 +295,18 @@ def make_all(dyn, out_dir, quiet=True, *, durations=None, gains=None, nonlinear=
         {scenario name: duration s} overriding the scenarios' durations (e.g. short runs in tests).
     gains : dict, optional
         {controller name: gains dict} passed to ``simulate(..., gains=...)``.
+    nonlinear : str, optional
+        The controller of the figures' and the table's "nonlinear" runs; default the model's
+        ``[figures] nonlinear`` (adaptive-robust unless the description says otherwise). The table's
+        caption names it.
 
     Returns
     -------
     dict
         {"<scenario>[_<coordinate>]" or "<scenario>_parameters" or "table"} → Path of the written file.
     """
+    from .controllers import CONTROLLERS
+    from .errors import ScenarioError
     from .simulation.reference import Step
     from .simulation.scenarios import scenario as named_scenario, scenario_names
     from .simulation.simulator import simulate
@@ -310,6 +317,10 @@ def make_all(dyn, out_dir, quiet=True, *, durations=None, gains=None, nonlinear=
     from tqdm import tqdm
 
     model = dyn.model
+    nonlinear = model.figures_nonlinear if nonlinear is None else nonlinear
+    if nonlinear not in CONTROLLERS or nonlinear == "p":
+        raise ScenarioError(f"{model.source}: the figures' nonlinear controller must be one of "
+                            f"{', '.join(c for c in CONTROLLERS if c != 'p')}, got {nonlinear!r}")
     scenarios = [named_scenario(nm, model) for nm in scenario_names(model)]
     total = sum(1 if sc.friction[0] == 0 and not sc.kalman and not isinstance(sc.reference, Step)
                 else (2 if isinstance(sc.reference, Step) else 3) for sc in scenarios)
@@ -346,7 +357,8 @@ def make_all(dyn, out_dir, quiet=True, *, durations=None, gains=None, nonlinear=
                          _max_pct(bs, coord)))
 
     table = (f"Maximum tracking error in % of the reference amplitude, model {model.name}: simulation "
-             "vs paper (section VI) where it reports one.\n\n" + comparison_table(rows))
+             f"vs paper (section VI) where it reports one. \"nonlinear\" is the {nonlinear} controller.\n\n"
+             + comparison_table(rows))
     paths["table"] = out / "table.md"
     atomic_write(paths["table"], table)
     bar.close()

@@ -163,6 +163,9 @@ class Model:
     gamma2_max: float
     joint_encoders: bool = False
     scale: np.ndarray = None
+    # The controller the figures and their table call "nonlinear" ([figures] nonlinear); default the
+    # paper's experiments' controller (Theorem 3). Checked against the controllers where it is used.
+    figures_nonlinear: str = field(default="adaptive-robust", compare=False)
     gains: dict = field(default_factory=dict, repr=False, compare=False)
     scenarios: dict = field(default_factory=dict, repr=False, compare=False)
     source: str = "<memory>"
@@ -539,7 +542,7 @@ def model_from_dict(data: dict, source: str = "<memory>", base_dir: Path | None 
     """Validate parsed TOML data and build a :class:`Model`; errors name the source and the key."""
     r = _Reader(source)
     top = {"name", "urdf", "gravity", "links", "joints", "coordinates", "hydraulics", "cylinders",
-           "adaptation", "sensors", "control", "gains", "rig", "scenarios"}
+           "adaptation", "sensors", "control", "figures", "gains", "rig", "scenarios"}
     r.known(data, top, "top level")
     name = check_model_name(source, r.require(data, "name", "top level"))
     gravity = r.number("gravity", r.require(data, "gravity", "top level"), "nonnegative")
@@ -605,12 +608,15 @@ def model_from_dict(data: dict, source: str = "<memory>", base_dir: Path | None 
     control = r.table(data, "control", required=False)
     r.known(control, {"scale"}, "[control]")
     scale = r.vector("[control] scale", control["scale"], n, "positive") if "scale" in control else None
+    figs = r.table(data, "figures", required=False)
+    r.known(figs, {"nonlinear"}, "[figures]")
+    nonlinear = r.name("[figures] nonlinear", figs["nonlinear"]) if "nonlinear" in figs else "adaptive-robust"
     gains = r.table(data, "gains", required=False)
     scen = r.table(data, "scenarios", required=False)
     rig = r.table(data, "rig", required=False)
     model = Model(name=name, gravity=gravity, root=root, links=links, joints=joints, cylinders=cylinders,
                   coordinate_names=tuple(names), neutral_pose=neutral, theta_names=tuple(params),
-                  theta_min=tmin, theta_max=tmax, joint_encoders=enc, scale=scale, gains=gains,
+                  theta_min=tmin, theta_max=tmax, joint_encoders=enc, scale=scale, figures_nonlinear=nonlinear, gains=gains,
                   scenarios={"rig": rig, **scen}, source=source, urdf=urdf, raw=data, **gb)
     _check_bounds(r, model)
     _check_neutral(r, model)

@@ -495,7 +495,7 @@ def test_every_subcommand_refuses_bad_arguments_with_status_2(tmp_path):
            "HYDROGEN_CACHE_DIR": str(tmp_path / "cache")}  # a cold cache: nothing may build before refusing
     procs = []
     for args in _BAD:
-        argv = [sys.executable, "-m", "hydrogen.cli", *(a.format(**fill) for a in args)]
+        argv = [sys.executable, "-m", "hydrogen", *(a.format(**fill) for a in args)]
         procs.append((args, subprocess.Popen(argv, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
                                              env=env, cwd=tmp_path)))
     for args, proc in procs:

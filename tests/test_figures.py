@@ -113,3 +113,17 @@ def test_comparison_table():
     assert "| z 1 Hz | z | 3.2 | 40.0 | 4.0 | 43.0 |" in lines
     assert "| psi 1 Hz | psi | n/a | 41.5 | 4.0 | 41.0 |" in lines
     assert len(lines) == 4
+
+
+def test_make_all_names_the_nonlinear_controller(tmp_path, cache):
+    dyn = hydrogen.build(hydrogen.load_model("excavator_arm"), cache=cache)
+    short = {"arm-sim": 0.2, "arm-dig": 0.2}
+    paths = figures.make_all(dyn, tmp_path / "a", durations=short)  # the description's: adaptive-robust
+    assert '"nonlinear" is the adaptive-robust controller' in paths["table"].read_text()
+    paths = figures.make_all(dyn, tmp_path / "b", durations=short, nonlinear="adaptive-observer")
+    table = paths["table"].read_text()
+    assert '"nonlinear" is the adaptive-observer controller' in table
+    nl = hydrogen.simulate("arm-dig", "adaptive-observer", dyn=dyn, duration=0.2).metrics["max_error_pct"]["boom"]
+    assert f"| boom | {nl:.1f} |" in table
+    with pytest.raises(hydrogen.ScenarioError, match="nonlinear"):
+        figures.make_all(dyn, tmp_path / "c", durations=short, nonlinear="p")

@@ -165,3 +165,15 @@ def test_link_parameters_are_pinocchios_about_the_origin():
     assert (p["mcx"], p["mcy"], p["mcz"]) == pytest.approx((0.2, 0.0, 0.6))
     assert p["Iyy"] == pytest.approx(2.0 + 2.0 * (0.1 ** 2 + 0.3 ** 2))
     assert p["Ixz"] == pytest.approx(-2.0 * 0.1 * 0.3)
+
+
+def test_figures_nonlinear_controller_is_the_descriptions(tmp_path):
+    assert hydrogen.load_model().figures_nonlinear == "adaptive-robust"  # the default: the paper's experiments'
+    assert hydrogen.load_model("excavator_arm").figures_nonlinear == "adaptive-robust"
+    text = default_model_path().read_text()
+    path = tmp_path / "mine.toml"
+    path.write_text(text + '\n[figures]\nnonlinear = "adaptive-observer"\n')
+    assert hydrogen.load_model(path).figures_nonlinear == "adaptive-observer"
+    path.write_text(text + '\n[figures]\ncontroller = "adaptive-observer"\n')
+    with pytest.raises(hydrogen.ModelError, match=r"\[figures\]"):
+        hydrogen.load_model(path)

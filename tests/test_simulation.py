@@ -358,16 +358,38 @@ def test_experiments_p_is_at_least_3x_worse_than_nonlinear(dyn, name, coord):
     assert p > 3 * nl
 
 
-@pytest.mark.parametrize("kind", [
-    "backstepping", "adaptive-observer",
-    pytest.param("adaptive-robust", marks=pytest.mark.xfail(strict=True, reason=(
-        "issue 11: no gain of the search completes arm-dig without saturating the valves with the "
-        "robust controller (README 'Results')")))])
+@pytest.mark.parametrize("kind", ["backstepping", "adaptive-observer", "adaptive-robust"])
 def test_arm_dig_nonlinear_is_at_least_3x_better_than_p(kind):
     dyn = hydrogen.build(hydrogen.load_model("excavator_arm"))
     nl = max(v for v in simulate(dyn, "arm-dig", kind).metrics["max_error_pct"].values() if v is not None)
     p = max(v for v in simulate(dyn, "arm-dig", "p").metrics["max_error_pct"].values() if v is not None)
     assert p > 3 * nl
+
+
+def test_robust_observer_gain_follows_lambda_and_kd():
+    """K_o defaults to (Λ + K_d/scale)² / (K_d/scale): with the former fixed 30 /s, the controller's
+    default gains (Λ = 60 /s, K_d = 60 × scale) lost the arm on arm-dig's reference with the ideal
+    plant, the true parameters and no adaptation (87 / 148 / 107 %, the valves saturated throughout)."""
+    from hydrogen.controllers import controller as controller_module
+    from hydrogen.simulation.control import gain_scale
+
+    dyn = hydrogen.build(hydrogen.load_model("excavator_arm"))
+    scale = gain_scale(dyn)
+    defaults = controller_module("adaptive-robust").default_gains(dyn.model, scale)
+    gains = {k: defaults[k] for k in ("Lambda", "Kd", "Kp", "Ktau")}
+    ideal = dict(delay_periods=0, valve_bandwidth_hz=0.0, friction=(0.0, 0.0, 1e-3), quantization_l=0.0,
+                 noise_l=0.0, noise_q=0.0, noise_p=0.0, kalman=False, t_adapt=1e9,
+                 theta0_factor=(1.0,) * dyn.model.n_theta, gamma0_factor=(1.0, 1.0))
+    res = simulate(dyn, "arm-dig", "adaptive-robust", gains=gains, **ideal)
+    assert max(res.metrics["max_error_pct"].values()) < 0.1
+    saturated = (np.abs(res.u) >= 0.999 * res.u_max).any(axis=1)
+    assert not saturated[res.t >= 1.0].any()  # only the start, where the reference moves and the arm is at rest
+    ko = make_controller(dyn, "adaptive-robust", {**gains, "Lambda": 20.0}).values["Ko"]
+    kd = np.asarray(gains["Kd"]) / scale
+    np.testing.assert_allclose(ko, (20.0 + kd) ** 2 / kd)
+    assert make_controller(dyn, "adaptive-robust", {"Ko": 30.0}).values["Ko"].tolist() == [30.0] * dyn.model.n
+    with pytest.raises(hydrogen.ScenarioError, match="Ko"):
+        make_controller(dyn, "adaptive-robust", {"Kd": 0.0})
 
 
 def test_stepper_reproduces_simulate(dyn):

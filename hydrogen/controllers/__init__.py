@@ -7,6 +7,8 @@ A controller module defines
 * ``default_gains(model, scale)``: its gains (numpy arrays, SI), ``scale`` being the
   per-coordinate inertia scale of the model;
 * ``static_inputs(dyn, theta0, gamma0)``: numeric inputs computed once per run (may be empty);
+* optionally ``complete_gains(gains, scale)``: the gains with those its defaults leave NaN derived
+  from the others (after the robot's tables and the caller's overrides are applied);
 * ``derive(model)``: its symbolic derivation (imports SymPy when called), returning
   :class:`~hydrogen.symbolic.control_laws.ControllerParts` whose inputs name the signals it needs
   (``q``, ``qdot``, ``pc``, ``l``, ``qd0`` … ``qd3``, ``xc``, ``adapt``) besides its gains.

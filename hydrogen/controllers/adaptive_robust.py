@@ -6,6 +6,11 @@ rough model taken from the current estimate: D̄ = D(q, θ̂), Ḡ = G(q, θ̂) 
 built from the wrong θ₀ at the neutral pose left a model error larger than Λ_o, so (55) failed).
 Γ_z weights the observer term ½ z̃ᵀ Γ_z z̃ of V1 (the paper has Γ_z = I). Wᵀ s is a force and ż an
 acceleration, so Γ_z ≈ D makes the units agree and keeps τ̇_d calm.
+
+K_o follows the loop it observes (:func:`complete_gains`): the injection −Γ_z⁻¹ Wᵀ s drives z̃ at the
+rate Λ + K_d/scale, so with K_o below that z strays from q̇ whenever s is not small (a start with the
+valves saturated) and, through −W z̃ in τ_d, the observer adds the damping (Λ + K_d/scale)² / K_o × scale
+to K_d's: at K_o = 30 /s and the default Λ = 60 /s that is 8 × K_d, and the loop is lost.
 """
 from __future__ import annotations
 
@@ -25,10 +30,32 @@ def state_layout(model) -> list:
 def default_gains(model, scale) -> dict:
     n = model.n
     return {**model_gains(model, scale), **adaptation_gains(model),
-            "Ko": 30.0 * np.ones(n),                    # 1/s
+            "Ko": np.full(n, np.nan),                   # 1/s; NaN: from Λ and K_d (complete_gains)
             "Gz_inv": 1.0 / np.asarray(scale, float),   # Γ_z⁻¹ ≈ D⁻¹
             "lambda_o": np.zeros(4),                    # λ0..λ3 of (55): the sliding term off
             "sat_width": 1.0e-3 * np.ones(n)}           # per coordinate, its own unit (m/s or rad/s): sat(z̃/ε)
+
+
+def observer_gain(Lam, Kd, scale) -> np.ndarray:
+    """Default K_o (1/s, per coordinate) for Λ (1/s), K_d (N s/m or N m s/rad) and the inertia scale
+    (kg or kg m²): (Λ + k_d)² / k_d with k_d = K_d / scale. The observer's error settles at
+    z̃ ≈ K_o⁻¹ Γ_z⁻¹ Wᵀ s and, through −W z̃ in τ_d, adds the damping ≈ (Λ + k_d)² / K_o per unit
+    inertia to k_d; this K_o makes it equal to k_d, whatever the robot's mass and the tuned Λ, K_d."""
+    Lam, kd = np.broadcast_arrays(np.asarray(Lam, float), np.asarray(Kd, float) / np.asarray(scale, float))
+    if not np.all(kd > 0):
+        raise ValueError("the default K_o needs K_d > 0; give Ko explicitly")
+    return (Lam + kd) ** 2 / kd
+
+
+def complete_gains(gains: dict, scale) -> dict:
+    """``gains`` with K_o filled from Λ and K_d (:func:`observer_gain`) where it is NaN (the default)."""
+    out = dict(gains)
+    ko = np.array(out["Ko"], float)
+    nan = np.isnan(ko)
+    if nan.any():
+        ko[nan] = np.broadcast_to(observer_gain(out["Lambda"], out["Kd"], scale), ko.shape)[nan]
+        out["Ko"] = ko
+    return out
 
 
 def static_inputs(dyn, theta0, gamma0) -> dict:

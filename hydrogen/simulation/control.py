@@ -152,7 +152,13 @@ def make_controller(dyn, kind, gains=None, theta0=None, gamma0=None):
     theta0 = model.theta if theta0 is None else np.asarray(theta0, float)
     gamma0 = model.gamma if gamma0 is None else np.asarray(gamma0, float)
     g = _gains(dyn, kind, gains)
+    mod = controller_module(kind)
+    if hasattr(mod, "complete_gains"):  # gains derived from others (e.g. the robust observer's K_o from Λ, K_d)
+        try:
+            g = mod.complete_gains(g, gain_scale(dyn))
+        except ValueError as exc:
+            raise ScenarioError(f"controller '{kind}': {exc}") from None
     g = normalised_adaptation(model, g, theta0, gamma0)  # Γ⁻¹ from the rates where not given raw
     check_gain_values(kind, g)
-    g.update(controller_module(kind).static_inputs(dyn, theta0, gamma0))
+    g.update(mod.static_inputs(dyn, theta0, gamma0))
     return _Controller(dyn, kind, g, theta0, gamma0, model)
