@@ -423,11 +423,9 @@ class SymbolicTree:
             if not j.dof:
                 continue
             s, c = S[j.name], self.columns[j.name]
-            f = {lk: _zero6() for lk in below[j.child]}
-            dS = _cross_motion(vel[j.child], s)
-            for lk in below[j.child]:
-                inertia = self.spatial_inertia(lk)
-                f[lk] = _apply_inertia(inertia, dS) + _b_term(inertia, vel[lk], s)
+            dS = _cross_motion(vel[j.child], s)  # Ṡ_j at rate v
+            f = {lk: _apply_inertia(self.spatial_inertia(lk), dS) + _b_term(self.spatial_inertia(lk), vel[lk], s)
+                 for lk in below[j.child]}
             # rows: the joints above j (and j) see every link below j; joints below j their own subtree
             total = _sum6(f.values())
             for i in self.path(j.child):
