@@ -163,10 +163,13 @@ def _rate_map(model, syms, X, idx):
             rate[idx[n]] = get(f"zdot_{k}")
         elif base == "theta_hat":
             rate[idx[n]] = get(f"thetadot_{k}")
+        elif base == "q_hat":  # q̂̇ = z + Λ2 (q − q̂)
+            i = int(k)
+            rate[idx[n]] = get(f"z_{i}") + get(f"Lambda2_{i}") * (get(f"q_{model.coordinate_names[i]}") - X[idx[n]])
     return rate
 
 
-@pytest.mark.parametrize("kind", ["backstepping", "adaptive-robust"])
+@pytest.mark.parametrize("kind", ["backstepping", "adaptive-robust", "adaptive-observer"])
 def test_staged_tau_d_dot_matches_casadi_ad_through_the_pose_stages(kind, chain, rng):
     """τ̇_d, derived by forward mode with the pose rates (Ṙ = S(ω) R, ṗ), equals CasADi's forward AD
     of τ_d when the poses are evaluated from q (their stages), not held fixed."""
