@@ -82,8 +82,12 @@ def _random_inputs(ctrl, model, rng):
             xc[sl] = rng.uniform(-2e-3, 2e-3, size)
         elif name in ("log_chamber_filter",):
             xc[sl] = rng.uniform(-1, 0, size)
+        elif name == "pc_prev":
+            xc[sl] = model.supply_pressure * rng.uniform(0.3, 0.7, size)
+        elif name == "legl_prev":
+            xc[sl] = np.array([c.chamber_length for c in model.cylinders]) + rng.uniform(0.3, 0.5, size)
         else:
-            xc[sl] = rng.standard_normal(size) * (1e4 if "filter" in name or "g0" in name else 0.05)
+            xc[sl] = rng.standard_normal(size) * (1e4 if "filter" in name else 0.05)
     pc = model.supply_pressure * rng.uniform(0.3, 0.7, m)
     ref = [model.neutral_pose + rng.uniform(-0.02, 0.02, n), *(rng.uniform(-0.1, 0.1, (3, n)))]
     return q, rng.uniform(-0.05, 0.05, n), pc, ref, xc
@@ -100,7 +104,7 @@ def test_composite_weight_zero_is_the_papers_gradient_law(robot_dyn, kind, rng):
     m = model.n_cylinders
     A, a, ps = model.piston_area, np.array([c.rod_area for c in model.cylinders]), model.supply_pressure
     L = np.array([c.chamber_length for c in model.cylinders])
-    comp = [n for n in ("force_filter", "log_chamber_filter", "g0_filter", "spool_prev", "g0_prev", "gamma_gain")]
+    comp = [n for n in ("force_filter", "log_chamber_filter", "g0_filter", "spool_prev", "pc_prev", "legl_prev", "gamma_gain")]
     for _ in range(5):
         q, qdot, pc, ref, xc = _random_inputs(ctrl, model, rng)
         ctrl.xc[:] = xc

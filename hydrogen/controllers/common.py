@@ -58,11 +58,11 @@ def composite_gains() -> dict:
 def composite_layout(model) -> list:
     """The state blocks the composite adaptation adds to an adaptive controller, in order: per
     cylinder the filtered force (N), ln(l − L) and g0 (N/s per unit γ2), the previous period's
-    spool (m) and g0, and the 2×2
+    spool (m), control pressure (Pa) and length (m), and the 2×2
     least-squares gain's upper triangle [P11, P12, P22] (dimensionless). Details in
     :class:`hydrogen.symbolic.composite.HydraulicComposite`."""
     m = model.n_cylinders
-    return [("force_filter", m), ("log_chamber_filter", m), ("g0_filter", m), ("spool_prev", m), ("g0_prev", m),
+    return [("force_filter", m), ("log_chamber_filter", m), ("g0_filter", m), ("spool_prev", m), ("pc_prev", m), ("legl_prev", m),
             ("gamma_gain", 3 * m)]
 
 

@@ -85,38 +85,46 @@ class HydraulicComposite:
       value is −A λ_f (ln(l − L) − φ_L) with φ_L the filter state of ln(l − L), discretised exactly
       like the force's λ_f (f − φ_f);
     * the valve term is integrated over each control period by the trapezoid with the spool the
-      valve held over it: ḡ_k = ½ (g0(u_{k−1}, p_{k−1}) + g0(u_{k−1}, p_k)), from two copies kept
-      in the state (the spool and g0 of the previous period, copied by a rate (x − x_prev)/h).
-      A right-rectangle rule with g0 of this period's command left residuals of 10-120 % of ḟ's
-      RMS on paper-sim with the true parameters; this form, 0.03-0.6 %;
+      valve held over it: ḡ_k = ½ (g0(u_held, p_{k−1}, l_{k−1}) + g0(u_held, p_k, l_k)), the
+      previous period's pressures and lengths copied in the state (by a rate (x − x_prev)/h).
+      A right-rectangle rule, or g0 of a spool one period off, left residuals of 10-230 % of ḟ's
+      RMS on paper-sim with the true parameters; this form, 0.03-0.6 %. ``held_spool`` is the spool
+      the valve held over the last period; by default the copy of the force loop's applied spool
+      made at the last update, which is that spool exactly under the forward-Euler update (the
+      rate comes from the command's own call) but not under the semi-implicit one (the update call
+      computes the command from the previous state: the prediction error is then 30-80 % of ḟ).
+      A loop that passes the spool the valve received gives it exactly under both; then the
+      trapezoid's right end is g0 at that spool, ``Common.g0_applied``;
     * ε pairs the force-side filters before this period's update (λ_f (f_k − φ_{k−1})) with the
       valve filter after it (ω_{k−1} + h λ_f (ḡ_k − ω_{k−1})): both then obey the same recursion
       x_k = (1 − h λ_f) x_{k−1} + λ_f Δ_k, so the true γ leaves only the trapezoid's residual.
 
-    States per cylinder: φ_f (N), φ_L (ln m), ω (filtered g0, N/s per unit γ2), the previous spool
-    (m) and g0 (N/s per unit γ2), and P (2×2 upper triangle, dimensionless). Normalisation:
+    States per cylinder: φ_f (N), φ_L (ln m), ω (filtered g0, N/s per unit γ2), the previous
+    period's spool (m; unused when ``held_spool`` is given), control pressure (Pa) and length (m),
+    and P (2×2 upper triangle, dimensionless). Normalisation:
     x = γ̂ / γ_ref (γ_ref the controller's static input, the initial estimates), each cylinder's
     row divided by its force range P_s A, so W and ε are in 1/s.
     """
 
-    def __init__(self, common, g1, g2):
+    def __init__(self, common, g1, g2, held_spool=None):
         c = self.c = common
         self.g1, self.g2 = g1, g2
         m = c.m
         sym = lambda name, k: sp.Matrix(sp.symbols(f"{name}0:{k}", real=True))  # noqa: E731
         self.phi_f, self.phi_L, self.omega = sym("force_filter", m), sym("log_chamber_filter", m), sym("g0_filter", m)
-        self.u_prev, self.g0_prev = sym("spool_prev", m), sym("g0_prev", m)
+        self.u_prev, self.pc_prev, self.l_prev = sym("spool_prev", m), sym("pc_prev", m), sym("legl_prev", m)
+        self.u_held = self.u_prev if held_spool is None else held_spool
         self.P = sym("gamma_gain", triangle_size(2) * m)
         self.ref = sym("gamma_ref", 2 * m)  # [γ1_ref (m), γ2_ref (m)]
         self.lam, self.rate, self.P0, self.floor, self.nu, self.h = sp.symbols(
             "lambda_f_gamma rate_ls_gamma P0_gamma ls_floor ls_nu_gamma period", real=True)
-        # intermediates: g0 at the held spool and this period's pressure; the rates before the projection
-        self.g0_right, self.r1, self.r2 = sym("g0_held", m), sym("gamma1_rate", m), sym("gamma2_rate", m)
+        # intermediates: ḡ (g0 at the held spool over the last period); the rates before the projection
+        self.gbar, self.r1, self.r2 = sym("g0_held", m), sym("gamma1_rate", m), sym("gamma2_rate", m)
         #: intermediates (symbol, value) the rates use, in order; they follow the force loop's stages
         self.stages = []
 
     def states(self) -> list:
-        return [*self.phi_f, *self.phi_L, *self.omega, *self.u_prev, *self.g0_prev, *self.P]
+        return [*self.phi_f, *self.phi_L, *self.omega, *self.u_prev, *self.pc_prev, *self.l_prev, *self.P]
 
     def inputs(self) -> list:
         return [("gamma_ref", self.ref), ("lambda_f_gamma", sp.Matrix([self.lam])),
@@ -129,12 +137,14 @@ class HydraulicComposite:
 
     def _g0_interval(self):
         """ḡ: the trapezoid of g0 over the last period with the spool held over it."""
-        return [(self.g0_prev[i] + self.g0_right[i]) / 2 for i in range(self.c.m)]
+        c = self.c
+        g0 = lambda i, p, l: hyd.g0(l, hyd.valve_flow_unit(self.u_held[i], p, c.ps[i], c.d[i]), c.L[i])  # noqa: E731
+        return [(g0(i, self.pc_prev[i], self.l_prev[i]) + g0(i, c.pc[i], c.l[i])) / 2 for i in range(c.m)]
 
     def regressor_and_output(self):
         """(W1, W2, y) per cylinder, unnormalised: filtered ḟ ≈ γ1 W1 + γ2 W2 = y (N/s)."""
         c, lam = self.c, self.lam
-        lnL, gbar = self._log_chamber(), self._g0_interval()
+        lnL, gbar = self._log_chamber(), self.gbar
         W1 = [-c.A[i] * lam * (lnL[i] - self.phi_L[i]) for i in range(c.m)]
         W2 = [self.omega[i] + self.h * lam * (gbar[i] - self.omega[i]) for i in range(c.m)]
         y = [lam * (c.f[i] - self.phi_f[i]) for i in range(c.m)]
@@ -175,12 +185,11 @@ class HydraulicComposite:
         self.stages += [(self.r1, sp.Matrix(r1)), (self.r2, sp.Matrix(r2))]
         return list(self.r1), list(self.r2)
 
-    def rates(self, u, g0, adapt):
+    def rates(self, u, adapt):
         """Rates of the states in :meth:`states` order.
 
-        ``u``, ``g0``: the force loop's applied spool and its g0 (``Common.g0_applied``), copied
-        for the next period. The filters run whether adaptation is on or not; P moves only while
-        it is on."""
+        ``u``: the force loop's applied spool, copied for the next period (when no held spool was
+        given). The filters run whether adaptation is on or not; P moves only while it is on."""
         c, m, lam = self.c, self.c.m, self.lam
         W1, W2, _ = self.regressor_and_output()
         eps = self.prediction_error()
@@ -191,14 +200,14 @@ class HydraulicComposite:
             W = sp.Matrix([[self.ref[i] * W1[i] / scale, self.ref[m + i] * W2[i] / scale]])
             _, Pd = normalised_least_squares(W, [eps[i]], self.P[k * i:k * (i + 1)], self.rate, self.floor, self.nu)
             P_dot.extend(adapt * x for x in Pd)
-        lnL, gbar = self._log_chamber(), self._g0_interval()
-        right = [hyd.g0(c.l[i], hyd.valve_flow_unit(self.u_prev[i], c.pc[i], c.ps[i], c.d[i]), c.L[i])
-                 for i in range(m)]
+        lnL = self._log_chamber()
         rates = [*(lam * (c.f[i] - self.phi_f[i]) for i in range(m)),
                  *(lam * (lnL[i] - self.phi_L[i]) for i in range(m)),
-                 *(lam * (gbar[i] - self.omega[i]) for i in range(m)),
-                 *((u[i] - self.u_prev[i]) / self.h for i in range(m)),   # copies: x_prev ← x in one period
-                 *((g0[i] - self.g0_prev[i]) / self.h for i in range(m)),
+                 *(lam * (self.gbar[i] - self.omega[i]) for i in range(m)),
+                 # copies: x_prev ← x in one period
+                 *((u[i] - self.u_prev[i]) / self.h if self.u_held is self.u_prev else sp.S.Zero for i in range(m)),
+                 *((c.pc[i] - self.pc_prev[i]) / self.h for i in range(m)),
+                 *((c.l[i] - self.l_prev[i]) / self.h for i in range(m)),
                  *P_dot]
-        self.stages.insert(0, (self.g0_right, sp.Matrix(right)))
+        self.stages.insert(0, (self.gbar, sp.Matrix(self._g0_interval())))
         return rates
