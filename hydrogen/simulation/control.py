@@ -72,9 +72,10 @@ _INITIAL = {
     "gamma2_hat": lambda q0, qd0, th0, g0: g0[1],
 }
 
-#: Least-squares gain blocks (upper triangles of k×k matrices, one per copy): block -> (k, initial gain).
-#: The filter blocks start at 0: their transients (e^{−λ_f t}) are over before adaptation starts.
-_GAIN_BLOCKS = {"gamma_gain": (2, "P0_gamma")}
+#: Least-squares gain blocks (upper triangles of k×k matrices, one per copy): block -> (k, initial gain);
+#: k None: one copy filling the block. The filter blocks start at 0: their transients (e^{−λ_f t})
+#: are over before adaptation starts.
+_GAIN_BLOCKS = {"gamma_gain": (2, "P0_gamma"), "theta_gain": (None, "P0_theta")}
 
 
 class _Controller:
@@ -119,6 +120,7 @@ class _Controller:
             elif name in _GAIN_BLOCKS:
                 k, p0 = _GAIN_BLOCKS[name]
                 size = s.stop - s.start
+                k = k or int(round((np.sqrt(8 * size + 1) - 1) / 2))
                 self.xc[s] = initial_gain_matrix(k, size // (k * (k + 1) // 2), float(self.values[p0][0]))
             else:
                 self.xc[s] = 0.0
@@ -170,7 +172,7 @@ def make_controller(dyn, kind, gains=None, theta0=None, gamma0=None, period=None
     g["period"] = np.array([1.0e-3 if period is None else float(period)])
     # The explicit update keeps the least-squares gain positive definite only while k h < 1, and a
     # filter λ_f/(s + λ_f) stable and monotone only while λ_f h < 1.
-    for k in ("rate_ls_gamma", "lambda_f_gamma"):
+    for k in ("rate_ls_gamma", "lambda_f_gamma", "rate_ls_theta", "lambda_f_theta"):
         if k in g and float(np.asarray(g[k]).ravel()[0]) * g["period"][0] >= 1.0:
             raise ScenarioError(f"controller '{kind}': gain '{k}' = {float(np.asarray(g[k]).ravel()[0]):g} "
                                 f"must be below 1/h = {1.0 / g['period'][0]:g} (the control rate)")

@@ -211,3 +211,113 @@ class HydraulicComposite:
                  *P_dot]
         self.stages.insert(0, (self.gbar, sp.Matrix(self._g0_interval())))
         return rates
+
+
+class RigidBodyComposite:
+    """Composite adaptation of the rigid-body parameters θ, in the momentum form (no q̈ needed).
+
+    τ = d/dt(D q̇) + G − Cᵀ q̇ with (Cᵀ q̇)_i = ½ q̇ᵀ (∂D/∂q_i) q̇ (Christoffel C: Ḋ = C + Cᵀ), both
+    affine in θ: D q̇ = Y_p θ + p0 and G − Cᵀ q̇ = Y_b θ + b0, p0 and b0 the non-adapted
+    parameters' share. Y_p and Y_b are derived here from D(q, θ) and G(q, θ) at unit parameter
+    vectors (``mass_matrix``, ``gravity``), Cᵀ q̇ as ∂/∂q of the kinetic energy ½ q̇ᵀ D q̇. Through
+    λ_f/(s + λ_f): τ_f = λ_f (Y_p − ξ) θ + ζ θ + λ_f (p0 − ξ0) + ζ0, ξ, ξ0, ζ, ζ0 the filter states
+    of Y_p, p0, Y_b, b0, and τ = (JL)ᵀ f from the measured pressures. As for γ, the exact derivative
+    λ_f (Y_p − ξ) pairs the filter state before this period's update with the sampled signals'
+    filters after it (ζ + h λ_f (Y_b − ζ), …), so the true θ leaves the rectangle rule's residual
+    of ∫ ṗ only. Normalisation: x = θ̂/θ_ref, row i divided by the inertia scale of coordinate i
+    (``theta_row_scale``), so W and ε are accelerations (m/s², rad/s²) per unit x.
+    """
+
+    def __init__(self, common, th_hat):
+        c = self.c = common
+        n, p = c.n, c.p
+        self.th_hat = th_hat
+        sym = lambda name, r, k=1: sp.Matrix(r, k, sp.symbols(f"{name}0:{r * k}", real=True))  # noqa: E731
+        self.xi, self.xi0 = sym("momentum_filter", n, p), sym("momentum_offset_filter", n)
+        self.zeta, self.zeta0 = sym("bias_filter", n, p), sym("bias_offset_filter", n)
+        self.tau_f = sym("torque_filter", n)
+        self.P = sym("theta_gain", triangle_size(p))
+        self.ref, self.row = sym("theta_ref", p), sym("theta_row_scale", n)
+        self.lam, self.rate, self.P0, self.nu = sp.symbols("lambda_f_theta rate_ls_theta P0_theta ls_nu_theta",
+                                                           real=True)
+        self.floor, self.h = sp.symbols("ls_floor period", real=True)  # shared with the γ law
+        # intermediates: Y_p, Y_b, p0, b0 and the rates of θ̂ before the projection
+        self.Yp, self.Yb, self.p0, self.b0 = sym("Yp", n, p), sym("Yb", n, p), sym("p0", n), sym("b0", n)
+        self.rho = sym("theta_rate", p)
+        self.stages = []
+
+    def states(self) -> list:
+        return [*self.xi, *self.xi0, *self.zeta, *self.zeta0, *self.tau_f, *self.P]
+
+    def inputs(self) -> list:
+        return [("theta_ref", self.ref), ("theta_row_scale", self.row), ("lambda_f_theta", sp.Matrix([self.lam])),
+                ("rate_ls_theta", sp.Matrix([self.rate])), ("P0_theta", sp.Matrix([self.P0])),
+                ("ls_nu_theta", sp.Matrix([self.nu]))]
+
+    def _signals(self):
+        """(Y_p, p0, Y_b, b0) as expressions of q, q̇."""
+        from .rigid_body import gravity, mass_matrix
+
+        c, n, p = self.c, self.c.n, self.c.p
+        q, qd = c.q, c.qdot
+        zero = [sp.S.Zero] * p
+        D0, G0 = mass_matrix(c.model, q, zero), gravity(c.model, q, zero)
+        p0 = D0 * qd
+        Yp_cols, YG_cols = [], []
+        for k in range(p):
+            unit = [sp.S.One if i == k else sp.S.Zero for i in range(p)]
+            Yp_cols.append(sp.expand(mass_matrix(c.model, q, unit) * qd - p0))
+            YG_cols.append(sp.expand(gravity(c.model, q, unit) - G0))
+        Yp = sp.Matrix.hstack(*Yp_cols)
+        YG = sp.Matrix.hstack(*YG_cols)
+
+        def half_dT(mom):  # (Cᵀ q̇)_i = ∂/∂q_i of ½ q̇ᵀ (D q̇)
+            T = sp.Rational(1, 2) * (qd.T * mom)[0, 0]
+            return sp.Matrix([T.diff(q[i]) for i in range(n)])
+        Yb = sp.Matrix.hstack(*[YG[:, k] - half_dT(Yp[:, k]) for k in range(p)])
+        b0 = G0 - half_dT(p0)
+        return Yp, p0, Yb, b0
+
+    def _filtered(self):
+        """(W (n×p), w0 (n), τ_f (n)), unnormalised: τ_f ≈ W θ + w0."""
+        lam, h = self.lam, self.h
+        W = lam * (self.Yp - self.xi) + self.zeta + h * lam * (self.Yb - self.zeta)
+        w0 = lam * (self.p0 - self.xi0) + self.zeta0 + h * lam * (self.b0 - self.zeta0)
+        tau = self.c.JL.T * self.c.f
+        return W, w0, self.tau_f + h * lam * (tau - self.tau_f)
+
+    def prediction_error(self) -> sp.Matrix:
+        """ε (n) in N or N m: W θ̂ + w0 − τ_f."""
+        W, w0, tf = self._filtered()
+        return W * self.th_hat + w0 - tf
+
+    def combine(self, rho):
+        """θ̂'s rate before the projection from the paper's tracking term ``rho`` (p):
+        x_ref ⊙ [(P/P0) (ρ/x_ref) − k P W_nᵀ ε_n / m²], as for γ (k = 0: P = P0 I, ρ exactly)."""
+        c, n, p = self.c, self.c.n, self.c.p
+        Yp, p0, Yb, b0 = self._signals()
+        self.stages += [(self.Yp, Yp), (self.p0, p0), (self.Yb, Yb), (self.b0, b0)]
+        W, _, _ = self._filtered()
+        eps = self.prediction_error()
+        Wn = sp.Matrix(n, p, lambda i, k: W[i, k] * self.ref[k] / self.row[i])
+        en = [eps[i] / self.row[i] for i in range(n)]
+        x_dot, _ = normalised_least_squares(Wn, en, self.P, self.rate, self.floor, self.nu)
+        P = unpack_symmetric(self.P, p)
+        out = []
+        for i in range(p):
+            cross = sum((P[i, j] / self.P0 * rho[j] / self.ref[j] for j in range(p) if j != i), sp.S.Zero)
+            out.append(P[i, i] / self.P0 * rho[i] + self.ref[i] * (cross + x_dot[i]))
+        self.stages.append((self.rho, sp.Matrix(out)))
+        return self.rho
+
+    def rates(self, adapt) -> list:
+        """Rates of the states in :meth:`states` order (after :meth:`combine`)."""
+        c, n, p, lam = self.c, self.c.n, self.c.p, self.lam
+        W, _, _ = self._filtered()
+        eps = self.prediction_error()
+        Wn = sp.Matrix(n, p, lambda i, k: W[i, k] * self.ref[k] / self.row[i])
+        en = [eps[i] / self.row[i] for i in range(n)]
+        _, Pd = normalised_least_squares(Wn, en, self.P, self.rate, self.floor, self.nu)
+        tau = c.JL.T * c.f
+        return [*(lam * (self.Yp - self.xi)), *(lam * (self.p0 - self.xi0)), *(lam * (self.Yb - self.zeta)),
+                *(lam * (self.b0 - self.zeta0)), *(lam * (tau - self.tau_f)), *(adapt * x for x in Pd)]
