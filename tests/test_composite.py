@@ -171,7 +171,7 @@ def test_prediction_error_vanishes_with_the_true_parameters(dyn, model):
 
 @pytest.mark.xfail(strict=True, reason="under the semi-implicit update the spool copied in the update call is "
                    "computed from the previous state, not the command the valve then received; the error is "
-                   "30-80 % of the filtered force rate until the loop passes the received spool")
+                   "50-140 % of the filtered force rate until the loop passes the received spool")
 def test_prediction_error_vanishes_under_the_semi_implicit_update(dyn, model):
     rel = _prediction_error(dyn, model, "semi-implicit")
     assert np.all(rel < 0.01), rel

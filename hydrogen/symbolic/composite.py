@@ -92,7 +92,7 @@ class HydraulicComposite:
       the valve held over the last period; by default the copy of the force loop's applied spool
       made at the last update, which is that spool exactly under the forward-Euler update (the
       rate comes from the command's own call) but not under the semi-implicit one (the update call
-      computes the command from the previous state: the prediction error is then 30-80 % of ḟ).
+      computes the command from the previous state: the prediction error is then 50-140 % of ḟ).
       A loop that passes the spool the valve received gives it exactly under both; then the
       trapezoid's right end is g0 at that spool, ``Common.g0_applied``;
     * ε pairs the force-side filters before this period's update (λ_f (f_k − φ_{k−1})) with the
@@ -294,7 +294,7 @@ class RigidBodyComposite:
     def combine(self, rho):
         """θ̂'s rate before the projection from the paper's tracking term ``rho`` (p):
         x_ref ⊙ [(P/P0) (ρ/x_ref) − k P W_nᵀ ε_n / m²], as for γ (k = 0: P = P0 I, ρ exactly)."""
-        c, n, p = self.c, self.c.n, self.c.p
+        n, p = self.c.n, self.c.p
         Yp, p0, Yb, b0 = self._signals()
         self.stages += [(self.Yp, Yp), (self.p0, p0), (self.Yb, Yb), (self.b0, b0)]
         W, _, _ = self._filtered()
