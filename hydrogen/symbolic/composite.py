@@ -75,6 +75,22 @@ def normalised_least_squares(W, eps, P_packed, rate, floor, nu):
     return x_dot, pack_symmetric(P_dot)
 
 
+def staged_least_squares(W, eps, P_packed, rate, floor, nu, name):
+    """:func:`normalised_least_squares` with W, ε, P Wᵀ and k/m² bound to symbols ``name_*``:
+    returns (ẋ_c, Ṗ packed, intermediates). Each large piece is then evaluated once (SymPy would
+    otherwise copy W into every entry of Ṗ)."""
+    rows, p = W.shape
+    sym = lambda tag, r, c: sp.Matrix(r, c, sp.symbols(f"{name}_{tag}0:{r * c}", real=True))  # noqa: E731
+    Ws, es, PWs, g = sym("W", rows, p), sym("eps", rows, 1), sym("PWt", p, rows), sp.Symbol(f"{name}_gain", real=True)
+    P = unpack_symmetric(P_packed, p)
+    m2 = sum((Ws[r, :] * PWs[:, r])[0, 0] for r in range(rows)) \
+        + floor * sum((w ** 2 for w in Ws), sp.S.Zero) + nu ** 2
+    stages = [(Ws, sp.Matrix(W)), (es, sp.Matrix(eps)), (PWs, P * Ws.T), (sp.Matrix([g]), sp.Matrix([rate / m2]))]
+    x_dot = -g * PWs * es
+    P_dot = -g * (PWs * PWs.T)
+    return x_dot, pack_symmetric(P_dot), stages
+
+
 class HydraulicComposite:
     """Composite adaptation of γ = [β, βc] per cylinder (ḟ = γ1 f0 + γ2 g0, eq. (59)).
 
@@ -113,7 +129,6 @@ class HydraulicComposite:
         sym = lambda name, k: sp.Matrix(sp.symbols(f"{name}0:{k}", real=True))  # noqa: E731
         self.phi_f, self.phi_L, self.omega = sym("force_filter", m), sym("log_chamber_filter", m), sym("g0_filter", m)
         self.u_prev, self.pc_prev, self.l_prev = sym("spool_prev", m), sym("pc_prev", m), sym("legl_prev", m)
-        self.u_held = self.u_prev if held_spool is None else held_spool
         self.P = sym("gamma_gain", triangle_size(2) * m)
         self.ref = sym("gamma_ref", 2 * m)  # [γ1_ref (m), γ2_ref (m)]
         self.lam, self.rate, self.P0, self.floor, self.nu, self.h = sp.symbols(
@@ -121,7 +136,9 @@ class HydraulicComposite:
         # intermediates: ḡ (g0 at the held spool over the last period); the rates before the projection
         self.gbar, self.r1, self.r2 = sym("g0_held", m), sym("gamma1_rate", m), sym("gamma2_rate", m)
         #: intermediates (symbol, value) the rates use, in order; they follow the force loop's stages
-        self.stages = []
+        self.u_held = self.u_prev if held_spool is None else held_spool
+        self.stages = [(self.gbar, sp.Matrix(self._g0_interval()))]
+        self._ls = None
 
     def states(self) -> list:
         return [*self.phi_f, *self.phi_L, *self.omega, *self.u_prev, *self.pc_prev, *self.l_prev, *self.P]
@@ -168,22 +185,39 @@ class HydraulicComposite:
         P on the tracking term its bias (the tracking error also carries the model errors of θ̂
         and of the observer) pulled β̂ away again once P had shrunk (−0.5 % at 2 s, −6.7 % at 10 s
         on leg 3 of paper-sim)."""
-        c, m, k = self.c, self.c.m, triangle_size(2)
-        W1, W2, _ = self.regressor_and_output()
-        eps = self.prediction_error()
+        m, k = self.c.m, triangle_size(2)
+        x_dots, _ = self._least_squares()
+        tracking = [sp.Matrix(sp.symbols(f"gamma{j}_tracking0:{m}", real=True)) for j in (1, 2)]
+        self.stages += [(tracking[0], sp.Matrix(t1)), (tracking[1], sp.Matrix(t2))]
+        t1, t2 = list(tracking[0]), list(tracking[1])
         r1, r2 = [], []
         for i in range(m):
             ref = [self.ref[i], self.ref[m + i]]
-            scale = c.ps[i] * c.A[i]
-            W = sp.Matrix([[ref[0] * W1[i] / scale, ref[1] * W2[i] / scale]])
             P = unpack_symmetric(self.P[k * i:k * (i + 1)], 2)
             tx = [t1[i] / ref[0], t2[i] / ref[1]]
-            x_dot, _ = normalised_least_squares(W, [eps[i]], self.P[k * i:k * (i + 1)], self.rate, self.floor, self.nu)
+            x_dot = x_dots[i]
             # diagonal written apart so that P = P0 I gives back t exactly (no rounding through γ_ref)
             r1.append(P[0, 0] / self.P0 * t1[i] + ref[0] * (P[0, 1] / self.P0 * tx[1] + x_dot[0]))
             r2.append(P[1, 1] / self.P0 * t2[i] + ref[1] * (P[1, 0] / self.P0 * tx[0] + x_dot[1]))
         self.stages += [(self.r1, sp.Matrix(r1)), (self.r2, sp.Matrix(r2))]
         return list(self.r1), list(self.r2)
+
+    def _least_squares(self):
+        """Per cylinder (ẋ_c, Ṗ packed), computed once; their intermediates join :attr:`stages`."""
+        if self._ls is None:
+            c, m, k = self.c, self.c.m, triangle_size(2)
+            W1, W2, _ = self.regressor_and_output()
+            eps = self.prediction_error()
+            self._ls = ([], [])
+            for i in range(m):
+                scale = c.ps[i] * c.A[i]
+                W = sp.Matrix([[self.ref[i] * W1[i] / scale, self.ref[m + i] * W2[i] / scale]])
+                x_dot, Pd, st = staged_least_squares(W, [eps[i]], self.P[k * i:k * (i + 1)], self.rate,
+                                                     self.floor, self.nu, f"ls_gamma{i}")
+                self._ls[0].append(x_dot)
+                self._ls[1].append(Pd)
+                self.stages += st
+        return self._ls
 
     def rates(self, u, adapt):
         """Rates of the states in :meth:`states` order.
@@ -191,15 +225,7 @@ class HydraulicComposite:
         ``u``: the force loop's applied spool, copied for the next period (when no held spool was
         given). The filters run whether adaptation is on or not; P moves only while it is on."""
         c, m, lam = self.c, self.c.m, self.lam
-        W1, W2, _ = self.regressor_and_output()
-        eps = self.prediction_error()
-        k = triangle_size(2)
-        P_dot = []
-        for i in range(m):
-            scale = c.ps[i] * c.A[i]
-            W = sp.Matrix([[self.ref[i] * W1[i] / scale, self.ref[m + i] * W2[i] / scale]])
-            _, Pd = normalised_least_squares(W, [eps[i]], self.P[k * i:k * (i + 1)], self.rate, self.floor, self.nu)
-            P_dot.extend(adapt * x for x in Pd)
+        P_dot = [adapt * x for Pd in self._least_squares()[1] for x in Pd]
         lnL = self._log_chamber()
         rates = [*(lam * (c.f[i] - self.phi_f[i]) for i in range(m)),
                  *(lam * (lnL[i] - self.phi_L[i]) for i in range(m)),
@@ -209,7 +235,6 @@ class HydraulicComposite:
                  *((c.pc[i] - self.pc_prev[i]) / self.h for i in range(m)),
                  *((c.l[i] - self.l_prev[i]) / self.h for i in range(m)),
                  *P_dot]
-        self.stages.insert(0, (self.gbar, sp.Matrix(self._g0_interval())))
         return rates
 
 
@@ -245,6 +270,7 @@ class RigidBodyComposite:
         self.Yp, self.Yb, self.p0, self.b0 = sym("Yp", n, p), sym("Yb", n, p), sym("p0", n), sym("b0", n)
         self.rho = sym("theta_rate", p)
         self.stages = []
+        self._ls = None
 
     def states(self) -> list:
         return [*self.xi, *self.xi0, *self.zeta, *self.zeta0, *self.tau_f, *self.P]
@@ -294,14 +320,11 @@ class RigidBodyComposite:
     def combine(self, rho):
         """θ̂'s rate before the projection from the paper's tracking term ``rho`` (p):
         x_ref ⊙ [(P/P0) (ρ/x_ref) − k P W_nᵀ ε_n / m²], as for γ (k = 0: P = P0 I, ρ exactly)."""
-        n, p = self.c.n, self.c.p
-        Yp, p0, Yb, b0 = self._signals()
-        self.stages += [(self.Yp, Yp), (self.p0, p0), (self.Yb, Yb), (self.b0, b0)]
-        W, _, _ = self._filtered()
-        eps = self.prediction_error()
-        Wn = sp.Matrix(n, p, lambda i, k: W[i, k] * self.ref[k] / self.row[i])
-        en = [eps[i] / self.row[i] for i in range(n)]
-        x_dot, _ = normalised_least_squares(Wn, en, self.P, self.rate, self.floor, self.nu)
+        p = self.c.p
+        x_dot, _ = self._least_squares()
+        tracking = sp.Matrix(sp.symbols(f"theta_tracking0:{p}", real=True))  # ρ once, not p times
+        self.stages.append((tracking, sp.Matrix(rho)))
+        rho = tracking
         P = unpack_symmetric(self.P, p)
         out = []
         for i in range(p):
@@ -310,14 +333,26 @@ class RigidBodyComposite:
         self.stages.append((self.rho, sp.Matrix(out)))
         return self.rho
 
+    def _least_squares(self):
+        """(ẋ_c, Ṗ packed), computed once; Y_p, Y_b, p0, b0 and the least squares' pieces join
+        :attr:`stages`."""
+        if self._ls is None:
+            n, p = self.c.n, self.c.p
+            Yp, p0, Yb, b0 = self._signals()
+            self.stages += [(self.Yp, Yp), (self.p0, p0), (self.Yb, Yb), (self.b0, b0)]
+            W, _, _ = self._filtered()
+            eps = self.prediction_error()
+            Wn = sp.Matrix(n, p, lambda i, k: W[i, k] * self.ref[k] / self.row[i])
+            en = [eps[i] / self.row[i] for i in range(n)]
+            x_dot, Pd, st = staged_least_squares(Wn, en, self.P, self.rate, self.floor, self.nu, "ls_theta")
+            self.stages += st
+            self._ls = (x_dot, Pd)
+        return self._ls
+
     def rates(self, adapt) -> list:
         """Rates of the states in :meth:`states` order (after :meth:`combine`)."""
-        c, n, p, lam = self.c, self.c.n, self.c.p, self.lam
-        W, _, _ = self._filtered()
-        eps = self.prediction_error()
-        Wn = sp.Matrix(n, p, lambda i, k: W[i, k] * self.ref[k] / self.row[i])
-        en = [eps[i] / self.row[i] for i in range(n)]
-        _, Pd = normalised_least_squares(Wn, en, self.P, self.rate, self.floor, self.nu)
+        c, lam = self.c, self.lam
+        Pd = self._least_squares()[1]
         tau = c.JL.T * c.f
         return [*(lam * (self.Yp - self.xi)), *(lam * (self.p0 - self.xi0)), *(lam * (self.Yb - self.zeta)),
                 *(lam * (self.b0 - self.zeta0)), *(lam * (tau - self.tau_f)), *(adapt * x for x in Pd)]
