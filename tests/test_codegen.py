@@ -49,7 +49,19 @@ def _random_input(name, shape, model, rng, fname=""):
                  "q_hat": lambda k: workspace_poses(model, 1, rng)[0],
                  "theta_hat": lambda k: model.theta * rng.uniform(0.7, 1.3, k),
                  "gamma1_hat": lambda k: model.gamma[0] * rng.uniform(0.7, 1.3, k),
-                 "gamma2_hat": lambda k: model.gamma[1] * rng.uniform(0.7, 1.3, k)}
+                 "gamma2_hat": lambda k: model.gamma[1] * rng.uniform(0.7, 1.3, k),
+                 # composite adaptation: filters, copies of the previous period, least-squares gains
+                 "force_filter": lambda k: rng.normal(size=k) * 1e4,
+                 "log_chamber_filter": lambda k: rng.uniform(-1.0, 0.0, k),
+                 "g0_filter": lambda k: rng.normal(size=k) * 0.1,
+                 "spool_prev": lambda k: rng.uniform(-4, 4, k) * d,
+                 "pc_prev": lambda k: rng.uniform(0.02, 0.98, k) * ps,
+                 "legl_prev": lambda k: rng.uniform(model.leg_min, model.leg_max),
+                 "gamma_gain": lambda k: np.tile([1.0, 0.1, 0.5], k // 3),
+                 "theta_gain": lambda k: np.concatenate([[1.0 if j == i else 0.01 for j in range(i, p)]
+                                                        for i in range(p)])}
+        for b in ("momentum_filter", "momentum_offset_filter", "bias_filter", "bias_offset_filter", "torque_filter"):
+            parts[b] = lambda k: rng.normal(size=k) * 1e3
         x = np.concatenate([parts[b](k) for b, k in controller(kind).state_layout(model)])
     elif name in ("friction",):
         x = np.array([100.0, 300.0, 1e-3])
@@ -62,6 +74,13 @@ def _random_input(name, shape, model, rng, fname=""):
         x = rng.uniform(0.5, 2.0, size) * {"Kp": 1e4, "Kd": 1e3, "Gtau_inv": 1e4, "Lp": 1e5, "Kd_obs": 1e3,
                                            "Ggamma1_inv": 1e18, "Ggamma2_inv": 1e10, "Kleg": 0.05,
                                            "Gz_inv": 0.01, "lambda_o": 0.01}.get(name, 30.0)
+    elif name in ("gamma_ref", "theta_ref", "theta_row_scale"):
+        x = {"gamma_ref": np.concatenate(list(model.gamma)), "theta_ref": np.abs(model.theta),
+             "theta_row_scale": np.ones(n) * 100.0}[name] * rng.uniform(0.5, 2.0, size)
+    elif name in ("lambda_f_gamma", "lambda_f_theta", "rate_ls_gamma", "rate_ls_theta", "P0_gamma", "P0_theta",
+                  "ls_floor", "ls_nu_gamma", "ls_nu_theta", "period"):
+        x = rng.uniform(0.5, 2.0, size) * {"ls_floor": 1e-4, "ls_nu_gamma": 1e-3, "ls_nu_theta": 1e-3,
+                                           "period": 1e-3, "P0_gamma": 1.0, "P0_theta": 1.0}.get(name, 30.0)
     elif name in ("theta_min", "theta_max"):
         lo, hi = np.minimum(model.theta * 0.6, model.theta * 1.4), np.maximum(model.theta * 0.6, model.theta * 1.4)
         x = lo if name == "theta_min" else hi

@@ -3,7 +3,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .common import adaptation_gains, model_gains
+from .common import adaptation_gains, composite_layout, composite_static_inputs, model_gains
 
 NAME = "adaptive-observer"
 DOC = "Theorem 2: adaptive controller, adaptive observer."
@@ -11,7 +11,8 @@ DOC = "Theorem 2: adaptive controller, adaptive observer."
 
 def state_layout(model) -> list:
     n, m = model.n, model.n_cylinders
-    return [("q_hat", n), ("z", n), ("theta_hat", model.n_theta), ("gamma1_hat", m), ("gamma2_hat", m)]
+    return [("q_hat", n), ("z", n), ("theta_hat", model.n_theta), ("gamma1_hat", m), ("gamma2_hat", m),
+            *composite_layout(model)]
 
 
 def default_gains(model, scale) -> dict:
@@ -21,12 +22,13 @@ def default_gains(model, scale) -> dict:
 
 
 def static_inputs(dyn, theta0, gamma0) -> dict:
-    return {}
+    return composite_static_inputs(dyn, theta0, gamma0)
 
 
 def derive(model):
     import sympy as sp
 
+    from ..symbolic.composite import HydraulicComposite, RigidBodyComposite
     from ..symbolic.calculus import time_derivative
     from ..symbolic.control_laws import Common, ControllerParts, diag, solve_or_inverse, vector
 
@@ -54,17 +56,20 @@ def derive(model):
     Y1 = c.Y(qr_dot, qr_dot, qr_ddot, th_hat)
     Y2 = c.Y(c.qdot, z, z_dot, th_hat)
     rho = -diag(vecs["Gtheta_inv"]) * (Y1.T * s1 + Y2.T * s2)
-    th_dot_value = c.theta_rate(rho, th_hat, vecs, scal["adapt"])
+    rc = RigidBodyComposite(c, th_hat)  # composite θ law; rate_ls_theta = 0 gives the paper's law
+    th_dot_value = c.theta_rate(rc.combine(rho), th_hat, vecs, scal["adapt"])
     fd, ftil, f0, v, u, taud, stages = c.force_loop(tau_d, tau_d_dot, s1, g1, g2)
+    hc = HydraulicComposite(c, g1, g2)  # composite γ law; rate_ls_gamma = 0 gives the paper's law
+    hc_rates = hc.rates(u, scal["adapt"])
     g1_dot, g2_dot = c.hydraulic_adaptation(
         ftil, f0, u, g1, g2, scal["adapt"], vecs["Ggamma1_inv"], vecs["Ggamma2_inv"],
-        scal["gamma1_min"], scal["gamma1_max"], scal["gamma2_min"], scal["gamma2_max"])
-    xc = sp.Matrix([*q_hat, *z, *th_hat, *g1, *g2])
-    xc_dot = sp.Matrix([*q_hat_dot, *z_dot, *th_dot, *g1_dot, *g2_dot])
+        scal["gamma1_min"], scal["gamma1_max"], scal["gamma2_min"], scal["gamma2_max"], combine=hc.combine)
+    xc = sp.Matrix([*q_hat, *z, *th_hat, *g1, *g2, *hc.states(), *rc.states()])
+    xc_dot = sp.Matrix([*q_hat_dot, *z_dot, *th_dot, *g1_dot, *g2_dot, *hc_rates, *rc.rates(scal["adapt"])])
     return ControllerParts(
         inputs=[*c.base_inputs(), ("xc", xc), *c.gain_inputs(), ("Lambda2", Lam2), ("Lp", Lp),
-                ("Kd_obs", Kd2), *ad_inputs],
+                ("Kd_obs", Kd2), *ad_inputs, *hc.inputs(), *rc.inputs()],
         intermediates=[*c.kin, c.jit_intermediate(), *solve_stages, (z_dot, sp.Matrix(z_dot_value)),
-                       (th_dot, th_dot_value), *stages],
+                       *rc.stages, (th_dot, th_dot_value), *stages, *hc.stages],
         outputs=[("u", u), ("xc_dot", xc_dot), ("tau_d", taud), ("tau_d_dot", c.taud_dot), ("f_d", fd)],
     )

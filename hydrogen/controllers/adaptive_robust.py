@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .common import adaptation_gains, model_gains
+from .common import adaptation_gains, composite_layout, composite_static_inputs, model_gains
 
 NAME = "adaptive-robust"
 DOC = "Theorem 3: adaptive controller, robust sliding observer."
@@ -24,7 +24,8 @@ DOC = "Theorem 3: adaptive controller, robust sliding observer."
 
 def state_layout(model) -> list:
     n, m = model.n, model.n_cylinders
-    return [("z", n), ("theta_hat", model.n_theta), ("gamma1_hat", m), ("gamma2_hat", m)]
+    return [("z", n), ("theta_hat", model.n_theta), ("gamma1_hat", m), ("gamma2_hat", m),
+            *composite_layout(model)]
 
 
 def default_gains(model, scale) -> dict:
@@ -59,12 +60,13 @@ def complete_gains(gains: dict, scale) -> dict:
 
 
 def static_inputs(dyn, theta0, gamma0) -> dict:
-    return {}
+    return composite_static_inputs(dyn, theta0, gamma0)
 
 
 def derive(model):
     import sympy as sp
 
+    from ..symbolic.composite import HydraulicComposite, RigidBodyComposite
     from ..symbolic.calculus import clip, time_derivative
     from ..symbolic.control_laws import Common, ControllerParts, diag, solve_or_inverse, vector
 
@@ -98,17 +100,20 @@ def derive(model):
                              + qdd_bar[i] for i in range(n)])
     # (45): θ̂̇ = −κ Γ_θ⁻¹ Yᵀ(q, q̇, q̇_r, q̈_r) s
     rho = -diag(vecs["Gtheta_inv"]) * c.Y(c.qdot, qr_dot, qr_ddot, th_hat).T * s
-    th_dot_value = c.theta_rate(rho, th_hat, vecs, scal["adapt"])
+    rc = RigidBodyComposite(c, th_hat)  # composite θ law; rate_ls_theta = 0 gives the paper's law
+    th_dot_value = c.theta_rate(rc.combine(rho), th_hat, vecs, scal["adapt"])
     fd, ftil, f0, v, u, taud, stages = c.force_loop(tau_d, tau_d_dot, s, g1, g2)
+    hc = HydraulicComposite(c, g1, g2)  # composite γ law; rate_ls_gamma = 0 gives the paper's law
+    hc_rates = hc.rates(u, scal["adapt"])
     g1_dot, g2_dot = c.hydraulic_adaptation(
         ftil, f0, u, g1, g2, scal["adapt"], vecs["Ggamma1_inv"], vecs["Ggamma2_inv"],
-        scal["gamma1_min"], scal["gamma1_max"], scal["gamma2_min"], scal["gamma2_max"])
-    xc = sp.Matrix([*z, *th_hat, *g1, *g2])
-    xc_dot = sp.Matrix([*z_dot, *th_dot, *g1_dot, *g2_dot])
+        scal["gamma1_min"], scal["gamma1_max"], scal["gamma2_min"], scal["gamma2_max"], combine=hc.combine)
+    xc = sp.Matrix([*z, *th_hat, *g1, *g2, *hc.states(), *rc.states()])
+    xc_dot = sp.Matrix([*z_dot, *th_dot, *g1_dot, *g2_dot, *hc_rates, *rc.rates(scal["adapt"])])
     return ControllerParts(
         inputs=[*c.base_inputs(), ("xc", xc), *c.gain_inputs(), ("Ko", Ko), ("lambda_o", lam_o),
-                ("Gz_inv", Gz_inv), ("sat_width", eps), *ad_inputs],
+                ("Gz_inv", Gz_inv), ("sat_width", eps), *ad_inputs, *hc.inputs(), *rc.inputs()],
         intermediates=[*c.kin, c.jit_intermediate(), *solve_stages, (qdd_bar, sp.Matrix(qdd_value)),
-                       (z_dot, z_dot_value), (th_dot, th_dot_value), *stages],
+                       (z_dot, z_dot_value), *rc.stages, (th_dot, th_dot_value), *stages, *hc.stages],
         outputs=[("u", u), ("xc_dot", xc_dot), ("tau_d", taud), ("tau_d_dot", c.taud_dot), ("f_d", fd)],
     )

@@ -4,7 +4,7 @@ from __future__ import annotations
 import numpy as np
 
 __all__ = ["model_gains", "adaptation_gains", "RAW_ADAPTATION_GAINS", "adaptation_references",
-           "normalised_adaptation"]
+           "normalised_adaptation", "composite_layout", "composite_static_inputs", "initial_gain_matrix"]
 
 #: The raw adaptation gains of the generated controllers (Γ_θ⁻¹, Γ_γ1⁻¹, Γ_γ2⁻¹) and the normalised
 #: rate (one per family) each is made from when it is not given.
@@ -37,7 +37,59 @@ def adaptation_gains(model) -> dict:
     """
     m, p = model.n_cylinders, model.n_theta
     return {"rate_theta": np.array([0.1]), "rate_gamma1": np.array([1.0e-3]), "rate_gamma2": np.array([1.0e-3]),
-            "Gtheta_inv": np.full(p, np.nan), "Ggamma1_inv": np.full(m, np.nan), "Ggamma2_inv": np.full(m, np.nan)}
+            "Gtheta_inv": np.full(p, np.nan), "Ggamma1_inv": np.full(m, np.nan), "Ggamma2_inv": np.full(m, np.nan),
+            **composite_gains()}
+
+
+def composite_gains() -> dict:
+    """Gains of the composite (prediction-error, least-squares) terms (:mod:`hydrogen.symbolic.composite`).
+
+    ``rate_ls_gamma`` k (1/s) weighs the composite term of γ; 0 (the default) is the paper's gradient
+    law exactly. ``lambda_f_gamma`` (1/s) is the bandwidth of the filters that make the prediction
+    error need no ḟ; ``P0_gamma`` the initial least-squares gain (dimensionless: the parameters are
+    normalised by their references); ``ls_floor`` δ (dimensionless) bounds the growth of P⁻¹ by
+    k/δ; ``ls_nu_gamma`` ν (1/s, force rate per unit of the cylinder's force range P_s A) keeps the
+    normalisation positive without excitation. The explicit update keeps P positive definite
+    while k h < 1 (checked per run)."""
+    return {"rate_ls_gamma": np.array([0.0]), "lambda_f_gamma": np.array([100.0]), "P0_gamma": np.array([1.0]),
+            "ls_floor": np.array([1.0e-4]), "ls_nu_gamma": np.array([1.0e-3]),
+            # θ: the same in the momentum form; ν in m/s² or rad/s² (rows divided by the inertia scale)
+            "rate_ls_theta": np.array([0.0]), "lambda_f_theta": np.array([20.0]), "P0_theta": np.array([1.0]),
+            "ls_nu_theta": np.array([1.0e-3])}
+
+
+def composite_layout(model) -> list:
+    """The state blocks the composite adaptation adds to an adaptive controller, in order: per
+    cylinder the filtered force (N), ln(l − L) and g0 (N/s per unit γ2), the previous period's
+    spool (m), control pressure (Pa) and length (m), and the 2×2 least-squares gain's upper
+    triangle [P11, P12, P22] (dimensionless) (:class:`hydrogen.symbolic.composite.HydraulicComposite`);
+    then for θ the filtered momentum regressor Y_p (n×p, row-major) and offset p0, the filtered
+    Y_b and b0 of G − Cᵀq̇, the filtered generalised force (JL)ᵀ f, and the p×p gain's upper
+    triangle (:class:`hydrogen.symbolic.composite.RigidBodyComposite`)."""
+    m = model.n_cylinders
+    n, p = model.n, model.n_theta
+    return [("force_filter", m), ("log_chamber_filter", m), ("g0_filter", m), ("spool_prev", m), ("pc_prev", m),
+            ("legl_prev", m), ("gamma_gain", 3 * m),
+            ("momentum_filter", n * p), ("momentum_offset_filter", n), ("bias_filter", n * p),
+            ("bias_offset_filter", n), ("torque_filter", n), ("theta_gain", p * (p + 1) // 2)]
+
+
+def composite_static_inputs(dyn, theta0, gamma0) -> dict:
+    """Numeric inputs of the composite terms made once per run: the references x_ref the parameters
+    are normalised by (those of :func:`adaptation_references`) and the inertia scale the rows of the
+    θ prediction error are divided by (the model's ``[control] scale``, else the diagonal of D at
+    the neutral pose, as for the default gains)."""
+    model = dyn.model
+    refs = adaptation_references(model, theta0, gamma0)
+    scale = model.scale if model.scale is not None else np.diag(dyn.mass_matrix(model.neutral_pose, model.theta))
+    return {"gamma_ref": np.concatenate([refs["Ggamma1_inv"], refs["Ggamma2_inv"]]),
+            "theta_ref": refs["Gtheta_inv"], "theta_row_scale": np.abs(np.asarray(scale, float)).ravel()}
+
+
+def initial_gain_matrix(k: int, copies: int, p0: float) -> np.ndarray:
+    """``copies`` upper triangles (row by row) of p0 · I (k×k): the initial least-squares gains."""
+    tri = np.array([p0 if i == j else 0.0 for i in range(k) for j in range(i, k)])
+    return np.tile(tri, copies)
 
 
 def adaptation_references(model, theta0, gamma0) -> dict:

@@ -13,7 +13,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..controllers import CONTROLLERS, controller as controller_module, function_name
-from ..controllers.common import normalised_adaptation
+from ..controllers.common import initial_gain_matrix, normalised_adaptation
 from ..errors import ScenarioError
 from .checks import check_gain_values
 
@@ -72,6 +72,11 @@ _INITIAL = {
     "gamma2_hat": lambda q0, qd0, th0, g0: g0[1],
 }
 
+#: Least-squares gain blocks (upper triangles of k×k matrices, one per copy): block -> (k, initial gain);
+#: k None: one copy filling the block. The filter blocks start at 0: their transients (e^{−λ_f t})
+#: are over before adaptation starts.
+_GAIN_BLOCKS = {"gamma_gain": (2, "P0_gamma"), "theta_gain": (None, "P0_theta")}
+
 
 class _Controller:
     def __init__(self, dyn, kind, gains, theta0, gamma0, model):
@@ -112,6 +117,13 @@ class _Controller:
         for name, s in self.slices.items():
             if name in _INITIAL:
                 self.xc[s] = _INITIAL[name](q0, qdot0, self.theta0, self.gamma0)
+            elif name in _GAIN_BLOCKS:
+                k, p0 = _GAIN_BLOCKS[name]
+                size = s.stop - s.start
+                k = k or int(round((np.sqrt(8 * size + 1) - 1) / 2))
+                self.xc[s] = initial_gain_matrix(k, size // (k * (k + 1) // 2), float(self.values[p0][0]))
+            else:
+                self.xc[s] = 0.0
 
     def command(self, q, qdot, pc, l, ref, adapt):
         v = self.values
@@ -140,11 +152,13 @@ class _Controller:
             np.clip(self.xc + h * self.xc_dot, *self.bounds, out=self.xc)
 
 
-def make_controller(dyn, kind, gains=None, theta0=None, gamma0=None):
+def make_controller(dyn, kind, gains=None, theta0=None, gamma0=None, period=None):
     """A controller runtime of ``kind`` (one of :data:`CONTROLLERS`) for compiled dynamics ``dyn``.
 
     ``theta0``/``gamma0`` are the initial estimates (the known values for ``backstepping``);
-    ``gamma0`` has shape (2, m): [β, βc] per cylinder.
+    ``gamma0`` has shape (2, m): [β, βc] per cylinder. ``period``: the control period h (s) the
+    state is updated at (the composite adaptation copies signals from one period to the next);
+    a run passes its own, 1 ms otherwise.
     """
     if kind not in CONTROLLERS:
         raise ScenarioError(f"unknown controller '{kind}'; choose one of {', '.join(CONTROLLERS)}")
@@ -161,4 +175,11 @@ def make_controller(dyn, kind, gains=None, theta0=None, gamma0=None):
     g = normalised_adaptation(model, g, theta0, gamma0)  # Γ⁻¹ from the rates where not given raw
     check_gain_values(kind, g)
     g.update(mod.static_inputs(dyn, theta0, gamma0))
+    g["period"] = np.array([1.0e-3 if period is None else float(period)])
+    # The explicit update keeps the least-squares gain positive definite only while k h < 1, and a
+    # filter λ_f/(s + λ_f) stable and monotone only while λ_f h < 1.
+    for k in ("rate_ls_gamma", "lambda_f_gamma", "rate_ls_theta", "lambda_f_theta"):
+        if k in g and float(np.asarray(g[k]).ravel()[0]) * g["period"][0] >= 1.0:
+            raise ScenarioError(f"controller '{kind}': gain '{k}' = {float(np.asarray(g[k]).ravel()[0]):g} "
+                                f"must be below 1/h = {1.0 / g['period'][0]:g} (the control rate)")
     return _Controller(dyn, kind, g, theta0, gamma0, model)

@@ -212,7 +212,8 @@ def prepare_run(dyn, scenario, controller, gains, duration, check_workspace, ove
         theta0, gamma0 = model.theta, model.gamma
     if check_workspace:
         _check_reference(dyn, sc, n, h)
-    ctrl = make_controller(dyn, controller, {**sc.gains.get(controller, {}), **(gains or {})}, theta0, gamma0)
+    ctrl = make_controller(dyn, controller, {**sc.gains.get(controller, {}), **(gains or {})}, theta0, gamma0,
+                           period=h)
     nq, m = model.n, model.n_cylinders
     q0 = sc.reference(0.0)[0] + np.asarray(sc.q0_offset, float)
     x0 = np.concatenate([q0, np.zeros(nq), equilibrium_pressures(dyn, q0, model.theta), np.zeros(2 * m)])

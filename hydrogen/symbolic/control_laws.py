@@ -151,19 +151,26 @@ class Common:
     def jit_intermediate(self):
         return (self.Jit, ("inverse", self.JL.T))
 
-    def hydraulic_adaptation(self, ftil, f0, u, g1, g2, adapt, Gg1_inv, Gg2_inv, g1_lo, g1_hi, g2_lo, g2_hi):
+    def hydraulic_adaptation(self, ftil, f0, u, g1, g2, adapt, Gg1_inv, Gg2_inv, g1_lo, g1_hi, g2_lo, g2_hi,
+                             combine=None):
         """γ̂̇1 = κ Γ_γ1⁻¹ Γ_τ f0 f̃,  γ̂̇2 = κ Γ_γ2⁻¹ Γ_τ g0(u) f̃ (per cylinder, with projection).
 
         The paper's γ̂2 law has Π(f̃/γ̂2) v, i.e. the regressor v/γ̂2 = g0(u) of the commanded spool;
         here g0 is evaluated at the spool position actually applied (``u`` after the ±u_max clip),
         which is the regressor of γ̃2 in the force-error equation ḟ̃ = … + f0 γ̃1 + g0(u) γ̃2 also
-        when the valve saturates (README "Deviations")."""
+        when the valve saturates (README "Deviations").
+
+        ``combine(t1, t2) -> (r1, r2)`` turns the tracking terms (lists per cylinder) into the
+        rates that go through the projection (the composite adaptation,
+        :class:`hydrogen.symbolic.composite.HydraulicComposite`); None keeps the paper's law."""
         m = self.m
         g0 = self.g0_applied  # bound by force_loop to g0(clip(u_raw)), the spool actually applied
-        g1_dot = sp.Matrix([adapt * projection(g1[i], Gg1_inv[i] / self.Gtau_inv[i] * f0[i] * ftil[i],
-                                               g1_lo, g1_hi) for i in range(m)])
-        g2_dot = sp.Matrix([adapt * projection(g2[i], Gg2_inv[i] / self.Gtau_inv[i] * ftil[i] * g0[i],
-                                               g2_lo, g2_hi) for i in range(m)])
+        t1 = [Gg1_inv[i] / self.Gtau_inv[i] * f0[i] * ftil[i] for i in range(m)]
+        t2 = [Gg2_inv[i] / self.Gtau_inv[i] * ftil[i] * g0[i] for i in range(m)]
+        if combine is not None:
+            t1, t2 = combine(t1, t2)
+        g1_dot = sp.Matrix([adapt * projection(g1[i], t1[i], g1_lo, g1_hi) for i in range(m)])
+        g2_dot = sp.Matrix([adapt * projection(g2[i], t2[i], g2_lo, g2_hi) for i in range(m)])
         return g1_dot, g2_dot
 
     def adaptive_inputs(self):

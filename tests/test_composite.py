@@ -1,0 +1,264 @@
+"""Composite adaptation of γ (hydrogen/symbolic/composite.py): the prediction error, the
+least-squares gain, weight 0 = the paper's gradient law, and convergence on paper-sim."""
+import numpy as np
+import pytest
+import sympy as sp
+
+import hydrogen
+from hydrogen.controllers.common import initial_gain_matrix
+from hydrogen.simulation.control import make_controller
+from hydrogen.symbolic.composite import normalised_least_squares, pack_symmetric, unpack_symmetric
+
+KINDS = ["adaptive-robust", "adaptive-observer"]
+
+
+def _spd(k, rng):
+    a = rng.standard_normal((k, k))
+    return a @ a.T + 0.1 * np.eye(k)
+
+
+def _ls_numeric(k_rows, p):
+    """The symbolic law as a numeric function (W, eps, P, k, δ, ν) -> (ẋ, Ṗ as a matrix)."""
+    W = sp.Matrix(k_rows, p, lambda i, j: sp.Symbol(f"w{i}_{j}"))
+    eps = sp.Matrix(sp.symbols(f"e0:{k_rows}"))
+    Pp = sp.symbols(f"P0:{p * (p + 1) // 2}")
+    k, d, nu = sp.symbols("k d nu")
+    xd, Pd = normalised_least_squares(W, eps, Pp, k, d, nu)
+    f = sp.lambdify([list(W), list(eps), list(Pp), k, d, nu], [xd, Pd])
+
+    def call(Wn, en, Pn, kk, dd, nn):
+        packed = pack_symmetric(sp.Matrix(Pn))
+        x, P = f(list(np.ravel(Wn)), list(en), [float(v) for v in packed], kk, dd, nn)
+        return np.ravel(np.array(x, float)), np.array(unpack_symmetric(P, p), float)
+    return call
+
+
+def test_normalised_least_squares_matches_its_formula_and_keeps_the_gain_spd(rng):
+    """ẋ = −k P Wᵀ ε / m², Ṗ = −k P Wᵀ W P / m² with m² = tr(W P Wᵀ) + δ‖W‖² + ν², against numpy;
+    an explicit step with k h < 1 keeps P symmetric positive definite, P only shrinks."""
+    for rows, p in [(1, 2), (3, 4)]:
+        law = _ls_numeric(rows, p)
+        for _ in range(20):
+            W, e, P = rng.standard_normal((rows, p)) * 10 ** rng.uniform(-3, 3), rng.standard_normal(rows), _spd(p, rng)
+            k, d, nu = 50.0, 1e-4, 1e-3
+            x, Pd = law(W, e, P, k, d, nu)
+            m2 = np.trace(W @ P @ W.T) + d * np.sum(W ** 2) + nu ** 2
+            np.testing.assert_allclose(x, -k * P @ W.T @ e / m2, rtol=1e-10, atol=1e-14)
+            np.testing.assert_allclose(Pd, -k * P @ W.T @ W @ P / m2, rtol=1e-10, atol=1e-12 * np.abs(P).max())
+            np.testing.assert_array_equal(Pd, Pd.T)
+            for h in (1e-3, 0.999 / k):
+                P1 = P + h * Pd
+                assert np.linalg.eigvalsh(P1).min() > 0
+                assert np.linalg.eigvalsh(P - P1).min() > -1e-12 * np.abs(P).max()
+        # k h > 1 can lose positive definiteness: the bound is not vacuous
+        W = np.ones((1, 2)) * 1e3
+        P = np.eye(2)
+        _, Pd = _ls_numeric(1, 2)(W, [0.0], P, 50.0, 0.0, 0.0)
+        assert np.linalg.eigvalsh(P + 0.05 * Pd).min() < 0
+
+
+def test_initial_gain_matrix_is_p0_identity():
+    np.testing.assert_array_equal(initial_gain_matrix(2, 2, 3.0), [3, 0, 3, 3, 0, 3])
+    np.testing.assert_array_equal(np.array(unpack_symmetric(initial_gain_matrix(3, 1, 2.0), 3), float),
+                                  2 * np.eye(3))
+
+
+def _random_inputs(ctrl, model, rng):
+    """Random measurements and states inside the projection bounds (the projection inactive)."""
+    n, m = model.n, model.n_cylinders
+    q = model.neutral_pose + rng.uniform(-0.02, 0.02, n)
+    xc = ctrl.xc.copy()
+    for name, sl in ctrl.slices.items():
+        size = sl.stop - sl.start
+        if name == "theta_hat":
+            xc[sl] = model.theta * rng.uniform(0.9, 1.1, size)
+        elif name in ("gamma1_hat", "gamma2_hat"):
+            xc[sl] = model.gamma[0 if name == "gamma1_hat" else 1] * rng.uniform(0.9, 1.1, size)
+        elif name == "gamma_gain":  # with k = 0, P stays where it starts: P0 I
+            xc[sl] = initial_gain_matrix(2, m, float(ctrl.values["P0_gamma"][0]))
+        elif name == "theta_gain":
+            xc[sl] = initial_gain_matrix(model.n_theta, 1, float(ctrl.values["P0_theta"][0]))
+        elif name == "q_hat":
+            xc[sl] = q + rng.uniform(-1e-3, 1e-3, n)
+        elif name == "spool_prev":
+            xc[sl] = rng.uniform(-2e-3, 2e-3, size)
+        elif name in ("log_chamber_filter",):
+            xc[sl] = rng.uniform(-1, 0, size)
+        elif name == "pc_prev":
+            xc[sl] = model.supply_pressure * rng.uniform(0.3, 0.7, size)
+        elif name == "legl_prev":
+            xc[sl] = np.array([c.chamber_length for c in model.cylinders]) + rng.uniform(0.3, 0.5, size)
+        else:
+            xc[sl] = rng.standard_normal(size) * (1e4 if "filter" in name else 0.05)
+    pc = model.supply_pressure * rng.uniform(0.3, 0.7, m)
+    ref = [model.neutral_pose + rng.uniform(-0.02, 0.02, n), *(rng.uniform(-0.1, 0.1, (3, n)))]
+    return q, rng.uniform(-0.05, 0.05, n), pc, ref, xc
+
+
+@pytest.mark.parametrize("kind", KINDS)
+def test_composite_weight_zero_is_the_papers_gradient_law(robot_dyn, kind, rng):
+    """rate_ls_gamma = rate_ls_theta = 0: γ̂'s rates equal the paper's law computed here in numpy from
+    the controller's own f_d and u (γ̂̇1 = Γ_γ1⁻¹ Γ_τ f0 f̃, γ̂̇2 = Γ_γ2⁻¹ Γ_τ g0(u) f̃), and the command
+    and every rate but the composite filters' (θ̂'s too) are unchanged by the composite states."""
+    dyn, model = robot_dyn, robot_dyn.model
+    ctrl = make_controller(dyn, kind)
+    assert float(ctrl.values["rate_ls_gamma"][0]) == 0.0 and float(ctrl.values["rate_ls_theta"][0]) == 0.0
+    m = model.n_cylinders
+    A, a, ps = model.piston_area, np.array([c.rod_area for c in model.cylinders]), model.supply_pressure
+    L = np.array([c.chamber_length for c in model.cylinders])
+    comp = ["force_filter", "log_chamber_filter", "g0_filter", "spool_prev", "pc_prev", "legl_prev", "gamma_gain",
+            "momentum_filter", "momentum_offset_filter", "bias_filter", "bias_offset_filter", "torque_filter",
+            "theta_gain"]
+    for _ in range(5):
+        q, qdot, pc, ref, xc = _random_inputs(ctrl, model, rng)
+        ctrl.xc[:] = xc
+        l = np.asarray(dyn.leg_lengths(q)).ravel()
+        u = ctrl.command(q, qdot, pc, l, ref, True).copy()
+        rate = ctrl.xc_dot.copy()
+        f = pc * A - ps * a
+        ftil = f - ctrl.f_d
+        ldot = np.asarray(dyn.leg_jacobian(q)).reshape(m, model.n) @ qdot
+        f0 = -A * ldot / (l - L)
+        g0 = np.asarray(dyn.valve_flow(u, pc)).ravel() / (l - L)
+        v = ctrl.values
+        np.testing.assert_allclose(rate[ctrl.slices["gamma1_hat"]], v["Ggamma1_inv"] / v["Gtau_inv"] * f0 * ftil,
+                                   rtol=1e-9)
+        np.testing.assert_allclose(rate[ctrl.slices["gamma2_hat"]], v["Ggamma2_inv"] / v["Gtau_inv"] * g0 * ftil,
+                                   rtol=1e-9)
+        # other composite states: the command and every rate outside the composite filters unchanged
+        ctrl.xc[:] = xc
+        for name in comp:
+            if not name.endswith("_gain"):
+                ctrl.xc[ctrl.slices[name]] = xc[ctrl.slices[name]] * rng.uniform(0.5, 1.5) + 1.0
+        u2 = ctrl.command(q, qdot, pc, l, ref, True)
+        np.testing.assert_array_equal(u2, u)
+        keep = np.ones(rate.size, bool)
+        for name in comp:
+            keep[ctrl.slices[name]] = False
+        np.testing.assert_array_equal(ctrl.xc_dot[keep], rate[keep])
+
+
+def _prediction_error(dyn, model, update, lam=100.0, periods=2500):
+    """ε (N/s) and the filtered ḟ λ_f (f − φ_f) per period, from the controller's filter states along a
+    paper-sim run with the true parameters, recomputed here from the plant's forces and lengths."""
+    st = hydrogen.stepper("paper-sim", "adaptive-robust", dyn=dyn, gains={"lambda_f_gamma": lam}, duration=3.0,
+                          theta0_factor=[1.0] * model.n_theta, gamma0_factor=[1.0, 1.0], estimator_update=update)
+    sl, n, m, h = st.controller.slices, model.n, model.n_cylinders, st.h
+    A, L = model.piston_area, np.array([c.chamber_length for c in model.cylinders])
+    g1, g2 = model.gamma
+    E, Y = [], []
+    for _ in range(periods):
+        x = st.x.copy()  # the plant at this period's measurement
+        st.step()
+        xc = st.xc
+        f = np.asarray(dyn.leg_force(x[2 * n:2 * n + m])).ravel()
+        l = np.asarray(dyn.leg_lengths(x[:n])).ravel()
+        # the states after the update: the force-side filters have moved by (1 − h λ_f) once more
+        y = lam * (f - xc[sl["force_filter"]]) / (1 - h * lam)
+        w1 = -A * lam * (np.log(l - L) - xc[sl["log_chamber_filter"]]) / (1 - h * lam)
+        E.append(g1 * w1 + g2 * xc[sl["g0_filter"]] - y)
+        Y.append(y)
+    E, Y = np.array(E)[500:], np.array(Y)[500:]
+    return np.sqrt((E ** 2).mean(axis=0) / (Y ** 2).mean(axis=0))
+
+
+def test_prediction_error_vanishes_with_the_true_parameters(dyn, model):
+    """With the copies of the spool the valve held (exact under the forward-Euler update) the
+    filtered equation holds to < 1 % of the filtered ḟ per leg (the trapezoid's residual)."""
+    rel = _prediction_error(dyn, model, "euler")
+    assert np.all(rel < 0.01), rel
+
+
+@pytest.mark.xfail(strict=True, reason="under the semi-implicit update the spool copied in the update call is "
+                   "computed from the previous state, not the command the valve then received; the error is "
+                   "50-140 % of the filtered force rate until the loop passes the received spool")
+def test_prediction_error_vanishes_under_the_semi_implicit_update(dyn, model):
+    rel = _prediction_error(dyn, model, "semi-implicit")
+    assert np.all(rel < 0.01), rel
+
+
+def test_ls_gain_stays_symmetric_positive_definite_along_a_run(dyn):
+    st = hydrogen.stepper("paper-sim", "adaptive-robust", dyn=dyn, gains={"rate_ls_gamma": 100.0}, duration=2.0,
+                          estimator_update="euler")
+    sl = st.controller.slices["gamma_gain"]
+    for k in range(1500):
+        st.step()
+        if k % 50 == 0:
+            for tri in st.xc[sl].reshape(-1, 3):
+                P = np.array([[tri[0], tri[1]], [tri[1], tri[2]]])
+                ev = np.linalg.eigvalsh(P)
+                assert ev.min() > 0 and ev.max() <= 1.0 + 1e-12, (k, ev)
+    assert st.xc[sl].reshape(-1, 3)[:, 0].max() < 0.1  # it has learnt: P shrank
+
+
+def test_theta_prediction_error_vanishes_with_the_true_parameters(robot_dyn):
+    """The momentum form: τ_f = λ_f (Y_p − ξ) θ + ζ θ + offsets, from the controller's filter states
+    along each robot's ideal-plant run with the true parameters, against D(q, θ) q̇ (the compiled mass
+    matrix) and (JL)ᵀ f filtered here: the error is < 1 % of the filtered force's variation."""
+    dyn, model = robot_dyn, robot_dyn.model
+    scen = "paper-sim" if "paper-sim" in model.scenarios else "arm-sim"
+    lam = 20.0
+    st = hydrogen.stepper(scen, "adaptive-robust", dyn=dyn, gains={"lambda_f_theta": lam}, duration=3.0,
+                          theta0_factor=[1.0] * model.n_theta, gamma0_factor=[1.0, 1.0])
+    sl, n, m, p, h = st.controller.slices, model.n, model.n_cylinders, model.n_theta, st.h
+    th = model.theta
+    E, T = [], []
+    tf = np.zeros(n)  # (JL)ᵀ f filtered here, as the controller's update does (from 0)
+    for k in range(2500):
+        x = st.x.copy()
+        st.step()
+        xc = st.xc
+        q, qdot = x[:n], x[n:2 * n]
+        f = np.asarray(dyn.leg_force(x[2 * n:2 * n + m])).ravel()
+        xi = xc[sl["momentum_filter"]].reshape(n, p) @ th + xc[sl["momentum_offset_filter"]]
+        ze = xc[sl["bias_filter"]].reshape(n, p) @ th + xc[sl["bias_offset_filter"]]
+        mom = np.asarray(dyn.mass_matrix(q, th)).reshape(n, n) @ qdot
+        # the momentum filter after the update has moved by (1 − h λ_f) once more
+        E.append(lam * (mom - xi) / (1 - h * lam) + ze - xc[sl["torque_filter"]])
+        tau = np.asarray(dyn.leg_jacobian(q)).reshape(m, n).T @ f
+        if k or st.scenario.estimator_update == "euler":  # the semi-implicit loop's first period has no update
+            tf = tf + h * lam * (tau - tf)
+        np.testing.assert_allclose(xc[sl["torque_filter"]], tf, rtol=1e-9, atol=1e-9 * np.abs(tau).max())
+        T.append(tf)
+    E, T = np.array(E)[500:], np.array(T)[500:]
+    # rows in units of acceleration (÷ the inertia scale), against the largest row's variation
+    scale = st.controller.values["theta_row_scale"]
+    rms = lambda a: np.sqrt((a ** 2).mean(axis=0)) / scale  # noqa: E731
+    rel = rms(E) / rms(T - T.mean(axis=0)).max()
+    assert rel.max() < 0.01, rel
+
+
+def test_composite_rates_are_checked_against_the_control_period(dyn):
+    with pytest.raises(hydrogen.ScenarioError, match="rate_ls_gamma"):
+        hydrogen.simulate("paper-sim", "adaptive-robust", dyn=dyn, gains={"rate_ls_gamma": 2000.0}, duration=0.01)
+
+
+def test_theta_signals_of_a_staged_tree_equal_the_closed_forms(monkeypatch, rng):
+    """Y_p, p0, Y_b, b0 of the momentum form on a staged tree (D holds link-pose symbols, so Cᵀ q̇
+    comes from the tree's Christoffel C, not from ∂D/∂q) equal the closed form's (∂/∂q of the
+    kinetic energy) for the same robot, at random states: the arm, staged by lowering the depth rule."""
+    from hydrogen.symbolic import rigid_body, tree
+    from hydrogen.symbolic.composite import RigidBodyComposite
+    from hydrogen.symbolic.control_laws import Common
+
+    model = hydrogen.load_model("excavator_arm")
+
+    def signals(depth):
+        monkeypatch.setattr(tree, "STAGE_DEPTH", depth)
+        rigid_body._TREES.clear()  # the trees cache the form they were built in
+        c = Common(model)
+        out = RigidBodyComposite(c, c.theta()).signals()
+        stages = rigid_body.rigid_body_stages(model, c.q)
+        for syms, expr in reversed(stages):  # innermost last: substitute the poses into the signals
+            rep = dict(zip(list(syms), list(expr)))
+            out = [sp.Matrix(o).xreplace(rep) for o in out]
+        return len(stages), sp.lambdify([list(c.q), list(c.qdot)], out, "numpy")
+
+    n_closed, closed = signals(99)
+    n_staged, staged = signals(1)
+    rigid_body._TREES.clear()
+    assert n_closed == 0 and n_staged > 0  # the two forms were really built
+    for _ in range(3):
+        q, qd = rng.uniform(-1, 1, model.n), rng.uniform(-1, 1, model.n)
+        for a, b in zip(closed(q, qd), staged(q, qd)):
+            np.testing.assert_allclose(np.array(b, float), np.array(a, float), rtol=1e-9, atol=1e-9)
