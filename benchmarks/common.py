@@ -31,7 +31,7 @@ FIXED = {"friction": np.array([100.0, 300.0, 1e-3]), "valve": np.zeros(3), "adap
 #: Scale of the small random values of the remaining (state-like) inputs.
 RANDOM_SCALE = {
     "qdot": 0.1, "qd1": 0.1, "qd2": 0.5, "qd3": 2.0, "v": 0.1, "w": 0.1, "a": 1.0,
-    "u": 1e-3, "ldot": 0.05, "ql_per_c": 1.0, "z": 0.01,
+    "u": 1e-3, "u_applied": 1e-3, "ldot": 0.05, "ql_per_c": 1.0, "z": 0.01,
 }
 
 
@@ -51,7 +51,7 @@ class InputValues:
     """
 
     def __init__(self, dyn):
-        from hydrogen.controllers import CONTROLLERS, function_name
+        from hydrogen.controllers import CONTROLLERS, function_name, rates_function_name
         from hydrogen.simulation.control import make_controller
 
         self.dyn, self.model = dyn, dyn.model
@@ -60,6 +60,7 @@ class InputValues:
         self.ctrl = {}
         for kind in CONTROLLERS:
             self.ctrl[function_name(kind)] = make_controller(dyn, kind, None, m.theta, m.gamma)
+            self.ctrl[rates_function_name(kind)] = self.ctrl[function_name(kind)]  # same inputs
 
     def value(self, fname: str, name: str, rows: int, cols: int, rng: np.random.Generator) -> np.ndarray:
         """Flat (column-major) values of input ``name`` (rows x cols) of function ``fname``."""

@@ -35,14 +35,15 @@ def _structs(ctx: dict):
             ("bias", _D), ("n_terms", _LL), ("terms", _D), ("step_axis", _LL), ("step_height", C.c_double),
             ("t_step", C.c_double),
             ("ctrl", C.c_void_p), ("ctrl_arg", C.c_void_p), ("ctrl_res", C.c_void_p), ("ctrl_iw", C.c_void_p),
-            ("ctrl_w", C.c_void_p), ("slot", _LL * len(ctx["slots"])), ("n_xc", _LL), ("xc_lo", _D),
+            ("ctrl_w", C.c_void_p), ("rates", C.c_void_p), ("rates_res", C.c_void_p), ("rates_iw", C.c_void_p),
+            ("rates_w", C.c_void_p), ("slot", _LL * len(ctx["slots"])), ("n_xc", _LL), ("xc_lo", _D),
             ("xc_hi", _D), ("xc_euler", _LL), ("fk_tol", C.c_double), ("fk_max_iter", _LL),
         ]
 
     class State(C.Structure):
         _fields_ = [("t", C.c_double), ("k", _LL), ("x", C.c_double * ctx["nx"]), ("q_meas", C.c_double * ctx["n"]),
                     ("kf", C.c_double * (2 * ctx["m"])), ("u_hist", C.c_double * (ctx["max_delay"] * ctx["m"])),
-                    ("xc", _D)]
+                    ("u_app", C.c_double * ctx["m"]), ("xc", _D)]
 
     class Log(C.Structure):
         _fields_ = [(name, _D) for name, _, _ in ctx["logs"]]
@@ -131,6 +132,13 @@ class LoopRunner:
             cfg.slot[i] = fn.in_names.index(s) if s in fn.in_names else -1
         n_xc = ctrl.xc.size
         cfg.n_xc = n_xc
+        if n_xc:
+            # the rates function reads the controller's argument table: it must take the same inputs
+            rates = ctrl.rates_fn
+            if rates.in_names != fn.in_names or rates.in_shapes != fn.in_shapes:
+                raise ValueError(f"{rates.name} and {fn.name} take different inputs; regenerate")
+            rt = rates.c_tables()
+            cfg.rates, cfg.rates_res, cfg.rates_iw, cfg.rates_w = rt["fn"], rt["res"], rt["iw"], rt["w"]
         lo, hi = ctrl.bounds
         cfg.xc_lo, cfg.xc_hi = _ptr(arr(np.where(np.isfinite(lo), lo, -1e300))), \
             _ptr(arr(np.where(np.isfinite(hi), hi, 1e300)))
@@ -150,6 +158,7 @@ class LoopRunner:
         st.q_meas[:] = list(np.asarray(q_meas0, float))
         st.kf[:] = list(np.concatenate([l0, np.zeros(len(l0))]))
         C.memset(st.u_hist, 0, C.sizeof(st.u_hist))
+        C.memset(st.u_app, 0, C.sizeof(st.u_app))
         self.xc[: xc0.size] = xc0
 
     def run(self, n: int, noise=None, logs: dict | None = None) -> int:

@@ -113,13 +113,20 @@ def plant_functions(model) -> list:
 
 
 def controller_functions(model) -> list:
-    from ..controllers import CONTROLLERS, controller, function_name
+    """Each controller; and, for a controller with a state, its rates-only function: the same inputs
+    (so one argument table serves both) and the output ``xc_dot`` alone, from which CasADi keeps only
+    what the rates need (no τ̇_d, ḟ_d, v or valve inverse): the loop's semi-implicit state update."""
+    from ..controllers import CONTROLLERS, controller, function_name, rates_function_name
 
     out = []
     for name in CONTROLLERS:
         mod = controller(name)
         parts = mod.derive(model)
         out.append(SymbolicFunction(function_name(name), parts.inputs, parts.outputs, mod.DOC, parts.intermediates))
+        rates = [(k, v) for k, v in parts.outputs if k == "xc_dot"]
+        if rates:
+            out.append(SymbolicFunction(rates_function_name(name), parts.inputs, rates,
+                                        f"{mod.DOC} State rates xc_dot only (same inputs).", parts.intermediates))
     return out
 
 
