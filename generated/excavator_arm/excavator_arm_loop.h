@@ -56,12 +56,19 @@ typedef struct {
     double** ctrl_res;
     long long int* ctrl_iw;
     double* ctrl_w;
-    /* its rates-only function (n_xc > 0): the same inputs, read from ctrl_arg; result 0 is the state
-     * rate. The state update calls it, so the command needs one call of ctrl per period. */
+    /* with a state (n_xc > 0): its rates-only function (the same inputs, read from ctrl_arg; result 0
+     * is the state rate), called by the forward-Euler update; and its semi-implicit step, one call per
+     * period: arguments ctrl_arg's then h, xc_lo, xc_hi (step_arg); results u (step_res[0] must be
+     * ctrl_res[0]) and the updated state */
     excavator_arm_casadi_fn rates;
     double** rates_res;
     long long int* rates_iw;
     double* rates_w;
+    excavator_arm_casadi_fn step;
+    double** step_arg;
+    double** step_res;
+    long long int* step_iw;
+    double* step_w;
     long long slot[EXCAVATOR_ARM_N_SLOTS];
     long long n_xc;              /* controller state size */
     const double* xc_lo;         /* projection bounds of the controller state */

@@ -158,7 +158,7 @@ int ubc_stewart_loop_run(const ubc_stewart_loop_config* c, ubc_stewart_loop_stat
     long long step, j;
     int i;
     if (c->delay < 0 || c->delay > MAX_DELAY) return UBC_STEWART_CTRL_FAILED;  /* the ring holds MAX_DELAY periods */
-    if (c->n_xc && !c->rates) return UBC_STEWART_CTRL_FAILED;  /* a state needs its rates function */
+    if (c->n_xc && !(c->xc_euler ? c->rates : c->step)) return UBC_STEWART_CTRL_FAILED;  /* a state needs its update */
     for (step = 0; step < n; ++step) {
         const double* nz = noise ? noise + NNOISE * step : 0;  /* row `step` of this call's table */
         const double t = (double)st->k * h;  /* k h, not a running sum: no drift */
@@ -208,16 +208,16 @@ int ubc_stewart_loop_run(const ubc_stewart_loop_config* c, ubc_stewart_loop_stat
          * xc_k = clip(xc_{k-1} + h F(measurement_k, xc_{k-1}, u_app_{k-1})), and the command of period k
          * uses xc_k: the adaptation feedback then has no one-period delay (symplectic Euler on the coupled
          * force error / estimate oscillation), stable up to about 5x the adaptation gain forward Euler
-         * takes at the same rate. F is the rates-only function (no tau_d_dot, no valve inverse); u_app_{k-1}
-         * is the command the valves held over the period it integrates. The first period uses the
-         * initial state. */
+         * takes at the same rate. u_app_{k-1} is the command the valves held over the period F integrates.
+         * One call of the generated step does both (what depends on the measurement only is computed
+         * once) and writes u where the controller would. The first period uses the initial state. */
         if (c->n_xc && !c->xc_euler && st->k > 0) {
-            if (c->rates((const double**)c->ctrl_arg, c->rates_res, c->rates_iw, c->rates_w, 0)) return UBC_STEWART_CTRL_FAILED;
-            for (j = 0; j < c->n_xc; ++j)
-                st->xc[j] = clip(st->xc[j] + h * c->rates_res[0][j], c->xc_lo[j], c->xc_hi[j]);
+            if (c->step((const double**)c->step_arg, c->step_res, c->step_iw, c->step_w, 0)) return UBC_STEWART_CTRL_FAILED;
+            memcpy(st->xc, c->step_res[1], (size_t)c->n_xc * sizeof(double));
             set_slot(c, UBC_STEWART_SLOT_XC, st->xc, c->n_xc);
+        } else if (c->ctrl((const double**)c->ctrl_arg, c->ctrl_res, c->ctrl_iw, c->ctrl_w, 0)) {
+            return UBC_STEWART_CTRL_FAILED;
         }
-        if (c->ctrl((const double**)c->ctrl_arg, c->ctrl_res, c->ctrl_iw, c->ctrl_w, 0)) return UBC_STEWART_CTRL_FAILED;
         memcpy(u, c->ctrl_res[0], sizeof u);
         /* computation delay: apply the command of `delay` periods ago (0 before the start), keep this one */
         if (c->delay > 0) {

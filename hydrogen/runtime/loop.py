@@ -36,7 +36,8 @@ def _structs(ctx: dict):
             ("t_step", C.c_double),
             ("ctrl", C.c_void_p), ("ctrl_arg", C.c_void_p), ("ctrl_res", C.c_void_p), ("ctrl_iw", C.c_void_p),
             ("ctrl_w", C.c_void_p), ("rates", C.c_void_p), ("rates_res", C.c_void_p), ("rates_iw", C.c_void_p),
-            ("rates_w", C.c_void_p), ("slot", _LL * len(ctx["slots"])), ("n_xc", _LL), ("xc_lo", _D),
+            ("rates_w", C.c_void_p), ("step", C.c_void_p), ("step_arg", C.c_void_p), ("step_res", C.c_void_p),
+            ("step_iw", C.c_void_p), ("step_w", C.c_void_p), ("slot", _LL * len(ctx["slots"])), ("n_xc", _LL), ("xc_lo", _D),
             ("xc_hi", _D), ("xc_euler", _LL), ("fk_tol", C.c_double), ("fk_max_iter", _LL),
         ]
 
@@ -140,8 +141,10 @@ class LoopRunner:
             rt = rates.c_tables()
             cfg.rates, cfg.rates_res, cfg.rates_iw, cfg.rates_w = rt["fn"], rt["res"], rt["iw"], rt["w"]
         lo, hi = ctrl.bounds
-        cfg.xc_lo, cfg.xc_hi = _ptr(arr(np.where(np.isfinite(lo), lo, -1e300))), \
-            _ptr(arr(np.where(np.isfinite(hi), hi, 1e300)))
+        lo, hi = arr(np.where(np.isfinite(lo), lo, -1e300)), arr(np.where(np.isfinite(hi), hi, 1e300))
+        cfg.xc_lo, cfg.xc_hi = _ptr(lo), _ptr(hi)
+        if n_xc:
+            self._step_tables(cfg, ctrl, tables, [arr([h]), lo, hi])
         cfg.xc_euler = 1 if estimator_update == "euler" else 0
         cfg.fk_tol, cfg.fk_max_iter = fk_tol, fk_max_iter
         self.cfg = cfg
@@ -149,6 +152,23 @@ class LoopRunner:
         self.xc = np.zeros(max(n_xc, 1))
         self.state.xc = _ptr(self.xc)
         self._cfg_ref, self._st_ref = C.byref(cfg), C.byref(self.state)
+
+    def _step_tables(self, cfg, ctrl, tables, extra):
+        """The semi-implicit step's tables: its arguments are the controller's (the same buffers, which
+        the loop writes) then h, xc_lo, xc_hi; its command result is the controller's u buffer."""
+        step, fn = ctrl.step_fn.clone(), ctrl.fn  # a clone: its result table is redirected below
+        n_in = len(fn.in_names)
+        if step.in_names[:n_in] != fn.in_names or step.in_names[n_in:] != ["h", "xc_lo", "xc_hi"]:
+            raise ValueError(f"{step.name} does not take {fn.name}'s inputs then h, xc_lo, xc_hi; regenerate")
+        ctrl_arg = C.cast(tables["arg"], C.POINTER(C.c_void_p))
+        step_arg = (C.c_void_p * (n_in + len(extra)))(*[ctrl_arg[i] for i in range(n_in)],
+                                                      *[a.ctypes.data for a in extra])
+        st = step.c_tables()
+        step_res = C.cast(st["res"], C.POINTER(C.c_void_p))
+        step_res[0] = C.cast(tables["res"], C.POINTER(C.c_void_p))[0]  # u lands where the controller writes it
+        self._keep += [step_arg, step]
+        cfg.step, cfg.step_arg, cfg.step_res = st["fn"], C.cast(step_arg, C.c_void_p), st["res"]
+        cfg.step_iw, cfg.step_w = st["iw"], st["w"]
 
     def reset(self, x0, q_meas0, l0, xc0):
         """Initial plant state (2n + 2m), measured pose, Kalman cylinder lengths and controller state."""

@@ -14,7 +14,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..controllers import CONTROLLERS, controller as controller_module, function_name, rates_function_name
+from ..controllers import (CONTROLLERS, controller as controller_module, function_name, rates_function_name,
+                           step_function_name)
 from ..controllers.common import normalised_adaptation
 from ..errors import ScenarioError
 from .checks import check_gain_values
@@ -88,6 +89,8 @@ class _Controller:
         self.xc_dot = np.zeros_like(self.xc)
         # the state's rates alone (same inputs as fn): the semi-implicit update calls it, not fn
         self.rates_fn = dyn.functions[rates_function_name(kind)].clone() if self.xc.size else None
+        # the C loop's semi-implicit period in one call (rates, clip, command): for the loop runner
+        self.step_fn = dyn.functions[step_function_name(kind)].clone() if self.xc.size else None
         #: spool commands the valves held over the last period, m (the γ̂2 law's u_applied)
         self.u_applied = np.zeros(model.n_cylinders)
         self.slices, i = {}, 0
