@@ -37,7 +37,8 @@ def _structs(ctx: dict):
             ("ctrl", C.c_void_p), ("ctrl_arg", C.c_void_p), ("ctrl_res", C.c_void_p), ("ctrl_iw", C.c_void_p),
             ("ctrl_w", C.c_void_p), ("rates", C.c_void_p), ("rates_res", C.c_void_p), ("rates_iw", C.c_void_p),
             ("rates_w", C.c_void_p), ("step", C.c_void_p), ("step_arg", C.c_void_p), ("step_res", C.c_void_p),
-            ("step_iw", C.c_void_p), ("step_w", C.c_void_p), ("slot", _LL * len(ctx["slots"])), ("n_xc", _LL), ("xc_lo", _D),
+            ("step_iw", C.c_void_p), ("step_w", C.c_void_p), ("slot", _LL * len(ctx["slots"])), ("n_xc", _LL),
+            ("xc_lo", _D),
             ("xc_hi", _D), ("xc_euler", _LL), ("fk_tol", C.c_double), ("fk_max_iter", _LL),
         ]
 

@@ -149,7 +149,7 @@ class Common:
         return (self.Jit, ("inverse", self.JL.T))
 
     def hydraulic_adaptation(self, ftil, f0, u, g1, g2, adapt, Gg1_inv, Gg2_inv, g1_lo, g1_hi, g2_lo, g2_hi):
-        """γ̂̇1 = κ Γ_γ1⁻¹ Γ_τ f0 f̃,  γ̂̇2 = κ Γ_γ2⁻¹ Γ_τ g0(u_applied) f̃ (per cylinder, with projection).
+        """γ̂̇1 = κ Γ_γ1⁻¹ Γ_τ f0 f̃,  γ̂̇2 = κ Γ_γ2⁻¹ Γ_τ g0(u_applied) f̃ (per cylinder, projected).
 
         The paper's γ̂2 law has Π(f̃/γ̂2) v, i.e. the regressor v/γ̂2 = g0(u) of this period's
         commanded spool; here g0 is evaluated at the spool command the valves actually received over

@@ -35,7 +35,7 @@ class SymbolicFunction:
 @dataclass
 class SemiImplicitStep:
     """The loop's semi-implicit period of a controller with a state, as one function:
-    xc⁺ = min(max(xc + h F(y, xc, u_applied), xc_lo), xc_hi), then u = U(y, xc⁺), where F is
+    xc⁺ = clip(xc + h F(y, xc, u_applied), xc_lo, xc_hi), then u = U(y, xc⁺), where F is
     ``rates`` and U is ``controller``'s first output. Code generation composes it from the two
     (CasADi shares what depends on the measurement only: the kinematics, JL⁻ᵀ, the forces)."""
 
