@@ -35,7 +35,7 @@ import sympy as sp
 import hydrogen
 import hydrogen.simulation.scenarios
 from hydrogen.codegen.casadi_functions import to_casadi_function
-from hydrogen.controllers import function_name
+from hydrogen.controllers import function_name, rates_function_name
 from hydrogen.dynamics import Dynamics
 from hydrogen.simulation import simulator as S
 from hydrogen.symbolic.functions import derive_functions
@@ -127,7 +127,7 @@ def proxy_dynamics(model, kind, functions=None):
     """A Dynamics whose functions are CasADi or lambdify routes instead of the compiled library
     (``functions``: the model's derived functions, derived here when not given)."""
     make = CasadiFn if kind == "casadi" else LambdifyFn
-    wanted = {*_LOOP_FUNCTIONS, function_name(CONTROLLER)}
+    wanted = {*_LOOP_FUNCTIONS, function_name(CONTROLLER), rates_function_name(CONTROLLER)}
     fns = {sf.name: make(sf) for sf in (functions or derive_functions(model)) if sf.name in wanted}
     fns.update({n: None for n in ("valve_flow", "valve_inverse", "pressure_rate", "leg_force")})
     return Dynamics(model, SimpleNamespace(functions=fns))

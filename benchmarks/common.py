@@ -26,12 +26,13 @@ CFLAGS = ("-O2", "-std=c99", "-Wall", "-Wextra", "-Werror")
 # ---------------------------------------------------------------------------------------------
 #: Fixed values of the plant-only inputs (friction: Coulomb N, viscous N s/m, tanh speed m/s).
 #: valve: [first-order lag s, natural frequency rad/s, damping], the ideal valve.
-FIXED = {"friction": np.array([100.0, 300.0, 1e-3]), "valve": np.zeros(3), "adapt": np.array([1.0])}
+FIXED = {"friction": np.array([100.0, 300.0, 1e-3]), "valve": np.zeros(3), "adapt": np.array([1.0]),
+         "h": np.array([1e-3])}
 
 #: Scale of the small random values of the remaining (state-like) inputs.
 RANDOM_SCALE = {
     "qdot": 0.1, "qd1": 0.1, "qd2": 0.5, "qd3": 2.0, "v": 0.1, "w": 0.1, "a": 1.0,
-    "u": 1e-3, "ldot": 0.05, "ql_per_c": 1.0, "z": 0.01,
+    "u": 1e-3, "u_applied": 1e-3, "ldot": 0.05, "ql_per_c": 1.0, "z": 0.01,
 }
 
 
@@ -51,7 +52,7 @@ class InputValues:
     """
 
     def __init__(self, dyn):
-        from hydrogen.controllers import CONTROLLERS, function_name
+        from hydrogen.controllers import CONTROLLERS, function_name, rates_function_name, step_function_name
         from hydrogen.simulation.control import make_controller
 
         self.dyn, self.model = dyn, dyn.model
@@ -60,6 +61,8 @@ class InputValues:
         self.ctrl = {}
         for kind in CONTROLLERS:
             self.ctrl[function_name(kind)] = make_controller(dyn, kind, None, m.theta, m.gamma)
+            self.ctrl[rates_function_name(kind)] = self.ctrl[function_name(kind)]  # same inputs
+            self.ctrl[step_function_name(kind)] = self.ctrl[function_name(kind)]  # same, then h and the bounds
 
     def value(self, fname: str, name: str, rows: int, cols: int, rng: np.random.Generator) -> np.ndarray:
         """Flat (column-major) values of input ``name`` (rows x cols) of function ``fname``."""
@@ -84,6 +87,9 @@ class InputValues:
         elif name == "xc" and ctrl is not None:
             ctrl.reset(q, small(RANDOM_SCALE["z"], n))
             out = ctrl.xc.copy()
+        elif name in ("xc_lo", "xc_hi") and ctrl is not None:  # the projection bounds, as the loop passes them
+            bound = ctrl.bounds[0 if name == "xc_lo" else 1]
+            out = np.where(np.isfinite(bound), bound, -1e300 if name == "xc_lo" else 1e300)
         elif ctrl is not None and name in ctrl.values:
             out = np.asarray(ctrl.values[name], float).ravel(order="F")
         elif name == "theta":

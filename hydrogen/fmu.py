@@ -469,7 +469,8 @@ def export_fmu(out, part, scenario="z-1hz", controller="adaptive-robust", model=
     Path of the written FMU.
     """
     from . import __version__
-    from .export import LOOP_FUNCTIONS, export_context, prepare_export, read_sources, sensor_kalman_gain, template_env
+    from .export import (LOOP_FUNCTIONS, controller_entries, export_context, prepare_export, read_sources,
+                         sensor_kalman_gain, template_env)
     from .names import check_identifier
 
     if part not in PARTS:
@@ -486,8 +487,9 @@ def export_fmu(out, part, scenario="z-1hz", controller="adaptive-robust", model=
     model, mname = dyn.model, dyn.model.name
     manifest = dyn.library.manifest
     entries = {e["name"]: e for e in manifest["functions"]}
-    ctrl_entry = entries[p.ctrl.fn.name]
-    funcs = [entries[n] for n in LOOP_FUNCTIONS] + ([ctrl_entry] if part != "plant" else [])
+    ctrl_entries = controller_entries(manifest, p.ctrl)
+    ctrl_entry = ctrl_entries[0]
+    funcs = [entries[n] for n in LOOP_FUNCTIONS] + (ctrl_entries if part != "plant" else [])
     driver = f"{mname}_loop.c"
     if driver not in manifest.get("drivers", []):
         raise FmuError(f"export: the compiled dynamics have no loop driver {driver}; rebuild")

@@ -9,8 +9,9 @@ from __future__ import annotations
 
 __all__ = ["SLOTS", "MAX_DELAY", "model_summary", "loop_context", "log_widths", "c_double"]
 
-#: Signals the loop writes into a controller's inputs, by input name, in this order.
-SLOTS = ("q", "qdot", "pc", "l", "qd0", "qd1", "qd2", "qd3", "xc", "adapt")
+#: Signals the loop writes into a controller's inputs, by input name, in this order (``u_applied``:
+#: the spool commands the valves held over the last period, after the clip and the computation delay).
+SLOTS = ("q", "qdot", "pc", "l", "qd0", "qd1", "qd2", "qd3", "xc", "adapt", "u_applied")
 
 #: Longest computation delay the loop's command ring buffer holds, control periods (a scenario's
 #: ``delay_periods`` is refused above it). A real-time target applies a command one period after the

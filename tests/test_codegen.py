@@ -22,7 +22,7 @@ from conftest import MODELS
 
 def _random_input(name, shape, model, rng, fname=""):
     """A plausible value of a generated function's input, from the model (any robot)."""
-    from hydrogen.controllers import CONTROLLERS, controller, function_name
+    from hydrogen.controllers import CONTROLLERS, controller, function_name, rates_function_name
     from conftest import workspace_poses
 
     size = shape[0] * shape[1]
@@ -36,7 +36,7 @@ def _random_input(name, shape, model, rng, fname=""):
         x = model.gamma[0 if name == "gamma1" else 1] * rng.uniform(0.7, 1.3, m)
     elif name == "pc":
         x = rng.uniform(0.02, 0.98, m) * ps
-    elif name == "u":
+    elif name in ("u", "u_applied"):
         x = rng.uniform(-4, 4, m) * d
     elif name == "l":
         x = rng.uniform(model.leg_min, model.leg_max)
@@ -44,7 +44,7 @@ def _random_input(name, shape, model, rng, fname=""):
         x = np.concatenate([workspace_poses(model, 1, rng)[0], rng.normal(size=n) * 0.1,
                             rng.uniform(0.02, 0.98, m) * ps, rng.uniform(-4, 4, m) * d, rng.normal(size=m) * 0.01])
     elif name == "xc":  # controller state, from the controller's layout
-        kind = next(k for k in CONTROLLERS if function_name(k) == fname)
+        kind = next(k for k in CONTROLLERS if fname in (function_name(k), rates_function_name(k)))
         parts = {"z": lambda k: rng.normal(size=k) * 0.1,
                  "q_hat": lambda k: workspace_poses(model, 1, rng)[0],
                  "theta_hat": lambda k: model.theta * rng.uniform(0.7, 1.3, k),
@@ -54,7 +54,6 @@ def _random_input(name, shape, model, rng, fname=""):
                  "force_filter": lambda k: rng.normal(size=k) * 1e4,
                  "log_chamber_filter": lambda k: rng.uniform(-1.0, 0.0, k),
                  "g0_filter": lambda k: rng.normal(size=k) * 0.1,
-                 "spool_prev": lambda k: rng.uniform(-4, 4, k) * d,
                  "pc_prev": lambda k: rng.uniform(0.02, 0.98, k) * ps,
                  "legl_prev": lambda k: rng.uniform(model.leg_min, model.leg_max),
                  "gamma_gain": lambda k: np.tile([1.0, 0.1, 0.5], k // 3),
@@ -97,7 +96,8 @@ def _random_input(name, shape, model, rng, fname=""):
 
 
 _DERIVED = {name: {f.name: f for f in derive_functions(hydrogen.load_model(name))} for name in MODELS}
-_CASES = [(name, fname) for name in MODELS for fname in _DERIVED[name]]
+# the semi-implicit steps are composed in CasADi from two derived functions: tested below
+_CASES = [(name, fname) for name in MODELS for fname, f in _DERIVED[name].items() if hasattr(f, "inputs")]
 
 
 def _sympy_numeric(sf, values: dict) -> list:
@@ -233,3 +233,106 @@ def test_check_compares_output_not_source_text(tmp_path, model, monkeypatch):
     victim = next(out.glob("*_gravity.c"))
     victim.write_text(victim.read_text() + "\n/* hand edit */\n")
     assert any(victim.name in r for r in gen.check_output(model, out))
+
+
+def _stateful():
+    from hydrogen.controllers import CONTROLLERS, controller
+
+    return [(name, kind) for name in MODELS for kind in CONTROLLERS
+            if controller(kind).state_layout(hydrogen.load_model(name))]
+
+
+_STATEFUL = _stateful()
+
+
+@pytest.mark.parametrize("mname,kind", _STATEFUL)
+def test_rates_function_equals_the_controllers_xc_dot(mname, kind, cache, rng):
+    """The rates-only function (the loop's state update) takes the controller's inputs and gives
+    exactly its xc_dot output, at random inputs; and it is generated smaller (no τ̇_d, no valve inverse)."""
+    from hydrogen.controllers import function_name, rates_function_name
+
+    model = hydrogen.load_model(mname)
+    dyn = hydrogen.build(model, cache=cache)
+    ctrl, rates = dyn.functions[function_name(kind)], dyn.functions[rates_function_name(kind)]
+    entries = {e["name"]: e for e in dyn.library.manifest["functions"]}
+    assert entries[rates.name]["inputs"] == entries[ctrl.name]["inputs"]
+    assert [o[0] for o in entries[rates.name]["outputs"]] == ["xc_dot"]
+    assert entries[rates.name]["instructions"] < entries[ctrl.name]["instructions"]
+    sf = _DERIVED[mname][ctrl.name]
+    k = ctrl.out_names.index("xc_dot")
+    for _ in range(5):
+        args = [_random_input(n, m.shape, model, rng, ctrl.name) for n, m in sf.inputs]
+        args = [a[:, 0] if a.shape[1] == 1 else a for a in args]
+        want = ctrl(*args)[k]
+        np.testing.assert_allclose(rates(*args), want, rtol=1e-13, atol=1e-13 * np.abs(want).max())
+
+
+@pytest.mark.parametrize("mname,kind", _STATEFUL)
+def test_gamma2_law_uses_the_applied_spool(mname, kind, cache, rng):
+    """γ̂̇2 = κ Γ_γ2⁻¹ Γ_τ f̃ g0(u_applied), g0 = q_l/(c (l − L)) at the input u_applied (compiled valve
+    law, numpy), not at this call's command u (the paper's law: composite rates 0); u_applied moves
+    γ̂̇2 (and the composite filter of g0) only, never u."""
+    from hydrogen.controllers import controller, function_name
+    from hydrogen.controllers.common import initial_gain_matrix
+
+    model = hydrogen.load_model(mname)
+    dyn = hydrogen.build(model, cache=cache)
+    ctrl = dyn.functions[function_name(kind)]
+    sf = _DERIVED[mname][ctrl.name]
+    names = [n for n, _ in sf.inputs]
+    blocks, i = {}, 0
+    for b, size in controller(kind).state_layout(model):
+        blocks[b] = slice(i, i + size)
+        i += size
+    L = np.array([c.chamber_length for c in model.cylinders])
+    for _ in range(3):
+        args = [_random_input(n, m.shape, model, rng, ctrl.name) for n, m in sf.inputs]
+        v = {n: (a[:, 0] if a.shape[1] == 1 else a) for n, a in zip(names, args)}
+        v.update(gamma2_min=np.array([1e-3]), gamma2_max=np.array([1e12]))  # the projection inactive
+        # the paper's law: no composite term (its rate 0 keeps the gain at P0 I, so set it there)
+        v.update(rate_ls_gamma=np.array([0.0]), rate_ls_theta=np.array([0.0]))
+        v["xc"] = v["xc"].copy()
+        v["xc"][blocks["gamma_gain"]] = initial_gain_matrix(2, model.n_cylinders, float(v["P0_gamma"][0]))
+        out = dict(zip(ctrl.out_names, ctrl(*[v[n] for n in names])))
+        f = v["pc"] * model.piston_area - model.supply_pressure * model.rod_area
+        g0 = dyn.valve_flow(v["u_applied"], v["pc"]) / (dyn.leg_lengths(v["q"]) - L)
+        want = v["adapt"][0] * v["Ggamma2_inv"] / v["Gtau_inv"] * (f - out["f_d"]) * g0
+        got = out["xc_dot"][blocks["gamma2_hat"]]
+        np.testing.assert_allclose(got, want, rtol=1e-9, atol=1e-12 * np.abs(want).max())
+        assert not np.allclose(v["u_applied"], out["u"])  # the test tells the two apart
+        other = dict(v, u_applied=-v["u_applied"])
+        out2 = dict(zip(ctrl.out_names, ctrl(*[other[n] for n in names])))
+        np.testing.assert_array_equal(out2["u"], out["u"])
+        changed = np.flatnonzero(out2["xc_dot"] != out["xc_dot"])
+        # γ̂2 and the composite filter of g0 at the held spool (a state rate, not an estimate's)
+        allowed = {i for b in ("gamma2_hat", "g0_filter") for i in range(*blocks[b].indices(len(out["xc_dot"])))}
+        assert set(changed) <= allowed and set(changed) & set(range(*blocks["gamma2_hat"].indices(len(out["xc_dot"]))))
+
+
+@pytest.mark.parametrize("mname,kind", _STATEFUL)
+def test_semi_implicit_step_is_the_clipped_rate_update_then_the_command(mname, kind, cache, rng):
+    """One call of the step equals the two calls it replaces: xc⁺ = clip(xc + h F(y, xc, u_applied)) with
+    the rates function and numpy's clip, then u = U(y, xc⁺) with the controller; some entries of xc⁺
+    on each bound."""
+    from hydrogen.controllers import function_name, rates_function_name, step_function_name
+
+    model = hydrogen.load_model(mname)
+    dyn = hydrogen.build(model, cache=cache)
+    ctrl, rates = dyn.functions[function_name(kind)], dyn.functions[rates_function_name(kind)]
+    step = dyn.functions[step_function_name(kind)]
+    assert step.in_names == ctrl.in_names + ["h", "xc_lo", "xc_hi"] and step.out_names == ["u", "xc_next"]
+    sf = _DERIVED[mname][ctrl.name]
+    ix = ctrl.in_names.index("xc")
+    for _ in range(5):
+        args = [_random_input(n, m.shape, model, rng, ctrl.name) for n, m in sf.inputs]
+        args = [a[:, 0] if a.shape[1] == 1 else a for a in args]
+        h = rng.uniform(1e-4, 2e-3)
+        moved = args[ix] + h * rates(*args)
+        lo, hi = args[ix] - 1e-3 * np.abs(args[ix]), args[ix] + 1e-3 * np.abs(args[ix])
+        lo[::3], hi[1::3] = -1e300, 1e300
+        want_xc = np.clip(moved, lo, hi)
+        assert np.any(want_xc == lo) or np.any(want_xc == hi)
+        want_u = ctrl(*args[:ix], want_xc, *args[ix + 1:])[0]
+        u, xc = step(*args, np.array([h]), lo, hi)
+        np.testing.assert_array_equal(xc, want_xc)
+        np.testing.assert_allclose(u, want_u, rtol=1e-13, atol=1e-13 * np.abs(want_u).max())

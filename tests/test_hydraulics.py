@@ -85,3 +85,43 @@ def test_valve_inverse_never_takes_root_of_negative(robot_dyn, robot_model):
     for pc in cases:
         for w in (1.0, -1.0, 0.1, 0.0):
             assert np.all(np.isfinite(robot_dyn.valve_inverse(np.full(m, w), pc)))
+
+
+def _orifice_flow(u, pc, ps, d, p_lin=None):
+    """(57) in numpy, as printed (three branches by u); with p_lin, the plant's roots, linear below p_lin."""
+    if p_lin is None:
+        up, down = np.sqrt(ps - pc), np.sqrt(pc)
+    else:
+        root = lambda x: np.where(np.abs(x) < p_lin, x / np.sqrt(p_lin), np.sign(x) * np.sqrt(np.abs(x)))  # noqa: E731
+        up, down = root(ps - pc), root(pc)
+    return np.where(u < -d, (u - d) * down, np.where(u <= d, (u + d) * up + (u - d) * down, (u + d) * up))
+
+
+def test_valve_laws_and_plant_pressure_and_spool_rates_match_numpy(robot_dyn, robot_model, rng):
+    """The generated valve law (57), the plant's (roots linear near zero drop) and the plant's spool
+    rates for the ideal, first-order and second-order valve, against numpy, with commands on and
+    either side of the underlap's ends and pressures inside, near and past [0, p_s]."""
+    dyn, model = robot_dyn, robot_model
+    n, m = model.n, model.n_cylinders
+    ps, d = model.supply_pressure, model.underlap
+    A, L = model.piston_area, np.array([c.chamber_length for c in model.cylinders])
+    p_lin = np.array([c.orifice_linear_below for c in model.cylinders])
+    g1, g2 = model.gamma
+    fric = np.array([0.0, 0.0, 1e-3])
+    for k in range(60):
+        u = np.where(rng.random(m) < 0.3, rng.choice([-1.0, 1.0], m), rng.uniform(-3, 3, m)) * d
+        inside = rng.uniform(0.01, 0.99, m) * ps
+        np.testing.assert_allclose(dyn.valve_flow(u, inside), _orifice_flow(u, inside, ps, d), rtol=1e-13, atol=0)
+        pc = np.where(rng.random(m) < 0.4, rng.choice([0.0, 1.0], m) * ps + rng.uniform(-2, 2, m) * p_lin, inside)
+        q = model.neutral_pose + rng.uniform(-0.02, 0.02, n)
+        qdot, spool, rate = 0.05 * rng.normal(size=n), rng.uniform(-3, 3, m) * d, 0.01 * rng.normal(size=m)
+        lag, w, z = [(0.0, 0.0, 0.7), (2e-3, 0.0, 0.7), (0.0, 300.0, 0.6), (2e-3, 300.0, 0.6)][k % 4]
+        x = np.concatenate([q, qdot, pc, spool, rate])
+        xdot = dyn.functions["plant_rhs"](x, u, model.theta, g1, g2, fric, np.array([lag, w, z]))
+        s_eff = spool if (w > 0 or lag > 0) else u
+        l, ldot = dyn.leg_lengths(q), dyn.leg_jacobian(q) @ qdot
+        pc_dot = g1 * (g2 / g1 * _orifice_flow(s_eff, pc, ps, d, p_lin) - A * ldot) / (A * (l - L))
+        np.testing.assert_allclose(xdot[2 * n:2 * n + m], pc_dot, rtol=1e-9, atol=1e-9 * np.abs(pc_dot).max())
+        s_dot = rate if w > 0 else ((u - spool) / lag if lag > 0 else np.zeros(m))
+        s_ddot = w ** 2 * (u - spool) - 2 * z * w * rate if w > 0 else np.zeros(m)
+        np.testing.assert_allclose(xdot[2 * n + m:], np.concatenate([s_dot, s_ddot]), rtol=1e-13, atol=0)

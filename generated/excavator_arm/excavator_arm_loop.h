@@ -17,7 +17,7 @@ extern "C" {
 typedef int (*excavator_arm_casadi_fn)(const double** arg, double** res, long long int* iw, double* w, int mem);
 
 /* Input slots of a controller, in this order, in hg_loop_config.slot (-1: not an input). */
-enum { EXCAVATOR_ARM_SLOT_Q, EXCAVATOR_ARM_SLOT_QDOT, EXCAVATOR_ARM_SLOT_PC, EXCAVATOR_ARM_SLOT_L, EXCAVATOR_ARM_SLOT_QD0, EXCAVATOR_ARM_SLOT_QD1, EXCAVATOR_ARM_SLOT_QD2, EXCAVATOR_ARM_SLOT_QD3, EXCAVATOR_ARM_SLOT_XC, EXCAVATOR_ARM_SLOT_ADAPT, EXCAVATOR_ARM_N_SLOTS };
+enum { EXCAVATOR_ARM_SLOT_Q, EXCAVATOR_ARM_SLOT_QDOT, EXCAVATOR_ARM_SLOT_PC, EXCAVATOR_ARM_SLOT_L, EXCAVATOR_ARM_SLOT_QD0, EXCAVATOR_ARM_SLOT_QD1, EXCAVATOR_ARM_SLOT_QD2, EXCAVATOR_ARM_SLOT_QD3, EXCAVATOR_ARM_SLOT_XC, EXCAVATOR_ARM_SLOT_ADAPT, EXCAVATOR_ARM_SLOT_U_APPLIED, EXCAVATOR_ARM_N_SLOTS };
 
 /* Return codes of excavator_arm_loop_run. */
 enum { EXCAVATOR_ARM_OK = 0, EXCAVATOR_ARM_NONFINITE = 1, EXCAVATOR_ARM_FK_FAILED = 2, EXCAVATOR_ARM_CTRL_FAILED = 3 };
@@ -56,8 +56,21 @@ typedef struct {
     double** ctrl_res;
     long long int* ctrl_iw;
     double* ctrl_w;
+    /* with a state (n_xc > 0): its rates-only function (the same inputs, read from ctrl_arg; result 0
+     * is the state rate), called by the forward-Euler update; and its semi-implicit step, one call per
+     * period: arguments ctrl_arg's then h, xc_lo, xc_hi (step_arg); results u (step_res[0] must be
+     * ctrl_res[0]) and the updated state */
+    excavator_arm_casadi_fn rates;
+    double** rates_res;
+    long long int* rates_iw;
+    double* rates_w;
+    excavator_arm_casadi_fn step;
+    double** step_arg;
+    double** step_res;
+    long long int* step_iw;
+    double* step_w;
     long long slot[EXCAVATOR_ARM_N_SLOTS];
-    long long n_xc;              /* controller state size; result 1 is its rate when n_xc > 0 */
+    long long n_xc;              /* controller state size */
     const double* xc_lo;         /* projection bounds of the controller state */
     const double* xc_hi;
     long long xc_euler;          /* 0: semi-implicit update (state from this period's measurement, then the
@@ -74,6 +87,8 @@ typedef struct {
     double q_meas[EXCAVATOR_ARM_NQ];    /* last measured pose (Newton's warm start) */
     double kf[2 * EXCAVATOR_ARM_NL];    /* Kalman state: cylinder lengths, cylinder rates */
     double u_hist[EXCAVATOR_ARM_MAX_DELAY * EXCAVATOR_ARM_NL];  /* commands of past periods: ring, slot k % MAX_DELAY (0 at reset) */
+    double u_app[EXCAVATOR_ARM_NL];     /* commands the valves held over the last period, m (0 at reset): the
+                                  * controller's u_applied input in its state update */
     double* xc;                  /* controller state, n_xc entries */
 } excavator_arm_loop_state;
 

@@ -158,6 +158,7 @@ int ubc_stewart_loop_run(const ubc_stewart_loop_config* c, ubc_stewart_loop_stat
     long long step, j;
     int i;
     if (c->delay < 0 || c->delay > MAX_DELAY) return UBC_STEWART_CTRL_FAILED;  /* the ring holds MAX_DELAY periods */
+    if (c->n_xc && !(c->xc_euler ? c->rates : c->step)) return UBC_STEWART_CTRL_FAILED;  /* a state needs its update */
     for (step = 0; step < n; ++step) {
         const double* nz = noise ? noise + NNOISE * step : 0;  /* row `step` of this call's table */
         const double t = (double)st->k * h;  /* k h, not a running sum: no drift */
@@ -202,18 +203,21 @@ int ubc_stewart_loop_run(const ubc_stewart_loop_config* c, ubc_stewart_loop_stat
         set_slot(c, UBC_STEWART_SLOT_QD3, qd + 3 * NQ, NQ);
         set_slot(c, UBC_STEWART_SLOT_XC, st->xc, c->n_xc);
         set_slot(c, UBC_STEWART_SLOT_ADAPT, &adapt, 1);
+        set_slot(c, UBC_STEWART_SLOT_U_APPLIED, st->u_app, NL);
         /* controller state: semi-implicit update. The estimates and observer states of period k are
-         * xc_k = clip(xc_{k-1} + h F(measurement_k, xc_{k-1})), and the command of period k uses xc_k:
-         * the adaptation feedback then has no one-period delay (symplectic Euler on the coupled force
-         * error / estimate oscillation), stable up to about 5x the adaptation gain forward Euler takes
-         * at the same rate. The first period uses the initial state. */
+         * xc_k = clip(xc_{k-1} + h F(measurement_k, xc_{k-1}, u_app_{k-1})), and the command of period k
+         * uses xc_k: the adaptation feedback then has no one-period delay (symplectic Euler on the coupled
+         * force error / estimate oscillation), stable up to about 5x the adaptation gain forward Euler
+         * takes at the same rate. u_app_{k-1} is the command the valves held over the period F integrates.
+         * One call of the generated step does both (what depends on the measurement only is computed
+         * once) and writes u where the controller would. The first period uses the initial state. */
         if (c->n_xc && !c->xc_euler && st->k > 0) {
-            if (c->ctrl((const double**)c->ctrl_arg, c->ctrl_res, c->ctrl_iw, c->ctrl_w, 0)) return UBC_STEWART_CTRL_FAILED;
-            for (j = 0; j < c->n_xc; ++j)
-                st->xc[j] = clip(st->xc[j] + h * c->ctrl_res[1][j], c->xc_lo[j], c->xc_hi[j]);
+            if (c->step((const double**)c->step_arg, c->step_res, c->step_iw, c->step_w, 0)) return UBC_STEWART_CTRL_FAILED;
+            memcpy(st->xc, c->step_res[1], (size_t)c->n_xc * sizeof(double));
             set_slot(c, UBC_STEWART_SLOT_XC, st->xc, c->n_xc);
+        } else if (c->ctrl((const double**)c->ctrl_arg, c->ctrl_res, c->ctrl_iw, c->ctrl_w, 0)) {
+            return UBC_STEWART_CTRL_FAILED;
         }
-        if (c->ctrl((const double**)c->ctrl_arg, c->ctrl_res, c->ctrl_iw, c->ctrl_w, 0)) return UBC_STEWART_CTRL_FAILED;
         memcpy(u, c->ctrl_res[0], sizeof u);
         /* computation delay: apply the command of `delay` periods ago (0 before the start), keep this one */
         if (c->delay > 0) {
@@ -224,6 +228,7 @@ int ubc_stewart_loop_run(const ubc_stewart_loop_config* c, ubc_stewart_loop_stat
         } else {
             memcpy(u_app, u, sizeof u);
         }
+        memcpy(st->u_app, u_app, sizeof u_app);
         if (log) {
             if (log->t) log->t[st->k] = t;
             if (log->q) memcpy(log->q + NQ * st->k, x, NQ * sizeof(double));
@@ -243,11 +248,14 @@ int ubc_stewart_loop_run(const ubc_stewart_loop_config* c, ubc_stewart_loop_stat
             if (!rk4(c, x, u_app, hs)) return UBC_STEWART_CTRL_FAILED;
             for (i = 0; i < NL; ++i) x[2 * NQ + i] = clip(x[2 * NQ + i], 0, SUPPLY_PRESSURE[i]);
         }
-        /* controller state, forward Euler variant (xc_euler): rate of this period, after the plant step,
-         * kept inside the projection bounds */
-        if (c->xc_euler)
+        /* controller state, forward Euler variant (xc_euler): rate of this period (its measurement,
+         * state and u_applied, the command the valves held over the period that ended at the
+         * measurement, all still in ctrl_arg), after the plant step, kept inside the projection bounds */
+        if (c->xc_euler && c->n_xc) {
+            if (c->rates((const double**)c->ctrl_arg, c->rates_res, c->rates_iw, c->rates_w, 0)) return UBC_STEWART_CTRL_FAILED;
             for (j = 0; j < c->n_xc; ++j)
-                st->xc[j] = clip(st->xc[j] + h * c->ctrl_res[1][j], c->xc_lo[j], c->xc_hi[j]);
+                st->xc[j] = clip(st->xc[j] + h * c->rates_res[0][j], c->xc_lo[j], c->xc_hi[j]);
+        }
         /* a non-finite state stops the run with st->k at the period that produced it */
         for (i = 0; i < NX; ++i)
             if (!isfinite(x[i])) return UBC_STEWART_NONFINITE;

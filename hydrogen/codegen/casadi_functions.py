@@ -6,12 +6,31 @@ import sympy as sp
 
 from .sympy_to_casadi import SympyToCasadi
 
-__all__ = ["to_casadi_function", "shape_of"]
+__all__ = ["to_casadi_function", "semi_implicit_step", "shape_of"]
 
 
 def shape_of(mat) -> tuple:
     """(rows, cols) of a SymPy Matrix (a scalar counts as 1×1)."""
     return tuple(mat.shape) if isinstance(mat, sp.MatrixBase) else (1, 1)
+
+
+def semi_implicit_step(step, c_name: str | None = None) -> ca.Function:
+    """The CasADi Function of a :class:`~hydrogen.symbolic.functions.SemiImplicitStep`: the controller's
+    inputs, then ``h`` (s), ``xc_lo``, ``xc_hi``; outputs ``u`` = U(y, xc⁺) and ``xc_next`` = xc⁺ =
+    clip(xc + h F, xc_lo, xc_hi). Both functions are inlined (SX) in one graph, so CSE computes
+    what depends on the measurement only once."""
+    ctrl, rates = to_casadi_function(step.controller), to_casadi_function(step.rates)
+    names = list(ctrl.name_in())
+    args = [ca.SX.sym(n, *ctrl.size_in(i)) for i, n in enumerate(names)]
+    ix = names.index("xc")
+    h, lo, hi = ca.SX.sym("h"), ca.SX.sym("xc_lo", args[ix].shape), ca.SX.sym("xc_hi", args[ix].shape)
+    moved = args[ix] + h * rates(*args)
+    # the loop's clip, v < lo ? lo : (v > hi ? hi : v): a NaN rate stays NaN (fmin/fmax would drop it
+    # and hide a divergence from the loop's finiteness check)
+    xc_next = ca.if_else(moved < lo, lo, ca.if_else(moved > hi, hi, moved))
+    u = ctrl(*args[:ix], xc_next, *args[ix + 1:])[0]
+    return ca.Function(c_name or step.name, [*args, h, lo, hi], [u, xc_next], [*names, "h", "xc_lo", "xc_hi"],
+                       ["u", "xc_next"], {"cse": True})
 
 
 def to_casadi_function(sf, c_name: str | None = None, cse: bool = True) -> ca.Function:

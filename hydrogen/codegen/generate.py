@@ -104,10 +104,11 @@ def c_name(model_name: str, fname: str) -> str:
 def _write_function(sf, model_name: str, folder: Path) -> dict:
     import casadi as ca
 
-    from .casadi_functions import shape_of, to_casadi_function
+    from .casadi_functions import semi_implicit_step, shape_of, to_casadi_function
 
     name = c_name(model_name, sf.name)
-    fun = to_casadi_function(sf, c_name=name)
+    composed = not hasattr(sf, "inputs")  # a SemiImplicitStep, composed from two derived functions
+    fun = semi_implicit_step(sf, c_name=name) if composed else to_casadi_function(sf, c_name=name)
     cg = ca.CodeGenerator(f"{name}.c", dict(CODEGEN_OPTIONS))
     cg.add(fun)
     with tempfile.TemporaryDirectory() as tmp:
@@ -120,8 +121,10 @@ def _write_function(sf, model_name: str, folder: Path) -> dict:
     return {
         "name": sf.name, "c_name": name, "doc": sf.doc,
         "source": f"{name}.c", "header": f"{name}.h",
-        "inputs": [[n, *shape_of(m)] for n, m in sf.inputs],
-        "outputs": [[n, *shape_of(m)] for n, m in sf.outputs],
+        "inputs": [[fun.name_in(i), *fun.size_in(i)] for i in range(fun.n_in())] if composed
+        else [[n, *shape_of(m)] for n, m in sf.inputs],
+        "outputs": [[fun.name_out(i), *fun.size_out(i)] for i in range(fun.n_out())] if composed
+        else [[n, *shape_of(m)] for n, m in sf.outputs],
         "instructions": fun.n_instructions(),
     }
 

@@ -13,7 +13,9 @@ A controller module defines
   :class:`~hydrogen.symbolic.control_laws.ControllerParts` whose inputs name the signals it needs
   (``q``, ``qdot``, ``pc``, ``l``, ``qd0`` … ``qd3``, ``xc``, ``adapt``) besides its gains.
 
-The generated C function is ``ctrl_<module name>``. Adding a controller: write the module, add
+The generated C function is ``ctrl_<module name>``; a controller with a state also gets
+``ctrl_<module name>_rates``, the same inputs and its state rate ``xc_dot`` alone, and
+``ctrl_<module name>_step``, the loop's semi-implicit period in one call. Adding a controller: write the module, add
 it to ``_MODULES`` below, regenerate (``hydrogen generate``), add its tests. Importing this
 package imports neither SymPy nor CasADi.
 """
@@ -21,7 +23,7 @@ from __future__ import annotations
 
 import importlib
 
-__all__ = ["CONTROLLERS", "controller", "function_name"]
+__all__ = ["CONTROLLERS", "controller", "function_name", "rates_function_name", "step_function_name"]
 
 #: Module names, in the order functions are generated.
 _MODULES = ("backstepping", "adaptive_robust", "adaptive_observer", "p")
@@ -43,3 +45,16 @@ def controller(name: str):
 def function_name(name: str) -> str:
     """Name of the generated function of controller ``name``: ``ctrl_<module>``."""
     return "ctrl_" + _REGISTRY[name].__name__.rsplit(".", 1)[1]
+
+
+def rates_function_name(name: str) -> str:
+    """Name of the rates-only generated function of controller ``name`` (one with a state):
+    ``ctrl_<module>_rates``, the same inputs as :func:`function_name`'s, output ``xc_dot`` alone."""
+    return function_name(name) + "_rates"
+
+
+def step_function_name(name: str) -> str:
+    """Name of the semi-implicit step of controller ``name`` (one with a state):
+    ``ctrl_<module>_step``, the controller's inputs then ``h``, ``xc_lo``, ``xc_hi``; outputs the
+    command ``u`` at the updated state and that state ``xc_next``."""
+    return function_name(name) + "_step"

@@ -104,7 +104,7 @@ def derive(model):
     th_dot_value = c.theta_rate(rc.combine(rho), th_hat, vecs, scal["adapt"])
     fd, ftil, f0, v, u, taud, stages = c.force_loop(tau_d, tau_d_dot, s, g1, g2)
     hc = HydraulicComposite(c, g1, g2)  # composite γ law; rate_ls_gamma = 0 gives the paper's law
-    hc_rates = hc.rates(u, scal["adapt"])
+    hc_rates = hc.rates(scal["adapt"])
     g1_dot, g2_dot = c.hydraulic_adaptation(
         ftil, f0, u, g1, g2, scal["adapt"], vecs["Ggamma1_inv"], vecs["Ggamma2_inv"],
         scal["gamma1_min"], scal["gamma1_max"], scal["gamma2_min"], scal["gamma2_max"], combine=hc.combine)

@@ -61,14 +61,14 @@ def composite_gains() -> dict:
 def composite_layout(model) -> list:
     """The state blocks the composite adaptation adds to an adaptive controller, in order: per
     cylinder the filtered force (N), ln(l − L) and g0 (N/s per unit γ2), the previous period's
-    spool (m), control pressure (Pa) and length (m), and the 2×2 least-squares gain's upper
+    control pressure (Pa) and length (m), and the 2×2 least-squares gain's upper
     triangle [P11, P12, P22] (dimensionless) (:class:`hydrogen.symbolic.composite.HydraulicComposite`);
     then for θ the filtered momentum regressor Y_p (n×p, row-major) and offset p0, the filtered
     Y_b and b0 of G − Cᵀq̇, the filtered generalised force (JL)ᵀ f, and the p×p gain's upper
     triangle (:class:`hydrogen.symbolic.composite.RigidBodyComposite`)."""
     m = model.n_cylinders
     n, p = model.n, model.n_theta
-    return [("force_filter", m), ("log_chamber_filter", m), ("g0_filter", m), ("spool_prev", m), ("pc_prev", m),
+    return [("force_filter", m), ("log_chamber_filter", m), ("g0_filter", m), ("pc_prev", m),
             ("legl_prev", m), ("gamma_gain", 3 * m),
             ("momentum_filter", n * p), ("momentum_offset_filter", n), ("bias_filter", n * p),
             ("bias_offset_filter", n), ("torque_filter", n), ("theta_gain", p * (p + 1) // 2)]

@@ -35,14 +35,17 @@ def _structs(ctx: dict):
             ("bias", _D), ("n_terms", _LL), ("terms", _D), ("step_axis", _LL), ("step_height", C.c_double),
             ("t_step", C.c_double),
             ("ctrl", C.c_void_p), ("ctrl_arg", C.c_void_p), ("ctrl_res", C.c_void_p), ("ctrl_iw", C.c_void_p),
-            ("ctrl_w", C.c_void_p), ("slot", _LL * len(ctx["slots"])), ("n_xc", _LL), ("xc_lo", _D),
+            ("ctrl_w", C.c_void_p), ("rates", C.c_void_p), ("rates_res", C.c_void_p), ("rates_iw", C.c_void_p),
+            ("rates_w", C.c_void_p), ("step", C.c_void_p), ("step_arg", C.c_void_p), ("step_res", C.c_void_p),
+            ("step_iw", C.c_void_p), ("step_w", C.c_void_p), ("slot", _LL * len(ctx["slots"])), ("n_xc", _LL),
+            ("xc_lo", _D),
             ("xc_hi", _D), ("xc_euler", _LL), ("fk_tol", C.c_double), ("fk_max_iter", _LL),
         ]
 
     class State(C.Structure):
         _fields_ = [("t", C.c_double), ("k", _LL), ("x", C.c_double * ctx["nx"]), ("q_meas", C.c_double * ctx["n"]),
                     ("kf", C.c_double * (2 * ctx["m"])), ("u_hist", C.c_double * (ctx["max_delay"] * ctx["m"])),
-                    ("xc", _D)]
+                    ("u_app", C.c_double * ctx["m"]), ("xc", _D)]
 
     class Log(C.Structure):
         _fields_ = [(name, _D) for name, _, _ in ctx["logs"]]
@@ -131,9 +134,18 @@ class LoopRunner:
             cfg.slot[i] = fn.in_names.index(s) if s in fn.in_names else -1
         n_xc = ctrl.xc.size
         cfg.n_xc = n_xc
+        if n_xc:
+            # the rates function reads the controller's argument table: it must take the same inputs
+            rates = ctrl.rates_fn
+            if rates.in_names != fn.in_names or rates.in_shapes != fn.in_shapes:
+                raise ValueError(f"{rates.name} and {fn.name} take different inputs; regenerate")
+            rt = rates.c_tables()
+            cfg.rates, cfg.rates_res, cfg.rates_iw, cfg.rates_w = rt["fn"], rt["res"], rt["iw"], rt["w"]
         lo, hi = ctrl.bounds
-        cfg.xc_lo, cfg.xc_hi = _ptr(arr(np.where(np.isfinite(lo), lo, -1e300))), \
-            _ptr(arr(np.where(np.isfinite(hi), hi, 1e300)))
+        lo, hi = arr(np.where(np.isfinite(lo), lo, -1e300)), arr(np.where(np.isfinite(hi), hi, 1e300))
+        cfg.xc_lo, cfg.xc_hi = _ptr(lo), _ptr(hi)
+        if n_xc:
+            self._step_tables(cfg, ctrl, tables, [arr([h]), lo, hi])
         cfg.xc_euler = 1 if estimator_update == "euler" else 0
         cfg.fk_tol, cfg.fk_max_iter = fk_tol, fk_max_iter
         self.cfg = cfg
@@ -141,6 +153,23 @@ class LoopRunner:
         self.xc = np.zeros(max(n_xc, 1))
         self.state.xc = _ptr(self.xc)
         self._cfg_ref, self._st_ref = C.byref(cfg), C.byref(self.state)
+
+    def _step_tables(self, cfg, ctrl, tables, extra):
+        """The semi-implicit step's tables: its arguments are the controller's (the same buffers, which
+        the loop writes) then h, xc_lo, xc_hi; its command result is the controller's u buffer."""
+        step, fn = ctrl.step_fn.clone(), ctrl.fn  # a clone: its result table is redirected below
+        n_in = len(fn.in_names)
+        if step.in_names[:n_in] != fn.in_names or step.in_names[n_in:] != ["h", "xc_lo", "xc_hi"]:
+            raise ValueError(f"{step.name} does not take {fn.name}'s inputs then h, xc_lo, xc_hi; regenerate")
+        ctrl_arg = C.cast(tables["arg"], C.POINTER(C.c_void_p))
+        step_arg = (C.c_void_p * (n_in + len(extra)))(*[ctrl_arg[i] for i in range(n_in)],
+                                                      *[a.ctypes.data for a in extra])
+        st = step.c_tables()
+        step_res = C.cast(st["res"], C.POINTER(C.c_void_p))
+        step_res[0] = C.cast(tables["res"], C.POINTER(C.c_void_p))[0]  # u lands where the controller writes it
+        self._keep += [step_arg, step]
+        cfg.step, cfg.step_arg, cfg.step_res = st["fn"], C.cast(step_arg, C.c_void_p), st["res"]
+        cfg.step_iw, cfg.step_w = st["iw"], st["w"]
 
     def reset(self, x0, q_meas0, l0, xc0):
         """Initial plant state (2n + 2m), measured pose, Kalman cylinder lengths and controller state."""
@@ -150,6 +179,7 @@ class LoopRunner:
         st.q_meas[:] = list(np.asarray(q_meas0, float))
         st.kf[:] = list(np.concatenate([l0, np.zeros(len(l0))]))
         C.memset(st.u_hist, 0, C.sizeof(st.u_hist))
+        C.memset(st.u_app, 0, C.sizeof(st.u_app))
         self.xc[: xc0.size] = xc0
 
     def run(self, n: int, noise=None, logs: dict | None = None) -> int:

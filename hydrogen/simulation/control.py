@@ -2,9 +2,11 @@
 
 Every controller has the same contract, so the loop treats them alike: per control period,
 ``update(h, meas, ref, adapt)`` (the semi-implicit update: the state of this period from the
-rate at this period's measurement and the previous state, kept inside the projection bounds),
-then ``command(meas, ref, adapt) -> u`` with the updated state. The forward-Euler variant
-(scenario ``estimator_update = "euler"``) calls ``command`` then ``advance(h)``. What differs
+rate at this period's measurement, the previous state and the command the valves held over the
+last period, kept inside the projection bounds; the rates-only generated function), then
+``command(meas, ref, adapt) -> u`` with the updated state, then ``applied(u_app)`` with the
+command the valves get this period (after the computation delay). The forward-Euler variant
+(scenario ``estimator_update = "euler"``) calls ``command``, ``applied``, then ``advance(h)``. What differs
 between controllers (state layout, default gains, numeric inputs made once) comes from the
 controller's module in :mod:`hydrogen.controllers`.
 """
@@ -12,7 +14,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..controllers import CONTROLLERS, controller as controller_module, function_name
+from ..controllers import (CONTROLLERS, controller as controller_module, function_name, rates_function_name,
+                           step_function_name)
 from ..controllers.common import initial_gain_matrix, normalised_adaptation
 from ..errors import ScenarioError
 from .checks import check_gain_values
@@ -89,6 +92,12 @@ class _Controller:
         self.theta0, self.gamma0 = np.asarray(theta0, float), np.asarray(gamma0, float)
         self.xc = np.zeros(sum(n for _, n in self.layout))
         self.xc_dot = np.zeros_like(self.xc)
+        # the state's rates alone (same inputs as fn): the semi-implicit update calls it, not fn
+        self.rates_fn = dyn.functions[rates_function_name(kind)].clone() if self.xc.size else None
+        # the C loop's semi-implicit period in one call (rates, clip, command): for the loop runner
+        self.step_fn = dyn.functions[step_function_name(kind)].clone() if self.xc.size else None
+        #: spool commands the valves held over the last period, m (the γ̂2 law's u_applied)
+        self.u_applied = np.zeros(model.n_cylinders)
         self.slices, i = {}, 0
         for name, n in self.layout:
             self.slices[name] = slice(i, i + n)
@@ -124,13 +133,25 @@ class _Controller:
                 self.xc[s] = initial_gain_matrix(k, size // (k * (k + 1) // 2), float(self.values[p0][0]))
             else:
                 self.xc[s] = 0.0
+        self.u_applied[:] = 0.0
 
-    def command(self, q, qdot, pc, l, ref, adapt):
+    def _signals(self, q, qdot, pc, l, ref, adapt):
         v = self.values
         v.update(q=q, qdot=qdot, pc=pc, l=l, qd0=ref[0], qd1=ref[1], qd2=ref[2], qd3=ref[3])
         if self.xc.size:
-            v["xc"] = self.xc
-            v["adapt"] = np.array([1.0 if adapt else 0.0])
+            # a copy: the spool held over the period ending at this measurement, also for the forward
+            # Euler update after this period's command is applied (as the C loop's input slot)
+            v.update(xc=self.xc, adapt=np.array([1.0 if adapt else 0.0]), u_applied=self.u_applied.copy())
+        return v
+
+    def _rates(self):
+        """F(measurement, xc, u_applied) at the signals last written into ``values``."""
+        v = self.values
+        v.update(xc=self.xc)
+        return self.rates_fn(*[v[n] for n in self.rates_fn.in_names])
+
+    def command(self, q, qdot, pc, l, ref, adapt):
+        v = self._signals(q, qdot, pc, l, ref, adapt)
         out = self.fn(*[v[n] for n in self.fn.in_names])
         if not isinstance(out, tuple):
             return out
@@ -140,16 +161,22 @@ class _Controller:
         self.tau_d, self.tau_d_dot, self.f_d = out[-3], out[-2], out[-1]
         return u
 
+    def applied(self, u_app):
+        """Record the spool commands (m) the valves get this period: the next state update's u_applied."""
+        self.u_applied[:] = u_app
+
     def update(self, h, q, qdot, pc, l, ref, adapt):
-        """Semi-implicit step: xc ← clip(xc + h F(measurement, xc)) (the C loop's "controller state" block)."""
+        """Semi-implicit step: xc ← clip(xc + h F(measurement, xc, u_applied)) with the rates-only
+        function (the C loop's "controller state" block)."""
         if self.xc.size:
-            self.command(q, qdot, pc, l, ref, adapt)
-            np.clip(self.xc + h * self.xc_dot, *self.bounds, out=self.xc)
+            self._signals(q, qdot, pc, l, ref, adapt)
+            np.clip(self.xc + h * self._rates(), *self.bounds, out=self.xc)
 
     def advance(self, h):
-        """Forward Euler with the rate of the last command."""
+        """Forward Euler: the rate at the last command's measurement, state and u_applied (the spool
+        the valves held over the period that ended at that measurement)."""
         if self.xc.size:
-            np.clip(self.xc + h * self.xc_dot, *self.bounds, out=self.xc)
+            np.clip(self.xc + h * self._rates(), *self.bounds, out=self.xc)
 
 
 def make_controller(dyn, kind, gains=None, theta0=None, gamma0=None, period=None):

@@ -386,6 +386,7 @@ def run_python_loop(dyn, sc, ctrl, x, q0, noise, kf_gain, log, n, h):
             u_hist[k % MAX_DELAY] = u
         else:
             u_app = u
+        ctrl.applied(u_app)
         log["q"][k], log["q_d"][k], log["l"][k], log["pc"][k], log["u"][k] = q, ref[0], l_true, pc, u
         log["u_applied"][k], log["l_meas"][k] = u_app, l_meas
         log["f"][k] = pc * model.piston_area - ps * model.rod_area

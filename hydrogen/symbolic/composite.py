@@ -104,31 +104,28 @@ class HydraulicComposite:
       valve held over it: ḡ_k = ½ (g0(u_held, p_{k−1}, l_{k−1}) + g0(u_held, p_k, l_k)), the
       previous period's pressures and lengths copied in the state (by a rate (x − x_prev)/h).
       A right-rectangle rule, or g0 of a spool one period off, left residuals of 10-230 % of ḟ's
-      RMS on paper-sim with the true parameters; this form, 0.03-0.6 %. ``held_spool`` is the spool
-      the valve held over the last period; by default the copy of the force loop's applied spool
-      made at the last update, which is that spool exactly under the forward-Euler update (the
-      rate comes from the command's own call) but not under the semi-implicit one (the update call
-      computes the command from the previous state: the prediction error is then 50-140 % of ḟ).
-      A loop that passes the spool the valve received gives it exactly under both; then the
-      trapezoid's right end is g0 at that spool, ``Common.g0_applied``;
+      RMS on paper-sim with the true parameters; this form, 0.03-0.6 %. The held spool is the
+      controller's input ``u_applied`` (``Common.u_applied``): the command the valves held over the
+      period that ends at this measurement, after the clip and the computation delay, under either
+      state update. (A copy of the command computed in the update's own call is a period off under
+      the semi-implicit update and left prediction errors of 50-140 % of ḟ.);
     * ε pairs the force-side filters before this period's update (λ_f (f_k − φ_{k−1})) with the
       valve filter after it (ω_{k−1} + h λ_f (ḡ_k − ω_{k−1})): both then obey the same recursion
       x_k = (1 − h λ_f) x_{k−1} + λ_f Δ_k, so the true γ leaves only the trapezoid's residual.
 
     States per cylinder: φ_f (N), φ_L (ln m), ω (filtered g0, N/s per unit γ2), the previous
-    period's spool (m; unused when ``held_spool`` is given), control pressure (Pa) and length (m),
-    and P (2×2 upper triangle, dimensionless). Normalisation:
+    period's control pressure (Pa) and length (m), and P (2×2 upper triangle, dimensionless). Normalisation:
     x = γ̂ / γ_ref (γ_ref the controller's static input, the initial estimates), each cylinder's
     row divided by its force range P_s A, so W and ε are in 1/s.
     """
 
-    def __init__(self, common, g1, g2, held_spool=None):
+    def __init__(self, common, g1, g2):
         c = self.c = common
         self.g1, self.g2 = g1, g2
         m = c.m
         sym = lambda name, k: sp.Matrix(sp.symbols(f"{name}0:{k}", real=True))  # noqa: E731
         self.phi_f, self.phi_L, self.omega = sym("force_filter", m), sym("log_chamber_filter", m), sym("g0_filter", m)
-        self.u_prev, self.pc_prev, self.l_prev = sym("spool_prev", m), sym("pc_prev", m), sym("legl_prev", m)
+        self.pc_prev, self.l_prev = sym("pc_prev", m), sym("legl_prev", m)
         self.P = sym("gamma_gain", triangle_size(2) * m)
         self.ref = sym("gamma_ref", 2 * m)  # [γ1_ref (m), γ2_ref (m)]
         self.lam, self.rate, self.P0, self.floor, self.nu, self.h = sp.symbols(
@@ -136,12 +133,12 @@ class HydraulicComposite:
         # intermediates: ḡ (g0 at the held spool over the last period); the rates before the projection
         self.gbar, self.r1, self.r2 = sym("g0_held", m), sym("gamma1_rate", m), sym("gamma2_rate", m)
         #: intermediates (symbol, value) the rates use, in order; they follow the force loop's stages
-        self.u_held = self.u_prev if held_spool is None else held_spool
+        self.u_held = c.u_applied  # the spool the valves held over the period ending now (an input)
         self.stages = [(self.gbar, sp.Matrix(self._g0_interval()))]
         self._ls = None
 
     def states(self) -> list:
-        return [*self.phi_f, *self.phi_L, *self.omega, *self.u_prev, *self.pc_prev, *self.l_prev, *self.P]
+        return [*self.phi_f, *self.phi_L, *self.omega, *self.pc_prev, *self.l_prev, *self.P]
 
     def inputs(self) -> list:
         return [("gamma_ref", self.ref), ("lambda_f_gamma", sp.Matrix([self.lam])),
@@ -219,11 +216,9 @@ class HydraulicComposite:
                 self.stages += st
         return self._ls
 
-    def rates(self, u, adapt):
-        """Rates of the states in :meth:`states` order.
-
-        ``u``: the force loop's applied spool, copied for the next period (when no held spool was
-        given). The filters run whether adaptation is on or not; P moves only while it is on."""
+    def rates(self, adapt):
+        """Rates of the states in :meth:`states` order. The filters run whether adaptation is on or
+        not; P moves only while it is on."""
         c, m, lam = self.c, self.c.m, self.lam
         P_dot = [adapt * x for Pd in self._least_squares()[1] for x in Pd]
         lnL = self._log_chamber()
@@ -231,7 +226,6 @@ class HydraulicComposite:
                  *(lam * (lnL[i] - self.phi_L[i]) for i in range(m)),
                  *(lam * (self.gbar[i] - self.omega[i]) for i in range(m)),
                  # copies: x_prev ← x in one period
-                 *((u[i] - self.u_prev[i]) / self.h if self.u_held is self.u_prev else sp.S.Zero for i in range(m)),
                  *((c.pc[i] - self.pc_prev[i]) / self.h for i in range(m)),
                  *((c.l[i] - self.l_prev[i]) / self.h for i in range(m)),
                  *P_dot]

@@ -86,6 +86,10 @@ class Common:
         self.f = sp.Matrix([hyd.leg_force(self.pc[i], self.ps[i], self.A[i], self.a[i]) for i in range(m)])
         self.Jit = matrix_symbols("JLinvT", n, m)
         self.e = self.q - self.qd[0]
+        # The spool commands (m) the valves held over the period the state update integrates (the
+        # loop's u_applied: after the clip and the computation delay), the γ̂2 law's input.
+        self.u_applied = vector("u_applied", m)
+        self.u_applied_declared = False  # set by adaptive_inputs, which makes u_applied an input
 
     def theta(self, prefix="theta_hat"):
         return vector(prefix, self.p)
@@ -122,7 +126,7 @@ class Common:
         """
         n, m = self.n, self.m
         S = {k: vector(k, n) for k in ("taud", "taud_dot")}
-        S.update({k: vector(k, m) for k in ("fd", "fd_dot", "v", "u_raw", "u_app", "g0_app")})
+        S.update({k: vector(k, m) for k in ("fd", "fd_dot", "v", "u_raw", "u_cmd", "g0_app")})
         stages = [
             (S["taud"], tau_d),
             (S["taud_dot"], tau_d_dot),
@@ -138,13 +142,19 @@ class Common:
         w = [S["v"][i] * (self.l[i] - self.L[i]) / g2[i] for i in range(m)]
         stages.append((S["u_raw"], sp.Matrix([hyd.valve_inverse_unit(w[i], self.pc[i], self.ps[i], self.d[i],
                                                                      PRESSURE_EPS) for i in range(m)])))
-        stages.append((S["u_app"], sp.Matrix([clip(S["u_raw"][i], -self.u_max, self.u_max) for i in range(m)])))
-        u = S["u_app"]
-        # g0 of (59) at the applied (clipped) spool: the γ̂2 law's regressor (hydraulic_adaptation).
-        stages.append((S["g0_app"], sp.Matrix([hyd.g0(self.l[i], hyd.valve_flow_unit(u[i], self.pc[i], self.ps[i],
-                                                                                       self.d[i]), self.L[i])
-                                               for i in range(m)])))
-        self.g0_applied = S["g0_app"]
+        stages.append((S["u_cmd"], sp.Matrix([clip(S["u_raw"][i], -self.u_max, self.u_max) for i in range(m)])))
+        u = S["u_cmd"]
+        # g0 of (59) at the spool the valves received (the input u_applied, not this call's u): the
+        # γ̂2 law's regressor (hydraulic_adaptation). It does not depend on u, so a function with the
+        # state rates as its only output needs neither τ̇_d nor the valve inverse. A stage (so the
+        # projection's conditions refer to a symbol), made only where u_applied is an input.
+        self.g0_applied = None
+        if self.u_applied_declared:
+            ua = self.u_applied
+            stages.append((S["g0_app"], sp.Matrix([hyd.g0(self.l[i], hyd.valve_flow_unit(ua[i], self.pc[i], self.ps[i],
+                                                                                            self.d[i]), self.L[i])
+                                                   for i in range(m)])))
+            self.g0_applied = S["g0_app"]
         self.taud_dot = S["taud_dot"]
         return S["fd"], ftil, f0, S["v"], u, S["taud"], stages
 
@@ -153,18 +163,20 @@ class Common:
 
     def hydraulic_adaptation(self, ftil, f0, u, g1, g2, adapt, Gg1_inv, Gg2_inv, g1_lo, g1_hi, g2_lo, g2_hi,
                              combine=None):
-        """γ̂̇1 = κ Γ_γ1⁻¹ Γ_τ f0 f̃,  γ̂̇2 = κ Γ_γ2⁻¹ Γ_τ g0(u) f̃ (per cylinder, with projection).
+        """γ̂̇1 = κ Γ_γ1⁻¹ Γ_τ f0 f̃,  γ̂̇2 = κ Γ_γ2⁻¹ Γ_τ g0(u_applied) f̃ (per cylinder, projected).
 
-        The paper's γ̂2 law has Π(f̃/γ̂2) v, i.e. the regressor v/γ̂2 = g0(u) of the commanded spool;
-        here g0 is evaluated at the spool position actually applied (``u`` after the ±u_max clip),
-        which is the regressor of γ̃2 in the force-error equation ḟ̃ = … + f0 γ̃1 + g0(u) γ̃2 also
-        when the valve saturates (README "Deviations").
+        The paper's γ̂2 law has Π(f̃/γ̂2) v, i.e. the regressor v/γ̂2 = g0(u) of this period's
+        commanded spool; here g0 is evaluated at the spool command the valves actually received over
+        the period the state update integrates (the input ``u_applied``: clipped to ±u_max, and
+        delayed by the loop's computation delay), which is the regressor of γ̃2 in the force-error
+        equation ḟ̃ = … + f0 γ̃1 + g0(u_applied) γ̃2 also when the valve saturates or the command
+        arrives late (README "Deviations"). ``u`` (this call's command) is not used.
 
         ``combine(t1, t2) -> (r1, r2)`` turns the tracking terms (lists per cylinder) into the
         rates that go through the projection (the composite adaptation,
         :class:`hydrogen.symbolic.composite.HydraulicComposite`); None keeps the paper's law."""
         m = self.m
-        g0 = self.g0_applied  # bound by force_loop to g0(clip(u_raw)), the spool actually applied
+        g0 = self.g0_applied  # bound by force_loop to g0(u_applied), the spool the valves received
         t1 = [Gg1_inv[i] / self.Gtau_inv[i] * f0[i] * ftil[i] for i in range(m)]
         t2 = [Gg2_inv[i] / self.Gtau_inv[i] * ftil[i] * g0[i] for i in range(m)]
         if combine is not None:
@@ -174,12 +186,16 @@ class Common:
         return g1_dot, g2_dot
 
     def adaptive_inputs(self):
-        """Adaptation gains and projection bounds: (vectors, scalars, input list)."""
+        """Adaptation gains and projection bounds, the switch ``adapt`` and the applied spool commands
+        ``u_applied`` (m): (vectors, scalars, input list)."""
         p, m = self.p, self.m
         names = ("Gtheta_inv", p), ("Ggamma1_inv", m), ("Ggamma2_inv", m), ("theta_min", p), ("theta_max", p)
         vecs = {k: vector(k, size) for k, size in names}
         scal = {k: scalar(k) for k in ("gamma1_min", "gamma1_max", "gamma2_min", "gamma2_max", "adapt")}
-        inputs = [(k, vecs[k]) for k, _ in names] + [(k, sp.Matrix([scal[k]])) for k in scal]
+        # u_applied is a loop signal (like adapt), listed here because only the adaptation needs it.
+        inputs = [(k, vecs[k]) for k, _ in names] + [(k, sp.Matrix([scal[k]])) for k in scal] \
+            + [("u_applied", self.u_applied)]
+        self.u_applied_declared = True
         return vecs, scal, inputs
 
     def theta_rate(self, rho, th_hat, vecs, adapt):

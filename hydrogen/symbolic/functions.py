@@ -18,7 +18,7 @@ from .plant import plant_rhs
 from .rigid_body import (bias_forces, coriolis_matrix, gravity, mass_matrix, mass_matrix_inverse, regressor,
                          regressor_offset, rigid_body_stages, theta_symbols)
 
-__all__ = ["SymbolicFunction", "derive_functions", "PRESSURE_EPS"]
+__all__ = ["SymbolicFunction", "SemiImplicitStep", "derive_functions", "PRESSURE_EPS"]
 
 
 @dataclass
@@ -30,6 +30,19 @@ class SymbolicFunction:
     outputs: list
     doc: str
     intermediates: list = field(default_factory=list)
+
+
+@dataclass
+class SemiImplicitStep:
+    """The loop's semi-implicit period of a controller with a state, as one function:
+    xc⁺ = clip(xc + h F(y, xc, u_applied), xc_lo, xc_hi), then u = U(y, xc⁺), where F is
+    ``rates`` and U is ``controller``'s first output. Code generation composes it from the two
+    (CasADi shares what depends on the measurement only: the kinematics, JL⁻ᵀ, the forces)."""
+
+    name: str
+    controller: SymbolicFunction
+    rates: SymbolicFunction
+    doc: str
 
 
 def kinematics_functions(model) -> list:
@@ -115,13 +128,23 @@ def plant_functions(model) -> list:
 
 
 def controller_functions(model) -> list:
-    from ..controllers import CONTROLLERS, controller, function_name
+    """Each controller; and, for a controller with a state, its rates-only function: the same inputs
+    (so one argument table serves both) and the output ``xc_dot`` alone, from which CasADi keeps only
+    what the rates need (no τ̇_d, ḟ_d, v or valve inverse): the loop's semi-implicit state update."""
+    from ..controllers import CONTROLLERS, controller, function_name, rates_function_name, step_function_name
 
     out = []
     for name in CONTROLLERS:
         mod = controller(name)
         parts = mod.derive(model)
         out.append(SymbolicFunction(function_name(name), parts.inputs, parts.outputs, mod.DOC, parts.intermediates))
+        rates = [(k, v) for k, v in parts.outputs if k == "xc_dot"]
+        if rates:
+            out.append(SymbolicFunction(rates_function_name(name), parts.inputs, rates,
+                                        f"{mod.DOC} State rates xc_dot only (same inputs).", parts.intermediates))
+            out.append(SemiImplicitStep(step_function_name(name), out[-2], out[-1],
+                                        f"{mod.DOC} Semi-implicit period: state xc+ = clip(xc + h xc_dot), "
+                                        "command u at xc+."))
     return out
 
 

@@ -24,12 +24,13 @@ __all__ = [
 
 
 def valve_flow_unit(u, pc, ps, d) -> sp.Expr:
-    """q_l / c of eq. (57): load flow per unit flow gain c (m·√Pa), three branches."""
-    return sp.Piecewise(
-        ((u - d) * sp.sqrt(pc), u < -d),
-        ((u + d) * sp.sqrt(ps - pc) + (u - d) * sp.sqrt(pc), u <= d),
-        ((u + d) * sp.sqrt(ps - pc), True),
-    )
+    """q_l / c of eq. (57): load flow per unit flow gain c (m·√Pa), three branches.
+
+    Written as the sum of the supply orifice's term (open for u ≥ −d) and the return orifice's
+    (open for u ≤ d): the same values as the three-branch form, for fewer masked terms in C."""
+    return sp.Piecewise(((u + d) * sp.sqrt(ps - pc), sp.Not(sp.Lt(u, -d, evaluate=False), evaluate=False)),
+                        (0, True), evaluate=False) \
+        + sp.Piecewise(((u - d) * sp.sqrt(pc), sp.Le(u, d, evaluate=False)), (0, True), evaluate=False)
 
 
 def signed_sqrt_linearised(x, x_lin) -> sp.Expr:
@@ -52,12 +53,12 @@ def valve_flow_unit_smooth(u, pc, ps, d, p_lin) -> sp.Expr:
     """
     up = signed_sqrt_linearised(ps - pc, p_lin)
     down = signed_sqrt_linearised(pc, p_lin)
-    return sp.Piecewise(
-        ((u - d) * down, sp.Lt(u, -d, evaluate=False)),
-        ((u + d) * up + (u - d) * down, sp.Le(u, d, evaluate=False)),
-        ((u + d) * up, True),
-        evaluate=False,
-    )
+    # (57)'s three branches as the sum of the two orifices' terms, each where its orifice is open
+    # (u ≥ −d: supply side, u ≤ d: return side): the same values as the three-branch form (a term
+    # plus an exact zero outside the underlap), for two masked terms instead of four and a sum.
+    return sp.Piecewise(((u + d) * up, sp.Not(sp.Lt(u, -d, evaluate=False), evaluate=False)), (0, True),
+                        evaluate=False) \
+        + sp.Piecewise(((u - d) * down, sp.Le(u, d, evaluate=False)), (0, True), evaluate=False)
 
 
 def chamber_pressure_rate(l, ldot, q_l, A, L, beta) -> sp.Expr:

@@ -43,10 +43,15 @@ def plant_rhs(model):
     # The effective spool position is an intermediate symbol: nesting its Piecewise
     # inside the valve law's would make SymPy merge conditions (slow, and ITE nodes).
     spool_eff = rate_symbols("spool_eff", m)
-    spool_eff_value = sp.Matrix([sp.Piecewise((spool[i], second), (spool[i], lagged), (u[i], True), evaluate=False)
-                                 for i in range(m)])
-    spool_dot = sp.Matrix([sp.Piecewise((spool_rate[i], second), ((u[i] - spool[i]) / tau_v, lagged), (0, True),
-                                        evaluate=False) for i in range(m)])
+    # One selection per cylinder: the spool state with either valve model, else the command. Each
+    # branch of a Piecewise costs CasADi two masked terms and a sum, so branches with the same value
+    # share one condition, and the spool rate is a sum of masked terms (exactly one non-zero).
+    spool_eff_value = sp.Matrix([sp.Piecewise((spool[i], sp.Or(second, lagged, evaluate=False)), (u[i], True),
+                                              evaluate=False) for i in range(m)])
+    lag_only = sp.And(sp.Not(second, evaluate=False), lagged, evaluate=False)
+    spool_dot = sp.Matrix([sp.Piecewise((spool_rate[i], second), (0, True), evaluate=False)
+                           + sp.Piecewise(((u[i] - spool[i]) / tau_v, lag_only), (0, True), evaluate=False)
+                           for i in range(m)])
     spool_ddot = sp.Matrix([sp.Piecewise((w_v ** 2 * (u[i] - spool[i]) - 2 * z_v * w_v * spool_rate[i], second),
                                          (0, True), evaluate=False) for i in range(m)])
     f_leg = rate_symbols("plant_fleg", m)
