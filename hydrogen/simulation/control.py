@@ -95,7 +95,10 @@ class _Controller:
         # the state's rates alone (same inputs as fn): the semi-implicit update calls it, not fn
         self.rates_fn = dyn.functions[rates_function_name(kind)].clone() if self.xc.size else None
         # the C loop's semi-implicit period in one call (rates, clip, command): for the loop runner
-        self.step_fn = dyn.functions[step_function_name(kind)].clone() if self.xc.size else None
+        # (composed at generation: dynamics made of derived functions alone, e.g. the benchmarks'
+        # lambdify and CasADi routes of the Python loop, have none; the C loop runner requires it)
+        step = dyn.functions.get(step_function_name(kind)) if self.xc.size else None
+        self.step_fn = step.clone() if step is not None else None
         #: spool commands the valves held over the last period, m (the γ̂2 law's u_applied)
         self.u_applied = np.zeros(model.n_cylinders)
         self.slices, i = {}, 0
