@@ -139,10 +139,11 @@ def read_sources(dyn, names, generated) -> dict:
 
 
 def controller_entries(manifest: dict, ctrl) -> list:
-    """Manifest entries of the generated functions a controller runtime calls: the controller, then,
-    when it has a state, its rates-only function and its semi-implicit step (the loop's state update)."""
+    """Manifest entries of the generated functions the C loop calls: the controller, then, when it
+    has a state, its semi-implicit step (the loop's state update; the forward-Euler update takes
+    the rate from the controller's own call)."""
     entries = {e["name"]: e for e in manifest["functions"]}
-    names = [ctrl.fn.name] + ([ctrl.rates_fn.name, ctrl.step_fn.name] if ctrl.rates_fn is not None else [])
+    names = [ctrl.fn.name] + ([ctrl.step_fn.name] if ctrl.step_fn is not None else [])
     missing = [n for n in names if n not in entries]
     if missing:
         raise HydrogenError(f"export: the compiled dynamics' manifest lists no {missing}; rebuild")
@@ -181,8 +182,8 @@ def export_context(dyn, p, scenario_name, controller, prog, sources, headers, ct
             entry["data"] = c_doubles(value)
         inputs.append(entry)
     slot_index = [fn.in_names.index(s) if s in fn.in_names else -1 for s in SLOTS]
-    # with a state: the rates-only function (same inputs, output xc_dot alone) and the step
-    rates, step = (controller_entries(dyn.library.manifest, ctrl)[1:] + [None, None])[:2]
+    # with a state: the semi-implicit step (the controller's inputs, then h and the bounds)
+    step = (controller_entries(dyn.library.manifest, ctrl)[1:] + [None])[0]
     n_xc = int(ctrl.xc.size)
     lo = np.where(np.isfinite(ctrl.bounds[0]), ctrl.bounds[0], -1e300)
     hi = np.where(np.isfinite(ctrl.bounds[1]), ctrl.bounds[1], 1e300)
@@ -193,7 +194,6 @@ def export_context(dyn, p, scenario_name, controller, prog, sources, headers, ct
         "model": model.name, "P": model.name.upper(), "scenario": scenario_name, "controller": controller,
         "prog": prog, "sources": sources, "headers": headers, "ctrl_header": ctrl_header,
         "ctrl_c_name": fn.c_name, "loop_header": f"{model.name}_loop.h",
-        "rates_c_name": rates["c_name"] if rates else None, "rates_header": rates["header"] if rates else None,
         "step_c_name": step["c_name"] if step else None, "step_header": step["header"] if step else None,
         "n_periods": int(p.n), "duration": c_double(sc.duration), "control_rate": c_double(sc.control_rate),
         "h": c_double(p.h), "substeps": int(sc.substeps), "t_adapt": c_double(sc.t_adapt),
@@ -269,10 +269,9 @@ by the valves and sensors.
 """
 
 
-_RATES_NOTE = """
+_STEP_NOTE = """
                   {step}: the loop's semi-implicit period in one call (state update, then
-                  the command at the updated state); {rates}: the state's rate alone
-                  (the forward-Euler update)"""
+                  the command at the updated state)"""
 
 
 def prepare_export(model, dyn, scenario, controller, gains, duration, check_workspace, overrides):
@@ -385,8 +384,7 @@ def export(out_dir, scenario="z-1hz", controller="adaptive-robust", model=None, 
         model=mname, scenario=sc_name, controller=controller, version=__version__, n=p.n,
         h_ms=f"{1e3 * p.h:.9g}", substeps=sc.substeps, metric_start=f"{p.sc.metric_start:g}",
         loop_c=drivers[0], loop_h=f"{mname}_loop.h", ctrl_files=ctrl_files,
-        ctrl_name=ctrl_entry["c_name"], rates_note=_RATES_NOTE.format(rates=ctrl_entries[1]["c_name"],
-                                                                     step=ctrl_entries[2]["c_name"])
+        ctrl_name=ctrl_entry["c_name"], rates_note=_STEP_NOTE.format(step=ctrl_entries[1]["c_name"])
         if len(ctrl_entries) > 1 else "", other=other, prog=prog, extra=extra, kalman_note=kalman_note)
     contents = {**{n: files[n] for n in sources + headers}, **{n: t.encode() for n, t in rendered.items()}}
     meta = {

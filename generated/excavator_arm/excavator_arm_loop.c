@@ -137,7 +137,7 @@ int excavator_arm_loop_run(const excavator_arm_loop_config* c, excavator_arm_loo
     long long step, j;
     int i;
     if (c->delay < 0 || c->delay > MAX_DELAY) return EXCAVATOR_ARM_CTRL_FAILED;  /* the ring holds MAX_DELAY periods */
-    if (c->n_xc && !(c->xc_euler ? c->rates : c->step)) return EXCAVATOR_ARM_CTRL_FAILED;  /* a state needs its update */
+    if (c->n_xc && !c->xc_euler && !c->step) return EXCAVATOR_ARM_CTRL_FAILED;  /* a state needs its update */
     for (step = 0; step < n; ++step) {
         const double* nz = noise ? noise + NNOISE * step : 0;  /* row `step` of this call's table */
         const double t = (double)st->k * h;  /* k h, not a running sum: no drift */
@@ -227,14 +227,12 @@ int excavator_arm_loop_run(const excavator_arm_loop_config* c, excavator_arm_loo
             if (!rk4(c, x, u_app, hs)) return EXCAVATOR_ARM_CTRL_FAILED;
             for (i = 0; i < NL; ++i) x[2 * NQ + i] = clip(x[2 * NQ + i], 0, SUPPLY_PRESSURE[i]);
         }
-        /* controller state, forward Euler variant (xc_euler): rate of this period (its measurement,
-         * state and u_applied, the command the valves held over the period that ended at the
-         * measurement, all still in ctrl_arg), after the plant step, kept inside the projection bounds */
-        if (c->xc_euler && c->n_xc) {
-            if (c->rates((const double**)c->ctrl_arg, c->rates_res, c->rates_iw, c->rates_w, 0)) return EXCAVATOR_ARM_CTRL_FAILED;
+        /* controller state, forward Euler variant (xc_euler): the rate the command's call gave (this
+         * period's measurement, state and u_applied, the command the valves held over the period that
+         * ended at the measurement), applied after the plant step, kept inside the projection bounds */
+        if (c->xc_euler && c->n_xc)
             for (j = 0; j < c->n_xc; ++j)
-                st->xc[j] = clip(st->xc[j] + h * c->rates_res[0][j], c->xc_lo[j], c->xc_hi[j]);
-        }
+                st->xc[j] = clip(st->xc[j] + h * c->ctrl_res[1][j], c->xc_lo[j], c->xc_hi[j]);
         /* a non-finite state stops the run with st->k at the period that produced it */
         for (i = 0; i < NX; ++i)
             if (!isfinite(x[i])) return EXCAVATOR_ARM_NONFINITE;

@@ -56,14 +56,9 @@ typedef struct {
     double** ctrl_res;
     long long int* ctrl_iw;
     double* ctrl_w;
-    /* with a state (n_xc > 0): its rates-only function (the same inputs, read from ctrl_arg; result 0
-     * is the state rate), called by the forward-Euler update; and its semi-implicit step, one call per
-     * period: arguments ctrl_arg's then h, xc_lo, xc_hi (step_arg); results u (step_res[0] must be
-     * ctrl_res[0]) and the updated state */
-    excavator_arm_casadi_fn rates;
-    double** rates_res;
-    long long int* rates_iw;
-    double* rates_w;
+    /* with a state (n_xc > 0): its semi-implicit step, one call per period: arguments ctrl_arg's then
+     * h, xc_lo, xc_hi (step_arg); results u (step_res[0] must be ctrl_res[0]) and the updated state.
+     * The forward-Euler update takes the rate from the controller's own call (ctrl_res[1]). */
     excavator_arm_casadi_fn step;
     double** step_arg;
     double** step_res;

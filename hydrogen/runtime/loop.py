@@ -35,8 +35,7 @@ def _structs(ctx: dict):
             ("bias", _D), ("n_terms", _LL), ("terms", _D), ("step_axis", _LL), ("step_height", C.c_double),
             ("t_step", C.c_double),
             ("ctrl", C.c_void_p), ("ctrl_arg", C.c_void_p), ("ctrl_res", C.c_void_p), ("ctrl_iw", C.c_void_p),
-            ("ctrl_w", C.c_void_p), ("rates", C.c_void_p), ("rates_res", C.c_void_p), ("rates_iw", C.c_void_p),
-            ("rates_w", C.c_void_p), ("step", C.c_void_p), ("step_arg", C.c_void_p), ("step_res", C.c_void_p),
+            ("ctrl_w", C.c_void_p), ("step", C.c_void_p), ("step_arg", C.c_void_p), ("step_res", C.c_void_p),
             ("step_iw", C.c_void_p), ("step_w", C.c_void_p), ("slot", _LL * len(ctx["slots"])), ("n_xc", _LL),
             ("xc_lo", _D),
             ("xc_hi", _D), ("xc_euler", _LL), ("fk_tol", C.c_double), ("fk_max_iter", _LL),
@@ -134,13 +133,6 @@ class LoopRunner:
             cfg.slot[i] = fn.in_names.index(s) if s in fn.in_names else -1
         n_xc = ctrl.xc.size
         cfg.n_xc = n_xc
-        if n_xc:
-            # the rates function reads the controller's argument table: it must take the same inputs
-            rates = ctrl.rates_fn
-            if rates.in_names != fn.in_names or rates.in_shapes != fn.in_shapes:
-                raise ValueError(f"{rates.name} and {fn.name} take different inputs; regenerate")
-            rt = rates.c_tables()
-            cfg.rates, cfg.rates_res, cfg.rates_iw, cfg.rates_w = rt["fn"], rt["res"], rt["iw"], rt["w"]
         lo, hi = ctrl.bounds
         lo, hi = arr(np.where(np.isfinite(lo), lo, -1e300)), arr(np.where(np.isfinite(hi), hi, 1e300))
         cfg.xc_lo, cfg.xc_hi = _ptr(lo), _ptr(hi)

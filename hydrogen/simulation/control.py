@@ -176,10 +176,10 @@ class _Controller:
             np.clip(self.xc + h * self._rates(), *self.bounds, out=self.xc)
 
     def advance(self, h):
-        """Forward Euler: the rate at the last command's measurement, state and u_applied (the spool
-        the valves held over the period that ended at that measurement)."""
+        """Forward Euler: the rate the last command's call gave (its measurement, state and
+        u_applied, the spool the valves held over the period that ended at that measurement)."""
         if self.xc.size:
-            np.clip(self.xc + h * self._rates(), *self.bounds, out=self.xc)
+            np.clip(self.xc + h * self.xc_dot, *self.bounds, out=self.xc)
 
 
 def make_controller(dyn, kind, gains=None, theta0=None, gamma0=None, period=None):
