@@ -242,11 +242,14 @@ def test_theta_signals_of_a_staged_tree_equal_the_closed_forms(monkeypatch, rng)
         rigid_body._TREES.clear()  # the trees cache the form they were built in
         c = Common(model)
         out = RigidBodyComposite(c, c.theta()).signals()
-        stages = rigid_body.rigid_body_stages(model, c.q)
-        for syms, expr in reversed(stages):  # innermost last: substitute the poses into the signals
-            rep = dict(zip(list(syms), list(expr)))
-            out = [sp.Matrix(o).xreplace(rep) for o in out]
-        return len(stages), sp.lambdify([list(c.q), list(c.qdot)], out, "numpy")
+        staged = len(rigid_body.rigid_body_stages(model, c.q))
+        # innermost last: substitute the kinematics' stages (poses and their rates) into the signals
+        for syms, expr in reversed(c.kin):
+            if isinstance(expr, sp.MatrixBase):
+                rep = dict(zip(list(syms), list(expr)))
+                out = [sp.Matrix(o).xreplace(rep) for o in out]
+        assert all(sp.Matrix(o).free_symbols <= set(c.q) | set(c.qdot) for o in out)
+        return staged, sp.lambdify([list(c.q), list(c.qdot)], out, "numpy")
 
     n_closed, closed = signals(99)
     n_staged, staged = signals(1)

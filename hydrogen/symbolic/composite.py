@@ -280,8 +280,37 @@ class RigidBodyComposite:
                 ("ls_nu_theta", sp.Matrix([self.nu]))]
 
     def signals(self):
-        """(Y_p, p0, Y_b, b0) as expressions of q, q̇."""
-        from .rigid_body import coriolis_matrix, gravity, mass_matrix, rigid_body_stages
+        """(Y_p, p0, Y_b, b0) as expressions of q, q̇ (and, on a staged tree, its link-pose symbols)."""
+        from .rigid_body import rigid_body_stages
+
+        if rigid_body_stages(self.c.model, self.c.q):
+            return self._staged_signals()
+        return self._closed_form_signals()
+
+    def _staged_signals(self):
+        """A staged tree's D holds link-pose symbols, not q, so ∂/∂q of it would miss the poses'
+        dependence on q. From the tree's own Newton-Euler regressor instead, in a few passes:
+        D q̇ = Y(q, 0, 0, q̇) − Y(q, 0, 0, 0), C q̇ + G = Y(q, q̇, q̇, 0), and Cᵀ q̇ = Ḋ q̇ − C q̇
+        (Ḋ = C + Cᵀ) with Ḋ q̇ the forward-mode time derivative of D q̇ through q and the poses,
+        q̇ held (the same quantities as the closed form's, tested)."""
+        from .calculus import time_derivative
+        from .rigid_body import regressor, regressor_offset
+
+        c = self.c
+        q, qd, th = c.q, c.qdot, self.th_hat
+        zero = sp.zeros(c.n, 1)
+        Y = lambda v, w, a: regressor(c.model, q, v, w, a, th)  # noqa: E731
+        y0 = lambda v, w, a: regressor_offset(c.model, q, v, w, a, th)  # noqa: E731
+        Yp, p0 = Y(zero, zero, qd) - Y(zero, zero, zero), y0(zero, zero, qd) - y0(zero, zero, zero)
+        # q̇ inside D q̇ has no rate listed: held, so d/dt gives Ḋ q̇
+        rates = [(q, qd), *c.pose_rates]
+        Ddot_Yp = time_derivative(Yp.reshape(c.n * c.p, 1), rates).reshape(c.n, c.p)
+        Yb = Y(qd, qd, zero) - Ddot_Yp
+        b0 = y0(qd, qd, zero) - time_derivative(sp.Matrix(p0), rates)
+        return Yp, p0, Yb, b0
+
+    def _closed_form_signals(self):
+        from .rigid_body import gravity, mass_matrix
 
         c, n, p = self.c, self.c.n, self.c.p
         q, qd = c.q, c.qdot
@@ -294,14 +323,6 @@ class RigidBodyComposite:
             YG_cols.append(sp.expand(gravity(c.model, q, unit) - G0))
         Yp = sp.Matrix.hstack(*Yp_cols)
         YG = sp.Matrix.hstack(*YG_cols)
-
-        if rigid_body_stages(c.model, q):
-            # A staged tree's D holds link-pose symbols, not q: ∂/∂q of it would miss the poses'
-            # dependence on q. Cᵀ q̇ from the tree's own Christoffel C instead (the same quantity).
-            C0 = coriolis_matrix(c.model, q, qd, zero)
-            Yb = sp.Matrix.hstack(*[YG[:, k] - (coriolis_matrix(c.model, q, qd, unit_k) - C0).T * qd
-                                    for k, unit_k in enumerate(_units(p))])
-            return Yp, p0, Yb, G0 - C0.T * qd
 
         def half_dT(mom):  # (Cᵀ q̇)_i = ∂/∂q_i of ½ q̇ᵀ (D q̇)
             T = sp.Rational(1, 2) * (qd.T * mom)[0, 0]
