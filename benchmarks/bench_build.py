@@ -321,7 +321,7 @@ def _print_robot(res: dict) -> None:
         print(f"    note: the committed generated/{res['model']} is stale by its hash (build() regenerates it into "
               f"the cache): {'; '.join(res['committed_stale_by_hash'])}")
     print(f"(c) under 1 s: {w['under_1s']} (runs: " + ", ".join(f"{r['build_s']:.3f}" for r in w["runs"]) + ")")
-    print(f"(d) Theorem 1 controller (ctrl_backstepping, leg-force mapping), CasADi instructions with cse:")
+    print("(d) Theorem 1 controller (ctrl_backstepping, leg-force mapping), CasADi instructions with cse:")
     header = f"{'tau_d_dot by':<40} {'instructions':>12} {'SX nodes':>9}"
     print(header)
     print("-" * len(header))

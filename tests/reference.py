@@ -53,3 +53,32 @@ def newton_euler(model, theta, q, qd, qdd, h=1e-5):
     n = Ib @ wd + np.cross(w, Ib @ w)
     T = T_matrix(q[4], q[5])
     return np.concatenate([f, T.T @ n])
+
+
+def controller_rate_map(model, syms, X, idx):
+    """Each symbol's rate along the controllers' assumptions (q → q̇, q̇ → acc, q_d,k → q_d,k+1,
+    z → ż, θ̂ → θ̂̇, q̂ → z + Λ2 (q − q̂)), as a CasADi SX vector over ``X`` (``idx``: name → index)."""
+    import casadi as ca
+
+    rate = ca.SX.zeros(len(syms))
+
+    def get(name):
+        return X[idx[name]] if name in idx else 0
+
+    for s in syms:
+        n = str(s)
+        base, _, k = n.rpartition("_")
+        if n.startswith("q_") and not n.startswith("q_hat"):
+            rate[idx[n]] = get(f"qdot_{model.coordinate_names.index(n[2:])}")
+        elif base == "qdot":
+            rate[idx[n]] = get(f"acc_{k}")
+        elif base in ("qd0", "qd1", "qd2"):
+            rate[idx[n]] = get(f"qd{int(base[2]) + 1}_{k}")
+        elif base == "z":
+            rate[idx[n]] = get(f"zdot_{k}")
+        elif base == "theta_hat":
+            rate[idx[n]] = get(f"thetadot_{k}")
+        elif base == "q_hat":
+            i = int(k)
+            rate[idx[n]] = get(f"z_{i}") + get(f"Lambda2_{i}") * (get(f"q_{model.coordinate_names[i]}") - X[idx[n]])
+    return rate

@@ -259,3 +259,18 @@ def test_theta_signals_of_a_staged_tree_equal_the_closed_forms(monkeypatch, rng)
         q, qd = rng.uniform(-1, 1, model.n), rng.uniform(-1, 1, model.n)
         for a, b in zip(closed(q, qd), staged(q, qd)):
             np.testing.assert_allclose(np.array(b, float), np.array(a, float), rtol=1e-9, atol=1e-9)
+
+
+def test_copies_of_the_last_period_start_at_the_initial_measurement(robot_dyn):
+    """The composite γ law's trapezoid divides by l − L: its copies of the last length and control
+    pressure start at l(q0) and the run's initial pressures, never at 0 (a chamber of zero dead
+    length would give 0/0 in the first period)."""
+    from hydrogen.simulation.simulator import prepare_run
+
+    dyn, model = robot_dyn, robot_dyn.model
+    sc = "paper-sim" if "paper-sim" in model.scenarios else "arm-sim"
+    p = prepare_run(dyn, sc, "adaptive-robust", None, 0.01, False, {})
+    sl, x0 = p.ctrl.slices, p.x0
+    n, m = model.n, model.n_cylinders
+    np.testing.assert_allclose(p.ctrl.xc[sl["legl_prev"]], np.asarray(dyn.leg_lengths(x0[:n])).ravel())
+    np.testing.assert_allclose(p.ctrl.xc[sl["pc_prev"]], x0[2 * n:2 * n + m])

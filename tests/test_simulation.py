@@ -14,6 +14,7 @@ from hydrogen.simulation.reference import MultiSine
 from hydrogen.simulation.scenarios import scenario
 from hydrogen.simulation.simulator import _rk4, equilibrium_pressures, simulate
 from hydrogen.controllers import controller as controller_module
+from reference import controller_rate_map
 
 FRIC, NO_LAG = np.array([100.0, 300.0, 1e-3]), np.zeros(3)  # valve [lag, natural frequency, damping]: ideal
 
@@ -76,28 +77,7 @@ def _tau_d_dot_and_ad(kind, model):
     conv = SympyToCasadi({s: X[i] for i, s in enumerate(syms)})
     tau_sx, tau_dot_sx = conv(taud), conv(taud_dot)
     idx = {str(s): i for i, s in enumerate(syms)}
-    rate = ca.SX.zeros(len(syms))
-
-    def get(name):
-        return X[idx[name]] if name in idx else 0
-
-    for s in syms:
-        n = str(s)
-        base, _, k = n.rpartition("_")
-        if n.startswith("q_") and not n.startswith("q_hat"):
-            rate[idx[n]] = get(f"qdot_{model.coordinate_names.index(n[2:])}")
-        elif base == "qdot":
-            rate[idx[n]] = get(f"acc_{k}")
-        elif base in ("qd0", "qd1", "qd2"):
-            rate[idx[n]] = get(f"qd{int(base[2]) + 1}_{k}")
-        elif base == "z":
-            rate[idx[n]] = get(f"zdot_{k}")
-        elif base == "theta_hat":
-            rate[idx[n]] = get(f"thetadot_{k}")
-        elif base == "q_hat":
-            i = int(k)
-            qn = f"q_{model.coordinate_names[i]}"
-            rate[idx[n]] = get(f"z_{i}") + get(f"Lambda2_{i}") * (get(qn) - X[idx[n]])
+    rate = controller_rate_map(model, syms, X, idx)
     return X, idx, tau_dot_sx, ca.jtimes(tau_sx, X, rate)
 
 

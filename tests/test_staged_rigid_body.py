@@ -21,6 +21,7 @@ from hydrogen.symbolic.tree import SymbolicTree
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "benchmarks"))
 from bench_scaling import chain_model  # noqa: E402
+from reference import controller_rate_map  # noqa: E402
 
 pin = pytest.importorskip("pinocchio")
 N = 4
@@ -146,29 +147,6 @@ def test_staged_matches_the_closed_form(chain, rng):
             _close(a, b)
 
 
-def _rate_map(model, syms, X, idx):
-    """Each symbol's rate along the controllers' assumptions (q → q̇, q̇ → acc, q_d,k → q_d,k+1, ...)."""
-    rate = ca.SX.zeros(len(syms))
-    get = lambda name: X[idx[name]] if name in idx else 0  # noqa: E731
-    for s in syms:
-        n = str(s)
-        base, _, k = n.rpartition("_")
-        if n.startswith("q_") and not n.startswith("q_hat"):
-            rate[idx[n]] = get(f"qdot_{model.coordinate_names.index(n[2:])}")
-        elif base == "qdot":
-            rate[idx[n]] = get(f"acc_{k}")
-        elif base in ("qd0", "qd1", "qd2"):
-            rate[idx[n]] = get(f"qd{int(base[2]) + 1}_{k}")
-        elif base == "z":
-            rate[idx[n]] = get(f"zdot_{k}")
-        elif base == "theta_hat":
-            rate[idx[n]] = get(f"thetadot_{k}")
-        elif base == "q_hat":  # q̂̇ = z + Λ2 (q − q̂)
-            i = int(k)
-            rate[idx[n]] = get(f"z_{i}") + get(f"Lambda2_{i}") * (get(f"q_{model.coordinate_names[i]}") - X[idx[n]])
-    return rate
-
-
 @pytest.mark.parametrize("kind", ["backstepping", "adaptive-robust", "adaptive-observer"])
 def test_staged_tau_d_dot_matches_casadi_ad_through_the_pose_stages(kind, chain, rng):
     """τ̇_d, derived by forward mode with the pose rates (Ṙ = S(ω) R, ṗ), equals CasADi's forward AD
@@ -191,7 +169,7 @@ def test_staged_tau_d_dot_matches_casadi_ad_through_the_pose_stages(kind, chain,
     assert taud.free_symbols & defined  # τ_d holds pose symbols: the stages matter
     idx = {str(s): i for i, s in enumerate(syms)}
     tau_sx, tau_dot_sx = conv(taud), conv(taud_dot)
-    f = ca.Function("f", [X], [ca.jtimes(tau_sx, X, _rate_map(chain, syms, X, idx)), tau_dot_sx])
+    f = ca.Function("f", [X], [ca.jtimes(tau_sx, X, controller_rate_map(chain, syms, X, idx)), tau_dot_sx])
     for _ in range(3):
         x = rng.normal(size=X.numel())
         for s, i in idx.items():

@@ -149,6 +149,9 @@ class LoopRunner:
     def _step_tables(self, cfg, ctrl, tables, extra):
         """The semi-implicit step's tables: its arguments are the controller's (the same buffers, which
         the loop writes) then h, xc_lo, xc_hi; its command result is the controller's u buffer."""
+        if ctrl.step_fn is None:
+            raise ValueError(f"{ctrl.fn.name} has no generated semi-implicit step (dynamics of derived "
+                             "functions alone); the C loop needs the compiled library's")
         step, fn = ctrl.step_fn.clone(), ctrl.fn  # a clone: its result table is redirected below
         n_in = len(fn.in_names)
         if step.in_names[:n_in] != fn.in_names or step.in_names[n_in:] != ["h", "xc_lo", "xc_hi"]:

@@ -89,6 +89,7 @@ class _Controller:
         self.values = dict(gains)
         self.layout = controller_module(kind).state_layout(model)
         self.model = model
+        self.leg_lengths = dyn.leg_lengths  # l(q0) for the composite law's copy of the last length
         self.theta0, self.gamma0 = np.asarray(theta0, float), np.asarray(gamma0, float)
         self.xc = np.zeros(sum(n for _, n in self.layout))
         self.xc_dot = np.zeros_like(self.xc)
@@ -125,9 +126,17 @@ class _Controller:
         s = self.slices.get(name)
         return None if s is None else self.xc[s]
 
-    def reset(self, q0, qdot0):
+    def reset(self, q0, qdot0, pc0=None):
+        """The state at the start: estimates at θ0, γ0, observers at (q0, q̇0), least-squares gains at
+        P0 I, filters at 0, and the composite law's copies of the last period's length and control
+        pressure at l(q0) and ``pc0`` (Pa; default half the supply pressure): never the chamber's
+        dead length, where g0 divides by l − L."""
         for name, s in self.slices.items():
-            if name in _INITIAL:
+            if name == "legl_prev":
+                self.xc[s] = np.asarray(self.leg_lengths(q0), float).ravel()
+            elif name == "pc_prev":
+                self.xc[s] = 0.5 * self.model.supply_pressure if pc0 is None else np.asarray(pc0, float)
+            elif name in _INITIAL:
                 self.xc[s] = _INITIAL[name](q0, qdot0, self.theta0, self.gamma0)
             elif name in _GAIN_BLOCKS:
                 k, p0 = _GAIN_BLOCKS[name]

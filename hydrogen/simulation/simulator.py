@@ -216,8 +216,9 @@ def prepare_run(dyn, scenario, controller, gains, duration, check_workspace, ove
                            period=h)
     nq, m = model.n, model.n_cylinders
     q0 = sc.reference(0.0)[0] + np.asarray(sc.q0_offset, float)
-    x0 = np.concatenate([q0, np.zeros(nq), equilibrium_pressures(dyn, q0, model.theta), np.zeros(2 * m)])
-    ctrl.reset(q0, np.zeros(nq))
+    pc0 = equilibrium_pressures(dyn, q0, model.theta)
+    x0 = np.concatenate([q0, np.zeros(nq), pc0, np.zeros(2 * m)])
+    ctrl.reset(q0, np.zeros(nq), pc0)
     # One noise table for every engine: rows [cylinder length noise (m), pressure noise (m)], then the
     # joint-encoder noise (n) when the robot has encoders.
     rng = np.random.default_rng(sc.seed)
