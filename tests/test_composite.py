@@ -274,3 +274,30 @@ def test_copies_of_the_last_period_start_at_the_initial_measurement(robot_dyn):
     n, m = model.n, model.n_cylinders
     np.testing.assert_allclose(p.ctrl.xc[sl["legl_prev"]], np.asarray(dyn.leg_lengths(x0[:n])).ravel())
     np.testing.assert_allclose(p.ctrl.xc[sl["pc_prev"]], x0[2 * n:2 * n + m])
+
+
+def test_staged_least_squares_equals_the_plain_law(rng):
+    """The controllers' staged form (W, ε, P Wᵀ and k/m² bound to symbols) gives the same ẋ and Ṗ as
+    the plain law, the stages substituted in order, at random values."""
+    from hydrogen.symbolic.composite import staged_least_squares
+
+    rows, p = 3, 4
+    W = sp.Matrix(rows, p, lambda i, j: sp.Symbol(f"w{i}_{j}"))
+    eps = sp.Matrix(sp.symbols(f"e0:{rows}"))
+    Pp = sp.symbols(f"P0:{p * (p + 1) // 2}")
+    k, d, nu = sp.symbols("k d nu")
+    x_plain, P_plain = normalised_least_squares(W, eps, Pp, k, d, nu)
+    x_st, P_st, stages = staged_least_squares(W, eps, Pp, k, d, nu, "t")
+    out = [sp.Matrix(x_st), sp.Matrix(P_st)]
+    for syms, expr in reversed(stages):
+        rep = dict(zip(list(syms), list(expr)))
+        out = [o.xreplace(rep) for o in out]
+    args = [*W, *eps, *Pp, k, d, nu]
+    f_plain = sp.lambdify(args, [sp.Matrix(x_plain), sp.Matrix(P_plain)])
+    f_st = sp.lambdify(args, out)
+    for _ in range(3):
+        P = _spd(p, rng)
+        vals = [*rng.standard_normal(rows * p), *rng.standard_normal(rows),
+                *[float(v) for v in pack_symmetric(sp.Matrix(P))], 20.0, 1e-3, 0.1]
+        for a, b in zip(f_plain(*vals), f_st(*vals)):
+            np.testing.assert_allclose(np.array(b, float), np.array(a, float), rtol=1e-12, atol=1e-14)
