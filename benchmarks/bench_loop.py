@@ -20,8 +20,6 @@ Run: ``python benchmarks/bench_loop.py [--quick] [--json FILE]``
 """
 from __future__ import annotations
 
-import argparse
-import json
 import os
 import statistics
 import sys
@@ -268,12 +266,4 @@ def print_table(res):
 
 
 if __name__ == "__main__":
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--quick", action="store_true")
-    ap.add_argument("--json")
-    a = ap.parse_args()
-    r = run(quick=a.quick)
-    print_table(r)
-    if a.json:
-        with open(a.json, "w") as fh:
-            json.dump(r, fh, indent=2)
+    sys.exit(common.script_main(__doc__, run, print_table))

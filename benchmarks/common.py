@@ -258,3 +258,21 @@ def parse_keyed(stdout: str) -> dict:
 
 def median(values) -> float:
     return float(statistics.median(values))
+
+
+def script_main(doc: str, run, print_table, argv=None) -> int:
+    """A benchmark module run as a script: ``--quick`` and ``--json FILE`` (written atomically)."""
+    import argparse
+    import json
+
+    from hydrogen.fileio import atomic_write
+
+    ap = argparse.ArgumentParser(description=doc.splitlines()[0])
+    ap.add_argument("--quick", action="store_true")
+    ap.add_argument("--json", type=Path, metavar="FILE")
+    a = ap.parse_args(argv)
+    r = run(quick=a.quick)
+    print_table(r)
+    if a.json:
+        atomic_write(a.json, json.dumps(r, indent=2, default=str) + "\n")
+    return 0
