@@ -114,3 +114,17 @@ def test_release_instruction_bounds():
     assert out["ctrl_backstepping"]["status"] == "ok"
     assert out["plant_rhs"]["status"] == "FAIL"
     assert out["valve_flow"]["status"] == "-" and out["new_fn"]["status"] == "new"
+
+
+def test_release_compares_an_adaptive_controller_like_for_like():
+    """The lean variant (the previous release's gradient law) is held to the bound against the
+    previous controller; the full function (composite law) is reported, not bounded."""
+    prev = {"ctrl_adaptive_robust": 3846}
+    ok = bench_release.compare_instructions(prev, {"ctrl_adaptive_robust": 5637, "ctrl_adaptive_robust_lean": 3960})
+    assert ok["ctrl_adaptive_robust_lean"]["status"] == "ok" and ok["ctrl_adaptive_robust_lean"]["previous"] == 3846
+    assert ok["ctrl_adaptive_robust"]["status"] == "composite law (new)"
+    bad = bench_release.compare_instructions(prev, {"ctrl_adaptive_robust": 5637, "ctrl_adaptive_robust_lean": 4100})
+    assert bad["ctrl_adaptive_robust_lean"]["status"] == "FAIL"
+    # without a lean variant the controller itself is bounded
+    assert bench_release.compare_instructions(prev, {"ctrl_adaptive_robust": 5637})["ctrl_adaptive_robust"]["status"] \
+        == "FAIL"

@@ -101,14 +101,13 @@ def c_name(model_name: str, fname: str) -> str:
     return f"{model_name}_{fname}"
 
 
-def _write_function(sf, model_name: str, folder: Path) -> dict:
+def _write_function(sf, model_name: str, folder: Path, cache: dict) -> dict:
     import casadi as ca
 
-    from .casadi_functions import semi_implicit_step, shape_of, to_casadi_function
+    from .casadi_functions import casadi_function
 
     name = c_name(model_name, sf.name)
-    composed = not hasattr(sf, "inputs")  # a SemiImplicitStep, composed from two derived functions
-    fun = semi_implicit_step(sf, c_name=name) if composed else to_casadi_function(sf, c_name=name)
+    fun = casadi_function(sf, c_name=name, cache=cache)
     cg = ca.CodeGenerator(f"{name}.c", dict(CODEGEN_OPTIONS))
     cg.add(fun)
     with tempfile.TemporaryDirectory() as tmp:
@@ -121,10 +120,8 @@ def _write_function(sf, model_name: str, folder: Path) -> dict:
     return {
         "name": sf.name, "c_name": name, "doc": sf.doc,
         "source": f"{name}.c", "header": f"{name}.h",
-        "inputs": [[fun.name_in(i), *fun.size_in(i)] for i in range(fun.n_in())] if composed
-        else [[n, *shape_of(m)] for n, m in sf.inputs],
-        "outputs": [[fun.name_out(i), *fun.size_out(i)] for i in range(fun.n_out())] if composed
-        else [[n, *shape_of(m)] for n, m in sf.outputs],
+        "inputs": [[fun.name_in(i), *fun.size_in(i)] for i in range(fun.n_in())],
+        "outputs": [[fun.name_out(i), *fun.size_out(i)] for i in range(fun.n_out())],
         "instructions": fun.n_instructions(),
     }
 
@@ -151,7 +148,8 @@ def render(model, folder: Path, functions=None, progress: bool = False) -> dict:
             bar.update()
     from ..layout import model_summary
 
-    entries = [_write_function(sf, model.name, folder)
+    cache = {}  # CasADi conversions by function name: the composed functions reuse them
+    entries = [_write_function(sf, model.name, folder, cache)
                for sf in tqdm(functions, desc="generating C", unit="fn", disable=None if progress else True)]
     summary = model_summary(model)
     drivers = render_drivers({"model": summary}, folder)

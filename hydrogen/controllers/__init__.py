@@ -15,7 +15,10 @@ A controller module defines
 
 The generated C function is ``ctrl_<module name>``; a controller with a state also gets
 ``ctrl_<module name>_rates``, the same inputs and its state rate ``xc_dot`` alone, and
-``ctrl_<module name>_step``, the loop's semi-implicit period in one call. Adding a controller: write the module, add
+``ctrl_<module name>_step``, the loop's semi-implicit period in one call. A controller with the
+composite adaptation's state blocks (:func:`hydrogen.controllers.common.composite_layout`) also
+gets the three as ``ctrl_<module name>_lean…``: the same inputs and state with the composite
+terms left out (their rates fixed at 0), which the runtime runs when those rates are 0. Adding a controller: write the module, add
 it to ``_MODULES`` below, regenerate (``hydrogen generate``), add its tests. Importing this
 package imports neither SymPy nor CasADi.
 """
@@ -23,7 +26,10 @@ from __future__ import annotations
 
 import importlib
 
-__all__ = ["CONTROLLERS", "controller", "function_name", "rates_function_name", "step_function_name"]
+__all__ = ["CONTROLLERS", "controller", "function_name", "rates_function_name", "step_function_name", "LEAN"]
+
+#: The variant of an adaptive controller without the composite adaptation terms.
+LEAN = "lean"
 
 #: Module names, in the order functions are generated.
 _MODULES = ("backstepping", "adaptive_robust", "adaptive_observer", "p")
@@ -42,19 +48,21 @@ def controller(name: str):
     return _REGISTRY[name]
 
 
-def function_name(name: str) -> str:
-    """Name of the generated function of controller ``name``: ``ctrl_<module>``."""
-    return "ctrl_" + _REGISTRY[name].__name__.rsplit(".", 1)[1]
+def function_name(name: str, variant: str | None = None) -> str:
+    """Name of the generated function of controller ``name``: ``ctrl_<module>``, or
+    ``ctrl_<module>_<variant>`` for a variant (:data:`LEAN`)."""
+    base = "ctrl_" + _REGISTRY[name].__name__.rsplit(".", 1)[1]
+    return base if variant is None else f"{base}_{variant}"
 
 
-def rates_function_name(name: str) -> str:
+def rates_function_name(name: str, variant: str | None = None) -> str:
     """Name of the rates-only generated function of controller ``name`` (one with a state):
-    ``ctrl_<module>_rates``, the same inputs as :func:`function_name`'s, output ``xc_dot`` alone."""
-    return function_name(name) + "_rates"
+    ``ctrl_<module>[_<variant>]_rates``, the same inputs as :func:`function_name`'s, output ``xc_dot`` alone."""
+    return function_name(name, variant) + "_rates"
 
 
-def step_function_name(name: str) -> str:
+def step_function_name(name: str, variant: str | None = None) -> str:
     """Name of the semi-implicit step of controller ``name`` (one with a state):
-    ``ctrl_<module>_step``, the controller's inputs then ``h``, ``xc_lo``, ``xc_hi``; outputs the
+    ``ctrl_<module>[_<variant>]_step``, the controller's inputs then ``h``, ``xc_lo``, ``xc_hi``; outputs the
     command ``u`` at the updated state and that state ``xc_next``."""
-    return function_name(name) + "_step"
+    return function_name(name, variant) + "_step"

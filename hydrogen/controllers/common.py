@@ -4,7 +4,20 @@ from __future__ import annotations
 import numpy as np
 
 __all__ = ["model_gains", "adaptation_gains", "RAW_ADAPTATION_GAINS", "adaptation_references",
-           "normalised_adaptation", "composite_layout", "composite_static_inputs", "initial_gain_matrix"]
+           "normalised_adaptation", "composite_layout", "composite_static_inputs", "initial_gain_matrix",
+           "COMPOSITE_BLOCKS", "COMPOSITE_GAIN_BLOCKS", "COMPOSITE_RATES", "gain_block_shape", "lean_variant", "runs_lean"]
+
+#: The composite law's weights (1/s), one per family: all 0 is the paper's gradient law.
+COMPOSITE_RATES = ("rate_ls_gamma", "rate_ls_theta")
+
+#: The state blocks of :func:`composite_layout`, in order.
+COMPOSITE_BLOCKS = ("force_filter", "log_chamber_filter", "g0_filter", "pc_prev", "legl_prev", "gamma_gain",
+                    "momentum_filter", "momentum_offset_filter", "bias_filter", "bias_offset_filter",
+                    "torque_filter", "theta_gain")
+
+#: The least-squares gain blocks of :func:`composite_layout` (upper triangles of k×k matrices, one per
+#: copy): block -> (k, its initial-gain input); k None: one copy filling the block.
+COMPOSITE_GAIN_BLOCKS = {"gamma_gain": (2, "P0_gamma"), "theta_gain": (None, "P0_theta")}
 
 #: The raw adaptation gains of the generated controllers (Γ_θ⁻¹, Γ_γ1⁻¹, Γ_γ2⁻¹) and the normalised
 #: rate (one per family) each is made from when it is not given.
@@ -68,10 +81,8 @@ def composite_layout(model) -> list:
     triangle (:class:`hydrogen.symbolic.composite.RigidBodyComposite`)."""
     m = model.n_cylinders
     n, p = model.n, model.n_theta
-    return [("force_filter", m), ("log_chamber_filter", m), ("g0_filter", m), ("pc_prev", m),
-            ("legl_prev", m), ("gamma_gain", 3 * m),
-            ("momentum_filter", n * p), ("momentum_offset_filter", n), ("bias_filter", n * p),
-            ("bias_offset_filter", n), ("torque_filter", n), ("theta_gain", p * (p + 1) // 2)]
+    sizes = (m, m, m, m, m, 3 * m, n * p, n, n * p, n, n, p * (p + 1) // 2)
+    return list(zip(COMPOSITE_BLOCKS, sizes))
 
 
 def composite_static_inputs(dyn, theta0, gamma0) -> dict:
@@ -84,6 +95,43 @@ def composite_static_inputs(dyn, theta0, gamma0) -> dict:
     scale = model.scale if model.scale is not None else np.diag(dyn.mass_matrix(model.neutral_pose, model.theta))
     return {"gamma_ref": np.concatenate([refs["Ggamma1_inv"], refs["Ggamma2_inv"]]),
             "theta_ref": refs["Gtheta_inv"], "theta_row_scale": np.abs(np.asarray(scale, float)).ravel()}
+
+
+def gain_block_shape(block: str, size: int) -> tuple:
+    """(k, copies) of least-squares gain block ``block`` of ``size`` entries: k×k upper triangles."""
+    k = COMPOSITE_GAIN_BLOCKS[block][0]
+    if k is None:
+        k = int(round((np.sqrt(8 * size + 1) - 1) / 2))
+    return k, size // (k * (k + 1) // 2)
+
+
+def lean_variant(layout) -> dict | None:
+    """How the lean variant of a controller with state ``layout`` is made from its full function,
+    or None when the layout has no composite blocks: ``fixed``, the input entries held constant,
+    ``(input, index, value)`` with value a number or ``(input, index)`` of another input (the
+    composite rates 0; the least-squares gains at P0 I, what they stay at with the rates 0); and
+    ``zero``, the rows ``(output, start, stop)`` set to 0 (the composite blocks' rates: their
+    filters and copies stay at their initial values). With the composite rates 0, the lean
+    function's command and the rates of the other blocks equal the full function's."""
+    if not any(name in COMPOSITE_BLOCKS for name, _ in layout):
+        return None
+    fixed = [(k, 0, 0.0) for k in COMPOSITE_RATES]
+    zero, i = [], 0
+    for name, size in layout:
+        if name in COMPOSITE_GAIN_BLOCKS:
+            k, copies = gain_block_shape(name, size)
+            p0 = (COMPOSITE_GAIN_BLOCKS[name][1], 0)
+            tri = [p0 if a == b else 0.0 for a in range(k) for b in range(a, k)]
+            fixed += [("xc", i + j, v) for j, v in enumerate(tri * copies)]
+        if name in COMPOSITE_BLOCKS:
+            zero.append(("xc_dot", i, i + size))
+        i += size
+    return {"fixed": fixed, "zero": zero}
+
+
+def runs_lean(gains: dict) -> bool:
+    """Whether a controller with these gains runs its lean variant: every composite rate 0."""
+    return all(k in gains and float(np.asarray(gains[k]).ravel()[0]) == 0.0 for k in COMPOSITE_RATES)
 
 
 def initial_gain_matrix(k: int, copies: int, p0: float) -> np.ndarray:

@@ -14,9 +14,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..controllers import (CONTROLLERS, controller as controller_module, function_name, rates_function_name,
+from ..controllers import (CONTROLLERS, LEAN, controller as controller_module, function_name, rates_function_name,
                            step_function_name)
-from ..controllers.common import initial_gain_matrix, normalised_adaptation
+from ..controllers.common import COMPOSITE_GAIN_BLOCKS, gain_block_shape, initial_gain_matrix, normalised_adaptation, \
+    runs_lean
 from ..errors import ScenarioError
 from .checks import check_gain_values
 
@@ -75,17 +76,16 @@ _INITIAL = {
     "gamma2_hat": lambda q0, qd0, th0, g0: g0[1],
 }
 
-#: Least-squares gain blocks (upper triangles of k×k matrices, one per copy): block -> (k, initial gain);
-#: k None: one copy filling the block. The filter blocks start at 0: their transients (e^{−λ_f t})
-#: are over before adaptation starts.
-_GAIN_BLOCKS = {"gamma_gain": (2, "P0_gamma"), "theta_gain": (None, "P0_theta")}
 
 
 class _Controller:
     def __init__(self, dyn, kind, gains, theta0, gamma0, model):
         self.kind = kind
+        #: the generated variant run: the lean one (no composite terms) when the composite rates are 0
+        #: and the dynamics have it (those of the derived functions alone may not)
+        self.variant = LEAN if runs_lean(gains) and function_name(kind, LEAN) in dyn.functions else None
         # Buffers of its own: runners, steppers and threads sharing one library never see each other's gains.
-        self.fn = dyn.functions[function_name(kind)].clone()
+        self.fn = dyn.functions[function_name(kind, self.variant)].clone()
         self.values = dict(gains)
         self.layout = controller_module(kind).state_layout(model)
         self.model = model
@@ -94,11 +94,11 @@ class _Controller:
         self.xc = np.zeros(sum(n for _, n in self.layout))
         self.xc_dot = np.zeros_like(self.xc)
         # the state's rates alone (same inputs as fn): the semi-implicit update calls it, not fn
-        self.rates_fn = dyn.functions[rates_function_name(kind)].clone() if self.xc.size else None
+        self.rates_fn = dyn.functions[rates_function_name(kind, self.variant)].clone() if self.xc.size else None
         # the C loop's semi-implicit period in one call (rates, clip, command): for the loop runner
         # (composed at generation: dynamics made of derived functions alone, e.g. the benchmarks'
         # lambdify and CasADi routes of the Python loop, have none; the C loop runner requires it)
-        step = dyn.functions.get(step_function_name(kind)) if self.xc.size else None
+        step = dyn.functions.get(step_function_name(kind, self.variant)) if self.xc.size else None
         self.step_fn = step.clone() if step is not None else None
         #: spool commands the valves held over the last period, m (the γ̂2 law's u_applied)
         self.u_applied = np.zeros(model.n_cylinders)
@@ -138,11 +138,10 @@ class _Controller:
                 self.xc[s] = 0.5 * self.model.supply_pressure if pc0 is None else np.asarray(pc0, float)
             elif name in _INITIAL:
                 self.xc[s] = _INITIAL[name](q0, qdot0, self.theta0, self.gamma0)
-            elif name in _GAIN_BLOCKS:
-                k, p0 = _GAIN_BLOCKS[name]
-                size = s.stop - s.start
-                k = k or int(round((np.sqrt(8 * size + 1) - 1) / 2))
-                self.xc[s] = initial_gain_matrix(k, size // (k * (k + 1) // 2), float(self.values[p0][0]))
+            elif name in COMPOSITE_GAIN_BLOCKS:
+                k, copies = gain_block_shape(name, s.stop - s.start)
+                p0 = COMPOSITE_GAIN_BLOCKS[name][1]
+                self.xc[s] = initial_gain_matrix(k, copies, float(self.values[p0][0]))
             else:
                 self.xc[s] = 0.0
         self.u_applied[:] = 0.0

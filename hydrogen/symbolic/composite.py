@@ -152,7 +152,7 @@ class HydraulicComposite:
     def _g0_interval(self):
         """ḡ: the trapezoid of g0 over the last period with the spool held over it."""
         c = self.c
-        g0 = lambda i, p, l: hyd.g0(l, hyd.valve_flow_unit(self.u_held[i], p, c.ps[i], c.d[i]), c.L[i])  # noqa: E731
+        g0 = lambda i, p, l: hyd.g0(l, c.valve_flow(self.u_held[i], p, i), c.L[i])  # noqa: E731
         return [(g0(i, self.pc_prev[i], self.l_prev[i]) + g0(i, c.pc[i], c.l[i])) / 2 for i in range(c.m)]
 
     def regressor_and_output(self):

@@ -151,12 +151,17 @@ class Common:
         self.g0_applied = None
         if self.u_applied_declared:
             ua = self.u_applied
-            stages.append((S["g0_app"], sp.Matrix([hyd.g0(self.l[i], hyd.valve_flow_unit(ua[i], self.pc[i], self.ps[i],
-                                                                                            self.d[i]), self.L[i])
+            stages.append((S["g0_app"], sp.Matrix([hyd.g0(self.l[i], self.valve_flow(ua[i], self.pc[i], i), self.L[i])
                                                    for i in range(m)])))
             self.g0_applied = S["g0_app"]
         self.taud_dot = S["taud_dot"]
         return S["fd"], ftil, f0, S["v"], u, S["taud"], stages
+
+    def valve_flow(self, u, pc, i):
+        """q_l / c of (57) for cylinder ``i`` as the controllers evaluate it: the pressure drops
+        clipped at PRESSURE_EPS, as in the valve inverse, whose roots it then shares (a noisy
+        measured p_c above p_s must not take the root of a negative number)."""
+        return hyd.valve_flow_unit(u, pc, self.ps[i], self.d[i], PRESSURE_EPS)
 
     def jit_intermediate(self):
         return (self.Jit, ("inverse", self.JL.T))

@@ -18,7 +18,7 @@ from .plant import plant_rhs
 from .rigid_body import (bias_forces, coriolis_matrix, gravity, mass_matrix, mass_matrix_inverse, regressor,
                          regressor_offset, rigid_body_stages, theta_symbols)
 
-__all__ = ["SymbolicFunction", "SemiImplicitStep", "derive_functions", "PRESSURE_EPS"]
+__all__ = ["SymbolicFunction", "SemiImplicitStep", "Specialisation", "derive_functions", "PRESSURE_EPS"]
 
 
 @dataclass
@@ -42,6 +42,20 @@ class SemiImplicitStep:
     name: str
     controller: SymbolicFunction
     rates: SymbolicFunction
+    doc: str
+
+
+@dataclass
+class Specialisation:
+    """``base`` (a :class:`SymbolicFunction`) with some input entries held constant and some output
+    rows 0: the same inputs and outputs, and code generation folds the constants through (partial
+    evaluation), so what only the fixed entries fed drops out. ``fixed``: ``(input, index, value)``,
+    value a number or ``(input, index)`` of another input; ``zero``: ``(output, start, stop)``."""
+
+    name: str
+    base: SymbolicFunction
+    fixed: list
+    zero: list
     doc: str
 
 
@@ -130,21 +144,32 @@ def plant_functions(model) -> list:
 def controller_functions(model) -> list:
     """Each controller; and, for a controller with a state, its rates-only function: the same inputs
     (so one argument table serves both) and the output ``xc_dot`` alone, from which CasADi keeps only
-    what the rates need (no τ̇_d, ḟ_d, v or valve inverse): the loop's semi-implicit state update."""
-    from ..controllers import CONTROLLERS, controller, function_name, rates_function_name, step_function_name
+    what the rates need (no τ̇_d, ḟ_d, v or valve inverse): the loop's semi-implicit state update;
+    and its semi-implicit step. A controller with the composite adaptation's blocks gets the three
+    again as its lean variant (:func:`hydrogen.controllers.common.lean_variant`): the composite
+    rates fixed at 0, what the paper's law computes and no more."""
+    from ..controllers import CONTROLLERS, LEAN, controller, function_name, rates_function_name, step_function_name
+    from ..controllers.common import lean_variant
 
     out = []
     for name in CONTROLLERS:
         mod = controller(name)
         parts = mod.derive(model)
-        out.append(SymbolicFunction(function_name(name), parts.inputs, parts.outputs, mod.DOC, parts.intermediates))
+        full = SymbolicFunction(function_name(name), parts.inputs, parts.outputs, mod.DOC, parts.intermediates)
+        out.append(full)
         rates = [(k, v) for k, v in parts.outputs if k == "xc_dot"]
-        if rates:
-            out.append(SymbolicFunction(rates_function_name(name), parts.inputs, rates,
-                                        f"{mod.DOC} State rates xc_dot only (same inputs).", parts.intermediates))
-            out.append(SemiImplicitStep(step_function_name(name), out[-2], out[-1],
-                                        f"{mod.DOC} Semi-implicit period: state xc+ = clip(xc + h xc_dot), "
-                                        "command u at xc+."))
+        if not rates:
+            continue
+        rates = SymbolicFunction(rates_function_name(name), parts.inputs, rates,
+                                 f"{mod.DOC} State rates xc_dot only (same inputs).", parts.intermediates)
+        step_doc = "Semi-implicit period: state xc+ = clip(xc + h xc_dot), command u at xc+."
+        out += [rates, SemiImplicitStep(step_function_name(name), full, rates, f"{mod.DOC} {step_doc}")]
+        lean = lean_variant(mod.state_layout(model))
+        if lean is not None:
+            doc = f"{mod.DOC} Lean: the composite adaptation left out (its rates 0, its states held)."
+            lc = Specialisation(function_name(name, LEAN), full, doc=doc, **lean)
+            lr = Specialisation(rates_function_name(name, LEAN), rates, doc=f"{doc} State rates xc_dot only.", **lean)
+            out += [lc, lr, SemiImplicitStep(step_function_name(name, LEAN), lc, lr, f"{doc} {step_doc}")]
     return out
 
 

@@ -23,14 +23,18 @@ __all__ = [
 ]
 
 
-def valve_flow_unit(u, pc, ps, d) -> sp.Expr:
+def valve_flow_unit(u, pc, ps, d, eps=None) -> sp.Expr:
     """q_l / c of eq. (57): load flow per unit flow gain c (m·√Pa), three branches.
 
     Written as the sum of the supply orifice's term (open for u ≥ −d) and the return orifice's
-    (open for u ≤ d): the same values as the three-branch form, for fewer masked terms in C."""
-    return sp.Piecewise(((u + d) * sp.sqrt(ps - pc), sp.Not(sp.Lt(u, -d, evaluate=False), evaluate=False)),
+    (open for u ≤ d): the same values as the three-branch form, for fewer masked terms in C.
+    ``eps`` (Pa): the pressure drops clipped at eps as in :func:`valve_inverse_unit` (whose roots
+    a controller then shares), so a measured p_c outside [0, p_s] gives no root of a negative
+    number; None: unclipped (the model's own law, for p_c inside)."""
+    up, down = (ps - pc, pc) if eps is None else (sp.Max(ps - pc, eps), sp.Max(pc, eps))
+    return sp.Piecewise(((u + d) * sp.sqrt(up), sp.Not(sp.Lt(u, -d, evaluate=False), evaluate=False)),
                         (0, True), evaluate=False) \
-        + sp.Piecewise(((u - d) * sp.sqrt(pc), sp.Le(u, d, evaluate=False)), (0, True), evaluate=False)
+        + sp.Piecewise(((u - d) * sp.sqrt(down), sp.Le(u, d, evaluate=False)), (0, True), evaluate=False)
 
 
 def signed_sqrt_linearised(x, x_lin) -> sp.Expr:
