@@ -174,7 +174,7 @@ def export_context(dyn, p, scenario_name, controller, prog, sources, headers, ct
         size = int(shape[0]) * int(shape[1])
         dynamic = name in SLOTS
         entry = {"index": i, "name": name, "rows": int(shape[0]), "cols": int(shape[1]), "size": size,
-                 "dynamic": dynamic, "c_name": f"P_CTRL_{name}"}
+                 "dynamic": dynamic, "c_name": f"P_CTRL_{name}", "unread": name in getattr(fn, "unread_inputs", ())}
         if not dynamic:
             if name not in ctrl.values:
                 raise HydrogenError(f"export: controller '{controller}' input '{name}' has no value")

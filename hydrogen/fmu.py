@@ -230,7 +230,7 @@ def _variables(part, dyn, p, ctx, fn, encoders, kalman):
         add("use_builtin_reference", "p", "fixed", f"true: the scenario's reference ({sc.name}), computed inside; "
             "false: the q_d inputs", "inst->builtin_ref", ctype="b", start=True)
         for e in ctx["inputs"]:
-            if e["dynamic"]:
+            if e["dynamic"] or e["unread"]:  # unread (e.g. a lean controller's composite gains): no parameter
                 continue
             off, rows, cols = offsets[e["index"]], e["rows"], e["cols"]
             value = np.reshape(np.asarray(ctrl.values[e["name"]], float), (rows, cols))

@@ -9,6 +9,8 @@ from hydrogen.controllers.common import initial_gain_matrix
 from hydrogen.simulation.control import make_controller
 from hydrogen.symbolic.composite import normalised_least_squares, pack_symmetric, unpack_symmetric
 
+from controller_inputs import random_controller_inputs
+
 KINDS = ["adaptive-robust", "adaptive-observer"]
 
 
@@ -63,36 +65,6 @@ def test_initial_gain_matrix_is_p0_identity():
                                   2 * np.eye(3))
 
 
-def _random_inputs(ctrl, model, rng):
-    """Random measurements and states inside the projection bounds (the projection inactive)."""
-    n, m = model.n, model.n_cylinders
-    q = model.neutral_pose + rng.uniform(-0.02, 0.02, n)
-    xc = ctrl.xc.copy()
-    for name, sl in ctrl.slices.items():
-        size = sl.stop - sl.start
-        if name == "theta_hat":
-            xc[sl] = model.theta * rng.uniform(0.9, 1.1, size)
-        elif name in ("gamma1_hat", "gamma2_hat"):
-            xc[sl] = model.gamma[0 if name == "gamma1_hat" else 1] * rng.uniform(0.9, 1.1, size)
-        elif name == "gamma_gain":  # with k = 0, P stays where it starts: P0 I
-            xc[sl] = initial_gain_matrix(2, m, float(ctrl.values["P0_gamma"][0]))
-        elif name == "theta_gain":
-            xc[sl] = initial_gain_matrix(model.n_theta, 1, float(ctrl.values["P0_theta"][0]))
-        elif name == "q_hat":
-            xc[sl] = q + rng.uniform(-1e-3, 1e-3, n)
-        elif name in ("log_chamber_filter",):
-            xc[sl] = rng.uniform(-1, 0, size)
-        elif name == "pc_prev":
-            xc[sl] = model.supply_pressure * rng.uniform(0.3, 0.7, size)
-        elif name == "legl_prev":
-            xc[sl] = np.array([c.chamber_length for c in model.cylinders]) + rng.uniform(0.3, 0.5, size)
-        else:
-            xc[sl] = rng.standard_normal(size) * (1e4 if "filter" in name else 0.05)
-    pc = model.supply_pressure * rng.uniform(0.3, 0.7, m)
-    ref = [model.neutral_pose + rng.uniform(-0.02, 0.02, n), *(rng.uniform(-0.1, 0.1, (3, n)))]
-    return q, rng.uniform(-0.05, 0.05, n), pc, ref, xc
-
-
 @pytest.mark.parametrize("kind", KINDS)
 def test_composite_weight_zero_is_the_papers_gradient_law(robot_dyn, kind, rng):
     """rate_ls_gamma = rate_ls_theta = 0: γ̂'s rates equal the paper's law computed here in numpy from
@@ -109,7 +81,7 @@ def test_composite_weight_zero_is_the_papers_gradient_law(robot_dyn, kind, rng):
             "momentum_filter", "momentum_offset_filter", "bias_filter", "bias_offset_filter", "torque_filter",
             "theta_gain"]
     for _ in range(5):
-        q, qdot, pc, ref, xc = _random_inputs(ctrl, model, rng)
+        q, qdot, pc, ref, xc = random_controller_inputs(ctrl, model, rng)
         ctrl.xc[:] = xc
         held = rng.uniform(-1, 1, m) * float(ctrl.values["u_max"][0])
         ctrl.applied(held)
@@ -301,3 +273,38 @@ def test_staged_least_squares_equals_the_plain_law(rng):
                 *[float(v) for v in pack_symmetric(sp.Matrix(P))], 20.0, 1e-3, 0.1]
         for a, b in zip(f_plain(*vals), f_st(*vals)):
             np.testing.assert_allclose(np.array(b, float), np.array(a, float), rtol=1e-12, atol=1e-14)
+
+
+def test_a_bad_gain_from_the_description_names_its_file_and_table(tmp_path, dyn, cache):
+    """A gain the description sets, checked only once the run's period is known, names the file and
+    the table it came from (the caller's gains say ``gains``)."""
+    from pathlib import Path
+
+    text = Path(dyn.model.source).read_text()
+    path = tmp_path / "stewart.toml"
+
+    def run(edited, controller):
+        path.write_text(edited)
+        with pytest.raises(hydrogen.ScenarioError) as err:
+            hydrogen.simulate("z-1hz", controller, dyn=hydrogen.build(hydrogen.load_model(path), cache=cache),
+                              duration=0.01)
+        return str(err.value)
+
+    table = "[gains.adaptive-observer]\n"
+    msg = run(text.replace(table, table + "rate_ls_theta = 5000.0\n"), "adaptive-observer")
+    assert msg.startswith(f"{path}: [gains.adaptive-observer]: ") and "'rate_ls_theta'" in msg and "1/h" in msg
+    msg = run(text.replace(table, table + "lambda_f_gamma = -1.0\n"), "adaptive-observer")
+    assert msg.startswith(f"{path}: [gains.adaptive-observer]: ") and "'lambda_f_gamma' must be > 0" in msg
+    with pytest.raises(hydrogen.ScenarioError, match=r"^gains: controller 'p': gain 'Kleg'"):
+        hydrogen.simulate("z-1hz", "p", dyn=dyn, gains={"Kleg": -1.0}, duration=0.01)
+    # a gain the scenario's table pins names that table; the caller's own wins and is named so
+    pinned = "Ktau = 150.0, Ko = 300.0, rate_ls_gamma = 100.0"
+    path.write_text(text.replace(pinned, "Ktau = 150.0, Ko = 300.0, rate_ls_gamma = 5000.0"))
+    pinned_dyn = hydrogen.build(hydrogen.load_model(path), cache=cache)
+    with pytest.raises(hydrogen.ScenarioError) as err:
+        hydrogen.simulate("paper-sim", "adaptive-robust", dyn=pinned_dyn, duration=0.01)
+    assert str(err.value).startswith(f"{path}: [scenarios.paper-sim] gains.adaptive-robust: controller "
+                                     "'adaptive-robust': gain 'rate_ls_gamma' = 5000")
+    with pytest.raises(hydrogen.ScenarioError, match=r"^gains: controller 'adaptive-robust': gain 'rate_ls_gamma'"):
+        hydrogen.simulate("paper-sim", "adaptive-robust", dyn=pinned_dyn, duration=0.01,
+                          gains={"rate_ls_gamma": 3000.0})

@@ -88,6 +88,10 @@ def test_export_folder_contents(tmp_path, dyn):
         assert name in params
     assert "noise" in (folder / "main.c").read_text() and "make run" in (folder / "README.txt").read_text()
     assert not [p for p in tmp_path.iterdir() if p.name.startswith(".out.new-")]  # staging cleaned up
+    # the lean controller's composite gains are in params.h (every input has a value) but marked unread
+    line = next(x for x in params.splitlines() if x.startswith("static const double P_CTRL_rate_ls_theta["))
+    assert "not read by" in line
+    assert "not read by" not in next(x for x in params.splitlines() if x.startswith("static const double P_CTRL_Lambda["))
 
 
 def test_export_replaces_an_earlier_export_and_refuses_other_folders(tmp_path, dyn):

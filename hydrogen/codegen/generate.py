@@ -123,7 +123,17 @@ def _write_function(sf, model_name: str, folder: Path, cache: dict) -> dict:
         "inputs": [[fun.name_in(i), *fun.size_in(i)] for i in range(fun.n_in())],
         "outputs": [[fun.name_out(i), *fun.size_out(i)] for i in range(fun.n_out())],
         "instructions": fun.n_instructions(),
+        # inputs no output depends on (e.g. the composite gains of a lean variant): an export or FMU
+        # must not offer them as parameters, setting them would change nothing
+        "unread_inputs": _unread_inputs(fun),
     }
+
+
+def _unread_inputs(fun) -> list:
+    import casadi as ca
+
+    outs = ca.veccat(*fun.call(fun.sx_in()))
+    return [fun.name_in(i) for i in range(fun.n_in()) if not ca.depends_on(outs, fun.sx_in(i))]
 
 
 def _sha256(path: Path) -> str:

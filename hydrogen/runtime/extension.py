@@ -130,7 +130,7 @@ def bind_functions(module, library) -> dict:
         fn = module.bind(index, addr, work, library)
         slow = library.functions[entry["name"]]
         fn.__doc__ = entry.get("doc", "")
-        for attr in ("name", "c_name", "doc", "in_names", "out_names", "in_shapes", "out_shapes"):
+        for attr in ("name", "c_name", "doc", "in_names", "out_names", "in_shapes", "out_shapes", "unread_inputs"):
             setattr(fn, attr, getattr(slow, attr))
         fn.backend = "extension"
         fn.clone = slow.clone  # a ctypes function with buffers of its own (controller runtimes)

@@ -48,6 +48,8 @@ class CompiledFunction:
         self.out_shapes = [(int(r), int(c)) for _, r, c in entry["outputs"]]
         self.in_names = [n for n, _, _ in entry["inputs"]]
         self.out_names = [n for n, _, _ in entry["outputs"]]
+        #: inputs no output depends on (from the manifest): setting them changes nothing
+        self.unread_inputs = tuple(entry.get("unread_inputs", ()))
         self._check_sparsity(lib)
         # Fortran-ordered buffers match CasADi's column-major dense layout.
         self._in = [np.zeros(s, order="F") for s in self.in_shapes]

@@ -195,14 +195,18 @@ _POSITIVE_GAINS = ("u_max", "sat_width", "lambda_f_gamma", "P0_gamma", "ls_nu_ga
                    "lambda_f_theta", "P0_theta", "ls_nu_theta")
 
 
-def check_gain_values(kind: str, gains: dict) -> None:
-    """No negative gain (a negative gain turns feedback into positive feedback), and u_max, sat_width > 0."""
+def check_gain_values(kind: str, gains: dict, origin: dict | None = None) -> None:
+    """No negative gain (a negative gain turns feedback into positive feedback), and u_max, sat_width > 0.
+    ``origin``: where gains came from (the description's file and table, or the caller's ``gains``),
+    named in the message."""
+    origin = origin or {}
     for k, v in gains.items():
         a = np.asarray(v, float)
+        where = f"{origin[k]}: " if k in origin else ""
         if k in _POSITIVE_GAINS and not np.all(a > 0):
-            raise ScenarioError(f"controller '{kind}': gain '{k}' must be > 0, got {_shown(v)}")
+            raise ScenarioError(f"{where}controller '{kind}': gain '{k}' must be > 0, got {_shown(v)}")
         if not np.all(a >= 0):
-            raise ScenarioError(f"controller '{kind}': gain '{k}' must be >= 0, got {_shown(v)}")
+            raise ScenarioError(f"{where}controller '{kind}': gain '{k}' must be >= 0, got {_shown(v)}")
 
 
 def max_run_bytes() -> int:

@@ -36,6 +36,11 @@ def gain_scale(dyn) -> np.ndarray:
 def default_gains(dyn, kind) -> dict:
     """Gains of controller ``kind`` for ``dyn``'s model: the controller's defaults, then the model's
     ``[gains.common]`` (for the gains the controller has) and ``[gains.<kind>]``."""
+    return _default_gains(dyn, kind, {})
+
+
+def _default_gains(dyn, kind, origin: dict) -> dict:
+    """:func:`default_gains`, writing into ``origin`` where each gain the description set came from."""
     mod = controller_module(kind)
     g = mod.default_gains(dyn.model, gain_scale(dyn))
     model_gains = dyn.model.gains or {}
@@ -43,7 +48,8 @@ def default_gains(dyn, kind) -> dict:
         for k, v in (model_gains.get(table) or {}).items():
             if table == "common" and k not in g:
                 continue
-            g[k] = _checked(kind, g, k, v, f"{dyn.model.source}: [gains.{table}]")
+            origin[k] = f"{dyn.model.source}: [gains.{table}]"
+            g[k] = _checked(kind, g, k, v, origin[k])
     return g
 
 
@@ -60,10 +66,11 @@ def _checked(kind, g, k, v, where):
     return value
 
 
-def _gains(dyn, kind, overrides):
-    g = default_gains(dyn, kind)
+def _gains(dyn, kind, overrides, origin: dict, sources: dict):
+    g = _default_gains(dyn, kind, origin)
     for k, v in (overrides or {}).items():
-        g[k] = _checked(kind, g, k, v, "gains")
+        origin[k] = sources.get(k, "gains")
+        g[k] = _checked(kind, g, k, v, origin[k])
     return g
 
 
@@ -190,20 +197,22 @@ class _Controller:
             np.clip(self.xc + h * self.xc_dot, *self.bounds, out=self.xc)
 
 
-def make_controller(dyn, kind, gains=None, theta0=None, gamma0=None, period=None):
+def make_controller(dyn, kind, gains=None, theta0=None, gamma0=None, period=None, sources=None):
     """A controller runtime of ``kind`` (one of :data:`CONTROLLERS`) for compiled dynamics ``dyn``.
 
     ``theta0``/``gamma0`` are the initial estimates (the known values for ``backstepping``);
     ``gamma0`` has shape (2, m): [β, βc] per cylinder. ``period``: the control period h (s) the
     state is updated at (the composite adaptation copies signals from one period to the next);
-    a run passes its own, 1 ms otherwise.
+    a run passes its own, 1 ms otherwise. ``sources``: where gains of ``gains`` came from, by name
+    (e.g. the scenario's table), for the messages about them; ``gains`` otherwise.
     """
     if kind not in CONTROLLERS:
         raise ScenarioError(f"unknown controller '{kind}'; choose one of {', '.join(CONTROLLERS)}")
     model = dyn.model
     theta0 = model.theta if theta0 is None else np.asarray(theta0, float)
     gamma0 = model.gamma if gamma0 is None else np.asarray(gamma0, float)
-    g = _gains(dyn, kind, gains)
+    origin = {}  # where a gain set by the description or the caller came from, for the messages
+    g = _gains(dyn, kind, gains, origin, sources or {})
     mod = controller_module(kind)
     if hasattr(mod, "complete_gains"):  # gains derived from others (e.g. the robust observer's K_o from Λ, K_d)
         try:
@@ -211,13 +220,14 @@ def make_controller(dyn, kind, gains=None, theta0=None, gamma0=None, period=None
         except ValueError as exc:
             raise ScenarioError(f"controller '{kind}': {exc}") from None
     g = normalised_adaptation(model, g, theta0, gamma0)  # Γ⁻¹ from the rates where not given raw
-    check_gain_values(kind, g)
+    check_gain_values(kind, g, origin)
     g.update(mod.static_inputs(dyn, theta0, gamma0))
     g["period"] = np.array([1.0e-3 if period is None else float(period)])
     # The explicit update keeps the least-squares gain positive definite only while k h < 1, and a
     # filter λ_f/(s + λ_f) stable and monotone only while λ_f h < 1.
     for k in ("rate_ls_gamma", "lambda_f_gamma", "rate_ls_theta", "lambda_f_theta"):
         if k in g and float(np.asarray(g[k]).ravel()[0]) * g["period"][0] >= 1.0:
-            raise ScenarioError(f"controller '{kind}': gain '{k}' = {float(np.asarray(g[k]).ravel()[0]):g} "
+            where = f"{origin[k]}: " if k in origin else ""
+            raise ScenarioError(f"{where}controller '{kind}': gain '{k}' = {float(np.asarray(g[k]).ravel()[0]):g} "
                                 f"must be below 1/h = {1.0 / g['period'][0]:g} (the control rate)")
     return _Controller(dyn, kind, g, theta0, gamma0, model)

@@ -10,7 +10,7 @@ import numpy as np
 from ..errors import KinematicsError, SimulationError
 from .checks import check_against_model, check_call, check_run_size, checked_float, metric_window
 from .control import make_controller
-from .scenarios import Scenario, scenario as named_scenario
+from .scenarios import Scenario, scenario as named_scenario, scenario_names
 
 __all__ = ["simulate", "SimulationResult", "equilibrium_pressures", "Stepper", "prepare_run", "new_logs",
            "make_runner", "run_python_loop", "kalman_gain", "dare",
@@ -212,8 +212,10 @@ def prepare_run(dyn, scenario, controller, gains, duration, check_workspace, ove
         theta0, gamma0 = model.theta, model.gamma
     if check_workspace:
         _check_reference(dyn, sc, n, h)
-    ctrl = make_controller(dyn, controller, {**sc.gains.get(controller, {}), **(gains or {})}, theta0, gamma0,
-                           period=h)
+    pinned = sc.gains.get(controller, {})  # the scenario's own tuning, named in messages about it
+    table = f"{model.source}: [scenarios.{sc.name}]" if sc.name in scenario_names(model) else f"scenario {sc.name!r}:"
+    ctrl = make_controller(dyn, controller, {**pinned, **(gains or {})}, theta0, gamma0, period=h,
+                           sources={k: f"{table} gains.{controller}" for k in pinned if k not in (gains or {})})
     nq, m = model.n, model.n_cylinders
     q0 = sc.reference(0.0)[0] + np.asarray(sc.q0_offset, float)
     pc0 = equilibrium_pressures(dyn, q0, model.theta)

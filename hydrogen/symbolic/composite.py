@@ -187,6 +187,10 @@ class HydraulicComposite:
         tracking = [sp.Matrix(sp.symbols(f"gamma{j}_tracking0:{m}", real=True)) for j in (1, 2)]
         self.stages += [(tracking[0], sp.Matrix(t1)), (tracking[1], sp.Matrix(t2))]
         t1, t2 = list(tracking[0]), list(tracking[1])
+        # P_jj / P0 bound first: at P = P0 I it is exactly 1 for any P0 (a product P_jj t / P0 would
+        # round), so the law is exactly the paper's, as its lean variant computes
+        ratio = sp.Matrix(sp.symbols(f"gamma_gain_ratio0:{2 * m}", real=True))
+        self.stages.append((ratio, sp.Matrix([self.P[k * i + (0, 2)[j]] / self.P0 for i in range(m) for j in (0, 1)])))
         r1, r2 = [], []
         for i in range(m):
             ref = [self.ref[i], self.ref[m + i]]
@@ -194,8 +198,8 @@ class HydraulicComposite:
             tx = [t1[i] / ref[0], t2[i] / ref[1]]
             x_dot = x_dots[i]
             # diagonal written apart so that P = P0 I gives back t exactly (no rounding through γ_ref)
-            r1.append(P[0, 0] / self.P0 * t1[i] + ref[0] * (P[0, 1] / self.P0 * tx[1] + x_dot[0]))
-            r2.append(P[1, 1] / self.P0 * t2[i] + ref[1] * (P[1, 0] / self.P0 * tx[0] + x_dot[1]))
+            r1.append(ratio[2 * i] * t1[i] + ref[0] * (P[0, 1] / self.P0 * tx[1] + x_dot[0]))
+            r2.append(ratio[2 * i + 1] * t2[i] + ref[1] * (P[1, 0] / self.P0 * tx[0] + x_dot[1]))
         self.stages += [(self.r1, sp.Matrix(r1)), (self.r2, sp.Matrix(r2))]
         return list(self.r1), list(self.r2)
 
@@ -353,10 +357,12 @@ class RigidBodyComposite:
         self.stages.append((tracking, sp.Matrix(rho)))
         rho = tracking
         P = unpack_symmetric(self.P, p)
+        ratio = sp.Matrix(sp.symbols(f"theta_gain_ratio0:{p}", real=True))  # P_ii / P0: exactly 1 at P0 I
+        self.stages.append((ratio, sp.Matrix([P[i, i] / self.P0 for i in range(p)])))
         out = []
         for i in range(p):
             cross = sum((P[i, j] / self.P0 * rho[j] / self.ref[j] for j in range(p) if j != i), sp.S.Zero)
-            out.append(P[i, i] / self.P0 * rho[i] + self.ref[i] * (cross + x_dot[i]))
+            out.append(ratio[i] * rho[i] + self.ref[i] * (cross + x_dot[i]))
         self.stages.append((self.rho, sp.Matrix(out)))
         return self.rho
 
