@@ -460,16 +460,44 @@ def print_table(res: dict) -> None:
     print(f"all bounds hold: {c['all_bounds_hold']}{changed}; benchmark {res['wall_s']:.0f} s")
 
 
+def spread_row(res: dict) -> dict:
+    """What varies between whole runs: (iii) the loop per period of both versions and their ratios,
+    and (iv) the generation ratio (``--repeat``)."""
+    lp = res["loop_per_period"]
+    return {"previous_us": lp["previous"]["us"], "current_us": lp["current"]["us"],
+            "current_gradient_law_us": lp["current_gradient_law"]["us"], "change": lp["change"],
+            "change_gradient_law": lp["change_gradient_law"], "generation_ratio": res["generation"]["ratio"]}
+
+
 def main(argv=None) -> int:
+    from hydrogen.fileio import atomic_write
+
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--quick", action="store_true", help="fewer timing runs")
     ap.add_argument("--json", type=Path, metavar="FILE", help="also write the results as JSON")
     ap.add_argument("--strict", action="store_true", help="exit 1 when a bound does not hold")
+    ap.add_argument("--repeat", type=int, default=1, metavar="N",
+                    help="run the whole comparison N times; the JSON then holds each run's (iii) and (iv) and "
+                         "their medians: the spread between runs on this machine")
     a = ap.parse_args(argv)
+    if a.repeat > 1:
+        rows = []
+        for _ in range(a.repeat):
+            res = run(quick=a.quick)
+            if "skipped" in res:
+                print(res["skipped"])
+                return 0
+            rows.append(spread_row(res))
+            print(json.dumps(rows[-1]), flush=True)
+        out = {"runs": rows, **{f"median_{k}": common.median(r[k] for r in rows)
+                                for k in ("change", "change_gradient_law", "generation_ratio")}}
+        if a.json:
+            atomic_write(a.json, json.dumps(out, indent=2) + "\n")
+        return 0
     res = run(quick=a.quick)
     print_table(res)
     if a.json:
-        a.json.write_text(json.dumps(res, indent=2) + "\n")
+        atomic_write(a.json, json.dumps(res, indent=2) + "\n")
     return 1 if a.strict and not res.get("checks", {}).get("all_bounds_hold", True) else 0
 
 

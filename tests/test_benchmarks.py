@@ -128,3 +128,12 @@ def test_release_compares_an_adaptive_controller_like_for_like():
     # without a lean variant the controller itself is bounded
     assert bench_release.compare_instructions(prev, {"ctrl_adaptive_robust": 5637})["ctrl_adaptive_robust"]["status"] \
         == "FAIL"
+
+
+def test_release_spread_row_reads_the_loop_and_generation_ratios():
+    res = {"loop_per_period": {"previous": {"us": 4.0}, "current": {"us": 5.0}, "current_gradient_law": {"us": 4.2},
+                               "change": 0.25, "change_gradient_law": 0.05},
+           "generation": {"ratio": 1.5}}
+    row = bench_release.spread_row(res)
+    assert row == {"previous_us": 4.0, "current_us": 5.0, "current_gradient_law_us": 4.2, "change": 0.25,
+                   "change_gradient_law": 0.05, "generation_ratio": 1.5}
