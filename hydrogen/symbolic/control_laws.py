@@ -159,9 +159,9 @@ class Common:
 
     def valve_flow(self, u, pc, i):
         """q_l / c of (57) for cylinder ``i`` as the controllers evaluate it: the pressure drops
-        clipped at PRESSURE_EPS, as in the valve inverse, whose roots it then shares (a noisy
-        measured p_c above p_s must not take the root of a negative number)."""
-        return hyd.valve_flow_unit(u, pc, self.ps[i], self.d[i], PRESSURE_EPS)
+        clipped at 0 (a noisy measured p_c above p_s must not take the root of a negative number),
+        the roots shared with the valve inverse; inside [0, p_s] exactly (57)."""
+        return hyd.valve_flow_unit(u, pc, self.ps[i], self.d[i], clipped=True)
 
     def jit_intermediate(self):
         return (self.Jit, ("inverse", self.JL.T))

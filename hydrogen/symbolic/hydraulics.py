@@ -19,22 +19,28 @@ import sympy as sp
 
 __all__ = [
     "valve_flow_unit", "valve_flow_unit_smooth", "chamber_pressure_rate", "leg_force",
-    "f0", "g0", "valve_inverse_unit", "signed_sqrt_linearised",
+    "f0", "g0", "valve_inverse_unit", "signed_sqrt_linearised", "orifice_roots",
 ]
 
 
-def valve_flow_unit(u, pc, ps, d, eps=None) -> sp.Expr:
+def orifice_roots(pc, ps):
+    """√(p_s − p_c), √p_c with the pressure drops clipped at 0 (√Pa): the roots of (57) for a
+    measured p_c, which noise can push outside [0, p_s]; inside, exactly the unclipped roots."""
+    return sp.sqrt(sp.Max(ps - pc, 0)), sp.sqrt(sp.Max(pc, 0))
+
+
+def valve_flow_unit(u, pc, ps, d, clipped=False) -> sp.Expr:
     """q_l / c of eq. (57): load flow per unit flow gain c (m·√Pa), three branches.
 
     Written as the sum of the supply orifice's term (open for u ≥ −d) and the return orifice's
     (open for u ≤ d): the same values as the three-branch form, for fewer masked terms in C.
-    ``eps`` (Pa): the pressure drops clipped at eps as in :func:`valve_inverse_unit` (whose roots
-    a controller then shares), so a measured p_c outside [0, p_s] gives no root of a negative
-    number; None: unclipped (the model's own law, for p_c inside)."""
-    up, down = (ps - pc, pc) if eps is None else (sp.Max(ps - pc, eps), sp.Max(pc, eps))
-    return sp.Piecewise(((u + d) * sp.sqrt(up), sp.Not(sp.Lt(u, -d, evaluate=False), evaluate=False)),
+    ``clipped``: the roots of :func:`orifice_roots` (shared with :func:`valve_inverse_unit`), so a
+    measured p_c outside [0, p_s] gives no root of a negative number; the model's own law
+    (unclipped) otherwise, for p_c inside."""
+    up, down = orifice_roots(pc, ps) if clipped else (sp.sqrt(ps - pc), sp.sqrt(pc))
+    return sp.Piecewise(((u + d) * up, sp.Not(sp.Lt(u, -d, evaluate=False), evaluate=False)),
                         (0, True), evaluate=False) \
-        + sp.Piecewise(((u - d) * sp.sqrt(down), sp.Le(u, d, evaluate=False)), (0, True), evaluate=False)
+        + sp.Piecewise(((u - d) * down, sp.Le(u, d, evaluate=False)), (0, True), evaluate=False)
 
 
 def signed_sqrt_linearised(x, x_lin) -> sp.Expr:
@@ -92,8 +98,10 @@ def valve_inverse_unit(w, pc, ps, d, eps) -> sp.Expr:
     flows at u = ±d. Pressure drops are clipped at ``eps`` Pa so no root of a
     negative number is taken and the outer branches never divide by zero.
     """
-    sp_up = sp.sqrt(sp.Max(ps - pc, eps))
-    sp_dn = sp.sqrt(sp.Max(pc, eps))
+    # √max(Δp, eps) written as max(√max(Δp, 0), √eps): the same numbers (√ is monotone and
+    # correctly rounded), with the roots a controller's g0 shares (orifice_roots)
+    root_eps = sp.sqrt(sp.Float(eps))
+    sp_up, sp_dn = (sp.Max(r, root_eps) for r in orifice_roots(pc, ps))
     w_hi = 2 * d * sp_up      # flow at u = +d
     w_lo = -2 * d * sp_dn     # flow at u = −d
     # evaluate=False: w may be a large controller expression; SymPy must not try to order it.
