@@ -308,3 +308,19 @@ def test_a_bad_gain_from_the_description_names_its_file_and_table(tmp_path, dyn,
     with pytest.raises(hydrogen.ScenarioError, match=r"^gains: controller 'adaptive-robust': gain 'rate_ls_gamma'"):
         hydrogen.simulate("paper-sim", "adaptive-robust", dyn=pinned_dyn, duration=0.01,
                           gains={"rate_ls_gamma": 3000.0})
+
+
+@pytest.mark.parametrize("kind", KINDS)
+def test_a_measured_pressure_outside_the_supply_range_gives_finite_rates(robot_dyn, kind, rng):
+    """Noise can put a measured p_c above p_s or below 0: the γ̂2 law's g0 then takes the clipped
+    roots (no root of a negative drop); its command and rates stay finite."""
+    dyn, model = robot_dyn, robot_dyn.model
+    ctrl = make_controller(dyn, kind)
+    q, qdot, pc, ref, xc = random_controller_inputs(ctrl, model, rng)
+    ctrl.xc[:] = xc
+    ctrl.applied(np.full(model.n_cylinders, 0.5 * float(ctrl.values["u_max"][0])))
+    pc = pc.copy()
+    pc[0] = model.supply_pressure[0] + 2.0e5
+    pc[-1] = -2.0e5
+    u = ctrl.command(q, qdot, pc, np.asarray(dyn.leg_lengths(q)).ravel(), ref, True)
+    assert np.all(np.isfinite(u)) and np.all(np.isfinite(ctrl.xc_dot))
