@@ -32,12 +32,18 @@ def orifice_roots(pc, ps):
 def valve_flow_unit(u, pc, ps, d, clipped=False) -> sp.Expr:
     """q_l / c of eq. (57): load flow per unit flow gain c (m·√Pa), three branches.
 
-    Written as the sum of the supply orifice's term (open for u ≥ −d) and the return orifice's
-    (open for u ≤ d): the same values as the three-branch form, for fewer masked terms in C.
     ``clipped``: the roots of :func:`orifice_roots` (shared with :func:`valve_inverse_unit`), so a
     measured p_c outside [0, p_s] gives no root of a negative number; the model's own law
     (unclipped) otherwise, for p_c inside."""
     up, down = orifice_roots(pc, ps) if clipped else (sp.sqrt(ps - pc), sp.sqrt(pc))
+    return _orifice_terms(u, d, up, down)
+
+
+def _orifice_terms(u, d, up, down) -> sp.Expr:
+    """(57)'s three branches as the sum of the two orifices' terms, each where its orifice is open
+    (u ≥ −d: supply side, root ``up``; u ≤ d: return side, root ``down``): the same values as the
+    three-branch form (a term plus an exact zero outside the underlap), for two masked terms
+    instead of four and a sum."""
     return sp.Piecewise(((u + d) * up, sp.Not(sp.Lt(u, -d, evaluate=False), evaluate=False)),
                         (0, True), evaluate=False) \
         + sp.Piecewise(((u - d) * down, sp.Le(u, d, evaluate=False)), (0, True), evaluate=False)
@@ -61,14 +67,7 @@ def valve_flow_unit_smooth(u, pc, ps, d, p_lin) -> sp.Expr:
     The pressure drops are signed, so a chamber pushed past p_s (or below 0) by an
     integration step flows back instead of taking the root of a negative number.
     """
-    up = signed_sqrt_linearised(ps - pc, p_lin)
-    down = signed_sqrt_linearised(pc, p_lin)
-    # (57)'s three branches as the sum of the two orifices' terms, each where its orifice is open
-    # (u ≥ −d: supply side, u ≤ d: return side): the same values as the three-branch form (a term
-    # plus an exact zero outside the underlap), for two masked terms instead of four and a sum.
-    return sp.Piecewise(((u + d) * up, sp.Not(sp.Lt(u, -d, evaluate=False), evaluate=False)), (0, True),
-                        evaluate=False) \
-        + sp.Piecewise(((u - d) * down, sp.Le(u, d, evaluate=False)), (0, True), evaluate=False)
+    return _orifice_terms(u, d, signed_sqrt_linearised(ps - pc, p_lin), signed_sqrt_linearised(pc, p_lin))
 
 
 def chamber_pressure_rate(l, ldot, q_l, A, L, beta) -> sp.Expr:
