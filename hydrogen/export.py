@@ -35,7 +35,7 @@ import numpy as np
 
 from .errors import HydrogenError
 
-__all__ = ["export", "EXPORT_MANIFEST", "TEMPLATE_NAMES", "export_context", "template_env", "read_sources", "resolve_dyn",
+__all__ = ["export", "EXPORT_MANIFEST", "TEMPLATE_NAMES", "export_context", "render_template", "read_sources", "resolve_dyn",
            "sensor_kalman_gain", "c_double", "c_doubles", "prepare_export", "controller_entries"]
 
 #: Metadata file written into every export folder (also marks a folder as an export).
@@ -150,13 +150,12 @@ def controller_entries(manifest: dict, ctrl) -> list:
     return [entries[n] for n in names]
 
 
-def template_env():
-    import jinja2
-
+def render_template(template: str, ctx: dict) -> str:
+    """``template`` rendered with ``ctx`` through hydrogen's one escaping environment (:mod:`hydrogen.templating`)."""
     from .codegen.generate import TEMPLATES
+    from .templating import render
 
-    return jinja2.Environment(loader=jinja2.FileSystemLoader(str(TEMPLATES)), undefined=jinja2.StrictUndefined,
-                              keep_trailing_newline=True, trim_blocks=True, lstrip_blocks=True)
+    return render(template, ctx, TEMPLATES)
 
 
 def export_context(dyn, p, scenario_name, controller, prog, sources, headers, ctrl_header, sensor_gain):
@@ -364,8 +363,7 @@ def export(out_dir, scenario="z-1hz", controller="adaptive-robust", model=None, 
 
     prog = f"{mname}_{controller.replace('-', '_')}"
     ctx = export_context(dyn, p, sc_name, controller, prog, sources, headers, ctrl_entry["header"], sensor_gain)
-    env = template_env()
-    rendered = {out: env.get_template(t).render(**ctx) for t, out in TEMPLATE_NAMES.items()}
+    rendered = {out: render_template(t, ctx) for t, out in TEMPLATE_NAMES.items()}
     if p.kf_gain is not None:
         kalman_note = ("The Kalman filter on the leg lengths still runs, with the gain the simulator designs "
                        "for the noise-free scenario (P_KF_GAIN); compile with -DHG_SENSOR_KF_GAIN to use "

@@ -470,7 +470,7 @@ def export_fmu(out, part, scenario="z-1hz", controller="adaptive-robust", model=
     """
     from . import __version__
     from .export import (LOOP_FUNCTIONS, controller_entries, export_context, prepare_export, read_sources,
-                         sensor_kalman_gain, template_env)
+                         sensor_kalman_gain, render_template)
     from .names import check_identifier
 
     if part not in PARTS:
@@ -499,8 +499,7 @@ def export_fmu(out, part, scenario="z-1hz", controller="adaptive-robust", model=
 
     ctx = export_context(dyn, p, sc_name, controller, f"{mname}_fmu", gen_sources, gen_headers, ctrl_entry["header"],
                    sensor_kalman_gain(p))
-    env = template_env()
-    params_h = env.get_template("export_params.h.j2").render(**ctx).encode()
+    params_h = render_template("export_params.h.j2", ctx).encode()
 
     encoders, kalman = bool(model.joint_encoders), p.kf_gain is not None
     fn = p.ctrl.fn
@@ -522,10 +521,10 @@ def export_fmu(out, part, scenario="z-1hz", controller="adaptive-robust", model=
                   "variables": [(v.name, v.kind, v.c_loc, v.start) for v in variables], "version": __version__})
     ref_inputs = [{"slot": s, "order": k, "index": fn.in_names.index(s)}
                   for k, (s, *_rest) in enumerate(_REF_ORDERS) if s in fn.in_names]
-    glue = env.get_template("fmu_glue.c.j2").render(
-        **ctx, part=part, guid=guid, variables=variables, plant_arrays=_plant_arrays(dyn, p),
+    glue = render_template("fmu_glue.c.j2", dict(
+        ctx, part=part, guid=guid, variables=variables, plant_arrays=_plant_arrays(dyn, p),
         est_const_size=len(est_const), est_const=", ".join(c_double(v) for v in est_const),
-        encoders=encoders, kalman=kalman, ref_inputs=ref_inputs).encode()
+        encoders=encoders, kalman=kalman, ref_inputs=ref_inputs)).encode()
 
     src = {**{n: files[n] for n in gen_sources + gen_headers}, "params.h": params_h, "fmu.c": glue, **header_bytes}
     c_files = ["fmu.c", *gen_sources]

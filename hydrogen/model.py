@@ -291,6 +291,11 @@ class _Reader:
             raise self.error(where, f"expected a name (string), got {_quote(value)}")
         return value
 
+    def label(self, where, value) -> str:
+        """A name written into generated files (:func:`hydrogen.names.check_name`)."""
+        from .names import check_name
+        return check_name(value, f"{self.source}: {where}")
+
     def table(self, data, key, where=None, required=True) -> dict:
         value = data.get(key)
         if value is None:
@@ -443,6 +448,13 @@ def _rpy_of(R) -> np.ndarray:
 
 def _order_tree(r: _Reader, links, joints, where):
     """Joints in tree order (parents before children), the root link's name; checks the tree."""
+    # Every name of the tree reaches generated C, FMUs and logs: one rule, for TOML and URDF alike.
+    for lk in links:
+        r.label(f"link {lk.name!r}" if isinstance(lk.name, str) else "link name", lk.name)
+    for j in joints:
+        r.label(f"joint {j.name!r}", j.name)
+        r.label(f"joint '{j.name}' parent", j.parent)
+        r.label(f"joint '{j.name}' child", j.child)
     names = [lk.name for lk in links]
     for n in names:
         if names.count(n) > 1:
@@ -497,7 +509,7 @@ def _cylinders(r: _Reader, data: dict, link_names: set):
         w = f"[[cylinders]] #{i + 1}"
         if not isinstance(cy, dict):
             raise r.error(w, f"expected a table, got {_quote(cy)}")
-        name = r.name(f"{w} name", r.require(cy, "name", w))
+        name = r.label(f"{w} name", r.require(cy, "name", w))
         w = f"[[cylinders]] '{name}'"
         if name in names:
             raise r.error(w, "a second cylinder of this name")
@@ -573,6 +585,8 @@ def model_from_dict(data: dict, source: str = "<memory>", base_dir: Path | None 
     if not isinstance(names, list) or len(names) != n or not all(isinstance(x, str) and x for x in names) \
             or len(set(names)) != n:
         raise r.error("[coordinates] names", f"expected {n} distinct names (one per coordinate), got {_quote(names)}")
+    for c in names:
+        r.label("[coordinates] names" if "names" in coords else f"coordinate {c!r} (from its joint's name)", c)
     neutral = r.vector("[coordinates] neutral", r.require(coords, "neutral", "[coordinates]"), n)
     cylinders = _cylinders(r, data, link_names)
     if len(cylinders) != n:
@@ -610,9 +624,12 @@ def model_from_dict(data: dict, source: str = "<memory>", base_dir: Path | None 
     scale = r.vector("[control] scale", control["scale"], n, "positive") if "scale" in control else None
     figs = r.table(data, "figures", required=False)
     r.known(figs, {"nonlinear"}, "[figures]")
-    nonlinear = r.name("[figures] nonlinear", figs["nonlinear"]) if "nonlinear" in figs else "adaptive-robust"
+    nonlinear = r.label("[figures] nonlinear", figs["nonlinear"]) if "nonlinear" in figs else "adaptive-robust"
     gains = r.table(data, "gains", required=False)
     scen = r.table(data, "scenarios", required=False)
+    for sname in scen:  # written into exported Makefiles, headers and FMUs
+        from .names import check_label
+        check_label(sname, f"{source}: [scenarios.{sname}]")
     rig = r.table(data, "rig", required=False)
     model = Model(name=name, gravity=gravity, root=root, links=links, joints=joints, cylinders=cylinders,
                   coordinate_names=tuple(names), neutral_pose=neutral, theta_names=tuple(params),

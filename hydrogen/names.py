@@ -17,6 +17,13 @@ Other names written into generated text (a scenario's name in the exported
 Makefile, CMakeLists.txt, params.h and main.c) are checked by :func:`check_label`:
 the same, plus ``-`` and ``.`` inside (``z-1hz``), never a newline, a quote, ``$``,
 ``*/`` or a space.
+
+The names a description gives (links, joints, coordinates, cylinders, from TOML or URDF) are
+written into generated C comments and strings, the FMU's variable names and the logs' columns,
+and are checked by :func:`check_name` when the description is loaded: the label rule without
+``.``, which separates a link from its parameter (``boom.mass``) and the parts of an FMI
+structured name. (Every value a template writes is escaped again for its file type:
+:mod:`hydrogen.templating`.)
 """
 from __future__ import annotations
 
@@ -24,13 +31,14 @@ import re
 
 from .errors import ModelError
 
-__all__ = ["check_identifier", "check_label", "MAX_IDENTIFIER"]
+__all__ = ["check_identifier", "check_label", "check_name", "MAX_IDENTIFIER"]
 
 #: Longest accepted model name (characters).
 MAX_IDENTIFIER = 64
 
 _IDENTIFIER = re.compile(r"[A-Za-z](?:[A-Za-z0-9]|_(?!_))*")
 _LABEL = re.compile(r"[A-Za-z0-9](?:[A-Za-z0-9_.-]*[A-Za-z0-9])?")
+_NAME = re.compile(r"[A-Za-z0-9](?:[A-Za-z0-9_-]*[A-Za-z0-9])?")
 
 
 def _shown(value) -> str:
@@ -74,4 +82,16 @@ def check_label(value, where: str, error=ModelError) -> str:
         raise error(f"{where}: {_shown(value)} cannot be written into generated files; use ASCII letters, "
                     f"digits, '_', '-' and '.', starting and ending with a letter or digit, "
                     f"at most {MAX_IDENTIFIER} characters")
+    return value
+
+
+def check_name(value, where: str, error=ModelError) -> str:
+    """``value`` if it is a safe name for a description's link, joint, coordinate or cylinder
+    (letters, digits, ``_`` and ``-``, starting and ending with a letter or digit, at most
+    :data:`MAX_IDENTIFIER` characters), else ``error`` naming ``where``."""
+    if not isinstance(value, str) or len(value) > MAX_IDENTIFIER or not value.isascii() \
+            or not _NAME.fullmatch(value):
+        raise error(f"{where}: the name {_shown(value)} is not allowed: names are written into generated C, "
+                    f"FMUs and logs, so use ASCII letters, digits, '_' and '-', starting and ending with a "
+                    f"letter or digit, at most {MAX_IDENTIFIER} characters")
     return value

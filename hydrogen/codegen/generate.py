@@ -44,7 +44,8 @@ DRIVERS = (("loop.h.j2", "_loop.h"), ("loop.c.j2", "_loop.c"))
 def derivation_hash() -> str:
     """SHA-256 of the code that shapes generated output: the symbolic and codegen layers."""
     h = hashlib.sha256()
-    h.update((_PACKAGE / "layout.py").read_bytes())
+    for name in ("layout.py", "templating.py"):  # the loop context and the escape of its values
+        h.update((_PACKAGE / name).read_bytes())
     for sub in ("symbolic", "codegen", "controllers"):
         for path in sorted((_PACKAGE / sub).glob("*.py")):
             h.update(f"{sub}/{path.name}\0".encode())
@@ -63,17 +64,14 @@ def derivation_hash() -> str:
 def render_drivers(manifest: dict, folder: Path) -> list:
     """Render the C drivers of templates/ into ``folder`` from the manifest's one template context
     (:func:`hydrogen.layout.loop_context`); returns their file names."""
-    import jinja2
-
     from ..layout import loop_context
+    from ..templating import render as render_template
 
-    env = jinja2.Environment(loader=jinja2.FileSystemLoader(str(TEMPLATES)), undefined=jinja2.StrictUndefined,
-                             keep_trailing_newline=True, trim_blocks=True, lstrip_blocks=True)
     ctx = loop_context(manifest)
     names = []
     for template, suffix in DRIVERS:
         name = ctx["model"] + suffix
-        (Path(folder) / name).write_text(env.get_template(template).render(**ctx))
+        (Path(folder) / name).write_text(render_template(template, ctx, TEMPLATES))
         names.append(name)
     return names
 

@@ -83,11 +83,9 @@ def render_context(manifest: dict) -> dict:
 
 
 def render(context: dict) -> str:
-    import jinja2
+    from ..templating import render as render_template
 
-    env = jinja2.Environment(loader=jinja2.FileSystemLoader(str(_templates())), undefined=jinja2.StrictUndefined,
-                             trim_blocks=True, lstrip_blocks=True, keep_trailing_newline=True)
-    return env.get_template(TEMPLATE).render(**context)
+    return render_template(TEMPLATE, context, _templates())
 
 
 def build_extension(manifest: dict, toolchain: Toolchain | None = None, cache: Path | None = None,
