@@ -210,7 +210,8 @@ def _cmd_tune(args, controller=None) -> int:
 
 
 def _cmd_tune_p(args) -> int:
-    return _cmd_tune(args, "p")
+    from .controllers import baseline
+    return _cmd_tune(args, baseline())
 
 
 def _cmd_margins(args) -> int:

@@ -318,9 +318,12 @@ def make_all(dyn, out_dir, quiet=True, *, durations=None, gains=None, nonlinear=
 
     model = dyn.model
     nonlinear = model.figures_nonlinear if nonlinear is None else nonlinear
-    if nonlinear not in CONTROLLERS or nonlinear == "p":
+    from .controllers import baseline, spec
+    base = baseline()
+    known = [c for c in CONTROLLERS if spec(c).knows_true_parameters]  # the reference column
+    if nonlinear not in CONTROLLERS or nonlinear == base:
         raise ScenarioError(f"{model.source}: the figures' nonlinear controller must be one of "
-                            f"{', '.join(c for c in CONTROLLERS if c != 'p')}, got {nonlinear!r}")
+                            f"{', '.join(c for c in CONTROLLERS if c != base)}, got {nonlinear!r}")
     scenarios = [named_scenario(nm, model) for nm in scenario_names(model)]
     total = sum(1 if sc.friction[0] == 0 and not sc.kalman and not isinstance(sc.reference, Step)
                 else (2 if isinstance(sc.reference, Step) else 3) for sc in scenarios)
@@ -341,20 +344,20 @@ def make_all(dyn, out_dir, quiet=True, *, durations=None, gains=None, nonlinear=
             paths[sc.name] = plot_tracking_errors(sim, out / f"{sc.name}_errors.png", t_adapt=sc.t_adapt)
             paths[f"{sc.name}_parameters"] = plot_parameter_errors(sim, out / f"{sc.name}_parameters.png")
             continue
-        nl, pp = run(sc.name, nonlinear), run(sc.name, "p")
+        nl, pp = run(sc.name, nonlinear), run(sc.name, base)
         moving = [c for c, a in zip(model.coordinate_names, sc.reference.amplitude()) if a > 0]
         if isinstance(sc.reference, Step):
             paths[sc.name] = plot_step(nl, pp, out / f"{sc.name}.png", coord=moving[0],
                                        title=f"{sc.label}: step response, nonlinear vs P (simulation)")
             continue
-        bs = run(sc.name, "backstepping") if nonlinear != "backstepping" else nl
+        bs = (run(sc.name, known[0]) if nonlinear != known[0] else nl) if known else None
         for coord in moving:
             key = sc.name if len(moving) == 1 else f"{sc.name}_{coord}"
             paths[key] = plot_experiment(nl, pp, coord, out / f"{key}.png",
                                          title=f"{sc.label}: {coord} tracking, nonlinear vs P (simulation)")
             paper = sc.paper.get(coord, (None, None))
             rows.append((sc.label, coord, _max_pct(nl, coord), _max_pct(pp, coord), paper[0], paper[1],
-                         _max_pct(bs, coord)))
+                         _max_pct(bs, coord) if bs is not None else None))
 
     table = (f"Maximum tracking error in % of the reference amplitude, model {model.name}: simulation "
              f"vs paper (section VI) where it reports one. \"nonlinear\" is the {nonlinear} controller.\n\n"

@@ -2,7 +2,8 @@
 
 A controller module defines
 
-* ``NAME`` (the user-facing name) and ``DOC``;
+* ``SPEC``, its :class:`~hydrogen.controllers.spec.ControllerSpec` (name, main gain and search grid,
+  whether it knows the true parameters or is the baseline), and ``NAME``, ``DOC`` from it;
 * ``state_layout(model)``: the blocks of its state xc, ``[(block, size)]`` in order;
 * ``default_gains(model, scale)``: its gains (numpy arrays, SI), ``scale`` being the
   per-coordinate inertia scale of the model;
@@ -26,7 +27,10 @@ from __future__ import annotations
 
 import importlib
 
-__all__ = ["CONTROLLERS", "controller", "function_name", "rates_function_name", "step_function_name", "LEAN"]
+from .spec import ControllerSpec
+
+__all__ = ["CONTROLLERS", "controller", "spec", "baseline", "adapts", "function_name", "rates_function_name",
+           "step_function_name", "LEAN", "ControllerSpec"]
 
 #: The variant of an adaptive controller without the composite adaptation terms.
 LEAN = "lean"
@@ -46,6 +50,22 @@ CONTROLLERS = tuple(_REGISTRY)
 def controller(name: str):
     """The module of controller ``name`` (KeyError if unknown)."""
     return _REGISTRY[name]
+
+
+def spec(name: str) -> ControllerSpec:
+    """The :class:`ControllerSpec` of controller ``name`` (KeyError if unknown)."""
+    return _REGISTRY[name].SPEC
+
+
+def baseline() -> str:
+    """The name of the baseline controller (the fixed-gain comparison; exactly one is registered)."""
+    (name,) = [n for n, m in _REGISTRY.items() if m.SPEC.baseline]
+    return name
+
+
+def adapts(name: str, model) -> bool:
+    """Whether controller ``name`` estimates parameters on ``model`` (its state holds θ̂ or γ̂)."""
+    return any(block in ("theta_hat", "gamma1_hat", "gamma2_hat") for block, _ in _REGISTRY[name].state_layout(model))
 
 
 def function_name(name: str, variant: str | None = None) -> str:

@@ -4,9 +4,11 @@ from __future__ import annotations
 import numpy as np
 
 from .common import adaptation_gains, composite_layout, composite_static_inputs, model_gains
+from .spec import ControllerSpec
 
-NAME = "adaptive-observer"
-DOC = "Theorem 2: adaptive controller, adaptive observer."
+SPEC = ControllerSpec(name="adaptive-observer", doc="Theorem 2: adaptive controller, adaptive observer.",
+                      main_gain="Lambda", grid_low=5.0)
+NAME, DOC = SPEC.name, SPEC.doc
 
 
 def state_layout(model) -> list:
@@ -30,7 +32,7 @@ def derive(model):
 
     from ..symbolic.composite import HydraulicComposite, RigidBodyComposite
     from ..symbolic.calculus import time_derivative
-    from ..symbolic.control_laws import Common, ControllerParts, diag, solve_or_inverse, vector
+    from ..symbolic.control_laws import Common, ControllerParts, diag, solve_or_inverse, state_and_rates, vector
 
     c = Common(model)
     n = c.n
@@ -64,8 +66,9 @@ def derive(model):
     g1_dot, g2_dot = c.hydraulic_adaptation(
         ftil, f0, u, g1, g2, scal["adapt"], vecs["Ggamma1_inv"], vecs["Ggamma2_inv"],
         scal["gamma1_min"], scal["gamma1_max"], scal["gamma2_min"], scal["gamma2_max"], combine=hc.combine)
-    xc = sp.Matrix([*q_hat, *z, *th_hat, *g1, *g2, *hc.states(), *rc.states()])
-    xc_dot = sp.Matrix([*q_hat_dot, *z_dot, *th_dot, *g1_dot, *g2_dot, *hc_rates, *rc.rates(scal["adapt"])])
+    xc, xc_dot = state_and_rates(state_layout(model), [
+        ("q_hat", q_hat, q_hat_dot), ("z", z, z_dot), ("theta_hat", th_hat, th_dot), ("gamma1_hat", g1, g1_dot),
+        ("gamma2_hat", g2, g2_dot), (hc.BLOCKS, hc.states(), hc_rates), (rc.BLOCKS, rc.states(), rc.rates(scal["adapt"]))])
     return ControllerParts(
         inputs=[*c.base_inputs(), ("xc", xc), *c.gain_inputs(), ("Lambda2", Lam2), ("Lp", Lp),
                 ("Kd_obs", Kd2), *ad_inputs, *hc.inputs(), *rc.inputs()],

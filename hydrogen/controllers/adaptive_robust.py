@@ -17,9 +17,11 @@ from __future__ import annotations
 import numpy as np
 
 from .common import adaptation_gains, composite_layout, composite_static_inputs, model_gains
+from .spec import ControllerSpec
 
-NAME = "adaptive-robust"
-DOC = "Theorem 3: adaptive controller, robust sliding observer."
+SPEC = ControllerSpec(name="adaptive-robust", doc="Theorem 3: adaptive controller, robust sliding observer.",
+                      main_gain="Lambda", grid_low=5.0)
+NAME, DOC = SPEC.name, SPEC.doc
 
 
 def state_layout(model) -> list:
@@ -68,7 +70,7 @@ def derive(model):
 
     from ..symbolic.composite import HydraulicComposite, RigidBodyComposite
     from ..symbolic.calculus import clip, time_derivative
-    from ..symbolic.control_laws import Common, ControllerParts, diag, solve_or_inverse, vector
+    from ..symbolic.control_laws import Common, ControllerParts, diag, solve_or_inverse, state_and_rates, vector
 
     c = Common(model)
     n = c.n
@@ -108,8 +110,9 @@ def derive(model):
     g1_dot, g2_dot = c.hydraulic_adaptation(
         ftil, f0, u, g1, g2, scal["adapt"], vecs["Ggamma1_inv"], vecs["Ggamma2_inv"],
         scal["gamma1_min"], scal["gamma1_max"], scal["gamma2_min"], scal["gamma2_max"], combine=hc.combine)
-    xc = sp.Matrix([*z, *th_hat, *g1, *g2, *hc.states(), *rc.states()])
-    xc_dot = sp.Matrix([*z_dot, *th_dot, *g1_dot, *g2_dot, *hc_rates, *rc.rates(scal["adapt"])])
+    xc, xc_dot = state_and_rates(state_layout(model), [
+        ("z", z, z_dot), ("theta_hat", th_hat, th_dot), ("gamma1_hat", g1, g1_dot), ("gamma2_hat", g2, g2_dot),
+        (hc.BLOCKS, hc.states(), hc_rates), (rc.BLOCKS, rc.states(), rc.rates(scal["adapt"]))])
     return ControllerParts(
         inputs=[*c.base_inputs(), ("xc", xc), *c.gain_inputs(), ("Ko", Ko), ("lambda_o", lam_o),
                 ("Gz_inv", Gz_inv), ("sat_width", eps), *ad_inputs, *hc.inputs(), *rc.inputs()],

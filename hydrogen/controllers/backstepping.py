@@ -4,9 +4,11 @@ from __future__ import annotations
 import numpy as np
 
 from .common import model_gains
+from .spec import ControllerSpec
 
-NAME = "backstepping"
-DOC = "Theorem 1 (known parameters): spool command u, m."
+SPEC = ControllerSpec(name="backstepping", doc="Theorem 1 (known parameters): spool command u, m.",
+                      main_gain="Lambda", grid_low=5.0, knows_true_parameters=True)
+NAME, DOC = SPEC.name, SPEC.doc
 
 
 def state_layout(model) -> list:

@@ -3,8 +3,12 @@ from __future__ import annotations
 
 import numpy as np
 
-NAME = "p"
-DOC = "P controller on cylinder lengths (the paper's baseline)."
+from .spec import ControllerSpec
+
+SPEC = ControllerSpec(name="p", doc="P controller on cylinder lengths (the paper's baseline).",
+                      main_gain="Kleg", grid_low=0.005, main_gain_shared=True, secondary_search=False,
+                      baseline=True)
+NAME, DOC = SPEC.name, SPEC.doc
 
 
 def state_layout(model) -> list:

@@ -125,6 +125,13 @@ class _Controller:
                                gamma1_min=np.array([m.gamma1_min]), gamma1_max=np.array([m.gamma1_max]),
                                gamma2_min=np.array([m.gamma2_min]), gamma2_max=np.array([m.gamma2_max]))
         self.bounds = (lo, hi)
+        # Every input the loop does not write must have a value: a gain no table gives would
+        # otherwise be a KeyError in the Python loop and a silent 0 in the C loop.
+        from ..layout import SLOTS
+        missing = [k for k in self.fn.in_names if k not in SLOTS and k not in self.values]
+        if missing:
+            raise ScenarioError(f"controller '{kind}': no value for its input(s) {', '.join(missing)}: give them "
+                                f"in the description's [gains.{kind}] (or its default_gains/static_inputs)")
         self.tau_d = np.zeros(m.n)
         self.tau_d_dot = np.zeros(m.n)
         self.f_d = np.zeros(m.n_cylinders)

@@ -7,6 +7,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..controllers import spec as controller_spec
 from ..errors import KinematicsError, SimulationError
 from .checks import check_against_model, check_call, check_run_size, checked_float, metric_window
 from .control import make_controller
@@ -208,7 +209,7 @@ def prepare_run(dyn, scenario, controller, gains, duration, check_workspace, ove
     n = check_run_size(sc, model, controller, keep_logs)  # before any table of n rows is made
     theta0 = model.theta * np.asarray(sc.theta0_factor)
     gamma0 = model.gamma * np.asarray(sc.gamma0_factor, float)[:, None]
-    if controller == "backstepping":
+    if controller_spec(controller).knows_true_parameters:
         theta0, gamma0 = model.theta, model.gamma
     if check_workspace:
         _check_reference(dyn, sc, n, h)

@@ -91,18 +91,21 @@ def _base_gains(dyn, controller, robot: bool):
 
 
 def main_gain(controller) -> str:
-    """Name of the controller's main gain."""
-    return "Kleg" if controller == "p" else "Lambda"
+    """Name of the controller's main gain (its spec's)."""
+    from ..controllers import spec
+    return spec(controller).main_gain
 
 
 def family(dyn, controller, g, base=None) -> dict:
     """Gains with main gain ``g`` (see the module doc); ``base``: gains whose proportions are kept
     (default: the controller's own defaults for the model)."""
+    from ..controllers import spec
+    sp = spec(controller)
+    if sp.main_gain_shared:
+        return {sp.main_gain: float(g)}
     base = base or _base_gains(dyn, controller, robot=False)
-    if controller == "p":
-        return {"Kleg": float(g)}
-    lam = np.asarray(base["Lambda"], float)
-    return {"Lambda": (lam * (g / float(np.mean(lam)))).tolist()}
+    lam = np.asarray(base[sp.main_gain], float)
+    return {sp.main_gain: (lam * (g / float(np.mean(lam)))).tolist()}
 
 
 def _secondary(dyn, controller, point: dict) -> dict:
@@ -119,8 +122,10 @@ def _secondary(dyn, controller, point: dict) -> dict:
 
 
 def default_grid(controller) -> np.ndarray:
-    """The documented grid: 4 points per octave, 0.005-0.32 for P's K, 5-320 1/s for Λ."""
-    lo = 0.005 if controller == "p" else 5.0
+    """The documented grid: 4 points per octave over six octaves from the controller's ``grid_low``
+    (its spec: 0.005-0.32 for P's K, 5-320 1/s for Λ)."""
+    from ..controllers import spec
+    lo = spec(controller).grid_low
     return lo * 2.0 ** (np.arange(6 * PER_OCTAVE + 1) / PER_OCTAVE)
 
 
@@ -153,7 +158,8 @@ def _worst(m, moving) -> float:
 def secondary_grid(dyn, controller) -> dict:
     """The gains searched with the main one (model-based controllers; none for P): ``Kd_scale`` (K_d
     and K_p × 1/8 ... 2 the defaults, by octaves) and K_τ at 1/4, 1/2 and 1 times its default."""
-    if controller == "p":
+    from ..controllers import spec
+    if not spec(controller).secondary_search:
         return {}
     k0 = float(np.mean(_base_gains(dyn, controller, robot=False)["Ktau"]))
     return {"Kd_scale": [0.125, 0.25, 0.5, 1.0, 2.0], "Ktau": [k0 * f for f in (0.25, 0.5, 1.0)]}
@@ -242,8 +248,9 @@ def tune(controller, grid=None, *, model=None, scenarios=None, secondary=None, e
 
 def tune_p(gains=None, scenarios=None, *, executor=None, max_workers=None, model=None,
            progress: bool = False) -> dict:
-    """:func:`tune` for the P controller (its rows also carry ``Kleg``)."""
-    return tune("p", gains, model=model, scenarios=scenarios, executor=executor, max_workers=max_workers,
+    """:func:`tune` for the baseline P controller (its rows also carry its main gain)."""
+    from ..controllers import baseline
+    return tune(baseline(), gains, model=model, scenarios=scenarios, executor=executor, max_workers=max_workers,
                 progress=progress)
 
 

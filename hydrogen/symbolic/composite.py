@@ -32,6 +32,7 @@ from __future__ import annotations
 import sympy as sp
 
 from . import hydraulics as hyd
+from ..controllers.common import COMPOSITE_BLOCKS
 
 __all__ = ["triangle_size", "unpack_symmetric", "pack_symmetric", "normalised_least_squares",
            "HydraulicComposite"]
@@ -136,6 +137,9 @@ class HydraulicComposite:
         self.u_held = c.u_applied  # the spool the valves held over the period ending now (an input)
         self.stages = [(self.gbar, sp.Matrix(self._g0_interval()))]
         self._ls = None
+
+    #: the state blocks of :func:`hydrogen.controllers.common.composite_layout` that :meth:`states` fills
+    BLOCKS = COMPOSITE_BLOCKS[:6]
 
     def states(self) -> list:
         return [*self.phi_f, *self.phi_L, *self.omega, *self.pc_prev, *self.l_prev, *self.P]
@@ -274,6 +278,8 @@ class RigidBodyComposite:
         self.rho = sym("theta_rate", p)
         self.stages = []
         self._ls = None
+
+    BLOCKS = COMPOSITE_BLOCKS[6:]  # the θ law's blocks of composite_layout
 
     def states(self) -> list:
         return [*self.xi, *self.xi0, *self.zeta, *self.zeta0, *self.tau_f, *self.P]

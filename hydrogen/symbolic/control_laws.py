@@ -25,7 +25,7 @@ from .kinematics import leg_intermediates, matrix_symbols, pose_rates, pose_symb
 from .rigid_body import (coriolis_matrix, gravity, inverse_dynamics, mass_matrix, mass_matrix_inverse, regressor,
                          rigid_body_stages, theta_symbols)
 
-__all__ = ["ControllerParts", "Common", "diag", "vector", "scalar", "solve_or_inverse"]
+__all__ = ["ControllerParts", "Common", "diag", "vector", "scalar", "solve_or_inverse", "state_and_rates"]
 
 
 @dataclass
@@ -47,6 +47,25 @@ def vector(name, n):
 
 def scalar(name):
     return sp.Symbol(name, real=True)
+
+
+def state_and_rates(layout, parts):
+    """The state xc and its rate xc_dot (column matrices) in the order the controller's
+    ``state_layout`` declares, from ``parts`` = [(block name or names, states, rates)]; the blocks
+    must be the layout's, in its order and of its sizes (a mismatch is an error at generation)."""
+    names, xs, rs, sizes = [], [], [], dict(layout)
+    for blocks, x, r in parts:
+        blocks = (blocks,) if isinstance(blocks, str) else tuple(blocks)
+        x, r = list(x), list(r)
+        if len(x) != len(r) or len(x) != sum(sizes.get(b, -1) for b in blocks):
+            raise ValueError(f"state blocks {list(blocks)}: {len(x)} states and {len(r)} rates, the layout "
+                             f"declares {[sizes.get(b) for b in blocks]}")
+        names += blocks
+        xs += x
+        rs += r
+    if names != [b for b, _ in layout]:
+        raise ValueError(f"state blocks {names} are not the declared layout {[b for b, _ in layout]}")
+    return sp.Matrix(xs), sp.Matrix(rs)
 
 
 def solve_or_inverse(model, q, theta, rhs, name):

@@ -1,0 +1,45 @@
+"""What a controller declares about itself, once (numpy-free plain data).
+
+The loop, the documented gain search, the figures and the command line read these fields
+instead of testing a controller's name; a new controller states them in its module as ``SPEC``.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+__all__ = ["ControllerSpec"]
+
+
+@dataclass(frozen=True)
+class ControllerSpec:
+    """A controller's contract beyond its gains, state layout and derivation.
+
+    name : str
+        The user-facing name (``hydrogen simulate --controller NAME``).
+    doc : str
+        One line: what it is (the paper's theorem, the baseline).
+    main_gain : str
+        The gain the documented search scales (``hydrogen tune``) and the stability margin is
+        measured on.
+    grid_low : float
+        The documented search's first main-gain value (in the gain's own unit); the grid runs
+        six octaves up from it.
+    main_gain_shared : bool
+        True: one value of the main gain for every entry (the search sets it whole); False: the
+        search scales the defaults, keeping their proportions across coordinates.
+    secondary_search : bool
+        Whether the search also varies K_d/K_p (by octaves) and K_τ with the main gain.
+    knows_true_parameters : bool
+        Runs with the true θ and γ (no estimation): a scenario's wrong initial estimates do not apply.
+    baseline : bool
+        The fixed-gain comparison the nonlinear controllers are measured against (the paper's P).
+    """
+
+    name: str
+    doc: str
+    main_gain: str
+    grid_low: float
+    main_gain_shared: bool = False
+    secondary_search: bool = True
+    knows_true_parameters: bool = False
+    baseline: bool = False

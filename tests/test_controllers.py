@@ -1,0 +1,73 @@
+"""hydrogen/controllers: each controller declared once (its spec), and what the rest reads from it."""
+import re
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import hydrogen
+from hydrogen.controllers import CONTROLLERS, adapts, baseline, controller, spec
+from hydrogen.errors import ScenarioError
+from hydrogen.simulation import tuning
+
+
+@pytest.mark.parametrize("name", CONTROLLERS)
+def test_each_controller_declares_a_consistent_spec(name, model):
+    mod, sp = controller(name), spec(name)
+    assert mod.NAME == sp.name == name and mod.DOC == sp.doc
+    scale = np.ones(model.n)
+    assert sp.main_gain in mod.default_gains(model, scale)
+    assert sp.grid_low > 0
+    assert tuning.main_gain(name) == sp.main_gain
+    assert tuning.default_grid(name)[0] == sp.grid_low
+
+
+def test_exactly_one_baseline_and_it_estimates_nothing(model):
+    assert [c for c in CONTROLLERS if spec(c).baseline] == [baseline()]
+    assert not adapts(baseline(), model)
+    assert adapts("adaptive-robust", model) and not adapts("backstepping", model)
+
+
+def test_no_module_outside_the_controllers_tests_a_controller_name():
+    root = Path(hydrogen.__file__).parent
+    names = "|".join(re.escape(c) for c in CONTROLLERS)
+    test = re.compile(rf"""(==|!=|\bin)\s*\(?\s*["']({names})["']|["']({names})["']\s*(==|!=)""")
+
+    def tests_a_name(line):
+        m = test.search(line)
+        # a one-letter name ("p") is also an FMU variable kind: only a comparison about a controller counts
+        return m and (len(m.group(2) or m.group(3)) > 1 or re.search(r"controller|nonlinear|ctrl", line))
+
+    hits = [f"{p.relative_to(root)}:{i}: {line.strip()}"
+            for p in root.rglob("*.py") if "controllers" not in p.parts
+            for i, line in enumerate(p.read_text().splitlines(), 1) if tests_a_name(line)]
+    assert not hits, "\n".join(hits)
+
+
+@pytest.mark.parametrize("engine", ["c", "python"])
+def test_a_gain_no_table_gives_is_an_error_naming_it_in_both_loops(monkeypatch, dyn, engine):
+    mod = controller("backstepping")
+    full = mod.default_gains
+
+    def without_gtau(model, scale):
+        g = full(model, scale)
+        del g["Gtau_inv"]
+        return g
+
+    monkeypatch.setattr(mod, "default_gains", without_gtau)
+    with pytest.raises(ScenarioError, match=r"controller 'backstepping': no value for its input\(s\) Gtau_inv"):
+        hydrogen.simulate("paper-sim", "backstepping", dyn=dyn, duration=0.01, engine=engine)
+
+
+def test_the_state_follows_the_declared_layout_or_generation_stops():
+    import sympy as sp
+
+    from hydrogen.symbolic.control_laws import state_and_rates
+
+    a, b = sp.symbols("a0:2"), sp.symbols("b0:3")
+    xc, xc_dot = state_and_rates([("a", 2), ("b", 3)], [("a", a, a), ("b", b, b)])
+    assert list(xc) == [*a, *b] and xc_dot.shape == (5, 1)
+    with pytest.raises(ValueError, match="not the declared layout"):
+        state_and_rates([("a", 2), ("b", 3)], [("b", b, b), ("a", a, a)])
+    with pytest.raises(ValueError, match="the layout declares"):
+        state_and_rates([("a", 2), ("b", 3)], [("a", a, a), ("b", b[:2], b[:2])])
