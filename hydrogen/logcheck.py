@@ -44,6 +44,9 @@ def fmt_number(x) -> str:
     return f"{float(x):.6g}"
 
 
+_num = fmt_number
+
+
 def control_rates(model) -> list:
     """The distinct control rates (Hz) of the model's scenarios, ascending (empty without scenarios)."""
     from .simulation.scenarios import scenario, scenario_names
@@ -71,12 +74,12 @@ def check_sample_rate(source, fs: float, h: float, model) -> None:
     lo, hi = rates[0] / RATE_FACTOR, rates[-1] * RATE_FACTOR
     if lo <= fs <= hi:
         return
-    rate_text = (f"the control rate is {fmt_number(rates[0])} Hz" if len(rates) == 1 else
-                 f"the control rates are {', '.join(fmt_number(r) for r in rates)} Hz")
+    rate_text = (f"the control rate is {_num(rates[0])} Hz" if len(rates) == 1 else
+                 f"the control rates are {', '.join(_num(r) for r in rates)} Hz")
     guess = next((u for u, f in _TIME_UNITS if lo <= fs / f <= hi), None)
     what = f"looks like {guess}" if guess else "is not in seconds"
     raise IdentificationError(
-        f"{source}: time column t {what}: sample interval {fmt_number(h)} ({fmt_number(fs)} Hz if in s), but {rate_text} "
+        f"{source}: time column t {what}: sample interval {_num(h)} ({_num(fs)} Hz if in s), but {rate_text} "
         f"(the model's scenarios' control_rate; the log's rate must be within {RATE_FACTOR:g}x of it): write t "
         f"in seconds")
 
@@ -94,16 +97,16 @@ def check_lengths(source, t, L, model) -> None:
         if np.all((L / 1000.0 >= lo - tol) & (L / 1000.0 <= hi + tol)):
             hint = "; the lengths look like mm: write them in m"
         raise IdentificationError(
-            f"{source}: lengths outside the strokes: cylinder '{names[i]}' (column l{i}) at t = {fmt_number(t[k])} s is "
-            f"{fmt_number(L[k, i])} m, stroke [{fmt_number(lo[i])}, {fmt_number(hi[i])}] m ({int(out.sum())} sample(s) outside)"
+            f"{source}: lengths outside the strokes: cylinder '{names[i]}' (column l{i}) at t = {_num(t[k])} s is "
+            f"{_num(L[k, i])} m, stroke [{_num(lo[i])}, {_num(hi[i])}] m ({int(out.sum())} sample(s) outside)"
             f"{hint}")
     span = np.ptp(L, axis=0)
     floor = np.maximum(NOISE_RANGES * sigma, 1e-6 * (hi - lo))
     if np.all(span <= floor):
         i = int(np.argmax(span))
         raise IdentificationError(
-            f"{source}: no excitation: the cylinder lengths do not move (range {fmt_number(span[i])} m, the largest, "
-            f"cylinder '{names[i]}'; sensor noise {fmt_number(sigma[i])} m): identification needs a log of the robot "
+            f"{source}: no excitation: the cylinder lengths do not move (range {_num(span[i])} m, the largest, "
+            f"cylinder '{names[i]}'; sensor noise {_num(sigma[i])} m): identification needs a log of the robot "
             f"moving")
 
 
@@ -127,16 +130,16 @@ def check_pressures(source, t, PC, model) -> None:
         guess = f"look like {fits[-1][0]}" if fits else "are not in Pa"
         which = "pressures" if tiny.all() else f"pressure column(s) {', '.join(c for c, s in zip(cols, tiny) if s)}"
         raise IdentificationError(
-            f"{source}: {which} {guess}: the largest magnitude in {cols[i]} is {fmt_number(peak[i])}, "
-            f"{fmt_number(peak[i] / ps[i])} of the supply pressure P_s = {fmt_number(ps[i])} Pa: write them in Pa")
+            f"{source}: {which} {guess}: the largest magnitude in {cols[i]} is {_num(peak[i])}, "
+            f"{_num(peak[i] / ps[i])} of the supply pressure P_s = {_num(ps[i])} Pa: write them in Pa")
     tol = PRESSURE_TOL * ps + 6.0 * _noise(PC)
     out = (PC < -tol) | (PC > ps + tol)
     if out.any():
         k, i = (int(v[0]) for v in np.nonzero(out))
         side = "below 0" if PC[k, i] < 0 else "above the supply pressure"
         raise IdentificationError(
-            f"{source}: pressure column {cols[i]} at t = {fmt_number(t[k])} s is {fmt_number(PC[k, i])} Pa, {side} (the model's "
-            f"range [0, P_s] = [0, {fmt_number(ps[i])}] Pa; {int(out.sum())} sample(s) outside): pressures must be "
+            f"{source}: pressure column {cols[i]} at t = {_num(t[k])} s is {_num(PC[k, i])} Pa, {side} (the model's "
+            f"range [0, P_s] = [0, {_num(ps[i])}] Pa; {int(out.sum())} sample(s) outside): pressures must be "
             f"absolute control-chamber pressures in Pa")
 
 

@@ -139,7 +139,8 @@ def check_workers(max_workers) -> None:
         raise ScenarioError(f"sweep: max_workers must be an integer >= 1, got {max_workers!r}")
     cores = os.cpu_count() or 1
     if max_workers > MAX_WORKERS_PER_CORE * cores:
-        raise ScenarioError(f"max_workers (--workers) {max_workers} for {cores} core(s): at most {MAX_WORKERS_PER_CORE * cores} "
+        raise ScenarioError(f"max_workers (--workers) {max_workers} for {cores} core(s): at most "
+                            f"{MAX_WORKERS_PER_CORE * cores} "
                             f"({MAX_WORKERS_PER_CORE} per core; more only compete for the cores and the process "
                             f"limit); the default is the core count")
 

@@ -2,7 +2,8 @@
 
 **Scenarios.** The robot's rig scenarios (``rig = true`` in its description) with a periodic
 reference (``reference.sines``); the coordinates a scenario *moves* are those with a non-zero
-amplitude, the others are *off-axis*. :func:`rig_scenarios` lists them.
+amplitude, the others are *off-axis*. :func:`rig_scenarios` lists them; a model with none is refused
+(:func:`require_rig_scenarios` says what to add to its description).
 
 **Main gain.** One scalar per controller, :func:`family`:
 
@@ -46,7 +47,8 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["tune", "tune_p", "margins", "rig_scenarios", "require_rig_scenarios", "family", "main_gain", "default_grid", "secondary_grid",
+__all__ = ["tune", "tune_p", "margins", "rig_scenarios", "require_rig_scenarios", "family", "main_gain",
+           "default_grid", "secondary_grid",
            "SATURATION", "OSCILLATION", "HF_FLOOR", "HF_CAP"]
 
 SATURATION = 0.01    # largest fraction of periods with a saturated valve
