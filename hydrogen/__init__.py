@@ -2,14 +2,14 @@
 from .errors import (BuildCacheError, CompilerError, HydrogenError, IdentificationError,
                      KinematicsError,
                      ModelError, ScenarioError, SimulationError, StaleGeneratedCodeError,
-                     OutputPathError, UnsupportedExpressionError)
+                     OutputPathError, UnsupportedExpressionError, WorkerError)
 from .model import Model, load_model, models
 
 __all__ = [
     "load_model", "models", "Model", "build", "simulate", "stepper", "sweep", "identify",
     "HydrogenError", "ModelError", "UnsupportedExpressionError", "CompilerError",
     "BuildCacheError", "StaleGeneratedCodeError", "KinematicsError", "SimulationError", "ScenarioError",
-    "OutputPathError", "IdentificationError",
+    "OutputPathError", "IdentificationError", "WorkerError",
 ]
 __version__ = "0.1.0"
 

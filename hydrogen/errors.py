@@ -64,6 +64,10 @@ class SimulationError(HydrogenError, RuntimeError):
         self.result = result
 
 
+class WorkerError(HydrogenError, RuntimeError):
+    """A sweep's worker processes could not be started (a process limit) or died abruptly."""
+
+
 class OutputPathError(HydrogenError, FileExistsError):
     """An output path cannot be written as asked: a file where a folder is needed (or the other way
     round), a folder holding files hydrogen did not write, or a folder that cannot be written."""

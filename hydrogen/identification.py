@@ -68,6 +68,7 @@ from dataclasses import asdict, dataclass, field
 import numpy as np
 
 from .errors import IdentificationError, KinematicsError
+from .logcheck import fmt_number, check_log
 from .logs import as_log
 
 __all__ = ["identify", "Identification", "ParameterFit", "auto_cutoff", "hydraulic_mode_hz"]
@@ -76,6 +77,10 @@ __all__ = ["identify", "Identification", "ParameterFit", "auto_cutoff", "hydraul
 GAMMA_NAMES = ("beta", "beta_c")
 #: Fewest samples left for the regression after dropping the edges and decimating.
 MIN_SAMPLES = 10
+#: A parameter whose share (norm of its weights) in the unexcited directions reaches this is not determined.
+UNDETERMINED_SHARE = 0.1
+#: Parameters that are positive for any rigid body or oil column: a fit <= 0 is not determined by the log.
+POSITIVE_PARAMETERS = ("mass", "Ixx", "Iyy", "Izz")
 
 
 @dataclass
@@ -92,6 +97,13 @@ class ParameterFit:
     rows: int
     true: np.ndarray | None = None
     unexcited: list = field(default_factory=list)  # every direction with a condition above max_cond
+    reason: str = ""  # why the family is not identifiable ("" when it is)
+    determined: np.ndarray | None = None  # (p,) bool: the data determines this parameter
+    warnings: list = field(default_factory=list)  # estimates outside the model's [adaptation] bounds
+
+    def __post_init__(self):
+        if self.determined is None:
+            self.determined = np.full(len(self.names), bool(self.identifiable))
 
     @property
     def error_pct(self):
@@ -100,7 +112,12 @@ class ParameterFit:
 
     def to_dict(self) -> dict:
         """Plain JSON data (an infinite condition number or standard error becomes null)."""
-        d = {"names": list(self.names), "estimate": self.estimate.tolist(), "std_error": _finite(self.std_error),
+        known = [bool(v) for v in self.determined]
+        d = {"names": list(self.names),
+             "estimate": [float(v) if ok else None for v, ok in zip(self.estimate, known)],
+             "std_error": [v if ok else None for v, ok in zip(_finite(self.std_error), known)],
+             "least_squares": self.estimate.tolist(), "determined": known, "reason": self.reason,
+             "warnings": list(self.warnings),
              "cond": _finite(self.cond), "identifiable": self.identifiable, "direction": self.direction,
              "unexcited": self.unexcited, "residual_rms": self.residual_rms, "rows": self.rows}
         if self.true is not None:
@@ -111,14 +128,18 @@ class ParameterFit:
     def describe(self, label: str) -> list:
         lines = [f"{label}: cond {self.cond:.3g} (columns scaled by the model's values), {self.rows} rows, "
                  f"residual rms {self.residual_rms:.4g}"]
-        for i, name in enumerate(self.names):
-            line = f"  {name:>7} = {self.estimate[i]:.6g} ± {self.std_error[i]:.3g}"
-            if self.true is not None:
-                line += f"   (true {self.true[i]:.6g}, {self.error_pct[i]:+.2f} %)"
-            lines.append(line)
         if not self.identifiable:
-            lines.append(f"  not identifiable from this log: the data does not excite {len(self.unexcited)} "
-                         f"direction(s) of relative change; the least excited: {_direction_text(self.direction)}")
+            lines.append(f"  {label} not identifiable from this log: {self.reason}")
+        for i, name in enumerate(self.names):
+            if self.determined[i]:
+                line = f"  {name:>7} = {self.estimate[i]:.6g} ± {self.std_error[i]:.3g}"
+            else:
+                line = f"  {name:>7} = not identifiable"
+            if self.true is not None:
+                line += (f"   (true {self.true[i]:.6g}, {self.error_pct[i]:+.2f} %)" if self.determined[i]
+                         else f"   (true {self.true[i]:.6g})")
+            lines.append(line)
+        lines += [f"  warning: {w}" for w in self.warnings]
         return lines
 
 
@@ -253,9 +274,36 @@ def _fit(Y, b, names, max_cond, nominal, true=None, noise_gram=None) -> Paramete
     for i in weak[::-1]:  # the least excited first
         v = vecs[i] * np.sign(vecs[i][np.argmax(np.abs(vecs[i]))])
         directions.append({n: float(w) for n, w in zip(names, v)})
+    reason, determined = "", np.ones(p, bool)
+    if weak:
+        reason = (f"the data does not excite {len(weak)} direction(s) of relative change (condition number "
+                  f"{cond:.3g} > max_cond {max_cond:g}); the least excited: {_direction_text(directions[0])}")
+        # a parameter is determined when the unexcited directions barely involve it
+        involved = np.sqrt(np.sum(np.square(vecs[weak]), axis=0))
+        determined = involved < UNDETERMINED_SHARE
     return ParameterFit(list(names), x, se, cond, not weak, directions[0] if directions else None,
                         float(np.sqrt(r @ r / rows)), rows, None if true is None else np.asarray(true, float),
-                        directions)
+                        directions, reason, determined)
+
+
+def _check_physical(fit: ParameterFit, positive, lo, hi, bounds_key: str) -> ParameterFit:
+    """Mark a parameter that must be positive (``positive``: (p,) bool) and came out <= 0 as not
+    determined (the family then not identifiable), and warn about determined estimates outside the
+    model's bounds [lo, hi] (its ``bounds_key``): both say the log, not the robot, drives the fit."""
+    bad = [i for i in range(len(fit.names)) if positive[i] and fit.determined[i] and not fit.estimate[i] > 0]
+    if bad:
+        fit.determined = fit.determined.copy()
+        fit.determined[bad] = False
+        fit.identifiable = False
+        why = (", ".join(f"{fit.names[i]} = {fit.estimate[i]:.4g}" for i in bad)
+               + " by least squares, not > 0 as any robot's: the log does not determine "
+               + ("it" if len(bad) == 1 else "them"))
+        fit.reason = f"{fit.reason}; {why}" if fit.reason else why
+    for i, name in enumerate(fit.names):
+        if fit.determined[i] and not lo[i] <= fit.estimate[i] <= hi[i]:
+            fit.warnings.append(f"{name} = {fit.estimate[i]:.6g} is outside the model's bounds [{lo[i]:.6g}, "
+                                f"{hi[i]:.6g}] ({bounds_key}): check the log's units and the model")
+    return fit
 
 
 def noise_std(x) -> np.ndarray:
@@ -298,7 +346,13 @@ def identify(log, model=None, *, dyn=None, cutoff_hz: float | None = None, order
     Returns an :class:`Identification`: ``.theta.estimate``, ``.theta.std_error``, ``.theta.cond``,
     ``.theta.identifiable``, ``.theta.direction``, the same for ``.gamma`` (or None), and
     ``.summary()``. A missing column, too few samples, a non-finite value or a non-uniform time
-    column raise :class:`~hydrogen.errors.IdentificationError` naming it.
+    column raise :class:`~hydrogen.errors.IdentificationError` naming it; so do units or ranges
+    that do not fit the model (:mod:`hydrogen.logcheck`: a time column not in s, lengths outside
+    the strokes or not moving, pressures all 0, not in Pa or outside [0, P_s]). A family the log
+    does not determine (its condition number above ``max_cond``, or a mass, principal inertia, β or
+    βc that comes out <= 0) has ``identifiable`` False, a ``reason``, and ``determined`` False for the
+    parameters concerned (the summary says "not identifiable" for them, the JSON gives null);
+    estimates outside the model's [adaptation] bounds are listed in ``warnings``.
     """
     import hydrogen
     from scipy.signal import butter
@@ -323,7 +377,7 @@ def identify(log, model=None, *, dyn=None, cutoff_hz: float | None = None, order
             rows, cols = np.nonzero(bad)
             col = name if name == "t" else f"{name}{cols[0]}"
             raise IdentificationError(f"{log.source}: column {col} is not finite at sample(s) "
-                                      f"{sorted(set(rows.tolist()))[:10]} (t = {t[rows[0]]!r} s)")
+                                      f"{sorted(set(rows.tolist()))[:10]} (t = {fmt_number(t[rows[0]])} s)")
     if len(t) < 2 * MIN_SAMPLES:
         raise IdentificationError(f"{log.source}: too few samples: {len(t)} (identification needs at least "
                                   f"{2 * MIN_SAMPLES}, and in practice several periods of the trajectory)")
@@ -332,12 +386,13 @@ def identify(log, model=None, *, dyn=None, cutoff_hz: float | None = None, order
     if not h > 0 or np.any(dt <= 0):
         k = int(np.argmax(dt <= 0))
         raise IdentificationError(f"{log.source}: column t must increase strictly; it does not at sample {k + 1} "
-                                  f"(t = {t[k + 1]!r} s after {t[k]!r} s)")
+                                  f"(t = {fmt_number(t[k + 1])} s after {fmt_number(t[k])} s)")
     jitter = float(np.max(np.abs(dt - h)) / h)
     if jitter > 0.01:
         raise IdentificationError(f"{log.source}: column t is not uniformly sampled (spacing varies by "
                                   f"{100 * jitter:.1f} % of the median {h:.6g} s; at most 1 %): resample first")
     fs = 1.0 / h
+    check_log(log.source, t, fs, h, L, PC, model)
     fc = auto_cutoff(L, fs) if cutoff_hz is None else float(cutoff_hz)
     if not (np.isfinite(fc) and 0 < fc < 0.5 * fs):
         raise IdentificationError(f"cutoff_hz must be in (0, {0.5 * fs:.6g}) Hz (half the log's sample rate), "
@@ -377,6 +432,8 @@ def identify(log, model=None, *, dyn=None, cutoff_hz: float | None = None, order
     y0 = _per_sample(dyn.regressor_offset, Qf[idx], V[idx], V[idx], Acc[idx])
     theta = _fit(Y.reshape(-1, p), (tau[idx] - y0).reshape(-1), _theta_names(model, p), max_cond, model.theta,
                  _true(log.meta, "theta_true", p))
+    _check_physical(theta, [n.rpartition(".")[2] in POSITIVE_PARAMETERS for n in theta.names], model.theta_min,
+                    model.theta_max, "[adaptation] theta_min/theta_max")
     timings["regression"] = time.perf_counter() - t0
 
     gamma_fit, per_leg, note, fc_g, step_g = None, None, "", None, None
@@ -395,6 +452,8 @@ def identify(log, model=None, *, dyn=None, cutoff_hz: float | None = None, order
         idx_g = np.arange(edge, len(t) - edge - 1, step_g)
         gamma_fit, per_leg = _identify_gamma(dyn, L, PC, U, F, h, butter(order, fc_g, fs=fs, output="sos"),
                                              idx_g, max_cond, _true(log.meta, "gamma_true", len(GAMMA_NAMES)))
+        _check_physical(gamma_fit, [True, True], [model.gamma1_min, model.gamma2_min],
+                        [model.gamma1_max, model.gamma2_max], "[adaptation] gamma1_min..gamma2_max")
         note = (f"low-pass at {fc_g:.3g} Hz: twice the highest oil-column mode, {mode:.3g} Hz at the mean pose, "
                 f"within [cutoff, f_s/10]; 1 in every {step_g} samples")
         if not np.allclose(model.gamma, model.gamma[:, :1]):
@@ -433,7 +492,7 @@ def _poses(dyn, L, t, source, tol: float = 1e-12, chord_steps: int = 4, refresh:
             try:
                 q = dyn.forward_kinematics(L[k], q0=q, tol=tol)
             except KinematicsError as exc:
-                raise IdentificationError(f"{source}: sample {k} (t = {t[k]!r} s): {exc}") from None
+                raise IdentificationError(f"{source}: sample {k} (t = {fmt_number(t[k])} s): {exc}") from None
         if not done or k % refresh == 0:
             Jinv = np.linalg.inv(dyn.leg_jacobian(q))
         Q[k] = q

@@ -12,6 +12,7 @@ m is the number of cylinders of the model. Other columns are ignored (a simulate
 the true pose ``q0`` … ``q{n-1}``). Lines starting with ``#`` are comments; a log written by
 hydrogen starts with ``# hydrogen log`` and a JSON line of metadata (scenario, controller, sensor
 noise added, and for a simulated log the true θ and γ). Values are written with ``repr`` (exact).
+Columns are separated by commas; a file separated by tabs (header and rows alike) is read too.
 
 A :class:`~hydrogen.simulation.simulator.SimulationResult` records the *true* leg lengths and
 pressures of the plant. :func:`log_from_result` makes a log from it and adds white sensor noise of
@@ -119,7 +120,8 @@ def read_log(path) -> Log:
                     meta = {}
             continue
         if header is None:
-            header, header_line = [c.strip() for c in s.split(",")], lineno
+            sep = _delimiter(path, lineno, s)
+            header, header_line = [c.strip() for c in s.split(sep)], lineno
             continue
         rows.append((lineno, s))
     if header is None:
@@ -132,8 +134,13 @@ def read_log(path) -> Log:
         raise IdentificationError(f"{path}: log is missing column t (time, s); columns present: {', '.join(header)}")
     data = np.empty((len(rows), len(header)))
     for k, (lineno, s) in enumerate(rows):
-        cells = s.split(",")
+        cells = s.split(sep)
         if len(cells) != len(header):
+            other = next((d for d in _DELIMITERS if d != sep and d in s), None)
+            if other is not None:
+                raise IdentificationError(
+                    f"{path}: line {lineno}: values separated by {_DELIMITERS[other]}, but the header (line "
+                    f"{header_line}) by {_DELIMITERS[sep]}: use one delimiter throughout, a comma")
             raise IdentificationError(f"{path}: line {lineno}: {len(cells)} values, header has {len(header)} columns")
         try:
             data[k] = [float(c) for c in cells]
@@ -143,6 +150,23 @@ def read_log(path) -> Log:
                                       f"{cells[bad].strip()!r}") from None
     cols = {name: data[:, i] for i, name in enumerate(header) if name != "t"}
     return Log(data[:, header.index("t")], cols, meta, source=str(path))
+
+
+#: Column delimiters a log may use (a comma, as hydrogen writes, or a tab) and their names.
+_DELIMITERS = {",": "commas", "\t": "tabs", ";": "semicolons"}
+
+
+def _delimiter(path, lineno, header: str) -> str:
+    """The header's delimiter: a comma, else a tab; anything else is refused, naming the line."""
+    if "," in header:
+        return ","
+    if "\t" in header:
+        return "\t"
+    if ";" in header or " " in header.strip():
+        found = "semicolons" if ";" in header else "spaces"
+        raise IdentificationError(f"{path}: line {lineno}: the header {header[:80]!r} is separated by {found}: "
+                                  f"the delimiter must be a comma (or a tab), e.g. t,l0,l1,...")
+    return ","
 
 
 def _is_float(s) -> bool:

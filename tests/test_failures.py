@@ -507,3 +507,112 @@ def test_every_subcommand_refuses_bad_arguments_with_status_2(tmp_path):
                                        "margins"}
     assert a_file.read_text() == "keep" and (full / "keep").read_text() == "keep"
     assert not (tmp_path / "cache" / "build").exists()  # refused before anything was compiled
+
+
+# Tuning on a robot without a rig scenario; sweeps whose workers cannot start or die ----------------
+def _model_without_rig(tmp_path):
+    """The Stewart platform with its [rig] table and rig scenarios removed (paper-sim kept)."""
+    text = default_model_path().read_text()
+    head, rest = text.split("\n[rig]\n")
+    paper = "[scenarios.paper-sim]" + rest.split("[scenarios.paper-sim]")[1].split("\n[scenarios.")[0]
+    path = tmp_path / "norig.toml"
+    path.write_text(head + "\n" + paper + "\n")
+    assert "paper-sim" in load_model(path).scenarios and not load_model(path).scenarios.get("rig")
+    return path
+
+
+def test_tune_and_margins_without_a_rig_scenario_say_what_to_add(tmp_path, capsys):
+    from hydrogen.simulation import tuning
+
+    path = _model_without_rig(tmp_path)
+    wanted = ("has none; its scenarios: paper-sim (no rig = true). Add to the description a table "
+              "[scenarios.<name>] with rig = true and reference.sines = [[coordinate, amplitude, Hz], ...]")
+    for argv in (["margins"], ["tune", "--controller", "backstepping"], ["tune-p"]):
+        assert cli.main([*argv, "--model", str(path), "--quiet"]) == 2, argv
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 1 and wanted in err[0] and "add [rig] with at least duration, control_rate" in err[0]
+    for call in (lambda: tuning.margins(model=path), lambda: tuning.tune_p(model=path),
+                 lambda: tuning.tune("adaptive-robust", model=path)):
+        with pytest.raises(ScenarioError, match=r"Add to the description a table \[scenarios.<name>\]"):
+            call()
+
+
+def test_absurd_worker_counts_are_refused(capsys):
+    too_many = 4 * (os.cpu_count() or 1) + 1
+    assert cli.main(["tune-p", "--workers", str(too_many), "--quiet"]) == 2
+    assert f"--workers) {too_many} for {os.cpu_count()} core(s): at most" in capsys.readouterr().err
+    with pytest.raises(ScenarioError, match="at most"):
+        hydrogen.sweep([{}], max_workers=too_many)
+
+
+_FAILING_FORK = """
+import errno, os, sys
+real, started = os.fork, []
+def fork():  # the process limit reached after {limit} worker(s)
+    if len(started) >= {limit}:
+        raise BlockingIOError(errno.EAGAIN, "Resource temporarily unavailable")
+    started.append(1)
+    return real()
+os.fork = fork
+from hydrogen.cli import main
+sys.exit(main(sys.argv[1:]))
+"""
+
+_DYING_WORKER = """
+import os, sys
+import hydrogen
+import hydrogen.simulation.sweep as sweep_module
+def die(job):  # a worker killed mid-run (out of memory, a crash in compiled code)
+    os._exit(9)
+sweep_module._run_one = die
+try:
+    hydrogen.sweep([{{}}, {{}}, {{}}], max_workers=2)
+except hydrogen.WorkerError as exc:
+    print("WorkerError:", exc)
+    sys.exit(3)
+"""
+
+
+@pytest.mark.parametrize("limit", [0, 1])
+def test_workers_that_cannot_start_give_a_clear_error_and_the_command_returns(tmp_path, dyn, cache, limit):
+    script = tmp_path / "fork.py"
+    script.write_text(_FAILING_FORK.format(limit=limit))
+    env = {**os.environ, "PYTHONPATH": str(Path(hydrogen.__file__).parents[1]), "HYDROGEN_CACHE_DIR": str(cache)}
+    start = time.monotonic()
+    proc = subprocess.run([sys.executable, str(script), "tune-p", "--workers", "2", "--n", "2", "--quiet"],
+                          capture_output=True, text=True, env=env, cwd=tmp_path, timeout=120)
+    assert proc.returncode == 2, proc.stdout + proc.stderr
+    assert "could not start 2 worker processes (BlockingIOError" in proc.stderr and "fewer workers" in proc.stderr
+    assert "diverged" not in proc.stdout + proc.stderr and "Traceback" not in proc.stderr
+    assert time.monotonic() - start < 60
+
+
+def test_a_worker_that_dies_is_a_clear_error_not_a_diverged_run(tmp_path, dyn, cache):
+    script = tmp_path / "die.py"
+    script.write_text(_DYING_WORKER.format())
+    env = {**os.environ, "PYTHONPATH": str(Path(hydrogen.__file__).parents[1]), "HYDROGEN_CACHE_DIR": str(cache)}
+    proc = subprocess.run([sys.executable, str(script)], capture_output=True, text=True, env=env, cwd=tmp_path,
+                          timeout=120)
+    assert proc.returncode == 3, proc.stdout + proc.stderr
+    assert "a worker process died abruptly while run 1 of 3 was pending" in proc.stdout
+
+
+def test_a_broken_executor_is_a_worker_error():
+    from concurrent.futures import Future
+    from concurrent.futures.process import BrokenProcessPool
+
+    class Broken:
+        def submit(self, fn, *args):
+            f = Future()
+            f.set_exception(BrokenProcessPool("a child process terminated abruptly"))
+            return f
+
+    with pytest.raises(hydrogen.WorkerError, match="died abruptly while run 1 of 2"):
+        hydrogen.sweep([{}, {}], executor=Broken())
+
+    class Refusing:
+        def submit(self, fn, *args):
+            raise OSError(11, "Resource temporarily unavailable")
+
+    with pytest.raises(hydrogen.WorkerError, match="could not start the worker processes"):
+        hydrogen.sweep([{}], executor=Refusing())

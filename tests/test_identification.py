@@ -92,7 +92,12 @@ def test_a_log_that_moves_only_z_names_the_inertias_as_unidentifiable(dyn, model
                              reference=MultiSine(np.asarray(model.neutral_pose, float), ((z, 0.02, 1.0), (z, 0.01, 2.0))))
     res = hydrogen.identify(log_from_result(hydrogen.simulate(sc, "adaptive-robust", dyn=dyn), *RIG_NOISE), dyn=dyn)
     assert not res.theta.identifiable and res.theta.cond > 1e3
-    assert "not identifiable" in res.summary()
+    assert "theta not identifiable from this log: the data does not excite 3 direction(s)" in res.summary()
+    # the inertias are said to be unknown rather than given a number; the mass keeps its estimate
+    assert all(f"{n} = not identifiable" in res.summary() for n in res.theta.names[1:])
+    assert list(res.theta.determined) == [True, False, False, False]
+    est = res.theta.to_dict()["estimate"]
+    assert est[0] == pytest.approx(res.theta.estimate[0]) and est[1:] == [None] * 3
     d = res.theta.direction
     names = res.theta.names
     assert abs(d[names[0]]) < 0.05  # the mass is excited (gravity, heave) ...
@@ -214,3 +219,98 @@ def test_cli_identify_and_simulate_log(tmp_path, capsys, monkeypatch, cache):
     assert main(["identify", str(short)]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "too few samples" in err[0] and "Traceback" not in err[0]
+
+
+# --- a log whose units or ranges do not fit the model: refused, naming the column --------------
+def _refused(cols, dyn, match):
+    with pytest.raises(IdentificationError, match=match) as info:
+        hydrogen.identify(cols, dyn=dyn)
+    assert "np." not in str(info.value)  # plain numbers, never np.float64(...)
+    return str(info.value)
+
+
+def test_lengths_that_do_not_move_say_no_excitation(dyn, paper_sim):
+    cols = _columns(paper_sim, 4001)
+    m = paper_sim.leg_lengths.shape[1]
+    still = dict(cols, **{f"l{i}": np.full(4001, cols[f"l{i}"][0]) for i in range(m)})
+    msg = _refused(still, dyn, r"no excitation: the cylinder lengths do not move \(range 0 m")
+    assert "too few samples" not in msg
+
+
+def test_lengths_outside_the_strokes_name_the_cylinder_time_and_stroke(dyn, model, paper_sim):
+    cols = _columns(paper_sim, 4001)
+    bad = dict(cols, l0=cols["l0"].copy())
+    bad["l0"][300] = 10.0
+    c = model.cylinders[0]
+    _refused(bad, dyn, rf"lengths outside the strokes: cylinder '{c.name}' \(column l0\) at t = 0.3 s is 10 m, "
+                       rf"stroke \[{c.stroke_min:g}, {c.stroke_max:g}\] m")
+    m = paper_sim.leg_lengths.shape[1]
+    _refused(dict(cols, **{f"l{i}": 1000 * cols[f"l{i}"] for i in range(m)}), dyn, "lengths look like mm")
+
+
+def test_pressures_all_zero_in_bar_or_above_supply_are_refused(dyn, model, paper_sim):
+    cols = _columns(paper_sim, 4001)
+    m = paper_sim.leg_lengths.shape[1]
+    pcs = [f"pc{i}" for i in range(m)]
+    _refused(dict(cols, **{c: 0 * cols[c] for c in pcs}), dyn, "pressures are all 0")
+    _refused(dict(cols, pc3=0 * cols["pc3"]), dyn, r"pressure column\(s\) pc3 are all 0")
+    _refused(dict(cols, **{c: cols[c] / 1e5 for c in pcs}), dyn, "pressures look like bar")
+    high = dict(cols, pc2=cols["pc2"].copy())
+    high["pc2"][1000] = 2 * model.supply_pressure[2]
+    _refused(high, dyn, r"pressure column pc2 at t = 1 s is .* Pa, above the supply pressure")
+    noisy = log_from_result(paper_sim, *RIG_NOISE)  # sensor noise around 0 and P_s is accepted
+    assert hydrogen.identify(noisy, dyn=dyn, gamma=False).theta.identifiable
+
+
+def test_a_time_column_in_ms_is_refused_against_the_control_rate(dyn, model, paper_sim):
+    from hydrogen.logcheck import control_rates
+    cols = _columns(paper_sim, 4001)
+    rates = ", ".join(f"{r:g}" for r in control_rates(model))
+    _refused(dict(cols, t=1000 * cols["t"]), dyn,
+             rf"time column t looks like ms: sample interval 1 \(1 Hz if in s\), but the control rates? (is|are) "
+             rf"{rates} Hz")
+
+
+def test_a_tab_separated_log_is_read_and_mixed_delimiters_are_named(dyn, paper_sim_log, tmp_path):
+    short = Log(paper_sim_log.t[:50], {k: v[:50] for k, v in paper_sim_log.columns.items()}, paper_sim_log.meta)
+    comma = write_log(short, tmp_path / "log.csv")
+    tab = tmp_path / "tab.tsv"
+    tab.write_text(comma.read_text().replace(",", "\t"))
+    back = read_log(tab)
+    assert list(back.columns) == list(short.columns)
+    np.testing.assert_array_equal(back.columns["pc2"], short.columns["pc2"])
+    lines = comma.read_text().splitlines()
+    mixed = tmp_path / "mixed.csv"
+    mixed.write_text("\n".join(lines[:4] + [lines[4].replace(",", "\t")] + lines[5:]) + "\n")
+    with pytest.raises(IdentificationError, match="line 5: values separated by tabs, but the header "
+                                                  r"\(line 3\) by commas: use one delimiter throughout, a comma"):
+        read_log(mixed)
+    semi = tmp_path / "semi.csv"
+    semi.write_text("t;l0;l1\n0;1.8;1.8\n")
+    with pytest.raises(IdentificationError, match="line 1: .* separated by semicolons: the delimiter must be a comma"):
+        read_log(semi)
+
+
+def test_a_fit_that_no_robot_has_is_not_identifiable_and_out_of_bounds_is_warned():
+    from hydrogen.identification import ParameterFit, _check_physical
+    fit = ParameterFit(["beta", "beta_c"], np.array([-3.0e5, 1.0e5]), np.array([1e5, 1e3]), 3.0, True, None,
+                       1.0, 100)
+    _check_physical(fit, [True, True], [1e8, 5e4], [1e9, 2e5], "[adaptation] bounds")
+    assert not fit.identifiable and list(fit.determined) == [False, True]
+    assert "beta = -3e+05 by least squares, not > 0" in fit.reason
+    text = "\n".join(fit.describe("gamma"))
+    assert "gamma not identifiable from this log" in text and "beta = not identifiable" in text
+    assert fit.to_dict()["estimate"] == [None, 1.0e5]
+    high = ParameterFit(["platform.mass"], np.array([3480.0]), np.array([45.0]), 1.0, True, None, 1.0, 100)
+    _check_physical(high, [True], [150.0], [350.0], "[adaptation] theta_min/theta_max")
+    assert high.identifiable and "outside the model's bounds [150, 350]" in high.warnings[0]
+    assert "warning: platform.mass = 3480 is outside" in "\n".join(high.describe("theta"))
+
+
+def test_cli_identify_refuses_pressures_in_bar(tmp_path, capsys, paper_sim_log):
+    from hydrogen.cli import main
+    cols = {k: (v / 1e5 if k.startswith("pc") else v) for k, v in paper_sim_log.columns.items()}
+    path = write_log(Log(paper_sim_log.t, cols, paper_sim_log.meta), tmp_path / "bar.csv")
+    assert main(["identify", str(path)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "pressures look like bar" in err[0] and "write them in Pa" in err[0]

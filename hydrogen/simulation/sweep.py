@@ -1,11 +1,15 @@
 """Many simulations through one call, spread over the cores (or any concurrent.futures.Executor)."""
 from __future__ import annotations
 
+import multiprocessing
 import os
 from collections.abc import Mapping
-from concurrent.futures import Executor, ProcessPoolExecutor
+from concurrent.futures import BrokenExecutor, Executor, ProcessPoolExecutor
 
-__all__ = ["sweep"]
+__all__ = ["sweep", "check_workers", "MAX_WORKERS_PER_CORE"]
+
+#: More worker processes than this many per core only compete for the cores (and the process limit).
+MAX_WORKERS_PER_CORE = 4
 
 #: Keys an entry may hold besides the Scenario fields.
 _ENTRY_KEYS = ("scenario", "controller", "gains", "duration", "check_workspace", "engine")
@@ -61,48 +65,110 @@ def sweep(runs, *, executor: Executor | None = None, max_workers: int | None = N
 
     A run that fails (it diverges, or its entry is not valid: not a dict, an unknown key, a bad
     value) gives ``{"error": message}`` in its place and the others still run. Only a malformed
-    call raises (``runs`` not a list of entries, a bad ``executor``, ``max_workers`` or ``model``).
+    call raises (``runs`` not a list of entries, a bad ``executor``, ``max_workers`` or ``model``), and so
+    do worker processes that cannot be started or die (:class:`~hydrogen.errors.WorkerError`: their
+    runs would otherwise look like failed simulations); the pool is then shut down, never left hanging.
     ``executor`` may be any :class:`concurrent.futures.Executor` (a Dask or Ray
     executor spreads the sweep past one machine); by default a local process pool
     with ``max_workers`` (default: the core count) processes.
     """
     import hydrogen
-    from ..errors import ScenarioError
+    from ..errors import ScenarioError, WorkerError
 
     if isinstance(runs, (str, bytes, Mapping)) or not hasattr(runs, "__iter__"):
         raise ScenarioError(f"sweep: runs must be a list of dicts (one per run), got {type(runs).__name__}")
     if executor is not None and not callable(getattr(executor, "submit", None)):
         raise ScenarioError(f"sweep: executor must be a concurrent.futures.Executor, got {executor!r}")
-    if max_workers is not None and (isinstance(max_workers, bool) or not isinstance(max_workers, int)
-                                    or max_workers < 1):
-        raise ScenarioError(f"sweep: max_workers must be an integer >= 1, got {max_workers!r}")
+    if executor is None:
+        check_workers(max_workers)
     # The Model itself goes to the workers (not its file name): in-memory edits are kept.
     model = model if isinstance(model, hydrogen.Model) else hydrogen.load_model(_model_path(model))
     from tqdm import tqdm
 
     jobs = [(model, r) for r in runs]
 
-    def collect(ex):
+    def collect(ex, workers):
         futures = []
         for job in jobs:
             try:
                 futures.append(ex.submit(_run_one, job))
+            except (OSError, BrokenExecutor) as exc:  # the executor, not the entry: no run can be trusted
+                _cancel(futures)
+                raise WorkerError(_start_failure(exc, workers)) from None
             except Exception as exc:  # noqa: BLE001 - e.g. an entry that cannot be pickled
                 futures.append(exc)
         out = []
-        for f in tqdm(futures, total=len(jobs), desc="sweep", unit="run", disable=None if progress else True):
+        for k, f in enumerate(tqdm(futures, total=len(jobs), desc="sweep", unit="run",
+                                   disable=None if progress else True)):
             try:
                 if isinstance(f, Exception):
                     raise f
                 out.append(f.result())
+            except BrokenExecutor as exc:  # a worker died: every pending run fails with it, not one entry
+                _cancel(futures)
+                raise WorkerError(f"sweep: a worker process died abruptly while run {k + 1} of {len(jobs)} was "
+                                  f"pending ({type(exc).__name__}: {str(exc)[:200]}): killed by the system (out "
+                                  f"of memory?) or a crash in compiled code; no result of the sweep is reported. "
+                                  f"Run the entries alone with hydrogen.simulate to find the one that crashes, "
+                                  f"or use fewer workers") from None
             except Exception as exc:  # noqa: BLE001 - this entry's error, in its place
                 out.append({"error": f"{type(exc).__name__}: {str(exc)[:500]}"})
         return out
 
     if executor is not None:
-        return collect(executor)
-    with ProcessPoolExecutor(max_workers=max_workers or os.cpu_count() or 1) as pool:
-        return collect(pool)
+        return collect(executor, max_workers)
+    workers = max_workers or os.cpu_count() or 1
+    before = set(multiprocessing.active_children())
+    pool = ProcessPoolExecutor(max_workers=workers)
+    try:
+        out = collect(pool, workers)
+    except BaseException:
+        _abandon(pool, before)
+        raise
+    pool.shutdown(wait=True)
+    return out
+
+
+def check_workers(max_workers) -> None:
+    """Refuse a worker count that is not an integer >= 1 or is above MAX_WORKERS_PER_CORE x the cores."""
+    from ..errors import ScenarioError
+
+    if max_workers is None:
+        return
+    if isinstance(max_workers, bool) or not isinstance(max_workers, int) or max_workers < 1:
+        raise ScenarioError(f"sweep: max_workers must be an integer >= 1, got {max_workers!r}")
+    cores = os.cpu_count() or 1
+    if max_workers > MAX_WORKERS_PER_CORE * cores:
+        raise ScenarioError(f"max_workers (--workers) {max_workers} for {cores} core(s): at most "
+                            f"{MAX_WORKERS_PER_CORE * cores} "
+                            f"({MAX_WORKERS_PER_CORE} per core; more only compete for the cores and the process "
+                            f"limit); the default is the core count")
+
+
+def _start_failure(exc, workers) -> str:
+    return (f"sweep: could not start {workers or 'the'} worker processes ({type(exc).__name__}: "
+            f"{str(exc)[:200]}): the system refuses more processes (its per-user process limit, ulimit -u, or "
+            f"memory); run with fewer workers (--workers / max_workers, e.g. 1) or end some processes")
+
+
+def _cancel(futures) -> None:
+    for f in futures:
+        if not isinstance(f, Exception):
+            f.cancel()
+
+
+def _abandon(pool, before) -> None:
+    """Shut a failed pool down without waiting, and end the worker processes it started: a worker
+    that never gets its stop signal would keep the interpreter from exiting (it joins its children)."""
+    pool.shutdown(wait=False, cancel_futures=True)
+    started = [p for p in multiprocessing.active_children() if p not in before]
+    for p in started:
+        p.terminate()
+    for p in started:
+        p.join(timeout=5)
+        if p.is_alive():
+            p.kill()
+            p.join(timeout=5)
 
 
 def _model_path(model):

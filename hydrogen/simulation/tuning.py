@@ -2,7 +2,8 @@
 
 **Scenarios.** The robot's rig scenarios (``rig = true`` in its description) with a periodic
 reference (``reference.sines``); the coordinates a scenario *moves* are those with a non-zero
-amplitude, the others are *off-axis*. :func:`rig_scenarios` lists them.
+amplitude, the others are *off-axis*. :func:`rig_scenarios` lists them; a model with none is refused
+(:func:`require_rig_scenarios` says what to add to its description).
 
 **Main gain.** One scalar per controller, :func:`family`:
 
@@ -46,7 +47,8 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["tune", "tune_p", "margins", "rig_scenarios", "family", "main_gain", "default_grid", "secondary_grid",
+__all__ = ["tune", "tune_p", "margins", "rig_scenarios", "require_rig_scenarios", "family", "main_gain",
+           "default_grid", "secondary_grid",
            "SATURATION", "OSCILLATION", "HF_FLOOR", "HF_CAP"]
 
 SATURATION = 0.01    # largest fraction of periods with a saturated valve
@@ -76,8 +78,44 @@ def rig_scenarios(model=None) -> dict:
         sc = scenario(name, model)
         if isinstance(sc.reference, MultiSine):
             amp = sc.reference.amplitude()
-            out[name] = tuple(c for c, a in zip(model.coordinate_names, amp) if a > 0)
+            moving = tuple(c for c, a in zip(model.coordinate_names, amp) if a > 0)
+            if moving:  # every amplitude 0: nothing to judge the tracking of
+                out[name] = moving
     return out
+
+
+def _why_not_rig(model, name) -> str:
+    """Why the model's scenario ``name`` is not a rig scenario with a periodic reference."""
+    spec = model.scenarios[name] or {}
+    if not spec.get("rig"):
+        return "no rig = true"
+    ref = spec.get("reference")
+    kind = next(iter(ref), "none") if isinstance(ref, dict) and ref else "none"
+    return f"reference.{kind}, not reference.sines" if kind != "sines" else "every amplitude 0"
+
+
+def require_rig_scenarios(model, what: str = "tuning") -> dict:
+    """:func:`rig_scenarios` of ``model``; a :class:`~hydrogen.errors.ScenarioError` saying what to add
+    to the description when it has none (``what``: the command, for the message)."""
+    from ..errors import ScenarioError
+    from .scenarios import scenario_names
+
+    found = rig_scenarios(model)
+    if found:
+        return found
+    names = scenario_names(model)
+    have = ("; its scenarios: " + ", ".join(f"{n} ({_why_not_rig(model, n)})" for n in names)) if names else \
+        "; it has no [scenarios] table"
+    c = model.coordinate_names[0]
+    raise ScenarioError(
+        f"{what} needs a rig scenario with a periodic reference, and model '{model.name}' ({model.source}) has none"
+        f"{have}. Add to the description a table [scenarios.<name>] with rig = true and reference.sines = "
+        f"[[coordinate, amplitude, Hz], ...] (e.g. [[\"{c}\", {0.02 if model.coordinate_units[0] == 'm' else 0.05}, "
+        f"1.0]], an offset from the neutral pose); rig = true starts the scenario from the description's [rig] "
+        f"table of the rig's settings, "
+        + ("which it has" if (model.scenarios or {}).get("rig") else
+           "which it lacks: add [rig] with at least duration, control_rate, substeps and t_adapt")
+        + " (any Scenario field may be set there or in the scenario)")
 
 
 def _base_gains(dyn, controller, robot: bool):
@@ -180,14 +218,14 @@ def tune(controller, grid=None, *, model=None, scenarios=None, secondary=None, e
     import itertools
 
     import hydrogen
-    from .sweep import sweep
+    from .sweep import check_workers, sweep
 
     model = _load(model)
+    if executor is None:
+        check_workers(max_workers)
+    scen = dict(scenarios) if scenarios else require_rig_scenarios(model, f"tune --controller {controller}")
     dyn = hydrogen.build(model)
     grid = np.sort(np.asarray(default_grid(controller) if grid is None else grid, float))
-    scen = dict(scenarios or rig_scenarios(model))
-    if not scen:
-        raise hydrogen.ScenarioError(f"model '{model.name}' has no rig scenario with a periodic reference")
     sec = secondary_grid(dyn, controller) if secondary is None else dict(secondary)
     sec_points = [dict(zip(sec, v)) for v in itertools.product(*sec.values())] or [{}]
 
@@ -261,11 +299,13 @@ def margins(controllers=None, *, model=None, scenarios=None, executor=None, max_
     limit_reason}]}; ``margin`` is the largest factor found stable (≥ MARGIN_MAX: ``margin_capped``)."""
     import hydrogen
     from ..controllers import CONTROLLERS
-    from .sweep import sweep
+    from .sweep import check_workers, sweep
 
     model = _load(model)
+    if executor is None:
+        check_workers(max_workers)
+    scen = list(scenarios) if scenarios else list(require_rig_scenarios(model, "margins"))
     dyn = hydrogen.build(model)
-    scen = list(scenarios or rig_scenarios(model))
     cases = [(c, s) for c in (controllers or CONTROLLERS) for s in scen]
     base = {c: _base_gains(dyn, c, robot=True) for c, _ in cases}
     g0 = {c: float(np.mean(base[c][main_gain(c)])) for c, _ in cases}

@@ -1,0 +1,150 @@
+"""A rig log's units and ranges against the model, before identification trusts it.
+
+Identification fits whatever numbers it is given: pressures in bar, a time column in ms or
+lengths in mm give confident, wrong estimates. :func:`check_log` refuses such a log with one
+message naming the column and what looks wrong, from the model's own values only:
+
+* **sample rate** (column ``t``, s): within a factor ``RATE_FACTOR`` of the control rates of the
+  model's scenarios (``control_rate``; no check for a model without scenarios);
+* **cylinder lengths** (``l0..``, m): inside each cylinder's stroke, widened by ``STROKE_TOL`` of
+  the stroke and 6 × the sensor noise estimated on the log; and moving (excitation) by more than
+  ``NOISE_RANGES`` × that noise;
+* **chamber pressures** (``pc0..``, Pa): not all 0, not all below ``TINY_PRESSURE`` × P_s (a unit
+  other than Pa), and within [0, P_s] widened by ``PRESSURE_TOL`` × P_s and 6 × the noise.
+
+A unit is guessed when the numbers rescaled by a common factor fit (ms and µs for time, mm for
+lengths, kPa, bar, psi and MPa for pressures) and named in the message.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from .errors import IdentificationError, ScenarioError
+
+__all__ = ["check_log", "control_rates", "fmt_number", "RATE_FACTOR", "STROKE_TOL", "NOISE_RANGES", "PRESSURE_TOL",
+           "TINY_PRESSURE"]
+
+#: The log's sample rate may be this factor below the slowest or above the fastest control rate.
+RATE_FACTOR = 10.0
+#: Measured lengths may leave the stroke by this fraction of its length (sensor offsets), plus noise.
+STROKE_TOL = 0.01
+#: Lengths whose range is below this many noise standard deviations do not move.
+NOISE_RANGES = 20.0
+#: Measured pressures may leave [0, P_s] by this fraction of P_s (sensor offsets), plus noise.
+PRESSURE_TOL = 0.02
+#: A pressure column whose largest magnitude is below this fraction of P_s is not in Pa.
+TINY_PRESSURE = 0.01
+
+_TIME_UNITS = (("ms", 1e-3), ("µs", 1e-6))
+_PRESSURE_UNITS = (("kPa", 1e3), ("psi", 6894.757), ("bar", 1e5), ("MPa", 1e6))
+
+
+def fmt_number(x) -> str:
+    """A plain number for a message (never ``np.float64(...)``)."""
+    return f"{float(x):.6g}"
+
+
+_num = fmt_number
+
+
+def control_rates(model) -> list:
+    """The distinct control rates (Hz) of the model's scenarios, ascending (empty without scenarios)."""
+    from .simulation.scenarios import scenario, scenario_names
+
+    rates = set()
+    for name in scenario_names(model):
+        try:
+            rates.add(float(scenario(name, model).control_rate))
+        except ScenarioError:  # a broken scenario is reported when it is run, not here
+            continue
+    return sorted(rates)
+
+
+def _noise(x) -> np.ndarray:
+    from .identification import noise_std
+    return noise_std(x) if len(x) > 4 else np.zeros(np.shape(x)[1])
+
+
+def check_sample_rate(source, fs: float, h: float, model) -> None:
+    """Refuse a sample rate ``fs`` (Hz; sample interval ``h`` in the log's time unit) far from the
+    model's control rates: the time column is then not in seconds."""
+    rates = control_rates(model)
+    if not rates:
+        return
+    lo, hi = rates[0] / RATE_FACTOR, rates[-1] * RATE_FACTOR
+    if lo <= fs <= hi:
+        return
+    rate_text = (f"the control rate is {_num(rates[0])} Hz" if len(rates) == 1 else
+                 f"the control rates are {', '.join(_num(r) for r in rates)} Hz")
+    guess = next((u for u, f in _TIME_UNITS if lo <= fs / f <= hi), None)
+    what = f"looks like {guess}" if guess else "is not in seconds"
+    raise IdentificationError(
+        f"{source}: time column t {what}: sample interval {_num(h)} ({_num(fs)} Hz if in s), but {rate_text} "
+        f"(the model's scenarios' control_rate; the log's rate must be within {RATE_FACTOR:g}x of it): write t "
+        f"in seconds")
+
+
+def check_lengths(source, t, L, model) -> None:
+    """Refuse cylinder lengths outside the strokes (m) or that do not move (no excitation)."""
+    names = [c.name for c in model.cylinders]
+    lo, hi = model.leg_min, model.leg_max
+    sigma = _noise(L)
+    tol = STROKE_TOL * (hi - lo) + 6.0 * sigma
+    out = (L < lo - tol) | (L > hi + tol)
+    if out.any():
+        k, i = (int(v[0]) for v in np.nonzero(out))
+        hint = ""
+        if np.all((L / 1000.0 >= lo - tol) & (L / 1000.0 <= hi + tol)):
+            hint = "; the lengths look like mm: write them in m"
+        raise IdentificationError(
+            f"{source}: lengths outside the strokes: cylinder '{names[i]}' (column l{i}) at t = {_num(t[k])} s is "
+            f"{_num(L[k, i])} m, stroke [{_num(lo[i])}, {_num(hi[i])}] m ({int(out.sum())} sample(s) outside)"
+            f"{hint}")
+    span = np.ptp(L, axis=0)
+    floor = np.maximum(NOISE_RANGES * sigma, 1e-6 * (hi - lo))
+    if np.all(span <= floor):
+        i = int(np.argmax(span))
+        raise IdentificationError(
+            f"{source}: no excitation: the cylinder lengths do not move (range {_num(span[i])} m, the largest, "
+            f"cylinder '{names[i]}'; sensor noise {_num(sigma[i])} m): identification needs a log of the robot "
+            f"moving")
+
+
+def check_pressures(source, t, PC, model) -> None:
+    """Refuse chamber pressures that are all 0, not in Pa, or outside [0, P_s]."""
+    ps = model.supply_pressure
+    cols = [f"pc{i}" for i in range(PC.shape[1])]
+    peak = np.max(np.abs(PC), axis=0)
+    zero = [c for c, v in zip(cols, peak) if v == 0.0]
+    if len(zero) == len(cols):
+        raise IdentificationError(f"{source}: pressures are all 0 (columns {cols[0]}..{cols[-1]}): the log needs "
+                                  f"the measured control-chamber pressures, Pa")
+    if zero:
+        raise IdentificationError(f"{source}: pressure column(s) {', '.join(zero)} are all 0 (a sensor not "
+                                  f"recorded?): the log needs every measured control-chamber pressure, Pa")
+    tiny = peak < TINY_PRESSURE * ps
+    if tiny.any():
+        i = int(np.argmax(tiny))
+        fits = [(u, f) for u, f in _PRESSURE_UNITS if np.all(peak[tiny] * f <= ps[tiny] * (1 + PRESSURE_TOL))]
+        # the largest factor that keeps every pressure within P_s: a log's peak is a good share of P_s
+        guess = f"look like {fits[-1][0]}" if fits else "are not in Pa"
+        which = "pressures" if tiny.all() else f"pressure column(s) {', '.join(c for c, s in zip(cols, tiny) if s)}"
+        raise IdentificationError(
+            f"{source}: {which} {guess}: the largest magnitude in {cols[i]} is {_num(peak[i])}, "
+            f"{_num(peak[i] / ps[i])} of the supply pressure P_s = {_num(ps[i])} Pa: write them in Pa")
+    tol = PRESSURE_TOL * ps + 6.0 * _noise(PC)
+    out = (PC < -tol) | (PC > ps + tol)
+    if out.any():
+        k, i = (int(v[0]) for v in np.nonzero(out))
+        side = "below 0" if PC[k, i] < 0 else "above the supply pressure"
+        raise IdentificationError(
+            f"{source}: pressure column {cols[i]} at t = {_num(t[k])} s is {_num(PC[k, i])} Pa, {side} (the model's "
+            f"range [0, P_s] = [0, {_num(ps[i])}] Pa; {int(out.sum())} sample(s) outside): pressures must be "
+            f"absolute control-chamber pressures in Pa")
+
+
+def check_log(source, t, fs: float, h: float, L, PC, model) -> None:
+    """Every check of the module doc, in order: sample rate, lengths, excitation, pressures."""
+    check_sample_rate(source, fs, h, model)
+    check_lengths(source, t, L, model)
+    check_pressures(source, t, PC, model)
