@@ -17,6 +17,8 @@ from __future__ import annotations
 
 import hashlib
 import json
+import os
+import stat
 from dataclasses import dataclass, field
 from importlib import resources
 from pathlib import Path
@@ -40,12 +42,58 @@ INERTIAL_PARAMETERS = ("mass", "mcx", "mcy", "mcz", "Ixx", "Ixy", "Iyy", "Ixz", 
 #: Joint type -> number of coordinates. URDF's "continuous" is read as revolute.
 JOINT_TYPES = {"revolute": 1, "prismatic": 1, "fixed": 0, "floating": 6}
 FLOATING_COORDINATES = ("x", "y", "z", "psi", "theta", "phi")
-#: Cylinder constants: [hydraulics] gives defaults, each [[cylinders]] entry may override them.
-HYDRAULIC_KEYS = {
-    "piston_area": "positive", "rod_area": "positive", "chamber_length": "nonnegative",
-    "supply_pressure": "positive", "underlap": "nonnegative", "flow_gain": "positive",
-    "bulk_modulus": "positive", "orifice_linear_below": "positive", "stroke": None,
+
+
+@dataclass(frozen=True)
+class Quantity:
+    """A physical quantity of a description: its sign rule ("positive", "nonnegative" or None),
+    the plausible range [low, high] of every value (SI) and its unit."""
+
+    sign: str | None
+    low: float
+    high: float
+    unit: str
+
+
+#: The physical quantities a description gives, with plausible ranges (SI). Generous enough for any
+#: real hydraulic machine, from micro-actuators (sub-millimetre bores, milligram links) to 100-t
+#: excavators, presses and draglines; a value outside is a slip of unit or a typo (1e308 overflows the
+#: plant's arithmetic), refused with the range.
+QUANTITIES = {
+    # Pa: 1 bar (low-pressure water hydraulics) .. 1000 bar (above the 700 bar of the highest-pressure
+    # industrial tools)
+    "supply_pressure": Quantity("positive", 1e5, 1e8, "Pa"),
+    # Pa: oil full of entrained air (1e7) .. 5x the stiffest hydraulic fluids (water, oil: ~2e9)
+    "bulk_modulus": Quantity("positive", 1e7, 1e10, "Pa"),
+    # m^2: a 0.1 mm bore (8e-9) .. a 3.5 m press bore (10)
+    "piston_area": Quantity("positive", 1e-8, 10.0, "m^2"),
+    "rod_area": Quantity("positive", 1e-8, 10.0, "m^2"),
+    # m, pin to pin: 10 um (a micro-actuator) .. 100 m (longer than any telescopic cylinder's stroke)
+    "stroke": Quantity("positive", 1e-5, 100.0, "m"),
+    "chamber_length": Quantity("nonnegative", 0.0, 100.0, "m"),
+    # m of spool travel: 0 (critical centre) .. 1 cm (spools travel millimetres)
+    "underlap": Quantity("nonnegative", 0.0, 1e-2, "m"),
+    # c = c_d w sqrt(2/rho), q = c u sqrt(dp): a 10 um-wide micro-valve port (3e-7) .. a 30 m port periphery
+    "flow_gain": Quantity("positive", 1e-9, 1.0, "m^2/(s sqrt(Pa))"),
+    # Pa: the pressure drop below which the plant's orifice roots turn linear: up to the largest supply
+    "orifice_linear_below": Quantity("positive", 1.0, 1e8, "Pa"),
+    # m/s^2: 0 (a horizontal or orbital machine) .. 30 (above Jupiter's 24.8)
+    "gravity": Quantity("nonnegative", 0.0, 30.0, "m/s^2"),
+    # kg per link: 1 mg .. 1000 t (a dragline's boom)
+    "mass": Quantity("positive", 1e-6, 1e6, "kg"),
+    # kg m^2, a link's principal moments: a 1 mg link 1 um across (1e-18) .. 1000 t at 100 m (1e10)
+    "inertia": Quantity("positive", 1e-18, 1e10, "kg m^2"),
+    # m: joint origins, centres of mass and cylinder pins, in their frame: within 1 km
+    "position": Quantity(None, -1e3, 1e3, "m"),
+    # rad: a joint origin's roll, pitch and yaw: within two turns either way
+    "angle": Quantity(None, -4 * np.pi, 4 * np.pi, "rad"),
 }
+#: Cylinder constants (each a quantity above): [hydraulics] gives defaults, each [[cylinders]] entry may
+#: override them.
+HYDRAULIC_KEYS = ("piston_area", "rod_area", "chamber_length", "supply_pressure", "underlap", "flow_gain",
+                  "bulk_modulus", "orifice_linear_below", "stroke")
+#: Largest description file read (the TOML and the URDF it names), bytes: the shipped ones are a few kB.
+MAX_DESCRIPTION_BYTES = 16 * 1024 * 1024
 _MAX_QUOTE = 200  # characters of a bad value quoted in an error message
 
 
@@ -278,12 +326,17 @@ class _Reader:
         return self._check(where, np.array(value, float), constraint, value)
 
     def _check(self, where, arr, constraint, value):
+        """``constraint``: a sign rule ("positive", "nonnegative"), a quantity of QUANTITIES or None."""
+        quantity = QUANTITIES.get(constraint)
+        sign = quantity.sign if quantity is not None else constraint
         if not np.all(np.isfinite(arr)):
             raise self.error(where, f"must be finite, got {_quote(value)}")
-        if constraint == "positive" and not np.all(arr > 0):
+        if sign == "positive" and not np.all(arr > 0):
             raise self.error(where, f"must be > 0, got {_quote(value)}")
-        if constraint == "nonnegative" and not np.all(arr >= 0):
+        if sign == "nonnegative" and not np.all(arr >= 0):
             raise self.error(where, f"must be >= 0, got {_quote(value)}")
+        if quantity is not None:
+            _in_range(self, where, arr, quantity)
         return arr
 
     def name(self, where, value) -> str:
@@ -318,6 +371,13 @@ class _Reader:
         return data[key]
 
 
+def _in_range(r: _Reader, where, arr, q: Quantity):
+    outside = np.asarray(arr, float)[(arr < q.low) | (arr > q.high)]
+    if outside.size:
+        raise r.error(where, f"{outside[0]:.6g} {q.unit} is outside the plausible range [{q.low:.6g}, "
+                             f"{q.high:.6g}] {q.unit} of any hydraulic machine (hydrogen.model.QUANTITIES)")
+
+
 def check_model_name(source: str, value) -> str:
     """A model name becomes C symbols and file names (:func:`hydrogen.names.check_identifier`)."""
     from .names import check_identifier
@@ -342,6 +402,7 @@ def _positive_inertia(r: _Reader, where, I) -> np.ndarray:
     # the triangle inequality of a physical body's principal moments
     if eig[0] + eig[1] < eig[2] * (1 - 1e-9):
         raise r.error(where, f"principal moments {eig.tolist()} violate I1 + I2 >= I3 (no rigid body has them)")
+    _in_range(r, f"{where} (principal moments)", eig, QUANTITIES["inertia"])
     return I
 
 
@@ -357,8 +418,8 @@ def _tree_from_toml(r: _Reader, data: dict):
         name = r.name(f"{w} name", r.require(lk, "name", w))
         w = f"[[links]] '{name}'"
         r.known(lk, {"name", "mass", "com", "inertia"}, w)
-        mass = r.number(f"{w} mass", r.require(lk, "mass", w), "positive")
-        com = r.vector(f"{w} com", lk.get("com", [0.0, 0.0, 0.0]), 3)
+        mass = r.number(f"{w} mass", r.require(lk, "mass", w), "mass")
+        com = r.vector(f"{w} com", lk.get("com", [0.0, 0.0, 0.0]), 3, "position")
         inertia = _inertia_matrix(r, f"{w} inertia", r.require(lk, "inertia", w))
         links.append(Link(name, mass, com, inertia))
     raw_joints = data.get("joints")
@@ -374,8 +435,8 @@ def _tree_from_toml(r: _Reader, data: dict):
         jtype = _joint_type(r, w, r.require(jt, "type", w))
         joints.append(Joint(name, jtype, r.name(f"{w} parent", r.require(jt, "parent", w)),
                             r.name(f"{w} child", r.require(jt, "child", w)),
-                            r.vector(f"{w} origin_xyz", jt.get("origin_xyz", [0.0, 0.0, 0.0]), 3),
-                            r.vector(f"{w} origin_rpy", jt.get("origin_rpy", [0.0, 0.0, 0.0]), 3),
+                            r.vector(f"{w} origin_xyz", jt.get("origin_xyz", [0.0, 0.0, 0.0]), 3, "position"),
+                            r.vector(f"{w} origin_rpy", jt.get("origin_rpy", [0.0, 0.0, 0.0]), 3, "angle"),
                             _axis(r, f"{w} axis", jt.get("axis", [0.0, 0.0, 1.0]))))
     return links, joints
 
@@ -391,32 +452,48 @@ def _joint_type(r: _Reader, where, value) -> str:
 
 def _axis(r: _Reader, where, value) -> np.ndarray:
     a = r.vector(where, list(map(float, value)) if isinstance(value, (list, np.ndarray)) else value, 3)
-    norm = np.linalg.norm(a)
-    if not norm > 0:
+    if not np.any(a != 0):
         raise r.error(where, "the joint axis must not be zero")
-    return a / norm
+    a = a / np.max(np.abs(a))  # first, so the norm of huge components does not overflow
+    return a / np.linalg.norm(a)
 
 
-def _tree_from_urdf(r: _Reader, path: Path):
-    """Links and joints of a URDF file, read with yourdfpy (a maintained URDF parser; its dataclasses
-    give origins as 4×4 transforms and inertias as 3×3 tensors, without loading meshes)."""
+#: The numbers of a URDF that hydrogen reads, checked (with the element named) before yourdfpy reads
+#: them: element -> {path below it: {attribute: (count, quantity of QUANTITIES or None)}}; the
+#: ``limit`` and ``dynamics`` numbers, which yourdfpy parses but hydrogen does not use, only as numbers.
+_URDF_NUMBERS = {
+    "link": {"inertial/origin": {"xyz": (3, "position"), "rpy": (3, "angle")},
+             "inertial/mass": {"value": (1, "mass")},
+             "inertial/inertia": {k: (1, None) for k in ("ixx", "ixy", "ixz", "iyy", "iyz", "izz")}},
+    "joint": {"origin": {"xyz": (3, "position"), "rpy": (3, "angle")}, "axis": {"xyz": (3, None)},
+              "limit": {k: (1, "any") for k in ("lower", "upper", "effort", "velocity")},
+              "dynamics": {k: (1, "any") for k in ("damping", "friction")}},
+}
+
+
+def _tree_from_urdf(path: Path, data: bytes):
+    """Links and joints of URDF file ``path`` (its bytes ``data``), read with yourdfpy (a maintained
+    URDF parser; its dataclasses give inertial origins as 4×4 transforms and inertias as 3×3 tensors,
+    without loading meshes) after lxml has parsed it strictly (yourdfpy would recover from broken
+    XML) and checked what yourdfpy would fail on or accept unnamed. Joint origins are the file's
+    numbers (a rotation matrix would round the rpy)."""
     from lxml import etree
     try:
-        etree.parse(str(path), etree.XMLParser(remove_blank_text=True))  # strict: yourdfpy would recover
-    except OSError as exc:
-        raise ModelError(f"{path}: cannot read URDF file ({exc})") from None
+        root = etree.fromstring(data, etree.XMLParser(remove_blank_text=True))
     except etree.XMLSyntaxError as exc:
         raise ModelError(f"{path}: URDF does not parse: {exc}") from None
+    ur = _Reader(str(path))
+    numbers = _check_urdf(ur, root)
+    import io
     import logging
 
     import yourdfpy
     logging.getLogger("yourdfpy").setLevel(logging.CRITICAL)  # its warnings are about meshes we do not load
     try:
-        robot = yourdfpy.URDF.load(str(path), build_scene_graph=False, load_meshes=False,
+        robot = yourdfpy.URDF.load(io.BytesIO(data), build_scene_graph=False, load_meshes=False,
                                    build_collision_scene_graph=False, load_collision_meshes=False).robot
     except Exception as exc:  # noqa: BLE001 - any parser failure is a bad description
         raise ModelError(f"{path}: URDF does not parse: {exc}") from None
-    ur = _Reader(str(path))
     links = []
     children = {j.child for j in robot.joints}
     for lk in robot.links:
@@ -426,24 +503,93 @@ def _tree_from_urdf(r: _Reader, path: Path):
                 raise ur.error(w, "a moving link needs an <inertial> with a mass")
             continue  # the root may be massless: it is the fixed base
         T = np.asarray(lk.inertial.origin if lk.inertial.origin is not None else np.eye(4), float)
-        mass = ur.number(f"{w} mass", float(lk.inertial.mass), "positive")
+        mass = numbers["link", lk.name]["inertial/mass", "value"]
         I = T[:3, :3] @ np.asarray(lk.inertial.inertia, float) @ T[:3, :3].T
         links.append(Link(lk.name, mass, T[:3, 3].copy(), _positive_inertia(ur, f"{w} inertia", I)))
     joints = []
     for jt in robot.joints:
         w = f"joint '{jt.name}'"
         jtype = _joint_type(ur, w, jt.type)
-        T = np.asarray(jt.origin if jt.origin is not None else np.eye(4), float)
+        given = numbers["joint", jt.name]
         axis = jt.axis if jt.axis is not None else [1.0, 0.0, 0.0]
-        joints.append(Joint(jt.name, jtype, jt.parent, jt.child, T[:3, 3].copy(), _rpy_of(T[:3, :3]),
-                            _axis(ur, f"{w} axis", list(np.asarray(axis, float)))))
+        joints.append(Joint(jt.name, jtype, jt.parent, jt.child, given.get(("origin", "xyz"), np.zeros(3)),
+                            given.get(("origin", "rpy"), np.zeros(3)),
+                            _axis(ur, f"{w} <axis xyz>", list(np.asarray(axis, float)))))
     return links, joints
 
 
-def _rpy_of(R) -> np.ndarray:
-    """Roll, pitch, yaw with R = Rz(y) Ry(p) Rx(r) (URDF's convention)."""
-    p = np.arcsin(-np.clip(R[2, 0], -1, 1))
-    return np.array([np.arctan2(R[2, 1], R[2, 2]), p, np.arctan2(R[1, 0], R[0, 0])])
+def _check_urdf(ur: _Reader, root) -> dict:
+    """Check a parsed URDF's structure and numbers; every error names the element. Returns the
+    numbers of _URDF_NUMBERS given: (element, name) -> {(path, attribute): value}."""
+    if root.tag != "robot":
+        raise ur.error("root element", f"<{root.tag}> is not <robot name=\"...\">: this is not a URDF file")
+    if not root.get("name"):
+        raise ur.error("root element <robot>", "lacks the attribute 'name'")
+    names = {"link": [], "joint": []}
+    numbers = {}
+    for kind in names:
+        for i, el in enumerate(root.findall(kind)):
+            name = el.get("name")
+            if not name:
+                raise ur.error(f"<{kind}> #{i + 1}", "lacks the attribute 'name'")
+            if name in names[kind]:
+                raise ur.error(f"{kind} '{name}'", f"is defined twice ({kind} names must be distinct)")
+            names[kind].append(name)
+            numbers[kind, name] = _urdf_numbers(ur, f"{kind} '{name}'", el, _URDF_NUMBERS[kind])
+    links = names["link"]
+    for el in root.findall("link"):
+        inertial = el.find("inertial")
+        if inertial is None:
+            continue
+        w = f"link '{el.get('name')}' <inertial>"
+        mass, inertia = inertial.find("mass"), inertial.find("inertia")
+        if mass is not None and mass.get("value") is None:
+            raise ur.error(w, "its <mass> lacks the attribute 'value'")
+        if inertia is None:
+            raise ur.error(w, "lacks <inertia ixx=... ixy=... ixz=... iyy=... iyz=... izz=...>")
+        absent = [k for k in _URDF_NUMBERS["link"]["inertial/inertia"] if inertia.get(k) is None]
+        if absent:  # yourdfpy would take 1 or 0 for them
+            raise ur.error(w, f"its <inertia> lacks the attribute(s) {', '.join(absent)} (URDF requires all six)")
+    for el in root.findall("joint"):
+        w = f"joint '{el.get('name')}'"
+        if not el.get("type"):
+            raise ur.error(w, "lacks the attribute 'type'")
+        for end in ("parent", "child"):
+            e = el.find(end)
+            if e is None or not e.get("link"):
+                raise ur.error(w, f"lacks <{end} link=\"...\">")
+            if e.get("link") not in links:
+                raise ur.error(w, f"names {end} link '{e.get('link')}' that is not defined "
+                                  f"(links: {', '.join(links)})")
+        mimic = el.find("mimic")
+        if mimic is not None:
+            raise ur.error(w, f"mimics joint '{mimic.get('joint')}' (<mimic>): mimic joints are not supported "
+                              "(their coordinate would be taken as independent); make the joint fixed, or remove "
+                              "the <mimic> element to give it a coordinate and a cylinder of its own")
+    return numbers
+
+
+def _urdf_numbers(ur: _Reader, where, element, spec) -> dict:
+    out = {}
+    for sub, attributes in spec.items():
+        e = element.find(sub)
+        if e is None:
+            continue
+        for attr, (count, quantity) in attributes.items():
+            text = e.get(attr)
+            if text is None:
+                continue
+            w = f"{where} <{'><'.join(sub.split('/'))} {attr}>"
+            try:
+                values = [float(x) for x in text.split()]
+            except ValueError:
+                values = None
+            if values is None or len(values) != count:
+                raise ur.error(w, f"expected {'a number' if count == 1 else f'{count} numbers'}, got {_quote(text)}")
+            if quantity != "any":
+                values = ur.vector(w, values, count, quantity)
+            out[sub, attr] = values[0] if count == 1 else np.asarray(values, float)
+    return out
 
 
 def _order_tree(r: _Reader, links, joints, where):
@@ -459,6 +605,11 @@ def _order_tree(r: _Reader, links, joints, where):
     for n in names:
         if names.count(n) > 1:
             raise r.error(where, f"link '{n}' is defined twice")
+    joint_names = set()
+    for j in joints:
+        if j.name in joint_names:
+            raise r.error(where, f"joint '{j.name}' is defined twice (joint names must be distinct)")
+        joint_names.add(j.name)
     seen_children = {}
     for j in joints:
         if j.child in seen_children:
@@ -472,7 +623,10 @@ def _order_tree(r: _Reader, links, joints, where):
     if len(roots) != 1:
         if not roots:
             raise r.error(where, "the joints form a loop: every link has a parent joint, so there is no fixed root")
-        raise r.error(where, f"the tree has several roots {roots}: every link but one must hang from a joint")
+        parent_of = "; ".join(f"'{rt}' is the parent of joint(s) {[j.name for j in joints if j.parent == rt]}"
+                              for rt in roots)
+        raise r.error(where, f"the tree has several roots {roots}: every link but one must hang from a joint "
+                             f"({parent_of}: a misspelt parent?)")
     root = roots[0]
     link_names = set(names) | {root}
     for j in joints:
@@ -498,7 +652,9 @@ def _order_tree(r: _Reader, links, joints, where):
     return root, tuple(ordered), tuple(moving)
 
 
-def _cylinders(r: _Reader, data: dict, link_names: set):
+def _cylinders(r: _Reader, data: dict, link_names: set, root_note: str = ""):
+    """The [[cylinders]]; ``root_note`` follows the list of links when a cylinder names a link the tree
+    lacks (where the root comes from, when a misspelt parent may have made it)."""
     defaults = r.table(data, "hydraulics", required=False)
     r.known(defaults, set(HYDRAULIC_KEYS), "[hydraulics]")
     raw = data.get("cylinders")
@@ -524,19 +680,20 @@ def _cylinders(r: _Reader, data: dict, link_names: set):
             r.known(e, {"link", "point"}, we)
             link = r.name(f"{we}.link", r.require(e, "link", we))
             if link not in link_names:
-                raise r.error(f"{we}.link", f"link '{link}' is not in the tree (links: {', '.join(sorted(link_names))})")
-            ends.append((link, r.vector(f"{we}.point", r.require(e, "point", we), 3)))
+                raise r.error(f"{we}.link", f"link '{link}' is not in the tree (links: "
+                                            f"{', '.join(sorted(link_names))}{root_note})")
+            ends.append((link, r.vector(f"{we}.point", r.require(e, "point", we), 3, "position")))
         if ends[0][0] == ends[1][0]:
             raise r.error(w, f"both ends are on link '{ends[0][0]}': a cylinder must join two links")
         vals = {}
-        for key, constraint in HYDRAULIC_KEYS.items():
+        for key in HYDRAULIC_KEYS:
             if key in cy:
                 value, wk = cy[key], f"{w} {key}"
             elif key in defaults:
                 value, wk = defaults[key], f"[hydraulics] {key}"
             else:
                 raise r.error(w, f"missing key '{key}' (give it here or in [hydraulics])")
-            vals[key] = r.vector(wk, value, 2, "positive") if key == "stroke" else r.number(wk, value, constraint)
+            vals[key] = r.vector(wk, value, 2, key) if key == "stroke" else r.number(wk, value, key)
         smin, smax = vals.pop("stroke")
         if smin >= smax:
             raise r.error(f"{w} stroke", f"must be [shortest, longest] with shortest < longest, got {[smin, smax]}")
@@ -557,16 +714,18 @@ def model_from_dict(data: dict, source: str = "<memory>", base_dir: Path | None 
            "adaptation", "sensors", "control", "figures", "gains", "rig", "scenarios"}
     r.known(data, top, "top level")
     name = check_model_name(source, r.require(data, "name", "top level"))
-    gravity = r.number("gravity", r.require(data, "gravity", "top level"), "nonnegative")
+    gravity = r.number("gravity", r.require(data, "gravity", "top level"), "gravity")
     urdf = None
     if "urdf" in data:
         if "links" in data or "joints" in data:
             raise r.error("urdf", "give the tree either as a URDF file or as [[links]]/[[joints]], not both")
         rel = r.name("urdf", data["urdf"])
         urdf = (Path(base_dir) if base_dir else Path.cwd()) / rel
-        if not urdf.is_file():
-            raise r.error("urdf", f"URDF file not found: {urdf}")
-        links, joints = _tree_from_urdf(r, urdf)
+        try:
+            text = read_description(urdf, "URDF")
+        except ModelError as exc:
+            raise r.error("urdf", str(exc)) from None
+        links, joints = _tree_from_urdf(urdf, text)
     else:
         links, joints = _tree_from_toml(r, data)
     root, joints, links = _order_tree(r, links, joints, "tree" if urdf is None else f"URDF {urdf}")
@@ -588,7 +747,10 @@ def model_from_dict(data: dict, source: str = "<memory>", base_dir: Path | None 
     for c in names:
         r.label("[coordinates] names" if "names" in coords else f"coordinate {c!r} (from its joint's name)", c)
     neutral = r.vector("[coordinates] neutral", r.require(coords, "neutral", "[coordinates]"), n)
-    cylinders = _cylinders(r, data, link_names)
+    # a TOML tree's root is named only as a parent: a misspelt one shows as a cylinder's unknown link
+    root_note = "" if urdf is not None else \
+        f"; the root '{root}' is the parent named by joint(s) {[j.name for j in joints if j.parent == root]}"
+    cylinders = _cylinders(r, data, link_names, root_note)
     if len(cylinders) != n:
         raise r.error("[[cylinders]]", f"{len(cylinders)} cylinders for {n} coordinates: the method needs one "
                                        "cylinder per coordinate (a square JL)")
@@ -630,14 +792,49 @@ def model_from_dict(data: dict, source: str = "<memory>", base_dir: Path | None 
     for sname in scen:  # written into exported Makefiles, headers and FMUs
         from .names import check_label
         check_label(sname, f"{source}: [scenarios.{sname}]")
+    if "rig" in scen:
+        raise r.error("[scenarios.rig]", "'rig' is the name of the shared [rig] table: give the scenario another name")
     rig = r.table(data, "rig", required=False)
     model = Model(name=name, gravity=gravity, root=root, links=links, joints=joints, cylinders=cylinders,
                   coordinate_names=tuple(names), neutral_pose=neutral, theta_names=tuple(params),
                   theta_min=tmin, theta_max=tmax, joint_encoders=enc, scale=scale, figures_nonlinear=nonlinear, gains=gains,
                   scenarios={"rig": rig, **scen}, source=source, urdf=urdf, raw=data, **gb)
+    _check_tables(r, model)
     _check_bounds(r, model)
     _check_neutral(r, model)
     return model
+
+
+def _check_tables(r: _Reader, m: Model):
+    """Every gain and scenario table and key known, at load time (they are read only when a run
+    starts); the known ones come from their definitions: the controllers' gains, the Scenario fields."""
+    from .simulation.control import COMMON_GAINS, CONTROLLERS, gain_names
+    from .simulation.scenarios import table_keys
+    names = {c: gain_names(c, m) for c in CONTROLLERS}
+    _check_gains(r, m.gains, "[gains]", {**names, COMMON_GAINS: frozenset().union(*names.values())})
+    r.known(m.scenarios["rig"], table_keys(rig=True), "[rig]")
+    for name, table in m.scenarios.items():
+        if name == "rig":
+            continue
+        w = f"[scenarios.{name}]"
+        if not isinstance(table, dict):
+            raise r.error(w, f"expected a table, got {_quote(table)}")
+        r.known(table, table_keys(), w)
+        gains = table.get("gains", {})
+        if not isinstance(gains, dict):
+            raise r.error(f"{w} gains", f"expected a table of controllers, got {_quote(gains)}")
+        _check_gains(r, gains, f"{w} gains", names)
+
+
+def _check_gains(r: _Reader, gains: dict, where: str, names: dict):
+    """``gains``: controller table -> {gain: value}; ``names``: table -> its known gains."""
+    for table, values in gains.items():
+        if table not in names:
+            raise r.error(where, f"unknown controller table '{table}' (known: {', '.join(sorted(names))})")
+        w = f"[gains.{table}]" if where == "[gains]" else f"{where}.{table}"
+        if not isinstance(values, dict):
+            raise r.error(w, f"expected a table of gains, got {_quote(values)}")
+        r.known(values, names[table], w)
 
 
 def _check_bounds(r: _Reader, m: Model):
@@ -670,14 +867,60 @@ def _check_neutral(r: _Reader, m: Model):
                                        "the cylinders cannot move every coordinate (check the pin points)")
 
 
+def read_description(path: Path, what: str) -> bytes:
+    """The bytes of description file ``path`` (``what``: "model", "URDF"): a regular file of at most
+    MAX_DESCRIPTION_BYTES, else a ModelError naming the path and why (a FIFO would block the read, a
+    device never end)."""
+    def refuse(why):
+        return ModelError(f"{path}: {why}")
+
+    def check(st):
+        if stat.S_ISDIR(st.st_mode):
+            raise refuse(f"is a folder, not a {what} file")
+        if not stat.S_ISREG(st.st_mode):
+            raise refuse(f"is not a regular file ({_file_kind(st.st_mode)}), not a {what} file")
+        if st.st_size > MAX_DESCRIPTION_BYTES:
+            raise refuse(f"is {st.st_size} bytes, larger than the {MAX_DESCRIPTION_BYTES} bytes a {what} "
+                         "file may have (hydrogen.model.MAX_DESCRIPTION_BYTES)")
+
+    try:
+        check(os.stat(path))  # before opening: opening a FIFO waits for a writer, a device may act
+        # O_NONBLOCK: should it have become a FIFO since, the open returns at once and fstat refuses it
+        fd = os.open(path, os.O_RDONLY | getattr(os, "O_NONBLOCK", 0))
+    except FileNotFoundError:
+        raise ModelError(f"{path}: {what} file not found") from None
+    except OSError as exc:
+        raise ModelError(f"{path}: cannot read {what} file: {exc.strerror or exc}") from None
+    with os.fdopen(fd, "rb") as fh:
+        check(os.fstat(fd))
+        try:
+            data = fh.read(MAX_DESCRIPTION_BYTES + 1)  # it may have grown since the check
+        except OSError as exc:
+            raise ModelError(f"{path}: cannot read {what} file: {exc.strerror or exc}") from None
+    if len(data) > MAX_DESCRIPTION_BYTES:
+        raise refuse(f"is larger than the {MAX_DESCRIPTION_BYTES} bytes a {what} file may have "
+                     "(hydrogen.model.MAX_DESCRIPTION_BYTES)")
+    return data
+
+
+def _file_kind(mode) -> str:
+    for test, kind in ((stat.S_ISFIFO, "a FIFO"), (stat.S_ISCHR, "a character device"),
+                       (stat.S_ISBLK, "a block device"), (stat.S_ISSOCK, "a socket")):
+        if test(mode):
+            return kind
+    return "not a plain file"
+
+
 def load_model(path: str | Path | None = None) -> Model:
     """Load a model: a built-in name (``hydrogen.models()``), a TOML file, or the default when None.
 
     Raises
     ------
     ModelError
-        The file is missing, is not valid TOML, or a key is missing, of the wrong type, or out
-        of range; the message names the file and the key, link, joint or cylinder.
+        The file (or the URDF it names) is missing, not a regular file or larger than
+        MAX_DESCRIPTION_BYTES, is not valid TOML (URDF), or a key, table or element is unknown,
+        missing, of the wrong type, or out of range (QUANTITIES); the message names the file and
+        the key, link, joint or cylinder.
     """
     if isinstance(path, Model):
         return path
@@ -685,11 +928,11 @@ def load_model(path: str | Path | None = None) -> Model:
         raise ModelError(f"model must be a built-in name ({', '.join(models())}), a path or a Model, "
                          f"got {type(path).__name__} {_quote(path)}")
     path = default_model_path() if path is None else model_path(path)
+    if not os.path.lexists(path):
+        raise ModelError(f"{path}: model file not found (built-in models: {', '.join(models())})")
     try:
-        text = path.read_bytes().decode("utf-8")
-    except FileNotFoundError:
-        raise ModelError(f"{path}: model file not found (built-in models: {', '.join(models())})") from None
-    except (OSError, UnicodeDecodeError) as exc:
+        text = read_description(path, "model").decode("utf-8")
+    except UnicodeDecodeError as exc:
         raise ModelError(f"{path}: cannot read model file: {exc}") from None
     try:
         data = tomllib.loads(text)

@@ -616,3 +616,50 @@ def test_a_broken_executor_is_a_worker_error():
 
     with pytest.raises(hydrogen.WorkerError, match="could not start the worker processes"):
         hydrogen.sweep([{}], executor=Refusing())
+
+
+# description files: regular files only, of bounded size ----------------------------------------------
+def _special_files(tmp_path):
+    """A FIFO (opening it for reading would wait for a writer), a device that never ends, a sparse
+    file above the size limit (no disk used) and a folder, each with what the refusal says."""
+    from hydrogen.model import MAX_DESCRIPTION_BYTES
+    fifo = tmp_path / "fifo.toml"
+    os.mkfifo(fifo)
+    big = tmp_path / "big.toml"
+    with open(big, "wb") as fh:
+        fh.truncate(MAX_DESCRIPTION_BYTES + 1)
+    return [(fifo, "is not a regular file (a FIFO)"), (Path("/dev/zero"), "is not a regular file (a character device)"),
+            (big, f"is {MAX_DESCRIPTION_BYTES + 1} bytes, larger than the {MAX_DESCRIPTION_BYTES} bytes"),
+            (tmp_path, "is a folder, not a model file")]
+
+
+def test_a_model_that_is_not_a_regular_file_is_refused_on_the_cli(tmp_path):
+    env = {**os.environ, "PYTHONPATH": str(Path(hydrogen.__file__).parents[1]),
+           "HYDROGEN_CACHE_DIR": str(tmp_path / "cache")}
+    for path, why in _special_files(tmp_path):
+        proc = subprocess.Popen([sys.executable, "-m", "hydrogen", "simulate", "--model", str(path)],
+                                stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, env=env)
+        try:
+            out, _ = proc.communicate(timeout=60)  # a FIFO read would block: a regression fails, not hangs
+        finally:
+            proc.kill()
+        assert proc.returncode == 2, out
+        assert f"{path}: {why}" in out and "Traceback" not in out, out
+
+
+def test_a_urdf_that_is_not_a_regular_file_is_refused(tmp_path):
+    toml = hydrogen.model.model_path("excavator_arm").read_text()
+    model = tmp_path / "arm.toml"
+    for path, why in _special_files(tmp_path):
+        if path == tmp_path:
+            why = "is a folder, not a URDF file"
+        model.write_text(toml.replace('urdf = "excavator_arm.urdf"', f'urdf = "{path}"'))
+        with ThreadPoolExecutor(1) as pool:  # a blocked open would fail the wait, not hang the test
+            future = pool.submit(load_model, model)
+            try:
+                with pytest.raises(ModelError) as err:
+                    future.result(timeout=30)
+            finally:
+                if not future.done():  # unblock the reader: open the FIFO's writing end
+                    os.close(os.open(path, os.O_WRONLY | os.O_NONBLOCK))
+        assert str(err.value).startswith(f"{model}: urdf: {path}: {why}"), str(err.value)

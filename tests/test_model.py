@@ -73,6 +73,44 @@ def _write_variant(tmp_path, old, new, source=None):
     ('[[cylinders]]\nname = "leg6"', '[[cylinders_unused]]\nname = "leg6"', ["cylinders_unused"]),
     ('parent = "base"', 'parent = "platform"', ["platform_pose", "itself"]),
     ('parameters = ["platform.mass",', 'parameters = ["platform.weight",', ["platform.weight"]),
+    # physical quantities outside the plausible range of any hydraulic machine (QUANTITIES)
+    ("supply_pressure = 10.34e6", "supply_pressure = 1e308",
+     ["[hydraulics] supply_pressure", "1e+308 Pa", "[100000, 1e+08] Pa"]),
+    ("supply_pressure = 10.34e6", "supply_pressure = 10.34e3", ["supply_pressure", "10340 Pa", "plausible range"]),
+    ("bulk_modulus = 700e6", "bulk_modulus = 7e12", ["[hydraulics] bulk_modulus", "[1e+07, 1e+10] Pa"]),
+    ("piston_area = 1.14e-3", "piston_area = 1140.0", ["piston_area", "1140 m^2", "plausible range"]),
+    ("rod_area = 6.33e-4", "rod_area = 1e-12", ["rod_area", "plausible range"]),
+    ("chamber_length = 1.37", "chamber_length = 1370.0", ["chamber_length", "[0, 100] m"]),
+    ("stroke = [1.55, 2.15]", "stroke = [1.55, 2150.0]", ["[hydraulics] stroke", "2150 m", "[1e-05, 100] m"]),
+    ("underlap = 55.4e-6", "underlap = 0.5", ["underlap", "0.5 m", "plausible range"]),
+    ("flow_gain = 1.5e-4", "flow_gain = 15.0", ["flow_gain", "plausible range"]),
+    ("orifice_linear_below = 5.0e4", "orifice_linear_below = 5e9", ["orifice_linear_below", "plausible range"]),
+    ("gravity = 9.81", "gravity = 98.1", ["gravity", "98.1 m/s^2", "[0, 30] m/s^2"]),
+    ("mass = 250.0", "mass = 2.5e9", ["[[links]] 'platform' mass", "2.5e+09 kg", "plausible range"]),
+    ("inertia = [45.0, 45.0, 43.0]", "inertia = [45e12, 45e12, 43e12]",
+     ["[[links]] 'platform' inertia", "kg m^2", "plausible range"]),
+    ("com = [0.0, 0.0, 0.0]", "com = [0.0, 0.0, 1e6]", ["[[links]] 'platform' com", "1e+06 m", "plausible range"]),
+    ("point = [0.978148, -0.207912, -0.45]", "point = [0.978148, -0.207912, -4.5e5]",
+     ["[[cylinders]] 'leg1' from.point", "plausible range"]),
+    # a typo in a gain or scenario table, refused at load time with the known keys
+    ("Kleg = 0.014142135623730952", "Kleg = 0.014142135623730952\nKlegg = 1.0",
+     ["[gains.p]", "unknown key 'Klegg'", "known: Kleg, u_max"]),
+    ("[gains.p]", "[gains.pp]", ["[gains]", "unknown controller table 'pp'", "adaptive-robust", "common"]),
+    ("Ktau = 75.0", "Ktau = 75.0\nKtua = 1.0", ["[gains.backstepping]", "'Ktua'", "Ktau"]),
+    ('reference.step = { coordinate = "z"', 'duraton = 3.0\nreference.step = { coordinate = "z"',
+     ["[scenarios.z-step]", "unknown key 'duraton'", "duration", "reference"]),
+    ("[rig]\nduration = 6.0", "[rig]\nduration = 6.0\nnoise_z = 1.0", ["[rig]", "'noise_z'", "noise_p"]),
+    ("[rig]\nduration = 6.0", "[rig]\nduration = 6.0\nlabel = 'rig'", ["[rig]", "unknown key 'label'"]),
+    ("gains.backstepping = { Lambda = 30.0,", "gains.backstepping = { Lamda = 30.0,",
+     ["[scenarios.paper-sim] gains.backstepping", "'Lamda'", "Lambda"]),
+    ("gains.backstepping = { Lambda = 30.0,", "gains.common = { Lambda = 30.0,",
+     ["[scenarios.paper-sim] gains", "unknown controller table 'common'", "backstepping"]),
+    ("gains.backstepping = { Lambda = 30.0,", "gains.backsteping = { Lambda = 30.0,",
+     ["[scenarios.paper-sim] gains", "'backsteping'"]),
+    ("[scenarios.z-step]", "[scenarios.rig]", ["[scenarios.rig]", "another name"]),
+    # a misspelt parent makes a second root, or (the first joint's) a root of another name
+    ('parent = "base"', 'parent = "bas"', ["'leg1' from.link", "'base' is not in the tree", "the root 'bas'",
+                                           "platform_pose"]),
 ])
 def test_bad_model_files_name_file_and_key(tmp_path, old, new, words):
     path = _write_variant(tmp_path, old, new)
@@ -177,3 +215,124 @@ def test_figures_nonlinear_controller_is_the_descriptions(tmp_path):
     path.write_text(text + '\n[figures]\ncontroller = "adaptive-observer"\n')
     with pytest.raises(hydrogen.ModelError, match=r"\[figures\]"):
         hydrogen.load_model(path)
+
+
+def test_a_duplicate_joint_name_is_named(tmp_path):
+    path = _write_variant(tmp_path, "[coordinates]",
+                          '[[links]]\nname = "tool"\nmass = 1.0\ninertia = [1.0, 1.0, 1.0]\n\n'
+                          '[[joints]]\nname = "platform_pose"\ntype = "fixed"\nparent = "platform"\nchild = "tool"\n\n'
+                          "[coordinates]")
+    with pytest.raises(hydrogen.ModelError, match=r"joint 'platform_pose' is defined twice") as err:
+        hydrogen.load_model(path)
+    assert str(path) in str(err.value)
+
+
+def test_a_second_root_names_the_joints_hanging_from_each(tmp_path):
+    path = _write_variant(tmp_path, "[coordinates]",
+                          '[[links]]\nname = "tool"\nmass = 1.0\ninertia = [1.0, 1.0, 1.0]\n\n'
+                          '[[joints]]\nname = "tool_mount"\ntype = "fixed"\nparent = "platfrom"\nchild = "tool"\n\n'
+                          "[coordinates]")
+    with pytest.raises(hydrogen.ModelError, match=r"several roots \['base', 'platfrom'\]") as err:
+        hydrogen.load_model(path)
+    assert "'platfrom' is the parent of joint(s) ['tool_mount']" in str(err.value)
+
+
+# --- URDF ---------------------------------------------------------------------------------------
+
+
+def _arm_variant(tmp_path, old=None, new=None, urdf_text=None):
+    """The excavator arm with its URDF edited (``old`` -> ``new``) or replaced by ``urdf_text``."""
+    toml = hydrogen.model.model_path("excavator_arm")
+    urdf = toml.parent / "excavator_arm.urdf"
+    if urdf_text is None:
+        urdf_text = urdf.read_text()
+        assert old in urdf_text, old
+        urdf_text = urdf_text.replace(old, new, 1)
+    (tmp_path / "arm.urdf").write_text(urdf_text)
+    path = tmp_path / "arm.toml"
+    path.write_text(toml.read_text().replace('urdf = "excavator_arm.urdf"', 'urdf = "arm.urdf"'))
+    return path
+
+
+_BUCKET_ORIGIN = '<origin xyz="2.90 0 0" rpy="0 0 0"/>'
+
+
+@pytest.mark.parametrize("old,new,words", [
+    ('<axis xyz="0 -1 0"/>\n    <limit lower="-1.885"',
+     '<axis xyz="0 -1 0"/>\n    <mimic joint="stick_joint" multiplier="1.0"/>\n    <limit lower="-1.885"',
+     ["joint 'bucket_joint'", "mimics joint 'stick_joint'", "mimic joints are not supported", "fixed", "remove"]),
+    ('<joint name="bucket_joint"', '<joint name="stick_joint"', ["joint 'stick_joint'", "defined twice"]),
+    ('<link name="bucket">', '<link name="stick">', ["link 'stick'", "defined twice"]),
+    (_BUCKET_ORIGIN, '<origin xyz="nan 0 0" rpy="0 0 0"/>', ["joint 'bucket_joint' <origin xyz>", "finite"]),
+    (_BUCKET_ORIGIN, '<origin xyz="2.90 0 0" rpy="0 nan 0"/>', ["joint 'bucket_joint' <origin rpy>", "finite"]),
+    (_BUCKET_ORIGIN, '<origin xyz="2.90 0" rpy="0 0 0"/>', ["joint 'bucket_joint' <origin xyz>", "3 numbers"]),
+    (_BUCKET_ORIGIN, '<origin xyz="2.90e6 0 0" rpy="0 0 0"/>', ["joint 'bucket_joint' <origin xyz>",
+                                                               "plausible range"]),
+    ('<mass value="950.0"/>', '<mass value="heavy"/>', ["link 'stick' <inertial><mass value>", "'heavy'"]),
+    ('<mass value="950.0"/>', '<mass value="9.5e9"/>', ["link 'stick' <inertial><mass value>", "plausible range"]),
+    ('<mass value="950.0"/>', '<mass/>', ["link 'stick' <inertial>", "lacks the attribute 'value'"]),
+    ('ixx="40.0" ', '', ["link 'stick' <inertial>", "lacks the attribute(s) ixx"]),
+    ('ixx="40.0" ', 'ixx="forty" ', ["link 'stick' <inertial><inertia ixx>", "'forty'"]),
+    ('<origin xyz="1.05 0 0.12" rpy="0 0 0"/>', '<origin xyz="1.05 0 0.12" rpy="0 0 x"/>',
+     ["link 'stick' <inertial><origin rpy>"]),
+    ('effort="133000"', 'effort="lots"', ["joint 'bucket_joint' <limit effort>", "'lots'"]),
+    ('<robot name="excavator_arm">', '<robot>', ["root element <robot>", "lacks the attribute 'name'"]),
+    ('<parent link="boom"/>', '<parent link="bom"/>',
+     ["joint 'stick_joint'", "parent link 'bom' that is not defined", "base, boom, stick, bucket"]),
+    ('<child link="bucket"/>', '<child link="bukket"/>', ["joint 'bucket_joint'", "child link 'bukket'"]),
+    ('<parent link="boom"/>', '', ["joint 'stick_joint'", "lacks <parent link="]),
+    ('<joint name="bucket_joint" type="revolute">', '<joint name="bucket_joint">',
+     ["joint 'bucket_joint'", "lacks the attribute 'type'"]),
+    ('<link name="bucket">', '<link>', ["<link> #4", "lacks the attribute 'name'"]),
+])
+def test_bad_urdf_files_name_the_element(tmp_path, old, new, words):
+    path = _arm_variant(tmp_path, old, new)
+    with pytest.raises(hydrogen.ModelError) as err:
+        hydrogen.load_model(path)
+    msg = str(err.value)
+    assert str(tmp_path / "arm.urdf") in msg
+    for w in words:
+        assert w in msg, msg
+    assert "\n" not in msg and len(msg) < 2000
+
+
+def test_an_xml_file_that_is_not_a_urdf(tmp_path):
+    path = _arm_variant(tmp_path, urdf_text='<?xml version="1.0"?>\n<svg name="drawing"><g/></svg>\n')
+    with pytest.raises(hydrogen.ModelError, match=r"arm\.urdf: root element: <svg> is not <robot name=\"...\">: "
+                                                  r"this is not a URDF file"):
+        hydrogen.load_model(path)
+
+
+def test_a_urdf_path_that_is_a_folder_or_a_device(tmp_path):
+    path = _arm_variant(tmp_path, urdf_text="<robot/>")
+    text = path.read_text()
+    for target, why in ((".", "is a folder, not a URDF file"), ("/dev/null", "is not a regular file"),
+                        ("nope.urdf", "URDF file not found")):
+        path.write_text(text.replace('urdf = "arm.urdf"', f'urdf = "{target}"'))
+        with pytest.raises(hydrogen.ModelError) as err:
+            hydrogen.load_model(path)
+        assert str(err.value).startswith(f"{path}: urdf: ") and why in str(err.value), str(err.value)
+
+
+def test_a_joint_origin_rpy_is_the_files_numbers_exactly(tmp_path):
+    """The pitch is not re-derived through arcsin of a rotation matrix (which gives pi/2 exactly)."""
+    pitch = "1.57079632679"
+    # the bucket frame pitched by p about y and the bucket coordinate shifted by p: the same geometry
+    # (its axis is -y), so the model stays valid at the shifted neutral pose
+    path = _arm_variant(tmp_path, _BUCKET_ORIGIN, f'<origin xyz="2.90 0 0" rpy="0 {pitch} 0"/>')
+    path.write_text(path.read_text().replace("neutral = [0.10, -1.65, -0.90]",
+                                             f"neutral = [0.10, -1.65, {-0.90 + float(pitch)!r}]"))
+    model = hydrogen.load_model(path)
+    bucket = next(j for j in model.joints if j.name == "bucket_joint")
+    assert bucket.origin_rpy.tolist() == [0.0, float(pitch), 0.0]
+    assert bucket.origin_rpy[1] != np.pi / 2
+    from hydrogen.tree import cylinder_lengths
+    ref = hydrogen.load_model("excavator_arm")
+    np.testing.assert_allclose(cylinder_lengths(model, model.neutral_pose),
+                               cylinder_lengths(ref, ref.neutral_pose), rtol=1e-9)
+
+
+def test_a_huge_joint_axis_is_normalised_without_overflow(tmp_path):
+    path = _arm_variant(tmp_path, '<axis xyz="0 -1 0"/>', '<axis xyz="1e308 -1e308 0"/>')
+    boom = next(j for j in hydrogen.load_model(path).joints if j.name == "boom_joint")
+    np.testing.assert_allclose(boom.axis, [2 ** -0.5, -(2 ** -0.5), 0.0], rtol=1e-15)

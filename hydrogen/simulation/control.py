@@ -21,7 +21,16 @@ from ..controllers.common import COMPOSITE_GAIN_BLOCKS, gain_block_shape, initia
 from ..errors import ScenarioError
 from .checks import check_gain_values
 
-__all__ = ["make_controller", "default_gains", "CONTROLLERS", "gain_scale"]
+__all__ = ["make_controller", "default_gains", "CONTROLLERS", "gain_scale", "COMMON_GAINS", "gain_names"]
+
+#: The description's ``[gains.<this>]`` table, whose gains apply to every controller that has them.
+COMMON_GAINS = "common"
+
+
+def gain_names(kind, model) -> frozenset:
+    """Names of the gains of controller ``kind`` for ``model``: those its defaults define, the only ones
+    a description's ``[gains.<kind>]`` or the caller may set (KeyError if the controller is unknown)."""
+    return frozenset(controller_module(kind).default_gains(model, np.ones(model.n)))
 
 
 def gain_scale(dyn) -> np.ndarray:
@@ -44,9 +53,9 @@ def _default_gains(dyn, kind, origin: dict) -> dict:
     mod = controller_module(kind)
     g = mod.default_gains(dyn.model, gain_scale(dyn))
     model_gains = dyn.model.gains or {}
-    for table in ("common", kind):
+    for table in (COMMON_GAINS, kind):
         for k, v in (model_gains.get(table) or {}).items():
-            if table == "common" and k not in g:
+            if table == COMMON_GAINS and k not in g:
                 continue
             origin[k] = f"{dyn.model.source}: [gains.{table}]"
             g[k] = _checked(kind, g, k, v, origin[k])

@@ -11,7 +11,7 @@ from ..errors import ScenarioError
 from .checks import check_fields
 from .reference import MultiSine, Step
 
-__all__ = ["Scenario", "scenario", "scenario_names"]
+__all__ = ["Scenario", "scenario", "scenario_names", "table_keys"]
 
 
 @dataclass(frozen=True)
@@ -108,6 +108,15 @@ _FIELDS = ("duration", "control_rate", "substeps", "t_adapt", "friction", "valve
            "valve_damping", "delay_periods", "quantization_l", "noise_l", "noise_q", "noise_p",
            "kalman", "kalman_accel", "theta0_factor", "gamma0_factor", "metric_start", "q0_offset", "seed",
            "estimator_update")
+#: Keys of a ``[scenarios.<name>]`` table besides the fields: the rig it starts from, its gains per
+#: controller, its reference, caption and published errors.
+_TABLE_KEYS = ("rig", "gains", "reference", "label", "paper")
+
+
+def table_keys(rig: bool = False) -> frozenset:
+    """The keys a description's ``[scenarios.<name>]`` table may hold, or its ``[rig]`` table (``rig``:
+    fields only)."""
+    return frozenset(_FIELDS if rig else _FIELDS + _TABLE_KEYS)
 
 
 def _reference(model, where, spec, neutral):
@@ -158,7 +167,7 @@ def scenario(name: str, model) -> Scenario:
     label = spec.pop("label", name)
     paper = spec.pop("paper", {})
     fields.update(spec)
-    unknown = set(fields) - set(_FIELDS)
+    unknown = set(fields) - table_keys(rig=True)
     if unknown:
         raise ScenarioError(f"{where}: unknown field(s) {sorted(unknown)}; fields: {sorted(_FIELDS)}")
     if ref is None:
