@@ -59,7 +59,7 @@ except ImportError:  # run as a script, or loaded from its path
 
 PREVIOUS = "d9002f1"
 CONTROLLER = "adaptive-robust"
-#: Bounds of issue 9 ("What must not get worse").
+#: Bounds the release must keep ("what must not get worse" against the previous release).
 TRAJECTORY_TOL = 1e-9
 NO_LARGER = ("regressor", "mass_matrix", "coriolis", "gravity", "leg_kinematics")
 WITHIN_5_PCT_PREFIX = ("ctrl_", "plant_rhs")
@@ -69,8 +69,8 @@ LEAN_SUFFIX = "_lean"
 INSTRUCTION_REL_TOL = 0.05
 LOOP_REL_TOL = 0.10
 GENERATION_RATIO = 2.0
-#: The counts issue 9 quotes for the release before it (shown next to the measured ones).
-ISSUE_COUNTS = {"regressor": 182, "mass_matrix": 70, "coriolis": 143, "gravity": 10, "leg_kinematics": 398,
+#: The counts quoted for the release before it when its bounds were set (shown next to the measured ones).
+QUOTED_COUNTS = {"regressor": 182, "mass_matrix": 70, "coriolis": 143, "gravity": 10, "leg_kinematics": 398,
                 "ctrl_backstepping": 3021, "ctrl_adaptive_robust": 3846, "ctrl_adaptive_observer": 3878,
                 "plant_rhs": 1084}
 
@@ -298,7 +298,7 @@ def compare_instructions(prev: dict, cur: dict) -> dict:
     out = {}
     for name in list(cur) + [n for n in prev if n not in cur]:
         p, c = prev.get(_counterpart(name, cur)), cur.get(name)
-        row = {"previous": p, "current": c, "issue": ISSUE_COUNTS.get(_counterpart(name, cur))}
+        row = {"previous": p, "current": c, "quoted": QUOTED_COUNTS.get(_counterpart(name, cur))}
         if p is None or c is None:
             row["bound"], row["status"] = None, "new" if p is None else "gone"
         elif name + LEAN_SUFFIX in cur:
@@ -428,14 +428,14 @@ def print_table(res: dict) -> None:
                 status += f"; diverged in the {which} version"
         print(f"{r['scenario']:<10} {r['controller']:<18} {_fmt(r['max_abs_dq']):>9} {_fmt(r['max_rel_dtheta']):>11} "
               f"{_fmt(r['max_rel_dgamma']):>12}  {status}")
-    print("(ii) CasADi instructions of each generated function (issue 9: rigid body and kinematics no larger; "
+    print("(ii) CasADi instructions of each generated function (bounds: rigid body and kinematics no larger; "
           "controllers and plant within 5 %):")
-    header = f"{'function':<24} {'issue':>7} {'previous':>9} {'current':>9} {'change %':>9} {'bound':>11}  status"
+    header = f"{'function':<24} {'quoted':>7} {'previous':>9} {'current':>9} {'change %':>9} {'bound':>11}  status"
     print(header)
     print("-" * len(header))
     for name, r in res["instructions"].items():
         ch = "-" if r["change_pct"] is None else f"{r['change_pct']:+.1f}"
-        print(f"{name:<24} {r['issue'] if r['issue'] is not None else '-':>7} "
+        print(f"{name:<24} {r['quoted'] if r['quoted'] is not None else '-':>7} "
               f"{r['previous'] if r['previous'] is not None else '-':>9} "
               f"{r['current'] if r['current'] is not None else '-':>9} {ch:>9} {r['bound'] or '-':>11}  {r['status']}")
     lp, g = res["loop_per_period"], res["generation"]

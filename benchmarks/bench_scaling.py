@@ -48,7 +48,7 @@ except ImportError:  # run as a script, or loaded from its path
 
 NS, QUICK_NS = tuple(range(2, 8)), (2, 3)
 BUDGET_S, QUICK_BUDGET_S = 600.0, 300.0
-#: The generation target of issue 9 for n = 7 on 2 cores.
+#: The generation-time target for n = 7 on 2 cores (s).
 TARGET_N, TARGET_S = 7, 120.0
 SCENARIO, LOOP_CONTROLLER = "chain-sim", "backstepping"
 
