@@ -8,6 +8,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..errors import KinematicsError, SimulationError
+from ..summary import estimated_blocks
 from .checks import check_against_model, check_call, check_run_size, checked_float, metric_window
 from .control import make_controller
 from .scenarios import Scenario, scenario as named_scenario, scenario_names
@@ -43,6 +44,9 @@ class SimulationResult:
     coordinates: tuple = ()
     units: tuple = ()
     theta_names: tuple = ()
+    #: The estimate blocks the controller declares in its state (theta_hat, gamma1_hat, gamma2_hat);
+    #: empty for a controller that adapts nothing, whose theta_hat/gamma*_hat rows are the fixed values.
+    estimated: tuple = ()
     wall_time_s: float = 0.0  # the run: setup, loop, result, with the library already loaded (s)
     loop_wall_s: float = 0.0  # the closed loop alone (s)
     u_max: float = 0.0
@@ -407,7 +411,7 @@ def _result(sc, controller, ctrl, t, log, k, theta0, gamma0, theta_true, gamma_t
         gamma2_hat=est("gamma2_hat", gamma0[1]),
         theta_true=theta_true, gamma_true=gamma_true, amplitude=sc.reference.amplitude(),
         metric_start=sc.metric_start, coordinates=tuple(model.coordinate_names), units=model.coordinate_units,
-        theta_names=tuple(model.theta_names), wall_time_s=wall, loop_wall_s=wall,
+        theta_names=tuple(model.theta_names), estimated=estimated_blocks(ctrl), wall_time_s=wall, loop_wall_s=wall,
         u_max=float(ctrl.values["u_max"][0]) if "u_max" in ctrl.values else 0.0)
     if k:
         res.compute_metrics()
