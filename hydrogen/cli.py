@@ -31,7 +31,9 @@ def _cmd_generate(args) -> int:
             return 1
         print(f"{out}: up to date")
         return 0
-    changed = generate(model, out, force=args.force, progress=not args.quiet)
+    from .progress import Reporter, generation_reported, print_event
+    with generation_reported(Reporter(None if args.quiet else print_event, model.name), model, out, args.force):
+        changed = generate(model, out, force=args.force, progress=not args.quiet)
     print(f"{out}: {'generated' if changed else 'up to date, nothing regenerated'}")
     return 0
 
@@ -43,6 +45,7 @@ def _cmd_simulate(args) -> int:
     from .outputs import check_output_file, check_plot_path
     from .simulation.checks import check_run_size
     from .simulation.scenarios import default_scenario_name, scenario as named_scenario
+    from .progress import print_event
     from .summary import error_lines, estimate_lines
 
     # Everything that can be refused is refused before the run: outputs, then the run's size.
@@ -58,13 +61,19 @@ def _cmd_simulate(args) -> int:
     if args.duration is not None:
         sc = sc.with_overrides(duration=args.duration)
     check_run_size(sc, model, args.controller)
+    # Built apart from the run, so the summary tells the two times apart (stages on stderr).
+    events = []
+    dyn = hydrogen.build(model, progress=lambda e: (events.append(e), print_event(e)))
     try:
-        res = hydrogen.simulate(args.scenario, args.controller, model=model, duration=args.duration)
+        res = hydrogen.simulate(args.scenario, args.controller, model=model, dyn=dyn, duration=args.duration)
     except SimulationError as exc:
         if exc.result is not None and len(exc.result.t):
             _write_outputs(args, exc.result, diverged=str(exc))
         raise
     m = res.metrics
+    last = events[-1] if events else None
+    if last is not None and last.stage == "built":
+        print(f"built in {last.elapsed_s:.1f} s ({last.detail})")
     print(f"scenario {res.scenario_name}, controller {res.controller}: {m['sim_time_s']:.2f} s simulated "
           f"in {m['wall_time_s'] * 1e3:.1f} ms ({m['sim_time_s'] / max(m['wall_time_s'], 1e-9):.0f}x real time; "
           f"the C loop {m['loop_wall_s'] * 1e3:.1f} ms, the rest setup)")

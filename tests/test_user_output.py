@@ -85,3 +85,105 @@ def test_export_defaults_to_the_models_first_scenario(tmp_path):
     folder = export(tmp_path / "arm", controller="p", model="excavator_arm", duration=0.05)
     meta = json.loads((folder / EXPORT_MANIFEST).read_text())
     assert meta["scenario"] == "arm-sim"
+
+
+# --- progress of the long steps ----------------------------------------------------------------
+
+def test_a_library_already_built_reports_loaded_and_prints_nothing(capsys):
+    import hydrogen
+    from hydrogen.progress import BuildEvent
+    hydrogen.build(hydrogen.load_model())  # built (or found) first
+    events = []
+    hydrogen.build(hydrogen.load_model(), progress=events.append)
+    assert [e.stage for e in events] == ["loaded"]
+    assert isinstance(events[0], BuildEvent) and events[0].model == "ubc_stewart" and events[0].elapsed_s >= 0
+    capsys.readouterr()
+    _simulate_cli(capsys, "--controller", "p")
+    err = capsys.readouterr().err
+    assert "hydrogen:" not in err and "built in" not in err
+
+
+def test_generation_reports_its_stages_on_stderr(tmp_path, capsys):
+    from hydrogen.cli import main
+    out = tmp_path / "gen"
+    assert main(["generate", "--model", "excavator_arm", "--out", str(out), "--quiet"]) == 0
+    assert capsys.readouterr().err == ""  # --quiet: no progress at all
+    assert main(["generate", "--model", "excavator_arm", "--out", str(out), "--force"]) == 0
+    lines = [x for x in capsys.readouterr().err.splitlines() if x.startswith("hydrogen:")]
+    assert lines[0].startswith("hydrogen: generating excavator_arm: deriving the model") and lines[0].endswith("...")
+    assert re.fullmatch(r"hydrogen: generated excavator_arm: \d+ functions, [\d.]+ [kM]B of C, [\d.]+ s", lines[1])
+    n = len(__import__("json").loads((out / "manifest.json").read_text())["functions"])
+    assert f" {n} functions" in lines[1]
+    # current: nothing to do, nothing said
+    assert main(["generate", "--model", "excavator_arm", "--out", str(out)]) == 0
+    assert "hydrogen:" not in capsys.readouterr().err
+
+
+def test_build_reports_compilation_around_the_compiler_call(tmp_path, monkeypatch):
+    """A private empty cache: the compile step is reported (the compiler itself is stood in by the
+    shared cache's build of the same sources, so the test takes no minute of compiling)."""
+    import hydrogen
+    import hydrogen.runtime.build as hb
+    from hydrogen.runtime.compiler import cache_root
+
+    model = hydrogen.load_model()
+    hydrogen.build(model)  # the shared cache holds the library
+    real = hb.compile_library
+    calls = []
+
+    def compile_from_shared_cache(sources, name, toolchain=None, cache=None, **kw):
+        calls.append(len(sources))
+        return real(sources, name, toolchain, cache=cache_root(), **kw)
+
+    monkeypatch.setattr(hb, "compile_library", compile_from_shared_cache)
+    events = []
+    dyn = hydrogen.build(model, cache=tmp_path / "cache", backend="ctypes", progress=events.append)
+    stages = [e.stage for e in events]
+    assert stages == ["compiling", "compiled", "built"] and calls
+    assert re.fullmatch(r"\d+ files, [\d.]+ [kM]B of C", events[0].detail) and events[0].elapsed_s == 0
+    assert events[-1].detail == "compiled" and events[-1].elapsed_s >= events[1].elapsed_s >= 0
+    assert dyn.library.path.name == events[1].detail
+    with pytest.raises(TypeError, match="progress must be a callable"):
+        hydrogen.build(model, progress="yes")
+
+
+def test_print_event_one_line_per_stage():
+    import io
+
+    from hydrogen.progress import BuildEvent, print_event
+    buf = io.StringIO()
+    for stage, detail, t in (("compiling", "30 files, 1.9 MB of C", 0.0), ("compiled", "libx.so", 38.04),
+                             ("loaded", "already built", 0.01), ("built", "generated + compiled", 41.2)):
+        print_event(BuildEvent(stage, "ubc_stewart", detail, t), file=buf)
+    assert buf.getvalue().splitlines() == [
+        "hydrogen: compiling ubc_stewart: 30 files, 1.9 MB of C ...",
+        "hydrogen: compiled ubc_stewart: libx.so, 38.0 s",
+        "hydrogen: built ubc_stewart: generated + compiled, 41.2 s"]
+
+
+def test_simulate_summary_gives_the_build_time_apart_from_the_run(capsys, monkeypatch):
+    import hydrogen
+    from hydrogen.progress import BuildEvent
+    real = hydrogen.build
+
+    def build_reporting(model, progress=None, **kw):
+        dyn = real(model, **kw)
+        progress(BuildEvent("built", model.name, "generated + compiled", 41.2))
+        return dyn
+
+    monkeypatch.setattr(hydrogen, "build", build_reporting)
+    out = _simulate_cli(capsys, "--controller", "p")
+    lines = out.splitlines()
+    assert lines[0] == "built in 41.2 s (generated + compiled)"
+    assert lines[1].startswith("scenario paper-sim, controller p: 0.05 s simulated in ")
+
+
+def test_simulate_and_stepper_pass_progress_to_their_build(monkeypatch):
+    import hydrogen
+    for make in (lambda cb: hydrogen.simulate("z-1hz", "p", duration=0.01, progress=cb),
+                 lambda cb: hydrogen.stepper("z-1hz", "p", progress=cb)):
+        monkeypatch.setattr(hydrogen, "_DEFAULT_DYN", {})  # this process has built nothing yet
+        events = []
+        make(events.append)
+        assert [e.stage for e in events] in (["loaded"], ["compiling", "compiled", "built"],
+                                             ["generating", "generated", "compiling", "compiled", "built"])
