@@ -402,15 +402,8 @@ def _tree_from_urdf(r: _Reader, path: Path):
         raise ModelError(f"{path}: cannot read URDF file ({exc})") from None
     except etree.XMLSyntaxError as exc:
         raise ModelError(f"{path}: URDF does not parse: {exc}") from None
-    import logging
-
-    import yourdfpy
-    logging.getLogger("yourdfpy").setLevel(logging.CRITICAL)  # its warnings are about meshes we do not load
-    try:
-        robot = yourdfpy.URDF.load(str(path), build_scene_graph=False, load_meshes=False,
-                                   build_collision_scene_graph=False, load_collision_meshes=False).robot
-    except Exception as exc:  # noqa: BLE001 - any parser failure is a bad description
-        raise ModelError(f"{path}: URDF does not parse: {exc}") from None
+    from .urdf import load_robot  # yourdfpy's shape of data, without its mesh stack
+    robot = load_robot(path)
     ur = _Reader(str(path))
     links = []
     children = {j.child for j in robot.joints}

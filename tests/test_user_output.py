@@ -187,3 +187,20 @@ def test_simulate_and_stepper_pass_progress_to_their_build(monkeypatch):
         make(events.append)
         assert [e.stage for e in events] in (["loaded"], ["compiling", "compiled", "built"],
                                              ["generating", "generated", "compiling", "compiled", "built"])
+
+
+def test_figures_without_matplotlib_get_one_clear_message(monkeypatch, capsys, tmp_path):
+    import builtins
+
+    from hydrogen.cli import main
+    real_import = builtins.__import__
+
+    def no_matplotlib(name, *a, **kw):
+        if name == "matplotlib" or name.startswith("matplotlib."):
+            raise ImportError("No module named 'matplotlib'")
+        return real_import(name, *a, **kw)
+
+    monkeypatch.setattr(builtins, "__import__", no_matplotlib)
+    assert main(["simulate", "--duration", "0.05", "--controller", "p", "--plot", str(tmp_path / "e.png")]) == 2
+    err = capsys.readouterr().err
+    assert "--plot (a figure file) needs matplotlib" in err and "hydrogen[plot]" in err and "Traceback" not in err
