@@ -76,7 +76,7 @@ def origin_matrix(xyz, rpy) -> np.ndarray:
                  [sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr],
                  [-sp, cp * sr, cp * cr]]
     T[:3, 3] = xyz
-    return T
+    return T + 0.0  # -sin(0) is -0.0: a signed zero would change the model's hash, not its numbers
 
 
 class _Parser:

@@ -95,6 +95,11 @@ def test_shipped_urdf_model_loads():
     import hydrogen
     model = hydrogen.load_model("excavator_arm")
     assert model.n == 3 and model.coordinate_units == ("rad", "rad", "rad")
+    # the reader gives the model the committed C was generated from (same hash: no signed zeros either)
+    from hydrogen.codegen.generate import check
+    from hydrogen.runtime.build import repo_generated_dir
+    assert check(model, repo_generated_dir() / model.name) == []
+    assert not np.signbit(origin_matrix((0, 0, 0), (0, 0, 0))).any()
 
 
 @pytest.mark.parametrize("text, message", [
