@@ -23,35 +23,40 @@ def build(model=None, **kwargs):
 _DEFAULT_DYN = {}
 
 
-def simulate(scenario="paper-sim", controller="adaptive-robust", *, model=None, dyn=None, **overrides):
+def simulate(scenario="paper-sim", controller="adaptive-robust", *, model=None, dyn=None, progress=None,
+             **overrides):
     """Run a scenario in closed loop and return a :class:`~hydrogen.simulation.simulator.SimulationResult`.
 
     ``scenario``: one of the model's scenarios (the Stewart platform's: paper-sim, z-1hz, z-2hz,
     psi-1hz, z-step). ``controller``: backstepping, adaptive-robust, adaptive-observer or p.
     ``model``: a built-in name (``hydrogen.models()``), a path or a Model (default: ubc_stewart). ``overrides`` may set
     ``duration`` (s), ``gains`` (dict), or any scenario field. ``dyn`` defaults to
-    ``build(model)``, built once per process and model.
+    ``build(model)``, built once per process and model; ``progress`` is passed to that build (see
+    :func:`hydrogen.runtime.build.build`).
     """
     from .simulation.simulator import simulate as _simulate
-    return _simulate(dyn or default_dynamics(model), scenario, controller, **overrides)
+    return _simulate(dyn or default_dynamics(model, progress), scenario, controller, **overrides)
 
 
-def default_dynamics(model=None):
+def default_dynamics(model=None, progress=None):
     """Compiled dynamics for ``model``: the library is built once per process and baked model; the
-    returned Dynamics carries this very model, so its runtime parameters (θ, γ, bounds) are used."""
+    returned Dynamics carries this very model, so its runtime parameters (θ, γ, bounds) are used.
+    ``progress``: the build's callback (called only when this process builds or loads it)."""
     from .dynamics import Dynamics
     from .simulation.sweep import _model_path
     m = model if isinstance(model, Model) else load_model(_model_path(model))
     key = m.baked_hash()
     if key not in _DEFAULT_DYN:
-        _DEFAULT_DYN[key] = build(m).library
+        _DEFAULT_DYN[key] = build(m, progress=progress).library
     return Dynamics(m, _DEFAULT_DYN[key])
 
 
-def stepper(scenario="paper-sim", controller="adaptive-robust", *, model=None, dyn=None, **overrides):
-    """A :class:`~hydrogen.simulation.simulator.Stepper`: the closed loop one control period per call."""
+def stepper(scenario="paper-sim", controller="adaptive-robust", *, model=None, dyn=None, progress=None,
+            **overrides):
+    """A :class:`~hydrogen.simulation.simulator.Stepper`: the closed loop one control period per call
+    (``progress``: as for :func:`simulate`)."""
     from .simulation.simulator import Stepper
-    return Stepper(dyn or default_dynamics(model), scenario, controller, **overrides)
+    return Stepper(dyn or default_dynamics(model, progress), scenario, controller, **overrides)
 
 
 def sweep(runs, *, executor=None, max_workers=None, model=None, progress=False):

@@ -1,11 +1,15 @@
 """``hydrogen bench``: run the benchmark suite of ``benchmarks/`` in one process and one run.
 
 The suite lives beside the package in a source checkout (``benchmarks/``); each module has
-``run(quick) -> dict`` and ``print_table(dict)``.
+``run(quick) -> dict`` and ``print_table(dict)``. The figures are reported; the project's own
+release targets (bounds against the previous release, generation-time targets) are checked only
+with ``release_checks`` (``hydrogen bench --release-checks``, for the project's developers), by the
+modules whose ``print_table`` takes ``checks``.
 """
 from __future__ import annotations
 
 import importlib
+import inspect
 import json
 import sys
 from pathlib import Path
@@ -29,7 +33,22 @@ SUITE = (
 )
 
 
-def run_suite(quick: bool = False, json_path: str | None = None, only=None, progress: bool = True) -> dict:
+def _print(mod, res: dict, release_checks: bool) -> None:
+    if "checks" in inspect.signature(mod.print_table).parameters:
+        mod.print_table(res, checks=release_checks)
+    else:
+        mod.print_table(res)
+
+
+def _figures_only(res):
+    """A module's results without its pass/fail against the release targets (``checks``, ``met``, each row's ``bound`` and ``status``)."""
+    if isinstance(res, dict):
+        return {k: _figures_only(v) for k, v in res.items() if k not in ("checks", "met", "bound", "status")}
+    return res
+
+
+def run_suite(quick: bool = False, json_path: str | None = None, only=None, progress: bool = True,
+              release_checks: bool = False) -> dict:
     unknown = sorted(set(only or ()) - {n for n, _ in SUITE})
     if unknown:
         raise HydrogenError(f"unknown benchmark module(s) {unknown}; the suite has {', '.join(n for n, _ in SUITE)}")
@@ -48,9 +67,10 @@ def run_suite(quick: bool = False, json_path: str | None = None, only=None, prog
         results[name] = mod.run(quick=quick)
         bar.update()
         tqdm.write(f"\n== {name}: {what}")
-        mod.print_table(results[name])
+        _print(mod, results[name], release_checks)
     bar.close()
     if json_path:
-        atomic_write(Path(json_path), json.dumps(results, indent=2, default=str) + "\n")
+        written = results if release_checks else _figures_only(results)
+        atomic_write(Path(json_path), json.dumps(written, indent=2, default=str) + "\n")
         print(f"\nresults written to {json_path}")
     return results

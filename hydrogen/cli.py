@@ -31,7 +31,9 @@ def _cmd_generate(args) -> int:
             return 1
         print(f"{out}: up to date")
         return 0
-    changed = generate(model, out, force=args.force, progress=not args.quiet)
+    from .progress import Reporter, generation_reported, print_event
+    with generation_reported(Reporter(None if args.quiet else print_event, model.name), model, out, args.force):
+        changed = generate(model, out, force=args.force, progress=not args.quiet)
     print(f"{out}: {'generated' if changed else 'up to date, nothing regenerated'}")
     return 0
 
@@ -42,7 +44,9 @@ def _cmd_simulate(args) -> int:
     from .errors import SimulationError
     from .outputs import check_output_file, check_plot_path
     from .simulation.checks import check_run_size
-    from .simulation.scenarios import scenario as named_scenario
+    from .simulation.scenarios import default_scenario_name, scenario as named_scenario
+    from .progress import print_event
+    from .summary import error_lines, estimate_lines
 
     # Everything that can be refused is refused before the run: outputs, then the run's size.
     if args.json:
@@ -52,30 +56,35 @@ def _cmd_simulate(args) -> int:
     if args.log:
         check_output_file(args.log, "--log")
     model = hydrogen.load_model(args.model)
+    args.scenario = args.scenario or default_scenario_name(model)
     sc = named_scenario(args.scenario, model)
     if args.duration is not None:
         sc = sc.with_overrides(duration=args.duration)
     check_run_size(sc, model, args.controller)
+    # Built apart from the run, so the summary tells the two times apart (stages on stderr).
+    events = []
+    dyn = hydrogen.build(model, progress=lambda e: (events.append(e), print_event(e)))
     try:
-        res = hydrogen.simulate(args.scenario, args.controller, model=model, duration=args.duration)
+        res = hydrogen.simulate(args.scenario, args.controller, model=model, dyn=dyn, duration=args.duration)
     except SimulationError as exc:
         if exc.result is not None and len(exc.result.t):
             _write_outputs(args, exc.result, diverged=str(exc))
         raise
     m = res.metrics
+    last = events[-1] if events else None
+    if last is not None and last.stage == "built":
+        print(f"built in {last.elapsed_s:.1f} s ({last.detail})")
     print(f"scenario {res.scenario_name}, controller {res.controller}: {m['sim_time_s']:.2f} s simulated "
           f"in {m['wall_time_s'] * 1e3:.1f} ms ({m['sim_time_s'] / max(m['wall_time_s'], 1e-9):.0f}x real time; "
           f"the C loop {m['loop_wall_s'] * 1e3:.1f} ms, the rest setup)")
     if m.get("metric_note"):
         print(f"note: {m['metric_note']}")
-    print(f"max tracking error over t >= {m['metric_start_s']} s (% of reference amplitude, absolute):")
-    for c in res.coordinates:
-        pct = m["max_error_pct"][c]
-        print(f"  {c:>12}: {'-' if pct is None else f'{pct:7.2f} %'}   {m['max_error'][c] * 1e3:9.4f} (mm or mrad)")
-    print("theta_hat final:", ", ".join(f"{n} {v:.4g} ({e:+.1f} %)" for n, v, e in
-                                        zip(res.theta_names, m["theta_hat_final"], m["theta_error_pct_final"])))
-    err = [100 * np.mean(np.asarray(h) / np.asarray(t) - 1) for h, t in zip(m["gamma_hat_final"], m["gamma_true"])]
-    print(f"gamma_hat final (mean error over cylinders): beta {err[0]:+.1f} %, beta*c {err[1]:+.1f} %")
+    print(f"max tracking error over t >= {m['metric_start_s']} s (% of reference amplitude, absolute; "
+          f"'-': the reference does not move that coordinate):")
+    for line in error_lines(res.coordinates, res.units, m["max_error"], m["max_error_pct"]):
+        print(line)
+    for line in estimate_lines(res):
+        print(line)
     _write_outputs(args, res)
     return 0
 
@@ -137,12 +146,14 @@ def _cmd_figures(args) -> int:
 def _cmd_export(args) -> int:
     import hydrogen
     from .export import export
+    from .simulation.scenarios import default_scenario_name
 
     if args.format == "fmu":
         return _cmd_export_fmu(args)
     if args.part is not None or args.step is not None:
         raise HydrogenError("--part and --step are options of --format fmu")
     model = hydrogen.load_model(args.model)
+    args.scenario = args.scenario or default_scenario_name(model)
     out = export(Path(args.out), args.scenario, args.controller, model=model, duration=args.duration)
     print(f"{out}: {args.controller} on {args.scenario}; build and run with 'make -C {out} run'")
     return 0
@@ -152,10 +163,12 @@ def _cmd_export_fmu(args) -> int:
     import hydrogen
     from .errors import FmuError
     from .fmu import PARTS, export_fmu
+    from .simulation.scenarios import default_scenario_name
 
     if args.part is None:
         raise FmuError(f"--format fmu needs --part: one of {', '.join(PARTS)}")
     model = hydrogen.load_model(args.model)
+    args.scenario = args.scenario or default_scenario_name(model)
     out = export_fmu(Path(args.out), args.part, args.scenario, args.controller, model=model, duration=args.duration,
                      step=args.step)
     what = "plant" if args.part == "plant" else f"{args.part} ({args.controller})"
@@ -233,7 +246,8 @@ def _cmd_bench(args) -> int:
     if args.json:
         from .outputs import check_output_file
         check_output_file(args.json, "--json")
-    run_suite(quick=args.quick, json_path=args.json, only=args.only, progress=not args.quiet)
+    run_suite(quick=args.quick, json_path=args.json, only=args.only, progress=not args.quiet,
+              release_checks=args.release_checks)
     return 0
 
 
@@ -272,7 +286,7 @@ def build_parser() -> argparse.ArgumentParser:
     from .controllers import CONTROLLERS
     sim = sub.add_parser("simulate", help="run a scenario in closed loop and print its metrics",
                          description="Simulate a scenario of the paper with one controller.")
-    sim.add_argument("--scenario", default="paper-sim", help="a scenario of the model (default: paper-sim)")
+    sim.add_argument("--scenario", help="a scenario of the model (default: the model's first)")
     sim.add_argument("--controller", default="adaptive-robust", choices=CONTROLLERS)
     sim.add_argument("--duration", type=_number(float, 0), help="simulated time, s (default: the scenario's)")
     sim.add_argument("--model", help="built-in model name (hydrogen.models()) or TOML file (default: ubc_stewart)")
@@ -313,6 +327,9 @@ def build_parser() -> argparse.ArgumentParser:
     b.add_argument("--only", nargs="*", choices=[n for n, _ in SUITE], metavar="MODULE",
                    help="run only these modules (see 'hydrogen bench --help')")
     b.add_argument("--quiet", action="store_true", help="no progress bar")
+    b.add_argument("--release-checks", action="store_true",
+                   help="for hydrogen's developers: also check the project's release targets (bounds against "
+                        "the previous release, generation-time targets) and say which hold")
     b.set_defaults(func=_cmd_bench)
     def tune_args(sp):
         sp.add_argument("--model", help="built-in model name (hydrogen.models()) or TOML file (default: ubc_stewart)")
@@ -353,7 +370,7 @@ def build_parser() -> argparse.ArgumentParser:
     ex.add_argument("--step", type=_number(float, 0),
                     help="with --format fmu: the FMU's default communication step, s, a whole number of control "
                          "periods (default: one period)")
-    ex.add_argument("--scenario", default="z-1hz", help="a scenario of the model (default: z-1hz)")
+    ex.add_argument("--scenario", help="a scenario of the model (default: the model's first)")
     ex.add_argument("--controller", default="adaptive-robust", choices=CONTROLLERS)
     ex.add_argument("--duration", type=_number(float, 0), help="simulated time, s (default: the scenario's)")
     ex.add_argument("--model", help="built-in model name (hydrogen.models()) or TOML file (default: ubc_stewart)")

@@ -222,6 +222,7 @@ def export_context(dyn, p, scenario_name, controller, prog, sources, headers, ct
         "xc_lo": c_doubles(lo if n_xc else np.zeros(1)), "xc_hi": c_doubles(hi if n_xc else np.zeros(1)),
         "x0": c_doubles(p.x0), "q_meas0": c_doubles(p.q0), "l0": c_doubles(dyn.leg_lengths(p.q0)),
         "fk_tol": c_double(FK_TOL), "fk_max_iter": FK_MAX_ITER, "coords": model.coordinate_names,
+        "coord_units": model.coordinate_units, "amplitude": c_doubles(ref.amplitude()),
     }
 
 
@@ -250,7 +251,10 @@ Build and run
   or: cmake -S . -B build && cmake --build build && ./build/{prog}
 
 Output, one item per line:
-  max_error <coord> <value>   per coordinate (m or rad)
+  max_error <coord> <value> <unit>  <pct> % of amplitude  <value> mm|mrad
+                              per coordinate: the max |q - q_d| in SI (m or rad), in % of the
+                              reference amplitude ("-" where the reference does not move it) and
+                              in mm or mrad, the figures 'hydrogen simulate' prints
   periods <n>                 control periods run
   status <code>               0 ok, 1 non-finite state, 2 forward kinematics failed, 3 a generated
                               function failed (the exit status is non-zero unless status is 0)
@@ -282,10 +286,12 @@ def prepare_export(model, dyn, scenario, controller, gains, duration, check_work
     """
     from .errors import ScenarioError
     from .names import check_identifier, check_label
-    from .simulation.scenarios import scenario as named_scenario
+    from .simulation.scenarios import default_scenario_name, scenario as named_scenario
     from .simulation.simulator import prepare_run
 
     dyn = resolve_dyn(model, dyn)
+    if scenario is None:
+        scenario = default_scenario_name(dyn.model)
     sc = named_scenario(scenario, dyn.model) if isinstance(scenario, str) else scenario
     sc_name = getattr(sc, "name", None)
     # Both names are written into the Makefile, CMakeLists.txt, params.h and main.c (or the FMU).
@@ -307,7 +313,7 @@ def sensor_kalman_gain(p):
     return kalman_gain(p.h, length_noise_variance(p.sensor_noise_l, p.sc.quantization_l), p.sc.kalman_accel)
 
 
-def export(out_dir, scenario="z-1hz", controller="adaptive-robust", model=None, duration=None, *,
+def export(out_dir, scenario=None, controller="adaptive-robust", model=None, duration=None, *,
            dyn=None, gains=None, generated=None, check_workspace=True, **overrides) -> Path:
     """Write a self-contained C99 program of ``controller`` on ``scenario`` into ``out_dir``.
 
@@ -317,7 +323,7 @@ def export(out_dir, scenario="z-1hz", controller="adaptive-robust", model=None, 
         Folder to write; replaced whole if it exists and is an earlier export (an existing
         folder that is not an export, and not empty, is refused).
     scenario, controller : str
-        As for :func:`hydrogen.simulate`.
+        As for :func:`hydrogen.simulate`; the scenario defaults to the model's first one.
     model : Model, path or None
         The model (default: the packaged one); ignored when ``dyn`` is given.
     duration : float or None

@@ -10,7 +10,9 @@ from __future__ import annotations
 import io
 from pathlib import Path
 
-import matplotlib
+from .outputs import require_matplotlib
+
+matplotlib = require_matplotlib("figures")
 
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402

@@ -442,7 +442,7 @@ _INSIDE = {
 }
 
 
-def export_fmu(out, part, scenario="z-1hz", controller="adaptive-robust", model=None, duration=None, *,
+def export_fmu(out, part, scenario=None, controller="adaptive-robust", model=None, duration=None, *,
                step=None, dyn=None, gains=None, generated=None, check_workspace=True, toolchain=None,
                **overrides) -> Path:
     """Write an FMI 2.0 co-simulation FMU of ``part`` (``"plant"``, ``"controller"`` or ``"closed-loop"``).

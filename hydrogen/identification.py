@@ -206,7 +206,7 @@ def _theta_names(model, p) -> list:
 def _per_sample(fn, *arrays) -> np.ndarray:
     """``fn`` at every row of the stacked ``arrays`` (each (N, ...)), as an (N, ...) array.
 
-    One batched call when the compiled function takes stacked inputs (issue 12, items 1-2), checked
+    One batched call when the compiled function takes stacked inputs (CasADi's map over samples), checked
     once per call against the first row; otherwise a loop over the samples. The only place
     identification evaluates compiled functions sample by sample.
     """

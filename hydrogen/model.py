@@ -458,9 +458,9 @@ def _axis(r: _Reader, where, value) -> np.ndarray:
     return a / np.linalg.norm(a)
 
 
-#: The numbers of a URDF that hydrogen reads, checked (with the element named) before yourdfpy reads
-#: them: element -> {path below it: {attribute: (count, quantity of QUANTITIES or None)}}; the
-#: ``limit`` and ``dynamics`` numbers, which yourdfpy parses but hydrogen does not use, only as numbers.
+#: The numbers of a URDF that hydrogen reads, checked (with the element named) before
+#: :mod:`hydrogen.urdf` turns them into links and joints: element -> {path below it: {attribute: (count, quantity of QUANTITIES or None)}}; the
+#: ``limit`` and ``dynamics`` numbers, which hydrogen does not use yet, only as numbers.
 _URDF_NUMBERS = {
     "link": {"inertial/origin": {"xyz": (3, "position"), "rpy": (3, "angle")},
              "inertial/mass": {"value": (1, "mass")},
@@ -472,28 +472,15 @@ _URDF_NUMBERS = {
 
 
 def _tree_from_urdf(path: Path, data: bytes):
-    """Links and joints of URDF file ``path`` (its bytes ``data``), read with yourdfpy (a maintained
-    URDF parser; its dataclasses give inertial origins as 4×4 transforms and inertias as 3×3 tensors,
-    without loading meshes) after lxml has parsed it strictly (yourdfpy would recover from broken
-    XML) and checked what yourdfpy would fail on or accept unnamed. Joint origins are the file's
-    numbers (a rotation matrix would round the rpy)."""
-    from lxml import etree
-    try:
-        root = etree.fromstring(data, etree.XMLParser(remove_blank_text=True))
-    except etree.XMLSyntaxError as exc:
-        raise ModelError(f"{path}: URDF does not parse: {exc}") from None
+    """Links and joints of URDF file ``path`` (its bytes ``data``): parsed strictly by
+    :mod:`hydrogen.urdf` (lxml, no entities), its structure and numbers checked here with each
+    element named. Joint origins are the file's numbers (a rotation matrix would round the rpy)."""
+    from .urdf import load_robot, parse_xml  # lxml, strict, no entities; yourdfpy's shape of data
+
+    root = parse_xml(path, data)
     ur = _Reader(str(path))
     numbers = _check_urdf(ur, root)
-    import io
-    import logging
-
-    import yourdfpy
-    logging.getLogger("yourdfpy").setLevel(logging.CRITICAL)  # its warnings are about meshes we do not load
-    try:
-        robot = yourdfpy.URDF.load(io.BytesIO(data), build_scene_graph=False, load_meshes=False,
-                                   build_collision_scene_graph=False, load_collision_meshes=False).robot
-    except Exception as exc:  # noqa: BLE001 - any parser failure is a bad description
-        raise ModelError(f"{path}: URDF does not parse: {exc}") from None
+    robot = load_robot(path, data)
     links = []
     children = {j.child for j in robot.joints}
     for lk in robot.links:
@@ -548,7 +535,7 @@ def _check_urdf(ur: _Reader, root) -> dict:
         if inertia is None:
             raise ur.error(w, "lacks <inertia ixx=... ixy=... ixz=... iyy=... iyz=... izz=...>")
         absent = [k for k in _URDF_NUMBERS["link"]["inertial/inertia"] if inertia.get(k) is None]
-        if absent:  # yourdfpy would take 1 or 0 for them
+        if absent:  # a lenient reader would take 1 or 0 for them
             raise ur.error(w, f"its <inertia> lacks the attribute(s) {', '.join(absent)} (URDF requires all six)")
     for el in root.findall("joint"):
         w = f"joint '{el.get('name')}'"

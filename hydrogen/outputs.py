@@ -11,7 +11,8 @@ from pathlib import Path
 
 from .errors import OutputPathError
 
-__all__ = ["check_output_file", "check_output_dir", "check_replaceable_dir", "plot_formats", "check_plot_path"]
+__all__ = ["check_output_file", "check_output_dir", "check_replaceable_dir", "plot_formats", "check_plot_path",
+           "require_matplotlib"]
 
 
 def _nearest_existing(path: Path) -> Path:
@@ -91,8 +92,21 @@ def check_replaceable_dir(path, marker: str, keys, kind: str, what: str = "outpu
     return path
 
 
+def require_matplotlib(what: str):
+    """The matplotlib module; figures are an optional part of hydrogen (``pip install 'hydrogen[plot]'``),
+    so without it one clear message names what needed it."""
+    from .errors import HydrogenError
+    try:
+        import matplotlib
+    except ImportError:
+        raise HydrogenError(f"{what} needs matplotlib, which is not installed: pip install 'hydrogen[plot]' "
+                            "(or pip install matplotlib)") from None
+    return matplotlib
+
+
 def plot_formats() -> dict:
     """File extensions matplotlib can write (without the dot) -> description."""
+    require_matplotlib("--plot (a figure file)")
     from matplotlib.figure import Figure
 
     return dict(Figure().canvas.get_supported_filetypes())

@@ -137,3 +137,57 @@ def test_release_spread_row_reads_the_loop_and_generation_ratios():
     row = bench_release.spread_row(res)
     assert row == {"previous_us": 4.0, "current_us": 5.0, "current_gradient_law_us": 4.2, "change": 0.25,
                    "change_gradient_law": 0.05, "generation_ratio": 1.5}
+
+
+def _release_result():
+    """A bench_release result whose bounds do not all hold (a trajectory and a count over)."""
+    runs = {"z-1hz__p": {"scenario": "z-1hz", "controller": "p", "max_abs_dq": 1e-7, "max_rel_dtheta": 0.0,
+                         "max_rel_dgamma": 0.0, "status": "FAIL", "scenario_changed": [],
+                         "error_previous": None, "error_current": None}}
+    instructions = bench_release.compare_instructions({"regressor": 100}, {"regressor": 120})
+    return {"previous": "abc1234", "model": "ubc_stewart", "scenario": "paper-sim", "controller": "p",
+            "runs": runs, "instructions": instructions,
+            "loop_per_period": {"previous": {"us": 4.0, "runs": [4.0]}, "current": {"us": 5.0, "runs": [5.0]},
+                                "current_gradient_law": {"us": 4.2, "runs": [4.2]}, "change": 0.25,
+                                "change_gradient_law": 0.05},
+            "generation": {"previous": {"process_wall_s": 1.0, "render_s": 0.5, "runs": [{}]},
+                           "current": {"process_wall_s": 3.0, "render_s": 2.0, "runs": [{}]}, "ratio": 3.0},
+            "other_robots": {},
+            "checks": {"trajectories_within_1e-9": False, "scenarios_changed": [], "instructions": False,
+                       "loop_within_10pct": False, "loop_within_10pct_gradient_law": True,
+                       "generation_within_2x": False, "all_bounds_hold": False},
+            "quick": True, "wall_s": 12.0}
+
+
+def test_a_users_bench_reports_figures_not_the_projects_release_targets(capsys, tmp_path, monkeypatch):
+    import hydrogen.bench as hb
+    res = _release_result()
+    bench_release.print_table(res, checks=False)
+    out = capsys.readouterr().out
+    assert "FAIL" not in out and "all bounds hold" not in out and "bound" not in out and ": ok" not in out
+    assert "1.0e-07" in out and "+20.0" in out and "5.00 us" in out and "3.00x" in out  # the figures stay
+    # the developer's release comparison still checks each bound
+    bench_release.print_table(res, checks=True)
+    dev = capsys.readouterr().out
+    assert "all bounds hold: False" in dev and "FAIL" in dev
+    # through the suite runner: figures only, in the table and the JSON, unless --release-checks
+    monkeypatch.setattr(bench_release, "run", lambda quick: _release_result())
+    hb.run_suite(quick=True, json_path=str(tmp_path / "b.json"), only=["bench_release"], progress=False)
+    out = capsys.readouterr().out
+    assert "FAIL" not in out and "all bounds hold" not in out
+    written = json.loads((tmp_path / "b.json").read_text())["bench_release"]
+    assert "checks" not in written and "status" not in written["instructions"]["regressor"]
+    assert written["instructions"]["regressor"]["current"] == 120
+    hb.run_suite(quick=True, only=["bench_release"], progress=False, release_checks=True)
+    assert "all bounds hold: False" in capsys.readouterr().out
+
+
+def test_bench_scaling_states_its_target_only_for_developers(capsys):
+    res = {"rows": [], "not_attempted": [], "budget_s": 600.0, "cores": 2, "wall_s": 1.0,
+           "target": {"n": 7, "seconds": 120.0, "measured_generate_s": 150.0, "met": False,
+                      "derive_estimate_s": None}}
+    bench_scaling.print_table(res, checks=False)
+    out = capsys.readouterr().out
+    assert "generation 150.0 s" in out and "target" not in out and "met" not in out
+    bench_scaling.print_table(res, checks=True)
+    assert "(target < 120 s): NOT met" in capsys.readouterr().out

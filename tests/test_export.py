@@ -23,11 +23,14 @@ def _build(folder):
 def _run(folder):
     prog = json.loads((folder / EXPORT_MANIFEST).read_text())["program"]
     proc = subprocess.run([str(folder / prog)], cwd=folder, capture_output=True, text=True, timeout=600)
-    out = {"max_error": {}}
+    out = {"max_error": {}, "error_shown": {}}
     for line in proc.stdout.splitlines():
         key, *rest = line.split()
         if key == "max_error":
+            # max_error <coord> <SI value> <SI unit>  <pct> % of amplitude  <value> <mm|mrad>
             out["max_error"][rest[0]] = float(rest[1])
+            out["error_shown"][rest[0]] = (rest[2], None if rest[3] == "-" else float(rest[3]),
+                                           float(rest[-2]), rest[-1])
         else:
             out[key] = rest[0]
     assert proc.returncode == (0 if out.get("status") == "0" else 1), proc.stdout + proc.stderr
@@ -63,6 +66,18 @@ def test_exported_program_matches_the_noise_free_simulation(tmp_path, cache, mod
     got = np.array([out["max_error"][c] for c in dyn.model.coordinate_names])
     np.testing.assert_allclose(got, expected, rtol=1e-9, atol=1e-13)
     assert got.max() > 1e-5  # the reference is being tracked, not trivially zero
+    # the same figures as 'hydrogen simulate' prints: SI unit, % of amplitude ("-" where the reference
+    # does not move the coordinate), mm or mrad
+    amplitude = named_scenario(scenario, dyn.model).reference.amplitude()
+    for i, c in enumerate(dyn.model.coordinate_names):
+        unit, pct, shown, shown_unit = out["error_shown"][c]
+        assert unit == dyn.model.coordinate_units[i]
+        assert shown_unit == ("mrad" if unit == "rad" else "mm")
+        assert shown == pytest.approx(1e3 * expected[i], abs=1e-4)
+        if amplitude[i] > 0:
+            assert pct == pytest.approx(100 * expected[i] / amplitude[i], abs=0.006)
+        else:
+            assert pct is None
 
 
 def test_export_folder_contents(tmp_path, dyn):

@@ -1,5 +1,5 @@
-"""Issue 10, "nothing lost, nothing silent": each fault or bad input gives one clear error, files
-stay intact and results are kept. One test (or more) per numbered item of the issue."""
+"""Nothing lost, nothing silent: each fault or bad input gives one clear error, files stay intact and
+results are kept. One test (or more) per kind of fault."""
 import dataclasses
 import json
 import os

@@ -99,7 +99,7 @@ def test_tau_d_dot_matches_casadi_ad(kind, model, rng):
 
 @pytest.mark.parametrize("kind", ["backstepping", "adaptive-robust", "adaptive-observer"])
 def test_tau_d_dot_is_no_larger_than_casadi_ad(kind, model):
-    """The issue's size target, per controller: τ̇_d as SymPy derives it takes no more CasADi
+    """The size target, per controller: τ̇_d as SymPy derives it takes no more CasADi
     instructions (with CSE) than CasADi's own forward AD of the same τ_d."""
     X, _, tau_dot_sx, ad = _tau_d_dot_and_ad(kind, model)
     n_sympy = ca.Function("sympy", [X], [tau_dot_sx], {"cse": True}).n_instructions()
@@ -342,7 +342,7 @@ def test_c_loop_matches_python_loop_for_both_estimator_updates(dyn, update):
     np.testing.assert_allclose(c.gamma2_hat, py.gamma2_hat, rtol=1e-8)
 
 
-_RIG_XFAIL = ("issue 11: on the honest rig (one-period delay, 80 Hz second-order valves, quantised "
+_RIG_XFAIL = ("on the honest rig (one-period delay, 80 Hz second-order valves, quantised "
               "encoders, a real Kalman filter) no gain of the search keeps a margin of 2; at the least bad "
               "point the adaptive-robust controller reaches 9.6 / 19.8 / 17.5 % on z-1hz / z-2hz / psi-1hz "
               "(README 'Results')")

@@ -7,7 +7,7 @@ from ..codegen.generate import check, derivation_hash, generate_locked, read_man
 from ..errors import BuildCacheError
 from ..model import Model, load_model
 from .cachedir import cache_errors, check_cache_root, folder_lock, warm_library
-from .compiler import Toolchain, cache_root, compile_library
+from .compiler import Toolchain, build_key, cache_root, cached_library, compile_library
 from .extension import attach_extension
 from .library import GeneratedLibrary
 
@@ -37,7 +37,7 @@ def generated_dir_for(model: Model, cache: Path | None = None) -> Path:
 
 def build(model: Model | str | Path | None = None, *, cc: str | None = None,
           cflags: tuple | None = None, cache: Path | None = None, generated: Path | None = None,
-          backend: str = "auto"):
+          backend: str = "auto", progress=None):
     """Generate if stale, compile if needed, load, and return a :class:`~hydrogen.dynamics.Dynamics`.
 
     Parameters
@@ -54,29 +54,44 @@ def build(model: Model | str | Path | None = None, *, cc: str | None = None,
         How Python calls the compiled functions: "auto" builds and caches a CPython extension
         for direct calls and falls back to ctypes (with a warning) when it cannot be built;
         "extension" makes that an error. ``Dynamics.backend`` tells which is in use.
+    progress : callable, optional
+        Called with a :class:`hydrogen.progress.BuildEvent` (stage, model, detail, elapsed_s) at each
+        stage: "generating"/"generated" and "compiling"/"compiled" around the long steps, then
+        "built"; a library already built gives "loaded" alone.
     """
     from ..dynamics import Dynamics
+    from ..progress import Reporter, c_size, generation_reported
 
     if not isinstance(model, Model):
         model = load_model(model)
+    report = Reporter(progress, model.name)
     root = check_cache_root(Path(cache or cache_root()))
     folder = Path(generated) if generated else generated_dir_for(model, cache)
     toolchain = Toolchain(**{k: v for k, v in (("cc", cc), ("cflags", cflags)) if v is not None})
     warm = warm_library(model, folder, toolchain, root)  # no lock, no write: a read-only cache works
     if warm is not None:
         attach_extension(warm, toolchain, cache=cache, backend=backend)
+        report("loaded", f"already built: {warm.path}", report.total())
         return Dynamics(model, warm)
     committed = generated is None and folder == repo_generated_dir() / model.name
     # One lock from generation through compilation: the manifest read and the sources compiled
     # are the same generation even if another process regenerates the folder meanwhile.
     with cache_errors(root), folder_lock(folder, current=committed):
-        generate_locked(model, folder)  # no-op when current
+        with generation_reported(report, model, folder):
+            generate_locked(model, folder)  # no-op when current
         manifest = read_manifest(folder)
         if manifest is None:
             raise BuildCacheError(f"{folder}: generated folder has no readable manifest after generation")
         sources = [folder / e["source"] for e in manifest["functions"]] \
             + [folder / d for d in manifest.get("drivers", [])]
+        # Progress around the compile call, not inside it: a build another process finished is no step.
+        compiles = cached_library(root / "build" / build_key(sources, toolchain)) is None
+        clock = report.start()
+        if compiles:
+            report("compiling", f"{len(sources)} files, {c_size(sources)} of C")
         lib_path = compile_library(sources, model.name, toolchain, cache=cache)
+        if compiles:
+            report("compiled", lib_path.name, clock())
         try:
             lib = GeneratedLibrary(lib_path, manifest, folder)
         except BuildCacheError:
@@ -84,4 +99,7 @@ def build(model: Model | str | Path | None = None, *, cc: str | None = None,
             lib_path = compile_library(sources, model.name, toolchain, cache=cache, force=True)
             lib = GeneratedLibrary(lib_path, manifest, folder)
     attach_extension(lib, toolchain, cache=cache, backend=backend)
+    steps = [s for s, done in (("generated", "generated"), ("compiled", "compiled")) if done in report.stages]
+    report("built" if steps else "loaded", " + ".join(steps) if steps else f"already built: {lib.path}",
+           report.total())
     return Dynamics(model, lib)

@@ -11,7 +11,7 @@ from ..errors import ScenarioError
 from .checks import check_fields
 from .reference import MultiSine, Step
 
-__all__ = ["Scenario", "scenario", "scenario_names", "table_keys"]
+__all__ = ["Scenario", "scenario", "scenario_names", "table_keys", "default_scenario_name"]
 
 
 @dataclass(frozen=True)
@@ -145,6 +145,15 @@ def _reference(model, where, spec, neutral):
 def scenario_names(model) -> tuple:
     """Names of the scenarios the model's description defines."""
     return tuple(k for k in (model.scenarios or {}) if k != "rig")
+
+
+def default_scenario_name(model) -> str:
+    """The scenario a command runs when none is named: the first the model's description defines."""
+    names = scenario_names(model)
+    if not names:
+        raise ScenarioError(f"model '{model.name}' defines no scenario ([scenarios.<name>] tables); "
+                            "name one with --scenario or add one to its description")
+    return names[0]
 
 
 def scenario(name: str, model) -> Scenario:

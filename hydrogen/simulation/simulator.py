@@ -9,12 +9,13 @@ import numpy as np
 
 from ..controllers import spec as controller_spec
 from ..errors import KinematicsError, SimulationError
+from ..summary import estimated_blocks
 from .checks import check_against_model, check_call, check_run_size, checked_float, metric_window
 from .control import make_controller
 from .scenarios import Scenario, scenario as named_scenario, scenario_names
 
 __all__ = ["simulate", "SimulationResult", "equilibrium_pressures", "Stepper", "prepare_run", "new_logs",
-           "make_runner", "run_python_loop", "kalman_gain", "dare",
+           "make_runner", "run_python_loop", "kalman_gain",
            "valve_vector", "length_noise_variance", "excitation"]
 
 
@@ -44,6 +45,9 @@ class SimulationResult:
     coordinates: tuple = ()
     units: tuple = ()
     theta_names: tuple = ()
+    #: The estimate blocks the controller declares in its state (theta_hat, gamma1_hat, gamma2_hat);
+    #: empty for a controller that adapts nothing, whose theta_hat/gamma*_hat rows are the fixed values.
+    estimated: tuple = ()
     wall_time_s: float = 0.0  # the run: setup, loop, result, with the library already loaded (s)
     loop_wall_s: float = 0.0  # the closed loop alone (s)
     u_max: float = 0.0
@@ -243,35 +247,20 @@ def length_noise_variance(noise_l, quantization_l) -> float:
     return max(float(noise_l) ** 2 + float(quantization_l) ** 2 / 12.0, 1e-18)
 
 
-def dare(A, B, Q, R, tol=1e-13, max_iter=100):
-    """Stabilising solution X of the discrete algebraic Riccati equation
-    X = Aᵀ X A − Aᵀ X B (R + Bᵀ X B)⁻¹ Bᵀ X A + Q (control form, as ``scipy.linalg.solve_discrete_are``),
-    by the structure-preserving doubling algorithm (numpy only; converges quadratically)."""
-    A, B, Q, R = (np.atleast_2d(np.asarray(v, float)) for v in (A, B, Q, R))
-    G = B @ np.linalg.solve(R, B.T)
-    H, I = Q.copy(), np.eye(A.shape[0])
-    for _ in range(max_iter):
-        W = np.linalg.inv(I + G @ H)
-        A_next, G_next, H_next = A @ W @ A, G + A @ W @ G @ A.T, H + A.T @ H @ W @ A
-        done = np.abs(H_next - H).max() <= tol * max(np.abs(H_next).max(), 1e-300)
-        A, G, H = A_next, G_next, H_next
-        if done:
-            break
-    return 0.5 * (H + H.T)
-
-
 def kalman_gain(h, r, accel):
     """Steady-state gain [K_l, K_l̇] of the fixed-gain Kalman filter on one cylinder length.
 
     Process model: constant velocity driven by white acceleration of spectral density ``accel``
     (m²/s³), exactly discretised over the control period h: F = [1 h; 0 1],
     Q = accel [h³/3 h²/2; h²/2 h]. Measurement: the length, variance ``r`` (m²). The predicted
-    covariance P solves the filter's DARE; K = P Hᵀ (H P Hᵀ + r)⁻¹, applied after each prediction.
+    covariance P solves the filter's DARE (scipy's solver, in its control form with Fᵀ, Hᵀ);
+    K = P Hᵀ (H P Hᵀ + r)⁻¹, applied after each prediction.
     """
+    from scipy.linalg import solve_discrete_are
     F = np.array([[1.0, h], [0.0, 1.0]])
     Q = accel * np.array([[h ** 3 / 3, h ** 2 / 2], [h ** 2 / 2, h]])
     H = np.array([[1.0, 0.0]])
-    P = dare(F.T, H.T, Q, np.array([[r]]))
+    P = solve_discrete_are(F.T, H.T, Q, np.array([[r]]))
     return P[:, 0] / (P[0, 0] + r)
 
 
@@ -423,7 +412,7 @@ def _result(sc, controller, ctrl, t, log, k, theta0, gamma0, theta_true, gamma_t
         gamma2_hat=est("gamma2_hat", gamma0[1]),
         theta_true=theta_true, gamma_true=gamma_true, amplitude=sc.reference.amplitude(),
         metric_start=sc.metric_start, coordinates=tuple(model.coordinate_names), units=model.coordinate_units,
-        theta_names=tuple(model.theta_names), wall_time_s=wall, loop_wall_s=wall,
+        theta_names=tuple(model.theta_names), estimated=estimated_blocks(ctrl), wall_time_s=wall, loop_wall_s=wall,
         u_max=float(ctrl.values["u_max"][0]) if "u_max" in ctrl.values else 0.0)
     if k:
         res.compute_metrics()
