@@ -294,3 +294,20 @@ def test_three_way_cylinder_is_the_papers_actuator():
         mod.Symbolic.force((s,), Ps)
     assert hyd.valve_inverse_unit(s, pc, Ps["supply_pressure"], Ps["underlap"], EPS) == \
         mod.Symbolic.flow_inverse(s, (pc,), Ps, EPS)
+
+
+def test_the_derivation_hash_covers_the_actuators(tmp_path, monkeypatch):
+    """An edit to an actuator module changes what is generated, so it must make the generated code stale."""
+    import shutil
+    from pathlib import Path
+
+    import hydrogen.codegen.generate as gen
+    pkg = Path(gen.__file__).resolve().parent.parent
+    shutil.copy(pkg / "layout.py", tmp_path / "layout.py")
+    for sub in ("symbolic", "codegen", "controllers", "actuators"):
+        shutil.copytree(pkg / sub, tmp_path / sub)
+    monkeypatch.setattr(gen, "_PACKAGE", tmp_path)
+    before = gen.derivation_hash()
+    path = tmp_path / "actuators" / "rotary.py"
+    path.write_text(path.read_text() + "\n# an edit\n")
+    assert gen.derivation_hash() != before
