@@ -27,8 +27,9 @@ Pipeline (the log's columns are described in :mod:`hydrogen.logs`):
 f0 = −A l̇/(l − L), g0 = (q_l/c)/(l − L). The command u_k is held from t_k to t_{k+1}, so the
 equation is written over each interval: Δf_k = γ1 (−A Δl_k/(l − L)) + γ2 h (q_l/c)(u_k, p_c)/(l − L)
 with l and p_c (low-passed) at the interval's midpoint; the three columns are low-passed alike and
-the legs pooled (the model has one γ; per-leg estimates are returned too). q_l/c is
-``dyn.valve_flow`` (eq. (57) as printed) with p_c clipped to [0, P_s]. With the legs nearly
+the legs pooled (the model has one γ; per-leg estimates are returned too). f0, g0 (eq. (57)
+as printed inside [0, P_s], p_c clipped to it) and the force are the actuator's
+(:mod:`hydrogen.actuators.three_way_cylinder`, numeric layer). With the legs nearly
 incompressible the two columns almost cancel (q_l ≈ A l̇), and β is carried by their small
 difference, largest around the oil-column modes. So γ has its own cutoff, by default twice the
 highest oil-column mode at the log's mean pose (:func:`hydraulic_mode_hz`, from the model's θ and
@@ -67,6 +68,7 @@ from dataclasses import asdict, dataclass, field
 
 import numpy as np
 
+from .actuators import three_way_cylinder as actuator
 from .errors import IdentificationError, KinematicsError
 from .logcheck import fmt_number, check_log
 from .logs import as_log
@@ -415,12 +417,14 @@ def identify(log, model=None, *, dyn=None, cutoff_hz: float | None = None, order
     V = np.gradient(Qf, h, axis=0)
     Acc = np.gradient(V, h, axis=0)
     # 4. generalised forces at every sample, low-passed alike
-    F = _per_sample(dyn.leg_force, PC)
+    F = actuator.Numeric.force((PC,), actuator.stacked(model.cylinders))
     JL = _per_sample(dyn.leg_jacobian, Q)
     F_theta = F
     if zoh_correction:
         ldd = np.gradient(np.gradient(_lowpass(L, sos), h, axis=0), h, axis=0)
-        F_theta = F + model.piston_area * model.bulk_modulus * h ** 2 * ldd / (12.0 * (L - model.chamber_length))
+        # the oil column's stiffness β k(l) times the offset h² l̈ / 12 of each length
+        stiffness = model.bulk_modulus * actuator.Numeric.spring_rate(L, actuator.stacked(model.cylinders))
+        F_theta = F + stiffness * h ** 2 * ldd / 12.0
     tau = _lowpass(np.einsum("kij,ki->kj", JL, F_theta), sos)
     timings["filter_forces"] = time.perf_counter() - t0
 
@@ -511,35 +515,36 @@ def _true(meta, key, size):
 
 def hydraulic_mode_hz(dyn, q) -> float:
     """Highest natural frequency (Hz) of the platform on its oil columns at pose ``q``, with the
-    model's θ and β: each leg a spring of stiffness β A / (l − L), so K = JLᵀ diag(β A/(l − L)) JL and
-    the modes solve det(K − ω² D) = 0."""
+    model's θ and β: each leg a spring of stiffness k_i = β × the actuator's spring rate (β A / (l − L)
+    for the paper's cylinder), so K = JLᵀ diag(k) JL and the modes solve det(K − ω² D) = 0."""
     model = dyn.model
     q = np.asarray(q, float)
     l = dyn.leg_lengths(q)
     J = dyn.leg_jacobian(q)
-    K = J.T @ (J * (model.bulk_modulus * model.piston_area / (l - model.chamber_length))[:, None])
+    k = model.bulk_modulus * actuator.Numeric.spring_rate(l, actuator.stacked(model.cylinders))
+    K = J.T @ (J * k[:, None])
     w2 = np.linalg.eigvals(np.linalg.solve(dyn.mass_matrix(q, model.theta), K)).real
     return float(np.sqrt(max(w2.max(), 0.0)) / (2 * np.pi))
 
 
 def _identify_gamma(dyn, L, PC, U, F, h, sos, idx, max_cond, true):
     """Pooled (and per-leg) least squares of Δf = γ1 h f0 + γ2 h g0 over each hold interval, compensated
-    for the leg-length noise inside h f0 = −A Δl/(l − L)."""
+    for the leg-length noise inside h f0 (= −A Δl/(l − L) for the paper's cylinder)."""
     model = dyn.model
-    A, Lc, ps = model.piston_area, model.chamber_length, model.supply_pressure
+    law, P, ps = actuator.Numeric, actuator.stacked(model.cylinders), model.supply_pressure
     Lf, PCf = _lowpass(L, sos), np.clip(_lowpass(PC, sos), 0.0, ps)
-    l_mid = 0.5 * (Lf[1:] + Lf[:-1]) - Lc
+    l_mid = 0.5 * (Lf[1:] + Lf[:-1])
     pc_mid = 0.5 * (PCf[1:] + PCf[:-1])
     dF = np.diff(F, axis=0)
-    X1 = -A * np.diff(L, axis=0) / l_mid
-    X2 = h * _per_sample(dyn.valve_flow, U[:-1], pc_mid) / l_mid
+    X1 = law.f0(l_mid, np.diff(L, axis=0), (pc_mid,), P)  # h f0 (f0 is linear in l̇: l̇ h = Δl)
+    X2 = h * law.g0(l_mid, (pc_mid,), U[:-1], P)
     dF, X1, X2 = (_lowpass(x, sos) for x in (dF, X1, X2))
     # Expected square of the noise in X1 at each used sample: white leg-length noise of std σ_i
-    # through Δ and the zero-phase filter (gain Σ g² of its impulse response g), times (A/(l − L))².
+    # through Δ and the zero-phase filter (gain Σ g² of its impulse response g), times (∂f0/∂l̇)².
     impulse = np.zeros(len(L) | 1)  # as long as the log: the response has died out within its edges
     impulse[len(impulse) // 2] = 1.0
     gain = float(np.sum(_lowpass(np.diff(impulse), sos) ** 2))
-    e1 = (A / l_mid[idx]) ** 2 * noise_std(L) ** 2 * gain  # (k, m)
+    e1 = law.spring_rate(l_mid[idx], P) ** 2 * noise_std(L) ** 2 * gain  # (k, m)
     per_leg = []
     for i in range(L.shape[1]):
         G = np.zeros((2, 2))

@@ -7,6 +7,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..actuators import three_way_cylinder as actuator
 from ..controllers import spec as controller_spec
 from ..errors import KinematicsError, SimulationError
 from ..summary import estimated_blocks
@@ -128,9 +129,8 @@ class SimulationResult:
 
 def equilibrium_pressures(dyn, q, theta) -> np.ndarray:
     """Control pressures (Pa) whose cylinder forces hold the robot still at q: (JL)ᵀ f = G."""
-    m = dyn.model
     f = np.linalg.solve(dyn.leg_jacobian(q).T, dyn.gravity(q, theta))
-    return (f + m.supply_pressure * m.rod_area) / m.piston_area
+    return actuator.Numeric.equilibrium_pressures(f, actuator.stacked(dyn.model.cylinders))[0]
 
 
 def _rk4(rhs, x, h):
@@ -342,6 +342,7 @@ def run_python_loop(dyn, sc, ctrl, x, q0, noise, kf_gain, log, n, h):
     from ..layout import MAX_DELAY
     fric, valve = np.asarray(sc.friction, float), valve_vector(sc)
     ps = model.supply_pressure
+    P = actuator.stacked(model.cylinders)
     nq, m = model.n, model.n_cylinders
     delay, quant = sc.delay_periods, sc.quantization_l
     u_hist = np.zeros((MAX_DELAY, m))  # the C loop's ring: command of period k in slot k % MAX_DELAY
@@ -382,7 +383,7 @@ def run_python_loop(dyn, sc, ctrl, x, q0, noise, kf_gain, log, n, h):
         ctrl.applied(u_app)
         log["q"][k], log["q_d"][k], log["l"][k], log["pc"][k], log["u"][k] = q, ref[0], l_true, pc, u
         log["u_applied"][k], log["l_meas"][k] = u_app, l_meas
-        log["f"][k] = pc * model.piston_area - ps * model.rod_area
+        log["f"][k] = actuator.Numeric.force((pc,), P)
         if ctrl.xc.size:
             log["xc"][k] = ctrl.xc
         rhs = lambda xx: rhs_fn(xx, u_app, theta_true, gamma_true[0], gamma_true[1], fric, valve)  # noqa: E731
@@ -452,10 +453,9 @@ def excitation(dyn, res, ctrl=None) -> dict:
     out = {"theta": _ratio(M)}
     l, u, pc = res.leg_lengths, res.u, res.pressures
     ld = np.gradient(l, h, axis=0)
-    A, L = model.piston_area, np.array([c.chamber_length for c in model.cylinders])
-    flow = np.asarray(dyn.valve_flow(u, pc)).reshape(len(t), -1)
+    law, P = actuator.Numeric, actuator.stacked(model.cylinders)
     g1, g2 = model.gamma
-    phi = np.stack([g1 * (-A * ld / (l - L)), g2 * flow / (l - L)], axis=-1)  # (k, m, 2)
+    phi = np.stack([g1 * law.f0(l, ld, (pc,), P), g2 * law.g0(l, (pc,), u, P)], axis=-1)  # (k, m, 2)
     Mg = np.einsum("kia,kib->iab", phi, phi) * h
     out["gamma"] = [_ratio(Mi) for Mi in Mg]
     return out

@@ -31,7 +31,6 @@ from __future__ import annotations
 
 import sympy as sp
 
-from . import hydraulics as hyd
 from ..controllers.common import COMPOSITE_BLOCKS
 
 __all__ = ["triangle_size", "unpack_symmetric", "pack_symmetric", "normalised_least_squares",
@@ -156,8 +155,9 @@ class HydraulicComposite:
     def _g0_interval(self):
         """ḡ: the trapezoid of g0 over the last period with the spool held over it."""
         c = self.c
-        g0 = lambda i, p, l: hyd.g0(l, c.valve_flow(self.u_held[i], p, i), c.L[i])  # noqa: E731
-        return [(g0(i, self.pc_prev[i], self.l_prev[i]) + g0(i, c.pc[i], c.l[i])) / 2 for i in range(c.m)]
+        u = self.u_held
+        return [(c.g0(i, self.l_prev[i], self.pc_prev[i], u[i]) + c.g0(i, c.l[i], c.pc[i], u[i])) / 2
+                for i in range(c.m)]
 
     def regressor_and_output(self):
         """(W1, W2, y) per cylinder, unnormalised: filtered ḟ ≈ γ1 W1 + γ2 W2 = y (N/s)."""

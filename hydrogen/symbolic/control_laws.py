@@ -18,7 +18,7 @@ from dataclasses import dataclass, field
 
 import sympy as sp
 
-from . import hydraulics as hyd
+from ..actuators import three_way_cylinder as actuator
 from .calculus import clip, projection
 from .constants import PRESSURE_EPS, baked
 from .kinematics import leg_intermediates, matrix_symbols, pose_rates, pose_symbols, rate_symbols
@@ -85,12 +85,12 @@ class Common:
         self.model = model
         n, m = model.n, model.n_cylinders
         self.n, self.m, self.p = n, m, model.n_theta
-        c = model.cylinders
-        self.ps = [baked(x.supply_pressure) for x in c]
-        self.d = [baked(x.underlap) for x in c]
-        self.A = [baked(x.piston_area) for x in c]
-        self.a = [baked(x.rod_area) for x in c]
-        self.L = [baked(x.chamber_length) for x in c]
+        #: each cylinder's actuator parameters (baked SymPy numbers), by name
+        self.P = [actuator.parameters(x, baked) for x in model.cylinders]
+        self.law = actuator.Symbolic
+        self.ps = [P["supply_pressure"] for P in self.P]
+        self.A = [P["piston_area"] for P in self.P]
+        self.L = [P["chamber_length"] for P in self.P]
         self.g = baked(model.gravity)
         self.q, self.qdot, self.pc = pose_symbols(model), vector("qdot", n), vector("pc", m)
         self.qd = [vector(f"qd{k}", n) for k in range(4)]  # q_d and its first three derivatives
@@ -102,7 +102,7 @@ class Common:
         self.pose_rates = pose_rates(model, self.q, self.qdot)
         self.staged = bool(rigid_body_stages(model, self.q))
         self.ldot = self.JL * self.qdot
-        self.f = sp.Matrix([hyd.leg_force(self.pc[i], self.ps[i], self.A[i], self.a[i]) for i in range(m)])
+        self.f = sp.Matrix([self.law.force((self.pc[i],), self.P[i]) for i in range(m)])
         self.Jit = matrix_symbols("JLinvT", n, m)
         self.e = self.q - self.qd[0]
         # The spool commands (m) the valves held over the period the state update integrates (the
@@ -153,14 +153,13 @@ class Common:
             (S["fd_dot"], self.Jit * (S["taud_dot"] - self.JLdot.T * S["fd"])),
         ]
         ftil = self.f - S["fd"]
-        f0 = sp.Matrix([hyd.f0(self.l[i], self.ldot[i], self.A[i], self.L[i]) for i in range(m)])
+        f0 = sp.Matrix([self.law.f0(self.l[i], self.ldot[i], (self.pc[i],), self.P[i]) for i in range(m)])
         Js = self.JL * s
         stages.append((S["v"], sp.Matrix([S["fd_dot"][i] - f0[i] * g1[i] - self.Gtau_inv[i] * Js[i]
                                           - self.Ktau[i] * ftil[i] for i in range(m)])))
-        # g0 γ̂2 = v  ⇔  q_l / c = v (l − L) / γ̂2, then invert (57) for u.
-        w = [S["v"][i] * (self.l[i] - self.L[i]) / g2[i] for i in range(m)]
-        stages.append((S["u_raw"], sp.Matrix([hyd.valve_inverse_unit(w[i], self.pc[i], self.ps[i], self.d[i],
-                                                                     PRESSURE_EPS) for i in range(m)])))
+        # g0 γ̂2 = v: the spool with g0 = v / γ̂2 (the valve inverse, on every branch)
+        stages.append((S["u_raw"], sp.Matrix([self.law.valve_inverse(S["v"][i] / g2[i], self.l[i], (self.pc[i],),
+                                                                     self.P[i], PRESSURE_EPS) for i in range(m)])))
         stages.append((S["u_cmd"], sp.Matrix([clip(S["u_raw"][i], -self.u_max, self.u_max) for i in range(m)])))
         u = S["u_cmd"]
         # g0 of (59) at the spool the valves received (the input u_applied, not this call's u): the
@@ -170,17 +169,16 @@ class Common:
         self.g0_applied = None
         if self.u_applied_declared:
             ua = self.u_applied
-            stages.append((S["g0_app"], sp.Matrix([hyd.g0(self.l[i], self.valve_flow(ua[i], self.pc[i], i), self.L[i])
-                                                   for i in range(m)])))
+            stages.append((S["g0_app"], sp.Matrix([self.g0(i, self.l[i], self.pc[i], ua[i]) for i in range(m)])))
             self.g0_applied = S["g0_app"]
         self.taud_dot = S["taud_dot"]
         return S["fd"], ftil, f0, S["v"], u, S["taud"], stages
 
-    def valve_flow(self, u, pc, i):
-        """q_l / c of (57) for cylinder ``i`` as the controllers evaluate it: the pressure drops
-        clipped at 0 (a noisy measured p_c above p_s must not take the root of a negative number),
-        the roots shared with the valve inverse; inside [0, p_s] exactly (57)."""
-        return hyd.valve_flow_unit(u, pc, self.ps[i], self.d[i], clipped=True)
+    def g0(self, i, l, pc, u):
+        """g0 of (59) for cylinder ``i`` as the controllers evaluate it: the pressure drops clipped at
+        0 (a noisy measured p_c above p_s must not take the root of a negative number), the roots
+        shared with the valve inverse; inside [0, p_s] exactly (59)."""
+        return self.law.g0(l, (pc,), u, self.P[i])
 
     def jit_intermediate(self):
         return (self.Jit, ("inverse", self.JL.T))

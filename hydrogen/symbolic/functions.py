@@ -11,7 +11,7 @@ from dataclasses import dataclass, field
 
 import sympy as sp
 
-from . import hydraulics as hyd
+from ..actuators import three_way_cylinder as actuator
 from .constants import PRESSURE_EPS, baked
 from .kinematics import leg_stages, pose_symbols, rate_symbols
 from .plant import plant_rhs
@@ -111,17 +111,14 @@ def hydraulic_functions(model) -> list:
     m = model.n_cylinders
     u, pc, l, ld, wq = (rate_symbols(k, m) for k in ("u", "pc", "l", "ldot", "w"))
     g1, g2 = rate_symbols("gamma1", m), rate_symbols("gamma2", m)
-    cyl = model.cylinders
-    ps, d = [baked(c.supply_pressure) for c in cyl], [baked(c.underlap) for c in cyl]
-    A, a, L = ([baked(getattr(c, k)) for c in cyl] for k in ("piston_area", "rod_area", "chamber_length"))
-    flow = sp.Matrix([hyd.valve_flow_unit(u[i], pc[i], ps[i], d[i]) for i in range(m)])
-    inv = sp.Matrix([hyd.valve_inverse_unit(wq[i], pc[i], ps[i], d[i], PRESSURE_EPS) for i in range(m)])
+    P = [actuator.parameters(c, baked) for c in model.cylinders]
+    law = actuator.Symbolic
+    flow = sp.Matrix([law.valve_flow(u[i], (pc[i],), P[i]) for i in range(m)])
+    inv = sp.Matrix([law.flow_inverse(wq[i], (pc[i],), P[i], PRESSURE_EPS) for i in range(m)])
     # Plant: ṗ_c with q_l = c · (unit flow), c = γ2/γ1, β = γ1, orifice linearised near Δp = 0.
-    p_lin = [baked(c.orifice_linear_below) for c in cyl]
-    plant_flow = [hyd.valve_flow_unit_smooth(u[i], pc[i], ps[i], d[i], p_lin[i]) for i in range(m)]
-    rate = sp.Matrix([hyd.chamber_pressure_rate(l[i], ld[i], g2[i] / g1[i] * plant_flow[i], A[i], L[i], g1[i])
+    rate = sp.Matrix([law.pressure_rates(l[i], ld[i], (pc[i],), u[i], g1[i], g2[i] / g1[i], P[i], smooth=True)[0]
                       for i in range(m)])
-    force = sp.Matrix([hyd.leg_force(pc[i], ps[i], A[i], a[i]) for i in range(m)])
+    force = sp.Matrix([law.force((pc[i],), P[i]) for i in range(m)])
     return [
         SymbolicFunction("valve_flow", [("u", u), ("pc", pc)], [("ql_per_c", flow)],
                          "q_l / c of eq. (57) per cylinder, m sqrt(Pa)."),

@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import sympy as sp
 
-from . import hydraulics as hyd
+from ..actuators import three_way_cylinder as actuator
 from .constants import baked
 from .kinematics import leg_intermediates, pose_symbols, rate_symbols
 from .rigid_body import bias_forces, mass_matrix, mass_matrix_inverse, theta_symbols
@@ -32,8 +32,7 @@ def plant_rhs(model):
     tau_v, w_v, z_v = valve = sp.symbols("tau_valve omega_valve zeta_valve", real=True)
     x = sp.Matrix([*q, *qd, *pc, *spool, *spool_rate])
     cyl = model.cylinders
-    ps, d, A, a, L, p_lin = ([baked(getattr(c, k)) for c in cyl] for k in (
-        "supply_pressure", "underlap", "piston_area", "rod_area", "chamber_length", "orifice_linear_below"))
+    P = [actuator.parameters(c, baked) for c in cyl]
 
     l, JL, _, kin = leg_intermediates(model, q, qd, rates=False)  # the plant needs no J̇L
     ldot = rate_symbols("plant_ldot", m)
@@ -55,7 +54,7 @@ def plant_rhs(model):
     spool_ddot = sp.Matrix([sp.Piecewise((w_v ** 2 * (u[i] - spool[i]) - 2 * z_v * w_v * spool_rate[i], second),
                                          (0, True), evaluate=False) for i in range(m)])
     f_leg = rate_symbols("plant_fleg", m)
-    f_leg_value = sp.Matrix([hyd.leg_force(pc[i], ps[i], A[i], a[i])
+    f_leg_value = sp.Matrix([actuator.Symbolic.force((pc[i],), P[i])
                              - fric[0] * sp.tanh(ldot[i] / fric[2]) - fric[1] * ldot[i] for i in range(m)])
     D = mass_matrix(model, q, th)
     rhs = JL.T * f_leg - bias_forces(model, q, qd, th)  # (the link poses are in kin)
@@ -66,9 +65,9 @@ def plant_rhs(model):
     else:
         qdd = rate_symbols("plant_qdd", n)
         solve = [(qdd, ("solve", D, rhs))]
-    pc_dot = sp.Matrix([hyd.chamber_pressure_rate(
-        l[i], ldot[i], g2[i] / g1[i] * hyd.valve_flow_unit_smooth(spool_eff[i], pc[i], ps[i], d[i], p_lin[i]),
-        A[i], L[i], g1[i]) for i in range(m)])
+    # c = γ2/γ1, β = γ1; the orifice law linearised near Δp = 0 (smooth)
+    pc_dot = sp.Matrix([actuator.Symbolic.pressure_rates(l[i], ldot[i], (pc[i],), spool_eff[i], g1[i], g2[i] / g1[i],
+                                                         P[i], smooth=True)[0] for i in range(m)])
     xdot = sp.Matrix([*qd, *qdd, *pc_dot, *spool_dot, *spool_ddot])
     inputs = [("x", x), ("u", u), ("theta", th), ("gamma1", g1), ("gamma2", g2), ("friction", fric),
               ("valve", sp.Matrix(valve))]

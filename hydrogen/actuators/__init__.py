@@ -1,0 +1,53 @@
+"""The actuator kinds: one module each, registered here (like :mod:`hydrogen.controllers`).
+
+An actuator module declares
+
+* ``NAME`` (the kind, as a model file will name it) and ``DOC``;
+* ``MOTION``: ``"prismatic"`` (its coordinate x is a length l, m) or ``"revolute"`` (a joint angle, rad);
+* ``STATES``: its chamber pressure states (:class:`~hydrogen.actuators.declarations.State`: name, unit,
+  bounds), in the order the laws take them as the tuple ``p``;
+* ``PARAMETERS``: its constants and their defaults (:class:`~hydrogen.actuators.declarations.Parameter`);
+  ``parameters(source)`` reads them from a cylinder or a mapping, ``stacked(sources)`` as arrays;
+* ``SENSORS``: what the robot measures on it (:class:`~hydrogen.actuators.declarations.Sensor`);
+* ``Symbolic`` (SymPy, the derivation layer) and ``Numeric`` (numpy twins, tested equal), each with
+  the same laws, ``P`` the parameters by name, spool u in m, β and c the paper's γ = [β, βc]:
+
+  - ``force(p, P)``: the force (N) or torque (N·m) from the pressures;
+  - ``pressure_rates(x, xdot, p, u, beta, c, P, smooth=True)``: the plant's ṗ (Pa/s), with the
+    simulator's smooth orifice law (``smooth``) or the controllers' law with clipped drops;
+  - ``f0(x, xdot, p, P)``, ``g0(x, p, u, P)``: ḟ = β f0 + βc g0, g0 increasing in u;
+  - ``valve_inverse(y, x, p, P, eps)``: the u with g0 = y, closed form on every branch;
+  - ``spring_rate(x, P)`` = −∂f0/∂ẋ (β times it: the oil column's stiffness), ``f0_potential(x, P)``
+    (Φ with dΦ/dt = f0);
+  - ``equilibrium_pressures(force, P)``: pressures (a tuple, ``STATES`` order) whose force is
+    ``force``; ``force_range(P)``: the forces reachable with every pressure within its bounds.
+
+Adding a kind: write the module, add it to ``_MODULES``, add its tests (tests/test_actuators.py
+runs the physics checks on every registered kind). Importing this package does not import SymPy.
+"""
+from __future__ import annotations
+
+import importlib
+
+from ..errors import ModelError
+
+__all__ = ["KINDS", "actuator"]
+
+_MODULES = ("three_way_cylinder", "four_way_cylinder", "rotary")
+
+_REGISTRY = {}
+for _mod in _MODULES:
+    _m = importlib.import_module(f"{__name__}.{_mod}")
+    _REGISTRY[_m.NAME] = _m
+
+#: The actuator kinds, in registration order.
+KINDS = tuple(_REGISTRY)
+
+
+def actuator(kind: str):
+    """The module of actuator ``kind``; a :class:`~hydrogen.errors.ModelError` listing the known
+    kinds if there is none."""
+    try:
+        return _REGISTRY[kind]
+    except (KeyError, TypeError):
+        raise ModelError(f"unknown actuator kind {kind!r}; known kinds: {', '.join(KINDS)}") from None

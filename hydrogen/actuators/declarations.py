@@ -1,0 +1,102 @@
+"""What an actuator kind declares (chamber states, parameters, sensors), and reading its parameters.
+
+Plain data, no SymPy: the numeric layer (simulator, identification) imports this without the
+derivation layer. :data:`sp` gives the kind modules SymPy on first use, so a kind module can be
+imported by numeric code and still hold its SymPy expressions.
+"""
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass
+
+import numpy as np
+
+__all__ = ["State", "Parameter", "Sensor", "parameter_values", "stacked_parameters", "state_bounds", "sp"]
+
+
+@dataclass(frozen=True)
+class State:
+    """A chamber pressure state of the plant: ``name``, ``unit``, bounds ``lower``/``upper`` (a number,
+    or the name of the parameter that holds it, e.g. ``"supply_pressure"``)."""
+
+    name: str
+    unit: str
+    lower: float | str
+    upper: float | str
+    doc: str = ""
+
+
+@dataclass(frozen=True)
+class Parameter:
+    """A constant of the actuator: ``name``, ``unit``, ``default`` (None: required), ``doc``.
+
+    ``gamma``: one of the paper's hydraulic parameters γ = [β, βc] (the bulk modulus β or the flow gain
+    c): the model holds its true value, but the symbolic laws take β and c as arguments, since the
+    controllers adapt them."""
+
+    name: str
+    unit: str
+    default: float | None
+    doc: str
+    gamma: bool = False
+
+
+@dataclass(frozen=True)
+class Sensor:
+    """A signal the robot measures on this actuator: ``name`` (prefix of its columns), ``unit``, ``doc``."""
+
+    name: str
+    unit: str
+    doc: str
+
+
+class _LazySympy:
+    """SymPy, imported when a symbolic law first uses it (numeric users never pay for it)."""
+
+    def __getattr__(self, name):
+        import sympy
+        return getattr(sympy, name)
+
+
+#: SymPy for the kind modules' symbolic laws (imported on first attribute access).
+sp = _LazySympy()
+
+
+def parameter_values(kind: str, parameters, source, convert=float) -> dict:
+    """``{name: convert(value)}`` of the declared ``parameters`` of actuator ``kind`` from ``source``
+    (a mapping, or an object with the parameters as attributes, such as a model's cylinder); a
+    parameter absent from ``source`` takes its default. Raises ValueError naming the kind and the
+    parameter when a required one is missing or a value is not a finite number."""
+    out = {}
+    for par in parameters:
+        if isinstance(source, Mapping):
+            value = source.get(par.name, par.default)
+        else:
+            value = getattr(source, par.name, par.default)
+        if value is None:
+            raise ValueError(f"actuator '{kind}': parameter '{par.name}' ({par.unit}, {par.doc}) is missing "
+                             "and has no default")
+        try:
+            ok = math.isfinite(float(value))
+        except (TypeError, ValueError):
+            ok = False
+        if not ok:
+            raise ValueError(f"actuator '{kind}': parameter '{par.name}' must be a finite number "
+                             f"({par.unit}), got {value!r}")
+        out[par.name] = convert(value)
+    return out
+
+
+def stacked_parameters(kind: str, parameters, sources) -> dict:
+    """``{name: array (m,)}``: the parameters of each of ``sources`` (one per actuator), stacked, for
+    numeric laws that broadcast over actuators."""
+    rows = [parameter_values(kind, parameters, s) for s in sources]
+    return {par.name: np.array([r[par.name] for r in rows], float) for par in parameters}
+
+
+def state_bounds(states, values: Mapping) -> list:
+    """``[(lower, upper)]`` of each state, the bounds that name a parameter read from ``values``."""
+    def bound(b):
+        return values[b] if isinstance(b, str) else b
+    return [(bound(s.lower), bound(s.upper)) for s in states]

@@ -1,0 +1,71 @@
+"""A rotary vane actuator on a revolute joint, driven by a four-way valve.
+
+Displacement D_m = ``displacement`` (m³/rad): torque τ = D_m (p_A − p_B) (N·m, positive turns the
+joint the positive way, filling chamber A). The coordinate is the joint angle θ (rad) between
+``angle_min`` and ``angle_max``. Chosen model: a *vane* actuator (limited travel), whose chamber
+volumes change with the angle,
+
+    V_A(θ) = V_A0 + D_m (θ − θ_min),   V_B(θ) = V_B0 + D_m (θ_max − θ),
+
+V_A0, V_B0 the dead volumes (> 0). A hydraulic *motor* (unlimited rotation) has constant chamber
+volumes instead: it is not this kind (its f0 would be −ω D_m² (1/V_A + 1/V_B) with constant V).
+The laws are :class:`~hydrogen.actuators.two_chamber.Laws` with both effective areas D_m.
+"""
+from __future__ import annotations
+
+from . import orifices as orf
+from .declarations import Parameter, Sensor, State, parameter_values, stacked_parameters
+from .two_chamber import Laws
+
+__all__ = ["NAME", "DOC", "MOTION", "STATES", "PARAMETERS", "SENSORS", "Symbolic", "Numeric",
+           "parameters", "stacked"]
+
+NAME = "rotary"
+DOC = "Rotary vane actuator (displacement per radian) on a revolute joint, four-way valve."
+#: The coordinate the actuator moves: the joint angle θ (rad), θ̇ (rad/s).
+MOTION = "revolute"
+STATES = (State("pA", "Pa", "tank_pressure", "supply_pressure", "chamber A pressure (fills for positive rotation)"),
+          State("pB", "Pa", "tank_pressure", "supply_pressure", "chamber B pressure"))
+PARAMETERS = (
+    Parameter("displacement", "m^3/rad", None, "D_m, volume swept per radian"),
+    Parameter("angle_min", "rad", None, "joint angle with chamber A at its dead volume"),
+    Parameter("angle_max", "rad", None, "joint angle with chamber B at its dead volume"),
+    Parameter("dead_volume_A", "m^3", None, "V_A0, chamber A volume at angle_min"),
+    Parameter("dead_volume_B", "m^3", None, "V_B0, chamber B volume at angle_max"),
+    Parameter("supply_pressure", "Pa", None, "P_s"),
+    Parameter("tank_pressure", "Pa", 0.0, "P_t (gauge)"),
+    Parameter("underlap", "m", 0.0, "d, valve underlap (0: critically centred)"),
+    Parameter("flow_gain", "m^2/(s sqrt(Pa))", None, "c: q = c opening sqrt(dp), each orifice", gamma=True),
+    Parameter("bulk_modulus", "Pa", None, "beta, effective oil bulk modulus", gamma=True),
+    Parameter("orifice_linear_below", "Pa", 5.0e4, "the simulated plant's orifice roots turn linear below this drop"),
+)
+SENSORS = (Sensor("q", "rad", "joint angle (encoder)"),
+           Sensor("pA", "Pa", "chamber A pressure"),
+           Sensor("pB", "Pa", "chamber B pressure"))
+
+
+def parameters(source, convert=float) -> dict:
+    """This kind's parameters from a joint's actuator table (or mapping), defaults filled in."""
+    return parameter_values(NAME, PARAMETERS, source, convert)
+
+
+def stacked(sources) -> dict:
+    """The parameters of several actuators as arrays (m,), for the numeric laws."""
+    return stacked_parameters(NAME, PARAMETERS, sources)
+
+
+def areas(P):
+    """(D_m, D_m), m³/rad: τ = D_m p_A − D_m p_B."""
+    return P["displacement"], P["displacement"]
+
+
+def volumes(x, P):
+    """(V_A, V_B) at angle ``x``, m³."""
+    D = P["displacement"]
+    return P["dead_volume_A"] + D * (x - P["angle_min"]), P["dead_volume_B"] + D * (P["angle_max"] - x)
+
+
+#: The SymPy laws (the derivation layer).
+Symbolic = Laws(orf.SYMPY, areas, volumes)
+#: Their numpy twins.
+Numeric = Laws(orf.NUMPY, areas, volumes)

@@ -1,0 +1,115 @@
+"""The laws of a two-chamber actuator on a four-way valve, for any geometry (four-way cylinder, rotary).
+
+Chambers A and B at pressures p_A, p_B; the actuator coordinate x (m or rad) grows as chamber A
+fills: its volumes V_A(x), V_B(x) with dV_A/dx = a_A, dV_B/dx = −a_B, a_A and a_B the effective
+areas (m², or m³/rad for a rotary actuator). Force (or torque) f = p_A a_A − p_B a_B.
+
+Four-way valve, critically centred (d = 0) or underlapped by d (m): four metering orifices of
+opening (u + d) (P→A, B→T, open for u ≥ −d) and (d − u) (A→T, P→B, open for u ≤ d), supply P_s and
+tank P_t. Per unit flow gain c, the flow into A and the flow out of B are
+
+    q_A/c = (u + d) √(P_s − p_A) [u ≥ −d] + (u − d) √(p_A − P_t) [u ≤ d],
+    q_B/c = (u + d) √(p_B − P_t) [u ≥ −d] + (u − d) √(P_s − p_B) [u ≤ d],
+
+and (56) for each chamber (no leakage):
+
+    ṗ_A = β (q_A − a_A ẋ) / V_A,   ṗ_B = β (−q_B + a_B ẋ) / V_B.
+
+By the chain rule ḟ = a_A ṗ_A − a_B ṗ_B = β f0 + βc g0 with
+
+    f0 = −ẋ (a_A²/V_A + a_B²/V_B),   g0 = (a_A/V_A) q_A/c + (a_B/V_B) q_B/c,
+
+g0 piecewise linear and increasing in u, (u + d) S_hi [u ≥ −d] + (u − d) S_lo [u ≤ d] with
+S_hi = (a_A/V_A) √(P_s − p_A) + (a_B/V_B) √(p_B − P_t), S_lo = (a_A/V_A) √(p_A − P_t) +
+(a_B/V_B) √(P_s − p_B): the three-way law's form, so the same three-branch inverse applies.
+f0 is the time derivative of Φ(x) = −a_A ln V_A + a_B ln V_B.
+
+Equilibrium pressures for a force f: at rest (ẋ = 0) with the valve held still, both flows vanish at
+the same spool; for |u| < d that gives ((u + d)/(d − u))² = (p_A − P_t)/(P_s − p_A) = (P_s − p_B)/(p_B − P_t),
+so p_A + p_B = P_s + P_t (matched orifices) and p_A = (f + a_B (P_s + P_t)) / (a_A + a_B). A
+critically centred valve holds any pair; the same pair is taken (the limit d → 0).
+
+:class:`Laws` writes each law once over a layer (:data:`~hydrogen.actuators.orifices.SYMPY` or
+:data:`~hydrogen.actuators.orifices.NUMPY`); a kind binds it to its geometry.
+"""
+from __future__ import annotations
+
+__all__ = ["Laws"]
+
+
+class Laws:
+    """The uniform actuator interface of a two-chamber kind in one layer.
+
+    ``backend``: :data:`~hydrogen.actuators.orifices.SYMPY` or ``NUMPY``; ``areas(P)`` → (a_A, a_B);
+    ``volumes(x, P)`` → (V_A, V_B) (m³). ``P`` holds ``supply_pressure``, ``tank_pressure``,
+    ``underlap``, ``orifice_linear_below`` and the geometry's parameters. ``p`` is (p_A, p_B)."""
+
+    def __init__(self, backend, areas, volumes):
+        self.xp, self.areas, self.volumes = backend, areas, volumes
+
+    # valve
+    def valve_flows(self, u, p, P, smooth=False):
+        """(q_A/c, q_B/c) (m·√Pa): drops clipped at 0 (a measured pressure outside [P_t, P_s]), or
+        the plant's signed roots linear below ``orifice_linear_below`` (``smooth``)."""
+        xp, (pa, pb) = self.xp, p
+        ps, pt, d = P["supply_pressure"], P["tank_pressure"], P["underlap"]
+        if smooth:
+            lin = P["orifice_linear_below"]
+            r = lambda drop: xp.smooth_root(drop, lin)  # noqa: E731
+        else:
+            r = xp.root
+        return xp.terms(u, d, r(ps - pa), r(pa - pt)), xp.terms(u, d, r(pb - pt), r(ps - pb))
+
+    def force(self, p, P):
+        """f = p_A a_A − p_B a_B (N, or N·m)."""
+        aa, ab = self.areas(P)
+        return p[0] * aa - p[1] * ab
+
+    def pressure_rates(self, x, xdot, p, u, beta, c, P, smooth=True):
+        """(ṗ_A, ṗ_B), Pa/s, with the plant's smooth orifice law (``smooth``) or the clipped one."""
+        (aa, ab), (va, vb) = self.areas(P), self.volumes(x, P)
+        qa, qb = self.valve_flows(u, p, P, smooth)
+        return beta * (c * qa - aa * xdot) / va, beta * (-c * qb + ab * xdot) / vb
+
+    def f0(self, x, xdot, p, P):
+        """f0 = −ẋ (a_A²/V_A + a_B²/V_B): β f0 is the force rate at a closed valve."""
+        return -xdot * self.spring_rate(x, P)
+
+    def g0(self, x, p, u, P):
+        """g0 = (a_A/V_A) q_A/c + (a_B/V_B) q_B/c, drops clipped at 0."""
+        (aa, ab), (va, vb) = self.areas(P), self.volumes(x, P)
+        qa, qb = self.valve_flows(u, p, P)
+        return aa / va * qa + ab / vb * qb
+
+    def valve_inverse(self, y, x, p, P, eps):
+        """The spool u with g0(x, p, u) = y, on every branch; each drop's root floored at √eps
+        (``eps`` Pa) so the slopes stay positive."""
+        xp, (pa, pb) = self.xp, p
+        ps, pt = P["supply_pressure"], P["tank_pressure"]
+        (aa, ab), (va, vb) = self.areas(P), self.volumes(x, P)
+        ka, kb = aa / va, ab / vb
+        s_hi = ka * xp.floor_root(ps - pa, eps) + kb * xp.floor_root(pb - pt, eps)
+        s_lo = ka * xp.floor_root(pa - pt, eps) + kb * xp.floor_root(ps - pb, eps)
+        return xp.inverse(y, P["underlap"], s_hi, s_lo)
+
+    def spring_rate(self, x, P):
+        """−∂f0/∂ẋ = a_A²/V_A + a_B²/V_B: β times it is the oil columns' stiffness."""
+        (aa, ab), (va, vb) = self.areas(P), self.volumes(x, P)
+        return aa * aa / va + ab * ab / vb
+
+    def f0_potential(self, x, P):
+        """Φ(x) = −a_A ln V_A + a_B ln V_B, whose time derivative is f0."""
+        (aa, ab), (va, vb) = self.areas(P), self.volumes(x, P)
+        return -aa * self.xp.log(va) + ab * self.xp.log(vb)
+
+    def equilibrium_pressures(self, force, P):
+        """(p_A, p_B) with force ``force`` and p_A + p_B = P_s + P_t (see the module docstring)."""
+        aa, ab = self.areas(P)
+        total = P["supply_pressure"] + P["tank_pressure"]
+        pa = (force + ab * total) / (aa + ab)
+        return pa, total - pa
+
+    def force_range(self, P):
+        """(lowest, highest) force with both pressures within [P_t, P_s]."""
+        (aa, ab), ps, pt = self.areas(P), P["supply_pressure"], P["tank_pressure"]
+        return pt * aa - ps * ab, ps * aa - pt * ab

@@ -1,0 +1,98 @@
+"""A cylinder acting through a planar four-bar linkage (an excavator's bucket), SymPy.
+
+All points in the plane of the linkage, in the frame of the link that carries the driven joint's
+pivot (the excavator's stick), m; angles in rad, counter-clockwise.
+
+* O2 (origin): the driven revolute joint (stick–bucket); the crank O2→B is rigid with the driven
+  link: B = r2 (cos(q + φ0), sin(q + φ0)), q the joint angle, φ0 its offset (``crank_offset``).
+* O4 = ``rocker_pivot``: the pivot of the rocker (the idler link) on the carrying link, rocker
+  length r4 (``rocker``).
+* C: the pin joining rocker and coupler (coupler length r3, C to B), where the cylinder's rod end
+  acts; the cylinder's other end is at P = ``cylinder_base`` on the carrying link.
+* ``branch`` = +1 or −1: which of the two assemblies (C to the left or to the right of B→O4).
+
+C is the intersection of the circles (B, r3) and (O4, r4): with d = O4 − B, D = |d|,
+a = (r3² − r4² + D²)/(2D), h = √(r3² − a²),
+
+    C = B + (a/D) d + branch · (h/D) perp(d),   perp(x, y) = (−y, x),
+
+and the cylinder length l(q) = |C − P|. Its Jacobian by the chain rule,
+dl/dq = ((C − P)/l) · (∂C/∂B) dB/dq, dB/dq = r2 (−sin(q + φ0), cos(q + φ0)).
+Not wired into the models yet: a description will name these lengths when it does.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import sympy as sp
+
+__all__ = ["FourBar", "four_bar_length"]
+
+
+@dataclass(frozen=True)
+class FourBar:
+    """The linkage geometry (m, rad; see the module docstring)."""
+
+    crank: float            # r2 = |O2 B|
+    crank_offset: float     # φ0: angle of O2→B at q = 0
+    coupler: float          # r3 = |B C|
+    rocker: float           # r4 = |O4 C|
+    rocker_pivot: tuple     # O4 (x, y)
+    cylinder_base: tuple    # P (x, y)
+    branch: int = 1         # ±1, the assembly
+
+    def __post_init__(self):
+        for name in ("crank", "coupler", "rocker"):
+            v = getattr(self, name)
+            if not (np.isfinite(v) and v > 0):
+                raise ValueError(f"four-bar linkage: {name} must be a positive length (m), got {v!r}")
+        if self.branch not in (1, -1):
+            raise ValueError(f"four-bar linkage: branch must be +1 or -1, got {self.branch!r}")
+        for name in ("rocker_pivot", "cylinder_base"):
+            v = np.asarray(getattr(self, name), float)
+            if v.shape != (2,) or not np.all(np.isfinite(v)):
+                raise ValueError(f"four-bar linkage: {name} must be a point (x, y) in m, got {getattr(self, name)!r}")
+
+    def symbolic(self, q):
+        """(l, dl/dq, C) as SymPy expressions of the joint angle ``q`` (a symbol or expression)."""
+        return four_bar_length(self, q)
+
+    def check_assembles(self, q) -> None:
+        """ValueError naming the first angle of ``q`` (rad, array) at which the coupler and rocker
+        cannot meet (|r3 − r4| ≤ D ≤ r3 + r4 fails): there the length has no value."""
+        q = np.atleast_1d(np.asarray(q, float))
+        B = self.crank * np.stack([np.cos(q + self.crank_offset), np.sin(q + self.crank_offset)], -1)
+        D = np.linalg.norm(np.asarray(self.rocker_pivot, float) - B, axis=-1)
+        bad = (D >= self.coupler + self.rocker) | (D <= abs(self.coupler - self.rocker))
+        if bad.any():
+            k = int(np.argmax(bad))
+            raise ValueError(f"four-bar linkage does not assemble at q = {q[k]!r} rad: |B O4| = {D[k]:.6g} m "
+                             f"is outside ({abs(self.coupler - self.rocker):.6g}, {self.coupler + self.rocker:.6g}) m")
+
+
+def four_bar_length(geometry: FourBar, q):
+    """(l, dl/dq, C): the cylinder length (m), its Jacobian (m/rad) and the rod-end pin C (2-vector)."""
+    g = geometry
+    F = sp.Float
+    r2, r3, r4, phi0 = F(repr(g.crank)), F(repr(g.coupler)), F(repr(g.rocker)), F(repr(g.crank_offset))
+    O4 = sp.Matrix([F(repr(float(v))) for v in g.rocker_pivot])
+    P = sp.Matrix([F(repr(float(v))) for v in g.cylinder_base])
+    # C as a function of the crank pin B (symbols), then the chain rule through B(q)
+    bx, by = sp.symbols("linkage_Bx linkage_By", real=True)
+    B = sp.Matrix([bx, by])
+    d = O4 - B
+    D = sp.sqrt(d.dot(d))
+    a = (r3 ** 2 - r4 ** 2 + D ** 2) / (2 * D)
+    h = sp.sqrt(r3 ** 2 - a ** 2)
+    C_of_B = B + (a / D) * d + g.branch * (h / D) * sp.Matrix([-d[1], d[0]])
+    dC_dB = C_of_B.jacobian(B)
+    angle = q + phi0
+    B_q = sp.Matrix([r2 * sp.cos(angle), r2 * sp.sin(angle)])
+    dB_dq = sp.Matrix([-r2 * sp.sin(angle), r2 * sp.cos(angle)])
+    at_q = {bx: B_q[0], by: B_q[1]}
+    C = C_of_B.subs(at_q)
+    rel = C - P
+    l = sp.sqrt(rel.dot(rel))
+    dl_dq = (rel.T * dC_dB.subs(at_q) * dB_dq)[0, 0] / l
+    return l, dl_dq, C
