@@ -109,8 +109,18 @@ class ParameterFit:
 
     @property
     def error_pct(self):
-        """100 (estimate − true) / true, when the log records the true values (a simulated log)."""
-        return None if self.true is None else 100.0 * (self.estimate - self.true) / self.true
+        """100 (estimate − true) / true, when the log records the true values (a simulated log); a
+        masked array, masked where the true value is 0 (:attr:`error` has the absolute error there)."""
+        if self.true is None:
+            return None
+        true = np.asarray(self.true, float)
+        zero = true == 0
+        return np.ma.masked_array(100.0 * (self.estimate - true) / np.where(zero, 1.0, true), mask=zero)
+
+    @property
+    def error(self):
+        """estimate − true (SI), when the log records the true values."""
+        return None if self.true is None else np.asarray(self.estimate, float) - np.asarray(self.true, float)
 
     def to_dict(self) -> dict:
         """Plain JSON data (an infinite condition number or standard error becomes null)."""
@@ -124,7 +134,8 @@ class ParameterFit:
              "unexcited": self.unexcited, "residual_rms": self.residual_rms, "rows": self.rows}
         if self.true is not None:
             d["true"] = self.true.tolist()
-            d["error_pct"] = self.error_pct.tolist()
+            d["error"] = self.error.tolist()
+            d["error_pct"] = self.error_pct.tolist()  # null where the true value is 0
         return d
 
     def describe(self, label: str) -> list:
@@ -138,7 +149,8 @@ class ParameterFit:
             else:
                 line = f"  {name:>7} = not identifiable"
             if self.true is not None:
-                line += (f"   (true {self.true[i]:.6g}, {self.error_pct[i]:+.2f} %)" if self.determined[i]
+                line += ((f"   (true {self.true[i]:.6g}, {self.error_pct[i]:+.2f} %)" if self.true[i] != 0 else
+                          f"   (true 0, error {self.error[i]:+.3g})") if self.determined[i]
                          else f"   (true {self.true[i]:.6g})")
             lines.append(line)
         lines += [f"  warning: {w}" for w in self.warnings]

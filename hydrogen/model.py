@@ -146,7 +146,10 @@ class Link:
 @dataclass(frozen=True)
 class Joint:
     """A joint from ``parent`` to ``child``: origin (xyz m, rpy rad) in the parent frame, unit
-    ``axis`` in the joint frame (revolute, prismatic)."""
+    ``axis`` in the joint frame (revolute, prismatic). ``limit``: the URDF ``<limit>`` (or the TOML
+    ``limit`` table) as ``{"lower", "upper", "velocity", "effort"}`` in the joint's units (rad or m,
+    rad/s or m/s, N m or N), each key only where given; references are checked against the position
+    and velocity limits before a run. Not compiled into C."""
 
     name: str
     type: str
@@ -155,6 +158,7 @@ class Joint:
     origin_xyz: np.ndarray
     origin_rpy: np.ndarray
     axis: np.ndarray
+    limit: dict = field(default_factory=dict, compare=False)
 
     @property
     def dof(self) -> int:
@@ -234,6 +238,27 @@ class Model:
             out += {"revolute": ["rad"], "prismatic": ["m"], "fixed": [],
                     "floating": ["m"] * 3 + ["rad"] * 3}[j.type]
         return tuple(out)
+
+    def coordinate_limits(self) -> dict:
+        """Per coordinate (arrays of n): ``lower``, ``upper`` (rad or m) and ``velocity`` (rad/s or
+        m/s) from the joints' limits; ±inf where a joint gives none (and for floating joints)."""
+        out = {"lower": [], "upper": [], "velocity": []}
+        for j in self.joints:
+            for _ in range(j.dof):
+                lim = j.limit if j.type in ("revolute", "prismatic") else {}
+                out["lower"].append(lim.get("lower", -np.inf))
+                out["upper"].append(lim.get("upper", np.inf))
+                out["velocity"].append(lim.get("velocity", np.inf))
+        return {k: np.array(v, float) for k, v in out.items()}
+
+    def coordinate_joint(self, i: int) -> str:
+        """The name of the joint coordinate ``i`` belongs to."""
+        k = 0
+        for j in self.joints:
+            if k + j.dof > i:
+                return j.name
+            k += j.dof
+        raise IndexError(i)
 
     @property
     def n_cylinders(self) -> int:
@@ -431,14 +456,31 @@ def _tree_from_toml(r: _Reader, data: dict):
             raise r.error(w, f"expected a table, got {_quote(jt)}")
         name = r.name(f"{w} name", r.require(jt, "name", w))
         w = f"[[joints]] '{name}'"
-        r.known(jt, {"name", "type", "parent", "child", "origin_xyz", "origin_rpy", "axis"}, w)
+        r.known(jt, {"name", "type", "parent", "child", "origin_xyz", "origin_rpy", "axis", "limit"}, w)
         jtype = _joint_type(r, w, r.require(jt, "type", w))
+        limit = r.table(jt, "limit", f"{w}", required=False)
+        r.known(limit, set(LIMIT_KEYS), f"{w} limit")
         joints.append(Joint(name, jtype, r.name(f"{w} parent", r.require(jt, "parent", w)),
                             r.name(f"{w} child", r.require(jt, "child", w)),
                             r.vector(f"{w} origin_xyz", jt.get("origin_xyz", [0.0, 0.0, 0.0]), 3, "position"),
                             r.vector(f"{w} origin_rpy", jt.get("origin_rpy", [0.0, 0.0, 0.0]), 3, "angle"),
-                            _axis(r, f"{w} axis", jt.get("axis", [0.0, 0.0, 1.0]))))
+                            _axis(r, f"{w} axis", jt.get("axis", [0.0, 0.0, 1.0])),
+                            _limit(r, f"{w} limit", {k: v for k, v in limit.items()})))
     return links, joints
+
+
+#: The keys of a joint limit (URDF ``<limit>`` attributes, TOML ``limit`` table), joint units.
+LIMIT_KEYS = ("lower", "upper", "velocity", "effort")
+
+
+def _limit(r: _Reader, where, given: dict) -> dict:
+    """A joint's limits, checked: numbers, velocity and effort > 0, lower < upper where both given."""
+    out = {}
+    for k, v in given.items():
+        out[k] = r.number(f"{where} {k}", v, "positive" if k in ("velocity", "effort") else None)
+    if "lower" in out and "upper" in out and not out["lower"] < out["upper"]:
+        raise r.error(where, f"lower {out['lower']} must be < upper {out['upper']}")
+    return out
 
 
 def _joint_type(r: _Reader, where, value) -> str:
@@ -499,9 +541,14 @@ def _tree_from_urdf(path: Path, data: bytes):
         jtype = _joint_type(ur, w, jt.type)
         given = numbers["joint", jt.name]
         axis = jt.axis if jt.axis is not None else [1.0, 0.0, 0.0]
+        lim = jt.limit
+        limit = {} if lim is None else {k: getattr(lim, k) for k in LIMIT_KEYS if getattr(lim, k) is not None}
+        if jtype == "revolute" and jt.type == "continuous":  # URDF: a continuous joint's bounds are ignored
+            limit = {k: v for k, v in limit.items() if k not in ("lower", "upper")}
         joints.append(Joint(jt.name, jtype, jt.parent, jt.child, given.get(("origin", "xyz"), np.zeros(3)),
                             given.get(("origin", "rpy"), np.zeros(3)),
-                            _axis(ur, f"{w} <axis xyz>", list(np.asarray(axis, float)))))
+                            _axis(ur, f"{w} <axis xyz>", list(np.asarray(axis, float))),
+                            _limit(ur, f"{w} <limit>", limit)))
     return links, joints
 
 

@@ -52,8 +52,9 @@ def estimate_lines(res) -> list:
     lines = []
     if "theta_hat" in blocks:
         lines.append("theta_hat final: " + ", ".join(
-            f"{n} {v:.4g} ({e:+.1f} %)" for n, v, e in
-            zip(res.theta_names, m["theta_hat_final"], m["theta_error_pct_final"])))
+            f"{n} {v:.4g} ({e:+.1f} %)" if e is not None else f"{n} {v:.4g} (true 0: error {a:+.3g})"
+            for n, v, e, a in zip(res.theta_names, m["theta_hat_final"], m["theta_error_pct_final"],
+                                  m["theta_error_final"])))
     if "gamma1_hat" in blocks or "gamma2_hat" in blocks:
         err = [100 * np.mean(np.asarray(h) / np.asarray(t) - 1) for h, t in zip(m["gamma_hat_final"], m["gamma_true"])]
         parts = [f"beta {err[0]:+.1f} %" if "gamma1_hat" in blocks else None,

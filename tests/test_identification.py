@@ -314,3 +314,16 @@ def test_cli_identify_refuses_pressures_in_bar(tmp_path, capsys, paper_sim_log):
     assert main(["identify", str(path)]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "pressures look like bar" in err[0] and "write them in Pa" in err[0]
+
+
+def test_an_identified_parameter_whose_true_value_is_zero_reports_an_absolute_error():
+    from hydrogen.identification import ParameterFit
+
+    fam = ParameterFit(names=["a.mcy", "a.mass"], estimate=np.array([0.01, 10.5]), std_error=np.array([0.1, 0.1]),
+                       cond=1.0, identifiable=True, direction=None, residual_rms=0.0, rows=10,
+                       true=np.array([0.0, 10.0]))
+    assert fam.error_pct.tolist() == [None, pytest.approx(5.0)]
+    d = fam.to_dict()
+    assert d["error_pct"][0] is None and d["error"][0] == pytest.approx(0.01)
+    text = "\n".join(fam.describe("theta"))
+    assert "nan" not in text.lower() and "inf" not in text.lower() and "true 0, error +0.01" in text

@@ -336,3 +336,36 @@ def test_a_huge_joint_axis_is_normalised_without_overflow(tmp_path):
     path = _arm_variant(tmp_path, '<axis xyz="0 -1 0"/>', '<axis xyz="1e308 -1e308 0"/>')
     boom = next(j for j in hydrogen.load_model(path).joints if j.name == "boom_joint")
     np.testing.assert_allclose(boom.axis, [2 ** -0.5, -(2 ** -0.5), 0.0], rtol=1e-15)
+
+
+def test_urdf_joint_limits_are_read_per_coordinate():
+    m = hydrogen.load_model("excavator_arm")
+    lim = m.coordinate_limits()
+    assert lim["lower"].tolist() == [-0.795, -2.744, -1.885] and lim["upper"].tolist() == [0.993, -0.555, 0.095]
+    assert lim["velocity"].tolist() == [1.0, 1.0, 1.0]
+    assert m.joints[0].limit["effort"] == 359000.0
+    # the platform's floating joint has none
+    s = hydrogen.load_model("ubc_stewart").coordinate_limits()
+    assert np.all(np.isinf(s["lower"])) and np.all(np.isinf(s["velocity"]))
+
+
+def test_toml_joint_limits_are_read_and_checked(tmp_path):
+    path = _write_variant(tmp_path, 'type = "floating"', 'type = "floating"\nlimit = { lower = 1.0, upper = 0.5 }')
+    with pytest.raises(hydrogen.errors.ModelError, match=r"\[\[joints\]\] 'platform_pose' limit: lower 1.0 must be < upper"):
+        hydrogen.load_model(path)
+    path = _write_variant(tmp_path, 'type = "floating"', 'type = "floating"\nlimit = { speed = 1.0 }')
+    with pytest.raises(hydrogen.errors.ModelError, match="unknown key 'speed'"):
+        hydrogen.load_model(path)
+
+
+def test_a_reference_beyond_a_joint_limit_is_refused_before_the_run(tmp_path):
+    path = _arm_variant(tmp_path, '<limit lower="-0.795" upper="0.993"', '<limit lower="-0.795" upper="0.12"')
+    with pytest.raises(hydrogen.errors.KinematicsError,
+                       match=r"passes the position limit of joint '\w+' at t = .* limit \[-0.795, 0.12\] rad"):
+        hydrogen.simulate("arm-sim", "p", model=hydrogen.load_model(path), duration=2.0)
+
+
+def test_a_reference_beyond_a_velocity_limit_is_refused_before_the_run(tmp_path):
+    path = _arm_variant(tmp_path, 'effort="359000" velocity="1.0"', 'effort="359000" velocity="0.01"')
+    with pytest.raises(hydrogen.errors.KinematicsError, match=r"passes the velocity limit .* limit 0.01 rad/s"):
+        hydrogen.simulate("arm-sim", "p", model=hydrogen.load_model(path), duration=2.0)

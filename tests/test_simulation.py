@@ -478,3 +478,17 @@ def test_thread_sweep_equals_serial_sweep(dyn):
     with ThreadPoolExecutor(4) as ex:
         threaded = hydrogen.sweep(runs, executor=ex)
     assert [r["max_error"] for r in serial] == [r["max_error"] for r in threaded]
+
+
+def test_a_parameter_whose_true_value_is_zero_has_an_absolute_error_not_nan(dyn):
+    from hydrogen.summary import estimate_lines
+
+    res = hydrogen.simulate("paper-sim", "adaptive-robust", dyn=dyn, duration=0.05)
+    res.theta_true = np.array(res.theta_true, float)
+    res.theta_true[1] = 0.0  # as for a sideways first moment
+    m = res.compute_metrics()
+    assert m["theta_error_pct_final"][1] is None
+    assert m["theta_error_final"][1] == pytest.approx(m["theta_hat_final"][1])
+    assert all(np.isfinite(v) for i, v in enumerate(m["theta_error_pct_final"]) if i != 1)
+    text = " ".join(estimate_lines(res))
+    assert "nan" not in text and "inf" not in text and "true 0: error" in text

@@ -39,6 +39,15 @@ class MultiSine:
             out[:, i] += a * np.sin(2 * np.pi * f * t)
         return out
 
+    def velocities(self, t) -> np.ndarray:
+        """q̇_d at each time of the array ``t`` (k, n), vectorised."""
+        t = np.asarray(t, float)
+        out = np.zeros((t.size, len(self.bias)))
+        for i, a, f in self.terms:
+            w = 2 * np.pi * f
+            out[:, i] += a * w * np.cos(w * t)
+        return out
+
     def amplitude(self) -> np.ndarray:
         """Per-coordinate sum of amplitudes (m or rad); the scale of the max-error percentages."""
         amp = np.zeros(len(self.bias))
@@ -68,6 +77,10 @@ class Step:
         out = np.tile(np.asarray(self.bias, float), (t.size, 1))
         out[t >= self.t_step, self.axis] += self.height
         return out
+
+    def velocities(self, t) -> np.ndarray:
+        """Zero (a raw step has no derivative but at the step itself, which the loop never samples)."""
+        return np.zeros((np.asarray(t, float).size, len(self.bias)))
 
     def amplitude(self) -> np.ndarray:
         amp = np.zeros(len(self.bias))

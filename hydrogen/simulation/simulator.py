@@ -83,7 +83,10 @@ class SimulationResult:
             "theta_names": list(self.theta_names),
             "theta_hat_final": self.theta_hat[-1].tolist(),
             "theta_true": self.theta_true.tolist(),
-            "theta_error_pct_final": (100 * (self.theta_hat[-1] - self.theta_true) / self.theta_true).tolist(),
+            # a parameter whose true value is 0 (a sideways first moment) has an absolute error only
+            "theta_error_final": (self.theta_hat[-1] - self.theta_true).tolist(),
+            "theta_error_pct_final": [float(100 * (e - t) / t) if t != 0 else None
+                                      for e, t in zip(self.theta_hat[-1], self.theta_true)],
             "gamma_hat_final": [self.gamma1_hat[-1].tolist(), self.gamma2_hat[-1].tolist()],
             "gamma_true": self.gamma_true.tolist(),
             "sim_time_s": float(self.t[-1] - self.t[0]) if len(self.t) else 0.0,
@@ -472,6 +475,20 @@ def _check_reference(dyn, sc, n, h):
         raise KinematicsError(
             f"reference of scenario '{sc.name}' leaves the workspace at t = {k * h:.3f} s: cylinder "
             f"'{m.cylinders[i].name}' would be {legs[k, i]:.4f} m, stroke is [{m.leg_min[i]}, {m.leg_max[i]}] m")
+    t = np.arange(n) * h
+    lim = m.coordinate_limits()
+    units = m.coordinate_units
+    for what, values, lo, hi in (("position", sc.reference.positions(t), lim["lower"], lim["upper"]),
+                                 ("velocity", np.abs(sc.reference.velocities(t)), -np.inf, lim["velocity"])):
+        bad = (values < lo) | (values > hi)
+        if bad.any():
+            k, i = (int(v[0]) for v in np.nonzero(bad))
+            unit = units[i] if what == "position" else units[i] + "/s"
+            bound = f"[{lo[i]}, {hi[i]}] {unit}" if what == "position" else f"{hi[i]} {unit}"
+            raise KinematicsError(
+                f"reference of scenario '{sc.name}' passes the {what} limit of joint '{m.coordinate_joint(i)}' at "
+                f"t = {k * h:.3f} s: coordinate '{m.coordinate_names[i]}' {what} {values[k, i]:.4f} {unit}, "
+                f"limit {bound} ({m.source})")
 
 
 class Stepper:
