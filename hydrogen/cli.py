@@ -11,7 +11,7 @@ import sys
 import numpy as np
 from pathlib import Path
 
-from .errors import HydrogenError
+from .errors import DescriptionNote, HydrogenError
 
 __all__ = ["main"]
 
@@ -378,9 +378,18 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+def _show_warning(message, category, filename, lineno, file=None, line=None):
+    """hydrogen's own warnings as one line each (no source line): notes and fallbacks, not faults."""
+    print(f"hydrogen: {'note' if issubclass(category, DescriptionNote) else 'warning'}: {message}",
+          file=file or sys.stderr)
+
+
 def main(argv=None) -> int:
+    import warnings
+
     parser = build_parser()
     args = parser.parse_args(argv)
+    warnings.showwarning = _show_warning
     try:
         return args.func(args)
     except HydrogenError as exc:

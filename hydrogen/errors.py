@@ -76,3 +76,8 @@ class OutputPathError(HydrogenError, FileExistsError):
 class FmuError(HydrogenError, ValueError):
     """An FMU export asked for something an FMU cannot be: an unknown part, a communication step that is
     not a whole number of control periods, no FMI headers (fmpy missing), an unsupported platform."""
+
+
+class DescriptionNote(UserWarning):
+    """How a description was read where it needed a choice (a massless link, a locked joint, a link
+    left out of the selected sub-tree): one line, shown once."""

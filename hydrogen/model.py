@@ -524,13 +524,28 @@ def _tree_from_urdf(path: Path, data: bytes):
     numbers = _check_urdf(ur, root)
     robot = load_robot(path, data)
     links = []
-    children = {j.child for j in robot.joints}
+    by_child = {j.child: j for j in robot.joints}
+
+    def static(name):  # the root, or fixed to it through fixed joints: its inertia never enters the dynamics
+        seen = set()
+        while name in by_child and name not in seen:
+            seen.add(name)
+            if by_child[name].type != "fixed":
+                return False
+            name = by_child[name].parent
+        return True
+
     for lk in robot.links:
         w = f"link '{lk.name}'"
-        if lk.inertial is None or lk.inertial.mass is None:
-            if lk.name in children:
-                raise ur.error(w, "a moving link needs an <inertial> with a mass")
-            continue  # the root may be massless: it is the fixed base
+        if lk.name not in by_child:
+            continue  # the root (or a loose link, named by the tree check): the fixed base, any inertia
+        if static(lk.name) or lk.inertial is None or lk.inertial.mass is None or lk.inertial.mass == 0:
+            # a placeholder on the fixed base, or a massless frame link (Pinocchio accepts both): mass 0
+            links.append(Link(lk.name, 0.0, np.zeros(3), np.zeros((3, 3))))
+            if not static(lk.name):
+                _note(f"{path}: {w} has no mass: it moves as a frame only (its parent joint must move a link "
+                      "with mass below it)")
+            continue
         T = np.asarray(lk.inertial.origin if lk.inertial.origin is not None else np.eye(4), float)
         mass = numbers["link", lk.name]["inertial/mass", "value"]
         I = T[:3, :3] @ np.asarray(lk.inertial.inertia, float) @ T[:3, :3].T
@@ -620,10 +635,94 @@ def _urdf_numbers(ur: _Reader, where, element, spec) -> dict:
                 values = None
             if values is None or len(values) != count:
                 raise ur.error(w, f"expected {'a number' if count == 1 else f'{count} numbers'}, got {_quote(text)}")
-            if quantity != "any":
+            if quantity == "mass" and values == [0.0]:
+                pass  # a massless link (a frame, or a placeholder on the base): checked with the tree
+            elif quantity != "any":
                 values = ur.vector(w, values, count, quantity)
             out[sub, attr] = values[0] if count == 1 else np.asarray(values, float)
     return out
+
+
+def _matrix_rpy(R) -> np.ndarray:
+    """Roll, pitch, yaw with R = Rz(y) Ry(p) Rx(r) (URDF's convention)."""
+    p = np.arctan2(-R[2, 0], np.hypot(R[0, 0], R[1, 0]))
+    return np.array([np.arctan2(R[2, 1], R[2, 2]), p, np.arctan2(R[1, 0], R[0, 0])])
+
+
+def _locked(j: Joint, value: float) -> Joint:
+    """``j`` held at ``value`` (rad or m) as a fixed joint: its motion folded into the origin."""
+    from .tree import axis_rotation, rpy_matrix
+
+    xyz, R = np.asarray(j.origin_xyz, float), rpy_matrix(j.origin_rpy)
+    if j.type == "revolute":
+        R = R @ axis_rotation(j.axis, value)
+    else:
+        xyz = xyz + R @ (np.asarray(j.axis, float) * value)
+    return Joint(j.name, "fixed", j.parent, j.child, xyz, _matrix_rpy(R), np.asarray(j.axis, float))
+
+
+def _select_tree(r: _Reader, links, joints, spec: dict):
+    """The part of a tree a description keeps ([tree]): ``locked`` = {joint = position} holds those
+    joints fixed (rad or m: the other legs of a quadruped, a gripper); ``base`` = a link whose sub-tree
+    alone is kept, that link becoming the fixed root (what is above it and beside it is left out)."""
+    if not spec:
+        return links, joints
+    r.known(spec, {"base", "locked"}, "[tree]")
+    locked = spec.get("locked", {})
+    if not isinstance(locked, dict):
+        raise r.error("[tree] locked", f"expected a table {{ joint = position }}, got {_quote(locked)}")
+    names = {j.name: j for j in joints}
+    for jn, value in locked.items():
+        if jn not in names:
+            raise r.error(f"[tree] locked.{jn}", f"no joint '{jn}' (joints: {', '.join(sorted(names))})")
+        if names[jn].type not in ("revolute", "prismatic"):
+            raise r.error(f"[tree] locked.{jn}", f"joint '{jn}' is {names[jn].type}: only revolute and prismatic "
+                                                 "joints can be locked")
+        lim = names[jn].limit
+        v = r.number(f"[tree] locked.{jn}", value)
+        if not lim.get("lower", -np.inf) <= v <= lim.get("upper", np.inf):
+            raise r.error(f"[tree] locked.{jn}", f"{v} is outside the joint's limits [{lim.get('lower')}, "
+                                                 f"{lim.get('upper')}]")
+    joints = [_locked(j, float(locked[j.name])) if j.name in locked else j for j in joints]
+    base = spec.get("base")
+    if base is None:
+        return links, joints
+    base = r.name("[tree] base", base)
+    link_names = {lk.name for lk in links} | {j.parent for j in joints}
+    if base not in link_names:
+        raise r.error("[tree] base", f"no link '{base}' (links: {', '.join(sorted(link_names))})")
+    keep, frontier = {base}, [base]
+    while frontier:
+        p = frontier.pop()
+        for j in joints:
+            if j.parent == p and j.child not in keep:
+                keep.add(j.child)
+                frontier.append(j.child)
+    dropped = sorted(n for n in link_names if n not in keep)
+    if dropped:
+        _note(f"{r.source}: [tree] base = '{base}': links {dropped} are left out (not below the base)")
+    return ([lk for lk in links if lk.name in keep and lk.name != base],
+            [j for j in joints if j.parent in keep and j.child in keep])
+
+
+def _check_moving_mass(r: _Reader, root, links, joints):
+    """Every moving joint must move some mass (else D is singular): massless links are frames only."""
+    mass = {lk.name: lk.mass for lk in links}
+    below = {}
+    for j in reversed(joints):  # tree order reversed: children before parents
+        below[j.child] = mass.get(j.child, 0.0) + sum(below.get(k.child, 0.0) for k in joints if k.parent == j.child)
+    for j in joints:
+        if j.dof and not below[j.child] > 0:
+            raise r.error(f"joint '{j.name}'", f"moves no mass: link '{j.child}' and every link below it are "
+                                               "massless (give one an <inertial> with a mass, or lock the joint)")
+
+
+def _note(text: str):
+    """One line about how a description was read (a massless link, a locked joint): a warning."""
+    import warnings
+
+    from .errors import DescriptionNote
+    warnings.warn(text, DescriptionNote, stacklevel=3)
 
 
 def _order_tree(r: _Reader, links, joints, where):
@@ -744,7 +843,7 @@ def _cylinders(r: _Reader, data: dict, link_names: set, root_note: str = ""):
 def model_from_dict(data: dict, source: str = "<memory>", base_dir: Path | None = None) -> Model:
     """Validate parsed TOML data and build a :class:`Model`; errors name the source and the key."""
     r = _Reader(source)
-    top = {"name", "urdf", "gravity", "links", "joints", "coordinates", "hydraulics", "cylinders",
+    top = {"name", "urdf", "gravity", "tree", "links", "joints", "coordinates", "hydraulics", "cylinders",
            "adaptation", "sensors", "control", "figures", "gains", "rig", "scenarios"}
     r.known(data, top, "top level")
     name = check_model_name(source, r.require(data, "name", "top level"))
@@ -762,7 +861,9 @@ def model_from_dict(data: dict, source: str = "<memory>", base_dir: Path | None 
         links, joints = _tree_from_urdf(urdf, text)
     else:
         links, joints = _tree_from_toml(r, data)
+    links, joints = _select_tree(r, links, joints, r.table(data, "tree", required=False))
     root, joints, links = _order_tree(r, links, joints, "tree" if urdf is None else f"URDF {urdf}")
+    _check_moving_mass(r, root, links, joints)
     link_names = {root} | {lk.name for lk in links}
     # coordinates
     coords = r.table(data, "coordinates")

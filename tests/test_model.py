@@ -369,3 +369,127 @@ def test_a_reference_beyond_a_velocity_limit_is_refused_before_the_run(tmp_path)
     path = _arm_variant(tmp_path, 'effort="359000" velocity="1.0"', 'effort="359000" velocity="0.01"')
     with pytest.raises(hydrogen.errors.KinematicsError, match=r"passes the velocity limit .* limit 0.01 rad/s"):
         hydrogen.simulate("arm-sim", "p", model=hydrogen.load_model(path), duration=2.0)
+
+
+# A two-legged URDF as robots are exported: a world link, a trunk with a placeholder inertia, a
+# sensor frame without one, massless foot frames; the description keeps one leg and locks the other.
+_LEGS_URDF = """<?xml version="1.0"?>
+<robot name="biped">
+  <link name="world"/>
+  <link name="trunk"><inertial><mass value="0"/><inertia ixx="1" ixy="0" ixz="0" iyy="0" iyz="0" izz="0"/></inertial></link>
+  <link name="imu"/>
+  <joint name="world_trunk" type="fixed"><parent link="world"/><child link="trunk"/><origin xyz="0 0 1" rpy="0 0 0"/></joint>
+  <joint name="trunk_imu" type="fixed"><parent link="trunk"/><child link="imu"/></joint>
+  {legs}
+</robot>
+"""
+_LEG = """
+  <link name="thigh_{s}"><inertial><origin xyz="0.2 0 0"/><mass value="4"/><inertia ixx="0.01" ixy="0" ixz="0" iyy="0.05" iyz="0" izz="0.05"/></inertial></link>
+  <link name="shank_{s}"><inertial><origin xyz="0.15 0 0"/><mass value="2"/><inertia ixx="0.01" ixy="0" ixz="0" iyy="0.02" iyz="0" izz="0.02"/></inertial></link>
+  <link name="foot_{s}"/>
+  <joint name="hip_{s}" type="revolute"><parent link="trunk"/><child link="thigh_{s}"/><origin xyz="0 {y} 0" rpy="0.1 0 0.2"/><axis xyz="0 1 0"/><limit lower="-1.5" upper="1.5" effort="100" velocity="5"/></joint>
+  <joint name="knee_{s}" type="revolute"><parent link="thigh_{s}"/><child link="shank_{s}"/><origin xyz="0.4 0 0" rpy="0 0 0"/><axis xyz="0 1 0"/><limit lower="-2.5" upper="0.5" effort="100" velocity="5"/></joint>
+  <joint name="ankle_{s}" type="fixed"><parent link="shank_{s}"/><child link="foot_{s}"/><origin xyz="0.3 0 0"/></joint>
+"""
+_LEGS_TOML = """
+name = "biped_leg"
+gravity = 9.81
+urdf = "legs.urdf"
+[tree]
+base = "trunk"
+locked = { hip_R = 0.3, knee_R = -0.5 }
+[coordinates]
+neutral = [0.2, -0.4]
+[hydraulics]
+piston_area = 2e-4
+rod_area = 1e-4
+chamber_length = 0.05
+supply_pressure = 2e7
+underlap = 1e-5
+flow_gain = 1e-5
+bulk_modulus = 1e9
+orifice_linear_below = 5e4
+stroke = [0.1, 1.0]
+[[cylinders]]
+name = "hip_cyl"
+from = { link = "trunk", point = [0.0, 0.1, 0.3] }
+to = { link = "thigh_L", point = [0.2, 0.0, 0.05] }
+[[cylinders]]
+name = "knee_cyl"
+from = { link = "thigh_L", point = [0.1, 0.0, 0.1] }
+to = { link = "shank_L", point = [0.15, 0.0, 0.0] }
+[adaptation]
+parameters = ["thigh_L.mcx"]
+theta_min = [0.4]
+theta_max = [1.2]
+gamma1_min = 1e8
+gamma1_max = 5e9
+gamma2_min = 1e2
+gamma2_max = 1e5
+"""
+
+
+def _legs(tmp_path, toml=_LEGS_TOML):
+    legs = "".join(_LEG.format(s=s, y=y) for s, y in (("L", 0.1), ("R", -0.1)))
+    (tmp_path / "legs.urdf").write_text(_LEGS_URDF.format(legs=legs))
+    path = tmp_path / "legs.toml"
+    path.write_text(toml)
+    return path
+
+
+def test_a_sub_tree_with_locked_joints_and_placeholder_links_loads_as_pinocchio_reduces_it(tmp_path, rng):
+    pin = pytest.importorskip("pinocchio")
+    from hydrogen.errors import DescriptionNote
+    from hydrogen.tree import link_poses
+
+    path = _legs(tmp_path)
+    with pytest.warns(DescriptionNote, match="left out") as notes:
+        m = hydrogen.load_model(path)
+    assert any("foot_L" in str(w.message) and "no mass" in str(w.message) for w in notes)
+    assert m.coordinate_names == ("hip_L", "knee_L") and m.root == "trunk"
+    full = pin.buildModelFromUrdf(str(tmp_path / "legs.urdf"))
+    q_full = pin.neutral(full)
+    q_full[full.joints[full.getJointId("hip_R")].idx_q] = 0.3
+    q_full[full.joints[full.getJointId("knee_R")].idx_q] = -0.5
+    reduced = pin.buildReducedModel(full, [full.getJointId("hip_R"), full.getJointId("knee_R")], q_full)
+    data = reduced.createData()
+    for _ in range(5):
+        q = m.neutral_pose + rng.uniform(-0.3, 0.3, 2)
+        pin.framesForwardKinematics(reduced, data, q)
+        poses = link_poses(m, q)
+        trunk = data.oMf[reduced.getFrameId("trunk")]
+        for link in ("thigh_L", "shank_L", "foot_L", "thigh_R", "shank_R", "foot_R"):
+            T = trunk.inverse() * data.oMf[reduced.getFrameId(link)]  # hydrogen's base is the trunk
+            R, p = poses[link]
+            np.testing.assert_allclose(R, T.rotation, atol=1e-12)
+            np.testing.assert_allclose(p, T.translation, atol=1e-12)
+
+
+def test_a_joint_that_moves_no_mass_is_refused(tmp_path):
+    path = _legs(tmp_path)
+    urdf = (tmp_path / "legs.urdf").read_text()
+    urdf = urdf.replace('<mass value="2"/>', '<mass value="0"/>')  # both shanks massless
+    (tmp_path / "legs.urdf").write_text(urdf)
+    with pytest.raises(hydrogen.errors.ModelError, match="joint 'knee_L'.* moves no mass"):
+        hydrogen.load_model(path)
+
+
+@pytest.mark.parametrize("old,new,words", [
+    ("hip_R = 0.3", "hip_X = 0.3", "no joint 'hip_X'"),
+    ("hip_R = 0.3", "hip_R = 3.0", "outside the joint's limits"),
+    ('base = "trunk"', 'base = "torso"', "no link 'torso'"),
+    ('base = "trunk"', 'root = "trunk"', "unknown key 'root'"),
+])
+def test_tree_selection_errors_name_the_key(tmp_path, old, new, words):
+    path = _legs(tmp_path, _LEGS_TOML.replace(old, new))
+    with pytest.raises(hydrogen.errors.ModelError, match=words):
+        hydrogen.load_model(path)
+
+
+def test_the_cli_shows_description_notes_as_one_line(tmp_path, capsys):
+    from hydrogen import cli
+
+    path = _legs(tmp_path)
+    assert cli.main(["generate", "--check", "--model", str(path), "--out", str(tmp_path / "gen")]) in (0, 1, 2)
+    err = capsys.readouterr().err
+    assert "hydrogen: note:" in err and "left out" in err and "Warning" not in err
