@@ -222,6 +222,7 @@ def export_context(dyn, p, scenario_name, controller, prog, sources, headers, ct
         "xc_lo": c_doubles(lo if n_xc else np.zeros(1)), "xc_hi": c_doubles(hi if n_xc else np.zeros(1)),
         "x0": c_doubles(p.x0), "q_meas0": c_doubles(p.q0), "l0": c_doubles(dyn.leg_lengths(p.q0)),
         "fk_tol": c_double(FK_TOL), "fk_max_iter": FK_MAX_ITER, "coords": model.coordinate_names,
+        "config": loop["config"],
         "coord_units": model.coordinate_units, "amplitude": c_doubles(ref.amplitude()),
     }
 

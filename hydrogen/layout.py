@@ -7,7 +7,8 @@ neither SymPy, CasADi nor numpy.
 """
 from __future__ import annotations
 
-__all__ = ["SLOTS", "MAX_DELAY", "model_summary", "loop_context", "log_widths", "c_double"]
+__all__ = ["SLOTS", "MAX_DELAY", "LOOP_CONFIG", "model_summary", "loop_context", "log_widths", "c_double",
+           "config_fields"]
 
 #: Signals the loop writes into a controller's inputs, by input name, in this order (``u_applied``:
 #: the spool commands the valves held over the last period, after the clip and the computation delay).
@@ -17,6 +18,72 @@ SLOTS = ("q", "qdot", "pc", "l", "qd0", "qd1", "qd2", "qd3", "xc", "adapt", "u_a
 #: ``delay_periods`` is refused above it). A real-time target applies a command one period after the
 #: measurement it came from; 8 leaves room for slower targets and delay-margin studies.
 MAX_DELAY = 8
+
+
+#: The closed loop's configuration, described once: groups of (field, C type, exported value), each
+#: group with its comment. The C struct of the loop header, the runtime's ctypes mirror and the
+#: exported programs' fill (``hg_fill_config`` in params.h, for main.c and the FMUs) are rendered from
+#: it. C types: ``double``, ``long long``, ``const double*`` (an array the caller owns), ``double[2]``,
+#: ``fn`` (a generated function), ``double**``, ``long long int*``, ``double*`` (its tables and work),
+#: ``slots`` (``long long[N_SLOTS]``). The exported value is the params.h name that fills the field
+#: (None: the program sets it: the controller's tables). Adding a rig setting: a row here, its value in
+#: the runtime's :class:`hydrogen.runtime.loop.LoopRunner` and in params.h, its use in loop.c.
+LOOP_CONFIG = (
+    ("timing: control period h (s), plant RK4 sub-steps per control period, adaptation on for t >= t_adapt;\n"
+     " * the command computed at period k is applied from period k + delay (0..MAX_DELAY)",
+     (("h", "double", "P_H"), ("substeps", "long long", "P_SUBSTEPS"), ("t_adapt", "double", "P_T_ADAPT"),
+      ("delay", "long long", "P_DELAY_PERIODS"))),
+    ("plant (SI): true theta ({p_theta}), gamma1 = beta and gamma2 = beta c per cylinder,\n"
+     " * friction [Fc, b, v_s], valve [first-order lag s, second-order natural frequency rad/s, damping]",
+     (("theta", "const double*", "P_THETA"), ("gamma1", "const double*", "P_GAMMA1"),
+      ("gamma2", "const double*", "P_GAMMA2"), ("friction", "const double*", "P_FRICTION"),
+      ("valve", "const double*", "P_VALVE"))),
+    ("sensors: cylinder-length resolution quant_l (m, 0: none; lengths rounded to its grid after the noise);\n"
+     " * fixed-gain Kalman filter on cylinder lengths (use_kalman != 0), gain [K_l, K_ldot]",
+     (("quant_l", "double", "P_QUANTIZATION_L"), ("use_kalman", "long long", "P_USE_KALMAN"),
+      ("kf_gain", "double[2]", "P_KF_GAIN_USED"))),
+    ("reference: bias + sum of amplitude sin(2 pi f t) over terms (coordinate, amplitude, frequency),\n"
+     " * plus a raw step of step_height on coordinate step_axis (>= 0) at t_step; a coordinate outside\n"
+     " * 0..NQ-1 is ignored (the runtime refuses it before a run)",
+     (("bias", "const double*", "P_REF_BIAS"), ("n_terms", "long long", "P_REF_N_TERMS"),
+      ("terms", "const double*", "P_REF_TERMS"), ("step_axis", "long long", "P_REF_STEP_AXIS"),
+      ("step_height", "double", "P_REF_STEP_HEIGHT"), ("t_step", "double", "P_REF_T_STEP"))),
+    ("controller: generated function, its argument/result tables, work vectors",
+     (("ctrl", "fn", None), ("ctrl_arg", "double**", None), ("ctrl_res", "double**", None),
+      ("ctrl_iw", "long long int*", None), ("ctrl_w", "double*", None))),
+    ("with a state (n_xc > 0): its semi-implicit step, one call per period: arguments ctrl_arg's then\n"
+     " * h, xc_lo, xc_hi (step_arg); results u (step_res[0] must be ctrl_res[0]) and the updated state.\n"
+     " * The forward-Euler update takes the rate from the controller's own call (ctrl_res[1]).\n"
+     " * slot: the loop's input slots in the controller's inputs; n_xc: the state size; xc_lo, xc_hi: its\n"
+     " * projection bounds; xc_euler: 0 semi-implicit update, 1 forward Euler after the plant step",
+     (("step", "fn", None), ("step_arg", "double**", None), ("step_res", "double**", None),
+      ("step_iw", "long long int*", None), ("step_w", "double*", None), ("slot", "slots", "P_CTRL_SLOT"),
+      ("n_xc", "long long", "P_N_XC"), ("xc_lo", "const double*", "P_XC_LO"),
+      ("xc_hi", "const double*", "P_XC_HI"), ("xc_euler", "long long", "P_XC_EULER"))),
+    ("forward kinematics (Newton): tolerance (m), iterations",
+     (("fk_tol", "double", "P_FK_TOL"), ("fk_max_iter", "long long", "P_FK_MAX_ITER"))),
+)
+
+
+def config_fields(p: str) -> list:
+    """The configuration's groups for the templates: ``[{"comment": parts, "fields": [{"name", "type",
+    "decl", "value", "array"}]}]``, with C declarations for model prefix ``p``."""
+    def decl(name, ctype):
+        if ctype == "fn":
+            return f"{p}_casadi_fn {name}"
+        if ctype == "slots":
+            return f"long long {name}[{p.upper()}_N_SLOTS]"
+        if ctype == "double[2]":
+            return f"double {name}[2]"
+        return f"{ctype} {name}"
+
+    from markupsafe import Markup  # hydrogen's own comment text: written as it is (hydrogen.templating)
+
+    # the comment's parts around {p_theta}: the template writes the (escaped) parameter names between
+    return [{"comment": [Markup(part.replace("\n * ", "\n     * ")) for part in comment.split("{p_theta}")],
+             "fields": [{"name": n, "type": t, "decl": Markup(decl(n, t)), "value": v,
+                         "array": t in ("double[2]", "slots")}
+        for n, t, v in fields]} for comment, fields in LOOP_CONFIG]
 
 
 def c_double(x) -> str:
@@ -57,7 +124,7 @@ def loop_context(manifest: dict) -> dict:
     return {
         "model": name, "p": name, "P": name.upper(), "guard": f"{name.upper()}_LOOP_H",
         "n": n, "m": m, "nx": 2 * n + 3 * m, "max_delay": MAX_DELAY, "n_noise": 2 * m + (n if s["joint_encoders"] else 0),
-        "encoders": bool(s["joint_encoders"]), "slots": SLOTS, "logs": logs,
+        "encoders": bool(s["joint_encoders"]), "slots": SLOTS, "logs": logs, "config": config_fields(name),
         "p_theta": ", ".join(s["theta_names"]),
         "piston_area": ", ".join(map(c_double, s["piston_area"])),
         "rod_area": ", ".join(map(c_double, s["rod_area"])),

@@ -36,7 +36,12 @@ class TemplateValueError(HydrogenError):
 
 
 def c_escape(value) -> str:
-    """``str(value)`` with every character outside the plain set as a C octal escape (UTF-8 bytes)."""
+    """``str(value)`` with every character outside the plain set as a C octal escape (UTF-8 bytes);
+    text hydrogen's own code marks as :class:`markupsafe.Markup` (comments it writes) as it is."""
+    from markupsafe import Markup
+
+    if isinstance(value, Markup):
+        return str(value)
     text = str(value)
     if _C_PLAIN.fullmatch(text):
         return text

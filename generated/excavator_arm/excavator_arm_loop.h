@@ -58,19 +58,20 @@ typedef struct {
     double* ctrl_w;
     /* with a state (n_xc > 0): its semi-implicit step, one call per period: arguments ctrl_arg's then
      * h, xc_lo, xc_hi (step_arg); results u (step_res[0] must be ctrl_res[0]) and the updated state.
-     * The forward-Euler update takes the rate from the controller's own call (ctrl_res[1]). */
+     * The forward-Euler update takes the rate from the controller's own call (ctrl_res[1]).
+     * slot: the loop's input slots in the controller's inputs; n_xc: the state size; xc_lo, xc_hi: its
+     * projection bounds; xc_euler: 0 semi-implicit update, 1 forward Euler after the plant step */
     excavator_arm_casadi_fn step;
     double** step_arg;
     double** step_res;
     long long int* step_iw;
     double* step_w;
     long long slot[EXCAVATOR_ARM_N_SLOTS];
-    long long n_xc;              /* controller state size */
-    const double* xc_lo;         /* projection bounds of the controller state */
+    long long n_xc;
+    const double* xc_lo;
     const double* xc_hi;
-    long long xc_euler;          /* 0: semi-implicit update (state from this period's measurement, then the
-                                  * command); 1: forward Euler after the plant step (the paper-era loop) */
-    /* forward kinematics (Newton) */
+    long long xc_euler;
+    /* forward kinematics (Newton): tolerance (m), iterations */
     double fk_tol;
     long long fk_max_iter;
 } excavator_arm_loop_config;

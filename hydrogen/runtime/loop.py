@@ -27,19 +27,12 @@ def _structs(ctx: dict):
     if key in _STRUCTS:
         return _STRUCTS[key]
 
-    class Config(C.Structure):
-        _fields_ = [
-            ("h", C.c_double), ("substeps", _LL), ("t_adapt", C.c_double), ("delay", _LL),
-            ("theta", _D), ("gamma1", _D), ("gamma2", _D), ("friction", _D), ("valve", _D),
-            ("quant_l", C.c_double), ("use_kalman", _LL), ("kf_gain", C.c_double * 2),
-            ("bias", _D), ("n_terms", _LL), ("terms", _D), ("step_axis", _LL), ("step_height", C.c_double),
-            ("t_step", C.c_double),
-            ("ctrl", C.c_void_p), ("ctrl_arg", C.c_void_p), ("ctrl_res", C.c_void_p), ("ctrl_iw", C.c_void_p),
-            ("ctrl_w", C.c_void_p), ("step", C.c_void_p), ("step_arg", C.c_void_p), ("step_res", C.c_void_p),
-            ("step_iw", C.c_void_p), ("step_w", C.c_void_p), ("slot", _LL * len(ctx["slots"])), ("n_xc", _LL),
-            ("xc_lo", _D),
-            ("xc_hi", _D), ("xc_euler", _LL), ("fk_tol", C.c_double), ("fk_max_iter", _LL),
-        ]
+    ctypes_of = {"double": C.c_double, "long long": _LL, "const double*": _D, "double[2]": C.c_double * 2,
+                 "fn": C.c_void_p, "double**": C.c_void_p, "long long int*": C.c_void_p, "double*": C.c_void_p,
+                 "slots": _LL * len(ctx["slots"])}
+
+    class Config(C.Structure):  # the loop header's struct, from the one description (hydrogen.layout.LOOP_CONFIG)
+        _fields_ = [(f["name"], ctypes_of[f["type"]]) for g in ctx["config"] for f in g["fields"]]
 
     class State(C.Structure):
         _fields_ = [("t", C.c_double), ("k", _LL), ("x", C.c_double * ctx["nx"]), ("q_meas", C.c_double * ctx["n"]),
