@@ -27,9 +27,7 @@ import hashlib
 import json
 import os
 import platform
-import shlex
 import shutil
-import subprocess
 import sys
 import tempfile
 import zipfile
@@ -372,21 +370,13 @@ def _guid(payload: dict) -> str:
 def _compile(sources: dict, c_files, ident, toolchain) -> bytes:
     """Compile ``c_files`` of ``sources`` (name -> bytes) into ``<ident>.so`` with hydrogen's toolchain
     (warnings as errors); relative names in a scratch folder, so the binary does not depend on where."""
-    from .runtime.compiler import Toolchain
+    from .runtime.compiler import Toolchain, run_compiler
 
     tc = toolchain or Toolchain()
     argv = [*tc.argv(), "-fvisibility=hidden", "-I."]
 
     def run(args, what, cwd):
-        try:
-            proc = subprocess.run(args, cwd=cwd, capture_output=True, text=True, timeout=tc.timeout)
-        except OSError as exc:
-            raise CompilerError(f"cannot run the C compiler for {what}: {exc}") from None
-        except subprocess.TimeoutExpired:
-            raise CompilerError(f"C compiler did not finish {what} within {tc.timeout:g} s") from None
-        if proc.returncode != 0:
-            raise CompilerError(f"C compiler failed on {what} (exit {proc.returncode}):\n$ {shlex.join(args)}\n"
-                                f"{proc.stderr.strip() or proc.stdout.strip()}")
+        run_compiler(args, what, tc.timeout, cwd=cwd)
 
     with tempfile.TemporaryDirectory(prefix="hydrogen-fmu-") as tmp:
         for name, data in sources.items():

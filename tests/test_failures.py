@@ -291,12 +291,12 @@ def test_a_cache_removed_during_the_build_is_named(tmp_path, model, monkeypatch)
     import hydrogen.runtime.compiler as compiler
 
     cache = tmp_path / "cache"
-    real = compiler._run
+    real = compiler.run_compiler
 
-    def remove_then_run(argv, what, timeout=None):
+    def remove_then_run(argv, what, timeout, cwd=None):
         shutil.rmtree(cache, ignore_errors=True)
-        return real(argv, what, timeout)
-    monkeypatch.setattr(compiler, "_run", remove_then_run)
+        return real(argv, what, timeout, cwd)
+    monkeypatch.setattr(compiler, "run_compiler", remove_then_run)
     with pytest.raises(BuildCacheError, match="removed during the build") as err:
         hydrogen.build(model, cache=cache)
     assert str(cache) in str(err.value)
@@ -388,6 +388,24 @@ def test_a_compiler_that_never_returns_is_timed_out(tmp_path):
     with pytest.raises(CompilerError, match="did not finish .* within 0.5 s"):
         compile_library([src], "slow", Toolchain(cc=str(fake), timeout=0.5), cache=tmp_path / "cache")
     assert time.monotonic() - start < 10
+
+
+def test_a_compiler_that_hangs_on_the_extension_or_an_fmu_is_timed_out(tmp_path):
+    """Every compiler call has the timeout: the CPython extension's and the FMU's too."""
+    from hydrogen.fmu import _compile
+    from hydrogen.runtime.compiler import Toolchain
+    from hydrogen.runtime.extension import build_extension
+
+    fake = tmp_path / "slowcc"
+    fake.write_text('#!/bin/sh\nif [ "$1" = --version ]; then echo slowcc 1.0; exit 0; fi\nexec sleep 30\n')
+    fake.chmod(0o755)
+    tc = Toolchain(cc=str(fake), timeout=0.5)
+    start = time.monotonic()
+    with pytest.raises(CompilerError, match=r"(?s)did not finish .* within 0.5 s and was stopped.*HYDROGEN_CC_TIMEOUT"):
+        build_extension({"model_name": "slow", "functions": []}, tc, cache=tmp_path / "cache")
+    with pytest.raises(CompilerError, match=r"(?s)did not finish .* within 0.5 s and was stopped.*HYDROGEN_CC_TIMEOUT"):
+        _compile({"a.c": b"int a(void) { return 1; }\n"}, ["a.c"], "slow", tc)
+    assert time.monotonic() - start < 20
 
 
 def test_a_held_lock_is_reported_and_given_up_on(tmp_path, capfd):
