@@ -51,6 +51,24 @@ def test_generate_refuses_a_folder_it_did_not_write_and_a_file(tmp_path, model):
     assert a_file.read_text() == "data"
 
 
+def test_generate_refuses_a_generated_folder_holding_a_file_it_did_not_write(tmp_path, model):
+    import shutil
+
+    from hydrogen.resources import committed_generated_dir
+
+    out = tmp_path / "gen"
+    shutil.copytree(committed_generated_dir() / model.name, out)  # a generated folder, as generate writes it
+    (out / "my_notes.c").write_text("/* mine */")
+    for force in (False, True):
+        with pytest.raises(OutputPathError, match=r"holds my_notes.c, which hydrogen did not write"):
+            gen.generate(model, out, force=force)
+    assert (out / "my_notes.c").read_text() == "/* mine */"
+    (out / "manifest.json").write_text("{broken")
+    with pytest.raises(OutputPathError, match=r"manifest.json cannot be read") as err:
+        gen.generate(model, out, force=True)
+    assert str(out / "manifest.json") in str(err.value)
+
+
 # 2, 15 ---------------------------------------------------------------------------------------------
 @pytest.mark.parametrize("make_ref, field", [
     (lambda b: MultiSine(b, ((-1, 0.01, 1),)), "terms[0] axis"),
