@@ -23,7 +23,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from ..errors import CompilerError
-from ..fileio import atomic_write, locked
+from ..fileio import atomic_write, locked, write_file
 
 __all__ = ["Toolchain", "cache_root", "compile_library", "compile_extension", "run_compiler", "DEFAULT_CFLAGS",
            "WARNING_FLAGS"]
@@ -243,7 +243,7 @@ def compile_extension(render, key_material: str, module: str, toolchain: Toolcha
         link = ["-undefined", "dynamic_lookup"] if sys.platform == "darwin" else []
         with tempfile.TemporaryDirectory(dir=build_dir) as tmp:
             src, obj = Path(tmp) / f"{module}.c", Path(tmp) / f"{module}.o"
-            src.write_text(render())
+            write_file(src, render())
             run_compiler([*argv, "-c", str(src), "-o", str(obj)], src.name, toolchain.timeout)
             lib_name = f"{module}_{key[:16]}_{secrets.token_hex(4)}.so"
             run_compiler([*argv, "-shared", str(obj), *link, "-o", str(Path(tmp) / lib_name)],

@@ -17,7 +17,7 @@ import numpy as np
 
 from ..errors import BuildCacheError
 
-__all__ = ["GeneratedLibrary", "CompiledFunction"]
+__all__ = ["GeneratedLibrary", "CompiledFunction", "load_failure"]
 
 _c_int = ctypes.c_longlong  # casadi_int, fixed by the code generator options
 _DOUBLE_P = ctypes.POINTER(ctypes.c_double)
@@ -265,6 +265,18 @@ def _check_nan_rows(fn, arrays, batched, n):
         raise ValueError(f"{fn.name}: NaN states in a batch: {'; '.join(msgs)}")
 
 
+def load_failure(path: Path, exc: Exception) -> str:
+    """Why the dynamic loader refused the compiled library at ``path``, with the way out when it is
+    known. "failed to map segment" is glibc's word for an mmap of code refused: a noexec mount."""
+    text = str(exc)
+    msg = f"{path}: cannot load compiled library: {text}"
+    if "failed to map segment" in text:
+        msg += (f". The folder {Path(path).parent} may be on a file system mounted noexec (no code may be run "
+                "from it, as /tmp often is): set HYDROGEN_CACHE_DIR (or build(cache=...)) to a folder on "
+                "another file system")
+    return msg
+
+
 class GeneratedLibrary:
     """A loaded shared library built from one generated folder (see its manifest)."""
 
@@ -274,7 +286,7 @@ class GeneratedLibrary:
         try:
             self._lib = ctypes.CDLL(str(self.path))
         except OSError as exc:
-            raise BuildCacheError(f"{self.path}: cannot load compiled library: {exc}") from None
+            raise BuildCacheError(load_failure(self.path, exc)) from None
         self.manifest = manifest
         #: extension Functions by name once attached (:mod:`hydrogen.runtime.extension`), else None
         self.extension_functions = None
