@@ -73,6 +73,10 @@ class OutputPathError(HydrogenError, FileExistsError):
     round), a folder holding files hydrogen did not write, or a folder that cannot be written."""
 
 
+class DiskFullError(HydrogenError, OSError):
+    """A file could not be written because its disk (or the user's quota on it) is full; names the file."""
+
+
 class FmuError(HydrogenError, ValueError):
     """An FMU export asked for something an FMU cannot be: an unknown part, a communication step that is
     not a whole number of control periods, no FMI headers (fmpy missing), an unsupported platform."""

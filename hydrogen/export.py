@@ -36,12 +36,31 @@ import numpy as np
 from .errors import HydrogenError
 
 __all__ = ["export", "EXPORT_MANIFEST", "TEMPLATE_NAMES", "export_context", "render_template", "read_sources", "resolve_dyn",
-           "sensor_kalman_gain", "c_double", "c_doubles", "prepare_export", "controller_entries"]
+           "sensor_kalman_gain", "c_double", "c_doubles", "prepare_export", "controller_entries",
+           "check_export_dir", "make_products"]
 
 #: Metadata file written into every export folder (also marks a folder as an export).
 EXPORT_MANIFEST = "export.json"
 #: Keys of export.json that mark a folder as an earlier export (which may be replaced whole).
 EXPORT_KEYS = ("program", "model_hash", "files")
+
+
+def make_products(meta: dict) -> set:
+    """What the export's own Makefile builds in the folder (``make clean`` removes exactly these): an
+    earlier export holding them may be replaced. Anything else not in export.json is the user's."""
+    files = meta.get("files") if isinstance(meta.get("files"), dict) else {}
+    prog = meta.get("program")
+    return {n[:-2] + ".o" for n in files if n.endswith(".c")} | ({prog} if isinstance(prog, str) else set())
+
+
+def check_export_dir(out: Path, probe: bool = True) -> Path:
+    """``out`` is new, empty, or an earlier export holding only its own files (unedited) and make's
+    products; anything else is refused naming the files, before anything is written."""
+    from .outputs import check_replaceable_dir
+    return check_replaceable_dir(out, EXPORT_MANIFEST, EXPORT_KEYS, "an earlier hydrogen export", "export --out",
+                                 probe=probe, products=make_products, hashes=True)
+
+
 #: Templates (in the repository's templates/) rendered into the folder: template -> output name.
 TEMPLATE_NAMES = {"export_params.h.j2": "params.h", "export_main.c.j2": "main.c",
                   "Makefile.j2": "Makefile", "CMakeLists.txt.j2": "CMakeLists.txt"}
@@ -344,13 +363,10 @@ def export(out_dir, scenario=None, controller="adaptive-robust", model=None, dur
     Path of the written folder.
     """
     from . import __version__
-    from .errors import OutputPathError
-    from .fileio import locked, replace_dir
-    from .outputs import check_replaceable_dir
+    from .fileio import locked, replace_dir, write_file
 
     # Refused before anything is built or run: the folder must be new, empty or an earlier export.
-    check_replaceable_dir(Path(out_dir).absolute(), EXPORT_MANIFEST, EXPORT_KEYS, "an earlier hydrogen export",
-                          "export --out")
+    check_export_dir(Path(out_dir).absolute())
     dyn, sc, sc_name, p = prepare_export(model, dyn, scenario, controller, gains, duration, check_workspace,
                                          overrides)
     overrides = dict(overrides)
@@ -408,13 +424,12 @@ def export(out_dir, scenario=None, controller="adaptive-robust", model=None, dur
     out = Path(out_dir).absolute()
     out.parent.mkdir(parents=True, exist_ok=True)
     with locked(out.with_name(f".{out.name}")):  # hidden lock file beside the folder
-        if out.exists() and (not out.is_dir() or (any(out.iterdir()) and not (out / EXPORT_MANIFEST).is_file())):
-            raise OutputPathError(f"export: {out} exists and is not an earlier export; choose another folder")
+        check_export_dir(out, probe=False)  # again under the lock: nothing added meanwhile is deleted
         staging = Path(tempfile.mkdtemp(prefix=f".{out.name}.new-", dir=out.parent))
         try:
             staging.chmod(0o755)
             for name, data in contents.items():
-                (staging / name).write_bytes(data)
+                write_file(staging / name, data)
             replace_dir(staging, out)
         except BaseException:
             shutil.rmtree(staging, ignore_errors=True)

@@ -1,6 +1,7 @@
 """Atomic file and directory writes, and an inter-process lock."""
 from __future__ import annotations
 
+import errno
 import os
 import shutil
 import sys
@@ -10,7 +11,42 @@ from pathlib import Path
 
 from filelock import FileLock
 
-__all__ = ["atomic_write", "replace_dir", "locked", "recover_dir", "remove_stale_staging", "lock_timeout"]
+__all__ = ["atomic_write", "write_file", "writing", "replace_dir", "locked", "recover_dir", "remove_stale_staging",
+           "lock_timeout", "DISK_FULL"]
+
+
+#: errno values that mean "the disk is full" (no space, or the quota is used up)
+DISK_FULL = (errno.ENOSPC, errno.EDQUOT)
+
+
+@contextmanager
+def writing(path: Path):
+    """Turn a full disk met while writing ``path`` into one DiskFullError naming the file (the bare
+    OSError says "[Errno 28] No space left on device" without saying where)."""
+    from .errors import DiskFullError, HydrogenError
+
+    try:
+        yield
+    except OSError as exc:
+        if exc.errno not in DISK_FULL or isinstance(exc, HydrogenError):
+            raise
+        raise DiskFullError(f"{path}: cannot be written, the disk is full ({exc.strerror or 'no space left'} "
+                            f"on the file system holding {Path(path).parent}); free some space there or write "
+                            "elsewhere") from None
+
+
+def _write_bytes(path, data: bytes, sync: bool = False) -> None:
+    with open(path, "wb") as fh:
+        fh.write(data)
+        if sync:
+            fh.flush()
+            os.fsync(fh.fileno())
+
+
+def write_file(path: Path, data: bytes | str) -> None:
+    """Write ``data`` to a new file ``path`` (inside a staging folder: the folder swap is the atomic step)."""
+    with writing(path):
+        _write_bytes(path, data.encode() if isinstance(data, str) else data)
 
 
 def atomic_write(path: Path, data: bytes | str) -> None:
@@ -19,17 +55,16 @@ def atomic_write(path: Path, data: bytes | str) -> None:
     path.parent.mkdir(parents=True, exist_ok=True)
     if isinstance(data, str):
         data = data.encode()
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
-    try:
-        with os.fdopen(fd, "wb") as fh:
-            fh.write(data)
-            fh.flush()
-            os.fsync(fh.fileno())
-        os.chmod(tmp, 0o644)  # mkstemp makes it private; outputs are for everyone
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
+    with writing(path):
+        fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+        os.close(fd)
+        try:
+            _write_bytes(tmp, data, sync=True)
+            os.chmod(tmp, 0o644)  # mkstemp makes it private; outputs are for everyone
+            os.replace(tmp, path)
+        except BaseException:
+            Path(tmp).unlink(missing_ok=True)
+            raise
 
 
 def _backup_of(target: Path) -> Path:

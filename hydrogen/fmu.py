@@ -27,9 +27,7 @@ import hashlib
 import json
 import os
 import platform
-import shlex
 import shutil
-import subprocess
 import sys
 import tempfile
 import zipfile
@@ -85,10 +83,20 @@ class Variable:
     unit: str | None = None
     start: object = None  # a float or bool (parameters and inputs), None for outputs
     vr: int = -1
+    lo: float | None = None  # declared min and max (inclusive; None: unbounded); every Real must be finite
+    hi: float | None = None
 
     @property
     def causality(self) -> str:
         return {"p": "parameter", "i": "input", "o": "output"}[self.kind]
+
+    @property
+    def c_min(self) -> str:
+        return "-HUGE_VAL" if self.lo is None else c_double(self.lo)
+
+    @property
+    def c_max(self) -> str:
+        return "HUGE_VAL" if self.hi is None else c_double(self.hi)
 
     @property
     def c_start(self):
@@ -182,13 +190,16 @@ def _variables(part, dyn, p, ctx, fn, encoders, kalman):
                 f"inst->u_in[{i}]", unit="m", start=0.0)
         for a in _plant_arrays(dyn, p):
             for j, (nm, unit, what) in enumerate(a["entries"]):
-                add(nm, "p", "fixed", what, f"inst->{a['field']}[{j}]", unit=unit, start=a["values"][j])
+                lo, hi = a["ranges"][j]
+                add(nm, "p", "fixed", what, f"inst->{a['field']}[{j}]", unit=unit, start=a["values"][j], lo=lo,
+                    hi=hi)
         for i, c in enumerate(coords):
             add(_dotted("q_start", c), "p", "fixed", f"initial {c} (the scenario's)", f"inst->q_start[{i}]",
                 unit=cunits[i], start=float(p.x0[i]))
         for i, c in enumerate(cyls):
             add(_dotted("pc_start", c), "p", "fixed", f"initial control pressure of cylinder {c} (holding the "
-                "robot still at the start pose)", f"inst->pc_start[{i}]", unit="Pa", start=float(p.x0[2 * n + i]))
+                "robot still at the start pose)", f"inst->pc_start[{i}]", unit="Pa", start=float(p.x0[2 * n + i]),
+                lo=0.0, hi=float(model.cylinders[i].supply_pressure))
         for i, c in enumerate(coords):
             add(_dotted("q", c), "o", "continuous", f"coordinate {c}", f"inst->y_q[{i}]", unit=cunits[i])
         for i, c in enumerate(coords):
@@ -243,8 +254,9 @@ def _variables(part, dyn, p, ctx, fn, encoders, kalman):
                     else:
                         nm = f"{_name_part(e['name'])}[{i + 1},{j + 1}]"
                         where = f", entry ({i + 1}, {j + 1}) of {rows}x{cols}"
+                    lo, hi = _controller_input_range(e["name"], model, i + rows * j)
                     add(nm, "p", "fixed", f"controller {fn.name} input {e['name']}{where} (SI)",
-                        f"inst->ctrl_in[{off + i + rows * j}]", start=float(value[i, j]))
+                        f"inst->ctrl_in[{off + i + rows * j}]", start=float(value[i, j]), lo=lo, hi=hi)
 
     # outputs of the controller and the closed loop
     if part == "closed-loop":
@@ -297,6 +309,7 @@ def _plant_arrays(dyn, p):
                                      ("valve.omega", "rad/s", "second-order servo-valve natural frequency (0: none)"),
                                      ("valve.zeta", "", "second-order servo-valve damping (dimensionless)")]),
     }
+    ranges = _plant_ranges(model, sc)
     out = []
     for name, shape in zip(fn.in_names, fn.in_shapes):
         if name in ("x", "u"):
@@ -309,8 +322,48 @@ def _plant_arrays(dyn, p):
         if values.size != size or len(entries) != size:
             raise FmuError(f"plant input '{name}' holds {size} numbers, the export has {values.size}")
         out.append({"name": name, "field": f"plant_{name}", "size": size, "entries": entries,
-                    "values": [float(v) for v in values], "data": ", ".join(c_double(v) for v in values)})
+                    "values": [float(v) for v in values], "data": ", ".join(c_double(v) for v in values),
+                    "ranges": ranges[name]})
     return out
+
+
+#: FMI's min is inclusive: "> 0" is declared as min = the smallest positive double.
+POSITIVE = 5e-324
+
+
+def _plant_ranges(model, sc) -> dict:
+    """Per plant input, per entry, the (min, max) a value may take (None: unbounded), from the model and
+    the scenario's own rules: the true theta and gamma inside the model's projection bounds (the model
+    requires it, Lemma 1), friction and valve as the scenario checks them (the natural frequency no
+    higher than the RK4 sub-steps resolve)."""
+    m = model.n_cylinders
+    omega_max = float(sc.control_rate) * int(sc.substeps)  # 2 pi f / (rate * substeps) <= 1
+    return {
+        "theta": [(float(a), float(b)) for a, b in zip(model.theta_min, model.theta_max)],
+        "gamma1": [(float(model.gamma1_min), float(model.gamma1_max))] * m,
+        "gamma2": [(float(model.gamma2_min), float(model.gamma2_max))] * m,
+        "friction": [(0.0, None), (0.0, None), (POSITIVE, None)],
+        "valve": [(0.0, None), (0.0, omega_max), (POSITIVE, None)],
+    }
+
+
+def _controller_input_range(name: str, model, i: int):
+    """(min, max) of entry ``i`` of a static controller input: the known true values (a controller
+    without adaptation) inside the model's bounds, the gamma projection bounds and the references
+    that scale the adaptation > 0 (Remark 3: gamma_2 > 0), each gain as the simulator checks it
+    (>= 0, or > 0 for divisors and limits); the theta projection bounds only finite."""
+    from .simulation.checks import gain_must_be_positive
+
+    if name == "theta":
+        return float(model.theta_min[i]), float(model.theta_max[i])
+    if name in ("gamma1", "gamma2"):
+        return float(getattr(model, f"{name}_min")), float(getattr(model, f"{name}_max"))
+    if name in ("theta_min", "theta_max"):
+        return None, None
+    if name in ("gamma1_min", "gamma1_max", "gamma2_min", "gamma2_max", "gamma_ref", "theta_ref",
+                "theta_row_scale"):
+        return POSITIVE, None
+    return (POSITIVE if gain_must_be_positive(name) else 0.0), None
 
 
 def _model_description(ident, part, model_name, sc, controller, guid, variables, h, step, stop, sources, version,
@@ -348,6 +401,10 @@ def _model_description(ident, part, model_name, sc, controller, guid, variables,
         t = {}
         if v.unit:
             t["unit"] = v.unit
+        if v.lo is not None:
+            t["min"] = repr(float(v.lo))
+        if v.hi is not None:
+            t["max"] = repr(float(v.hi))
         if v.start is not None:
             t["start"] = ("true" if v.start else "false") if v.ctype == "b" else repr(float(v.start))
         ET.SubElement(sv, "Real" if v.ctype == "r" else "Boolean", t)
@@ -372,25 +429,18 @@ def _guid(payload: dict) -> str:
 def _compile(sources: dict, c_files, ident, toolchain) -> bytes:
     """Compile ``c_files`` of ``sources`` (name -> bytes) into ``<ident>.so`` with hydrogen's toolchain
     (warnings as errors); relative names in a scratch folder, so the binary does not depend on where."""
-    from .runtime.compiler import Toolchain
+    from .fileio import write_file
+    from .runtime.compiler import Toolchain, run_compiler
 
     tc = toolchain or Toolchain()
     argv = [*tc.argv(), "-fvisibility=hidden", "-I."]
 
     def run(args, what, cwd):
-        try:
-            proc = subprocess.run(args, cwd=cwd, capture_output=True, text=True, timeout=tc.timeout)
-        except OSError as exc:
-            raise CompilerError(f"cannot run the C compiler for {what}: {exc}") from None
-        except subprocess.TimeoutExpired:
-            raise CompilerError(f"C compiler did not finish {what} within {tc.timeout:g} s") from None
-        if proc.returncode != 0:
-            raise CompilerError(f"C compiler failed on {what} (exit {proc.returncode}):\n$ {shlex.join(args)}\n"
-                                f"{proc.stderr.strip() or proc.stdout.strip()}")
+        run_compiler(args, what, tc.timeout, cwd=cwd)
 
     with tempfile.TemporaryDirectory(prefix="hydrogen-fmu-") as tmp:
         for name, data in sources.items():
-            (Path(tmp) / name).write_bytes(data)
+            write_file(Path(tmp) / name, data)
         objs = [Path(c).stem + ".o" for c in c_files]
         with ThreadPoolExecutor(max_workers=min(len(c_files), os.cpu_count() or 1)) as pool:
             list(pool.map(lambda co: run([*argv, "-c", co[0], "-o", co[1]], co[0], tmp), zip(c_files, objs)))
@@ -414,6 +464,12 @@ Control period {h} s ({substeps} RK4 plant sub-steps per period). Binaries: {pla
 <li>The communication step must be a whole number of control periods ({h} s); any other step makes
 fmi2DoStep return fmi2Error with a logged message, and nothing is done.</li>
 <li>Parameters are fixed: set them before fmi2ExitInitializationMode.{start}</li>
+<li>A Real parameter or input must be a finite number inside its declared min and max (the model's bounds
+and the scenario's rules); fmi2SetReal refuses any other value with fmi2Error and a logged message naming
+the variable, and sets nothing (outputs keep their last values). fmi2ExitInitializationMode checks them all
+again{pose}.</li>
+<li>With a stop time given to fmi2SetupExperiment (stopTimeDefined), a step that would end after it is
+refused with fmi2Error, and nothing is done.</li>
 <li>Controller + plant: step the controller first (inputs: the plant's outputs at t), then hand its u to the
 plant and step the plant over the same interval. That order reproduces the closed loop.</li>
 </ul>
@@ -510,6 +566,10 @@ def export_fmu(out, part, scenario=None, controller="adaptive-robust", model=Non
         raise FmuError(f"FMU variable names {dup} are not unique")
     for i, v in enumerate(variables):
         v.vr = i
+        if v.ctype == "r" and v.start is not None and not ((v.lo is None or v.start >= v.lo)
+                                                          and (v.hi is None or v.start <= v.hi)):
+            raise FmuError(f"FMU variable {v.name}: its start value {v.start!r} is outside its range "
+                           f"[{v.lo}, {v.hi}] (from the model and the scenario)")
 
     ctrl_ident = controller.replace("-", "_")
     ident = f"{mname}_plant" if part == "plant" else f"{mname}_{ctrl_ident}_{part.replace('-', '_')}"
@@ -524,7 +584,11 @@ def export_fmu(out, part, scenario=None, controller="adaptive-robust", model=Non
     glue = render_template("fmu_glue.c.j2", dict(
         ctx, part=part, guid=guid, variables=variables, plant_arrays=_plant_arrays(dyn, p),
         est_const_size=len(est_const), est_const=", ".join(c_double(v) for v in est_const),
-        encoders=encoders, kalman=kalman, ref_inputs=ref_inputs)).encode()
+        encoders=encoders, kalman=kalman, ref_inputs=ref_inputs,
+        stroke_min=", ".join(c_double(v) for v in model.leg_min),
+        stroke_max=", ".join(c_double(v) for v in model.leg_max),
+        length_vrs=", ".join(str(v.vr) for v in variables if v.kind == "o" and v.c_loc.startswith("inst->y_l["))
+        )).encode()
 
     src = {**{n: files[n] for n in gen_sources + gen_headers}, "params.h": params_h, "fmu.c": glue, **header_bytes}
     c_files = ["fmu.c", *gen_sources]
@@ -550,6 +614,7 @@ def export_fmu(out, part, scenario=None, controller="adaptive-robust", model=Non
                       ctrl="" if part == "plant" else f", controller <b>{controller}</b>", h=repr(h),
                       substeps=sc.substeps, platform=PLATFORM, inside=inside, rows=rows,
                       start="" if part == "plant" else " The start time must be 0 (the reference is the scenario's).",
+                      pose=", and that q_start puts every cylinder inside its stroke" if part == "plant" else "",
                       fmpy_version=getattr(fmpy, "__version__", "?"))
 
     entries_zip = {"modelDescription.xml": md, f"binaries/{PLATFORM}/{ident}.so": binary,
@@ -565,11 +630,14 @@ def _html(s: str) -> str:
 
 def _write_zip(out: Path, entries: dict) -> Path:
     """The zip, written beside ``out`` and linked into place only if ``out`` still does not exist."""
+    from .fileio import writing
+
     out.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{out.name}.", suffix=".tmp", dir=out.parent)
+    with writing(out):
+        fd, tmp = tempfile.mkstemp(prefix=f".{out.name}.", suffix=".tmp", dir=out.parent)
     os.close(fd)
     try:
-        with zipfile.ZipFile(tmp, "w", zipfile.ZIP_DEFLATED, compresslevel=9) as zf:
+        with writing(out), zipfile.ZipFile(tmp, "w", zipfile.ZIP_DEFLATED, compresslevel=9) as zf:
             for name in sorted(entries):
                 info = zipfile.ZipInfo(name, date_time=_ZIP_DATE)
                 info.compress_type = zipfile.ZIP_DEFLATED

@@ -61,11 +61,15 @@ def check_output_dir(path, what: str = "output folder") -> Path:
 
 
 def check_replaceable_dir(path, marker: str, keys, kind: str, what: str = "output folder", *,
-                          probe: bool = True) -> Path:
-    """``path`` may be replaced whole: missing, empty, or a ``kind`` folder (its JSON ``marker`` file
-    is an object holding every one of ``keys``, as hydrogen writes it). A file, or a folder holding
-    anything else, is refused: its files are never deleted. ``probe``: also check a file can be
-    created beside it."""
+                          probe: bool = True, products=None, hashes: bool = False) -> Path:
+    """``path`` may be replaced whole: missing, empty, or a ``kind`` folder holding only what hydrogen
+    wrote there. A ``kind`` folder has a JSON ``marker`` file, an object holding every one of ``keys``;
+    when it lists its files (``"files"``: name -> SHA-256), any other entry is refused (a file the user
+    added would be deleted by the replacement), except the names ``products(marker data)`` returns
+    (build products its own build files make, such as object files); with ``hashes``, a listed file
+    edited since is refused too. A file, or a folder holding anything else, is refused: its files are
+    never deleted. ``probe``: also check a file can be created beside it."""
+    import hashlib
     import json
 
     path = Path(path)
@@ -78,15 +82,35 @@ def check_replaceable_dir(path, marker: str, keys, kind: str, what: str = "outpu
         except OSError as exc:
             raise OutputPathError(f"{what} {path}: cannot be read ({exc.strerror})") from None
         if entries:
+            broken = None
             try:
                 data = json.loads((path / marker).read_text())
                 ok = isinstance(data, dict) and all(k in data for k in keys)
-            except (OSError, ValueError):
+                if not ok:
+                    broken = f"{path / marker} is not {kind}'s (it lacks {', '.join(keys)})"
+            except FileNotFoundError:
                 ok = False
+            except (OSError, ValueError) as exc:
+                ok, broken = False, f"{path / marker} cannot be read ({getattr(exc, 'strerror', None) or exc})"
             if not ok:
+                why = broken or f"no {marker}"
                 raise OutputPathError(
-                    f"{what} {path}: holds {len(entries)} entries and is not {kind} (no readable {marker}); "
+                    f"{what} {path}: holds {len(entries)} entries and is not {kind} ({why}); "
                     "it would be replaced whole, so nothing was written. Give a new or empty folder")
+            files = data.get("files")
+            if isinstance(files, dict):
+                known = set(files) | {marker} | set(products(data) if products else ())
+                foreign = sorted(e for e in entries if e not in known)
+                edited = sorted(n for n in files if hashes and (path / n).is_file()
+                                and hashlib.sha256((path / n).read_bytes()).hexdigest() != files[n])
+                if foreign:
+                    fault = f"holds {_names(foreign)}, which hydrogen did not write (not listed in its {marker})"
+                elif edited:
+                    it = "it" if len(edited) == 1 else "them"
+                    fault = f"holds {_names(edited)}, edited since hydrogen wrote {it} (hashes in its {marker})"
+                if foreign or edited:
+                    raise OutputPathError(f"{what} {path}: {fault}; the folder would be replaced whole, so "
+                                          "nothing was written. Move those files away or give a new folder")
     if probe:
         _check_parent(path, what)
     return path
@@ -102,6 +126,11 @@ def require_matplotlib(what: str):
         raise HydrogenError(f"{what} needs matplotlib, which is not installed: pip install 'hydrogen[plot]' "
                             "(or pip install matplotlib)") from None
     return matplotlib
+
+
+def _names(names: list, most: int = 5) -> str:
+    shown = ", ".join(names[:most])
+    return shown + (f" and {len(names) - most} more" if len(names) > most else "")
 
 
 def plot_formats() -> dict:

@@ -6,6 +6,7 @@ import subprocess
 import numpy as np
 import pytest
 
+from hydrogen.errors import OutputPathError
 from hydrogen.export import EXPORT_MANIFEST, export
 from hydrogen.simulation.scenarios import scenario as named_scenario
 from hydrogen.simulation.simulator import simulate
@@ -112,10 +113,30 @@ def test_export_folder_contents(tmp_path, dyn):
 def test_export_replaces_an_earlier_export_and_refuses_other_folders(tmp_path, dyn):
     target = tmp_path / "out"
     export(target, "z-step", "p", duration=0.1, dyn=dyn)
-    (target / "stale.txt").write_text("left from before")
+    # what its own Makefile builds there (make clean's list) goes with the folder
+    meta = json.loads((target / EXPORT_MANIFEST).read_text())
+    products = [meta["program"]] + [n[:-2] + ".o" for n in meta["files"] if n.endswith(".c")]
+    for name in products:
+        (target / name).write_bytes(b"built")
     export(target, "z-step", "p", duration=0.2, dyn=dyn)
-    assert not (target / "stale.txt").exists()
+    assert not [n for n in products if (target / n).exists()]
     assert json.loads((target / EXPORT_MANIFEST).read_text())["duration_s"] == 0.2
+    # a file the user added, or a file edited since the export, is never deleted: refused, naming it
+    (target / "notes.txt").write_text("keep me")
+    with pytest.raises(OutputPathError, match=r"holds notes.txt, which hydrogen did not write .*nothing was written"):
+        export(target, "z-step", "p", duration=0.3, dyn=dyn)
+    assert (target / "notes.txt").read_text() == "keep me"
+    assert json.loads((target / EXPORT_MANIFEST).read_text())["duration_s"] == 0.2
+    (target / "notes.txt").unlink()
+    (target / "build").mkdir()  # cmake -B build: the user's build tree, not hydrogen's
+    with pytest.raises(OutputPathError, match="holds build, which hydrogen did not write"):
+        export(target, "z-step", "p", duration=0.3, dyn=dyn)
+    (target / "build").rmdir()
+    with open(target / "params.h", "a") as fh:
+        fh.write("/* tuned by hand */\n")
+    with pytest.raises(OutputPathError, match="holds params.h, edited since hydrogen wrote it"):
+        export(target, "z-step", "p", duration=0.3, dyn=dyn)
+    assert (target / "params.h").read_text().endswith("/* tuned by hand */\n")
     other = tmp_path / "mine"
     other.mkdir()
     (other / "notes.txt").write_text("keep me")

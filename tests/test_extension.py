@@ -200,10 +200,25 @@ def test_bad_out_is_rejected(either, model, rng):
     entry = next(e for e in _entries(either) if e["name"] == "regressor")
     args = _inputs(entry, model, rng)
     good = either.regressor(*args)
-    with pytest.raises(ValueError, match=r"regressor: out for output 'Y' needs a writeable C-contiguous float64"):
-        either.regressor(*args, out=np.empty(good.shape[::-1]).T)  # right shape, Fortran order
-    with pytest.raises(ValueError, match="out for output 'Y'"):
-        either.regressor(*args, out=np.empty(good.shape, dtype=np.float32))
+    with pytest.raises(ValueError, match=r"regressor: out for output 'Y' needs a writeable C-contiguous float64 "
+                       r"array of shape \(\d+, \d+\), got \(2, 3\)$"):
+        either.regressor(*args, out=np.empty((2, 3)))
+    # the shape is right: the message names the one thing that is wrong, not the shape
+    fortran = np.empty(good.shape[::-1]).T
+    strided = np.empty((good.shape[0], 2 * good.shape[1]))[:, ::2]
+    read_only = np.empty(good.shape)
+    read_only.flags.writeable = False
+    unaligned = np.frombuffer(bytearray(good.nbytes + 1), np.float64, good.size, offset=1).reshape(good.shape)
+    faults = [(np.empty(good.shape, dtype=np.float32), "must be float64, got float32"),
+              (np.empty(good.shape, dtype=np.int64), "must be float64, got int64"),
+              (np.empty(good.shape, dtype=np.float64).astype(">f8"), "must be float64 in native byte order, got >f8"),
+              (fortran, r"must be C-contiguous \(row-major, as np.empty gives\), got a non-contiguous array"),
+              (strided, "must be C-contiguous .*non-contiguous array"),
+              (unaligned, "must be aligned, got an unaligned array"),
+              (read_only, "must be writeable, got a read-only array")]
+    for bad, fault in faults:
+        with pytest.raises(ValueError, match=rf"^regressor: out for output 'Y' {fault}$"):
+            either.regressor(*args, out=bad)
     with pytest.raises(ValueError, match=r"with n = 2"):
         either.regressor(*_inputs(entry, model, rng, n=2), out=good)
     with pytest.raises(TypeError, match="regressor: out must be an array or a tuple of 1 array"):

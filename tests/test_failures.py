@@ -51,6 +51,24 @@ def test_generate_refuses_a_folder_it_did_not_write_and_a_file(tmp_path, model):
     assert a_file.read_text() == "data"
 
 
+def test_generate_refuses_a_generated_folder_holding_a_file_it_did_not_write(tmp_path, model):
+    import shutil
+
+    from hydrogen.resources import committed_generated_dir
+
+    out = tmp_path / "gen"
+    shutil.copytree(committed_generated_dir() / model.name, out)  # a generated folder, as generate writes it
+    (out / "my_notes.c").write_text("/* mine */")
+    for force in (False, True):
+        with pytest.raises(OutputPathError, match=r"holds my_notes.c, which hydrogen did not write"):
+            gen.generate(model, out, force=force)
+    assert (out / "my_notes.c").read_text() == "/* mine */"
+    (out / "manifest.json").write_text("{broken")
+    with pytest.raises(OutputPathError, match=r"manifest.json cannot be read") as err:
+        gen.generate(model, out, force=True)
+    assert str(out / "manifest.json") in str(err.value)
+
+
 # 2, 15 ---------------------------------------------------------------------------------------------
 @pytest.mark.parametrize("make_ref, field", [
     (lambda b: MultiSine(b, ((-1, 0.01, 1),)), "terms[0] axis"),
@@ -291,12 +309,12 @@ def test_a_cache_removed_during_the_build_is_named(tmp_path, model, monkeypatch)
     import hydrogen.runtime.compiler as compiler
 
     cache = tmp_path / "cache"
-    real = compiler._run
+    real = compiler.run_compiler
 
-    def remove_then_run(argv, what, timeout=None):
+    def remove_then_run(argv, what, timeout, cwd=None):
         shutil.rmtree(cache, ignore_errors=True)
-        return real(argv, what, timeout)
-    monkeypatch.setattr(compiler, "_run", remove_then_run)
+        return real(argv, what, timeout, cwd)
+    monkeypatch.setattr(compiler, "run_compiler", remove_then_run)
     with pytest.raises(BuildCacheError, match="removed during the build") as err:
         hydrogen.build(model, cache=cache)
     assert str(cache) in str(err.value)
@@ -388,6 +406,24 @@ def test_a_compiler_that_never_returns_is_timed_out(tmp_path):
     with pytest.raises(CompilerError, match="did not finish .* within 0.5 s"):
         compile_library([src], "slow", Toolchain(cc=str(fake), timeout=0.5), cache=tmp_path / "cache")
     assert time.monotonic() - start < 10
+
+
+def test_a_compiler_that_hangs_on_the_extension_or_an_fmu_is_timed_out(tmp_path):
+    """Every compiler call has the timeout: the CPython extension's and the FMU's too."""
+    from hydrogen.fmu import _compile
+    from hydrogen.runtime.compiler import Toolchain
+    from hydrogen.runtime.extension import build_extension
+
+    fake = tmp_path / "slowcc"
+    fake.write_text('#!/bin/sh\nif [ "$1" = --version ]; then echo slowcc 1.0; exit 0; fi\nexec sleep 30\n')
+    fake.chmod(0o755)
+    tc = Toolchain(cc=str(fake), timeout=0.5)
+    start = time.monotonic()
+    with pytest.raises(CompilerError, match=r"(?s)did not finish .* within 0.5 s and was stopped.*HYDROGEN_CC_TIMEOUT"):
+        build_extension({"model_name": "slow", "functions": []}, tc, cache=tmp_path / "cache")
+    with pytest.raises(CompilerError, match=r"(?s)did not finish .* within 0.5 s and was stopped.*HYDROGEN_CC_TIMEOUT"):
+        _compile({"a.c": b"int a(void) { return 1; }\n"}, ["a.c"], "slow", tc)
+    assert time.monotonic() - start < 20
 
 
 def test_a_held_lock_is_reported_and_given_up_on(tmp_path, capfd):

@@ -53,7 +53,7 @@ def fmus(robot_dyn, tmp_path_factory):
 class Slave:
     """An FMU2Slave with its variables by name; log messages collected."""
 
-    def __init__(self, path, name):
+    def __init__(self, path, name, stop_time=None):
         self.md = read_model_description(str(path))
         self.vr = {v.name: v.valueReference for v in self.md.modelVariables}
         self.var = {v.name: v for v in self.md.modelVariables}
@@ -72,7 +72,7 @@ class Slave:
         self.fmu = FMU2Slave(guid=self.md.guid, unzipDirectory=extract(str(path)),
                              modelIdentifier=self.md.coSimulation.modelIdentifier, instanceName=name)
         self.fmu.instantiate(callbacks=cb)
-        self.fmu.setupExperiment(startTime=0.0)
+        self.fmu.setupExperiment(startTime=0.0, stopTime=stop_time)
         self.fmu.enterInitializationMode()
 
     def names(self, prefix):
@@ -340,3 +340,113 @@ def test_a_lean_controller_offers_no_composite_rate_as_a_parameter(dyn, tmp_path
     composite = {"rate_ls_theta", "rate_ls_gamma", "P0_theta", "P0_gamma", "lambda_f_theta", "period"}
     assert not composite & lean
     assert composite <= full
+
+
+def test_parameters_declare_their_range_from_the_model(fmus):
+    """min/max of every parameter come from the model and the scenario's rules: the true theta and
+    gamma inside the projection bounds, control pressures in [0, p_s], gains >= 0 (> 0 for limits)."""
+    dyn, scenario, controller, paths = fmus
+    model = dyn.model
+    cyls = [c.name for c in model.cylinders]
+    plant = {v.name: v for v in read_model_description(str(paths["plant"])).modelVariables}
+    for t, a, b in zip(model.theta_names, model.theta_min, model.theta_max):
+        v = plant[f"theta.{t}"]
+        assert (float(v.min), float(v.max)) == (a, b)
+    for c, cyl in zip(cyls, model.cylinders):
+        assert (float(plant[f"gamma1.{c}"].min), float(plant[f"gamma1.{c}"].max)) == (model.gamma1_min,
+                                                                                      model.gamma1_max)
+        assert (float(plant[f"pc_start.{c}"].min), float(plant[f"pc_start.{c}"].max)) == (0.0, cyl.supply_pressure)
+    assert float(plant["friction.smooth_speed"].min) > 0 and float(plant["friction.coulomb"].min) == 0
+    ctl = {v.name: v for v in read_model_description(str(paths["controller"])).modelVariables}
+    params = [v for v in ctl.values() if v.causality == "parameter" and v.type == "Real"]
+    assert params and all(v.min is not None and float(v.min) >= 0 for v in params
+                          if not v.name.startswith(("theta_min", "theta_max")))
+    assert float(ctl["u_max"].min) > 0
+    for v in list(plant.values()) + params:  # every start value inside its range
+        if v.start is not None and v.type == "Real":
+            assert v.min is None or float(v.min) <= float(v.start), v.name
+            assert v.max is None or float(v.start) <= float(v.max), v.name
+
+
+def _refused(slave, names, values, message):
+    with pytest.raises(FMICallException):
+        slave.set(names, values)
+    assert any(message in m and names[-1] in m for m in slave.messages), slave.messages
+
+
+def test_impossible_parameters_and_inputs_are_refused_and_change_nothing(fmus):
+    dyn, scenario, controller, paths = fmus
+    model = dyn.model
+    plant = Slave(paths["plant"], "plant")
+    theta = plant.names("theta.")[0]
+    lo = float(plant.var[theta].min)
+    start = plant.get([theta])[0]
+    _refused(plant, [theta], [lo - abs(lo) - 1.0], "is out of range: it must be >=")  # e.g. a negative mass
+    _refused(plant, [theta], [float("nan")], "is not a finite number")
+    _refused(plant, ["friction.smooth_speed"], [0.0], "must be > 0")
+    assert plant.get([theta])[0] == start
+    u = plant.names("u.")
+    _refused(plant, u, [0.0] * (len(u) - 1) + [float("inf")], "is not a finite number")
+    assert np.all(plant.get(u) == 0.0)  # the call was refused whole: not even the finite entries were set
+    plant.fmu.exitInitializationMode()
+    _refused(plant, u[:1], [float("nan")], "is not a finite number")
+    plant.fmu.doStep(0.0, plant.h)
+    q = plant.get(plant.names("q."))
+    plant.close()
+    clean = Slave(paths["plant"], "clean")
+    clean.fmu.exitInitializationMode()
+    clean.fmu.doStep(0.0, clean.h)
+    np.testing.assert_array_equal(q, clean.get(clean.names("q.")))
+    clean.close()
+
+    # the controller: a NaN gain or measurement is refused; the command is computed from the last good values
+    ctl = Slave(paths["controller"], "controller")
+    gain = next(v.name for v in ctl.var.values() if v.causality == "parameter" and v.type == "Real")
+    _refused(ctl, [gain], [float("nan")], "is not a finite number")
+    _refused(ctl, [gain], [-1.0], "is out of range")
+    ctl.fmu.exitInitializationMode()
+    lengths = ctl.names("l.")
+    _refused(ctl, lengths[:1], [float("nan")], "is not a finite number")
+    ctl.fmu.doStep(0.0, ctl.h)
+    u_ctl = ctl.get(ctl.names("u."))
+    ctl.close()
+    ref = Slave(paths["controller"], "reference")
+    ref.fmu.exitInitializationMode()
+    ref.fmu.doStep(0.0, ref.h)
+    np.testing.assert_array_equal(u_ctl, ref.get(ref.names("u.")))
+    assert np.all(np.isfinite(u_ctl))
+    ref.close()
+
+
+def test_a_start_pose_outside_the_strokes_is_refused_at_initialisation(fmus):
+    dyn, scenario, controller, paths = fmus
+    model = dyn.model
+    plant = Slave(paths["plant"], "plant")
+    names = plant.names("q_start.")
+    q0 = plant.get(names)
+    for d in (0.5, 1.0, 2.0, 3.0):  # some move of the first coordinate takes a cylinder outside its stroke
+        q = q0 + d * np.eye(len(q0))[0]
+        legs = np.asarray(dyn.leg_lengths(q))
+        if np.any((legs < model.leg_min) | (legs > model.leg_max)):
+            break
+    else:
+        pytest.skip("no start pose outside the strokes found along the first coordinate")
+    plant.set(names, q)
+    with pytest.raises(FMICallException):
+        plant.fmu.exitInitializationMode()
+    assert any("q_start puts l." in m and "outside the cylinder's stroke" in m for m in plant.messages), plant.messages
+    plant.fmu.freeInstance()
+
+
+def test_a_step_past_the_stop_time_is_refused(fmus):
+    dyn, scenario, controller, paths = fmus
+    for part in ("plant", "controller"):
+        h = float(read_model_description(str(paths[part])).defaultExperiment.stepSize)
+        s = Slave(paths[part], part, stop_time=3 * h)
+        s.fmu.exitInitializationMode()
+        s.fmu.doStep(0.0, 2 * h)
+        with pytest.raises(FMICallException):
+            s.fmu.doStep(2 * h, 2 * h)
+        assert any("ends after the stop time" in m for m in s.messages), s.messages
+        s.fmu.doStep(2 * h, h)  # nothing was done by the refused step; up to the stop time is fine
+        s.close()

@@ -71,3 +71,97 @@ def test_runtime_path_imports_neither_sympy_nor_casadi(dyn, cache):
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300)
     assert out.returncode == 0, out.stderr
     assert out.stdout.strip() == "[]"
+
+
+def _copy_of_committed(model, dest):
+    """A generated folder for ``model`` made by copying the committed one (no generation needed)."""
+    import shutil
+
+    from hydrogen.resources import committed_generated_dir
+    shutil.copytree(committed_generated_dir() / model.name, dest)
+    return dest
+
+
+def test_a_corrupt_manifest_in_hydrogens_own_cache_is_generated_again(model, cache, dyn, tmp_path, monkeypatch):
+    """hydrogen's cache is its own: a broken entry is rebuilt with one warning line. The same fault in
+    the user's generated folder is an error naming the file, and the folder is left as it was."""
+    import shutil
+    import warnings
+
+    import hydrogen.runtime.build as build_mod
+    from hydrogen.codegen import generate as gen
+    from hydrogen.errors import OutputPathError
+
+    committed = build_mod.repo_generated_dir() / model.name
+    monkeypatch.setattr(build_mod, "repo_generated_dir", lambda: tmp_path / "no-committed-code")
+    entry = build_mod.generated_dir_for(model, cache)
+    assert entry.parent == cache / "generated"
+    shutil.rmtree(entry, ignore_errors=True)
+    _copy_of_committed(model, entry)
+    try:
+        (entry / "manifest.json").write_text('{"model_hash": ')  # cut short, as by a crash or a full disk
+        rendered = []
+
+        def render_by_copy(model, folder, progress=False):  # the same files, without SymPy's minutes
+            rendered.append(folder)
+            for p in committed.iterdir():
+                shutil.copy(p, folder / p.name)
+        monkeypatch.setattr(gen, "render", render_by_copy)
+        with pytest.warns(RuntimeWarning, match=r"cache entry .* is broken \(.*manifest.json.*\); generating it again"):
+            d = hydrogen.build(model, cache=cache)
+        assert rendered and gen.check(model, entry) == []
+        np.testing.assert_array_equal(d.leg_lengths(model.neutral_pose), dyn.leg_lengths(model.neutral_pose))
+        with warnings.catch_warnings():
+            warnings.simplefilter("error")  # a sound entry: no warning
+            hydrogen.build(model, cache=cache)
+    finally:
+        shutil.rmtree(entry, ignore_errors=True)
+
+    mine = _copy_of_committed(model, tmp_path / "mine")
+    (mine / "manifest.json").write_text("{not json")
+    with pytest.raises(OutputPathError, match=r"manifest.json cannot be read") as err:
+        hydrogen.build(model, cache=cache, generated=mine)
+    assert str(mine / "manifest.json") in str(err.value)
+    assert (mine / "manifest.json").read_text() == "{not json"
+
+
+def test_a_full_disk_names_the_file_being_written(tmp_path, monkeypatch):
+    import errno
+
+    import hydrogen.fileio as fileio
+    from hydrogen.errors import BuildCacheError, DiskFullError
+    from hydrogen.runtime.cachedir import cache_errors
+
+    def full(path, data, sync=False):
+        raise OSError(errno.ENOSPC, "No space left on device")
+    monkeypatch.setattr(fileio, "_write_bytes", full)
+    target = tmp_path / "out" / "results.json"
+    with pytest.raises(DiskFullError, match=r"results.json: cannot be written, the disk is full") as err:
+        fileio.atomic_write(target, "{}")
+    assert str(target) in str(err.value) and "Errno" not in str(err.value)
+    assert not list((tmp_path / "out").iterdir())  # no temporary file left behind
+    with pytest.raises(DiskFullError, match="disk is full"):
+        fileio.write_file(tmp_path / "a.c", "int a;")
+    # in the cache: the file, and where else the cache can go
+    with pytest.raises(BuildCacheError, match=r"build.json: cannot be written, the disk is full.*HYDROGEN_CACHE_DIR"):
+        with cache_errors(tmp_path):
+            fileio.atomic_write(tmp_path / "build.json", "{}")
+    with pytest.raises(BuildCacheError, match=r"cache folder .*: the disk is full \(.*lib.so\).*HYDROGEN_CACHE_DIR"):
+        with cache_errors(tmp_path):
+            raise OSError(errno.ENOSPC, "No space left on device", str(tmp_path / "lib.so"))
+
+
+def test_a_cache_on_a_noexec_mount_is_named(dyn, monkeypatch):
+    import ctypes
+
+    from hydrogen.errors import BuildCacheError
+    from hydrogen.runtime.library import GeneratedLibrary
+
+    path = dyn.library.path
+
+    def refuse(name, *a, **k):  # what glibc's loader says when mmap of code is refused
+        raise OSError(f"{name}: failed to map segment from shared object")
+    monkeypatch.setattr(ctypes, "CDLL", refuse)
+    with pytest.raises(BuildCacheError, match=r"failed to map segment.*mounted noexec.*HYDROGEN_CACHE_DIR") as err:
+        GeneratedLibrary(path, dyn.library.manifest)
+    assert str(path.parent) in str(err.value)

@@ -35,6 +35,28 @@ def generated_dir_for(model: Model, cache: Path | None = None) -> Path:
     return Path(cache or cache_root()) / "generated" / key
 
 
+def _drop_broken_entry(model: Model, folder: Path) -> None:
+    """A generated folder of hydrogen's own cache that it would not replace (unreadable manifest, files
+    not in it) is removed, with a one-line warning, to be generated again: nobody else writes there.
+    (A folder the user gave, or the committed one, is refused instead, naming the file.)"""
+    import shutil
+    import warnings
+
+    from ..codegen.generate import GENERATED_KEYS, MANIFEST
+    from ..errors import OutputPathError
+    from ..outputs import check_replaceable_dir
+
+    if not folder.is_dir() or folder.is_symlink():
+        return
+    try:
+        check_replaceable_dir(folder, MANIFEST, GENERATED_KEYS, "a hydrogen generated folder", probe=False)
+    except OutputPathError as exc:
+        reasons = check(model, folder)
+        warnings.warn(f"hydrogen: cache entry {folder} is broken ({reasons[0] if reasons else exc}); "
+                      "generating it again", RuntimeWarning, stacklevel=3)
+        shutil.rmtree(folder)
+
+
 def build(model: Model | str | Path | None = None, *, cc: str | None = None,
           cflags: tuple | None = None, cache: Path | None = None, generated: Path | None = None,
           backend: str = "auto", progress=None):
@@ -77,6 +99,8 @@ def build(model: Model | str | Path | None = None, *, cc: str | None = None,
     # One lock from generation through compilation: the manifest read and the sources compiled
     # are the same generation even if another process regenerates the folder meanwhile.
     with cache_errors(root), folder_lock(folder, current=committed):
+        if generated is None and not committed:
+            _drop_broken_entry(model, folder)
         with generation_reported(report, model, folder):
             generate_locked(model, folder)  # no-op when current
         manifest = read_manifest(folder)

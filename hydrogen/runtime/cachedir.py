@@ -16,7 +16,8 @@ import errno
 from contextlib import ExitStack, contextmanager
 from pathlib import Path
 
-from ..errors import BuildCacheError, CompilerError
+from ..errors import BuildCacheError, CompilerError, DiskFullError, HydrogenError
+from ..fileio import DISK_FULL
 
 __all__ = ["check_cache_root", "cache_errors", "warm_library", "folder_lock"]
 
@@ -44,9 +45,14 @@ def cache_errors(root: Path):
     try:
         yield
     except OSError as exc:
-        if isinstance(exc, BuildCacheError):
+        if isinstance(exc, DiskFullError):  # names the file already; say where else the cache can go
+            raise BuildCacheError(f"{exc} (the cache: set HYDROGEN_CACHE_DIR to a folder on another disk)") from None
+        if isinstance(exc, HydrogenError):
             raise
         where = f" ({exc.filename})" if exc.filename else ""
+        if exc.errno in DISK_FULL:
+            raise BuildCacheError(f"cache folder {root}: the disk is full{where} ({exc.strerror}); free some space "
+                                  "there or set HYDROGEN_CACHE_DIR to a folder on another disk") from None
         if not root.exists():
             raise BuildCacheError(f"cache folder {root} was removed during the build{where}; "
                                   "run again (it is recreated)") from None

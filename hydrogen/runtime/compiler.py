@@ -23,9 +23,10 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from ..errors import CompilerError
-from ..fileio import atomic_write, locked
+from ..fileio import atomic_write, locked, write_file
 
-__all__ = ["Toolchain", "cache_root", "compile_library", "compile_extension", "DEFAULT_CFLAGS", "WARNING_FLAGS"]
+__all__ = ["Toolchain", "cache_root", "compile_library", "compile_extension", "run_compiler", "DEFAULT_CFLAGS",
+           "WARNING_FLAGS"]
 
 #: Chosen by benchmarks/bench_flags.py (README "Benchmarks"). -fno-semantic-interposition lets gcc
 #: and clang inline CasADi's exported one-line helpers (casadi_sq, casadi_fmin, ...) inside the shared
@@ -137,9 +138,10 @@ def _sha256(path: Path) -> str:
     return hashlib.sha256(Path(path).read_bytes()).hexdigest()
 
 
-def _run(argv: list, what: str, timeout: float | None = None):
+def run_compiler(argv: list, what: str, timeout: float, cwd=None):
+    """Run one compiler call, stopped after ``timeout`` s; any failure is one CompilerError."""
     try:
-        proc = subprocess.run(argv, capture_output=True, text=True, timeout=timeout)
+        proc = subprocess.run(argv, capture_output=True, text=True, timeout=timeout, cwd=cwd)
     except OSError as exc:
         raise CompilerError(f"cannot run the C compiler for {what}: {exc}") from None
     except subprocess.TimeoutExpired:
@@ -192,13 +194,13 @@ def compile_library(sources: list, name: str, toolchain: Toolchain | None = None
         with tempfile.TemporaryDirectory(dir=build_dir) as tmp:
             objects = [Path(tmp) / (s.stem + ".o") for s in sources]
             with ThreadPoolExecutor(max_workers=jobs or os.cpu_count() or 1) as pool:
-                list(pool.map(lambda so: _run([*argv, "-c", str(so[0]), "-o", str(so[1])], so[0].name,
-                                              toolchain.timeout),
+                list(pool.map(lambda so: run_compiler([*argv, "-c", str(so[0]), "-o", str(so[1])],
+                                                      so[0].name, toolchain.timeout),
                               zip(sources, objects)))
             lib_name = f"lib{name}_{key[:16]}_{secrets.token_hex(4)}.so"
             tmp_lib = Path(tmp) / lib_name
-            _run([*argv, "-shared", *map(str, objects), "-o", str(tmp_lib), "-lm"], f"linking {lib_name}",
-                 toolchain.timeout)
+            run_compiler([*argv, "-shared", *map(str, objects), "-o", str(tmp_lib), "-lm"],
+                         f"linking {lib_name}", toolchain.timeout)
             os.replace(tmp_lib, build_dir / lib_name)
         atomic_write(build_dir / "build.json", json.dumps(
             {"library": lib_name, "sha256": _sha256(build_dir / lib_name),
@@ -241,10 +243,11 @@ def compile_extension(render, key_material: str, module: str, toolchain: Toolcha
         link = ["-undefined", "dynamic_lookup"] if sys.platform == "darwin" else []
         with tempfile.TemporaryDirectory(dir=build_dir) as tmp:
             src, obj = Path(tmp) / f"{module}.c", Path(tmp) / f"{module}.o"
-            src.write_text(render())
-            _run([*argv, "-c", str(src), "-o", str(obj)], src.name)
+            write_file(src, render())
+            run_compiler([*argv, "-c", str(src), "-o", str(obj)], src.name, toolchain.timeout)
             lib_name = f"{module}_{key[:16]}_{secrets.token_hex(4)}.so"
-            _run([*argv, "-shared", str(obj), *link, "-o", str(Path(tmp) / lib_name)], f"linking {lib_name}")
+            run_compiler([*argv, "-shared", str(obj), *link, "-o", str(Path(tmp) / lib_name)],
+                         f"linking {lib_name}", toolchain.timeout)
             os.replace(Path(tmp) / lib_name, build_dir / lib_name)
         atomic_write(build_dir / "build.json", json.dumps(
             {"library": lib_name, "sha256": _sha256(build_dir / lib_name), "module": module,

@@ -17,11 +17,31 @@ import numpy as np
 
 from ..errors import BuildCacheError
 
-__all__ = ["GeneratedLibrary", "CompiledFunction"]
+__all__ = ["GeneratedLibrary", "CompiledFunction", "load_failure"]
 
 _c_int = ctypes.c_longlong  # casadi_int, fixed by the code generator options
 _DOUBLE_P = ctypes.POINTER(ctypes.c_double)
 
+
+
+def _out_fault(o, shape) -> str | None:
+    """None if ``o`` can take an output of ``shape``; else "shape" or the one fault, as a message tail.
+    Checked in this order, with these words, by the extension too (templates/pyext.c.j2, check_out)."""
+    if not isinstance(o, np.ndarray):
+        return "shape"
+    if o.dtype.type is not np.float64:  # any byte order: that is the next check
+        return f"must be float64, got {o.dtype}"
+    if not o.dtype.isnative:
+        return f"must be float64 in native byte order, got {o.dtype.str}"
+    if o.shape != shape:
+        return "shape"
+    if not o.flags.c_contiguous:
+        return "must be C-contiguous (row-major, as np.empty gives), got a non-contiguous array"
+    if not o.flags.aligned:
+        return "must be aligned, got an unaligned array"
+    if not o.flags.writeable:
+        return "must be writeable, got a read-only array"
+    return None
 
 class CompiledFunction:
     """One generated function, callable with numpy arrays; returns fresh arrays.
@@ -175,14 +195,15 @@ class CompiledFunction:
             raise TypeError(f"{self.name}: out must be {'an array or a tuple of ' if k == 1 else 'a tuple of '}"
                             f"{k} array{'' if k == 1 else 's'} (one per output), got {type(out)!r}")
         for o, shape, name, view in zip(outs, shapes, self.out_names, self._out_views):
-            ok = isinstance(o, np.ndarray) and o.dtype == np.float64 and o.dtype.isnative \
-                and o.flags.c_contiguous and o.flags.aligned and o.flags.writeable and o.shape == shape
-            if not ok:
+            fault = _out_fault(o, shape)
+            if fault == "shape":
                 got = o.shape if isinstance(o, np.ndarray) else repr(type(o))
                 with_n = f" with n = {n}" if n is not None else ""
                 raise ValueError(f"{self.name}: out for output '{name}' needs a writeable C-contiguous float64 "
                                  f"array of shape {_shape_text(view.shape, n is not None)}{with_n}, got {got}"
                                  f"{'' if isinstance(o, np.ndarray) else ' (not a numpy array)'}")
+            if fault:
+                raise ValueError(f"{self.name}: out for output '{name}' {fault}")
             for a, iname in zip(inputs, self.in_names):
                 if o.size and a.size and np.may_share_memory(o, a):
                     raise ValueError(f"{self.name}: out for output '{name}' shares memory with input '{iname}'")
@@ -244,6 +265,18 @@ def _check_nan_rows(fn, arrays, batched, n):
         raise ValueError(f"{fn.name}: NaN states in a batch: {'; '.join(msgs)}")
 
 
+def load_failure(path: Path, exc: Exception) -> str:
+    """Why the dynamic loader refused the compiled library at ``path``, with the way out when it is
+    known. "failed to map segment" is glibc's word for an mmap of code refused: a noexec mount."""
+    text = str(exc)
+    msg = f"{path}: cannot load compiled library: {text}"
+    if "failed to map segment" in text:
+        msg += (f". The folder {Path(path).parent} may be on a file system mounted noexec (no code may be run "
+                "from it, as /tmp often is): set HYDROGEN_CACHE_DIR (or build(cache=...)) to a folder on "
+                "another file system")
+    return msg
+
+
 class GeneratedLibrary:
     """A loaded shared library built from one generated folder (see its manifest)."""
 
@@ -253,7 +286,7 @@ class GeneratedLibrary:
         try:
             self._lib = ctypes.CDLL(str(self.path))
         except OSError as exc:
-            raise BuildCacheError(f"{self.path}: cannot load compiled library: {exc}") from None
+            raise BuildCacheError(load_failure(self.path, exc)) from None
         self.manifest = manifest
         #: extension Functions by name once attached (:mod:`hydrogen.runtime.extension`), else None
         self.extension_functions = None

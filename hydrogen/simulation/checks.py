@@ -18,8 +18,8 @@ from ..errors import ScenarioError
 from ..layout import MAX_DELAY
 
 __all__ = ["check_fields", "check_reference", "check_call", "check_against_model", "check_gain_values",
-           "check_run_size", "run_doubles_per_period", "metric_window", "max_run_bytes", "checked_float",
-           "MAX_RUN_BYTES"]
+           "gain_must_be_positive", "check_run_size", "run_doubles_per_period", "metric_window", "max_run_bytes",
+           "checked_float", "MAX_RUN_BYTES"]
 
 #: Most memory one run may allocate for its noise table, workspace check and logs, bytes
 #: (``$HYDROGEN_MAX_RUN_BYTES`` overrides). paper-sim's 10 s take about 7 MB.
@@ -193,6 +193,11 @@ def check_against_model(sc, model, controller, dyn=None) -> None:
 #: Gains that must be > 0 (divisors or limits); every other gain must be >= 0.
 _POSITIVE_GAINS = ("u_max", "sat_width", "lambda_f_gamma", "P0_gamma", "ls_nu_gamma",
                    "lambda_f_theta", "P0_theta", "ls_nu_theta")
+
+
+def gain_must_be_positive(name: str) -> bool:
+    """True if gain ``name`` must be > 0 (a divisor or a limit); every other gain must be >= 0."""
+    return name in _POSITIVE_GAINS
 
 
 def check_gain_values(kind: str, gains: dict, origin: dict | None = None) -> None:
