@@ -7,6 +7,8 @@ import pytest
 import hydrogen
 from hydrogen.runtime.compiler import Toolchain, compile_library
 
+from conftest import warm_copy
+
 
 def test_build_reuses_the_cache(model, cache, dyn):
     again = hydrogen.build(model, cache=cache)
@@ -20,9 +22,10 @@ def test_other_flags_get_another_library(model, cache, dyn):
     np.testing.assert_allclose(other.leg_lengths(q), dyn.leg_lengths(q), rtol=1e-15)
 
 
-def test_corrupt_cached_library_is_rebuilt_under_a_new_name(model, tmp_path):
-    d1 = hydrogen.build(model, cache=tmp_path)
+def test_corrupt_cached_library_is_rebuilt_under_a_new_name(model, dyn, cache, tmp_path):
+    d1 = hydrogen.build(model, cache=warm_copy(cache, tmp_path))  # a private copy of the run's build
     path = d1.library.path
+    assert path.parent.parent == tmp_path / "build" and path.name == dyn.library.path.name
     # Truncate through a new inode, as another process would: this process keeps its mapping.
     tmp = path.with_name("truncated.tmp")
     tmp.write_bytes(path.read_bytes()[:1000])
