@@ -15,7 +15,31 @@ def model():
 
 @pytest.fixture(scope="session")
 def cache(tmp_path_factory):
+    """The run's one build cache, new each run: every library and extension is built once per run."""
     return tmp_path_factory.mktemp("hydrogen-cache")
+
+
+@pytest.fixture(scope="session", autouse=True)
+def _one_cache_per_run(cache):
+    """``$HYDROGEN_CACHE_DIR`` is the session cache for the whole run: ``build()`` without ``cache=``,
+    ``simulate(model=...)``, the CLI and child processes find the libraries the fixtures built,
+    instead of building each again into the user's default cache. Tests of cache behaviour pass
+    their own folder (or set the variable themselves)."""
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setenv("HYDROGEN_CACHE_DIR", str(cache))
+        yield
+
+
+def warm_copy(cache, folder):
+    """``folder`` as a private cache holding a copy of the session cache's builds: a test of cache
+    behaviour that needs a warm cache of its own gets one without compiling again."""
+    import shutil
+
+    for part in ("build", "extension"):
+        if (cache / part).is_dir():
+            shutil.copytree(cache / part, folder / part, dirs_exist_ok=True,
+                            ignore=shutil.ignore_patterns("*.lock", "*-lock.owner", "tmp*"))
+    return folder
 
 
 @pytest.fixture(scope="session")

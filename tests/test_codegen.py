@@ -1,5 +1,6 @@
 """Generated C: agrees with CasADi and SymPy, is deterministic, compiles warning-free, detects staleness."""
 import filecmp
+import functools
 import os
 import subprocess
 import sys
@@ -95,57 +96,107 @@ def _random_input(name, shape, model, rng, fname=""):
     return np.asarray(x, float).reshape(shape, order="F")
 
 
-_DERIVED = {name: {f.name: f for f in derive_functions(hydrogen.load_model(name))} for name in MODELS}
-# the semi-implicit steps are composed in CasADi from two derived functions: tested below
-_CASES = [(name, fname) for name in MODELS for fname, f in _DERIVED[name].items() if hasattr(f, "inputs")]
+@functools.lru_cache(maxsize=None)
+def _derived(mname) -> dict:
+    """The model's derived functions by name, derived on first use (not at collection)."""
+    return {f.name: f for f in derive_functions(hydrogen.load_model(mname))}
 
 
-def _sympy_numeric(sf, values: dict) -> list:
-    """Evaluate ``sf`` with SymPy's own numeric path (lambdify, math module), stage by stage."""
-    values = dict(values)
+def _composed_names() -> set:
+    """Functions that code generation composes from derived ones (steps, lean variants): tested below."""
+    from hydrogen.controllers import CONTROLLERS, LEAN, function_name, rates_function_name, step_function_name
+
+    return {step_function_name(k) for k in CONTROLLERS} | {
+        f(k, LEAN) for k in CONTROLLERS for f in (function_name, rates_function_name, step_function_name)}
+
+
+def _symbolic_cases() -> list:
+    """(model, function) for each derived SymPy function, named by the committed manifests (cheap to
+    read); test_every_derived_function_is_compared checks the list against the derivation."""
+    composed = _composed_names()
+    return [(name, e["name"]) for name in MODELS
+            for e in gen.read_manifest(repo_generated_dir() / name)["functions"] if e["name"] not in composed]
+
+
+_CASES = _symbolic_cases()
+
+
+def _sympy_numeric(sf, states: list) -> list:
+    """Evaluate ``sf`` at each state (a dict symbol -> value) with SymPy's own numeric path (lambdify,
+    math module), stage by stage: the outputs per state. Each stage is lambdified once for all states
+    (printing the expressions is what takes the time, not evaluating them)."""
+    states = [dict(v) for v in states]
+    order = dict.fromkeys(states[0])  # the arguments: inputs, then each stage's symbols
+
+    def lam(matrix):
+        f = sp.lambdify(list(order), list(matrix), "math")
+        return [f(*(v[s] for s in order)) for v in states]
+
     for symbols, expr in sf.intermediates:
         if isinstance(expr, tuple) and expr[0] == "inverse":
-            M = np.array(_lam(values, expr[1]), float).reshape(expr[1].shape)
-            val = np.linalg.inv(M)
+            vals = [np.linalg.inv(np.array(M, float).reshape(expr[1].shape)) for M in lam(expr[1])]
         elif isinstance(expr, tuple):  # ("solve", A, b)
-            A = np.array(_lam(values, expr[1]), float).reshape(expr[1].shape)
-            val = np.linalg.solve(A, np.array(_lam(values, expr[2]), float))
+            vals = [np.linalg.solve(np.array(A, float).reshape(expr[1].shape), np.array(b, float))
+                    for A, b in zip(lam(expr[1]), lam(expr[2]))]
         else:
-            val = np.array(_lam(values, expr), float)
-        values.update({s: float(v) for s, v in zip(symbols, val.ravel())})  # row-major, like Matrix
-    return [np.array(_lam(values, e), float).reshape(e.shape) for _, e in sf.outputs]
+            vals = [np.array(v, float) for v in lam(expr)]
+        for v, val in zip(states, vals):
+            v.update({s: float(x) for s, x in zip(symbols, val.ravel())})  # row-major, like Matrix
+        order.update(dict.fromkeys(symbols))
+    per_output = [[np.array(v, float).reshape(e.shape) for v in lam(e)] for _, e in sf.outputs]
+    return [list(outs) for outs in zip(*per_output)]
 
 
-def _lam(values, matrix):
-    return sp.lambdify(list(values), list(matrix), "math")(*values.values())
+def test_every_derived_function_is_compared(robot_model):
+    derived = {n for n, f in _derived(robot_model.name).items() if hasattr(f, "inputs")}
+    assert derived == {f for m, f in _CASES if m == robot_model.name}
 
 
 @pytest.mark.parametrize("mname,fname", _CASES)
 def test_compiled_equals_casadi_equals_sympy(mname, fname, cache, rng):
     model = hydrogen.load_model(mname)
     dyn = hydrogen.build(model, cache=cache)
-    sf = _DERIVED[mname][fname]
+    sf = _derived(mname)[fname]
     fun = to_casadi_function(sf)
     compiled = dyn.functions[fname]
+    states, outs_ca = [], []
     for _ in range(3):
         args = [_random_input(n, m.shape, model, rng, fname) for n, m in sf.inputs]
-        sub = {s: float(v) for (_, m), a in zip(sf.inputs, args) for s, v in zip(m.T, a.T.ravel())}
+        states.append({s: float(v) for (_, m), a in zip(sf.inputs, args) for s, v in zip(m.T, a.T.ravel())})
         out_c = compiled(*[a[:, 0] if a.shape[1] == 1 else a for a in args])
         out_c = out_c if isinstance(out_c, tuple) else (out_c,)
         out_ca = fun(*args)
-        out_ca = out_ca if isinstance(out_ca, tuple) else (out_ca,)
-        out_sp = _sympy_numeric(sf, sub)
-        for c_val, ca_val, sp_val in zip(out_c, out_ca, out_sp):
-            ca_val = np.array(ca_val).squeeze()
+        out_ca = [np.array(v).squeeze() for v in (out_ca if isinstance(out_ca, tuple) else (out_ca,))]
+        for c_val, ca_val in zip(out_c, out_ca):
             scale = max(1.0, np.abs(ca_val).max())
             np.testing.assert_allclose(c_val, ca_val, rtol=1e-12, atol=1e-12 * scale)
+        outs_ca.append(out_ca)
+    # SymPy's own evaluation at the same states (each stage lambdified once for all of them)
+    for out_ca, out_sp in zip(outs_ca, _sympy_numeric(sf, states)):
+        assert len(out_sp) == len(out_ca)
+        for ca_val, sp_val in zip(out_ca, out_sp):
+            scale = max(1.0, np.abs(ca_val).max())
             np.testing.assert_allclose(ca_val, sp_val.squeeze(), rtol=1e-8, atol=1e-9 * scale)
 
 
-def test_generation_is_deterministic(tmp_path, model):
-    a, b = tmp_path / "a", tmp_path / "b"
-    a.mkdir(), b.mkdir()
-    gen.render(model, a)
+@pytest.fixture(scope="session")
+def fresh_render(tmp_path_factory):
+    """``fresh_render(model)``: a folder with the model's C rendered afresh in this process, once per
+    run and model (the tests only read it)."""
+    folders = {}
+
+    def get(model):
+        if model.name not in folders:
+            folder = tmp_path_factory.mktemp(f"fresh-{model.name}")
+            gen.render(model, folder)
+            folders[model.name] = folder
+        return folders[model.name]
+    return get
+
+
+def test_generation_is_deterministic(tmp_path, model, fresh_render):
+    a, b = fresh_render(model), tmp_path / "b"
+    b.mkdir()
     # a separate interpreter with another hash seed: no dict/set order may leak into the files
     env = {**os.environ, "PYTHONHASHSEED": "12345"}
     code = ("import hydrogen; from hydrogen.codegen.generate import render; "
@@ -163,24 +214,33 @@ def test_committed_generated_code_is_current(robot_model):
     assert gen.check(robot_model, folder) == []
 
 
-def test_committed_generated_code_is_byte_identical_to_fresh(tmp_path, robot_model):
+def test_committed_generated_code_is_byte_identical_to_fresh(robot_model, fresh_render):
     model = robot_model
     folder = repo_generated_dir() / model.name
     manifest = gen.read_manifest(folder)
     if manifest["casadi_version"] != ca.__version__ or manifest["sympy_version"] != sp.__version__:
         pytest.skip("committed code comes from other CasADi/SymPy versions")
-    gen.render(model, tmp_path)
+    fresh = fresh_render(model)
     for name in os.listdir(folder):
-        assert (folder / name).read_bytes() == (tmp_path / name).read_bytes(), name
+        assert (folder / name).read_bytes() == (fresh / name).read_bytes(), name
 
 
 def test_generated_c_compiles_warning_free(tmp_path, robot_model):
+    from concurrent.futures import ThreadPoolExecutor
+
+    from hydrogen.runtime.compiler import usable_cores
+
     folder = repo_generated_dir() / robot_model.name
-    for src in sorted(folder.glob("*.c")):
-        proc = subprocess.run(["cc", "-std=c99", "-Wall", "-Wextra", "-Werror", "-pedantic", "-O1",
-                               "-c", str(src), "-o", str(tmp_path / (src.stem + ".o"))],
-                              capture_output=True, text=True)
-        assert proc.returncode == 0, proc.stderr
+
+    def compile_one(src):
+        return src, subprocess.run(["cc", "-std=c99", "-Wall", "-Wextra", "-Werror", "-pedantic", "-O1",
+                                    "-c", str(src), "-o", str(tmp_path / (src.stem + ".o"))],
+                                   capture_output=True, text=True)
+
+    sources = sorted(folder.glob("*.c"), key=lambda p: -p.stat().st_size)  # the longest compiles first
+    with ThreadPoolExecutor(usable_cores()) as pool:  # one compiler per core, as the library build
+        for src, proc in pool.map(compile_one, sources):
+            assert proc.returncode == 0, f"{src.name}: {proc.stderr}"
 
 
 def test_check_detects_edits_and_cli_reports_stale(tmp_path, model, capsys):
@@ -258,7 +318,7 @@ def test_rates_function_equals_the_controllers_xc_dot(mname, kind, cache, rng):
     assert entries[rates.name]["inputs"] == entries[ctrl.name]["inputs"]
     assert [o[0] for o in entries[rates.name]["outputs"]] == ["xc_dot"]
     assert entries[rates.name]["instructions"] < entries[ctrl.name]["instructions"]
-    sf = _DERIVED[mname][ctrl.name]
+    sf = _derived(mname)[ctrl.name]
     k = ctrl.out_names.index("xc_dot")
     for _ in range(5):
         args = [_random_input(n, m.shape, model, rng, ctrl.name) for n, m in sf.inputs]
@@ -278,7 +338,7 @@ def test_gamma2_law_uses_the_applied_spool(mname, kind, cache, rng):
     model = hydrogen.load_model(mname)
     dyn = hydrogen.build(model, cache=cache)
     ctrl = dyn.functions[function_name(kind)]
-    sf = _DERIVED[mname][ctrl.name]
+    sf = _derived(mname)[ctrl.name]
     names = [n for n, _ in sf.inputs]
     blocks, i = {}, 0
     for b, size in controller(kind).state_layout(model):
@@ -321,7 +381,7 @@ def test_semi_implicit_step_is_the_clipped_rate_update_then_the_command(mname, k
     ctrl, rates = dyn.functions[function_name(kind)], dyn.functions[rates_function_name(kind)]
     step = dyn.functions[step_function_name(kind)]
     assert step.in_names == ctrl.in_names + ["h", "xc_lo", "xc_hi"] and step.out_names == ["u", "xc_next"]
-    sf = _DERIVED[mname][ctrl.name]
+    sf = _derived(mname)[ctrl.name]
     ix = ctrl.in_names.index("xc")
     for _ in range(5):
         args = [_random_input(n, m.shape, model, rng, ctrl.name) for n, m in sf.inputs]

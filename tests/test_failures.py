@@ -284,8 +284,10 @@ def _refuse_locks(monkeypatch):
     monkeypatch.setattr(fileio, "FileLock", NoLock)
 
 
-def test_a_warm_read_only_cache_stays_usable_and_a_cold_one_is_named(tmp_path, model, monkeypatch):
-    warm = tmp_path / "warm"
+def test_a_warm_read_only_cache_stays_usable_and_a_cold_one_is_named(tmp_path, model, dyn, cache, monkeypatch):
+    from conftest import warm_copy
+
+    warm = warm_copy(cache, tmp_path / "warm")  # the run's build, copied: warm without compiling again
     hydrogen.build(model, cache=warm)
     _refuse_locks(monkeypatch)  # no lock file can be created anywhere (a read-only cache, as for a user)
     if os.geteuid() != 0:

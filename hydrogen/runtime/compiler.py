@@ -18,7 +18,8 @@ import shutil
 import subprocess
 import sys
 import tempfile
-from concurrent.futures import ThreadPoolExecutor
+import threading
+from concurrent.futures import ThreadPoolExecutor, as_completed
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -166,13 +167,62 @@ def cached_library(build_dir: Path) -> Path | None:
     return None
 
 
+def usable_cores() -> int:
+    """The cores this process may run on (its CPU affinity, e.g. a container's share), at least 1."""
+    if hasattr(os, "process_cpu_count"):  # Python 3.13
+        return os.process_cpu_count() or 1
+    if hasattr(os, "sched_getaffinity"):
+        return len(os.sched_getaffinity(0)) or 1
+    return os.cpu_count() or 1
+
+
+def compile_objects(sources: list, out_dir: Path, argv: list, timeout: float, jobs: int | None = None) -> list:
+    """Compile each source to an object file in ``out_dir``, ``jobs`` compilers at a time; the objects.
+
+    ``jobs`` defaults to :func:`usable_cores`. The largest sources start first, so that one long
+    compile (a controller's semi-implicit step) does not begin last and run alone. Each compiler
+    call has its own ``timeout``. The first failure stops the compiles not yet started and is
+    raised (the compiles already running end within their timeout).
+    """
+    if jobs is None:
+        jobs = usable_cores()
+    if isinstance(jobs, bool) or not isinstance(jobs, int) or jobs < 1:
+        raise CompilerError(f"jobs must be a whole number of compilers >= 1, got {jobs!r}")
+    sources = [Path(s) for s in sources]
+    # A numbered object per source: two sources of one name (in two folders) never share an object.
+    objects = [Path(out_dir) / f"{i:03d}_{s.stem}.o" for i, s in enumerate(sources)]
+    order = sorted(range(len(sources)), key=lambda i: -sources[i].stat().st_size)
+    failed = threading.Event()  # set by the failing compile itself: no queued compile starts after it
+
+    def one(i):
+        if failed.is_set():
+            return
+        try:
+            run_compiler([*argv, "-c", str(sources[i]), "-o", str(objects[i])], sources[i].name, timeout)
+        except BaseException:
+            failed.set()
+            raise
+
+    with ThreadPoolExecutor(max_workers=min(jobs, max(len(sources), 1))) as pool:
+        futures = [pool.submit(one, i) for i in order]
+        try:
+            for done in as_completed(futures):
+                done.result()
+        except BaseException:
+            failed.set()  # also on KeyboardInterrupt in this thread
+            for f in futures:
+                f.cancel()
+            raise
+    return objects
+
+
 def compile_library(sources: list, name: str, toolchain: Toolchain | None = None,
                     cache: Path | None = None, jobs: int | None = None,
                     force: bool = False) -> Path:
     """Compile ``sources`` (.c files) into a cached shared library and return its path.
 
-    Each source becomes an object file in parallel (``jobs`` threads, default
-    the core count), then one link. A failed compile raises
+    Each source becomes an object file in parallel (:func:`compile_objects`: ``jobs`` compilers,
+    default the usable cores), then one link. A failed compile raises
     :class:`CompilerError` with the compiler's own message.
     """
     toolchain = toolchain or Toolchain()
@@ -192,11 +242,7 @@ def compile_library(sources: list, name: str, toolchain: Toolchain | None = None
                 shutil.rmtree(old, ignore_errors=True)
         argv = toolchain.argv()
         with tempfile.TemporaryDirectory(dir=build_dir) as tmp:
-            objects = [Path(tmp) / (s.stem + ".o") for s in sources]
-            with ThreadPoolExecutor(max_workers=jobs or os.cpu_count() or 1) as pool:
-                list(pool.map(lambda so: run_compiler([*argv, "-c", str(so[0]), "-o", str(so[1])],
-                                                      so[0].name, toolchain.timeout),
-                              zip(sources, objects)))
+            objects = compile_objects(sources, Path(tmp), argv, toolchain.timeout, jobs)
             lib_name = f"lib{name}_{key[:16]}_{secrets.token_hex(4)}.so"
             tmp_lib = Path(tmp) / lib_name
             run_compiler([*argv, "-shared", *map(str, objects), "-o", str(tmp_lib), "-lm"],

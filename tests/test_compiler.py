@@ -1,0 +1,110 @@
+"""hydrogen/runtime/compiler.py: the translation units compiled in parallel, then one link."""
+import ctypes
+import shutil
+import textwrap
+
+import pytest
+
+from hydrogen.errors import CompilerError
+from hydrogen.runtime.compiler import Toolchain, cached_library, compile_library, compile_objects, usable_cores
+
+
+def _logging_cc(tmp_path, pause: float = 0.0):
+    """A compiler wrapper that logs each compile's start and end (and how many ran at once), then runs cc."""
+    cc = shutil.which("cc")
+    if cc is None:
+        pytest.skip("no C compiler")
+    log, running = tmp_path / "cc.log", tmp_path / "running"
+    running.mkdir()
+    wrapper = tmp_path / "logcc"
+    wrapper.write_text(textwrap.dedent(f"""\
+        #!/bin/sh
+        if [ "$1" = --version ]; then exec {cc} --version; fi
+        src=""; prev=""
+        for a in "$@"; do [ "$prev" = -c ] && src="$a"; prev="$a"; done
+        [ -z "$src" ] && exec {cc} "$@"
+        name=$(basename "$src")
+        touch "{running}/$name"
+        echo "start $name $(ls "{running}" | wc -l)" >> "{log}"
+        sleep {pause}
+        {cc} "$@"; rc=$?
+        echo "end $name $(ls "{running}" | wc -l)" >> "{log}"
+        rm -f "{running}/$name"
+        exit $rc
+        """))
+    wrapper.chmod(0o755)
+    return str(wrapper), log
+
+
+def _sources(folder, names_sizes):
+    folder.mkdir(parents=True, exist_ok=True)
+    out = []
+    for name, size in names_sizes:
+        src = folder / f"{name}.c"
+        pad = "/* " + "x" * size + " */\n"  # the size orders the compiles, not the work
+        src.write_text(f"{pad}int {name}(void) {{ return {len(out) + 1}; }}\n")
+        out.append(src)
+    return out
+
+
+def test_translation_units_compile_at_the_same_time(tmp_path):
+    cc, log = _logging_cc(tmp_path, pause=1.0)
+    srcs = _sources(tmp_path / "src", [("a", 10), ("b", 20), ("c", 30), ("d", 40)])
+    lib = compile_library(srcs, "par", Toolchain(cc=cc), cache=tmp_path / "cache", jobs=2)
+    starts = [line.split() for line in log.read_text().splitlines() if line.startswith("start")]
+    assert len(starts) == 4
+    assert max(int(n) for _, _, n in starts) == 2  # two compilers at once, never more than jobs
+    dll = ctypes.CDLL(str(lib))
+    assert [getattr(dll, n)() for n in "abcd"] == [1, 2, 3, 4]  # one link of every object
+    assert cached_library(lib.parent) == lib
+
+
+def test_largest_sources_start_first(tmp_path):
+    cc, log = _logging_cc(tmp_path)
+    srcs = _sources(tmp_path / "src", [("small", 10), ("large", 5000), ("medium", 500)])
+    compile_library(srcs, "order", Toolchain(cc=cc), cache=tmp_path / "cache", jobs=1)
+    starts = [line.split()[1] for line in log.read_text().splitlines() if line.startswith("start")]
+    assert starts == ["large.c", "medium.c", "small.c"]
+
+
+def test_a_failed_compile_stops_the_compiles_not_yet_started(tmp_path):
+    cc, log = _logging_cc(tmp_path)
+    srcs = _sources(tmp_path / "src", [("ok1", 10), ("ok2", 20)])
+    broken = tmp_path / "src" / "broken.c"
+    broken.write_text("/* " + "x" * 1000 + " */\nint broken(void) { return undefined_name; }\n")
+    with pytest.raises(CompilerError) as err:
+        compile_library([*srcs, broken], "stop", Toolchain(cc=cc), cache=tmp_path / "cache", jobs=1)
+    assert "C compiler failed on broken.c" in str(err.value) and "undefined_name" in str(err.value)
+    assert f"$ {cc}" in str(err.value)  # the command is quoted
+    starts = [line.split()[1] for line in log.read_text().splitlines() if line.startswith("start")]
+    assert starts == ["broken.c"]  # the largest first; the others were never started
+    assert not list((tmp_path / "cache").rglob("*.so"))
+
+
+def test_sources_of_one_name_in_two_folders_both_reach_the_library(tmp_path):
+    one, two = tmp_path / "one" / "f.c", tmp_path / "two" / "f.c"
+    for path, fn in ((one, "f_one"), (two, "f_two")):
+        path.parent.mkdir()
+        path.write_text(f"int {fn}(void) {{ return 7; }}\n")
+    lib = compile_library([one, two], "twins", Toolchain(), cache=tmp_path / "cache")
+    dll = ctypes.CDLL(str(lib))
+    assert dll.f_one() == 7 and dll.f_two() == 7
+
+
+def test_every_compiler_call_has_the_timeout(tmp_path):
+    fake = tmp_path / "slowcc"
+    fake.write_text('#!/bin/sh\nif [ "$1" = --version ]; then echo slowcc 1.0; exit 0; fi\nexec sleep 30\n')
+    fake.chmod(0o755)
+    srcs = _sources(tmp_path / "src", [("a", 1), ("b", 2)])
+    with pytest.raises(CompilerError, match="did not finish [ab].c within 0.5 s"):
+        compile_objects(srcs, tmp_path, [str(fake), "-O2"], timeout=0.5, jobs=2)
+
+
+@pytest.mark.parametrize("jobs", [0, -1, 1.5, True, "2"])
+def test_a_bad_job_count_is_named(tmp_path, jobs):
+    with pytest.raises(CompilerError, match="jobs must be a whole number"):
+        compile_objects([], tmp_path, ["cc"], timeout=1.0, jobs=jobs)
+
+
+def test_usable_cores_is_at_least_one():
+    assert usable_cores() >= 1
