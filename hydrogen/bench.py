@@ -30,6 +30,9 @@ SUITE = (
 
 
 def run_suite(quick: bool = False, json_path: str | None = None, only=None, progress: bool = True) -> dict:
+    """Run the suite's modules (all, or those named in ``only``) in this process, print each one's
+    table, and return {module: results}. With ``json_path`` the results are written there as JSON and
+    rendered to ``benchmarks.md`` beside it (:func:`hydrogen.pages.write_benchmarks_page`)."""
     unknown = sorted(set(only or ()) - {n for n, _ in SUITE})
     if unknown:
         raise HydrogenError(f"unknown benchmark module(s) {unknown}; the suite has {', '.join(n for n, _ in SUITE)}")
@@ -53,4 +56,6 @@ def run_suite(quick: bool = False, json_path: str | None = None, only=None, prog
     if json_path:
         atomic_write(Path(json_path), json.dumps(results, indent=2, default=str) + "\n")
         print(f"\nresults written to {json_path}")
+        from .pages import write_benchmarks_page  # the benchmarks page, from the JSON just written
+        print(f"page written to {write_benchmarks_page(json_path)}")
     return results
