@@ -49,6 +49,10 @@ def _figures_only(res):
 
 def run_suite(quick: bool = False, json_path: str | None = None, only=None, progress: bool = True,
               release_checks: bool = False) -> dict:
+    """Run the suite's modules (all, or those named in ``only``) in this process, print each one's
+    table, and return {module: results}. With ``json_path`` the results are written there as JSON and
+    rendered to ``benchmarks.md`` beside it (:func:`hydrogen.pages.write_benchmarks_page`); with
+    ``release_checks`` (developers) each module's checks against the release targets are printed and kept."""
     unknown = sorted(set(only or ()) - {n for n, _ in SUITE})
     if unknown:
         raise HydrogenError(f"unknown benchmark module(s) {unknown}; the suite has {', '.join(n for n, _ in SUITE)}")
@@ -73,4 +77,6 @@ def run_suite(quick: bool = False, json_path: str | None = None, only=None, prog
         written = results if release_checks else _figures_only(results)
         atomic_write(Path(json_path), json.dumps(written, indent=2, default=str) + "\n")
         print(f"\nresults written to {json_path}")
+        from .pages import write_benchmarks_page  # the benchmarks page, from the JSON just written
+        print(f"page written to {write_benchmarks_page(json_path)}")
     return results

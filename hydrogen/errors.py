@@ -1,5 +1,9 @@
 """Exceptions raised by hydrogen. Each says what went wrong and where."""
 
+__all__ = ["HydrogenError", "ModelError", "UnsupportedExpressionError", "CompilerError", "BuildCacheError",
+           "StaleGeneratedCodeError", "KinematicsError", "ScenarioError", "IdentificationError",
+           "SimulationError", "OutputPathError", "FmuError", "MAX_MESSAGE_CHARS"]
+
 
 #: Longest message an error keeps (characters): a message quoting a huge value (a model array of
 #: millions of numbers) is cut in the middle, keeping where it happened and how it ends.

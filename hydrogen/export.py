@@ -92,6 +92,8 @@ def _sha256(data: bytes) -> str:
 
 
 def resolve_dyn(model, dyn):
+    """The compiled dynamics to export: ``dyn``, or those of ``model`` (default robot when both are
+    None); a ``model`` that differs from ``dyn``'s raises ValueError."""
     import hydrogen
 
     if dyn is None:
@@ -326,6 +328,8 @@ def prepare_export(model, dyn, scenario, controller, gains, duration, check_work
 
 
 def sensor_kalman_gain(p):
+    """The steady-state Kalman gain [position, rate /s] of the prepared export ``p``'s scenario, or None
+    when it has no Kalman filter."""
     from .simulation.simulator import kalman_gain, length_noise_variance
 
     if not p.sc.kalman:

@@ -305,7 +305,9 @@ def make_all(dyn, out_dir, quiet=True, *, durations=None, gains=None, nonlinear=
     Returns
     -------
     dict
-        {"<scenario>[_<coordinate>]" or "<scenario>_parameters" or "table"} → Path of the written file.
+        {"<scenario>[_<coordinate>]" or "<scenario>_parameters" or "table" or "results"} → Path of the
+        written file; ``results`` is the Markdown page of the table and figures
+        (:func:`hydrogen.pages.write_results_page`).
     """
     from .controllers import CONTROLLERS
     from .errors import ScenarioError
@@ -367,4 +369,6 @@ def make_all(dyn, out_dir, quiet=True, *, durations=None, gains=None, nonlinear=
     paths["table"] = out / "table.md"
     atomic_write(paths["table"], table)
     bar.close()
+    from .pages import write_results_page  # the results page, from the table and figures just written
+    paths["results"] = write_results_page(model, out)
     return paths

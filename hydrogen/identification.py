@@ -139,6 +139,7 @@ class ParameterFit:
         return d
 
     def describe(self, label: str) -> list:
+        """Lines of text: the condition number, then each estimate ± its standard error (SI units)."""
         lines = [f"{label}: cond {self.cond:.3g} (columns scaled by the model's values), {self.rows} rows, "
                  f"residual rms {self.residual_rms:.4g}"]
         if not self.identifiable:
@@ -177,9 +178,11 @@ class Identification:
 
     @property
     def identifiable(self) -> bool:
+        """True when θ (and γ, if estimated) are both identifiable from the log."""
         return self.theta.identifiable and (self.gamma is None or self.gamma.identifiable)
 
     def to_dict(self) -> dict:
+        """Plain JSON data of the whole identification (estimates, fits, cutoffs, timings)."""
         d = {k: v for k, v in asdict(self).items() if k not in ("theta", "gamma", "gamma_per_leg")}
         d["theta"] = self.theta.to_dict()
         d["gamma"] = None if self.gamma is None else self.gamma.to_dict()
@@ -187,6 +190,7 @@ class Identification:
         return d
 
     def summary(self) -> str:
+        """A readable report: sampling, filter, and each fit's estimates with standard errors."""
         lines = [f"{self.source}: {self.n_samples} samples at {self.sample_rate_hz:.6g} Hz; zero-phase low-pass "
                  f"at {self.cutoff_hz:.3g} Hz; {self.edge_samples} samples dropped at each end; 1 in every "
                  f"{self.decimate} used ({self.samples_used})"]

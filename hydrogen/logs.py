@@ -59,6 +59,7 @@ class Log:
 
     @property
     def n_samples(self) -> int:
+        """Number of samples (rows) in the log."""
         return len(self.t)
 
 

@@ -31,6 +31,7 @@ except ModuleNotFoundError:  # pragma: no cover - Python 3.10
 import numpy as np
 
 from .errors import ModelError
+from .schema import default as _default, keys as _keys
 
 __all__ = ["Model", "Link", "Joint", "Cylinder", "load_model", "default_model_path", "models",
            "model_path", "INERTIAL_PARAMETERS", "JOINT_TYPES"]
@@ -162,6 +163,7 @@ class Joint:
 
     @property
     def dof(self) -> int:
+        """Number of generalized coordinates the joint contributes (JOINT_TYPES)."""
         return JOINT_TYPES[self.type]
 
 
@@ -262,13 +264,16 @@ class Model:
 
     @property
     def n_cylinders(self) -> int:
+        """Number of cylinders (one per coordinate)."""
         return len(self.cylinders)
 
     @property
     def n_theta(self) -> int:
+        """Number of adapted inertial parameters θ."""
         return len(self.theta_names)
 
     def link(self, name: str) -> Link:
+        """The moving link called ``name``."""
         return next(lk for lk in self.links if lk.name == name)
 
     # --- parameters -----------------------------------------------------------------------
@@ -442,9 +447,9 @@ def _tree_from_toml(r: _Reader, data: dict):
             raise r.error(w, f"expected a table, got {_quote(lk)}")
         name = r.name(f"{w} name", r.require(lk, "name", w))
         w = f"[[links]] '{name}'"
-        r.known(lk, {"name", "mass", "com", "inertia"}, w)
+        r.known(lk, _keys("[[links]]"), w)
         mass = r.number(f"{w} mass", r.require(lk, "mass", w), "mass")
-        com = r.vector(f"{w} com", lk.get("com", [0.0, 0.0, 0.0]), 3, "position")
+        com = r.vector(f"{w} com", lk.get("com", _default("[[links]]", "com")), 3, "position")
         inertia = _inertia_matrix(r, f"{w} inertia", r.require(lk, "inertia", w))
         links.append(Link(name, mass, com, inertia))
     raw_joints = data.get("joints")
@@ -456,15 +461,17 @@ def _tree_from_toml(r: _Reader, data: dict):
             raise r.error(w, f"expected a table, got {_quote(jt)}")
         name = r.name(f"{w} name", r.require(jt, "name", w))
         w = f"[[joints]] '{name}'"
-        r.known(jt, {"name", "type", "parent", "child", "origin_xyz", "origin_rpy", "axis", "limit"}, w)
+        r.known(jt, _keys("[[joints]]"), w)
         jtype = _joint_type(r, w, r.require(jt, "type", w))
         limit = r.table(jt, "limit", f"{w}", required=False)
         r.known(limit, set(LIMIT_KEYS), f"{w} limit")
         joints.append(Joint(name, jtype, r.name(f"{w} parent", r.require(jt, "parent", w)),
                             r.name(f"{w} child", r.require(jt, "child", w)),
-                            r.vector(f"{w} origin_xyz", jt.get("origin_xyz", [0.0, 0.0, 0.0]), 3, "position"),
-                            r.vector(f"{w} origin_rpy", jt.get("origin_rpy", [0.0, 0.0, 0.0]), 3, "angle"),
-                            _axis(r, f"{w} axis", jt.get("axis", [0.0, 0.0, 1.0])),
+                            r.vector(f"{w} origin_xyz", jt.get("origin_xyz", _default("[[joints]]", "origin_xyz")), 3,
+                                     "position"),
+                            r.vector(f"{w} origin_rpy", jt.get("origin_rpy", _default("[[joints]]", "origin_rpy")), 3,
+                                     "angle"),
+                            _axis(r, f"{w} axis", jt.get("axis", _default("[[joints]]", "axis"))),
                             _limit(r, f"{w} limit", {k: v for k, v in limit.items()})))
     return links, joints
 
@@ -667,7 +674,7 @@ def _select_tree(r: _Reader, links, joints, spec: dict):
     alone is kept, that link becoming the fixed root (what is above it and beside it is left out)."""
     if not spec:
         return links, joints
-    r.known(spec, {"base", "locked"}, "[tree]")
+    r.known(spec, _keys("[tree]"), "[tree]")
     locked = spec.get("locked", {})
     if not isinstance(locked, dict):
         raise r.error("[tree] locked", f"expected a table {{ joint = position }}, got {_quote(locked)}")
@@ -803,14 +810,14 @@ def _cylinders(r: _Reader, data: dict, link_names: set, root_note: str = ""):
         if name in names:
             raise r.error(w, "a second cylinder of this name")
         names.add(name)
-        r.known(cy, {"name", "from", "to", *HYDRAULIC_KEYS}, w)
+        r.known(cy, _keys("[[cylinders]]"), w)
         ends = []
         for end in ("from", "to"):
             e = r.require(cy, end, w)
             we = f"{w} {end}"
             if not isinstance(e, dict):
                 raise r.error(we, f"expected {{ link = ..., point = [x, y, z] }}, got {_quote(e)}")
-            r.known(e, {"link", "point"}, we)
+            r.known(e, _keys("[[cylinders]] from/to"), we)
             link = r.name(f"{we}.link", r.require(e, "link", we))
             if link not in link_names:
                 raise r.error(f"{we}.link", f"link '{link}' is not in the tree (links: "
@@ -843,9 +850,7 @@ def _cylinders(r: _Reader, data: dict, link_names: set, root_note: str = ""):
 def model_from_dict(data: dict, source: str = "<memory>", base_dir: Path | None = None) -> Model:
     """Validate parsed TOML data and build a :class:`Model`; errors name the source and the key."""
     r = _Reader(source)
-    top = {"name", "urdf", "gravity", "tree", "links", "joints", "coordinates", "hydraulics", "cylinders",
-           "adaptation", "sensors", "control", "figures", "gains", "rig", "scenarios"}
-    r.known(data, top, "top level")
+    r.known(data, _keys("top level"), "top level")
     name = check_model_name(source, r.require(data, "name", "top level"))
     gravity = r.number("gravity", r.require(data, "gravity", "top level"), "gravity")
     urdf = None
@@ -867,7 +872,7 @@ def model_from_dict(data: dict, source: str = "<memory>", base_dir: Path | None 
     link_names = {root} | {lk.name for lk in links}
     # coordinates
     coords = r.table(data, "coordinates")
-    r.known(coords, {"names", "neutral"}, "[coordinates]")
+    r.known(coords, _keys("[coordinates]"), "[coordinates]")
     default_names = []
     for j in joints:
         default_names += [f"{j.name}_{c}" for c in FLOATING_COORDINATES] if j.type == "floating" else \
@@ -891,8 +896,7 @@ def model_from_dict(data: dict, source: str = "<memory>", base_dir: Path | None 
                                        "cylinder per coordinate (a square JL)")
     # adaptation
     ad = r.table(data, "adaptation")
-    r.known(ad, {"parameters", "theta_min", "theta_max", "gamma1_min", "gamma1_max", "gamma2_min",
-                 "gamma2_max"}, "[adaptation]")
+    r.known(ad, _keys("[adaptation]"), "[adaptation]")
     params = r.require(ad, "parameters", "[adaptation]")
     if not isinstance(params, list) or not params or not all(isinstance(p, str) for p in params) \
             or len(set(params)) != len(params):
@@ -912,16 +916,17 @@ def model_from_dict(data: dict, source: str = "<memory>", base_dir: Path | None 
         if gb[f"{g}_min"] >= gb[f"{g}_max"]:
             raise r.error(f"[adaptation] {g}_min", f"must be < {g}_max")
     sensors = r.table(data, "sensors", required=False)
-    r.known(sensors, {"joint_encoders"}, "[sensors]")
-    enc = sensors.get("joint_encoders", False)
+    r.known(sensors, _keys("[sensors]"), "[sensors]")
+    enc = sensors.get("joint_encoders", _default("[sensors]", "joint_encoders"))
     if not isinstance(enc, bool):
         raise r.error("[sensors] joint_encoders", f"expected true or false, got {_quote(enc)}")
     control = r.table(data, "control", required=False)
-    r.known(control, {"scale"}, "[control]")
+    r.known(control, _keys("[control]"), "[control]")
     scale = r.vector("[control] scale", control["scale"], n, "positive") if "scale" in control else None
     figs = r.table(data, "figures", required=False)
-    r.known(figs, {"nonlinear"}, "[figures]")
-    nonlinear = r.label("[figures] nonlinear", figs["nonlinear"]) if "nonlinear" in figs else "adaptive-robust"
+    r.known(figs, _keys("[figures]"), "[figures]")
+    nonlinear = r.label("[figures] nonlinear", figs["nonlinear"]) if "nonlinear" in figs \
+        else _default("[figures]", "nonlinear")
     gains = r.table(data, "gains", required=False)
     scen = r.table(data, "scenarios", required=False)
     for sname in scen:  # written into exported Makefiles, headers and FMUs

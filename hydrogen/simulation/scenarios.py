@@ -69,6 +69,7 @@ class Scenario:
     estimator_update: str = "semi-implicit"  # controller state: "semi-implicit" (default) or "euler"
 
     def with_overrides(self, **kw):
+        """A copy with the given fields replaced and validated; an unknown field raises ScenarioError."""
         unknown = set(kw) - set(self.__dataclass_fields__)
         if unknown:
             raise ScenarioError(f"scenario '{self.name}' has no field(s) {sorted(unknown)}; "

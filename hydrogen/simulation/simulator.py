@@ -121,6 +121,7 @@ class SimulationResult:
         return np.sqrt((np.fft.irfft(spec, n=len(e), axis=0) ** 2).mean(axis=0))
 
     def to_json(self) -> str:
+        """The metrics (:meth:`compute_metrics`) as indented JSON text, SI units and % as named."""
         return json.dumps(self.metrics or self.compute_metrics(), indent=2, sort_keys=True)
 
     def save_log(self, path, noise_l: float = 0.0, noise_p: float = 0.0, seed: int = 0):
@@ -300,6 +301,9 @@ def _describe(x, t, ctrl=None, xc=None, u=None):
 
 
 def make_runner(dyn, sc, ctrl, x0, q0, kf_gain, h):
+    """A C-loop runner for scenario ``sc`` and controller runtime ``ctrl``, reset to the plant state
+    ``x0`` at pose ``q0`` (generalized coordinates), with Kalman gain ``kf_gain`` (or None) and control
+    period ``h`` (s)."""
     from ..runtime.loop import LoopRunner
     runner = LoopRunner(dyn, ctrl, h=h, substeps=sc.substeps, t_adapt=sc.t_adapt, theta=dyn.model.theta,
                         gamma=dyn.model.gamma, friction=sc.friction, valve=valve_vector(sc),
@@ -339,6 +343,9 @@ def _run_c(dyn, sc, ctrl, x0, q0, noise, kf_gain, log, n, h):
 
 
 def run_python_loop(dyn, sc, ctrl, x, q0, noise, kf_gain, log, n, h):
+    """The reference closed loop in Python: ``n`` control periods of ``h`` s from plant state ``x`` with
+    the sensor ``noise`` table, writing each period into ``log`` (:func:`new_logs`); the same numbers
+    as the C loop to rounding."""
     model = dyn.model
     rhs_fn = dyn.functions["plant_rhs"]
     theta_true, gamma_true = model.theta, model.gamma

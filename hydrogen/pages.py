@@ -1,0 +1,342 @@
+"""Documentation pages written by the runs that produce their numbers.
+
+``hydrogen figures --out DIR`` ends by writing ``DIR/results.md`` (:func:`write_results_page`) from
+the comparison table and the figures it has just written there; ``hydrogen bench --json FILE`` ends
+by writing ``benchmarks.md`` beside FILE (:func:`write_benchmarks_page`) from that JSON (and from
+``bench_release_repeats.json`` beside it, when present). The committed pages under ``docs/`` are
+these functions' output on the committed data (``tools/render_pages.py``; a test checks it), so no
+number on them is copied by hand.
+"""
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+from .fileio import atomic_write
+
+__all__ = ["results_page", "write_results_page", "benchmarks_page", "write_benchmarks_page",
+           "RESULTS_PAGE", "BENCHMARKS_PAGE", "REPEATS_JSON"]
+
+RESULTS_PAGE = "results.md"
+BENCHMARKS_PAGE = "benchmarks.md"
+#: The spread between whole runs of the release comparison (``bench_release.py --repeat N``).
+REPEATS_JSON = "bench_release_repeats.json"
+
+_DO_NOT_EDIT = "<!-- written by {cmd}; do not edit: rerun it -->"
+
+
+# --------------------------------------------------------------------------------------------
+# Results (hydrogen figures)
+
+
+def results_page(model, folder) -> str:
+    """Markdown of a model's results: the comparison table (``folder/table.md``) and every figure in
+    ``folder``, grouped by the model's scenarios in description order, captioned with their labels."""
+    from .simulation.scenarios import scenario as named_scenario, scenario_names
+
+    folder = Path(folder)
+    table = (folder / "table.md").read_text(encoding="utf-8") if (folder / "table.md").is_file() else ""
+    figures = sorted(p.name for p in folder.glob("*.png"))
+    out = [_DO_NOT_EDIT.format(cmd=f"hydrogen figures --model {model.name}"), "",
+           f"# Results: {model.name}", "",
+           f"Written by `hydrogen figures --model {model.name}` from the runs it has just made. "
+           "Maximum errors are in % of each coordinate's reference amplitude over the scenario's metric "
+           "window (the scenario's `metric_start`).", ""]
+    if table:
+        out += ["## Comparison table", "", table.strip(), ""]
+    names = sorted(scenario_names(model), key=len, reverse=True)  # longest first: "z-1hz" before "z"
+    used = set()
+    for name in scenario_names(model):
+        mine = [f for f in figures if f not in used and _belongs(f, name, names)]
+        if not mine:
+            continue
+        used.update(mine)
+        label = named_scenario(name, model).label
+        out += [f"## {label}" if label != name else f"## {name}", ""]
+        for f in mine:
+            out += [f"![{name}: {Path(f).stem}]({f})", ""]
+    rest = [f for f in figures if f not in used]
+    if rest:
+        out += ["## Other figures", ""] + [f"![{Path(f).stem}]({f})\n" for f in rest]
+    return "\n".join(out).rstrip() + "\n"
+
+
+def _belongs(filename: str, name: str, names) -> bool:
+    stem = Path(filename).stem
+    owner = next((n for n in names if stem == n or stem.startswith(n + "_")), None)
+    return owner == name
+
+
+def write_results_page(model, folder) -> Path:
+    """Write :func:`results_page` to ``folder/results.md`` atomically; returns its path."""
+    path = Path(folder) / RESULTS_PAGE
+    atomic_write(path, results_page(model, folder))
+    return path
+
+
+# --------------------------------------------------------------------------------------------
+# Benchmarks (hydrogen bench)
+
+
+def _f(v, digits=2):
+    if v is None:
+        return "–"
+    if isinstance(v, bool):
+        return "yes" if v else "no"
+    if isinstance(v, int):
+        return f"{v:,}"
+    v = float(v)
+    if abs(v) >= 100:
+        return f"{v:,.0f}"
+    return f"{v:.{digits}f}" if abs(v) >= 0.01 or v == 0 else f"{v:.{digits}g}"
+
+
+def _table(header, rows) -> list:
+    lines = ["| " + " | ".join(header) + " |", "|" + "|".join("---" for _ in header) + "|"]
+    lines += ["| " + " | ".join(str(c) for c in r) + " |" for r in rows]
+    return lines + [""]
+
+
+_ROUTES = (("a_lambdify_python_loop", "(a) Python loop, `sympy.lambdify` (numpy) functions"),
+           ("b_casadi_python_loop", "(b) Python loop, CasADi Functions called from Python"),
+           ("c_stepping_api", "(c) hydrogen stepping API, one call per period from Python"),
+           ("d_c_loop", "(d) the whole loop in C (`hydrogen.simulate`)"))
+
+
+def _loop(b) -> list:
+    robots = b.get("robots", {})
+    if not robots:
+        return []
+    out = ["## The closed loop", "",
+           "Per control period of each robot's simulation scenario (sensors, forward kinematics or encoders, "
+           "controller, RK4 plant sub-steps); every route is checked to reproduce the compiled trajectory "
+           "before it is timed (`benchmarks/bench_loop.py`).", ""]
+    header = ["route"] + [f"{r['model']} {r['scenario']} ({r['controller']}), µs per period (× d)" for r in robots.values()]
+    rows = [[label] + [f"{_f(r['per_period_us'][k])} ({_f(r['ratio_to_c_loop'][k], 1)})" for r in robots.values()]
+            for k, label in _ROUTES]
+    out += _table(header, rows)
+    for r in robots.values():
+        s = r.get("sim", {})
+        if s:
+            out.append(f"* **{r['model']}**: {s['scenario']} ({_f(s['sim_time_s'], 0)} s simulated) takes "
+                       f"{_f(1e3 * s['simulate_call_wall_s'], 1)} ms through `hydrogen.simulate` with the library "
+                       f"loaded ({_f(1e3 * s['loop_wall_s'], 1)} ms in the C loop): **{_f(s['real_time_factor'], 0)}× "
+                       "real time**.")
+        w = r.get("sweep", {})
+        if w:
+            rates = w["runs_per_s"]
+            out.append(f"* **{r['model']} sweep**: {w['runs']} runs of {w['scenario']}, "
+                       + ", ".join(f"{_f(v, 1)} runs/s with {k} worker{'s' if str(k) != '1' else ''}"
+                                  for k, v in rates.items())
+                       + f" ({_f(w['speedup_2_over_1'])}× with two).")
+    return out + [""]
+
+
+def _sweep(b) -> list:
+    out = ["## Sweeps and identification", ""]
+    rates = b.get("runs_per_s", {})
+    names = {"pool_new": "default process pool (new per sweep)", "pool_persistent": "persistent `ProcessPoolExecutor`",
+             "dask": "Dask `LocalCluster`, process workers"}
+    if rates:
+        out.append(f"{b.get('runs')} runs of {_f(b.get('sim_duration_s'))} s on {b.get('workers')} workers "
+                   "(`benchmarks/bench_sweep.py`):")
+        out.append("")
+        out += _table(["executor", "runs/s"], [[names.get(k, k), _f(v, 1)] for k, v in rates.items()])
+        if b.get("dask_cluster_start_s") is not None:
+            out += [f"The Dask cluster took {_f(b['dask_cluster_start_s'])} s to start.", ""]
+    ident = b.get("identify_paper_sim")
+    if ident:
+        st = ident.get("stages_s", {})
+        out += [f"Identification of the paper-sim log ({_f(ident['samples'])} samples, the rig's sensor noise): "
+                f"{_f(ident['wall_s'])} s, of which forward kinematics {_f(st.get('forward_kinematics'))} s. "
+                "Errors against the truth, %: θ " + ", ".join(_f(v) for v in ident.get("theta_error_pct", []))
+                + "; γ " + ", ".join(_f(v) for v in ident.get("gamma_error_pct", [])) + ".", ""]
+    return out
+
+
+def _functions(b) -> list:
+    out = ["## Generated functions, C only", "",
+           "Each function in a stand-alone C driver (`benchmarks/bench_functions.py`, built with "
+           "`-O2 -std=c99`): CasADi instructions and the median ns per call over the repeats.", ""]
+    for r in b.get("robots", {}).values():
+        rows = sorted(r.get("functions", {}).items(), key=lambda kv: kv[1]["instructions"])
+        out += [f"**{r['model']}**", ""]
+        out += _table(["function", "instructions", "ns per call", "ns per instruction"],
+                      [[f"`{k}`", _f(v["instructions"]), _f(v["ns_per_call"]), _f(v["ns_per_instruction"])]
+                       for k, v in rows])
+    return out
+
+
+def _build(b) -> list:
+    out = ["## Build", "",
+           "Generation from scratch in a fresh process, the SymPy derivation within it, a clean compile and "
+           "`hydrogen.build()` with nothing changed (`benchmarks/bench_build.py`), seconds:", ""]
+    rows = []
+    for r in b.get("robots", {}).values():
+        g, c, w = r.get("generate", {}), r.get("build_clean", {}), r.get("build_warm", {})
+        rows.append([r["model"], _f(g.get("process_wall_s")), _f(g.get("derive_s")), _f(c.get("build_s")),
+                     _f(c.get("sources_compiled")), _f(w.get("build_s"))])
+    out += _table(["robot", "generation", "of it SymPy derivation", "clean compile", "sources", "warm build"], rows)
+    rows = []
+    for r in b.get("robots", {}).values():
+        ci = r.get("controller_instructions")
+        if ci:
+            rows.append([r["model"], _f(ci["sympy_instructions"]), _f(ci["casadi_ad_instructions"]),
+                         _f(ci["no_larger_than_ad"])])
+    if rows:
+        out += ["Theorem 1's controller with τ̇_d derived in SymPy against τ̇_d from CasADi's forward AD of the "
+                "same τ_d (CasADi instructions, with CSE):", ""]
+        out += _table(["robot", "SymPy", "CasADi AD", "SymPy no larger"], rows)
+    return out
+
+
+def _flags(b) -> list:
+    robots = b.get("robots", {})
+    if not robots:
+        return []
+    flags = list(next(iter(robots.values()))["flags"])
+    out = ["## Compiler flags", "", "C loop µs per period of each robot's simulation scenario "
+           "(`benchmarks/bench_flags.py`):", ""]
+    out += _table(["flags"] + [r["model"] for r in robots.values()],
+                  [[f"`{' '.join(robots[next(iter(robots))]['flags'][fl]['cflags'])}`"]
+                   + [_f(r["flags"].get(fl, {}).get("loop_us_per_period")) for r in robots.values()] for fl in flags])
+    return out
+
+
+_CALLS = (("extension", "`dyn.<function>(...)`, extension"), ("extension_out", "`dyn.<function>(..., out=buf)`, extension"),
+          ("extension_function", "`dyn.functions[name](...)`, extension"),
+          ("ctypes", "`dyn.<function>(...)`, ctypes (`backend=\"ctypes\"`)"),
+          ("casadi_external", "the same C through `casadi.external`"),
+          ("D_C_G_then_numpy_solve", "D, C and G through the extension, then `numpy.linalg.solve`"))
+
+
+def _calls(b) -> list:
+    per = b.get("per_call", {})
+    if not per:
+        return []
+    fns = list(per)
+    out = ["## Calls from Python", "",
+           f"Each route from Python against the C cost of the same function (`benchmarks/bench_calls.py`), "
+           f"the platform's functions, the fastest of {b.get('repeats')} repeats, ns per call:", ""]
+    rows = [["C work (stand-alone driver)"] + [_f(b["c_ns"][f]["min"], 0) for f in fns]]
+    for key, label in _CALLS:
+        if any(key in per[f] for f in fns):
+            rows.append([label] + [_f(1e9 * per[f][key]["min_s"], 0) if key in per[f] else "" for f in fns])
+    pin = b.get("pinocchio")
+    if pin:
+        rows.append([f"Pinocchio {pin['version']}: `rnea`, `computeJointTorqueRegressor` / `aba`",
+                     f"{_f(1e9 * pin['rnea']['min_s'], 0)}, {_f(1e9 * pin['computeJointTorqueRegressor']['min_s'], 0)}",
+                     _f(1e9 * pin["aba"]["min_s"], 0)][:1 + len(fns)])
+    out += _table(["route"] + [f"`{f}`" for f in fns], rows)
+    batches = b.get("batches", {})
+    if batches:
+        sizes = list(next(iter(batches.values())))
+        out += ["Batches: one call with n stacked states, ns per state (× the C work):", ""]
+        out += _table(["n"] + sizes, [[f"`{f}`"] + [f"{_f(v[s]['per_state_ns'], 0)} ({_f(v[s]['ratio_to_c'], 1)})"
+                                                    for s in sizes] for f, v in batches.items()])
+    return out
+
+
+def _release(b, repeats) -> list:
+    if not b:
+        return []
+    out = ["## Side by side with the previous release", "",
+           f"`benchmarks/bench_release.py`: commit `{b.get('previous')}` (the last release before robots became "
+           "descriptions), checked out and run in its own processes in the same run.", ""]
+    ins = b.get("instructions", {})
+    if ins:
+        out += _table(["function", "previous", "current", "change %", "bound", "status"],
+                      [[f"`{k}`", _f(v.get("previous")), _f(v.get("current")), _f(v.get("change_pct"), 1),
+                        v.get("bound") or "–", v.get("status") or "–"] for k, v in ins.items()])
+    lp = b.get("loop_per_period", {})
+    if lp:
+        out += [f"paper-sim's C loop per period (median of interleaved runs): previous {_f(lp['previous']['us'])} µs, "
+                f"current as shipped {_f(lp['current']['us'])} µs ({_f(100 * lp['change'], 1)} %), current with "
+                f"the previous release's law {_f(lp['current_gradient_law']['us'])} µs "
+                f"({_f(100 * lp['change_gradient_law'], 1)} %).", ""]
+    g = b.get("generation", {})
+    if g:
+        out += [f"Generation from scratch: {_f(g['previous']['process_wall_s'])} → {_f(g['current']['process_wall_s'])} s "
+                f"({_f(g['ratio'])}×).", ""]
+    checks = b.get("checks", {})
+    if checks:
+        out += _table(["check", "holds"], [[k, _f(v) if isinstance(v, bool) else len(v)] for k, v in checks.items()])
+    if repeats and repeats.get("runs"):
+        out += [f"Whole runs of the comparison (`{REPEATS_JSON}`): the machine's speed drifts between runs far more "
+                "than within one.", ""]
+        out += _table(["run", "previous µs", "current µs", "change %", "previous release's law µs", "change %",
+                       "generation ×"],
+                      [[i + 1, _f(r["previous_us"]), _f(r["current_us"]), _f(100 * r["change"], 1),
+                        _f(r["current_gradient_law_us"]), _f(100 * r["change_gradient_law"], 1),
+                        _f(r["generation_ratio"])] for i, r in enumerate(repeats["runs"])])
+        out += [f"Medians: as shipped {_f(100 * repeats['median_change'], 1)} %, with the previous release's law "
+                f"{_f(100 * repeats['median_change_gradient_law'], 1)} %, generation "
+                f"{_f(repeats['median_generation_ratio'])}×.", ""]
+    return out
+
+
+def _scaling(b) -> list:
+    rows = b.get("rows", [])
+    if not rows:
+        return []
+    out = ["## How cost grows with the robot", "",
+           "`benchmarks/bench_scaling.py`: a synthetic planar chain of n links (one cylinder per joint; θ = each "
+           "link's mcx, mcz, Iyy) derived, generated, compiled and run, each n in a fresh process with a time "
+           f"budget of {_f(b.get('budget_s'))} s. Instruction counts are exact; seconds vary between runs.", ""]
+    table = []
+    for r in rows:
+        i = r.get("instructions") or {}
+        ctrl = (f"{_f(i.get('ctrl_backstepping'))} / {_f(i.get('ctrl_adaptive_robust'))} "
+                f"({_f(i.get('ctrl_adaptive_robust_lean'))}) / {_f(i.get('ctrl_adaptive_observer'))} "
+                f"({_f(i.get('ctrl_adaptive_observer_lean'))})")
+        table.append([r["n"], _f(r.get("derive_s"), 1), f"{_f(r.get('generate_s'), 1)} + {_f(r.get('compile_s'), 1)}",
+                      ctrl, _f(r.get("loop_us"), 1), "timed out" if r.get("timed_out") else ""])
+    out += _table(["n", "derivation s", "generation + compile s",
+                   "backstepping / adaptive-robust (lean) / adaptive-observer (lean) instructions",
+                   "C loop µs per period", ""], table)
+    return out
+
+
+def benchmarks_page(results: dict, repeats: dict | None = None, source: str = "docs/bench.json") -> str:
+    """Markdown of a ``hydrogen bench`` run (the dict it writes as JSON), optionally with the whole-run
+    spread of the release comparison (``bench_release_repeats.json``); sections of modules not run
+    are left out."""
+    calls = results.get("bench_calls", {})
+    machine = calls.get("machine") or {}
+    out = [_DO_NOT_EDIT.format(cmd=f"hydrogen bench --json {source}"), "", "# Benchmarks", "",
+           f"Written by `hydrogen bench --json {source}` from that file. Times are medians unless a table says "
+           "otherwise; on a shared virtual machine speed drifts between runs, so compare ratios within one run."]
+    if machine:
+        out += ["", f"Machine: {machine.get('processor')}, {machine.get('cpu_count')} cores; "
+                f"{machine.get('cc')}; Python {machine.get('python')}, numpy {machine.get('numpy')}, "
+                f"SymPy {machine.get('sympy')}, CasADi {machine.get('casadi')}."]
+    out.append("")
+    for key, render in (("bench_loop", _loop), ("bench_sweep", _sweep), ("bench_functions", _functions),
+                        ("bench_build", _build), ("bench_flags", _flags), ("bench_calls", _calls)):
+        if key in results:
+            out += render(results[key])
+    if "bench_release" in results:
+        out += _release(results["bench_release"], repeats)
+    if "bench_scaling" in results:
+        out += _scaling(results["bench_scaling"])
+    return "\n".join(out).rstrip() + "\n"
+
+
+def write_benchmarks_page(json_path) -> Path:
+    """Render the run in ``json_path`` (and ``bench_release_repeats.json`` beside it) to
+    ``benchmarks.md`` beside it, atomically; returns its path."""
+    json_path = Path(json_path)
+    results = json.loads(json_path.read_text(encoding="utf-8"))
+    rep = json_path.with_name(REPEATS_JSON)
+    repeats = json.loads(rep.read_text(encoding="utf-8")) if rep.is_file() else None
+    page = json_path.with_name(BENCHMARKS_PAGE)
+    atomic_write(page, benchmarks_page(results, repeats, source=_shown(json_path)))
+    return page
+
+
+def _shown(path: Path) -> str:
+    """The path as a user would type it: relative to the working folder when inside it."""
+    try:
+        return Path(path).resolve().relative_to(Path.cwd().resolve()).as_posix()
+    except ValueError:
+        return Path(path).as_posix()

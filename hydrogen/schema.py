@@ -1,0 +1,218 @@
+"""Every key of a robot description and every scenario field, with its unit, default and meaning:
+the one definition the loader checks keys against (:mod:`hydrogen.model`) and the documentation's
+reference table is rendered from (:func:`description_table`), so the two cannot disagree.
+
+Scenario fields take their defaults from :class:`hydrogen.simulation.scenarios.Scenario` and their
+units and meanings from :data:`SCENARIO_FIELDS`; a field missing from either raises when the table
+is rendered (the documentation build fails).
+"""
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass
+
+__all__ = ["Key", "REQUIRED", "DESCRIPTION_KEYS", "SCENARIO_FIELDS", "SCENARIO_TABLE_KEYS", "keys",
+           "default", "description_table"]
+
+
+class _Required:
+    def __repr__(self):
+        return "required"
+
+
+#: The default of a key that must be given.
+REQUIRED = _Required()
+
+
+@dataclass(frozen=True)
+class Key:
+    """One description key: the ``table`` it sits in (``"top level"``, ``"[[links]]"``, ...), its
+    name, its unit (SI), its default (:data:`REQUIRED`, a value, or a sentence in ``default_text``)
+    and what it means."""
+
+    table: str
+    key: str
+    unit: str
+    meaning: str
+    default: object = REQUIRED
+    default_text: str = ""
+
+
+_HYDRAULIC = (  # [hydraulics] gives them for every cylinder; a [[cylinders]] entry may override any
+    ("piston_area", "m²", "A, control-chamber (cap side) area, > rod_area"),
+    ("rod_area", "m²", "a, annulus area on the rod side, which is held at supply pressure"),
+    ("chamber_length", "m", "L: the control chamber holds A (l − L); below the shortest length"),
+    ("supply_pressure", "Pa", "P_s, supply pressure"),
+    ("underlap", "m", "d, valve underlap (spool travel); 0 allowed"),
+    ("flow_gain", "m²/(s √Pa)", "c of (57): q_l = c u √Δp"),
+    ("bulk_modulus", "Pa", "β, oil bulk modulus"),
+    ("orifice_linear_below", "Pa", "the simulated plant's orifice roots turn linear below this pressure drop"),
+    ("stroke", "m", "[shortest, longest] pin-to-pin length"),
+)
+
+DESCRIPTION_KEYS = (
+    Key("top level", "name", "", "the model's name: ASCII letters, digits and single underscores, "
+        "starting with a letter (it names C symbols and files)"),
+    Key("top level", "gravity", "m/s²", "gravity along −z of the base frame; 0 allowed"),
+    Key("top level", "urdf", "", "a URDF file for the tree, relative to the TOML file, instead of "
+        "[[links]] and [[joints]]", default=None, default_text="none: the tree is [[links]]/[[joints]]"),
+    Key("top level", "tree", "", "the [tree] table: which part of the tree is kept (below)", default=None,
+        default_text="none: the whole tree"),
+    Key("top level", "links", "", "the [[links]] tables (below)", default_text="required unless urdf"),
+    Key("top level", "joints", "", "the [[joints]] tables (below)", default_text="required unless urdf"),
+    Key("top level", "coordinates", "", "the [coordinates] table (below)"),
+    Key("top level", "hydraulics", "", "defaults for every cylinder's constants (the [[cylinders]] keys "
+        "piston_area ... stroke)", default=None, default_text="none"),
+    Key("top level", "cylinders", "", "the [[cylinders]] tables: one per coordinate"),
+    Key("top level", "adaptation", "", "the [adaptation] table (below)"),
+    Key("top level", "sensors", "", "the [sensors] table", default=None, default_text="none"),
+    Key("top level", "control", "", "the [control] table", default=None, default_text="none"),
+    Key("top level", "figures", "", "the [figures] table", default=None, default_text="none"),
+    Key("top level", "gains", "", "[gains.<controller>] and [gains.common]: gains over the "
+        "controllers' defaults (names: Controllers page)", default=None, default_text="none"),
+    Key("top level", "rig", "", "the experiment-like rig: any scenario field (table below), the "
+        "start of every scenario with rig = true", default=None, default_text="none"),
+    Key("top level", "scenarios", "", "[scenarios.<name>] tables (below)", default=None, default_text="none"),
+    Key("[[links]]", "name", "", "the link's name (letters, digits, single underscores)"),
+    Key("[[links]]", "mass", "kg", "mass, > 0"),
+    Key("[[links]]", "com", "m", "centre of mass in the link frame", default=[0.0, 0.0, 0.0]),
+    Key("[[links]]", "inertia", "kg m²", "about the centre of mass, link axes: [Ixx, Iyy, Izz] or "
+        "[Ixx, Iyy, Izz, Ixy, Ixz, Iyz]; positive definite, triangle inequality"),
+    Key("[[joints]]", "name", "", "the joint's name"),
+    Key("[[joints]]", "type", "", "revolute, continuous (read as revolute), prismatic, fixed or floating "
+        "(six coordinates [x, y, z, ψ, θ, φ], R = Rz(φ) Ry(θ) Rx(ψ))"),
+    Key("[[joints]]", "parent", "", "parent link; the link no joint moves is the fixed base (base frame, z up)"),
+    Key("[[joints]]", "child", "", "child link"),
+    Key("[[joints]]", "origin_xyz", "m", "joint origin in the parent frame", default=[0.0, 0.0, 0.0]),
+    Key("[[joints]]", "origin_rpy", "rad", "joint orientation in the parent frame (roll, pitch, yaw)",
+        default=[0.0, 0.0, 0.0]),
+    Key("[[joints]]", "axis", "", "joint axis in the joint frame (normalised)", default=[0.0, 0.0, 1.0]),
+    Key("[[joints]]", "limit", "rad or m; rad/s or m/s; N m or N", "{ lower, upper, velocity, effort } as URDF's "
+        "<limit>: a reference beyond the position or velocity limit is refused before a run", default=None,
+        default_text="none"),
+    Key("[tree]", "base", "", "a link whose sub-tree alone is kept; it becomes the fixed base", default=None,
+        default_text="the tree's root"),
+    Key("[tree]", "locked", "rad or m", "{ joint = position }: revolute or prismatic joints held fixed (the "
+        "other legs of a quadruped, a gripper)", default=None, default_text="none"),
+    Key("[[cylinders]]", "name", "", "the cylinder's name"),
+    Key("[[cylinders]]", "from", "", "{ link, point }: the first pin"),
+    Key("[[cylinders]]", "to", "", "{ link, point }: the second pin, on another link"),
+    *(Key("[[cylinders]]", k, unit, what, default_text="required here or in [hydraulics]")
+      for k, unit, what in _HYDRAULIC),
+    Key("[[cylinders]] from/to", "link", "", "the link the pin is on"),
+    Key("[[cylinders]] from/to", "point", "m", "the pin in that link's frame"),
+    Key("[coordinates]", "names", "", "one distinct name per coordinate", default_text="the joints' names "
+        "(a floating joint's as <joint>_x ... <joint>_phi)"),
+    Key("[coordinates]", "neutral", "m, rad", "the neutral pose, about which scenario references are offsets"),
+    Key("[adaptation]", "parameters", "", "θ: \"<link>.<p>\", p one of mass, mcx, mcy, mcz (kg m, link frame), "
+        "Ixx, Ixy, Iyy, Ixz, Iyz, Izz (kg m², about the link origin)"),
+    Key("[adaptation]", "theta_min", "SI of each parameter", "projection lower bounds; must contain the true values"),
+    Key("[adaptation]", "theta_max", "SI of each parameter", "projection upper bounds"),
+    Key("[adaptation]", "gamma1_min", "Pa", "lower bound of γ1 = β, > 0"),
+    Key("[adaptation]", "gamma1_max", "Pa", "upper bound of γ1"),
+    Key("[adaptation]", "gamma2_min", "Pa m²/(s √Pa)", "lower bound of γ2 = βc, > 0"),
+    Key("[adaptation]", "gamma2_max", "Pa m²/(s √Pa)", "upper bound of γ2"),
+    Key("[sensors]", "joint_encoders", "", "true: the pose is measured at the joints; false: by Newton's "
+        "forward kinematics on the measured cylinder lengths", default=False),
+    Key("[control]", "scale", "kg, kg m²", "per-coordinate inertia the default gains scale with",
+        default=None, default_text="the diagonal of D at the neutral pose"),
+    Key("[figures]", "nonlinear", "", "the controller the figures and their table call \"nonlinear\"",
+        default="adaptive-robust"),
+)
+
+#: Keys of a [scenarios.<name>] table besides the scenario fields.
+SCENARIO_TABLE_KEYS = (
+    Key("[scenarios.<name>]", "reference", "m, rad, Hz, s", "sines = [[coordinate, amplitude, Hz], ...] or "
+        "step = { coordinate, height, time }; coordinates by name or index, offsets from neutral"),
+    Key("[scenarios.<name>]", "rig", "", "start from the model's [rig] table", default=False),
+    Key("[scenarios.<name>]", "gains", "", "gains.<controller> tables: this scenario's tuning", default=None,
+        default_text="none"),
+    Key("[scenarios.<name>]", "label", "", "caption in figures and tables", default_text="the scenario's name"),
+    Key("[scenarios.<name>]", "paper", "%", "published max errors {coordinate: [nonlinear, P]}", default=None,
+        default_text="none"),
+)
+
+#: Scenario field -> (unit, meaning); defaults come from the Scenario dataclass.
+SCENARIO_FIELDS = {
+    "duration": ("s", "length of the run"),
+    "control_rate": ("Hz", "control rate, zero-order hold"),
+    "substeps": ("", "RK4 plant steps per control period"),
+    "t_adapt": ("s", "adaptation switched on from this time"),
+    "friction": ("N, N s/m, m/s", "per cylinder: Coulomb, viscous, tanh smoothing speed"),
+    "valve_lag": ("s", "first-order valve lag (0: none); exclusive with valve_bandwidth_hz"),
+    "valve_bandwidth_hz": ("Hz", "second-order servo-valve natural frequency (the spool lags 90° there); 0: none"),
+    "valve_damping": ("", "second-order valve damping ratio"),
+    "delay_periods": ("periods", "computation delay: the command from period k is applied from k + this (0-8)"),
+    "quantization_l": ("m", "cylinder-length encoder resolution (0: none)"),
+    "noise_l": ("m", "std of white cylinder-length noise"),
+    "noise_q": ("rad or m", "std of white joint-encoder noise (robots with joint encoders)"),
+    "noise_p": ("Pa", "std of white pressure noise"),
+    "kalman": ("", "cylinder rates from fixed-gain Kalman filters (else exact)"),
+    "kalman_accel": ("m²/s³", "the filter's white-acceleration density"),
+    "theta0_factor": ("", "initial θ̂ = θ × factor, one per parameter"),
+    "gamma0_factor": ("", "initial [γ̂1, γ̂2] = γ × factor"),
+    "metric_start": ("s", "metrics over t ≥ this (clamped to the run)"),
+    "q0_offset": ("m, rad", "start pose offset from q_d(0), one per coordinate"),
+    "seed": ("", "noise seed"),
+    "estimator_update": ("", "controller state update: \"semi-implicit\" or \"euler\""),
+}
+
+_TABLES = {}
+for _k in DESCRIPTION_KEYS + SCENARIO_TABLE_KEYS:
+    _TABLES.setdefault(_k.table, {})[_k.key] = _k
+
+
+def keys(table: str) -> set:
+    """The key names a description table accepts (e.g. ``keys("[[links]]")``)."""
+    return set(_TABLES[table])
+
+
+def default(table: str, key: str):
+    """The default of ``key`` in ``table`` (a copy for lists); :data:`REQUIRED` when it has none."""
+    value = _TABLES[table][key].default
+    return list(value) if isinstance(value, list) else value
+
+
+def _toml(value) -> str:
+    if value is REQUIRED:
+        return "required"
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, str):
+        return f'"{value}"'
+    if isinstance(value, (list, tuple)):
+        return "[" + ", ".join(_toml(v) for v in value) + "]"
+    return repr(value)
+
+
+def _row(table, key, unit, default_text, meaning) -> str:
+    cells = (f"`{table}`", f"`{key}`", unit or "–", default_text, meaning)
+    return "| " + " | ".join(c.replace("|", "\\|") for c in cells) + " |"
+
+
+def description_table() -> str:
+    """Markdown: every description key and scenario field with its unit, default and meaning."""
+    from .simulation.scenarios import _FIELDS, Scenario
+    fields = {f.name: f for f in dataclasses.fields(Scenario)}
+    missing = sorted(set(_FIELDS) - set(SCENARIO_FIELDS))
+    extra = sorted(set(SCENARIO_FIELDS) - set(_FIELDS))
+    if missing or extra:
+        raise ValueError(f"hydrogen.schema.SCENARIO_FIELDS out of step with the scenario fields: "
+                         f"undocumented {missing}, unknown {extra}")
+    lines = ["| table | key | unit | default | meaning |", "|---|---|---|---|---|"]
+    for k in DESCRIPTION_KEYS + SCENARIO_TABLE_KEYS:
+        shown = k.default_text or ("none" if k.default is None else _toml(k.default))
+        lines.append(_row(k.table, k.key, k.unit, shown, k.meaning))
+    for name in _FIELDS:
+        unit, meaning = SCENARIO_FIELDS[name]
+        f = fields[name]
+        if f.default is not dataclasses.MISSING:
+            shown = _toml(f.default)
+            if name == "theta0_factor":
+                shown = "1 for every parameter"
+            elif name == "q0_offset":
+                shown = "0 for every coordinate"
+        else:
+            shown = "required (here or in [rig])"
+        lines.append(_row("[scenarios.<name>], [rig]", name, unit, shown, meaning))
+    return "\n".join(lines) + "\n"

@@ -1,0 +1,210 @@
+"""The documentation: docstrings of the public API, the README's links, the pages the runs write,
+and the description reference rendered from the loader's own definitions."""
+from __future__ import annotations
+
+import importlib
+import inspect
+import json
+import re
+from pathlib import Path
+
+import pytest
+
+import hydrogen
+from hydrogen import pages, schema
+
+ROOT = Path(__file__).resolve().parents[1]
+
+#: The modules whose reference pages the site builds (docs/api/<module>.md, ``::: <module>``).
+DOCUMENTED = ("hydrogen", "hydrogen.dynamics", "hydrogen.model", "hydrogen.simulation.simulator",
+              "hydrogen.simulation.scenarios", "hydrogen.simulation.sweep", "hydrogen.simulation.tuning",
+              "hydrogen.identification", "hydrogen.logs", "hydrogen.export", "hydrogen.fmu", "hydrogen.figures",
+              "hydrogen.pages", "hydrogen.schema", "hydrogen.errors")
+
+
+def _undocumented(module_name: str) -> list:
+    mod = importlib.import_module(module_name)
+    missing = [] if (mod.__doc__ or "").strip() else [module_name]
+    for name in getattr(mod, "__all__", ()):
+        obj = getattr(mod, name)
+        if not (inspect.isclass(obj) or inspect.isfunction(obj)):
+            continue  # constants are documented by the module's docstring or a #: comment
+        own = obj.__doc__ if not inspect.isclass(obj) else vars(obj).get("__doc__")
+        if not (own or "").strip():
+            missing.append(f"{module_name}.{name}")
+        if inspect.isclass(obj):
+            for attr, value in vars(obj).items():
+                if attr.startswith("_"):
+                    continue
+                if isinstance(value, (staticmethod, classmethod)):
+                    value = value.__func__
+                if (inspect.isfunction(value) or isinstance(value, property)) and not (value.__doc__ or "").strip():
+                    missing.append(f"{module_name}.{name}.{attr}")
+    return missing
+
+
+def test_every_documented_module_lists_its_api_in_all():
+    for name in DOCUMENTED:
+        assert getattr(importlib.import_module(name), "__all__", None), f"{name} has no __all__"
+
+
+def test_api_pages_cover_the_documented_modules():
+    for name in DOCUMENTED:
+        page = ROOT / "docs" / "api" / f"{name}.md"
+        assert page.is_file() and f"::: {name}" in page.read_text(encoding="utf-8"), page
+
+
+@pytest.mark.parametrize("module_name", DOCUMENTED)
+def test_every_public_name_has_a_docstring(module_name):
+    assert _undocumented(module_name) == []
+
+
+def test_the_docstring_check_finds_a_missing_docstring(monkeypatch):
+    def bare():
+        pass
+    monkeypatch.setattr(hydrogen.fmu, "bare", bare, raising=False)
+    monkeypatch.setattr(hydrogen.fmu, "__all__", [*hydrogen.fmu.__all__, "bare"])
+    assert _undocumented("hydrogen.fmu") == ["hydrogen.fmu.bare"]
+
+
+_LINK = re.compile(r"!?\[[^\]]*\]\(([^)\s]+)(?:\s+\"[^\"]*\")?\)")
+
+
+def _relative_links(text: str) -> list:
+    return [t.split("#")[0] for t in _LINK.findall(text)
+            if not re.match(r"^[a-z][a-z0-9+.-]*:", t) and not t.startswith("#")]
+
+
+def test_every_relative_link_in_the_readme_points_at_a_file():
+    links = _relative_links((ROOT / "README.md").read_text(encoding="utf-8"))
+    assert links, "the README has no relative links: the pattern is wrong"
+    missing = [t for t in links if not (ROOT / t).exists()]
+    assert missing == []
+
+
+def test_the_link_check_sees_a_broken_link():
+    assert _relative_links("see [x](docs/nope.md#a) and [y](https://example.org) and ![f](a.png)") \
+        == ["docs/nope.md", "a.png"]
+
+
+def test_readme_mentions_no_issue_numbers():
+    assert not re.search(r"\bissue\s*#?\d", (ROOT / "README.md").read_text(encoding="utf-8"), re.I)
+
+
+# --- pages written by the runs ---------------------------------------------------------------
+
+def test_committed_results_pages_are_the_renderer_on_the_committed_figures():
+    for model, folder in (("ubc_stewart", "docs/figures"), ("excavator_arm", "docs/figures/excavator_arm")):
+        page = (ROOT / folder / pages.RESULTS_PAGE).read_text(encoding="utf-8")
+        assert page == pages.results_page(hydrogen.load_model(model), ROOT / folder), folder
+
+
+def test_committed_benchmarks_page_is_the_renderer_on_the_committed_json():
+    bench = json.loads((ROOT / "docs/bench.json").read_text(encoding="utf-8"))
+    repeats = json.loads((ROOT / "docs" / pages.REPEATS_JSON).read_text(encoding="utf-8"))
+    page = (ROOT / "docs" / pages.BENCHMARKS_PAGE).read_text(encoding="utf-8")
+    assert page == pages.benchmarks_page(bench, repeats, source="docs/bench.json")
+
+
+def test_results_page_groups_figures_by_scenario_and_includes_the_table(tmp_path):
+    model = hydrogen.load_model("ubc_stewart")
+    (tmp_path / "table.md").write_text("caption\n\n| a |\n|---|\n| 12.5 |\n", encoding="utf-8")
+    for f in ("z-1hz.png", "z-2hz.png", "paper-sim_errors.png", "stray.png"):
+        (tmp_path / f).write_bytes(b"")
+    path = pages.write_results_page(model, tmp_path)
+    text = path.read_text(encoding="utf-8")
+    assert path == tmp_path / "results.md" and "| 12.5 |" in text
+    assert text.index("paper-sim_errors.png") < text.index("(z-1hz.png)") < text.index("(z-2hz.png)")
+    assert "## Fig. 5: z, 1 Hz" in text and "## Other figures" in text and "(stray.png)" in text
+
+
+def test_benchmarks_page_renders_what_the_run_holds(tmp_path):
+    bench = json.loads((ROOT / "docs/bench.json").read_text(encoding="utf-8"))
+    only = {"bench_sweep": bench["bench_sweep"]}
+    (tmp_path / "bench.json").write_text(json.dumps(only), encoding="utf-8")
+    text = pages.write_benchmarks_page(tmp_path / "bench.json").read_text(encoding="utf-8")
+    rate = bench["bench_sweep"]["runs_per_s"]["dask"]
+    assert f"{rate:.1f}" in text and "## Sweeps and identification" in text
+    assert "## The closed loop" not in text and "## How cost grows" not in text
+
+
+def test_figures_run_ends_by_writing_its_results_page(tmp_path, cache):
+    from hydrogen import figures
+    model = hydrogen.load_model("excavator_arm")
+    dyn = hydrogen.build(model, cache=cache)
+    paths = figures.make_all(dyn, tmp_path, durations={"arm-sim": 0.2, "arm-dig": 0.2})
+    text = paths["results"].read_text(encoding="utf-8")
+    assert paths["results"] == tmp_path / "results.md"
+    assert text == pages.results_page(model, tmp_path)
+    assert paths["table"].read_text(encoding="utf-8").strip() in text and "(arm-dig_bucket.png)" in text
+
+
+def test_bench_run_ends_by_writing_its_page(tmp_path, monkeypatch):
+    """hydrogen bench --json renders the page from the JSON it has just written (one cheap module)."""
+    import sys
+    import types
+    from hydrogen import bench
+    fake = types.ModuleType("bench_fake")
+    fake.run = lambda quick: {"workers": 2, "runs": 8, "sim_duration_s": 6.0, "runs_per_s": {"dask": 12.34}}
+    fake.print_table = lambda res: None
+    monkeypatch.setitem(sys.modules, "bench_fake", fake)
+    monkeypatch.setattr(bench, "SUITE", (("bench_fake", "a stand-in"),))
+    bench.run_suite(json_path=str(tmp_path / "b.json"), progress=False)
+    assert json.loads((tmp_path / "b.json").read_text())["bench_fake"]["runs_per_s"]["dask"] == 12.34
+    assert (tmp_path / "benchmarks.md").is_file()
+
+
+# --- the description reference ----------------------------------------------------------------
+
+def test_description_table_lists_every_key_the_loader_accepts():
+    from hydrogen.model import HYDRAULIC_KEYS
+    from hydrogen.simulation.scenarios import _FIELDS
+    table = schema.description_table()
+    rows = {tuple(c.strip(" `") for c in line.split("|")[1:3]) for line in table.splitlines()[2:]}
+    for k in schema.DESCRIPTION_KEYS + schema.SCENARIO_TABLE_KEYS:
+        assert (k.table, k.key) in rows
+    for f in _FIELDS:
+        assert ("[scenarios.<name>], [rig]", f) in rows
+    assert set(HYDRAULIC_KEYS) | {"name", "from", "to"} == schema.keys("[[cylinders]]")
+
+
+def test_description_table_fails_on_an_undocumented_scenario_field(monkeypatch):
+    fields = dict(schema.SCENARIO_FIELDS)
+    fields.pop("seed")
+    monkeypatch.setattr(schema, "SCENARIO_FIELDS", fields)
+    with pytest.raises(ValueError, match=r"undocumented \['seed'\]"):
+        schema.description_table()
+
+
+def test_the_loader_checks_keys_against_the_schema(monkeypatch):
+    from hydrogen.model import tomllib
+    from hydrogen.errors import ModelError
+    from hydrogen.model import default_model_path, model_from_dict
+    data = tomllib.loads(default_model_path().read_text(encoding="utf-8"))
+    data["sensors"] = {"bogus": 1}
+    with pytest.raises(ModelError, match=r"\[sensors\]: unknown key 'bogus' \(known: joint_encoders\)"):
+        model_from_dict(data, source="t.toml")
+
+
+def test_documented_defaults_are_the_defaults_the_loader_applies(tmp_path):
+    from hydrogen.model import tomllib
+    data = tomllib.loads(hydrogen.model.default_model_path().read_text(encoding="utf-8"))
+    data["links"][0].pop("com")
+    data.pop("sensors", None)
+    m = hydrogen.model.model_from_dict(data, source="t.toml")
+    assert list(m.links[0].com) == schema.default("[[links]]", "com")
+    assert list(m.joints[0].origin_xyz) == schema.default("[[joints]]", "origin_xyz")
+    assert m.joint_encoders is schema.default("[sensors]", "joint_encoders")
+    assert m.figures_nonlinear == schema.default("[figures]", "nonlinear")
+
+
+def test_the_site_page_holds_the_table_marker_the_hook_replaces():
+    import sys
+    sys.path.insert(0, str(ROOT / "tools"))
+    try:
+        hooks = importlib.import_module("mkdocs_hooks")
+    finally:
+        sys.path.pop(0)
+    text = (ROOT / "docs/guide/description.md").read_text(encoding="utf-8")
+    out = hooks.on_page_markdown(text, None, None, None)
+    assert "<!-- hydrogen:description-table -->" in text and "`orifice_linear_below`" in out
