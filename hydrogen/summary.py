@@ -9,7 +9,13 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["display_unit", "error_lines", "estimated_blocks", "estimate_lines", "ESTIMATE_BLOCKS", "PCT_WIDTH"]
+__all__ = ["display_unit", "error_lines", "estimated_blocks", "estimate_lines", "excitation_lines",
+           "ESTIMATE_BLOCKS", "PCT_WIDTH", "POOR_EXCITATION"]
+
+#: λmin/λmax of a run's normalised information matrix below which the summary says the run does not
+#: excite the adapted parameters enough to identify them (a gradient law then moves the least-excited
+#: direction at least 1e4 times slower than the best-excited one).
+POOR_EXCITATION = 1.0e-4
 
 #: The controller-state blocks that hold parameter estimates, in the order they are reported.
 ESTIMATE_BLOCKS = ("theta_hat", "gamma1_hat", "gamma2_hat")
@@ -60,4 +66,54 @@ def estimate_lines(res) -> list:
         parts = [f"beta {err[0]:+.1f} %" if "gamma1_hat" in blocks else None,
                  f"beta*c {err[1]:+.1f} %" if "gamma2_hat" in blocks else None]
         lines.append("gamma_hat final (mean error over cylinders): " + ", ".join(p for p in parts if p))
+    return lines
+
+
+
+
+def _unmoved(start, end, true, names):
+    """(names with their errors, whether any drifted away) for the estimates that closed less than
+    half of their starting error (of at least 1 %)."""
+    out, away = [], False
+    for n, a, b, t in zip(names, np.ravel(start), np.ravel(end), np.ravel(true)):
+        e0, e1 = abs(a - t), abs(b - t)
+        if t != 0 and e0 > 0.01 * abs(t) and e1 > 0.5 * e0:
+            out.append(f"{n} {100 * (a - t) / t:+.1f} % -> {100 * (b - t) / t:+.1f} %")
+            away = away or e1 > e0
+    return out, away
+
+
+_DRIFT = ("some moved away from the true values: the run's noise, delay and valve lag drive the gradient law "
+          "(a projection bound then holds them); lower the rate, or use the composite law")
+
+
+def excitation_lines(res) -> list:
+    """Notes for a run whose estimates did not converge: which (error at the start and at the end),
+    how well the run excites them (``metrics["excitation"]``, λmin/λmax of the normalised information
+    matrix) and what to do. Empty when every estimate closed at least half of its starting error."""
+    ex = res.metrics.get("excitation") or {}
+    lines = []
+    if "theta_hat" in res.estimated and len(res.theta_hat):
+        bad, away = _unmoved(res.theta_hat[0], res.theta_hat[-1], res.theta_true, res.theta_names)
+        if bad:
+            why = (f"the run barely excites theta (lambda_min/lambda_max {ex['theta']:.2g} < {POOR_EXCITATION:g}; "
+                   f"least excited: {', '.join(ex.get('theta_least_excited') or {})}): use a reference that moves "
+                   "every coordinate at several frequencies, or a longer run"
+                   if ex.get("theta", 1.0) < POOR_EXCITATION else _DRIFT + " (rate_ls_theta)" if away else
+                   f"the run excites theta (lambda_min/lambda_max {ex.get('theta', float('nan')):.2g}), so the "
+                   "adaptation is slow: raise rate_theta by octaves, or use the composite law (rate_ls_theta)")
+            lines.append(f"note: theta estimates did not converge ({'; '.join(bad[:4])}"
+                         f"{'; ...' if len(bad) > 4 else ''}): {why}")
+    names = ex.get("gamma_cylinders") or [str(i) for i in range(np.shape(res.gamma_true)[1])]
+    for row, block, label in ((0, "gamma1_hat", "beta"), (1, "gamma2_hat", "beta c")):
+        hat = getattr(res, block, None)
+        if block not in res.estimated or hat is None or not len(hat):
+            continue
+        bad, away = _unmoved(hat[0], hat[-1], res.gamma_true[row], [f"{label} {c}" for c in names])
+        if bad:
+            why = _DRIFT + " (rate_ls_gamma)" if away else (
+                f"raise rate_gamma{row + 1} by octaves or use the composite law (rate_ls_gamma); the valve must "
+                "open both ways while the cylinder moves")
+            lines.append(f"note: {label} estimates did not converge ({'; '.join(bad[:3])}"
+                         f"{'; ...' if len(bad) > 3 else ''}): {why}")
     return lines

@@ -5,6 +5,7 @@ from __future__ import annotations
 import re
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -204,3 +205,33 @@ def test_figures_without_matplotlib_get_one_clear_message(monkeypatch, capsys, t
     assert main(["simulate", "--duration", "0.05", "--controller", "p", "--plot", str(tmp_path / "e.png")]) == 2
     err = capsys.readouterr().err
     assert "--plot (a figure file) needs matplotlib" in err and "hydrogen[plot]" in err and "Traceback" not in err
+
+
+def _adapting_run(theta0, theta1, excitation):
+    from types import SimpleNamespace
+
+    true = np.array([250.0, 45.0])
+    return SimpleNamespace(
+        estimated=("theta_hat",), theta_names=("platform.mass", "platform.Ixx"), theta_true=true,
+        theta_hat=np.array([true * theta0, true * theta1]), gamma_true=np.ones((2, 1)),
+        metrics={"excitation": {"theta": excitation, "theta_least_excited": {"platform.Ixx": 1.0}}})
+
+
+def test_a_run_whose_estimates_converge_gets_no_note():
+    from hydrogen.summary import excitation_lines
+
+    assert excitation_lines(_adapting_run(1.2, 1.01, 0.05)) == []
+
+
+@pytest.mark.parametrize("end, excitation, words", [
+    (1.19, 1e-6, "barely excites theta .* least excited: platform.Ixx"),
+    (1.19, 0.05, "adaptation is slow: raise rate_theta"),
+    (1.4, 0.05, "moved away from the true values"),
+])
+def test_a_run_whose_estimates_do_not_converge_says_which_and_what_to_do(end, excitation, words):
+    import re
+
+    from hydrogen.summary import excitation_lines
+
+    lines = excitation_lines(_adapting_run(1.2, end, excitation))
+    assert len(lines) == 1 and "platform.mass +20.0 %" in lines[0] and re.search(words, lines[0]), lines

@@ -435,10 +435,20 @@ def _ratio(M):
     return float(max(ev[0], 0.0) / ev[-1]) if ev[-1] > 0 else 0.0
 
 
+def _least_excited(M, names, most: int = 3) -> dict:
+    """The parameters that make up the least-excited direction of M (its eigenvector of λmin): the
+    ``most`` largest weights, name -> signed weight (unit norm)."""
+    ev, vec = np.linalg.eigh(0.5 * (M + M.T))
+    v = vec[:, 0]
+    order = np.argsort(-np.abs(v))[:most]
+    return {names[i]: float(v[i]) for i in order}
+
+
 def excitation(dyn, res, ctrl=None) -> dict:
     """How well a run excites the adapted parameters: λmin/λmax of the normalised information matrices
     accumulated over the run (1 = every direction equally, 0 = a direction not excited at all).
 
+    * ``theta_least_excited``: the parameters of the least-excited direction, with their weights.
     * ``theta``: M = Σ h (Y Θ)ᵀ S⁻¹ (Y Θ), Y = Y(q, q̇, q̇, q̈) along the run (velocities and
       accelerations by central differences of the logged pose), Θ = diag(|θ|) (the columns in units
       of each parameter's own magnitude), S = the per-coordinate inertia scale (rows of different
@@ -460,7 +470,7 @@ def excitation(dyn, res, ctrl=None) -> dict:
     # one batched call for the whole run (k, n, p), not a call per period
     Yn = np.asarray(dyn.regressor(q, qd, qd, qdd)).reshape(len(t), model.n, model.n_theta) * Theta
     M = h * np.einsum("kia,i,kib->ab", Yn, S_inv, Yn)
-    out = {"theta": _ratio(M)}
+    out = {"theta": _ratio(M), "theta_least_excited": _least_excited(M, model.theta_names)}
     l, u, pc = res.leg_lengths, res.u, res.pressures
     ld = np.gradient(l, h, axis=0)
     law, P = actuator.Numeric, actuator.stacked(model.cylinders)
@@ -468,6 +478,7 @@ def excitation(dyn, res, ctrl=None) -> dict:
     phi = np.stack([g1 * law.f0(l, ld, (pc,), P), g2 * law.g0(l, (pc,), u, P)], axis=-1)  # (k, m, 2)
     Mg = np.einsum("kia,kib->iab", phi, phi) * h
     out["gamma"] = [_ratio(Mi) for Mi in Mg]
+    out["gamma_cylinders"] = [c.name for c in model.cylinders]
     return out
 
 
