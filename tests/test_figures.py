@@ -115,11 +115,18 @@ def test_comparison_table():
     assert len(lines) == 4
 
 
+def test_a_comparison_without_paper_numbers_has_no_paper_columns():
+    table = figures.comparison_table([("arm-dig", "boom", 0.1, 31.3, None, None, 0.6)])
+    assert "paper" not in table
+    assert "| arm-dig | boom | 0.1 | 31.3 | 0.6 |" in table.splitlines()
+
+
 def test_make_all_names_the_nonlinear_controller(tmp_path, cache):
     dyn = hydrogen.build(hydrogen.load_model("excavator_arm"), cache=cache)
     short = {"arm-sim": 0.2, "arm-dig": 0.2}
     paths = figures.make_all(dyn, tmp_path / "a", durations=short)  # the description's: adaptive-robust
     assert '"nonlinear" is the adaptive-robust controller' in paths["table"].read_text()
+    assert "vs paper" not in paths["table"].read_text() and "reports no numbers" in paths["table"].read_text()
     paths = figures.make_all(dyn, tmp_path / "b", durations=short, nonlinear="adaptive-observer")
     table = paths["table"].read_text()
     assert '"nonlinear" is the adaptive-observer controller' in table
