@@ -39,6 +39,7 @@ class Dynamics:
         self._gravity = f["gravity"]
         self._regressor = f["regressor"]
         self._forward_dynamics = f.get("forward_dynamics")
+        self._inverse_dynamics = f.get("inverse_dynamics")
         self.functions = f
         symbol = getattr(library, "symbol", None)  # absent for pure-Python stand-ins (benchmarks)
         self._many = symbol(f"{model.name}_leg_lengths_many") if symbol is not None else None
@@ -132,6 +133,13 @@ class Dynamics:
         """
         f = self._forward_dynamics
         return f(q, qdot, tau, theta) if out is None else f(q, qdot, tau, theta, out=out)
+
+    def inverse_dynamics(self, q, qdot, qddot, theta, out=None) -> np.ndarray:
+        """τ = D(q) q̈ + C(q, q̇) q̇ + G (N or N m): one generated function (batches as everywhere)."""
+        f = self._inverse_dynamics
+        if f is None:
+            raise KeyError("inverse_dynamics: these dynamics have no generated inverse dynamics; regenerate")
+        return f(q, qdot, qddot, theta) if out is None else f(q, qdot, qddot, theta, out=out)
 
     def regressor_offset(self, q, v, w, a) -> np.ndarray:
         """(n,) y0 = D a + C(q, v) w + G − Y θ (zeros when every parameter that moves the robot is in θ)."""

@@ -110,12 +110,13 @@ class ParameterFit:
     @property
     def error_pct(self):
         """100 (estimate − true) / true, when the log records the true values (a simulated log); a
-        masked array, masked where the true value is 0 (:attr:`error` has the absolute error there)."""
+        masked array where a true value is 0, masked there (:attr:`error` has the absolute error)."""
         if self.true is None:
             return None
         true = np.asarray(self.true, float)
         zero = true == 0
-        return np.ma.masked_array(100.0 * (self.estimate - true) / np.where(zero, 1.0, true), mask=zero)
+        pct = 100.0 * (self.estimate - true) / np.where(zero, 1.0, true)
+        return np.ma.masked_array(pct, mask=zero) if zero.any() else pct
 
     @property
     def error(self):

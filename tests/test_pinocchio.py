@@ -37,6 +37,12 @@ def test_inverse_dynamics_equals_rnea(robot, rng):
         _close(dyn.mass_matrix(q, th) @ a + dyn.coriolis(q, v, th) @ v + dyn.gravity(q, th), tau)
 
 
+def test_generated_inverse_dynamics_equals_rnea(robot, rng):
+    model, dyn, pm, data = robot
+    for q, v, a in _states(model, rng):
+        _close(dyn.inverse_dynamics(q, v, a, model.theta), pin.rnea(pm, data, q, v, a))
+
+
 def test_mass_matrix_equals_crba(robot, rng):
     model, dyn, pm, data = robot
     for q, _, _ in _states(model, rng):

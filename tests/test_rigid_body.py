@@ -61,3 +61,16 @@ def test_regressor_slots_match_D_C_G(robot_dyn, robot_model, rng):
         expected = robot_dyn.mass_matrix(q, th) @ a + robot_dyn.coriolis(q, v, th) @ w + robot_dyn.gravity(q, th)
         got = robot_dyn.regressor(q, v, w, a) @ th + robot_dyn.regressor_offset(q, v, w, a)
         np.testing.assert_allclose(got, expected, rtol=1e-12, atol=1e-9 * max(1.0, np.abs(expected).max()))
+
+
+def test_inverse_dynamics_matches_newton_euler(dyn, model, rng):
+    # the platform against the independent Newton-Euler of tests/reference (the URDF robots: Pinocchio's RNEA)
+    for q in workspace_poses(model, 10, rng, scale=3.0):
+        qd, qdd, th = rng.normal(size=6), rng.normal(size=6), random_theta(model, rng)
+        np.testing.assert_allclose(dyn.inverse_dynamics(q, qd, qdd, th), newton_euler(model, th, q, qd, qdd),
+                                   rtol=1e-6, atol=1e-5)
+    Q = workspace_poses(model, 4, rng)  # a batch: one call
+    V, A = rng.normal(size=(4, 6)), rng.normal(size=(4, 6))
+    batch = dyn.inverse_dynamics(Q, V, A, model.theta)
+    assert batch.shape == (4, 6)
+    np.testing.assert_allclose(batch[2], dyn.inverse_dynamics(Q[2], V[2], A[2], model.theta), rtol=1e-14)

@@ -96,7 +96,8 @@ def rigid_body_functions(model) -> list:
                                       [("y0", y0)], "y0 = D a + C(q, v) w + G - Y theta (non-adapted share).",
                                       poses))
     # q̈ = D⁻¹ (τ − C q̇ − G): the closed-form inverse where the tree has one, else a linear solve.
-    rhs = tau - bias_forces(model, q, qd, th)
+    bias = bias_forces(model, q, qd, th)
+    rhs = tau - bias
     Dinv = mass_matrix_inverse(model, q, th)
     qdd, solve = (Dinv * rhs, []) if Dinv is not None else (rate_symbols("fd_qdd", n), None)
     if solve is None:
@@ -104,6 +105,9 @@ def rigid_body_functions(model) -> list:
     funcs.append(SymbolicFunction("forward_dynamics", [("q", q), ("qdot", qd), ("tau", tau), ("theta", th)],
                                   [("qddot", qdd)], "Forward dynamics qddot = D^-1 (tau - C(q, qdot) qdot - G).",
                                   [*poses, *solve]))
+    funcs.append(SymbolicFunction("inverse_dynamics", [("q", q), ("qdot", qd), ("qddot", a), ("theta", th)],
+                                  [("tau", D * a + bias)],
+                                  "Inverse dynamics tau = D(q) qddot + C(q, qdot) qdot + G, N or N m.", poses))
     return funcs
 
 
