@@ -315,19 +315,19 @@ def test_cli_simulate_writes_json(tmp_path, capsys):
 
 
 @pytest.mark.parametrize("model_name,scenario_name,kind", [
-    ("ubc_stewart", "paper-sim", "adaptive-robust"), ("ubc_stewart", "z-1hz", "adaptive-observer"),
-    ("ubc_stewart", "z-2hz", "p"), ("ubc_stewart", "z-step", "backstepping"),
-    ("excavator_arm", "arm-dig", "adaptive-robust"), ("excavator_arm", "arm-sim", "p")])
+    ("ubc_stewart", "paper-sim", "adaptive-robust"), ("ubc_stewart", "z-2hz", "p"),
+    ("ubc_stewart", "z-step", "backstepping"), ("excavator_arm", "arm-dig", "adaptive-observer"),
+    ("excavator_arm", "arm-sim", "p")])
 def test_c_loop_matches_python_loop(cache, model_name, scenario_name, kind):
-    """The whole loop in C and the same loop stepped from Python agree (same noise samples), with
-    forward kinematics (the platform) and with joint encoders (the arm)."""
+    """The whole loop in C and the same loop stepped from Python agree over the whole run (same noise
+    samples), with forward kinematics (the platform) and with joint encoders (the arm). The rig's
+    chaotic adaptive runs agree only up to a time: tests/test_rig.py (AGREE_S)."""
     dyn = hydrogen.build(hydrogen.load_model(model_name), cache=cache)
-    c = simulate(dyn, scenario_name, kind, duration=0.8)
-    py = simulate(dyn, scenario_name, kind, duration=0.8, engine="python")
-    assert c.t.shape == py.t.shape
+    c = simulate(dyn, scenario_name, kind)
+    py = simulate(dyn, scenario_name, kind, engine="python")
+    assert c.t.shape == py.t.shape and c.t[-1] >= c.scenario.duration - 2 / c.scenario.control_rate
     np.testing.assert_allclose(c.q, py.q, atol=1e-10)
     np.testing.assert_allclose(c.u, py.u, atol=1e-10)
-    # rounding (C vs numpy) grows to ~1.5e-9 relative in a pressure on the rig-tuned adaptive-observer
     np.testing.assert_allclose(c.pressures, py.pressures, rtol=1e-8, atol=1e-3)
     np.testing.assert_allclose(c.theta_hat, py.theta_hat, rtol=1e-8)
 
