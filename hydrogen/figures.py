@@ -2,8 +2,8 @@
 
 Every plotting function takes :class:`~hydrogen.simulation.simulator.SimulationResult`
 objects (or, for the rig's runs over noise seeds, :class:`~hydrogen.simulation.seeds.SeedResults`:
-the median run is drawn, with the min-max band of the seeds around it) and an output path, writes a PNG atomically (temporary file in the same
-folder, then ``os.replace``) and closes its figure. Matplotlib runs on the
+the median run is drawn, with the min-max band of the seeds around it) and an output path,
+writes a PNG atomically (temporary file in the same folder, then ``os.replace``) and closes its figure. Matplotlib runs on the
 non-interactive Agg backend, selected here before pyplot is imported.
 """
 from __future__ import annotations
@@ -86,21 +86,23 @@ def _max_pct(result, coord: str):
 
 def _fmt_pct(val) -> str:
     if isinstance(val, tuple):
-        return f"{val[0]:.1f}%, {val[1]:.1f}-{val[2]:.1f}%"
+        return f"median {val[0]:.1f}%, range {val[1]:.1f}-{val[2]:.1f}%"
     return "n/a" if val is None else f"{val:.1f}%"
 
 
-def _band(ax, result, i, signal="error", offset=0.0, color="C0"):
+def _band(ax, result, i, signal="error", offset=0.0, color="C0", name=""):
     """Shade the min-max envelope over the seeds of column ``i`` of ``signal`` (runs over seeds only)."""
     if not _seeded(result) or len(result.completed) < 2:
         return
     t, lo, hi = result.band(signal)
     ax.fill_between(t, _SCALE * (lo[:, i] - offset), _SCALE * (hi[:, i] - offset), color=color, alpha=0.25, lw=0,
-                    label=f"range over {len(result.completed)} seeds")
+                    label=f"{name + ': ' if name else ''}range of {len(result.completed)} seeds, median run drawn")
 
 
 def _seed_note(result) -> str:
-    return f", median of {len(result.completed)} seeds (seed {result.metrics['median_seed']})" if _seeded(result) else ""
+    if not _seeded(result):
+        return ""
+    return f", median of {len(result.completed)} seeds (seed {result.metrics['median_seed']})"
 
 
 def plot_tracking_errors(result, path, *, t_adapt=None) -> Path:
@@ -222,7 +224,7 @@ def plot_experiment(nonlinear, p, coord, path, title=None) -> Path:
         res = _run(runs)
         lab = f"{name} (max error {_fmt_pct(_max_pct(runs, coord))})"
         ax1.plot(res.t, _SCALE * (res.q[:, i] - bias), color=color, lw=1.0, label=lab)
-        _band(ax2, runs, i, color=color)
+        _band(ax2, runs, i, color=color, name=name)
         ax2.plot(res.t, _SCALE * res.error[:, i], color=color, lw=1.0, label=lab)
     sym = _label(coord)
     ax1.set_ylabel(f"${sym} - \\bar{{{sym}}}_d$ ({unit})")
@@ -267,10 +269,10 @@ def plot_step(nonlinear, p, path, title=None, coord=None) -> Path:
     z0 = float(nonlinear.q_d[0, i]) if len(nonlinear.t) else 0.0
     fig, ax = plt.subplots(figsize=(7.0, 4.0))
     ax.plot(nonlinear.t, _SCALE * (nonlinear.q_d[:, i] - z0), "k--", lw=1.0, label="reference")
-    _band(ax, nl_runs, i, "q", z0, "C0")
+    _band(ax, nl_runs, i, "q", z0, "C0", "nonlinear")
     ax.plot(nonlinear.t, _SCALE * (nonlinear.q[:, i] - z0), color="C0", lw=1.0,
             label=f"nonlinear ({nonlinear.controller})")
-    _band(ax, p_runs, i, "q", z0, "C3")
+    _band(ax, p_runs, i, "q", z0, "C3", "P")
     ax.plot(p.t, _SCALE * (p.q[:, i] - z0), color="C3", lw=1.0, label="P")
     ax.set_xlabel("time (s)")
     ax.set_ylabel(f"${sym} - {sym}_d(0)$ ({unit})")

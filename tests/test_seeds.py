@@ -237,3 +237,53 @@ def test_figures_show_the_median_run_and_the_band(over_seeds, tmp_path):
     assert stats == (m["median"]["max_error_pct"]["z"], m["min"]["max_error_pct"]["z"], m["max"]["max_error_pct"]["z"])
     table = figures.comparison_table([("z 1 Hz", "z", (10.44, 8.21, 16.14), 40.0, 4, 43)])
     assert "| z 1 Hz | z | 10.4 (8.2-16.1) | 40.0 | 4.0 | 43.0 |" in table
+
+
+def test_cli_tune_prints_median_and_range(monkeypatch, capsys, short_model):
+    from hydrogen.simulation import tuning
+    real = tuning.tune
+
+    def short_tune(controller, grid, **kw):
+        assert kw["seeds"] == [0, 2]
+        with ThreadPoolExecutor(2) as ex:
+            return real(controller, [0.02, 0.04], model=short_model, scenarios={"z-1hz": ("z",)}, seeds=kw["seeds"],
+                        executor=ex)
+
+    monkeypatch.setattr(tuning, "tune", short_tune)
+    assert cli(["tune-p", "--seeds", "0,2", "--quiet"]) == 0
+    out = capsys.readouterr().out
+    res = short_tune("p", None, seeds=[0, 2])
+    row = res["table"][0]
+    lo, hi = row["max_error_range"]
+    assert "over 2 noise seeds" in out and f"{row['max_error_pct']:10.2f}" in out and f"[{lo:.2f} - {hi:.2f}]" in out
+
+
+def test_rig_seeds_script_writes_the_distributions(monkeypatch, tmp_path, capsys):
+    import importlib.util
+    from pathlib import Path
+    path = Path(__file__).resolve().parents[1] / "benchmarks" / "rig_seeds.py"
+    spec = importlib.util.spec_from_file_location("rig_seeds", path)
+    rig_seeds = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(rig_seeds)
+    calls = []
+
+    def fake_margins(model=None, seeds=None, max_workers=None):
+        calls.append((model, seeds))
+        return {"model": model, "seeds": seed_list(seeds), "rows": [
+            {"controller": c, "scenario": "s1", "main_gain": "Lambda", "gain": 40.0, "margin": mg,
+             "margin_capped": False, "limit_reason": "saturates (seed 1; unstable on 1 of 3 seeds)",
+             "errors": {"z": {"median": 10.44, "min": 8.2, "max": 16.1}}, "median_seed": 2, "unstable_seeds": [1]}
+            for c, mg in (("adaptive-robust", 0.0), ("p", 2.5))]}
+
+    monkeypatch.setattr(rig_seeds, "margins", fake_margins)
+    out = tmp_path / "rig.json"
+    assert rig_seeds.main(["--seeds", "3", "--json", str(out)]) == 0
+    assert [c[0] for c in calls] == hydrogen.models() and all(c[1] == 3 for c in calls)
+    data = json.loads(out.read_text())
+    assert data["seeds"] == [0, 1, 2]
+    rows = data["models"][hydrogen.models()[0]]["rows"]
+    assert [r["margin_ok"] for r in rows] == [False, True]
+    assert rows[0]["max_error_pct"]["z"] == {"median": 10.44, "min": 8.2, "max": 16.1}
+    text = capsys.readouterr().out
+    assert "| adaptive-robust | z 10.4 [8.2 - 16.1] | 2 | 0 | no |" in text
+    assert not [p for p in tmp_path.iterdir() if p.name != "rig.json"]  # written atomically, nothing beside
