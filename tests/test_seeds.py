@@ -18,6 +18,12 @@ SHORT = dict(duration=2.5, metric_start=1.0)  # a 1-s window of the 1 Hz referen
 
 
 @pytest.fixture(scope="module")
+def dyn():
+    """The platform from the default cache: the one the sweep's worker processes load."""
+    return hydrogen.build(hydrogen.load_model())
+
+
+@pytest.fixture(scope="module")
 def short_model():
     """The platform with its z-1hz rig scenario cut to 2 s (metrics over the last second)."""
     m = hydrogen.load_model()
@@ -287,3 +293,17 @@ def test_rig_seeds_script_writes_the_distributions(monkeypatch, tmp_path, capsys
     text = capsys.readouterr().out
     assert "| adaptive-robust | z 10.4 [8.2 - 16.1] | 2 | 0 | no |" in text
     assert not [p for p in tmp_path.iterdir() if p.name != "rig.json"]  # written atomically, nothing beside
+
+
+DIVERGING = dict(duration=0.5, gains={"Ktau": 5e4, "u_max": 1.0}, control_rate=200.0, substeps=2)
+
+
+def test_a_seed_that_fails_is_listed_and_the_cli_exits_2(dyn, monkeypatch, capsys, tmp_path):
+    res = simulate(dyn, "paper-sim", "backstepping", seeds=2, max_workers=2, **DIVERGING)
+    assert set(res.failures) == {0, 1} and res.results == [None, None] and res.median_run is None
+    assert "every seed failed" in res.metrics["error"] and "t = " in res.failures[0]
+    monkeypatch.setattr(hydrogen, "simulate", lambda *a, **k: res)
+    out = tmp_path / "m.json"
+    assert cli(["simulate", "--scenario", "paper-sim", "--seeds", "2", "--json", str(out)]) == 2
+    assert "2 of 2 seeds diverged: seed 0: " in capsys.readouterr().err
+    assert json.loads(out.read_text())["failed"][1]["seed"] == 1  # what there is, still written

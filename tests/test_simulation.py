@@ -343,23 +343,32 @@ def test_c_loop_matches_python_loop_for_both_estimator_updates(dyn, update):
 
 
 _RIG_XFAIL = ("on the honest rig (one-period delay, 80 Hz second-order valves, quantised "
-              "encoders, a real Kalman filter) no gain of the search keeps a margin of 2; at the least bad "
-              "point the adaptive-robust controller reaches 9.6 / 19.8 / 17.5 % on z-1hz / z-2hz / psi-1hz "
-              "(README 'Results')")
+              "encoders, a real Kalman filter) no gain of the search keeps a margin of 2; at the stored gains "
+              "the adaptive-robust controller's median over 10 noise seeds is 11.9 / 23.6 / 13.1 % on z-1hz / "
+              "z-2hz / psi-1hz (docs/rig_seeds.json)")
 _XFAIL = pytest.mark.xfail(strict=True, reason=_RIG_XFAIL)
+
+
+@pytest.fixture(scope="module")
+def rig_over_seeds(dyn):
+    """{(scenario, controller): its runs over the documented seeds} for the platform's rig sines."""
+    from hydrogen.simulation.tuning import SEEDS
+    return {(name, kind): simulate(dyn, name, kind, seeds=SEEDS, max_workers=2).metrics
+            for name in ("z-1hz", "z-2hz", "psi-1hz") for kind in ("adaptive-robust", "p")}
 
 
 @pytest.mark.parametrize("name,coord,paper_nonlinear", [
     pytest.param("z-1hz", "z", 4.0, marks=_XFAIL), pytest.param("z-2hz", "z", 14.0, marks=_XFAIL),
     pytest.param("psi-1hz", "psi", 4.0, marks=_XFAIL)])
-def test_experiments_nonlinear_below_the_papers_error(dyn, name, coord, paper_nonlinear):
-    assert simulate(dyn, name, "adaptive-robust").metrics["max_error_pct"][coord] < paper_nonlinear
+def test_experiments_nonlinear_below_the_papers_error(rig_over_seeds, name, coord, paper_nonlinear):
+    assert rig_over_seeds[name, "adaptive-robust"]["median"]["max_error_pct"][coord] < paper_nonlinear
 
 
 @pytest.mark.parametrize("name,coord", [("z-1hz", "z"), ("z-2hz", "z"), ("psi-1hz", "psi")])
-def test_experiments_p_is_at_least_3x_worse_than_nonlinear(dyn, name, coord):
-    nl = simulate(dyn, name, "adaptive-robust").metrics["max_error_pct"][coord]
-    p = simulate(dyn, name, "p").metrics["max_error_pct"][coord]
+def test_experiments_p_is_at_least_3x_worse_than_nonlinear(rig_over_seeds, name, coord):
+    """On every seed: P's best run is 3 times worse than the nonlinear controller's worst."""
+    nl = rig_over_seeds[name, "adaptive-robust"]["max"]["max_error_pct"][coord]
+    p = rig_over_seeds[name, "p"]["min"]["max_error_pct"][coord]
     assert p > 3 * nl
 
 
