@@ -25,12 +25,15 @@ _DEFAULT_DYN = {}
 
 def simulate(scenario="paper-sim", controller="adaptive-robust", *, model=None, dyn=None, progress=None,
              **overrides):
-    """Run a scenario in closed loop and return a :class:`~hydrogen.simulation.simulator.SimulationResult`.
+    """Run a scenario in closed loop and return a :class:`~hydrogen.simulation.simulator.SimulationResult`
+    (with ``seeds=``, one run per noise seed: a :class:`~hydrogen.simulation.seeds.SeedResults`).
 
     ``scenario``: one of the model's scenarios (the Stewart platform's: paper-sim, z-1hz, z-2hz,
     psi-1hz, z-step). ``controller``: backstepping, adaptive-robust, adaptive-observer or p.
     ``model``: a built-in name (``hydrogen.models()``), a path or a Model (default: ubc_stewart). ``overrides`` may set
-    ``duration`` (s), ``gains`` (dict), or any scenario field. ``dyn`` defaults to
+    ``duration`` (s), ``gains`` (dict), or any scenario field; ``seeds`` (a count N: seeds 0..N-1, or a
+    list), ``max_workers`` and ``executor`` run the scenario over noise seeds in parallel (see
+    :func:`hydrogen.simulation.simulator.simulate`). ``dyn`` defaults to
     ``build(model)``, built once per process and model; ``progress`` is passed to that build (see
     :func:`hydrogen.runtime.build.build`).
     """
@@ -59,10 +62,12 @@ def stepper(scenario="paper-sim", controller="adaptive-robust", *, model=None, d
     return Stepper(dyn or default_dynamics(model, progress), scenario, controller, **overrides)
 
 
-def sweep(runs, *, executor=None, max_workers=None, model=None, progress=False):
-    """Run many simulations in parallel: see :func:`hydrogen.simulation.sweep.sweep`."""
+def sweep(runs, *, executor=None, max_workers=None, model=None, progress=False, seeds=None, results=False):
+    """Run many simulations in parallel (``seeds``: each entry over noise seeds, its distribution in
+    its place): see :func:`hydrogen.simulation.sweep.sweep`."""
     from .simulation.sweep import sweep as _sweep
-    return _sweep(runs, executor=executor, max_workers=max_workers, model=model, progress=progress)
+    return _sweep(runs, executor=executor, max_workers=max_workers, model=model, progress=progress, seeds=seeds,
+                  results=results)
 
 
 def identify(log, model=None, *, dyn=None, **options):

@@ -61,9 +61,14 @@ def _cmd_simulate(args) -> int:
     if args.duration is not None:
         sc = sc.with_overrides(duration=args.duration)
     check_run_size(sc, model, args.controller)
+    if args.seeds is not None and args.log:
+        raise HydrogenError("--log writes one run's log and --seeds runs several; run the seed you want "
+                            "alone (the scenario's seed) to log it")
     # Built apart from the run, so the summary tells the two times apart (stages on stderr).
     events = []
     dyn = hydrogen.build(model, progress=lambda e: (events.append(e), print_event(e)))
+    if args.seeds is not None:
+        return _simulate_seeds(args, model, dyn, events)
     try:
         res = hydrogen.simulate(args.scenario, args.controller, model=model, dyn=dyn, duration=args.duration)
     except SimulationError as exc:
@@ -86,6 +91,49 @@ def _cmd_simulate(args) -> int:
     for line in estimate_lines(res) + excitation_lines(res):
         print(line)
     _write_outputs(args, res)
+    return 0
+
+
+def _simulate_seeds(args, model, dyn, events) -> int:
+    """``simulate --seeds``: one run per seed over the pool; median and range per coordinate. A seed
+    that diverged is named after the summary of the others (exit status 2)."""
+    import json
+    import time
+
+    import hydrogen
+    from .errors import SimulationError
+    from .fileio import atomic_write
+    from .summary import seed_error_lines
+
+    start = time.perf_counter()
+    res = hydrogen.simulate(args.scenario, args.controller, model=model, dyn=dyn, duration=args.duration,
+                            seeds=args.seeds, max_workers=args.workers)
+    wall = time.perf_counter() - start
+    m = res.metrics
+    last = events[-1] if events else None
+    if last is not None and last.stage == "built":
+        print(f"built in {last.elapsed_s:.1f} s ({last.detail})")
+    seeds = res.seeds
+    names = f"{seeds[0]}..{seeds[-1]}" if seeds == list(range(seeds[0], seeds[-1] + 1)) else ",".join(map(str, seeds))
+    if m["completed"]:
+        print(f"scenario {res.scenario_name}, controller {res.controller}: {len(seeds)} noise seeds ({names}), "
+              f"{m['median']['sim_time_s']:.2f} s simulated each, in {wall:.1f} s")
+        print(f"max tracking error over t >= {m['median']['metric_start_s']} s (% of reference amplitude: "
+              f"median and range over the {m['completed']} completed seeds; '-': the reference does not move "
+              f"that coordinate):")
+        for line in seed_error_lines(res.coordinates, res.units, m):
+            print(line)
+        print(f"median run: seed {m['median_seed']}")
+    if args.json:
+        atomic_write(Path(args.json), json.dumps(m, indent=2, sort_keys=True, default=float) + "\n")
+        print(f"metrics over the seeds written to {args.json}")
+    if args.plot and m["completed"]:
+        from .figures import plot_tracking_errors
+        plot_tracking_errors(res, Path(args.plot))
+        print(f"figure written to {args.plot} (the median run and the band of the seeds)")
+    if res.failures:
+        raise SimulationError(f"{len(res.failures)} of {len(seeds)} seeds diverged: "
+                              + "; ".join(f"seed {s}: {e}" for s, e in res.failures.items()))
     return 0
 
 
@@ -137,7 +185,8 @@ def _cmd_figures(args) -> int:
     from .outputs import check_output_dir
 
     check_output_dir(args.out, "figures --out")
-    paths = make_all(hydrogen.build(hydrogen.load_model(args.model)), Path(args.out), quiet=args.quiet)
+    paths = make_all(hydrogen.build(hydrogen.load_model(args.model)), Path(args.out), quiet=args.quiet,
+                     seeds=args.seeds)
     for name, path in paths.items():
         print(f"{name}: {path}")
     return 0
@@ -190,16 +239,19 @@ def _cmd_tune(args, controller=None) -> int:
         if lo >= hi:
             raise HydrogenError(f"--min ({lo:g}) must be below --max ({hi:g})")
         grid = np.geomspace(lo, hi, args.n or 25)
-    res = tune(controller, grid, model=args.model, max_workers=args.workers, progress=not args.quiet)
+    res = tune(controller, grid, model=args.model, max_workers=args.workers, progress=not args.quiet,
+               seeds=args.seeds)
     name = res["main_gain"]
-    print(f"{controller} on model {res['model']}: main gain {name}")
+    print(f"{controller} on model {res['model']}: main gain {name}; every point over {len(res['seeds'])} noise "
+          f"seeds (stable: on every seed; max err: median [min - max] over the seeds)")
     sec = list(res["secondary"])
-    print(f"{'scenario':12} {name:>9} " + "".join(f"{k:>8} " for k in sec) + f"{'max err %':>10} {'hf err %':>9} "
-          f"{'sat':>6}  stable")
+    print(f"{'scenario':12} {name:>9} " + "".join(f"{k:>8} " for k in sec) + f"{'max err %':>10} {'range %':>15} "
+          f"{'hf err %':>9} {'sat':>6}  stable")
     for r in res["table"]:
         head = f"{r['scenario']:12} {r['gain']:9.4g} " + "".join(f"{r[k]:8.4g} " for k in sec)
         if "max_error_pct" in r:
-            print(head + f"{r['max_error_pct']:10.2f} {100 * r['hf_error']:9.3f} "
+            lo, hi = r["max_error_range"]
+            print(head + f"{r['max_error_pct']:10.2f} {f'[{lo:.2f} - {hi:.2f}]':>15} {100 * r['hf_error']:9.3f} "
                   f"{r['saturation']:6.3f}  {'yes' if r['stable'] else 'no: ' + r['reason']}")
         else:
             print(head + r["reason"][:70])
@@ -213,8 +265,9 @@ def _cmd_tune(args, controller=None) -> int:
               "the least bad point (smallest worst-case error without saturation) follows")
     what = "smallest worst-case error with a gain margin >= 2" if res["margin_ok"] else "least bad, margin < 2"
     print(f"tuned ({what}): {name} = {res['best']:.6g} "
-          + "".join(f", {k} = {v:.6g}" for k, v in res["best_secondary"].items()) + "; errors "
-          + ", ".join(f"{s} {v:.2f} %" for s, v in res["best_errors"].items() if v is not None))
+          + "".join(f", {k} = {v:.6g}" for k, v in res["best_secondary"].items()) + "; errors (median [range]) "
+          + ", ".join(f"{s} {v:.2f} % [{res['best_error_ranges'][s][0]:.2f} - {res['best_error_ranges'][s][1]:.2f}]"
+                      for s, v in res["best_errors"].items() if v is not None))
     g = res["best_gains"]
     print(f"[gains.{controller}]")
     for k, v in g.items():
@@ -230,13 +283,18 @@ def _cmd_tune_p(args) -> int:
 def _cmd_margins(args) -> int:
     from .simulation.tuning import margins
 
-    res = margins(args.controller or None, model=args.model, max_workers=args.workers, progress=not args.quiet)
-    print(f"stability margins on model {res['model']}: factor by which the main gain can grow while stable")
-    print("| controller | scenario | main gain | value | margin | first unstable because |")
-    print("|---|---|---|---|---|---|")
+    res = margins(args.controller or None, model=args.model, max_workers=args.workers, progress=not args.quiet,
+                  seeds=args.seeds)
+    n = len(res["seeds"])
+    print(f"stability margins on model {res['model']}: factor by which the main gain can grow while stable on "
+          f"every one of {n} noise seeds; max error at the robot's gains: median [min - max] over the seeds")
+    print("| controller | scenario | main gain | value | max error % (median [range]) | margin | "
+          "first unstable because |")
+    print("|---|---|---|---|---|---|---|")
     for r in res["rows"]:
         m = f">= {r['margin']:.3g}" if r["margin_capped"] else f"{r['margin']:.3g}"
-        print(f"| {r['controller']} | {r['scenario']} | {r['main_gain']} | {r['gain']:.4g} | {m} | "
+        err = ", ".join(f"{c} {e['median']:.1f} [{e['min']:.1f} - {e['max']:.1f}]" for c, e in r["errors"].items())
+        print(f"| {r['controller']} | {r['scenario']} | {r['main_gain']} | {r['gain']:.4g} | {err or '-'} | {m} | "
               f"{r['limit_reason'] or '-'} |")
     return 0
 
@@ -284,6 +342,7 @@ def build_parser() -> argparse.ArgumentParser:
     g.add_argument("--quiet", action="store_true", help="no progress bar")
     g.set_defaults(func=_cmd_generate)
     from .controllers import CONTROLLERS
+    from .simulation.seeds import DEFAULT_SEEDS, parse_seeds
     sim = sub.add_parser("simulate", help="run a scenario in closed loop and print its metrics",
                          description="Simulate a scenario of the paper with one controller.")
     sim.add_argument("--scenario", help="a scenario of the model (default: the model's first)")
@@ -299,6 +358,11 @@ def build_parser() -> argparse.ArgumentParser:
     sim.add_argument("--log-noise-p", type=_number(float, 0, strict=False), default=2e4,
                      help="std of the white noise added to the logged pressures, Pa (default: 2e4)")
     sim.add_argument("--log-seed", type=int, default=0, help="seed of that noise (default 0)")
+    sim.add_argument("--seeds", type=parse_seeds, metavar="N|LIST",
+                     help="run once per sensor-noise seed and print the median and range per coordinate: N for "
+                          "seeds 0..N-1, or a list such as 0,3,7 (default: one run, the scenario's seed)")
+    sim.add_argument("--workers", type=_number(int, 1, strict=False),
+                     help="with --seeds: processes (default: the core count)")
     sim.set_defaults(func=_cmd_simulate)
     ident = sub.add_parser("identify", help="estimate theta (and gamma) by least squares from a rig log CSV",
                            description="Least-squares identification of the rigid-body parameters theta and the "
@@ -317,6 +381,10 @@ def build_parser() -> argparse.ArgumentParser:
     fig.add_argument("--out", default="figures", help="output folder (default: ./figures)")
     fig.add_argument("--model", help="built-in model name (hydrogen.models()) or TOML file (default: ubc_stewart)")
     fig.add_argument("--quiet", action="store_true", help="no progress bar")
+    fig.add_argument("--seeds", type=parse_seeds, metavar="N|LIST",
+                     help=f"sensor-noise seeds of the rig scenarios: the figures show the median run and the band "
+                          f"of the seeds, the table median and range (N: seeds 0..N-1, or a list such as 0,3,7; "
+                          f"default: {DEFAULT_SEEDS})")
     fig.set_defaults(func=_cmd_figures)
     b = sub.add_parser("bench", help="run the benchmark suite (per-step cost, build times)",
                        description="Per-period cost of the loop through four routes, C cost of each function, "
@@ -331,6 +399,11 @@ def build_parser() -> argparse.ArgumentParser:
                    help="for hydrogen's developers: also check the project's release targets (bounds against "
                         "the previous release, generation-time targets) and say which hold")
     b.set_defaults(func=_cmd_bench)
+    def seeds_arg(sp):
+        sp.add_argument("--seeds", type=parse_seeds, metavar="N|LIST",
+                        help=f"sensor-noise seeds every gain is judged over (stable: on all of them): N for seeds "
+                             f"0..N-1 or a list such as 0,3,7 (default: {DEFAULT_SEEDS})")
+
     def tune_args(sp):
         sp.add_argument("--model", help="built-in model name (hydrogen.models()) or TOML file (default: ubc_stewart)")
         sp.add_argument("--min", type=_number(float, 0), help="smallest gain of the grid (> 0; default: documented)")
@@ -339,6 +412,7 @@ def build_parser() -> argparse.ArgumentParser:
                         help="grid size (default: the documented grid, 4 points per octave)")
         sp.add_argument("--workers", type=_number(int, 1, strict=False), help="processes (default: the core count)")
         sp.add_argument("--quiet", action="store_true", help="no progress bar")
+        seeds_arg(sp)
 
     tn = sub.add_parser("tune", help="the documented gain search for a controller on the model's rig (parallel sweep)",
                         description="Sweep a controller's main gain on the model's rig scenarios; pick the gain with "
@@ -357,6 +431,7 @@ def build_parser() -> argparse.ArgumentParser:
     mg.add_argument("--controller", nargs="*", choices=CONTROLLERS, help="controllers (default: all)")
     mg.add_argument("--workers", type=_number(int, 1, strict=False), help="processes (default: the core count)")
     mg.add_argument("--quiet", action="store_true", help="no progress bar")
+    seeds_arg(mg)
     mg.set_defaults(func=_cmd_margins)
     ex = sub.add_parser("export", help="write deployable C (sources, params.h, main.c, Makefile) or an FMU",
                         description="A folder that builds with only a C compiler and runs one scenario's "

@@ -1,8 +1,9 @@
 """Counterparts of the paper's figures (Figs. 2, 3, 5-8) and its comparison table, for any model.
 
 Every plotting function takes :class:`~hydrogen.simulation.simulator.SimulationResult`
-objects and an output path, writes a PNG atomically (temporary file in the same
-folder, then ``os.replace``) and closes its figure. Matplotlib runs on the
+objects (or, for the rig's runs over noise seeds, :class:`~hydrogen.simulation.seeds.SeedResults`:
+the median run is drawn, with the min-max band of the seeds around it) and an output path,
+writes a PNG atomically (temporary file in the same folder, then ``os.replace``) and closes its figure. Matplotlib runs on the
 non-interactive Agg backend, selected here before pyplot is imported.
 """
 from __future__ import annotations
@@ -60,15 +61,48 @@ def _save(fig, path) -> Path:
     return path
 
 
+def _seeded(result) -> bool:
+    """Whether ``result`` holds runs over seeds (a SeedResults) rather than one run."""
+    from .simulation.seeds import SeedResults
+    return isinstance(result, SeedResults)
+
+
+def _run(result):
+    """The run to draw: ``result`` itself, or the median run of runs over seeds."""
+    return result.median_run if _seeded(result) else result
+
+
 def _max_pct(result, coord: str):
-    """The run's max error for ``coord`` in % of the reference amplitude, or None if unknown."""
+    """The run's max error for ``coord`` in % of the reference amplitude, or None if unknown; for runs
+    over seeds, (median, min, max) over the seeds."""
+    if _seeded(result):
+        m = result.metrics
+        stats = tuple((m.get(k) or {}).get("max_error_pct", {}).get(coord) for k in ("median", "min", "max"))
+        return None if any(v is None or not np.isfinite(v) for v in stats) else tuple(map(float, stats))
     metrics = result.metrics or (result.compute_metrics() if len(result.t) else {})
     val = metrics.get("max_error_pct", {}).get(coord)
     return None if val is None or not np.isfinite(val) else float(val)
 
 
 def _fmt_pct(val) -> str:
+    if isinstance(val, tuple):
+        return f"median {val[0]:.1f}%, range {val[1]:.1f}-{val[2]:.1f}%"
     return "n/a" if val is None else f"{val:.1f}%"
+
+
+def _band(ax, result, i, signal="error", offset=0.0, color="C0", name=""):
+    """Shade the min-max envelope over the seeds of column ``i`` of ``signal`` (runs over seeds only)."""
+    if not _seeded(result) or len(result.completed) < 2:
+        return
+    t, lo, hi = result.band(signal)
+    ax.fill_between(t, _SCALE * (lo[:, i] - offset), _SCALE * (hi[:, i] - offset), color=color, alpha=0.25, lw=0,
+                    label=f"{name + ': ' if name else ''}range of {len(result.completed)} seeds, median run drawn")
+
+
+def _seed_note(result) -> str:
+    if not _seeded(result):
+        return ""
+    return f", median of {len(result.completed)} seeds (seed {result.metrics['median_seed']})"
 
 
 def plot_tracking_errors(result, path, *, t_adapt=None) -> Path:
@@ -76,8 +110,9 @@ def plot_tracking_errors(result, path, *, t_adapt=None) -> Path:
 
     Parameters
     ----------
-    result : SimulationResult
-        A run; uses ``t`` (s) and ``error`` = q − q_d (m, rad).
+    result : SimulationResult or SeedResults
+        A run; uses ``t`` (s) and ``error`` = q − q_d (m, rad). Runs over seeds: the median run, and
+        the min-max band of the seeds shaded.
     path : str or Path
         Output PNG file.
     t_adapt : float, optional
@@ -89,11 +124,13 @@ def plot_tracking_errors(result, path, *, t_adapt=None) -> Path:
     Path
         ``path``. One stacked subplot per coordinate: lengths in mm, angles in mrad.
     """
+    seeds, result = result, _run(result)
     t, err = np.asarray(result.t, float), np.asarray(result.error, float)
     n = err.shape[1]
     fig, axes = plt.subplots(n, 1, sharex=True, figsize=(7.0, 1.5 * n + 1.0), squeeze=False)
     axes = axes[:, 0]
     for i, (ax, c) in enumerate(zip(axes, result.coordinates)):
+        _band(ax, seeds, i)
         ax.plot(t, _SCALE * err[:, i], lw=0.9, color="C0")
         ax.axhline(0.0, color="0.6", lw=0.5)
         if t_adapt is not None:
@@ -101,10 +138,10 @@ def plot_tracking_errors(result, path, *, t_adapt=None) -> Path:
                        label="adaptation on" if i == 0 else None)
         ax.set_ylabel(f"$e_{{{_label(c)}}}$ ({_unit(result, i)})")
         ax.grid(True, alpha=0.3)
-    if t_adapt is not None:
+    if t_adapt is not None or _seeded(seeds):
         axes[0].legend(loc="upper right", fontsize=8)
     axes[-1].set_xlabel("time (s)")
-    axes[0].set_title(f"Tracking errors: {result.controller} on {result.scenario_name}")
+    axes[0].set_title(f"Tracking errors: {result.controller} on {result.scenario_name}{_seed_note(seeds)}")
     fig.tight_layout()
     return _save(fig, path)
 
@@ -157,8 +194,10 @@ def plot_experiment(nonlinear, p, coord, path, title=None) -> Path:
 
     Parameters
     ----------
-    nonlinear, p : SimulationResult
-        Runs of the same scenario with the nonlinear controller (the legend names it) and the P controller.
+    nonlinear, p : SimulationResult or SeedResults
+        Runs of the same scenario with the nonlinear controller (the legend names it) and the P controller;
+        runs over seeds are drawn as their median run, the bottom panel shading the min-max band of
+        the error over the seeds, the legend giving the median max error and its range.
     coord : str
         A coordinate name of the model.
     path : str or Path
@@ -174,15 +213,18 @@ def plot_experiment(nonlinear, p, coord, path, title=None) -> Path:
         tracking errors (mm or mrad). Legends give each run's max error in % of the
         reference amplitude (``metrics["max_error_pct"][coord]``).
     """
+    given = ((nonlinear, f"nonlinear ({_run(nonlinear).controller})", "C0"), (p, "P", "C3"))
+    nonlinear = _run(nonlinear)
     i = _coord_index(nonlinear, coord)
     unit = _unit(nonlinear, i)
     bias = float(np.mean(nonlinear.q_d[:, i])) if len(nonlinear.t) else 0.0
     fig, (ax1, ax2) = plt.subplots(2, 1, sharex=True, figsize=(7.0, 6.0))
     ax1.plot(nonlinear.t, _SCALE * (nonlinear.q_d[:, i] - bias), "k--", lw=1.0, label="reference")
-    runs = ((nonlinear, f"nonlinear ({nonlinear.controller})", "C0"), (p, "P", "C3"))
-    for res, name, color in runs:
-        lab = f"{name} (max error {_fmt_pct(_max_pct(res, coord))})"
+    for runs, name, color in given:
+        res = _run(runs)
+        lab = f"{name} (max error {_fmt_pct(_max_pct(runs, coord))})"
         ax1.plot(res.t, _SCALE * (res.q[:, i] - bias), color=color, lw=1.0, label=lab)
+        _band(ax2, runs, i, color=color, name=name)
         ax2.plot(res.t, _SCALE * res.error[:, i], color=color, lw=1.0, label=lab)
     sym = _label(coord)
     ax1.set_ylabel(f"${sym} - \\bar{{{sym}}}_d$ ({unit})")
@@ -202,8 +244,9 @@ def plot_step(nonlinear, p, path, title=None, coord=None) -> Path:
 
     Parameters
     ----------
-    nonlinear, p : SimulationResult
-        Runs of a step scenario with the nonlinear and the P controller.
+    nonlinear, p : SimulationResult or SeedResults
+        Runs of a step scenario with the nonlinear and the P controller (runs over seeds: the median
+        run, with the min-max band of the response over the seeds shaded).
     path : str or Path
         Output PNG file.
     title : str, optional
@@ -217,6 +260,8 @@ def plot_step(nonlinear, p, path, title=None, coord=None) -> Path:
         ``path``. Reference and both responses (mm or mrad), as offsets from the
         reference's initial value.
     """
+    nl_runs, p_runs = nonlinear, p
+    nonlinear, p = _run(nonlinear), _run(p)
     if coord is None:
         coord = nonlinear.coordinates[int(np.argmax(np.ptp(nonlinear.q_d, axis=0)))]
     i = _coord_index(nonlinear, coord)
@@ -224,8 +269,10 @@ def plot_step(nonlinear, p, path, title=None, coord=None) -> Path:
     z0 = float(nonlinear.q_d[0, i]) if len(nonlinear.t) else 0.0
     fig, ax = plt.subplots(figsize=(7.0, 4.0))
     ax.plot(nonlinear.t, _SCALE * (nonlinear.q_d[:, i] - z0), "k--", lw=1.0, label="reference")
+    _band(ax, nl_runs, i, "q", z0, "C0", "nonlinear")
     ax.plot(nonlinear.t, _SCALE * (nonlinear.q[:, i] - z0), color="C0", lw=1.0,
             label=f"nonlinear ({nonlinear.controller})")
+    _band(ax, p_runs, i, "q", z0, "C3", "P")
     ax.plot(p.t, _SCALE * (p.q[:, i] - z0), color="C3", lw=1.0, label="P")
     ax.set_xlabel("time (s)")
     ax.set_ylabel(f"${sym} - {sym}_d(0)$ ({unit})")
@@ -244,7 +291,8 @@ def comparison_table(rows) -> str:
     rows : iterable of tuple
         (scenario label, coordinate, nonlinear max error %, P max error %,
         paper nonlinear %, paper P %[, backstepping max error %]). Percentages are of the reference
-        amplitude; None (or NaN) is shown as "n/a". The last column (backstepping with the true
+        amplitude; None (or NaN) is shown as "n/a"; a (median, min, max) tuple (runs over noise
+        seeds) as "median (min-max)". The last column (backstepping with the true
         parameters: the nonlinear design without estimation) appears when a row has it.
 
     Returns
@@ -255,6 +303,8 @@ def comparison_table(rows) -> str:
     def cell(v):
         if v is None:
             return "n/a"
+        if isinstance(v, (tuple, list)):
+            return f"{cell(v[0])} ({cell(v[1])}-{cell(v[2])})" if len(v) == 3 else "n/a"
         try:
             v = float(v)
         except (TypeError, ValueError):
@@ -278,7 +328,8 @@ def comparison_table(rows) -> str:
     return "\n".join(lines) + "\n"
 
 
-def make_all(dyn, out_dir, quiet=True, *, durations=None, gains=None, nonlinear=None) -> dict:
+def make_all(dyn, out_dir, quiet=True, *, durations=None, gains=None, nonlinear=None, seeds=None,
+             max_workers=None) -> dict:
     """Run the model's scenarios and write every figure and the comparison table into ``out_dir``.
 
     Driven by the description's scenarios: each scenario without the rig (the paper's section V
@@ -286,7 +337,10 @@ def make_all(dyn, out_dir, quiet=True, *, durations=None, gains=None, nonlinear=
     the ``nonlinear`` controller; each rig scenario runs ``nonlinear`` and the P controller and gives
     a tracking figure per moving coordinate (Figs. 5-7) or, for a step, a step response (Fig. 8),
     and a table row per moving coordinate (with the paper's figures where the description gives
-    them, and backstepping with the true parameters for reference). A diverging run raises :class:`~hydrogen.errors.SimulationError`.
+    them, and backstepping with the true parameters for reference). A rig scenario is run over
+    ``seeds`` noise seeds (its result is a distribution: the adaptive loops are chaotic there): the
+    figures show the median run and the min-max band of the seeds, the table the median and the
+    range. A diverging run (on any seed) raises :class:`~hydrogen.errors.SimulationError`.
 
     Parameters
     ----------
@@ -304,6 +358,9 @@ def make_all(dyn, out_dir, quiet=True, *, durations=None, gains=None, nonlinear=
         The controller of the figures' and the table's "nonlinear" runs; default the model's
         ``[figures] nonlinear`` (adaptive-robust unless the description says otherwise). The table's
         caption names it.
+    seeds : int or list, optional
+        Noise seeds of the rig scenarios (a count N: 0..N-1, or a list; default
+        :data:`~hydrogen.simulation.seeds.DEFAULT_SEEDS`), run in a pool of ``max_workers`` processes.
 
     Returns
     -------
@@ -337,9 +394,23 @@ def make_all(dyn, out_dir, quiet=True, *, durations=None, gains=None, nonlinear=
     # A bar on a terminal only (disable=None), never with quiet.
     bar = tqdm(total=total, desc="figures", unit="run", disable=True if quiet else None)
 
-    def run(name, controller):
+    from .errors import SimulationError
+    from .simulation.seeds import DEFAULT_SEEDS, seed_list
+    from .simulation.sweep import check_workers
+
+    seeds = seed_list(DEFAULT_SEEDS if seeds is None else seeds)
+    check_workers(max_workers)
+
+    def run(name, controller, over_seeds=False):
         bar.set_postfix_str(f"{name} {controller}")
-        res = simulate(dyn, name, controller, gains=gains.get(controller), duration=durations.get(name))
+        kw = dict(gains=gains.get(controller), duration=durations.get(name))
+        if over_seeds:
+            res = simulate(dyn, name, controller, seeds=seeds, max_workers=max_workers, **kw)
+            if res.failures:
+                raise SimulationError(f"scenario '{name}' with '{controller}': "
+                                      + "; ".join(f"seed {s}: {e}" for s, e in res.failures.items())[:1000])
+        else:
+            res = simulate(dyn, name, controller, **kw)
         bar.update()
         return res
 
@@ -351,13 +422,13 @@ def make_all(dyn, out_dir, quiet=True, *, durations=None, gains=None, nonlinear=
             paths[sc.name] = plot_tracking_errors(sim, out / f"{sc.name}_errors.png", t_adapt=sc.t_adapt)
             paths[f"{sc.name}_parameters"] = plot_parameter_errors(sim, out / f"{sc.name}_parameters.png")
             continue
-        nl, pp = run(sc.name, nonlinear), run(sc.name, base)
+        nl, pp = run(sc.name, nonlinear, True), run(sc.name, base, True)
         moving = [c for c, a in zip(model.coordinate_names, sc.reference.amplitude()) if a > 0]
         if isinstance(sc.reference, Step):
             paths[sc.name] = plot_step(nl, pp, out / f"{sc.name}.png", coord=moving[0],
                                        title=f"{sc.label}: step response, nonlinear vs P (simulation)")
             continue
-        bs = (run(sc.name, known[0]) if nonlinear != known[0] else nl) if known else None
+        bs = (run(sc.name, known[0], True) if nonlinear != known[0] else nl) if known else None
         for coord in moving:
             key = sc.name if len(moving) == 1 else f"{sc.name}_{coord}"
             paths[key] = plot_experiment(nl, pp, coord, out / f"{key}.png",
@@ -369,7 +440,9 @@ def make_all(dyn, out_dir, quiet=True, *, durations=None, gains=None, nonlinear=
     versus = (" vs paper (section VI) where it reports one" if any(v is not None for r in rows for v in r[4:6])
               else " (the paper reports no numbers for this robot)")
     table = (f"Maximum tracking error in % of the reference amplitude, model {model.name}: simulation{versus}. "
-             f"\"nonlinear\" is the {nonlinear} controller.\n\n" + comparison_table(rows))
+             f"\"nonlinear\" is the {nonlinear} controller. Each simulated cell is the median (min-max) over "
+             f"{len(seeds)} sensor-noise seeds: on the rig the result is a distribution.\n\n"
+             + comparison_table(rows))
     paths["table"] = out / "table.md"
     atomic_write(paths["table"], table)
     bar.close()

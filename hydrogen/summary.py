@@ -44,6 +44,21 @@ def error_lines(coordinates, units, max_error, max_error_pct) -> list:
     return lines
 
 
+def seed_error_lines(coordinates, units, metrics) -> list:
+    """Like :func:`error_lines` for runs over seeds (``metrics``: their
+    :func:`~hydrogen.simulation.seeds.summarize`): the median max error in % and its range [min - max]
+    over the seeds, then the median absolute max error in mm or mrad."""
+    width = max([12] + [len(c) for c in coordinates])
+    med, lo, hi = (metrics[k]["max_error_pct"] for k in ("median", "min", "max"))
+    abs_med = metrics["median"]["max_error"]
+    lines = []
+    for i, c in enumerate(coordinates):
+        unit = display_unit(units[i] if i < len(units) else "m")
+        spread = f"  [{lo[c]:.2f} - {hi[c]:.2f} %]" if med[c] is not None else " " * 19
+        lines.append(f"  {c:>{width}}: {_pct(med[c])}{spread:>19}   {abs_med[c] * 1e3:9.4f} {unit}")
+    return lines
+
+
 def estimated_blocks(ctrl) -> tuple:
     """The estimate blocks (of :data:`ESTIMATE_BLOCKS`) that controller ``ctrl`` declares in its state:
     empty for the controllers that adapt nothing (they estimate nothing to report)."""

@@ -315,19 +315,19 @@ def test_cli_simulate_writes_json(tmp_path, capsys):
 
 
 @pytest.mark.parametrize("model_name,scenario_name,kind", [
-    ("ubc_stewart", "paper-sim", "adaptive-robust"), ("ubc_stewart", "z-1hz", "adaptive-observer"),
-    ("ubc_stewart", "z-2hz", "p"), ("ubc_stewart", "z-step", "backstepping"),
-    ("excavator_arm", "arm-dig", "adaptive-robust"), ("excavator_arm", "arm-sim", "p")])
+    ("ubc_stewart", "paper-sim", "adaptive-robust"), ("ubc_stewart", "z-2hz", "p"),
+    ("ubc_stewart", "z-step", "backstepping"), ("excavator_arm", "arm-dig", "adaptive-observer"),
+    ("excavator_arm", "arm-sim", "p")])
 def test_c_loop_matches_python_loop(cache, model_name, scenario_name, kind):
-    """The whole loop in C and the same loop stepped from Python agree (same noise samples), with
-    forward kinematics (the platform) and with joint encoders (the arm)."""
+    """The whole loop in C and the same loop stepped from Python agree over the whole run (same noise
+    samples), with forward kinematics (the platform) and with joint encoders (the arm). The rig's
+    chaotic adaptive runs agree only up to a time: tests/test_rig.py (AGREE_S)."""
     dyn = hydrogen.build(hydrogen.load_model(model_name), cache=cache)
-    c = simulate(dyn, scenario_name, kind, duration=0.8)
-    py = simulate(dyn, scenario_name, kind, duration=0.8, engine="python")
-    assert c.t.shape == py.t.shape
+    c = simulate(dyn, scenario_name, kind)
+    py = simulate(dyn, scenario_name, kind, engine="python")
+    assert c.t.shape == py.t.shape and c.t[-1] >= c.scenario.duration - 2 / c.scenario.control_rate
     np.testing.assert_allclose(c.q, py.q, atol=1e-10)
     np.testing.assert_allclose(c.u, py.u, atol=1e-10)
-    # rounding (C vs numpy) grows to ~1.5e-9 relative in a pressure on the rig-tuned adaptive-observer
     np.testing.assert_allclose(c.pressures, py.pressures, rtol=1e-8, atol=1e-3)
     np.testing.assert_allclose(c.theta_hat, py.theta_hat, rtol=1e-8)
 
@@ -343,23 +343,32 @@ def test_c_loop_matches_python_loop_for_both_estimator_updates(dyn, update):
 
 
 _RIG_XFAIL = ("on the honest rig (one-period delay, 80 Hz second-order valves, quantised "
-              "encoders, a real Kalman filter) no gain of the search keeps a margin of 2; at the least bad "
-              "point the adaptive-robust controller reaches 9.6 / 19.8 / 17.5 % on z-1hz / z-2hz / psi-1hz "
-              "(README 'Results')")
+              "encoders, a real Kalman filter) no gain of the search keeps a margin of 2; at the stored gains "
+              "the adaptive-robust controller's median over 10 noise seeds is 11.9 / 23.6 / 13.1 % on z-1hz / "
+              "z-2hz / psi-1hz (docs/rig_seeds.json)")
 _XFAIL = pytest.mark.xfail(strict=True, reason=_RIG_XFAIL)
+
+
+@pytest.fixture(scope="module")
+def rig_over_seeds(dyn):
+    """{(scenario, controller): its runs over the documented seeds} for the platform's rig sines."""
+    from hydrogen.simulation.tuning import SEEDS
+    return {(name, kind): simulate(dyn, name, kind, seeds=SEEDS, max_workers=2).metrics
+            for name in ("z-1hz", "z-2hz", "psi-1hz") for kind in ("adaptive-robust", "p")}
 
 
 @pytest.mark.parametrize("name,coord,paper_nonlinear", [
     pytest.param("z-1hz", "z", 4.0, marks=_XFAIL), pytest.param("z-2hz", "z", 14.0, marks=_XFAIL),
     pytest.param("psi-1hz", "psi", 4.0, marks=_XFAIL)])
-def test_experiments_nonlinear_below_the_papers_error(dyn, name, coord, paper_nonlinear):
-    assert simulate(dyn, name, "adaptive-robust").metrics["max_error_pct"][coord] < paper_nonlinear
+def test_experiments_nonlinear_below_the_papers_error(rig_over_seeds, name, coord, paper_nonlinear):
+    assert rig_over_seeds[name, "adaptive-robust"]["median"]["max_error_pct"][coord] < paper_nonlinear
 
 
 @pytest.mark.parametrize("name,coord", [("z-1hz", "z"), ("z-2hz", "z"), ("psi-1hz", "psi")])
-def test_experiments_p_is_at_least_3x_worse_than_nonlinear(dyn, name, coord):
-    nl = simulate(dyn, name, "adaptive-robust").metrics["max_error_pct"][coord]
-    p = simulate(dyn, name, "p").metrics["max_error_pct"][coord]
+def test_experiments_p_is_at_least_3x_worse_than_nonlinear(rig_over_seeds, name, coord):
+    """On every seed: P's best run is 3 times worse than the nonlinear controller's worst."""
+    nl = rig_over_seeds[name, "adaptive-robust"]["max"]["max_error_pct"][coord]
+    p = rig_over_seeds[name, "p"]["min"]["max_error_pct"][coord]
     assert p > 3 * nl
 
 

@@ -14,8 +14,9 @@ from ..summary import estimated_blocks
 from .checks import check_against_model, check_call, check_run_size, checked_float, metric_window
 from .control import make_controller
 from .scenarios import Scenario, scenario as named_scenario, scenario_names
+from .seeds import SeedResults
 
-__all__ = ["simulate", "SimulationResult", "equilibrium_pressures", "Stepper", "prepare_run", "new_logs",
+__all__ = ["simulate", "SimulationResult", "SeedResults", "equilibrium_pressures", "Stepper", "prepare_run", "new_logs",
            "make_runner", "run_python_loop", "kalman_gain",
            "valve_vector", "length_noise_variance", "excitation"]
 
@@ -146,7 +147,7 @@ def _rk4(rhs, x, h):
 
 
 def simulate(dyn, scenario, controller: str, *, gains=None, duration=None, check_workspace=True,
-             engine: str = "c", **overrides) -> SimulationResult:
+             engine: str = "c", seeds=None, executor=None, max_workers=None, **overrides):
     """Run ``controller`` on ``scenario`` (a name or a :class:`Scenario`) with compiled dynamics ``dyn``.
 
     ``engine="c"`` (default) runs the whole loop in the compiled C driver;
@@ -155,7 +156,22 @@ def simulate(dyn, scenario, controller: str, *, gains=None, duration=None, check
     fields (e.g. ``t_adapt=1.0``). A run whose state becomes non-finite raises
     :class:`~hydrogen.errors.SimulationError` naming the time and the state;
     ``err.result`` holds the partial result.
+
+    ``seeds`` (a count N: noise seeds 0..N-1, or a list of seeds): one run per seed (the scenario
+    field ``seed``), through :func:`~hydrogen.simulation.sweep.sweep` (a process pool of
+    ``max_workers``, or ``executor``; the workers load ``dyn.model``'s library through
+    :func:`hydrogen.build`'s defaults), returning a :class:`~hydrogen.simulation.seeds.SeedResults`:
+    the per-seed results and the median, min and max of each metric. A seed whose run diverges is
+    listed in its ``failures`` (the others still count); bad arguments raise before any run.
     """
+    if seeds is not None:
+        return _simulate_seeds(dyn, scenario, controller, seeds, executor, max_workers,
+                               dict(gains=gains, duration=duration, check_workspace=check_workspace,
+                                    engine=engine), overrides)
+    if executor is not None or max_workers is not None:
+        from ..errors import ScenarioError
+        raise ScenarioError("simulate: executor and max_workers spread runs over seeds; pass seeds= too "
+                            "(one run without seeds runs in this process)")
     call_start = time.perf_counter()
     p = prepare_run(dyn, scenario, controller, gains, duration, check_workspace, overrides)
     sc, ctrl, n, h = p.sc, p.ctrl, p.n, p.h
@@ -177,6 +193,30 @@ def simulate(dyn, scenario, controller: str, *, gains=None, duration=None, check
     if failure:
         raise SimulationError(f"simulation '{sc.name}' with '{controller}' {failure}", result=res)
     return res
+
+
+def _simulate_seeds(dyn, scenario, controller, seeds, executor, max_workers, args, overrides):
+    """:func:`simulate` over ``seeds``: checked here first (one clear message, no pool started),
+    then one run per seed through the sweep."""
+    from ..errors import ScenarioError
+    from .seeds import SeedResults, seed_list, summarize
+    from .sweep import check_workers, sweep
+
+    seeds = seed_list(seeds)
+    if "seed" in overrides:
+        raise ScenarioError(f"simulate: seed={overrides['seed']!r} and seeds={seeds!r}; give one of the two")
+    if args["engine"] not in ("c", "python"):
+        raise ValueError(f"engine must be 'c' or 'python', not {args['engine']!r}")
+    if executor is None:
+        check_workers(max_workers)
+    prepare_run(dyn, scenario, controller, args["gains"], args["duration"], args["check_workspace"],
+                {**overrides, "seed": seeds[0]})
+    runs = [dict(scenario=scenario, controller=controller, **args, **overrides, seed=s) for s in seeds]
+    out = sweep(runs, executor=executor, max_workers=max_workers, model=dyn.model, results=True)
+    results = [r if isinstance(r, SimulationResult) else None for r in out]
+    failures = {s: r["error"] for s, r in zip(seeds, out) if not isinstance(r, SimulationResult)}
+    per_seed = [r.metrics if isinstance(r, SimulationResult) else r for r in out]
+    return SeedResults(seeds, results, failures, summarize(seeds, per_seed))
 
 
 @dataclass

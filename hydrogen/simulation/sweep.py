@@ -33,11 +33,12 @@ def entry_problem(run) -> str | None:
 
 
 def _run_one(job):
-    """Worker: build (once per process) and run one simulation; return its metrics or its error."""
+    """Worker: build (once per process) and run one simulation; return its metrics (its
+    SimulationResult when ``keep``, the metrics completed the same way) or its error."""
     import hydrogen
     from ..errors import HydrogenError
 
-    model, run = job
+    model, run, keep = job
     problem = entry_problem(run)
     if problem:
         return {"error": problem}
@@ -55,13 +56,24 @@ def _run_one(job):
         return {"error": f"{type(exc).__name__}: {str(exc).splitlines()[0][:500] if str(exc) else ''}"}
     m = dict(res.metrics)
     m["u_saturation_frac"] = float((abs(res.u) >= 0.999 * res.u_max).mean()) if res.u_max else 0.0
+    if keep:
+        res.metrics = m
+        return res
     return m
 
 
 def sweep(runs, *, executor: Executor | None = None, max_workers: int | None = None, model=None,
-          progress: bool = False) -> list:
+          progress: bool = False, seeds=None, results: bool = False) -> list:
     """Run each of ``runs`` (dicts of :func:`hydrogen.simulate` arguments: scenario, controller,
     gains, duration, scenario overrides) and return their metrics in order.
+
+    ``seeds`` (a count N: seeds 0..N-1, or a list; :mod:`hydrogen.simulation.seeds`): each entry runs
+    once per noise seed (its scenario field ``seed``; an entry may then not set ``seed``), every run
+    in the one pool, and gives :func:`~hydrogen.simulation.seeds.summarize` of its runs in its place
+    (per-seed metrics, median/min/max per coordinate, the median seed; ``"error"`` only when every
+    seed failed). ``results``: give each run's SimulationResult (its ``metrics`` with
+    ``u_saturation_frac``) instead of its metrics (not with ``seeds``); a failed run still gives
+    ``{"error": message}``.
 
     A run that fails (it diverges, or its entry is not valid: not a dict, an unknown key, a bad
     value) gives ``{"error": message}`` in its place and the others still run. Only a malformed
@@ -74,6 +86,7 @@ def sweep(runs, *, executor: Executor | None = None, max_workers: int | None = N
     """
     import hydrogen
     from ..errors import ScenarioError, WorkerError
+    from .seeds import seed_list, summarize
 
     if isinstance(runs, (str, bytes, Mapping)) or not hasattr(runs, "__iter__"):
         raise ScenarioError(f"sweep: runs must be a list of dicts (one per run), got {type(runs).__name__}")
@@ -81,11 +94,23 @@ def sweep(runs, *, executor: Executor | None = None, max_workers: int | None = N
         raise ScenarioError(f"sweep: executor must be a concurrent.futures.Executor, got {executor!r}")
     if executor is None:
         check_workers(max_workers)
+    if seeds is not None:
+        if results:
+            raise ScenarioError("sweep: results=True gives one SimulationResult per run; with seeds= each "
+                                "entry gives the distribution of its runs (use results without seeds)")
+        seeds = seed_list(seeds, "sweep: seeds")
+        runs = list(runs)
+        clash = "entry sets 'seed' and the sweep runs seeds=; give one of the two"
+        mine = [i for i, r in enumerate(runs) if not (isinstance(r, Mapping) and "seed" in r)]
+        flat = [dict(runs[i], seed=s) if isinstance(runs[i], Mapping) else runs[i] for i in mine for s in seeds]
+        done = iter(sweep(flat, executor=executor, max_workers=max_workers, model=model, progress=progress))
+        per = {i: [next(done) for _ in seeds] for i in mine}
+        return [summarize(seeds, per.get(i) or [{"error": clash}] * len(seeds)) for i in range(len(runs))]
     # The Model itself goes to the workers (not its file name): in-memory edits are kept.
     model = model if isinstance(model, hydrogen.Model) else hydrogen.load_model(_model_path(model))
     from tqdm import tqdm
 
-    jobs = [(model, r) for r in runs]
+    jobs = [(model, r, bool(results)) for r in runs]
 
     def collect(ex, workers):
         futures = []

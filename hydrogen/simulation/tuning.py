@@ -29,6 +29,13 @@ amplitude, the others are *off-axis*. :func:`rig_scenarios` lists them; a model 
    the robot's gains. At the onset of an oscillation this content grows 5-10× from one grid point
    to the next, so the verdict does not hinge on these constants.
 
+**Seeds.** On the rig the adaptive loops are chaotic (a change of 10^-15 in the noise parts two
+runs within seconds), so one noise seed is one draw of a distribution. Every run of the search and
+of the margins is run for each of ``seeds`` noise seeds (default :data:`SEEDS` = 10: seeds 0..9),
+each seed judged against its own reference value, and a gain is *stable* on a scenario only when
+the run is stable for **every** seed. A row reports the median over the seeds of the max error and
+its range (min, max); the tuned gain is chosen on the median.
+
 **Tuned** (:func:`tune`). The grid is geometric with 4 points per octave, so 2 g is on it. A gain is
 *admissible* when every grid gain in [g, 2 g] is stable on every scenario: a gain margin of at least 2
 (6 dB, the classical requirement) on the grid. The tuned gain is the admissible gain with the
@@ -47,9 +54,11 @@ from __future__ import annotations
 
 import numpy as np
 
+from .seeds import DEFAULT_SEEDS, seed_list
+
 __all__ = ["tune", "tune_p", "margins", "rig_scenarios", "require_rig_scenarios", "family", "main_gain",
-           "default_grid", "secondary_grid",
-           "SATURATION", "OSCILLATION", "HF_FLOOR", "HF_CAP"]
+           "default_grid", "secondary_grid", "judge_seeds",
+           "SATURATION", "OSCILLATION", "HF_FLOOR", "HF_CAP", "SEEDS"]
 
 SATURATION = 0.01    # largest fraction of periods with a saturated valve
 OSCILLATION = 2.0    # high-frequency error may grow to this multiple of its reference value
@@ -58,6 +67,7 @@ HF_CAP = 0.05        # x the largest reference amplitude: above it, always an os
 MARGIN_MAX = 16.0
 MARGIN_STEPS = 5
 PER_OCTAVE = 4
+SEEDS = DEFAULT_SEEDS  # noise seeds (0 .. SEEDS-1) every gain is judged over
 
 
 def _load(model):
@@ -189,6 +199,26 @@ def _judge(m, hf_ref):
     return True, ""
 
 
+def judge_seeds(summary, hf_refs) -> tuple:
+    """(stable, reason, unstable seeds) of one sweep entry run over seeds (its
+    :func:`~hydrogen.simulation.seeds.summarize`): stable only when every seed's run is, each against
+    its own reference high-frequency error ``hf_refs[i]``; the reason names the first seed that fails."""
+    bad = []
+    for s, m, ref in zip(summary["seeds"], summary["per_seed"], hf_refs):
+        stable, reason = _judge(m, ref)
+        if not stable:
+            bad.append((s, reason))
+    if not bad:
+        return True, "", []
+    n = len(summary["seeds"])
+    return False, f"{bad[0][1]} (seed {bad[0][0]}; unstable on {len(bad)} of {n} seeds)", [s for s, _ in bad]
+
+
+def _spread(values) -> dict:
+    a = np.asarray(values, float)
+    return {"median": float(np.median(a)), "min": float(a.min()), "max": float(a.max())}
+
+
 def _worst(m, moving) -> float:
     return max(m["max_error_pct"][c] for c in moving)
 
@@ -204,16 +234,20 @@ def secondary_grid(dyn, controller) -> dict:
 
 
 def tune(controller, grid=None, *, model=None, scenarios=None, secondary=None, executor=None,
-         max_workers=None, progress: bool = False) -> dict:
+         max_workers=None, progress: bool = False, seeds=None) -> dict:
     """The documented search for ``controller`` on ``model``'s rig scenarios (module doc).
 
     ``grid``: main-gain values (default :func:`default_grid`); ``secondary``: {gain: values} searched
     alongside it (default :func:`secondary_grid`; the margin rule applies along the main gain for each
-    of its values). Returns {"controller", "main_gain", "grid", "table": [row per scenario, secondary
-    value and gain], "best": g or None, "best_gains": the gains dict at the tuned point,
-    "best_errors": {scenario: worst max error %}, "largest_stable": the largest main gain stable on
-    every scenario (at the tuned secondary value), "margin_ok": whether "best" has a gain margin of 2
-    (else it is the fallback of the module doc)}.
+    of its values); ``seeds``: the noise seeds every point is judged over (a count N: 0..N-1, or a
+    list; default :data:`SEEDS`). Returns {"controller", "main_gain", "grid", "seeds", "table": [row
+    per scenario, secondary value and gain: "max_error_pct" the median over the seeds of the worst
+    moving coordinate's max error %, "max_error_range" [min, max], "errors" {coordinate: {median, min,
+    max}}, "unstable_seeds"], "best": g or None, "best_gains": the gains dict at the tuned point,
+    "best_errors": {scenario: median worst max error %}, "best_error_ranges": {scenario: [min, max]},
+    "largest_stable": the largest main gain stable on every scenario and seed (at the tuned secondary
+    value), "margin_ok": whether "best" has a gain margin of 2 (else it is the fallback of the module
+    doc)}.
     """
     import itertools
 
@@ -224,6 +258,7 @@ def tune(controller, grid=None, *, model=None, scenarios=None, secondary=None, e
     if executor is None:
         check_workers(max_workers)
     scen = dict(scenarios) if scenarios else require_rig_scenarios(model, f"tune --controller {controller}")
+    seeds = seed_list(DEFAULT_SEEDS if seeds is None else seeds)
     dyn = hydrogen.build(model)
     grid = np.sort(np.asarray(default_grid(controller) if grid is None else grid, float))
     sec = secondary_grid(dyn, controller) if secondary is None else dict(secondary)
@@ -236,7 +271,8 @@ def tune(controller, grid=None, *, model=None, scenarios=None, secondary=None, e
 
     runs = [dict(scenario=s, controller=controller, gains=gains(g, x))
             for x in sec_points for s in scen for g in grid]
-    out = iter(sweep(runs, executor=executor, max_workers=max_workers, model=model, progress=progress))
+    out = iter(sweep(runs, executor=executor, max_workers=max_workers, model=model, progress=progress,
+                     seeds=seeds))
     name = main_gain(controller)
     gs = list(map(float, grid))
     table, candidates, fallback = [], [], []
@@ -244,19 +280,25 @@ def tune(controller, grid=None, *, model=None, scenarios=None, secondary=None, e
         ok, worst = {g: True for g in gs}, {g: 0.0 for g in gs}
         bounded = {g: True for g in gs}
         for s, moving in scen.items():
-            hf_min = np.inf
+            hf_min = [np.inf] * len(seeds)  # per seed: its smallest value at any gain up to g
             for g in gs:
                 m = next(out)
-                if "error" not in m:
-                    hf_min = min(hf_min, _hf(m))
-                stable, reason = _judge(m, hf_min)
-                row = {"scenario": s, name: g, "gain": g, **x, "stable": stable, "reason": reason}
-                if "error" not in m:
-                    row.update(max_error_pct=_worst(m, moving), hf_error=_hf(m), saturation=m["u_saturation_frac"],
-                               errors={c: m["max_error_pct"][c] for c in moving})
+                per = m["per_seed"]
+                hf_min = [h if "error" in r else min(h, _hf(r)) for h, r in zip(hf_min, per)]
+                stable, reason, unstable = judge_seeds(m, hf_min)
+                row = {"scenario": s, name: g, "gain": g, **x, "stable": stable, "reason": reason,
+                       "unstable_seeds": unstable}
+                done = [r for r in per if "error" not in r]
+                if done:
+                    w = _spread([_worst(r, moving) for r in done])
+                    row.update(max_error_pct=w["median"], max_error_range=[w["min"], w["max"]],
+                               hf_error=float(np.median([_hf(r) for r in done])),
+                               saturation=max(r["u_saturation_frac"] for r in done),
+                               errors={c: _spread([r["max_error_pct"][c] for r in done]) for c in moving})
+                if len(done) == len(per):
                     worst[g] = max(worst[g], row["max_error_pct"])
-                    bounded[g] = bounded[g] and m["u_saturation_frac"] <= SATURATION
-                else:
+                    bounded[g] = bounded[g] and row["saturation"] <= SATURATION
+                else:  # a seed diverged: no error to rank this point by
                     worst[g] = np.inf
                     bounded[g] = False
                 ok[g] = ok[g] and stable
@@ -276,27 +318,34 @@ def tune(controller, grid=None, *, model=None, scenarios=None, secondary=None, e
         best, x, largest = None, {}, None
     return {
         "controller": controller, "model": model.name, "main_gain": name, "grid": gs, "secondary": sec,
+        "seeds": seeds,
         "table": table, "best": best, "best_secondary": x, "margin_ok": margin_ok,
         "best_gains": gains(best, x) if best is not None else None,
         "best_errors": {r["scenario"]: r.get("max_error_pct") for r in table
                         if r["gain"] == best and all(r.get(k) == v for k, v in x.items())},
+        "best_error_ranges": {r["scenario"]: r.get("max_error_range") for r in table
+                              if r["gain"] == best and all(r.get(k) == v for k, v in x.items())},
         "largest_stable": largest,
     }
 
 
 def tune_p(gains=None, scenarios=None, *, executor=None, max_workers=None, model=None,
-           progress: bool = False) -> dict:
+           progress: bool = False, seeds=None) -> dict:
     """:func:`tune` for the baseline P controller (its rows also carry its main gain)."""
     from ..controllers import baseline
     return tune(baseline(), gains, model=model, scenarios=scenarios, executor=executor, max_workers=max_workers,
-                progress=progress)
+                progress=progress, seeds=seeds)
 
 
 def margins(controllers=None, *, model=None, scenarios=None, executor=None, max_workers=None,
-            progress: bool = False) -> dict:
+            progress: bool = False, seeds=None) -> dict:
     """Stability margin of each controller's main gain on each rig scenario (module doc), from the
-    robot's gains. Returns {"model", "rows": [{controller, scenario, main_gain, gain, margin,
-    limit_reason}]}; ``margin`` is the largest factor found stable (≥ MARGIN_MAX: ``margin_capped``)."""
+    robot's gains, judged over ``seeds`` (a count N: 0..N-1, or a list; default :data:`SEEDS`): a
+    factor is stable only when every seed's run is. Returns {"model", "seeds", "rows": [{controller,
+    scenario, main_gain, gain, margin, margin_capped, limit_reason, errors: {moving coordinate:
+    {median, min, max} of the max error % at the robot's gains}, median_seed, unstable_seeds: the
+    seeds unstable at the first unstable factor}]}; ``margin`` is the largest factor found stable
+    (>= MARGIN_MAX: ``margin_capped``), 0 when the robot's gains themselves fail on a seed."""
     import hydrogen
     from ..controllers import CONTROLLERS
     from .sweep import check_workers, sweep
@@ -305,47 +354,56 @@ def margins(controllers=None, *, model=None, scenarios=None, executor=None, max_
     if executor is None:
         check_workers(max_workers)
     scen = list(scenarios) if scenarios else list(require_rig_scenarios(model, "margins"))
+    seeds = seed_list(DEFAULT_SEEDS if seeds is None else seeds)
     dyn = hydrogen.build(model)
     cases = [(c, s) for c in (controllers or CONTROLLERS) for s in scen]
     base = {c: _base_gains(dyn, c, robot=True) for c, _ in cases}
     g0 = {c: float(np.mean(base[c][main_gain(c)])) for c, _ in cases}
 
-    def run(factors):
-        runs = [dict(scenario=s, controller=c, gains=family(dyn, c, g0[c] * f, base[c]))
-                for (c, s), f in zip(cases, factors)]
-        return sweep(runs, executor=executor, max_workers=max_workers, model=model, progress=progress)
+    def run(factors: dict) -> dict:
+        """{case index: factor} -> {case index: its runs over the seeds}; only those cases run."""
+        todo = sorted(factors)
+        runs = [dict(scenario=cases[i][1], controller=cases[i][0],
+                     gains=family(dyn, cases[i][0], g0[cases[i][0]] * factors[i], base[cases[i][0]])) for i in todo]
+        out = sweep(runs, executor=executor, max_workers=max_workers, model=model, progress=progress, seeds=seeds)
+        return dict(zip(todo, out))
 
-    ref = run([1.0] * len(cases))
-    hf_ref = [_hf(m) if "error" not in m else np.inf for m in ref]
-    lo = [1.0 if _judge(m, h)[0] else 0.0 for m, h in zip(ref, hf_ref)]
+    ref = run({i: 1.0 for i in range(len(cases))})
+    hf_ref = [[_hf(m) if "error" not in m else np.inf for m in ref[i]["per_seed"]] for i in range(len(cases))]
+    first = [judge_seeds(ref[i], hf_ref[i]) for i in range(len(cases))]
+    lo = [1.0 if v[0] else 0.0 for v in first]
     hi = [None] * len(cases)
-    why = [None if lo[i] else _judge(ref[i], hf_ref[i])[1] for i in range(len(cases))]
+    why = [None if v[0] else v[1] for v in first]
+    unstable = [v[2] for v in first]
+
+    def judge(i, m, f):
+        stable, reason, bad = judge_seeds(m, hf_ref[i])
+        if stable:
+            lo[i] = f
+        else:
+            hi[i], why[i], unstable[i] = f, reason, bad
+
     f = 2.0
     while f <= MARGIN_MAX:  # doubling until unstable
         todo = [i for i in range(len(cases)) if lo[i] and hi[i] is None]
         if not todo:
             break
-        res = run([f if i in todo else 1.0 for i in range(len(cases))])
-        for i in todo:
-            stable, reason = _judge(res[i], hf_ref[i])
-            if stable:
-                lo[i] = f
-            else:
-                hi[i], why[i] = f, reason
+        for i, m in run({i: f for i in todo}).items():
+            judge(i, m, f)
         f *= 2
     for _ in range(MARGIN_STEPS):  # geometric bisection between the last stable and the first unstable
         todo = [i for i in range(len(cases)) if lo[i] and hi[i] is not None]
         if not todo:
             break
-        mids = [np.sqrt(lo[i] * hi[i]) if i in todo else 1.0 for i in range(len(cases))]
-        res = run(mids)
-        for i in todo:
-            stable, reason = _judge(res[i], hf_ref[i])
-            if stable:
-                lo[i] = mids[i]
-            else:
-                hi[i], why[i] = mids[i], reason
-    rows = [{"controller": c, "scenario": s, "main_gain": main_gain(c), "gain": g0[c], "margin": float(lo[i]),
-             "margin_capped": hi[i] is None and lo[i] > 0, "limit_reason": why[i] or ""}
-            for i, (c, s) in enumerate(cases)]
-    return {"model": model.name, "rows": rows}
+        mids = {i: float(np.sqrt(lo[i] * hi[i])) for i in todo}
+        for i, m in run(mids).items():
+            judge(i, m, mids[i])
+    rows = []
+    for i, (c, s) in enumerate(cases):
+        pct = ref[i]["median"].get("max_error_pct") or {}
+        errors = {k: {"median": v, "min": ref[i]["min"]["max_error_pct"][k], "max": ref[i]["max"]["max_error_pct"][k]}
+                  for k, v in pct.items() if v is not None}
+        rows.append({"controller": c, "scenario": s, "main_gain": main_gain(c), "gain": g0[c], "margin": float(lo[i]),
+                     "margin_capped": hi[i] is None and lo[i] > 0, "limit_reason": why[i] or "",
+                     "errors": errors, "median_seed": ref[i]["median_seed"], "unstable_seeds": unstable[i]})
+    return {"model": model.name, "seeds": seeds, "rows": rows}

@@ -1,0 +1,76 @@
+"""The rig results as distributions: for each shipped robot, rig scenario and controller, at the
+robot's stored gains, the max tracking error (% of the reference amplitude) over noise seeds
+0..N-1 (median, min, max, the median run's seed) and the stability margin of the main gain judged
+over all of them (``hydrogen.simulation.tuning.margins``: stable only when every seed is).
+
+Writes ``docs/rig_seeds.json`` (atomically) and prints the table as Markdown.
+
+Run: ``python benchmarks/rig_seeds.py [--seeds N] [--workers W] [--json FILE]`` (about 10 minutes
+on 2 cores with the default 10 seeds).
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+from pathlib import Path
+
+import hydrogen
+from hydrogen.fileio import atomic_write
+from hydrogen.simulation.seeds import DEFAULT_SEEDS, parse_seeds, seed_list
+from hydrogen.simulation.tuning import margins
+
+REPO = Path(__file__).resolve().parents[1]
+#: The gain margin a controller should keep (6 dB), judged over every seed.
+MARGIN_REQUIRED = 2.0
+
+
+def collect(seeds, workers=None, models=None) -> dict:
+    """{"seeds", "margin_required", "models": {model: {"rows": [...], "wall_s"}}} (see the module doc)."""
+    out = {"seeds": seed_list(seeds), "margin_required": MARGIN_REQUIRED, "models": {}}
+    for name in models or hydrogen.models():
+        start = time.perf_counter()
+        res = margins(model=name, seeds=seeds, max_workers=workers)
+        rows = [{"scenario": r["scenario"], "controller": r["controller"], "main_gain": r["main_gain"],
+                 "gain": r["gain"], "max_error_pct": r["errors"], "median_seed": r["median_seed"],
+                 "margin": r["margin"], "margin_capped": r["margin_capped"],
+                 "margin_ok": r["margin"] >= MARGIN_REQUIRED, "limit_reason": r["limit_reason"],
+                 "unstable_seeds_at_limit": r["unstable_seeds"]} for r in res["rows"]]
+        out["models"][name] = {"rows": rows, "wall_s": time.perf_counter() - start}
+    return out
+
+
+def markdown(data) -> str:
+    n = len(data["seeds"])
+    lines = [f"Max tracking error (% of amplitude) at the stored gains over {n} noise seeds: median "
+             f"[min - max]; margin of the main gain judged over all {n} seeds.", "",
+             "| robot | scenario | controller | max error % median [range] | median seed | margin | "
+             f"margin >= {data['margin_required']:g} | limited by |",
+             "|---|---|---|---|---:|---:|---|---|"]
+    for model, d in data["models"].items():
+        for r in d["rows"]:
+            err = ", ".join(f"{c} {e['median']:.1f} [{e['min']:.1f} - {e['max']:.1f}]"
+                            for c, e in r["max_error_pct"].items()) or "-"
+            m = f">= {r['margin']:.3g}" if r["margin_capped"] else f"{r['margin']:.3g}"
+            lines.append(f"| {model} | {r['scenario']} | {r['controller']} | {err} | {r['median_seed']} | {m} | "
+                         f"{'yes' if r['margin_ok'] else 'no'} | {r['limit_reason'] or '-'} |")
+    return "\n".join(lines) + "\n"
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--seeds", type=parse_seeds, default=DEFAULT_SEEDS, help=f"N or a list (default {DEFAULT_SEEDS})")
+    ap.add_argument("--workers", type=int, help="processes (default: the core count)")
+    ap.add_argument("--json", default=str(REPO / "docs" / "rig_seeds.json"),
+                    help="output (default docs/rig_seeds.json)")
+    args = ap.parse_args(argv)
+    data = collect(args.seeds, args.workers)
+    atomic_write(Path(args.json), json.dumps(data, indent=2, sort_keys=True) + "\n")
+    print(markdown(data))
+    print(f"written to {args.json}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

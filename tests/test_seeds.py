@@ -1,0 +1,309 @@
+"""Runs over noise seeds: simulate/sweep seeds=, the distribution (median, min, max, median run), the
+gain search and margins judged over every seed, --seeds on the command line, seeds in the figures."""
+from __future__ import annotations
+
+import json
+from concurrent.futures import Future, ThreadPoolExecutor
+
+import numpy as np
+import pytest
+
+import hydrogen
+from hydrogen.cli import main as cli
+from hydrogen.simulation.seeds import DEFAULT_SEEDS, SeedResults, parse_seeds, seed_list, summarize
+from hydrogen.simulation.simulator import simulate
+from hydrogen.simulation.tuning import SEEDS, judge_seeds, margins, tune
+
+SHORT = dict(duration=2.5, metric_start=1.0)  # a 1-s window of the 1 Hz reference after the transient
+
+
+@pytest.fixture(scope="module")
+def dyn():
+    """The platform from the default cache: the one the sweep's worker processes load."""
+    return hydrogen.build(hydrogen.load_model())
+
+
+@pytest.fixture(scope="module")
+def short_model():
+    """The platform with its z-1hz rig scenario cut to 2 s (metrics over the last second)."""
+    m = hydrogen.load_model()
+    m.scenarios["z-1hz"]["duration"] = 2.0
+    m.scenarios["z-1hz"]["metric_start"] = 1.0
+    return m
+
+
+@pytest.fixture(scope="module")
+def over_seeds(dyn):
+    return simulate(dyn, "z-1hz", "adaptive-robust", seeds=[4, 1, 7], max_workers=2, **SHORT)
+
+
+def test_seeds_run_once_per_seed_with_distinct_noise(dyn, over_seeds):
+    res = over_seeds
+    assert isinstance(res, SeedResults) and res.seeds == [4, 1, 7] and not res.failures
+    assert [r.scenario.seed for r in res.results] == [4, 1, 7]
+    lm = [r.leg_lengths_measured for r in res.results]
+    assert np.abs(lm[0] - lm[1]).max() > 0 and np.abs(lm[1] - lm[2]).max() > 0  # other noise samples
+    errs = [r.metrics["max_error_pct"]["z"] for r in res.results]
+    assert len(set(errs)) == 3  # other results
+    alone = simulate(dyn, "z-1hz", "adaptive-robust", seed=1, **SHORT)  # the seed is the scenario's field
+    np.testing.assert_array_equal(alone.q, res.results[1].q)
+
+
+def test_distribution_matches_the_per_seed_metrics(over_seeds):
+    m, runs = over_seeds.metrics, over_seeds.results
+    for key in ("max_error_pct", "rms_error", "max_error"):
+        for c in runs[0].coordinates:
+            vals = [r.metrics[key][c] for r in runs]
+            if vals[0] is None:
+                assert m["median"][key][c] is None
+                continue
+            assert m["median"][key][c] == pytest.approx(sorted(vals)[1])
+            assert (m["min"][key][c], m["max"][key][c]) == (min(vals), max(vals))
+    sat = [r.metrics["u_saturation_frac"] for r in runs]
+    assert m["max"]["u_saturation_frac"] == max(sat)
+    z = [r.metrics["max_error_pct"]["z"] for r in runs]
+    assert m["median_seed"] == over_seeds.seeds[int(np.argsort(z)[1])]
+    assert over_seeds.median_run is runs[int(np.argsort(z)[1])]
+    t, lo, hi = over_seeds.band()
+    stack = np.stack([r.error for r in runs])
+    np.testing.assert_array_equal(lo, stack.min(axis=0))
+    np.testing.assert_array_equal(hi, stack.max(axis=0))
+    assert t.shape == runs[0].t.shape
+
+
+def test_median_of_an_even_count_and_the_median_run():
+    per = [{"max_error_pct": {"z": v, "x": None}, "u_saturation_frac": 0.0} for v in (4.0, 1.0, 3.0, 2.0)]
+    s = summarize([0, 1, 2, 3], per + [])
+    assert s["median"]["max_error_pct"] == {"z": 2.5, "x": None}
+    assert (s["min"]["max_error_pct"]["z"], s["max"]["max_error_pct"]["z"]) == (1.0, 4.0)
+    assert s["median_seed"] == 3  # the lower middle run (2.0), a run that exists
+    failed = summarize([0, 1], [{"error": "diverged at t = 1 s"}, per[0]])
+    assert failed["completed"] == 1 and failed["failed"] == [{"seed": 0, "error": "diverged at t = 1 s"}]
+    assert failed["median"]["max_error_pct"]["z"] == 4.0 and "error" not in failed
+    assert "every seed failed" in summarize([5], [{"error": "x"}])["error"]
+
+
+@pytest.mark.parametrize("bad,match", [(0, "must be >= 1"), (-2, "must be >= 1"), ([1, 1], "given twice"),
+                                       ([], "empty"), ([0, -1], "not an integer >= 0"), (True, "count"),
+                                       ("3", "count"), ([0.5], "not an integer")])
+def test_bad_seeds_are_named(dyn, bad, match):
+    with pytest.raises(hydrogen.ScenarioError, match=match):
+        simulate(dyn, "z-1hz", "p", duration=0.1, seeds=bad)
+
+
+def test_seeds_and_pool_arguments_are_checked_before_any_run(dyn):
+    with pytest.raises(hydrogen.ScenarioError, match="seed=3 and seeds"):
+        simulate(dyn, "z-1hz", "p", duration=0.1, seeds=2, seed=3)
+    with pytest.raises(hydrogen.ScenarioError, match="pass seeds= too"):
+        simulate(dyn, "z-1hz", "p", duration=0.1, max_workers=2)
+    with pytest.raises(hydrogen.ScenarioError, match="duration"):  # the scenario, before the pool
+        simulate(dyn, "z-1hz", "p", duration=-1.0, seeds=2)
+
+
+def test_sweep_seeds_give_each_entry_its_distribution():
+    runs = [dict(scenario="z-1hz", controller="p", duration=0.5), {"bogus": 1},
+            dict(scenario="z-1hz", controller="p", duration=0.5, seed=3)]
+    out = hydrogen.sweep(runs, seeds=2, max_workers=2)
+    assert out[0]["seeds"] == [0, 1] and out[0]["completed"] == 2 and len(out[0]["per_seed"]) == 2
+    z = [m["max_error_pct"]["z"] for m in out[0]["per_seed"]]
+    assert out[0]["median"]["max_error_pct"]["z"] == pytest.approx(np.median(z))
+    assert "every seed failed" in out[1]["error"] and "bogus" in out[1]["error"]
+    assert "sets 'seed'" in out[2]["error"]
+    with pytest.raises(hydrogen.ScenarioError, match="results=True"):
+        hydrogen.sweep(runs[:1], seeds=2, results=True)
+
+
+def test_judge_needs_every_seed():
+    ok = {"u_saturation_frac": 0.0, "amplitude": {"z": 0.01}, "hf_error_rms": {"z": 1e-6}}
+    summary = {"seeds": [0, 1, 2], "per_seed": [ok, {"error": "diverged at t = 3 s"}, ok]}
+    stable, reason, bad = judge_seeds(summary, [1e-4] * 3)
+    assert not stable and bad == [1] and "seed 1" in reason and "1 of 3 seeds" in reason
+    saturating = dict(ok, u_saturation_frac=0.5)
+    stable, reason, bad = judge_seeds({"seeds": [0, 1], "per_seed": [ok, saturating]}, [1e-4] * 2)
+    assert not stable and bad == [1] and "saturates" in reason
+    assert judge_seeds({"seeds": [0, 1], "per_seed": [ok, ok]}, [1e-4] * 2) == (True, "", [])
+
+
+class FailingSeed(ThreadPoolExecutor):
+    """Runs every job in threads, but the run of ``seed`` fails (as a diverged run does) when
+    ``when(gains)`` holds; counts the runs per seed."""
+
+    def __init__(self, seed, when=lambda gains: True):
+        super().__init__(2)
+        self.seed, self.when, self.seen = seed, when, []
+
+    def submit(self, fn, job):
+        run = job[1]
+        self.seen.append(run.get("seed"))
+        if run.get("seed") == self.seed and self.when(run.get("gains") or {}):
+            f = Future()
+            f.set_result({"error": "diverged at t = 1.0000 s: test"})
+            return f
+        return super().submit(fn, job)
+
+
+def test_tune_calls_a_gain_unstable_when_one_seed_fails(short_model):
+    scen = {"z-1hz": ("z",)}
+    with FailingSeed(seed=2, when=lambda g: g["Kleg"] > 0.03) as ex:
+        res = tune("p", [0.02, 0.04], model=short_model, scenarios=scen, seeds=3, executor=ex)
+    rows = {r["gain"]: r for r in res["table"]}
+    assert rows[0.02]["stable"] and not rows[0.04]["stable"]
+    assert rows[0.04]["unstable_seeds"] == [2] and "seed 2" in rows[0.04]["reason"]
+    assert res["largest_stable"] == 0.02 and res["seeds"] == [0, 1, 2]
+    lo, hi = rows[0.02]["max_error_range"]
+    assert lo <= rows[0.02]["max_error_pct"] <= hi
+    with ThreadPoolExecutor(2) as ex:  # without the failing seed both gains are stable
+        clean = tune("p", [0.02, 0.04], model=short_model, scenarios=scen, seeds=3, executor=ex)
+    assert all(r["stable"] for r in clean["table"]) and clean["largest_stable"] == 0.04
+
+
+def test_tune_and_margins_default_to_the_documented_seeds(short_model):
+    assert SEEDS == DEFAULT_SEEDS >= 10
+    with FailingSeed(seed=None, when=lambda g: False) as ex:
+        res = tune("p", [0.02], model=short_model, scenarios={"z-1hz": ("z",)}, executor=ex)
+    assert res["seeds"] == list(range(SEEDS)) and sorted(ex.seen) == list(range(SEEDS))
+
+
+def test_margin_is_limited_by_the_one_seed_that_fails(short_model):
+    g0 = short_model.gains["p"]["Kleg"]
+    with ThreadPoolExecutor(2) as ex:
+        clean = margins(["p"], model=short_model, scenarios=["z-1hz"], seeds=2, executor=ex)["rows"][0]
+    assert clean["margin"] > 2
+    with FailingSeed(seed=1, when=lambda g: g["Kleg"] > 1.5 * g0) as ex:
+        row = margins(["p"], model=short_model, scenarios=["z-1hz"], seeds=2, executor=ex)["rows"][0]
+    assert 1.0 <= row["margin"] < 1.5 and "seed 1" in row["limit_reason"] and row["unstable_seeds"] == [1]
+    e = row["errors"]["z"]
+    assert e["min"] <= e["median"] <= e["max"] and e == clean["errors"]["z"]  # at the robot's gains
+
+
+def test_parse_seeds():
+    assert parse_seeds("10") == 10 and seed_list(parse_seeds("10")) == list(range(10))
+    assert parse_seeds("0,3,7") == [0, 3, 7]
+    import argparse
+    for bad in ("0", "x", "1,,x", "2,2", "-1"):
+        with pytest.raises(argparse.ArgumentTypeError):
+            parse_seeds(bad)
+
+
+def test_cli_simulate_seeds_prints_median_and_range(tmp_path, capsys):
+    out = tmp_path / "m.json"
+    assert cli(["simulate", "--scenario", "z-1hz", "--controller", "adaptive-robust", "--duration", "2.5",
+                "--seeds", "0,2", "--workers", "2", "--json", str(out)]) == 0
+    text = capsys.readouterr().out
+    m = json.loads(out.read_text())
+    assert m["seeds"] == [0, 2] and len(m["per_seed"]) == 2
+    med, lo, hi = (m[k]["max_error_pct"]["z"] for k in ("median", "min", "max"))
+    assert lo < hi
+    assert f"{med:.2f} %" in text and f"[{lo:.2f} - {hi:.2f} %]" in text
+    assert "2 noise seeds (0,2)" in text and f"median run: seed {m['median_seed']}" in text
+
+
+@pytest.mark.parametrize("argv", [["simulate", "--seeds", "0"], ["simulate", "--seeds", "a,b"],
+                                  ["tune-p", "--seeds", "1,1"], ["margins", "--seeds", "-3"],
+                                  ["figures", "--seeds", "0"]])
+def test_cli_bad_seeds_exit_2(argv, capsys):
+    with pytest.raises(SystemExit) as exc:
+        cli(argv)
+    assert exc.value.code == 2 and "--seeds" in capsys.readouterr().err
+
+
+def test_cli_seeds_with_log_is_refused(tmp_path, capsys):
+    log = tmp_path / "x.csv"
+    assert cli(["simulate", "--scenario", "z-1hz", "--seeds", "2", "--log", str(log)]) == 2
+    assert "--log writes one run" in capsys.readouterr().err and not log.exists()
+
+
+def test_cli_margins_and_tune_pass_seeds(monkeypatch, capsys):
+    from hydrogen.simulation import tuning
+    seen = {}
+
+    def fake_margins(controllers, **kw):
+        seen["margins"] = kw["seeds"]
+        return {"model": "m", "seeds": seed_list(kw["seeds"] or SEEDS), "rows": [
+            {"controller": "p", "scenario": "z-1hz", "main_gain": "Kleg", "gain": 0.01, "margin": 2.5,
+             "margin_capped": False, "limit_reason": "oscillation (seed 3; unstable on 1 of 10 seeds)",
+             "errors": {"z": {"median": 40.0, "min": 39.5, "max": 41.25}}, "median_seed": 2, "unstable_seeds": [3]}]}
+
+    monkeypatch.setattr(tuning, "margins", fake_margins)
+    assert cli(["margins", "--seeds", "0,3"]) == 0
+    assert seen["margins"] == [0, 3]
+    assert cli(["margins"]) == 0 and seen["margins"] is None  # margins' own default: SEEDS
+    out = capsys.readouterr().out
+    assert "z 40.0 [39.5 - 41.2]" in out and f"every one of {SEEDS} noise seeds" in out
+
+
+def test_figures_show_the_median_run_and_the_band(over_seeds, tmp_path):
+    from hydrogen import figures
+    path = figures.plot_experiment(over_seeds, over_seeds, "z", tmp_path / "e.png")
+    assert path.read_bytes().startswith(b"\x89PNG")
+    figures.plot_tracking_errors(over_seeds, tmp_path / "t.png")
+    figures.plot_step(over_seeds, over_seeds, tmp_path / "s.png", coord="z")
+    stats = figures._max_pct(over_seeds, "z")
+    m = over_seeds.metrics
+    assert stats == (m["median"]["max_error_pct"]["z"], m["min"]["max_error_pct"]["z"], m["max"]["max_error_pct"]["z"])
+    table = figures.comparison_table([("z 1 Hz", "z", (10.44, 8.21, 16.14), 40.0, 4, 43)])
+    assert "| z 1 Hz | z | 10.4 (8.2-16.1) | 40.0 | 4.0 | 43.0 |" in table
+
+
+def test_cli_tune_prints_median_and_range(monkeypatch, capsys, short_model):
+    from hydrogen.simulation import tuning
+    real = tuning.tune
+
+    def short_tune(controller, grid, **kw):
+        assert kw["seeds"] == [0, 2]
+        with ThreadPoolExecutor(2) as ex:
+            return real(controller, [0.02, 0.04], model=short_model, scenarios={"z-1hz": ("z",)}, seeds=kw["seeds"],
+                        executor=ex)
+
+    monkeypatch.setattr(tuning, "tune", short_tune)
+    assert cli(["tune-p", "--seeds", "0,2", "--quiet"]) == 0
+    out = capsys.readouterr().out
+    res = short_tune("p", None, seeds=[0, 2])
+    row = res["table"][0]
+    lo, hi = row["max_error_range"]
+    assert "over 2 noise seeds" in out and f"{row['max_error_pct']:10.2f}" in out and f"[{lo:.2f} - {hi:.2f}]" in out
+
+
+def test_rig_seeds_script_writes_the_distributions(monkeypatch, tmp_path, capsys):
+    import importlib.util
+    from pathlib import Path
+    path = Path(__file__).resolve().parents[1] / "benchmarks" / "rig_seeds.py"
+    spec = importlib.util.spec_from_file_location("rig_seeds", path)
+    rig_seeds = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(rig_seeds)
+    calls = []
+
+    def fake_margins(model=None, seeds=None, max_workers=None):
+        calls.append((model, seeds))
+        return {"model": model, "seeds": seed_list(seeds), "rows": [
+            {"controller": c, "scenario": "s1", "main_gain": "Lambda", "gain": 40.0, "margin": mg,
+             "margin_capped": False, "limit_reason": "saturates (seed 1; unstable on 1 of 3 seeds)",
+             "errors": {"z": {"median": 10.44, "min": 8.2, "max": 16.1}}, "median_seed": 2, "unstable_seeds": [1]}
+            for c, mg in (("adaptive-robust", 0.0), ("p", 2.5))]}
+
+    monkeypatch.setattr(rig_seeds, "margins", fake_margins)
+    out = tmp_path / "rig.json"
+    assert rig_seeds.main(["--seeds", "3", "--json", str(out)]) == 0
+    assert [c[0] for c in calls] == hydrogen.models() and all(c[1] == 3 for c in calls)
+    data = json.loads(out.read_text())
+    assert data["seeds"] == [0, 1, 2]
+    rows = data["models"][hydrogen.models()[0]]["rows"]
+    assert [r["margin_ok"] for r in rows] == [False, True]
+    assert rows[0]["max_error_pct"]["z"] == {"median": 10.44, "min": 8.2, "max": 16.1}
+    text = capsys.readouterr().out
+    assert "| adaptive-robust | z 10.4 [8.2 - 16.1] | 2 | 0 | no |" in text
+    assert not [p for p in tmp_path.iterdir() if p.name != "rig.json"]  # written atomically, nothing beside
+
+
+DIVERGING = dict(duration=0.5, gains={"Ktau": 5e4, "u_max": 1.0}, control_rate=200.0, substeps=2)
+
+
+def test_a_seed_that_fails_is_listed_and_the_cli_exits_2(dyn, monkeypatch, capsys, tmp_path):
+    res = simulate(dyn, "paper-sim", "backstepping", seeds=2, max_workers=2, **DIVERGING)
+    assert set(res.failures) == {0, 1} and res.results == [None, None] and res.median_run is None
+    assert "every seed failed" in res.metrics["error"] and "t = " in res.failures[0]
+    monkeypatch.setattr(hydrogen, "simulate", lambda *a, **k: res)
+    out = tmp_path / "m.json"
+    assert cli(["simulate", "--scenario", "paper-sim", "--seeds", "2", "--json", str(out)]) == 2
+    assert "2 of 2 seeds diverged: seed 0: " in capsys.readouterr().err
+    assert json.loads(out.read_text())["failed"][1]["seed"] == 1  # what there is, still written
