@@ -166,3 +166,20 @@ def test_a_cache_on_a_noexec_mount_is_named(dyn, monkeypatch):
     with pytest.raises(BuildCacheError, match=r"failed to map segment.*mounted noexec.*HYDROGEN_CACHE_DIR") as err:
         GeneratedLibrary(path, dyn.library.manifest)
     assert str(path.parent) in str(err.value)
+
+
+def test_a_full_disk_during_generation_names_the_generated_file(tmp_path, monkeypatch, model):
+    import errno
+    import json
+
+    import hydrogen.fileio as fileio
+    from hydrogen.codegen.generate import render_drivers
+    from hydrogen.errors import DiskFullError
+    from hydrogen.resources import committed_generated_dir
+
+    def full(path, data, sync=False):
+        raise OSError(errno.ENOSPC, "No space left on device")
+    monkeypatch.setattr(fileio, "_write_bytes", full)
+    manifest = json.loads((committed_generated_dir() / model.name / "manifest.json").read_text())
+    with pytest.raises(DiskFullError, match=rf"{model.name}_loop.h: cannot be written, the disk is full"):
+        render_drivers(manifest, tmp_path)

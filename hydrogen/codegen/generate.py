@@ -15,7 +15,7 @@ import tempfile
 from pathlib import Path
 
 from ..errors import StaleGeneratedCodeError
-from ..fileio import locked, recover_dir, replace_dir
+from ..fileio import locked, recover_dir, replace_dir, write_file
 from ..names import check_identifier
 from ..outputs import check_replaceable_dir
 from ..resources import templates_dir
@@ -71,7 +71,7 @@ def render_drivers(manifest: dict, folder: Path) -> list:
     names = []
     for template, suffix in DRIVERS:
         name = ctx["model"] + suffix
-        (Path(folder) / name).write_text(render_template(template, ctx, TEMPLATES))
+        write_file(Path(folder) / name, render_template(template, ctx, TEMPLATES))
         names.append(name)
     return names
 
@@ -114,7 +114,7 @@ def _write_function(sf, model_name: str, folder: Path, cache: dict) -> dict:
             text = Path(tmp, name + ext).read_text()
             if ext == ".c":
                 text = _mark_unused(text)
-            (folder / (name + ext)).write_text(text)
+            write_file(folder / (name + ext), text)  # a full disk names the file
     return {
         "name": sf.name, "c_name": name, "doc": sf.doc,
         "source": f"{name}.c", "header": f"{name}.h",
@@ -173,7 +173,7 @@ def render(model, folder: Path, functions=None, progress: bool = False) -> dict:
         "drivers": [d for d in drivers if d.endswith(".c")],
         "files": {p.name: _sha256(p) for p in sorted(folder.iterdir())},
     }
-    (folder / MANIFEST).write_text(json.dumps(manifest, indent=2, sort_keys=True) + "\n")
+    write_file(folder / MANIFEST, json.dumps(manifest, indent=2, sort_keys=True) + "\n")
     return manifest
 
 
