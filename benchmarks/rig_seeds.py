@@ -42,8 +42,14 @@ def collect(seeds, workers=None, models=None) -> dict:
 
 
 def markdown(data) -> str:
+    """The page docs/rig_seeds.md: one row per robot, rig scenario and controller."""
     n = len(data["seeds"])
-    lines = [f"Max tracking error (% of amplitude) at the stored gains over {n} noise seeds: median "
+    lines = ["# The rig over noise seeds", "",
+             "Written by `python benchmarks/rig_seeds.py` (from the data it writes, `docs/rig_seeds.json`). "
+             "On the rig the adaptive runs are chaotic (a difference of 1e-15 in the noise grows to a different "
+             "run within seconds), so a result is the median and range over seeds, and a gain is stable only "
+             "if the stability judge passes on every seed.", "",
+             f"Max tracking error (% of amplitude) at the stored gains over {n} noise seeds: median "
              f"[min - max]; margin of the main gain judged over all {n} seeds.", "",
              "| robot | scenario | controller | max error % median [range] | median seed | margin | "
              f"margin >= {data['margin_required']:g} | limited by |",
@@ -67,8 +73,10 @@ def main(argv=None) -> int:
     args = ap.parse_args(argv)
     data = collect(args.seeds, args.workers)
     atomic_write(Path(args.json), json.dumps(data, indent=2, sort_keys=True) + "\n")
+    page = Path(args.json).with_suffix(".md")
+    atomic_write(page, markdown(data))
     print(markdown(data))
-    print(f"written to {args.json}")
+    print(f"written to {args.json} and {page}")
     return 0
 
 

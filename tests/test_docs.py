@@ -208,3 +208,13 @@ def test_the_site_page_holds_the_table_marker_the_hook_replaces():
     text = (ROOT / "docs/guide/description.md").read_text(encoding="utf-8")
     out = hooks.on_page_markdown(text, None, None, None)
     assert "<!-- hydrogen:description-table -->" in text and "`orifice_linear_below`" in out
+
+
+def test_the_rig_seeds_page_is_its_data_rendered():
+    import sys
+
+    sys.path.insert(0, str(ROOT / "benchmarks"))
+    import rig_seeds
+
+    data = json.loads((ROOT / "docs" / "rig_seeds.json").read_text(encoding="utf-8"))
+    assert (ROOT / "docs" / "rig_seeds.md").read_text(encoding="utf-8") == rig_seeds.markdown(data)

@@ -168,22 +168,27 @@ class SeedResults:
 
     @property
     def scenario(self):
+        """The Scenario run (the same for every seed but its seed)."""
         return self._first().scenario
 
     @property
     def scenario_name(self) -> str:
+        """The scenario's name."""
         return self._first().scenario_name
 
     @property
     def controller(self) -> str:
+        """The controller run."""
         return self._first().controller
 
     @property
     def coordinates(self) -> tuple:
+        """The model's coordinate names."""
         return self._first().coordinates
 
     @property
     def units(self) -> tuple:
+        """Each coordinate's SI unit (m or rad)."""
         return self._first().units
 
     def band(self, signal: str = "error"):
@@ -195,5 +200,6 @@ class SeedResults:
         return np.asarray(done[0].t[:k], float), stack.min(axis=0), stack.max(axis=0)
 
     def to_json(self) -> str:
+        """The metrics (median, min, max over the seeds) as JSON text."""
         import json
         return json.dumps(self.metrics, indent=2, sort_keys=True, default=float)
