@@ -389,7 +389,7 @@ def build_parser() -> argparse.ArgumentParser:
     b = sub.add_parser("bench", help="run the benchmark suite (per-step cost, build times)",
                        description="Per-period cost of the loop through four routes, C cost of each function, "
                                    "generation and compile times, in one run.")
-    b.add_argument("--quick", action="store_true", help="fewer repeats (about 1 minute)")
+    b.add_argument("--quick", action="store_true", help="fewer repeats and smaller sizes (a smoke run; its figures are noisier)")
     b.add_argument("--json", help="write all results as JSON to this file")
     from .bench import SUITE
     b.add_argument("--only", nargs="*", choices=[n for n, _ in SUITE], metavar="MODULE",
