@@ -469,7 +469,8 @@ def export_fmu(out, part, scenario=None, controller="adaptive-robust", model=Non
     Path of the written FMU.
     """
     from . import __version__
-    from .export import (LOOP_FUNCTIONS, controller_entries, export_context, prepare_export, read_sources,
+    from .layout import loop_functions
+    from .export import (controller_entries, export_context, prepare_export, read_sources,
                          sensor_kalman_gain, render_template)
     from .names import check_identifier
 
@@ -489,7 +490,7 @@ def export_fmu(out, part, scenario=None, controller="adaptive-robust", model=Non
     entries = {e["name"]: e for e in manifest["functions"]}
     ctrl_entries = controller_entries(manifest, p.ctrl)
     ctrl_entry = ctrl_entries[0]
-    funcs = [entries[n] for n in LOOP_FUNCTIONS] + (ctrl_entries if part != "plant" else [])
+    funcs = [entries[n] for n in loop_functions(manifest["model"])] + (ctrl_entries if part != "plant" else [])
     driver = f"{mname}_loop.c"
     if driver not in manifest.get("drivers", []):
         raise FmuError(f"export: the compiled dynamics have no loop driver {driver}; rebuild")

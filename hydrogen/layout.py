@@ -7,7 +7,7 @@ neither SymPy, CasADi nor numpy.
 """
 from __future__ import annotations
 
-__all__ = ["SLOTS", "MAX_DELAY", "model_summary", "loop_context", "log_widths", "c_double"]
+__all__ = ["SLOTS", "MAX_DELAY", "model_summary", "loop_context", "log_widths", "loop_functions", "c_double"]
 
 #: Signals the loop writes into a controller's inputs, by input name, in this order (``u_applied``:
 #: the spool commands the valves held over the last period, after the clip and the computation delay).
@@ -53,6 +53,13 @@ def model_summary(model) -> dict:
 def n_pressures(summary: dict) -> int:
     """Size of the pressure vector (one state per three-way cylinder)."""
     return summary.get("n_pressures", summary["m"])
+
+
+def loop_functions(summary: dict) -> tuple:
+    """The generated functions the loop driver calls (an export or FMU compiles them with it): the
+    forces of a robot whose actuators are not all three-way cylinders come from ``leg_force``."""
+    base = ("leg_lengths", "leg_kinematics", "plant_rhs")
+    return base if "piston_area" in summary else (*base, "leg_force")
 
 
 def log_widths(summary: dict) -> dict:
