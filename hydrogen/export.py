@@ -198,7 +198,7 @@ def export_context(dyn, p, scenario_name, controller, prog, sources, headers, ct
         "n_periods": int(p.n), "duration": c_double(sc.duration), "control_rate": c_double(sc.control_rate),
         "h": c_double(p.h), "substeps": int(sc.substeps), "t_adapt": c_double(sc.t_adapt),
         "metric_start": c_double(sc.metric_start),
-        "n": loop["n"], "m": loop["m"], "nx": loop["nx"], "p_theta": model.n_theta,
+        "n": loop["n"], "m": loop["m"], "nx": loop["nx"], "three_way": loop["three_way"], "p_theta": model.n_theta,
         "theta_names": ", ".join(model.theta_names),
         "theta": c_doubles(model.theta), "gamma1": c_doubles(model.gamma[0]), "gamma2": c_doubles(model.gamma[1]),
         "friction": c_doubles(sc.friction), "valve": c_doubles(valve_vector(sc)),

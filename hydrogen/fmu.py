@@ -112,6 +112,21 @@ def _name_part(s: str) -> str:
     return "'" + s.replace("\\", "\\\\").replace("'", "\\'") + "'"
 
 
+def _pressure_states(model) -> list:
+    """(variable prefix, (cylinder, what it is, what is measured)) of each pressure state, in the
+    pressure vector's order: ``pc`` for a three-way cylinder (its control pressure), the kind's
+    state names (``pA``, ``pB``) for another."""
+    from .actuators import actuator
+    out = []
+    for c in model.cylinders:
+        for st in actuator(c.kind).STATES:
+            if c.kind == "three_way_cylinder":
+                out.append(("pc", (c.name, "control (cap-side) chamber pressure", "control pressure")))
+            else:
+                out.append((st.name, (c.name, st.doc, st.doc)))
+    return out
+
+
 def _dotted(*parts) -> str:
     """A structured name from parts; a part may itself be dotted (link.parameter)."""
     out = []
@@ -171,6 +186,7 @@ def _variables(part, dyn, p, ctx, fn, encoders, kalman):
     n, m = model.n, model.n_cylinders
     coords, cyls, cunits = list(model.coordinate_names), [c.name for c in model.cylinders], _coord_units(model)
     theta_units = [_THETA_UNITS.get(t.split(".")[-1]) for t in model.theta_names]
+    pstates = _pressure_states(model)
     out = []
 
     def add(*a, **k):
@@ -186,9 +202,9 @@ def _variables(part, dyn, p, ctx, fn, encoders, kalman):
         for i, c in enumerate(coords):
             add(_dotted("q_start", c), "p", "fixed", f"initial {c} (the scenario's)", f"inst->q_start[{i}]",
                 unit=cunits[i], start=float(p.x0[i]))
-        for i, c in enumerate(cyls):
-            add(_dotted("pc_start", c), "p", "fixed", f"initial control pressure of cylinder {c} (holding the "
-                "robot still at the start pose)", f"inst->pc_start[{i}]", unit="Pa", start=float(p.x0[2 * n + i]))
+        for j, (nm, what) in enumerate(pstates):
+            add(_dotted(f"{nm}_start", what[0]), "p", "fixed", f"initial {what[2]} of cylinder {what[0]} (holding "
+                "the robot still at the start pose)", f"inst->pc_start[{j}]", unit="Pa", start=float(p.x0[2 * n + j]))
         for i, c in enumerate(coords):
             add(_dotted("q", c), "o", "continuous", f"coordinate {c}", f"inst->y_q[{i}]", unit=cunits[i])
         for i, c in enumerate(coords):
@@ -198,9 +214,10 @@ def _variables(part, dyn, p, ctx, fn, encoders, kalman):
         for i, c in enumerate(cyls):
             add(_dotted("ldot", c), "o", "continuous", f"rate of cylinder {c} (JL qdot)", f"inst->y_ldot[{i}]",
                 unit="m/s")
-        for i, c in enumerate(cyls):
-            add(_dotted("pc", c), "o", "continuous", f"control (cap-side) chamber pressure of cylinder {c}; the "
-                "rod side is at supply pressure", f"inst->y_pc[{i}]", unit="Pa")
+        for j, (nm, what) in enumerate(pstates):
+            note = "; the rod side is at supply pressure" if nm == "pc" else ""
+            add(_dotted(nm, what[0]), "o", "continuous", f"{what[1]} of cylinder {what[0]}{note}",
+                f"inst->y_pc[{j}]", unit="Pa")
         return out, []
 
     offsets = np.cumsum([0] + [int(r) * int(c) for r, c in fn.in_shapes]).tolist()
@@ -209,9 +226,9 @@ def _variables(part, dyn, p, ctx, fn, encoders, kalman):
         for i, c in enumerate(cyls):
             add(_dotted("l", c), "i", "continuous", f"measured length of cylinder {c}", f"inst->l_in[{i}]",
                 unit="m", start=float(l0[i]))
-        for i, c in enumerate(cyls):
-            add(_dotted("pc", c), "i", "continuous", f"measured control pressure of cylinder {c}",
-                f"inst->pc_in[{i}]", unit="Pa", start=float(p.x0[2 * n + i]))
+        for j, (nm, what) in enumerate(pstates):
+            add(_dotted(nm, what[0]), "i", "continuous", f"measured {what[2]} of cylinder {what[0]}",
+                f"inst->pc_in[{j}]", unit="Pa", start=float(p.x0[2 * n + j]))
         if encoders:
             for i, c in enumerate(coords):
                 add(_dotted("q", c), "i", "continuous", f"joint encoder reading of {c}", f"inst->q_in[{i}]",

@@ -365,6 +365,11 @@ def identify(log, model=None, *, dyn=None, cutoff_hz: float | None = None, order
     if dyn is None:
         dyn = hydrogen.default_dynamics(model)
     model = dyn.model
+    from .pressures import uniform_three_way
+    if not uniform_three_way(model):
+        kinds = sorted({c.kind for c in model.cylinders} - {"three_way_cylinder"})
+        raise IdentificationError(f"model '{model.name}': identification reads one control pressure per "
+                                  f"three-way cylinder; its {', '.join(kinds)} actuators are not supported yet")
     p = len(model.theta)
     m = len(dyn.leg_lengths(np.asarray(model.neutral_pose, float)))
     t = np.asarray(log.t, float)

@@ -189,3 +189,26 @@ def test_the_exported_program_reproduces_the_simulation(tmp_path, arm_dyn):
     got = np.array([out["max_error"][c] for c in arm_dyn.model.coordinate_names])
     np.testing.assert_allclose(got, expected, rtol=1e-9, atol=1e-13)
     assert got.max() > 1e-5
+
+
+def test_the_fmus_reproduce_the_simulation_with_two_pressures_per_cylinder(arm_dyn, tmp_path):
+    """The FMUs of test_fmu.py on this robot: pA, pB per cylinder as variables, the closed-loop FMU and
+    the plant + controller pair reproducing simulate."""
+    fm = pytest.importorskip("test_fmu")
+    from hydrogen.fmu import PARTS, export_fmu
+    paths = {part: export_fmu(tmp_path / f"{part}.fmu", part, "arm-sim", "adaptive-robust", dyn=arm_dyn,
+                              duration=fm.DURATION) for part in PARTS}
+    fmus = (arm_dyn, "arm-sim", "adaptive-robust", paths)
+    names = {v.name for v in fm.read_model_description(str(paths["plant"])).modelVariables}
+    assert {"pA.shoulder_cylinder", "pB.elbow_cylinder", "pA_start.elbow_cylinder"} <= names
+    assert not any(n.startswith("pc.") for n in names)
+    fm.test_each_part_validates(fmus)
+    fm.test_closed_loop_fmu_reproduces_simulate(fmus)
+    fm.test_plant_and_controller_fmus_reproduce_the_closed_loop(fmus)
+
+
+def test_identification_refuses_a_four_way_robot_clearly(arm_dyn):
+    res = hydrogen.simulate("arm-sim", "backstepping", dyn=arm_dyn, duration=0.5)
+    with pytest.raises(hydrogen.errors.IdentificationError,
+                       match="model 'four_way_arm'.*four_way_cylinder actuators are not supported yet"):
+        hydrogen.identify(res, dyn=arm_dyn)
