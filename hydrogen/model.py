@@ -77,6 +77,8 @@ QUANTITIES = {
     "flow_gain": Quantity("positive", 1e-9, 1.0, "m^2/(s sqrt(Pa))"),
     # m^3: a chamber's dead volume (hoses, ports): 1 mm^3 (a micro-actuator) .. 100 m^3
     "dead_volume": Quantity("positive", 1e-9, 100.0, "m^3"),
+    # m^3/rad: a rotary actuator's displacement: a 1 cm^3/rad micro-actuator (1e-6 .. ) .. 1 m^3/rad
+    "displacement": Quantity("positive", 1e-9, 1.0, "m^3/rad"),
     # Pa (gauge): the return line's pressure, 0 .. the largest supply
     "tank_pressure": Quantity("nonnegative", 0.0, 1e8, "Pa"),
     # Pa: the pressure drop below which the plant's orifice roots turn linear: up to the largest supply
@@ -103,7 +105,7 @@ DEFAULT_KIND = "three_way_cylinder"
 SHARED_KEYS = ("supply_pressure", "underlap", "flow_gain", "bulk_modulus", "orifice_linear_below", "stroke")
 #: The quantity (QUANTITIES) of a kind's parameter whose name is not one.
 _QUANTITY_OF = {"cap_area": "piston_area", "annulus_area": "rod_area", "dead_volume_A": "dead_volume",
-                "dead_volume_B": "dead_volume"}
+                "dead_volume_B": "dead_volume", "displacement": "displacement"}
 #: Largest description file read (the TOML and the URDF it names), bytes: the shipped ones are a few kB.
 MAX_DESCRIPTION_BYTES = 16 * 1024 * 1024
 _MAX_QUOTE = 200  # characters of a bad value quoted in an error message
@@ -201,6 +203,9 @@ class Cylinder:
     stroke_max: float
     kind: str = DEFAULT_KIND
     params: dict = field(default_factory=dict)
+    #: a joint actuator's (rotary) joint: its coordinate is the joint's angle, its row of JL that
+    #: joint's unit vector; link_from/link_to are the joint's parent and child, the points 0
+    joint: str | None = None
 
     @property
     def table(self) -> dict:
@@ -326,7 +331,7 @@ def _baked_cylinder(c: Cylinder) -> list:
         from .actuators import actuator
         gamma = {p.name for p in actuator(c.kind).PARAMETERS if p.gamma}  # runtime γ, not baked
         out += [c.kind, {k: v for k, v in sorted(c.params.items()) if k not in gamma},
-                [c.stroke_min, c.stroke_max]]
+                [c.stroke_min, c.stroke_max]] + ([c.joint] if c.joint is not None else [])
     return out
 
 
@@ -673,34 +678,41 @@ def _order_tree(r: _Reader, links, joints, where):
     return root, tuple(ordered), tuple(moving)
 
 
+#: The travel key of a kind moving a length (``stroke``) or a joint angle (``angle``), as [min, max].
+_TRAVEL = {"prismatic": ("stroke", "stroke_min", "stroke_max"), "revolute": ("angle", "angle_min", "angle_max")}
+
+
+def _travel(kind: str) -> tuple:
+    from .actuators import actuator
+    return _TRAVEL[actuator(kind).MOTION]
+
+
 def _kind_keys(kind: str) -> tuple:
-    """The description keys of a cylinder of actuator ``kind``: its parameters, with stroke_min and
-    stroke_max as the one key ``stroke`` = [shortest, longest] (as the three-way cylinder's)."""
+    """The description keys of a cylinder of actuator ``kind``: its parameters, with the travel
+    limits as one key ``stroke`` = [shortest, longest] (m, as the three-way cylinder's) or, for a
+    joint actuator, ``angle`` = [lowest, highest] (rad)."""
     if kind == DEFAULT_KIND:
         return HYDRAULIC_KEYS
     from .actuators import actuator
-    names = [p.name for p in actuator(kind).PARAMETERS if p.name not in ("stroke_min", "stroke_max")]
-    return (*names, "stroke")
+    key, lo, hi = _travel(kind)
+    names = [p.name for p in actuator(kind).PARAMETERS if p.name not in (lo, hi)]
+    return (*names, key)
 
 
 def _cylinder_kinds() -> tuple:
-    """The actuator kinds a [[cylinders]] entry may name: those moving a length (prismatic)."""
-    from .actuators import KINDS, actuator
-    return tuple(k for k in KINDS if actuator(k).MOTION == "prismatic")
+    """The actuator kinds a [[cylinders]] entry may name."""
+    from .actuators import KINDS
+    return KINDS
 
 
 def _kind(r: _Reader, where: str, value) -> str:
     kinds = _cylinder_kinds()
     if not isinstance(value, str) or value not in kinds:
-        from .actuators import KINDS
-        others = [k for k in KINDS if k not in kinds]
-        note = f" ({', '.join(others)} acts on a joint, not between two links: not supported in [[cylinders]])" \
-            if value in others else ""
-        raise r.error(where, f"unknown actuator kind {_quote(value)}{note}; known kinds: {', '.join(kinds)}")
+        raise r.error(where, f"unknown actuator kind {_quote(value)}; known kinds: {', '.join(kinds)}")
     return value
 
 
-def _cylinders(r: _Reader, data: dict, link_names: set, root_note: str = ""):
+def _cylinders(r: _Reader, data: dict, link_names: set, root_note: str = "", joints: tuple = ()):
     """The [[cylinders]]; ``root_note`` follows the list of links when a cylinder names a link the tree
     lacks (where the root comes from, when a misspelt parent may have made it)."""
     defaults = r.table(data, "hydraulics", required=False)
@@ -723,6 +735,9 @@ def _cylinders(r: _Reader, data: dict, link_names: set, root_note: str = ""):
         kind = _kind(r, f"{w} kind", cy["kind"]) if "kind" in cy else default_kind
         keys = _kind_keys(kind)
         used.update(keys)
+        if _travel(kind)[0] == "angle":
+            out.append(_joint_actuator(r, w, cy, defaults, kind, keys, joints))
+            continue
         r.known(cy, {"name", "from", "to", "kind", *keys}, w if kind == DEFAULT_KIND else f"{w} (kind {kind})")
         ends = []
         for end in ("from", "to"):
@@ -763,6 +778,27 @@ def _cylinders(r: _Reader, data: dict, link_names: set, root_note: str = ""):
     return tuple(out)
 
 
+def _joint_actuator(r: _Reader, w: str, cy: dict, defaults: dict, kind: str, keys, joints) -> Cylinder:
+    """A [[cylinders]] entry of a joint actuator (rotary): ``joint`` names a revolute joint of the tree."""
+    r.known(cy, {"name", "joint", "kind", *keys}, f"{w} (kind {kind})")
+    jname = r.name(f"{w} joint", r.require(cy, "joint", f"{w} (kind {kind})"))
+    joint = next((j for j in joints if j.name == jname), None)
+    revolute = [j.name for j in joints if j.type == "revolute"]
+    if joint is None or joint.type != "revolute":
+        raise r.error(f"{w} joint", f"'{jname}' is not a revolute joint of the tree (revolute joints: "
+                                    f"{', '.join(revolute) or 'none'})")
+    vals = _cylinder_values(r, w, cy, defaults, kind, keys)
+    amin, amax = (float(v) for v in vals.pop("angle"))
+    if amin >= amax:
+        raise r.error(f"{w} angle", f"must be [lowest, highest] with lowest < highest, got {[amin, amax]}")
+    _check_two_chamber(r, w, vals)
+    shared = {k: vals.pop(k) for k in SHARED_KEYS if k in vals}
+    zero = np.zeros(3)
+    return Cylinder(cy["name"], joint.parent, zero, joint.child, zero, piston_area=None, rod_area=None,
+                    chamber_length=None, stroke_min=amin, stroke_max=amax, kind=kind,
+                    params={**vals, "angle_min": amin, "angle_max": amax}, joint=jname, **shared)
+
+
 def _cylinder_values(r: _Reader, w: str, cy: dict, defaults: dict, kind: str, keys) -> dict:
     """The constants ``keys`` of cylinder ``w`` (kind ``kind``): its own, else [hydraulics]', else the
     kind's default (the three-way cylinder's keys have none); each checked against its quantity."""
@@ -780,13 +816,13 @@ def _cylinder_values(r: _Reader, w: str, cy: dict, defaults: dict, kind: str, ke
         else:
             raise r.error(w, f"missing key '{key}' (give it here or in [hydraulics])")
         quantity = _QUANTITY_OF.get(key, key)
-        vals[key] = r.vector(wk, value, 2, quantity) if key == "stroke" else r.number(wk, value, quantity)
+        vals[key] = r.vector(wk, value, 2, quantity) if key in ("stroke", "angle") else r.number(wk, value, quantity)
     return vals
 
 
 def _check_two_chamber(r: _Reader, w: str, vals: dict):
-    """The cross-checks of a two-chamber cylinder's constants (each in range already)."""
-    if vals["annulus_area"] > vals["cap_area"]:
+    """The cross-checks of a two-chamber actuator's constants (each in range already)."""
+    if "annulus_area" in vals and vals["annulus_area"] > vals["cap_area"]:
         raise r.error(f"{w} annulus_area", f"must be <= cap_area {vals['cap_area']} m^2 (the annulus is the cap "
                                            "area less the rod's section)")
     if vals["tank_pressure"] >= vals["supply_pressure"]:
@@ -836,7 +872,7 @@ def model_from_dict(data: dict, source: str = "<memory>", base_dir: Path | None 
     # a TOML tree's root is named only as a parent: a misspelt one shows as a cylinder's unknown link
     root_note = "" if urdf is not None else \
         f"; the root '{root}' is the parent named by joint(s) {[j.name for j in joints if j.parent == root]}"
-    cylinders = _cylinders(r, data, link_names, root_note)
+    cylinders = _cylinders(r, data, link_names, root_note, joints)
     if len(cylinders) != n:
         raise r.error("[[cylinders]]", f"{len(cylinders)} cylinders for {n} coordinates: the method needs one "
                                        "cylinder per coordinate (a square JL)")

@@ -212,3 +212,17 @@ def test_identification_refuses_a_four_way_robot_clearly(arm_dyn):
     with pytest.raises(hydrogen.errors.IdentificationError,
                        match="model 'four_way_arm'.*four_way_cylinder actuators are not supported yet"):
         hydrogen.identify(res, dyn=arm_dyn)
+
+
+def test_a_rotary_elbow_tracks_under_backstepping(tmp_path, cache):
+    """The arm with a rotary vane actuator on its elbow (its coordinate the joint angle, its JL row a
+    unit vector): built, and backstepping tracks on arm-sim with the pressures inside their bounds."""
+    from test_model import rotary_arm_text
+    path = tmp_path / "rotary_arm.toml"
+    path.write_text(rotary_arm_text())
+    dyn = hydrogen.build(hydrogen.load_model(path), cache=cache)
+    np.testing.assert_allclose(dyn.leg_jacobian(dyn.model.neutral_pose)[1], [0.0, 1.0])
+    res = hydrogen.simulate("arm-sim", "backstepping", dyn=dyn)
+    first, last = _errors(res)
+    assert np.all(last < 5e-5) and np.all(first > 50 * last), (first, last)
+    assert res.pressures.min() > 0 and res.pressures.max() < 10e6

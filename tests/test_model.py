@@ -391,7 +391,7 @@ def test_a_kind_parameter_changes_the_hash_its_gamma_does_not(tmp_path):
 @pytest.mark.parametrize("old,new,words", [
     ('kind = "four_way_cylinder"', 'kind = "five_way"', ["[hydraulics] kind", "unknown actuator kind 'five_way'",
                                                           "four_way_cylinder", "three_way_cylinder"]),
-    ('kind = "four_way_cylinder"', 'kind = "rotary"', ["[hydraulics] kind", "'rotary'", "acts on a joint"]),
+    ('kind = "four_way_cylinder"', 'kind = "rotary"', ["'shoulder_cylinder' (kind rotary)", "unknown key 'from'"]),
     ('kind = "four_way_cylinder"', "kind = 4", ["[hydraulics] kind", "unknown actuator kind 4"]),
     ("cap_area = 1.2566e-3               # pi/4 x 0.040^2, m^2", "",
      ["[[cylinders]] 'shoulder_cylinder'", "missing key 'cap_area'"]),
@@ -426,3 +426,53 @@ def test_a_four_way_default_fills_an_omitted_tank_pressure(tmp_path):
     path = tmp_path / "arm.toml"
     path.write_text(FOUR_WAY_ARM.read_text().replace("tank_pressure = 0.0 ", "", 1))
     assert hydrogen.load_model(path).cylinders[0].params["tank_pressure"] == 0.0
+
+
+ROTARY_ELBOW = """[[cylinders]]
+name = "elbow_motor"
+kind = "rotary"
+joint = "elbow"
+displacement = 4.0e-5
+angle = [-1.9, -0.1]
+"""
+
+
+def rotary_arm_text() -> str:
+    """The four-way arm with a rotary vane actuator on its elbow instead of the elbow cylinder."""
+    text = FOUR_WAY_ARM.read_text()
+    start = text.index('[[cylinders]]\nname = "elbow_cylinder"')
+    end = text.index("[adaptation]")
+    return text[:start] + ROTARY_ELBOW + "\n" + text[end:]
+
+
+def test_a_rotary_actuator_on_a_revolute_joint(tmp_path):
+    path = tmp_path / "arm.toml"
+    path.write_text(rotary_arm_text())
+    m = hydrogen.load_model(path)
+    c = m.cylinders[1]
+    assert (c.kind, c.joint, c.link_from, c.link_to) == ("rotary", "elbow", "upper", "fore")
+    assert c.table["angle_min"] == -1.9 and c.table["displacement"] == 4e-5 and c.table["dead_volume_A"] == 5e-5
+    from hydrogen.tree import cylinder_jacobian, cylinder_lengths
+    assert cylinder_lengths(m, [0.3, -0.8])[1] == -0.8
+    np.testing.assert_allclose(cylinder_jacobian(m, [0.3, -0.8])[1], [0.0, 1.0], atol=1e-9)
+
+
+@pytest.mark.parametrize("old,new,words", [
+    ('joint = "elbow"', 'joint = "wrist"', ["'elbow_motor' joint", "'wrist' is not a revolute joint",
+                                            "shoulder, elbow"]),
+    ('joint = "elbow"\n', '', ["'elbow_motor' (kind rotary)", "missing key 'joint'"]),
+    ("angle = [-1.9, -0.1]", "angle = [-0.1, -1.9]", ["'elbow_motor' angle", "lowest < highest"]),
+    ("angle = [-1.9, -0.1]", "angle = [-0.5, -0.1]", ["'elbow_motor'", "outside its stroke"]),
+    ("displacement = 4.0e-5", "displacement = 20.0", ["'elbow_motor' displacement", "plausible range"]),
+    ("displacement = 4.0e-5", 'displacement = 2.0e-5\nfrom = { link = "upper", point = [0.0, 0.0, 0.0] }',
+     ["'elbow_motor' (kind rotary)", "unknown key 'from'"]),
+])
+def test_bad_rotary_actuators_are_named(tmp_path, old, new, words):
+    text = rotary_arm_text()
+    assert old in text, old
+    path = tmp_path / "arm.toml"
+    path.write_text(text.replace(old, new, 1))
+    with pytest.raises(hydrogen.ModelError) as err:
+        hydrogen.load_model(path)
+    for w in [str(path), *words]:
+        assert w in str(err.value), (w, str(err.value))
