@@ -207,11 +207,14 @@ def test_the_fmus_reproduce_the_simulation_with_two_pressures_per_cylinder(arm_d
     fm.test_plant_and_controller_fmus_reproduce_the_closed_loop(fmus)
 
 
-def test_identification_refuses_a_four_way_robot_clearly(arm_dyn):
-    res = hydrogen.simulate("arm-sim", "backstepping", dyn=arm_dyn, duration=0.5)
-    with pytest.raises(hydrogen.errors.IdentificationError,
-                       match="model 'four_way_arm'.*four_way_cylinder actuators are not supported yet"):
-        hydrogen.identify(res, dyn=arm_dyn)
+def test_identification_reads_the_pressure_vector(arm_dyn):
+    """θ from a noise-free arm-sim log (pc0..pc3: pA, pB per cylinder), through the kinds' forces; γ's
+    per-cylinder estimates through their f0 and g0."""
+    res = hydrogen.simulate("arm-sim", "backstepping", dyn=arm_dyn)
+    assert res.pressures.shape[1] == 4
+    fit = hydrogen.identify(res, dyn=arm_dyn)
+    np.testing.assert_allclose(fit.theta.estimate, arm_dyn.model.theta, rtol=0.02)
+    np.testing.assert_allclose(fit.gamma_per_leg, arm_dyn.model.gamma.T, rtol=0.02)
 
 
 def test_a_rotary_elbow_tracks_under_backstepping(tmp_path, cache):
