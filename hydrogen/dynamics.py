@@ -156,17 +156,26 @@ class Dynamics:
         f = self.functions["valve_flow"]
         return f(u, pc) if out is None else f(u, pc, out=out)
 
-    def valve_inverse(self, ql_per_c, pc, out=None) -> np.ndarray:
-        """(m,) spool positions u (m) giving q_l / c = ``ql_per_c`` at control pressures p_c."""
+    def valve_inverse(self, ql_per_c, pc, out=None, l=None) -> np.ndarray:
+        """(m,) spool positions u (m) giving q_l / c = ``ql_per_c`` at control pressures p_c (a robot
+        of three-way cylinders). Any other robot: the first argument is g0 per actuator, ``pc`` the
+        pressure vector and ``l`` (m,) the actuator coordinates, required (g0 depends on them)."""
         f = self.functions["valve_inverse"]
-        return f(ql_per_c, pc) if out is None else f(ql_per_c, pc, out=out)
+        args = (ql_per_c, pc)
+        if "l" in f.in_names:
+            if l is None:
+                raise ValueError(f"model '{self.model.name}': valve_inverse(g0, pc, l=...) needs the actuator "
+                                 "coordinates l (its actuators are not all three-way cylinders)")
+            args = (ql_per_c, l, pc)
+        return f(*args) if out is None else f(*args, out=out)
 
     def pressure_rate(self, l, ldot, pc, u, gamma, out=None) -> np.ndarray:
-        """(m,) ṗ_c (Pa/s) of (56)-(57) with γ = [β, βc] per cylinder, shape (2, m) (or (2,) for all)."""
+        """ṗ (Pa/s) of the pressure vector (ṗ_c of (56)-(57) per three-way cylinder) with γ = [β, βc] per
+        cylinder, shape (2, m) (or (2,) for all)."""
         g = np.broadcast_to(np.asarray(gamma, float).reshape(2, -1), (2, self.model.n_cylinders))
         f = self.functions["pressure_rate"]
         return f(l, ldot, pc, u, g[0], g[1]) if out is None else f(l, ldot, pc, u, g[0], g[1], out=out)
 
     def leg_force(self, pc, out=None) -> np.ndarray:
-        """(m,) cylinder forces f = p_c A − p_s a, N."""
+        """(m,) cylinder forces from the pressure vector (f = p_c A − p_s a for a three-way cylinder), N."""
         return self.functions["leg_force"](pc) if out is None else self.functions["leg_force"](pc, out=out)

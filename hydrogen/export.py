@@ -34,6 +34,7 @@ from pathlib import Path
 import numpy as np
 
 from .errors import HydrogenError
+from .layout import loop_functions
 
 __all__ = ["export", "EXPORT_MANIFEST", "TEMPLATE_NAMES", "export_context", "render_template", "read_sources", "resolve_dyn",
            "sensor_kalman_gain", "c_double", "c_doubles", "prepare_export", "controller_entries",
@@ -65,7 +66,7 @@ def check_export_dir(out: Path, probe: bool = True) -> Path:
 TEMPLATE_NAMES = {"export_params.h.j2": "params.h", "export_main.c.j2": "main.c",
                   "Makefile.j2": "Makefile", "CMakeLists.txt.j2": "CMakeLists.txt"}
 #: Generated functions the loop driver calls (besides the controller).
-LOOP_FUNCTIONS = ("leg_lengths", "leg_kinematics", "plant_rhs")
+LOOP_FUNCTIONS = ("leg_lengths", "leg_kinematics", "plant_rhs")  # a three-way robot's; see layout.loop_functions
 #: Forward kinematics settings of the loop (the defaults of hydrogen.runtime.loop.LoopRunner).
 FK_TOL, FK_MAX_ITER = 1e-12, 50
 
@@ -218,7 +219,7 @@ def export_context(dyn, p, scenario_name, controller, prog, sources, headers, ct
         "n_periods": int(p.n), "duration": c_double(sc.duration), "control_rate": c_double(sc.control_rate),
         "h": c_double(p.h), "substeps": int(sc.substeps), "t_adapt": c_double(sc.t_adapt),
         "metric_start": c_double(sc.metric_start),
-        "n": loop["n"], "m": loop["m"], "nx": loop["nx"], "p_theta": model.n_theta,
+        "n": loop["n"], "m": loop["m"], "nx": loop["nx"], "three_way": loop["three_way"], "p_theta": model.n_theta,
         "theta_names": ", ".join(model.theta_names),
         "theta": c_doubles(model.theta), "gamma1": c_doubles(model.gamma[0]), "gamma2": c_doubles(model.gamma[1]),
         "friction": c_doubles(sc.friction), "valve": c_doubles(valve_vector(sc)),
@@ -380,7 +381,8 @@ def export(out_dir, scenario=None, controller="adaptive-robust", model=None, dur
     entries = {e["name"]: e for e in dyn.library.manifest["functions"]}
     ctrl_entries = controller_entries(dyn.library.manifest, p.ctrl)
     ctrl_entry = ctrl_entries[0]
-    funcs = [entries[n] for n in LOOP_FUNCTIONS] + ctrl_entries
+    loop_funcs = loop_functions(dyn.library.manifest["model"])
+    funcs = [entries[n] for n in loop_funcs] + ctrl_entries
     drivers = [d for d in dyn.library.manifest.get("drivers", []) if d == f"{mname}_loop.c"]
     if not drivers:
         raise HydrogenError(f"export: the compiled dynamics have no loop driver {mname}_loop.c; rebuild")
@@ -402,7 +404,7 @@ def export(out_dir, scenario=None, controller="adaptive-robust", model=None, dur
         extra = f", duration={float(duration)!r}" + extra
     if gains:
         extra += ", gains=..."
-    other = "\n                  ".join(f"{e['source']}, {e['header']}" for e in funcs[:len(LOOP_FUNCTIONS)])
+    other = "\n                  ".join(f"{e['source']}, {e['header']}" for e in funcs[:len(loop_funcs)])
     ctrl_files = "\n                  ".join(f"{e['source']}, {e['header']}" for e in ctrl_entries)
     kalman_note = textwrap.fill(kalman_note, width=96)
     rendered["README.txt"] = _README.format(

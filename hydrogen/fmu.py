@@ -120,6 +120,21 @@ def _name_part(s: str) -> str:
     return "'" + s.replace("\\", "\\\\").replace("'", "\\'") + "'"
 
 
+def _pressure_states(model) -> list:
+    """(variable prefix, (cylinder, what it is, what is measured)) of each pressure state, in the
+    pressure vector's order: ``pc`` for a three-way cylinder (its control pressure), the kind's
+    state names (``pA``, ``pB``) for another."""
+    from .actuators import actuator
+    out = []
+    for c in model.cylinders:
+        for st in actuator(c.kind).STATES:
+            if c.kind == "three_way_cylinder":
+                out.append(("pc", (c.name, "control (cap-side) chamber pressure", "control pressure")))
+            else:
+                out.append((st.name, (c.name, st.doc, st.doc)))
+    return out
+
+
 def _dotted(*parts) -> str:
     """A structured name from parts; a part may itself be dotted (link.parameter)."""
     out = []
@@ -179,6 +194,8 @@ def _variables(part, dyn, p, ctx, fn, encoders, kalman):
     n, m = model.n, model.n_cylinders
     coords, cyls, cunits = list(model.coordinate_names), [c.name for c in model.cylinders], _coord_units(model)
     theta_units = [_THETA_UNITS.get(t.split(".")[-1]) for t in model.theta_names]
+    pstates = _pressure_states(model)
+    from .pressures import bounds as pressure_bounds
     out = []
 
     def add(*a, **k):
@@ -196,10 +213,11 @@ def _variables(part, dyn, p, ctx, fn, encoders, kalman):
         for i, c in enumerate(coords):
             add(_dotted("q_start", c), "p", "fixed", f"initial {c} (the scenario's)", f"inst->q_start[{i}]",
                 unit=cunits[i], start=float(p.x0[i]))
-        for i, c in enumerate(cyls):
-            add(_dotted("pc_start", c), "p", "fixed", f"initial control pressure of cylinder {c} (holding the "
-                "robot still at the start pose)", f"inst->pc_start[{i}]", unit="Pa", start=float(p.x0[2 * n + i]),
-                lo=0.0, hi=float(model.cylinders[i].supply_pressure))
+        p_lo, p_hi = pressure_bounds(model)
+        for j, (nm, what) in enumerate(pstates):
+            add(_dotted(f"{nm}_start", what[0]), "p", "fixed", f"initial {what[2]} of cylinder {what[0]} (holding "
+                "the robot still at the start pose)", f"inst->pc_start[{j}]", unit="Pa", start=float(p.x0[2 * n + j]),
+                lo=float(p_lo[j]), hi=float(p_hi[j]))
         for i, c in enumerate(coords):
             add(_dotted("q", c), "o", "continuous", f"coordinate {c}", f"inst->y_q[{i}]", unit=cunits[i])
         for i, c in enumerate(coords):
@@ -209,9 +227,10 @@ def _variables(part, dyn, p, ctx, fn, encoders, kalman):
         for i, c in enumerate(cyls):
             add(_dotted("ldot", c), "o", "continuous", f"rate of cylinder {c} (JL qdot)", f"inst->y_ldot[{i}]",
                 unit="m/s")
-        for i, c in enumerate(cyls):
-            add(_dotted("pc", c), "o", "continuous", f"control (cap-side) chamber pressure of cylinder {c}; the "
-                "rod side is at supply pressure", f"inst->y_pc[{i}]", unit="Pa")
+        for j, (nm, what) in enumerate(pstates):
+            note = "; the rod side is at supply pressure" if nm == "pc" else ""
+            add(_dotted(nm, what[0]), "o", "continuous", f"{what[1]} of cylinder {what[0]}{note}",
+                f"inst->y_pc[{j}]", unit="Pa")
         return out, []
 
     offsets = np.cumsum([0] + [int(r) * int(c) for r, c in fn.in_shapes]).tolist()
@@ -220,9 +239,9 @@ def _variables(part, dyn, p, ctx, fn, encoders, kalman):
         for i, c in enumerate(cyls):
             add(_dotted("l", c), "i", "continuous", f"measured length of cylinder {c}", f"inst->l_in[{i}]",
                 unit="m", start=float(l0[i]))
-        for i, c in enumerate(cyls):
-            add(_dotted("pc", c), "i", "continuous", f"measured control pressure of cylinder {c}",
-                f"inst->pc_in[{i}]", unit="Pa", start=float(p.x0[2 * n + i]))
+        for j, (nm, what) in enumerate(pstates):
+            add(_dotted(nm, what[0]), "i", "continuous", f"measured {what[2]} of cylinder {what[0]}",
+                f"inst->pc_in[{j}]", unit="Pa", start=float(p.x0[2 * n + j]))
         if encoders:
             for i, c in enumerate(coords):
                 add(_dotted("q", c), "i", "continuous", f"joint encoder reading of {c}", f"inst->q_in[{i}]",
@@ -525,7 +544,8 @@ def export_fmu(out, part, scenario=None, controller="adaptive-robust", model=Non
     Path of the written FMU.
     """
     from . import __version__
-    from .export import (LOOP_FUNCTIONS, controller_entries, export_context, prepare_export, read_sources,
+    from .layout import loop_functions
+    from .export import (controller_entries, export_context, prepare_export, read_sources,
                          sensor_kalman_gain, render_template)
     from .names import check_identifier
 
@@ -545,7 +565,7 @@ def export_fmu(out, part, scenario=None, controller="adaptive-robust", model=Non
     entries = {e["name"]: e for e in manifest["functions"]}
     ctrl_entries = controller_entries(manifest, p.ctrl)
     ctrl_entry = ctrl_entries[0]
-    funcs = [entries[n] for n in LOOP_FUNCTIONS] + (ctrl_entries if part != "plant" else [])
+    funcs = [entries[n] for n in loop_functions(manifest["model"])] + (ctrl_entries if part != "plant" else [])
     driver = f"{mname}_loop.c"
     if driver not in manifest.get("drivers", []):
         raise FmuError(f"export: the compiled dynamics have no loop driver {driver}; rebuild")

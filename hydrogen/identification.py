@@ -68,7 +68,8 @@ from dataclasses import asdict, dataclass, field
 
 import numpy as np
 
-from .actuators import three_way_cylinder as actuator
+from . import pressures
+from .actuators import actuator
 from .errors import IdentificationError, KinematicsError
 from .logcheck import fmt_number, check_log
 from .logs import as_log
@@ -386,7 +387,7 @@ def identify(log, model=None, *, dyn=None, cutoff_hz: float | None = None, order
     m = len(dyn.leg_lengths(np.asarray(model.neutral_pose, float)))
     t = np.asarray(log.t, float)
     L = log.group("l", m)
-    PC = log.group("pc", m)
+    PC = log.group("pc", pressures.n_pressures(model))  # the pressure vector: one block per actuator
     U = log.group("u", m, required=False) if gamma else None
     for name, arr in (("t", t[:, None]), ("l", L), ("pc", PC), ("u", U)):
         if arr is None:
@@ -434,13 +435,13 @@ def identify(log, model=None, *, dyn=None, cutoff_hz: float | None = None, order
     V = np.gradient(Qf, h, axis=0)
     Acc = np.gradient(V, h, axis=0)
     # 4. generalised forces at every sample, low-passed alike
-    F = actuator.Numeric.force((PC,), actuator.stacked(model.cylinders))
+    F = pressures.forces(model, PC)
     JL = _per_sample(dyn.leg_jacobian, Q)
     F_theta = F
     if zoh_correction:
         ldd = np.gradient(np.gradient(_lowpass(L, sos), h, axis=0), h, axis=0)
         # the oil column's stiffness β k(l) times the offset h² l̈ / 12 of each length
-        stiffness = model.bulk_modulus * actuator.Numeric.spring_rate(L, actuator.stacked(model.cylinders))
+        stiffness = model.bulk_modulus * _spring_rates(model, L)
         F_theta = F + stiffness * h ** 2 * ldd / 12.0
     tau = _lowpass(np.einsum("kij,ki->kj", JL, F_theta), sos)
     timings["filter_forces"] = time.perf_counter() - t0
@@ -530,6 +531,13 @@ def _true(meta, key, size):
     return None if v.shape != (size,) else v
 
 
+def _spring_rates(model, l) -> np.ndarray:
+    """(..., m) each actuator's spring rate −∂f0/∂ẋ at coordinates ``l`` (..., m) (its kind's law)."""
+    l = np.asarray(l, float)
+    return np.stack([actuator(c.kind).Numeric.spring_rate(l[..., i], actuator(c.kind).parameters(c.table))
+                     for i, c in enumerate(model.cylinders)], axis=-1)
+
+
 def hydraulic_mode_hz(dyn, q) -> float:
     """Highest natural frequency (Hz) of the platform on its oil columns at pose ``q``, with the
     model's θ and β: each leg a spring of stiffness k_i = β × the actuator's spring rate (β A / (l − L)
@@ -538,7 +546,7 @@ def hydraulic_mode_hz(dyn, q) -> float:
     q = np.asarray(q, float)
     l = dyn.leg_lengths(q)
     J = dyn.leg_jacobian(q)
-    k = model.bulk_modulus * actuator.Numeric.spring_rate(l, actuator.stacked(model.cylinders))
+    k = model.bulk_modulus * _spring_rates(model, l)
     K = J.T @ (J * k[:, None])
     w2 = np.linalg.eigvals(np.linalg.solve(dyn.mass_matrix(q, model.theta), K)).real
     return float(np.sqrt(max(w2.max(), 0.0)) / (2 * np.pi))
@@ -548,20 +556,24 @@ def _identify_gamma(dyn, L, PC, U, F, h, sos, idx, max_cond, true):
     """Pooled (and per-leg) least squares of Δf = γ1 h f0 + γ2 h g0 over each hold interval, compensated
     for the leg-length noise inside h f0 (= −A Δl/(l − L) for the paper's cylinder)."""
     model = dyn.model
-    law, P, ps = actuator.Numeric, actuator.stacked(model.cylinders), model.supply_pressure
-    Lf, PCf = _lowpass(L, sos), np.clip(_lowpass(PC, sos), 0.0, ps)
+    p_lo, p_hi = pressures.bounds(model)
+    Lf, PCf = _lowpass(L, sos), np.clip(_lowpass(PC, sos), p_lo, p_hi)
     l_mid = 0.5 * (Lf[1:] + Lf[:-1])
-    pc_mid = 0.5 * (PCf[1:] + PCf[:-1])
+    pc_mid = pressures.split(model, 0.5 * (PCf[1:] + PCf[:-1]))
     dF = np.diff(F, axis=0)
-    X1 = law.f0(l_mid, np.diff(L, axis=0), (pc_mid,), P)  # h f0 (f0 is linear in l̇: l̇ h = Δl)
-    X2 = h * law.g0(l_mid, (pc_mid,), U[:-1], P)
+    dL = np.diff(L, axis=0)
+    X1, X2 = np.empty_like(dL), np.empty_like(dL)
+    for i, c in enumerate(model.cylinders):
+        law, P = actuator(c.kind).Numeric, actuator(c.kind).parameters(c.table)
+        X1[:, i] = law.f0(l_mid[:, i], dL[:, i], pc_mid[i], P)  # h f0 (f0 is linear in l̇: l̇ h = Δl)
+        X2[:, i] = h * law.g0(l_mid[:, i], pc_mid[i], U[:-1, i], P)
     dF, X1, X2 = (_lowpass(x, sos) for x in (dF, X1, X2))
     # Expected square of the noise in X1 at each used sample: white leg-length noise of std σ_i
     # through Δ and the zero-phase filter (gain Σ g² of its impulse response g), times (∂f0/∂l̇)².
     impulse = np.zeros(len(L) | 1)  # as long as the log: the response has died out within its edges
     impulse[len(impulse) // 2] = 1.0
     gain = float(np.sum(_lowpass(np.diff(impulse), sos) ** 2))
-    e1 = law.spring_rate(l_mid[idx], P) ** 2 * noise_std(L) ** 2 * gain  # (k, m)
+    e1 = _spring_rates(model, l_mid[idx]) ** 2 * noise_std(L) ** 2 * gain  # (k, m)
     per_leg = []
     for i in range(L.shape[1]):
         G = np.zeros((2, 2))

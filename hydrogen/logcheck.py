@@ -111,8 +111,10 @@ def check_lengths(source, t, L, model) -> None:
 
 
 def check_pressures(source, t, PC, model) -> None:
-    """Refuse chamber pressures that are all 0, not in Pa, or outside [0, P_s]."""
-    ps = model.supply_pressure
+    """Refuse chamber pressures that are all 0, not in Pa, or outside their bounds ([0, P_s] for a
+    three-way cylinder's p_c); one column per state of the pressure vector."""
+    from .pressures import bounds
+    p_lo, ps = bounds(model)
     cols = [f"pc{i}" for i in range(PC.shape[1])]
     peak = np.max(np.abs(PC), axis=0)
     zero = [c for c, v in zip(cols, peak) if v == 0.0]
@@ -133,14 +135,14 @@ def check_pressures(source, t, PC, model) -> None:
             f"{source}: {which} {guess}: the largest magnitude in {cols[i]} is {_num(peak[i])}, "
             f"{_num(peak[i] / ps[i])} of the supply pressure P_s = {_num(ps[i])} Pa: write them in Pa")
     tol = PRESSURE_TOL * ps + 6.0 * _noise(PC)
-    out = (PC < -tol) | (PC > ps + tol)
+    out = (PC < p_lo - tol) | (PC > ps + tol)
     if out.any():
         k, i = (int(v[0]) for v in np.nonzero(out))
-        side = "below 0" if PC[k, i] < 0 else "above the supply pressure"
+        side = f"below {_num(p_lo[i])}" if PC[k, i] < p_lo[i] else "above the supply pressure"
         raise IdentificationError(
             f"{source}: pressure column {cols[i]} at t = {_num(t[k])} s is {_num(PC[k, i])} Pa, {side} (the model's "
-            f"range [0, P_s] = [0, {_num(ps[i])}] Pa; {int(out.sum())} sample(s) outside): pressures must be "
-            f"absolute control-chamber pressures in Pa")
+            f"range [{_num(p_lo[i]) if p_lo[i] else 0}, P_s] = [{_num(p_lo[i]) if p_lo[i] else 0}, {_num(ps[i])}] Pa; "
+            f"{int(out.sum())} sample(s) outside): pressures must be absolute chamber pressures in Pa")
 
 
 def check_log(source, t, fs: float, h: float, L, PC, model) -> None:

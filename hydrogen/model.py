@@ -76,6 +76,12 @@ QUANTITIES = {
     "underlap": Quantity("nonnegative", 0.0, 1e-2, "m"),
     # c = c_d w sqrt(2/rho), q = c u sqrt(dp): a 10 um-wide micro-valve port (3e-7) .. a 30 m port periphery
     "flow_gain": Quantity("positive", 1e-9, 1.0, "m^2/(s sqrt(Pa))"),
+    # m^3: a chamber's dead volume (hoses, ports): 1 mm^3 (a micro-actuator) .. 100 m^3
+    "dead_volume": Quantity("positive", 1e-9, 100.0, "m^3"),
+    # m^3/rad: a rotary actuator's displacement: a 1 cm^3/rad micro-actuator (1e-6 .. ) .. 1 m^3/rad
+    "displacement": Quantity("positive", 1e-9, 1.0, "m^3/rad"),
+    # Pa (gauge): the return line's pressure, 0 .. the largest supply
+    "tank_pressure": Quantity("nonnegative", 0.0, 1e8, "Pa"),
     # Pa: the pressure drop below which the plant's orifice roots turn linear: up to the largest supply
     "orifice_linear_below": Quantity("positive", 1.0, 1e8, "Pa"),
     # m/s^2: 0 (a horizontal or orbital machine) .. 30 (above Jupiter's 24.8)
@@ -93,6 +99,14 @@ QUANTITIES = {
 #: override them.
 HYDRAULIC_KEYS = ("piston_area", "rod_area", "chamber_length", "supply_pressure", "underlap", "flow_gain",
                   "bulk_modulus", "orifice_linear_below", "stroke")
+#: The actuator kind of a cylinder that names none (``kind``, in [[cylinders]] or [hydraulics]).
+DEFAULT_KIND = "three_way_cylinder"
+#: The constants every cylinder kind has, held as :class:`Cylinder` fields (the rest of a kind's
+#: parameters are in ``Cylinder.params``); ``stroke`` is the pair (stroke_min, stroke_max).
+SHARED_KEYS = ("supply_pressure", "underlap", "flow_gain", "bulk_modulus", "orifice_linear_below", "stroke")
+#: The quantity (QUANTITIES) of a kind's parameter whose name is not one.
+_QUANTITY_OF = {"cap_area": "piston_area", "annulus_area": "rod_area", "dead_volume_A": "dead_volume",
+                "dead_volume_B": "dead_volume", "displacement": "displacement"}
 #: Largest description file read (the TOML and the URDF it names), bytes: the shipped ones are a few kB.
 MAX_DESCRIPTION_BYTES = 16 * 1024 * 1024
 _MAX_QUOTE = 200  # characters of a bad value quoted in an error message
@@ -169,10 +183,14 @@ class Joint:
 
 @dataclass(frozen=True)
 class Cylinder:
-    """A three-way-valve cylinder pinned at ``point_from`` on ``link_from`` and ``point_to`` on
-    ``link_to`` (each in its link's frame, m). Its length l is pin to pin; the control chamber
-    (cap side, area A) has volume A (l − L); the rod side (area a) is at P_s; force
-    f = p_c A − P_s a (positive extends)."""
+    """A cylinder pinned at ``point_from`` on ``link_from`` and ``point_to`` on ``link_to`` (each in
+    its link's frame, m); its length l is pin to pin, within [stroke_min, stroke_max].
+
+    ``kind``: its actuator kind (:mod:`hydrogen.actuators`). The default, a three-way-valve cylinder:
+    the control chamber (cap side, area A) has volume A (l − L); the rod side (area a) is at P_s;
+    force f = p_c A − P_s a (positive extends). Another kind holds the constants it does not share
+    with the three-way cylinder (:data:`SHARED_KEYS`) in ``params`` (by parameter name, SI), and
+    ``piston_area``, ``rod_area``, ``chamber_length`` are None."""
 
     name: str
     link_from: str
@@ -189,6 +207,18 @@ class Cylinder:
     orifice_linear_below: float
     stroke_min: float
     stroke_max: float
+    kind: str = DEFAULT_KIND
+    params: dict = field(default_factory=dict)
+    #: a joint actuator's (rotary) joint: its coordinate is the joint's angle, its row of JL that
+    #: joint's unit vector; link_from/link_to are the joint's parent and child, the points 0
+    joint: str | None = None
+
+    @property
+    def table(self) -> dict:
+        """Every parameter of its kind by name (SI), for ``actuator(kind).parameters(table)``."""
+        from .actuators import actuator
+        names = [p.name for p in actuator(self.kind).PARAMETERS]
+        return {k: self.params[k] if k in self.params else getattr(self, k) for k in names}
 
 
 def _stack(name):
@@ -314,9 +344,7 @@ class Model:
                         np.asarray(j.origin_rpy).tolist(), np.asarray(j.axis).tolist()] for j in self.joints],
             "inertial": {k: (None if k in adapted else v) for k, v in self.inertial_parameters().items()},
             "theta_names": list(self.theta_names),
-            "cylinders": [[c.name, c.link_from, np.asarray(c.point_from).tolist(), c.link_to,
-                           np.asarray(c.point_to).tolist(), c.piston_area, c.rod_area, c.chamber_length,
-                           c.supply_pressure, c.underlap, c.orifice_linear_below] for c in self.cylinders],
+            "cylinders": [_baked_cylinder(c) for c in self.cylinders],
             "coordinates": list(self.coordinate_names),
         }
 
@@ -324,6 +352,17 @@ class Model:
         """SHA-256 of the baked part, canonical JSON (floats by repr), so equal models hash equal."""
         text = json.dumps(self.baked(), sort_keys=True, separators=(",", ":"))
         return hashlib.sha256(text.encode()).hexdigest()
+
+
+def _baked_cylinder(c: Cylinder) -> list:
+    out = [c.name, c.link_from, np.asarray(c.point_from).tolist(), c.link_to, np.asarray(c.point_to).tolist(),
+           c.piston_area, c.rod_area, c.chamber_length, c.supply_pressure, c.underlap, c.orifice_linear_below]
+    if c.kind != DEFAULT_KIND:  # appended only then, so a three-way robot's hash is what it always was
+        from .actuators import actuator
+        gamma = {p.name for p in actuator(c.kind).PARAMETERS if p.gamma}  # runtime γ, not baked
+        out += [c.kind, {k: v for k, v in sorted(c.params.items()) if k not in gamma},
+                [c.stroke_min, c.stroke_max]] + ([c.joint] if c.joint is not None else [])
+    return out
 
 
 # ------------------------------------------------------------------------------------------
@@ -792,15 +831,51 @@ def _order_tree(r: _Reader, links, joints, where):
     return root, tuple(ordered), tuple(moving)
 
 
-def _cylinders(r: _Reader, data: dict, link_names: set, root_note: str = ""):
+#: The travel key of a kind moving a length (``stroke``) or a joint angle (``angle``), as [min, max].
+_TRAVEL = {"prismatic": ("stroke", "stroke_min", "stroke_max"), "revolute": ("angle", "angle_min", "angle_max")}
+
+
+def _travel(kind: str) -> tuple:
+    from .actuators import actuator
+    return _TRAVEL[actuator(kind).MOTION]
+
+
+def _kind_keys(kind: str) -> tuple:
+    """The description keys of a cylinder of actuator ``kind``: its parameters, with the travel
+    limits as one key ``stroke`` = [shortest, longest] (m, as the three-way cylinder's) or, for a
+    joint actuator, ``angle`` = [lowest, highest] (rad)."""
+    if kind == DEFAULT_KIND:
+        return HYDRAULIC_KEYS
+    from .actuators import actuator
+    key, lo, hi = _travel(kind)
+    names = [p.name for p in actuator(kind).PARAMETERS if p.name not in (lo, hi)]
+    return (*names, key)
+
+
+def _cylinder_kinds() -> tuple:
+    """The actuator kinds a [[cylinders]] entry may name."""
+    from .actuators import KINDS
+    return KINDS
+
+
+def _kind(r: _Reader, where: str, value) -> str:
+    kinds = _cylinder_kinds()
+    if not isinstance(value, str) or value not in kinds:
+        raise r.error(where, f"unknown actuator kind {_quote(value)}; known kinds: {', '.join(kinds)}")
+    return value
+
+
+def _cylinders(r: _Reader, data: dict, link_names: set, root_note: str = "", joints: tuple = ()):
     """The [[cylinders]]; ``root_note`` follows the list of links when a cylinder names a link the tree
     lacks (where the root comes from, when a misspelt parent may have made it)."""
     defaults = r.table(data, "hydraulics", required=False)
-    r.known(defaults, set(HYDRAULIC_KEYS), "[hydraulics]")
+    all_keys = {"kind"}.union(*(_kind_keys(k) for k in _cylinder_kinds()))
+    r.known(defaults, all_keys, "[hydraulics]")
+    default_kind = _kind(r, "[hydraulics] kind", defaults["kind"]) if "kind" in defaults else DEFAULT_KIND
     raw = data.get("cylinders")
     if not isinstance(raw, list) or not raw:
         raise r.error("[[cylinders]]", "expected one [[cylinders]] table per coordinate")
-    out, names = [], set()
+    out, names, used = [], set(), {"kind"}
     for i, cy in enumerate(raw):
         w = f"[[cylinders]] #{i + 1}"
         if not isinstance(cy, dict):
@@ -810,7 +885,13 @@ def _cylinders(r: _Reader, data: dict, link_names: set, root_note: str = ""):
         if name in names:
             raise r.error(w, "a second cylinder of this name")
         names.add(name)
-        r.known(cy, _keys("[[cylinders]]"), w)
+        kind = _kind(r, f"{w} kind", cy["kind"]) if "kind" in cy else default_kind
+        keys = _kind_keys(kind)
+        used.update(keys)
+        if _travel(kind)[0] == "angle":
+            out.append(_joint_actuator(r, w, cy, defaults, kind, keys, joints))
+            continue
+        r.known(cy, {"name", "from", "to", "kind", *keys}, w if kind == DEFAULT_KIND else f"{w} (kind {kind})")
         ends = []
         for end in ("from", "to"):
             e = r.require(cy, end, w)
@@ -825,26 +906,80 @@ def _cylinders(r: _Reader, data: dict, link_names: set, root_note: str = ""):
             ends.append((link, r.vector(f"{we}.point", r.require(e, "point", we), 3, "position")))
         if ends[0][0] == ends[1][0]:
             raise r.error(w, f"both ends are on link '{ends[0][0]}': a cylinder must join two links")
-        vals = {}
-        for key in HYDRAULIC_KEYS:
-            if key in cy:
-                value, wk = cy[key], f"{w} {key}"
-            elif key in defaults:
-                value, wk = defaults[key], f"[hydraulics] {key}"
-            else:
-                raise r.error(w, f"missing key '{key}' (give it here or in [hydraulics])")
-            vals[key] = r.vector(wk, value, 2, key) if key == "stroke" else r.number(wk, value, key)
-        smin, smax = vals.pop("stroke")
+        vals = _cylinder_values(r, w, cy, defaults, kind, keys)
+        smin, smax = (float(v) for v in vals.pop("stroke"))
         if smin >= smax:
             raise r.error(f"{w} stroke", f"must be [shortest, longest] with shortest < longest, got {[smin, smax]}")
-        if vals["chamber_length"] >= smin:
-            raise r.error(f"{w} chamber_length", f"must be < the shortest length {smin} m so the control chamber "
-                                                 "keeps a positive volume")
-        if vals["rod_area"] >= vals["piston_area"]:
-            raise r.error(f"{w} rod_area", "must be < piston_area")
-        out.append(Cylinder(name, ends[0][0], ends[0][1], ends[1][0], ends[1][1], stroke_min=smin,
-                            stroke_max=smax, **vals))
+        if kind == DEFAULT_KIND:
+            if vals["chamber_length"] >= smin:
+                raise r.error(f"{w} chamber_length", f"must be < the shortest length {smin} m so the control "
+                                                     "chamber keeps a positive volume")
+            if vals["rod_area"] >= vals["piston_area"]:
+                raise r.error(f"{w} rod_area", "must be < piston_area")
+            out.append(Cylinder(name, ends[0][0], ends[0][1], ends[1][0], ends[1][1], stroke_min=smin,
+                                stroke_max=smax, **vals))
+            continue
+        _check_two_chamber(r, w, vals)
+        shared = {k: vals.pop(k) for k in SHARED_KEYS if k in vals}
+        out.append(Cylinder(name, ends[0][0], ends[0][1], ends[1][0], ends[1][1], piston_area=None, rod_area=None,
+                            chamber_length=None, stroke_min=smin, stroke_max=smax, kind=kind, params=vals,
+                            **shared))
+    unused = sorted(set(defaults) - used)
+    if unused:
+        kinds = sorted({c.kind for c in out})
+        raise r.error(f"[hydraulics] {unused[0]}", f"is a parameter of no cylinder's kind ({', '.join(kinds)})")
     return tuple(out)
+
+
+def _joint_actuator(r: _Reader, w: str, cy: dict, defaults: dict, kind: str, keys, joints) -> Cylinder:
+    """A [[cylinders]] entry of a joint actuator (rotary): ``joint`` names a revolute joint of the tree."""
+    r.known(cy, {"name", "joint", "kind", *keys}, f"{w} (kind {kind})")
+    jname = r.name(f"{w} joint", r.require(cy, "joint", f"{w} (kind {kind})"))
+    joint = next((j for j in joints if j.name == jname), None)
+    revolute = [j.name for j in joints if j.type == "revolute"]
+    if joint is None or joint.type != "revolute":
+        raise r.error(f"{w} joint", f"'{jname}' is not a revolute joint of the tree (revolute joints: "
+                                    f"{', '.join(revolute) or 'none'})")
+    vals = _cylinder_values(r, w, cy, defaults, kind, keys)
+    amin, amax = (float(v) for v in vals.pop("angle"))
+    if amin >= amax:
+        raise r.error(f"{w} angle", f"must be [lowest, highest] with lowest < highest, got {[amin, amax]}")
+    _check_two_chamber(r, w, vals)
+    shared = {k: vals.pop(k) for k in SHARED_KEYS if k in vals}
+    zero = np.zeros(3)
+    return Cylinder(cy["name"], joint.parent, zero, joint.child, zero, piston_area=None, rod_area=None,
+                    chamber_length=None, stroke_min=amin, stroke_max=amax, kind=kind,
+                    params={**vals, "angle_min": amin, "angle_max": amax}, joint=jname, **shared)
+
+
+def _cylinder_values(r: _Reader, w: str, cy: dict, defaults: dict, kind: str, keys) -> dict:
+    """The constants ``keys`` of cylinder ``w`` (kind ``kind``): its own, else [hydraulics]', else the
+    kind's default (the three-way cylinder's keys have none); each checked against its quantity."""
+    from .actuators import actuator
+    fallback = {} if kind == DEFAULT_KIND else \
+        {p.name: p.default for p in actuator(kind).PARAMETERS if p.default is not None}
+    vals = {}
+    for key in keys:
+        if key in cy:
+            value, wk = cy[key], f"{w} {key}"
+        elif key in defaults:
+            value, wk = defaults[key], f"[hydraulics] {key}"
+        elif key in fallback:
+            value, wk = fallback[key], f"{w} {key} (default)"
+        else:
+            raise r.error(w, f"missing key '{key}' (give it here or in [hydraulics])")
+        quantity = _QUANTITY_OF.get(key, key)
+        vals[key] = r.vector(wk, value, 2, quantity) if key in ("stroke", "angle") else r.number(wk, value, quantity)
+    return vals
+
+
+def _check_two_chamber(r: _Reader, w: str, vals: dict):
+    """The cross-checks of a two-chamber actuator's constants (each in range already)."""
+    if "annulus_area" in vals and vals["annulus_area"] > vals["cap_area"]:
+        raise r.error(f"{w} annulus_area", f"must be <= cap_area {vals['cap_area']} m^2 (the annulus is the cap "
+                                           "area less the rod's section)")
+    if vals["tank_pressure"] >= vals["supply_pressure"]:
+        raise r.error(f"{w} tank_pressure", f"must be < supply_pressure {vals['supply_pressure']} Pa")
 
 
 def model_from_dict(data: dict, source: str = "<memory>", base_dir: Path | None = None) -> Model:
@@ -890,7 +1025,7 @@ def model_from_dict(data: dict, source: str = "<memory>", base_dir: Path | None 
     # a TOML tree's root is named only as a parent: a misspelt one shows as a cylinder's unknown link
     root_note = "" if urdf is not None else \
         f"; the root '{root}' is the parent named by joint(s) {[j.name for j in joints if j.parent == root]}"
-    cylinders = _cylinders(r, data, link_names, root_note)
+    cylinders = _cylinders(r, data, link_names, root_note, joints)
     if len(cylinders) != n:
         raise r.error("[[cylinders]]", f"{len(cylinders)} cylinders for {n} coordinates: the method needs one "
                                        "cylinder per coordinate (a square JL)")

@@ -74,8 +74,16 @@ def link_poses(model, q) -> dict:
 def cylinder_lengths(model, q) -> np.ndarray:
     """Pin-to-pin length of every cylinder (m,) at ``q``."""
     poses = link_poses(model, q)
+    q = np.asarray(q, float)
+    columns, i = {}, 0
+    for j in model.joints:
+        columns[j.name] = i
+        i += j.dof
     out = []
     for c in model.cylinders:
+        if getattr(c, "joint", None) is not None:  # a joint actuator (rotary): the joint's angle
+            out.append(q[columns[c.joint]])
+            continue
         Ra, pa = poses[c.link_from]
         Rb, pb = poses[c.link_to]
         out.append(np.linalg.norm(pb + Rb @ c.point_to - pa - Ra @ c.point_from))

@@ -303,12 +303,16 @@ def test_the_derivation_hash_covers_the_actuators(tmp_path, monkeypatch):
 
     import hydrogen.codegen.generate as gen
     pkg = Path(gen.__file__).resolve().parent.parent
-    for name in ("layout.py", "templating.py"):
+    for name in gen.DERIVATION_FILES:
         shutil.copy(pkg / name, tmp_path / name)
     for sub in ("symbolic", "codegen", "controllers", "actuators"):
         shutil.copytree(pkg / sub, tmp_path / sub)
     monkeypatch.setattr(gen, "_PACKAGE", tmp_path)
     before = gen.derivation_hash()
     path = tmp_path / "actuators" / "rotary.py"
+    path.write_text(path.read_text() + "\n# an edit\n")
+    assert gen.derivation_hash() != before
+    before = gen.derivation_hash()
+    path = tmp_path / "pressures.py"  # the pressure blocks shape the plant state and the controllers' inputs
     path.write_text(path.read_text() + "\n# an edit\n")
     assert gen.derivation_hash() != before

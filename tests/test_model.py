@@ -1,3 +1,5 @@
+from pathlib import Path
+
 import numpy as np
 import pytest
 
@@ -493,3 +495,141 @@ def test_the_cli_shows_description_notes_as_one_line(tmp_path, capsys):
     assert cli.main(["generate", "--check", "--model", str(path), "--out", str(tmp_path / "gen")]) in (0, 1, 2)
     err = capsys.readouterr().err
     assert "hydrogen: note:" in err and "left out" in err and "Warning" not in err
+
+
+# --- actuator kinds -----------------------------------------------------------------------------
+
+FOUR_WAY_ARM = Path(__file__).parent / "data" / "four_way_arm.toml"
+
+
+def test_a_four_way_robot_loads_its_kind_and_parameters():
+    m = hydrogen.load_model(FOUR_WAY_ARM)
+    assert [c.kind for c in m.cylinders] == ["four_way_cylinder"] * 2
+    c = m.cylinders[0]
+    assert c.params == {"cap_area": 1.2566e-3, "annulus_area": 7.6576e-4, "dead_volume_A": 5e-5,
+                        "dead_volume_B": 5e-5, "tank_pressure": 0.0}
+    assert (c.piston_area, c.rod_area, c.chamber_length) == (None, None, None)
+    from hydrogen.actuators import actuator
+    P = actuator(c.kind).parameters(c.table)
+    assert P["stroke_min"] == 0.22 and P["stroke_max"] == 0.62 and P["supply_pressure"] == 10e6
+    # shipped robots: the default kind, an empty params
+    assert all(c.kind == "three_way_cylinder" and c.params == {} for c in hydrogen.load_model("excavator_arm").cylinders)
+
+
+def test_a_kind_given_per_cylinder_overrides_the_hydraulics_default(tmp_path):
+    text = FOUR_WAY_ARM.read_text().replace('name = "elbow_cylinder"\n', 'name = "elbow_cylinder"\n'
+                                            'kind = "four_way_cylinder"\ncap_area = 2.0e-3\n')
+    path = tmp_path / "arm.toml"
+    path.write_text(text)
+    m = hydrogen.load_model(path)
+    assert m.cylinders[1].params["cap_area"] == 2.0e-3 and m.cylinders[0].params["cap_area"] == 1.2566e-3
+
+
+def test_an_explicit_default_kind_keeps_the_hash(tmp_path, model):
+    path = _write_variant(tmp_path, "[hydraulics]                 # the same for every leg (Table I)",
+                          '[hydraulics]\nkind = "three_way_cylinder"')
+    assert hydrogen.load_model(path).baked_hash() == model.baked_hash()
+    assert all(len(entry) == 11 for entry in model.baked()["cylinders"])  # no kind fields appended
+
+
+def test_a_kind_parameter_changes_the_hash_its_gamma_does_not(tmp_path):
+    base = hydrogen.load_model(FOUR_WAY_ARM)
+
+    def variant(old, new):
+        path = tmp_path / "arm.toml"
+        path.write_text(FOUR_WAY_ARM.read_text().replace(old, new, 1))
+        return hydrogen.load_model(path)
+
+    assert variant("dead_volume_B = 5.0e-5", "dead_volume_B = 6.0e-5").baked_hash() != base.baked_hash()
+    assert variant("stroke = [0.22, 0.62]", "stroke = [0.21, 0.62]").baked_hash() != base.baked_hash()
+    assert variant("bulk_modulus = 1.0e9", "bulk_modulus = 1.1e9").baked_hash() == base.baked_hash()
+
+
+@pytest.mark.parametrize("old,new,words", [
+    ('kind = "four_way_cylinder"', 'kind = "five_way"', ["[hydraulics] kind", "unknown actuator kind 'five_way'",
+                                                          "four_way_cylinder", "three_way_cylinder"]),
+    ('kind = "four_way_cylinder"', 'kind = "rotary"', ["'shoulder_cylinder' (kind rotary)", "unknown key 'from'"]),
+    ('kind = "four_way_cylinder"', "kind = 4", ["[hydraulics] kind", "unknown actuator kind 4"]),
+    ("cap_area = 1.2566e-3               # pi/4 x 0.040^2, m^2", "",
+     ["[[cylinders]] 'shoulder_cylinder'", "missing key 'cap_area'"]),
+    ("annulus_area = 7.6576e-4", "annulus_area = 1.3e-3", ["[[cylinders]] 'shoulder_cylinder' annulus_area",
+                                                           "<= cap_area"]),
+    ("tank_pressure = 0.0", "tank_pressure = 1.0e7", ["tank_pressure", "< supply_pressure"]),
+    ("tank_pressure = 0.0", "tank_pressure = -1.0", ["[hydraulics] tank_pressure", ">= 0"]),
+    ("dead_volume_A = 5.0e-5", "dead_volume_A = 0.0", ["[hydraulics] dead_volume_A", "> 0"]),
+    ("dead_volume_A = 5.0e-5", "dead_volume_A = 5.0e4", ["[hydraulics] dead_volume_A", "plausible range"]),
+    ("cap_area = 1.2566e-3", "cap_area = 1.2566e3", ["[hydraulics] cap_area", "plausible range"]),
+    ("cap_area = 1.2566e-3", 'cap_area = "big"', ["[hydraulics] cap_area", "expected a number"]),
+    ("stroke = [0.22, 0.62]", "stroke = [0.62, 0.22]", ["'shoulder_cylinder' stroke", "shortest < longest"]),
+    # a three-way cylinder's key on a four-way cylinder, and in [hydraulics] with no three-way cylinder
+    ("stroke = [0.22, 0.62]", "stroke = [0.22, 0.62]\npiston_area = 1e-3",
+     ["'shoulder_cylinder' (kind four_way_cylinder)", "unknown key 'piston_area'", "cap_area"]),
+    ("tank_pressure = 0.0", "tank_pressure = 0.0\nchamber_length = 0.1",
+     ["[hydraulics] chamber_length", "no cylinder's kind (four_way_cylinder)"]),
+    ("underlap = 1.0e-5", "underlap = 1.0e-5\nbore = 0.04", ["[hydraulics]", "unknown key 'bore'"]),
+])
+def test_bad_four_way_cylinders_are_named(tmp_path, old, new, words):
+    text = FOUR_WAY_ARM.read_text()
+    assert old in text, old
+    path = tmp_path / "arm.toml"
+    path.write_text(text.replace(old, new, 1))
+    with pytest.raises(hydrogen.ModelError) as err:
+        hydrogen.load_model(path)
+    for w in [str(path), *words]:
+        assert w in str(err.value), (w, str(err.value))
+
+
+def test_a_four_way_default_fills_an_omitted_tank_pressure(tmp_path):
+    path = tmp_path / "arm.toml"
+    path.write_text(FOUR_WAY_ARM.read_text().replace("tank_pressure = 0.0 ", "", 1))
+    assert hydrogen.load_model(path).cylinders[0].params["tank_pressure"] == 0.0
+
+
+ROTARY_ELBOW = """[[cylinders]]
+name = "elbow_motor"
+kind = "rotary"
+joint = "elbow"
+displacement = 4.0e-5
+angle = [-1.9, -0.1]
+"""
+
+
+def rotary_arm_text() -> str:
+    """The four-way arm with a rotary vane actuator on its elbow instead of the elbow cylinder."""
+    text = FOUR_WAY_ARM.read_text()
+    start = text.index('[[cylinders]]\nname = "elbow_cylinder"')
+    end = text.index("[adaptation]")
+    return text[:start] + ROTARY_ELBOW + "\n" + text[end:]
+
+
+def test_a_rotary_actuator_on_a_revolute_joint(tmp_path):
+    path = tmp_path / "arm.toml"
+    path.write_text(rotary_arm_text())
+    m = hydrogen.load_model(path)
+    c = m.cylinders[1]
+    assert (c.kind, c.joint, c.link_from, c.link_to) == ("rotary", "elbow", "upper", "fore")
+    assert c.table["angle_min"] == -1.9 and c.table["displacement"] == 4e-5 and c.table["dead_volume_A"] == 5e-5
+    from hydrogen.tree import cylinder_jacobian, cylinder_lengths
+    assert cylinder_lengths(m, [0.3, -0.8])[1] == -0.8
+    np.testing.assert_allclose(cylinder_jacobian(m, [0.3, -0.8])[1], [0.0, 1.0], atol=1e-9)
+
+
+@pytest.mark.parametrize("old,new,words", [
+    ('joint = "elbow"', 'joint = "wrist"', ["'elbow_motor' joint", "'wrist' is not a revolute joint",
+                                            "shoulder, elbow"]),
+    ('joint = "elbow"\n', '', ["'elbow_motor' (kind rotary)", "missing key 'joint'"]),
+    ("angle = [-1.9, -0.1]", "angle = [-0.1, -1.9]", ["'elbow_motor' angle", "lowest < highest"]),
+    ("angle = [-1.9, -0.1]", "angle = [-0.5, -0.1]", ["'elbow_motor'", "outside its stroke"]),
+    ("displacement = 4.0e-5", "displacement = 20.0", ["'elbow_motor' displacement", "plausible range"]),
+    ("displacement = 4.0e-5", 'displacement = 2.0e-5\nfrom = { link = "upper", point = [0.0, 0.0, 0.0] }',
+     ["'elbow_motor' (kind rotary)", "unknown key 'from'"]),
+])
+def test_bad_rotary_actuators_are_named(tmp_path, old, new, words):
+    text = rotary_arm_text()
+    assert old in text, old
+    path = tmp_path / "arm.toml"
+    path.write_text(text.replace(old, new, 1))
+    with pytest.raises(hydrogen.ModelError) as err:
+        hydrogen.load_model(path)
+    for w in [str(path), *words]:
+        assert w in str(err.value), (w, str(err.value))

@@ -41,10 +41,15 @@ TEMPLATES = templates_dir()  # top-level templates/ of a checkout, hydrogen/_tem
 DRIVERS = (("loop.h.j2", "_loop.h"), ("loop.c.j2", "_loop.c"))
 
 
+#: Top-level modules of the package that shape generated output besides the layers of
+#: :func:`derivation_hash`: the loop context, the escape of its values, the pressure blocks.
+DERIVATION_FILES = ("layout.py", "templating.py", "pressures.py")
+
+
 def derivation_hash() -> str:
     """SHA-256 of the code that shapes generated output: the symbolic, codegen, controller and actuator layers."""
     h = hashlib.sha256()
-    for name in ("layout.py", "templating.py"):  # the loop context and the escape of its values
+    for name in DERIVATION_FILES:
         h.update((_PACKAGE / name).read_bytes())
     for sub in ("symbolic", "codegen", "controllers", "actuators"):
         for path in sorted((_PACKAGE / sub).glob("*.py")):

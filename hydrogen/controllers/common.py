@@ -73,15 +73,16 @@ def composite_gains() -> dict:
 
 def composite_layout(model) -> list:
     """The state blocks the composite adaptation adds to an adaptive controller, in order: per
-    cylinder the filtered force (N), ln(l − L) and g0 (N/s per unit γ2), the previous period's
-    control pressure (Pa) and length (m), and the 2×2 least-squares gain's upper
+    cylinder the filtered force (N), ln(l − L) (a three-way cylinder; another kind's f0_potential) and g0
+    (N/s per unit γ2), the previous period's pressures (Pa, the pressure vector) and length (m), and the 2×2 least-squares gain's upper
     triangle [P11, P12, P22] (dimensionless) (:class:`hydrogen.symbolic.composite.HydraulicComposite`);
     then for θ the filtered momentum regressor Y_p (n×p, row-major) and offset p0, the filtered
     Y_b and b0 of G − Cᵀq̇, the filtered generalised force (JL)ᵀ f, and the p×p gain's upper
     triangle (:class:`hydrogen.symbolic.composite.RigidBodyComposite`)."""
-    m = model.n_cylinders
+    from ..pressures import n_pressures
+    m, n_p = model.n_cylinders, n_pressures(model)
     n, p = model.n, model.n_theta
-    sizes = (m, m, m, m, m, 3 * m, n * p, n, n * p, n, n, p * (p + 1) // 2)
+    sizes = (m, m, m, n_p, m, 3 * m, n * p, n, n * p, n, n, p * (p + 1) // 2)
     return list(zip(COMPOSITE_BLOCKS, sizes))
 
 

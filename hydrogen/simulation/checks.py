@@ -225,12 +225,13 @@ def max_run_bytes() -> int:
 
 def run_doubles_per_period(model, controller, keep_logs: bool) -> int:
     """Doubles one control period costs: the noise table and the workspace check, plus the logs."""
-    n, legs = model.n, model.n_cylinders
-    noise, workspace = 2 * legs + (n if model.joint_encoders else 0), n + legs
+    from ..pressures import n_pressures
+    n, legs, n_p = model.n, model.n_cylinders, n_pressures(model)
+    noise, workspace = legs + n_p + (n if model.joint_encoders else 0), n + legs
     if not keep_logs:
         return noise + workspace
     n_xc = sum(size for _, size in _layout(controller, model))
-    return noise + workspace + 1 + 2 * n + 4 * legs + max(n_xc, 1)  # t, q, q_d, l, f, pc, u, xc
+    return noise + workspace + 1 + 2 * n + 3 * legs + n_p + max(n_xc, 1)  # t, q, q_d, l, f, pc, u, xc
 
 
 def check_run_size(sc, model, controller, keep_logs: bool = True) -> int:

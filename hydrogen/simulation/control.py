@@ -18,6 +18,7 @@ from ..controllers import (CONTROLLERS, LEAN, controller as controller_module, f
                            step_function_name)
 from ..controllers.common import COMPOSITE_GAIN_BLOCKS, gain_block_shape, initial_gain_matrix, normalised_adaptation, \
     runs_lean
+from .. import pressures
 from ..errors import ScenarioError
 from .checks import check_gain_values
 
@@ -158,7 +159,10 @@ class _Controller:
             if name == "legl_prev":
                 self.xc[s] = np.asarray(self.leg_lengths(q0), float).ravel()
             elif name == "pc_prev":
-                self.xc[s] = 0.5 * self.model.supply_pressure if pc0 is None else np.asarray(pc0, float)
+                if pc0 is None:  # the middle of each pressure state's range (P_s / 2 for p_c)
+                    lo, hi = pressures.bounds(self.model)
+                    pc0 = 0.5 * self.model.supply_pressure if pressures.uniform_three_way(self.model) else (lo + hi) / 2
+                self.xc[s] = np.asarray(pc0, float)
             elif name in _INITIAL:
                 self.xc[s] = _INITIAL[name](q0, qdot0, self.theta0, self.gamma0)
             elif name in COMPOSITE_GAIN_BLOCKS:

@@ -7,7 +7,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..actuators import three_way_cylinder as actuator
+from .. import pressures
+from ..actuators import actuator
 from ..controllers import spec as controller_spec
 from ..errors import KinematicsError, SimulationError
 from ..summary import estimated_blocks
@@ -133,9 +134,10 @@ class SimulationResult:
 
 
 def equilibrium_pressures(dyn, q, theta) -> np.ndarray:
-    """Control pressures (Pa) whose cylinder forces hold the robot still at q: (JL)ᵀ f = G."""
+    """The pressure vector (Pa, :mod:`hydrogen.pressures`) whose forces hold the robot still at q:
+    (JL)ᵀ f = G, each actuator's pressures its kind's ``equilibrium_pressures``."""
     f = np.linalg.solve(dyn.leg_jacobian(q).T, dyn.gravity(q, theta))
-    return actuator.Numeric.equilibrium_pressures(f, actuator.stacked(dyn.model.cylinders))[0]
+    return pressures.equilibrium(dyn.model, f)
 
 
 def _rk4(rhs, x, h):
@@ -236,7 +238,8 @@ class _Prepared:
 def new_logs(model, n: int, n_xc: int) -> dict:
     """The logs of a run of ``n`` periods (NaN-filled rows), as both engines write them."""
     nq, m = model.n, model.n_cylinders
-    return {k: np.full((n, w), np.nan) for k, w in (("q", nq), ("q_d", nq), ("l", m), ("f", m), ("pc", m),
+    n_p = pressures.n_pressures(model)
+    return {k: np.full((n, w), np.nan) for k, w in (("q", nq), ("q_d", nq), ("l", m), ("f", m), ("pc", n_p),
                                                     ("u", m), ("u_applied", m), ("l_meas", m),
                                                     ("xc", max(n_xc, 1)))}
 
@@ -270,16 +273,17 @@ def prepare_run(dyn, scenario, controller, gains, duration, check_workspace, ove
     pc0 = equilibrium_pressures(dyn, q0, model.theta)
     x0 = np.concatenate([q0, np.zeros(nq), pc0, np.zeros(2 * m)])
     ctrl.reset(q0, np.zeros(nq), pc0)
-    # One noise table for every engine: rows [cylinder length noise (m), pressure noise (m)], then the
-    # joint-encoder noise (n) when the robot has encoders.
+    # One noise table for every engine: rows [cylinder length noise (m), pressure noise (the pressure
+    # vector's size)], then the joint-encoder noise (n) when the robot has encoders.
     rng = np.random.default_rng(sc.seed)
-    noise = np.zeros((n, 2 * m + (nq if model.joint_encoders else 0)))
+    n_p = pressures.n_pressures(model)
+    noise = np.zeros((n, m + n_p + (nq if model.joint_encoders else 0)))
     if sc.noise_l:
         noise[:, :m] = sc.noise_l * rng.standard_normal((n, m))
     if sc.noise_p:
-        noise[:, m:2 * m] = sc.noise_p * rng.standard_normal((n, m))
+        noise[:, m:m + n_p] = sc.noise_p * rng.standard_normal((n, n_p))
     if sc.noise_q and model.joint_encoders:
-        noise[:, 2 * m:] = sc.noise_q * rng.standard_normal((n, nq))
+        noise[:, m + n_p:] = sc.noise_q * rng.standard_normal((n, nq))
     kf_gain = kalman_gain(h, length_noise_variance(sc.noise_l, sc.quantization_l), sc.kalman_accel) \
         if sc.kalman else None
     return _Prepared(sc, ctrl, n, h, x0, q0, noise, kf_gain, theta0, gamma0)
@@ -391,9 +395,8 @@ def run_python_loop(dyn, sc, ctrl, x, q0, noise, kf_gain, log, n, h):
     theta_true, gamma_true = model.theta, model.gamma
     from ..layout import MAX_DELAY
     fric, valve = np.asarray(sc.friction, float), valve_vector(sc)
-    ps = model.supply_pressure
-    P = actuator.stacked(model.cylinders)
-    nq, m = model.n, model.n_cylinders
+    p_lo, p_hi = pressures.bounds(model)  # each pressure state's clip (0 and P_s for p_c)
+    nq, m, n_p = model.n, model.n_cylinders, pressures.n_pressures(model)
     delay, quant = sc.delay_periods, sc.quantization_l
     u_hist = np.zeros((MAX_DELAY, m))  # the C loop's ring: command of period k in slot k % MAX_DELAY
     kf = np.vstack([dyn.leg_lengths(q0), np.zeros(m)]) if kf_gain is not None else None
@@ -401,12 +404,12 @@ def run_python_loop(dyn, sc, ctrl, x, q0, noise, kf_gain, log, n, h):
     q_meas = q0.copy()
     for k in range(n):
         t = k * h
-        q, qdot, pc = x[:nq], x[nq:2 * nq], x[2 * nq:2 * nq + m]
+        q, qdot, pc = x[:nq], x[nq:2 * nq], x[2 * nq:2 * nq + n_p]
         l_true = dyn.leg_lengths(q)
         l_meas = l_true + noise[k, :m]
         if quant > 0:
             l_meas = quant * np.floor(l_meas / quant + 0.5)
-        pc_meas = np.clip(pc + noise[k, m:2 * m], 0, ps) if sc.noise_p else pc
+        pc_meas = np.clip(pc + noise[k, m:m + n_p], p_lo, p_hi) if sc.noise_p else pc
         if kf is not None:
             kf = F @ kf
             kf += np.outer(kf_gain, l_meas - kf[0])
@@ -414,7 +417,7 @@ def run_python_loop(dyn, sc, ctrl, x, q0, noise, kf_gain, log, n, h):
         else:
             ldot = dyn.leg_jacobian(q) @ qdot
         if model.joint_encoders:
-            q_meas = q + noise[k, 2 * m:]
+            q_meas = q + noise[k, m + n_p:]
         else:
             try:
                 q_meas = dyn.forward_kinematics(l_meas, q0=q_meas)
@@ -433,14 +436,14 @@ def run_python_loop(dyn, sc, ctrl, x, q0, noise, kf_gain, log, n, h):
         ctrl.applied(u_app)
         log["q"][k], log["q_d"][k], log["l"][k], log["pc"][k], log["u"][k] = q, ref[0], l_true, pc, u
         log["u_applied"][k], log["l_meas"][k] = u_app, l_meas
-        log["f"][k] = actuator.Numeric.force((pc,), P)
+        log["f"][k] = pressures.forces(model, pc)
         if ctrl.xc.size:
             log["xc"][k] = ctrl.xc
         rhs = lambda xx: rhs_fn(xx, u_app, theta_true, gamma_true[0], gamma_true[1], fric, valve)  # noqa: E731
         hs = h / sc.substeps
         for _ in range(sc.substeps):
             x = _rk4(rhs, x, hs)
-            np.clip(x[2 * nq:2 * nq + m], 0.0, ps, out=x[2 * nq:2 * nq + m])  # 0 ≤ p_c ≤ p_s
+            np.clip(x[2 * nq:2 * nq + n_p], p_lo, p_hi, out=x[2 * nq:2 * nq + n_p])  # e.g. 0 ≤ p_c ≤ p_s
         if sc.estimator_update == "euler":
             ctrl.advance(h)
         if not np.all(np.isfinite(x)) or not np.all(np.isfinite(ctrl.xc)):
@@ -513,9 +516,15 @@ def excitation(dyn, res, ctrl=None) -> dict:
     out = {"theta": _ratio(M), "theta_least_excited": _least_excited(M, model.theta_names)}
     l, u, pc = res.leg_lengths, res.u, res.pressures
     ld = np.gradient(l, h, axis=0)
-    law, P = actuator.Numeric, actuator.stacked(model.cylinders)
     g1, g2 = model.gamma
-    phi = np.stack([g1 * law.f0(l, ld, (pc,), P), g2 * law.g0(l, (pc,), u, P)], axis=-1)  # (k, m, 2)
+    parts = pressures.split(model, pc)
+    f0, g0 = np.empty_like(l), np.empty_like(l)
+    for i, c in enumerate(model.cylinders):
+        kind = actuator(c.kind)
+        P = kind.parameters(c.table)
+        f0[:, i] = kind.Numeric.f0(l[:, i], ld[:, i], parts[i], P)
+        g0[:, i] = kind.Numeric.g0(l[:, i], parts[i], u[:, i], P)
+    phi = np.stack([g1 * f0, g2 * g0], axis=-1)  # (k, m, 2)
     Mg = np.einsum("kia,kib->iab", phi, phi) * h
     out["gamma"] = [_ratio(Mi) for Mi in Mg]
     out["gamma_cylinders"] = [c.name for c in model.cylinders]
@@ -589,7 +598,7 @@ class Stepper:
 
     @property
     def x(self) -> np.ndarray:
-        """Plant state [q, q̇, p_c, spool, spool rate] (2n + 3m,)."""
+        """Plant state [q, q̇, pressures, spool, spool rate] (2n + pressures + 2m,)."""
         return self._runner.plant_state
 
     @property

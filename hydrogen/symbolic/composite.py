@@ -32,6 +32,7 @@ from __future__ import annotations
 import sympy as sp
 
 from ..controllers.common import COMPOSITE_BLOCKS
+from ..pressures import blocks
 
 __all__ = ["triangle_size", "unpack_symmetric", "pack_symmetric", "normalised_least_squares",
            "HydraulicComposite"]
@@ -125,7 +126,8 @@ class HydraulicComposite:
         m = c.m
         sym = lambda name, k: sp.Matrix(sp.symbols(f"{name}0:{k}", real=True))  # noqa: E731
         self.phi_f, self.phi_L, self.omega = sym("force_filter", m), sym("log_chamber_filter", m), sym("g0_filter", m)
-        self.pc_prev, self.l_prev = sym("pc_prev", m), sym("legl_prev", m)
+        self.pc_prev, self.l_prev = sym("pc_prev", len(c.pc)), sym("legl_prev", m)
+        self.pb_prev = [tuple(self.pc_prev[a:b]) for a, b in blocks(c.model)]  # per cylinder, as c.pb
         self.P = sym("gamma_gain", triangle_size(2) * m)
         self.ref = sym("gamma_ref", 2 * m)  # [γ1_ref (m), γ2_ref (m)]
         self.lam, self.rate, self.P0, self.floor, self.nu, self.h = sp.symbols(
@@ -149,21 +151,22 @@ class HydraulicComposite:
                 ("ls_nu_gamma", sp.Matrix([self.nu])), ("period", sp.Matrix([self.h]))]
 
     def _log_chamber(self):
+        """Φ_i of f0 = k_i dΦ_i/dt per cylinder (ln(l − L) of a three-way cylinder)."""
         c = self.c
-        return [sp.log(c.l[i] - c.L[i]) for i in range(c.m)]
+        return [c.f0_potential(i)[1] for i in range(c.m)]
 
     def _g0_interval(self):
         """ḡ: the trapezoid of g0 over the last period with the spool held over it."""
         c = self.c
         u = self.u_held
-        return [(c.g0(i, self.l_prev[i], self.pc_prev[i], u[i]) + c.g0(i, c.l[i], c.pc[i], u[i])) / 2
+        return [(c.g0(i, self.l_prev[i], self.pb_prev[i], u[i]) + c.g0(i, c.l[i], c.pb[i], u[i])) / 2
                 for i in range(c.m)]
 
     def regressor_and_output(self):
         """(W1, W2, y) per cylinder, unnormalised: filtered ḟ ≈ γ1 W1 + γ2 W2 = y (N/s)."""
         c, lam = self.c, self.lam
         lnL, gbar = self._log_chamber(), self.gbar
-        W1 = [-c.A[i] * lam * (lnL[i] - self.phi_L[i]) for i in range(c.m)]
+        W1 = [c.f0_potential(i)[0] * lam * (lnL[i] - self.phi_L[i]) for i in range(c.m)]
         W2 = [self.omega[i] + self.h * lam * (gbar[i] - self.omega[i]) for i in range(c.m)]
         y = [lam * (c.f[i] - self.phi_f[i]) for i in range(c.m)]
         return W1, W2, y
@@ -172,7 +175,7 @@ class HydraulicComposite:
         """ε_i = (γ̂1 W1 + γ̂2 W2 − y)_i / (P_s A)_i, 1/s: ≈ 0 with the true γ once the filters settle."""
         c, g1, g2 = self.c, self.g1, self.g2
         W1, W2, y = self.regressor_and_output()
-        return sp.Matrix([(g1[i] * W1[i] + g2[i] * W2[i] - y[i]) / (c.ps[i] * c.A[i]) for i in range(c.m)])
+        return sp.Matrix([(g1[i] * W1[i] + g2[i] * W2[i] - y[i]) / c.force_scale(i) for i in range(c.m)])
 
     def combine(self, t1, t2):
         """The rates of γ̂ before the projection from the tracking terms ``t1``, ``t2`` of the
@@ -215,7 +218,7 @@ class HydraulicComposite:
             eps = self.prediction_error()
             self._ls = ([], [])
             for i in range(m):
-                scale = c.ps[i] * c.A[i]
+                scale = c.force_scale(i)
                 W = sp.Matrix([[self.ref[i] * W1[i] / scale, self.ref[m + i] * W2[i] / scale]])
                 x_dot, Pd, st = staged_least_squares(W, [eps[i]], self.P[k * i:k * (i + 1)], self.rate,
                                                      self.floor, self.nu, f"ls_gamma{i}")
@@ -234,7 +237,7 @@ class HydraulicComposite:
                  *(lam * (lnL[i] - self.phi_L[i]) for i in range(m)),
                  *(lam * (self.gbar[i] - self.omega[i]) for i in range(m)),
                  # copies: x_prev ← x in one period
-                 *((c.pc[i] - self.pc_prev[i]) / self.h for i in range(m)),
+                 *((c.pc[j] - self.pc_prev[j]) / self.h for j in range(len(c.pc))),
                  *((c.l[i] - self.l_prev[i]) / self.h for i in range(m)),
                  *P_dot]
         return rates

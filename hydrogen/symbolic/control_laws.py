@@ -18,7 +18,8 @@ from dataclasses import dataclass, field
 
 import sympy as sp
 
-from ..actuators import three_way_cylinder as actuator
+from ..actuators import actuator
+from ..pressures import blocks, n_pressures
 from .calculus import clip, projection
 from .constants import PRESSURE_EPS, baked
 from .kinematics import leg_intermediates, matrix_symbols, pose_rates, pose_symbols, rate_symbols
@@ -85,14 +86,18 @@ class Common:
         self.model = model
         n, m = model.n, model.n_cylinders
         self.n, self.m, self.p = n, m, model.n_theta
-        #: each cylinder's actuator parameters (baked SymPy numbers), by name
-        self.P = [actuator.parameters(x, baked) for x in model.cylinders]
-        self.law = actuator.Symbolic
+        #: each cylinder's actuator kind, its laws (SymPy) and its parameters (baked SymPy numbers), by name
+        self.kinds = [x.kind for x in model.cylinders]
+        self.laws = [actuator(x.kind).Symbolic for x in model.cylinders]
+        self.P = [actuator(x.kind).parameters(x.table, baked) for x in model.cylinders]
         self.ps = [P["supply_pressure"] for P in self.P]
-        self.A = [P["piston_area"] for P in self.P]
-        self.L = [P["chamber_length"] for P in self.P]
+        # the three-way cylinder's A and L (None for another kind)
+        self.A = [P.get("piston_area") for P in self.P]
+        self.L = [P.get("chamber_length") for P in self.P]
         self.g = baked(model.gravity)
-        self.q, self.qdot, self.pc = pose_symbols(model), vector("qdot", n), vector("pc", m)
+        # pc: the pressure vector, one block per actuator (hydrogen.pressures); pb[i] cylinder i's block
+        self.q, self.qdot, self.pc = pose_symbols(model), vector("qdot", n), vector("pc", n_pressures(model))
+        self.pb = [tuple(self.pc[a:b]) for a, b in blocks(model)]
         self.qd = [vector(f"qd{k}", n) for k in range(4)]  # q_d and its first three derivatives
         self.Lam, self.Kp, self.Kd = vector("Lambda", n), vector("Kp", n), vector("Kd", n)
         self.Ktau, self.Gtau_inv = vector("Ktau", m), vector("Gtau_inv", m)
@@ -102,7 +107,7 @@ class Common:
         self.pose_rates = pose_rates(model, self.q, self.qdot)
         self.staged = bool(rigid_body_stages(model, self.q))
         self.ldot = self.JL * self.qdot
-        self.f = sp.Matrix([self.law.force((self.pc[i],), self.P[i]) for i in range(m)])
+        self.f = sp.Matrix([self.laws[i].force(self.pb[i], self.P[i]) for i in range(m)])
         self.Jit = matrix_symbols("JLinvT", n, m)
         self.e = self.q - self.qd[0]
         # The spool commands (m) the valves held over the period the state update integrates (the
@@ -153,13 +158,13 @@ class Common:
             (S["fd_dot"], self.Jit * (S["taud_dot"] - self.JLdot.T * S["fd"])),
         ]
         ftil = self.f - S["fd"]
-        f0 = sp.Matrix([self.law.f0(self.l[i], self.ldot[i], (self.pc[i],), self.P[i]) for i in range(m)])
+        f0 = sp.Matrix([self.laws[i].f0(self.l[i], self.ldot[i], self.pb[i], self.P[i]) for i in range(m)])
         Js = self.JL * s
         stages.append((S["v"], sp.Matrix([S["fd_dot"][i] - f0[i] * g1[i] - self.Gtau_inv[i] * Js[i]
                                           - self.Ktau[i] * ftil[i] for i in range(m)])))
         # g0 γ̂2 = v: the spool with g0 = v / γ̂2 (the valve inverse, on every branch)
-        stages.append((S["u_raw"], sp.Matrix([self.law.valve_inverse(S["v"][i] / g2[i], self.l[i], (self.pc[i],),
-                                                                     self.P[i], PRESSURE_EPS) for i in range(m)])))
+        stages.append((S["u_raw"], sp.Matrix([self.laws[i].valve_inverse(S["v"][i] / g2[i], self.l[i], self.pb[i],
+                                                                         self.P[i], PRESSURE_EPS) for i in range(m)])))
         stages.append((S["u_cmd"], sp.Matrix([clip(S["u_raw"][i], -self.u_max, self.u_max) for i in range(m)])))
         u = S["u_cmd"]
         # g0 of (59) at the spool the valves received (the input u_applied, not this call's u): the
@@ -169,16 +174,32 @@ class Common:
         self.g0_applied = None
         if self.u_applied_declared:
             ua = self.u_applied
-            stages.append((S["g0_app"], sp.Matrix([self.g0(i, self.l[i], self.pc[i], ua[i]) for i in range(m)])))
+            stages.append((S["g0_app"], sp.Matrix([self.g0(i, self.l[i], self.pb[i], ua[i]) for i in range(m)])))
             self.g0_applied = S["g0_app"]
         self.taud_dot = S["taud_dot"]
         return S["fd"], ftil, f0, S["v"], u, S["taud"], stages
 
-    def g0(self, i, l, pc, u):
-        """g0 of (59) for cylinder ``i`` as the controllers evaluate it: the pressure drops clipped at
-        0 (a noisy measured p_c above p_s must not take the root of a negative number), the roots
-        shared with the valve inverse; inside [0, p_s] exactly (59)."""
-        return self.law.g0(l, (pc,), u, self.P[i])
+    def g0(self, i, l, p, u):
+        """g0 of (59) (its kind's) for cylinder ``i`` at its pressure block ``p`` (a tuple) as the
+        controllers evaluate it: the pressure drops clipped at 0 (a noisy measured p_c above p_s must
+        not take the root of a negative number), the roots shared with the valve inverse; inside
+        [0, p_s] exactly (59)."""
+        return self.laws[i].g0(l, p, u, self.P[i])
+
+    def force_scale(self, i):
+        """Cylinder ``i``'s force range (N): P_s A for a three-way cylinder, the width of its
+        ``force_range`` for another kind; the composite law's row normalisation."""
+        if self.A[i] is not None and self.L[i] is not None:
+            return self.ps[i] * self.A[i]
+        lo, hi = self.laws[i].force_range(self.P[i])
+        return hi - lo
+
+    def f0_potential(self, i):
+        """(k, Φ_i): f0 of cylinder ``i`` is k dΦ_i/dt. A three-way cylinder: k = −A, Φ = ln(l − L);
+        another kind: k = 1, Φ its ``f0_potential``."""
+        if self.A[i] is not None and self.L[i] is not None:
+            return -self.A[i], sp.log(self.l[i] - self.L[i])
+        return sp.S.One, self.laws[i].f0_potential(self.l[i], self.P[i])
 
     def jit_intermediate(self):
         return (self.Jit, ("inverse", self.JL.T))

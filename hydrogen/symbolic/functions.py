@@ -11,7 +11,8 @@ from dataclasses import dataclass, field
 
 import sympy as sp
 
-from ..actuators import three_way_cylinder as actuator
+from ..actuators import actuator
+from ..pressures import blocks, n_pressures, uniform_three_way
 from .constants import PRESSURE_EPS, baked
 from .kinematics import leg_stages, pose_symbols, rate_symbols
 from .plant import plant_rhs
@@ -112,34 +113,57 @@ def rigid_body_functions(model) -> list:
 
 
 def hydraulic_functions(model) -> list:
-    m = model.n_cylinders
-    u, pc, l, ld, wq = (rate_symbols(k, m) for k in ("u", "pc", "l", "ldot", "w"))
+    """The actuator laws as functions over the pressure vector ``pc`` (one block per actuator,
+    :mod:`hydrogen.pressures`). A robot of three-way cylinders only keeps eq. (57)'s flow q_l/c and its
+    inverse; any other gets the per-state valve flows and the inverse of g0 (its kind's laws)."""
+    m, n_p = model.n_cylinders, n_pressures(model)
+    u, l, ld, wq = (rate_symbols(k, m) for k in ("u", "l", "ldot", "w"))
+    pc = rate_symbols("pc", n_p)
+    p = [tuple(pc[a:b]) for a, b in blocks(model)]
     g1, g2 = rate_symbols("gamma1", m), rate_symbols("gamma2", m)
-    P = [actuator.parameters(c, baked) for c in model.cylinders]
-    law = actuator.Symbolic
-    flow = sp.Matrix([law.valve_flow(u[i], (pc[i],), P[i]) for i in range(m)])
-    inv = sp.Matrix([law.flow_inverse(wq[i], (pc[i],), P[i], PRESSURE_EPS) for i in range(m)])
-    # Plant: ṗ_c with q_l = c · (unit flow), c = γ2/γ1, β = γ1, orifice linearised near Δp = 0.
-    rate = sp.Matrix([law.pressure_rates(l[i], ld[i], (pc[i],), u[i], g1[i], g2[i] / g1[i], P[i], smooth=True)[0]
-                      for i in range(m)])
-    force = sp.Matrix([law.force((pc[i],), P[i]) for i in range(m)])
+    kinds = [actuator(c.kind) for c in model.cylinders]
+    P = [k.parameters(c.table, baked) for k, c in zip(kinds, model.cylinders)]
+    laws = [k.Symbolic for k in kinds]
+    # Plant: ṗ with q = c · (unit flow), c = γ2/γ1, β = γ1, orifice linearised near Δp = 0.
+    rate = sp.Matrix([r for i in range(m)
+                      for r in laws[i].pressure_rates(l[i], ld[i], p[i], u[i], g1[i], g2[i] / g1[i], P[i], smooth=True)])
+    force = sp.Matrix([laws[i].force(p[i], P[i]) for i in range(m)])
+    if uniform_three_way(model):
+        flow = sp.Matrix([laws[i].valve_flow(u[i], p[i], P[i]) for i in range(m)])
+        inv = sp.Matrix([laws[i].flow_inverse(wq[i], p[i], P[i], PRESSURE_EPS) for i in range(m)])
+        valve = [
+            SymbolicFunction("valve_flow", [("u", u), ("pc", pc)], [("ql_per_c", flow)],
+                             "q_l / c of eq. (57) per cylinder, m sqrt(Pa)."),
+            SymbolicFunction("valve_inverse", [("ql_per_c", wq), ("pc", pc)], [("u", inv)],
+                             "Spool position u (m) with q_l / c = ql_per_c: inverse of (57)."),
+        ]
+        rate_doc, force_doc = "Control-chamber pressure rate (56)-(57)", "f = pc A - ps a, N."
+    else:
+        flow = sp.Matrix([q for i in range(m) for q in laws[i].valve_flows(u[i], p[i], P[i])])
+        inv = sp.Matrix([laws[i].valve_inverse(wq[i], l[i], p[i], P[i], PRESSURE_EPS) for i in range(m)])
+        valve = [
+            SymbolicFunction("valve_flow", [("u", u), ("pc", pc)], [("q_per_c", flow)],
+                             "Valve flow per unit flow gain into each pressure state's chamber, m sqrt(Pa) "
+                             "(the kind's law, drops clipped at 0)."),
+            SymbolicFunction("valve_inverse", [("g0", wq), ("l", l), ("pc", pc)], [("u", inv)],
+                             "Spool position u (m) with g0(l, p, u) = g0 per actuator (the kind's valve inverse)."),
+        ]
+        rate_doc, force_doc = "Chamber pressure rates", "Actuator forces from the pressures (the kinds' laws), N."
     return [
-        SymbolicFunction("valve_flow", [("u", u), ("pc", pc)], [("ql_per_c", flow)],
-                         "q_l / c of eq. (57) per cylinder, m sqrt(Pa)."),
-        SymbolicFunction("valve_inverse", [("ql_per_c", wq), ("pc", pc)], [("u", inv)],
-                         "Spool position u (m) with q_l / c = ql_per_c: inverse of (57)."),
+        *valve,
         SymbolicFunction("pressure_rate", [("l", l), ("ldot", ld), ("pc", pc), ("u", u), ("gamma1", g1),
                                            ("gamma2", g2)], [("pc_dot", rate)],
-                         "Control-chamber pressure rate (56)-(57) of the simulated plant, Pa/s "
+                         f"{rate_doc} of the simulated plant, Pa/s "
                          "(orifice law linear below orifice_linear_below)."),
-        SymbolicFunction("leg_force", [("pc", pc)], [("f", force)], "f = pc A - ps a, N."),
+        SymbolicFunction("leg_force", [("pc", pc)], [("f", force)], force_doc),
     ]
 
 
 def plant_functions(model) -> list:
     inputs, xdot, intermediates = plant_rhs(model)
+    size = "2n + 3m" if uniform_three_way(model) else "2n + pressures + 2m"
     return [SymbolicFunction("plant_rhs", inputs, [("xdot", xdot)],
-                             "Plant state rate: x = [q, qdot, pc, spool, spool rate] (2n + 3m), SI units; valve = [lag s, natural frequency rad/s, damping].", intermediates)]
+                             f"Plant state rate: x = [q, qdot, pc, spool, spool rate] ({size}), SI units; valve = [lag s, natural frequency rad/s, damping].", intermediates)]
 
 
 def controller_functions(model) -> list:

@@ -1,6 +1,8 @@
 """The simulated plant: rigid bodies driven by the cylinders, chamber pressures (56)-(57).
 
-State x = [q (n), q̇ (n), p_c (m), spool (m), spool rate (m)]; input u = spool command (m, metres).
+State x = [q (n), q̇ (n), pressures (one block per actuator, its kind's states: p_c of a three-way
+cylinder, p_A, p_B of a four-way one; :mod:`hydrogen.pressures`), spool (m), spool rate (m)];
+input u = spool command (m, metres).
 Cylinder friction: f_fric = F_c tanh(l̇ / v_s) + b l̇ opposing the cylinder's motion (N).
 Valve, input ``valve`` = [τ_v, ω_v, ζ_v]:
 - ω_v > 0: second-order servo-valve, spool̈ = ω_v² (u − spool) − 2 ζ_v ω_v spool̇ (ω_v rad/s, the
@@ -12,7 +14,8 @@ from __future__ import annotations
 
 import sympy as sp
 
-from ..actuators import three_way_cylinder as actuator
+from ..actuators import actuator
+from ..pressures import blocks, n_pressures
 from .constants import baked
 from .kinematics import leg_intermediates, pose_symbols, rate_symbols
 from .rigid_body import bias_forces, mass_matrix, mass_matrix_inverse, theta_symbols
@@ -24,7 +27,7 @@ def plant_rhs(model):
     """Symbols and right-hand side of the plant: returns (inputs, xdot, intermediates)."""
     n, m = model.n, model.n_cylinders
     q, qd = pose_symbols(model), rate_symbols("qdot", n)
-    pc, spool, u = rate_symbols("pc", m), rate_symbols("spool", m), rate_symbols("u", m)
+    pc, spool, u = rate_symbols("pc", n_pressures(model)), rate_symbols("spool", m), rate_symbols("u", m)
     th = theta_symbols(model)
     g1, g2 = rate_symbols("gamma1", m), rate_symbols("gamma2", m)
     fric = sp.Matrix(sp.symbols("F_coulomb b_viscous v_smooth", real=True))
@@ -32,7 +35,9 @@ def plant_rhs(model):
     tau_v, w_v, z_v = valve = sp.symbols("tau_valve omega_valve zeta_valve", real=True)
     x = sp.Matrix([*q, *qd, *pc, *spool, *spool_rate])
     cyl = model.cylinders
-    P = [actuator.parameters(c, baked) for c in cyl]
+    laws = [actuator(c.kind).Symbolic for c in cyl]
+    P = [actuator(c.kind).parameters(c.table, baked) for c in cyl]
+    p = [tuple(pc[a:b]) for a, b in blocks(model)]  # each actuator's pressure block
 
     l, JL, _, kin = leg_intermediates(model, q, qd, rates=False)  # the plant needs no J̇L
     ldot = rate_symbols("plant_ldot", m)
@@ -54,7 +59,7 @@ def plant_rhs(model):
     spool_ddot = sp.Matrix([sp.Piecewise((w_v ** 2 * (u[i] - spool[i]) - 2 * z_v * w_v * spool_rate[i], second),
                                          (0, True), evaluate=False) for i in range(m)])
     f_leg = rate_symbols("plant_fleg", m)
-    f_leg_value = sp.Matrix([actuator.Symbolic.force((pc[i],), P[i])
+    f_leg_value = sp.Matrix([laws[i].force(p[i], P[i])
                              - fric[0] * sp.tanh(ldot[i] / fric[2]) - fric[1] * ldot[i] for i in range(m)])
     D = mass_matrix(model, q, th)
     rhs = JL.T * f_leg - bias_forces(model, q, qd, th)  # (the link poses are in kin)
@@ -66,8 +71,8 @@ def plant_rhs(model):
         qdd = rate_symbols("plant_qdd", n)
         solve = [(qdd, ("solve", D, rhs))]
     # c = γ2/γ1, β = γ1; the orifice law linearised near Δp = 0 (smooth)
-    pc_dot = sp.Matrix([actuator.Symbolic.pressure_rates(l[i], ldot[i], (pc[i],), spool_eff[i], g1[i], g2[i] / g1[i],
-                                                         P[i], smooth=True)[0] for i in range(m)])
+    pc_dot = sp.Matrix([rate for i in range(m) for rate in
+                        laws[i].pressure_rates(l[i], ldot[i], p[i], spool_eff[i], g1[i], g2[i] / g1[i], P[i], smooth=True)])
     xdot = sp.Matrix([*qd, *qdd, *pc_dot, *spool_dot, *spool_ddot])
     inputs = [("x", x), ("u", u), ("theta", th), ("gamma1", g1), ("gamma2", g2), ("friction", fric),
               ("valve", sp.Matrix(valve))]

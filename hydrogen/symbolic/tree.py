@@ -240,6 +240,11 @@ class SymbolicTree:
         JL = matrix_symbols(f"{prefix}JL", m_cyl, self.n)
         l_value, rows = [], []
         for ci, c in enumerate(model.cylinders):
+            if c.joint is not None:  # a joint actuator: its coordinate is the joint's, its row a unit vector
+                col = self.columns[c.joint]
+                l_value.append(self.q[col])
+                rows.append(sp.Matrix([[sp.S.One if k == col else sp.S.Zero for k in range(self.n)]]))
+                continue
             R_a, p_a, _ = poses[c.link_from]
             R_b, p_b, _ = poses[c.link_to]
             r_b = _mm(R_b, _vec(c.point_to))
