@@ -292,7 +292,9 @@ def test_rig_seeds_script_writes_the_distributions(monkeypatch, tmp_path, capsys
     assert rows[0]["max_error_pct"]["z"] == {"median": 10.44, "min": 8.2, "max": 16.1}
     text = capsys.readouterr().out
     assert "| adaptive-robust | z 10.4 [8.2 - 16.1] | 2 | 0 | no |" in text
-    assert not [p for p in tmp_path.iterdir() if p.name != "rig.json"]  # written atomically, nothing beside
+    # written atomically: the data and its page, nothing else
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["rig.json", "rig.md"]
+    assert (tmp_path / "rig.md").read_text() == rig_seeds.markdown(data)
 
 
 DIVERGING = dict(duration=0.5, gains={"Ktau": 5e4, "u_max": 1.0}, control_rate=200.0, substeps=2)
