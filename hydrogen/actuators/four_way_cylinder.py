@@ -16,7 +16,7 @@ from __future__ import annotations
 
 from . import orifices as orf
 from .declarations import Parameter, Sensor, State, parameter_values, stacked_parameters
-from .two_chamber import Laws
+from .two_chamber import VALVE_PARAMETERS, Laws
 
 __all__ = ["NAME", "DOC", "MOTION", "STATES", "PARAMETERS", "SENSORS", "Symbolic", "Numeric",
            "parameters", "stacked"]
@@ -33,12 +33,7 @@ PARAMETERS = (
     Parameter("stroke_max", "m", None, "length pin to pin with the piston at the rod end"),
     Parameter("dead_volume_A", "m^3", None, "V_A0, cap-side volume at the shortest length"),
     Parameter("dead_volume_B", "m^3", None, "V_B0, rod-side volume at the longest length"),
-    Parameter("supply_pressure", "Pa", None, "P_s"),
-    Parameter("tank_pressure", "Pa", 0.0, "P_t (gauge)"),
-    Parameter("underlap", "m", 0.0, "d, valve underlap (0: critically centred)"),
-    Parameter("flow_gain", "m^2/(s sqrt(Pa))", None, "c: q = c opening sqrt(dp), each orifice", gamma=True),
-    Parameter("bulk_modulus", "Pa", None, "beta, effective oil bulk modulus", gamma=True),
-    Parameter("orifice_linear_below", "Pa", 5.0e4, "the simulated plant's orifice roots turn linear below this drop"),
+    *VALVE_PARAMETERS,
 )
 SENSORS = (Sensor("l", "m", "cylinder length, pin to pin"),
            Sensor("pA", "Pa", "cap-side chamber pressure"),

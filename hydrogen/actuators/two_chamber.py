@@ -34,7 +34,9 @@ critically centred valve holds any pair; the same pair is taken (the limit d →
 """
 from __future__ import annotations
 
-__all__ = ["Laws"]
+from .declarations import Parameter
+
+__all__ = ["Laws", "VALVE_PARAMETERS"]
 
 
 class Laws:
@@ -113,3 +115,14 @@ class Laws:
         """(lowest, highest) force with both pressures within [P_t, P_s]."""
         (aa, ab), ps, pt = self.areas(P), P["supply_pressure"], P["tank_pressure"]
         return pt * aa - ps * ab, ps * aa - pt * ab
+
+
+#: The four-way valve's and the oil's parameters, the same for every two-chamber kind.
+VALVE_PARAMETERS = (
+    Parameter("supply_pressure", "Pa", None, "P_s"),
+    Parameter("tank_pressure", "Pa", 0.0, "P_t (gauge)"),
+    Parameter("underlap", "m", 0.0, "d, valve underlap (0: critically centred)"),
+    Parameter("flow_gain", "m^2/(s sqrt(Pa))", None, "c: q = c opening sqrt(dp), each orifice", gamma=True),
+    Parameter("bulk_modulus", "Pa", None, "beta, effective oil bulk modulus", gamma=True),
+    Parameter("orifice_linear_below", "Pa", 5.0e4, "the simulated plant's orifice roots turn linear below this drop"),
+)
