@@ -190,6 +190,29 @@ def _row(table, key, unit, default_text, meaning) -> str:
     return "| " + " | ".join(c.replace("|", "\\|") for c in cells) + " |"
 
 
+def _actuator_rows() -> list:
+    """The [[cylinders]] keys of each actuator kind but the paper's, from the kinds' own declarations
+    (hydrogen/actuators/<kind>.py): ``kind`` itself, then each kind's parameters and travel."""
+    from .actuators import KINDS, actuator
+
+    rows = [_row("[[cylinders]], [hydraulics]", "kind", "", '"three_way_cylinder"',
+                 f"the actuator: {', '.join(KINDS)} (one module each in hydrogen/actuators/)")]
+    for kind in KINDS[1:] if KINDS[0] == "three_way_cylinder" else KINDS:
+        mod = actuator(kind)
+        table = f"[[cylinders]] kind = {kind}"
+        travel = {"prismatic": ("stroke", "m", "[shortest, longest] pin-to-pin length", ("stroke_min", "stroke_max")),
+                  "revolute": ("angle", "rad", "[lowest, highest] joint angle", ("angle_min", "angle_max"))}
+        key, unit, what, ends = travel[mod.MOTION]
+        if mod.MOTION == "revolute":
+            rows.append(_row(table, "joint", "", "required", "the revolute joint it turns (no from/to)"))
+        rows.append(_row(table, key, unit, "required", what))
+        for par in mod.PARAMETERS:
+            if par.name not in ends:
+                rows.append(_row(table, par.name, par.unit.replace("^2", "²").replace("^3", "³"),
+                                 "required" if par.default is None else repr(par.default), par.doc))
+    return rows
+
+
 def description_table() -> str:
     """Markdown: every description key and scenario field with its unit, default and meaning."""
     from .simulation.scenarios import _FIELDS, Scenario
@@ -203,6 +226,7 @@ def description_table() -> str:
     for k in DESCRIPTION_KEYS + SCENARIO_TABLE_KEYS:
         shown = k.default_text or ("none" if k.default is None else _toml(k.default))
         lines.append(_row(k.table, k.key, k.unit, shown, k.meaning))
+    lines += _actuator_rows()
     for name in _FIELDS:
         unit, meaning = SCENARIO_FIELDS[name]
         f = fields[name]
