@@ -222,8 +222,15 @@ class Cylinder:
 
 
 def _stack(name):
-    return property(lambda self: np.array([getattr(c, name) for c in self.cylinders], float),
-                    doc=f"Per-cylinder {name} (m,), SI.")
+    def get(self):
+        values = [getattr(c, name) for c in self.cylinders]
+        missing = [c for c, v in zip(self.cylinders, values) if v is None]
+        if missing:  # a key of another actuator kind (e.g. piston_area on a four-way cylinder)
+            c = missing[0]
+            raise AttributeError(f"{self.source}: '{name}' is not a parameter of cylinder '{c.name}' (kind {c.kind}); "
+                                 f"its parameters are model.cylinders[{self.cylinders.index(c)}].table")
+        return np.array(values, float)
+    return property(get, doc=f"Per-cylinder {name} (m,), SI (cylinders whose kind has it).")
 
 
 @dataclass(frozen=True)

@@ -229,3 +229,10 @@ def test_a_rotary_elbow_tracks_under_backstepping(tmp_path, cache):
     first, last = _errors(res)
     assert np.all(last < 5e-5) and np.all(first > 50 * last), (first, last)
     assert res.pressures.min() > 0 and res.pressures.max() < 10e6
+
+
+def test_a_three_way_parameter_of_a_four_way_robot_is_a_clear_error():
+    m = hydrogen.load_model(ARM)
+    with pytest.raises(AttributeError, match=r"'piston_area' is not a parameter of cylinder '\w+' \(kind four_way_cylinder\)"):
+        m.piston_area
+    assert m.supply_pressure.shape == (m.n_cylinders,)  # shared by every kind
