@@ -71,3 +71,25 @@ def test_the_state_follows_the_declared_layout_or_generation_stops():
         state_and_rates([("a", 2), ("b", 3)], [("b", b, b), ("a", a, a)])
     with pytest.raises(ValueError, match="the layout declares"):
         state_and_rates([("a", 2), ("b", 3)], [("a", a, a), ("b", b[:2], b[:2])])
+
+
+def test_the_pose_p_controller_is_the_weighted_pose_error_mapped_by_JL(robot_dyn, robot_model, rng):
+    from hydrogen.controllers import function_name
+
+    from conftest import workspace_poses
+
+    fn = robot_dyn.functions[function_name("p-task")]
+    n = robot_model.n
+    k, u_max = rng.uniform(0.01, 0.1, n), 3e-3
+    for q, qd in zip(workspace_poses(robot_model, 5, rng), workspace_poses(robot_model, 5, rng, scale=0.1)):
+        args = {"q": q, "qd0": qd, "Kq": k, "u_max": [u_max]}
+        u = fn(*[args[name] for name in fn.in_names])
+        expected = np.clip(robot_dyn.leg_jacobian(q) @ (k * (qd - q)), -u_max, u_max)
+        np.testing.assert_allclose(u, expected, rtol=1e-12, atol=1e-15)
+    # equal gains: to first order the cylinder-length P controller
+    q = robot_model.neutral_pose
+    dq = 1e-6 * np.ones(n)
+    args = {"q": q, "qd0": q + dq, "Kq": 0.03 * np.ones(n), "u_max": [u_max]}
+    u = fn(*[args[name] for name in fn.in_names])
+    dl = robot_dyn.leg_lengths(q + dq) - robot_dyn.leg_lengths(q)
+    np.testing.assert_allclose(u, 0.03 * dl, rtol=1e-4)

@@ -36,7 +36,7 @@ __all__ = ["CONTROLLERS", "controller", "spec", "baseline", "adapts", "function_
 LEAN = "lean"
 
 #: Module names, in the order functions are generated.
-_MODULES = ("backstepping", "adaptive_robust", "adaptive_observer", "p")
+_MODULES = ("backstepping", "adaptive_robust", "adaptive_observer", "p", "p_task")
 
 _REGISTRY = {}
 for _mod in _MODULES:

@@ -33,6 +33,9 @@ class ControllerSpec:
         Runs with the true θ and γ (no estimation): a scenario's wrong initial estimates do not apply.
     baseline : bool
         The fixed-gain comparison the nonlinear controllers are measured against (the paper's P).
+    search_description_proportions : bool
+        The search scales the main gain as the robot's description gives it (per-axis proportions a
+        robot chooses), not the controller's uniform defaults.
     """
 
     name: str
@@ -43,3 +46,4 @@ class ControllerSpec:
     secondary_search: bool = True
     knows_true_parameters: bool = False
     baseline: bool = False
+    search_description_proportions: bool = False

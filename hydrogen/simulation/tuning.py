@@ -146,12 +146,13 @@ def main_gain(controller) -> str:
 
 def family(dyn, controller, g, base=None) -> dict:
     """Gains with main gain ``g`` (see the module doc); ``base``: gains whose proportions are kept
-    (default: the controller's own defaults for the model)."""
+    (default: the controller's own defaults for the model, or the description's gains where the
+    controller's spec keeps the description's proportions)."""
     from ..controllers import spec
     sp = spec(controller)
     if sp.main_gain_shared:
         return {sp.main_gain: float(g)}
-    base = base or _base_gains(dyn, controller, robot=False)
+    base = base or _base_gains(dyn, controller, robot=sp.search_description_proportions)
     lam = np.asarray(base[sp.main_gain], float)
     return {sp.main_gain: (lam * (g / float(np.mean(lam)))).tolist()}
 
