@@ -385,12 +385,13 @@ def make_all(dyn, out_dir, quiet=True, *, durations=None, gains=None, nonlinear=
     from .controllers import baseline, spec
     base = baseline()
     known = [c for c in CONTROLLERS if spec(c).knows_true_parameters]  # the reference column
+    compared = [c for c in CONTROLLERS if spec(c).compared and c != nonlinear] or [base]  # "P": the better
     if nonlinear not in CONTROLLERS or nonlinear == base:
         raise ScenarioError(f"{model.source}: the figures' nonlinear controller must be one of "
                             f"{', '.join(c for c in CONTROLLERS if c != base)}, got {nonlinear!r}")
     scenarios = [named_scenario(nm, model) for nm in scenario_names(model)]
     total = sum(1 if sc.friction[0] == 0 and not sc.kalman and not isinstance(sc.reference, Step)
-                else (2 if isinstance(sc.reference, Step) else 3) for sc in scenarios)
+                else (2 if isinstance(sc.reference, Step) else 2 + len(compared)) for sc in scenarios)
     # A bar on a terminal only (disable=None), never with quiet.
     bar = tqdm(total=total, desc="figures", unit="run", disable=True if quiet else None)
 
@@ -422,8 +423,12 @@ def make_all(dyn, out_dir, quiet=True, *, durations=None, gains=None, nonlinear=
             paths[sc.name] = plot_tracking_errors(sim, out / f"{sc.name}_errors.png", t_adapt=sc.t_adapt)
             paths[f"{sc.name}_parameters"] = plot_parameter_errors(sim, out / f"{sc.name}_parameters.png")
             continue
-        nl, pp = run(sc.name, nonlinear, True), run(sc.name, base, True)
+        nl = run(sc.name, nonlinear, True)
         moving = [c for c, a in zip(model.coordinate_names, sc.reference.amplitude()) if a > 0]
+        # the better fixed-gain P on this scenario: the smallest worst median error over the moving axes
+        candidates = {c: run(sc.name, c, True) for c in ([base] if isinstance(sc.reference, Step) else compared)}
+        p_name = min(candidates, key=lambda c: max((_max_pct(candidates[c], k) or (np.inf,))[0] for k in moving))
+        pp = candidates[p_name]
         if isinstance(sc.reference, Step):
             paths[sc.name] = plot_step(nl, pp, out / f"{sc.name}.png", coord=moving[0],
                                        title=f"{sc.label}: step response, nonlinear vs P (simulation)")
@@ -434,13 +439,14 @@ def make_all(dyn, out_dir, quiet=True, *, durations=None, gains=None, nonlinear=
             paths[key] = plot_experiment(nl, pp, coord, out / f"{key}.png",
                                          title=f"{sc.label}: {coord} tracking, nonlinear vs P (simulation)")
             paper = sc.paper.get(coord, (None, None))
-            rows.append((sc.label, coord, _max_pct(nl, coord), _max_pct(pp, coord), paper[0], paper[1],
-                         _max_pct(bs, coord) if bs is not None else None))
+            rows.append((f"{sc.label} (P: {p_name})" if len(compared) > 1 else sc.label, coord, _max_pct(nl, coord),
+                         _max_pct(pp, coord), paper[0], paper[1], _max_pct(bs, coord) if bs is not None else None))
 
     versus = (" vs paper (section VI) where it reports one" if any(v is not None for r in rows for v in r[4:6])
               else " (the paper reports no numbers for this robot)")
     table = (f"Maximum tracking error in % of the reference amplitude, model {model.name}: simulation{versus}. "
-             f"\"nonlinear\" is the {nonlinear} controller. Each simulated cell is the median (min-max) over "
+             f"\"nonlinear\" is the {nonlinear} controller; \"P\" the better of {', '.join(compared)} on each "
+             f"scenario (named with it). Each simulated cell is the median (min-max) over "
              f"{len(seeds)} sensor-noise seeds: on the rig the result is a distribution.\n\n"
              + comparison_table(rows))
     paths["table"] = out / "table.md"

@@ -127,6 +127,9 @@ def test_make_all_names_the_nonlinear_controller(tmp_path, cache):
     paths = figures.make_all(dyn, tmp_path / "a", durations=short, seeds=1)  # the description's: adaptive-robust
     assert '"nonlinear" is the adaptive-robust controller' in paths["table"].read_text()
     assert "vs paper" not in paths["table"].read_text() and "reports no numbers" in paths["table"].read_text()
+    # "P" is the better of the fixed-gain controllers on each scenario, named in the row
+    assert '"P" the better of p, p-task on each scenario' in paths["table"].read_text()
+    assert "(P: p)" in paths["table"].read_text() or "(P: p-task)" in paths["table"].read_text()
     paths = figures.make_all(dyn, tmp_path / "b", durations=short, nonlinear="adaptive-observer", seeds=2,
                              max_workers=2)
     table = paths["table"].read_text()

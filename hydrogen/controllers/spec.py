@@ -33,6 +33,9 @@ class ControllerSpec:
         Runs with the true θ and γ (no estimation): a scenario's wrong initial estimates do not apply.
     baseline : bool
         The fixed-gain comparison the nonlinear controllers are measured against (the paper's P).
+    compared : bool
+        One of the fixed-gain controllers the nonlinear ones are compared with (the figures take the
+        better of them on each scenario); the baseline is one.
     search_description_proportions : bool
         The search scales the main gain as the robot's description gives it (per-axis proportions a
         robot chooses), not the controller's uniform defaults.
@@ -46,4 +49,5 @@ class ControllerSpec:
     secondary_search: bool = True
     knows_true_parameters: bool = False
     baseline: bool = False
+    compared: bool = False
     search_description_proportions: bool = False
