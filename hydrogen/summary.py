@@ -9,6 +9,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from .controllers import ESTIMATE_BLOCKS  # the estimate blocks of a controller's state, defined there
+
 __all__ = ["display_unit", "error_lines", "estimated_blocks", "estimate_lines", "excitation_lines",
            "ESTIMATE_BLOCKS", "PCT_WIDTH", "POOR_EXCITATION"]
 
@@ -17,8 +19,6 @@ __all__ = ["display_unit", "error_lines", "estimated_blocks", "estimate_lines", 
 #: direction at least 1e4 times slower than the best-excited one).
 POOR_EXCITATION = 1.0e-4
 
-#: The controller-state blocks that hold parameter estimates, in the order they are reported.
-ESTIMATE_BLOCKS = ("theta_hat", "gamma1_hat", "gamma2_hat")
 #: Width of the "% of amplitude" column ("  12.34 %"; "-" right-aligned in the same width).
 PCT_WIDTH = 9
 

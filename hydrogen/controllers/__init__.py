@@ -30,7 +30,10 @@ import importlib
 from .spec import ControllerSpec
 
 __all__ = ["CONTROLLERS", "controller", "spec", "baseline", "adapts", "function_name", "rates_function_name",
-           "step_function_name", "LEAN", "ControllerSpec"]
+           "step_function_name", "LEAN", "ControllerSpec", "ESTIMATE_BLOCKS"]
+
+#: The controller-state blocks that hold parameter estimates, in the order they are reported.
+ESTIMATE_BLOCKS = ("theta_hat", "gamma1_hat", "gamma2_hat")
 
 #: The variant of an adaptive controller without the composite adaptation terms.
 LEAN = "lean"
@@ -65,7 +68,7 @@ def baseline() -> str:
 
 def adapts(name: str, model) -> bool:
     """Whether controller ``name`` estimates parameters on ``model`` (its state holds θ̂ or γ̂)."""
-    return any(block in ("theta_hat", "gamma1_hat", "gamma2_hat") for block, _ in _REGISTRY[name].state_layout(model))
+    return any(block in ESTIMATE_BLOCKS for block, _ in _REGISTRY[name].state_layout(model))
 
 
 def function_name(name: str, variant: str | None = None) -> str:

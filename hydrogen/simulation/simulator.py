@@ -535,17 +535,18 @@ def _check_reference(dyn, sc, n, h):
     """Reject a reference that leaves the cylinders' stroke at any control period, naming the time and
     the cylinder (one compiled call for the whole trajectory)."""
     m = dyn.model
-    legs = dyn.leg_lengths_many(sc.reference.positions(np.arange(n) * h))
+    t = np.arange(n) * h
+    q_ref = sc.reference.positions(t)  # once: the stroke and the joint-limit checks read it
+    legs = dyn.leg_lengths_many(q_ref)
     bad = (legs < m.leg_min) | (legs > m.leg_max)
     if bad.any():
         k, i = (int(v[0]) for v in np.nonzero(bad))
         raise KinematicsError(
             f"reference of scenario '{sc.name}' leaves the workspace at t = {k * h:.3f} s: cylinder "
             f"'{m.cylinders[i].name}' would be {legs[k, i]:.4f} m, stroke is [{m.leg_min[i]}, {m.leg_max[i]}] m")
-    t = np.arange(n) * h
     lim = m.coordinate_limits()
     units = m.coordinate_units
-    for what, values, lo, hi in (("position", sc.reference.positions(t), lim["lower"], lim["upper"]),
+    for what, values, lo, hi in (("position", q_ref, lim["lower"], lim["upper"]),
                                  ("velocity", np.abs(sc.reference.velocities(t)), -np.inf, lim["velocity"])):
         bad = (values < lo) | (values > hi)
         if bad.any():
