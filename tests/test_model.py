@@ -602,6 +602,26 @@ def rotary_arm_text() -> str:
     return text[:start] + ROTARY_ELBOW + "\n" + text[end:]
 
 
+THREE_WAY_SHOULDER = """kind = "three_way_cylinder"
+piston_area = 8.0e-4               # A, m^2: pi/4 x 0.032^2
+rod_area = 4.0e-4                  # a, the annulus at supply pressure: half of A
+chamber_length = 0.2               # L, m: 0.02 m below the shortest length
+"""
+
+
+def mixed_arm_text(elbow: str = "four_way") -> str:
+    """The four-way arm with its shoulder on the paper's three-way cylinder, and its elbow on the
+    four-way cylinder (``elbow="four_way"``) or the rotary vane actuator (``"rotary"``): every kind in
+    one robot, each actuator's own pressure block."""
+    text = FOUR_WAY_ARM.read_text() if elbow == "four_way" else rotary_arm_text()
+    head = 'name = "shoulder_cylinder"\n'
+    text = text.replace(head, head + THREE_WAY_SHOULDER, 1)
+    if elbow == "rotary":  # no four-way cylinder is left to take the arm's cylinder areas
+        text = "".join(line for line in text.splitlines(keepends=True)
+                       if not line.startswith(("cap_area", "annulus_area")))
+    return text
+
+
 def test_a_rotary_actuator_on_a_revolute_joint(tmp_path):
     path = tmp_path / "arm.toml"
     path.write_text(rotary_arm_text())

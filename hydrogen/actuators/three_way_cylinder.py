@@ -88,6 +88,12 @@ class Symbolic:
                                  orf.signed_sqrt_linearised(pc, p_lin))
 
     @staticmethod
+    def valve_flows(u, p, P, smooth=False):
+        """(q_l/c,): the uniform interface's flow per pressure state (the two-chamber kinds give two),
+        drops clipped at 0, or the plant's smooth law (``smooth``)."""
+        return (Symbolic.valve_flow_smooth(u, p, P) if smooth else Symbolic.valve_flow(u, p, P, clipped=True),)
+
+    @staticmethod
     def flow_inverse(w, p, P, eps):
         """Spool position u with q_l/c = w, inverting (57) over its three branches. Pressure drops are
         clipped at ``eps`` Pa so no root of a negative number is taken and the outer branches never
@@ -168,6 +174,10 @@ class Numeric:
         (pc,), ps, p_lin = p, P["supply_pressure"], P["orifice_linear_below"]
         return orf.orifice_terms_np(u, P["underlap"], orf.signed_sqrt_linearised_np(ps - pc, p_lin),
                                     orf.signed_sqrt_linearised_np(pc, p_lin))
+
+    @staticmethod
+    def valve_flows(u, p, P, smooth=False):
+        return (Numeric.valve_flow_smooth(u, p, P) if smooth else Numeric.valve_flow(u, p, P),)
 
     @staticmethod
     def flow_inverse(w, p, P, eps):
