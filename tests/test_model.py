@@ -599,7 +599,9 @@ def rotary_arm_text() -> str:
     text = FOUR_WAY_ARM.read_text()
     start = text.index('[[cylinders]]\nname = "elbow_cylinder"')
     end = text.index("[adaptation]")
-    return text[:start] + ROTARY_ELBOW + "\n" + text[end:]
+    text = text[:start] + ROTARY_ELBOW + "\n" + text[end:]
+    # the vane's force loop in N m/rad: 1e4 N/m times the square of the elbow cylinder's 0.178 m lever
+    return text.replace("[gains.common]\n", "[gains.common]\nGtau_inv = [1.0e4, 317.0]\n", 1)
 
 
 THREE_WAY_SHOULDER = """kind = "three_way_cylinder"

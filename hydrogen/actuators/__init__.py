@@ -8,6 +8,10 @@ An actuator module declares
   bounds), in the order the laws take them as the tuple ``p``;
 * ``PARAMETERS``: its constants and their defaults (:class:`~hydrogen.actuators.declarations.Parameter`);
   ``parameters(source)`` reads them from a cylinder or a mapping, ``stacked(sources)`` as arrays;
+* ``COUPLING_GAIN``: the default Γ_τ⁻¹ of the controllers' force loop, in the kind's force per
+  coordinate (N/m for a cylinder), or None where no default is sound: the description must give
+  ``Gtau_inv`` (a torque loop in N·m/rad weighs the force error by the square of a lever no actuator
+  of its own carries);
 * ``SENSORS``: what the robot measures on it (:class:`~hydrogen.actuators.declarations.Sensor`);
 * ``Symbolic`` (SymPy, the derivation layer) and ``Numeric`` (numpy twins, tested equal), each with
   the same laws, ``P`` the parameters by name, spool u in m, β and c the paper's γ = [β, βc]:

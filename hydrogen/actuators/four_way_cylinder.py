@@ -18,12 +18,14 @@ from . import orifices as orf
 from .declarations import Parameter, Sensor, State, parameter_values, stacked_parameters
 from .two_chamber import VALVE_PARAMETERS, Laws
 
-__all__ = ["NAME", "DOC", "MOTION", "STATES", "PARAMETERS", "SENSORS", "Symbolic", "Numeric",
+__all__ = ["NAME", "DOC", "MOTION", "COUPLING_GAIN", "STATES", "PARAMETERS", "SENSORS", "Symbolic", "Numeric",
            "parameters", "stacked"]
 
 NAME = "four_way_cylinder"
 DOC = "Double-acting cylinder on a four-way valve (cap- and rod-side pressures both states)."
 MOTION = "prismatic"
+#: Default Γ_τ⁻¹ of the force loop (N/m, as the three-way cylinder).
+COUPLING_GAIN = 1.0e4
 STATES = (State("pA", "Pa", "tank_pressure", "supply_pressure", "cap-side chamber pressure"),
           State("pB", "Pa", "tank_pressure", "supply_pressure", "rod-side (annulus) chamber pressure"))
 PARAMETERS = (

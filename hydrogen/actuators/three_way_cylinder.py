@@ -25,13 +25,15 @@ import numpy as np
 from . import orifices as orf
 from .declarations import Parameter, Sensor, State, parameter_values, sp, stacked_parameters
 
-__all__ = ["NAME", "DOC", "MOTION", "STATES", "PARAMETERS", "SENSORS", "Symbolic", "Numeric",
+__all__ = ["NAME", "DOC", "MOTION", "COUPLING_GAIN", "STATES", "PARAMETERS", "SENSORS", "Symbolic", "Numeric",
            "parameters", "stacked"]
 
 NAME = "three_way_cylinder"
 DOC = "Cylinder on a three-way valve, rod side at supply pressure (the paper's eqs. (56)-(59))."
 #: The coordinate the actuator moves: its length l (m), l̇ (m/s).
 MOTION = "prismatic"
+#: Default Γ_τ⁻¹ of the force loop (N/m: the paper's platform legs).
+COUPLING_GAIN = 1.0e4
 STATES = (State("pc", "Pa", 0.0, "supply_pressure", "control (cap-side) chamber pressure"),)
 PARAMETERS = (
     Parameter("piston_area", "m^2", None, "A, cap-side (control chamber) area"),

@@ -3,7 +3,7 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["model_gains", "adaptation_gains", "RAW_ADAPTATION_GAINS", "adaptation_references",
+__all__ = ["model_gains", "check_coupling_gains", "adaptation_gains", "RAW_ADAPTATION_GAINS", "adaptation_references",
            "normalised_adaptation", "composite_layout", "composite_static_inputs", "initial_gain_matrix",
            "COMPOSITE_BLOCKS", "COMPOSITE_GAIN_BLOCKS", "COMPOSITE_RATES", "gain_block_shape", "lean_variant", "runs_lean"]
 
@@ -35,9 +35,27 @@ def model_gains(model, scale) -> dict:
         "Kd": 60.0 * scale,
         "Kp": 300.0 * scale,
         "Ktau": 150.0 * np.ones(m),
-        "Gtau_inv": 1.0e4 * np.ones(m),
+        # per actuator in its own units (N/m, N m/rad); NaN: its kind has no default (check_coupling_gains)
+        "Gtau_inv": np.array([np.nan if g is None else g for g in _coupling_gains(model)], float),
         "u_max": np.array([5.0e-3]),
     }
+
+
+def _coupling_gains(model) -> list:
+    from ..actuators import actuator
+    return [actuator(c.kind).COUPLING_GAIN for c in model.cylinders]
+
+
+def check_coupling_gains(model, gains) -> None:
+    """ValueError naming the actuators whose force-loop gain Γ_τ⁻¹ (``Gtau_inv``) is still unset: a
+    kind without a default (a rotary actuator's, in N·m/rad) needs it from the description."""
+    g = np.asarray(gains.get("Gtau_inv", ()), float).ravel()
+    unset = [c for c, v in zip(model.cylinders, g) if np.isnan(v)]
+    if unset:
+        names = ", ".join(f"'{c.name}' ({c.kind})" for c in unset)
+        raise ValueError(f"gain 'Gtau_inv' (one per actuator, {model.n_cylinders} values) must be given for {names}: "
+                         "its kind has no default; in N m/rad for a rotary actuator, about 1e4 r^2 with r the "
+                         "lever (m) of a cylinder doing the same job, N/m for a cylinder (default 1e4)")
 
 
 def adaptation_gains(model) -> dict:

@@ -16,8 +16,8 @@ import numpy as np
 
 from ..controllers import (CONTROLLERS, LEAN, controller as controller_module, function_name, rates_function_name,
                            step_function_name)
-from ..controllers.common import COMPOSITE_GAIN_BLOCKS, gain_block_shape, initial_gain_matrix, normalised_adaptation, \
-    runs_lean
+from ..controllers.common import COMPOSITE_GAIN_BLOCKS, check_coupling_gains, gain_block_shape, initial_gain_matrix, \
+    normalised_adaptation, runs_lean
 from .. import pressures
 from ..errors import ScenarioError
 from .checks import check_gain_values
@@ -240,6 +240,10 @@ def make_controller(dyn, kind, gains=None, theta0=None, gamma0=None, period=None
         except ValueError as exc:
             raise ScenarioError(f"controller '{kind}': {exc}") from None
     g = normalised_adaptation(model, g, theta0, gamma0)  # Γ⁻¹ from the rates where not given raw
+    try:
+        check_coupling_gains(model, g)
+    except ValueError as exc:
+        raise ScenarioError(f"{model.source}: controller '{kind}': {exc}") from None
     check_gain_values(kind, g, origin)
     g.update(mod.static_inputs(dyn, theta0, gamma0))
     g["period"] = np.array([1.0e-3 if period is None else float(period)])
