@@ -3,19 +3,19 @@
 :func:`export_fmu` writes one ``.fmu`` (a zip: ``modelDescription.xml``, ``sources/``,
 ``binaries/linux64/<modelIdentifier>.so`` and ``documentation/``) from the same generated C, the
 same rendered loop driver and the same export context (:func:`hydrogen.export.export_context`, rendered
-into ``sources/params.h``) as the C export. The FMU glue (``templates/fmu_glue.c.j2``) drives the
-loop driver's public entry point ``<model>_loop_run`` one control period per call:
+into ``sources/params.h``) as the C export. The FMU glue (``templates/fmu_glue.c.j2``) calls the loop
+driver's stages (``<model>_loop.h``) one control period per call:
 
-* **plant**: the loop with a controller that holds the FMU input ``u``; RK4 sub-steps, pressure
-  limits (and whatever else the loop's plant stage does) are the loop's own. The loop's sensor and
-  controller stages run on the true state and are discarded.
-* **controller**: the loop with no plant (0 sub-steps): its sensor path (Kalman filter on the
-  cylinder lengths, forward kinematics or joint encoders, velocities through JL), reference,
-  controller and controller-state update. The measured values enter through the loop's noise row
-  (measured minus modelled cylinder lengths at a stand-in pose; exact in floating point because the
-  two are within a factor 2 of each other). Without a Kalman filter (the ideal cylinder-rate sensor of
-  the simulation scenarios) the measured cylinder rates are an input as well.
-* **closed-loop**: the whole loop, reproducing ``hydrogen.simulate(..., noise_l=0, noise_p=0)``.
+* **plant**: the plant stage ``<model>_plant_step`` holding the FMU input ``u``; RK4 sub-steps and
+  pressure limits are the loop's own.
+* **controller**: the stages from estimation on, on the measured inputs: ``<model>_estimate``
+  (Kalman filter on the cylinder lengths, forward kinematics or joint encoders, velocities through
+  JL), ``<model>_reference`` (or the q_d inputs), ``<model>_control`` and ``<model>_control_advance``.
+  The lengths pass the length sensor's resolution (``<model>_sense_lengths``). Without a Kalman filter
+  (the ideal cylinder-rate sensor of the simulation scenarios) the measured cylinder rates are an
+  input as well.
+* **closed-loop**: the whole loop (``<model>_loop_run``), reproducing
+  ``hydrogen.simulate(..., noise_l=0, noise_p=0)``.
 
 So plant FMU + controller FMU (controller stepped first, then the plant, each over the same
 period) is the closed loop, to rounding. The FMI headers come from fmpy's installed copy
@@ -599,12 +599,10 @@ def export_fmu(out, part, scenario=None, controller="adaptive-robust", model=Non
                   "files": {k: hashlib.sha256(v).hexdigest() for k, v in sorted(files.items())},
                   "headers": {k: hashlib.sha256(v).hexdigest() for k, v in sorted(header_bytes.items())},
                   "variables": [(v.name, v.kind, v.c_loc, v.start) for v in variables], "version": __version__})
-    ref_inputs = [{"slot": s, "order": k, "index": fn.in_names.index(s)}
-                  for k, (s, *_rest) in enumerate(_REF_ORDERS) if s in fn.in_names]
     glue = render_template("fmu_glue.c.j2", dict(
         ctx, part=part, guid=guid, variables=variables, plant_arrays=_plant_arrays(dyn, p),
         est_const_size=len(est_const), est_const=", ".join(c_double(v) for v in est_const),
-        encoders=encoders, kalman=kalman, ref_inputs=ref_inputs,
+        encoders=encoders, kalman=kalman,
         stroke_min=", ".join(c_double(v) for v in model.leg_min),
         stroke_max=", ".join(c_double(v) for v in model.leg_max),
         length_vrs=", ".join(str(v.vr) for v in variables if v.kind == "o" and v.c_loc.startswith("inst->y_l["))

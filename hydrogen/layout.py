@@ -7,7 +7,8 @@ neither SymPy, CasADi nor numpy.
 """
 from __future__ import annotations
 
-__all__ = ["SLOTS", "MAX_DELAY", "LOOP_CONFIG", "model_summary", "loop_context", "log_widths", "loop_functions",
+__all__ = ["SLOTS", "MAX_DELAY", "delay_split", "LOOP_CONFIG", "LOOP_STATE", "LOOP_SIGNALS",
+           "model_summary", "loop_context", "log_widths", "loop_functions",
            "c_double", "config_fields"]
 
 #: Signals the loop writes into a controller's inputs, by input name, in this order (``u_applied``:
@@ -15,9 +16,21 @@ __all__ = ["SLOTS", "MAX_DELAY", "LOOP_CONFIG", "model_summary", "loop_context",
 SLOTS = ("q", "qdot", "pc", "l", "qd0", "qd1", "qd2", "qd3", "xc", "adapt", "u_applied")
 
 #: Longest computation delay the loop's command ring buffer holds, control periods (a scenario's
-#: ``delay_periods`` is refused above it). A real-time target applies a command one period after the
+#: ``delay`` is refused above it). A real-time target applies a command one period after the
 #: measurement it came from; 8 leaves room for slower targets and delay-margin studies.
 MAX_DELAY = 8
+
+
+def delay_split(delay: float, h: float) -> tuple:
+    """A computation delay of ``delay`` s at control period ``h`` s as (whole periods d, fraction φ of a
+    period, 0 ≤ φ < 1): the command computed at t_k is applied from t_k + (d + φ) h. A delay within 1e-9
+    of a period boundary is that boundary (1/512 s at 512 Hz is one period, not 0.999...)."""
+    import math
+
+    r = float(delay) / float(h)
+    d = math.floor(r + 1e-9)
+    frac = r - d
+    return d, (0.0 if frac < 1e-9 else frac)
 
 
 #: The closed loop's configuration, described once: groups of (field, C type, exported value), each
@@ -30,9 +43,10 @@ MAX_DELAY = 8
 #: the runtime's :class:`hydrogen.runtime.loop.LoopRunner` and in params.h, its use in loop.c.
 LOOP_CONFIG = (
     ("timing: control period h (s), plant RK4 sub-steps per control period, adaptation on for t >= t_adapt;\n"
-     " * the command computed at period k is applied from period k + delay (0..MAX_DELAY)",
+     " * the command computed at period k is applied from t_k + (delay + delay_frac) h (delay 0..MAX_DELAY,\n"
+     " * 0 <= delay_frac < 1, delay + delay_frac <= MAX_DELAY)",
      (("h", "double", "P_H"), ("substeps", "long long", "P_SUBSTEPS"), ("t_adapt", "double", "P_T_ADAPT"),
-      ("delay", "long long", "P_DELAY_PERIODS"))),
+      ("delay", "long long", "P_DELAY_PERIODS"), ("delay_frac", "double", "P_DELAY_FRACTION"))),
     ("plant (SI): true theta ({p_theta}), gamma1 = beta and gamma2 = beta c per cylinder,\n"
      " * friction [Fc, b, v_s], valve [first-order lag s, second-order natural frequency rad/s, damping]",
      (("theta", "const double*", "P_THETA"), ("gamma1", "const double*", "P_GAMMA1"),
@@ -63,6 +77,60 @@ LOOP_CONFIG = (
     ("forward kinematics (Newton): tolerance (m), iterations",
      (("fk_tol", "double", "P_FK_TOL"), ("fk_max_iter", "long long", "P_FK_MAX_ITER"))),
 )
+
+
+#: The loop's state between calls, described once: (field, C type, size, comment). Sizes are products
+#: of the loop header's sizes (``NQ`` coordinates, ``NL`` cylinders, ``NX`` plant states, ``NPC``
+#: pressure states, ``MAX_DELAY``) and numbers; None: a scalar. The header's struct and the runtime's
+#: ctypes mirror are rendered from it.
+LOOP_STATE = (
+    ("t", "double", None, "s"),
+    ("k", "long long", None, "control periods done"),
+    ("x", "double", ("NX",), "plant: q, qdot, pc, spool, spool rate"),
+    ("q_meas", "double", ("NQ",), "last measured pose (Newton's warm start)"),
+    ("kf", "double", (2, "NL"), "Kalman state: cylinder lengths, cylinder rates"),
+    ("u_hist", "double", ("MAX_DELAY", "NL"), "commands of past periods: ring, slot k % MAX_DELAY (0 at reset)"),
+    ("u_app", "double", ("NL",), "commands the valves held over the last period, m (0 at reset): the\n"
+     " * controller's u_applied input in its state update"),
+    ("xc", "double*", None, "controller state, n_xc entries"),
+)
+
+#: One control period's signals as the loop's stages hand them on (measure → estimate → reference →
+#: control → plant step), described once like :data:`LOOP_STATE`. A program that has its own sensors
+#: (the controller FMU) fills the measured fields and calls the stages from estimate on.
+LOOP_SIGNALS = (
+    ("t", "double", None, "time of the period's start, s"),
+    ("l_true", "double", ("NL",), "true cylinder lengths, m"),
+    ("l_meas", "double", ("NL",), "measured cylinder lengths (noise, resolution), m"),
+    ("pc_meas", "double", ("NPC",), "measured pressures, Pa"),
+    ("q_enc", "double", ("NQ",), "joint encoders' reading, rad or m (joint encoders only)"),
+    ("ldot", "double", ("NL",), "cylinder rates: the Kalman filter's, or the ideal rate sensor's, m/s"),
+    ("qdot_meas", "double", ("NQ",), "measured velocities, JL^-1 ldot at the measured pose"),
+    ("qd", "double", (4, "NQ"), "reference and its first three time derivatives"),
+    ("u", "double", ("NL",), "spool commands computed this period, m"),
+    ("u_held", "double", ("NL",), "spool commands the valves hold over the period's first delay_frac h, m"),
+    ("u_app", "double", ("NL",), "spool commands applied over the rest of the period (computation delay), m"),
+)
+
+
+def struct_fields(description, p: str, sizes: dict) -> list:
+    """A struct description (:data:`LOOP_STATE`, :data:`LOOP_SIGNALS`) for the templates and the
+    ctypes mirrors: ``[{"name", "type", "decl", "length", "comment"}]`` (``length``: the number of
+    entries for ``sizes``, which maps the header's size names to numbers; None for a scalar)."""
+    from markupsafe import Markup  # hydrogen's own declaration text (hydrogen.templating)
+
+    out = []
+    for name, ctype, size, comment in description:
+        if size is None:
+            decl, length = f"{ctype} {name}", None
+        else:
+            c_size = " * ".join(str(t) if isinstance(t, int) else f"{p.upper()}_{t}" for t in size)
+            decl, length = f"{ctype} {name}[{c_size}]", 1
+            for t in size:
+                length *= t if isinstance(t, int) else sizes[t]
+        out.append({"name": name, "type": ctype, "decl": Markup(decl), "length": length,
+                    "comment": Markup(comment.replace("\n * ", "\n     * "))})
+    return out
 
 
 def config_fields(p: str) -> list:
@@ -142,21 +210,25 @@ def loop_context(manifest: dict) -> dict:
     pressures = "chamber pressures (one block per actuator), Pa" if "n_pressures" in s else "control pressures, Pa"
     what = {"t": "time, s", "q": "true pose", "q_d": "reference", "l": "true cylinder lengths, m",
             "f": "cylinder forces, N", "pc": pressures, "u": "spool commands computed, m",
-            "u_applied": "spool commands applied (delay_periods later), m",
+            "u_applied": "spool commands the valves held at the end of each period (delay later), m",
             "l_meas": "measured cylinder lengths (noise, quantisation), m"}
     logs = [(k, w, what[k]) for k, w in log_widths(s).items()] + [("xc", "n_xc", "controller state")]
     n_p, three_way = n_pressures(s), "piston_area" in s
+    nx = 2 * n + n_p + 2 * m
+    sizes = {"NQ": n, "NL": m, "NX": nx, "NPC": n_p, "MAX_DELAY": MAX_DELAY}
     ctx = {
         "model": name, "p": name, "P": name.upper(), "guard": f"{name.upper()}_LOOP_H",
-        "n": n, "m": m, "nx": 2 * n + n_p + 2 * m, "max_delay": MAX_DELAY,
+        "n": n, "m": m, "nx": nx, "max_delay": MAX_DELAY,
         "n_noise": m + n_p + (n if s["joint_encoders"] else 0), "n_pressures": n_p, "three_way": three_way,
         "encoders": bool(s["joint_encoders"]), "slots": SLOTS, "logs": logs, "config": config_fields(name),
+        "state": struct_fields(LOOP_STATE, name, sizes), "signals": struct_fields(LOOP_SIGNALS, name, sizes),
         "p_theta": ", ".join(s["theta_names"]),
         "supply_pressure": ", ".join(map(c_double, s["supply_pressure"])),
     }
-    if three_way:
+    if three_way:  # each control pressure within [0, P_s]
         ctx.update(piston_area=", ".join(map(c_double, s["piston_area"])),
-                   rod_area=", ".join(map(c_double, s["rod_area"])))
+                   rod_area=", ".join(map(c_double, s["rod_area"])),
+                   pressure_low=", ".join(c_double(0.0) for _ in range(m)), pressure_high=ctx["supply_pressure"])
     else:
         ctx.update(pressure_low=", ".join(map(c_double, s["pressure_low"])),
                    pressure_high=", ".join(map(c_double, s["pressure_high"])))

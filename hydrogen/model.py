@@ -436,8 +436,10 @@ class _Reader:
             raise self.error(where or f"[{key}]", f"expected a table, got {_quote(value)}")
         return value
 
-    def known(self, data: dict, keys, where: str):
+    def known(self, data: dict, keys, where: str, renamed=None):
         for key in data:
+            if key not in keys and key in (renamed or {}):
+                raise self.error(where, f"'{key}' is now {renamed[key]}")
             if key not in keys:
                 raise self.error(where, f"unknown key '{key}' (known: {', '.join(sorted(keys))})")
 
@@ -1091,17 +1093,17 @@ def _check_tables(r: _Reader, m: Model):
     """Every gain and scenario table and key known, at load time (they are read only when a run
     starts); the known ones come from their definitions: the controllers' gains, the Scenario fields."""
     from .simulation.control import COMMON_GAINS, CONTROLLERS, gain_names
-    from .simulation.scenarios import table_keys
+    from .simulation.scenarios import RENAMED, table_keys
     names = {c: gain_names(c, m) for c in CONTROLLERS}
     _check_gains(r, m.gains, "[gains]", {**names, COMMON_GAINS: frozenset().union(*names.values())})
-    r.known(m.scenarios["rig"], table_keys(rig=True), "[rig]")
+    r.known(m.scenarios["rig"], table_keys(rig=True), "[rig]", RENAMED)
     for name, table in m.scenarios.items():
         if name == "rig":
             continue
         w = f"[scenarios.{name}]"
         if not isinstance(table, dict):
             raise r.error(w, f"expected a table, got {_quote(table)}")
-        r.known(table, table_keys(), w)
+        r.known(table, table_keys(), w, RENAMED)
         gains = table.get("gains", {})
         if not isinstance(gains, dict):
             raise r.error(f"{w} gains", f"expected a table of controllers, got {_quote(gains)}")

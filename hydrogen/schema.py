@@ -142,7 +142,8 @@ SCENARIO_FIELDS = {
     "valve_lag": ("s", "first-order valve lag (0: none); exclusive with valve_bandwidth_hz"),
     "valve_bandwidth_hz": ("Hz", "second-order servo-valve natural frequency (the spool lags 90° there); 0: none"),
     "valve_damping": ("", "second-order valve damping ratio"),
-    "delay_periods": ("periods", "computation delay: the command from period k is applied from k + this (0-8)"),
+    "delay": ("s", "computation delay: the command computed at t_k is applied from t_k + this (0 to 8 control "
+              "periods; a fraction of a period switches the command inside the plant's sub-steps)"),
     "quantization_l": ("m", "cylinder-length encoder resolution (0: none)"),
     "noise_l": ("m", "std of white cylinder-length noise"),
     "noise_q": ("rad or m", "std of white joint-encoder noise (robots with joint encoders)"),

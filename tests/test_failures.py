@@ -246,7 +246,7 @@ def test_bench_refuses_unknown_modules():
 
 # 11 ------------------------------------------------------------------------------------------------
 def test_a_run_too_large_for_memory_is_refused_with_the_limit_and_the_way_round(dyn, monkeypatch):
-    for kw in (dict(duration=1e7), dict(control_rate=1e12)):
+    for kw in (dict(duration=1e7), dict(control_rate=1e12, delay=0.0)):
         with pytest.raises(ScenarioError, match="HYDROGEN_MAX_RUN_BYTES") as err:
             simulate(dyn, "z-1hz", "p", **kw)
         assert "hydrogen.stepper" in str(err.value) and "chunks" in str(err.value)

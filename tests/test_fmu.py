@@ -154,7 +154,7 @@ def test_closed_loop_fmu_reproduces_simulate(fmus):
 def test_plant_and_controller_fmus_reproduce_the_closed_loop(fmus):
     dyn, scenario, controller, paths = fmus
     # between parts the master's step order is the timing: the parts carry no computation delay
-    res = _reference_run(dyn, scenario, controller, delay_periods=0)
+    res = _reference_run(dyn, scenario, controller, delay=0.0)
     q = _cosimulate(paths["plant"], paths["controller"], len(res.t))
     np.testing.assert_allclose(q, res.q, rtol=0, atol=1e-9)
 
@@ -163,7 +163,7 @@ def test_controller_fmu_follows_an_external_reference(fmus):
     """q_d and its derivatives as inputs (use_builtin_reference = false), fed with the scenario's own
     reference computed in Python: the same run, to the rounding of sin and cos."""
     dyn, scenario, controller, paths = fmus
-    res = _reference_run(dyn, scenario, controller, delay_periods=0)  # parts: no computation delay
+    res = _reference_run(dyn, scenario, controller, delay=0.0)  # parts: no computation delay
     from hydrogen.simulation.scenarios import scenario as named_scenario
     sc = named_scenario(scenario, dyn.model)
     q = _cosimulate(paths["plant"], paths["controller"], len(res.t), reference=sc.reference)
@@ -189,7 +189,7 @@ def test_a_python_p_controller_drives_the_plant_fmu(dyn, tmp_path):
         return np.clip(K * (l_d - l), -u_max, u_max)
 
     # the Python master applies each command at once, on exact lengths: no delay, no quantisation
-    res = _reference_run(dyn, "z-1hz", "p", delay_periods=0, quantization_l=0.0)
+    res = _reference_run(dyn, "z-1hz", "p", delay=0.0, quantization_l=0.0)
     q = _cosimulate(plant, None, len(res.t), controller=p_controller)
     np.testing.assert_allclose(q, res.q, rtol=0, atol=1e-9)
     assert np.abs(q - res.q_d).max() > 1e-5

@@ -23,8 +23,9 @@ def robot(request):
 @pytest.mark.parametrize("delay", [0, 1, 3])
 def test_delay_applies_each_command_delay_periods_later(robot, delay):
     dyn, name = robot
-    res = simulate(dyn, name, "p", duration=0.3, delay_periods=delay)
-    assert res.scenario.delay_periods == delay
+    h = 1.0 / scenario(name, dyn.model).control_rate
+    res = simulate(dyn, name, "p", duration=0.3, delay=delay * h)
+    assert res.scenario.delay_split() == (delay, 0.0)
     np.testing.assert_array_equal(res.u_applied[:delay], 0.0)  # the valves start centred
     np.testing.assert_array_equal(res.u_applied[delay:], res.u[:len(res.u) - delay])
 
@@ -32,7 +33,7 @@ def test_delay_applies_each_command_delay_periods_later(robot, delay):
 def test_a_step_in_the_command_reaches_the_valve_one_period_later(dyn):
     """P on a reference step: the command jumps in the period of the step, the valve one period later."""
     res = simulate(dyn, "z-step", "p", duration=1.2, noise_l=0.0, noise_p=0.0, quantization_l=0.0)
-    assert res.scenario.delay_periods == 1
+    assert res.scenario.delay_split() == (1, 0.0)
     k = int(np.argmax(res.t >= res.scenario.reference.t_step))
     jump = np.abs(np.diff(res.u, axis=0)).max(axis=1)
     jump_applied = np.abs(np.diff(res.u_applied, axis=0)).max(axis=1)
@@ -162,7 +163,7 @@ def test_c_loop_matches_python_loop_with_the_whole_rig(robot):
     """Nothing adapts: the two loops agree over the whole rig run."""
     dyn, name = robot
     sc = scenario(name, dyn.model)
-    assert sc.delay_periods == 1 and sc.valve_bandwidth_hz > 0 and sc.quantization_l > 0 and sc.kalman
+    assert sc.delay_split() == (1, 0.0) and sc.valve_bandwidth_hz > 0 and sc.quantization_l > 0 and sc.kalman
     for kind in ("p", "backstepping"):
         c = simulate(dyn, name, kind)
         py = simulate(dyn, name, kind, engine="python")
@@ -192,14 +193,15 @@ def test_c_and_python_loops_on_the_rig_agree_until_chaos_parts_them(robot, kind)
 
 
 def test_result_holds_the_scenario_actually_run(dyn):
-    res = simulate(dyn, "z-1hz", "p", duration=0.1, delay_periods=2, valve_bandwidth_hz=60.0)
+    res = simulate(dyn, "z-1hz", "p", duration=0.1, delay=2 / 512, valve_bandwidth_hz=60.0)
     assert isinstance(res.scenario, Scenario)
-    assert res.scenario.delay_periods == 2 and res.scenario.valve_bandwidth_hz == 60.0
+    assert res.scenario.delay == 2 / 512 and res.scenario.valve_bandwidth_hz == 60.0
     assert res.scenario.duration == 0.1
     assert res.scenario_name == "z-1hz" == res.metrics["scenario"]
 
 
-@pytest.mark.parametrize("bad", [dict(delay_periods=-1), dict(delay_periods=99), dict(delay_periods=1.5),
+@pytest.mark.parametrize("bad", [dict(delay=-1e-3), dict(delay=99 / 512), dict(delay=8.5 / 512), dict(delay="1"),
+                                 dict(delay=float("nan")),
                                  dict(valve_lag=0.002, valve_bandwidth_hz=80.0), dict(valve_damping=0.0),
                                  dict(quantization_l=-1e-5), dict(valve_bandwidth_hz=5000.0)])
 def test_bad_rig_settings_are_named(dyn, bad):
@@ -228,3 +230,33 @@ def test_default_p_gain_has_a_margin_of_at_least_2():
     from hydrogen.simulation.tuning import margins
     rows = margins(["p"], model="ubc_stewart", scenarios=["z-1hz"], max_workers=2)["rows"]
     assert rows[0]["margin"] >= 2.0
+
+
+@pytest.mark.parametrize("periods", [0.4, 1.5])
+def test_a_fractional_delay_switches_the_command_inside_the_period(robot, periods):
+    """A delay of a fraction of a period (the paper's timing: the command applied once computed):
+    the C and the Python loops agree, the valves' commands are the whole-period ones, and the motion
+    lies between that of the two whole-period delays around it."""
+    dyn, name = robot
+    sc = scenario(name, dyn.model)
+    h, kw = 1.0 / sc.control_rate, dict(duration=0.4, noise_l=0.0, noise_p=0.0, noise_q=0.0, quantization_l=0.0)
+    frac = simulate(dyn, name, "p", delay=periods * h, **kw)
+    assert frac.scenario.delay_split() == (int(periods), pytest.approx(periods % 1))
+    py = simulate(dyn, name, "p", delay=periods * h, engine="python", **kw)
+    np.testing.assert_allclose(frac.q, py.q, atol=1e-10)
+    d = int(periods)
+    np.testing.assert_array_equal(frac.u_applied[d:], frac.u[:len(frac.u) - d])  # at each period's end
+    lo, hi = (simulate(dyn, name, "p", delay=k * h, **kw) for k in (d, d + 1))
+    to_lo, to_hi, span = (np.abs(a.q - b.q).max() for a, b in ((frac, lo), (frac, hi), (lo, hi)))
+    assert 0 < to_lo < span and 0 < to_hi < span, (to_lo, to_hi, span)
+
+
+def test_delay_periods_is_refused_with_its_new_name(dyn, tmp_path):
+    text = hydrogen.model.model_path("ubc_stewart").read_text().replace(
+        "delay = 0.001953125", "delay_periods = 1")
+    path = tmp_path / "old.toml"
+    path.write_text(text)
+    with pytest.raises(hydrogen.ModelError, match=r"\[rig\].*'delay_periods' is now delay"):
+        hydrogen.load_model(path)
+    with pytest.raises(hydrogen.ScenarioError, match="delay_periods is now delay"):
+        simulate(dyn, "z-1hz", "p", duration=0.01, delay_periods=1)

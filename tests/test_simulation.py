@@ -391,7 +391,7 @@ def test_robust_observer_gain_follows_lambda_and_kd():
     scale = gain_scale(dyn)
     defaults = controller_module("adaptive-robust").default_gains(dyn.model, scale)
     gains = {k: defaults[k] for k in ("Lambda", "Kd", "Kp", "Ktau")}
-    ideal = dict(delay_periods=0, valve_bandwidth_hz=0.0, friction=(0.0, 0.0, 1e-3), quantization_l=0.0,
+    ideal = dict(delay=0.0, valve_bandwidth_hz=0.0, friction=(0.0, 0.0, 1e-3), quantization_l=0.0,
                  noise_l=0.0, noise_q=0.0, noise_p=0.0, kalman=False, t_adapt=1e9,
                  theta0_factor=(1.0,) * dyn.model.n_theta, gamma0_factor=(1.0, 1.0))
     res = simulate(dyn, "arm-dig", "adaptive-robust", gains=gains, **ideal)
@@ -501,3 +501,37 @@ def test_a_parameter_whose_true_value_is_zero_has_an_absolute_error_not_nan(dyn)
     assert all(np.isfinite(v) for i, v in enumerate(m["theta_error_pct_final"]) if i != 1)
     text = " ".join(estimate_lines(res))
     assert "nan" not in text and "inf" not in text and "true 0: error" in text
+
+
+@pytest.mark.parametrize("kind", ["rig", "ideal"])
+def test_the_loop_is_its_stages_composed(robot_dyn, kind):
+    """One period of the C loop is its public stages called in the header's order: a program (the
+    FMUs, a real-time target) that composes them gets the loop's numbers bit for bit, on the rig (noise,
+    quantisation, Kalman filter, delay) and on the ideal plant (ideal rate sensor)."""
+    from hydrogen.simulation import simulator as S
+    from hydrogen.simulation.scenarios import scenario_names
+    model = robot_dyn.model
+    names = [n for n in scenario_names(model) if scenario(n, model).kalman == (kind == "rig")]
+    if not names:
+        pytest.skip(f"{model.name} has no {kind} scenario")
+    name, n = names[0], 200
+    duration = n / scenario(name, model).control_rate
+    runs = [S.prepare_run(robot_dyn, name, "adaptive-robust", None, duration, False, {"seed": 3}) for _ in range(2)]
+    whole, staged = (S.make_runner(robot_dyn, p.sc, p.ctrl, p.x0, p.q0, p.kf_gain, p.h) for p in runs)
+    noise = runs[0].noise
+    assert noise.shape[0] >= n
+    log = {"u": np.zeros((n, model.n_cylinders))}
+    assert whole.run(n, noise, log) == 0
+    st, u = staged.stages(), []
+    for k in range(n):
+        assert st.measure(noise[k]) == 0 and st.estimate() == 0
+        st.reference()
+        assert st.control() == 0 and st.plant_step() == 0 and st.control_advance() == 0
+        u.append(list(st.signals.u))
+        staged.state.k += 1
+    np.testing.assert_array_equal(np.array(u), log["u"])
+    np.testing.assert_array_equal(staged.plant_state, whole.plant_state)
+    np.testing.assert_array_equal(staged.xc, whole.xc)
+    for field in ("q_meas", "kf", "u_hist", "u_app"):
+        assert list(getattr(staged.state, field)) == list(getattr(whole.state, field)), field
+    assert np.abs(noise[:n]).max() > 0 if kind == "rig" else True

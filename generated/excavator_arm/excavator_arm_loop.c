@@ -1,8 +1,9 @@
 /* Closed-loop driver for model excavator_arm (see excavator_arm_loop.h).
  * Rendered by hydrogen from templates/loop.c.j2; plain C99, no dependency but libm.
- * One control period: measure (noise, quantisation, Kalman filter), joint encoders,
- * reference, controller state update and command, the command of delay periods ago (zero-order
- * hold), RK4 sub-steps of the plant. */
+ * One control period is the stages declared in the header, in this order: measure (noise,
+ * quantisation), estimate (Kalman filter, joint encoders, velocities), reference, control
+ * (controller state update and command, the command of delay periods ago), the logs, plant step (RK4
+ * sub-steps, zero-order hold), control advance (forward-Euler state update). */
 #include <math.h>
 #include <string.h>
 
@@ -17,6 +18,10 @@
 #define NNOISE EXCAVATOR_ARM_NNOISE
 #define MAX_DELAY EXCAVATOR_ARM_MAX_DELAY
 static const double TWO_PI = 6.283185307179586;
+#define NPC EXCAVATOR_ARM_NPC
+/* baked bounds of each pressure state (Pa), the clip of the measurement and of the plant */
+static const double P_LOW[NPC] = { 0.0, 0.0, 0.0 };
+static const double P_HIGH[NPC] = { 35000000.0, 35000000.0, 35000000.0 };
 /* baked cylinder constants: cap area A (m^2), annulus area a (m^2), supply pressure P_s (Pa) */
 static const double PISTON_AREA[NL] = { 0.022619, 0.015394, 0.01131 };
 static const double ROD_AREA[NL] = { 0.009896, 0.0075398, 0.0056352 };
@@ -75,30 +80,6 @@ static int solve_n(double* A, double* b) {
     return 1;
 }
 
-static void reference(const excavator_arm_loop_config* c, double t, double* qd /* 4 x NQ */) {
-    long long j;
-    int i;
-    for (i = 0; i < NQ; ++i) {
-        qd[i] = c->bias[i];
-        qd[NQ + i] = qd[2 * NQ + i] = qd[3 * NQ + i] = 0;
-    }
-    for (j = 0; j < c->n_terms; ++j) {
-        double axis = c->terms[3 * j];
-        double a = c->terms[3 * j + 1], w = TWO_PI * c->terms[3 * j + 2];
-        double s, co;
-        int ax;
-        if (!(axis >= 0 && axis < NQ)) continue;  /* never index with an unchecked value */
-        ax = (int)axis;
-        s = sin(w * t);
-        co = cos(w * t);
-        qd[ax] += a * s;
-        qd[NQ + ax] += a * w * co;
-        qd[2 * NQ + ax] -= a * w * w * s;
-        qd[3 * NQ + ax] -= a * w * w * w * co;
-    }
-    if (c->step_axis >= 0 && c->step_axis < NQ && t >= c->t_step) qd[c->step_axis] += c->step_height;
-}
-
 static int plant_rhs(const excavator_arm_loop_config* c, const double* x, const double* u, double* xdot) {
     const double* arg[7];
     double* res[1];
@@ -128,118 +109,214 @@ static void set_slot(const excavator_arm_loop_config* c, int s, const double* v,
 
 static double clip(double v, double lo, double hi) { return v < lo ? lo : (v > hi ? hi : v); }
 
+void excavator_arm_sense_lengths(const excavator_arm_loop_config* c, const double* l, const double* nz, double* l_meas) {
+    int i;
+    for (i = 0; i < NL; ++i) {
+        l_meas[i] = l[i] + (nz ? nz[i] : 0);
+        if (c->quant_l > 0) l_meas[i] = c->quant_l * floor(l_meas[i] / c->quant_l + 0.5);
+    }
+}
+
+int excavator_arm_measure(const excavator_arm_loop_config* c, const excavator_arm_loop_state* st, const double* nz,
+                    excavator_arm_loop_signals* s) {
+    const double* x = st->x;
+    double J[NL * NQ];
+    long long j;
+    int i;
+    s->t = (double)st->k * c->h;  /* k h, not a running sum: no drift */
+    /* JL at the true pose only for the ideal cylinder-rate sensor */
+    if (c->use_kalman ? leg_lengths(x, s->l_true) : leg_kinematics(x, s->l_true, J)) return EXCAVATOR_ARM_CTRL_FAILED;
+    excavator_arm_sense_lengths(c, s->l_true, nz, s->l_meas);
+    for (i = 0; i < NPC; ++i)
+        s->pc_meas[i] = nz ? clip(x[2 * NQ + i] + nz[NL + i], P_LOW[i], P_HIGH[i]) : x[2 * NQ + i];
+    if (!c->use_kalman)
+        for (i = 0; i < NL; ++i) {
+            s->ldot[i] = 0;
+            for (j = 0; j < NQ; ++j) s->ldot[i] += J[i + NL * j] * x[NQ + j];
+        }
+    for (i = 0; i < NQ; ++i) s->q_enc[i] = x[i] + (nz ? nz[NL + NPC + i] : 0);
+    return EXCAVATOR_ARM_OK;
+}
+
+int excavator_arm_estimate(const excavator_arm_loop_config* c, excavator_arm_loop_state* st, excavator_arm_loop_signals* s) {
+    double J[NL * NQ];
+    int i;
+    if (c->use_kalman)
+        for (i = 0; i < NL; ++i) {  /* predict with [1 h; 0 1], correct with the fixed gain */
+            double lp = st->kf[i] + c->h * st->kf[NL + i], vp = st->kf[NL + i], r = s->l_meas[i] - lp;
+            st->kf[i] = lp + c->kf_gain[0] * r;
+            st->kf[NL + i] = vp + c->kf_gain[1] * r;
+            s->ldot[i] = st->kf[NL + i];
+        }
+    /* joint encoders: the pose is measured; JL at the measured pose for the velocities */
+    memcpy(st->q_meas, s->q_enc, sizeof s->q_enc);
+    {
+        double l_tmp[NL];
+        if (leg_kinematics(st->q_meas, l_tmp, J)) return EXCAVATOR_ARM_CTRL_FAILED;
+    }
+    memcpy(s->qdot_meas, s->ldot, sizeof s->ldot);
+    if (!solve_n(J, s->qdot_meas)) return EXCAVATOR_ARM_FK_FAILED;
+    return EXCAVATOR_ARM_OK;
+}
+
+void excavator_arm_reference(const excavator_arm_loop_config* c, double t, double* qd /* 4 x NQ */) {
+    long long j;
+    int i;
+    for (i = 0; i < NQ; ++i) {
+        qd[i] = c->bias[i];
+        qd[NQ + i] = qd[2 * NQ + i] = qd[3 * NQ + i] = 0;
+    }
+    for (j = 0; j < c->n_terms; ++j) {
+        double axis = c->terms[3 * j];
+        double a = c->terms[3 * j + 1], w = TWO_PI * c->terms[3 * j + 2];
+        double sn, co;
+        int ax;
+        if (!(axis >= 0 && axis < NQ)) continue;  /* never index with an unchecked value */
+        ax = (int)axis;
+        sn = sin(w * t);
+        co = cos(w * t);
+        qd[ax] += a * sn;
+        qd[NQ + ax] += a * w * co;
+        qd[2 * NQ + ax] -= a * w * w * sn;
+        qd[3 * NQ + ax] -= a * w * w * w * co;
+    }
+    if (c->step_axis >= 0 && c->step_axis < NQ && t >= c->t_step) qd[c->step_axis] += c->step_height;
+}
+
+int excavator_arm_control(const excavator_arm_loop_config* c, excavator_arm_loop_state* st, excavator_arm_loop_signals* s) {
+    double adapt = s->t >= c->t_adapt ? 1.0 : 0.0;
+    set_slot(c, EXCAVATOR_ARM_SLOT_Q, st->q_meas, NQ);
+    set_slot(c, EXCAVATOR_ARM_SLOT_QDOT, s->qdot_meas, NQ);
+    set_slot(c, EXCAVATOR_ARM_SLOT_PC, s->pc_meas, NPC);
+    set_slot(c, EXCAVATOR_ARM_SLOT_L, s->l_meas, NL);
+    set_slot(c, EXCAVATOR_ARM_SLOT_QD0, s->qd, NQ);
+    set_slot(c, EXCAVATOR_ARM_SLOT_QD1, s->qd + NQ, NQ);
+    set_slot(c, EXCAVATOR_ARM_SLOT_QD2, s->qd + 2 * NQ, NQ);
+    set_slot(c, EXCAVATOR_ARM_SLOT_QD3, s->qd + 3 * NQ, NQ);
+    set_slot(c, EXCAVATOR_ARM_SLOT_XC, st->xc, c->n_xc);
+    set_slot(c, EXCAVATOR_ARM_SLOT_ADAPT, &adapt, 1);
+    set_slot(c, EXCAVATOR_ARM_SLOT_U_APPLIED, st->u_app, NL);
+    /* controller state: semi-implicit update. The estimates and observer states of period k are
+     * xc_k = clip(xc_{k-1} + h F(measurement_k, xc_{k-1}, u_app_{k-1})), and the command of period k
+     * uses xc_k: the adaptation feedback then has no one-period delay (symplectic Euler on the coupled
+     * force error / estimate oscillation), stable up to about 5x the adaptation gain forward Euler
+     * takes at the same rate. u_app_{k-1} is the command the valves held over the period F integrates.
+     * One call of the generated step does both (what depends on the measurement only is computed
+     * once) and writes u where the controller would. The first period uses the initial state. */
+    if (c->n_xc && !c->xc_euler && st->k > 0) {
+        if (c->step((const double**)c->step_arg, c->step_res, c->step_iw, c->step_w, 0)) return EXCAVATOR_ARM_CTRL_FAILED;
+        memcpy(st->xc, c->step_res[1], (size_t)c->n_xc * sizeof(double));
+        set_slot(c, EXCAVATOR_ARM_SLOT_XC, st->xc, c->n_xc);
+    } else if (c->ctrl((const double**)c->ctrl_arg, c->ctrl_res, c->ctrl_iw, c->ctrl_w, 0)) {
+        return EXCAVATOR_ARM_CTRL_FAILED;
+    }
+    memcpy(s->u, c->ctrl_res[0], sizeof s->u);
+    /* computation delay: the valves hold the last period's command over the first delay_frac h, then
+     * the command of `delay` periods ago (0 before the start); the ring keeps this one */
+    memcpy(s->u_held, st->u_app, sizeof s->u_held);
+    if (c->delay > 0) {
+        long long r = (st->k - c->delay) % MAX_DELAY, w = st->k % MAX_DELAY;
+        if (r < 0) r += MAX_DELAY;
+        memcpy(s->u_app, st->u_hist + NL * r, sizeof s->u_app);
+        memcpy(st->u_hist + NL * w, s->u, sizeof s->u);
+    } else {
+        memcpy(s->u_app, s->u, sizeof s->u);
+    }
+    memcpy(st->u_app, s->u_app, sizeof s->u_app);
+    return EXCAVATOR_ARM_OK;
+}
+
+int excavator_arm_control_advance(const excavator_arm_loop_config* c, excavator_arm_loop_state* st) {
+    long long j;
+    /* controller state, forward Euler variant (xc_euler): the rate the command's call gave (this
+     * period's measurement, state and u_applied, the command the valves held over the period that
+     * ended at the measurement), kept inside the projection bounds */
+    if (c->xc_euler && c->n_xc)
+        for (j = 0; j < c->n_xc; ++j)
+            st->xc[j] = clip(st->xc[j] + c->h * c->ctrl_res[1][j], c->xc_lo[j], c->xc_hi[j]);
+    for (j = 0; j < c->n_xc; ++j)
+        if (!isfinite(st->xc[j])) return EXCAVATOR_ARM_NONFINITE;
+    return EXCAVATOR_ARM_OK;
+}
+
+/* n RK4 sub-steps of hs holding u, each pressure within its bounds (0 <= p_c <= p_s for a three-way
+ * cylinder) */
+static int hold(const excavator_arm_loop_config* c, double* x, const double* u, long long n, double hs) {
+    long long j;
+    int i;
+    for (j = 0; j < n; ++j) {
+        if (!rk4(c, x, u, hs)) return 0;
+        for (i = 0; i < NPC; ++i) x[2 * NQ + i] = clip(x[2 * NQ + i], P_LOW[i], P_HIGH[i]);
+    }
+    return 1;
+}
+
+int excavator_arm_plant_step(const excavator_arm_loop_config* c, excavator_arm_loop_state* st, const double* u_held,
+                       const double* u_app) {
+    double* x = st->x;
+    const long long n = c->substeps;
+    int i;
+    if (c->delay_frac > 0) {
+        /* the command switches at delay_frac h: the sub-steps are shared out over the two parts */
+        long long n1 = (long long)floor(c->delay_frac * (double)n + 0.5), n2;
+        if (n1 < 1) n1 = 1;
+        if (n1 > n - 1) n1 = n > 1 ? n - 1 : 1;
+        n2 = n - n1 > 0 ? n - n1 : 1;
+        if (!hold(c, x, u_held, n1, c->delay_frac * c->h / (double)n1)) return EXCAVATOR_ARM_CTRL_FAILED;
+        if (!hold(c, x, u_app, n2, (1.0 - c->delay_frac) * c->h / (double)n2)) return EXCAVATOR_ARM_CTRL_FAILED;
+    } else if (!hold(c, x, u_app, n, c->h / (double)n)) {
+        return EXCAVATOR_ARM_CTRL_FAILED;
+    }
+    for (i = 0; i < NX; ++i)
+        if (!isfinite(x[i])) return EXCAVATOR_ARM_NONFINITE;
+    return EXCAVATOR_ARM_OK;
+}
+
+/* Row st->k of each log that is not NULL, before the plant step. */
+static int write_log(const excavator_arm_loop_state* st, const excavator_arm_loop_config* c, const excavator_arm_loop_signals* s,
+                     excavator_arm_loop_log* log) {
+    const double* x = st->x;
+    const long long k = st->k;
+    int i;
+    if (log->t) log->t[k] = s->t;
+    if (log->q) memcpy(log->q + NQ * k, x, NQ * sizeof(double));
+    if (log->q_d) memcpy(log->q_d + NQ * k, s->qd, NQ * sizeof(double));
+    if (log->l) memcpy(log->l + NL * k, s->l_true, NL * sizeof(double));
+    if (log->pc) memcpy(log->pc + NPC * k, x + 2 * NQ, NPC * sizeof(double));
+    if (log->u) memcpy(log->u + NL * k, s->u, NL * sizeof(double));
+    if (log->u_applied) memcpy(log->u_applied + NL * k, s->u_app, NL * sizeof(double));
+    if (log->l_meas) memcpy(log->l_meas + NL * k, s->l_meas, NL * sizeof(double));
+    if (log->f)
+        for (i = 0; i < NL; ++i)
+            log->f[NL * k + i] = x[2 * NQ + i] * PISTON_AREA[i] - SUPPLY_PRESSURE[i] * ROD_AREA[i];
+    if (log->xc && c->n_xc) memcpy(log->xc + c->n_xc * k, st->xc, (size_t)c->n_xc * sizeof(double));
+    return EXCAVATOR_ARM_OK;
+}
+
 int excavator_arm_loop_run(const excavator_arm_loop_config* c, excavator_arm_loop_state* st, long long n,
                      const double* noise, excavator_arm_loop_log* log) {
-    double l_true[NL], l_meas[NL], pc_meas[NL], ldot[NL], qdot_meas[NQ], J[NL * NQ], qd[4 * NQ], u[NL], u_app[NL];
-    double adapt;
-    double* x = st->x;
-    const double h = c->h, hs = c->h / (double)c->substeps;
-    long long step, j;
-    int i;
-    if (c->delay < 0 || c->delay > MAX_DELAY) return EXCAVATOR_ARM_CTRL_FAILED;  /* the ring holds MAX_DELAY periods */
+    excavator_arm_loop_signals s;
+    long long step;
+    int rc, rc_xc;
+    /* the ring holds MAX_DELAY periods */
+    if (c->delay < 0 || c->delay > MAX_DELAY || !(c->delay_frac >= 0 && c->delay_frac < 1)
+        || (c->delay == MAX_DELAY && c->delay_frac > 0)) return EXCAVATOR_ARM_CTRL_FAILED;
     if (c->n_xc && !c->xc_euler && !c->step) return EXCAVATOR_ARM_CTRL_FAILED;  /* a state needs its update */
     for (step = 0; step < n; ++step) {
         const double* nz = noise ? noise + NNOISE * step : 0;  /* row `step` of this call's table */
-        const double t = (double)st->k * h;  /* k h, not a running sum: no drift */
-        /* sensors (JL at the true pose only for the ideal cylinder-rate sensor) */
-        if (c->use_kalman ? leg_lengths(x, l_true) : leg_kinematics(x, l_true, J)) return EXCAVATOR_ARM_CTRL_FAILED;
-        for (i = 0; i < NL; ++i) {
-            l_meas[i] = l_true[i] + (nz ? nz[i] : 0);
-            if (c->quant_l > 0) l_meas[i] = c->quant_l * floor(l_meas[i] / c->quant_l + 0.5);
-            pc_meas[i] = nz ? clip(x[2 * NQ + i] + nz[NL + i], 0, SUPPLY_PRESSURE[i]) : x[2 * NQ + i];
-        }
-        if (c->use_kalman) {
-            for (i = 0; i < NL; ++i) {  /* predict with [1 h; 0 1], correct with the fixed gain */
-                double lp = st->kf[i] + h * st->kf[NL + i], vp = st->kf[NL + i], r = l_meas[i] - lp;
-                st->kf[i] = lp + c->kf_gain[0] * r;
-                st->kf[NL + i] = vp + c->kf_gain[1] * r;
-                ldot[i] = st->kf[NL + i];
-            }
-        } else {
-            for (i = 0; i < NL; ++i) {
-                ldot[i] = 0;
-                for (j = 0; j < NQ; ++j) ldot[i] += J[i + NL * j] * x[NQ + j];
-            }
-        }
-        /* joint encoders: the pose is measured; JL at the measured pose for the velocities */
-        for (i = 0; i < NQ; ++i) st->q_meas[i] = x[i] + (nz ? nz[2 * NL + i] : 0);
-        {
-            double l_tmp[NL];
-            if (leg_kinematics(st->q_meas, l_tmp, J)) return EXCAVATOR_ARM_CTRL_FAILED;
-        }
-        memcpy(qdot_meas, ldot, sizeof ldot);
-        if (!solve_n(J, qdot_meas)) return EXCAVATOR_ARM_FK_FAILED;
-        /* controller */
-        reference(c, t, qd);
-        adapt = t >= c->t_adapt ? 1.0 : 0.0;
-        set_slot(c, EXCAVATOR_ARM_SLOT_Q, st->q_meas, NQ);
-        set_slot(c, EXCAVATOR_ARM_SLOT_QDOT, qdot_meas, NQ);
-        set_slot(c, EXCAVATOR_ARM_SLOT_PC, pc_meas, NL);
-        set_slot(c, EXCAVATOR_ARM_SLOT_L, l_meas, NL);
-        set_slot(c, EXCAVATOR_ARM_SLOT_QD0, qd, NQ);
-        set_slot(c, EXCAVATOR_ARM_SLOT_QD1, qd + NQ, NQ);
-        set_slot(c, EXCAVATOR_ARM_SLOT_QD2, qd + 2 * NQ, NQ);
-        set_slot(c, EXCAVATOR_ARM_SLOT_QD3, qd + 3 * NQ, NQ);
-        set_slot(c, EXCAVATOR_ARM_SLOT_XC, st->xc, c->n_xc);
-        set_slot(c, EXCAVATOR_ARM_SLOT_ADAPT, &adapt, 1);
-        set_slot(c, EXCAVATOR_ARM_SLOT_U_APPLIED, st->u_app, NL);
-        /* controller state: semi-implicit update. The estimates and observer states of period k are
-         * xc_k = clip(xc_{k-1} + h F(measurement_k, xc_{k-1}, u_app_{k-1})), and the command of period k
-         * uses xc_k: the adaptation feedback then has no one-period delay (symplectic Euler on the coupled
-         * force error / estimate oscillation), stable up to about 5x the adaptation gain forward Euler
-         * takes at the same rate. u_app_{k-1} is the command the valves held over the period F integrates.
-         * One call of the generated step does both (what depends on the measurement only is computed
-         * once) and writes u where the controller would. The first period uses the initial state. */
-        if (c->n_xc && !c->xc_euler && st->k > 0) {
-            if (c->step((const double**)c->step_arg, c->step_res, c->step_iw, c->step_w, 0)) return EXCAVATOR_ARM_CTRL_FAILED;
-            memcpy(st->xc, c->step_res[1], (size_t)c->n_xc * sizeof(double));
-            set_slot(c, EXCAVATOR_ARM_SLOT_XC, st->xc, c->n_xc);
-        } else if (c->ctrl((const double**)c->ctrl_arg, c->ctrl_res, c->ctrl_iw, c->ctrl_w, 0)) {
-            return EXCAVATOR_ARM_CTRL_FAILED;
-        }
-        memcpy(u, c->ctrl_res[0], sizeof u);
-        /* computation delay: apply the command of `delay` periods ago (0 before the start), keep this one */
-        if (c->delay > 0) {
-            long long r = (st->k - c->delay) % MAX_DELAY, w = st->k % MAX_DELAY;
-            if (r < 0) r += MAX_DELAY;
-            memcpy(u_app, st->u_hist + NL * r, sizeof u_app);
-            memcpy(st->u_hist + NL * w, u, sizeof u);
-        } else {
-            memcpy(u_app, u, sizeof u);
-        }
-        memcpy(st->u_app, u_app, sizeof u_app);
-        if (log) {
-            if (log->t) log->t[st->k] = t;
-            if (log->q) memcpy(log->q + NQ * st->k, x, NQ * sizeof(double));
-            if (log->q_d) memcpy(log->q_d + NQ * st->k, qd, NQ * sizeof(double));
-            if (log->l) memcpy(log->l + NL * st->k, l_true, NL * sizeof(double));
-            if (log->pc) memcpy(log->pc + NL * st->k, x + 2 * NQ, NL * sizeof(double));
-            if (log->u) memcpy(log->u + NL * st->k, u, NL * sizeof(double));
-            if (log->u_applied) memcpy(log->u_applied + NL * st->k, u_app, NL * sizeof(double));
-            if (log->l_meas) memcpy(log->l_meas + NL * st->k, l_meas, NL * sizeof(double));
-            if (log->f)
-                for (i = 0; i < NL; ++i)
-                    log->f[NL * st->k + i] = x[2 * NQ + i] * PISTON_AREA[i] - SUPPLY_PRESSURE[i] * ROD_AREA[i];
-            if (log->xc && c->n_xc) memcpy(log->xc + c->n_xc * st->k, st->xc, (size_t)c->n_xc * sizeof(double));
-        }
-        /* plant, zero-order hold on the applied command; 0 <= pc <= ps */
-        for (j = 0; j < c->substeps; ++j) {
-            if (!rk4(c, x, u_app, hs)) return EXCAVATOR_ARM_CTRL_FAILED;
-            for (i = 0; i < NL; ++i) x[2 * NQ + i] = clip(x[2 * NQ + i], 0, SUPPLY_PRESSURE[i]);
-        }
-        /* controller state, forward Euler variant (xc_euler): the rate the command's call gave (this
-         * period's measurement, state and u_applied, the command the valves held over the period that
-         * ended at the measurement), applied after the plant step, kept inside the projection bounds */
-        if (c->xc_euler && c->n_xc)
-            for (j = 0; j < c->n_xc; ++j)
-                st->xc[j] = clip(st->xc[j] + h * c->ctrl_res[1][j], c->xc_lo[j], c->xc_hi[j]);
+        if ((rc = excavator_arm_measure(c, st, nz, &s))) return rc;
+        if ((rc = excavator_arm_estimate(c, st, &s))) return rc;
+        excavator_arm_reference(c, s.t, s.qd);
+        if ((rc = excavator_arm_control(c, st, &s))) return rc;
+        if (log && (rc = write_log(st, c, &s, log))) return rc;
+        rc = excavator_arm_plant_step(c, st, s.u_held, s.u_app);
+        if (rc == EXCAVATOR_ARM_CTRL_FAILED) return rc;
         /* a non-finite state stops the run with st->k at the period that produced it */
-        for (i = 0; i < NX; ++i)
-            if (!isfinite(x[i])) return EXCAVATOR_ARM_NONFINITE;
-        for (j = 0; j < c->n_xc; ++j)
-            if (!isfinite(st->xc[j])) return EXCAVATOR_ARM_NONFINITE;
+        rc_xc = excavator_arm_control_advance(c, st);
+        if (rc) return rc;
+        if (rc_xc) return rc_xc;
         st->k += 1;
-        st->t = (double)st->k * h;
+        st->t = (double)st->k * c->h;
     }
     return EXCAVATOR_ARM_OK;
 }

@@ -11,6 +11,7 @@ extern "C" {
 #define EXCAVATOR_ARM_NQ 3   /* generalized coordinates */
 #define EXCAVATOR_ARM_NL 3   /* cylinders */
 #define EXCAVATOR_ARM_NX 15  /* plant state */
+#define EXCAVATOR_ARM_NPC 3  /* pressure states (one per cylinder) */
 #define EXCAVATOR_ARM_MAX_DELAY 8  /* longest computation delay, control periods */
 #define EXCAVATOR_ARM_NNOISE 9  /* noise row: cylinder lengths (m), pressures (Pa), joint angles */
 
@@ -24,11 +25,13 @@ enum { EXCAVATOR_ARM_OK = 0, EXCAVATOR_ARM_NONFINITE = 1, EXCAVATOR_ARM_FK_FAILE
 
 typedef struct {
     /* timing: control period h (s), plant RK4 sub-steps per control period, adaptation on for t >= t_adapt;
-     * the command computed at period k is applied from period k + delay (0..MAX_DELAY) */
+     * the command computed at period k is applied from t_k + (delay + delay_frac) h (delay 0..MAX_DELAY,
+     * 0 <= delay_frac < 1, delay + delay_frac <= MAX_DELAY) */
     double h;
     long long substeps;
     double t_adapt;
     long long delay;
+    double delay_frac;
     /* plant (SI): true theta (boom.mcx, boom.mcz, boom.Iyy, stick.mcx, stick.mcz, stick.Iyy, bucket.mcx, bucket.mcz, bucket.Iyy), gamma1 = beta and gamma2 = beta c per cylinder,
      * friction [Fc, b, v_s], valve [first-order lag s, second-order natural frequency rad/s, damping] */
     const double* theta;
@@ -77,15 +80,15 @@ typedef struct {
 } excavator_arm_loop_config;
 
 typedef struct {
-    double t;                    /* s */
-    long long k;                 /* control periods done */
-    double x[EXCAVATOR_ARM_NX];         /* plant: q, qdot, pc, spool, spool rate */
-    double q_meas[EXCAVATOR_ARM_NQ];    /* last measured pose (Newton's warm start) */
-    double kf[2 * EXCAVATOR_ARM_NL];    /* Kalman state: cylinder lengths, cylinder rates */
+    double t;  /* s */
+    long long k;  /* control periods done */
+    double x[EXCAVATOR_ARM_NX];  /* plant: q, qdot, pc, spool, spool rate */
+    double q_meas[EXCAVATOR_ARM_NQ];  /* last measured pose (Newton's warm start) */
+    double kf[2 * EXCAVATOR_ARM_NL];  /* Kalman state: cylinder lengths, cylinder rates */
     double u_hist[EXCAVATOR_ARM_MAX_DELAY * EXCAVATOR_ARM_NL];  /* commands of past periods: ring, slot k % MAX_DELAY (0 at reset) */
-    double u_app[EXCAVATOR_ARM_NL];     /* commands the valves held over the last period, m (0 at reset): the
-                                  * controller's u_applied input in its state update */
-    double* xc;                  /* controller state, n_xc entries */
+    double u_app[EXCAVATOR_ARM_NL];  /* commands the valves held over the last period, m (0 at reset): the
+     * controller's u_applied input in its state update */
+    double* xc;  /* controller state, n_xc entries */
 } excavator_arm_loop_state;
 
 typedef struct {                 /* each may be NULL; rows per control period (widths below) */
@@ -96,17 +99,67 @@ typedef struct {                 /* each may be NULL; rows per control period (w
     double* f;  /* 3: cylinder forces, N */
     double* pc;  /* 3: control pressures, Pa */
     double* u;  /* 3: spool commands computed, m */
-    double* u_applied;  /* 3: spool commands applied (delay_periods later), m */
+    double* u_applied;  /* 3: spool commands the valves held at the end of each period (delay later), m */
     double* l_meas;  /* 3: measured cylinder lengths (noise, quantisation), m */
     double* xc;  /* n_xc: controller state */
 } excavator_arm_loop_log;
 
+/* One control period's signals, as the stages below hand them on (SI units). */
+typedef struct {
+    double t;  /* time of the period's start, s */
+    double l_true[EXCAVATOR_ARM_NL];  /* true cylinder lengths, m */
+    double l_meas[EXCAVATOR_ARM_NL];  /* measured cylinder lengths (noise, resolution), m */
+    double pc_meas[EXCAVATOR_ARM_NPC];  /* measured pressures, Pa */
+    double q_enc[EXCAVATOR_ARM_NQ];  /* joint encoders' reading, rad or m (joint encoders only) */
+    double ldot[EXCAVATOR_ARM_NL];  /* cylinder rates: the Kalman filter's, or the ideal rate sensor's, m/s */
+    double qdot_meas[EXCAVATOR_ARM_NQ];  /* measured velocities, JL^-1 ldot at the measured pose */
+    double qd[4 * EXCAVATOR_ARM_NQ];  /* reference and its first three time derivatives */
+    double u[EXCAVATOR_ARM_NL];  /* spool commands computed this period, m */
+    double u_held[EXCAVATOR_ARM_NL];  /* spool commands the valves hold over the period's first delay_frac h, m */
+    double u_app[EXCAVATOR_ARM_NL];  /* spool commands applied over the rest of the period (computation delay), m */
+} excavator_arm_loop_signals;
+
 /* Advance n control periods from st. noise: n rows of NNOISE for this call, or NULL. Logs are
  * written at row st->k (periods since the start of the run), so each log needs at least st->k + n
  * rows. Returns EXCAVATOR_ARM_OK, or a code with st->k at the failing period (its log row holds the state
- * before the failing step). */
+ * before the failing step). Each period is the stages below, in this order: measure, estimate,
+ * reference, control, (logs), plant_step, control_advance; then st->k += 1. */
 int excavator_arm_loop_run(const excavator_arm_loop_config* cfg, excavator_arm_loop_state* st, long long n,
                      const double* noise, excavator_arm_loop_log* log);
+
+/* Sensors: the readings of the plant state st->x at period st->k (s->t = k h): true and measured
+ * cylinder lengths (noise row nz, or NULL, then the resolution), measured pressures (clipped to
+ * their bounds when noisy), joint encoders (s->q_enc), and without the Kalman filter the ideal
+ * cylinder-rate sensor's s->ldot = JL qdot. */
+int excavator_arm_measure(const excavator_arm_loop_config* cfg, const excavator_arm_loop_state* st, const double* nz,
+                    excavator_arm_loop_signals* s);
+
+/* The length sensor alone: l plus noise nz (NL entries, or NULL), rounded to the resolution quant_l. */
+void excavator_arm_sense_lengths(const excavator_arm_loop_config* cfg, const double* l, const double* nz, double* l_meas);
+
+/* Estimation from the measured signals: the Kalman filter on s->l_meas (state st->kf) gives s->ldot
+ * (use_kalman; else s->ldot is the rate sensor's), the pose st->q_meas (the joint encoders' s->q_enc),
+ * and s->qdot_meas = JL^-1 s->ldot at that pose. */
+int excavator_arm_estimate(const excavator_arm_loop_config* cfg, excavator_arm_loop_state* st, excavator_arm_loop_signals* s);
+
+/* The scenario's reference at t (s): qd = [q_d, its first, second and third derivatives] (4 x NQ). */
+void excavator_arm_reference(const excavator_arm_loop_config* cfg, double t, double* qd);
+
+/* Control at s->t: the controller's inputs from st and s (s->qd the reference), the controller
+ * state's semi-implicit update and the command s->u; the command of cfg->delay periods ago into
+ * s->u_app and st->u_app (the ring st->u_hist keeps this one), the last period's st->u_app into
+ * s->u_held. */
+int excavator_arm_control(const excavator_arm_loop_config* cfg, excavator_arm_loop_state* st, excavator_arm_loop_signals* s);
+
+/* After the period: the controller state's forward-Euler update (cfg->xc_euler), clipped to its
+ * bounds; EXCAVATOR_ARM_NONFINITE if the state is not finite. */
+int excavator_arm_control_advance(const excavator_arm_loop_config* cfg, excavator_arm_loop_state* st);
+
+/* Plant: cfg->substeps RK4 sub-steps over one control period, holding u_held (NL, m) over its first
+ * cfg->delay_frac h and u_app over the rest (sub-steps shared out over the two parts), each pressure
+ * clipped to its bounds after each; EXCAVATOR_ARM_NONFINITE if the plant state is not finite after them. */
+int excavator_arm_plant_step(const excavator_arm_loop_config* cfg, excavator_arm_loop_state* st, const double* u_held,
+                       const double* u_app);
 
 /* Cylinder lengths (m) of n poses: row k of q (NQ) gives row k of l (NL). One call for a whole
  * trajectory (workspace checks). Returns 0, or 1 if the generated function failed. */

@@ -11,6 +11,7 @@ extern "C" {
 #define UBC_STEWART_NQ 6   /* generalized coordinates */
 #define UBC_STEWART_NL 6   /* cylinders */
 #define UBC_STEWART_NX 30  /* plant state */
+#define UBC_STEWART_NPC 6  /* pressure states (one per cylinder) */
 #define UBC_STEWART_MAX_DELAY 8  /* longest computation delay, control periods */
 #define UBC_STEWART_NNOISE 12  /* noise row: cylinder lengths (m), pressures (Pa) */
 
@@ -24,11 +25,13 @@ enum { UBC_STEWART_OK = 0, UBC_STEWART_NONFINITE = 1, UBC_STEWART_FK_FAILED = 2,
 
 typedef struct {
     /* timing: control period h (s), plant RK4 sub-steps per control period, adaptation on for t >= t_adapt;
-     * the command computed at period k is applied from period k + delay (0..MAX_DELAY) */
+     * the command computed at period k is applied from t_k + (delay + delay_frac) h (delay 0..MAX_DELAY,
+     * 0 <= delay_frac < 1, delay + delay_frac <= MAX_DELAY) */
     double h;
     long long substeps;
     double t_adapt;
     long long delay;
+    double delay_frac;
     /* plant (SI): true theta (platform.mass, platform.Ixx, platform.Iyy, platform.Izz), gamma1 = beta and gamma2 = beta c per cylinder,
      * friction [Fc, b, v_s], valve [first-order lag s, second-order natural frequency rad/s, damping] */
     const double* theta;
@@ -77,15 +80,15 @@ typedef struct {
 } ubc_stewart_loop_config;
 
 typedef struct {
-    double t;                    /* s */
-    long long k;                 /* control periods done */
-    double x[UBC_STEWART_NX];         /* plant: q, qdot, pc, spool, spool rate */
-    double q_meas[UBC_STEWART_NQ];    /* last measured pose (Newton's warm start) */
-    double kf[2 * UBC_STEWART_NL];    /* Kalman state: cylinder lengths, cylinder rates */
+    double t;  /* s */
+    long long k;  /* control periods done */
+    double x[UBC_STEWART_NX];  /* plant: q, qdot, pc, spool, spool rate */
+    double q_meas[UBC_STEWART_NQ];  /* last measured pose (Newton's warm start) */
+    double kf[2 * UBC_STEWART_NL];  /* Kalman state: cylinder lengths, cylinder rates */
     double u_hist[UBC_STEWART_MAX_DELAY * UBC_STEWART_NL];  /* commands of past periods: ring, slot k % MAX_DELAY (0 at reset) */
-    double u_app[UBC_STEWART_NL];     /* commands the valves held over the last period, m (0 at reset): the
-                                  * controller's u_applied input in its state update */
-    double* xc;                  /* controller state, n_xc entries */
+    double u_app[UBC_STEWART_NL];  /* commands the valves held over the last period, m (0 at reset): the
+     * controller's u_applied input in its state update */
+    double* xc;  /* controller state, n_xc entries */
 } ubc_stewart_loop_state;
 
 typedef struct {                 /* each may be NULL; rows per control period (widths below) */
@@ -96,17 +99,67 @@ typedef struct {                 /* each may be NULL; rows per control period (w
     double* f;  /* 6: cylinder forces, N */
     double* pc;  /* 6: control pressures, Pa */
     double* u;  /* 6: spool commands computed, m */
-    double* u_applied;  /* 6: spool commands applied (delay_periods later), m */
+    double* u_applied;  /* 6: spool commands the valves held at the end of each period (delay later), m */
     double* l_meas;  /* 6: measured cylinder lengths (noise, quantisation), m */
     double* xc;  /* n_xc: controller state */
 } ubc_stewart_loop_log;
 
+/* One control period's signals, as the stages below hand them on (SI units). */
+typedef struct {
+    double t;  /* time of the period's start, s */
+    double l_true[UBC_STEWART_NL];  /* true cylinder lengths, m */
+    double l_meas[UBC_STEWART_NL];  /* measured cylinder lengths (noise, resolution), m */
+    double pc_meas[UBC_STEWART_NPC];  /* measured pressures, Pa */
+    double q_enc[UBC_STEWART_NQ];  /* joint encoders' reading, rad or m (joint encoders only) */
+    double ldot[UBC_STEWART_NL];  /* cylinder rates: the Kalman filter's, or the ideal rate sensor's, m/s */
+    double qdot_meas[UBC_STEWART_NQ];  /* measured velocities, JL^-1 ldot at the measured pose */
+    double qd[4 * UBC_STEWART_NQ];  /* reference and its first three time derivatives */
+    double u[UBC_STEWART_NL];  /* spool commands computed this period, m */
+    double u_held[UBC_STEWART_NL];  /* spool commands the valves hold over the period's first delay_frac h, m */
+    double u_app[UBC_STEWART_NL];  /* spool commands applied over the rest of the period (computation delay), m */
+} ubc_stewart_loop_signals;
+
 /* Advance n control periods from st. noise: n rows of NNOISE for this call, or NULL. Logs are
  * written at row st->k (periods since the start of the run), so each log needs at least st->k + n
  * rows. Returns UBC_STEWART_OK, or a code with st->k at the failing period (its log row holds the state
- * before the failing step). */
+ * before the failing step). Each period is the stages below, in this order: measure, estimate,
+ * reference, control, (logs), plant_step, control_advance; then st->k += 1. */
 int ubc_stewart_loop_run(const ubc_stewart_loop_config* cfg, ubc_stewart_loop_state* st, long long n,
                      const double* noise, ubc_stewart_loop_log* log);
+
+/* Sensors: the readings of the plant state st->x at period st->k (s->t = k h): true and measured
+ * cylinder lengths (noise row nz, or NULL, then the resolution), measured pressures (clipped to
+ * their bounds when noisy), and without the Kalman filter the ideal
+ * cylinder-rate sensor's s->ldot = JL qdot. */
+int ubc_stewart_measure(const ubc_stewart_loop_config* cfg, const ubc_stewart_loop_state* st, const double* nz,
+                    ubc_stewart_loop_signals* s);
+
+/* The length sensor alone: l plus noise nz (NL entries, or NULL), rounded to the resolution quant_l. */
+void ubc_stewart_sense_lengths(const ubc_stewart_loop_config* cfg, const double* l, const double* nz, double* l_meas);
+
+/* Estimation from the measured signals: the Kalman filter on s->l_meas (state st->kf) gives s->ldot
+ * (use_kalman; else s->ldot is the rate sensor's), the pose st->q_meas (forward kinematics from s->l_meas, warm-started at st->q_meas),
+ * and s->qdot_meas = JL^-1 s->ldot at that pose. */
+int ubc_stewart_estimate(const ubc_stewart_loop_config* cfg, ubc_stewart_loop_state* st, ubc_stewart_loop_signals* s);
+
+/* The scenario's reference at t (s): qd = [q_d, its first, second and third derivatives] (4 x NQ). */
+void ubc_stewart_reference(const ubc_stewart_loop_config* cfg, double t, double* qd);
+
+/* Control at s->t: the controller's inputs from st and s (s->qd the reference), the controller
+ * state's semi-implicit update and the command s->u; the command of cfg->delay periods ago into
+ * s->u_app and st->u_app (the ring st->u_hist keeps this one), the last period's st->u_app into
+ * s->u_held. */
+int ubc_stewart_control(const ubc_stewart_loop_config* cfg, ubc_stewart_loop_state* st, ubc_stewart_loop_signals* s);
+
+/* After the period: the controller state's forward-Euler update (cfg->xc_euler), clipped to its
+ * bounds; UBC_STEWART_NONFINITE if the state is not finite. */
+int ubc_stewart_control_advance(const ubc_stewart_loop_config* cfg, ubc_stewart_loop_state* st);
+
+/* Plant: cfg->substeps RK4 sub-steps over one control period, holding u_held (NL, m) over its first
+ * cfg->delay_frac h and u_app over the rest (sub-steps shared out over the two parts), each pressure
+ * clipped to its bounds after each; UBC_STEWART_NONFINITE if the plant state is not finite after them. */
+int ubc_stewart_plant_step(const ubc_stewart_loop_config* cfg, ubc_stewart_loop_state* st, const double* u_held,
+                       const double* u_app);
 
 /* Cylinder lengths (m) of n poses: row k of q (NQ) gives row k of l (NL). One call for a whole
  * trajectory (workspace checks). Returns 0, or 1 if the generated function failed. */

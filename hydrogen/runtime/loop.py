@@ -12,7 +12,7 @@ import numpy as np
 
 __all__ = ["LoopRunner", "SLOTS", "LOOP_OK", "LOOP_NONFINITE", "LOOP_FK_FAILED", "LOOP_CTRL_FAILED"]
 
-from ..layout import SLOTS, log_widths, loop_context
+from ..layout import SLOTS, delay_split, log_widths, loop_context
 
 LOOP_OK, LOOP_NONFINITE, LOOP_FK_FAILED, LOOP_CTRL_FAILED = 0, 1, 2, 3
 _D = C.POINTER(C.c_double)
@@ -34,15 +34,21 @@ def _structs(ctx: dict):
     class Config(C.Structure):  # the loop header's struct, from the one description (hydrogen.layout.LOOP_CONFIG)
         _fields_ = [(f["name"], ctypes_of[f["type"]]) for g in ctx["config"] for f in g["fields"]]
 
-    class State(C.Structure):
-        _fields_ = [("t", C.c_double), ("k", _LL), ("x", C.c_double * ctx["nx"]), ("q_meas", C.c_double * ctx["n"]),
-                    ("kf", C.c_double * (2 * ctx["m"])), ("u_hist", C.c_double * (ctx["max_delay"] * ctx["m"])),
-                    ("u_app", C.c_double * ctx["m"]), ("xc", _D)]
+    def mirror(fields):  # a struct of the loop header rendered from a description (hydrogen.layout)
+        scalar = {"double": C.c_double, "long long": _LL, "double*": _D}
+        return [(f["name"], scalar[f["type"]] if f["length"] is None else scalar[f["type"]] * f["length"])
+                for f in fields]
+
+    class State(C.Structure):  # hydrogen.layout.LOOP_STATE
+        _fields_ = mirror(ctx["state"])
+
+    class Signals(C.Structure):  # hydrogen.layout.LOOP_SIGNALS
+        _fields_ = mirror(ctx["signals"])
 
     class Log(C.Structure):
         _fields_ = [(name, _D) for name, _, _ in ctx["logs"]]
 
-    _STRUCTS[key] = (Config, State, Log)
+    _STRUCTS[key] = (Config, State, Log, Signals)
     return _STRUCTS[key]
 
 
@@ -74,14 +80,15 @@ class LoopRunner:
     """
 
     def __init__(self, dyn, ctrl, *, h, substeps, t_adapt, theta, gamma, friction, valve,
-                 reference, kalman_gain=None, delay=0, quantization_l=0.0, fk_tol=1e-12, fk_max_iter=50,
+                 reference, kalman_gain=None, delay=0.0, quantization_l=0.0, fk_tol=1e-12, fk_max_iter=50,
                  estimator_update="semi-implicit"):
         manifest = dyn.library.manifest
         self.context = ctx = loop_context(manifest)
         self._log_width = log_widths(manifest["model"])
         self.n_noise = ctx["n_noise"]
-        Config, State, self._Log = _structs(ctx)
+        Config, State, self._Log, self._Signals = _structs(ctx)
         name = ctx["model"]
+        self._library = dyn.library
         self._run = dyn.library.symbol(f"{name}_loop_run")
         self._run.restype = C.c_int
         self._run.argtypes = [C.c_void_p, C.c_void_p, _LL, C.c_void_p, C.c_void_p]
@@ -103,10 +110,11 @@ class LoopRunner:
         valve = np.asarray(valve, float)
         if valve.shape != (3,):
             raise ValueError(f"valve must be [lag s, natural frequency rad/s, damping], got {valve!r}")
-        if not 0 <= int(delay) <= ctx["max_delay"]:
-            raise ValueError(f"delay must be 0..{ctx['max_delay']} control periods, got {delay!r}")
+        periods, frac = delay_split(delay, h)
+        if not (0 <= delay and periods + frac <= ctx["max_delay"]):
+            raise ValueError(f"delay must be 0..{ctx['max_delay']} control periods of {h!r} s, got {delay!r} s")
         cfg.friction, cfg.valve = _ptr(arr(friction)), _ptr(arr(valve))
-        cfg.delay, cfg.quant_l = int(delay), float(quantization_l)
+        cfg.delay, cfg.delay_frac, cfg.quant_l = periods, frac, float(quantization_l)
         cfg.use_kalman = 1 if kalman_gain is not None else 0
         if kalman_gain is not None:
             cfg.kf_gain[0], cfg.kf_gain[1] = kalman_gain
@@ -215,6 +223,63 @@ class LoopRunner:
                 raise IndexError(f"noise row {k} outside the table's {rows} rows")
             return run(cfg, st, 1, addr + k * row, None)
         return step
+
+    def stages(self):
+        """The loop's stages as ctypes functions on this runner's configuration and state, for a program
+        that composes its own period (``measure(nz)``, ``estimate()``, ``reference()``, ``control()``,
+        ``plant_step()``, ``control_advance()``, each returning the C code; ``nz`` a noise row of
+        ``n_noise`` numbers or None), and the :class:`Signals` structure they hand on
+        (``signals``). One period of :meth:`run` is these calls in this order, then ``state.k += 1``."""
+        lib, name = self._library, self.context["model"]
+        sig = self._Signals()
+        cfg, st, s = self._cfg_ref, self._st_ref, C.byref(sig)
+
+        def fn(stage, *argtypes):
+            f = lib.symbol(f"{name}_{stage}")
+            f.restype, f.argtypes = (None if stage == "reference" else C.c_int), list(argtypes)
+            return f
+
+        vp = C.c_void_p
+        measure, estimate = fn("measure", vp, vp, vp, vp), fn("estimate", vp, vp, vp)
+        reference, control = fn("reference", vp, C.c_double, vp), fn("control", vp, vp, vp)
+        plant_step, advance = fn("plant_step", vp, vp, vp, vp), fn("control_advance", vp, vp)
+
+        def noise_row(nz):
+            if nz is None:
+                return None
+            row = np.ascontiguousarray(nz, dtype=float)
+            if row.shape != (self.n_noise,):
+                raise ValueError(f"a noise row holds {self.n_noise} numbers, got shape {row.shape}")
+            self._keep.append(row)
+            return row.ctypes.data_as(vp)
+
+        class Stages:
+            signals = sig
+
+            @staticmethod
+            def measure(nz=None):
+                return measure(cfg, st, noise_row(nz), s)
+
+            @staticmethod
+            def estimate():
+                return estimate(cfg, st, s)
+
+            @staticmethod
+            def reference():
+                reference(cfg, sig.t, C.cast(sig.qd, vp))
+
+            @staticmethod
+            def control():
+                return control(cfg, st, s)
+
+            @staticmethod
+            def plant_step():
+                return plant_step(cfg, st, C.cast(sig.u_held, vp), C.cast(sig.u_app, vp))
+
+            @staticmethod
+            def control_advance():
+                return advance(cfg, st)
+        return Stages
 
     @property
     def plant_state(self) -> np.ndarray:

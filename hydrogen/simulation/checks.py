@@ -15,7 +15,6 @@ from collections.abc import Mapping
 import numpy as np
 
 from ..errors import ScenarioError
-from ..layout import MAX_DELAY
 
 __all__ = ["check_fields", "check_reference", "check_call", "check_against_model", "check_gain_values",
            "gain_must_be_positive", "check_run_size", "run_doubles_per_period", "metric_window", "max_run_bytes",
@@ -100,7 +99,7 @@ def check_fields(sc) -> None:
     if not isinstance(name, str) or not name:
         raise ScenarioError(f"scenario name must be a non-empty string, got {_shown(name)}")
     for f in ("duration", "control_rate", "t_adapt", "valve_lag", "valve_bandwidth_hz", "valve_damping",
-              "noise_l", "noise_p", "quantization_l", "kalman_accel", "metric_start"):
+              "noise_l", "noise_p", "quantization_l", "kalman_accel", "metric_start", "delay"):
         v = getattr(sc, f)
         if not _is_real(v) or not np.isfinite(v):
             _fail(name, f, "must be a finite number", v)
@@ -108,9 +107,6 @@ def check_fields(sc) -> None:
         _fail(name, "metric_start", "must be >= 0 s", sc.metric_start)
     if isinstance(sc.substeps, (bool, np.bool_)) or not isinstance(sc.substeps, numbers.Integral):
         _fail(name, "substeps", "must be an integer >= 1", sc.substeps)
-    d = sc.delay_periods
-    if isinstance(d, (bool, np.bool_)) or not isinstance(d, numbers.Integral) or not 0 <= d <= MAX_DELAY:
-        _fail(name, "delay_periods", f"must be an integer in 0..{MAX_DELAY} (control periods)", d)
     if not isinstance(sc.kalman, (bool, np.bool_)):
         _fail(name, "kalman", "must be True or False", sc.kalman)
     seed = sc.seed

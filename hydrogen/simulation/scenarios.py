@@ -8,10 +8,14 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from ..errors import ScenarioError
+from ..layout import MAX_DELAY, delay_split
 from .checks import check_fields
 from .reference import MultiSine, Step
 
-__all__ = ["Scenario", "scenario", "scenario_names", "table_keys", "default_scenario_name"]
+__all__ = ["Scenario", "scenario", "scenario_names", "table_keys", "default_scenario_name", "RENAMED"]
+
+#: Scenario fields that were renamed: the old name and what to write instead (named in the error).
+RENAMED = {"delay_periods": "delay (the computation delay in s; one period is 1/control_rate)"}
 
 
 @dataclass(frozen=True)
@@ -19,8 +23,9 @@ class Scenario:
     """Everything a run needs besides the controller. Units SI.
 
     control_rate (Hz) with zero-order hold; the command computed from the
-    measurement of period k is applied from period k + ``delay_periods`` (the
-    computation delay of a real-time target; 0: at once). The plant takes
+    measurement at t_k is applied from t_k + ``delay`` (s: the computation delay of
+    a real-time target, 0: at once; a fraction of a period switches the valves'
+    command inside the plant's sub-steps; at most 8 periods). The plant takes
     ``substeps`` RK4 steps per control period. friction = (Coulomb N, viscous
     N s/m, tanh smoothing speed m/s) per leg. Valve: a second-order servo-valve
     of natural frequency ``valve_bandwidth_hz`` (Hz, where the spool lags 90°)
@@ -51,7 +56,7 @@ class Scenario:
     valve_lag: float = 0.0
     valve_bandwidth_hz: float = 0.0
     valve_damping: float = 0.7
-    delay_periods: int = 0
+    delay: float = 0.0     # s
     quantization_l: float = 0.0
     noise_l: float = 0.0
     noise_q: float = 0.0   # joint-encoder noise (rad or m), robots with [sensors] joint_encoders
@@ -68,9 +73,15 @@ class Scenario:
     paper: dict = field(default_factory=dict)  # published max errors (%): {coordinate: [nonlinear, P]}
     estimator_update: str = "semi-implicit"  # controller state: "semi-implicit" (default) or "euler"
 
+    def delay_split(self) -> tuple:
+        """The delay as (whole control periods, fraction of a period): :func:`hydrogen.layout.delay_split`."""
+        return delay_split(self.delay, 1.0 / self.control_rate)
+
     def with_overrides(self, **kw):
         """A copy with the given fields replaced and validated; an unknown field raises ScenarioError."""
         unknown = set(kw) - set(self.__dataclass_fields__)
+        for old in sorted(unknown & set(RENAMED)):
+            raise ScenarioError(f"scenario '{self.name}': {old} is now {RENAMED[old]}")
         if unknown:
             raise ScenarioError(f"scenario '{self.name}' has no field(s) {sorted(unknown)}; "
                                 f"fields: {sorted(self.__dataclass_fields__)}")
@@ -94,6 +105,8 @@ class Scenario:
                   "kalman_accel"):
             need(finite(getattr(self, f)) and getattr(self, f) >= 0, f, "must be finite and >= 0")
         need(finite(self.valve_damping) and self.valve_damping > 0, "valve_damping", "must be > 0")
+        need(finite(self.delay) and self.delay >= 0 and sum(self.delay_split()) <= MAX_DELAY, "delay",
+             f"must be 0..{MAX_DELAY} control periods, in s (1/control_rate = {1.0 / self.control_rate!r} s)")
         need(not (self.valve_lag > 0 and self.valve_bandwidth_hz > 0), "valve_lag",
              "must be 0 when valve_bandwidth_hz is set (one valve model: second order, or the first-order lag)")
         # RK4 on the spool's second-order dynamics: keep omega * sub-step well inside its stability region
@@ -106,7 +119,7 @@ class Scenario:
 
 
 _FIELDS = ("duration", "control_rate", "substeps", "t_adapt", "friction", "valve_lag", "valve_bandwidth_hz",
-           "valve_damping", "delay_periods", "quantization_l", "noise_l", "noise_q", "noise_p",
+           "valve_damping", "delay", "quantization_l", "noise_l", "noise_q", "noise_p",
            "kalman", "kalman_accel", "theta0_factor", "gamma0_factor", "metric_start", "q0_offset", "seed",
            "estimator_update")
 #: Keys of a ``[scenarios.<name>]`` table besides the fields: the rig it starts from, its gains per

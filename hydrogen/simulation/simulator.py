@@ -18,7 +18,7 @@ from .scenarios import Scenario, scenario as named_scenario, scenario_names
 from .seeds import SeedResults
 
 __all__ = ["simulate", "SimulationResult", "SeedResults", "equilibrium_pressures", "Stepper", "prepare_run", "new_logs",
-           "make_runner", "run_python_loop", "kalman_gain",
+           "make_runner", "run_python_loop", "PythonStages", "kalman_gain",
            "valve_vector", "length_noise_variance", "excitation"]
 
 
@@ -36,7 +36,7 @@ class SimulationResult:
     leg_forces: np.ndarray
     pressures: np.ndarray
     u: np.ndarray            # commands as computed at each period
-    u_applied: np.ndarray    # commands the valves received at each period (delay_periods later)
+    u_applied: np.ndarray    # commands the valves held at the end of each period (``delay`` later)
     leg_lengths_measured: np.ndarray  # cylinder lengths as the sensors gave them (noise, quantisation)
     theta_hat: np.ndarray
     gamma1_hat: np.ndarray
@@ -351,7 +351,7 @@ def make_runner(dyn, sc, ctrl, x0, q0, kf_gain, h):
     from ..runtime.loop import LoopRunner
     runner = LoopRunner(dyn, ctrl, h=h, substeps=sc.substeps, t_adapt=sc.t_adapt, theta=dyn.model.theta,
                         gamma=dyn.model.gamma, friction=sc.friction, valve=valve_vector(sc),
-                        reference=sc.reference, kalman_gain=kf_gain, delay=sc.delay_periods,
+                        reference=sc.reference, kalman_gain=kf_gain, delay=sc.delay,
                         quantization_l=sc.quantization_l, estimator_update=sc.estimator_update)
     runner.reset(x0, q0, dyn.leg_lengths(q0), ctrl.xc)
     return runner
@@ -386,68 +386,132 @@ def _run_c(dyn, sc, ctrl, x0, q0, noise, kf_gain, log, n, h):
     return (k + 1 if code == LOOP_NONFINITE else k), _loop_failure(code, runner, h)
 
 
+class _Signals:
+    """One period's signals as the stages hand them on (the C loop's ``<model>_loop_signals``)."""
+    __slots__ = ("t", "l_true", "l_meas", "pc_meas", "q_enc", "ldot", "qdot_meas", "ref", "u", "u_held", "u_app")
+
+
+class PythonStages:
+    """The reference closed loop's stages in Python, one method per stage of the C loop
+    (``templates/loop.c.j2``) and in its order: :meth:`measure`, :meth:`estimate`, :meth:`reference`,
+    :meth:`control`, :meth:`plant_step`, :meth:`control_advance`; the same numbers as the C stages to
+    rounding. ``x`` is the plant state, ``q_meas`` the last measured pose."""
+
+    def __init__(self, dyn, sc, ctrl, x, q0, kf_gain, h):
+        from ..layout import MAX_DELAY
+        model = self.model = dyn.model
+        self.dyn, self.sc, self.ctrl, self.h, self.kf_gain = dyn, sc, ctrl, h, kf_gain
+        self._rhs_fn = dyn.functions["plant_rhs"]
+        self._fric, self._valve = np.asarray(sc.friction, float), valve_vector(sc)
+        self._lo, self._hi = pressures.bounds(model)  # each pressure state's clip (0 and P_s for p_c)
+        self.nq, self.m, self.n_p = model.n, model.n_cylinders, pressures.n_pressures(model)
+        self._max_delay = MAX_DELAY
+        self.u_hist = np.zeros((MAX_DELAY, self.m))  # the C loop's ring: command of period k in slot k % MAX_DELAY
+        self.kf = np.vstack([dyn.leg_lengths(q0), np.zeros(self.m)]) if kf_gain is not None else None
+        self._F = np.array([[1.0, h], [0.0, 1.0]])
+        self.x, self.q_meas, self.k = x, q0.copy(), 0
+        self.delay, self.delay_frac = sc.delay_split()
+        self.u_app = np.zeros(self.m)  # the command the valves held at the end of the last period
+
+    def measure(self, nz) -> _Signals:
+        """The sensors' readings of the plant state with the noise row ``nz``."""
+        s, sc, nq, m, n_p, x = _Signals(), self.sc, self.nq, self.m, self.n_p, self.x
+        s.t = self.k * self.h
+        q, qdot, pc = x[:nq], x[nq:2 * nq], x[2 * nq:2 * nq + n_p]
+        s.l_true = self.dyn.leg_lengths(q)
+        s.l_meas = s.l_true + nz[:m]
+        if sc.quantization_l > 0:
+            s.l_meas = sc.quantization_l * np.floor(s.l_meas / sc.quantization_l + 0.5)
+        s.pc_meas = np.clip(pc + nz[m:m + n_p], self._lo, self._hi) if sc.noise_p else pc
+        s.ldot = None if self.kf is not None else self.dyn.leg_jacobian(q) @ qdot  # ideal rate sensor
+        s.q_enc = q + nz[m + n_p:] if self.model.joint_encoders else None
+        return s
+
+    def estimate(self, s: _Signals) -> None:
+        """Kalman filter, pose (encoders or forward kinematics, warm-started), velocities through JL.
+        Raises :class:`KinematicsError` when forward kinematics fails."""
+        if self.kf is not None:
+            self.kf = self._F @ self.kf
+            self.kf += np.outer(self.kf_gain, s.l_meas - self.kf[0])
+            s.ldot = self.kf[1].copy()
+        if s.q_enc is not None:
+            self.q_meas = s.q_enc
+        else:
+            self.q_meas = self.dyn.forward_kinematics(s.l_meas, q0=self.q_meas)
+        s.qdot_meas = np.linalg.solve(self.dyn.leg_jacobian(self.q_meas), s.ldot)
+
+    def reference(self, s: _Signals) -> None:
+        """The scenario's reference and its derivatives at the period's start."""
+        s.ref = self.sc.reference(s.t)
+
+    def control(self, s: _Signals) -> None:
+        """The controller state's semi-implicit update, the command, the command applied (delay)."""
+        sc, ctrl, delay = self.sc, self.ctrl, self.delay
+        args = (self.q_meas, s.qdot_meas, s.pc_meas, s.l_meas, s.ref, s.t >= sc.t_adapt)
+        if self.k and sc.estimator_update != "euler":  # semi-implicit: state from this measurement, then command
+            ctrl.update(self.h, *args)
+        s.u = ctrl.command(*args)
+        if delay > 0:
+            s.u_app = self.u_hist[(self.k - delay) % self._max_delay].copy()
+            self.u_hist[self.k % self._max_delay] = s.u
+        else:
+            s.u_app = s.u
+        s.u_held, self.u_app = self.u_app, s.u_app
+        ctrl.applied(s.u_app)
+
+    def plant_step(self, u_held, u_app) -> None:
+        """RK4 sub-steps over one period holding ``u_held`` over its first ``delay_frac`` h and ``u_app``
+        over the rest (the sub-steps shared out as the C loop does), each pressure clipped to its bounds."""
+        nq, n_p, lo, hi = self.nq, self.n_p, self._lo, self._hi
+        th, g = self.model.theta, self.model.gamma
+
+        def hold(x, u, n, hs):
+            rhs = lambda xx: self._rhs_fn(xx, u, th, g[0], g[1], self._fric, self._valve)  # noqa: E731
+            for _ in range(n):
+                x = _rk4(rhs, x, hs)
+                np.clip(x[2 * nq:2 * nq + n_p], lo, hi, out=x[2 * nq:2 * nq + n_p])  # e.g. 0 ≤ p_c ≤ p_s
+            return x
+
+        n, frac, h = self.sc.substeps, self.delay_frac, self.h
+        if frac > 0:
+            n1 = min(max(int(np.floor(frac * n + 0.5)), 1), n - 1 if n > 1 else 1)
+            n2 = max(n - n1, 1)
+            self.x = hold(hold(self.x, u_held, n1, frac * h / n1), u_app, n2, (1.0 - frac) * h / n2)
+        else:
+            self.x = hold(self.x, u_app, n, h / n)
+
+    def control_advance(self) -> None:
+        """The controller state's forward-Euler update after the period (``estimator_update="euler"``)."""
+        if self.sc.estimator_update == "euler":
+            self.ctrl.advance(self.h)
+
+
 def run_python_loop(dyn, sc, ctrl, x, q0, noise, kf_gain, log, n, h):
     """The reference closed loop in Python: ``n`` control periods of ``h`` s from plant state ``x`` with
-    the sensor ``noise`` table, writing each period into ``log`` (:func:`new_logs`); the same numbers
-    as the C loop to rounding."""
+    the sensor ``noise`` table, writing each period into ``log`` (:func:`new_logs`); the stages of
+    :class:`PythonStages` in the C loop's order, the same numbers as the C loop to rounding."""
     model = dyn.model
-    rhs_fn = dyn.functions["plant_rhs"]
-    theta_true, gamma_true = model.theta, model.gamma
-    from ..layout import MAX_DELAY
-    fric, valve = np.asarray(sc.friction, float), valve_vector(sc)
-    p_lo, p_hi = pressures.bounds(model)  # each pressure state's clip (0 and P_s for p_c)
-    nq, m, n_p = model.n, model.n_cylinders, pressures.n_pressures(model)
-    delay, quant = sc.delay_periods, sc.quantization_l
-    u_hist = np.zeros((MAX_DELAY, m))  # the C loop's ring: command of period k in slot k % MAX_DELAY
-    kf = np.vstack([dyn.leg_lengths(q0), np.zeros(m)]) if kf_gain is not None else None
-    F = np.array([[1.0, h], [0.0, 1.0]])
-    q_meas = q0.copy()
+    loop = PythonStages(dyn, sc, ctrl, x, q0, kf_gain, h)
     for k in range(n):
-        t = k * h
-        q, qdot, pc = x[:nq], x[nq:2 * nq], x[2 * nq:2 * nq + n_p]
-        l_true = dyn.leg_lengths(q)
-        l_meas = l_true + noise[k, :m]
-        if quant > 0:
-            l_meas = quant * np.floor(l_meas / quant + 0.5)
-        pc_meas = np.clip(pc + noise[k, m:m + n_p], p_lo, p_hi) if sc.noise_p else pc
-        if kf is not None:
-            kf = F @ kf
-            kf += np.outer(kf_gain, l_meas - kf[0])
-            ldot = kf[1].copy()
-        else:
-            ldot = dyn.leg_jacobian(q) @ qdot
-        if model.joint_encoders:
-            q_meas = q + noise[k, m + n_p:]
-        else:
-            try:
-                q_meas = dyn.forward_kinematics(l_meas, q0=q_meas)
-            except KinematicsError as exc:
-                return k, f"stopped at t = {t:.4f} s: {exc}"
-        qdot_meas = np.linalg.solve(dyn.leg_jacobian(q_meas), ldot)
-        ref = sc.reference(t)
-        if k and sc.estimator_update != "euler":  # semi-implicit: state from this measurement, then command
-            ctrl.update(h, q_meas, qdot_meas, pc_meas, l_meas, ref, t >= sc.t_adapt)
-        u = ctrl.command(q_meas, qdot_meas, pc_meas, l_meas, ref, t >= sc.t_adapt)
-        if delay > 0:
-            u_app = u_hist[(k - delay) % MAX_DELAY].copy()
-            u_hist[k % MAX_DELAY] = u
-        else:
-            u_app = u
-        ctrl.applied(u_app)
-        log["q"][k], log["q_d"][k], log["l"][k], log["pc"][k], log["u"][k] = q, ref[0], l_true, pc, u
-        log["u_applied"][k], log["l_meas"][k] = u_app, l_meas
+        loop.k = k
+        x = loop.x
+        s = loop.measure(noise[k])
+        try:
+            loop.estimate(s)
+        except KinematicsError as exc:
+            return k, f"stopped at t = {s.t:.4f} s: {exc}"
+        loop.reference(s)
+        loop.control(s)
+        pc = x[2 * loop.nq:2 * loop.nq + loop.n_p]
+        log["q"][k], log["q_d"][k], log["l"][k], log["pc"][k], log["u"][k] = x[:loop.nq], s.ref[0], s.l_true, pc, s.u
+        log["u_applied"][k], log["l_meas"][k] = s.u_app, s.l_meas
         log["f"][k] = pressures.forces(model, pc)
         if ctrl.xc.size:
             log["xc"][k] = ctrl.xc
-        rhs = lambda xx: rhs_fn(xx, u_app, theta_true, gamma_true[0], gamma_true[1], fric, valve)  # noqa: E731
-        hs = h / sc.substeps
-        for _ in range(sc.substeps):
-            x = _rk4(rhs, x, hs)
-            np.clip(x[2 * nq:2 * nq + n_p], p_lo, p_hi, out=x[2 * nq:2 * nq + n_p])  # e.g. 0 ≤ p_c ≤ p_s
-        if sc.estimator_update == "euler":
-            ctrl.advance(h)
-        if not np.all(np.isfinite(x)) or not np.all(np.isfinite(ctrl.xc)):
-            return k + 1, _describe(x, t + h, ctrl, ctrl.xc, u)
+        loop.plant_step(s.u_held, s.u_app)
+        loop.control_advance()
+        if not np.all(np.isfinite(loop.x)) or not np.all(np.isfinite(ctrl.xc)):
+            return k + 1, _describe(loop.x, s.t + h, ctrl, ctrl.xc, s.u)
     return n, None
 
 
