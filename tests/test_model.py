@@ -512,8 +512,12 @@ def test_a_four_way_robot_loads_its_kind_and_parameters():
     from hydrogen.actuators import actuator
     P = actuator(c.kind).parameters(c.table)
     assert P["stroke_min"] == 0.22 and P["stroke_max"] == 0.62 and P["supply_pressure"] == 10e6
-    # shipped robots: the default kind, an empty params
-    assert all(c.kind == "three_way_cylinder" and c.params == {} for c in hydrogen.load_model("excavator_arm").cylinders)
+    # shipped robots: the Stewart platform on the default kind, an empty params; the excavator on
+    # four-way cylinders, its bucket through a linkage
+    assert all(c.kind == "three_way_cylinder" and c.params == {} for c in hydrogen.load_model("ubc_stewart").cylinders)
+    arm = hydrogen.load_model("excavator_arm")
+    assert all(c.kind == "four_way_cylinder" for c in arm.cylinders)
+    assert [c.linkage_joint for c in arm.cylinders] == [None, None, "bucket_joint"]
 
 
 def test_a_kind_given_per_cylinder_overrides_the_hydraulics_default(tmp_path):

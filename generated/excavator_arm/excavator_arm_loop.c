@@ -10,6 +10,7 @@
 #include "excavator_arm_leg_lengths.h"
 #include "excavator_arm_leg_kinematics.h"
 #include "excavator_arm_plant_rhs.h"
+#include "excavator_arm_leg_force.h"
 
 #define NQ EXCAVATOR_ARM_NQ
 #define NL EXCAVATOR_ARM_NL
@@ -17,10 +18,19 @@
 #define NNOISE EXCAVATOR_ARM_NNOISE
 #define MAX_DELAY EXCAVATOR_ARM_MAX_DELAY
 static const double TWO_PI = 6.283185307179586;
-/* baked cylinder constants: cap area A (m^2), annulus area a (m^2), supply pressure P_s (Pa) */
-static const double PISTON_AREA[NL] = { 0.022619, 0.015394, 0.01131 };
-static const double ROD_AREA[NL] = { 0.009896, 0.0075398, 0.0056352 };
-static const double SUPPLY_PRESSURE[NL] = { 35000000.0, 35000000.0, 35000000.0 };
+#define NPR EXCAVATOR_ARM_NPR
+/* baked bounds of each pressure state (Pa), the clip of the measurement and of the plant */
+static const double P_LOW[NPR] = { 0.0, 0.0, 0.0, 0.0, 0.0, 0.0 };
+static const double P_HIGH[NPR] = { 35000000.0, 35000000.0, 35000000.0, 35000000.0, 35000000.0, 35000000.0 };
+
+/* actuator forces (N, N m) from the pressure vector: the actuators' own laws */
+static int leg_force(const double* p, double* f) {
+    const double* arg[1];
+    double* res[1];
+    arg[0] = p;
+    res[0] = f;
+    return excavator_arm_leg_force(arg, res, 0, 0, 0);
+}
 
 static int leg_lengths(const double* q, double* l) {
     const double* arg[1];
@@ -130,7 +140,7 @@ static double clip(double v, double lo, double hi) { return v < lo ? lo : (v > h
 
 int excavator_arm_loop_run(const excavator_arm_loop_config* c, excavator_arm_loop_state* st, long long n,
                      const double* noise, excavator_arm_loop_log* log) {
-    double l_true[NL], l_meas[NL], pc_meas[NL], ldot[NL], qdot_meas[NQ], J[NL * NQ], qd[4 * NQ], u[NL], u_app[NL];
+    double l_true[NL], l_meas[NL], pc_meas[NPR], ldot[NL], qdot_meas[NQ], J[NL * NQ], qd[4 * NQ], u[NL], u_app[NL];
     double adapt;
     double* x = st->x;
     const double h = c->h, hs = c->h / (double)c->substeps;
@@ -146,8 +156,9 @@ int excavator_arm_loop_run(const excavator_arm_loop_config* c, excavator_arm_loo
         for (i = 0; i < NL; ++i) {
             l_meas[i] = l_true[i] + (nz ? nz[i] : 0);
             if (c->quant_l > 0) l_meas[i] = c->quant_l * floor(l_meas[i] / c->quant_l + 0.5);
-            pc_meas[i] = nz ? clip(x[2 * NQ + i] + nz[NL + i], 0, SUPPLY_PRESSURE[i]) : x[2 * NQ + i];
         }
+        for (i = 0; i < NPR; ++i)
+            pc_meas[i] = nz ? clip(x[2 * NQ + i] + nz[NL + i], P_LOW[i], P_HIGH[i]) : x[2 * NQ + i];
         if (c->use_kalman) {
             for (i = 0; i < NL; ++i) {  /* predict with [1 h; 0 1], correct with the fixed gain */
                 double lp = st->kf[i] + h * st->kf[NL + i], vp = st->kf[NL + i], r = l_meas[i] - lp;
@@ -162,7 +173,7 @@ int excavator_arm_loop_run(const excavator_arm_loop_config* c, excavator_arm_loo
             }
         }
         /* joint encoders: the pose is measured; JL at the measured pose for the velocities */
-        for (i = 0; i < NQ; ++i) st->q_meas[i] = x[i] + (nz ? nz[2 * NL + i] : 0);
+        for (i = 0; i < NQ; ++i) st->q_meas[i] = x[i] + (nz ? nz[NL + NPR + i] : 0);
         {
             double l_tmp[NL];
             if (leg_kinematics(st->q_meas, l_tmp, J)) return EXCAVATOR_ARM_CTRL_FAILED;
@@ -174,7 +185,7 @@ int excavator_arm_loop_run(const excavator_arm_loop_config* c, excavator_arm_loo
         adapt = t >= c->t_adapt ? 1.0 : 0.0;
         set_slot(c, EXCAVATOR_ARM_SLOT_Q, st->q_meas, NQ);
         set_slot(c, EXCAVATOR_ARM_SLOT_QDOT, qdot_meas, NQ);
-        set_slot(c, EXCAVATOR_ARM_SLOT_PC, pc_meas, NL);
+        set_slot(c, EXCAVATOR_ARM_SLOT_PC, pc_meas, NPR);
         set_slot(c, EXCAVATOR_ARM_SLOT_L, l_meas, NL);
         set_slot(c, EXCAVATOR_ARM_SLOT_QD0, qd, NQ);
         set_slot(c, EXCAVATOR_ARM_SLOT_QD1, qd + NQ, NQ);
@@ -213,19 +224,17 @@ int excavator_arm_loop_run(const excavator_arm_loop_config* c, excavator_arm_loo
             if (log->q) memcpy(log->q + NQ * st->k, x, NQ * sizeof(double));
             if (log->q_d) memcpy(log->q_d + NQ * st->k, qd, NQ * sizeof(double));
             if (log->l) memcpy(log->l + NL * st->k, l_true, NL * sizeof(double));
-            if (log->pc) memcpy(log->pc + NL * st->k, x + 2 * NQ, NL * sizeof(double));
+            if (log->pc) memcpy(log->pc + NPR * st->k, x + 2 * NQ, NPR * sizeof(double));
             if (log->u) memcpy(log->u + NL * st->k, u, NL * sizeof(double));
             if (log->u_applied) memcpy(log->u_applied + NL * st->k, u_app, NL * sizeof(double));
             if (log->l_meas) memcpy(log->l_meas + NL * st->k, l_meas, NL * sizeof(double));
-            if (log->f)
-                for (i = 0; i < NL; ++i)
-                    log->f[NL * st->k + i] = x[2 * NQ + i] * PISTON_AREA[i] - SUPPLY_PRESSURE[i] * ROD_AREA[i];
+            if (log->f && leg_force(x + 2 * NQ, log->f + NL * st->k)) return EXCAVATOR_ARM_CTRL_FAILED;
             if (log->xc && c->n_xc) memcpy(log->xc + c->n_xc * st->k, st->xc, (size_t)c->n_xc * sizeof(double));
         }
-        /* plant, zero-order hold on the applied command; 0 <= pc <= ps */
+        /* plant, zero-order hold on the applied command; each pressure within its bounds */
         for (j = 0; j < c->substeps; ++j) {
             if (!rk4(c, x, u_app, hs)) return EXCAVATOR_ARM_CTRL_FAILED;
-            for (i = 0; i < NL; ++i) x[2 * NQ + i] = clip(x[2 * NQ + i], 0, SUPPLY_PRESSURE[i]);
+            for (i = 0; i < NPR; ++i) x[2 * NQ + i] = clip(x[2 * NQ + i], P_LOW[i], P_HIGH[i]);
         }
         /* controller state, forward Euler variant (xc_euler): the rate the command's call gave (this
          * period's measurement, state and u_applied, the command the valves held over the period that
