@@ -193,3 +193,40 @@ def test_a_linkage_needs_its_joint_range_and_no_to():
     data["cylinders"][1]["to"] = {"link": "fore", "point": [0.1, 0.0, 0.1]}
     with pytest.raises(hydrogen.ModelError, match=r"either 'to' .* or 'linkage'"):
         model_from_dict(data, "linkage_arm.toml")
+
+
+def test_the_linkage_plane_follows_a_turned_and_offset_joint():
+    """from_description on a joint with an origin offset, roll-pitch-yaw and a tilted axis: l(q)
+    equals the length built in 3-D (the child's crank pin turned about the axis, the rocker's pin C
+    found by bracketing on the circle about the pivot in the plane normal to the axis)."""
+    from hydrogen.model import Joint
+    from hydrogen.symbolic.linkage import from_description
+    from hydrogen.tree import axis_rotation, rpy_matrix
+
+    axis = np.array([0.3, -0.8, 0.52])
+    axis /= np.linalg.norm(axis)
+    joint = Joint("j", "revolute", "a", "b", np.array([0.4, -0.2, 1.1]), np.array([0.3, -0.5, 0.9]), axis)
+    R_o, o = rpy_matrix(joint.origin_rpy), joint.origin_xyz
+    e1 = np.cross(axis, [0.0, 0.0, 1.0])
+    e1 /= np.linalg.norm(e1)
+    e2 = np.cross(axis, e1)
+    w = 0.07  # every point 7 cm along the axis: one plane
+    in_joint = lambda x, y: w * axis + x * e1 + y * e2  # noqa: E731  joint-frame point of plane coordinates
+    to_parent = lambda x: o + R_o @ x  # noqa: E731
+    pivot, base = to_parent(in_joint(-0.45, 0.1)), to_parent(in_joint(-2.0, 0.4))
+    crank = in_joint(0.35 * np.cos(0.4), 0.35 * np.sin(0.4))  # child frame = joint frame at q = 0
+    g, offsets = from_description(joint, base, pivot, crank, coupler=0.55, rocker=0.5, branch=1)
+    np.testing.assert_allclose(list(offsets.values()), w, atol=1e-12)
+    for q in np.linspace(-1.0, 1.0, 9):
+        B = to_parent(axis_rotation(axis, q) @ crank)
+        n = R_o @ axis  # the axis in the parent frame; C lies in the plane through the pivot normal to it
+        u1 = R_o @ e1
+        u2 = np.cross(n, u1)
+        pin = lambda psi: pivot + 0.5 * (np.cos(psi) * u1 + np.sin(psi) * u2)  # noqa: E731
+        gap = lambda psi: np.linalg.norm(pin(psi) - B) - 0.55  # noqa: E731
+        grid = np.linspace(-np.pi, np.pi, 721)
+        vals = [gap(s) for s in grid]
+        roots = [brentq(gap, a, b, xtol=1e-15) for a, b, va, vb in zip(grid, grid[1:], vals, vals[1:]) if va * vb < 0]
+        # branch +1: C to the left of B -> pivot seen with the axis towards the viewer
+        C = next(pin(s) for s in roots if np.cross(pivot - B, pin(s) - B) @ n > 0)
+        np.testing.assert_allclose(g.lengths(q), np.linalg.norm(C - base), rtol=1e-10)

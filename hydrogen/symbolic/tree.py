@@ -231,8 +231,6 @@ class SymbolicTree:
         m_cyl = len(model.cylinders)
         needed = set()
         for c in model.cylinders:
-            if c.linkage is not None:
-                continue
             for link in (c.link_from, c.link_to):
                 needed |= {j.child for j in self.path(link)}
         if self.staged():
