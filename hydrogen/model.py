@@ -212,6 +212,12 @@ class Cylinder:
     #: a joint actuator's (rotary) joint: its coordinate is the joint's angle, its row of JL that
     #: joint's unit vector; link_from/link_to are the joint's parent and child, the points 0
     joint: str | None = None
+    #: a cylinder acting through a planar four-bar linkage: the revolute joint it drives
+    #: (link_from is that joint's parent, point_from the cylinder's base on it; link_to the child,
+    #: point_to the crank pin where the coupler pins on it) and the linkage's geometry in the
+    #: joint's plane (:class:`hydrogen.symbolic.linkage.FourBar`); its length is the linkage's l(q)
+    linkage_joint: str | None = None
+    linkage: object = field(default=None, compare=False)
 
     @property
     def table(self) -> dict:
@@ -364,6 +370,10 @@ class Model:
 def _baked_cylinder(c: Cylinder) -> list:
     out = [c.name, c.link_from, np.asarray(c.point_from).tolist(), c.link_to, np.asarray(c.point_to).tolist(),
            c.piston_area, c.rod_area, c.chamber_length, c.supply_pressure, c.underlap, c.orifice_linear_below]
+    if c.linkage is not None:  # appended only then, so a pinned cylinder's hash is what it always was
+        g = c.linkage
+        out += [["linkage", c.linkage_joint, g.crank, g.crank_offset, g.coupler, g.rocker, list(g.rocker_pivot),
+                 list(g.cylinder_base), g.branch]]
     if c.kind != DEFAULT_KIND:  # appended only then, so a three-way robot's hash is what it always was
         from .actuators import actuator
         gamma = {p.name for p in actuator(c.kind).PARAMETERS if p.gamma}  # runtime γ, not baked
@@ -900,9 +910,12 @@ def _cylinders(r: _Reader, data: dict, link_names: set, root_note: str = "", joi
         if _travel(kind)[0] == "angle":
             out.append(_joint_actuator(r, w, cy, defaults, kind, keys, joints))
             continue
-        r.known(cy, {"name", "from", "to", "kind", *keys}, w if kind == DEFAULT_KIND else f"{w} (kind {kind})")
+        r.known(cy, {"name", "from", "to", "linkage", "kind", *keys}, w if kind == DEFAULT_KIND else f"{w} (kind {kind})")
+        if "linkage" in cy and "to" in cy:
+            raise r.error(w, "give either 'to' (the rod end pinned on a link) or 'linkage' (the rod end on a "
+                             "four-bar linkage), not both")
         ends = []
-        for end in ("from", "to"):
+        for end in (("from",) if "linkage" in cy else ("from", "to")):
             e = r.require(cy, end, w)
             we = f"{w} {end}"
             if not isinstance(e, dict):
@@ -913,12 +926,19 @@ def _cylinders(r: _Reader, data: dict, link_names: set, root_note: str = "", joi
                 raise r.error(f"{we}.link", f"link '{link}' is not in the tree (links: "
                                             f"{', '.join(sorted(link_names))}{root_note})")
             ends.append((link, r.vector(f"{we}.point", r.require(e, "point", we), 3, "position")))
+        linkage = {}
+        if "linkage" in cy:
+            linkage = _linkage(r, w, cy["linkage"], ends[0], joints)
+            ends.append((linkage["linkage_joint_child"], linkage.pop("crank_pin")))
+            del linkage["linkage_joint_child"]
         if ends[0][0] == ends[1][0]:
             raise r.error(w, f"both ends are on link '{ends[0][0]}': a cylinder must join two links")
         vals = _cylinder_values(r, w, cy, defaults, kind, keys)
         smin, smax = (float(v) for v in vals.pop("stroke"))
         if smin >= smax:
             raise r.error(f"{w} stroke", f"must be [shortest, longest] with shortest < longest, got {[smin, smax]}")
+        if linkage:
+            _check_linkage(r, w, linkage, smin, smax, joints)
         if kind == DEFAULT_KIND:
             if vals["chamber_length"] >= smin:
                 raise r.error(f"{w} chamber_length", f"must be < the shortest length {smin} m so the control "
@@ -926,18 +946,85 @@ def _cylinders(r: _Reader, data: dict, link_names: set, root_note: str = "", joi
             if vals["rod_area"] >= vals["piston_area"]:
                 raise r.error(f"{w} rod_area", "must be < piston_area")
             out.append(Cylinder(name, ends[0][0], ends[0][1], ends[1][0], ends[1][1], stroke_min=smin,
-                                stroke_max=smax, **vals))
+                                stroke_max=smax, **linkage, **vals))
             continue
         _check_two_chamber(r, w, vals)
         shared = {k: vals.pop(k) for k in SHARED_KEYS if k in vals}
         out.append(Cylinder(name, ends[0][0], ends[0][1], ends[1][0], ends[1][1], piston_area=None, rod_area=None,
                             chamber_length=None, stroke_min=smin, stroke_max=smax, kind=kind, params=vals,
-                            **shared))
+                            **linkage, **shared))
     unused = sorted(set(defaults) - used)
     if unused:
         kinds = sorted({c.kind for c in out})
         raise r.error(f"[hydraulics] {unused[0]}", f"is a parameter of no cylinder's kind ({', '.join(kinds)})")
     return tuple(out)
+
+
+#: Joint angles (per joint range) at which a linkage is checked when a description is loaded.
+LINKAGE_CHECK_POINTS = 2001
+
+
+def _linkage(r: _Reader, w: str, table, base: tuple, joints) -> dict:
+    """A cylinder's ``linkage`` table: the Cylinder fields ``linkage_joint``, ``linkage`` (a
+    :class:`~hydrogen.symbolic.linkage.FourBar` in the joint's plane) and, for the caller, the
+    driven link and the crank pin. ``base`` = (link, point) of the cylinder's ``from``."""
+    wl = f"{w} linkage"
+    if not isinstance(table, dict):
+        raise r.error(wl, f"expected a table {{ joint, rocker_pivot, rocker, coupler, crank_pin, branch }}, "
+                          f"got {_quote(table)}")
+    r.known(table, _keys("[[cylinders]] linkage"), wl)
+    jname = r.name(f"{wl}.joint", r.require(table, "joint", wl))
+    joint = next((j for j in joints if j.name == jname), None)
+    if joint is None or joint.type != "revolute":
+        revolute = [j.name for j in joints if j.type == "revolute"]
+        raise r.error(f"{wl}.joint", f"'{jname}' is not a revolute joint of the tree (revolute joints: "
+                                     f"{', '.join(revolute) or 'none'})")
+    if base[0] != joint.parent:
+        raise r.error(f"{w} from.link", f"is '{base[0]}', but a linkage cylinder's base must be on the link that "
+                                        f"carries joint '{jname}''s pivot, '{joint.parent}'")
+    pivot = r.vector(f"{wl}.rocker_pivot", r.require(table, "rocker_pivot", wl), 3, "position")
+    crank_pin = r.vector(f"{wl}.crank_pin", r.require(table, "crank_pin", wl), 3, "position")
+    lengths = {k: r.number(f"{wl}.{k}", r.require(table, k, wl), "stroke") for k in ("rocker", "coupler")}
+    branch = r.require(table, "branch", wl)
+    if branch not in (1, -1) or isinstance(branch, bool) or not isinstance(branch, int):
+        raise r.error(f"{wl}.branch", f"expected 1 or -1 (which of the linkage's two assemblies), got {_quote(branch)}")
+    from .symbolic.linkage import from_description
+    try:
+        geometry, _ = from_description(joint, base[1], pivot, crank_pin, lengths["coupler"], lengths["rocker"],
+                                       branch)
+    except ValueError as exc:
+        raise r.error(wl, str(exc)) from None
+    return {"linkage_joint": jname, "linkage": geometry, "linkage_joint_child": joint.child,
+            "crank_pin": crank_pin}
+
+
+def _check_linkage(r: _Reader, w: str, linkage: dict, smin: float, smax: float, joints):
+    """A linkage closes over its joint's whole range, its cylinder stays inside the stroke there and
+    never passes a dead centre (dl/dq = 0), so it drives the joint over the range."""
+    wl = f"{w} linkage"
+    jname, g = linkage["linkage_joint"], linkage["linkage"]
+    joint = next(j for j in joints if j.name == jname)
+    lo, hi = joint.limit.get("lower"), joint.limit.get("upper")
+    if lo is None or hi is None:
+        raise r.error(f"{wl}.joint", f"joint '{jname}' has no position limits (lower, upper): a linkage is "
+                                     "checked over its joint's range, so give them (URDF <limit>, TOML limit)")
+    q = np.linspace(lo, hi, LINKAGE_CHECK_POINTS)
+    try:
+        g.check_assembles(q)
+    except ValueError as exc:
+        raise r.error(wl, f"{exc} (joint '{jname}''s range is [{lo}, {hi}] rad)") from None
+    l = g.lengths(q)
+    tol = 1e-9 * max(1.0, smax)
+    if l.min() < smin - tol or l.max() > smax + tol:
+        k = int(np.argmax((l < smin - tol) | (l > smax + tol)))
+        raise r.error(wl, f"over joint '{jname}''s range [{lo}, {hi}] rad the cylinder spans "
+                          f"[{l.min():.6g}, {l.max():.6g}] m, outside its stroke [{smin}, {smax}] m (first at "
+                          f"q = {q[k]:.6g} rad, l = {l[k]:.6g} m): the linkage cannot close over the stroke")
+    dl = np.gradient(l, q)
+    if not (np.all(dl > 0) or np.all(dl < 0)):
+        k = int(np.argmin(np.abs(dl)))
+        raise r.error(wl, f"the cylinder passes a dead centre (dl/dq = 0) at q = {q[k]:.6g} rad inside joint "
+                          f"'{jname}''s range [{lo}, {hi}] rad: it cannot drive the joint through it")
 
 
 def _joint_actuator(r: _Reader, w: str, cy: dict, defaults: dict, kind: str, keys, joints) -> Cylinder:

@@ -101,6 +101,21 @@ DESCRIPTION_KEYS = (
       for k, unit, what in _HYDRAULIC),
     Key("[[cylinders]] from/to", "link", "", "the link the pin is on"),
     Key("[[cylinders]] from/to", "point", "m", "the pin in that link's frame"),
+    Key("[[cylinders]]", "linkage", "", "the rod end drives a revolute joint through a planar four-bar "
+        "linkage (table below) instead of a pin 'to': the cylinder's base 'from' is on the joint's parent "
+        "link, its rod end on the pin joining the rocker and the coupler", default=None,
+        default_text="none: pinned from/to"),
+    Key("[[cylinders]] linkage", "joint", "", "the revolute joint it drives (it needs position limits: "
+        "the linkage must close, stay inside the stroke and pass no dead centre over them)"),
+    Key("[[cylinders]] linkage", "rocker_pivot", "m", "the rocker's pivot on the joint's parent link, "
+        "in that link's frame (an excavator's power link, pivoting on the stick)"),
+    Key("[[cylinders]] linkage", "rocker", "m", "rocker length, pivot to the rod-end pin"),
+    Key("[[cylinders]] linkage", "coupler", "m", "coupler length, rod-end pin to crank_pin (an "
+        "excavator's bucket link)"),
+    Key("[[cylinders]] linkage", "crank_pin", "m", "where the coupler pins on the driven (child) link, in "
+        "its frame; all points in one plane normal to the joint axis"),
+    Key("[[cylinders]] linkage", "branch", "", "1 or −1: the assembly, the rod-end pin to the left (1) or "
+        "right of the line crank_pin → rocker_pivot, seen with the joint axis towards you"),
     Key("[coordinates]", "names", "", "one distinct name per coordinate", default_text="the joints' names "
         "(a floating joint's as <joint>_x ... <joint>_phi)"),
     Key("[coordinates]", "neutral", "m, rad", "the neutral pose, about which scenario references are offsets"),

@@ -84,6 +84,9 @@ def cylinder_lengths(model, q) -> np.ndarray:
         if getattr(c, "joint", None) is not None:  # a joint actuator (rotary): the joint's angle
             out.append(q[columns[c.joint]])
             continue
+        if getattr(c, "linkage", None) is not None:  # through a four-bar linkage on its joint
+            out.append(float(c.linkage.lengths(q[columns[c.linkage_joint]])))
+            continue
         Ra, pa = poses[c.link_from]
         Rb, pb = poses[c.link_to]
         out.append(np.linalg.norm(pb + Rb @ c.point_to - pa - Ra @ c.point_from))

@@ -2,6 +2,16 @@
 import numpy as np
 
 from hydrogen.controllers.common import initial_gain_matrix
+from hydrogen.pressures import bounds as pressure_bounds, uniform_three_way
+
+
+def random_pressures(model, rng, low=0.3, high=0.7, size=None):
+    """Chamber pressures (n_pressures,) at fractions [low, high] of each state's bounds (the control
+    pressure's [0, P_s] for a three-way cylinder, [P_t, P_s] for a four-way cylinder's p_A and p_B)."""
+    lo, hi = pressure_bounds(model)
+    if uniform_three_way(model):
+        return model.supply_pressure * rng.uniform(low, high, model.n_cylinders if size is None else size)
+    return lo + (hi - lo) * rng.uniform(low, high, lo.size)
 
 
 def random_controller_inputs(ctrl, model, rng):
@@ -24,11 +34,28 @@ def random_controller_inputs(ctrl, model, rng):
         elif name in ("log_chamber_filter",):
             xc[sl] = rng.uniform(-1, 0, size)
         elif name == "pc_prev":
-            xc[sl] = model.supply_pressure * rng.uniform(0.3, 0.7, size)
+            xc[sl] = random_pressures(model, rng, size=size)
         elif name == "legl_prev":
-            xc[sl] = np.array([c.chamber_length for c in model.cylinders]) + rng.uniform(0.3, 0.5, size)
+            if uniform_three_way(model):
+                xc[sl] = np.array([c.chamber_length for c in model.cylinders]) + rng.uniform(0.3, 0.5, size)
+            else:  # inside the stroke
+                xc[sl] = model.leg_min + (model.leg_max - model.leg_min) * rng.uniform(0.2, 0.8, size)
         else:
             xc[sl] = rng.standard_normal(size) * (1e4 if "filter" in name else 0.05)
-    pc = model.supply_pressure * rng.uniform(0.3, 0.7, m)
+    pc = random_pressures(model, rng)
     ref = [model.neutral_pose + rng.uniform(-0.02, 0.02, n), *(rng.uniform(-0.1, 0.1, (3, n)))]
     return q, rng.uniform(-0.05, 0.05, n), pc, ref, xc
+
+
+def kind_laws(model, l, ldot, p, u):
+    """(f, f0, g0) per cylinder (m,) from each cylinder's actuator kind's numpy laws
+    (hydrogen/actuators/<kind>.py): force, f0 = the force rate at a closed valve over β, g0 the valve
+    term over βc, at lengths ``l``, rates ``ldot``, the pressure vector ``p`` and spools ``u``."""
+    from hydrogen.actuators import actuator
+    from hydrogen.pressures import blocks
+    out = []
+    for c, (a, b), li, vi, ui in zip(model.cylinders, blocks(model), l, ldot, u):
+        mod = actuator(c.kind)
+        P, pi = mod.parameters(c.table), tuple(p[a:b])
+        out.append((mod.Numeric.force(pi, P), mod.Numeric.f0(li, vi, pi, P), mod.Numeric.g0(li, pi, ui, P)))
+    return tuple(np.array(v, float) for v in zip(*out))

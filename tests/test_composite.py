@@ -6,10 +6,11 @@ import sympy as sp
 
 import hydrogen
 from hydrogen.controllers.common import initial_gain_matrix
+from hydrogen.pressures import n_pressures
 from hydrogen.simulation.control import make_controller
 from hydrogen.symbolic.composite import normalised_least_squares, pack_symmetric, unpack_symmetric
 
-from controller_inputs import random_controller_inputs
+from controller_inputs import kind_laws, random_controller_inputs
 
 KINDS = ["adaptive-robust", "adaptive-observer"]
 
@@ -75,8 +76,6 @@ def test_composite_weight_zero_is_the_papers_gradient_law(robot_dyn, kind, rng):
     ctrl = make_controller(dyn, kind)
     assert float(ctrl.values["rate_ls_gamma"][0]) == 0.0 and float(ctrl.values["rate_ls_theta"][0]) == 0.0
     m = model.n_cylinders
-    A, a, ps = model.piston_area, np.array([c.rod_area for c in model.cylinders]), model.supply_pressure
-    L = np.array([c.chamber_length for c in model.cylinders])
     comp = ["force_filter", "log_chamber_filter", "g0_filter", "pc_prev", "legl_prev", "gamma_gain",
             "momentum_filter", "momentum_offset_filter", "bias_filter", "bias_offset_filter", "torque_filter",
             "theta_gain"]
@@ -88,11 +87,9 @@ def test_composite_weight_zero_is_the_papers_gradient_law(robot_dyn, kind, rng):
         l = np.asarray(dyn.leg_lengths(q)).ravel()
         u = ctrl.command(q, qdot, pc, l, ref, True).copy()
         rate = ctrl.xc_dot.copy()
-        f = pc * A - ps * a
-        ftil = f - ctrl.f_d
         ldot = np.asarray(dyn.leg_jacobian(q)).reshape(m, model.n) @ qdot
-        f0 = -A * ldot / (l - L)
-        g0 = np.asarray(dyn.valve_flow(held, pc)).ravel() / (l - L)
+        f, f0, g0 = kind_laws(model, l, ldot, pc, held)  # each cylinder's kind (numpy)
+        ftil = f - ctrl.f_d
         v = ctrl.values
         np.testing.assert_allclose(rate[ctrl.slices["gamma1_hat"]], v["Ggamma1_inv"] / v["Gtau_inv"] * f0 * ftil,
                                    rtol=1e-9)
@@ -175,7 +172,7 @@ def test_theta_prediction_error_vanishes_with_the_true_parameters(robot_dyn):
         st.step()
         xc = st.xc
         q, qdot = x[:n], x[n:2 * n]
-        f = np.asarray(dyn.leg_force(x[2 * n:2 * n + m])).ravel()
+        f = np.asarray(dyn.leg_force(x[2 * n:2 * n + n_pressures(model)])).ravel()
         xi = xc[sl["momentum_filter"]].reshape(n, p) @ th + xc[sl["momentum_offset_filter"]]
         ze = xc[sl["bias_filter"]].reshape(n, p) @ th + xc[sl["bias_offset_filter"]]
         mom = np.asarray(dyn.mass_matrix(q, th)).reshape(n, n) @ qdot
@@ -245,7 +242,7 @@ def test_copies_of_the_last_period_start_at_the_initial_measurement(robot_dyn):
     sl, x0 = p.ctrl.slices, p.x0
     n, m = model.n, model.n_cylinders
     np.testing.assert_allclose(p.ctrl.xc[sl["legl_prev"]], np.asarray(dyn.leg_lengths(x0[:n])).ravel())
-    np.testing.assert_allclose(p.ctrl.xc[sl["pc_prev"]], x0[2 * n:2 * n + m])
+    np.testing.assert_allclose(p.ctrl.xc[sl["pc_prev"]], x0[2 * n:2 * n + n_pressures(model)])
 
 
 def test_staged_least_squares_equals_the_plain_law(rng):

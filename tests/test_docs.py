@@ -165,7 +165,7 @@ def test_description_table_lists_every_key_the_loader_accepts():
         assert (k.table, k.key) in rows
     for f in _FIELDS:
         assert ("[scenarios.<name>], [rig]", f) in rows
-    assert set(HYDRAULIC_KEYS) | {"name", "from", "to"} == schema.keys("[[cylinders]]")
+    assert set(HYDRAULIC_KEYS) | {"name", "from", "to", "linkage"} == schema.keys("[[cylinders]]")
 
 
 def test_description_table_fails_on_an_undocumented_scenario_field(monkeypatch):

@@ -66,7 +66,7 @@ def test_exported_program_matches_the_noise_free_simulation(tmp_path, cache, mod
     assert int(out["periods"]) == n
     got = np.array([out["max_error"][c] for c in dyn.model.coordinate_names])
     np.testing.assert_allclose(got, expected, rtol=1e-9, atol=1e-13)
-    assert got.max() > 1e-5  # the reference is being tracked, not trivially zero
+    assert got.max() > 1e-8  # errors of a tracked reference, far above the tolerance: not trivially zero
     # the same figures as 'hydrogen simulate' prints: SI unit, % of amplitude ("-" where the reference
     # does not move the coordinate), mm or mrad
     amplitude = named_scenario(scenario, dyn.model).reference.amplitude()

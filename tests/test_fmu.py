@@ -20,6 +20,15 @@ from fmpy.validation import validate_fmu  # noqa: E402
 from hydrogen.errors import FmuError, HydrogenError, OutputPathError  # noqa: E402
 from hydrogen.fmu import FMI_HEADERS, PARTS, export_fmu, fmi_headers_dir  # noqa: E402
 from hydrogen.simulation.simulator import simulate  # noqa: E402
+from hydrogen.actuators import actuator  # noqa: E402
+from hydrogen.pressures import bounds as pressure_bounds  # noqa: E402
+
+
+def _pressure_variables(model, suffix=""):
+    """``<state><suffix>.<cylinder>`` of every chamber pressure, in the pressure vector's order (the
+    state names from each cylinder's actuator kind: pc for a three-way cylinder, pA and pB for a
+    four-way one)."""
+    return [f"{s.name}{suffix}.{c.name}" for c in model.cylinders for s in actuator(c.kind).STATES]
 
 pytestmark = pytest.mark.skipif(shutil.which("cc") is None and "CC" not in os.environ, reason="needs a C compiler")
 
@@ -253,7 +262,7 @@ def test_model_description(fmus):
                 if f"sources/{name}" in names:
                     assert hashlib.sha256(zf.read(f"sources/{name}")).hexdigest() == digest
         if part == "plant":
-            assert {f"q.{c}" for c in coords} | {f"l.{c}" for c in cyls} | {f"pc.{c}" for c in cyls} <= set(by)
+            assert {f"q.{c}" for c in coords} | {f"l.{c}" for c in cyls} | set(_pressure_variables(model)) <= set(by)
             assert by[f"q_start.{coords[0]}"].causality == "parameter"
             q0 = sc.reference(0.0)[0] + np.asarray(sc.q0_offset, float)
             assert [float(by[f"q_start.{c}"].start) for c in coords] == q0.tolist()
@@ -355,7 +364,11 @@ def test_parameters_declare_their_range_from_the_model(fmus):
     for c, cyl in zip(cyls, model.cylinders):
         assert (float(plant[f"gamma1.{c}"].min), float(plant[f"gamma1.{c}"].max)) == (model.gamma1_min,
                                                                                       model.gamma1_max)
-        assert (float(plant[f"pc_start.{c}"].min), float(plant[f"pc_start.{c}"].max)) == (0.0, cyl.supply_pressure)
+    # each chamber pressure's initial value within its kind's bounds ([0, P_s] for p_c, [P_t, P_s] for p_A, p_B)
+    lo, hi = pressure_bounds(model)
+    for j, name in enumerate(_pressure_variables(model, "_start")):
+        assert (float(plant[name].min), float(plant[name].max)) == (lo[j], hi[j])
+        assert hi[j] == model.cylinders[[c.name for c in model.cylinders].index(name.split(".", 1)[1])].supply_pressure
     assert float(plant["friction.smooth_speed"].min) > 0 and float(plant["friction.coulomb"].min) == 0
     ctl = {v.name: v for v in read_model_description(str(paths["controller"])).modelVariables}
     params = [v for v in ctl.values() if v.causality == "parameter" and v.type == "Real"]

@@ -1,7 +1,17 @@
-"""Physics sanity of the actuator model and the closed-form valve inverse, for every robot."""
+"""Physics sanity of the three-way actuator model and the closed-form valve inverse, for every robot
+on three-way cylinders (every actuator kind's physics: tests/test_actuators.py; the four-way
+excavator arm's loops: tests/test_four_way.py and the robot-wide tests)."""
 import numpy as np
 import pytest
 from scipy.integrate import solve_ivp
+
+from hydrogen.pressures import uniform_three_way
+
+
+@pytest.fixture(autouse=True)
+def _three_way_robots_only(request):
+    if "robot_model" in request.fixturenames and not uniform_three_way(request.getfixturevalue("robot_model")):
+        pytest.skip("the three-way cylinder's laws (p_c A - P_s a, eq. 57); this robot has other kinds")
 
 
 def _mid(model):

@@ -260,8 +260,8 @@ _BUCKET_ORIGIN = '<origin xyz="2.90 0 0" rpy="0 0 0"/>'
 
 
 @pytest.mark.parametrize("old,new,words", [
-    ('<axis xyz="0 -1 0"/>\n    <limit lower="-1.885"',
-     '<axis xyz="0 -1 0"/>\n    <mimic joint="stick_joint" multiplier="1.0"/>\n    <limit lower="-1.885"',
+    ('<axis xyz="0 -1 0"/>\n    <limit lower="-2.498"',
+     '<axis xyz="0 -1 0"/>\n    <mimic joint="stick_joint" multiplier="1.0"/>\n    <limit lower="-2.498"',
      ["joint 'bucket_joint'", "mimics joint 'stick_joint'", "mimic joints are not supported", "fixed", "remove"]),
     ('<joint name="bucket_joint"', '<joint name="stick_joint"', ["joint 'stick_joint'", "defined twice"]),
     ('<link name="bucket">', '<link name="stick">', ["link 'stick'", "defined twice"]),
@@ -277,7 +277,7 @@ _BUCKET_ORIGIN = '<origin xyz="2.90 0 0" rpy="0 0 0"/>'
     ('ixx="40.0" ', 'ixx="forty" ', ["link 'stick' <inertial><inertia ixx>", "'forty'"]),
     ('<origin xyz="1.05 0 0.12" rpy="0 0 0"/>', '<origin xyz="1.05 0 0.12" rpy="0 0 x"/>',
      ["link 'stick' <inertial><origin rpy>"]),
-    ('effort="133000"', 'effort="lots"', ["joint 'bucket_joint' <limit effort>", "'lots'"]),
+    ('effort="179000"', 'effort="lots"', ["joint 'bucket_joint' <limit effort>", "'lots'"]),
     ('<robot name="excavator_arm">', '<robot>', ["root element <robot>", "lacks the attribute 'name'"]),
     ('<parent link="boom"/>', '<parent link="bom"/>',
      ["joint 'stick_joint'", "parent link 'bom' that is not defined", "base, boom, stick, bucket"]),
@@ -324,6 +324,9 @@ def test_a_joint_origin_rpy_is_the_files_numbers_exactly(tmp_path):
     path = _arm_variant(tmp_path, _BUCKET_ORIGIN, f'<origin xyz="2.90 0 0" rpy="0 {pitch} 0"/>')
     path.write_text(path.read_text().replace("neutral = [0.10, -1.65, -0.90]",
                                              f"neutral = [0.10, -1.65, {-0.90 + float(pitch)!r}]"))
+    urdf = path.parent / "arm.urdf"  # its limits shift with the coordinate (the linkage is checked over them)
+    urdf.write_text(urdf.read_text().replace('lower="-2.498" upper="0.553"',
+                                             f'lower="{-2.498 + float(pitch)!r}" upper="{0.553 + float(pitch)!r}"'))
     model = hydrogen.load_model(path)
     bucket = next(j for j in model.joints if j.name == "bucket_joint")
     assert bucket.origin_rpy.tolist() == [0.0, float(pitch), 0.0]
@@ -343,9 +346,9 @@ def test_a_huge_joint_axis_is_normalised_without_overflow(tmp_path):
 def test_urdf_joint_limits_are_read_per_coordinate():
     m = hydrogen.load_model("excavator_arm")
     lim = m.coordinate_limits()
-    assert lim["lower"].tolist() == [-0.795, -2.744, -1.885] and lim["upper"].tolist() == [0.993, -0.555, 0.095]
+    assert lim["lower"].tolist() == [-0.795, -2.744, -2.498] and lim["upper"].tolist() == [0.993, -0.555, 0.553]
     assert lim["velocity"].tolist() == [1.0, 1.0, 1.0]
-    assert m.joints[0].limit["effort"] == 359000.0
+    assert m.joints[0].limit["effort"] == 638000.0
     # the platform's floating joint has none
     s = hydrogen.load_model("ubc_stewart").coordinate_limits()
     assert np.all(np.isinf(s["lower"])) and np.all(np.isinf(s["velocity"]))
@@ -368,7 +371,7 @@ def test_a_reference_beyond_a_joint_limit_is_refused_before_the_run(tmp_path):
 
 
 def test_a_reference_beyond_a_velocity_limit_is_refused_before_the_run(tmp_path):
-    path = _arm_variant(tmp_path, 'effort="359000" velocity="1.0"', 'effort="359000" velocity="0.01"')
+    path = _arm_variant(tmp_path, 'effort="638000" velocity="1.0"', 'effort="638000" velocity="0.01"')
     with pytest.raises(hydrogen.errors.KinematicsError, match=r"passes the velocity limit .* limit 0.01 rad/s"):
         hydrogen.simulate("arm-sim", "p", model=hydrogen.load_model(path), duration=2.0)
 
@@ -512,8 +515,12 @@ def test_a_four_way_robot_loads_its_kind_and_parameters():
     from hydrogen.actuators import actuator
     P = actuator(c.kind).parameters(c.table)
     assert P["stroke_min"] == 0.22 and P["stroke_max"] == 0.62 and P["supply_pressure"] == 10e6
-    # shipped robots: the default kind, an empty params
-    assert all(c.kind == "three_way_cylinder" and c.params == {} for c in hydrogen.load_model("excavator_arm").cylinders)
+    # shipped robots: the Stewart platform on the default kind, an empty params; the excavator on
+    # four-way cylinders, its bucket through a linkage
+    assert all(c.kind == "three_way_cylinder" and c.params == {} for c in hydrogen.load_model("ubc_stewart").cylinders)
+    arm = hydrogen.load_model("excavator_arm")
+    assert all(c.kind == "four_way_cylinder" for c in arm.cylinders)
+    assert [c.linkage_joint for c in arm.cylinders] == [None, None, "bucket_joint"]
 
 
 def test_a_kind_given_per_cylinder_overrides_the_hydraulics_default(tmp_path):

@@ -140,7 +140,8 @@ def test_measured_lengths_are_on_the_encoder_grid(robot):
 #: and once two runs differ by enough for a measured length to fall in the next 10 um encoder cell
 #: they part for good. Measured (C vs Python, first difference in q above 1e-8): 2.1 s on the
 #: platform's z-1hz with adaptive-robust, 1.3 s with adaptive-observer, 1.6 s on z-2hz, 2.4 s on
-#: psi-1hz; 8.0 s on the arm's arm-dig with adaptive-robust (its adaptive-observer does not part).
+#: psi-1hz. On the excavator arm (four-way cylinders) the differences are still growing when arm-dig
+#: ends: with adaptive-robust 7e-8 (C vs Python) and 9e-6 (C vs C nudged) at most in q.
 #: Two C runs whose noise differs by one part in 1e15 part the same way: the loop's sensitivity, not
 #: a difference of the engines; one seed's result is one draw of a distribution (hydrogen.simulation.seeds).
 AGREE_S = 1.0
@@ -188,8 +189,9 @@ def test_c_and_python_loops_on_the_rig_agree_until_chaos_parts_them(robot, kind)
     d_py, d_nudged = np.abs(c.q - py.q).max(), np.abs(c.q - nudged).max()
     if d_nudged < 1e-8:  # this loop does not amplify rounding here: the engines agree to the end
         assert d_py < 1e-8
-    else:  # it does: C vs Python part as far as C vs C with the noise changed in its 15th digit
-        assert d_py > 1e-6 and 0.01 < d_nudged / d_py < 100, (d_py, d_nudged)
+    else:  # it does: C vs Python part no further than C vs C with the noise changed in its 15th digit
+        # (they may part less: within a run the differences are still growing, from different seeds)
+        assert d_py > 1e-8 and d_py < 100 * d_nudged, (d_py, d_nudged)
 
 
 def test_result_holds_the_scenario_actually_run(dyn):

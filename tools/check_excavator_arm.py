@@ -5,18 +5,21 @@ Standalone (numpy + pinocchio + tomllib; not part of the hydrogen package). It r
 hydrogen/data/excavator_arm.toml and the URDF it names, builds the tree with Pinocchio, and:
 
   (a) computes every cylinder's pin-to-pin length l(q) over a grid of the proposed workspace and of
-      the URDF joint-limit box, and checks l_min <= l <= l_max;
+      the URDF joint-limit box, and checks l_min <= l <= l_max (a cylinder with a ``linkage`` table
+      ends on the pin joining its rocker and coupler, found here by intersecting their circles in
+      the arm's x-z plane: an implementation independent of hydrogen's);
   (b) computes JL = dl/dq by central differences and reports its condition number;
   (c) checks that gravity G(q) (pin.computeGeneralizedGravity) is held by cylinder forces
-      f = JL^-T G inside the three-way-valve range [-P_s a, P_s (A - a)], reporting the worst
-      ratio |f| / (limit in the direction of f); the design aim is <= 0.6;
-  (d) estimates each cylinder's hydraulic natural frequency: the three-way valve leaves one
-      compliant chamber, stiffness k = beta A^2 / V = beta A / (l - L), against the effective mass
-      m_eff = 1 / (JL D^-1 JL^T)_ii; also the modes of D^-1 JL^T diag(k) JL;
+      f = JL^-T G inside the four-way cylinder's range [-(P_s A_B - P_t A_A), P_s A_A - P_t A_B],
+      reporting the worst ratio |f| / (limit in the direction of f); the design aim is <= 0.6;
+  (d) estimates each cylinder's hydraulic natural frequency: two compliant chambers, stiffness
+      k = beta (A_A^2 / V_A + A_B^2 / V_B), against the effective mass m_eff = 1 / (JL D^-1 JL^T)_ii;
+      also the modes of D^-1 JL^T diag(k) JL;
   (e) runs the proposed arm-sim and arm-dig references (multi-sines about the neutral pose) through
       inverse dynamics (pin.rnea), adding cylinder friction for arm-dig, and checks stroke, force
-      range, cylinder speed, the valve flow q_l = A l' + (l - L) f' / beta, the spool opening that
-      flow needs (inverse of the paper's eq. 57) against u_max, and the net pump flow.
+      range, cylinder speed, the cap-side valve flow A_A l' (oil compressibility neglected), the
+      spool opening that flow needs at the force's steady chamber pressures (the four-way valve's
+      orifice law) against u_max, and the net pump flow (A_A l' extending, A_B |l'| retracting).
 
 Usage:  python tools/check_excavator_arm.py [--toml PATH] [--grid N]
 Exit status 0 when every check passes.
@@ -70,19 +73,51 @@ def load(toml_path: Path):
     model.gravity.linear = np.array([0.0, 0.0, -desc["gravity"]])
     data = model.createData()
     hyd = desc["hydraulics"]
+    urdf_joints = {model.names[j]: j for j in range(1, model.njoints)}
     cyls = []
     for c in desc["cylinders"]:
         get = lambda k: float(c.get(k, hyd.get(k)))  # noqa: E731  (cylinder overrides the default)
-        cyls.append(dict(
+        kind = c.get("kind", hyd.get("kind"))
+        if kind != "four_way_cylinder":
+            raise SystemExit(f"cylinder {c['name']}: kind {kind!r}; this script checks four-way cylinders")
+        cyl = dict(
             name=c["name"],
             frm=(model.getFrameId(c["from"]["link"], pin.BODY), np.array(c["from"]["point"], float)),
-            to=(model.getFrameId(c["to"]["link"], pin.BODY), np.array(c["to"]["point"], float)),
-            A=float(c["piston_area"]), a=float(c["rod_area"]), L=float(c["chamber_length"]),
-            stroke=tuple(map(float, c["stroke"])), Ps=get("supply_pressure"), d=get("underlap"),
-            c=get("flow_gain"), beta=get("bulk_modulus")))
+            AA=get("cap_area"), AB=get("annulus_area"), VA0=get("dead_volume_A"), VB0=get("dead_volume_B"),
+            stroke=tuple(map(float, c["stroke"])), Ps=get("supply_pressure"), Pt=get("tank_pressure"),
+            d=get("underlap"), c=get("flow_gain"), beta=get("bulk_modulus"))
+        if "linkage" in c:
+            lk = c["linkage"]
+            j = urdf_joints[lk["joint"]]
+            parent = model.frames[model.getFrameId(c["from"]["link"], pin.BODY)]
+            child = [f for f in model.frames if f.type == pin.BODY and f.parentJoint == j][0]
+            cyl["linkage"] = dict(pivot=(model.getFrameId(parent.name, pin.BODY), np.array(lk["rocker_pivot"], float)),
+                                  pin=(model.getFrameId(child.name, pin.BODY), np.array(lk["crank_pin"], float)),
+                                  rocker=float(lk["rocker"]), coupler=float(lk["coupler"]), branch=int(lk["branch"]))
+        else:
+            cyl["to"] = (model.getFrameId(c["to"]["link"], pin.BODY), np.array(c["to"]["point"], float))
+        cyls.append(cyl)
     if model.nq != len(cyls):
         raise SystemExit(f"{model.nq} coordinates but {len(cyls)} cylinders")
     return desc, model, data, cyls
+
+
+def rod_end(data, lk):
+    """The pin joining rocker and coupler (base frame): the intersection of the circles about the
+    rocker pivot (radius rocker) and the crank pin (radius coupler) in the arm's x-z plane, on the
+    side of crank pin -> pivot that ``branch`` names (x right, z up: the joint axes -y towards the
+    viewer, so +1 is to the left)."""
+    B = data.oMf[lk["pin"][0]].act(lk["pin"][1])
+    O4 = data.oMf[lk["pivot"][0]].act(lk["pivot"][1])
+    b, o = B[[0, 2]], O4[[0, 2]]
+    d = o - b
+    D = np.linalg.norm(d)
+    a = (lk["coupler"] ** 2 - lk["rocker"] ** 2 + D ** 2) / (2 * D)
+    h2 = lk["coupler"] ** 2 - a ** 2
+    if h2 < 0:
+        return np.full(3, np.nan)
+    c2 = b + a / D * d + lk["branch"] * np.sqrt(h2) / D * np.array([-d[1], d[0]])
+    return np.array([c2[0], B[1], c2[1]])
 
 
 def lengths(model, data, cyls, q):
@@ -90,7 +125,7 @@ def lengths(model, data, cyls, q):
     out = np.empty(len(cyls))
     for i, c in enumerate(cyls):
         p0 = data.oMf[c["frm"][0]].act(c["frm"][1])
-        p1 = data.oMf[c["to"][0]].act(c["to"][1])
+        p1 = rod_end(data, c["linkage"]) if "linkage" in c else data.oMf[c["to"][0]].act(c["to"][1])
         out[i] = np.linalg.norm(p1 - p0)
     return out
 
@@ -104,22 +139,38 @@ def jacobian(model, data, cyls, q, h=1e-6):
     return J
 
 
+def force_limits(c):
+    """The four-way cylinder's force range (N): [-(P_s A_B - P_t A_A), P_s A_A - P_t A_B]."""
+    return -(c["Ps"] * c["AB"] - c["Pt"] * c["AA"]), c["Ps"] * c["AA"] - c["Pt"] * c["AB"]
+
+
 def force_ratio(c, f):
-    """|f| over the three-way valve's limit in the direction of f: [-P_s a, P_s (A - a)]."""
-    return f / (c["Ps"] * (c["A"] - c["a"])) if f >= 0 else -f / (c["Ps"] * c["a"])
+    """|f| over the four-way cylinder's limit in the direction of f."""
+    lo, hi = force_limits(c)
+    return f / hi if f >= 0 else f / lo
 
 
-def spool_for_flow(c, ql, pc):
-    """Spool position u giving load flow ql at control pressure pc: the inverse of eq. (57)."""
-    Ps, d, k = c["Ps"], c["d"], c["c"]
-    pc = min(max(pc, 0.0), Ps)
-    s_in, s_out = np.sqrt(Ps - pc), np.sqrt(pc)
-    q_hi, q_lo = k * 2 * d * s_in, -k * 2 * d * s_out            # flows at u = +d and u = -d
-    if ql >= q_hi:
-        return np.inf if s_in == 0 else ql / (k * s_in) - d
-    if ql <= q_lo:
-        return -np.inf if s_out == 0 else ql / (k * s_out) + d
-    return (ql - k * d * (s_in - s_out)) / (k * (s_in + s_out))
+def stiffness(c, l):
+    """Hydraulic stiffness of both chambers, beta (A_A^2/V_A + A_B^2/V_B), N/m."""
+    VA = c["VA0"] + c["AA"] * (l - c["stroke"][0])
+    VB = c["VB0"] + c["AB"] * (c["stroke"][1] - l)
+    return c["beta"] * (c["AA"] ** 2 / VA + c["AB"] ** 2 / VB)
+
+
+def spool_for_speed(c, v, f):
+    """Spool opening u (m) moving the cylinder at v (m/s) against force f at steady chamber pressures:
+    flows A_A v in and A_B v out through matched orifices (P->A, B->T extending; A->T, P->B retracting),
+    so the pressure drops are in the ratio (A_A/A_B)^2; underlap subtracted, compressibility neglected."""
+    AA, AB, Ps, Pt, k, d = c["AA"], c["AB"], c["Ps"], c["Pt"], c["c"], c["d"]
+    r2 = (AA / AB) ** 2
+    if v >= 0:   # x = P_s - p_A = r2 (p_B - P_t)
+        y = (Ps * AA - Pt * AB - f) / (AA * r2 + AB)
+    else:        # x = p_A - P_t = r2 (P_s - p_B)
+        y = (f - Pt * AA + Ps * AB) / (AA * r2 + AB)
+    if y <= 0:
+        return np.inf
+    u = AA * abs(v) / (k * np.sqrt(r2 * y))
+    return max(u - d, 0.0)
 
 
 def grid(box, n):
@@ -169,7 +220,7 @@ def check_static(model, data, cyls, box, n, with_gravity):
         M = pin.crba(model, data, q)
         M = np.triu(M) + np.triu(M, 1).T
         Minv = np.linalg.inv(M)
-        kh = np.array([c["beta"] * c["A"] / (l[i] - c["L"]) for i, c in enumerate(cyls)])
+        kh = np.array([stiffness(c, l[i]) for i, c in enumerate(cyls)])
         meff = 1.0 / np.diag(JL @ Minv @ JL.T)
         fc = np.sqrt(kh / meff) / (2 * np.pi)
         fn_cyl = [np.minimum(fn_cyl[0], fc), np.maximum(fn_cyl[1], fc)]
@@ -194,21 +245,18 @@ def check_reference(model, data, cyls, neutral, spec, h=1e-3):
         Ld[k] = JL @ qd[k]
         tau = pin.rnea(model, data, q[k], qd[k], qdd[k])
         F[k] = np.linalg.solve(JL.T, tau) + Fc * np.tanh(Ld[k] / vs) + b * Ld[k]
-    Fd = np.gradient(F, h, axis=0)
     out = dict(l=(L.min(0), L.max(0)), q=(q.min(0), q.max(0)), vmax=np.abs(Ld).max(0),
                ratio=np.zeros(ncyl), qmax=np.zeros(ncyl), umax=np.zeros(ncyl), pump=0.0)
     pump = np.zeros(t.size)
     for i, c in enumerate(cyls):
         ratio = np.array([force_ratio(c, f) for f in F[:, i]])
-        ql = c["A"] * Ld[:, i] + (L[:, i] - c["L"]) * Fd[:, i] / c["beta"]
-        pc = (F[:, i] + c["Ps"] * c["a"]) / c["A"]
-        u = np.array([spool_for_flow(c, ql[k], pc[k]) for k in range(t.size)])
+        u = np.array([spool_for_speed(c, Ld[k, i], F[k, i]) for k in range(t.size)])
         out["ratio"][i] = ratio.max()
-        out["qmax"][i] = np.abs(ql).max() * 6e4
+        out["qmax"][i] = np.abs(c["AA"] * Ld[:, i]).max() * 6e4
         out["umax"][i] = np.abs(u).max()
-        # three-way circuit: extending returns the rod-side oil to the supply line (regeneration)
+        # four-way circuit: the pumps fill the cap side extending and the annulus retracting
         v = Ld[:, i]
-        pump += np.where(v > 0, (c["A"] - c["a"]) * v, -c["a"] * v)
+        pump += np.where(v > 0, c["AA"] * v, -c["AB"] * v)
     out["pump"] = pump.max() * 6e4
     return out
 
@@ -264,7 +312,7 @@ def main(argv=None):
             q[j] = qj
             arm = max(arm, abs(jacobian(model, data, cyls, q)[j, j]))
         c = cyls[j]
-        fmax = c["Ps"] * max(c["a"], c["A"] - c["a"])
+        fmax = max(-force_limits(c)[0], force_limits(c)[1])
         print(f"  {'':16s} max |dl/dq| = {arm:.3f} m/rad -> torque {arm * fmax / 1e3:.0f} kN m "
               f"(URDF effort {model.effortLimit[j] / 1e3:.0f} kN m)")
 
@@ -298,10 +346,10 @@ def main(argv=None):
         if grav:
             print(f"  (c) gravity: worst |f| / force limit (aim <= {FORCE_AIM}):")
             for i, c in enumerate(cyls):
-                rng = (-c["Ps"] * c["a"] / 1e3, c["Ps"] * (c["A"] - c["a"]) / 1e3)
+                rng = tuple(v / 1e3 for v in force_limits(c))
                 print(f"      {c['name']:16s} {r['worst'][i]:.3f} at q = {np.round(r['worst_q'][i], 3)}"
                       f"  range [{rng[0]:.0f}, {rng[1]:.0f}] kN  " + verdict(r["worst"][i] <= FORCE_AIM, "margin"))
-            print("  (d) hydraulic natural frequency sqrt(k/m_eff)/2pi, k = beta A/(l - L):")
+            print("  (d) hydraulic natural frequency sqrt(k/m_eff)/2pi, k = beta (A_A^2/V_A + A_B^2/V_B):")
             for i, c in enumerate(cyls):
                 print(f"      {c['name']:16s} {r['fn_cyl'][0][i]:5.2f} .. {r['fn_cyl'][1][i]:5.2f} Hz")
             print(f"      coupled modes of D^-1 JL^T K JL: {r['fn_mode'][0]:.2f} .. {r['fn_mode'][1]:.2f} Hz")

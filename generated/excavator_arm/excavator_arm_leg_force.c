@@ -31,6 +31,7 @@ extern "C" {
 /* Add prefix to internal symbols */
 #define casadi_f0 CASADI_PREFIX(f0)
 #define casadi_s0 CASADI_PREFIX(s0)
+#define casadi_s1 CASADI_PREFIX(s1)
 
 /* Symbol visibility in DLLs */
 #ifndef CASADI_SYMBOL_EXPORT
@@ -56,27 +57,34 @@ CASADI_SYMBOL_EXPORT void excavator_arm_leg_force_casadi_version(int* major, int
 CASADI_SYMBOL_EXPORT int excavator_arm_leg_force_casadi_int_size(void) { return (int) sizeof(casadi_int); }
 CASADI_SYMBOL_EXPORT int excavator_arm_leg_force_casadi_real_size(void) { return (int) sizeof(casadi_real); }
 
-static const casadi_int casadi_s0[3] = {3, 1, 1};
+static const casadi_int casadi_s0[3] = {6, 1, 1};
+static const casadi_int casadi_s1[3] = {3, 1, 1};
 
-/* excavator_arm_leg_force:(pc[3])->(f[3]) */
+/* excavator_arm_leg_force:(pc[6])->(f[3]) */
 static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   (void)arg; (void)res; (void)iw; (void)w; (void)mem;
   casadi_real a0, a1, a2;
-  a0=-346360.;
-  a1=2.2619000000000000e-02;
-  a2=arg[0]? arg[0][0] : 0;
-  a1=(a1*a2);
-  a0=(a0+a1);
-  if (res[0]!=0) res[0][0]=a0;
-  a0=-263893.;
-  a1=1.5394000000000000e-02;
+  a0=2.2619000000000000e-02;
+  a1=arg[0]? arg[0][0] : 0;
+  a0=(a0*a1);
+  a1=-9.8960000000000003e-03;
   a2=arg[0]? arg[0][1] : 0;
   a1=(a1*a2);
   a0=(a0+a1);
+  if (res[0]!=0) res[0][0]=a0;
+  a0=1.5394000000000000e-02;
+  a1=arg[0]? arg[0][2] : 0;
+  a0=(a0*a1);
+  a1=-7.5398000000000001e-03;
+  a2=arg[0]? arg[0][3] : 0;
+  a1=(a1*a2);
+  a0=(a0+a1);
   if (res[0]!=0) res[0][1]=a0;
-  a0=-197232.;
-  a1=1.1310000000000001e-02;
-  a2=arg[0]? arg[0][2] : 0;
+  a0=1.1310000000000001e-02;
+  a1=arg[0]? arg[0][4] : 0;
+  a0=(a0*a1);
+  a1=-5.6351999999999999e-03;
+  a2=arg[0]? arg[0][5] : 0;
   a1=(a1*a2);
   a0=(a0+a1);
   if (res[0]!=0) res[0][2]=a0;
@@ -134,7 +142,7 @@ CASADI_SYMBOL_EXPORT const casadi_int* excavator_arm_leg_force_sparsity_in(casad
 
 CASADI_SYMBOL_EXPORT const casadi_int* excavator_arm_leg_force_sparsity_out(casadi_int i) {
   switch (i) {
-    case 0: return casadi_s0;
+    case 0: return casadi_s1;
     default: return 0;
   }
 }

@@ -11,6 +11,7 @@
 #include "excavator_arm_leg_lengths.h"
 #include "excavator_arm_leg_kinematics.h"
 #include "excavator_arm_plant_rhs.h"
+#include "excavator_arm_leg_force.h"
 
 #define NQ EXCAVATOR_ARM_NQ
 #define NL EXCAVATOR_ARM_NL
@@ -20,12 +21,17 @@
 static const double TWO_PI = 6.283185307179586;
 #define NPC EXCAVATOR_ARM_NPC
 /* baked bounds of each pressure state (Pa), the clip of the measurement and of the plant */
-static const double P_LOW[NPC] = { 0.0, 0.0, 0.0 };
-static const double P_HIGH[NPC] = { 35000000.0, 35000000.0, 35000000.0 };
-/* baked cylinder constants: cap area A (m^2), annulus area a (m^2), supply pressure P_s (Pa) */
-static const double PISTON_AREA[NL] = { 0.022619, 0.015394, 0.01131 };
-static const double ROD_AREA[NL] = { 0.009896, 0.0075398, 0.0056352 };
-static const double SUPPLY_PRESSURE[NL] = { 35000000.0, 35000000.0, 35000000.0 };
+static const double P_LOW[NPC] = { 0.0, 0.0, 0.0, 0.0, 0.0, 0.0 };
+static const double P_HIGH[NPC] = { 35000000.0, 35000000.0, 35000000.0, 35000000.0, 35000000.0, 35000000.0 };
+
+/* actuator forces (N, N m) from the pressure vector: the actuators' own laws */
+static int leg_force(const double* p, double* f) {
+    const double* arg[1];
+    double* res[1];
+    arg[0] = p;
+    res[0] = f;
+    return excavator_arm_leg_force(arg, res, 0, 0, 0);
+}
 
 static int leg_lengths(const double* q, double* l) {
     const double* arg[1];
@@ -277,7 +283,6 @@ static int write_log(const excavator_arm_loop_state* st, const excavator_arm_loo
                      excavator_arm_loop_log* log) {
     const double* x = st->x;
     const long long k = st->k;
-    int i;
     if (log->t) log->t[k] = s->t;
     if (log->q) memcpy(log->q + NQ * k, x, NQ * sizeof(double));
     if (log->q_d) memcpy(log->q_d + NQ * k, s->qd, NQ * sizeof(double));
@@ -286,9 +291,7 @@ static int write_log(const excavator_arm_loop_state* st, const excavator_arm_loo
     if (log->u) memcpy(log->u + NL * k, s->u, NL * sizeof(double));
     if (log->u_applied) memcpy(log->u_applied + NL * k, s->u_app, NL * sizeof(double));
     if (log->l_meas) memcpy(log->l_meas + NL * k, s->l_meas, NL * sizeof(double));
-    if (log->f)
-        for (i = 0; i < NL; ++i)
-            log->f[NL * k + i] = x[2 * NQ + i] * PISTON_AREA[i] - SUPPLY_PRESSURE[i] * ROD_AREA[i];
+    if (log->f && leg_force(x + 2 * NQ, log->f + NL * k)) return EXCAVATOR_ARM_CTRL_FAILED;
     if (log->xc && c->n_xc) memcpy(log->xc + c->n_xc * k, st->xc, (size_t)c->n_xc * sizeof(double));
     return EXCAVATOR_ARM_OK;
 }

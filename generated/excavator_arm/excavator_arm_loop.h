@@ -1,6 +1,6 @@
 /* Closed-loop driver for model excavator_arm: plant, sensors, joint encoders, controller.
  * Rendered by hydrogen from templates/loop.h.j2; plain C99, no dependency but libm.
- * Sizes: 3 coordinates, 3 cylinders; plant state x = [q, qdot, pc, spool, spool rate] (15). */
+ * Sizes: 3 coordinates, 3 cylinders; plant state x = [q, qdot, pc, spool, spool rate] (18). */
 #ifndef EXCAVATOR_ARM_LOOP_H
 #define EXCAVATOR_ARM_LOOP_H
 
@@ -10,10 +10,10 @@ extern "C" {
 
 #define EXCAVATOR_ARM_NQ 3   /* generalized coordinates */
 #define EXCAVATOR_ARM_NL 3   /* cylinders */
-#define EXCAVATOR_ARM_NX 15  /* plant state */
-#define EXCAVATOR_ARM_NPC 3  /* pressure states (one per cylinder) */
+#define EXCAVATOR_ARM_NX 18  /* plant state */
+#define EXCAVATOR_ARM_NPC 6  /* pressure states (one block per actuator) */
 #define EXCAVATOR_ARM_MAX_DELAY 8  /* longest computation delay, control periods */
-#define EXCAVATOR_ARM_NNOISE 9  /* noise row: cylinder lengths (m), pressures (Pa), joint angles */
+#define EXCAVATOR_ARM_NNOISE 12  /* noise row: cylinder lengths (m), pressures (Pa), joint angles */
 
 typedef int (*excavator_arm_casadi_fn)(const double** arg, double** res, long long int* iw, double* w, int mem);
 
@@ -97,7 +97,7 @@ typedef struct {                 /* each may be NULL; rows per control period (w
     double* q_d;  /* 3: reference */
     double* l;  /* 3: true cylinder lengths, m */
     double* f;  /* 3: cylinder forces, N */
-    double* pc;  /* 3: control pressures, Pa */
+    double* pc;  /* 6: chamber pressures (one block per actuator), Pa */
     double* u;  /* 3: spool commands computed, m */
     double* u_applied;  /* 3: spool commands the valves held at the end of each period (delay later), m */
     double* l_meas;  /* 3: measured cylinder lengths (noise, quantisation), m */

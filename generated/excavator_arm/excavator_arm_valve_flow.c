@@ -30,7 +30,9 @@ extern "C" {
 
 /* Add prefix to internal symbols */
 #define casadi_f0 CASADI_PREFIX(f0)
+#define casadi_fmax CASADI_PREFIX(fmax)
 #define casadi_s0 CASADI_PREFIX(s0)
+#define casadi_s1 CASADI_PREFIX(s1)
 
 /* Symbol visibility in DLLs */
 #ifndef CASADI_SYMBOL_EXPORT
@@ -47,6 +49,15 @@ extern "C" {
   #endif
 #endif
 
+casadi_real casadi_fmax(casadi_real x, casadi_real y) {
+/* Pre-c99 compatibility */
+#if __STDC_VERSION__ < 199901L
+  return x>y ? x : y;
+#else
+  return fmax(x, y);
+#endif
+}
+
 /* Configuration this file was compiled with */
 CASADI_SYMBOL_EXPORT void excavator_arm_valve_flow_casadi_version(int* major, int* minor, int* patch) {
   *major = 3;
@@ -57,62 +68,106 @@ CASADI_SYMBOL_EXPORT int excavator_arm_valve_flow_casadi_int_size(void) { return
 CASADI_SYMBOL_EXPORT int excavator_arm_valve_flow_casadi_real_size(void) { return (int) sizeof(casadi_real); }
 
 static const casadi_int casadi_s0[3] = {3, 1, 1};
+static const casadi_int casadi_s1[3] = {6, 1, 1};
 
-/* excavator_arm_valve_flow:(u[3],pc[3])->(ql_per_c[3]) */
+/* excavator_arm_valve_flow:(u[3],pc[6])->(q_per_c[6]) */
 static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   (void)arg; (void)res; (void)iw; (void)w; (void)mem;
-  casadi_real a0, a1, a2, a3, a4, a5, a6, a7;
+  casadi_real a0, a1, a2, a3, a4, a5, a6, a7, a8, a9;
   a0=arg[0]? arg[0][0] : 0;
   a1=2.0000000000000002e-05;
   a2=(a0<=a1);
-  a3=arg[1]? arg[1][0] : 0;
-  a4=sqrt(a3);
-  a5=-2.0000000000000002e-05;
-  a6=(a5+a0);
-  a4=(a4*a6);
-  a2=(a2?a4:0);
-  a4=(a0<a5);
-  a4=(!a4);
-  a6=35000000.;
-  a3=(a6-a3);
-  a3=sqrt(a3);
+  a3=0.;
+  a4=arg[1]? arg[1][0] : 0;
+  a5=casadi_fmax(a3,a4);
+  a5=sqrt(a5);
+  a6=-2.0000000000000002e-05;
+  a7=(a6+a0);
+  a5=(a5*a7);
+  a5=(a2?a5:0);
+  a8=(a0<a6);
+  a8=(!a8);
+  a9=35000000.;
+  a4=(a9-a4);
+  a4=casadi_fmax(a3,a4);
+  a4=sqrt(a4);
   a0=(a1+a0);
-  a3=(a3*a0);
-  a4=(a4?a3:0);
-  a2=(a2+a4);
-  if (res[0]!=0) res[0][0]=a2;
-  a2=arg[0]? arg[0][1] : 0;
-  a4=(a2<=a1);
-  a3=arg[1]? arg[1][1] : 0;
-  a0=sqrt(a3);
-  a7=(a5+a2);
-  a0=(a0*a7);
-  a4=(a4?a0:0);
-  a0=(a2<a5);
+  a4=(a4*a0);
+  a4=(a8?a4:0);
+  a5=(a5+a4);
+  if (res[0]!=0) res[0][0]=a5;
+  a5=arg[1]? arg[1][1] : 0;
+  a4=casadi_fmax(a3,a5);
+  a4=sqrt(a4);
+  a4=(a4*a0);
+  a8=(a8?a4:0);
+  a5=(a9-a5);
+  a5=casadi_fmax(a3,a5);
+  a5=sqrt(a5);
+  a5=(a5*a7);
+  a2=(a2?a5:0);
+  a8=(a8+a2);
+  if (res[0]!=0) res[0][1]=a8;
+  a8=arg[0]? arg[0][1] : 0;
+  a2=(a8<=a1);
+  a5=arg[1]? arg[1][2] : 0;
+  a7=casadi_fmax(a3,a5);
+  a7=sqrt(a7);
+  a4=(a6+a8);
+  a7=(a7*a4);
+  a7=(a2?a7:0);
+  a0=(a8<a6);
   a0=(!a0);
-  a3=(a6-a3);
+  a5=(a9-a5);
+  a5=casadi_fmax(a3,a5);
+  a5=sqrt(a5);
+  a8=(a1+a8);
+  a5=(a5*a8);
+  a5=(a0?a5:0);
+  a7=(a7+a5);
+  if (res[0]!=0) res[0][2]=a7;
+  a7=arg[1]? arg[1][3] : 0;
+  a5=casadi_fmax(a3,a7);
+  a5=sqrt(a5);
+  a5=(a5*a8);
+  a0=(a0?a5:0);
+  a7=(a9-a7);
+  a7=casadi_fmax(a3,a7);
+  a7=sqrt(a7);
+  a7=(a7*a4);
+  a2=(a2?a7:0);
+  a0=(a0+a2);
+  if (res[0]!=0) res[0][3]=a0;
+  a0=arg[0]? arg[0][2] : 0;
+  a2=(a0<=a1);
+  a7=arg[1]? arg[1][4] : 0;
+  a4=casadi_fmax(a3,a7);
+  a4=sqrt(a4);
+  a5=(a6+a0);
+  a4=(a4*a5);
+  a4=(a2?a4:0);
+  a6=(a0<a6);
+  a6=(!a6);
+  a7=(a9-a7);
+  a7=casadi_fmax(a3,a7);
+  a7=sqrt(a7);
+  a1=(a1+a0);
+  a7=(a7*a1);
+  a7=(a6?a7:0);
+  a4=(a4+a7);
+  if (res[0]!=0) res[0][4]=a4;
+  a4=arg[1]? arg[1][5] : 0;
+  a7=casadi_fmax(a3,a4);
+  a7=sqrt(a7);
+  a7=(a7*a1);
+  a6=(a6?a7:0);
+  a9=(a9-a4);
+  a3=casadi_fmax(a3,a9);
   a3=sqrt(a3);
-  a2=(a1+a2);
-  a3=(a3*a2);
-  a0=(a0?a3:0);
-  a4=(a4+a0);
-  if (res[0]!=0) res[0][1]=a4;
-  a4=arg[0]? arg[0][2] : 0;
-  a0=(a4<=a1);
-  a3=arg[1]? arg[1][2] : 0;
-  a2=sqrt(a3);
-  a7=(a5+a4);
-  a2=(a2*a7);
-  a0=(a0?a2:0);
-  a5=(a4<a5);
-  a5=(!a5);
-  a6=(a6-a3);
-  a6=sqrt(a6);
-  a1=(a1+a4);
-  a6=(a6*a1);
-  a5=(a5?a6:0);
-  a0=(a0+a5);
-  if (res[0]!=0) res[0][2]=a0;
+  a3=(a3*a5);
+  a2=(a2?a3:0);
+  a6=(a6+a2);
+  if (res[0]!=0) res[0][5]=a6;
   return 0;
 }
 
@@ -154,7 +209,7 @@ CASADI_SYMBOL_EXPORT const char* excavator_arm_valve_flow_name_in(casadi_int i) 
 
 CASADI_SYMBOL_EXPORT const char* excavator_arm_valve_flow_name_out(casadi_int i) {
   switch (i) {
-    case 0: return "ql_per_c";
+    case 0: return "q_per_c";
     default: return 0;
   }
 }
@@ -162,14 +217,14 @@ CASADI_SYMBOL_EXPORT const char* excavator_arm_valve_flow_name_out(casadi_int i)
 CASADI_SYMBOL_EXPORT const casadi_int* excavator_arm_valve_flow_sparsity_in(casadi_int i) {
   switch (i) {
     case 0: return casadi_s0;
-    case 1: return casadi_s0;
+    case 1: return casadi_s1;
     default: return 0;
   }
 }
 
 CASADI_SYMBOL_EXPORT const casadi_int* excavator_arm_valve_flow_sparsity_out(casadi_int i) {
   switch (i) {
-    case 0: return casadi_s0;
+    case 0: return casadi_s1;
     default: return 0;
   }
 }

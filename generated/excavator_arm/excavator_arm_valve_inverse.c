@@ -32,6 +32,7 @@ extern "C" {
 #define casadi_f0 CASADI_PREFIX(f0)
 #define casadi_fmax CASADI_PREFIX(fmax)
 #define casadi_s0 CASADI_PREFIX(s0)
+#define casadi_s1 CASADI_PREFIX(s1)
 
 /* Symbol visibility in DLLs */
 #ifndef CASADI_SYMBOL_EXPORT
@@ -67,115 +68,270 @@ CASADI_SYMBOL_EXPORT int excavator_arm_valve_inverse_casadi_int_size(void) { ret
 CASADI_SYMBOL_EXPORT int excavator_arm_valve_inverse_casadi_real_size(void) { return (int) sizeof(casadi_real); }
 
 static const casadi_int casadi_s0[3] = {3, 1, 1};
+static const casadi_int casadi_s1[3] = {6, 1, 1};
 
-/* excavator_arm_valve_inverse:(ql_per_c[3],pc[3])->(u[3]) */
+/* excavator_arm_valve_inverse:(g0[3],l[3],pc[6])->(u[3]) */
 static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   (void)arg; (void)res; (void)iw; (void)w; (void)mem;
   casadi_real a00, a01, a02, a03, a04, a05, a06, a07, a08, a09, a10, a11;
-  casadi_real a12, a13, a14;
-  a00=4.0000000000000003e-05;
-  a01=1.;
-  a02=0.;
-  a03=35000000.;
-  a04=arg[1]? arg[1][0] : 0;
-  a05=(a03-a04);
-  a05=casadi_fmax(a02,a05);
-  a05=sqrt(a05);
-  a05=casadi_fmax(a01,a05);
-  a06=(a00*a05);
-  a07=arg[0]? arg[0][0] : 0;
-  a06=(a06<a07);
-  a08=-2.0000000000000002e-05;
-  a09=(a07/a05);
-  a09=(a08+a09);
-  a09=(a06?a09:0);
-  a06=(!a06);
-  a10=-4.0000000000000003e-05;
-  a04=casadi_fmax(a02,a04);
-  a04=sqrt(a04);
-  a04=casadi_fmax(a01,a04);
-  a11=(a10*a04);
-  a11=(a07<a11);
-  a12=2.0000000000000002e-05;
-  a13=(a07/a04);
-  a13=(a12+a13);
-  a13=(a11?a13:0);
-  a11=(!a11);
-  a14=(a12*a04);
-  a07=(a07+a14);
-  a14=(a08*a05);
-  a07=(a07+a14);
-  a04=(a04+a05);
-  a07=(a07/a04);
-  a11=(a11?a07:0);
-  a13=(a13+a11);
-  a06=(a06?a13:0);
-  a09=(a09+a06);
-  if (res[0]!=0) res[0][0]=a09;
-  a09=arg[1]? arg[1][1] : 0;
-  a06=(a03-a09);
-  a06=casadi_fmax(a02,a06);
+  casadi_real a12, a13, a14, a15, a16, a17, a18, a19, a20;
+  a00=3.9584000000000003e-07;
+  a01=3.3575520000000005e-02;
+  a02=-9.8960000000000003e-03;
+  a03=arg[1]? arg[1][0] : 0;
+  a02=(a02*a03);
+  a01=(a01+a02);
+  a00=(a00/a01);
+  a02=1.;
+  a04=0.;
+  a05=arg[2]? arg[2][1] : 0;
+  a06=casadi_fmax(a04,a05);
   a06=sqrt(a06);
-  a06=casadi_fmax(a01,a06);
-  a13=(a00*a06);
-  a11=arg[0]? arg[0][1] : 0;
-  a13=(a13<a11);
-  a07=(a11/a06);
-  a07=(a08+a07);
-  a07=(a13?a07:0);
-  a13=(!a13);
-  a09=casadi_fmax(a02,a09);
-  a09=sqrt(a09);
-  a09=casadi_fmax(a01,a09);
-  a04=(a10*a09);
-  a04=(a11<a04);
-  a05=(a11/a09);
-  a05=(a12+a05);
-  a05=(a04?a05:0);
-  a04=(!a04);
-  a14=(a12*a09);
-  a11=(a11+a14);
-  a14=(a08*a06);
-  a11=(a11+a14);
-  a09=(a09+a06);
-  a11=(a11/a09);
-  a04=(a04?a11:0);
-  a05=(a05+a04);
-  a13=(a13?a05:0);
-  a07=(a07+a13);
-  if (res[0]!=0) res[0][1]=a07;
-  a07=arg[1]? arg[1][2] : 0;
-  a03=(a03-a07);
-  a03=casadi_fmax(a02,a03);
-  a03=sqrt(a03);
-  a03=casadi_fmax(a01,a03);
-  a00=(a00*a03);
-  a13=arg[0]? arg[0][2] : 0;
-  a00=(a00<a13);
-  a05=(a13/a03);
-  a05=(a08+a05);
-  a05=(a00?a05:0);
+  a06=casadi_fmax(a02,a06);
+  a00=(a00*a06);
+  a07=9.0476000000000006e-07;
+  a08=-3.9371340000000005e-02;
+  a09=2.2619000000000000e-02;
+  a03=(a09*a03);
+  a08=(a08+a03);
+  a07=(a07/a08);
+  a03=35000000.;
+  a10=arg[2]? arg[2][0] : 0;
+  a11=(a03-a10);
+  a11=casadi_fmax(a04,a11);
+  a11=sqrt(a11);
+  a11=casadi_fmax(a02,a11);
+  a07=(a07*a11);
+  a00=(a00+a07);
+  a07=arg[0]? arg[0][0] : 0;
+  a00=(a00<a07);
+  a12=-2.0000000000000002e-05;
+  a09=(a09/a08);
+  a13=(a09*a11);
+  a14=9.8960000000000003e-03;
+  a14=(a14/a01);
+  a15=(a14*a06);
+  a16=(a13+a15);
+  a16=(a07/a16);
+  a16=(a12+a16);
+  a16=(a00?a16:0);
   a00=(!a00);
-  a02=casadi_fmax(a02,a07);
-  a02=sqrt(a02);
-  a01=casadi_fmax(a01,a02);
+  a17=-3.9584000000000003e-07;
+  a17=(a17/a01);
+  a05=(a03-a05);
+  a05=casadi_fmax(a04,a05);
+  a05=sqrt(a05);
+  a05=casadi_fmax(a02,a05);
+  a17=(a17*a05);
+  a18=-9.0476000000000006e-07;
+  a18=(a18/a08);
+  a10=casadi_fmax(a04,a10);
+  a10=sqrt(a10);
+  a10=casadi_fmax(a02,a10);
+  a18=(a18*a10);
+  a17=(a17+a18);
+  a17=(a07<a17);
+  a18=2.0000000000000002e-05;
+  a09=(a09*a10);
+  a14=(a14*a05);
+  a19=(a09+a14);
+  a19=(a07/a19);
+  a19=(a18+a19);
+  a19=(a17?a19:0);
+  a17=(!a17);
+  a20=1.9792000000000001e-07;
+  a20=(a20/a01);
+  a20=(a20*a05);
+  a07=(a07+a20);
+  a20=4.5238000000000003e-07;
+  a20=(a20/a08);
+  a20=(a20*a10);
+  a07=(a07+a20);
+  a20=-1.9792000000000001e-07;
+  a20=(a20/a01);
+  a20=(a20*a06);
+  a07=(a07+a20);
+  a20=-4.5238000000000003e-07;
+  a20=(a20/a08);
+  a20=(a20*a11);
+  a07=(a07+a20);
+  a09=(a09+a13);
+  a09=(a09+a15);
+  a09=(a09+a14);
+  a07=(a07/a09);
+  a17=(a17?a07:0);
+  a19=(a19+a17);
+  a00=(a00?a19:0);
+  a16=(a16+a00);
+  if (res[0]!=0) res[0][0]=a16;
+  a16=6.1576000000000006e-07;
+  a00=-3.0597099999999999e-02;
+  a19=1.5394000000000000e-02;
+  a17=arg[1]? arg[1][1] : 0;
+  a07=(a19*a17);
+  a00=(a00+a07);
+  a16=(a16/a00);
+  a07=arg[2]? arg[2][2] : 0;
+  a09=(a03-a07);
+  a09=casadi_fmax(a04,a09);
+  a09=sqrt(a09);
+  a09=casadi_fmax(a02,a09);
+  a16=(a16*a09);
+  a14=3.0159200000000004e-07;
+  a15=3.0050429199999999e-02;
+  a13=-7.5398000000000001e-03;
+  a13=(a13*a17);
+  a15=(a15+a13);
+  a14=(a14/a15);
+  a13=arg[2]? arg[2][3] : 0;
+  a17=casadi_fmax(a04,a13);
+  a17=sqrt(a17);
+  a17=casadi_fmax(a02,a17);
+  a14=(a14*a17);
+  a16=(a16+a14);
+  a14=arg[0]? arg[0][1] : 0;
+  a16=(a16<a14);
+  a20=7.5398000000000001e-03;
+  a20=(a20/a15);
+  a11=(a20*a17);
+  a19=(a19/a00);
+  a08=(a19*a09);
+  a06=(a11+a08);
+  a06=(a14/a06);
+  a06=(a12+a06);
+  a06=(a16?a06:0);
+  a16=(!a16);
+  a01=-6.1576000000000006e-07;
+  a01=(a01/a00);
+  a07=casadi_fmax(a04,a07);
+  a07=sqrt(a07);
+  a07=casadi_fmax(a02,a07);
+  a01=(a01*a07);
+  a10=-3.0159200000000004e-07;
+  a10=(a10/a15);
+  a13=(a03-a13);
+  a13=casadi_fmax(a04,a13);
+  a13=sqrt(a13);
+  a13=casadi_fmax(a02,a13);
+  a10=(a10*a13);
+  a01=(a01+a10);
+  a01=(a14<a01);
+  a20=(a20*a13);
+  a19=(a19*a07);
+  a10=(a20+a19);
+  a10=(a14/a10);
+  a10=(a18+a10);
+  a10=(a01?a10:0);
+  a01=(!a01);
+  a05=3.0788000000000003e-07;
+  a05=(a05/a00);
+  a05=(a05*a07);
+  a14=(a14+a05);
+  a05=1.5079600000000002e-07;
+  a05=(a05/a15);
+  a05=(a05*a13);
+  a14=(a14+a05);
+  a05=-3.0788000000000003e-07;
+  a05=(a05/a00);
+  a05=(a05*a09);
+  a14=(a14+a05);
+  a05=-1.5079600000000002e-07;
+  a05=(a05/a15);
+  a05=(a05*a17);
+  a14=(a14+a05);
+  a11=(a11+a20);
+  a11=(a11+a19);
+  a11=(a11+a08);
+  a14=(a14/a11);
+  a01=(a01?a14:0);
+  a10=(a10+a01);
+  a16=(a16?a10:0);
+  a06=(a06+a16);
+  if (res[0]!=0) res[0][1]=a06;
+  a06=2.2540800000000000e-07;
+  a16=1.9823641600000001e-02;
+  a10=-5.6351999999999999e-03;
+  a01=arg[1]? arg[1][2] : 0;
   a10=(a10*a01);
-  a10=(a13<a10);
-  a02=(a13/a01);
-  a02=(a12+a02);
-  a02=(a10?a02:0);
-  a10=(!a10);
-  a12=(a12*a01);
-  a13=(a13+a12);
-  a08=(a08*a03);
-  a13=(a13+a08);
-  a01=(a01+a03);
-  a13=(a13/a01);
-  a10=(a10?a13:0);
-  a02=(a02+a10);
-  a00=(a00?a02:0);
-  a05=(a05+a00);
-  if (res[0]!=0) res[0][2]=a05;
+  a16=(a16+a10);
+  a06=(a06/a16);
+  a10=arg[2]? arg[2][5] : 0;
+  a14=casadi_fmax(a04,a10);
+  a14=sqrt(a14);
+  a14=casadi_fmax(a02,a14);
+  a06=(a06*a14);
+  a11=4.5240000000000005e-07;
+  a08=-1.5272239999999999e-02;
+  a19=1.1310000000000001e-02;
+  a01=(a19*a01);
+  a08=(a08+a01);
+  a11=(a11/a08);
+  a01=arg[2]? arg[2][4] : 0;
+  a20=(a03-a01);
+  a20=casadi_fmax(a04,a20);
+  a20=sqrt(a20);
+  a20=casadi_fmax(a02,a20);
+  a11=(a11*a20);
+  a06=(a06+a11);
+  a11=arg[0]? arg[0][2] : 0;
+  a06=(a06<a11);
+  a05=5.6351999999999999e-03;
+  a05=(a05/a16);
+  a17=(a05*a14);
+  a19=(a19/a08);
+  a15=(a19*a20);
+  a09=(a17+a15);
+  a09=(a11/a09);
+  a12=(a12+a09);
+  a12=(a06?a12:0);
+  a06=(!a06);
+  a09=-2.2540800000000000e-07;
+  a09=(a09/a16);
+  a03=(a03-a10);
+  a03=casadi_fmax(a04,a03);
+  a03=sqrt(a03);
+  a03=casadi_fmax(a02,a03);
+  a09=(a09*a03);
+  a10=-4.5240000000000005e-07;
+  a10=(a10/a08);
+  a04=casadi_fmax(a04,a01);
+  a04=sqrt(a04);
+  a02=casadi_fmax(a02,a04);
+  a10=(a10*a02);
+  a09=(a09+a10);
+  a09=(a11<a09);
+  a05=(a05*a03);
+  a19=(a19*a02);
+  a10=(a05+a19);
+  a10=(a11/a10);
+  a18=(a18+a10);
+  a18=(a09?a18:0);
+  a09=(!a09);
+  a10=1.1270400000000000e-07;
+  a10=(a10/a16);
+  a10=(a10*a03);
+  a11=(a11+a10);
+  a10=2.2620000000000003e-07;
+  a10=(a10/a08);
+  a10=(a10*a02);
+  a11=(a11+a10);
+  a10=-1.1270400000000000e-07;
+  a10=(a10/a16);
+  a10=(a10*a14);
+  a11=(a11+a10);
+  a10=-2.2620000000000003e-07;
+  a10=(a10/a08);
+  a10=(a10*a20);
+  a11=(a11+a10);
+  a17=(a17+a05);
+  a17=(a17+a19);
+  a17=(a17+a15);
+  a11=(a11/a17);
+  a09=(a09?a11:0);
+  a18=(a18+a09);
+  a06=(a06?a18:0);
+  a12=(a12+a06);
+  if (res[0]!=0) res[0][2]=a12;
   return 0;
 }
 
@@ -197,7 +353,7 @@ CASADI_SYMBOL_EXPORT void excavator_arm_valve_inverse_incref(void) {
 CASADI_SYMBOL_EXPORT void excavator_arm_valve_inverse_decref(void) {
 }
 
-CASADI_SYMBOL_EXPORT casadi_int excavator_arm_valve_inverse_n_in(void) { return 2;}
+CASADI_SYMBOL_EXPORT casadi_int excavator_arm_valve_inverse_n_in(void) { return 3;}
 
 CASADI_SYMBOL_EXPORT casadi_int excavator_arm_valve_inverse_n_out(void) { return 1;}
 
@@ -209,8 +365,9 @@ CASADI_SYMBOL_EXPORT casadi_real excavator_arm_valve_inverse_default_in(casadi_i
 
 CASADI_SYMBOL_EXPORT const char* excavator_arm_valve_inverse_name_in(casadi_int i) {
   switch (i) {
-    case 0: return "ql_per_c";
-    case 1: return "pc";
+    case 0: return "g0";
+    case 1: return "l";
+    case 2: return "pc";
     default: return 0;
   }
 }
@@ -226,6 +383,7 @@ CASADI_SYMBOL_EXPORT const casadi_int* excavator_arm_valve_inverse_sparsity_in(c
   switch (i) {
     case 0: return casadi_s0;
     case 1: return casadi_s0;
+    case 2: return casadi_s1;
     default: return 0;
   }
 }
@@ -238,7 +396,7 @@ CASADI_SYMBOL_EXPORT const casadi_int* excavator_arm_valve_inverse_sparsity_out(
 }
 
 CASADI_SYMBOL_EXPORT int excavator_arm_valve_inverse_work(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w) {
-  if (sz_arg) *sz_arg = 2;
+  if (sz_arg) *sz_arg = 3;
   if (sz_res) *sz_res = 1;
   if (sz_iw) *sz_iw = 0;
   if (sz_w) *sz_w = 0;
@@ -246,7 +404,7 @@ CASADI_SYMBOL_EXPORT int excavator_arm_valve_inverse_work(casadi_int *sz_arg, ca
 }
 
 CASADI_SYMBOL_EXPORT int excavator_arm_valve_inverse_work_bytes(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w) {
-  if (sz_arg) *sz_arg = 2*sizeof(const casadi_real*);
+  if (sz_arg) *sz_arg = 3*sizeof(const casadi_real*);
   if (sz_res) *sz_res = 1*sizeof(casadi_real*);
   if (sz_iw) *sz_iw = 0*sizeof(casadi_int);
   if (sz_w) *sz_w = 0*sizeof(casadi_real);

@@ -18,7 +18,10 @@ a = (r3² − r4² + D²)/(2D), h = √(r3² − a²),
 
 and the cylinder length l(q) = |C − P|. Its Jacobian by the chain rule,
 dl/dq = ((C − P)/l) · (∂C/∂B) dB/dq, dB/dq = r2 (−sin(q + φ0), cos(q + φ0)).
-Not wired into the models yet: a description will name these lengths when it does.
+A description gives the linkage as a ``linkage`` table on a ``[[cylinders]]`` entry
+(:func:`from_description` turns its points, in the links' frames, into this plane);
+:meth:`hydrogen.symbolic.tree.SymbolicTree.cylinder_stages` then uses l(q) and dl/dq for that
+cylinder's length and row of JL.
 """
 from __future__ import annotations
 
@@ -27,7 +30,7 @@ from dataclasses import dataclass
 import numpy as np
 import sympy as sp
 
-__all__ = ["FourBar", "four_bar_length"]
+__all__ = ["FourBar", "four_bar_length", "from_description", "plane_basis"]
 
 
 @dataclass(frozen=True)
@@ -54,6 +57,19 @@ class FourBar:
             if v.shape != (2,) or not np.all(np.isfinite(v)):
                 raise ValueError(f"four-bar linkage: {name} must be a point (x, y) in m, got {getattr(self, name)!r}")
 
+    def lengths(self, q) -> np.ndarray:
+        """l(q) (m) at the angles ``q`` (rad, array), numerically (NaN where it does not assemble)."""
+        q = np.asarray(q, float)
+        B = self.crank * np.stack([np.cos(q + self.crank_offset), np.sin(q + self.crank_offset)], -1)
+        d = np.asarray(self.rocker_pivot, float) - B
+        D = np.linalg.norm(d, axis=-1)
+        a = (self.coupler ** 2 - self.rocker ** 2 + D ** 2) / (2 * D)
+        with np.errstate(invalid="ignore"):
+            h = np.sqrt(self.coupler ** 2 - a ** 2)
+        perp = np.stack([-d[..., 1], d[..., 0]], -1)
+        C = B + (a / D)[..., None] * d + self.branch * (h / D)[..., None] * perp
+        return np.linalg.norm(C - np.asarray(self.cylinder_base, float), axis=-1)
+
     def symbolic(self, q):
         """(l, dl/dq, C) as SymPy expressions of the joint angle ``q`` (a symbol or expression)."""
         return four_bar_length(self, q)
@@ -67,7 +83,7 @@ class FourBar:
         bad = (D >= self.coupler + self.rocker) | (D <= abs(self.coupler - self.rocker))
         if bad.any():
             k = int(np.argmax(bad))
-            raise ValueError(f"four-bar linkage does not assemble at q = {q[k]!r} rad: |B O4| = {D[k]:.6g} m "
+            raise ValueError(f"four-bar linkage does not assemble at q = {float(q[k])!r} rad: |B O4| = {D[k]:.6g} m "
                              f"is outside ({abs(self.coupler - self.rocker):.6g}, {self.coupler + self.rocker:.6g}) m")
 
 
@@ -96,3 +112,53 @@ def four_bar_length(geometry: FourBar, q):
     l = sp.sqrt(rel.dot(rel))
     dl_dq = (rel.T * dC_dB.subs(at_q) * dB_dq)[0, 0] / l
     return l, dl_dq, C
+
+
+def plane_basis(axis) -> tuple:
+    """(e1, e2): an orthonormal basis of the plane normal to the unit ``axis`` (joint frame) with
+    e1 × e2 = axis, so that a rotation by q about the axis turns plane coordinates by +q; e1 is the
+    joint frame's x axis projected on the plane (its y axis if x is the axis)."""
+    a = np.asarray(axis, float)
+    a = a / np.linalg.norm(a)
+    for guess in (np.array([1.0, 0.0, 0.0]), np.array([0.0, 1.0, 0.0])):
+        e1 = guess - (guess @ a) * a
+        if np.linalg.norm(e1) > 1e-6:
+            e1 = e1 / np.linalg.norm(e1)
+            return e1, np.cross(a, e1)
+    raise ValueError(f"no plane basis for axis {axis!r}")  # pragma: no cover - a is a unit vector
+
+
+def from_description(joint, cylinder_base, rocker_pivot, crank_pin, coupler: float, rocker: float,
+                     branch: int, tolerance: float = 1e-6):
+    """The :class:`FourBar` of a description's linkage on revolute ``joint`` (a
+    :class:`hydrogen.model.Joint`): ``cylinder_base`` and ``rocker_pivot`` are points in the joint's
+    parent link's frame, ``crank_pin`` (where the coupler pins on the driven link) in its child's
+    frame at q = 0, m. The plane is the one normal to the joint axis through the joint: a point's
+    plane coordinates are (e1 · x, e2 · x) of :func:`plane_basis`, x in the joint frame.
+
+    Returns ``(geometry, offsets)``: ``offsets`` maps each point's name to its coordinate along the
+    axis (m); ValueError when they differ by more than ``tolerance`` (the linkage is not planar) or
+    the crank pin is on the axis."""
+    from ..tree import rpy_matrix
+    R_o = rpy_matrix(joint.origin_rpy)
+    o = np.asarray(joint.origin_xyz, float)
+    a = np.asarray(joint.axis, float) / np.linalg.norm(joint.axis)
+    e1, e2 = plane_basis(a)
+    pts = {"cylinder base (from.point)": R_o.T @ (np.asarray(cylinder_base, float) - o),
+           "rocker_pivot": R_o.T @ (np.asarray(rocker_pivot, float) - o),
+           "crank_pin": np.asarray(crank_pin, float)}
+    offsets = {k: float(v @ a) for k, v in pts.items()}
+    ref = offsets["rocker_pivot"]
+    for k, w in offsets.items():
+        if abs(w - ref) > tolerance:
+            raise ValueError(f"{k} is {w:.6g} m along joint '{joint.name}''s axis and the rocker pivot "
+                             f"{ref:.6g} m: the linkage's points must lie in one plane normal to the axis")
+    plane = {k: (float(v @ e1), float(v @ e2)) for k, v in pts.items()}
+    bx, by = plane["crank_pin"]
+    crank = float(np.hypot(bx, by))
+    if crank < tolerance:
+        raise ValueError(f"crank_pin is on joint '{joint.name}''s axis: the coupler would have no lever")
+    geometry = FourBar(crank=crank, crank_offset=float(np.arctan2(by, bx)), coupler=float(coupler),
+                       rocker=float(rocker), rocker_pivot=plane["rocker_pivot"],
+                       cylinder_base=plane["cylinder base (from.point)"], branch=branch)
+    return geometry, offsets

@@ -219,7 +219,8 @@ class SymbolicTree:
         ``stages`` lists ``(symbols, expression)`` pairs to evaluate in order: the rotation R (and,
         below the first level, the origin p) of every link a cylinder hangs on or hangs below,
         then l_i = ‖v_i‖, v_i the vector between the pins, then row i of JL: n_iᵀ (J_B − J_A) with
-        n_i = v_i / l_i and J the velocity Jacobian of each pin. A revolute joint contributes
+        n_i = v_i / l_i and J the velocity Jacobian of each pin (a cylinder on a four-bar linkage: the
+        linkage's l(q) of its joint's angle and dl/dq, :mod:`hydrogen.symbolic.linkage`). A revolute joint contributes
         a·(r × n) (a its axis, r from the joint to the pin), a prismatic one a·n, a floating one
         [R_pᵀ n, Tᵀ R_pᵀ (r × n)]; joints on both pins' paths cancel and are skipped.
         ``link_stages`` maps each staged link to (R symbols, p symbols or expression, ω expression,
@@ -244,6 +245,13 @@ class SymbolicTree:
                 col = self.columns[c.joint]
                 l_value.append(self.q[col])
                 rows.append(sp.Matrix([[sp.S.One if k == col else sp.S.Zero for k in range(self.n)]]))
+                continue
+            if c.linkage is not None:  # a four-bar linkage: l(q) and dl/dq of its joint's angle alone
+                from .linkage import four_bar_length
+                col = self.columns[c.linkage_joint]
+                l_link, dl_link, _ = four_bar_length(c.linkage, self.q[col])
+                l_value.append(l_link)
+                rows.append(sp.Matrix([[dl_link if k == col else sp.S.Zero for k in range(self.n)]]))
                 continue
             R_a, p_a, _ = poses[c.link_from]
             R_b, p_b, _ = poses[c.link_to]
