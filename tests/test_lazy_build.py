@@ -148,3 +148,19 @@ def test_processes_using_a_controller_first_at_once_share_one_build(model, tmp_p
     assert lines[0] == lines[1]  # one library, the same commands
     builds = cached_builds(cache)
     assert len(builds) == 2 and Path(lines[0][0]).parent.name in builds
+
+
+def test_a_controller_first_used_after_its_sources_changed_is_refused(model, tmp_path):
+    import shutil
+
+    from hydrogen.runtime.build import repo_generated_dir
+
+    folder = tmp_path / "generated"
+    shutil.copytree(repo_generated_dir() / model.name, folder)
+    dyn = hydrogen.build(model, cache=tmp_path / "cache", cflags=FAST, backend="ctypes", generated=folder)
+    (source,) = group_sources(dyn.library.manifest, "p")
+    with open(folder / source, "a") as f:
+        f.write("/* edited */\n")
+    with pytest.raises(hydrogen.BuildCacheError, match=f"{source}: differs from the generated folder"):
+        dyn.functions["ctrl_p"]
+    assert dyn.library.loaded_groups() == (CORE,) and len(cached_builds(tmp_path / "cache")) == 1
