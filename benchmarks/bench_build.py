@@ -8,8 +8,9 @@ controller's code is, for every shipped robot (``hydrogen.models()``).
     compared with the committed ``generated/<model>`` (generation is deterministic; the manifest
     is compared without its derivation hash, as ``hydrogen generate --check`` does).
 (b) compilation from a clean cache: ``hydrogen.build(model, cache=<fresh dir>, generated=<the folder
-    (a) rendered>)`` in a fresh process (every generated .c compiled in parallel, then one link,
-    then loaded): a compile only, even when the committed folder is stale by its hash.
+    (a) rendered>)`` in a fresh process (the core library's sources compiled in parallel, then one
+    link, then loaded; the controllers' libraries wait for their first use, see (e)): a compile only,
+    even when the committed folder is stale by its hash.
 (c) the same build again with nothing changed (``cache=<same dir>``), in a fresh process, timed
     inside it with ``time.perf_counter`` around the ``build`` call.
 (e) cold time to the first run: in a fresh process with a fresh cache, ``hydrogen.simulate`` of one
