@@ -168,7 +168,7 @@ def build(model: Model | str | Path | None = None, *, cc: str | None = None,
         in the same pool of compilers, and loaded now. ``hydrogen.CONTROLLERS``: all of them.
     """
     from ..dynamics import Dynamics
-    from ..progress import Reporter, c_size, generation_reported
+    from ..progress import Reporter, generation_reported
 
     if not isinstance(model, Model):
         model = load_model(model)
