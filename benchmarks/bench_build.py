@@ -8,16 +8,23 @@ controller's code is, for every shipped robot (``hydrogen.models()``).
     compared with the committed ``generated/<model>`` (generation is deterministic; the manifest
     is compared without its derivation hash, as ``hydrogen generate --check`` does).
 (b) compilation from a clean cache: ``hydrogen.build(model, cache=<fresh dir>, generated=<the folder
-    (a) rendered>)`` in a fresh process (every generated .c compiled in parallel, then one link,
-    then loaded): a compile only, even when the committed folder is stale by its hash.
+    (a) rendered>)`` in a fresh process (the core library's sources compiled in parallel, then one
+    link, then loaded; the controllers' libraries wait for their first use, see (e)): a compile only,
+    even when the committed folder is stale by its hash.
 (c) the same build again with nothing changed (``cache=<same dir>``), in a fresh process, timed
     inside it with ``time.perf_counter`` around the ``build`` call.
+(e) cold time to the first run: in a fresh process with a fresh cache, ``hydrogen.simulate`` of one
+    controller (adaptive-robust, the main job) on the robot's first scenario for 0.05 s, by two
+    routes side by side: the current one (the core library and that controller's library, compiled
+    in one pool of compilers) and the one before libraries were split (every generated function,
+    every controller and variant, compiled into one library, then the same run). Wall seconds of the
+    process and CPU seconds (the process and its compilers: ``getrusage`` of self and children).
 (d) Theorem 1's controller (``ctrl_backstepping``, leg-force mapping) in CasADi instructions: as
     hydrogen generates it (tau_d_dot derived by SymPy) against the same law with tau_d_dot from
     CasADi's forward AD (``jtimes``), both checked to give the same outputs at random points first,
     both counted with ``{"cse": True}``.
 
-Times of (a) and (b) include a fresh interpreter; each is the median of its runs (1 run with
+Times of (a), (b) and (e) include a fresh interpreter; each is the median of its runs (1 run with
 ``--quick``, 2 without; (c) 3 runs). A run takes about 25 s per robot (``--quick``: about 15 s) on
 2 quiet cores.
 
@@ -117,6 +124,80 @@ def bench_generate(name: str, runs: int, keep: Path) -> dict:
     keys = ("process_wall_s", "total_s", "import_s", "load_model_s", "derive_s", "render_s")
     out = {k: common.median(r[k] for r in rows) for k in keys}
     out.update(runs=rows, files=rows[-1]["files"], matches_committed=all(r["matches_committed"] for r in rows))
+    return out
+
+
+#: (e): the controller and the length of the first run
+FIRST_RUN_CONTROLLER = "adaptive-robust"
+FIRST_RUN_DURATION = 0.05
+
+_FIRST_RUN = """
+import resource, time
+t0 = time.perf_counter()
+from pathlib import Path
+import hydrogen
+from hydrogen.simulation.scenarios import default_scenario_name
+model = hydrogen.load_model({model!r})
+scenario = default_scenario_name(model)
+cache, generated = Path({cache!r}), Path({generated!r})
+t1 = time.perf_counter()
+if {route!r} == "per_controller":
+    dyn = hydrogen.build(model, cache=cache, generated=generated, controllers=({controller!r},))
+else:  # every function in one library, as hydrogen.build compiled it before the libraries were split
+    from hydrogen.codegen.generate import read_manifest
+    from hydrogen.dynamics import Dynamics
+    from hydrogen.runtime.compiler import Toolchain, compile_library
+    from hydrogen.runtime.extension import attach_extension
+    from hydrogen.runtime.library import GeneratedLibrary
+    manifest = read_manifest(generated)
+    sources = [generated / e["source"] for e in manifest["functions"]] + [generated / d for d in manifest["drivers"]]
+    lib = GeneratedLibrary(compile_library(sources, model.name, Toolchain(), cache=cache), manifest, generated)
+    attach_extension(lib, Toolchain(), cache=cache)
+    dyn = Dynamics(model, lib)
+t2 = time.perf_counter()
+res = hydrogen.simulate(scenario, {controller!r}, dyn=dyn, duration={duration!r})
+t3 = time.perf_counter()
+ru_s, ru_c = resource.getrusage(resource.RUSAGE_SELF), resource.getrusage(resource.RUSAGE_CHILDREN)
+print("import_s", t1 - t0)
+print("build_s", t2 - t1)
+print("first_simulate_s", t3 - t0)
+print("cpu_s", ru_s.ru_utime + ru_s.ru_stime + ru_c.ru_utime + ru_c.ru_stime)
+print("compiler_cpu_s", ru_c.ru_utime + ru_c.ru_stime)
+print("periods", len(res.t))
+"""
+
+#: (e)'s routes: the current one, and every function in one library
+FIRST_RUN_ROUTES = ("per_controller", "one_library")
+
+
+def bench_first_run(name: str, generated: Path, runs: int) -> dict:
+    """(e) for robot ``name`` from the generated folder ``generated``: each route from a fresh cache in a
+    fresh process, the routes alternating (which goes first swaps each run)."""
+    rows = {route: [] for route in FIRST_RUN_ROUTES}
+    with tempfile.TemporaryDirectory(prefix="bench_build_first_") as root:
+        for i in range(runs):
+            order = FIRST_RUN_ROUTES if i % 2 == 0 else FIRST_RUN_ROUTES[::-1]
+            for route in order:
+                cache = Path(root) / f"{route}{i}"
+                stdout, wall = common.run_python(_FIRST_RUN.format(
+                    model=name, cache=str(cache), generated=str(generated), route=route,
+                    controller=FIRST_RUN_CONTROLLER, duration=FIRST_RUN_DURATION))
+                r = common.parse_keyed(stdout)
+                r["process_wall_s"] = wall
+                r["sources_compiled"] = _sources_compiled(cache)
+                r["libraries"] = len(list(cache.glob("build/*/build.json")))
+                rows[route].append(r)
+                shutil.rmtree(cache, ignore_errors=True)
+    from hydrogen.runtime.compiler import usable_cores
+
+    out = {"controller": FIRST_RUN_CONTROLLER, "duration_s": FIRST_RUN_DURATION, "usable_cores": usable_cores()}
+    for route, rs in rows.items():
+        out[route] = {k: common.median(r[k] for r in rs) for k in
+                      ("process_wall_s", "first_simulate_s", "build_s", "cpu_s", "compiler_cpu_s")}
+        out[route].update(sources_compiled=rs[0]["sources_compiled"], libraries=rs[0]["libraries"], runs=rs)
+    new, old = out["per_controller"], out["one_library"]
+    out["wall_ratio"] = old["process_wall_s"] / new["process_wall_s"]
+    out["cpu_ratio"] = old["cpu_s"] / new["cpu_s"]
     return out
 
 
@@ -268,13 +349,14 @@ def run_robot(name: str, quick: bool = False) -> dict:
         folder = Path(keep) / name
         gen = bench_generate(name, runs, folder)
         clean, warm = bench_build_times(name, folder, runs, 3)
+        first = bench_first_run(name, folder, runs)
     import hydrogen
     from hydrogen.codegen.generate import check
 
     committed = _committed_dir(name)
     stale = check(hydrogen.load_model(name), committed) if committed.is_dir() else ["missing"]
     return {"model": name, "generate": gen, "build_clean": clean, "build_warm": warm,
-            "committed_stale_by_hash": stale, "controller_instructions": bench_ad(name)}
+            "committed_stale_by_hash": stale, "controller_instructions": bench_ad(name), "first_run": first}
 
 
 def run(quick: bool = False) -> dict:
@@ -321,6 +403,18 @@ def _print_robot(res: dict) -> None:
         print(f"    note: the committed generated/{res['model']} is stale by its hash (build() regenerates it into "
               f"the cache): {'; '.join(res['committed_stale_by_hash'])}")
     print(f"(c) under 1 s: {w['under_1s']} (runs: " + ", ".join(f"{r['build_s']:.3f}" for r in w["runs"]) + ")")
+    f = res.get("first_run")
+    if f:
+        print(f"(e) cold: fresh process and cache to the first simulate of {f['controller']} ({f['duration_s']:g} s of "
+              f"the first scenario); seconds:")
+        header = f"{'route':<58} {'wall':>7} {'CPU':>7} {'sources':>7}"
+        print(header)
+        print("-" * len(header))
+        for key, label in (("per_controller", "core + that controller's library (now)"),
+                           ("one_library", "every function in one library (before)")):
+            v = f[key]
+            print(f"{label:<58} {v['process_wall_s']:>7.2f} {v['cpu_s']:>7.2f} {v['sources_compiled']:>7.0f}")
+        print(f"    before / now: wall {f['wall_ratio']:.2f}x, CPU {f['cpu_ratio']:.2f}x")
     print("(d) Theorem 1 controller (ctrl_backstepping, leg-force mapping), CasADi instructions with cse:")
     header = f"{'tau_d_dot by':<40} {'instructions':>12} {'SX nodes':>9}"
     print(header)

@@ -38,19 +38,23 @@ def simulate(scenario="paper-sim", controller="adaptive-robust", *, model=None, 
     :func:`hydrogen.runtime.build.build`).
     """
     from .simulation.simulator import simulate as _simulate
-    return _simulate(dyn or default_dynamics(model, progress), scenario, controller, **overrides)
+    return _simulate(dyn or default_dynamics(model, progress, controller), scenario, controller, **overrides)
 
 
-def default_dynamics(model=None, progress=None):
+def default_dynamics(model=None, progress=None, controller=None):
     """Compiled dynamics for ``model``: the library is built once per process and baked model; the
     returned Dynamics carries this very model, so its runtime parameters (θ, γ, bounds) are used.
-    ``progress``: the build's callback (called only when this process builds or loads it)."""
+    ``progress``: the build's callback (called only when this process builds or loads it).
+    ``controller``: a controller whose library the first build compiles with the core (in one pool of
+    compilers); any other is compiled on its first use."""
     from .dynamics import Dynamics
     from .simulation.sweep import _model_path
     m = model if isinstance(model, Model) else load_model(_model_path(model))
     key = m.baked_hash()
     if key not in _DEFAULT_DYN:
-        _DEFAULT_DYN[key] = build(m, progress=progress).library
+        from .controllers import CONTROLLERS
+        _DEFAULT_DYN[key] = build(m, progress=progress,
+                                  controllers=tuple(c for c in (controller,) if c in CONTROLLERS)).library
     return Dynamics(m, _DEFAULT_DYN[key])
 
 
@@ -59,7 +63,7 @@ def stepper(scenario="paper-sim", controller="adaptive-robust", *, model=None, d
     """A :class:`~hydrogen.simulation.simulator.Stepper`: the closed loop one control period per call
     (``progress``: as for :func:`simulate`)."""
     from .simulation.simulator import Stepper
-    return Stepper(dyn or default_dynamics(model, progress), scenario, controller, **overrides)
+    return Stepper(dyn or default_dynamics(model, progress, controller), scenario, controller, **overrides)
 
 
 def sweep(runs, *, executor=None, max_workers=None, model=None, progress=False, seeds=None, results=False):

@@ -66,7 +66,8 @@ def _cmd_simulate(args) -> int:
                             "alone (the scenario's seed) to log it")
     # Built apart from the run, so the summary tells the two times apart (stages on stderr).
     events = []
-    dyn = hydrogen.build(model, progress=lambda e: (events.append(e), print_event(e)))
+    dyn = hydrogen.build(model, progress=lambda e: (events.append(e), print_event(e)),
+                         controllers=(args.controller,))
     if args.seeds is not None:
         return _simulate_seeds(args, model, dyn, events)
     try:

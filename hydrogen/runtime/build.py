@@ -7,11 +7,11 @@ from ..codegen.generate import check, derivation_hash, generate_locked, read_man
 from ..errors import BuildCacheError
 from ..model import Model, load_model
 from .cachedir import cache_errors, check_cache_root, folder_lock, warm_library
-from .compiler import Toolchain, build_key, cache_root, cached_library, compile_library
+from .compiler import Toolchain, _sha256, build_key, cache_root, cached_library, compile_libraries
 from .extension import attach_extension
-from .library import GeneratedLibrary
+from .library import CORE, GeneratedLibrary, group_sources
 
-__all__ = ["build", "repo_generated_dir", "generated_dir_for"]
+__all__ = ["build", "repo_generated_dir", "generated_dir_for", "library_name"]
 
 
 def repo_generated_dir() -> Path:
@@ -57,10 +57,92 @@ def _drop_broken_entry(model: Model, folder: Path) -> None:
         shutil.rmtree(folder)
 
 
+class _Loader:
+    """The libraries of one generated folder: found in the cache or compiled, each on its first use.
+
+    ``loader(group, force)`` is what :class:`~hydrogen.runtime.library.GeneratedLibrary` calls
+    for a library it has not loaded: the cached build when there is an intact one (no lock taken:
+    a read-only cache works once warm), else a compile under the folder's lock. The sources are
+    checked against the manifest the library was loaded with, so a folder regenerated meanwhile
+    is never compiled into it.
+    """
+
+    def __init__(self, model, folder, manifest, toolchain, root, cache, committed, report):
+        self.model, self.folder, self.manifest = model, Path(folder), manifest
+        self.toolchain, self.root, self.cache, self.committed, self.report = \
+            toolchain, Path(root), cache, committed, report
+
+    def sources(self, group: str) -> list:
+        recorded = self.manifest.get("files", {})
+        out = []
+        for name in group_sources(self.manifest, group):
+            path = self.folder / name
+            if path.is_file() and _sha256(path) == recorded.get(name):
+                out.append(path)
+            else:
+                raise BuildCacheError(f"{path}: differs from the generated folder this build loaded (generated "
+                                      "again or edited since); build again (hydrogen.build) to use the new code")
+        return out
+
+    def cached(self, group: str):
+        """The intact cached library of ``group`` or None (nothing written, no lock)."""
+        return cached_library(self.root / "build" / build_key(self.sources(group), self.toolchain))
+
+    def __call__(self, group: str, force: bool = False) -> Path:
+        if not force:
+            with cache_errors(self.root):
+                lib = self.cached(group)
+            if lib is not None:
+                return lib
+        with cache_errors(self.root), folder_lock(self.folder, current=self.committed):
+            return self.compile([group], force)[0]
+
+    def compile(self, groups: list, force: bool = False) -> list:
+        """The libraries of ``groups``, compiled in one pool where not cached (the caller holds the
+        folder's lock); "compiling" and "compiled" reported around a compile."""
+        from ..progress import c_size
+
+        sources = {g: self.sources(g) for g in groups}
+        new = [g for g in groups if force or self.cached(g) is None]
+        clock = self.report.start()
+        if new:
+            files = [s for g in new for s in sources[g]]
+            what = "" if new == [CORE] else f"{', '.join(new)}: "
+            self.report("compiling", f"{what}{len(files)} files, {c_size(files)} of C")
+        paths = compile_libraries([(sources[g], library_name(self.model.name, g)) for g in groups],
+                                  self.toolchain, cache=self.cache, force=force)
+        if new:
+            self.report("compiled", ", ".join(p.name for g, p in zip(groups, paths) if g in new), clock())
+        return paths
+
+
+def library_name(model_name: str, group: str) -> str:
+    """The file name stem of library ``group`` of a model: ``<model>`` for the core, ``<model>_<controller>``."""
+    return model_name if group == CORE else f"{model_name}_{group.replace('-', '_')}"
+
+
+def _check_controllers(controllers) -> tuple:
+    from ..controllers import CONTROLLERS
+    from ..errors import ScenarioError
+
+    if isinstance(controllers, str):
+        controllers = (controllers,)
+    controllers = tuple(dict.fromkeys(controllers))
+    unknown = [c for c in controllers if c not in CONTROLLERS]
+    if unknown:
+        raise ScenarioError(f"unknown controller '{unknown[0]}'; choose one of {', '.join(CONTROLLERS)}")
+    return controllers
+
+
 def build(model: Model | str | Path | None = None, *, cc: str | None = None,
           cflags: tuple | None = None, cache: Path | None = None, generated: Path | None = None,
-          backend: str = "auto", progress=None):
+          backend: str = "auto", progress=None, controllers=()):
     """Generate if stale, compile if needed, load, and return a :class:`~hydrogen.dynamics.Dynamics`.
+
+    The compiled code is one core library (kinematics, rigid body, hydraulics, plant, the C loop)
+    and one library per controller (the controller and its variants). A build compiles the core
+    and the libraries of ``controllers``; any other controller's library is compiled (or found in
+    the cache) the first time one of its functions is used, e.g. by a run with that controller.
 
     Parameters
     ----------
@@ -79,51 +161,63 @@ def build(model: Model | str | Path | None = None, *, cc: str | None = None,
     progress : callable, optional
         Called with a :class:`hydrogen.progress.BuildEvent` (stage, model, detail, elapsed_s) at each
         stage: "generating"/"generated" and "compiling"/"compiled" around the long steps, then
-        "built"; a library already built gives "loaded" alone.
+        "built"; a library already built gives "loaded" alone. A controller's library compiled
+        later, on its first use, gives "compiling"/"compiled" then.
+    controllers : sequence of str
+        Controllers (names, as ``simulate`` takes them) whose libraries are compiled with the core,
+        in the same pool of compilers, and loaded now. ``hydrogen.CONTROLLERS``: all of them.
     """
     from ..dynamics import Dynamics
-    from ..progress import Reporter, c_size, generation_reported
+    from ..progress import Reporter, generation_reported
 
     if not isinstance(model, Model):
         model = load_model(model)
     report = Reporter(progress, model.name)
+    controllers = _check_controllers(controllers)
     root = check_cache_root(Path(cache or cache_root()))
     folder = Path(generated) if generated else generated_dir_for(model, cache)
     toolchain = Toolchain(**{k: v for k, v in (("cc", cc), ("cflags", cflags)) if v is not None})
-    warm = warm_library(model, folder, toolchain, root)  # no lock, no write: a read-only cache works
-    if warm is not None:
-        attach_extension(warm, toolchain, cache=cache, backend=backend)
-        report("loaded", f"already built: {warm.path}", report.total())
-        return Dynamics(model, warm)
     committed = generated is None and folder == repo_generated_dir() / model.name
-    # One lock from generation through compilation: the manifest read and the sources compiled
-    # are the same generation even if another process regenerates the folder meanwhile.
-    with cache_errors(root), folder_lock(folder, current=committed):
-        if generated is None and not committed:
-            _drop_broken_entry(model, folder)
-        with generation_reported(report, model, folder):
-            generate_locked(model, folder)  # no-op when current
-        manifest = read_manifest(folder)
-        if manifest is None:
-            raise BuildCacheError(f"{folder}: generated folder has no readable manifest after generation")
-        sources = [folder / e["source"] for e in manifest["functions"]] \
-            + [folder / d for d in manifest.get("drivers", [])]
-        # Progress around the compile call, not inside it: a build another process finished is no step.
-        compiles = cached_library(root / "build" / build_key(sources, toolchain)) is None
-        clock = report.start()
-        if compiles:
-            report("compiling", f"{len(sources)} files, {c_size(sources)} of C")
-        lib_path = compile_library(sources, model.name, toolchain, cache=cache)
-        if compiles:
-            report("compiled", lib_path.name, clock())
-        try:
-            lib = GeneratedLibrary(lib_path, manifest, folder)
-        except BuildCacheError:
-            # A cached build that does not match this runtime (other CasADi, other ABI): rebuild once.
-            lib_path = compile_library(sources, model.name, toolchain, cache=cache, force=True)
-            lib = GeneratedLibrary(lib_path, manifest, folder)
+
+    def loader(manifest):
+        return _Loader(model, folder, manifest, toolchain, root, cache, committed, report)
+
+    lib = warm_library(model, folder, toolchain, root, loader)  # no lock, no write: a read-only cache works
+    if lib is not None:
+        missing = [c for c in controllers if _cached_or_none(lib._loader, c) is None]
+        if missing:
+            with cache_errors(root), folder_lock(folder, current=committed):
+                lib._loader.compile(missing)
+    else:
+        # One lock from generation through compilation: the manifest read and the sources compiled
+        # are the same generation even if another process regenerates the folder meanwhile.
+        with cache_errors(root), folder_lock(folder, current=committed):
+            if generated is None and not committed:
+                _drop_broken_entry(model, folder)
+            with generation_reported(report, model, folder):
+                generate_locked(model, folder)  # no-op when current
+            manifest = read_manifest(folder)
+            if manifest is None:
+                raise BuildCacheError(f"{folder}: generated folder has no readable manifest after generation")
+            load = loader(manifest)
+            # Progress around the compile call, not inside it: a build another process finished is no step.
+            core = load.compile([CORE, *controllers])[0]
+            try:
+                lib = GeneratedLibrary(core, manifest, folder, load)
+            except BuildCacheError:
+                # A cached build that does not match this runtime (other CasADi, other ABI): rebuild once.
+                lib = GeneratedLibrary(load.compile([CORE], force=True)[0], manifest, folder, load)
     attach_extension(lib, toolchain, cache=cache, backend=backend)
+    for c in controllers:
+        lib.load(c)
     steps = [s for s, done in (("generated", "generated"), ("compiled", "compiled")) if done in report.stages]
     report("built" if steps else "loaded", " + ".join(steps) if steps else f"already built: {lib.path}",
            report.total())
     return Dynamics(model, lib)
+
+
+def _cached_or_none(load, group):
+    try:
+        return load.cached(group)
+    except (OSError, BuildCacheError):
+        return None

@@ -67,23 +67,23 @@ def cache_errors(root: Path):
         raise
 
 
-def warm_library(model, folder: Path, toolchain, cache_root: Path):
-    """The loaded library already built for the current ``folder``, or None; takes no lock, writes nothing."""
+def warm_library(model, folder: Path, toolchain, cache_root: Path, loader):
+    """The loaded core library already built for the current ``folder``, or None; takes no lock, writes
+    nothing. ``loader(manifest)`` makes the library's loader of the other libraries (controllers)."""
     from ..codegen.generate import check, read_manifest
     from .compiler import build_key, cached_library
-    from .library import GeneratedLibrary
+    from .library import CORE, GeneratedLibrary, group_sources
 
     try:
         folder = Path(folder)
         if not folder.is_dir() or check(model, folder):
             return None
         manifest = read_manifest(folder)
-        sources = [folder / e["source"] for e in manifest["functions"]] \
-            + [folder / d for d in manifest.get("drivers", [])]
+        sources = [folder / n for n in group_sources(manifest, CORE)]
         lib_path = cached_library(Path(cache_root) / "build" / build_key(sources, toolchain))
         if lib_path is None:
             return None
-        return GeneratedLibrary(lib_path, manifest, folder)
+        return GeneratedLibrary(lib_path, manifest, folder, loader(manifest))
     except (OSError, KeyError, TypeError, BuildCacheError):
         return None  # anything odd: the locked path decides (and reports)
 

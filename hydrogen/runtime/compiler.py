@@ -20,13 +20,14 @@ import sys
 import tempfile
 import threading
 from concurrent.futures import ThreadPoolExecutor, as_completed
+from contextlib import ExitStack
 from dataclasses import dataclass, field
 from pathlib import Path
 
 from ..errors import CompilerError
 from ..fileio import atomic_write, locked, write_file
 
-__all__ = ["Toolchain", "cache_root", "compile_library", "compile_extension", "run_compiler", "DEFAULT_CFLAGS",
+__all__ = ["Toolchain", "cache_root", "compile_library", "compile_libraries", "compile_extension", "run_compiler", "DEFAULT_CFLAGS",
            "WARNING_FLAGS"]
 
 #: Chosen by benchmarks/bench_flags.py (README "Benchmarks"). -fno-semantic-interposition lets gcc
@@ -225,33 +226,62 @@ def compile_library(sources: list, name: str, toolchain: Toolchain | None = None
     default the usable cores), then one link. A failed compile raises
     :class:`CompilerError` with the compiler's own message.
     """
+    return compile_libraries([(sources, name)], toolchain, cache, jobs, force)[0]
+
+
+def compile_libraries(libraries: list, toolchain: Toolchain | None = None, cache: Path | None = None,
+                      jobs: int | None = None, force: bool = False) -> list:
+    """Compile several cached shared libraries, ``[(sources, name)]``, and return their paths in order.
+
+    Each is cached as :func:`compile_library` caches one (its own key, folder and lock); those not
+    in the cache have all their sources compiled in one pool of ``jobs`` compilers (the largest
+    first, whichever library it belongs to), then each is linked.
+    """
     toolchain = toolchain or Toolchain()
-    sources = [Path(s).resolve() for s in sources]
-    key = build_key(sources, toolchain)
-    build_dir = Path(cache or cache_root()) / "build" / key
-    with locked(build_dir):
-        if not force:
-            lib = cached_library(build_dir)
+    root = Path(cache or cache_root())
+    todo = []
+    for sources, name in libraries:
+        sources = [Path(s).resolve() for s in sources]
+        key = build_key(sources, toolchain)
+        todo.append((sources, name, key, root / "build" / key))
+    paths = {}
+    with ExitStack() as stack:
+        # Locks in one order (by key) in every process: two builds of overlapping sets never deadlock.
+        for build_dir in sorted({t[3] for t in todo}):
+            stack.enter_context(locked(build_dir))
+        missing = []
+        for sources, name, key, build_dir in todo:
+            lib = None if force else cached_library(build_dir)
             if lib is not None:
-                return lib
-        build_dir.mkdir(parents=True, exist_ok=True)
-        for old in build_dir.glob("*.so"):  # a corrupt or superseded build
-            old.unlink(missing_ok=True)
-        for old in build_dir.glob("tmp*"):  # object folders of a build that was killed (we hold the lock)
-            if old.is_dir():
-                shutil.rmtree(old, ignore_errors=True)
+                paths[build_dir] = lib
+            elif build_dir not in {m[3] for m in missing}:
+                missing.append((sources, name, key, build_dir))
+        if not missing:
+            return [paths[t[3]] for t in todo]
+        for _, _, _, build_dir in missing:
+            build_dir.mkdir(parents=True, exist_ok=True)
+            for old in build_dir.glob("*.so"):  # a corrupt or superseded build
+                old.unlink(missing_ok=True)
+            for old in build_dir.glob("tmp*"):  # object folders of a build that was killed (we hold the lock)
+                if old.is_dir():
+                    shutil.rmtree(old, ignore_errors=True)
         argv = toolchain.argv()
-        with tempfile.TemporaryDirectory(dir=build_dir) as tmp:
-            objects = compile_objects(sources, Path(tmp), argv, toolchain.timeout, jobs)
-            lib_name = f"lib{name}_{key[:16]}_{secrets.token_hex(4)}.so"
-            tmp_lib = Path(tmp) / lib_name
-            run_compiler([*argv, "-shared", *map(str, objects), "-o", str(tmp_lib), "-lm"],
-                         f"linking {lib_name}", toolchain.timeout)
-            os.replace(tmp_lib, build_dir / lib_name)
-        atomic_write(build_dir / "build.json", json.dumps(
-            {"library": lib_name, "sha256": _sha256(build_dir / lib_name),
-             "sources": [s.name for s in sources], "argv": argv}, indent=2, sort_keys=True))
-        return build_dir / lib_name
+        with tempfile.TemporaryDirectory(dir=missing[0][3]) as tmp:
+            every = [s for m in missing for s in m[0]]
+            objects = compile_objects(every, Path(tmp), argv, toolchain.timeout, jobs)
+            start = 0
+            for sources, name, key, build_dir in missing:
+                mine, start = objects[start:start + len(sources)], start + len(sources)
+                lib_name = f"lib{name}_{key[:16]}_{secrets.token_hex(4)}.so"
+                tmp_lib = Path(tmp) / lib_name
+                run_compiler([*argv, "-shared", *map(str, mine), "-o", str(tmp_lib), "-lm"],
+                             f"linking {lib_name}", toolchain.timeout)
+                os.replace(tmp_lib, build_dir / lib_name)
+                atomic_write(build_dir / "build.json", json.dumps(
+                    {"library": lib_name, "sha256": _sha256(build_dir / lib_name),
+                     "sources": [s.name for s in sources], "argv": argv}, indent=2, sort_keys=True))
+                paths[build_dir] = build_dir / lib_name
+    return [paths[t[3]] for t in todo]
 
 
 def compile_extension(render, key_material: str, module: str, toolchain: Toolchain | None = None,

@@ -108,8 +108,10 @@ def load_extension(path: Path, name: str):
     return module
 
 
-def bind_functions(module, library) -> dict:
-    """One extension Function per generated function of ``library``, bound to the library's code.
+def bind_functions(module, library):
+    """Extension Functions for the generated functions of ``library``, bound to the library's code: a
+    mapping by name (:class:`~hydrogen.runtime.library.LazyFunctions`) whose functions are bound as
+    their libraries are loaded (a controller's on its first use).
 
     The extension's table (names, C names, shapes) must equal the manifest's, or nothing is bound.
     """
@@ -120,20 +122,28 @@ def bind_functions(module, library) -> dict:
         raise BuildCacheError(f"{module.__file__}: the extension's functions differ from the manifest's; rebuild")
     if module.CASADI_INT_SIZE != ctypes.sizeof(ctypes.c_longlong):
         raise BuildCacheError(f"{module.__file__}: casadi_int of {module.CASADI_INT_SIZE} bytes; runtime needs 8")
-    out = {}
-    for index, entry in enumerate(manifest["functions"]):
-        c_name = entry["c_name"]
-        addr = ctypes.cast(library.symbol(c_name), ctypes.c_void_p).value
-        work = ctypes.cast(library.symbol(c_name + "_work"), ctypes.c_void_p).value
-        fn = module.bind(index, addr, work, library)
-        slow = library.functions[entry["name"]]
-        fn.__doc__ = entry.get("doc", "")
-        for attr in ("name", "c_name", "doc", "in_names", "out_names", "in_shapes", "out_shapes", "unread_inputs"):
-            setattr(fn, attr, getattr(slow, attr))
-        fn.backend = "extension"
-        fn.clone = slow.clone  # a ctypes function with buffers of its own (controller runtimes)
-        out[entry["name"]] = fn
-    return out
+    index = {e["name"]: (i, e) for i, e in enumerate(manifest["functions"])}
+
+    def bind(names) -> dict:
+        slow_fns = library.functions.loaded()
+        out = {}
+        for name in names:
+            i, entry = index[name]
+            c_name = entry["c_name"]
+            addr = ctypes.cast(library.symbol(c_name), ctypes.c_void_p).value
+            work = ctypes.cast(library.symbol(c_name + "_work"), ctypes.c_void_p).value
+            fn = module.bind(i, addr, work, library)
+            slow = slow_fns[name]
+            fn.__doc__ = entry.get("doc", "")
+            for attr in ("name", "c_name", "doc", "in_names", "out_names", "in_shapes", "out_shapes",
+                         "unread_inputs"):
+                setattr(fn, attr, getattr(slow, attr))
+            fn.backend = "extension"
+            fn.clone = slow.clone  # a ctypes function with buffers of its own (controller runtimes)
+            out[name] = fn
+        return out
+
+    return library.attach(bind)
 
 
 def attach_extension(library, toolchain: Toolchain | None = None, cache: Path | None = None,
@@ -147,6 +157,8 @@ def attach_extension(library, toolchain: Toolchain | None = None, cache: Path | 
     if backend not in BACKENDS:
         raise ValueError(f"backend must be one of {BACKENDS}, got {backend!r}")
     library.extension_functions, library.extension_path, library.backend = None, None, "ctypes"
+    if hasattr(library, "detach"):
+        library.detach()
     if backend == "ctypes":
         return "ctypes"
     reason = unavailable_reason()

@@ -11,13 +11,15 @@ from __future__ import annotations
 
 import ctypes
 import threading
+from collections.abc import Mapping
 from pathlib import Path
 
 import numpy as np
 
 from ..errors import BuildCacheError
 
-__all__ = ["GeneratedLibrary", "CompiledFunction", "load_failure"]
+__all__ = ["GeneratedLibrary", "CompiledFunction", "LazyFunctions", "load_failure", "function_groups", "group_sources",
+           "CORE"]
 
 _c_int = ctypes.c_longlong  # casadi_int, fixed by the code generator options
 _DOUBLE_P = ctypes.POINTER(ctypes.c_double)
@@ -277,51 +279,192 @@ def load_failure(path: Path, exc: Exception) -> str:
     return msg
 
 
-class GeneratedLibrary:
-    """A loaded shared library built from one generated folder (see its manifest)."""
+#: The library of everything that is not a controller: kinematics, rigid body, hydraulics, plant, loop driver.
+CORE = "core"
 
-    def __init__(self, path: Path, manifest: dict, generated_dir: Path | None = None):
+
+def function_groups(manifest: dict) -> dict:
+    """The manifest's function names by the library that holds them: :data:`CORE` first, then one
+    group per controller (its user-facing name) holding the controller and its variants (rates,
+    semi-implicit step, lean ones), in the order the controllers are registered."""
+    from ..controllers import CONTROLLERS, LEAN, function_name
+
+    names = [e["name"] for e in manifest["functions"]]
+    owner = {}
+    for kind in CONTROLLERS:
+        for variant in (None, LEAN):
+            base = function_name(kind, variant)
+            for name in (base, base + "_rates", base + "_step"):
+                owner[name] = kind
+    groups = {CORE: [n for n in names if n not in owner]}
+    for kind in CONTROLLERS:
+        mine = [n for n in names if owner.get(n) == kind]
+        if mine:
+            groups[kind] = mine
+    return groups
+
+
+def group_sources(manifest: dict, group: str) -> list:
+    """The generated files (names in the folder) the library ``group`` is compiled from: its functions'
+    sources (the manifest's ``source`` fields), and the loop drivers for :data:`CORE`."""
+    names = set(function_groups(manifest).get(group, ()))
+    if not names:
+        raise KeyError(f"no library '{group}' in this manifest")
+    sources = [e["source"] for e in manifest["functions"] if e["name"] in names]
+    return sources + (list(manifest.get("drivers", [])) if group == CORE else [])
+
+
+class LazyFunctions(Mapping):
+    """The functions of a :class:`GeneratedLibrary` by name; looking one up loads (and, the first time,
+    compiles) the library that holds it. ``name in functions`` and iterating over the names load
+    nothing; ``values()``/``items()`` load every library."""
+
+    def __init__(self, library: "GeneratedLibrary", table: dict):
+        self._library, self._table = library, table
+
+    def __getitem__(self, name):
+        group = self._library.group_of[name]  # KeyError for a name the manifest does not list
+        if name not in self._table:
+            self._library.load(group)
+        return self._table[name]
+
+    def __contains__(self, name):
+        return name in self._library.group_of
+
+    def __iter__(self):
+        return iter(self._library.group_of)
+
+    def __len__(self):
+        return len(self._library.group_of)
+
+    def loaded(self) -> dict:
+        """The functions whose library is loaded already (nothing is compiled or loaded)."""
+        return dict(self._table)
+
+
+class GeneratedLibrary:
+    """The compiled functions of one generated folder (see its manifest), in several shared libraries.
+
+    ``path`` is the :data:`CORE` library (rigid body, kinematics, hydraulics, plant, loop driver),
+    loaded at once. Each controller's functions are in a library of their own that ``loader(group,
+    force)`` returns the path of (compiling it when it is not in the cache); it is loaded the
+    first time one of its functions is looked up in :attr:`functions` (or by :meth:`load`).
+    Without a ``loader``, ``path`` holds every function (one library for the whole folder).
+    """
+
+    def __init__(self, path: Path, manifest: dict, generated_dir: Path | None = None, loader=None):
         self.path = Path(path)
         self.generated_dir = None if generated_dir is None else Path(generated_dir)
-        try:
-            self._lib = ctypes.CDLL(str(self.path))
-        except OSError as exc:
-            raise BuildCacheError(load_failure(self.path, exc)) from None
         self.manifest = manifest
+        self._loader = loader
+        groups = function_groups(manifest)
+        if loader is None:
+            groups = {CORE: [n for names in groups.values() for n in names]}
+        #: library (group) name of each function
+        self.group_of = {n: g for g, names in groups.items() for n in names}
+        self._groups = groups
+        self._entries = {e["name"]: e for e in manifest["functions"]}
+        self._lock = threading.RLock()  # one loader at a time: two threads never load a group twice
+        self._cdlls = {}
+        #: path of each loaded library, by group
+        self.paths = {}
+        self._ctypes, self._fast = {}, {}
+        self._binder = None
         #: extension Functions by name once attached (:mod:`hydrogen.runtime.extension`), else None
         self.extension_functions = None
         self.extension_path = None
         self.backend = "ctypes"
-        self._check_abi()
-        self.functions = {e["name"]: CompiledFunction(self._lib, e) for e in manifest["functions"]}
+        self.functions = LazyFunctions(self, self._ctypes)
+        self._open(CORE, self.path)
 
-    def _check_abi(self):
-        for entry in self.manifest["functions"]:
-            stem = Path(entry["source"]).stem
+    def _open(self, group: str, path: Path):
+        """Load the library ``path`` as ``group``: ABI checked, its functions made."""
+        path = Path(path)
+        try:
+            cdll = ctypes.CDLL(str(path))
+        except OSError as exc:
+            raise BuildCacheError(load_failure(path, exc)) from None
+        entries = [self._entries[n] for n in self._groups[group]]
+        _check_abi(cdll, path, entries, self.manifest["casadi_version"])
+        fns = {e["name"]: CompiledFunction(cdll, e) for e in entries}
+        self._cdlls[group], self.paths[group] = cdll, path
+        if group == CORE:
+            self._lib = cdll
+        self._ctypes.update(fns)
+        if self._binder is not None:
+            self._fast.update(self._binder(list(fns)))
+
+    def load(self, group: str) -> Path:
+        """Load the library ``group`` (a controller's name, or :data:`CORE`) if it is not yet; its path.
+
+        The first use compiles it (``loader``); a cached library that does not load here (another
+        CasADi, another ABI, a corrupt file) is rebuilt once."""
+        with self._lock:
+            if group in self.paths:
+                return self.paths[group]
+            if group not in self._groups:
+                raise KeyError(f"no library '{group}' in this build; libraries: {', '.join(self._groups)}")
+            path = self._loader(group, False)
             try:
-                int_size = getattr(self._lib, stem + "_casadi_int_size")
-                real_size = getattr(self._lib, stem + "_casadi_real_size")
-                version = getattr(self._lib, stem + "_casadi_version")
-            except AttributeError as exc:
-                raise BuildCacheError(f"{self.path}: missing symbol ({exc}); not a hydrogen build") from None
-            if int_size() != ctypes.sizeof(_c_int) or real_size() != ctypes.sizeof(ctypes.c_double):
-                raise BuildCacheError(
-                    f"{self.path}: {entry['c_name']} was built with casadi_int of {int_size()} bytes and "
-                    f"casadi_real of {real_size()} bytes; this runtime needs 8 and 8")
-            v = [ctypes.c_int() for _ in range(3)]
-            version(*map(ctypes.byref, v))
-            built = ".".join(str(x.value) for x in v)
-            if built != self.manifest["casadi_version"]:
-                raise BuildCacheError(
-                    f"{self.path}: {entry['c_name']} comes from CasADi {built}, the generated "
-                    f"folder from CasADi {self.manifest['casadi_version']}; rebuild")
+                self._open(group, path)
+            except BuildCacheError:
+                self._open(group, self._loader(group, True))
+            return self.paths[group]
+
+    def loaded_groups(self) -> tuple:
+        """The libraries loaded so far, in the order they were loaded."""
+        return tuple(self.paths)
+
+    def groups(self) -> tuple:
+        """Every library of this build: :data:`CORE`, then the controllers'."""
+        return tuple(self._groups)
+
+    def attach(self, binder) -> LazyFunctions:
+        """Give the library extension functions: ``binder(names)`` returns them by name for functions
+        already loaded; it is called now for the loaded libraries and again for each one loaded later."""
+        with self._lock:
+            self._binder = None
+            self._fast.clear()
+            self._fast.update(binder([n for n in self.group_of if n in self._ctypes]))
+            self._binder = binder
+            return LazyFunctions(self, self._fast)
+
+    def detach(self) -> None:
+        """Drop the extension functions (ctypes calls only)."""
+        with self._lock:
+            self._binder = None
+            self._fast.clear()
 
     def symbol(self, name: str):
-        """A C symbol of the library (ctypes function), e.g. the loop driver's entry points."""
-        try:
-            return getattr(self._lib, name)
-        except AttributeError:
-            raise BuildCacheError(f"{self.path}: no symbol '{name}'; rebuild") from None
+        """A C symbol of a loaded library (ctypes function), e.g. the loop driver's entry points."""
+        for cdll in list(self._cdlls.values()):
+            try:
+                return getattr(cdll, name)
+            except AttributeError:
+                continue
+        raise BuildCacheError(f"{self.path}: no symbol '{name}'; rebuild")
 
     def __getitem__(self, name) -> CompiledFunction:
         return self.functions[name]
+
+
+def _check_abi(cdll, path: Path, entries: list, casadi_version: str) -> None:
+    for entry in entries:
+        stem = Path(entry["source"]).stem
+        try:
+            int_size = getattr(cdll, stem + "_casadi_int_size")
+            real_size = getattr(cdll, stem + "_casadi_real_size")
+            version = getattr(cdll, stem + "_casadi_version")
+        except AttributeError as exc:
+            raise BuildCacheError(f"{path}: missing symbol ({exc}); not a hydrogen build") from None
+        if int_size() != ctypes.sizeof(_c_int) or real_size() != ctypes.sizeof(ctypes.c_double):
+            raise BuildCacheError(
+                f"{path}: {entry['c_name']} was built with casadi_int of {int_size()} bytes and "
+                f"casadi_real of {real_size()} bytes; this runtime needs 8 and 8")
+        v = [ctypes.c_int() for _ in range(3)]
+        version(*map(ctypes.byref, v))
+        built = ".".join(str(x.value) for x in v)
+        if built != casadi_version:
+            raise BuildCacheError(
+                f"{path}: {entry['c_name']} comes from CasADi {built}, the generated "
+                f"folder from CasADi {casadi_version}; rebuild")

@@ -1,0 +1,166 @@
+"""A build compiles a core library; each controller's library is compiled on its first use and cached."""
+import json
+import os
+import subprocess
+import sys
+import threading
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import hydrogen
+from hydrogen.controllers import CONTROLLERS
+from hydrogen.runtime.library import CORE, function_groups, group_sources
+
+#: No optimisation: these tests are about which files are compiled, not about the code's speed.
+FAST = ("-O0", "-fPIC", "-std=c99")
+
+
+def cached_builds(cache: Path) -> dict:
+    """What the cache holds: for each build folder with a library, the sorted source names it was compiled from."""
+    out = {}
+    for info in sorted((cache / "build").glob("*/build.json")):
+        data = json.loads(info.read_text())
+        if (info.parent / data["library"]).is_file():
+            out[info.parent.name] = tuple(sorted(data["sources"]))
+    return out
+
+
+def sources_of(dyn, group) -> tuple:
+    return tuple(sorted(group_sources(dyn.library.manifest, group)))
+
+
+def test_every_function_is_in_exactly_one_library(robot_dyn):
+    manifest = robot_dyn.library.manifest
+    groups = function_groups(manifest)
+    names = [n for g in groups.values() for n in g]
+    assert sorted(names) == sorted(e["name"] for e in manifest["functions"]) and len(set(names)) == len(names)
+    assert list(groups) == [CORE, *CONTROLLERS]
+    assert not any(n.startswith("ctrl_") for n in groups[CORE])
+    assert groups["p"] == ["ctrl_p"] and groups["p-task"] == ["ctrl_p_task"]  # ctrl_p does not claim ctrl_p_task
+    assert f"{manifest['model_name']}_loop.c" in group_sources(manifest, CORE)
+
+
+def test_a_run_compiles_the_core_and_its_controller_only(model, tmp_path):
+    cache = tmp_path / "cache"
+    dyn = hydrogen.build(model, cache=cache, cflags=FAST, backend="ctypes")
+    assert list(cached_builds(cache).values()) == [sources_of(dyn, CORE)]
+    assert dyn.library.loaded_groups() == (CORE,)
+    hydrogen.simulate("z-1hz", "p", dyn=dyn, duration=0.02)
+    assert sorted(cached_builds(cache).values()) == sorted([sources_of(dyn, CORE), sources_of(dyn, "p")])
+    assert dyn.library.loaded_groups() == (CORE, "p")
+
+    # A second controller compiles its own library alone; the first two are reused.
+    before = cached_builds(cache)
+    hydrogen.simulate("z-1hz", "p-task", dyn=dyn, duration=0.02)
+    after = cached_builds(cache)
+    assert {k: v for k, v in after.items() if k in before} == before
+    assert [v for k, v in after.items() if k not in before] == [sources_of(dyn, "p-task")]
+
+    # Another process (a new build) finds all three in the cache and compiles nothing.
+    events = []
+    again = hydrogen.build(model, cache=cache, cflags=FAST, backend="ctypes", progress=events.append,
+                           controllers=("p", "p-task"))
+    assert [e.stage for e in events] == ["loaded"] and cached_builds(cache) == after
+    assert again.library.paths == dyn.library.paths
+
+
+def test_build_compiles_the_controllers_it_is_given_with_the_core(model, tmp_path):
+    cache = tmp_path / "cache"
+    events = []
+    dyn = hydrogen.build(model, cache=cache, cflags=FAST, backend="ctypes", controllers=("p",),
+                         progress=events.append)
+    assert [e.stage for e in events] == ["compiling", "compiled", "built"]  # one compile step for both
+    assert dyn.library.loaded_groups() == (CORE, "p")
+    assert sorted(cached_builds(cache).values()) == sorted([sources_of(dyn, CORE), sources_of(dyn, "p")])
+    with pytest.raises(hydrogen.ScenarioError, match="unknown controller 'nope'"):
+        hydrogen.build(model, cache=cache, cflags=FAST, controllers=("nope",))
+
+
+def _library_of(dyn, group) -> Path:
+    return dyn.library.paths[group]
+
+
+@pytest.mark.parametrize("damage", ["truncated", "removed"])
+def test_a_damaged_controller_library_is_rebuilt(model, tmp_path, damage):
+    cache = tmp_path / "cache"
+    d1 = hydrogen.build(model, cache=cache, cflags=FAST, backend="ctypes", controllers=("p",))
+    path = _library_of(d1, "p")
+    core = _library_of(d1, CORE)
+    if damage == "truncated":  # through a new inode, as another process would: this process keeps its mapping
+        tmp = path.with_name("truncated.tmp")
+        tmp.write_bytes(path.read_bytes()[:1000])
+        os.replace(tmp, path)
+    else:
+        path.unlink()
+    events = []
+    d2 = hydrogen.build(model, cache=cache, cflags=FAST, backend="ctypes", progress=events.append)
+    assert [e.stage for e in events] == ["loaded"] and _library_of(d2, CORE) == core  # the core is intact
+    r = hydrogen.simulate("z-1hz", "p", dyn=d2, duration=0.02)
+    new = _library_of(d2, "p")
+    assert new != path and new.is_file() and path.parent == new.parent
+    assert [e.stage for e in events] == ["loaded", "compiling", "compiled"]
+    np.testing.assert_array_equal(r.u, hydrogen.simulate("z-1hz", "p", dyn=d1, duration=0.02).u)
+
+
+def test_threads_sharing_a_library_compile_a_controller_once(model, tmp_path):
+    cache = tmp_path / "cache"
+    events, got, errors = [], [], []
+    dyn = hydrogen.build(model, cache=cache, cflags=FAST, backend="ctypes", progress=events.append)
+    del events[:]
+    start = threading.Barrier(3)
+
+    def use():
+        try:
+            start.wait()
+            got.append(dyn.functions["ctrl_p"])
+        except Exception as exc:  # noqa: BLE001 - reported below
+            errors.append(exc)
+
+    threads = [threading.Thread(target=use) for _ in range(3)]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join()
+    assert not errors and len(got) == 3 and all(f is got[0] for f in got)
+    assert [e.stage for e in events] == ["compiling", "compiled"]
+
+
+_CHILD = """
+import sys, hydrogen
+dyn = hydrogen.build(cache=sys.argv[1], cflags=("-O0", "-fPIC", "-std=c99"), backend="ctypes")
+res = hydrogen.simulate("z-1hz", "p", dyn=dyn, duration=0.02)
+print(dyn.library.paths["p"], float(res.u[-1, 0]).hex())
+"""
+
+
+def test_processes_using_a_controller_first_at_once_share_one_build(model, tmp_path):
+    cache = tmp_path / "cache"
+    hydrogen.build(model, cache=cache, cflags=FAST, backend="ctypes")  # the core is warm: p is first used below
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join([str(Path(hydrogen.__file__).parents[1]),
+                                                       os.environ.get("PYTHONPATH", "")]))
+    children = [subprocess.Popen([sys.executable, "-c", _CHILD, str(cache)], stdout=subprocess.PIPE,
+                                 stderr=subprocess.PIPE, text=True, env=env) for _ in range(2)]
+    outs = [c.communicate(timeout=600) for c in children]
+    assert all(c.returncode == 0 for c in children), [o[1] for o in outs]
+    lines = [o[0].split() for o in outs]
+    assert lines[0] == lines[1]  # one library, the same commands
+    builds = cached_builds(cache)
+    assert len(builds) == 2 and Path(lines[0][0]).parent.name in builds
+
+
+def test_a_controller_first_used_after_its_sources_changed_is_refused(model, tmp_path):
+    import shutil
+
+    from hydrogen.runtime.build import repo_generated_dir
+
+    folder = tmp_path / "generated"
+    shutil.copytree(repo_generated_dir() / model.name, folder)
+    dyn = hydrogen.build(model, cache=tmp_path / "cache", cflags=FAST, backend="ctypes", generated=folder)
+    (source,) = group_sources(dyn.library.manifest, "p")
+    with open(folder / source, "a") as f:
+        f.write("/* edited */\n")
+    with pytest.raises(hydrogen.BuildCacheError, match=f"{source}: differs from the generated folder"):
+        dyn.functions["ctrl_p"]
+    assert dyn.library.loaded_groups() == (CORE,) and len(cached_builds(tmp_path / "cache")) == 1
