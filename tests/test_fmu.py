@@ -17,6 +17,7 @@ from fmpy.fmi1 import FMICallException  # noqa: E402
 from fmpy.fmi2 import FMU2Slave, fmi2CallbackFunctions, fmi2CallbackLoggerTYPE, defaultCallbacks  # noqa: E402
 from fmpy.validation import validate_fmu  # noqa: E402
 
+from hydrogen import pressures  # noqa: E402
 from hydrogen.errors import FmuError, HydrogenError, OutputPathError  # noqa: E402
 from hydrogen.fmu import FMI_HEADERS, PARTS, export_fmu, fmi_headers_dir  # noqa: E402
 from hydrogen.simulation.simulator import simulate  # noqa: E402
@@ -29,8 +30,14 @@ CASES = {"ubc_stewart": ("z-1hz", "p"), "excavator_arm": ("arm-sim", "adaptive-r
 DURATION = 0.3
 
 
+def _pressure_variables(model, suffix=""):
+    """The plant's pressure variables in vector order: "<state><suffix>.<cylinder>" (pc, or pA and pB)."""
+    return [f"{name.split('.')[1]}{suffix}.{name.split('.')[0]}" for name in pressures.state_names(model)]
+
+
 def _case(dyn):
-    return CASES.get(dyn.model.name, (next(iter(dyn.model.scenarios)), "adaptive-robust"))
+    from hydrogen.simulation.scenarios import default_scenario_name
+    return CASES.get(dyn.model.name, (default_scenario_name(dyn.model), "adaptive-robust"))
 
 
 def _reference_run(dyn, scenario, controller, duration=DURATION, **overrides):
@@ -253,7 +260,7 @@ def test_model_description(fmus):
                 if f"sources/{name}" in names:
                     assert hashlib.sha256(zf.read(f"sources/{name}")).hexdigest() == digest
         if part == "plant":
-            assert {f"q.{c}" for c in coords} | {f"l.{c}" for c in cyls} | {f"pc.{c}" for c in cyls} <= set(by)
+            assert {f"q.{c}" for c in coords} | {f"l.{c}" for c in cyls} | set(_pressure_variables(model)) <= set(by)
             assert by[f"q_start.{coords[0]}"].causality == "parameter"
             q0 = sc.reference(0.0)[0] + np.asarray(sc.q0_offset, float)
             assert [float(by[f"q_start.{c}"].start) for c in coords] == q0.tolist()
@@ -352,10 +359,11 @@ def test_parameters_declare_their_range_from_the_model(fmus):
     for t, a, b in zip(model.theta_names, model.theta_min, model.theta_max):
         v = plant[f"theta.{t}"]
         assert (float(v.min), float(v.max)) == (a, b)
-    for c, cyl in zip(cyls, model.cylinders):
+    for c in cyls:
         assert (float(plant[f"gamma1.{c}"].min), float(plant[f"gamma1.{c}"].max)) == (model.gamma1_min,
                                                                                       model.gamma1_max)
-        assert (float(plant[f"pc_start.{c}"].min), float(plant[f"pc_start.{c}"].max)) == (0.0, cyl.supply_pressure)
+    for name, lo, hi in zip(_pressure_variables(model, "_start"), *pressures.bounds(model)):
+        assert (float(plant[name].min), float(plant[name].max)) == (lo, hi)
     assert float(plant["friction.smooth_speed"].min) > 0 and float(plant["friction.coulomb"].min) == 0
     ctl = {v.name: v for v in read_model_description(str(paths["controller"])).modelVariables}
     params = [v for v in ctl.values() if v.causality == "parameter" and v.type == "Real"]
