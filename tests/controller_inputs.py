@@ -1,7 +1,14 @@
 """Random controller inputs for the composite-adaptation tests (numpy only)."""
 import numpy as np
 
+from hydrogen import pressures
 from hydrogen.controllers.common import initial_gain_matrix
+
+
+def _pressures(model, rng):
+    """Pressures (n_pressures,) 30-70 % of the way through each state's bounds."""
+    lo, hi = pressures.bounds(model)
+    return lo + (hi - lo) * rng.uniform(0.3, 0.7, lo.size)
 
 
 def random_controller_inputs(ctrl, model, rng):
@@ -24,11 +31,11 @@ def random_controller_inputs(ctrl, model, rng):
         elif name in ("log_chamber_filter",):
             xc[sl] = rng.uniform(-1, 0, size)
         elif name == "pc_prev":
-            xc[sl] = model.supply_pressure * rng.uniform(0.3, 0.7, size)
-        elif name == "legl_prev":
-            xc[sl] = np.array([c.chamber_length for c in model.cylinders]) + rng.uniform(0.3, 0.5, size)
+            xc[sl] = _pressures(model, rng)
+        elif name == "legl_prev":  # inside each actuator's stroke (its chambers' volumes positive)
+            xc[sl] = model.leg_min + (model.leg_max - model.leg_min) * rng.uniform(0.3, 0.7, size)
         else:
             xc[sl] = rng.standard_normal(size) * (1e4 if "filter" in name else 0.05)
-    pc = model.supply_pressure * rng.uniform(0.3, 0.7, m)
+    pc = _pressures(model, rng)
     ref = [model.neutral_pose + rng.uniform(-0.02, 0.02, n), *(rng.uniform(-0.1, 0.1, (3, n)))]
     return q, rng.uniform(-0.05, 0.05, n), pc, ref, xc

@@ -12,6 +12,8 @@ import pytest
 import sympy as sp
 
 import hydrogen
+from hydrogen import pressures
+from hydrogen.actuators import actuator
 from hydrogen.cli import main as cli
 from hydrogen.codegen import generate as gen
 from hydrogen.codegen.casadi_functions import to_casadi_function
@@ -29,6 +31,11 @@ def _random_input(name, shape, model, rng, fname=""):
     size = shape[0] * shape[1]
     n, m, p = model.n, model.n_cylinders, model.n_theta
     ps, d = model.supply_pressure, model.underlap
+    p_lo, p_hi = pressures.bounds(model)  # one entry per pressure state (pc, or pA and pB)
+
+    def pressure_states(lo=0.02, hi=0.98):
+        return p_lo + (p_hi - p_lo) * rng.uniform(lo, hi, p_lo.size)
+
     if name in ("q", "qd0", "q_hat"):
         x = workspace_poses(model, 1, rng)[0]
     elif name == "theta":
@@ -36,14 +43,14 @@ def _random_input(name, shape, model, rng, fname=""):
     elif name in ("gamma1", "gamma2"):
         x = model.gamma[0 if name == "gamma1" else 1] * rng.uniform(0.7, 1.3, m)
     elif name == "pc":
-        x = rng.uniform(0.02, 0.98, m) * ps
+        x = pressure_states()
     elif name in ("u", "u_applied"):
         x = rng.uniform(-4, 4, m) * d
     elif name == "l":
         x = rng.uniform(model.leg_min, model.leg_max)
     elif name == "x":  # plant state [q, qdot, pc, spool, spool rate]
         x = np.concatenate([workspace_poses(model, 1, rng)[0], rng.normal(size=n) * 0.1,
-                            rng.uniform(0.02, 0.98, m) * ps, rng.uniform(-4, 4, m) * d, rng.normal(size=m) * 0.01])
+                            pressure_states(), rng.uniform(-4, 4, m) * d, rng.normal(size=m) * 0.01])
     elif name == "xc":  # controller state, from the controller's layout
         kind = next(k for k in CONTROLLERS if fname in (function_name(k), rates_function_name(k)))
         parts = {"z": lambda k: rng.normal(size=k) * 0.1,
@@ -55,7 +62,7 @@ def _random_input(name, shape, model, rng, fname=""):
                  "force_filter": lambda k: rng.normal(size=k) * 1e4,
                  "log_chamber_filter": lambda k: rng.uniform(-1.0, 0.0, k),
                  "g0_filter": lambda k: rng.normal(size=k) * 0.1,
-                 "pc_prev": lambda k: rng.uniform(0.02, 0.98, k) * ps,
+                 "pc_prev": lambda k: pressure_states(),
                  "legl_prev": lambda k: rng.uniform(model.leg_min, model.leg_max),
                  "gamma_gain": lambda k: np.tile([1.0, 0.1, 0.5], k // 3),
                  "theta_gain": lambda k: np.concatenate([[1.0 if j == i else 0.01 for j in range(i, p)]
@@ -344,7 +351,7 @@ def test_gamma2_law_uses_the_applied_spool(mname, kind, cache, rng):
     for b, size in controller(kind).state_layout(model):
         blocks[b] = slice(i, i + size)
         i += size
-    L = np.array([c.chamber_length for c in model.cylinders])
+    laws = [(actuator(c.kind).Numeric, actuator(c.kind).parameters(c.table)) for c in model.cylinders]
     for _ in range(3):
         args = [_random_input(n, m.shape, model, rng, ctrl.name) for n, m in sf.inputs]
         v = {n: (a[:, 0] if a.shape[1] == 1 else a) for n, a in zip(names, args)}
@@ -354,8 +361,10 @@ def test_gamma2_law_uses_the_applied_spool(mname, kind, cache, rng):
         v["xc"] = v["xc"].copy()
         v["xc"][blocks["gamma_gain"]] = initial_gain_matrix(2, model.n_cylinders, float(v["P0_gamma"][0]))
         out = dict(zip(ctrl.out_names, ctrl(*[v[n] for n in names])))
-        f = v["pc"] * model.piston_area - model.supply_pressure * model.rod_area
-        g0 = dyn.valve_flow(v["u_applied"], v["pc"]) / (dyn.leg_lengths(v["q"]) - L)
+        # each actuator's own force and g0 (the three-way cylinder's g0 = q_l/(c (l − L)))
+        f = pressures.forces(model, v["pc"])
+        l, parts = dyn.leg_lengths(v["q"]), pressures.split(model, v["pc"])
+        g0 = np.array([law.g0(l[i], parts[i], v["u_applied"][i], P) for i, (law, P) in enumerate(laws)])
         want = v["adapt"][0] * v["Ggamma2_inv"] / v["Gtau_inv"] * (f - out["f_d"]) * g0
         got = out["xc_dot"][blocks["gamma2_hat"]]
         np.testing.assert_allclose(got, want, rtol=1e-9, atol=1e-12 * np.abs(want).max())

@@ -5,6 +5,8 @@ import pytest
 import sympy as sp
 
 import hydrogen
+from hydrogen import pressures
+from hydrogen.actuators import actuator
 from hydrogen.controllers.common import initial_gain_matrix
 from hydrogen.simulation.control import make_controller
 from hydrogen.symbolic.composite import normalised_least_squares, pack_symmetric, unpack_symmetric
@@ -75,8 +77,8 @@ def test_composite_weight_zero_is_the_papers_gradient_law(robot_dyn, kind, rng):
     ctrl = make_controller(dyn, kind)
     assert float(ctrl.values["rate_ls_gamma"][0]) == 0.0 and float(ctrl.values["rate_ls_theta"][0]) == 0.0
     m = model.n_cylinders
-    A, a, ps = model.piston_area, np.array([c.rod_area for c in model.cylinders]), model.supply_pressure
-    L = np.array([c.chamber_length for c in model.cylinders])
+    laws = [actuator(c.kind).Numeric for c in model.cylinders]
+    tables = [actuator(c.kind).parameters(c.table) for c in model.cylinders]
     comp = ["force_filter", "log_chamber_filter", "g0_filter", "pc_prev", "legl_prev", "gamma_gain",
             "momentum_filter", "momentum_offset_filter", "bias_filter", "bias_offset_filter", "torque_filter",
             "theta_gain"]
@@ -88,11 +90,13 @@ def test_composite_weight_zero_is_the_papers_gradient_law(robot_dyn, kind, rng):
         l = np.asarray(dyn.leg_lengths(q)).ravel()
         u = ctrl.command(q, qdot, pc, l, ref, True).copy()
         rate = ctrl.xc_dot.copy()
-        f = pc * A - ps * a
+        # each actuator's own laws (the three-way cylinder's f0 = −A l̇/(l − L), g0 = q_l/(c (l − L)))
+        f = pressures.forces(model, pc)
         ftil = f - ctrl.f_d
         ldot = np.asarray(dyn.leg_jacobian(q)).reshape(m, model.n) @ qdot
-        f0 = -A * ldot / (l - L)
-        g0 = np.asarray(dyn.valve_flow(held, pc)).ravel() / (l - L)
+        parts = pressures.split(model, pc)
+        f0 = np.array([law.f0(l[i], ldot[i], parts[i], P) for i, (law, P) in enumerate(zip(laws, tables))])
+        g0 = np.array([law.g0(l[i], parts[i], held[i], P) for i, (law, P) in enumerate(zip(laws, tables))])
         v = ctrl.values
         np.testing.assert_allclose(rate[ctrl.slices["gamma1_hat"]], v["Ggamma1_inv"] / v["Gtau_inv"] * f0 * ftil,
                                    rtol=1e-9)
@@ -157,15 +161,23 @@ def test_ls_gain_stays_symmetric_positive_definite_along_a_run(dyn):
     assert st.xc[sl].reshape(-1, 3)[:, 0].max() < 0.1  # it has learnt: P shrank
 
 
+
+def _ideal_scenario(model) -> str:
+    """The robot's first scenario on the ideal plant (not ``rig = true``): its counterpart of paper-sim."""
+    from hydrogen.simulation.scenarios import scenario_names
+    return next(name for name in scenario_names(model) if not model.scenarios[name].get("rig"))
+
+
 def test_theta_prediction_error_vanishes_with_the_true_parameters(robot_dyn):
     """The momentum form: τ_f = λ_f (Y_p − ξ) θ + ζ θ + offsets, from the controller's filter states
     along each robot's ideal-plant run with the true parameters, against D(q, θ) q̇ (the compiled mass
     matrix) and (JL)ᵀ f filtered here: the error is < 1 % of the filtered force's variation."""
     dyn, model = robot_dyn, robot_dyn.model
-    scen = "paper-sim" if "paper-sim" in model.scenarios else "arm-sim"
+    scen = _ideal_scenario(model)
     lam = 20.0
-    st = hydrogen.stepper(scen, "adaptive-robust", dyn=dyn, gains={"lambda_f_theta": lam}, duration=3.0,
-                          theta0_factor=[1.0] * model.n_theta, gamma0_factor=[1.0, 1.0])
+    # the composite θ law on (the filters run only then), as the shipped ideal scenarios but crane-sim set it
+    st = hydrogen.stepper(scen, "adaptive-robust", dyn=dyn, gains={"lambda_f_theta": lam, "rate_ls_theta": 20.0},
+                          duration=3.0, theta0_factor=[1.0] * model.n_theta, gamma0_factor=[1.0, 1.0])
     sl, n, m, p, h = st.controller.slices, model.n, model.n_cylinders, model.n_theta, st.h
     th = model.theta
     E, T = [], []
@@ -175,7 +187,7 @@ def test_theta_prediction_error_vanishes_with_the_true_parameters(robot_dyn):
         st.step()
         xc = st.xc
         q, qdot = x[:n], x[n:2 * n]
-        f = np.asarray(dyn.leg_force(x[2 * n:2 * n + m])).ravel()
+        f = np.asarray(dyn.leg_force(x[2 * n:2 * n + pressures.n_pressures(model)])).ravel()
         xi = xc[sl["momentum_filter"]].reshape(n, p) @ th + xc[sl["momentum_offset_filter"]]
         ze = xc[sl["bias_filter"]].reshape(n, p) @ th + xc[sl["bias_offset_filter"]]
         mom = np.asarray(dyn.mass_matrix(q, th)).reshape(n, n) @ qdot
@@ -240,12 +252,11 @@ def test_copies_of_the_last_period_start_at_the_initial_measurement(robot_dyn):
     from hydrogen.simulation.simulator import prepare_run
 
     dyn, model = robot_dyn, robot_dyn.model
-    sc = "paper-sim" if "paper-sim" in model.scenarios else "arm-sim"
+    sc = _ideal_scenario(model)
     p = prepare_run(dyn, sc, "adaptive-robust", None, 0.01, False, {})
-    sl, x0 = p.ctrl.slices, p.x0
-    n, m = model.n, model.n_cylinders
+    sl, x0, n = p.ctrl.slices, p.x0, model.n
     np.testing.assert_allclose(p.ctrl.xc[sl["legl_prev"]], np.asarray(dyn.leg_lengths(x0[:n])).ravel())
-    np.testing.assert_allclose(p.ctrl.xc[sl["pc_prev"]], x0[2 * n:2 * n + m])
+    np.testing.assert_allclose(p.ctrl.xc[sl["pc_prev"]], x0[2 * n:2 * n + pressures.n_pressures(model)])
 
 
 def test_staged_least_squares_equals_the_plain_law(rng):

@@ -1,7 +1,27 @@
-"""Physics sanity of the actuator model and the closed-form valve inverse, for every robot."""
+"""Physics sanity of the paper's three-way actuator model and its closed-form valve inverse, for every
+robot on three-way cylinders (the other kinds' laws: tests/test_actuators.py over every kind, and
+tests/test_four_way.py, tests/test_loader_crane.py through the compiled functions)."""
 import numpy as np
 import pytest
 from scipy.integrate import solve_ivp
+
+import hydrogen
+from hydrogen import pressures
+
+from conftest import MODELS
+
+THREE_WAY = [m for m in MODELS if pressures.uniform_three_way(hydrogen.load_model(m))]
+
+
+@pytest.fixture(scope="module", params=THREE_WAY)
+def robot_model(request):
+    """conftest's robot_model, over the robots whose actuators are all three-way cylinders."""
+    return hydrogen.load_model(request.param)
+
+
+@pytest.fixture(scope="module")
+def robot_dyn(robot_model, cache):
+    return hydrogen.build(robot_model, cache=cache)
 
 
 def _mid(model):
