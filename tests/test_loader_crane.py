@@ -7,6 +7,7 @@ import pytest
 
 import hydrogen
 from hydrogen import pressures
+from hydrogen.actuators import actuator
 from hydrogen.simulation.scenarios import scenario_names
 from hydrogen.simulation.simulator import equilibrium_pressures, simulate
 from hydrogen.simulation.tuning import rig_scenarios
@@ -46,6 +47,28 @@ def test_the_slew_is_a_rotary_actuator_and_the_booms_four_way_cylinders(crane):
         assert crane.gravity(q + dq * np.eye(m.n)[slew], m.theta)[slew] == pytest.approx(0.0, abs=1e-9)
     p = equilibrium_pressures(crane, q, m.theta)
     np.testing.assert_allclose(JL.T @ crane.leg_force(p), crane.gravity(q, m.theta), rtol=1e-9, atol=1e-6)
+
+
+def test_each_actuator_keeps_its_kinds_laws(crane, rng):
+    """The compiled force, plant pressure rates and valve inverse agree block by block with each kind's
+    own numpy law (the three-way physics of tests/test_hydraulics.py does not apply to these kinds)."""
+    m = crane.model
+    lo, hi = pressures.bounds(m)
+    for _ in range(5):
+        q = m.neutral_pose + rng.uniform(-0.2, 0.2, m.n)
+        qd = rng.normal(size=m.n) * 0.1
+        p = lo + (hi - lo) * rng.uniform(0.1, 0.9, lo.size)
+        u = rng.uniform(-1, 1, m.n_cylinders) * 1e-3
+        l, ldot = crane.leg_lengths(q), crane.leg_jacobian(q) @ qd
+        rates, forces = crane.pressure_rate(l, ldot, p, u, m.gamma), crane.leg_force(p)
+        y = rng.normal(size=m.n_cylinders) * 1e3
+        spool = crane.valve_inverse(y, p, l=l)
+        for i, ((a, b), c) in enumerate(zip(pressures.blocks(m), m.cylinders)):
+            law, P, block = actuator(c.kind).Numeric, actuator(c.kind).parameters(c.table), tuple(p[a:b])
+            np.testing.assert_allclose(forces[i], law.force(block, P), rtol=1e-12)
+            np.testing.assert_allclose(rates[a:b], law.pressure_rates(l[i], ldot[i], block, u[i], m.gamma[0][i],
+                                                                      m.gamma[1][i] / m.gamma[0][i], P), rtol=1e-9)
+            np.testing.assert_allclose(law.g0(l[i], block, spool[i], P), y[i], rtol=1e-9)
 
 
 @pytest.fixture(scope="module")
