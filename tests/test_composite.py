@@ -154,15 +154,23 @@ def test_ls_gain_stays_symmetric_positive_definite_along_a_run(dyn):
     assert st.xc[sl].reshape(-1, 3)[:, 0].max() < 0.1  # it has learnt: P shrank
 
 
+
+def _ideal_scenario(model) -> str:
+    """The robot's first scenario on the ideal plant (not ``rig = true``): its counterpart of paper-sim."""
+    from hydrogen.simulation.scenarios import scenario_names
+    return next(name for name in scenario_names(model) if not model.scenarios[name].get("rig"))
+
+
 def test_theta_prediction_error_vanishes_with_the_true_parameters(robot_dyn):
     """The momentum form: τ_f = λ_f (Y_p − ξ) θ + ζ θ + offsets, from the controller's filter states
     along each robot's ideal-plant run with the true parameters, against D(q, θ) q̇ (the compiled mass
     matrix) and (JL)ᵀ f filtered here: the error is < 1 % of the filtered force's variation."""
     dyn, model = robot_dyn, robot_dyn.model
-    scen = "paper-sim" if "paper-sim" in model.scenarios else "arm-sim"
+    scen = _ideal_scenario(model)
     lam = 20.0
-    st = hydrogen.stepper(scen, "adaptive-robust", dyn=dyn, gains={"lambda_f_theta": lam}, duration=3.0,
-                          theta0_factor=[1.0] * model.n_theta, gamma0_factor=[1.0, 1.0])
+    # the composite θ law on (the filters run only then), as the shipped ideal scenarios but crane-sim set it
+    st = hydrogen.stepper(scen, "adaptive-robust", dyn=dyn, gains={"lambda_f_theta": lam, "rate_ls_theta": 20.0},
+                          duration=3.0, theta0_factor=[1.0] * model.n_theta, gamma0_factor=[1.0, 1.0])
     sl, n, m, p, h = st.controller.slices, model.n, model.n_cylinders, model.n_theta, st.h
     th = model.theta
     E, T = [], []
@@ -237,10 +245,9 @@ def test_copies_of_the_last_period_start_at_the_initial_measurement(robot_dyn):
     from hydrogen.simulation.simulator import prepare_run
 
     dyn, model = robot_dyn, robot_dyn.model
-    sc = "paper-sim" if "paper-sim" in model.scenarios else "arm-sim"
+    sc = _ideal_scenario(model)
     p = prepare_run(dyn, sc, "adaptive-robust", None, 0.01, False, {})
-    sl, x0 = p.ctrl.slices, p.x0
-    n, m = model.n, model.n_cylinders
+    sl, x0, n = p.ctrl.slices, p.x0, model.n
     np.testing.assert_allclose(p.ctrl.xc[sl["legl_prev"]], np.asarray(dyn.leg_lengths(x0[:n])).ravel())
     np.testing.assert_allclose(p.ctrl.xc[sl["pc_prev"]], x0[2 * n:2 * n + n_pressures(model)])
 

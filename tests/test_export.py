@@ -51,6 +51,7 @@ def _python_max_errors(dyn, scenario, controller, duration, metric_start):
     ("ubc_stewart", "z-step", "p", 1.5, 0.5),
     ("excavator_arm", "arm-dig", "adaptive-observer", 1.0, 0.5),
     ("excavator_arm", "arm-sim", "backstepping", 1.0, 0.5),
+    ("loader_crane", "crane-load", "adaptive-robust", 1.0, 0.5),
 ])
 def test_exported_program_matches_the_noise_free_simulation(tmp_path, cache, model_name, scenario, controller,
                                                            duration, metric_start):

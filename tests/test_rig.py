@@ -189,9 +189,12 @@ def test_c_and_python_loops_on_the_rig_agree_until_chaos_parts_them(robot, kind)
     d_py, d_nudged = np.abs(c.q - py.q).max(), np.abs(c.q - nudged).max()
     if d_nudged < 1e-8:  # this loop does not amplify rounding here: the engines agree to the end
         assert d_py < 1e-8
-    else:  # it does: C vs Python part no further than C vs C with the noise changed in its 15th digit
-        # (they may part less: within a run the differences are still growing, from different seeds)
-        assert d_py > 1e-8 and d_py < 100 * d_nudged, (d_py, d_nudged)
+    elif d_py > 1e-8:  # it does: C vs Python part no further than C vs C with the noise changed in its
+        # 15th digit (they may part less: within a run the differences are still growing, from different seeds)
+        assert d_py < 100 * d_nudged, (d_py, d_nudged)
+    # else: the nudge moved a measured length into the next encoder cell (a discrete jump) while the
+    # two engines' roundings did not: they agree to the end (the crane's adaptive-robust run: C vs
+    # Python 2e-10 rad, C vs nudged C 7e-6 rad)
 
 
 def test_result_holds_the_scenario_actually_run(dyn):
@@ -217,13 +220,23 @@ def test_rig_scenarios_and_moving_coordinates():
     assert rig_scenarios("excavator_arm") == {"arm-dig": ("boom", "stick", "bucket")}
 
 
+#: Robots on whose rig no P gain of the grid keeps a margin of 2 (the search then stores its least bad
+#: point): the crane's one K acts on the slew vane's angle error as on the cylinders' length errors,
+#: and above K = 0.0084 the slew valve saturates in more than 1 % of the periods (docs/loader_crane.md).
+P_WITHOUT_MARGIN = ("loader_crane",)
+
+
 @pytest.mark.slow
 @pytest.mark.parametrize("name", MODELS)
 def test_p_default_gain_is_the_documented_search_result(name):
     from hydrogen.simulation.tuning import tune
     res = tune("p", model=name, max_workers=2)
     assert res["best"] == pytest.approx(hydrogen.load_model(name).gains["p"]["Kleg"], rel=2e-3)
-    assert res["largest_stable"] is not None and res["largest_stable"] >= 2 * res["best"] * (1 - 1e-9)
+    assert res["largest_stable"] is not None
+    if name in P_WITHOUT_MARGIN:  # the least bad point: the largest stable gain itself, margin < 2
+        assert res["largest_stable"] < 2 * res["best"]
+    else:
+        assert res["largest_stable"] >= 2 * res["best"] * (1 - 1e-9)
     assert [r for r in res["table"] if r["gain"] > res["largest_stable"] and not r["stable"]]  # the edge was found
 
 

@@ -1,0 +1,325 @@
+/* Closed-loop driver for model loader_crane (see loader_crane_loop.h).
+ * Rendered by hydrogen from templates/loop.c.j2; plain C99, no dependency but libm.
+ * One control period is the stages declared in the header, in this order: measure (noise,
+ * quantisation), estimate (Kalman filter, joint encoders, velocities), reference, control
+ * (controller state update and command, the command of delay periods ago), the logs, plant step (RK4
+ * sub-steps, zero-order hold), control advance (forward-Euler state update). */
+#include <math.h>
+#include <string.h>
+
+#include "loader_crane_loop.h"
+#include "loader_crane_leg_lengths.h"
+#include "loader_crane_leg_kinematics.h"
+#include "loader_crane_plant_rhs.h"
+#include "loader_crane_leg_force.h"
+
+#define NQ LOADER_CRANE_NQ
+#define NL LOADER_CRANE_NL
+#define NX LOADER_CRANE_NX
+#define NNOISE LOADER_CRANE_NNOISE
+#define MAX_DELAY LOADER_CRANE_MAX_DELAY
+static const double TWO_PI = 6.283185307179586;
+#define NPC LOADER_CRANE_NPC
+/* baked bounds of each pressure state (Pa), the clip of the measurement and of the plant */
+static const double P_LOW[NPC] = { 0.0, 0.0, 0.0, 0.0, 0.0, 0.0 };
+static const double P_HIGH[NPC] = { 24000000.0, 24000000.0, 24000000.0, 24000000.0, 24000000.0, 24000000.0 };
+
+/* actuator forces (N, N m) from the pressure vector: the actuators' own laws */
+static int leg_force(const double* p, double* f) {
+    const double* arg[1];
+    double* res[1];
+    arg[0] = p;
+    res[0] = f;
+    return loader_crane_leg_force(arg, res, 0, 0, 0);
+}
+
+static int leg_lengths(const double* q, double* l) {
+    const double* arg[1];
+    double* res[1];
+    arg[0] = q;
+    res[0] = l;
+    return loader_crane_leg_lengths(arg, res, 0, 0, 0);
+}
+
+int loader_crane_leg_lengths_many(const double* q, long long n, double* l) {
+    long long k;
+    for (k = 0; k < n; ++k)
+        if (leg_lengths(q + NQ * k, l + NL * k)) return 1;
+    return 0;
+}
+
+/* cylinder lengths and JL (column-major NL x NQ) in one call: they share the link poses */
+static int leg_kinematics(const double* q, double* l, double* J) {
+    const double* arg[1];
+    double* res[2];
+    arg[0] = q;
+    res[0] = l;
+    res[1] = J;
+    return loader_crane_leg_kinematics(arg, res, 0, 0, 0);
+}
+
+/* Solve A x = b (A column-major NQ x NQ, overwritten), partial pivoting; returns 0 if singular. */
+static int solve_n(double* A, double* b) {
+    int i, j, k, piv;
+    double m, tmp;
+    for (k = 0; k < NQ; ++k) {
+        piv = k;
+        for (i = k + 1; i < NQ; ++i)
+            if (fabs(A[i + NQ * k]) > fabs(A[piv + NQ * k])) piv = i;
+        if (!(fabs(A[piv + NQ * k]) > 1e-12)) return 0;
+        if (piv != k) {
+            for (j = 0; j < NQ; ++j) {
+                tmp = A[k + NQ * j]; A[k + NQ * j] = A[piv + NQ * j]; A[piv + NQ * j] = tmp;
+            }
+            tmp = b[k]; b[k] = b[piv]; b[piv] = tmp;
+        }
+        for (i = k + 1; i < NQ; ++i) {
+            m = A[i + NQ * k] / A[k + NQ * k];
+            for (j = k; j < NQ; ++j) A[i + NQ * j] -= m * A[k + NQ * j];
+            b[i] -= m * b[k];
+        }
+    }
+    for (k = NQ - 1; k >= 0; --k) {
+        for (j = k + 1; j < NQ; ++j) b[k] -= A[k + NQ * j] * b[j];
+        b[k] /= A[k + NQ * k];
+    }
+    return 1;
+}
+
+static int plant_rhs(const loader_crane_loop_config* c, const double* x, const double* u, double* xdot) {
+    const double* arg[7];
+    double* res[1];
+    arg[0] = x; arg[1] = u; arg[2] = c->theta; arg[3] = c->gamma1; arg[4] = c->gamma2;
+    arg[5] = c->friction; arg[6] = c->valve;
+    res[0] = xdot;
+    return loader_crane_plant_rhs(arg, res, 0, 0, 0);
+}
+
+static int rk4(const loader_crane_loop_config* c, double* x, const double* u, double h) {
+    double k1[NX], k2[NX], k3[NX], k4[NX], y[NX];
+    int i;
+    if (plant_rhs(c, x, u, k1)) return 0;
+    for (i = 0; i < NX; ++i) y[i] = x[i] + 0.5 * h * k1[i];
+    if (plant_rhs(c, y, u, k2)) return 0;
+    for (i = 0; i < NX; ++i) y[i] = x[i] + 0.5 * h * k2[i];
+    if (plant_rhs(c, y, u, k3)) return 0;
+    for (i = 0; i < NX; ++i) y[i] = x[i] + h * k3[i];
+    if (plant_rhs(c, y, u, k4)) return 0;
+    for (i = 0; i < NX; ++i) x[i] += h / 6.0 * (k1[i] + 2 * k2[i] + 2 * k3[i] + k4[i]);
+    return 1;
+}
+
+static void set_slot(const loader_crane_loop_config* c, int s, const double* v, long long n) {
+    if (c->slot[s] >= 0) memcpy(c->ctrl_arg[c->slot[s]], v, (size_t)n * sizeof(double));
+}
+
+static double clip(double v, double lo, double hi) { return v < lo ? lo : (v > hi ? hi : v); }
+
+void loader_crane_sense_lengths(const loader_crane_loop_config* c, const double* l, const double* nz, double* l_meas) {
+    int i;
+    for (i = 0; i < NL; ++i) {
+        l_meas[i] = l[i] + (nz ? nz[i] : 0);
+        if (c->quant_l > 0) l_meas[i] = c->quant_l * floor(l_meas[i] / c->quant_l + 0.5);
+    }
+}
+
+int loader_crane_measure(const loader_crane_loop_config* c, const loader_crane_loop_state* st, const double* nz,
+                    loader_crane_loop_signals* s) {
+    const double* x = st->x;
+    double J[NL * NQ];
+    long long j;
+    int i;
+    s->t = (double)st->k * c->h;  /* k h, not a running sum: no drift */
+    /* JL at the true pose only for the ideal cylinder-rate sensor */
+    if (c->use_kalman ? leg_lengths(x, s->l_true) : leg_kinematics(x, s->l_true, J)) return LOADER_CRANE_CTRL_FAILED;
+    loader_crane_sense_lengths(c, s->l_true, nz, s->l_meas);
+    for (i = 0; i < NPC; ++i)
+        s->pc_meas[i] = nz ? clip(x[2 * NQ + i] + nz[NL + i], P_LOW[i], P_HIGH[i]) : x[2 * NQ + i];
+    if (!c->use_kalman)
+        for (i = 0; i < NL; ++i) {
+            s->ldot[i] = 0;
+            for (j = 0; j < NQ; ++j) s->ldot[i] += J[i + NL * j] * x[NQ + j];
+        }
+    for (i = 0; i < NQ; ++i) s->q_enc[i] = x[i] + (nz ? nz[NL + NPC + i] : 0);
+    return LOADER_CRANE_OK;
+}
+
+int loader_crane_estimate(const loader_crane_loop_config* c, loader_crane_loop_state* st, loader_crane_loop_signals* s) {
+    double J[NL * NQ];
+    int i;
+    if (c->use_kalman)
+        for (i = 0; i < NL; ++i) {  /* predict with [1 h; 0 1], correct with the fixed gain */
+            double lp = st->kf[i] + c->h * st->kf[NL + i], vp = st->kf[NL + i], r = s->l_meas[i] - lp;
+            st->kf[i] = lp + c->kf_gain[0] * r;
+            st->kf[NL + i] = vp + c->kf_gain[1] * r;
+            s->ldot[i] = st->kf[NL + i];
+        }
+    /* joint encoders: the pose is measured; JL at the measured pose for the velocities */
+    memcpy(st->q_meas, s->q_enc, sizeof s->q_enc);
+    {
+        double l_tmp[NL];
+        if (leg_kinematics(st->q_meas, l_tmp, J)) return LOADER_CRANE_CTRL_FAILED;
+    }
+    memcpy(s->qdot_meas, s->ldot, sizeof s->ldot);
+    if (!solve_n(J, s->qdot_meas)) return LOADER_CRANE_FK_FAILED;
+    return LOADER_CRANE_OK;
+}
+
+void loader_crane_reference(const loader_crane_loop_config* c, double t, double* qd /* 4 x NQ */) {
+    long long j;
+    int i;
+    for (i = 0; i < NQ; ++i) {
+        qd[i] = c->bias[i];
+        qd[NQ + i] = qd[2 * NQ + i] = qd[3 * NQ + i] = 0;
+    }
+    for (j = 0; j < c->n_terms; ++j) {
+        double axis = c->terms[3 * j];
+        double a = c->terms[3 * j + 1], w = TWO_PI * c->terms[3 * j + 2];
+        double sn, co;
+        int ax;
+        if (!(axis >= 0 && axis < NQ)) continue;  /* never index with an unchecked value */
+        ax = (int)axis;
+        sn = sin(w * t);
+        co = cos(w * t);
+        qd[ax] += a * sn;
+        qd[NQ + ax] += a * w * co;
+        qd[2 * NQ + ax] -= a * w * w * sn;
+        qd[3 * NQ + ax] -= a * w * w * w * co;
+    }
+    if (c->step_axis >= 0 && c->step_axis < NQ && t >= c->t_step) qd[c->step_axis] += c->step_height;
+}
+
+int loader_crane_control(const loader_crane_loop_config* c, loader_crane_loop_state* st, loader_crane_loop_signals* s) {
+    double adapt = s->t >= c->t_adapt ? 1.0 : 0.0;
+    set_slot(c, LOADER_CRANE_SLOT_Q, st->q_meas, NQ);
+    set_slot(c, LOADER_CRANE_SLOT_QDOT, s->qdot_meas, NQ);
+    set_slot(c, LOADER_CRANE_SLOT_PC, s->pc_meas, NPC);
+    set_slot(c, LOADER_CRANE_SLOT_L, s->l_meas, NL);
+    set_slot(c, LOADER_CRANE_SLOT_QD0, s->qd, NQ);
+    set_slot(c, LOADER_CRANE_SLOT_QD1, s->qd + NQ, NQ);
+    set_slot(c, LOADER_CRANE_SLOT_QD2, s->qd + 2 * NQ, NQ);
+    set_slot(c, LOADER_CRANE_SLOT_QD3, s->qd + 3 * NQ, NQ);
+    set_slot(c, LOADER_CRANE_SLOT_XC, st->xc, c->n_xc);
+    set_slot(c, LOADER_CRANE_SLOT_ADAPT, &adapt, 1);
+    set_slot(c, LOADER_CRANE_SLOT_U_APPLIED, st->u_app, NL);
+    /* controller state: semi-implicit update. The estimates and observer states of period k are
+     * xc_k = clip(xc_{k-1} + h F(measurement_k, xc_{k-1}, u_app_{k-1})), and the command of period k
+     * uses xc_k: the adaptation feedback then has no one-period delay (symplectic Euler on the coupled
+     * force error / estimate oscillation), stable up to about 5x the adaptation gain forward Euler
+     * takes at the same rate. u_app_{k-1} is the command the valves held over the period F integrates.
+     * One call of the generated step does both (what depends on the measurement only is computed
+     * once) and writes u where the controller would. The first period uses the initial state. */
+    if (c->n_xc && !c->xc_euler && st->k > 0) {
+        if (c->step((const double**)c->step_arg, c->step_res, c->step_iw, c->step_w, 0)) return LOADER_CRANE_CTRL_FAILED;
+        memcpy(st->xc, c->step_res[1], (size_t)c->n_xc * sizeof(double));
+        set_slot(c, LOADER_CRANE_SLOT_XC, st->xc, c->n_xc);
+    } else if (c->ctrl((const double**)c->ctrl_arg, c->ctrl_res, c->ctrl_iw, c->ctrl_w, 0)) {
+        return LOADER_CRANE_CTRL_FAILED;
+    }
+    memcpy(s->u, c->ctrl_res[0], sizeof s->u);
+    /* computation delay: the valves hold the last period's command over the first delay_frac h, then
+     * the command of `delay` periods ago (0 before the start); the ring keeps this one */
+    memcpy(s->u_held, st->u_app, sizeof s->u_held);
+    if (c->delay > 0) {
+        long long r = (st->k - c->delay) % MAX_DELAY, w = st->k % MAX_DELAY;
+        if (r < 0) r += MAX_DELAY;
+        memcpy(s->u_app, st->u_hist + NL * r, sizeof s->u_app);
+        memcpy(st->u_hist + NL * w, s->u, sizeof s->u);
+    } else {
+        memcpy(s->u_app, s->u, sizeof s->u);
+    }
+    memcpy(st->u_app, s->u_app, sizeof s->u_app);
+    return LOADER_CRANE_OK;
+}
+
+int loader_crane_control_advance(const loader_crane_loop_config* c, loader_crane_loop_state* st) {
+    long long j;
+    /* controller state, forward Euler variant (xc_euler): the rate the command's call gave (this
+     * period's measurement, state and u_applied, the command the valves held over the period that
+     * ended at the measurement), kept inside the projection bounds */
+    if (c->xc_euler && c->n_xc)
+        for (j = 0; j < c->n_xc; ++j)
+            st->xc[j] = clip(st->xc[j] + c->h * c->ctrl_res[1][j], c->xc_lo[j], c->xc_hi[j]);
+    for (j = 0; j < c->n_xc; ++j)
+        if (!isfinite(st->xc[j])) return LOADER_CRANE_NONFINITE;
+    return LOADER_CRANE_OK;
+}
+
+/* n RK4 sub-steps of hs holding u, each pressure within its bounds (0 <= p_c <= p_s for a three-way
+ * cylinder) */
+static int hold(const loader_crane_loop_config* c, double* x, const double* u, long long n, double hs) {
+    long long j;
+    int i;
+    for (j = 0; j < n; ++j) {
+        if (!rk4(c, x, u, hs)) return 0;
+        for (i = 0; i < NPC; ++i) x[2 * NQ + i] = clip(x[2 * NQ + i], P_LOW[i], P_HIGH[i]);
+    }
+    return 1;
+}
+
+int loader_crane_plant_step(const loader_crane_loop_config* c, loader_crane_loop_state* st, const double* u_held,
+                       const double* u_app) {
+    double* x = st->x;
+    const long long n = c->substeps;
+    int i;
+    if (c->delay_frac > 0) {
+        /* the command switches at delay_frac h: the sub-steps are shared out over the two parts */
+        long long n1 = (long long)floor(c->delay_frac * (double)n + 0.5), n2;
+        if (n1 < 1) n1 = 1;
+        if (n1 > n - 1) n1 = n > 1 ? n - 1 : 1;
+        n2 = n - n1 > 0 ? n - n1 : 1;
+        if (!hold(c, x, u_held, n1, c->delay_frac * c->h / (double)n1)) return LOADER_CRANE_CTRL_FAILED;
+        if (!hold(c, x, u_app, n2, (1.0 - c->delay_frac) * c->h / (double)n2)) return LOADER_CRANE_CTRL_FAILED;
+    } else if (!hold(c, x, u_app, n, c->h / (double)n)) {
+        return LOADER_CRANE_CTRL_FAILED;
+    }
+    for (i = 0; i < NX; ++i)
+        if (!isfinite(x[i])) return LOADER_CRANE_NONFINITE;
+    return LOADER_CRANE_OK;
+}
+
+/* Row st->k of each log that is not NULL, before the plant step. */
+static int write_log(const loader_crane_loop_state* st, const loader_crane_loop_config* c, const loader_crane_loop_signals* s,
+                     loader_crane_loop_log* log) {
+    const double* x = st->x;
+    const long long k = st->k;
+    if (log->t) log->t[k] = s->t;
+    if (log->q) memcpy(log->q + NQ * k, x, NQ * sizeof(double));
+    if (log->q_d) memcpy(log->q_d + NQ * k, s->qd, NQ * sizeof(double));
+    if (log->l) memcpy(log->l + NL * k, s->l_true, NL * sizeof(double));
+    if (log->pc) memcpy(log->pc + NPC * k, x + 2 * NQ, NPC * sizeof(double));
+    if (log->u) memcpy(log->u + NL * k, s->u, NL * sizeof(double));
+    if (log->u_applied) memcpy(log->u_applied + NL * k, s->u_app, NL * sizeof(double));
+    if (log->l_meas) memcpy(log->l_meas + NL * k, s->l_meas, NL * sizeof(double));
+    if (log->f && leg_force(x + 2 * NQ, log->f + NL * k)) return LOADER_CRANE_CTRL_FAILED;
+    if (log->xc && c->n_xc) memcpy(log->xc + c->n_xc * k, st->xc, (size_t)c->n_xc * sizeof(double));
+    return LOADER_CRANE_OK;
+}
+
+int loader_crane_loop_run(const loader_crane_loop_config* c, loader_crane_loop_state* st, long long n,
+                     const double* noise, loader_crane_loop_log* log) {
+    loader_crane_loop_signals s;
+    long long step;
+    int rc, rc_xc;
+    /* the ring holds MAX_DELAY periods */
+    if (c->delay < 0 || c->delay > MAX_DELAY || !(c->delay_frac >= 0 && c->delay_frac < 1)
+        || (c->delay == MAX_DELAY && c->delay_frac > 0)) return LOADER_CRANE_CTRL_FAILED;
+    if (c->n_xc && !c->xc_euler && !c->step) return LOADER_CRANE_CTRL_FAILED;  /* a state needs its update */
+    for (step = 0; step < n; ++step) {
+        const double* nz = noise ? noise + NNOISE * step : 0;  /* row `step` of this call's table */
+        if ((rc = loader_crane_measure(c, st, nz, &s))) return rc;
+        if ((rc = loader_crane_estimate(c, st, &s))) return rc;
+        loader_crane_reference(c, s.t, s.qd);
+        if ((rc = loader_crane_control(c, st, &s))) return rc;
+        if (log && (rc = write_log(st, c, &s, log))) return rc;
+        rc = loader_crane_plant_step(c, st, s.u_held, s.u_app);
+        if (rc == LOADER_CRANE_CTRL_FAILED) return rc;
+        /* a non-finite state stops the run with st->k at the period that produced it */
+        rc_xc = loader_crane_control_advance(c, st);
+        if (rc) return rc;
+        if (rc_xc) return rc_xc;
+        st->k += 1;
+        st->t = (double)st->k * c->h;
+    }
+    return LOADER_CRANE_OK;
+}

@@ -1,0 +1,171 @@
+/* Closed-loop driver for model loader_crane: plant, sensors, joint encoders, controller.
+ * Rendered by hydrogen from templates/loop.h.j2; plain C99, no dependency but libm.
+ * Sizes: 3 coordinates, 3 cylinders; plant state x = [q, qdot, pc, spool, spool rate] (18). */
+#ifndef LOADER_CRANE_LOOP_H
+#define LOADER_CRANE_LOOP_H
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+#define LOADER_CRANE_NQ 3   /* generalized coordinates */
+#define LOADER_CRANE_NL 3   /* cylinders */
+#define LOADER_CRANE_NX 18  /* plant state */
+#define LOADER_CRANE_NPC 6  /* pressure states (one block per actuator) */
+#define LOADER_CRANE_MAX_DELAY 8  /* longest computation delay, control periods */
+#define LOADER_CRANE_NNOISE 12  /* noise row: cylinder lengths (m), pressures (Pa), joint angles */
+
+typedef int (*loader_crane_casadi_fn)(const double** arg, double** res, long long int* iw, double* w, int mem);
+
+/* Input slots of a controller, in this order, in hg_loop_config.slot (-1: not an input). */
+enum { LOADER_CRANE_SLOT_Q, LOADER_CRANE_SLOT_QDOT, LOADER_CRANE_SLOT_PC, LOADER_CRANE_SLOT_L, LOADER_CRANE_SLOT_QD0, LOADER_CRANE_SLOT_QD1, LOADER_CRANE_SLOT_QD2, LOADER_CRANE_SLOT_QD3, LOADER_CRANE_SLOT_XC, LOADER_CRANE_SLOT_ADAPT, LOADER_CRANE_SLOT_U_APPLIED, LOADER_CRANE_N_SLOTS };
+
+/* Return codes of loader_crane_loop_run. */
+enum { LOADER_CRANE_OK = 0, LOADER_CRANE_NONFINITE = 1, LOADER_CRANE_FK_FAILED = 2, LOADER_CRANE_CTRL_FAILED = 3 };
+
+typedef struct {
+    /* timing: control period h (s), plant RK4 sub-steps per control period, adaptation on for t >= t_adapt;
+     * the command computed at period k is applied from t_k + (delay + delay_frac) h (delay 0..MAX_DELAY,
+     * 0 <= delay_frac < 1, delay + delay_frac <= MAX_DELAY) */
+    double h;
+    long long substeps;
+    double t_adapt;
+    long long delay;
+    double delay_frac;
+    /* plant (SI): true theta (boom.mcx, boom.mcz, boom.Iyy, boom.Izz, jib.mcx, jib.mcz, jib.Iyy, jib.Izz), gamma1 = beta and gamma2 = beta c per cylinder,
+     * friction [Fc, b, v_s], valve [first-order lag s, second-order natural frequency rad/s, damping] */
+    const double* theta;
+    const double* gamma1;
+    const double* gamma2;
+    const double* friction;
+    const double* valve;
+    /* sensors: cylinder-length resolution quant_l (m, 0: none; lengths rounded to its grid after the noise);
+     * fixed-gain Kalman filter on cylinder lengths (use_kalman != 0), gain [K_l, K_ldot] */
+    double quant_l;
+    long long use_kalman;
+    double kf_gain[2];
+    /* reference: bias + sum of amplitude sin(2 pi f t) over terms (coordinate, amplitude, frequency),
+     * plus a raw step of step_height on coordinate step_axis (>= 0) at t_step; a coordinate outside
+     * 0..NQ-1 is ignored (the runtime refuses it before a run) */
+    const double* bias;
+    long long n_terms;
+    const double* terms;
+    long long step_axis;
+    double step_height;
+    double t_step;
+    /* controller: generated function, its argument/result tables, work vectors */
+    loader_crane_casadi_fn ctrl;
+    double** ctrl_arg;
+    double** ctrl_res;
+    long long int* ctrl_iw;
+    double* ctrl_w;
+    /* with a state (n_xc > 0): its semi-implicit step, one call per period: arguments ctrl_arg's then
+     * h, xc_lo, xc_hi (step_arg); results u (step_res[0] must be ctrl_res[0]) and the updated state.
+     * The forward-Euler update takes the rate from the controller's own call (ctrl_res[1]).
+     * slot: the loop's input slots in the controller's inputs; n_xc: the state size; xc_lo, xc_hi: its
+     * projection bounds; xc_euler: 0 semi-implicit update, 1 forward Euler after the plant step */
+    loader_crane_casadi_fn step;
+    double** step_arg;
+    double** step_res;
+    long long int* step_iw;
+    double* step_w;
+    long long slot[LOADER_CRANE_N_SLOTS];
+    long long n_xc;
+    const double* xc_lo;
+    const double* xc_hi;
+    long long xc_euler;
+    /* forward kinematics (Newton): tolerance (m), iterations */
+    double fk_tol;
+    long long fk_max_iter;
+} loader_crane_loop_config;
+
+typedef struct {
+    double t;  /* s */
+    long long k;  /* control periods done */
+    double x[LOADER_CRANE_NX];  /* plant: q, qdot, pc, spool, spool rate */
+    double q_meas[LOADER_CRANE_NQ];  /* last measured pose (Newton's warm start) */
+    double kf[2 * LOADER_CRANE_NL];  /* Kalman state: cylinder lengths, cylinder rates */
+    double u_hist[LOADER_CRANE_MAX_DELAY * LOADER_CRANE_NL];  /* commands of past periods: ring, slot k % MAX_DELAY (0 at reset) */
+    double u_app[LOADER_CRANE_NL];  /* commands the valves held over the last period, m (0 at reset): the
+     * controller's u_applied input in its state update */
+    double* xc;  /* controller state, n_xc entries */
+} loader_crane_loop_state;
+
+typedef struct {                 /* each may be NULL; rows per control period (widths below) */
+    double* t;  /* 1: time, s */
+    double* q;  /* 3: true pose */
+    double* q_d;  /* 3: reference */
+    double* l;  /* 3: true cylinder lengths, m */
+    double* f;  /* 3: cylinder forces, N */
+    double* pc;  /* 6: chamber pressures (one block per actuator), Pa */
+    double* u;  /* 3: spool commands computed, m */
+    double* u_applied;  /* 3: spool commands the valves held at the end of each period (delay later), m */
+    double* l_meas;  /* 3: measured cylinder lengths (noise, quantisation), m */
+    double* xc;  /* n_xc: controller state */
+} loader_crane_loop_log;
+
+/* One control period's signals, as the stages below hand them on (SI units). */
+typedef struct {
+    double t;  /* time of the period's start, s */
+    double l_true[LOADER_CRANE_NL];  /* true cylinder lengths, m */
+    double l_meas[LOADER_CRANE_NL];  /* measured cylinder lengths (noise, resolution), m */
+    double pc_meas[LOADER_CRANE_NPC];  /* measured pressures, Pa */
+    double q_enc[LOADER_CRANE_NQ];  /* joint encoders' reading, rad or m (joint encoders only) */
+    double ldot[LOADER_CRANE_NL];  /* cylinder rates: the Kalman filter's, or the ideal rate sensor's, m/s */
+    double qdot_meas[LOADER_CRANE_NQ];  /* measured velocities, JL^-1 ldot at the measured pose */
+    double qd[4 * LOADER_CRANE_NQ];  /* reference and its first three time derivatives */
+    double u[LOADER_CRANE_NL];  /* spool commands computed this period, m */
+    double u_held[LOADER_CRANE_NL];  /* spool commands the valves hold over the period's first delay_frac h, m */
+    double u_app[LOADER_CRANE_NL];  /* spool commands applied over the rest of the period (computation delay), m */
+} loader_crane_loop_signals;
+
+/* Advance n control periods from st. noise: n rows of NNOISE for this call, or NULL. Logs are
+ * written at row st->k (periods since the start of the run), so each log needs at least st->k + n
+ * rows. Returns LOADER_CRANE_OK, or a code with st->k at the failing period (its log row holds the state
+ * before the failing step). Each period is the stages below, in this order: measure, estimate,
+ * reference, control, (logs), plant_step, control_advance; then st->k += 1. */
+int loader_crane_loop_run(const loader_crane_loop_config* cfg, loader_crane_loop_state* st, long long n,
+                     const double* noise, loader_crane_loop_log* log);
+
+/* Sensors: the readings of the plant state st->x at period st->k (s->t = k h): true and measured
+ * cylinder lengths (noise row nz, or NULL, then the resolution), measured pressures (clipped to
+ * their bounds when noisy), joint encoders (s->q_enc), and without the Kalman filter the ideal
+ * cylinder-rate sensor's s->ldot = JL qdot. */
+int loader_crane_measure(const loader_crane_loop_config* cfg, const loader_crane_loop_state* st, const double* nz,
+                    loader_crane_loop_signals* s);
+
+/* The length sensor alone: l plus noise nz (NL entries, or NULL), rounded to the resolution quant_l. */
+void loader_crane_sense_lengths(const loader_crane_loop_config* cfg, const double* l, const double* nz, double* l_meas);
+
+/* Estimation from the measured signals: the Kalman filter on s->l_meas (state st->kf) gives s->ldot
+ * (use_kalman; else s->ldot is the rate sensor's), the pose st->q_meas (the joint encoders' s->q_enc),
+ * and s->qdot_meas = JL^-1 s->ldot at that pose. */
+int loader_crane_estimate(const loader_crane_loop_config* cfg, loader_crane_loop_state* st, loader_crane_loop_signals* s);
+
+/* The scenario's reference at t (s): qd = [q_d, its first, second and third derivatives] (4 x NQ). */
+void loader_crane_reference(const loader_crane_loop_config* cfg, double t, double* qd);
+
+/* Control at s->t: the controller's inputs from st and s (s->qd the reference), the controller
+ * state's semi-implicit update and the command s->u; the command of cfg->delay periods ago into
+ * s->u_app and st->u_app (the ring st->u_hist keeps this one), the last period's st->u_app into
+ * s->u_held. */
+int loader_crane_control(const loader_crane_loop_config* cfg, loader_crane_loop_state* st, loader_crane_loop_signals* s);
+
+/* After the period: the controller state's forward-Euler update (cfg->xc_euler), clipped to its
+ * bounds; LOADER_CRANE_NONFINITE if the state is not finite. */
+int loader_crane_control_advance(const loader_crane_loop_config* cfg, loader_crane_loop_state* st);
+
+/* Plant: cfg->substeps RK4 sub-steps over one control period, holding u_held (NL, m) over its first
+ * cfg->delay_frac h and u_app over the rest (sub-steps shared out over the two parts), each pressure
+ * clipped to its bounds after each; LOADER_CRANE_NONFINITE if the plant state is not finite after them. */
+int loader_crane_plant_step(const loader_crane_loop_config* cfg, loader_crane_loop_state* st, const double* u_held,
+                       const double* u_app);
+
+/* Cylinder lengths (m) of n poses: row k of q (NQ) gives row k of l (NL). One call for a whole
+ * trajectory (workspace checks). Returns 0, or 1 if the generated function failed. */
+int loader_crane_leg_lengths_many(const double* q, long long n, double* l);
+
+#ifdef __cplusplus
+}
+#endif
+#endif
