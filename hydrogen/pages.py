@@ -14,7 +14,7 @@ from pathlib import Path
 
 from .fileio import atomic_write
 
-__all__ = ["results_page", "write_results_page", "benchmarks_page", "write_benchmarks_page",
+__all__ = ["figures_folder", "results_page", "write_results_page", "benchmarks_page", "write_benchmarks_page",
            "RESULTS_PAGE", "BENCHMARKS_PAGE", "REPEATS_JSON"]
 
 RESULTS_PAGE = "results.md"
@@ -27,6 +27,13 @@ _DO_NOT_EDIT = "<!-- written by {cmd}; do not edit: rerun it -->"
 
 # --------------------------------------------------------------------------------------------
 # Results (hydrogen figures)
+
+
+def figures_folder(name: str) -> str:
+    """The folder (relative to the repository) that holds a built-in model's committed figures and
+    results page: ``docs/figures`` for the default robot, ``docs/figures/<name>`` for the others."""
+    from .model import DEFAULT_MODEL
+    return "docs/figures" if name == DEFAULT_MODEL else f"docs/figures/{name}"
 
 
 def results_page(model, folder) -> str:

@@ -94,7 +94,8 @@ def test_readme_mentions_no_issue_numbers():
 # --- pages written by the runs ---------------------------------------------------------------
 
 def test_committed_results_pages_are_the_renderer_on_the_committed_figures():
-    for model, folder in (("ubc_stewart", "docs/figures"), ("excavator_arm", "docs/figures/excavator_arm")):
+    for model in hydrogen.models():  # every built-in robot has its committed results page
+        folder = pages.figures_folder(model)
         page = (ROOT / folder / pages.RESULTS_PAGE).read_text(encoding="utf-8")
         assert page == pages.results_page(hydrogen.load_model(model), ROOT / folder), folder
 

@@ -9,11 +9,11 @@ from __future__ import annotations
 from pathlib import Path
 
 import hydrogen
-from hydrogen.pages import write_benchmarks_page, write_results_page
+from hydrogen.pages import figures_folder, write_benchmarks_page, write_results_page
 
 ROOT = Path(__file__).resolve().parents[1]
-#: model -> the folder its `hydrogen figures --out` writes
-FIGURES = {"ubc_stewart": "docs/figures", "excavator_arm": "docs/figures/excavator_arm"}
+#: model -> the folder its `hydrogen figures --out` writes (each built-in model that has one)
+FIGURES = {m: figures_folder(m) for m in hydrogen.models() if (ROOT / figures_folder(m) / "table.md").is_file()}
 
 
 def main() -> None:
