@@ -217,7 +217,7 @@ class Cylinder:
     #: point_to the crank pin where the coupler pins on it) and the linkage's geometry in the
     #: joint's plane (:class:`hydrogen.symbolic.linkage.FourBar`); its length is the linkage's l(q)
     linkage_joint: str | None = None
-    linkage: object = field(default=None, compare=False)
+    linkage: object = None
 
     @property
     def table(self) -> dict:
@@ -1008,6 +1008,9 @@ def _check_linkage(r: _Reader, w: str, linkage: dict, smin: float, smax: float, 
     if lo is None or hi is None:
         raise r.error(f"{wl}.joint", f"joint '{jname}' has no position limits (lower, upper): a linkage is "
                                      "checked over its joint's range, so give them (URDF <limit>, TOML limit)")
+    if not lo < hi:
+        raise r.error(f"{wl}.joint", f"joint '{jname}''s limits [{lo}, {hi}] rad leave it no range to move "
+                                     "the linkage over: give lower < upper")
     q = np.linspace(lo, hi, LINKAGE_CHECK_POINTS)
     try:
         g.check_assembles(q)

@@ -86,10 +86,15 @@ def test_adaptive_control_shrinks_every_error_20_fold_on_the_ideal_scenario(idea
     assert np.all(first > 20 * last), (first, last, first / last)
 
 
-def test_the_ideal_runs_keep_every_pressure_inside_its_bounds(ideal_runs, crane):
+def test_the_ideal_runs_never_drive_a_chamber_to_its_bounds(ideal_runs, crane):
+    """The loops clip every pressure to [P_t, P_s]; on the ideal plant, after the start (the first
+    tens of ms, where the slew's chambers touch supply and tank while the wrong initial estimates are
+    corrected), no chamber comes within 1 % of either bound: the valves and the reference fit."""
     lo, hi = pressures.bounds(crane.model)
-    for res in ideal_runs.values():
-        assert np.all(res.pressures >= lo - 1e-6) and np.all(res.pressures <= hi + 1e-6)
+    margin = 0.01 * (hi - lo)
+    for name, res in ideal_runs.items():
+        p = res.pressures[res.t >= 0.5]
+        assert np.all(p > lo + margin) and np.all(p < hi - margin), name
 
 
 @pytest.fixture(scope="module")

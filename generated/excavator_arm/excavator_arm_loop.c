@@ -191,6 +191,7 @@ void excavator_arm_reference(const excavator_arm_loop_config* c, double t, doubl
 
 int excavator_arm_control(const excavator_arm_loop_config* c, excavator_arm_loop_state* st, excavator_arm_loop_signals* s) {
     double adapt = s->t >= c->t_adapt ? 1.0 : 0.0;
+    if (c->n_xc && !c->xc_euler && !c->step) return EXCAVATOR_ARM_CTRL_FAILED;  /* a state needs its update */
     set_slot(c, EXCAVATOR_ARM_SLOT_Q, st->q_meas, NQ);
     set_slot(c, EXCAVATOR_ARM_SLOT_QDOT, s->qdot_meas, NQ);
     set_slot(c, EXCAVATOR_ARM_SLOT_PC, s->pc_meas, NPC);
@@ -206,7 +207,8 @@ int excavator_arm_control(const excavator_arm_loop_config* c, excavator_arm_loop
      * xc_k = clip(xc_{k-1} + h F(measurement_k, xc_{k-1}, u_app_{k-1})), and the command of period k
      * uses xc_k: the adaptation feedback then has no one-period delay (symplectic Euler on the coupled
      * force error / estimate oscillation), stable up to about 5x the adaptation gain forward Euler
-     * takes at the same rate. u_app_{k-1} is the command the valves held over the period F integrates.
+     * takes at the same rate. u_app_{k-1} is the command the valves held over the period F integrates
+     * (with a fractional delay: the one they held at its end, after the switch).
      * One call of the generated step does both (what depends on the measurement only is computed
      * once) and writes u where the controller would. The first period uses the initial state. */
     if (c->n_xc && !c->xc_euler && st->k > 0) {
@@ -262,12 +264,13 @@ int excavator_arm_plant_step(const excavator_arm_loop_config* c, excavator_arm_l
     double* x = st->x;
     const long long n = c->substeps;
     int i;
+    if (n < 1) return EXCAVATOR_ARM_CTRL_FAILED;
     if (c->delay_frac > 0) {
-        /* the command switches at delay_frac h: the sub-steps are shared out over the two parts */
-        long long n1 = (long long)floor(c->delay_frac * (double)n + 0.5), n2;
+        /* the command switches at delay_frac h: each part takes enough sub-steps that none is longer
+         * than h / substeps (the step the valve's stability check assumes) */
+        long long n1 = (long long)ceil(c->delay_frac * (double)n), n2 = (long long)ceil((1.0 - c->delay_frac) * (double)n);
         if (n1 < 1) n1 = 1;
-        if (n1 > n - 1) n1 = n > 1 ? n - 1 : 1;
-        n2 = n - n1 > 0 ? n - n1 : 1;
+        if (n2 < 1) n2 = 1;
         if (!hold(c, x, u_held, n1, c->delay_frac * c->h / (double)n1)) return EXCAVATOR_ARM_CTRL_FAILED;
         if (!hold(c, x, u_app, n2, (1.0 - c->delay_frac) * c->h / (double)n2)) return EXCAVATOR_ARM_CTRL_FAILED;
     } else if (!hold(c, x, u_app, n, c->h / (double)n)) {

@@ -392,7 +392,14 @@ class GeneratedLibrary:
             self._lib = cdll
         self._ctypes.update(fns)
         if self._binder is not None:
-            self._fast.update(self._binder(list(fns)))
+            try:
+                self._fast.update(self._binder(list(fns)))
+            except BaseException:  # not half loaded: the next use loads the group again
+                for name in fns:
+                    self._ctypes.pop(name, None)
+                self._cdlls.pop(group, None)
+                self.paths.pop(group, None)
+                raise
 
     def load(self, group: str) -> Path:
         """Load the library ``group`` (a controller's name, or :data:`CORE`) if it is not yet; its path.

@@ -110,11 +110,10 @@ class LoopRunner:
         valve = np.asarray(valve, float)
         if valve.shape != (3,):
             raise ValueError(f"valve must be [lag s, natural frequency rad/s, damping], got {valve!r}")
-        periods, frac = delay_split(delay, h)
-        if not (0 <= delay and periods + frac <= ctx["max_delay"]):
+        if not (np.isfinite(delay) and delay >= 0 and sum(delay_split(delay, h)) <= ctx["max_delay"]):
             raise ValueError(f"delay must be 0..{ctx['max_delay']} control periods of {h!r} s, got {delay!r} s")
         cfg.friction, cfg.valve = _ptr(arr(friction)), _ptr(arr(valve))
-        cfg.delay, cfg.delay_frac, cfg.quant_l = periods, frac, float(quantization_l)
+        (cfg.delay, cfg.delay_frac), cfg.quant_l = delay_split(delay, h), float(quantization_l)
         cfg.use_kalman = 1 if kalman_gain is not None else 0
         if kalman_gain is not None:
             cfg.kf_gain[0], cfg.kf_gain[1] = kalman_gain
@@ -250,11 +249,11 @@ class LoopRunner:
             row = np.ascontiguousarray(nz, dtype=float)
             if row.shape != (self.n_noise,):
                 raise ValueError(f"a noise row holds {self.n_noise} numbers, got shape {row.shape}")
-            self._keep.append(row)
+            Stages.row = row  # alive while the call reads it (only the current row is kept)
             return row.ctypes.data_as(vp)
 
         class Stages:
-            signals = sig
+            signals, row = sig, None
 
             @staticmethod
             def measure(nz=None):

@@ -474,8 +474,7 @@ class PythonStages:
 
         n, frac, h = self.sc.substeps, self.delay_frac, self.h
         if frac > 0:
-            n1 = min(max(int(np.floor(frac * n + 0.5)), 1), n - 1 if n > 1 else 1)
-            n2 = max(n - n1, 1)
+            n1, n2 = max(int(np.ceil(frac * n)), 1), max(int(np.ceil((1.0 - frac) * n)), 1)  # no step > h/n
             self.x = hold(hold(self.x, u_held, n1, frac * h / n1), u_app, n2, (1.0 - frac) * h / n2)
         else:
             self.x = hold(self.x, u_app, n, h / n)
