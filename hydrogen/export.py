@@ -211,6 +211,7 @@ def export_context(dyn, p, scenario_name, controller, prog, sources, headers, ct
     ref = sc.reference
     terms = list(getattr(ref, "terms", ()))
     kf = p.kf_gain
+    delay = sc.delay_split()  # (whole periods, fraction of a period)
     return {
         "model": model.name, "P": model.name.upper(), "scenario": scenario_name, "controller": controller,
         "prog": prog, "sources": sources, "headers": headers, "ctrl_header": ctrl_header,
@@ -223,7 +224,7 @@ def export_context(dyn, p, scenario_name, controller, prog, sources, headers, ct
         "theta_names": ", ".join(model.theta_names),
         "theta": c_doubles(model.theta), "gamma1": c_doubles(model.gamma[0]), "gamma2": c_doubles(model.gamma[1]),
         "friction": c_doubles(sc.friction), "valve": c_doubles(valve_vector(sc)),
-        "delay_periods": int(sc.delay_split()[0]), "delay_fraction": c_double(sc.delay_split()[1]),
+        "delay_periods": int(delay[0]), "delay_fraction": c_double(delay[1]),
         "quantization_l": c_double(sc.quantization_l),
         "use_kalman": 1 if kf is not None else 0,
         "kf_gain": c_doubles(kf if kf is not None else np.zeros(2)),

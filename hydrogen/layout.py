@@ -7,9 +7,11 @@ neither SymPy, CasADi nor numpy.
 """
 from __future__ import annotations
 
+import math
+
 __all__ = ["SLOTS", "MAX_DELAY", "delay_split", "LOOP_CONFIG", "LOOP_STATE", "LOOP_SIGNALS",
            "model_summary", "loop_context", "log_widths", "loop_functions",
-           "c_double", "config_fields"]
+           "c_double", "config_fields", "struct_fields"]
 
 #: Signals the loop writes into a controller's inputs, by input name, in this order (``u_applied``:
 #: the spool commands the valves held over the last period, after the clip and the computation delay).
@@ -25,8 +27,6 @@ def delay_split(delay: float, h: float) -> tuple:
     """A computation delay of ``delay`` s at control period ``h`` s as (whole periods d, fraction φ of a
     period, 0 ≤ φ < 1): the command computed at t_k is applied from t_k + (d + φ) h. A delay within 1e-9
     of a period boundary is that boundary (1/512 s at 512 Hz is one period, not 0.999...)."""
-    import math
-
     r = float(delay) / float(h)
     d = math.floor(r + 1e-9)
     frac = r - d

@@ -1,13 +1,14 @@
 """``hydrogen.build``: find or generate the C for a model, compile it if needed, load it."""
 from __future__ import annotations
 
+import hashlib
 from pathlib import Path
 
 from ..codegen.generate import check, derivation_hash, generate_locked, read_manifest
 from ..errors import BuildCacheError
 from ..model import Model, load_model
 from .cachedir import cache_errors, check_cache_root, folder_lock, warm_library
-from .compiler import Toolchain, _sha256, build_key, cache_root, cached_library, compile_libraries
+from .compiler import Toolchain, build_key_of, cache_root, cached_library, compile_libraries
 from .extension import attach_extension
 from .library import CORE, GeneratedLibrary, group_sources
 
@@ -72,21 +73,25 @@ class _Loader:
         self.toolchain, self.root, self.cache, self.committed, self.report = \
             toolchain, Path(root), cache, committed, report
 
-    def sources(self, group: str) -> list:
+    def _contents(self, group: str) -> list:
+        """``[(path, bytes)]`` of the group's sources, each read once and checked against the manifest."""
         recorded = self.manifest.get("files", {})
         out = []
         for name in group_sources(self.manifest, group):
             path = self.folder / name
-            if path.is_file() and _sha256(path) == recorded.get(name):
-                out.append(path)
-            else:
+            data = path.read_bytes() if path.is_file() else None
+            if data is None or hashlib.sha256(data).hexdigest() != recorded.get(name):
                 raise BuildCacheError(f"{path}: differs from the generated folder this build loaded (generated "
                                       "again or edited since); build again (hydrogen.build) to use the new code")
+            out.append((path, data))
         return out
+
+    def sources(self, group: str) -> list:
+        return [p for p, _ in self._contents(group)]
 
     def cached(self, group: str):
         """The intact cached library of ``group`` or None (nothing written, no lock)."""
-        return cached_library(self.root / "build" / build_key(self.sources(group), self.toolchain))
+        return cached_library(self.root / "build" / build_key_of(self._contents(group), self.toolchain))
 
     def __call__(self, group: str, force: bool = False) -> Path:
         if not force:
@@ -179,15 +184,18 @@ def build(model: Model | str | Path | None = None, *, cc: str | None = None,
     toolchain = Toolchain(**{k: v for k, v in (("cc", cc), ("cflags", cflags)) if v is not None})
     committed = generated is None and folder == repo_generated_dir() / model.name
 
+    made = []  # the loader the warm library was given (this build compiles through it)
+
     def loader(manifest):
-        return _Loader(model, folder, manifest, toolchain, root, cache, committed, report)
+        made.append(_Loader(model, folder, manifest, toolchain, root, cache, committed, report))
+        return made[-1]
 
     lib = warm_library(model, folder, toolchain, root, loader)  # no lock, no write: a read-only cache works
     if lib is not None:
-        missing = [c for c in controllers if _cached_or_none(lib._loader, c) is None]
+        missing = [c for c in controllers if _cached_or_none(made[-1], c) is None]
         if missing:
             with cache_errors(root), folder_lock(folder, current=committed):
-                lib._loader.compile(missing)
+                made[-1].compile(missing)
     else:
         # One lock from generation through compilation: the manifest read and the sources compiled
         # are the same generation even if another process regenerates the folder meanwhile.

@@ -128,9 +128,15 @@ class Toolchain:
 
 def build_key(sources: list, toolchain: Toolchain) -> str:
     """SHA-256 over the sources' names and bytes, the compiler identity and the flags."""
+    return build_key_of([(Path(s), Path(s).read_bytes()) for s in sources], toolchain)
+
+
+def build_key_of(contents: list, toolchain: Toolchain) -> str:
+    """:func:`build_key` of sources already read: ``[(path, bytes)]`` (one read serves a check of the
+    bytes and the key, so the two cannot see different files)."""
     h = hashlib.sha256()
-    for src in sorted(Path(s) for s in sources):
-        h.update(src.name.encode() + b"\0" + src.read_bytes() + b"\0")
+    for src, data in sorted(((Path(s), d) for s, d in contents), key=lambda t: t[0]):
+        h.update(src.name.encode() + b"\0" + data + b"\0")
     h.update(toolchain.identity().encode())
     h.update(json.dumps([toolchain.cc, list(toolchain.cflags), list(toolchain.warnings)]).encode())
     return h.hexdigest()
