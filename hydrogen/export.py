@@ -67,8 +67,6 @@ TEMPLATE_NAMES = {"export_params.h.j2": "params.h", "export_main.c.j2": "main.c"
                   "Makefile.j2": "Makefile", "CMakeLists.txt.j2": "CMakeLists.txt"}
 #: Generated functions the loop driver calls (besides the controller).
 LOOP_FUNCTIONS = ("leg_lengths", "leg_kinematics", "plant_rhs")  # a three-way robot's; see layout.loop_functions
-#: Forward kinematics settings of the loop (the defaults of hydrogen.runtime.loop.LoopRunner).
-FK_TOL, FK_MAX_ITER = 1e-12, 50
 
 _IDENT = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*$")
 
@@ -183,7 +181,7 @@ def render_template(template: str, ctx: dict) -> str:
 def export_context(dyn, p, scenario_name, controller, prog, sources, headers, ctrl_header, sensor_gain):
     """Everything the templates need, numbers already formatted as C literals."""
     from .layout import SLOTS, loop_context
-    from .simulation.simulator import valve_vector
+    from .simulation.loop_config import Run, config_values
 
     model, sc, ctrl = dyn.model, p.sc, p.ctrl
     loop = loop_context(dyn.library.manifest)
@@ -202,53 +200,55 @@ def export_context(dyn, p, scenario_name, controller, prog, sources, headers, ct
             value = np.reshape(np.asarray(ctrl.values[name], dtype=float), shape)
             entry["data"] = c_doubles(value)
         inputs.append(entry)
-    slot_index = [fn.in_names.index(s) if s in fn.in_names else -1 for s in SLOTS]
     # with a state: the semi-implicit step (the controller's inputs, then h and the bounds)
     step = (controller_entries(dyn.library.manifest, ctrl)[1:] + [None])[0]
     n_xc = int(ctrl.xc.size)
-    lo = np.where(np.isfinite(ctrl.bounds[0]), ctrl.bounds[0], -1e300)
-    hi = np.where(np.isfinite(ctrl.bounds[1]), ctrl.bounds[1], 1e300)
     ref = sc.reference
-    terms = list(getattr(ref, "terms", ()))
-    kf = p.kf_gain
-    delay = sc.delay_split()  # (whole periods, fraction of a period)
+    values = config_values(Run(dyn, sc, ctrl, p.h, p.kf_gain))
     return {
         "model": model.name, "P": model.name.upper(), "scenario": scenario_name, "controller": controller,
         "prog": prog, "sources": sources, "headers": headers, "ctrl_header": ctrl_header,
         "ctrl_c_name": fn.c_name, "loop_header": f"{model.name}_loop.h",
         "step_c_name": step["c_name"] if step else None, "step_header": step["header"] if step else None,
         "n_periods": int(p.n), "duration": c_double(sc.duration), "control_rate": c_double(sc.control_rate),
-        "h": c_double(p.h), "substeps": int(sc.substeps), "t_adapt": c_double(sc.t_adapt),
         "metric_start": c_double(sc.metric_start),
-        "n": loop["n"], "m": loop["m"], "nx": loop["nx"], "three_way": loop["three_way"], "p_theta": model.n_theta,
+        "n": loop["n"], "m": loop["m"], "nx": loop["nx"], "three_way": loop["three_way"],
         "theta_names": ", ".join(model.theta_names),
-        "theta": c_doubles(model.theta), "gamma1": c_doubles(model.gamma[0]), "gamma2": c_doubles(model.gamma[1]),
-        "friction": c_doubles(sc.friction), "valve": c_doubles(valve_vector(sc)),
-        "delay_periods": int(delay[0]), "delay_fraction": c_double(delay[1]),
-        "quantization_l": c_double(sc.quantization_l),
-        "use_kalman": 1 if kf is not None else 0,
-        "kf_gain": c_doubles(kf if kf is not None else np.zeros(2)),
         "kf_gain_sensor": c_doubles(sensor_gain if sensor_gain is not None else np.zeros(2)),
         "noise_l": c_double(sc.noise_l), "noise_p": c_double(sc.noise_p),
         "sensor_noise_l": c_double(p.sensor_noise_l), "sensor_noise_p": c_double(p.sensor_noise_p),
         "kalman_accel": c_double(sc.kalman_accel),
-        "bias": c_doubles(ref.bias), "n_terms": len(terms),
-        "terms": [", ".join(c_double(v) for v in t) for t in terms],
-        "step_axis": int(getattr(ref, "axis", -1)), "step_height": c_double(getattr(ref, "height", 0.0)),
-        "t_step": c_double(getattr(ref, "t_step", 0.0)),
         "inputs": inputs, "n_in": len(inputs), "in_total": sum(e["size"] for e in inputs),
         "outputs": [{"index": i, "name": nm, "rows": int(s[0]), "cols": int(s[1]), "size": int(s[0]) * int(s[1])}
                     for i, (nm, s) in enumerate(zip(fn.out_names, fn.out_shapes))],
         "out_total": sum(int(r) * int(c) for r, c in fn.out_shapes),
-        "slots": [{"name": s, "index": k} for s, k in zip(SLOTS, slot_index)], "n_slots": len(SLOTS),
-        "n_xc": n_xc, "xc_cap": max(n_xc, 1), "xc_euler": 1 if sc.estimator_update == "euler" else 0,
+        "n_slots": len(SLOTS), "n_xc": n_xc, "xc_cap": max(n_xc, 1),
         "xc0": c_doubles(ctrl.xc if n_xc else np.zeros(1)),
-        "xc_lo": c_doubles(lo if n_xc else np.zeros(1)), "xc_hi": c_doubles(hi if n_xc else np.zeros(1)),
         "x0": c_doubles(p.x0), "q_meas0": c_doubles(p.q0), "l0": c_doubles(dyn.leg_lengths(p.q0)),
-        "fk_tol": c_double(FK_TOL), "fk_max_iter": FK_MAX_ITER, "coords": model.coordinate_names,
-        "config": loop["config"],
+        "coords": model.coordinate_names,
+        "config": _with_definitions(loop["config"], values),
         "coord_units": model.coordinate_units, "amplitude": c_doubles(ref.amplitude()),
     }
+
+
+def _with_definitions(config: list, values: dict) -> list:
+    """The configuration's groups (:func:`hydrogen.layout.config_fields`) with each exported field's
+    params.h definition: the value :func:`hydrogen.simulation.loop_config.config_values` gave it, as C99."""
+    from markupsafe import Markup  # numbers formatted here, names from hydrogen.layout: no user text
+
+    def definition(f):
+        name, ctype, v = f["value"], f["type"], values[f["name"]]
+        if ctype == "double":
+            return f"static const double {name} = {c_double(v)};"
+        if ctype == "long long":
+            return f"#define {name} {int(v)}LL"
+        if ctype == "slots":
+            return f"static const long long {name}[P_N_SLOTS] = {{ {', '.join(str(int(i)) for i in v)} }};"
+        flat = np.asarray(v, float).ravel()
+        return f"static const double {name}[{flat.size}] = {{ {c_doubles(flat)} }};"
+
+    return [{**g, "fields": [{**f, "definition": Markup(definition(f)) if f["value"] else None}
+                             for f in g["fields"]]} for g in config]
 
 
 _README = """\

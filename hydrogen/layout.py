@@ -33,49 +33,60 @@ def delay_split(delay: float, h: float) -> tuple:
     return d, (0.0 if frac < 1e-9 else frac)
 
 
-#: The closed loop's configuration, described once: groups of (field, C type, exported value), each
-#: group with its comment. The C struct of the loop header, the runtime's ctypes mirror and the
-#: exported programs' fill (``hg_fill_config`` in params.h, for main.c and the FMUs) are rendered from
-#: it. C types: ``double``, ``long long``, ``const double*`` (an array the caller owns), ``double[2]``,
-#: ``fn`` (a generated function), ``double**``, ``long long int*``, ``double*`` (its tables and work),
-#: ``slots`` (``long long[N_SLOTS]``). The exported value is the params.h name that fills the field
-#: (None: the program sets it: the controller's tables). Adding a rig setting: a row here, its value in
-#: the runtime's :class:`hydrogen.runtime.loop.LoopRunner` and in params.h, its use in loop.c.
+#: The closed loop's configuration, described once: groups of (field, C type, exported name, source),
+#: each group with its comment. The C struct of the loop header, the runtime's ctypes mirror, the
+#: exported programs' params.h and their fill (``p_fill_config``, for main.c and the FMUs) are rendered
+#: from it, and the runtime (:class:`hydrogen.runtime.loop.LoopRunner`) fills the struct from it. C
+#: types: ``double``, ``long long``, ``const double*`` (an array the caller owns), ``double[2]``, ``fn``
+#: (a generated function), ``double**``, ``long long int*``, ``double*`` (its tables and work), ``slots``
+#: (``long long[N_SLOTS]``). The exported name is the params.h constant that holds the value; the source
+#: says where the value comes from: ``scenario.<field>`` a field of the run's scenario as it is, ``run.<name>``
+#: a value :mod:`hydrogen.simulation.loop_config` derives for the run (None, with no exported name: the
+#: program sets it: the controller's tables). A rig setting that is a scenario field is its declaration
+#: on :class:`hydrogen.simulation.scenarios.Scenario`, a row here and its use in loop.c and
+#: :class:`hydrogen.simulation.simulator.PythonStages`.
 LOOP_CONFIG = (
     ("timing: control period h (s), plant RK4 sub-steps per control period, adaptation on for t >= t_adapt;\n"
      " * the command computed at period k is applied from t_k + (delay + delay_frac) h (delay 0..MAX_DELAY,\n"
      " * 0 <= delay_frac < 1, delay + delay_frac <= MAX_DELAY)",
-     (("h", "double", "P_H"), ("substeps", "long long", "P_SUBSTEPS"), ("t_adapt", "double", "P_T_ADAPT"),
-      ("delay", "long long", "P_DELAY_PERIODS"), ("delay_frac", "double", "P_DELAY_FRACTION"))),
+     (("h", "double", "P_H", "run.h"), ("substeps", "long long", "P_SUBSTEPS", "scenario.substeps"),
+      ("t_adapt", "double", "P_T_ADAPT", "scenario.t_adapt"),
+      ("delay", "long long", "P_DELAY_PERIODS", "run.delay_periods"),
+      ("delay_frac", "double", "P_DELAY_FRACTION", "run.delay_fraction"))),
     ("plant (SI): true theta ({p_theta}), gamma1 = beta and gamma2 = beta c per cylinder,\n"
      " * friction [Fc, b, v_s], valve [first-order lag s, second-order natural frequency rad/s, damping]",
-     (("theta", "const double*", "P_THETA"), ("gamma1", "const double*", "P_GAMMA1"),
-      ("gamma2", "const double*", "P_GAMMA2"), ("friction", "const double*", "P_FRICTION"),
-      ("valve", "const double*", "P_VALVE"))),
+     (("theta", "const double*", "P_THETA", "run.theta"), ("gamma1", "const double*", "P_GAMMA1", "run.gamma1"),
+      ("gamma2", "const double*", "P_GAMMA2", "run.gamma2"),
+      ("friction", "const double*", "P_FRICTION", "scenario.friction"),
+      ("valve", "const double*", "P_VALVE", "run.valve"))),
     ("sensors: cylinder-length resolution quant_l (m, 0: none; lengths rounded to its grid after the noise);\n"
      " * fixed-gain Kalman filter on cylinder lengths (use_kalman != 0), gain [K_l, K_ldot]",
-     (("quant_l", "double", "P_QUANTIZATION_L"), ("use_kalman", "long long", "P_USE_KALMAN"),
-      ("kf_gain", "double[2]", "P_KF_GAIN_USED"))),
+     (("quant_l", "double", "P_QUANTIZATION_L", "scenario.quantization_l"),
+      ("use_kalman", "long long", "P_USE_KALMAN", "run.use_kalman"),
+      ("kf_gain", "double[2]", "P_KF_GAIN", "run.kf_gain"))),
     ("reference: bias + sum of amplitude sin(2 pi f t) over terms (coordinate, amplitude, frequency),\n"
      " * plus a raw step of step_height on coordinate step_axis (>= 0) at t_step; a coordinate outside\n"
      " * 0..NQ-1 is ignored (the runtime refuses it before a run)",
-     (("bias", "const double*", "P_REF_BIAS"), ("n_terms", "long long", "P_REF_N_TERMS"),
-      ("terms", "const double*", "P_REF_TERMS"), ("step_axis", "long long", "P_REF_STEP_AXIS"),
-      ("step_height", "double", "P_REF_STEP_HEIGHT"), ("t_step", "double", "P_REF_T_STEP"))),
+     (("bias", "const double*", "P_REF_BIAS", "run.bias"), ("n_terms", "long long", "P_REF_N_TERMS", "run.n_terms"),
+      ("terms", "const double*", "P_REF_TERMS", "run.terms"),
+      ("step_axis", "long long", "P_REF_STEP_AXIS", "run.step_axis"),
+      ("step_height", "double", "P_REF_STEP_HEIGHT", "run.step_height"),
+      ("t_step", "double", "P_REF_T_STEP", "run.t_step"))),
     ("controller: generated function, its argument/result tables, work vectors",
-     (("ctrl", "fn", None), ("ctrl_arg", "double**", None), ("ctrl_res", "double**", None),
-      ("ctrl_iw", "long long int*", None), ("ctrl_w", "double*", None))),
+     (("ctrl", "fn", None, None), ("ctrl_arg", "double**", None, None), ("ctrl_res", "double**", None, None),
+      ("ctrl_iw", "long long int*", None, None), ("ctrl_w", "double*", None, None))),
     ("with a state (n_xc > 0): its semi-implicit step, one call per period: arguments ctrl_arg's then\n"
      " * h, xc_lo, xc_hi (step_arg); results u (step_res[0] must be ctrl_res[0]) and the updated state.\n"
      " * The forward-Euler update takes the rate from the controller's own call (ctrl_res[1]).\n"
      " * slot: the loop's input slots in the controller's inputs; n_xc: the state size; xc_lo, xc_hi: its\n"
      " * projection bounds; xc_euler: 0 semi-implicit update, 1 forward Euler after the plant step",
-     (("step", "fn", None), ("step_arg", "double**", None), ("step_res", "double**", None),
-      ("step_iw", "long long int*", None), ("step_w", "double*", None), ("slot", "slots", "P_CTRL_SLOT"),
-      ("n_xc", "long long", "P_N_XC"), ("xc_lo", "const double*", "P_XC_LO"),
-      ("xc_hi", "const double*", "P_XC_HI"), ("xc_euler", "long long", "P_XC_EULER"))),
+     (("step", "fn", None, None), ("step_arg", "double**", None, None), ("step_res", "double**", None, None),
+      ("step_iw", "long long int*", None, None), ("step_w", "double*", None, None),
+      ("slot", "slots", "P_CTRL_SLOT", "run.slot"), ("n_xc", "long long", "P_N_XC", "run.n_xc"),
+      ("xc_lo", "const double*", "P_XC_LO", "run.xc_lo"), ("xc_hi", "const double*", "P_XC_HI", "run.xc_hi"),
+      ("xc_euler", "long long", "P_XC_EULER", "run.xc_euler"))),
     ("forward kinematics (Newton): tolerance (m), iterations",
-     (("fk_tol", "double", "P_FK_TOL"), ("fk_max_iter", "long long", "P_FK_MAX_ITER"))),
+     (("fk_tol", "double", "P_FK_TOL", "run.fk_tol"), ("fk_max_iter", "long long", "P_FK_MAX_ITER", "run.fk_max_iter"))),
 )
 
 
@@ -135,7 +146,7 @@ def struct_fields(description, p: str, sizes: dict) -> list:
 
 def config_fields(p: str) -> list:
     """The configuration's groups for the templates: ``[{"comment": parts, "fields": [{"name", "type",
-    "decl", "value", "array"}]}]``, with C declarations for model prefix ``p``."""
+    "decl", "value", "source", "array"}]}]``, with C declarations for model prefix ``p``."""
     def decl(name, ctype):
         if ctype == "fn":
             return f"{p}_casadi_fn {name}"
@@ -149,9 +160,9 @@ def config_fields(p: str) -> list:
 
     # the comment's parts around {p_theta}: the template writes the (escaped) parameter names between
     return [{"comment": [Markup(part.replace("\n * ", "\n     * ")) for part in comment.split("{p_theta}")],
-             "fields": [{"name": n, "type": t, "decl": Markup(decl(n, t)), "value": v,
+             "fields": [{"name": n, "type": t, "decl": Markup(decl(n, t)), "value": v, "source": src,
                          "array": t in ("double[2]", "slots")}
-        for n, t, v in fields]} for comment, fields in LOOP_CONFIG]
+        for n, t, v, src in fields]} for comment, fields in LOOP_CONFIG]
 
 
 def c_double(x) -> str:

@@ -2,16 +2,16 @@
 the one definition the loader checks keys against (:mod:`hydrogen.model`) and the documentation's
 reference table is rendered from (:func:`description_table`), so the two cannot disagree.
 
-Scenario fields take their defaults from :class:`hydrogen.simulation.scenarios.Scenario` and their
-units and meanings from :data:`SCENARIO_FIELDS`; a field missing from either raises when the table
-is rendered (the documentation build fails).
+Scenario fields are declared once, with their defaults, units, meanings and checks, as the fields of
+:class:`hydrogen.simulation.scenarios.Scenario` (:func:`hydrogen.simulation.scenarios.setting`); their
+rows are rendered from those declarations.
 """
 from __future__ import annotations
 
 import dataclasses
 from dataclasses import dataclass
 
-__all__ = ["Key", "REQUIRED", "DESCRIPTION_KEYS", "SCENARIO_FIELDS", "SCENARIO_TABLE_KEYS", "keys",
+__all__ = ["Key", "REQUIRED", "DESCRIPTION_KEYS", "SCENARIO_TABLE_KEYS", "keys",
            "default", "description_table"]
 
 
@@ -147,32 +147,6 @@ SCENARIO_TABLE_KEYS = (
         default_text="none"),
 )
 
-#: Scenario field -> (unit, meaning); defaults come from the Scenario dataclass.
-SCENARIO_FIELDS = {
-    "duration": ("s", "length of the run"),
-    "control_rate": ("Hz", "control rate, zero-order hold"),
-    "substeps": ("", "RK4 plant steps per control period"),
-    "t_adapt": ("s", "adaptation switched on from this time"),
-    "friction": ("N, N s/m, m/s", "per cylinder: Coulomb, viscous, tanh smoothing speed"),
-    "valve_lag": ("s", "first-order valve lag (0: none); exclusive with valve_bandwidth_hz"),
-    "valve_bandwidth_hz": ("Hz", "second-order servo-valve natural frequency (the spool lags 90° there); 0: none"),
-    "valve_damping": ("", "second-order valve damping ratio"),
-    "delay": ("s", "computation delay: the command computed at t_k is applied from t_k + this (0 to 8 control "
-              "periods; a fraction of a period switches the command inside the plant's sub-steps)"),
-    "quantization_l": ("m", "cylinder-length encoder resolution (0: none)"),
-    "noise_l": ("m", "std of white cylinder-length noise"),
-    "noise_q": ("rad or m", "std of white joint-encoder noise (robots with joint encoders)"),
-    "noise_p": ("Pa", "std of white pressure noise"),
-    "kalman": ("", "cylinder rates from fixed-gain Kalman filters (else exact)"),
-    "kalman_accel": ("m²/s³", "the filter's white-acceleration density"),
-    "theta0_factor": ("", "initial θ̂ = θ × factor, one per parameter"),
-    "gamma0_factor": ("", "initial [γ̂1, γ̂2] = γ × factor"),
-    "metric_start": ("s", "metrics over t ≥ this (clamped to the run)"),
-    "q0_offset": ("m, rad", "start pose offset from q_d(0), one per coordinate"),
-    "seed": ("", "noise seed"),
-    "estimator_update": ("", "controller state update: \"semi-implicit\" or \"euler\""),
-}
-
 _TABLES = {}
 for _k in DESCRIPTION_KEYS + SCENARIO_TABLE_KEYS:
     _TABLES.setdefault(_k.table, {})[_k.key] = _k
@@ -231,28 +205,15 @@ def _actuator_rows() -> list:
 
 def description_table() -> str:
     """Markdown: every description key and scenario field with its unit, default and meaning."""
-    from .simulation.scenarios import _FIELDS, Scenario
-    fields = {f.name: f for f in dataclasses.fields(Scenario)}
-    missing = sorted(set(_FIELDS) - set(SCENARIO_FIELDS))
-    extra = sorted(set(SCENARIO_FIELDS) - set(_FIELDS))
-    if missing or extra:
-        raise ValueError(f"hydrogen.schema.SCENARIO_FIELDS out of step with the scenario fields: "
-                         f"undocumented {missing}, unknown {extra}")
+    from .simulation.scenarios import settings
     lines = ["| table | key | unit | default | meaning |", "|---|---|---|---|---|"]
     for k in DESCRIPTION_KEYS + SCENARIO_TABLE_KEYS:
         shown = k.default_text or ("none" if k.default is None else _toml(k.default))
         lines.append(_row(k.table, k.key, k.unit, shown, k.meaning))
     lines += _actuator_rows()
-    for name in _FIELDS:
-        unit, meaning = SCENARIO_FIELDS[name]
-        f = fields[name]
-        if f.default is not dataclasses.MISSING:
-            shown = _toml(f.default)
-            if name == "theta0_factor":
-                shown = "1 for every parameter"
-            elif name == "q0_offset":
-                shown = "0 for every coordinate"
-        else:
-            shown = "required (here or in [rig])"
-        lines.append(_row("[scenarios.<name>], [rig]", name, unit, shown, meaning))
+    for f in settings():  # each scenario field's row from its own declaration (Scenario)
+        meta = f.metadata
+        shown = meta["default_text"] or ("required (here or in [rig])" if f.default is dataclasses.MISSING
+                                         else _toml(f.default))
+        lines.append(_row("[scenarios.<name>], [rig]", f.name, meta["unit"], shown, meta["meaning"]))
     return "\n".join(lines) + "\n"

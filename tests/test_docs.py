@@ -169,12 +169,23 @@ def test_description_table_lists_every_key_the_loader_accepts():
     assert set(HYDRAULIC_KEYS) | {"name", "from", "to", "linkage"} == schema.keys("[[cylinders]]")
 
 
-def test_description_table_fails_on_an_undocumented_scenario_field(monkeypatch):
-    fields = dict(schema.SCENARIO_FIELDS)
-    fields.pop("seed")
-    monkeypatch.setattr(schema, "SCENARIO_FIELDS", fields)
-    with pytest.raises(ValueError, match=r"undocumented \['seed'\]"):
-        schema.description_table()
+def test_scenario_rows_come_from_the_fields_own_declarations(monkeypatch):
+    """A scenario field's unit, meaning and default are declared once, on the field: the table shows
+    what the declaration says, and a changed declaration changes the row."""
+    import dataclasses
+    from hydrogen.simulation import scenarios
+    rows = {line.split("|")[2].strip(" `"): line for line in schema.description_table().splitlines()[2:]
+            if "[rig]" in line}
+    for f in scenarios.settings():
+        assert f.metadata["unit"] in rows[f.name] and f.metadata["meaning"].split("(")[0].strip() in rows[f.name]
+    assert "| 0.0 |" in rows["quantization_l"] and "required" in rows["duration"]
+    seed = next(f for f in scenarios.settings() if f.name == "seed")
+    patched = dataclasses.field(default=7, metadata={**seed.metadata, "meaning": "a changed meaning"})
+    patched.name = "seed"
+    monkeypatch.setattr(scenarios, "settings", lambda: tuple(patched if f.name == "seed" else f
+                                                             for f in dataclasses.fields(scenarios.Scenario)
+                                                             if "unit" in f.metadata))
+    assert "| `seed` | – | 7 | a changed meaning |" in schema.description_table()
 
 
 def test_the_loader_checks_keys_against_the_schema(monkeypatch):

@@ -20,6 +20,7 @@ from hydrogen.errors import (BuildCacheError, CompilerError, HydrogenError, Mode
                              ScenarioError, SimulationError)
 from hydrogen.fileio import locked, replace_dir
 from hydrogen.model import default_model_path, load_model
+from hydrogen.simulation.loop_config import Run, config_values
 from hydrogen.simulation.reference import MultiSine, Step
 from hydrogen.simulation.scenarios import scenario as named_scenario
 from hydrogen.simulation.simulator import Stepper, _describe, simulate
@@ -92,10 +93,29 @@ def test_the_loop_runtime_refuses_an_out_of_range_axis_before_calling_c(dyn):
 
     bias = np.asarray(dyn.model.neutral_pose, float)
     ctrl = make_controller(dyn, "p")
+    sc = named_scenario("z-1hz", dyn.model)
     for ref in (MultiSine(bias, ((-1, 0.01, 1),)), Step(bias, len(bias), 0.01, 0.0)):
+        # the scenario's own check is bypassed (a frozen dataclass edited in place), as a caller of
+        # the runtime with hand-made values would
+        bad = dataclasses.replace(sc)
+        object.__setattr__(bad, "reference", ref)
         with pytest.raises(ValueError, match="axis"):
-            LoopRunner(dyn, ctrl, h=1e-3, substeps=1, t_adapt=0.0, theta=dyn.model.theta, gamma=dyn.model.gamma,
-                       friction=(0.0, 0.0, 1e-3), valve=(0.0, 0.0, 0.7), reference=ref)
+            LoopRunner(dyn, ctrl, config_values(Run(dyn, bad, ctrl, 1e-3)))
+
+
+def test_the_loop_runtime_refuses_a_missing_or_misshapen_value(dyn):
+    from hydrogen.runtime.loop import LoopRunner
+    from hydrogen.simulation.control import make_controller
+
+    ctrl = make_controller(dyn, "p")
+    good = config_values(Run(dyn, named_scenario("z-1hz", dyn.model), ctrl, 1e-3))
+    LoopRunner(dyn, ctrl, good)  # the values as derived are accepted
+    with pytest.raises(ValueError, match=r"no value for \['quant_l'\]"):
+        LoopRunner(dyn, ctrl, {k: v for k, v in good.items() if k != "quant_l"})
+    with pytest.raises(ValueError, match="valve must hold 3 numbers"):
+        LoopRunner(dyn, ctrl, {**good, "valve": good["valve"][:2]})
+    with pytest.raises(ValueError, match="delay must be"):
+        LoopRunner(dyn, ctrl, {**good, "delay": 9})
 
 
 # 3 -------------------------------------------------------------------------------------------------

@@ -15,7 +15,7 @@ def test_the_c_struct_and_the_ctypes_mirror_have_the_same_fields_offsets_and_siz
     manifest = dyn.library.manifest
     ctx = loop_context(manifest)
     Config = _structs(ctx)[0]
-    names = [f for _, fields in LOOP_CONFIG for f, _, _ in fields]
+    names = [f for _, fields in LOOP_CONFIG for f, _, _, _ in fields]
     assert [n for n, _ in Config._fields_] == names
     p = ctx["p"]
     src = tmp_path / "offsets.c"
@@ -38,10 +38,11 @@ def test_the_exported_fill_sets_every_field_with_a_value_and_nothing_else(dyn):
     from hydrogen.export import render_template
 
     ctx = loop_context(dyn.library.manifest)
-    text = render_template("export_params.h.j2", {**_params_stub(ctx), "config": ctx["config"]})
+    config = [{**g, "fields": [{**f, "definition": None} for f in g["fields"]]} for g in ctx["config"]]
+    text = render_template("export_params.h.j2", {**_params_stub(ctx), "config": config})
     fill = text[text.index("static void p_fill_config"):]
     for _, fields in LOOP_CONFIG:
-        for name, _, value in fields:
+        for name, _, value, _ in fields:
             assert bool(re.search(rf"cfg->{name}\b", fill)) == (value is not None), name
 
 
@@ -58,3 +59,51 @@ def _params_stub(ctx):
     stub = {n: "0" for n in names}
     stub.update(model=ctx["model"], inputs=[], outputs=[], slots=[], terms=[], n_terms=0)
     return stub
+
+
+def test_the_runtime_and_the_exported_params_fill_the_same_configuration(dyn, tmp_path):
+    """Both fills come from one set of values (hydrogen.simulation.loop_config): the configuration the
+    runtime hands the C loop equals, field by field, the one params.h's p_fill_config builds."""
+    from hydrogen.export import export, prepare_export
+    from hydrogen.simulation.simulator import make_runner
+
+    scenario, controller = "z-1hz", "adaptive-robust"
+    folder = export(tmp_path / "out", scenario, controller, duration=0.05, dyn=dyn)
+    _, _, _, p = prepare_export(None, dyn, scenario, controller, None, 0.05, True, {})
+    runner = make_runner(dyn, p.sc, p.ctrl, p.x0, p.q0, p.kf_gain, p.h)
+    cfg, model = runner.cfg, dyn.model.name
+    fields = [f for g in loop_context(dyn.library.manifest)["config"] for f in g["fields"] if f["value"]]
+    expected, prints = {}, []
+    for f in fields:
+        name, ctype = f["name"], f["type"]
+        v = getattr(cfg, name)
+        if ctype in ("double", "long long"):
+            values = [v]
+        elif ctype == "const double*":
+            size = {"theta": len(dyn.model.theta), "bias": dyn.model.n, "terms": 3 * max(cfg.n_terms, 1),
+                    "xc_lo": max(cfg.n_xc, 1), "xc_hi": max(cfg.n_xc, 1), "friction": 3, "valve": 3}.get(
+                        name, dyn.model.n_cylinders)
+            values = [v[i] for i in range(size)]
+        else:
+            values = list(v)
+        expected[name] = values
+        fmt = "%lld" if ctype in ("long long", "slots") else "%.17g"
+        prints += [f'    printf("{name} {fmt}\\n", {"(long long)" if fmt == "%lld" else ""}'
+                   f'{"c." + name if len(values) == 1 and ctype in ("double", "long long") else f"c.{name}[{i}]"});'
+                   for i in range(len(values))]
+    src = tmp_path / "fill.c"
+    src.write_text("#include <stdio.h>\n#include <string.h>\n"
+                   f'#include "{model}_loop.h"\n#include "params.h"\n'
+                   f"int main(void) {{\n    {model}_loop_config c;\n    p_fill_config(&c);\n"
+                   + "\n".join(prints) + "\n    return 0;\n}\n")
+    exe = tmp_path / "fill"
+    subprocess.run([Toolchain().cc, "-std=c99", "-Wall", "-Werror", "-Wno-unused-const-variable", "-I",
+                    str(folder), "-o", str(exe), str(src)], check=True, capture_output=True, timeout=120)
+    got = {}
+    for line in subprocess.run([str(exe)], capture_output=True, text=True, timeout=30).stdout.splitlines():
+        name, value = line.split()
+        got.setdefault(name, []).append(float(value))
+    assert set(got) == set(expected) and len(got) == len(fields)
+    for name in expected:
+        assert got[name] == [float(x) for x in expected[name]], name
+    assert got["delay"] == [1.0] and got["use_kalman"] == [1.0]  # the rig's: one period, filtered rates

@@ -12,7 +12,7 @@ import numpy as np
 
 __all__ = ["LoopRunner", "SLOTS", "LOOP_OK", "LOOP_NONFINITE", "LOOP_FK_FAILED", "LOOP_CTRL_FAILED"]
 
-from ..layout import SLOTS, delay_split, log_widths, loop_context
+from ..layout import SLOTS, log_widths, loop_context
 
 LOOP_OK, LOOP_NONFINITE, LOOP_FK_FAILED, LOOP_CTRL_FAILED = 0, 1, 2, 3
 _D = C.POINTER(C.c_double)
@@ -56,16 +56,29 @@ def _ptr(a: np.ndarray):
     return a.ctypes.data_as(_D)
 
 
-def _check_reference_indices(ref, n):
-    """Refuse, before any C runs, a reference whose bias or axes would index the C arrays out of range."""
-    if np.shape(ref.bias) != (n,):
-        raise ValueError(f"reference bias must hold {n} numbers, got shape {np.shape(ref.bias)}")
-    axes = [t[0] for t in getattr(ref, "terms", ())]
-    if hasattr(ref, "axis"):
-        axes.append(ref.axis)
+def _check_values(values, ctx, ctrl, model) -> None:
+    """Refuse, before any C runs, configuration values the C loop would read past or misread: a missing
+    field, arrays of the wrong size, a reference axis outside the coordinates, a delay beyond the ring."""
+    missing = [f["name"] for g in ctx["config"] for f in g["fields"] if f["source"] and f["name"] not in values]
+    if missing:
+        raise ValueError(f"loop configuration: no value for {missing} (hydrogen.layout.LOOP_CONFIG)")
+    n, m, n_xc = len(model.neutral_pose), ctx["m"], int(ctrl.xc.size)
+    sizes = {"theta": len(model.theta), "gamma1": m, "gamma2": m,
+             "friction": 3, "valve": 3, "bias": n, "terms": 3 * max(int(values["n_terms"]), 1),
+             "xc_lo": max(n_xc, 1), "xc_hi": max(n_xc, 1), "kf_gain": 2, "slot": len(ctx["slots"])}
+    for name, size in sizes.items():
+        if np.size(values[name]) != size:
+            raise ValueError(f"loop configuration: {name} must hold {size} numbers, got {np.size(values[name])}")
+    if int(values["n_xc"]) != n_xc:
+        raise ValueError(f"loop configuration: n_xc is {values['n_xc']}, the controller's state holds {n_xc}")
+    terms = np.reshape(values["terms"], (-1, 3))[: int(values["n_terms"])]
+    axes = [t[0] for t in terms] + ([values["step_axis"]] if values["step_axis"] >= 0 else [])
     for a in axes:
-        if isinstance(a, bool) or not float(a).is_integer() or not 0 <= int(a) < n:
+        if not float(a).is_integer() or not 0 <= int(a) < n:
             raise ValueError(f"reference axis {a!r} is outside 0..{n - 1}; the C loop would index out of range")
+    delay, frac = values["delay"], values["delay_frac"]
+    if not (np.isfinite(frac) and 0 <= frac < 1 and 0 <= delay and delay + frac <= ctx["max_delay"]):
+        raise ValueError(f"delay must be 0..{ctx['max_delay']} control periods, got {delay} + {frac!r} periods")
 
 
 class LoopRunner:
@@ -77,11 +90,14 @@ class LoopRunner:
         Compiled dynamics whose library holds the loop driver.
     ctrl : controller runtime from :func:`hydrogen.simulation.control.make_controller`
         Its static inputs (gains, bounds, θ for backstepping) are copied in once.
+    values : dict
+        A value for every field of :data:`hydrogen.layout.LOOP_CONFIG` that has a source, by field name
+        (:func:`hydrogen.simulation.loop_config.config_values`); the controller's tables are this
+        runner's. Each value is checked against its field's C type, and arrays the C loop indexes by the
+        model's sizes against them, before any C runs.
     """
 
-    def __init__(self, dyn, ctrl, *, h, substeps, t_adapt, theta, gamma, friction, valve,
-                 reference, kalman_gain=None, delay=0.0, quantization_l=0.0, fk_tol=1e-12, fk_max_iter=50,
-                 estimator_update="semi-implicit"):
+    def __init__(self, dyn, ctrl, values: dict):
         manifest = dyn.library.manifest
         self.context = ctx = loop_context(manifest)
         self._log_width = log_widths(manifest["model"])
@@ -94,57 +110,46 @@ class LoopRunner:
         self._run.argtypes = [C.c_void_p, C.c_void_p, _LL, C.c_void_p, C.c_void_p]
         self._keep = []  # every array the C side points at stays alive with this object
 
-        def arr(x):
-            a = np.ascontiguousarray(x, dtype=float).copy()
-            self._keep.append(a)
-            return a
-
         fn = ctrl.fn
         self.ctrl, self.fn = ctrl, fn
         # Static inputs: written once into the function's own buffers.
         fn.set_inputs({k: v for k, v in ctrl.values.items() if k in fn.in_names})
+        _check_values(values, ctx, ctrl, dyn.model)
         cfg = Config()
-        cfg.h, cfg.substeps, cfg.t_adapt = h, int(substeps), float(t_adapt)
-        gamma = np.asarray(gamma, float)
-        cfg.theta, cfg.gamma1, cfg.gamma2 = _ptr(arr(theta)), _ptr(arr(gamma[0])), _ptr(arr(gamma[1]))
-        valve = np.asarray(valve, float)
-        if valve.shape != (3,):
-            raise ValueError(f"valve must be [lag s, natural frequency rad/s, damping], got {valve!r}")
-        if not (np.isfinite(delay) and delay >= 0 and sum(delay_split(delay, h)) <= ctx["max_delay"]):
-            raise ValueError(f"delay must be 0..{ctx['max_delay']} control periods of {h!r} s, got {delay!r} s")
-        cfg.friction, cfg.valve = _ptr(arr(friction)), _ptr(arr(valve))
-        (cfg.delay, cfg.delay_frac), cfg.quant_l = delay_split(delay, h), float(quantization_l)
-        cfg.use_kalman = 1 if kalman_gain is not None else 0
-        if kalman_gain is not None:
-            cfg.kf_gain[0], cfg.kf_gain[1] = kalman_gain
-        ref = reference
-        _check_reference_indices(ref, len(dyn.model.neutral_pose))  # the C loop indexes qd[] with them
-        cfg.bias = _ptr(arr(ref.bias))
-        terms = getattr(ref, "terms", ())
-        cfg.n_terms = len(terms)
-        cfg.terms = _ptr(arr(np.array(terms, float).reshape(-1) if terms else np.zeros(1)))
-        cfg.step_axis = getattr(ref, "axis", -1)
-        cfg.step_height = getattr(ref, "height", 0.0)
-        cfg.t_step = getattr(ref, "t_step", 0.0)
+        arrays = self._fill(cfg, ctx, values)
         tables = fn.c_tables()
         cfg.ctrl, cfg.ctrl_arg, cfg.ctrl_res = tables["fn"], tables["arg"], tables["res"]
         cfg.ctrl_iw, cfg.ctrl_w = tables["iw"], tables["w"]
-        for i, s in enumerate(SLOTS):
-            cfg.slot[i] = fn.in_names.index(s) if s in fn.in_names else -1
         n_xc = ctrl.xc.size
-        cfg.n_xc = n_xc
-        lo, hi = ctrl.bounds
-        lo, hi = arr(np.where(np.isfinite(lo), lo, -1e300)), arr(np.where(np.isfinite(hi), hi, 1e300))
-        cfg.xc_lo, cfg.xc_hi = _ptr(lo), _ptr(hi)
         if n_xc:
-            self._step_tables(cfg, ctrl, tables, [arr([h]), lo, hi])
-        cfg.xc_euler = 1 if estimator_update == "euler" else 0
-        cfg.fk_tol, cfg.fk_max_iter = fk_tol, fk_max_iter
+            h = np.array([values["h"]])
+            self._keep.append(h)
+            self._step_tables(cfg, ctrl, tables, [h, arrays["xc_lo"], arrays["xc_hi"]])
         self.cfg = cfg
         self.state = State()
         self.xc = np.zeros(max(n_xc, 1))
         self.state.xc = _ptr(self.xc)
         self._cfg_ref, self._st_ref = C.byref(cfg), C.byref(self.state)
+
+    def _fill(self, cfg, ctx, values) -> dict:
+        """Every field with a source from ``values``, by its C type; returns the arrays the C side reads."""
+        arrays = {}
+        for g in ctx["config"]:
+            for f in g["fields"]:
+                if f["source"] is None:
+                    continue
+                name, ctype, v = f["name"], f["type"], values[f["name"]]
+                if ctype == "double":
+                    setattr(cfg, name, float(v))
+                elif ctype == "long long":
+                    setattr(cfg, name, int(v))
+                elif ctype == "const double*":
+                    arrays[name] = a = np.ascontiguousarray(v, dtype=float).copy()
+                    self._keep.append(a)
+                    setattr(cfg, name, _ptr(a))
+                else:  # fixed-size arrays of the struct itself (double[2], slots)
+                    getattr(cfg, name)[:] = [float(x) if ctype == "double[2]" else int(x) for x in v]
+        return arrays
 
     def _step_tables(self, cfg, ctrl, tables, extra):
         """The semi-implicit step's tables: its arguments are the controller's (the same buffers, which

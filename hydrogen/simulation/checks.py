@@ -98,11 +98,13 @@ def check_fields(sc) -> None:
     name = sc.name
     if not isinstance(name, str) or not name:
         raise ScenarioError(f"scenario name must be a non-empty string, got {_shown(name)}")
-    for f in ("duration", "control_rate", "t_adapt", "valve_lag", "valve_bandwidth_hz", "valve_damping",
-              "noise_l", "noise_p", "quantization_l", "kalman_accel", "metric_start", "delay"):
-        v = getattr(sc, f)
-        if not _is_real(v) or not np.isfinite(v):
-            _fail(name, f, "must be a finite number", v)
+    from .scenarios import settings
+    for f in settings():  # each number's check as its field declares it
+        v = getattr(sc, f.name)
+        if f.metadata["check"] in ("number", ">=0") and (not _is_real(v) or not np.isfinite(v)):
+            _fail(name, f.name, "must be a finite number", v)
+        if f.metadata["check"] == ">=0" and v < 0:
+            _fail(name, f.name, "must be finite and >= 0", v)
     if sc.metric_start < 0:
         _fail(name, "metric_start", "must be >= 0 s", sc.metric_start)
     if isinstance(sc.substeps, (bool, np.bool_)) or not isinstance(sc.substeps, numbers.Integral):

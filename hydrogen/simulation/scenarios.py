@@ -3,7 +3,7 @@ in its description (``[scenarios.<name>]``, over the shared ``[rig]`` table); fo
 they are section V's simulation and section VI's experiments, in simulation."""
 from __future__ import annotations
 
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field, fields, replace
 
 import numpy as np
 
@@ -12,66 +12,72 @@ from ..layout import MAX_DELAY, delay_split
 from .checks import check_fields
 from .reference import MultiSine, Step
 
-__all__ = ["Scenario", "scenario", "scenario_names", "table_keys", "default_scenario_name", "RENAMED"]
+__all__ = ["Scenario", "setting", "settings", "scenario", "scenario_names", "table_keys", "default_scenario_name", "RENAMED"]
 
 #: Scenario fields that were renamed: the old name and what to write instead (named in the error).
 RENAMED = {"delay_periods": "delay (the computation delay in s; one period is 1/control_rate)"}
+
+
+def setting(default, unit: str, meaning: str, check: str | None = None, default_text: str | None = None):
+    """A scenario field that a description's ``[scenarios.<name>]`` or ``[rig]`` table may set, declared
+    once: its default (None: required), unit and meaning (the description table's row, rendered by
+    :func:`hydrogen.schema.description_table`) and its check: ``"number"`` a finite number, ``">=0"``
+    also not negative (None: checked by :meth:`Scenario.validated` itself)."""
+    meta = {"unit": unit, "meaning": meaning, "check": check, "default_text": default_text}
+    return field(metadata=meta) if default is None else field(default=default, metadata=meta)
+
+
+def settings() -> tuple:
+    """The :class:`Scenario` fields a description table may set, in declaration order (dataclass fields)."""
+    return tuple(f for f in fields(Scenario) if "unit" in f.metadata)
 
 
 @dataclass(frozen=True)
 class Scenario:
     """Everything a run needs besides the controller. Units SI.
 
-    control_rate (Hz) with zero-order hold; the command computed from the
-    measurement at t_k is applied from t_k + ``delay`` (s: the computation delay of
-    a real-time target, 0: at once; a fraction of a period switches the valves'
-    command inside the plant's sub-steps; at most 8 periods). The plant takes
-    ``substeps`` RK4 steps per control period. friction = (Coulomb N, viscous
-    N s/m, tanh smoothing speed m/s) per leg. Valve: a second-order servo-valve
-    of natural frequency ``valve_bandwidth_hz`` (Hz, where the spool lags 90°)
-    and damping ``valve_damping`` when the bandwidth is > 0; else a first-order
-    lag ``valve_lag`` (s) when > 0; else ideal. noise_l (m) and noise_p (Pa)
-    are standard deviations of white measurement noise; ``quantization_l`` (m,
-    0: none) is the cylinder-length encoders' resolution (measured lengths are
-    rounded to its grid after the noise). With ``kalman`` the leg rates come
-    from fixed-gain Kalman filters on the measured leg lengths (constant
-    velocity model, white acceleration of spectral density ``kalman_accel``
-    m²/s³; measurement variance noise_l² + quantization_l²/12; steady-state gain
-    from the discrete algebraic Riccati equation).
-    theta0_factor / gamma0_factor scale the true parameters into the initial
-    estimates. Metrics are taken over t ≥ metric_start. ``estimator_update``: the controller state is
-    updated "semi-implicit" (default: from this period's measurement, then the command) or by
-    forward "euler" after the plant step. ``gains`` holds this
-    scenario's tuning per controller, under any gains the caller passes. The platform starts at
-    rest at q_d(0) + q0_offset, its pressures holding it against gravity.
+    Each field a description may set is declared below with its default, unit, meaning and check
+    (:func:`setting`; the description table in the documentation lists them). Two behaviours need
+    more words than a table cell: the command computed from the measurement at t_k is applied from
+    t_k + ``delay`` (a fraction of a period switches the valves' command inside the plant's
+    sub-steps); with ``kalman`` the leg rates come from fixed-gain Kalman filters on the measured leg
+    lengths (constant-velocity model, white acceleration of density ``kalman_accel``, measurement
+    variance noise_l² + quantization_l²/12, steady-state gain from the discrete algebraic Riccati
+    equation). ``gains`` holds this scenario's tuning per controller, under any gains the caller
+    passes. The robot starts at rest at q_d(0) + q0_offset, its pressures holding it against gravity.
     """
 
     name: str
     reference: object
-    duration: float
-    control_rate: float
-    substeps: int
-    t_adapt: float
-    friction: tuple = (0.0, 0.0, 1e-3)
-    valve_lag: float = 0.0
-    valve_bandwidth_hz: float = 0.0
-    valve_damping: float = 0.7
-    delay: float = 0.0     # s
-    quantization_l: float = 0.0
-    noise_l: float = 0.0
-    noise_q: float = 0.0   # joint-encoder noise (rad or m), robots with [sensors] joint_encoders
-    noise_p: float = 0.0
-    kalman: bool = False
-    kalman_accel: float = 50.0
-    theta0_factor: tuple = ()
-    gamma0_factor: tuple = (1.0, 1.0)
-    metric_start: float = 0.0
-    q0_offset: tuple = ()
-    seed: int = 0
+    duration: float = setting(None, "s", "length of the run", "number")
+    control_rate: float = setting(None, "Hz", "control rate, zero-order hold", "number")
+    substeps: int = setting(None, "", "RK4 plant steps per control period")
+    t_adapt: float = setting(None, "s", "adaptation switched on from this time", "number")
+    friction: tuple = setting((0.0, 0.0, 1e-3), "N, N s/m, m/s", "per cylinder: Coulomb, viscous, tanh smoothing speed")
+    valve_lag: float = setting(0.0, "s", "first-order valve lag (0: none); exclusive with valve_bandwidth_hz", ">=0")
+    valve_bandwidth_hz: float = setting(0.0, "Hz", "second-order servo-valve natural frequency (the spool lags 90° "
+                                        "there); 0: none", ">=0")
+    valve_damping: float = setting(0.7, "", "second-order valve damping ratio", "number")
+    delay: float = setting(0.0, "s", "computation delay: the command computed at t_k is applied from t_k + this (0 to "
+                           "8 control periods; a fraction of a period switches the command inside the plant's "
+                           "sub-steps)", "number")
+    quantization_l: float = setting(0.0, "m", "cylinder-length encoder resolution (0: none)", ">=0")
+    noise_l: float = setting(0.0, "m", "std of white cylinder-length noise", ">=0")
+    noise_q: float = setting(0.0, "rad or m", "std of white joint-encoder noise (robots with joint encoders)", ">=0")
+    noise_p: float = setting(0.0, "Pa", "std of white pressure noise", ">=0")
+    kalman: bool = setting(False, "", "cylinder rates from fixed-gain Kalman filters (else exact)")
+    kalman_accel: float = setting(50.0, "m²/s³", "the filter's white-acceleration density", ">=0")
+    theta0_factor: tuple = setting((), "", "initial θ̂ = θ × factor, one per parameter",
+                                   default_text="1 for every parameter")
+    gamma0_factor: tuple = setting((1.0, 1.0), "", "initial [γ̂1, γ̂2] = γ × factor")
+    metric_start: float = setting(0.0, "s", "metrics over t ≥ this (clamped to the run)", "number")
+    q0_offset: tuple = setting((), "m, rad", "start pose offset from q_d(0), one per coordinate",
+                               default_text="0 for every coordinate")
+    seed: int = setting(0, "", "noise seed")
+    estimator_update: str = setting("semi-implicit", "", 'controller state update: "semi-implicit" or "euler"')
     gains: dict = field(default_factory=dict)  # controller name -> gain overrides for this scenario
     label: str = ""        # caption in figures and tables (e.g. the paper's figure it reproduces)
     paper: dict = field(default_factory=dict)  # published max errors (%): {coordinate: [nonlinear, P]}
-    estimator_update: str = "semi-implicit"  # controller state: "semi-implicit" (default) or "euler"
 
     def delay_split(self) -> tuple:
         """The delay as (whole control periods, fraction of a period): :func:`hydrogen.layout.delay_split`."""
@@ -101,9 +107,6 @@ class Scenario:
         fr = np.asarray(self.friction, float)
         need(fr.shape == (3,) and finite(fr) and fr[0] >= 0 and fr[1] >= 0 and fr[2] > 0, "friction",
              "must be (Coulomb >= 0 N, viscous >= 0 N s/m, smoothing speed > 0 m/s)")
-        for f in ("valve_lag", "valve_bandwidth_hz", "noise_l", "noise_q", "noise_p", "quantization_l",
-                  "kalman_accel"):
-            need(finite(getattr(self, f)) and getattr(self, f) >= 0, f, "must be finite and >= 0")
         need(finite(self.valve_damping) and self.valve_damping > 0, "valve_damping", "must be > 0")
         need(finite(self.delay) and self.delay >= 0 and sum(self.delay_split()) <= MAX_DELAY, "delay",
              f"must be 0..{MAX_DELAY} control periods, in s (1/control_rate = {1.0 / self.control_rate!r} s)")
@@ -118,10 +121,11 @@ class Scenario:
         return self
 
 
-_FIELDS = ("duration", "control_rate", "substeps", "t_adapt", "friction", "valve_lag", "valve_bandwidth_hz",
-           "valve_damping", "delay", "quantization_l", "noise_l", "noise_q", "noise_p",
-           "kalman", "kalman_accel", "theta0_factor", "gamma0_factor", "metric_start", "q0_offset", "seed",
-           "estimator_update")
+def _field_names() -> tuple:
+    return tuple(f.name for f in settings())
+
+
+_FIELDS = _field_names()
 #: Keys of a ``[scenarios.<name>]`` table besides the fields: the rig it starts from, its gains per
 #: controller, its reference, caption and published errors.
 _TABLE_KEYS = ("rig", "gains", "reference", "label", "paper")

@@ -349,10 +349,8 @@ def make_runner(dyn, sc, ctrl, x0, q0, kf_gain, h):
     ``x0`` at pose ``q0`` (generalized coordinates), with Kalman gain ``kf_gain`` (or None) and control
     period ``h`` (s)."""
     from ..runtime.loop import LoopRunner
-    runner = LoopRunner(dyn, ctrl, h=h, substeps=sc.substeps, t_adapt=sc.t_adapt, theta=dyn.model.theta,
-                        gamma=dyn.model.gamma, friction=sc.friction, valve=valve_vector(sc),
-                        reference=sc.reference, kalman_gain=kf_gain, delay=sc.delay,
-                        quantization_l=sc.quantization_l, estimator_update=sc.estimator_update)
+    from .loop_config import Run, config_values
+    runner = LoopRunner(dyn, ctrl, config_values(Run(dyn, sc, ctrl, h, kf_gain)))
     runner.reset(x0, q0, dyn.leg_lengths(q0), ctrl.xc)
     return runner
 

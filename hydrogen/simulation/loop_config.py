@@ -1,0 +1,98 @@
+"""The closed loop's configuration values for one run, from the rows of :data:`hydrogen.layout.LOOP_CONFIG`.
+
+Each row names its source: ``scenario.<field>`` is the scenario's field as it is; ``run.<name>`` is
+one of the values :data:`DERIVED` computes here from the run (model, scenario, controller, control
+period, Kalman gain). The runtime's loop (:class:`hydrogen.runtime.loop.LoopRunner`) and the exported
+params.h (:func:`hydrogen.export.export_context`) both take :func:`config_values`, so a value is
+computed once for both. Arrays are never empty (C has no zero-length arrays): an absent reference term
+or controller state is one row of zeros, as its count says.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..layout import LOOP_CONFIG, SLOTS, delay_split
+
+__all__ = ["Run", "DERIVED", "config_values", "FK_TOL", "FK_MAX_ITER"]
+
+#: Forward kinematics (Newton) in the loop: tolerance on the cylinder lengths (m) and iterations.
+FK_TOL, FK_MAX_ITER = 1e-12, 50
+
+
+@dataclass(frozen=True)
+class Run:
+    """What a run's configuration is derived from: the compiled dynamics ``dyn`` (its model), the
+    scenario ``sc``, the controller runtime ``ctrl``, the control period ``h`` (s) and the Kalman gain
+    ``kf_gain`` ([K_l, K_ldot], or None: ideal rate sensors)."""
+    dyn: object
+    sc: object
+    ctrl: object
+    h: float
+    kf_gain: object = None
+
+
+def _valve(run):
+    from .simulator import valve_vector
+    return valve_vector(run.sc)
+
+
+def _bounds(run, i):
+    b = np.asarray(run.ctrl.bounds[i], float)
+    b = np.where(np.isfinite(b), b, -1e300 if i == 0 else 1e300)  # the C loop's "unbounded"
+    return b if b.size else np.zeros(1)
+
+
+def _terms(run):
+    terms = tuple(getattr(run.sc.reference, "terms", ()))
+    return np.array(terms, float).reshape(-1) if terms else np.zeros(3)
+
+
+def _slots(run):
+    names = run.ctrl.fn.in_names
+    return [names.index(s) if s in names else -1 for s in SLOTS]
+
+
+#: Each ``run.<name>`` source: how its value follows from the run.
+DERIVED = {
+    "h": lambda r: float(r.h),
+    "delay_periods": lambda r: delay_split(r.sc.delay, r.h)[0],
+    "delay_fraction": lambda r: delay_split(r.sc.delay, r.h)[1],
+    "theta": lambda r: np.asarray(r.dyn.model.theta, float),
+    "gamma1": lambda r: np.asarray(r.dyn.model.gamma[0], float),
+    "gamma2": lambda r: np.asarray(r.dyn.model.gamma[1], float),
+    "valve": _valve,
+    "use_kalman": lambda r: int(r.kf_gain is not None),
+    "kf_gain": lambda r: np.zeros(2) if r.kf_gain is None else np.asarray(r.kf_gain, float),
+    "bias": lambda r: np.asarray(r.sc.reference.bias, float),
+    "n_terms": lambda r: len(tuple(getattr(r.sc.reference, "terms", ()))),
+    "terms": _terms,
+    "step_axis": lambda r: int(getattr(r.sc.reference, "axis", -1)),
+    "step_height": lambda r: float(getattr(r.sc.reference, "height", 0.0)),
+    "t_step": lambda r: float(getattr(r.sc.reference, "t_step", 0.0)),
+    "slot": _slots,
+    "n_xc": lambda r: int(r.ctrl.xc.size),
+    "xc_lo": lambda r: _bounds(r, 0),
+    "xc_hi": lambda r: _bounds(r, 1),
+    "xc_euler": lambda r: int(r.sc.estimator_update == "euler"),
+    "fk_tol": lambda r: FK_TOL,
+    "fk_max_iter": lambda r: FK_MAX_ITER,
+}
+
+
+def _value(source: str, run: Run):
+    kind, _, name = source.partition(".")
+    if kind == "scenario":
+        value = getattr(run.sc, name)
+        return np.asarray(value, float) if isinstance(value, (tuple, list)) else value
+    if kind == "run" and name in DERIVED:
+        return DERIVED[name](run)
+    raise ValueError(f"hydrogen.layout.LOOP_CONFIG: unknown source '{source}' "
+                     "(scenario.<field> or run.<name> of hydrogen.simulation.loop_config.DERIVED)")
+
+
+def config_values(run: Run) -> dict:
+    """Every configuration field that has a source, by field name: numbers (``double``, ``long long``)
+    or float arrays (``const double*``, ``double[2]``) or a list of ints (``slots``)."""
+    return {name: _value(src, run) for _, fields in LOOP_CONFIG for name, _, _, src in fields if src}
