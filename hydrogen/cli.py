@@ -241,7 +241,7 @@ def _cmd_tune(args, controller=None) -> int:
             raise HydrogenError(f"--min ({lo:g}) must be below --max ({hi:g})")
         grid = np.geomspace(lo, hi, args.n or 25)
     res = tune(controller, grid, model=args.model, max_workers=args.workers, progress=not args.quiet,
-               seeds=args.seeds)
+               seeds=args.seeds, variant=args.variant)
     name = res["main_gain"]
     print(f"{controller} on model {res['model']}: main gain {name}; every point over {len(res['seeds'])} noise "
           f"seeds (stable: on every seed; max err: median [min - max] over the seeds)")
@@ -285,7 +285,7 @@ def _cmd_margins(args) -> int:
     from .simulation.tuning import margins
 
     res = margins(args.controller or None, model=args.model, max_workers=args.workers, progress=not args.quiet,
-                  seeds=args.seeds)
+                  seeds=args.seeds, variant=args.variant)
     n = len(res["seeds"])
     print(f"stability margins on model {res['model']}: factor by which the main gain can grow while stable on "
           f"every one of {n} noise seeds; max error at the robot's gains: median [min - max] over the seeds")
@@ -346,7 +346,8 @@ def build_parser() -> argparse.ArgumentParser:
     from .simulation.seeds import DEFAULT_SEEDS, parse_seeds
     sim = sub.add_parser("simulate", help="run a scenario in closed loop and print its metrics",
                          description="Simulate a scenario of the paper with one controller.")
-    sim.add_argument("--scenario", help="a scenario of the model (default: the model's first)")
+    sim.add_argument("--scenario", help="a scenario of the model, or <scenario>.<variant> for one of its [variants] "
+                     "(default: the model's first)")
     sim.add_argument("--controller", default="adaptive-robust", choices=CONTROLLERS)
     sim.add_argument("--duration", type=_number(float, 0), help="simulated time, s (default: the scenario's)")
     sim.add_argument("--model", help="built-in model name (hydrogen.models()) or TOML file (default: ubc_stewart)")
@@ -404,6 +405,8 @@ def build_parser() -> argparse.ArgumentParser:
         sp.add_argument("--seeds", type=parse_seeds, metavar="N|LIST",
                         help=f"sensor-noise seeds every gain is judged over (stable: on all of them): N for seeds "
                              f"0..N-1 or a list such as 0,3,7 (default: {DEFAULT_SEEDS})")
+        sp.add_argument("--variant", help="the rig scenarios at this [variants.<name>] of the description "
+                                          "(run as <scenario>.<variant>; default: as the scenarios are)")
 
     def tune_args(sp):
         sp.add_argument("--model", help="built-in model name (hydrogen.models()) or TOML file (default: ubc_stewart)")

@@ -265,6 +265,8 @@ class Model:
     figures_nonlinear: str = field(default="adaptive-robust", compare=False)
     gains: dict = field(default_factory=dict, repr=False, compare=False)
     scenarios: dict = field(default_factory=dict, repr=False, compare=False)
+    # [variants.<name>]: scenario fields (and gains) set over any scenario run as "<scenario>.<name>"
+    variants: dict = field(default_factory=dict, repr=False, compare=False)
     source: str = "<memory>"
     urdf: Path | None = None
     raw: dict = field(default=None, repr=False, compare=False)
@@ -1169,10 +1171,13 @@ def model_from_dict(data: dict, source: str = "<memory>", base_dir: Path | None 
     if "rig" in scen:
         raise r.error("[scenarios.rig]", "'rig' is the name of the shared [rig] table: give the scenario another name")
     rig = r.table(data, "rig", required=False)
+    variants = r.table(data, "variants", required=False)
+    for vname in variants:  # joined to a scenario's name with '.', so no '.' of its own
+        r.label(f"[variants.{vname}]", vname)
     model = Model(name=name, gravity=gravity, root=root, links=links, joints=joints, cylinders=cylinders,
                   coordinate_names=tuple(names), neutral_pose=neutral, theta_names=tuple(params),
                   theta_min=tmin, theta_max=tmax, joint_encoders=enc, scale=scale, figures_nonlinear=nonlinear, gains=gains,
-                  scenarios={"rig": rig, **scen}, source=source, urdf=urdf, raw=data, **gb)
+                  scenarios={"rig": rig, **scen}, variants=variants, source=source, urdf=urdf, raw=data, **gb)
     _check_tables(r, model)
     _check_bounds(r, model)
     _check_neutral(r, model)
@@ -1194,6 +1199,15 @@ def _check_tables(r: _Reader, m: Model):
         if not isinstance(table, dict):
             raise r.error(w, f"expected a table, got {_quote(table)}")
         r.known(table, table_keys(), w, RENAMED)
+        gains = table.get("gains", {})
+        if not isinstance(gains, dict):
+            raise r.error(f"{w} gains", f"expected a table of controllers, got {_quote(gains)}")
+        _check_gains(r, gains, f"{w} gains", names)
+    for name, table in m.variants.items():
+        w = f"[variants.{name}]"
+        if not isinstance(table, dict):
+            raise r.error(w, f"expected a table, got {_quote(table)}")
+        r.known(table, table_keys(rig=True) | _keys("[variants.<name>]"), w, RENAMED)
         gains = table.get("gains", {})
         if not isinstance(gains, dict):
             raise r.error(f"{w} gains", f"expected a table of controllers, got {_quote(gains)}")

@@ -11,7 +11,7 @@ from __future__ import annotations
 import dataclasses
 from dataclasses import dataclass
 
-__all__ = ["Key", "REQUIRED", "DESCRIPTION_KEYS", "SCENARIO_TABLE_KEYS", "keys",
+__all__ = ["Key", "REQUIRED", "DESCRIPTION_KEYS", "SCENARIO_TABLE_KEYS", "VARIANT_KEYS", "keys",
            "default", "description_table"]
 
 
@@ -73,6 +73,8 @@ DESCRIPTION_KEYS = (
     Key("top level", "rig", "", "the experiment-like rig: any scenario field (table below), the "
         "start of every scenario with rig = true", default=None, default_text="none"),
     Key("top level", "scenarios", "", "[scenarios.<name>] tables (below)", default=None, default_text="none"),
+    Key("top level", "variants", "", "[variants.<name>] tables: scenario fields set over any scenario run as "
+        "<scenario>.<name> (the rig's timing, say)", default=None, default_text="none"),
     Key("[[links]]", "name", "", "the link's name (letters, digits, single underscores)"),
     Key("[[links]]", "mass", "kg", "mass, > 0"),
     Key("[[links]]", "com", "m", "centre of mass in the link frame", default=[0.0, 0.0, 0.0]),
@@ -135,6 +137,15 @@ DESCRIPTION_KEYS = (
         default="adaptive-robust"),
 )
 
+#: Keys of a [variants.<name>] table besides the scenario fields it sets over every scenario run as
+#: ``<scenario>.<variant>`` (a rig's timing, say).
+VARIANT_KEYS = (
+    Key("[variants.<name>]", "label", "", "what the variant changes, appended to each scenario's caption",
+        default_text="the variant's name"),
+    Key("[variants.<name>]", "gains", "", "gains.<controller> tables: this variant's tuning, over the scenario's",
+        default=None, default_text="none"),
+)
+
 #: Keys of a [scenarios.<name>] table besides the scenario fields.
 SCENARIO_TABLE_KEYS = (
     Key("[scenarios.<name>]", "reference", "m, rad, Hz, s", "sines = [[coordinate, amplitude, Hz], ...] or "
@@ -148,7 +159,7 @@ SCENARIO_TABLE_KEYS = (
 )
 
 _TABLES = {}
-for _k in DESCRIPTION_KEYS + SCENARIO_TABLE_KEYS:
+for _k in DESCRIPTION_KEYS + SCENARIO_TABLE_KEYS + VARIANT_KEYS:
     _TABLES.setdefault(_k.table, {})[_k.key] = _k
 
 
@@ -207,7 +218,7 @@ def description_table() -> str:
     """Markdown: every description key and scenario field with its unit, default and meaning."""
     from .simulation.scenarios import settings
     lines = ["| table | key | unit | default | meaning |", "|---|---|---|---|---|"]
-    for k in DESCRIPTION_KEYS + SCENARIO_TABLE_KEYS:
+    for k in DESCRIPTION_KEYS + SCENARIO_TABLE_KEYS + VARIANT_KEYS:
         shown = k.default_text or ("none" if k.default is None else _toml(k.default))
         lines.append(_row(k.table, k.key, k.unit, shown, k.meaning))
     lines += _actuator_rows()
@@ -215,5 +226,6 @@ def description_table() -> str:
         meta = f.metadata
         shown = meta["default_text"] or ("required (here or in [rig])" if f.default is dataclasses.MISSING
                                          else _toml(f.default))
-        lines.append(_row("[scenarios.<name>], [rig]", f.name, meta["unit"], shown, meta["meaning"]))
+        lines.append(_row("[scenarios.<name>], [rig], [variants.<name>]", f.name, meta["unit"], shown,
+                          meta["meaning"]))
     return "\n".join(lines) + "\n"

@@ -162,10 +162,10 @@ def test_description_table_lists_every_key_the_loader_accepts():
     from hydrogen.simulation.scenarios import _FIELDS
     table = schema.description_table()
     rows = {tuple(c.strip(" `") for c in line.split("|")[1:3]) for line in table.splitlines()[2:]}
-    for k in schema.DESCRIPTION_KEYS + schema.SCENARIO_TABLE_KEYS:
+    for k in schema.DESCRIPTION_KEYS + schema.SCENARIO_TABLE_KEYS + schema.VARIANT_KEYS:
         assert (k.table, k.key) in rows
     for f in _FIELDS:
-        assert ("[scenarios.<name>], [rig]", f) in rows
+        assert ("[scenarios.<name>], [rig], [variants.<name>]", f) in rows
     assert set(HYDRAULIC_KEYS) | {"name", "from", "to", "linkage"} == schema.keys("[[cylinders]]")
 
 

@@ -275,3 +275,73 @@ def test_delay_periods_is_refused_with_its_new_name(dyn, tmp_path):
         hydrogen.load_model(path)
     with pytest.raises(hydrogen.ScenarioError, match="delay_periods is now delay"):
         simulate(dyn, "z-1hz", "p", duration=0.01, delay_periods=1)
+
+
+# --- the rig's variants ([variants.<name>]: the same scenarios at another timing) ----------------------
+
+def _with_variant(tmp_path, table: str):
+    """The Stewart platform's description with one more [variants.*] table."""
+    from hydrogen.model import default_model_path
+    path = tmp_path / "variant.toml"
+    path.write_text(default_model_path().read_text() + "\n" + table + "\n")
+    return path
+
+
+def test_a_variant_sets_its_fields_over_every_scenario_and_its_gains_over_the_scenarios(tmp_path):
+    import dataclasses
+    path = _with_variant(tmp_path, '[variants.slow]\nlabel = "a slow target"\ndelay = 0.00390625\n'
+                                   'gains.backstepping = { Lambda = 12.0 }\n'
+                                   'gains.adaptive-observer = { Ktau = 99.0 }')
+    model = hydrogen.load_model(path)
+    for name in ("z-1hz", "z-step", "paper-sim"):
+        base, var = scenario(name, model), scenario(f"{name}.slow", model)
+        assert var.delay == 0.00390625 and var.name == f"{name}.slow"
+        assert var.label == f"{base.label}, a slow target"
+        same = [f.name for f in dataclasses.fields(Scenario) if f.name not in ("name", "label", "delay", "gains")]
+        assert all(np.array_equal(np.asarray(getattr(base, f), dtype=object), np.asarray(getattr(var, f), dtype=object))
+                   or getattr(base, f) == getattr(var, f) for f in same)
+    assert scenario("z-1hz.slow", model).delay_split() == (2, 0.0)  # two periods at 512 Hz
+    # paper-sim pins its own backstepping gains: the variant's Lambda replaces that one, the rest stays
+    pinned, var = scenario("paper-sim", model).gains, scenario("paper-sim.slow", model).gains
+    assert var["backstepping"] == {**pinned["backstepping"], "Lambda": 12.0}
+    assert var["adaptive-observer"] == {**pinned["adaptive-observer"], "Ktau": 99.0}
+    assert scenario("z-1hz.slow", model).gains == {"backstepping": {"Lambda": 12.0},
+                                                    "adaptive-observer": {"Ktau": 99.0}}
+
+
+def test_the_shipped_paper_timing_runs_and_differs_from_the_full_period(dyn):
+    from hydrogen.simulation.tuning import rig_scenarios
+    assert list(rig_scenarios(dyn.model, "paper-timing")) == ["z-1hz.paper-timing", "z-2hz.paper-timing",
+                                                              "psi-1hz.paper-timing"]
+    full = simulate(dyn, "z-1hz", "backstepping", duration=0.3)
+    fast = simulate(dyn, "z-1hz.paper-timing", "backstepping", duration=0.3)
+    assert fast.scenario.delay == 5e-6 and fast.scenario.delay_split() == (0, pytest.approx(5e-6 * 512))
+    assert fast.scenario_name == "z-1hz.paper-timing"
+    # the paper's timing applies each command within the period it was computed in, not one period later
+    np.testing.assert_array_equal(fast.u_applied, fast.u)
+    assert not np.array_equal(full.u_applied[1:], full.u[1:]) and np.array_equal(full.u_applied[1:], full.u[:-1])
+
+
+@pytest.mark.parametrize("table, where", [
+    ('[variants.slow]\ndelay_periods = 2', "[variants.slow]"),
+    ('[variants.slow]\nbogus = 1', "[variants.slow]"),
+    ('[variants.slow]\ngains.nosuch = { Lambda = 1.0 }', "[variants.slow] gains"),
+    ('[variants."a.b"]\ndelay = 0.0', "[variants.a.b]"),
+])
+def test_a_bad_variant_is_named_at_load(tmp_path, table, where):
+    with pytest.raises(hydrogen.ModelError, match=where.replace("[", r"\[").replace("]", r"\]")):
+        hydrogen.load_model(_with_variant(tmp_path, table))
+
+
+def test_an_unknown_variant_is_one_clear_error(capsys):
+    from hydrogen import cli
+    from hydrogen.simulation.tuning import margins
+    with pytest.raises(hydrogen.ScenarioError, match="unknown variant 'bogus'.*variants: paper-timing"):
+        margins(variant="bogus")
+    with pytest.raises(hydrogen.ScenarioError, match=r"z-1hz.bogus.*variants: paper-timing"):
+        hydrogen.simulate("z-1hz.bogus", "p", duration=0.1)
+    for argv in (["margins", "--variant", "bogus"], ["tune-p", "--variant", "bogus"],
+                 ["simulate", "--scenario", "z-1hz.bogus"]):
+        assert cli.main([*argv, "--quiet"] if argv[0] != "simulate" else argv) == 2
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 1 and "bogus" in err[0], err

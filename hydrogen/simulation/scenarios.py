@@ -12,7 +12,7 @@ from ..layout import MAX_DELAY, delay_split
 from .checks import check_fields
 from .reference import MultiSine, Step
 
-__all__ = ["Scenario", "setting", "settings", "scenario", "scenario_names", "table_keys", "default_scenario_name", "RENAMED"]
+__all__ = ["Scenario", "setting", "settings", "scenario", "scenario_names", "variant_names", "split_variant", "table_keys", "default_scenario_name", "RENAMED"]
 
 #: Scenario fields that were renamed: the old name and what to write instead (named in the error).
 RENAMED = {"delay_periods": "delay (the computation delay in s; one period is 1/control_rate)"}
@@ -174,26 +174,54 @@ def default_scenario_name(model) -> str:
     return names[0]
 
 
+def variant_names(model) -> tuple:
+    """Names of the variants the model's description defines (``[variants.<name>]``)."""
+    return tuple(getattr(model, "variants", None) or {})
+
+
+def split_variant(name: str, model) -> tuple:
+    """``(scenario, variant or None)`` of a scenario name: ``<scenario>.<variant>`` names a variant of
+    the model's description over one of its scenarios."""
+    base, dot, var = name.rpartition(".") if isinstance(name, str) else ("", "", "")
+    if dot and var in variant_names(model) and base in scenario_names(model):
+        return base, var
+    return name, None
+
+
 def scenario(name: str, model) -> Scenario:
     """The named scenario of ``model``'s description (references are offsets from its neutral pose).
 
     A scenario table sets any :class:`Scenario` field; ``rig = true`` starts from the model's
     ``[rig]`` table (the experiment-like rig); ``gains.<controller>`` tunes a controller for it.
+    ``<scenario>.<variant>`` is that scenario with the fields of the description's
+    ``[variants.<variant>]`` table set over its own (the same rig at another timing, say) and the
+    variant's gains over the scenario's; its label names the variant.
     """
     tables = model.scenarios or {}
     names = scenario_names(model)
-    if not isinstance(name, str) or name not in names:
-        raise ScenarioError(f"unknown scenario {name!r} for model '{model.name}'; choose one of {', '.join(names)}")
-    where = f"{model.source}: [scenarios.{name}]"
-    spec = dict(tables[name])
+    base, var = split_variant(name, model)
+    if not isinstance(name, str) or base not in names:
+        shown = ", ".join(names)
+        if variant_names(model):
+            shown += f" (each also as <scenario>.<variant>, variants: {', '.join(variant_names(model))})"
+        raise ScenarioError(f"unknown scenario {name!r} for model '{model.name}'; choose one of {shown}")
+    where = f"{model.source}: [scenarios.{base}]"
+    spec = dict(tables[base])
     fields = {}
     if spec.pop("rig", False):
         fields.update(tables.get("rig") or {})
-    gains = spec.pop("gains", {})
+    gains = {c: dict(g) for c, g in spec.pop("gains", {}).items()}
     ref = spec.pop("reference", None)
-    label = spec.pop("label", name)
+    label = spec.pop("label", base)
     paper = spec.pop("paper", {})
     fields.update(spec)
+    if var is not None:
+        vspec = dict(model.variants[var])
+        for c, g in vspec.pop("gains", {}).items():
+            gains[c] = {**gains.get(c, {}), **g}
+        label = f"{label}, {vspec.pop('label', var)}"
+        fields.update(vspec)
+        where = f"{model.source}: [scenarios.{base}] with [variants.{var}]"
     unknown = set(fields) - table_keys(rig=True)
     if unknown:
         raise ScenarioError(f"{where}: unknown field(s) {sorted(unknown)}; fields: {sorted(_FIELDS)}")
@@ -207,7 +235,7 @@ def scenario(name: str, model) -> Scenario:
     fields.setdefault("q0_offset", (0.0,) * n)
     neutral = np.asarray(model.neutral_pose, float)
     try:
-        sc = Scenario(name=name, reference=_reference(model, where, ref, neutral), gains=dict(gains),
+        sc = Scenario(name=name, reference=_reference(model, where, ref, neutral), gains=gains,
                       label=str(label), paper=dict(paper), **fields)
     except TypeError as exc:
         raise ScenarioError(f"{where}: {exc}") from None

@@ -75,12 +75,17 @@ def _load(model):
     return model if isinstance(model, hydrogen.Model) else hydrogen.load_model(model)
 
 
-def rig_scenarios(model=None) -> dict:
-    """{scenario name: (moving coordinate names)} for the rig scenarios with a periodic reference."""
+def rig_scenarios(model=None, variant: str | None = None) -> dict:
+    """{scenario name: (moving coordinate names)} for the rig scenarios with a periodic reference;
+    with ``variant`` (a ``[variants.<name>]`` of the description), each as ``<scenario>.<variant>``."""
+    from ..errors import ScenarioError
     from .reference import MultiSine
-    from .scenarios import scenario, scenario_names
+    from .scenarios import scenario, scenario_names, variant_names
 
     model = _load(model)
+    if variant is not None and variant not in variant_names(model):
+        known = ", ".join(variant_names(model)) or "none: add [variants.<name>] tables to its description"
+        raise ScenarioError(f"unknown variant {variant!r} for model '{model.name}'; variants: {known}")
     out = {}
     for name in scenario_names(model):
         if not (model.scenarios[name] or {}).get("rig"):
@@ -90,7 +95,7 @@ def rig_scenarios(model=None) -> dict:
             amp = sc.reference.amplitude()
             moving = tuple(c for c, a in zip(model.coordinate_names, amp) if a > 0)
             if moving:  # every amplitude 0: nothing to judge the tracking of
-                out[name] = moving
+                out[name if variant is None else f"{name}.{variant}"] = moving
     return out
 
 
@@ -104,13 +109,13 @@ def _why_not_rig(model, name) -> str:
     return f"reference.{kind}, not reference.sines" if kind != "sines" else "every amplitude 0"
 
 
-def require_rig_scenarios(model, what: str = "tuning") -> dict:
-    """:func:`rig_scenarios` of ``model``; a :class:`~hydrogen.errors.ScenarioError` saying what to add
-    to the description when it has none (``what``: the command, for the message)."""
+def require_rig_scenarios(model, what: str = "tuning", variant: str | None = None) -> dict:
+    """:func:`rig_scenarios` of ``model`` (at ``variant``); a :class:`~hydrogen.errors.ScenarioError`
+    saying what to add to the description when it has none (``what``: the command, for the message)."""
     from ..errors import ScenarioError
     from .scenarios import scenario_names
 
-    found = rig_scenarios(model)
+    found = rig_scenarios(model, variant)
     if found:
         return found
     names = scenario_names(model)
@@ -235,13 +240,14 @@ def secondary_grid(dyn, controller) -> dict:
 
 
 def tune(controller, grid=None, *, model=None, scenarios=None, secondary=None, executor=None,
-         max_workers=None, progress: bool = False, seeds=None) -> dict:
+         max_workers=None, progress: bool = False, seeds=None, variant: str | None = None) -> dict:
     """The documented search for ``controller`` on ``model``'s rig scenarios (module doc).
 
     ``grid``: main-gain values (default :func:`default_grid`); ``secondary``: {gain: values} searched
     alongside it (default :func:`secondary_grid`; the margin rule applies along the main gain for each
     of its values); ``seeds``: the noise seeds every point is judged over (a count N: 0..N-1, or a
-    list; default :data:`SEEDS`). Returns {"controller", "main_gain", "grid", "seeds", "table": [row
+    list; default :data:`SEEDS`); ``variant``: the rig scenarios at that variant of the description
+    (``<scenario>.<variant>``). Returns {"controller", "main_gain", "grid", "seeds", "table": [row
     per scenario, secondary value and gain: "max_error_pct" the median over the seeds of the worst
     moving coordinate's max error %, "max_error_range" [min, max], "errors" {coordinate: {median, min,
     max}}, "unstable_seeds"], "best": g or None, "best_gains": the gains dict at the tuned point,
@@ -258,7 +264,7 @@ def tune(controller, grid=None, *, model=None, scenarios=None, secondary=None, e
     model = _load(model)
     if executor is None:
         check_workers(max_workers)
-    scen = dict(scenarios) if scenarios else require_rig_scenarios(model, f"tune --controller {controller}")
+    scen = dict(scenarios) if scenarios else require_rig_scenarios(model, f"tune --controller {controller}", variant)
     seeds = seed_list(DEFAULT_SEEDS if seeds is None else seeds)
     dyn = hydrogen.build(model)
     grid = np.sort(np.asarray(default_grid(controller) if grid is None else grid, float))
@@ -331,18 +337,18 @@ def tune(controller, grid=None, *, model=None, scenarios=None, secondary=None, e
 
 
 def tune_p(gains=None, scenarios=None, *, executor=None, max_workers=None, model=None,
-           progress: bool = False, seeds=None) -> dict:
+           progress: bool = False, seeds=None, variant: str | None = None) -> dict:
     """:func:`tune` for the baseline P controller (its rows also carry its main gain)."""
     from ..controllers import baseline
     return tune(baseline(), gains, model=model, scenarios=scenarios, executor=executor, max_workers=max_workers,
-                progress=progress, seeds=seeds)
+                progress=progress, seeds=seeds, variant=variant)
 
 
 def margins(controllers=None, *, model=None, scenarios=None, executor=None, max_workers=None,
-            progress: bool = False, seeds=None) -> dict:
+            progress: bool = False, seeds=None, variant: str | None = None) -> dict:
     """Stability margin of each controller's main gain on each rig scenario (module doc), from the
     robot's gains, judged over ``seeds`` (a count N: 0..N-1, or a list; default :data:`SEEDS`): a
-    factor is stable only when every seed's run is. Returns {"model", "seeds", "rows": [{controller,
+    factor is stable only when every seed's run is; ``variant``: as :func:`tune`. Returns {"model", "seeds", "rows": [{controller,
     scenario, main_gain, gain, margin, margin_capped, limit_reason, errors: {moving coordinate:
     {median, min, max} of the max error % at the robot's gains}, median_seed, unstable_seeds: the
     seeds unstable at the first unstable factor}]}; ``margin`` is the largest factor found stable
@@ -354,7 +360,7 @@ def margins(controllers=None, *, model=None, scenarios=None, executor=None, max_
     model = _load(model)
     if executor is None:
         check_workers(max_workers)
-    scen = list(scenarios) if scenarios else list(require_rig_scenarios(model, "margins"))
+    scen = list(scenarios) if scenarios else list(require_rig_scenarios(model, "margins", variant))
     seeds = seed_list(DEFAULT_SEEDS if seeds is None else seeds)
     dyn = hydrogen.build(model)
     cases = [(c, s) for c in (controllers or CONTROLLERS) for s in scen]
