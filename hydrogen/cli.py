@@ -245,11 +245,12 @@ def _cmd_tune(args, controller=None) -> int:
     name = res["main_gain"]
     print(f"{controller} on model {res['model']}: main gain {name}; every point over {len(res['seeds'])} noise "
           f"seeds (stable: on every seed; max err: median [min - max] over the seeds)")
-    sec = list(res["secondary"])
+    sec = list(res["secondary"]) + list(res["adaptation"])
     print(f"{'scenario':12} {name:>9} " + "".join(f"{k:>8} " for k in sec) + f"{'max err %':>10} {'range %':>15} "
           f"{'hf err %':>9} {'sat':>6}  stable")
     for r in res["table"]:
-        head = f"{r['scenario']:12} {r['gain']:9.4g} " + "".join(f"{r[k]:8.4g} " for k in sec)
+        head = f"{r['scenario']:12} {r['gain']:9.4g} " + "".join(
+            f"{r[k]:8.4g} " if k in r else f"{'':8} " for k in sec)
         if "max_error_pct" in r:
             lo, hi = r["max_error_range"]
             print(head + f"{r['max_error_pct']:10.2f} {f'[{lo:.2f} - {hi:.2f}]':>15} {100 * r['hf_error']:9.3f} "

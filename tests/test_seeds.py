@@ -157,6 +157,25 @@ def test_tune_calls_a_gain_unstable_when_one_seed_fails(short_model):
     assert all(r["stable"] for r in clean["table"]) and clean["largest_stable"] == 0.04
 
 
+def test_tune_second_stage_keeps_the_adaptation_gain_that_tracks(short_model):
+    """The second stage tries an adaptation gain over the main grid and keeps it only where it wins:
+    every run but those at K_o = 300 diverges on one seed, so 300 must be chosen; when the runs at
+    300 diverge instead, the robot's K_o stays."""
+    scen, grid = {"z-1hz": ("z",)}, [5.0, 10.0, 20.0]
+    kw = dict(model=short_model, scenarios=scen, seeds=2, secondary={}, adaptation={"Ko": [300.0]})
+    with FailingSeed(seed=0, when=lambda g: g.get("Ko") != 300.0) as ex:
+        res = tune("adaptive-robust", grid, executor=ex, **kw)
+    assert res["adaptation"] == {"Ko": [300.0]} and res["best_secondary"] == {"Ko": 300.0}
+    assert res["best_gains"]["Ko"] == 300.0 and res["best"] in grid
+    tried = [r for r in res["table"] if r.get("Ko") == 300.0]
+    assert sorted(r["gain"] for r in tried) == grid
+    assert res["best_errors"]["z-1hz"] == next(r["max_error_pct"] for r in tried if r["gain"] == res["best"])
+    with FailingSeed(seed=0, when=lambda g: g.get("Ko") == 300.0) as ex:
+        kept = tune("adaptive-robust", grid, executor=ex, **kw)
+    assert kept["best"] is not None and "Ko" not in kept["best_secondary"]
+    assert "Ko" not in kept["best_gains"]  # the run uses the robot's own K_o
+
+
 def test_tune_and_margins_default_to_the_documented_seeds(short_model):
     assert SEEDS == DEFAULT_SEEDS >= 10
     with FailingSeed(seed=None, when=lambda g: False) as ex:

@@ -3,11 +3,11 @@ from __future__ import annotations
 
 import numpy as np
 
-from .common import adaptation_gains, composite_layout, composite_static_inputs, model_gains
+from .common import ADAPTATION_SEARCH, adaptation_gains, composite_layout, composite_static_inputs, model_gains
 from .spec import ControllerSpec
 
 SPEC = ControllerSpec(name="adaptive-observer", doc="Theorem 2: adaptive controller, adaptive observer.",
-                      main_gain="Lambda", grid_low=5.0)
+                      main_gain="Lambda", grid_low=5.0, adaptation_search=ADAPTATION_SEARCH)
 NAME, DOC = SPEC.name, SPEC.doc
 
 

@@ -16,11 +16,14 @@ from __future__ import annotations
 
 import numpy as np
 
-from .common import adaptation_gains, composite_layout, composite_static_inputs, model_gains
+from .common import ADAPTATION_SEARCH, adaptation_gains, composite_layout, composite_static_inputs, model_gains
 from .spec import ControllerSpec
 
 SPEC = ControllerSpec(name="adaptive-robust", doc="Theorem 3: adaptive controller, robust sliding observer.",
-                      main_gain="Lambda", grid_low=5.0)
+                      main_gain="Lambda", grid_low=5.0,
+                      # K_o first: it caps Λ (NaN: from Λ and K_d, complete_gains)
+                      adaptation_search=(("Ko", "=", (float("nan"), 30.0, 100.0, 300.0, 1000.0)),
+                                         *ADAPTATION_SEARCH))
 NAME, DOC = SPEC.name, SPEC.doc
 
 

@@ -5,10 +5,20 @@ import numpy as np
 
 __all__ = ["model_gains", "check_coupling_gains", "adaptation_gains", "RAW_ADAPTATION_GAINS", "adaptation_references",
            "normalised_adaptation", "composite_layout", "composite_static_inputs", "initial_gain_matrix",
-           "COMPOSITE_BLOCKS", "COMPOSITE_GAIN_BLOCKS", "COMPOSITE_RATES", "gain_block_shape", "lean_variant", "runs_lean"]
+           "COMPOSITE_BLOCKS", "COMPOSITE_GAIN_BLOCKS", "COMPOSITE_RATES", "ADAPTATION_SEARCH", "gain_block_shape", "lean_variant", "runs_lean"]
 
 #: The composite law's weights (1/s), one per family: all 0 is the paper's gradient law.
 COMPOSITE_RATES = ("rate_ls_gamma", "rate_ls_theta")
+
+#: The adaptation gains the documented search's second stage tries, one at a time, after the main
+#: gain (``ControllerSpec.adaptation_search``): the composite weights (1/s) at absolute values (0 is
+#: the paper's law; below 1/h of a 512 Hz loop), the normalised rates (1/J, robot-dependent) as
+#: factors of the robot's own ("x"): each stage keeps the value with the smallest worst-case error.
+ADAPTATION_SEARCH = (("rate_ls_gamma", "=", (0.0, 30.0, 100.0, 300.0)),
+                     ("rate_ls_theta", "=", (0.0, 5.0, 20.0, 80.0)),
+                     ("rate_theta", "x", (0.25, 1.0, 4.0)),
+                     ("rate_gamma1", "x", (0.25, 1.0, 4.0)),
+                     ("rate_gamma2", "x", (0.25, 1.0, 4.0)))
 
 #: The state blocks of :func:`composite_layout`, in order.
 COMPOSITE_BLOCKS = ("force_filter", "log_chamber_filter", "g0_filter", "pc_prev", "legl_prev", "gamma_gain",

@@ -39,6 +39,11 @@ class ControllerSpec:
     search_description_proportions : bool
         The search scales the main gain as the robot's description gives it (per-axis proportions a
         robot chooses), not the controller's uniform defaults.
+    adaptation_search : tuple
+        ``((gain, how, values), ...)``: the gains the search's second stage tries one at a time, at
+        the point the main and secondary search chose (adaptation rates, observer gains), each over
+        its values: ``how`` "=" values in the gain's own unit (NaN: the controller's rule for it),
+        "x" factors of the robot's own value. Empty: no second stage.
     """
 
     name: str
@@ -51,3 +56,4 @@ class ControllerSpec:
     baseline: bool = False
     compared: bool = False
     search_description_proportions: bool = False
+    adaptation_search: tuple = ()

@@ -57,7 +57,7 @@ import numpy as np
 from .seeds import DEFAULT_SEEDS, seed_list
 
 __all__ = ["tune", "tune_p", "margins", "rig_scenarios", "require_rig_scenarios", "family", "main_gain",
-           "default_grid", "secondary_grid", "judge_seeds",
+           "default_grid", "secondary_grid", "adaptation_grid", "judge_seeds",
            "SATURATION", "OSCILLATION", "HF_FLOOR", "HF_CAP", "SEEDS"]
 
 SATURATION = 0.01    # largest fraction of periods with a saturated valve
@@ -239,13 +239,16 @@ def secondary_grid(dyn, controller) -> dict:
     return {"Kd_scale": [0.125, 0.25, 0.5, 1.0, 2.0], "Ktau": [k0 * f for f in (0.25, 0.5, 1.0)]}
 
 
-def tune(controller, grid=None, *, model=None, scenarios=None, secondary=None, executor=None,
-         max_workers=None, progress: bool = False, seeds=None, variant: str | None = None) -> dict:
+def tune(controller, grid=None, *, model=None, scenarios=None, secondary=None, adaptation=None,
+         executor=None, max_workers=None, progress: bool = False, seeds=None,
+         variant: str | None = None) -> dict:
     """The documented search for ``controller`` on ``model``'s rig scenarios (module doc).
 
     ``grid``: main-gain values (default :func:`default_grid`); ``secondary``: {gain: values} searched
     alongside it (default :func:`secondary_grid`; the margin rule applies along the main gain for each
-    of its values); ``seeds``: the noise seeds every point is judged over (a count N: 0..N-1, or a
+    of its values); ``adaptation``: {gain: values} of the second stage, tried one gain at a time at
+    the chosen point, each over the whole main grid (default :func:`adaptation_grid`, the
+    controller's spec; ``{}``: none); ``seeds``: the noise seeds every point is judged over (a count N: 0..N-1, or a
     list; default :data:`SEEDS`); ``variant``: the rig scenarios at that variant of the description
     (``<scenario>.<variant>``). Returns {"controller", "main_gain", "grid", "seeds", "table": [row
     per scenario, secondary value and gain: "max_error_pct" the median over the seeds of the worst
@@ -270,70 +273,121 @@ def tune(controller, grid=None, *, model=None, scenarios=None, secondary=None, e
     grid = np.sort(np.asarray(default_grid(controller) if grid is None else grid, float))
     sec = secondary_grid(dyn, controller) if secondary is None else dict(secondary)
     sec_points = [dict(zip(sec, v)) for v in itertools.product(*sec.values())] or [{}]
+    own = _own_gains(dyn, controller, next(iter(scen)), model)
+    stages = adaptation_grid(dyn, controller, own) if adaptation is None else \
+        [(k, [float(v) for v in vs]) for k, vs in dict(adaptation).items()]
+    name = main_gain(controller)
+    gs = list(map(float, grid))
 
     def gains(g, extra):
         out = family(dyn, controller, g)
         out.update(_secondary(dyn, controller, extra))
         return out
 
-    runs = [dict(scenario=s, controller=controller, gains=gains(g, x))
-            for x in sec_points for s in scen for g in grid]
-    out = iter(sweep(runs, executor=executor, max_workers=max_workers, model=model, progress=progress,
-                     seeds=seeds))
-    name = main_gain(controller)
-    gs = list(map(float, grid))
-    table, candidates, fallback = [], [], []
-    for j, x in enumerate(sec_points):
-        ok, worst = {g: True for g in gs}, {g: 0.0 for g in gs}
-        bounded = {g: True for g in gs}
-        for s, moving in scen.items():
-            hf_min = [np.inf] * len(seeds)  # per seed: its smallest value at any gain up to g
-            for g in gs:
-                m = next(out)
-                per = m["per_seed"]
-                hf_min = [h if "error" in r else min(h, _hf(r)) for h, r in zip(hf_min, per)]
-                stable, reason, unstable = judge_seeds(m, hf_min)
-                row = {"scenario": s, name: g, "gain": g, **x, "stable": stable, "reason": reason,
-                       "unstable_seeds": unstable}
-                done = [r for r in per if "error" not in r]
-                if done:
-                    w = _spread([_worst(r, moving) for r in done])
-                    row.update(max_error_pct=w["median"], max_error_range=[w["min"], w["max"]],
-                               hf_error=float(np.median([_hf(r) for r in done])),
-                               saturation=max(r["u_saturation_frac"] for r in done),
-                               errors={c: _spread([r["max_error_pct"][c] for r in done]) for c in moving})
-                if len(done) == len(per):
-                    worst[g] = max(worst[g], row["max_error_pct"])
-                    bounded[g] = bounded[g] and row["saturation"] <= SATURATION
-                else:  # a seed diverged: no error to rank this point by
-                    worst[g] = np.inf
-                    bounded[g] = False
-                ok[g] = ok[g] and stable
-                table.append(row)
-        for g in gs:
-            if 2 * g <= gs[-1] * (1 + 1e-9) and all(ok[h] for h in gs if g <= h <= 2 * g * (1 + 1e-9)):
-                candidates.append((worst[g], -g, j, g))
-        fallback += [(worst[g], -g, j, g) for g in gs if bounded[g]]
-        largest = max((g for g in gs if ok[g]), default=None)
-        sec_points[j] = (x, largest)
-    margin_ok = bool(candidates)
-    pick = min(candidates) if candidates else (min(fallback) if fallback else None)
-    if pick is not None:
-        _, _, j, best = pick
-        x, largest = sec_points[j]
-    else:
-        best, x, largest = None, {}, None
+    table = []
+
+    def search(points):
+        """Every point over the main grid: per point (key, g, point, largest), key ranking its best g."""
+        runs = [dict(scenario=s, controller=controller, gains=gains(g, x))
+                for x in points for s in scen for g in grid]
+        out = iter(sweep(runs, executor=executor, max_workers=max_workers, model=model, progress=progress,
+                         seeds=seeds))
+        picks = []
+        for x in points:
+            ok, worst, bounded = _judge_point(out, scen, gs, seeds, name, x, table)
+            admissible = [(worst[g], -g, g) for g in gs if 2 * g <= gs[-1] * (1 + 1e-9)
+                          and all(ok[h] for h in gs if g <= h <= 2 * g * (1 + 1e-9))]
+            fallback = [(worst[g], -g, g) for g in gs if bounded[g]]
+            largest = max((g for g in gs if ok[g]), default=None)
+            # A point with a margin of 2 beats every point without one; then the smaller error.
+            best = (0, *min(admissible)) if admissible else ((1, *min(fallback)) if fallback else None)
+            if best is not None:
+                picks.append(((best[0], best[1], best[2]), best[3], x, largest))
+        return picks
+
+    picks = search(sec_points)
+    pick = min(picks, key=lambda p: p[0]) if picks else None
+    searched = {}
+    for k, values in stages:  # the second stage: one adaptation gain at a time, the rest kept
+        at = pick[2] if pick is not None else sec_points[0]
+        now = at.get(k, float(np.mean(own[k])))
+        searched[k] = list(values)
+        found = search([{**at, k: v} for v in values if not _same(v, now)])
+        if found and (pick is None or min(found, key=lambda p: p[0])[0] < pick[0]):
+            pick = min(found, key=lambda p: p[0])
+    margin_ok = pick is not None and pick[0][0] == 0
+    best, x, largest = (pick[1], pick[2], pick[3]) if pick is not None else (None, {}, None)
+    here = [r for r in table if best is not None and r["gain"] == best and _at(r, x)]
     return {
         "controller": controller, "model": model.name, "main_gain": name, "grid": gs, "secondary": sec,
-        "seeds": seeds,
+        "adaptation": searched, "seeds": seeds,
         "table": table, "best": best, "best_secondary": x, "margin_ok": margin_ok,
         "best_gains": gains(best, x) if best is not None else None,
-        "best_errors": {r["scenario"]: r.get("max_error_pct") for r in table
-                        if r["gain"] == best and all(r.get(k) == v for k, v in x.items())},
-        "best_error_ranges": {r["scenario"]: r.get("max_error_range") for r in table
-                              if r["gain"] == best and all(r.get(k) == v for k, v in x.items())},
+        "best_errors": {r["scenario"]: r.get("max_error_pct") for r in here},
+        "best_error_ranges": {r["scenario"]: r.get("max_error_range") for r in here},
         "largest_stable": largest,
     }
+
+
+def _same(a, b) -> bool:
+    a, b = float(a), float(b)
+    return (np.isnan(a) and np.isnan(b)) or a == b
+
+
+def _at(row, point) -> bool:
+    """Whether a table row was run at the secondary/adaptation ``point``, and at nothing else."""
+    return all(_same(row.get(k, np.nan), v) for k, v in point.items()) and \
+        all(k in point for k in row.get("searched", ()))
+
+
+def _judge_point(out, scen, gs, seeds, name, x, table):
+    """Judge one secondary point's runs (the next of ``out``, scenario by scenario along the grid),
+    appending a row per scenario and gain to ``table``; ({g: stable}, {g: worst error}, {g: bounded})."""
+    ok, worst = {g: True for g in gs}, {g: 0.0 for g in gs}
+    bounded = {g: True for g in gs}
+    for s, moving in scen.items():
+        hf_min = [np.inf] * len(seeds)  # per seed: its smallest value at any gain up to g
+        for g in gs:
+            m = next(out)
+            per = m["per_seed"]
+            hf_min = [h if "error" in r else min(h, _hf(r)) for h, r in zip(hf_min, per)]
+            stable, reason, unstable = judge_seeds(m, hf_min)
+            row = {"scenario": s, name: g, "gain": g, **x, "searched": tuple(x), "stable": stable,
+                   "reason": reason, "unstable_seeds": unstable}
+            done = [r for r in per if "error" not in r]
+            if done:
+                w = _spread([_worst(r, moving) for r in done])
+                row.update(max_error_pct=w["median"], max_error_range=[w["min"], w["max"]],
+                           hf_error=float(np.median([_hf(r) for r in done])),
+                           saturation=max(r["u_saturation_frac"] for r in done),
+                           errors={c: _spread([r["max_error_pct"][c] for r in done]) for c in moving})
+            if len(done) == len(per):
+                worst[g] = max(worst[g], row["max_error_pct"])
+                bounded[g] = bounded[g] and row["saturation"] <= SATURATION
+            else:  # a seed diverged: no error to rank this point by
+                worst[g] = np.inf
+                bounded[g] = False
+            ok[g] = ok[g] and stable
+            table.append(row)
+    return ok, worst, bounded
+
+
+def _own_gains(dyn, controller, scenario_name, model) -> dict:
+    """The gains a run of ``scenario_name`` uses where the search sets none: the robot's, under the
+    scenario's own (a variant's)."""
+    from .scenarios import scenario
+    own = _base_gains(dyn, controller, robot=True)
+    own.update(scenario(scenario_name, model).gains.get(controller, {}))
+    return own
+
+
+def adaptation_grid(dyn, controller, own=None) -> list:
+    """The second stage's [(gain, values)] for ``controller`` (its spec's ``adaptation_search``), the
+    factors ("x") made values from ``own`` (default: the robot's gains), the gain the runs use."""
+    from ..controllers import spec
+    own = _base_gains(dyn, controller, robot=True) if own is None else own
+    return [(k, [float(np.mean(own[k])) * f for f in values] if how == "x" else [float(v) for v in values])
+            for k, how, values in spec(controller).adaptation_search]
 
 
 def tune_p(gains=None, scenarios=None, *, executor=None, max_workers=None, model=None,
