@@ -1,7 +1,9 @@
-"""The rig results as distributions: for each shipped robot, rig scenario and controller, at the
-robot's stored gains, the max tracking error (% of the reference amplitude) over noise seeds
+"""The rig results as distributions: for each shipped robot, rig scenario (and each of its
+``[variants]``: ``<scenario>.<variant>``) and controller, at the gains the scenario runs with, the max tracking error (% of the reference amplitude) over noise seeds
 0..N-1 (median, min, max, the median run's seed) and the stability margin of the main gain judged
-over all of them (``hydrogen.simulation.tuning.margins``: stable only when every seed is).
+over all of them (``hydrogen.simulation.tuning.margins``: stable only when every seed is), and
+the adaptive controllers' final estimate errors (median over the seeds; estimates ending at a
+projection bound named).
 
 Writes ``docs/rig_seeds.json`` (atomically) and prints the table as Markdown.
 
@@ -18,6 +20,7 @@ from pathlib import Path
 
 import hydrogen
 from hydrogen.fileio import atomic_write
+from hydrogen.simulation.scenarios import variant_names
 from hydrogen.simulation.seeds import DEFAULT_SEEDS, parse_seeds, seed_list
 from hydrogen.simulation.tuning import margins
 
@@ -31,12 +34,15 @@ def collect(seeds, workers=None, models=None) -> dict:
     out = {"seeds": seed_list(seeds), "margin_required": MARGIN_REQUIRED, "models": {}}
     for name in models or hydrogen.models():
         start = time.perf_counter()
-        res = margins(model=name, seeds=seeds, max_workers=workers)
-        rows = [{"scenario": r["scenario"], "controller": r["controller"], "main_gain": r["main_gain"],
-                 "gain": r["gain"], "max_error_pct": r["errors"], "median_seed": r["median_seed"],
-                 "margin": r["margin"], "margin_capped": r["margin_capped"],
-                 "margin_ok": r["margin"] >= MARGIN_REQUIRED, "limit_reason": r["limit_reason"],
-                 "unstable_seeds_at_limit": r["unstable_seeds"]} for r in res["rows"]]
+        rows = []
+        for variant in (None, *variant_names(hydrogen.load_model(name))):
+            res = margins(model=name, seeds=seeds, max_workers=workers, variant=variant)
+            rows += [{"scenario": r["scenario"], "controller": r["controller"], "main_gain": r["main_gain"],
+                      "gain": r["gain"], "max_error_pct": r["errors"], "median_seed": r["median_seed"],
+                      "margin": r["margin"], "margin_capped": r["margin_capped"],
+                      "margin_ok": r["margin"] >= MARGIN_REQUIRED, "limit_reason": r["limit_reason"],
+                      "unstable_seeds_at_limit": r["unstable_seeds"], "estimates": r.get("estimates")}
+                     for r in res["rows"]]
         out["models"][name] = {"rows": rows, "wall_s": time.perf_counter() - start}
     return out
 
@@ -50,17 +56,23 @@ def markdown(data) -> str:
              "run within seconds), so a result is the median and range over seeds, and a gain is stable only "
              "if the stability judge passes on every seed.", "",
              f"Max tracking error (% of amplitude) at the stored gains over {n} noise seeds: median "
-             f"[min - max]; margin of the main gain judged over all {n} seeds.", "",
+             f"[min - max]; margin of the main gain judged over all {n} seeds; the adaptive controllers' final "
+             "estimate errors, the median over the seeds of the largest |θ̂ − θ|/|θ| and |γ̂ − γ|/γ (%), "
+             "and the estimates that end a run at a projection bound.", "",
              "| robot | scenario | controller | max error % median [range] | median seed | margin | "
-             f"margin >= {data['margin_required']:g} | limited by |",
-             "|---|---|---|---|---:|---:|---|---|"]
+             f"margin >= {data['margin_required']:g} | limited by | estimates θ̃ / γ̃ % | at a bound |",
+             "|---|---|---|---|---:|---:|---|---|---|---|"]
     for model, d in data["models"].items():
         for r in d["rows"]:
             err = ", ".join(f"{c} {e['median']:.1f} [{e['min']:.1f} - {e['max']:.1f}]"
                             for c, e in r["max_error_pct"].items()) or "-"
             m = f">= {r['margin']:.3g}" if r["margin_capped"] else f"{r['margin']:.3g}"
+            est = r.get("estimates")
+            e = f"{est['theta_error_pct']:.1f} / {est['gamma_error_pct']:.1f}" if est else "-"
+            bound = (", ".join(est["at_bound"][:4]) + (f" (+{len(est['at_bound']) - 4})" if len(est["at_bound"]) > 4
+                                                       else "") or "none") if est else "-"
             lines.append(f"| {model} | {r['scenario']} | {r['controller']} | {err} | {r['median_seed']} | {m} | "
-                         f"{'yes' if r['margin_ok'] else 'no'} | {r['limit_reason'] or '-'} |")
+                         f"{'yes' if r['margin_ok'] else 'no'} | {r['limit_reason'] or '-'} | {e} | {bound} |")
     return "\n".join(lines) + "\n"
 
 

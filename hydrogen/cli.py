@@ -298,6 +298,14 @@ def _cmd_margins(args) -> int:
         err = ", ".join(f"{c} {e['median']:.1f} [{e['min']:.1f} - {e['max']:.1f}]" for c, e in r["errors"].items())
         print(f"| {r['controller']} | {r['scenario']} | {r['main_gain']} | {r['gain']:.4g} | {err or '-'} | {m} | "
               f"{r['limit_reason'] or '-'} |")
+    ends = [r for r in res["rows"] if r.get("estimates")]
+    if ends:
+        print("final estimate errors at the robot's gains (median over the seeds of the largest, % of the true "
+              "value) and estimates that end a run at a projection bound:")
+        for r in ends:
+            e = r["estimates"]
+            print(f"  {r['controller']} {r['scenario']}: theta {e['theta_error_pct']:.1f} %, gamma "
+                  f"{e['gamma_error_pct']:.1f} %; at a bound: {', '.join(e['at_bound']) or 'none'}")
     return 0
 
 

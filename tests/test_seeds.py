@@ -176,6 +176,39 @@ def test_tune_second_stage_keeps_the_adaptation_gain_that_tracks(short_model):
     assert "Ko" not in kept["best_gains"]  # the run uses the robot's own K_o
 
 
+def test_margin_starts_from_the_gains_the_scenario_pins(short_model):
+    """A scenario's own gains (a variant's) are where its margin starts, not the robot's table."""
+    import copy
+    m = copy.deepcopy(short_model)
+    m.scenarios["z-1hz"]["gains"] = {"backstepping": {"Lambda": 12.0}}
+    with FailingSeed(seed=0, when=lambda g: np.mean(g["Lambda"]) > 18.0) as ex:
+        row = margins(["backstepping"], model=m, scenarios=["z-1hz"], seeds=1, executor=ex)["rows"][0]
+    assert row["gain"] == 12.0 and 1.0 <= row["margin"] < 1.5
+
+
+def test_estimates_report_median_errors_and_ends_at_a_bound(short_model):
+    from hydrogen.simulation.tuning import estimates
+    m = short_model
+    theta, gamma = np.asarray(m.theta, float), np.asarray(m.gamma, float)
+    names = list(m.theta_names)
+    k = int(np.flatnonzero(theta)[0])
+
+    def run(th_factor, g_factor, at_bound=False):
+        th = theta * th_factor
+        if at_bound:
+            th[k] = m.theta_max[k]
+        return {"theta_names": names, "theta_hat_final": th.tolist(), "theta_true": theta.tolist(),
+                "gamma_hat_final": (gamma * g_factor).tolist(), "gamma_true": gamma.tolist()}
+
+    out = estimates(m, "adaptive-robust", [0, 1, 2],
+                    [run(1.1, 0.9), run(1.3, 0.8, at_bound=True), {"error": "diverged"}])
+    assert out["gamma_error_pct"] == pytest.approx(15.0)  # the median of 10 % and 20 %
+    th_err = 100 * abs(m.theta_max[k] - theta[k]) / abs(theta[k])
+    assert out["theta_error_pct"] == pytest.approx((10.0 + max(30.0, th_err)) / 2)
+    assert out["at_bound"] == [f"{names[k]} (seed 1)"]
+    assert estimates(m, "backstepping", [0], [run(1.0, 1.0)]) is None  # it does not adapt
+
+
 def test_tune_and_margins_default_to_the_documented_seeds(short_model):
     assert SEEDS == DEFAULT_SEEDS >= 10
     with FailingSeed(seed=None, when=lambda g: False) as ex:
@@ -292,25 +325,31 @@ def test_rig_seeds_script_writes_the_distributions(monkeypatch, tmp_path, capsys
     spec.loader.exec_module(rig_seeds)
     calls = []
 
-    def fake_margins(model=None, seeds=None, max_workers=None):
-        calls.append((model, seeds))
+    def fake_margins(model=None, seeds=None, max_workers=None, variant=None):
+        calls.append((model, seeds, variant))
         return {"model": model, "seeds": seed_list(seeds), "rows": [
             {"controller": c, "scenario": "s1", "main_gain": "Lambda", "gain": 40.0, "margin": mg,
              "margin_capped": False, "limit_reason": "saturates (seed 1; unstable on 1 of 3 seeds)",
-             "errors": {"z": {"median": 10.44, "min": 8.2, "max": 16.1}}, "median_seed": 2, "unstable_seeds": [1]}
-            for c, mg in (("adaptive-robust", 0.0), ("p", 2.5))]}
+             "errors": {"z": {"median": 10.44, "min": 8.2, "max": 16.1}}, "median_seed": 2, "unstable_seeds": [1],
+             "estimates": est}
+            for c, mg, est in (("adaptive-robust", 0.0, {"theta_error_pct": 12.34, "gamma_error_pct": 5.0,
+                                                         "at_bound": ["m (seed 1)"]}), ("p", 2.5, None))]}
 
     monkeypatch.setattr(rig_seeds, "margins", fake_margins)
     out = tmp_path / "rig.json"
     assert rig_seeds.main(["--seeds", "3", "--json", str(out)]) == 0
-    assert [c[0] for c in calls] == hydrogen.models() and all(c[1] == 3 for c in calls)
+    from hydrogen.simulation.scenarios import variant_names
+    assert [c[0] for c in calls] == [m for m in hydrogen.models()
+                                     for _ in range(1 + len(variant_names(hydrogen.load_model(m))))]
+    assert all(c[1] == 3 for c in calls) and {c[2] for c in calls} == {None, "paper-timing"}
     data = json.loads(out.read_text())
     assert data["seeds"] == [0, 1, 2]
     rows = data["models"][hydrogen.models()[0]]["rows"]
-    assert [r["margin_ok"] for r in rows] == [False, True]
+    assert [r["margin_ok"] for r in rows][:2] == [False, True]
     assert rows[0]["max_error_pct"]["z"] == {"median": 10.44, "min": 8.2, "max": 16.1}
     text = capsys.readouterr().out
     assert "| adaptive-robust | z 10.4 [8.2 - 16.1] | 2 | 0 | no |" in text
+    assert "| 12.3 / 5.0 | m (seed 1) |" in text and "| - | - |" in text
     # written atomically: the data and its page, nothing else
     assert sorted(p.name for p in tmp_path.iterdir()) == ["rig.json", "rig.md"]
     assert (tmp_path / "rig.md").read_text() == rig_seeds.markdown(data)

@@ -150,7 +150,8 @@ def _layout(controller, model) -> list:
     return controller_module(controller).state_layout(model) if controller in CONTROLLERS else []
 
 
-def _uses_estimates(controller, model) -> bool:
+def adapts(controller, model) -> bool:
+    """Whether ``controller`` estimates θ (and γ) on ``model``: its state holds θ̂."""
     return any(block == "theta_hat" for block, _ in _layout(controller, model))
 
 
@@ -165,7 +166,7 @@ def check_against_model(sc, model, controller, dyn=None) -> None:
     for f, size in (("theta0_factor", model.n_theta), ("gamma0_factor", len(model.gamma))):
         if len(getattr(sc, f)) != size:
             _fail(name, f, f"must hold {size} factors (one per parameter)", getattr(sc, f))
-    if _uses_estimates(controller, model):
+    if adapts(controller, model):
         theta0 = model.theta * np.asarray(sc.theta0_factor, float)
         gamma0 = model.gamma * np.asarray(sc.gamma0_factor, float)[:, None]
         lo, hi = np.asarray(model.theta_min, float), np.asarray(model.theta_max, float)

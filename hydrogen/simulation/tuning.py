@@ -418,14 +418,15 @@ def margins(controllers=None, *, model=None, scenarios=None, executor=None, max_
     seeds = seed_list(DEFAULT_SEEDS if seeds is None else seeds)
     dyn = hydrogen.build(model)
     cases = [(c, s) for c in (controllers or CONTROLLERS) for s in scen]
-    base = {c: _base_gains(dyn, c, robot=True) for c, _ in cases}
-    g0 = {c: float(np.mean(base[c][main_gain(c)])) for c, _ in cases}
+    # The gains each case runs with: the robot's, under the scenario's own (a variant's gains).
+    base = [_own_gains(dyn, c, s, model) for c, s in cases]
+    g0 = [float(np.mean(b[main_gain(c)])) for b, (c, _) in zip(base, cases)]
 
     def run(factors: dict) -> dict:
         """{case index: factor} -> {case index: its runs over the seeds}; only those cases run."""
         todo = sorted(factors)
         runs = [dict(scenario=cases[i][1], controller=cases[i][0],
-                     gains=family(dyn, cases[i][0], g0[cases[i][0]] * factors[i], base[cases[i][0]])) for i in todo]
+                     gains=family(dyn, cases[i][0], g0[i] * factors[i], base[i])) for i in todo]
         out = sweep(runs, executor=executor, max_workers=max_workers, model=model, progress=progress, seeds=seeds)
         return dict(zip(todo, out))
 
@@ -464,7 +465,41 @@ def margins(controllers=None, *, model=None, scenarios=None, executor=None, max_
         pct = ref[i]["median"].get("max_error_pct") or {}
         errors = {k: {"median": v, "min": ref[i]["min"]["max_error_pct"][k], "max": ref[i]["max"]["max_error_pct"][k]}
                   for k, v in pct.items() if v is not None}
-        rows.append({"controller": c, "scenario": s, "main_gain": main_gain(c), "gain": g0[c], "margin": float(lo[i]),
+        rows.append({"controller": c, "scenario": s, "main_gain": main_gain(c), "gain": g0[i], "margin": float(lo[i]),
                      "margin_capped": hi[i] is None and lo[i] > 0, "limit_reason": why[i] or "",
-                     "errors": errors, "median_seed": ref[i]["median_seed"], "unstable_seeds": unstable[i]})
+                     "errors": errors, "median_seed": ref[i]["median_seed"], "unstable_seeds": unstable[i],
+                     "estimates": estimates(model, c, ref[i]["seeds"], ref[i]["per_seed"])})
     return {"model": model.name, "seeds": seeds, "rows": rows}
+
+
+#: An estimate within this fraction of its projection interval's width of a bound is at the bound.
+AT_BOUND = 1e-6
+
+
+def estimates(model, controller, seeds, per_seed) -> dict | None:
+    """The adaptive estimates at the end of the runs over seeds (None for a controller that does not
+    adapt): "theta_error_pct", "gamma_error_pct" the median over the seeds of the largest final error
+    of each family (|θ̂ − θ|/|θ|, parameters with θ ≠ 0; |γ̂ − γ|/γ over the cylinders and γ1, γ2),
+    % of the true value, and "at_bound" ["<estimate> (seed s)"] the estimates a run ends at a
+    projection bound with (``AT_BOUND``)."""
+    from .checks import adapts
+    if not adapts(controller, model):
+        return None
+    th_err, ga_err, at = [], [], []
+    for s, m in zip(seeds, per_seed):
+        if "error" in m:
+            continue
+        th, tt = np.asarray(m["theta_hat_final"], float), np.asarray(m["theta_true"], float)
+        g, gt = np.asarray(m["gamma_hat_final"], float), np.asarray(m["gamma_true"], float)
+        nz = tt != 0
+        th_err.append(float(np.max(np.abs(th[nz] - tt[nz]) / np.abs(tt[nz]))) * 100 if nz.any() else 0.0)
+        ga_err.append(float(np.max(np.abs(g - gt) / np.abs(gt))) * 100)
+        bounds = [(n, v, lo, hi) for n, v, lo, hi in zip(m["theta_names"], th, model.theta_min, model.theta_max)]
+        for k, (lo, hi) in enumerate([(model.gamma1_min, model.gamma1_max), (model.gamma2_min, model.gamma2_max)]):
+            bounds += [(f"gamma{k + 1}[{j}]", v, lo, hi) for j, v in enumerate(g[k])]
+        at += [f"{n} (seed {s})" for n, v, lo, hi in bounds
+               if min(v - lo, hi - v) <= AT_BOUND * (hi - lo)]
+    if not th_err:
+        return None
+    return {"theta_error_pct": float(np.median(th_err)), "gamma_error_pct": float(np.median(ga_err)),
+            "at_bound": at}
