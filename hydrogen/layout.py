@@ -85,6 +85,19 @@ LOOP_CONFIG = (
       ("slot", "slots", "P_CTRL_SLOT", "run.slot"), ("n_xc", "long long", "P_N_XC", "run.n_xc"),
       ("xc_lo", "const double*", "P_XC_LO", "run.xc_lo"), ("xc_hi", "const double*", "P_XC_HI", "run.xc_hi"),
       ("xc_euler", "long long", "P_XC_EULER", "run.xc_euler"))),
+    ("delay compensation (predict != 0, a scenario's predictor with a delay): the controller's inputs are\n"
+     " * the state at t_k + (delay + delay_frac) h predicted from the measured one by the plant's model at\n"
+     " * the controller's own parameters (theta, gamma1, gamma2 from xc at pred_theta_at, pred_gamma1_at,\n"
+     " * pred_gamma2_at where >= 0, else pred_theta, pred_gamma1, pred_gamma2), ideal valve, no friction,\n"
+     " * over the commands in flight (RK4, pred_substeps steps per period), and the reference at that time",
+     (("predict", "long long", "P_PREDICT", "run.predict"),
+      ("pred_substeps", "long long", "P_PRED_SUBSTEPS", "scenario.predictor_substeps"),
+      ("pred_theta", "const double*", "P_PRED_THETA", "run.pred_theta"),
+      ("pred_gamma1", "const double*", "P_PRED_GAMMA1", "run.pred_gamma1"),
+      ("pred_gamma2", "const double*", "P_PRED_GAMMA2", "run.pred_gamma2"),
+      ("pred_theta_at", "long long", "P_PRED_THETA_AT", "run.pred_theta_at"),
+      ("pred_gamma1_at", "long long", "P_PRED_GAMMA1_AT", "run.pred_gamma1_at"),
+      ("pred_gamma2_at", "long long", "P_PRED_GAMMA2_AT", "run.pred_gamma2_at"))),
     ("forward kinematics (Newton): tolerance (m), iterations",
      (("fk_tol", "double", "P_FK_TOL", "run.fk_tol"), ("fk_max_iter", "long long", "P_FK_MAX_ITER", "run.fk_max_iter"))),
 )

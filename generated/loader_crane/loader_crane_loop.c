@@ -86,34 +86,90 @@ static int solve_n(double* A, double* b) {
     return 1;
 }
 
-static int plant_rhs(const loader_crane_loop_config* c, const double* x, const double* u, double* xdot) {
+/* The parameters the plant's model is evaluated at: the plant's own (c->theta, ...), or the
+ * controller's own model's (the predictor) */
+typedef struct {
+    const double *theta, *gamma1, *gamma2, *friction, *valve;
+} rhs_params;
+
+static int plant_rhs(const rhs_params* m, const double* x, const double* u, double* xdot) {
     const double* arg[7];
     double* res[1];
-    arg[0] = x; arg[1] = u; arg[2] = c->theta; arg[3] = c->gamma1; arg[4] = c->gamma2;
-    arg[5] = c->friction; arg[6] = c->valve;
+    arg[0] = x; arg[1] = u; arg[2] = m->theta; arg[3] = m->gamma1; arg[4] = m->gamma2;
+    arg[5] = m->friction; arg[6] = m->valve;
     res[0] = xdot;
     return loader_crane_plant_rhs(arg, res, 0, 0, 0);
 }
 
-static int rk4(const loader_crane_loop_config* c, double* x, const double* u, double h) {
+static int rk4(const rhs_params* m, double* x, const double* u, double h) {
     double k1[NX], k2[NX], k3[NX], k4[NX], y[NX];
     int i;
-    if (plant_rhs(c, x, u, k1)) return 0;
+    if (plant_rhs(m, x, u, k1)) return 0;
     for (i = 0; i < NX; ++i) y[i] = x[i] + 0.5 * h * k1[i];
-    if (plant_rhs(c, y, u, k2)) return 0;
+    if (plant_rhs(m, y, u, k2)) return 0;
     for (i = 0; i < NX; ++i) y[i] = x[i] + 0.5 * h * k2[i];
-    if (plant_rhs(c, y, u, k3)) return 0;
+    if (plant_rhs(m, y, u, k3)) return 0;
     for (i = 0; i < NX; ++i) y[i] = x[i] + h * k3[i];
-    if (plant_rhs(c, y, u, k4)) return 0;
+    if (plant_rhs(m, y, u, k4)) return 0;
     for (i = 0; i < NX; ++i) x[i] += h / 6.0 * (k1[i] + 2 * k2[i] + 2 * k3[i] + k4[i]);
+    return 1;
+}
+
+static double clip(double v, double lo, double hi) { return v < lo ? lo : (v > hi ? hi : v); }
+
+/* n RK4 steps of hs holding u, each pressure within its bounds (0 <= p_c <= p_s for a three-way
+ * cylinder) */
+static int hold(const rhs_params* m, double* x, const double* u, long long n, double hs) {
+    long long j;
+    int i;
+    for (j = 0; j < n; ++j) {
+        if (!rk4(m, x, u, hs)) return 0;
+        for (i = 0; i < NPC; ++i) x[2 * NQ + i] = clip(x[2 * NQ + i], P_LOW[i], P_HIGH[i]);
+    }
+    return 1;
+}
+
+/* The controller's own model has an ideal valve (spool = command) and no friction (the smoothing
+ * speed only keeps tanh's argument finite). */
+static const double PRED_FRICTION[3] = { 0.0, 0.0, 1.0 };
+static const double PRED_VALVE[3] = { 0.0, 0.0, 0.0 };
+
+/* The model held at u over dt (s) in steps no longer than h / pred_substeps. */
+static int pred_hold(const loader_crane_loop_config* c, const rhs_params* m, double* x, const double* u, double dt) {
+    long long n = (long long)ceil(dt / c->h * (double)c->pred_substeps - 1e-9);
+    if (n < 1) n = 1;
+    return hold(m, x, u, n, dt / (double)n);
+}
+
+/* Delay compensation: the plant state x (NX) at t_k + (delay + delay_frac) h, from the measured pose,
+ * velocities and pressures, by the controller's own model over the commands in flight: the one the
+ * valves hold over the period's first delay_frac h (st->u_app), then a period each of the commands of
+ * periods k - delay .. k - 1 (the ring; 0 before the start). Returns 0 if the model failed. */
+static int predict(const loader_crane_loop_config* c, const loader_crane_loop_state* st, const loader_crane_loop_signals* s,
+                   double* x) {
+    rhs_params m;
+    long long j;
+    m.theta = c->pred_theta_at >= 0 ? st->xc + c->pred_theta_at : c->pred_theta;
+    m.gamma1 = c->pred_gamma1_at >= 0 ? st->xc + c->pred_gamma1_at : c->pred_gamma1;
+    m.gamma2 = c->pred_gamma2_at >= 0 ? st->xc + c->pred_gamma2_at : c->pred_gamma2;
+    m.friction = PRED_FRICTION;
+    m.valve = PRED_VALVE;
+    memset(x, 0, NX * sizeof(double));  /* spool states: unused by the ideal valve */
+    memcpy(x, st->q_meas, NQ * sizeof(double));
+    memcpy(x + NQ, s->qdot_meas, NQ * sizeof(double));
+    memcpy(x + 2 * NQ, s->pc_meas, NPC * sizeof(double));
+    if (c->delay_frac > 0 && !pred_hold(c, &m, x, st->u_app, c->delay_frac * c->h)) return 0;
+    for (j = 1; j <= c->delay; ++j) {
+        long long r = (st->k - c->delay - 1 + j) % MAX_DELAY;
+        if (r < 0) r += MAX_DELAY;
+        if (!pred_hold(c, &m, x, st->u_hist + NL * r, c->h)) return 0;
+    }
     return 1;
 }
 
 static void set_slot(const loader_crane_loop_config* c, int s, const double* v, long long n) {
     if (c->slot[s] >= 0) memcpy(c->ctrl_arg[c->slot[s]], v, (size_t)n * sizeof(double));
 }
-
-static double clip(double v, double lo, double hi) { return v < lo ? lo : (v > hi ? hi : v); }
 
 void loader_crane_sense_lengths(const loader_crane_loop_config* c, const double* l, const double* nz, double* l_meas) {
     int i;
@@ -191,18 +247,37 @@ void loader_crane_reference(const loader_crane_loop_config* c, double t, double*
 
 int loader_crane_control(const loader_crane_loop_config* c, loader_crane_loop_state* st, loader_crane_loop_signals* s) {
     double adapt = s->t >= c->t_adapt ? 1.0 : 0.0;
+    double xp[NX], lp[NL], qdp[4 * NQ];
+    const double *q = st->q_meas, *qdot = s->qdot_meas, *pc = s->pc_meas, *l = s->l_meas, *qd = s->qd;
+    const double* u_prev = st->u_app;
+    int i;
     if (c->n_xc && !c->xc_euler && !c->step) return LOADER_CRANE_CTRL_FAILED;  /* a state needs its update */
-    set_slot(c, LOADER_CRANE_SLOT_Q, st->q_meas, NQ);
-    set_slot(c, LOADER_CRANE_SLOT_QDOT, s->qdot_meas, NQ);
-    set_slot(c, LOADER_CRANE_SLOT_PC, s->pc_meas, NPC);
-    set_slot(c, LOADER_CRANE_SLOT_L, s->l_meas, NL);
-    set_slot(c, LOADER_CRANE_SLOT_QD0, s->qd, NQ);
-    set_slot(c, LOADER_CRANE_SLOT_QD1, s->qd + NQ, NQ);
-    set_slot(c, LOADER_CRANE_SLOT_QD2, s->qd + 2 * NQ, NQ);
-    set_slot(c, LOADER_CRANE_SLOT_QD3, s->qd + 3 * NQ, NQ);
+    if (c->predict) {
+        /* the controller sees the plant as it will be when this command reaches the valves, and the
+         * command the valves held over the period ending there is its own last one */
+        if (!predict(c, st, s, xp)) return LOADER_CRANE_CTRL_FAILED;
+        for (i = 0; i < NX; ++i)
+            if (!isfinite(xp[i])) return LOADER_CRANE_NONFINITE;
+        if (leg_lengths(xp, lp)) return LOADER_CRANE_CTRL_FAILED;
+        loader_crane_reference(c, s->t + ((double)c->delay + c->delay_frac) * c->h, qdp);
+        q = xp; qdot = xp + NQ; pc = xp + 2 * NQ; l = lp; qd = qdp;
+        if (c->delay > 0) {
+            long long r = (st->k - 1) % MAX_DELAY;
+            if (r < 0) r += MAX_DELAY;
+            u_prev = st->u_hist + NL * r;
+        }
+    }
+    set_slot(c, LOADER_CRANE_SLOT_Q, q, NQ);
+    set_slot(c, LOADER_CRANE_SLOT_QDOT, qdot, NQ);
+    set_slot(c, LOADER_CRANE_SLOT_PC, pc, NPC);
+    set_slot(c, LOADER_CRANE_SLOT_L, l, NL);
+    set_slot(c, LOADER_CRANE_SLOT_QD0, qd, NQ);
+    set_slot(c, LOADER_CRANE_SLOT_QD1, qd + NQ, NQ);
+    set_slot(c, LOADER_CRANE_SLOT_QD2, qd + 2 * NQ, NQ);
+    set_slot(c, LOADER_CRANE_SLOT_QD3, qd + 3 * NQ, NQ);
     set_slot(c, LOADER_CRANE_SLOT_XC, st->xc, c->n_xc);
     set_slot(c, LOADER_CRANE_SLOT_ADAPT, &adapt, 1);
-    set_slot(c, LOADER_CRANE_SLOT_U_APPLIED, st->u_app, NL);
+    set_slot(c, LOADER_CRANE_SLOT_U_APPLIED, u_prev, NL);
     /* controller state: semi-implicit update. The estimates and observer states of period k are
      * xc_k = clip(xc_{k-1} + h F(measurement_k, xc_{k-1}, u_app_{k-1})), and the command of period k
      * uses xc_k: the adaptation feedback then has no one-period delay (symplectic Euler on the coupled
@@ -247,23 +322,13 @@ int loader_crane_control_advance(const loader_crane_loop_config* c, loader_crane
     return LOADER_CRANE_OK;
 }
 
-/* n RK4 sub-steps of hs holding u, each pressure within its bounds (0 <= p_c <= p_s for a three-way
- * cylinder) */
-static int hold(const loader_crane_loop_config* c, double* x, const double* u, long long n, double hs) {
-    long long j;
-    int i;
-    for (j = 0; j < n; ++j) {
-        if (!rk4(c, x, u, hs)) return 0;
-        for (i = 0; i < NPC; ++i) x[2 * NQ + i] = clip(x[2 * NQ + i], P_LOW[i], P_HIGH[i]);
-    }
-    return 1;
-}
-
 int loader_crane_plant_step(const loader_crane_loop_config* c, loader_crane_loop_state* st, const double* u_held,
                        const double* u_app) {
     double* x = st->x;
     const long long n = c->substeps;
+    rhs_params m;
     int i;
+    m.theta = c->theta; m.gamma1 = c->gamma1; m.gamma2 = c->gamma2; m.friction = c->friction; m.valve = c->valve;
     if (n < 1) return LOADER_CRANE_CTRL_FAILED;
     if (c->delay_frac > 0) {
         /* the command switches at delay_frac h: each part takes enough sub-steps that none is longer
@@ -271,9 +336,9 @@ int loader_crane_plant_step(const loader_crane_loop_config* c, loader_crane_loop
         long long n1 = (long long)ceil(c->delay_frac * (double)n), n2 = (long long)ceil((1.0 - c->delay_frac) * (double)n);
         if (n1 < 1) n1 = 1;
         if (n2 < 1) n2 = 1;
-        if (!hold(c, x, u_held, n1, c->delay_frac * c->h / (double)n1)) return LOADER_CRANE_CTRL_FAILED;
-        if (!hold(c, x, u_app, n2, (1.0 - c->delay_frac) * c->h / (double)n2)) return LOADER_CRANE_CTRL_FAILED;
-    } else if (!hold(c, x, u_app, n, c->h / (double)n)) {
+        if (!hold(&m, x, u_held, n1, c->delay_frac * c->h / (double)n1)) return LOADER_CRANE_CTRL_FAILED;
+        if (!hold(&m, x, u_app, n2, (1.0 - c->delay_frac) * c->h / (double)n2)) return LOADER_CRANE_CTRL_FAILED;
+    } else if (!hold(&m, x, u_app, n, c->h / (double)n)) {
         return LOADER_CRANE_CTRL_FAILED;
     }
     for (i = 0; i < NX; ++i)

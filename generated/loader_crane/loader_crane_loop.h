@@ -74,6 +74,19 @@ typedef struct {
     const double* xc_lo;
     const double* xc_hi;
     long long xc_euler;
+    /* delay compensation (predict != 0, a scenario's predictor with a delay): the controller's inputs are
+     * the state at t_k + (delay + delay_frac) h predicted from the measured one by the plant's model at
+     * the controller's own parameters (theta, gamma1, gamma2 from xc at pred_theta_at, pred_gamma1_at,
+     * pred_gamma2_at where >= 0, else pred_theta, pred_gamma1, pred_gamma2), ideal valve, no friction,
+     * over the commands in flight (RK4, pred_substeps steps per period), and the reference at that time */
+    long long predict;
+    long long pred_substeps;
+    const double* pred_theta;
+    const double* pred_gamma1;
+    const double* pred_gamma2;
+    long long pred_theta_at;
+    long long pred_gamma1_at;
+    long long pred_gamma2_at;
     /* forward kinematics (Newton): tolerance (m), iterations */
     double fk_tol;
     long long fk_max_iter;

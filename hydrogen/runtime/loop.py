@@ -65,10 +65,15 @@ def _check_values(values, ctx, ctrl, model) -> None:
     n, m, n_xc = len(model.neutral_pose), ctx["m"], int(ctrl.xc.size)
     sizes = {"theta": len(model.theta), "gamma1": m, "gamma2": m,
              "friction": 3, "valve": 3, "bias": n, "terms": 3 * max(int(values["n_terms"]), 1),
-             "xc_lo": max(n_xc, 1), "xc_hi": max(n_xc, 1), "kf_gain": 2, "slot": len(ctx["slots"])}
+             "xc_lo": max(n_xc, 1), "xc_hi": max(n_xc, 1), "kf_gain": 2, "slot": len(ctx["slots"]),
+             "pred_theta": len(model.theta), "pred_gamma1": m, "pred_gamma2": m}
     for name, size in sizes.items():
         if np.size(values[name]) != size:
             raise ValueError(f"loop configuration: {name} must hold {size} numbers, got {np.size(values[name])}")
+    for name, size in (("pred_theta_at", len(model.theta)), ("pred_gamma1_at", m), ("pred_gamma2_at", m)):
+        at = int(values[name])
+        if at != -1 and not 0 <= at <= n_xc - size:
+            raise ValueError(f"loop configuration: {name} = {at} is outside the controller's state ({n_xc})")
     if int(values["n_xc"]) != n_xc:
         raise ValueError(f"loop configuration: n_xc is {values['n_xc']}, the controller's state holds {n_xc}")
     terms = np.reshape(values["terms"], (-1, 3))[: int(values["n_terms"])]

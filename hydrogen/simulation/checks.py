@@ -107,10 +107,13 @@ def check_fields(sc) -> None:
             _fail(name, f.name, "must be finite and >= 0", v)
     if sc.metric_start < 0:
         _fail(name, "metric_start", "must be >= 0 s", sc.metric_start)
-    if isinstance(sc.substeps, (bool, np.bool_)) or not isinstance(sc.substeps, numbers.Integral):
-        _fail(name, "substeps", "must be an integer >= 1", sc.substeps)
-    if not isinstance(sc.kalman, (bool, np.bool_)):
-        _fail(name, "kalman", "must be True or False", sc.kalman)
+    for f in ("substeps", "predictor_substeps"):
+        v = getattr(sc, f)
+        if isinstance(v, (bool, np.bool_)) or not isinstance(v, numbers.Integral):
+            _fail(name, f, "must be an integer >= 1", v)
+    for f in ("kalman", "predictor"):
+        if not isinstance(getattr(sc, f), (bool, np.bool_)):
+            _fail(name, f, "must be True or False", getattr(sc, f))
     seed = sc.seed
     if seed is not None and (isinstance(seed, (bool, np.bool_)) or not isinstance(seed, numbers.Integral)
                              or seed < 0):

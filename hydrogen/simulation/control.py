@@ -150,6 +150,18 @@ class _Controller:
         s = self.slices.get(name)
         return None if s is None else self.xc[s]
 
+    def offset(self, name) -> int:
+        """Where state block ``name`` starts in :attr:`xc`, or -1 if the controller has none."""
+        s = self.slices.get(name)
+        return -1 if s is None else s.start
+
+    def own_parameters(self):
+        """(θ, γ1, γ2) of the controller's own model: its estimates where it adapts them, else the
+        initial (known) values; SI, γ1 = β and γ2 = β c per cylinder."""
+        th, g1, g2 = (self.part(b) for b in ("theta_hat", "gamma1_hat", "gamma2_hat"))
+        return (self.theta0 if th is None else th, self.gamma0[0] if g1 is None else g1,
+                self.gamma0[1] if g2 is None else g2)
+
     def reset(self, q0, qdot0, pc0=None):
         """The state at the start: estimates at θ0, γ0, observers at (q0, q̇0), least-squares gains at
         P0 I, filters at 0, and the composite law's copies of the last period's length and control

@@ -54,6 +54,12 @@ def _slots(run):
     return [names.index(s) if s in names else -1 for s in SLOTS]
 
 
+def _at(block):
+    """Offset of the controller's state block ``block`` in xc (-1: it has none: the predictor then
+    uses the controller's initial parameters)."""
+    return lambda r: r.ctrl.offset(block)
+
+
 #: Each ``run.<name>`` source: how its value follows from the run.
 DERIVED = {
     "h": lambda r: float(r.h),
@@ -76,6 +82,13 @@ DERIVED = {
     "xc_lo": lambda r: _bounds(r, 0),
     "xc_hi": lambda r: _bounds(r, 1),
     "xc_euler": lambda r: int(r.sc.estimator_update == "euler"),
+    "predict": lambda r: int(bool(r.sc.predictor) and sum(delay_split(r.sc.delay, r.h)) > 0),
+    "pred_theta": lambda r: np.asarray(r.ctrl.theta0, float),
+    "pred_gamma1": lambda r: np.asarray(r.ctrl.gamma0[0], float),
+    "pred_gamma2": lambda r: np.asarray(r.ctrl.gamma0[1], float),
+    "pred_theta_at": _at("theta_hat"),
+    "pred_gamma1_at": _at("gamma1_hat"),
+    "pred_gamma2_at": _at("gamma2_hat"),
     "fk_tol": lambda r: FK_TOL,
     "fk_max_iter": lambda r: FK_MAX_ITER,
 }

@@ -61,6 +61,12 @@ class Scenario:
     delay: float = setting(0.0, "s", "computation delay: the command computed at t_k is applied from t_k + this (0 to "
                            "8 control periods; a fraction of a period switches the command inside the plant's "
                            "sub-steps)", "number")
+    predictor: bool = setting(False, "", "delay compensation: the command is computed at the state predicted for "
+                              "t_k + delay by the controller's own model (its estimates where it adapts them, "
+                              "ideal valve, no friction) over the commands still in flight, and at the reference "
+                              "of that time")
+    predictor_substeps: int = setting(4, "", "the predictor's RK4 steps per control period (a fraction of a period "
+                                      "takes its share, at least one)")
     quantization_l: float = setting(0.0, "m", "cylinder-length encoder resolution (0: none)", ">=0")
     noise_l: float = setting(0.0, "m", "std of white cylinder-length noise", ">=0")
     noise_q: float = setting(0.0, "rad or m", "std of white joint-encoder noise (robots with joint encoders)", ">=0")
@@ -115,6 +121,7 @@ class Scenario:
         # RK4 on the spool's second-order dynamics: keep omega * sub-step well inside its stability region
         need(2 * np.pi * self.valve_bandwidth_hz / (self.control_rate * self.substeps) <= 1.0, "valve_bandwidth_hz",
              "must be <= control_rate * substeps / (2 pi) (raise substeps)")
+        need(1 <= self.predictor_substeps <= 1000, "predictor_substeps", "must be an integer 1..1000")
         need(finite(self.q0_offset), "q0_offset", "must be finite numbers (one per coordinate)")
         need(self.estimator_update in ("semi-implicit", "euler"), "estimator_update",
              "must be 'semi-implicit' or 'euler'")

@@ -384,6 +384,11 @@ def _run_c(dyn, sc, ctrl, x0, q0, noise, kf_gain, log, n, h):
     return (k + 1 if code == LOOP_NONFINITE else k), _loop_failure(code, runner, h)
 
 
+#: The controller's own model in the predictor: no friction (the smoothing speed only keeps tanh's
+#: argument finite) and the ideal valve (the C loop's PRED_FRICTION, PRED_VALVE).
+_PRED_FRICTION, _PRED_VALVE = np.array([0.0, 0.0, 1.0]), np.zeros(3)
+
+
 class _Signals:
     """One period's signals as the stages hand them on (the C loop's ``<model>_loop_signals``)."""
     __slots__ = ("t", "l_true", "l_meas", "pc_meas", "q_enc", "ldot", "qdot_meas", "ref", "u", "u_held", "u_app")
@@ -410,6 +415,7 @@ class PythonStages:
         self.x, self.q_meas, self.k = x, q0.copy(), 0
         self.delay, self.delay_frac = sc.delay_split()
         self.u_app = np.zeros(self.m)  # the command the valves held at the end of the last period
+        self.predict = bool(sc.predictor) and self.delay + self.delay_frac > 0
 
     def measure(self, nz) -> _Signals:
         """The sensors' readings of the plant state with the noise row ``nz``."""
@@ -445,7 +451,13 @@ class PythonStages:
     def control(self, s: _Signals) -> None:
         """The controller state's semi-implicit update, the command, the command applied (delay)."""
         sc, ctrl, delay = self.sc, self.ctrl, self.delay
-        args = (self.q_meas, s.qdot_meas, s.pc_meas, s.l_meas, s.ref, s.t >= sc.t_adapt)
+        if self.predict:  # the plant as it will be when this command reaches the valves
+            nq, x = self.nq, self.predicted(s)
+            q = x[:nq]
+            args = (q, x[nq:2 * nq], x[2 * nq:2 * nq + self.n_p], np.asarray(self.dyn.leg_lengths(q), float),
+                    sc.reference(s.t + (delay + self.delay_frac) * self.h), s.t >= sc.t_adapt)
+        else:
+            args = (self.q_meas, s.qdot_meas, s.pc_meas, s.l_meas, s.ref, s.t >= sc.t_adapt)
         if self.k and sc.estimator_update != "euler":  # semi-implicit: state from this measurement, then command
             ctrl.update(self.h, *args)
         s.u = ctrl.command(*args)
@@ -455,7 +467,32 @@ class PythonStages:
         else:
             s.u_app = s.u
         s.u_held, self.u_app = self.u_app, s.u_app
-        ctrl.applied(s.u_app)
+        # with the predictor the period the controller sees ends when this command reaches the valves
+        ctrl.applied(s.u if self.predict else s.u_app)
+
+    def predicted(self, s: _Signals) -> np.ndarray:
+        """The plant state at t_k + delay from the measured pose, velocities and pressures, by the
+        controller's own model (its estimates, ideal valve, no friction) over the commands in flight:
+        the one the valves hold over the period's first ``delay_frac`` h, then a period each of the
+        commands of periods k − delay … k − 1 (the C loop's ``predict``)."""
+        nq, n_p, h, ns = self.nq, self.n_p, self.h, self.sc.predictor_substeps
+        th, g1, g2 = self.ctrl.own_parameters()
+        x = np.zeros_like(self.x)
+        x[:nq], x[nq:2 * nq], x[2 * nq:2 * nq + n_p] = self.q_meas, s.qdot_meas, s.pc_meas
+
+        def hold(x, u, dt):
+            n = max(int(np.ceil(dt / h * ns - 1e-9)), 1)
+            rhs = lambda xx: self._rhs_fn(xx, u, th, g1, g2, _PRED_FRICTION, _PRED_VALVE)  # noqa: E731
+            for _ in range(n):
+                x = _rk4(rhs, x, dt / n)
+                np.clip(x[2 * nq:2 * nq + n_p], self._lo, self._hi, out=x[2 * nq:2 * nq + n_p])
+            return x
+
+        if self.delay_frac > 0:
+            x = hold(x, self.u_app, self.delay_frac * h)
+        for j in range(1, self.delay + 1):
+            x = hold(x, self.u_hist[(self.k - self.delay - 1 + j) % self._max_delay], h)
+        return x
 
     def plant_step(self, u_held, u_app) -> None:
         """RK4 sub-steps over one period holding ``u_held`` over its first ``delay_frac`` h and ``u_app``
