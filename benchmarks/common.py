@@ -140,10 +140,11 @@ def rig_scenario(model) -> str | None:
     return next((name for name, table in _scenario_tables(model) if table.get("rig", False)), None)
 
 
-def periods_per_s(dyn, scenario: str) -> float:
+def periods_per_s(dyn, scenario) -> float:
+    """Control rate (Hz) of ``scenario``: a name of ``dyn``'s model or a Scenario."""
     from hydrogen.simulation.scenarios import scenario as named
 
-    return named(scenario, dyn.model).control_rate
+    return (named(scenario, dyn.model) if isinstance(scenario, str) else scenario).control_rate
 
 
 def c_loop_per_period(dyn, scenario: str, controller: str, n_periods: int) -> float:

@@ -30,6 +30,7 @@ SUITE = (
     ("bench_sweep", "sweep throughput on 2 workers: process pool and Dask LocalCluster; identification time"),
     ("bench_release", "side by side with the previous release: trajectories, instruction counts, loop, generation"),
     ("bench_scaling", "how cost grows with the robot: planar chains of n = 2 ... 7 links"),
+    ("bench_predictor", "the delay predictor's cost per control period and in instructions, every controller"),
 )
 
 
