@@ -273,8 +273,16 @@ def _cmd_tune(args, controller=None) -> int:
     g = res["best_gains"]
     print(f"[gains.{controller}]")
     for k, v in g.items():
-        print(f"{k} = {np.round(v, 6).tolist() if isinstance(v, list) else round(v, 6)}")
+        print(f"{k} = {_toml_number(v)}")
     return 0
+
+
+def _toml_number(v) -> str:
+    """A gain (a number or a list) as TOML, six significant digits: 4e-09 stays 4e-09, not 0.0."""
+    if isinstance(v, (list, tuple, np.ndarray)):
+        return "[" + ", ".join(_toml_number(x) for x in v) + "]"
+    text = f"{float(v):.6g}"
+    return text if any(c in text for c in ".en") else text + ".0"  # a float, as TOML reads it back
 
 
 def _cmd_tune_p(args) -> int:

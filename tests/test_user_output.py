@@ -237,3 +237,16 @@ def test_a_run_whose_estimates_do_not_converge_says_which_and_what_to_do(end, ex
 
     lines = excitation_lines(_adapting_run(1.2, end, excitation))
     assert len(lines) == 1 and "platform.mass +20.0 %" in lines[0] and re.search(words, lines[0]), lines
+
+
+def test_tune_prints_gains_toml_reads_back_exactly_to_six_digits():
+    """The [gains.<controller>] block `hydrogen tune` prints: a 4e-9 adaptation rate stays 4e-9 (it
+    once printed as 0.0), and every number reads back as a float."""
+    import tomllib
+
+    from hydrogen.cli import _toml_number
+
+    for v in (4e-9, 11.892071, 30, [15000.0, 2.5e-10], 1e20):
+        back = tomllib.loads(f"a = {_toml_number(v)}")["a"]
+        want = [float(f"{x:.6g}") for x in v] if isinstance(v, list) else float(f"{v:.6g}")
+        assert back == want and all(isinstance(x, float) for x in (back if isinstance(back, list) else [back]))
