@@ -341,7 +341,7 @@ def test_rig_seeds_script_writes_the_distributions(monkeypatch, tmp_path, capsys
     from hydrogen.simulation.scenarios import variant_names
     assert [c[0] for c in calls] == [m for m in hydrogen.models()
                                      for _ in range(1 + len(variant_names(hydrogen.load_model(m))))]
-    assert all(c[1] == 3 for c in calls) and {c[2] for c in calls} == {None, "paper-timing"}
+    assert all(c[1] == 3 for c in calls) and {c[2] for c in calls} == {None, *variant_names(hydrogen.load_model())}
     data = json.loads(out.read_text())
     assert data["seeds"] == [0, 1, 2]
     rows = data["models"][hydrogen.models()[0]]["rows"]

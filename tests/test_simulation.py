@@ -342,33 +342,61 @@ def test_c_loop_matches_python_loop_for_both_estimator_updates(dyn, update):
     np.testing.assert_allclose(c.gamma2_hat, py.gamma2_hat, rtol=1e-8)
 
 
-_RIG_XFAIL = ("on the honest rig (one-period delay, 80 Hz second-order valves, quantised "
-              "encoders, a real Kalman filter) no gain of the search keeps a margin of 2; at the stored gains "
-              "the adaptive-robust controller's median over 10 noise seeds is 11.9 / 23.6 / 13.1 % on z-1hz / "
-              "z-2hz / psi-1hz (docs/rig_seeds.json)")
-_XFAIL = pytest.mark.xfail(strict=True, reason=_RIG_XFAIL)
+def _xfail(why):
+    return pytest.mark.xfail(strict=True, reason=why + " (docs/paper.md, The timing)")
+
+
+_FULL = _xfail("full-period delay: adaptive-robust over 10 seeds 4.3 [3.4-4.7] % on z-1hz, 9.0 [8.7-9.4] % on "
+               "psi-1hz against the paper's 4 % (unmodelled friction, delay and valve)")
+_PT_PSI = _xfail("paper's timing: adaptive-robust psi-1hz 4.2 [4.0-4.3] %, at or just above the paper's 4 %")
+_PRED_PSI = _xfail("full-period delay with the predictor: adaptive-robust psi-1hz 6.2 [5.5-7.5] %; the predictor "
+                   "cannot see the valve's lag, the friction or the noise")
 
 
 @pytest.fixture(scope="module")
 def rig_over_seeds(dyn):
-    """{(scenario, controller): its runs over the documented seeds} for the platform's rig sines."""
+    """(scenario, controller) -> the metrics of its runs over the documented seeds, run on first use."""
     from hydrogen.simulation.tuning import SEEDS
-    return {(name, kind): simulate(dyn, name, kind, seeds=SEEDS, max_workers=2).metrics
-            for name in ("z-1hz", "z-2hz", "psi-1hz") for kind in ("adaptive-robust", "p")}
+    runs = {}
+
+    def get(name, kind):
+        if (name, kind) not in runs:
+            runs[name, kind] = simulate(dyn, name, kind, seeds=SEEDS, max_workers=2).metrics
+        return runs[name, kind]
+    return get
 
 
-@pytest.mark.parametrize("name,coord,paper_nonlinear", [
-    pytest.param("z-1hz", "z", 4.0, marks=_XFAIL), pytest.param("z-2hz", "z", 14.0, marks=_XFAIL),
-    pytest.param("psi-1hz", "psi", 4.0, marks=_XFAIL)])
-def test_experiments_nonlinear_below_the_papers_error(rig_over_seeds, name, coord, paper_nonlinear):
-    assert rig_over_seeds[name, "adaptive-robust"]["median"]["max_error_pct"][coord] < paper_nonlinear
+#: (scenario, coordinate, the paper's nonlinear error %, the controller compared): the table (the
+#: full-period rig), the paper's timing and the full period with the predictor.
+_TARGETS = [
+    pytest.param("z-1hz", "z", 4.0, "adaptive-robust", marks=_FULL),
+    pytest.param("z-2hz", "z", 14.0, "adaptive-robust"),
+    pytest.param("psi-1hz", "psi", 4.0, "adaptive-robust", marks=_FULL),
+    pytest.param("z-1hz.paper-timing", "z", 4.0, "adaptive-robust"),
+    pytest.param("z-2hz.paper-timing", "z", 14.0, "adaptive-robust"),
+    pytest.param("psi-1hz.paper-timing", "psi", 4.0, "adaptive-robust", marks=_PT_PSI),
+    pytest.param("z-1hz.paper-timing", "z", 4.0, "adaptive-observer"),
+    pytest.param("z-2hz.paper-timing", "z", 14.0, "adaptive-observer"),
+    pytest.param("psi-1hz.paper-timing", "psi", 4.0, "adaptive-observer"),
+    pytest.param("z-1hz.predictor", "z", 4.0, "adaptive-robust"),
+    pytest.param("z-2hz.predictor", "z", 14.0, "adaptive-robust"),
+    pytest.param("psi-1hz.predictor", "psi", 4.0, "adaptive-robust", marks=_PRED_PSI),
+]
 
 
-@pytest.mark.parametrize("name,coord", [("z-1hz", "z"), ("z-2hz", "z"), ("psi-1hz", "psi")])
+@pytest.mark.parametrize("name,coord,paper_nonlinear,kind", _TARGETS)
+def test_experiments_nonlinear_below_the_papers_error(rig_over_seeds, name, coord, paper_nonlinear, kind):
+    """The median over the seeds at or below the paper's error."""
+    assert rig_over_seeds(name, kind)["median"]["max_error_pct"][coord] <= paper_nonlinear
+
+
+@pytest.mark.parametrize("name,coord", [(f"{s}{v}", c) for s, c in (("z-1hz", "z"), ("z-2hz", "z"), ("psi-1hz", "psi"))
+                                        for v in ("", ".paper-timing", ".predictor")])
 def test_experiments_p_is_at_least_3x_worse_than_nonlinear(rig_over_seeds, name, coord):
-    """On every seed: P's best run is 3 times worse than the nonlinear controller's worst."""
-    nl = rig_over_seeds[name, "adaptive-robust"]["max"]["max_error_pct"][coord]
-    p = rig_over_seeds[name, "p"]["min"]["max_error_pct"][coord]
+    """On every seed: the better P's (task space) best run is 3 times worse than the nonlinear
+    controller's worst."""
+    nl = rig_over_seeds(name, "adaptive-robust")["max"]["max_error_pct"][coord]
+    p = min(rig_over_seeds(name, k)["min"]["max_error_pct"][coord] for k in ("p", "p-task"))
     assert p > 3 * nl
 
 
