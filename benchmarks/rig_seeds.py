@@ -83,8 +83,9 @@ def main(argv=None) -> int:
     ap.add_argument("--json", default=str(REPO / "docs" / "rig_seeds.json"),
                     help="output (default docs/rig_seeds.json)")
     args = ap.parse_args(argv)
-    data = collect(args.seeds, args.workers)
-    atomic_write(Path(args.json), json.dumps(data, indent=2, sort_keys=True) + "\n")
+    text = json.dumps(collect(args.seeds, args.workers), indent=2, sort_keys=True) + "\n"
+    data = json.loads(text)  # the page from the data as written (sorted keys), as its test renders it
+    atomic_write(Path(args.json), text)
     page = Path(args.json).with_suffix(".md")
     atomic_write(page, markdown(data))
     print(markdown(data))
