@@ -5,9 +5,11 @@ that could close a C comment or string, start a preprocessor line or run a shell
 refused when the file is loaded, naming the file and the field. A description cannot set the
 compiler, its flags or where files are written.
 """
+import os
 import re
 import subprocess
 import sys
+from pathlib import Path
 
 import pytest
 
@@ -140,9 +142,12 @@ def test_the_cli_refuses_a_hostile_description_with_exit_2_and_runs_nothing(tmp_
     marker = tmp_path / "PWNED"
     payload = f'p */ int pwned = system("touch {marker}"); /*'
     path = _write(tmp_path, _stewart_text().replace('name = "leg1"', f"name = {_toml_string(payload)}"))
+    # the hydrogen under test, also when it is not installed (cwd is tmp_path, not the checkout)
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(Path(hydrogen.__file__).parents[1]),
+                                                        os.environ.get("PYTHONPATH", "")])}
     proc = subprocess.run([sys.executable, "-m", "hydrogen", "simulate", "--model", str(path), "--scenario",
                            "paper-sim", "--controller", "p", "--duration", "0.01"],
-                          capture_output=True, text=True, timeout=300, cwd=tmp_path)
+                          capture_output=True, text=True, timeout=300, cwd=tmp_path, env=env)
     assert proc.returncode == 2, proc.stderr
     assert "Traceback" not in proc.stderr and str(path) in proc.stderr and "the name" in proc.stderr
     assert not marker.exists()
