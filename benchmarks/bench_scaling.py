@@ -14,7 +14,7 @@ For each n, in a fresh Python process:
 
 * the SymPy derivation (``derive_functions``), timed by stage: the cylinder kinematics, the rigid
   body (D, C, G, the regressor Y, its offset y0: closed form for short chains, staged link poses
-  from 4 links on, see ``SymbolicTree.staged``), the hydraulics, the plant and each controller; with
+  from 4 links on, see ``hydrogen.symbolic.forms``), the hydraulics, the plant and each controller; with
   the SymPy size (``count_ops``, a tree count: shared subexpressions count each time they occur) of
   D and C, whose own time (``count_ops_s``) is left out of the stages and of the derivation;
 * the generation (``render``: SymPy -> CasADi -> C) and the clean compile (``hydrogen.build`` on the

@@ -43,6 +43,8 @@ INERTIAL_PARAMETERS = ("mass", "mcx", "mcy", "mcz", "Ixx", "Ixy", "Iyy", "Ixz", 
 #: Joint type -> number of coordinates. URDF's "continuous" is read as revolute.
 JOINT_TYPES = {"revolute": 1, "prismatic": 1, "fixed": 0, "floating": 6}
 FLOATING_COORDINATES = ("x", "y", "z", "psi", "theta", "phi")
+#: The rigid body's forms a description may ask for (``rigid_body_form``; hydrogen.symbolic.forms).
+RIGID_BODY_FORMS = ("auto", "closed", "staged")
 
 
 @dataclass(frozen=True)
@@ -267,6 +269,8 @@ class Model:
     scenarios: dict = field(default_factory=dict, repr=False, compare=False)
     # [variants.<name>]: scenario fields (and gains) set over any scenario run as "<scenario>.<name>"
     variants: dict = field(default_factory=dict, repr=False, compare=False)
+    # "auto" (chosen by cost), "closed" or "staged": the rigid body's form (hydrogen.symbolic.forms)
+    rigid_body_form: str = "auto"
     source: str = "<memory>"
     urdf: Path | None = None
     raw: dict = field(default=None, repr=False, compare=False)
@@ -361,6 +365,9 @@ class Model:
             "theta_names": list(self.theta_names),
             "cylinders": [_baked_cylinder(c) for c in self.cylinders],
             "coordinates": list(self.coordinate_names),
+            # recorded only when forced, so an "auto" model's hash is what it always was ("auto" is a
+            # function of the rest and of the derivation code, which the derivation hash covers)
+            **({"rigid_body_form": self.rigid_body_form} if self.rigid_body_form != "auto" else {}),
         }
 
     def baked_hash(self) -> str:
@@ -1089,6 +1096,9 @@ def model_from_dict(data: dict, source: str = "<memory>", base_dir: Path | None 
     r.known(data, _keys("top level"), "top level")
     name = check_model_name(source, r.require(data, "name", "top level"))
     gravity = r.number("gravity", r.require(data, "gravity", "top level"), "gravity")
+    form = data.get("rigid_body_form", _default("top level", "rigid_body_form"))
+    if form not in RIGID_BODY_FORMS:
+        raise r.error("rigid_body_form", f"expected one of {', '.join(map(repr, RIGID_BODY_FORMS))}, got {_quote(form)}")
     urdf = None
     if "urdf" in data:
         if "links" in data or "joints" in data:
@@ -1104,6 +1114,10 @@ def model_from_dict(data: dict, source: str = "<memory>", base_dir: Path | None 
         links, joints = _tree_from_toml(r, data)
     links, joints = _select_tree(r, links, joints, r.table(data, "tree", required=False))
     root, joints, links = _order_tree(r, links, joints, "tree" if urdf is None else f"URDF {urdf}")
+    floating = [j.name for j in joints if j.type == "floating"]
+    if form == "staged" and floating:
+        raise r.error("rigid_body_form", f"'staged' takes revolute, prismatic and fixed joints only; joint "
+                                         f"'{floating[0]}' is floating (use 'closed' or 'auto')")
     _check_moving_mass(r, root, links, joints)
     link_names = {root} | {lk.name for lk in links}
     # coordinates
@@ -1177,7 +1191,8 @@ def model_from_dict(data: dict, source: str = "<memory>", base_dir: Path | None 
     model = Model(name=name, gravity=gravity, root=root, links=links, joints=joints, cylinders=cylinders,
                   coordinate_names=tuple(names), neutral_pose=neutral, theta_names=tuple(params),
                   theta_min=tmin, theta_max=tmax, joint_encoders=enc, scale=scale, figures_nonlinear=nonlinear, gains=gains,
-                  scenarios={"rig": rig, **scen}, variants=variants, source=source, urdf=urdf, raw=data, **gb)
+                  scenarios={"rig": rig, **scen}, variants=variants, rigid_body_form=form, source=source, urdf=urdf,
+                  raw=data, **gb)
     _check_tables(r, model)
     _check_bounds(r, model)
     _check_neutral(r, model)

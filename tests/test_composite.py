@@ -204,19 +204,19 @@ def test_composite_rates_are_checked_against_the_control_period(dyn):
         hydrogen.simulate("paper-sim", "adaptive-robust", dyn=dyn, gains={"rate_ls_gamma": 2000.0}, duration=0.01)
 
 
-def test_theta_signals_of_a_staged_tree_equal_the_closed_forms(monkeypatch, rng):
+def test_theta_signals_of_a_staged_tree_equal_the_closed_forms(rng):
     """Y_p, p0, Y_b, b0 of the momentum form on a staged tree (D holds link-pose symbols, so Cᵀ q̇
     comes from the tree's Christoffel C, not from ∂D/∂q) equal the closed form's (∂/∂q of the
-    kinetic energy) for the same robot, at random states: the arm, staged by lowering the depth rule."""
-    from hydrogen.symbolic import rigid_body, tree
+    kinetic energy) for the same robot, at random states: the arm, staged by its rigid_body_form."""
+    from hydrogen.symbolic import rigid_body
     from hydrogen.symbolic.composite import RigidBodyComposite
     from hydrogen.symbolic.control_laws import Common
+    from hydrogen.symbolic.forms import with_form
 
-    model = hydrogen.load_model("excavator_arm")
+    arm = hydrogen.load_model("excavator_arm")
 
-    def signals(depth):
-        monkeypatch.setattr(tree, "STAGE_DEPTH", depth)
-        rigid_body._TREES.clear()  # the trees cache the form they were built in
+    def signals(form):
+        model = with_form(arm, form)
         c = Common(model)
         out = RigidBodyComposite(c, c.theta()).signals()
         staged = len(rigid_body.rigid_body_stages(model, c.q))
@@ -228,12 +228,11 @@ def test_theta_signals_of_a_staged_tree_equal_the_closed_forms(monkeypatch, rng)
         assert all(sp.Matrix(o).free_symbols <= set(c.q) | set(c.qdot) for o in out)
         return staged, sp.lambdify([list(c.q), list(c.qdot)], out, "numpy")
 
-    n_closed, closed = signals(99)
-    n_staged, staged = signals(1)
-    rigid_body._TREES.clear()
+    n_closed, closed = signals("closed")
+    n_staged, staged = signals("staged")
     assert n_closed == 0 and n_staged > 0  # the two forms were really built
     for _ in range(3):
-        q, qd = rng.uniform(-1, 1, model.n), rng.uniform(-1, 1, model.n)
+        q, qd = rng.uniform(-1, 1, arm.n), rng.uniform(-1, 1, arm.n)
         for a, b in zip(closed(q, qd), staged(q, qd)):
             np.testing.assert_allclose(np.array(b, float), np.array(a, float), rtol=1e-9, atol=1e-9)
 

@@ -5,9 +5,10 @@ D(q) q̈ + C(q, q̇) q̇ + G(q) = (JL)ᵀ f. D and G come from the tree
 and C(q, x) y = C(q, y) x (properties (i), (ii) of eq. (3)); the paper's c22 of eq. (64) for the
 floating platform gives the same C(q, q̇) q̇ and is kept for comparison.
 
-Two forms, chosen by the tree (:meth:`SymbolicTree.staged`): the closed form (D from expanded
-link Jacobians, C by differentiating D, G = ∂V/∂q) for short chains and floating bodies, and the
-staged form for deeper chains (D, C, G and Y by spatial algebra over link poses bound to
+Two forms (:meth:`SymbolicTree.staged`; the description's ``rigid_body_form``, for "auto" the one
+of fewer CasADi instructions, :mod:`hydrogen.symbolic.forms`): the closed form (D from expanded
+link Jacobians, C by differentiating D, G = ∂V/∂q), the only one for floating bodies, and the
+staged form (D, C, G and Y by spatial algebra over link poses bound to
 intermediate symbols; :func:`rigid_body_stages` lists those stages, which every function using
 these expressions must evaluate first, and :func:`~hydrogen.symbolic.kinematics.pose_rates` their
 time derivatives).

@@ -10,7 +10,7 @@ Any tree of revolute, prismatic, fixed and floating joints. Two forms of the sam
   expanded products of sines and cosines (CasADi evaluates the stages in order);
 * the staged rigid body (:meth:`SymbolicTree.staged_mass_matrix`, ``staged_coriolis``,
   ``staged_gravity``, ``staged_inverse_dynamics``, ``staged_regressor``), on trees of revolute,
-  prismatic and fixed joints at least :data:`STAGE_DEPTH` deep (:meth:`SymbolicTree.staged`): spatial
+  prismatic and fixed joints, where it is the cheaper or the asked-for form (:meth:`SymbolicTree.staged`): spatial
   algebra (Featherstone's, base frame, Plücker coordinates about the base origin) over the same
   pose symbols, so its expressions grow polynomially with the depth where the closed form's grow
   about 3.5× per link. D by composite bodies, G from the composite first moments, and
@@ -78,6 +78,7 @@ class SymbolicTree:
 
     def __init__(self, model, q, theta, baked_parameters: bool = True):
         self.model = model
+        self._form = None  # "closed" or "staged", resolved on first use (:meth:`form`)
         self.q = sp.Matrix(q)
         self.n = len(self.q)
         subst = dict(zip(model.theta_names, list(theta)))
@@ -345,15 +346,25 @@ class SymbolicTree:
         """The most moving joints on one path from the root (the chain's length)."""
         return max((sum(1 for j in self.path(lk.name) if j.dof) for lk in self.model.links), default=0)
 
+    def staged_applies(self) -> bool:
+        """Whether the staged form can represent this tree: revolute, prismatic and fixed joints only
+        (its motion axes S have no floating joint's six columns)."""
+        return all(j.type in ("revolute", "prismatic", "fixed") for j in self.model.joints)
+
+    def form(self) -> str:
+        """The rigid body's form, "closed" or "staged": the description's ``rigid_body_form``, or
+        for "auto" the cheaper one (:func:`hydrogen.symbolic.forms.rigid_body_form`)."""
+        if self._form is None:
+            from .forms import rigid_body_form
+            self._form = rigid_body_form(self.model)
+        return self._form
+
     def staged(self) -> bool:
         """Whether D, C, G and Y are computed from staged link poses (spatial algebra over the tree)
-        rather than from the closed form: for trees of revolute, prismatic and fixed joints at least
-        :data:`STAGE_DEPTH` moving joints deep. The closed form's expressions grow about 3.5× per link
-        of depth (products of every ancestor's sines and cosines, then differentiated for C); the staged
-        ones grow polynomially, but cost more instructions than the closed form on short chains."""
-        if any(j.type not in ("revolute", "prismatic", "fixed") for j in self.model.joints):
-            return False
-        return self.depth() >= STAGE_DEPTH
+        rather than from the closed form (:meth:`form`). The closed form's expressions grow about 3.5×
+        per link of depth (products of every ancestor's sines and cosines, then differentiated for C);
+        the staged ones grow polynomially, but can cost more instructions on short chains."""
+        return self.form() == "staged"
 
     def _staged_poses(self):
         """Every link's (R, p) as the symbols of :meth:`cylinder_stages` (prefix ""), and their stages."""
@@ -532,11 +543,6 @@ class SymbolicTree:
                 m, c, I = m + mk, c + ck, I + Ik
             out[j.child] = (m, c, I)
         return out
-
-
-#: The depth (moving joints on a path) from which the rigid body is staged: below it the closed
-#: form's code is smaller; see :meth:`SymbolicTree.staged`.
-STAGE_DEPTH = 4
 
 
 def _zero6():

@@ -1,0 +1,74 @@
+"""Which form the rigid body takes: the closed form or the staged one, chosen by cost.
+
+Both forms give the same D, C, G, Y and τ (:mod:`hydrogen.symbolic.rigid_body`); they differ in the
+size of the code. A description picks one with ``rigid_body_form`` ("closed", "staged"); "auto" (the
+default) derives the rigid-body functions of both forms, converts them to CasADi and keeps the one
+with fewer instructions (:func:`form_costs`), ties to the closed form (:data:`FORMS` order). The
+counted functions are those the controllers and the simulator evaluate (:data:`COUNTED`); their
+totals rank the forms as the controllers' own counts do on the shipped robots and a spatial leg
+(``tests/test_forms.py``, ``docs/guide/codegen.md``).
+
+Two cases are decided without counting: a tree the staged form cannot represent (a floating joint)
+takes the closed form, and a tree at least :data:`STAGED_DEPTH` moving joints deep the staged one,
+whose closed form grows about 3.5× per link (its derivation alone would cost minutes by 5 links).
+"""
+from __future__ import annotations
+
+import dataclasses
+
+__all__ = ["FORMS", "COUNTED", "STAGED_DEPTH", "rigid_body_form", "form_costs", "with_form"]
+
+#: The forms, in the order that breaks a tie of instruction counts.
+FORMS = ("closed", "staged")
+#: The rigid-body functions whose CasADi instructions decide "auto": q̈ (the simulator's plant, D and
+#: its solve), the regressor Y and D a + C w + G (the controllers' dynamics) and D itself.
+COUNTED = ("mass_matrix", "regressor", "inverse_dynamics", "forward_dynamics")
+#: The depth (moving joints on one path) from which "auto" stages without counting: on the 4-link
+#: chain of benchmarks/bench_scaling.py the staged form is smaller in every function already.
+STAGED_DEPTH = 4
+
+_CHOSEN = {}  # baked hash -> form (the decision costs a derivation of both: once per process)
+
+
+def with_form(model, form: str):
+    """``model`` with its ``rigid_body_form`` set to ``form`` (a copy; its baked hash records it)."""
+    return dataclasses.replace(model, rigid_body_form=form)
+
+
+def form_costs(model, form: str) -> dict:
+    """CasADi instructions (with CSE) of the :data:`COUNTED` rigid-body functions of ``model`` in
+    ``form`` ("closed" or "staged"), by function name."""
+    from ..codegen.casadi_functions import casadi_function
+    from .functions import rigid_body_functions
+
+    cache = {}
+    return {sf.name: int(casadi_function(sf, cache=cache).n_instructions())
+            for sf in rigid_body_functions(with_form(model, form)) if sf.name in COUNTED}
+
+
+def rigid_body_form(model) -> str:
+    """The form ``model``'s rigid body takes: its ``rigid_body_form`` unless "auto", else the closed
+    form for a tree the staged form cannot represent, the staged one from :data:`STAGED_DEPTH`
+    moving joints deep, and otherwise the one whose :data:`COUNTED` functions total fewer
+    instructions (ties: :data:`FORMS` order). Deterministic: counts of the same derivation."""
+    forced = getattr(model, "rigid_body_form", "auto")
+    if forced != "auto":
+        return forced
+    key = model.baked_hash()
+    if key not in _CHOSEN:
+        _CHOSEN[key] = _cheaper(model)
+    return _CHOSEN[key]
+
+
+def _cheaper(model) -> str:
+    from .kinematics import pose_symbols
+    from .rigid_body import theta_symbols
+    from .tree import SymbolicTree
+
+    tree = SymbolicTree(with_form(model, "closed"), pose_symbols(model), theta_symbols(model))
+    if not tree.staged_applies():
+        return "closed"
+    if tree.depth() >= STAGED_DEPTH:
+        return "staged"
+    totals = {f: sum(form_costs(model, f).values()) for f in FORMS}
+    return min(FORMS, key=lambda f: (totals[f], FORMS.index(f)))
