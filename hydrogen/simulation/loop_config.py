@@ -82,7 +82,7 @@ DERIVED = {
     "xc_lo": lambda r: _bounds(r, 0),
     "xc_hi": lambda r: _bounds(r, 1),
     "xc_euler": lambda r: int(r.sc.estimator_update == "euler"),
-    "predict": lambda r: int(bool(r.sc.predictor) and sum(delay_split(r.sc.delay, r.h)) > 0),
+    "predict": lambda r: int(r.sc.predicts()),
     "pred_theta": lambda r: np.asarray(r.ctrl.theta0, float),
     "pred_gamma1": lambda r: np.asarray(r.ctrl.gamma0[0], float),
     "pred_gamma2": lambda r: np.asarray(r.ctrl.gamma0[1], float),

@@ -89,6 +89,10 @@ class Scenario:
         """The delay as (whole control periods, fraction of a period): :func:`hydrogen.layout.delay_split`."""
         return delay_split(self.delay, 1.0 / self.control_rate)
 
+    def predicts(self) -> bool:
+        """Whether the loop runs the delay predictor: ``predictor`` on and a delay to predict over."""
+        return bool(self.predictor) and sum(self.delay_split()) > 0
+
     def with_overrides(self, **kw):
         """A copy with the given fields replaced and validated; an unknown field raises ScenarioError."""
         unknown = set(kw) - set(self.__dataclass_fields__)

@@ -415,7 +415,7 @@ class PythonStages:
         self.x, self.q_meas, self.k = x, q0.copy(), 0
         self.delay, self.delay_frac = sc.delay_split()
         self.u_app = np.zeros(self.m)  # the command the valves held at the end of the last period
-        self.predict = bool(sc.predictor) and self.delay + self.delay_frac > 0
+        self.predict = sc.predicts()
 
     def measure(self, nz) -> _Signals:
         """The sensors' readings of the plant state with the noise row ``nz``."""
