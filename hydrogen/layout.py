@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import math
 
-__all__ = ["SLOTS", "MAX_DELAY", "delay_split", "LOOP_CONFIG", "LOOP_STATE", "LOOP_SIGNALS",
+__all__ = ["SLOTS", "MAX_DELAY", "PREDICTOR_MODEL", "delay_split", "LOOP_CONFIG", "LOOP_STATE", "LOOP_SIGNALS",
            "model_summary", "loop_context", "log_widths", "loop_functions",
            "c_double", "config_fields", "struct_fields"]
 
@@ -21,6 +21,11 @@ SLOTS = ("q", "qdot", "pc", "l", "qd0", "qd1", "qd2", "qd3", "xc", "adapt", "u_a
 #: ``delay`` is refused above it). A real-time target applies a command one period after the
 #: measurement it came from; 8 leaves room for slower targets and delay-margin studies.
 MAX_DELAY = 8
+
+#: The controller's own model in the delay predictor: no friction ([F_c N, b N s/m, v_s m/s]; the
+#: smoothing speed v_s only keeps tanh's argument finite) and the ideal valve (no lag: [0, 0, 0]).
+#: The C loop's PRED_FRICTION and PRED_VALVE are rendered from it; the Python stages use it as is.
+PREDICTOR_MODEL = {"friction": (0.0, 0.0, 1.0), "valve": (0.0, 0.0, 0.0)}
 
 
 def delay_split(delay: float, h: float) -> tuple:
@@ -248,6 +253,8 @@ def loop_context(manifest: dict) -> dict:
         "state": struct_fields(LOOP_STATE, name, sizes), "signals": struct_fields(LOOP_SIGNALS, name, sizes),
         "p_theta": ", ".join(s["theta_names"]),
         "supply_pressure": ", ".join(map(c_double, s["supply_pressure"])),
+        "pred_friction": ", ".join(map(c_double, PREDICTOR_MODEL["friction"])),
+        "pred_valve": ", ".join(map(c_double, PREDICTOR_MODEL["valve"])),
     }
     if three_way:  # each control pressure within [0, P_s]
         ctx.update(piston_area=", ".join(map(c_double, s["piston_area"])),

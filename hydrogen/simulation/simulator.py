@@ -11,6 +11,7 @@ from .. import pressures
 from ..actuators import actuator
 from ..controllers import spec as controller_spec
 from ..errors import KinematicsError, SimulationError
+from ..layout import PREDICTOR_MODEL
 from ..summary import estimated_blocks
 from .checks import check_against_model, check_call, check_run_size, checked_float, metric_window
 from .control import make_controller
@@ -384,9 +385,8 @@ def _run_c(dyn, sc, ctrl, x0, q0, noise, kf_gain, log, n, h):
     return (k + 1 if code == LOOP_NONFINITE else k), _loop_failure(code, runner, h)
 
 
-#: The controller's own model in the predictor: no friction (the smoothing speed only keeps tanh's
-#: argument finite) and the ideal valve (the C loop's PRED_FRICTION, PRED_VALVE).
-_PRED_FRICTION, _PRED_VALVE = np.array([0.0, 0.0, 1.0]), np.zeros(3)
+#: The controller's own model in the predictor (the C loop renders the same definition).
+_PRED_FRICTION, _PRED_VALVE = (np.array(PREDICTOR_MODEL[k], dtype=float) for k in ("friction", "valve"))
 
 
 class _Signals:
