@@ -938,8 +938,8 @@ def _cylinders(r: _Reader, data: dict, link_names: set, root_note: str = "", joi
         linkage = {}
         if "linkage" in cy:
             linkage = _linkage(r, w, cy["linkage"], ends[0], joints)
-            ends.append((linkage["linkage_joint_child"], linkage.pop("crank_pin")))
-            del linkage["linkage_joint_child"]
+            linkage_joint = linkage.pop("joint")
+            ends.append((linkage_joint.child, linkage.pop("crank_pin")))
         if ends[0][0] == ends[1][0]:
             raise r.error(w, f"both ends are on link '{ends[0][0]}': a cylinder must join two links")
         vals = _cylinder_values(r, w, cy, defaults, kind, keys)
@@ -947,7 +947,7 @@ def _cylinders(r: _Reader, data: dict, link_names: set, root_note: str = "", joi
         if smin >= smax:
             raise r.error(f"{w} stroke", f"must be [shortest, longest] with shortest < longest, got {[smin, smax]}")
         if linkage:
-            _check_linkage(r, w, linkage, smin, smax, joints)
+            _check_linkage(r, w, linkage, smin, smax, linkage_joint)
         if kind == DEFAULT_KIND:
             if vals["chamber_length"] >= smin:
                 raise r.error(f"{w} chamber_length", f"must be < the shortest length {smin} m so the control "
@@ -976,7 +976,7 @@ LINKAGE_CHECK_POINTS = 2001
 def _linkage(r: _Reader, w: str, table, base: tuple, joints) -> dict:
     """A cylinder's ``linkage`` table: the Cylinder fields ``linkage_joint``, ``linkage`` (a
     :class:`~hydrogen.symbolic.linkage.FourBar` in the joint's plane) and, for the caller, the
-    driven link and the crank pin. ``base`` = (link, point) of the cylinder's ``from``."""
+    joint (its child is the driven link) and the crank pin. ``base`` = (link, point) of the cylinder's ``from``."""
     wl = f"{w} linkage"
     if not isinstance(table, dict):
         raise r.error(wl, f"expected a table {{ joint, rocker_pivot, rocker, coupler, crank_pin, branch }}, "
@@ -1003,16 +1003,14 @@ def _linkage(r: _Reader, w: str, table, base: tuple, joints) -> dict:
                                        branch)
     except ValueError as exc:
         raise r.error(wl, str(exc)) from None
-    return {"linkage_joint": jname, "linkage": geometry, "linkage_joint_child": joint.child,
-            "crank_pin": crank_pin}
+    return {"linkage_joint": jname, "linkage": geometry, "joint": joint, "crank_pin": crank_pin}
 
 
-def _check_linkage(r: _Reader, w: str, linkage: dict, smin: float, smax: float, joints):
+def _check_linkage(r: _Reader, w: str, linkage: dict, smin: float, smax: float, joint):
     """A linkage closes over its joint's whole range, its cylinder stays inside the stroke there and
     never passes a dead centre (dl/dq = 0), so it drives the joint over the range."""
     wl = f"{w} linkage"
     jname, g = linkage["linkage_joint"], linkage["linkage"]
-    joint = next(j for j in joints if j.name == jname)
     lo, hi = joint.limit.get("lower"), joint.limit.get("upper")
     if lo is None or hi is None:
         raise r.error(f"{wl}.joint", f"joint '{jname}' has no position limits (lower, upper): a linkage is "
