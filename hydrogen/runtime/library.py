@@ -287,15 +287,11 @@ def function_groups(manifest: dict) -> dict:
     """The manifest's function names by the library that holds them: :data:`CORE` first, then one
     group per controller (its user-facing name) holding the controller and its variants (rates,
     semi-implicit step, lean ones), in the order the controllers are registered."""
-    from ..controllers import CONTROLLERS, LEAN, function_name
+    from ..controllers import CONTROLLERS, LEAN, function_name, rates_function_name, step_function_name
 
     names = [e["name"] for e in manifest["functions"]]
-    owner = {}
-    for kind in CONTROLLERS:
-        for variant in (None, LEAN):
-            base = function_name(kind, variant)
-            for name in (base, base + "_rates", base + "_step"):
-                owner[name] = kind
+    owner = {namer(kind, variant): kind for kind in CONTROLLERS for variant in (None, LEAN)
+             for namer in (function_name, rates_function_name, step_function_name)}
     groups = {CORE: [n for n in names if n not in owner]}
     for kind in CONTROLLERS:
         mine = [n for n in names if owner.get(n) == kind]
