@@ -8,7 +8,6 @@ Run: ``python benchmarks/bench_predictor.py [--quick] [--json FILE]``
 """
 from __future__ import annotations
 
-import math
 import os
 import statistics
 import sys
@@ -38,9 +37,8 @@ def run_robot(name: str, quick: bool = False) -> dict | None:
     dyn = hydrogen.build(model)
     sc = named_scenario(rig, model)
     d, frac = delay_split(sc.delay, 1.0 / sc.control_rate)
-    # RK4: 4 evaluations of the plant's model per step; pred_substeps steps per whole period held, and
-    # the C loop's ceil(frac pred_substeps) (at least one) over a fraction
-    evaluations = 4 * (sc.predictor_substeps * d + (max(1, math.ceil(frac * sc.predictor_substeps - 1e-9)) if frac else 0))
+    # RK4: 4 evaluations of the plant's model per step, the loop's steps over each whole period and the fraction
+    evaluations = 4 * (sc.predictor_steps(1) * d + (sc.predictor_steps(frac) if frac else 0))
     n_rhs = _instructions(dyn, "plant_rhs")
     n, repeats = (2000, 3) if quick else (8000, 5)
     rows = {}

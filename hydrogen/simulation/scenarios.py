@@ -3,6 +3,8 @@ in its description (``[scenarios.<name>]``, over the shared ``[rig]`` table); fo
 they are section V's simulation and section VI's experiments, in simulation."""
 from __future__ import annotations
 
+import math
+
 from dataclasses import dataclass, field, fields, replace
 
 import numpy as np
@@ -92,6 +94,11 @@ class Scenario:
     def predicts(self) -> bool:
         """Whether the loop runs the delay predictor: ``predictor`` on and a delay to predict over."""
         return bool(self.predictor) and sum(self.delay_split()) > 0
+
+    def predictor_steps(self, periods: float) -> int:
+        """RK4 steps the delay predictor takes over ``periods`` control periods of one held command:
+        no step longer than a period / ``predictor_substeps``, at least one (the C loop's ``pred_hold``)."""
+        return max(math.ceil(periods * self.predictor_substeps - 1e-9), 1)
 
     def with_overrides(self, **kw):
         """A copy with the given fields replaced and validated; an unknown field raises ScenarioError."""

@@ -475,13 +475,13 @@ class PythonStages:
         controller's own model (its estimates, ideal valve, no friction) over the commands in flight:
         the one the valves hold over the period's first ``delay_frac`` h, then a period each of the
         commands of periods k − delay … k − 1 (the C loop's ``predict``)."""
-        nq, n_p, h, ns = self.nq, self.n_p, self.h, self.sc.predictor_substeps
+        nq, n_p, h = self.nq, self.n_p, self.h
         th, g1, g2 = self.ctrl.own_parameters()
         x = np.zeros_like(self.x)
         x[:nq], x[nq:2 * nq], x[2 * nq:2 * nq + n_p] = self.q_meas, s.qdot_meas, s.pc_meas
 
         def hold(x, u, dt):
-            n = max(int(np.ceil(dt / h * ns - 1e-9)), 1)
+            n = self.sc.predictor_steps(dt / h)
             rhs = lambda xx: self._rhs_fn(xx, u, th, g1, g2, _PRED_FRICTION, _PRED_VALVE)  # noqa: E731
             for _ in range(n):
                 x = _rk4(rhs, x, dt / n)
