@@ -1,8 +1,11 @@
 """Random controller inputs for the composite-adaptation tests (numpy only)."""
 import numpy as np
 
-from hydrogen.controllers.common import initial_gain_matrix
+from hydrogen.controllers.common import COMPOSITE_RATES, initial_gain_matrix
 from hydrogen.pressures import bounds as pressure_bounds, uniform_three_way
+
+#: The paper's gradient laws (composite weights 0), whatever a description stores.
+PAPER_LAWS = {k: 0.0 for k in COMPOSITE_RATES}
 
 
 def random_pressures(model, rng, low=0.3, high=0.7, size=None):

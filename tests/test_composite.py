@@ -10,7 +10,7 @@ from hydrogen.pressures import n_pressures
 from hydrogen.simulation.control import make_controller
 from hydrogen.symbolic.composite import normalised_least_squares, pack_symmetric, unpack_symmetric
 
-from controller_inputs import kind_laws, random_controller_inputs
+from controller_inputs import PAPER_LAWS, kind_laws, random_controller_inputs
 
 KINDS = ["adaptive-robust", "adaptive-observer"]
 
@@ -74,7 +74,7 @@ def test_composite_weight_zero_is_the_papers_gradient_law(robot_dyn, kind, rng):
     and every rate but the composite filters' (θ̂'s too) are unchanged by the composite states."""
     dyn, model = robot_dyn, robot_dyn.model
     # the weights at 0 whatever the description stores (the Stewart rig's use the composite γ law)
-    ctrl = make_controller(dyn, kind, {"rate_ls_gamma": 0.0, "rate_ls_theta": 0.0})
+    ctrl = make_controller(dyn, kind, PAPER_LAWS)
     assert float(ctrl.values["rate_ls_gamma"][0]) == 0.0 and float(ctrl.values["rate_ls_theta"][0]) == 0.0
     m = model.n_cylinders
     comp = ["force_filter", "log_chamber_filter", "g0_filter", "pc_prev", "legl_prev", "gamma_gain",

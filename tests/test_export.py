@@ -10,6 +10,7 @@ from hydrogen.errors import OutputPathError
 from hydrogen.export import EXPORT_MANIFEST, export
 from hydrogen.simulation.scenarios import scenario as named_scenario
 from hydrogen.simulation.simulator import simulate
+from controller_inputs import PAPER_LAWS
 
 pytestmark = pytest.mark.skipif(shutil.which("make") is None or shutil.which("cc") is None,
                                 reason="needs make and cc")
@@ -85,7 +86,7 @@ def test_exported_program_matches_the_noise_free_simulation(tmp_path, cache, mod
 def test_export_folder_contents(tmp_path, dyn):
     # the paper's gradient laws (composite weights 0): the lean variant is exported
     folder = export(tmp_path / "out", "z-1hz", "adaptive-robust", duration=0.2, dyn=dyn,
-                    gains={"rate_ls_gamma": 0.0, "rate_ls_theta": 0.0})
+                    gains=PAPER_LAWS)
     meta = json.loads((folder / EXPORT_MANIFEST).read_text())
     names = {p.name for p in folder.iterdir()}
     m = dyn.model.name

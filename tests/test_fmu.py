@@ -22,6 +22,7 @@ from hydrogen.fmu import FMI_HEADERS, PARTS, export_fmu, fmi_headers_dir  # noqa
 from hydrogen.simulation.simulator import simulate  # noqa: E402
 from hydrogen.actuators import actuator  # noqa: E402
 from hydrogen.pressures import bounds as pressure_bounds  # noqa: E402
+from controller_inputs import PAPER_LAWS  # noqa: E402
 
 
 def _pressure_variables(model, suffix=""):
@@ -346,8 +347,7 @@ def test_a_lean_controller_offers_no_composite_rate_as_a_parameter(dyn, tmp_path
         path = export_fmu(tmp_path / f"c{sum(gains.values()):g}.fmu", "controller", "z-1hz", "adaptive-robust", dyn=dyn,
                           duration=DURATION, gains=gains)
         return {v.name for v in read_model_description(str(path)).modelVariables if v.causality == "parameter"}
-    paper = {"rate_ls_gamma": 0.0, "rate_ls_theta": 0.0}  # the gradient laws, whatever the description stores
-    lean, full = params(paper), params({**paper, "rate_ls_theta": 20.0})
+    lean, full = params(PAPER_LAWS), params({**PAPER_LAWS, "rate_ls_theta": 20.0})
     assert "Ktau[1]" in lean and "Ktau[1]" in full
     composite = {"rate_ls_theta", "rate_ls_gamma", "P0_theta", "P0_gamma", "lambda_f_theta", "period"}
     assert not composite & lean

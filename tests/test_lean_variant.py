@@ -10,13 +10,9 @@ from hydrogen.controllers import LEAN, controller, function_name, rates_function
 from hydrogen.controllers.common import COMPOSITE_BLOCKS, lean_variant
 from hydrogen.simulation.control import make_controller
 
-from controller_inputs import random_controller_inputs
+from controller_inputs import PAPER_LAWS, random_controller_inputs
 
 KINDS = ["adaptive-robust", "adaptive-observer"]
-
-
-#: The composite weights at 0 (the paper's gradient laws), whatever a description stores.
-_PAPER_LAWS = {"rate_ls_gamma": 0.0, "rate_ls_theta": 0.0}
 
 
 def _args(fn, values):
@@ -30,7 +26,7 @@ def test_lean_functions_equal_the_full_ones_at_composite_rates_zero(robot_dyn, k
     the command, τ_d, τ̇_d, f_d and every non-composite rate of the lean controller, rates and
     step functions equal the full ones; the composite blocks' rates are 0 (their states hold)."""
     dyn, model = robot_dyn, robot_dyn.model
-    ctrl = make_controller(dyn, kind, {"P0_gamma": p0[0], "P0_theta": p0[1], **_PAPER_LAWS})
+    ctrl = make_controller(dyn, kind, {"P0_gamma": p0[0], "P0_theta": p0[1], **PAPER_LAWS})
     assert ctrl.variant == LEAN
     comp = np.zeros(ctrl.xc.size, bool)
     for name, sl in ctrl.slices.items():
@@ -97,7 +93,7 @@ def test_lean_variant_is_smaller(robot_dyn):
 
 def test_runtime_picks_the_lean_variant_exactly_when_the_composite_rates_are_zero(robot_dyn):
     for kind in KINDS:
-        assert make_controller(robot_dyn, kind, _PAPER_LAWS).fn.name == function_name(kind, LEAN)
+        assert make_controller(robot_dyn, kind, PAPER_LAWS).fn.name == function_name(kind, LEAN)
         for gain in ("rate_ls_gamma", "rate_ls_theta"):
             c = make_controller(robot_dyn, kind, {gain: 5.0})
             assert c.variant is None
@@ -113,9 +109,9 @@ def test_runtime_picks_the_lean_variant_exactly_when_the_composite_rates_are_zer
 def test_a_run_with_the_lean_variant_equals_one_with_the_full_function(dyn, kind, engine, monkeypatch):
     """The whole closed loop (z-1hz, rig: semi-implicit update and delay) gives the same trajectory,
     command and estimates bit for bit."""
-    lean = hydrogen.simulate("z-1hz", controller=kind, dyn=dyn, duration=0.5, engine=engine, gains=_PAPER_LAWS)
+    lean = hydrogen.simulate("z-1hz", controller=kind, dyn=dyn, duration=0.5, engine=engine, gains=PAPER_LAWS)
     monkeypatch.setattr(control, "runs_lean", lambda gains: False)
-    full = hydrogen.simulate("z-1hz", controller=kind, dyn=dyn, duration=0.5, engine=engine, gains=_PAPER_LAWS)
+    full = hydrogen.simulate("z-1hz", controller=kind, dyn=dyn, duration=0.5, engine=engine, gains=PAPER_LAWS)
     np.testing.assert_array_equal(lean.q, full.q)
     np.testing.assert_array_equal(lean.u, full.u)
     np.testing.assert_array_equal(lean.theta_hat, full.theta_hat)

@@ -15,6 +15,7 @@ from hydrogen.simulation.scenarios import scenario
 from hydrogen.simulation.simulator import _rk4, equilibrium_pressures, simulate
 from hydrogen.controllers import controller as controller_module
 from reference import controller_rate_map
+from controller_inputs import PAPER_LAWS
 
 FRIC, NO_LAG = np.array([100.0, 300.0, 1e-3]), np.zeros(3)  # valve [lag, natural frequency, damping]: ideal
 
@@ -198,7 +199,7 @@ def test_paper_sim_gradient_law_keeps_the_valve_gain_but_not_beta(dyn):
     """The paper's law (composite weights 0) on the same run: the excited direction, the valve gain
     c = γ2/γ1, ends within 6 %, β̂ stays more than 5 % off (where the initial error and the gains leave
     it): what the composite law is for."""
-    res = simulate(dyn, "paper-sim", "adaptive-robust", gains={"rate_ls_gamma": 0.0, "rate_ls_theta": 0.0},
+    res = simulate(dyn, "paper-sim", "adaptive-robust", gains=PAPER_LAWS,
                    estimator_update="semi-implicit")
     c_hat = res.gamma2_hat[-1] / res.gamma1_hat[-1]
     c = res.gamma_true[1] / res.gamma_true[0]
@@ -210,7 +211,7 @@ def test_semi_implicit_estimator_update_is_stable_where_forward_euler_is_not(dyn
     """Balanced hydraulic adaptation rates (3e-3 /J for both γ families): with the forward-Euler update
     of the controller state at 1 kHz the estimates oscillate to their bounds and the spool saturates;
     the semi-implicit update (state from this period's measurement, then the command) stays calm."""
-    gains = {"rate_gamma1": 3e-3, "rate_gamma2": 3e-3, "rate_ls_gamma": 0.0, "rate_ls_theta": 0.0}  # the paper's law
+    gains = {"rate_gamma1": 3e-3, "rate_gamma2": 3e-3, **PAPER_LAWS}  # the paper's law
     res = {upd: simulate(dyn, "paper-sim", "adaptive-observer", gains=gains, estimator_update=upd)
            for upd in ("euler", "semi-implicit")}
     th_err = {k: np.abs(r.theta_hat[-1] / r.theta_true - 1).max() for k, r in res.items()}
