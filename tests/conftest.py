@@ -1,3 +1,5 @@
+import os
+
 import numpy as np
 import pytest
 
@@ -15,8 +17,15 @@ def model():
 
 @pytest.fixture(scope="session")
 def cache(tmp_path_factory):
-    """The run's one build cache, new each run: every library and extension is built once per run."""
-    return tmp_path_factory.mktemp("hydrogen-cache")
+    """The run's one build cache, new each run: every library and extension is built once per run.
+    Under pytest-xdist (``-n``) the workers share it: each worker's base folder is a child of the
+    run's, and the build locks let one worker build while another waits for that build."""
+    root = tmp_path_factory.getbasetemp()
+    if os.environ.get("PYTEST_XDIST_WORKER"):
+        root = root.parent
+    folder = root / "hydrogen-cache"
+    folder.mkdir(exist_ok=True)
+    return folder
 
 
 @pytest.fixture(scope="session", autouse=True)
