@@ -108,42 +108,8 @@ def run_robot(model, quick: bool = False, cc: str = "cc", gen_dir: Path | None =
               "timed as it is:\n  " + "\n  ".join(stale), file=sys.stderr)
     values = common.InputValues(hydrogen.build(model))
     min_time = QUICK_MIN_TIME_S if quick else MIN_TIME_S
-    entries = manifest["functions"]
-    results = {}
-    with tempfile.TemporaryDirectory(prefix="bench_functions_") as tmp:
-        jobs = []
-        for entry in entries:
-            inputs = values.function_inputs(entry)
-            driver = Path(tmp) / f"bench_{entry['name']}.c"
-            exe = Path(tmp) / f"bench_{entry['name']}"
-            driver.write_text(render_driver(entry, inputs, REPEATS, min_time))
-            argv = [cc_path, *common.CFLAGS, "-I", str(gen_dir), str(driver),
-                    str(gen_dir / entry["source"]), "-o", str(exe), "-lm"]
-            jobs.append((entry, argv, exe))
-        t0 = time.perf_counter()
-        with ThreadPoolExecutor(max_workers=os.cpu_count() or 1) as pool:
-            compiled = list(pool.map(lambda job: _compile(job[1]), jobs))
-        compile_wall = time.perf_counter() - t0
-        for (entry, argv, _), (_, proc) in zip(jobs, compiled):
-            if proc.returncode != 0:
-                raise RuntimeError(f"compiling the driver of {entry['c_name']} failed:\n$ "
-                                   f"{' '.join(argv)}\n{proc.stderr}")
-        # run one at a time: drivers running side by side would share the cores
-        for (entry, argv, exe), (compile_s, _) in zip(jobs, compiled):
-            proc = subprocess.run([str(exe)], capture_output=True, text=True, timeout=300)
-            if proc.returncode != 0:
-                raise RuntimeError(f"the driver of {entry['c_name']} failed (exit {proc.returncode}):\n"
-                                   f"{proc.stderr}")
-            r = _parse(proc.stdout, entry, REPEATS)
-            ns = common.median(r["ns"])
-            results[entry["name"]] = {
-                "c_name": entry["c_name"], "instructions": entry["instructions"],
-                "ns_per_call": ns, "ns_per_call_repeats": r["ns"],
-                "ns_per_instruction": ns / entry["instructions"] if entry["instructions"] else None,
-                "calls_per_repeat": r["n_calls"], "checksum": r["checksum"],
-                "non_finite_outputs": r["non_finite_outputs"], "n_outputs": r["n_outputs"],
-                "compile_s": compile_s,
-            }
+    jobs = [(entry["name"], entry, values.function_inputs(entry), gen_dir) for entry in manifest["functions"]]
+    results, compile_wall = time_drivers(jobs, min_time, cc_path)
     order = sorted(results, key=lambda n: results[n]["ns_per_call"], reverse=True)
     return {
         "model": model.name, "n": model.n, "generated": str(gen_dir), "stale": stale,
@@ -152,6 +118,46 @@ def run_robot(model, quick: bool = False, cc: str = "cc", gen_dir: Path | None =
         "total_ns_per_call": sum(r["ns_per_call"] for r in results.values()),
         "compile_wall_s": compile_wall, "wall_s": time.perf_counter() - t_start,
     }
+
+
+def time_drivers(jobs: list, min_time: float, cc_path: str) -> tuple[dict, float]:
+    """Time generated C functions: ``jobs`` of (key, manifest entry, [(input name, values)], the
+    folder holding the entry's source). The drivers compile in parallel and run one at a time, in
+    the order given. Returns ({key: result}, compile wall time s)."""
+    results = {}
+    with tempfile.TemporaryDirectory(prefix="bench_functions_") as tmp:
+        built = []
+        for k, (key, entry, inputs, folder) in enumerate(jobs):
+            driver, exe = Path(tmp) / f"bench_{k}.c", Path(tmp) / f"bench_{k}"
+            driver.write_text(render_driver(entry, inputs, REPEATS, min_time))
+            argv = [cc_path, *common.CFLAGS, "-I", str(folder), str(driver),
+                    str(Path(folder) / entry["source"]), "-o", str(exe), "-lm"]
+            built.append((key, entry, argv, exe))
+        t0 = time.perf_counter()
+        with ThreadPoolExecutor(max_workers=os.cpu_count() or 1) as pool:
+            compiled = list(pool.map(lambda job: _compile(job[2]), built))
+        compile_wall = time.perf_counter() - t0
+        for (_, entry, argv, _), (_, proc) in zip(built, compiled):
+            if proc.returncode != 0:
+                raise RuntimeError(f"compiling the driver of {entry['c_name']} failed:\n$ "
+                                   f"{' '.join(argv)}\n{proc.stderr}")
+        # run one at a time: drivers running side by side would share the cores
+        for (key, entry, argv, exe), (compile_s, _) in zip(built, compiled):
+            proc = subprocess.run([str(exe)], capture_output=True, text=True, timeout=300)
+            if proc.returncode != 0:
+                raise RuntimeError(f"the driver of {entry['c_name']} failed (exit {proc.returncode}):\n"
+                                   f"{proc.stderr}")
+            r = _parse(proc.stdout, entry, REPEATS)
+            ns = common.median(r["ns"])
+            results[key] = {
+                "c_name": entry["c_name"], "instructions": entry["instructions"],
+                "ns_per_call": ns, "ns_per_call_repeats": r["ns"],
+                "ns_per_instruction": ns / entry["instructions"] if entry["instructions"] else None,
+                "calls_per_repeat": r["n_calls"], "checksum": r["checksum"],
+                "non_finite_outputs": r["non_finite_outputs"], "n_outputs": r["n_outputs"],
+                "compile_s": compile_s,
+            }
+    return results, compile_wall
 
 
 def run(quick: bool = False, cc: str = "cc") -> dict:

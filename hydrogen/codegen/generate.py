@@ -24,7 +24,7 @@ from ..resources import templates_dir
 # runtime imports this module for the staleness check only, and stays free of both.
 
 __all__ = [
-    "generate", "generate_locked", "check", "check_output", "derivation_hash", "read_manifest", "expected_manifest_inputs",
+    "generate", "generate_locked", "write_function", "check", "check_output", "derivation_hash", "read_manifest", "expected_manifest_inputs",
     "MANIFEST", "FORMAT_VERSION",
 ]
 
@@ -104,7 +104,9 @@ def c_name(model_name: str, fname: str) -> str:
     return f"{model_name}_{fname}"
 
 
-def _write_function(sf, model_name: str, folder: Path, cache: dict) -> dict:
+def write_function(sf, model_name: str, folder: Path, cache: dict) -> dict:
+    """Write ``sf``'s C (``<model>_<name>.c`` and ``.h``) into ``folder``; returns its manifest
+    entry. ``cache``: the CasADi conversions made so far (:func:`casadi_function`)."""
     import casadi as ca
 
     from .casadi_functions import casadi_function
@@ -162,7 +164,7 @@ def render(model, folder: Path, functions=None, progress: bool = False) -> dict:
     from ..layout import model_summary
 
     cache = {}  # CasADi conversions by function name: the composed functions reuse them
-    entries = [_write_function(sf, model.name, folder, cache)
+    entries = [write_function(sf, model.name, folder, cache)
                for sf in tqdm(functions, desc="generating C", unit="fn", disable=None if progress else True)]
     summary = model_summary(model)
     drivers = render_drivers({"model": summary}, folder)

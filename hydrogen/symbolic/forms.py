@@ -16,6 +16,8 @@ from __future__ import annotations
 
 import dataclasses
 
+from .constants import folded
+
 __all__ = ["FORMS", "COUNTED", "STAGED_DEPTH", "rigid_body_form", "form_costs", "with_form"]
 
 #: The forms, in the order that breaks a tie of instruction counts.
@@ -56,7 +58,8 @@ def rigid_body_form(model) -> str:
         return forced
     key = model.baked_hash()
     if key not in _CHOSEN:
-        _CHOSEN[key] = _cheaper(model)
+        with folded():  # the same form whether the numbers fold or stay inputs
+            _CHOSEN[key] = _cheaper(model)
     return _CHOSEN[key]
 
 

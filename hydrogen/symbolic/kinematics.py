@@ -7,6 +7,8 @@ from __future__ import annotations
 
 import sympy as sp
 
+from .constants import mode_key
+
 __all__ = [
     "pose_symbols", "rate_symbols", "rotation", "angular_velocity_map",
     "body_angular_velocity_map", "task_map", "leg_stages", "leg_intermediates", "matrix_symbols", "pose_rates",
@@ -100,7 +102,8 @@ def _cylinder_stages(model, q, qdot, prefix=""):
     from .rigid_body import theta_symbols
     from .tree import SymbolicTree
 
-    key = (model.baked_hash(), tuple(sp.Matrix(q)), None if qdot is None else tuple(sp.Matrix(qdot)), prefix)
+    key = (model.baked_hash(), mode_key(), tuple(sp.Matrix(q)), None if qdot is None else tuple(sp.Matrix(qdot)),
+           prefix)
     if key not in _STAGES:
         tree = SymbolicTree(model, q, theta_symbols(model))
         _STAGES[key] = tree.cylinder_stages(prefix, qdot=qdot)
@@ -113,7 +116,7 @@ def _pose_rates(model, q, qdot):
     from .calculus import time_derivative
     from .tree import skew
 
-    key = (model.baked_hash(), tuple(sp.Matrix(q)), tuple(sp.Matrix(qdot)), "rates")
+    key = (model.baked_hash(), mode_key(), tuple(sp.Matrix(q)), tuple(sp.Matrix(qdot)), "rates")
     if key in _STAGES:
         return _STAGES[key]
     _, _, stages, links = _cylinder_stages(model, q, qdot)

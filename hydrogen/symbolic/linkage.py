@@ -30,6 +30,8 @@ from dataclasses import dataclass
 import numpy as np
 import sympy as sp
 
+from .constants import baked
+
 __all__ = ["FourBar", "four_bar_length", "from_description", "plane_basis"]
 
 
@@ -90,10 +92,9 @@ class FourBar:
 def four_bar_length(geometry: FourBar, q):
     """(l, dl/dq, C): the cylinder length (m), its Jacobian (m/rad) and the rod-end pin C (2-vector)."""
     g = geometry
-    F = sp.Float
-    r2, r3, r4, phi0 = F(repr(g.crank)), F(repr(g.coupler)), F(repr(g.rocker)), F(repr(g.crank_offset))
-    O4 = sp.Matrix([F(repr(float(v))) for v in g.rocker_pivot])
-    P = sp.Matrix([F(repr(float(v))) for v in g.cylinder_base])
+    r2, r3, r4, phi0 = baked(g.crank), baked(g.coupler), baked(g.rocker), baked(g.crank_offset)
+    O4 = sp.Matrix([baked(v) for v in g.rocker_pivot])
+    P = sp.Matrix([baked(v) for v in g.cylinder_base])
     # C as a function of the crank pin B (symbols), then the chain rule through B(q)
     bx, by = sp.symbols("linkage_Bx linkage_By", real=True)
     B = sp.Matrix([bx, by])

@@ -19,7 +19,7 @@ from __future__ import annotations
 
 import sympy as sp
 
-from .constants import baked
+from .constants import baked, mode_key
 from .kinematics import angular_velocity_map, rotation
 from .tree import SymbolicTree
 
@@ -38,7 +38,7 @@ def theta_symbols(model, prefix: str = "theta") -> sp.Matrix:
 
 def symbolic_tree(model, q, theta) -> SymbolicTree:
     """The :class:`SymbolicTree` for these symbols, built once (its closed form is reused)."""
-    key = (model.baked_hash(), tuple(sp.Matrix(q)), tuple(sp.Matrix(theta)))
+    key = (model.baked_hash(), mode_key(), tuple(sp.Matrix(q)), tuple(sp.Matrix(theta)))
     if key not in _TREES:
         _TREES[key] = SymbolicTree(model, q, theta)
     return _TREES[key]

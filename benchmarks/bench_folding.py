@@ -1,0 +1,174 @@
+"""What folding the description's numbers into the generated code buys.
+
+hydrogen generates each function with the description's numbers (masses, inertias, pin points,
+areas, pressures, valve constants) folded into its expressions as constants, so CasADi simplifies
+through them. The alternative keeps them as one more input, ``numbers``, so an edit of a number
+needs no regeneration. For each shipped robot, every derived function
+(``hydrogen.symbolic.functions.derive_functions``) is generated three times in one run: folded, as
+shipped, and twice with the numbers as symbols (``hydrogen.symbolic.constants.numbers_as_symbols``;
+the same rigid-body form, zeros and unit axes still structural) bracketing what a runtime parameter
+vector would cost: ``shared``, one symbol per distinct value (equal numbers merge, as folding
+merges them: the low bound), and ``per_use``, a symbol for every number the derivation meets (the
+same description number met in two derivation passes counts twice: the high bound). Each is
+checked to agree with the folded function at the description's numbers (CasADi, relative 1e-9),
+then all are timed side by side with the ``bench_functions`` driver (same flags, the same inputs
+plus the numbers). Reported per function: CasADi instructions and C ns per call, and the ratios
+to folded; per robot, the derivation times and the sums.
+
+Run: ``python benchmarks/bench_folding.py [--quick] [--model NAME] [--json FILE]``
+(about 2-4 minutes per robot on 2 cores).
+"""
+from __future__ import annotations
+
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+try:  # imported as benchmarks.bench_folding
+    from . import bench_functions, common
+except ImportError:  # run as a script, or loaded from its path
+    sys.path.insert(0, str(Path(__file__).resolve().parent))
+    import bench_functions
+    import common
+
+#: Relative agreement of the folded and the parametric function at the description's numbers.
+AGREEMENT_RTOL = 1e-9
+NUMBERS = "numbers"
+
+
+#: The parametric variants: NumberTable(shared=...) of each.
+VARIANTS = {"shared": True, "per_use": False}
+
+
+def derive_all(model) -> tuple[list, dict, dict]:
+    """(folded functions, {variant: (functions with the numbers input, their values)}, derivation s)."""
+    import sympy as sp
+
+    from hydrogen.symbolic.constants import numbers_as_symbols
+    from hydrogen.symbolic.functions import SymbolicFunction, derive_functions
+
+    t0 = time.perf_counter()
+    folded = [f for f in derive_functions(model) if isinstance(f, SymbolicFunction)]
+    seconds, variants = {"folded": time.perf_counter() - t0}, {}
+    for variant, shared in VARIANTS.items():
+        t0 = time.perf_counter()
+        with numbers_as_symbols(shared) as table:
+            funcs = [f for f in derive_functions(model) if isinstance(f, SymbolicFunction)]
+        seconds[variant] = time.perf_counter() - t0
+        numbers = sp.Matrix(table.symbols)
+        variants[variant] = ([SymbolicFunction(f.name, [*f.inputs, (NUMBERS, numbers)], f.outputs, f.doc,
+                                               f.intermediates) for f in funcs], np.asarray(table.values))
+    return folded, variants, seconds
+
+
+def agreement(f_folded, f_param, inputs: list, numbers) -> float:
+    """Largest relative difference of the two CasADi functions' outputs at ``inputs`` (and the numbers)."""
+    from hydrogen.codegen.casadi_functions import to_casadi_function
+
+    args = [np.asarray(v, float) for _, v in inputs]
+    a = to_casadi_function(f_folded).call(args)
+    b = to_casadi_function(f_param).call(args + [np.asarray(numbers, float)])
+    worst = 0.0
+    for x, y in zip(a, b):
+        x, y = np.asarray(x, float).ravel(), np.asarray(y, float).ravel()
+        worst = max(worst, float(np.max(np.abs(x - y) / np.maximum(1.0, np.abs(x)), initial=0.0)))
+    return worst
+
+
+def run_robot(model, quick: bool = False, cc: str = "cc") -> dict:
+    import hydrogen
+    from hydrogen.codegen.generate import write_function
+
+    t_start = time.perf_counter()
+    cc_path = common.require_cc(cc)
+    folded, variants, derive_s = derive_all(model)
+    values = common.InputValues(hydrogen.build(model))
+    min_time = bench_functions.QUICK_MIN_TIME_S if quick else bench_functions.MIN_TIME_S
+    kinds = ("folded", *variants)
+    with tempfile.TemporaryDirectory(prefix="bench_folding_") as tmp:
+        dirs = {kind: Path(tmp) / kind for kind in kinds}
+        for d in dirs.values():
+            d.mkdir()
+        jobs, worst = [], {}
+        for k, f in enumerate(folded):
+            entry = write_function(f, model.name, dirs["folded"], {})
+            inputs = values.function_inputs(entry)
+            jobs.append(((f.name, "folded"), entry, inputs, dirs["folded"]))
+            for variant, (funcs, numbers) in variants.items():
+                g = funcs[k]
+                worst[(f.name, variant)] = agreement(f, g, inputs, numbers)
+                jobs.append(((f.name, variant), write_function(g, model.name, dirs[variant], {}),
+                             [*inputs, (NUMBERS, numbers)], dirs[variant]))
+        timed, compile_wall = bench_functions.time_drivers(jobs, min_time, cc_path)
+    functions = {}
+    for f in folded:
+        base = timed[(f.name, "folded")]
+        functions[f.name] = {kind: {"instructions": timed[(f.name, kind)]["instructions"],
+                                    "ns_per_call": timed[(f.name, kind)]["ns_per_call"],
+                                    "instruction_ratio": timed[(f.name, kind)]["instructions"] / max(base["instructions"], 1),
+                                    "time_ratio": timed[(f.name, kind)]["ns_per_call"] / base["ns_per_call"],
+                                    **({"largest_relative_difference": worst[(f.name, kind)]} if kind in variants else {})}
+                             for kind in kinds}
+    return {"model": model.name, "n": model.n, "numbers": {v: len(n) for v, (_, n) in variants.items()},
+            "derivation_s": derive_s, "functions": functions, "compile_wall_s": compile_wall,
+            "wall_s": time.perf_counter() - t_start, "agree": all(w <= AGREEMENT_RTOL for w in worst.values())}
+
+
+def run(quick: bool = False, cc: str = "cc", models=None) -> dict:
+    import hydrogen
+
+    return {"robots": {name: run_robot(hydrogen.load_model(name), quick=quick, cc=cc)
+                       for name in (models or common.robots())},
+            "quick": quick, "machine": common.machine_info(cc)}
+
+
+def print_table(res: dict) -> None:
+    m = res["machine"]
+    print(f"machine : {m['processor']}, {m['cpu_count']} CPUs; {m['cc']}")
+    for rob in res["robots"].values():
+        d, nums = rob["derivation_s"], rob["numbers"]
+        print(f"\n{rob['model']} (n = {rob['n']}): numbers as symbols: shared {nums['shared']}, per use "
+              f"{nums['per_use']}; derivation {d['folded']:.1f} s folded, {d['shared']:.1f} s shared, "
+              f"{d['per_use']:.1f} s per use; every parametric function "
+              f"{'agrees' if rob['agree'] else 'DOES NOT AGREE'} with the folded one (relative {AGREEMENT_RTOL:g})")
+        header = (f"{'function':<28} {'instructions: folded':>20} {'shared':>7} {'per use':>8} "
+                  f"{'ns/call: folded':>16} {'shared':>8} {'per use':>8}")
+        print(header)
+        print("-" * len(header))
+        tot = {k: [0, 0.0] for k in ("folded", "shared", "per_use")}
+        for name, r in rob["functions"].items():
+            for k in tot:
+                tot[k][0] += r[k]["instructions"]
+                tot[k][1] += r[k]["ns_per_call"]
+            print(f"{name:<28} {r['folded']['instructions']:>20d} {r['shared']['instruction_ratio']:>6.2f}x "
+                  f"{r['per_use']['instruction_ratio']:>7.2f}x {r['folded']['ns_per_call']:>16.1f} "
+                  f"{r['shared']['time_ratio']:>7.2f}x {r['per_use']['time_ratio']:>7.2f}x")
+        f, sh, pu = tot["folded"], tot["shared"], tot["per_use"]
+        print(f"{'all (one call each)':<28} {f[0]:>20d} {sh[0] / f[0]:>6.2f}x {pu[0] / f[0]:>7.2f}x "
+              f"{f[1]:>16.1f} {sh[1] / f[1]:>7.2f}x {pu[1] / f[1]:>7.2f}x")
+
+
+def main(argv=None) -> int:
+    import argparse
+    import json
+
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--quick", action="store_true", help="shorter repeats (>= 0.01 s)")
+    ap.add_argument("--model", action="append", help="a shipped robot (repeatable; default: all)")
+    ap.add_argument("--json", type=Path, metavar="FILE", help="also write the results as JSON")
+    ap.add_argument("--cc", default="cc", help="C compiler (default: cc)")
+    a = ap.parse_args(argv)
+    res = run(quick=a.quick, cc=a.cc, models=a.model)
+    print_table(res)
+    if a.json:
+        from hydrogen.fileio import atomic_write
+        atomic_write(a.json, json.dumps(res, indent=2) + "\n")
+        print(f"wrote {a.json}")
+    return 0 if all(r["agree"] for r in res["robots"].values()) else 1
+
+
+if __name__ == "__main__":
+    sys.exit(main())
