@@ -4,16 +4,17 @@ hydrogen generates each function with the description's numbers (masses, inertia
 areas, pressures, valve constants) folded into its expressions as constants, so CasADi simplifies
 through them. The alternative keeps them as one more input, ``numbers``, so an edit of a number
 needs no regeneration. For each shipped robot, every derived function
-(``hydrogen.symbolic.functions.derive_functions``) is generated three times in one run: folded, as
-shipped, and twice with the numbers as symbols (``hydrogen.symbolic.constants.numbers_as_symbols``;
-the same rigid-body form, zeros and unit axes still structural) bracketing what a runtime parameter
-vector would cost: ``shared``, one symbol per distinct value (equal numbers merge, as folding
-merges them: the low bound), and ``per_use``, a symbol for every number the derivation meets (the
-same description number met in two derivation passes counts twice: the high bound). Each is
-checked to agree with the folded function at the description's numbers (CasADi, relative 1e-9),
-then all are timed side by side with the ``bench_functions`` driver (same flags, the same inputs
-plus the numbers). Reported per function: CasADi instructions and C ns per call, and the ratios
-to folded; per robot, the derivation times and the sums.
+(``hydrogen.symbolic.functions.derive_functions``) is generated four times in one run: folded, as
+shipped, and three times with the numbers as symbols (``hydrogen.symbolic.constants.numbers_as_symbols``;
+the same rigid-body form, zeros and unit axes still structural): ``by_name``, one symbol per
+description number (a link's mass, a joint origin's coordinate, a cylinder's area: what a vector of
+runtime parameters would hold; the four-bar linkage's derived lengths, which have no name, one per
+use), ``shared``, one per distinct value (equal numbers merge, as folding merges them), and
+``per_use``, one for every number the derivation meets. Each is checked to agree with the folded
+function at the description's numbers (CasADi, relative 1e-9), then all are timed side by side
+with the ``bench_functions`` driver (same flags, the same inputs plus the numbers). Reported per
+function: CasADi instructions and C ns per call folded, and each variant's ratios to folded; per
+robot, the derivation times, the numbers' counts and the sums.
 
 Run: ``python benchmarks/bench_folding.py [--quick] [--model NAME] [--json FILE]``
 (about 2-4 minutes per robot on 2 cores).
@@ -39,8 +40,8 @@ AGREEMENT_RTOL = 1e-9
 NUMBERS = "numbers"
 
 
-#: The parametric variants: NumberTable(shared=...) of each.
-VARIANTS = {"shared": True, "per_use": False}
+#: The parametric variants: the NumberTable key of each (hydrogen.symbolic.constants.KEYS).
+VARIANTS = {"by_name": "name", "shared": "value", "per_use": "use"}
 
 
 def derive_all(model) -> tuple[list, dict, dict]:
@@ -53,9 +54,9 @@ def derive_all(model) -> tuple[list, dict, dict]:
     t0 = time.perf_counter()
     folded = [f for f in derive_functions(model) if isinstance(f, SymbolicFunction)]
     seconds, variants = {"folded": time.perf_counter() - t0}, {}
-    for variant, shared in VARIANTS.items():
+    for variant, key in VARIANTS.items():
         t0 = time.perf_counter()
-        with numbers_as_symbols(shared) as table:
+        with numbers_as_symbols(key) as table:
             funcs = [f for f in derive_functions(model) if isinstance(f, SymbolicFunction)]
         seconds[variant] = time.perf_counter() - t0
         numbers = sp.Matrix(table.symbols)
@@ -130,25 +131,27 @@ def print_table(res: dict) -> None:
     print(f"machine : {m['processor']}, {m['cpu_count']} CPUs; {m['cc']}")
     for rob in res["robots"].values():
         d, nums = rob["derivation_s"], rob["numbers"]
-        print(f"\n{rob['model']} (n = {rob['n']}): numbers as symbols: shared {nums['shared']}, per use "
-              f"{nums['per_use']}; derivation {d['folded']:.1f} s folded, {d['shared']:.1f} s shared, "
-              f"{d['per_use']:.1f} s per use; every parametric function "
-              f"{'agrees' if rob['agree'] else 'DOES NOT AGREE'} with the folded one (relative {AGREEMENT_RTOL:g})")
-        header = (f"{'function':<28} {'instructions: folded':>20} {'shared':>7} {'per use':>8} "
-                  f"{'ns/call: folded':>16} {'shared':>8} {'per use':>8}")
+        print(f"\n{rob['model']} (n = {rob['n']}): numbers as symbols "
+              + ", ".join(f"{v} {nums[v]}" for v in VARIANTS) + "; derivation s: folded "
+              f"{d['folded']:.1f}, " + ", ".join(f"{v} {d[v]:.1f}" for v in VARIANTS)
+              + f"; every parametric function {'agrees' if rob['agree'] else 'DOES NOT AGREE'} with the "
+              f"folded one (relative {AGREEMENT_RTOL:g}). Ratios to folded:")
+        header = (f"{'function':<28} {'instructions':>12} " + " ".join(f"{v:>8}" for v in VARIANTS)
+                  + f" {'ns/call':>9} " + " ".join(f"{v:>8}" for v in VARIANTS))
         print(header)
         print("-" * len(header))
-        tot = {k: [0, 0.0] for k in ("folded", "shared", "per_use")}
+        kinds = ("folded", *VARIANTS)
+        tot = {k: [0, 0.0] for k in kinds}
         for name, r in rob["functions"].items():
-            for k in tot:
+            for k in kinds:
                 tot[k][0] += r[k]["instructions"]
                 tot[k][1] += r[k]["ns_per_call"]
-            print(f"{name:<28} {r['folded']['instructions']:>20d} {r['shared']['instruction_ratio']:>6.2f}x "
-                  f"{r['per_use']['instruction_ratio']:>7.2f}x {r['folded']['ns_per_call']:>16.1f} "
-                  f"{r['shared']['time_ratio']:>7.2f}x {r['per_use']['time_ratio']:>7.2f}x")
-        f, sh, pu = tot["folded"], tot["shared"], tot["per_use"]
-        print(f"{'all (one call each)':<28} {f[0]:>20d} {sh[0] / f[0]:>6.2f}x {pu[0] / f[0]:>7.2f}x "
-              f"{f[1]:>16.1f} {sh[1] / f[1]:>7.2f}x {pu[1] / f[1]:>7.2f}x")
+            print(f"{name:<28} {r['folded']['instructions']:>12d} "
+                  + " ".join(f"{r[v]['instruction_ratio']:>7.2f}x" for v in VARIANTS)
+                  + f" {r['folded']['ns_per_call']:>9.1f} " + " ".join(f"{r[v]['time_ratio']:>7.2f}x" for v in VARIANTS))
+        f = tot["folded"]
+        print(f"{'all (one call each)':<28} {f[0]:>12d} " + " ".join(f"{tot[v][0] / f[0]:>7.2f}x" for v in VARIANTS)
+              + f" {f[1]:>9.1f} " + " ".join(f"{tot[v][1] / f[1]:>7.2f}x" for v in VARIANTS))
 
 
 def main(argv=None) -> int:

@@ -22,12 +22,18 @@ def test_baked_is_the_shortest_round_trip_float_outside_the_block():
     assert mode_key() is None and baked(0.1) == sp.Float("0.1")
 
 
-def test_a_shared_table_gives_equal_numbers_one_symbol():
-    with numbers_as_symbols(shared=True) as shared:
-        assert baked(2.5) is baked(2.5) and baked(1.0) is not baked(2.5)
-    with numbers_as_symbols() as per_use:
-        assert baked(2.5) is not baked(2.5)
-    assert (len(shared.symbols), len(per_use.symbols)) == (2, 2)
+def test_a_table_gives_symbols_by_name_by_value_or_per_use():
+    with numbers_as_symbols("name") as by_name:
+        assert baked(2.5, "a.mass") is baked(2.5, "a.mass") and baked(2.5, "b.mass") is not baked(2.5, "a.mass")
+        assert baked(1.0) is not baked(1.0)  # a number without a name: one symbol per use
+    with numbers_as_symbols("value") as shared:
+        assert baked(2.5, "a.mass") is baked(2.5, "b.mass") and baked(1.0) is not baked(2.5)
+    with numbers_as_symbols("use") as per_use:
+        assert baked(2.5, "a.mass") is not baked(2.5, "a.mass")
+    assert (len(by_name.symbols), len(shared.symbols), len(per_use.symbols)) == (4, 2, 2)
+    assert by_name.names == ["a.mass", "b.mass", None, None]
+    with pytest.raises(ValueError, match="key"):
+        numbers_as_symbols("neither").__enter__()
 
 
 def _functions(model):
@@ -49,16 +55,20 @@ def fresh_crane(tmp_path_factory):
     return folder / "loader_crane.toml"
 
 
-@pytest.mark.parametrize("shared", [True, False])
-def test_the_derivation_with_numbers_as_symbols_equals_the_folded_one(fresh_crane, shared, rng):
+@pytest.mark.parametrize("key", ["name", "use"])
+def test_the_derivation_with_numbers_as_symbols_equals_the_folded_one(fresh_crane, key, rng):
     """At the description's numbers the parametric functions give the folded ones' values. The
     parametric derivation runs first: the folded one after it holds no number symbol, so the
     derivation caches keep the two apart."""
     model = hydrogen.load_model(fresh_crane)
-    with numbers_as_symbols(shared) as table:
+    with numbers_as_symbols(key) as table:
         param = _functions(model)
     base = {f.name: f for f in _functions(model)}
     assert table.symbols and len(table.values) == len(table.symbols)
+    if key == "name":  # each description number once: a link's mass, a pin point, a joint origin
+        named = [n for n in table.names if n is not None]
+        assert len(named) == len(set(named)) and {"gravity", "boom.mass", "boom_cylinder.from[0]"} <= set(named)
+        assert any(".origin_xyz[" in n for n in named)
     found = set().union(*(sp.Matrix(e).free_symbols for f in base.values() for _, e in f.outputs))
     assert not found & set(table.symbols)
     numbers = sp.Matrix(table.symbols)

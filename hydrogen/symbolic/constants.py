@@ -5,28 +5,40 @@ from contextlib import contextmanager
 
 import sympy as sp
 
-__all__ = ["baked", "PRESSURE_EPS", "NumberTable", "numbers_as_symbols", "folded", "mode_key"]
+__all__ = ["baked", "baked_table", "PRESSURE_EPS", "KEYS", "NumberTable", "numbers_as_symbols", "folded", "mode_key"]
 
 #: Pressure drops below this (Pa) are clipped inside the valve inverse: no root of a
 #: negative number, no division by zero when p_c reaches 0 or p_s.
 PRESSURE_EPS = 1.0
 
 
+#: How a NumberTable gives out symbols: one per description number (by its name, a number without
+#: one per use), one per distinct value, or one per number met.
+KEYS = ("name", "value", "use")
+
+
 class NumberTable:
-    """The description's numbers as symbols, in the order the derivation met them: ``symbols``
-    and their ``values``. ``shared``: one symbol per distinct value (what folding would merge
-    anyway), else one per number met (each number a parameter of its own)."""
+    """The description's numbers as symbols, in the order the derivation met them: ``symbols``,
+    their ``values`` and ``names`` (None where the number came without one). ``key`` (:data:`KEYS`):
+    "name", a symbol per description number, what a vector of runtime parameters would hold;
+    "value", a symbol per distinct value (what folding would merge anyway); "use", a symbol for
+    every number met (the same description number met in two derivation passes counts twice)."""
 
-    def __init__(self, shared: bool = False):
-        self.shared, self.symbols, self.values, self._by_value = shared, [], [], {}
+    def __init__(self, key: str = "name"):
+        if key not in KEYS:
+            raise ValueError(f"NumberTable key must be one of {KEYS}, got {key!r}")
+        self.key, self.symbols, self.values, self.names, self._seen = key, [], [], [], {}
 
-    def symbol(self, value: float) -> sp.Symbol:
-        if self.shared and value in self._by_value:
-            return self._by_value[value]
+    def symbol(self, value: float, name: str | None = None) -> sp.Symbol:
+        ident = {"name": name, "value": value, "use": None}[self.key]
+        if ident is not None and ident in self._seen:
+            return self._seen[ident]
         s = sp.Symbol(f"number_{len(self.symbols)}", real=True)
         self.symbols.append(s)
         self.values.append(value)
-        self._by_value.setdefault(value, s)
+        self.names.append(name)
+        if ident is not None:
+            self._seen[ident] = s
         return s
 
 
@@ -34,12 +46,12 @@ _table: NumberTable | None = None
 
 
 @contextmanager
-def numbers_as_symbols(shared: bool = False):
+def numbers_as_symbols(key: str = "name"):
     """Within the block, :func:`baked` gives each model number as a symbol of the yielded
     :class:`NumberTable` instead of a constant: the same derivation with the numbers left as
     inputs (what folding them into the expressions saves is measured against it)."""
     global _table
-    previous, _table = _table, NumberTable(shared)
+    previous, _table = _table, NumberTable(key)
     try:
         yield _table
     finally:
@@ -63,9 +75,15 @@ def mode_key():
     return None if _table is None else id(_table)
 
 
-def baked(value) -> sp.Expr:
+def baked(value, name: str | None = None) -> sp.Expr:
     """A model number as an exact SymPy Float (shortest round-trip repr, so the C is deterministic);
-    a symbol of the table inside :func:`numbers_as_symbols`."""
+    a symbol of the table inside :func:`numbers_as_symbols`. ``name``: the number's place in the
+    description (``<link>.mass``, ``<joint>.origin_xyz[0]``, ``<cylinder>.piston_area``)."""
     if _table is not None:
-        return _table.symbol(float(value))
+        return _table.symbol(float(value), name)
     return sp.Float(repr(float(value)))
+
+
+def baked_table(values: dict, prefix: str) -> dict:
+    """``{name: baked(value, "<prefix>.<name>")}``: a component's numbers (an actuator's parameters)."""
+    return {k: baked(v, f"{prefix}.{k}") for k, v in values.items()}

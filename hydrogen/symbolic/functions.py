@@ -13,7 +13,7 @@ import sympy as sp
 
 from ..actuators import actuator
 from ..pressures import blocks, n_pressures, uniform_three_way
-from .constants import PRESSURE_EPS, baked
+from .constants import PRESSURE_EPS, baked_table
 from .kinematics import leg_stages, pose_symbols, rate_symbols
 from .plant import plant_rhs
 from .rigid_body import (bias_forces, coriolis_matrix, gravity, mass_matrix, mass_matrix_inverse, regressor,
@@ -122,7 +122,7 @@ def hydraulic_functions(model) -> list:
     p = [tuple(pc[a:b]) for a, b in blocks(model)]
     g1, g2 = rate_symbols("gamma1", m), rate_symbols("gamma2", m)
     kinds = [actuator(c.kind) for c in model.cylinders]
-    P = [k.parameters(c.table, baked) for k, c in zip(kinds, model.cylinders)]
+    P = [baked_table(k.parameters(c.table), c.name) for k, c in zip(kinds, model.cylinders)]
     laws = [k.Symbolic for k in kinds]
     # Plant: ṗ with q = c · (unit flow), c = γ2/γ1, β = γ1, orifice linearised near Δp = 0.
     rate = sp.Matrix([r for i in range(m)

@@ -16,7 +16,7 @@ import sympy as sp
 
 from ..actuators import actuator
 from ..pressures import blocks, n_pressures
-from .constants import baked
+from .constants import baked_table
 from .kinematics import leg_intermediates, pose_symbols, rate_symbols
 from .rigid_body import bias_forces, mass_matrix, mass_matrix_inverse, theta_symbols
 
@@ -36,7 +36,7 @@ def plant_rhs(model):
     x = sp.Matrix([*q, *qd, *pc, *spool, *spool_rate])
     cyl = model.cylinders
     laws = [actuator(c.kind).Symbolic for c in cyl]
-    P = [actuator(c.kind).parameters(c.table, baked) for c in cyl]
+    P = [baked_table(actuator(c.kind).parameters(c.table), c.name) for c in cyl]
     p = [tuple(pc[a:b]) for a, b in blocks(model)]  # each actuator's pressure block
 
     l, JL, _, kin = leg_intermediates(model, q, qd, rates=False)  # the plant needs no J̇L

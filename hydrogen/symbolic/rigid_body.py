@@ -87,20 +87,20 @@ def coriolis(D: sp.Matrix, q, qdot) -> sp.Matrix:
 def gravity(model, q, theta) -> sp.Matrix:
     """G(q) = ∂V/∂q, gravity along −z of the base frame (N or N m)."""
     tree = symbolic_tree(model, q, theta)
-    g = baked(model.gravity)
+    g = baked(model.gravity, "gravity")
     return tree.staged_gravity(g) if tree.staged() else tree.gravity(g)
 
 
 def inverse_dynamics(model, q, v, w, a, theta) -> sp.Matrix:
     """D(q) a + C(q, v) w + G(q) (n) for parameters θ: one Newton-Euler pass on a staged tree."""
-    return _dynamics_of(symbolic_tree(model, q, theta), q, v, w, a, baked(model.gravity))
+    return _dynamics_of(symbolic_tree(model, q, theta), q, v, w, a, baked(model.gravity, "gravity"))
 
 
 def bias_forces(model, q, qdot, theta) -> sp.Matrix:
     """C(q, q̇) q̇ + G(q) (n), N or N m: the forces q̈ = D⁻¹ (τ − C q̇ − G) subtracts."""
     tree = symbolic_tree(model, q, theta)
     if tree.staged():
-        return tree.staged_inverse_dynamics(qdot, qdot, sp.zeros(len(qdot), 1), baked(model.gravity))
+        return tree.staged_inverse_dynamics(qdot, qdot, sp.zeros(len(qdot), 1), baked(model.gravity, "gravity"))
     return coriolis(mass_matrix(model, q, theta), q, qdot) * sp.Matrix(qdot) + gravity(model, q, theta)
 
 
@@ -118,7 +118,7 @@ def regressor(model, q, v, w, a, theta) -> sp.Matrix:
     D, C and G are linear in the inertial parameters, so column k is the dynamics of a robot whose
     only parameter is θ_k = 1: small expressions, where differentiating the whole dynamics by θ
     costs SymPy seconds per controller on a serial arm."""
-    p, g = len(model.theta_names), baked(model.gravity)
+    p, g = len(model.theta_names), baked(model.gravity, "gravity")
     tree = symbolic_tree(model, q, theta)
     if tree.staged():  # one pass over the links' motion, each column one link's unit-parameter force
         return tree.staged_regressor(sp.Matrix(v), sp.Matrix(w), sp.Matrix(a), g, model.theta_names)
@@ -132,7 +132,7 @@ def regressor(model, q, v, w, a, theta) -> sp.Matrix:
 def regressor_offset(model, q, v, w, a, theta) -> sp.Matrix:
     """y0 = D a + C(q, v) w + G − Y θ: the non-adapted parameters' share (n), the dynamics at θ = 0."""
     zero = [sp.S.Zero] * len(model.theta_names)
-    return _dynamics_of(SymbolicTree(model, q, zero), q, v, w, a, baked(model.gravity))
+    return _dynamics_of(SymbolicTree(model, q, zero), q, v, w, a, baked(model.gravity, "gravity"))
 
 
 def coriolis_paper(q, qdot, theta) -> sp.Matrix:

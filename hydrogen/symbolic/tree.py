@@ -38,16 +38,18 @@ def skew(v) -> sp.Matrix:
     return sp.Matrix([[0, -v[2], v[1]], [v[2], 0, -v[0]], [-v[1], v[0], 0]])
 
 
-def _rot_xyz(rpy) -> sp.Matrix:
-    """Origin rotation Rz(yaw) Ry(pitch) Rx(roll) of numbers (identity stays exact)."""
+def _rot_xyz(rpy, name: str | None = None) -> sp.Matrix:
+    """Origin rotation Rz(yaw) Ry(pitch) Rx(roll) of numbers (identity stays exact); ``name``: the
+    numbers' place in the description (:func:`~hydrogen.symbolic.constants.baked`)."""
     if all(float(v) == 0.0 for v in rpy):
         return sp.eye(3)
-    return rotation([0, 0, 0, baked(rpy[0]), baked(rpy[1]), baked(rpy[2])])
+    return rotation([0, 0, 0, *(baked(v, name and f"{name}[{k}]") for k, v in enumerate(rpy))])
 
 
-def _axis_rotation(axis, angle) -> sp.Matrix:
+def _axis_rotation(axis, angle, name: str | None = None) -> sp.Matrix:
     """Rotation by ``angle`` about the unit ``axis`` (numbers); exact for coordinate axes."""
-    k = [baked(a) if float(a) not in (0.0, 1.0, -1.0) else sp.Integer(int(a)) for a in axis]
+    k = [baked(a, name and f"{name}[{i}]") if float(a) not in (0.0, 1.0, -1.0) else sp.Integer(int(a))
+         for i, a in enumerate(axis)]
     K = skew(k)
     return sp.eye(3) + sp.sin(angle) * K + (1 - sp.cos(angle)) * K * K
 
@@ -66,8 +68,10 @@ def _mm(*factors):
     return _EYE if out is None else out
 
 
-def _vec(values) -> sp.Matrix:
-    return sp.Matrix([baked(v) if float(v) != 0.0 else sp.S.Zero for v in values])
+def _vec(values, name: str | None = None) -> sp.Matrix:
+    """A vector of numbers (zeros exact); ``name``: their place in the description."""
+    return sp.Matrix([baked(v, name and f"{name}[{k}]") if float(v) != 0.0 else sp.S.Zero
+                      for k, v in enumerate(values)])
 
 
 class SymbolicTree:
@@ -86,7 +90,7 @@ class SymbolicTree:
         for lk in model.links:
             values = lk.parameters()
             # baked_parameters=False zeroes every parameter that is not adapted: the share of θ alone
-            p = {k: subst.get(f"{lk.name}.{k}", baked(v) if v != 0.0 and baked_parameters else sp.S.Zero)
+            p = {k: subst.get(f"{lk.name}.{k}", baked(v, f"{lk.name}.{k}") if v != 0.0 and baked_parameters else sp.S.Zero)
                  for k, v in values.items()}
             self.params[lk.name] = p
         self.columns = {}  # joint name -> first coordinate index
@@ -127,27 +131,27 @@ class SymbolicTree:
         out = {root: (sp.eye(3), sp.zeros(3, 1), sp.zeros(3, n), sp.zeros(3, n), sp.zeros(3, n))}
         for j in self.model.joints:
             R_p, p_p, Jv_p, Jw_p, Jww_p = out[j.parent]  # Jww: angular velocity Jacobian, base frame
-            R_o, xyz, i = _rot_xyz(j.origin_rpy), _vec(j.origin_xyz), self.columns[j.name]
+            R_o, xyz, i = _rot_xyz(j.origin_rpy, f"{j.name}.origin_rpy"), _vec(j.origin_xyz, f"{j.name}.origin_xyz"), self.columns[j.name]
             lever = _mm(R_p, xyz)
             # the child origin's offset from the parent's: a prismatic or floating joint's own
             # displacement moves it too (the lever of the ancestors' angular velocity)
             arm = lever
             if j.type == "prismatic":
-                arm = lever + _mm(R_p, R_o, _vec(j.axis)) * q[i]
+                arm = lever + _mm(R_p, R_o, _vec(j.axis, f"{j.name}.axis")) * q[i]
             elif j.type == "floating":
                 arm = lever + _mm(R_p, q[i:i + 3, 0])
             Jv = Jv_p - skew(arm) * Jww_p if any(x != 0 for x in arm) and any(x != 0 for x in Jww_p) else Jv_p
             Jv, Jww = sp.Matrix(Jv), sp.Matrix(Jww_p)
             if j.type == "revolute":
-                R_rel = _mm(R_o, _axis_rotation(j.axis, q[i]))
+                R_rel = _mm(R_o, _axis_rotation(j.axis, q[i], f"{j.name}.axis"))
                 R, p = _mm(R_p, R_rel), p_p + lever
-                a_w = _mm(R_p, R_o, _vec(j.axis))
+                a_w = _mm(R_p, R_o, _vec(j.axis, f"{j.name}.axis"))
                 Jww[:, i] = Jww[:, i] + a_w
                 Jw = _mm(R_rel.T, Jw_p)
-                Jw[:, i] = Jw[:, i] + _vec(j.axis)
+                Jw[:, i] = Jw[:, i] + _vec(j.axis, f"{j.name}.axis")
             elif j.type == "prismatic":
-                R, p = _mm(R_p, R_o), p_p + lever + _mm(R_p, R_o, _vec(j.axis)) * q[i]
-                Jv[:, i] = Jv[:, i] + _mm(R_p, R_o, _vec(j.axis))
+                R, p = _mm(R_p, R_o), p_p + lever + _mm(R_p, R_o, _vec(j.axis, f"{j.name}.axis")) * q[i]
+                Jv[:, i] = Jv[:, i] + _mm(R_p, R_o, _vec(j.axis, f"{j.name}.axis"))
                 Jw = _mm(R_o.T, Jw_p)
             elif j.type == "floating":
                 eta = q[i + 3:i + 6, 0]
@@ -256,8 +260,8 @@ class SymbolicTree:
                 continue
             R_a, p_a, _ = poses[c.link_from]
             R_b, p_b, _ = poses[c.link_to]
-            r_b = _mm(R_b, _vec(c.point_to))
-            r_a = _mm(R_a, _vec(c.point_from))
+            r_b = _mm(R_b, _vec(c.point_to, f"{c.name}.to"))
+            r_a = _mm(R_a, _vec(c.point_from, f"{c.name}.from"))
             v = p_b + r_b - (p_a + r_a)
             l_value.append(sp.sqrt(v.dot(v)))
             nvec = v / l[ci]
@@ -284,15 +288,15 @@ class SymbolicTree:
             if j.child not in needed:
                 continue
             R_p, p_p, w_p = poses[j.parent]
-            R_o, xyz, i = _rot_xyz(j.origin_rpy), _vec(j.origin_xyz), self.columns[j.name]
+            R_o, xyz, i = _rot_xyz(j.origin_rpy, f"{j.name}.origin_rpy"), _vec(j.origin_xyz, f"{j.name}.origin_xyz"), self.columns[j.name]
             lever = _mm(R_p, xyz)
             if j.type == "revolute":
-                R_val = _mm(R_p, R_o, _axis_rotation(j.axis, q[i]))
+                R_val = _mm(R_p, R_o, _axis_rotation(j.axis, q[i], f"{j.name}.axis"))
                 p_val = p_p + lever
-                w = w_p + _mm(R_p, R_o, _vec(j.axis)) * self._rate(i)
+                w = w_p + _mm(R_p, R_o, _vec(j.axis, f"{j.name}.axis")) * self._rate(i)
             elif j.type == "prismatic":
                 R_val = _mm(R_p, R_o)
-                p_val = p_p + lever + _mm(R_p, R_o, _vec(j.axis)) * q[i]
+                p_val = p_p + lever + _mm(R_p, R_o, _vec(j.axis, f"{j.name}.axis")) * q[i]
                 w = w_p
             elif j.type == "floating":
                 eta = q[i + 3:i + 6, 0]
@@ -328,12 +332,12 @@ class SymbolicTree:
         r = r_local if j.child == link else r_local + (p_l - p_c)
         i = self.columns[j.name]
         part = sp.zeros(1, self.n)
-        R_o = _rot_xyz(j.origin_rpy)
+        R_o = _rot_xyz(j.origin_rpy, f"{j.name}.origin_rpy")
         if j.type == "revolute":
-            a = _mm(R_c, _vec(j.axis))  # the axis is fixed by the rotation about it
+            a = _mm(R_c, _vec(j.axis, f"{j.name}.axis"))  # the axis is fixed by the rotation about it
             part[0, i] = a.dot(r.cross(nvec))
         elif j.type == "prismatic":
-            part[0, i] = _mm(R_p, R_o, _vec(j.axis)).dot(nvec)
+            part[0, i] = _mm(R_p, R_o, _vec(j.axis, f"{j.name}.axis")).dot(nvec)
         elif j.type == "floating":
             eta = self.q[i + 3:i + 6, 0]
             T = angular_velocity_map([0, 0, 0, *eta])
@@ -389,7 +393,7 @@ class SymbolicTree:
             if not j.dof:
                 continue
             R, p = poses[j.child]
-            a = _mm(R, _vec(j.axis))  # the child's rotation about its axis leaves the axis fixed
+            a = _mm(R, _vec(j.axis, f"{j.name}.axis"))  # the child's rotation about its axis leaves the axis fixed
             out[j.name] = sp.Matrix([*a, *p.cross(a)]) if j.type == "revolute" else sp.Matrix([0, 0, 0, *a])
         self._axes = out
         return out
