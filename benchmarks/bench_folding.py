@@ -107,12 +107,14 @@ def run_robot(model, quick: bool = False, cc: str = "cc") -> dict:
     functions = {}
     for f in folded:
         base = timed[(f.name, "folded")]
-        functions[f.name] = {kind: {"instructions": timed[(f.name, kind)]["instructions"],
-                                    "ns_per_call": timed[(f.name, kind)]["ns_per_call"],
-                                    "instruction_ratio": timed[(f.name, kind)]["instructions"] / max(base["instructions"], 1),
-                                    "time_ratio": timed[(f.name, kind)]["ns_per_call"] / base["ns_per_call"],
-                                    **({"largest_relative_difference": worst[(f.name, kind)]} if kind in variants else {})}
-                             for kind in kinds}
+        functions[f.name] = {}
+        for kind in kinds:
+            t = timed[(f.name, kind)]
+            functions[f.name][kind] = {
+                "instructions": t["instructions"], "ns_per_call": t["ns_per_call"],
+                "instruction_ratio": t["instructions"] / max(base["instructions"], 1),
+                "time_ratio": t["ns_per_call"] / base["ns_per_call"],
+                **({"largest_relative_difference": worst[(f.name, kind)]} if kind in variants else {})}
     return {"model": model.name, "n": model.n, "numbers": {v: len(n) for v, (_, n) in variants.items()},
             "derivation_s": derive_s, "functions": functions, "compile_wall_s": compile_wall,
             "wall_s": time.perf_counter() - t_start, "agree": all(w <= AGREEMENT_RTOL for w in worst.values())}
@@ -148,7 +150,8 @@ def print_table(res: dict) -> None:
                 tot[k][1] += r[k]["ns_per_call"]
             print(f"{name:<28} {r['folded']['instructions']:>12d} "
                   + " ".join(f"{r[v]['instruction_ratio']:>7.2f}x" for v in VARIANTS)
-                  + f" {r['folded']['ns_per_call']:>9.1f} " + " ".join(f"{r[v]['time_ratio']:>7.2f}x" for v in VARIANTS))
+                  + f" {r['folded']['ns_per_call']:>9.1f} "
+                  + " ".join(f"{r[v]['time_ratio']:>7.2f}x" for v in VARIANTS))
         f = tot["folded"]
         print(f"{'all (one call each)':<28} {f[0]:>12d} " + " ".join(f"{tot[v][0] / f[0]:>7.2f}x" for v in VARIANTS)
               + f" {f[1]:>9.1f} " + " ".join(f"{tot[v][1] / f[1]:>7.2f}x" for v in VARIANTS))

@@ -321,6 +321,43 @@ def _scaling(b) -> list:
     return out
 
 
+#: The parametric variants of benchmarks/bench_folding.py, as the page names them.
+_FOLDING = (("by_name", "by name"), ("shared", "by value"), ("per_use", "per use"))
+
+
+def _folding(b) -> list:
+    robots = b.get("robots", {})
+    if not robots:
+        return []
+    out = ["## Folding the description's numbers", "",
+           "`benchmarks/bench_folding.py`: every derived function generated folded (the description's numbers "
+           "constants in the expressions, as shipped) and with the numbers as one more input, in one run: a symbol "
+           "per description number (*by name*: what a vector of runtime parameters holds), per distinct value "
+           "(*by value*) and per number met (*per use*); each checked against the folded function at the "
+           "description's numbers and timed with the same driver. Sums over one call of each function "
+           "(instructions, ns), and their ratios to folded:", ""]
+    rows = []
+    for r in robots.values():
+        funcs = r.get("functions", {}).values()
+        tot = {k: (sum(f[k]["instructions"] for f in funcs), sum(f[k]["ns_per_call"] for f in funcs))
+               for k in ("folded", *(v for v, _ in _FOLDING))}
+        fi, ft = tot["folded"]
+        rows.append([r["model"], ", ".join(_f(r["numbers"].get(v)) for v, _ in _FOLDING), _f(fi), _f(ft),
+                     *(f"{_f(tot[v][0] / fi)}× / {_f(tot[v][1] / ft)}×" for v, _ in _FOLDING),
+                     _f(r.get("agree"))])
+    out += _table(["robot", "numbers (by name, by value, per use)", "instructions folded", "ns folded",
+                   *(f"{label}: instructions / ns" for _, label in _FOLDING), "agree"], rows)
+    out += ["The controllers and the plant, by name against folded (instructions; ns per call):", ""]
+    rows = []
+    for r in robots.values():
+        for name, f in r.get("functions", {}).items():
+            if name.startswith("ctrl_") or name == "plant_rhs":
+                rows.append([r["model"], f"`{name}`", _f(f["folded"]["instructions"]),
+                             _f(f["by_name"]["instructions"]), _f(f["folded"]["ns_per_call"]),
+                             _f(f["by_name"]["ns_per_call"])])
+    return out + _table(["robot", "function", "instructions folded", "by name", "ns folded", "by name"], rows)
+
+
 def benchmarks_page(results: dict, repeats: dict | None = None, source: str = "docs/bench.json") -> str:
     """Markdown of a ``hydrogen bench`` run (the dict it writes as JSON), optionally with the whole-run
     spread of the release comparison (``bench_release_repeats.json``); sections of modules not run
@@ -343,6 +380,8 @@ def benchmarks_page(results: dict, repeats: dict | None = None, source: str = "d
         out += _release(results["bench_release"], repeats)
     if "bench_scaling" in results:
         out += _scaling(results["bench_scaling"])
+    if "bench_folding" in results:
+        out += _folding(results["bench_folding"])
     return "\n".join(out).rstrip() + "\n"
 
 

@@ -90,7 +90,8 @@ class SymbolicTree:
         for lk in model.links:
             values = lk.parameters()
             # baked_parameters=False zeroes every parameter that is not adapted: the share of θ alone
-            p = {k: subst.get(f"{lk.name}.{k}", baked(v, f"{lk.name}.{k}") if v != 0.0 and baked_parameters else sp.S.Zero)
+            p = {k: subst.get(f"{lk.name}.{k}",
+                              baked(v, f"{lk.name}.{k}") if v != 0.0 and baked_parameters else sp.S.Zero)
                  for k, v in values.items()}
             self.params[lk.name] = p
         self.columns = {}  # joint name -> first coordinate index
@@ -131,7 +132,8 @@ class SymbolicTree:
         out = {root: (sp.eye(3), sp.zeros(3, 1), sp.zeros(3, n), sp.zeros(3, n), sp.zeros(3, n))}
         for j in self.model.joints:
             R_p, p_p, Jv_p, Jw_p, Jww_p = out[j.parent]  # Jww: angular velocity Jacobian, base frame
-            R_o, xyz, i = _rot_xyz(j.origin_rpy, f"{j.name}.origin_rpy"), _vec(j.origin_xyz, f"{j.name}.origin_xyz"), self.columns[j.name]
+            R_o, xyz = _rot_xyz(j.origin_rpy, f"{j.name}.origin_rpy"), _vec(j.origin_xyz, f"{j.name}.origin_xyz")
+            i = self.columns[j.name]
             lever = _mm(R_p, xyz)
             # the child origin's offset from the parent's: a prismatic or floating joint's own
             # displacement moves it too (the lever of the ancestors' angular velocity)
@@ -288,7 +290,8 @@ class SymbolicTree:
             if j.child not in needed:
                 continue
             R_p, p_p, w_p = poses[j.parent]
-            R_o, xyz, i = _rot_xyz(j.origin_rpy, f"{j.name}.origin_rpy"), _vec(j.origin_xyz, f"{j.name}.origin_xyz"), self.columns[j.name]
+            R_o, xyz = _rot_xyz(j.origin_rpy, f"{j.name}.origin_rpy"), _vec(j.origin_xyz, f"{j.name}.origin_xyz")
+            i = self.columns[j.name]
             lever = _mm(R_p, xyz)
             if j.type == "revolute":
                 R_val = _mm(R_p, R_o, _axis_rotation(j.axis, q[i], f"{j.name}.axis"))
