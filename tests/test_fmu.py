@@ -343,11 +343,11 @@ def test_a_lean_controller_offers_no_composite_rate_as_a_parameter(dyn, tmp_path
     """The lean variant has the composite terms folded out: setting their gains would change
     nothing, so the FMU does not offer them (the manifest lists the inputs a function does not read);
     with a rate set, the full controller runs and offers them."""
-    def params(gains):
-        path = export_fmu(tmp_path / f"c{sum(gains.values()):g}.fmu", "controller", "z-1hz", "adaptive-robust", dyn=dyn,
+    def params(label, gains):
+        path = export_fmu(tmp_path / f"{label}.fmu", "controller", "z-1hz", "adaptive-robust", dyn=dyn,
                           duration=DURATION, gains=gains)
         return {v.name for v in read_model_description(str(path)).modelVariables if v.causality == "parameter"}
-    lean, full = params(PAPER_LAWS), params({**PAPER_LAWS, "rate_ls_theta": 20.0})
+    lean, full = params("lean", PAPER_LAWS), params("full", {**PAPER_LAWS, "rate_ls_theta": 20.0})
     assert "Ktau[1]" in lean and "Ktau[1]" in full
     composite = {"rate_ls_theta", "rate_ls_gamma", "P0_theta", "P0_gamma", "lambda_f_theta", "period"}
     assert not composite & lean
