@@ -65,13 +65,11 @@ def derive_all(model) -> tuple[list, dict, dict]:
     return folded, variants, seconds
 
 
-def agreement(f_folded, f_param, inputs: list, numbers) -> float:
-    """Largest relative difference of the two CasADi functions' outputs at ``inputs`` (and the numbers)."""
-    from hydrogen.codegen.casadi_functions import to_casadi_function
-
+def agreement(fun_folded, fun_param, inputs: list, numbers) -> float:
+    """Largest relative difference of the two CasADi Functions' outputs at ``inputs`` (and the numbers)."""
     args = [np.asarray(v, float) for _, v in inputs]
-    a = to_casadi_function(f_folded).call(args)
-    b = to_casadi_function(f_param).call(args + [np.asarray(numbers, float)])
+    a = fun_folded.call(args)
+    b = fun_param.call(args + [np.asarray(numbers, float)])
     worst = 0.0
     for x, y in zip(a, b):
         x, y = np.asarray(x, float).ravel(), np.asarray(y, float).ravel()
@@ -95,14 +93,15 @@ def run_robot(model, quick: bool = False, cc: str = "cc") -> dict:
             d.mkdir()
         jobs, worst = [], {}
         for k, f in enumerate(folded):
-            entry = write_function(f, model.name, dirs["folded"], {})
+            converted = {}  # the CasADi Functions write_function makes, reused for the agreement check
+            entry = write_function(f, model.name, dirs["folded"], converted)
             inputs = values.function_inputs(entry)
             jobs.append(((f.name, "folded"), entry, inputs, dirs["folded"]))
             for variant, (funcs, numbers) in variants.items():
-                g = funcs[k]
-                worst[(f.name, variant)] = agreement(f, g, inputs, numbers)
-                jobs.append(((f.name, variant), write_function(g, model.name, dirs[variant], {}),
+                mine = {}
+                jobs.append(((f.name, variant), write_function(funcs[k], model.name, dirs[variant], mine),
                              [*inputs, (NUMBERS, numbers)], dirs[variant]))
+                worst[(f.name, variant)] = agreement(converted[f.name], mine[f.name], inputs, numbers)
         timed, compile_wall = bench_functions.time_drivers(jobs, min_time, cc_path)
     functions = {}
     for f in folded:

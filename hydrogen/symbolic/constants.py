@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 from contextlib import contextmanager
+from itertools import count
 
 import sympy as sp
 
@@ -24,10 +25,14 @@ class NumberTable:
     "value", a symbol per distinct value (what folding would merge anyway); "use", a symbol for
     every number met (the same description number met in two derivation passes counts twice)."""
 
+    _serials = count(1)
+
     def __init__(self, key: str = "name"):
         if key not in KEYS:
             raise ValueError(f"NumberTable key must be one of {KEYS}, got {key!r}")
         self.key, self.symbols, self.values, self.names, self._seen = key, [], [], [], {}
+        # what the derivation caches key on: never reused, unlike id() of a table freed since
+        self.serial = next(NumberTable._serials)
 
     def symbol(self, value: float, name: str | None = None) -> sp.Symbol:
         ident = {"name": name, "value": value, "use": None}[self.key]
@@ -71,8 +76,9 @@ def folded():
 
 
 def mode_key():
-    """What the derivation caches add to their keys: None when numbers fold, else the table's id."""
-    return None if _table is None else id(_table)
+    """What the derivation caches add to their keys: None when numbers fold, else the table's serial
+    (each table's symbols are its own: number_0 of one table is another number than of the next)."""
+    return None if _table is None else _table.serial
 
 
 def baked(value, name: str | None = None) -> sp.Expr:
