@@ -8,8 +8,7 @@ needs no regeneration. For each shipped robot, every derived function
 shipped, and three times with the numbers as symbols (``hydrogen.symbolic.constants.numbers_as_symbols``;
 the same rigid-body form, zeros and unit axes still structural): ``by_name``, one symbol per
 description number (a link's mass, a joint origin's coordinate, a cylinder's area: what a vector of
-runtime parameters would hold; the four-bar linkage's derived lengths, which have no name, one per
-use), ``shared``, one per distinct value (equal numbers merge, as folding merges them), and
+runtime parameters would hold, ``hydrogen.model.Model.numbers``), ``shared``, one per distinct value (equal numbers merge, as folding merges them), and
 ``per_use``, one for every number the derivation meets. Each is checked to agree with the folded
 function at the description's numbers (CasADi, relative 1e-9), then all are timed side by side
 with the ``bench_functions`` driver (same flags, the same inputs plus the numbers). Reported per
@@ -37,7 +36,6 @@ except ImportError:  # run as a script, or loaded from its path
 
 #: Relative agreement of the folded and the parametric function at the description's numbers.
 AGREEMENT_RTOL = 1e-9
-NUMBERS = "numbers"
 
 
 #: The parametric variants: the NumberTable key of each (hydrogen.symbolic.constants.KEYS).
@@ -46,22 +44,16 @@ VARIANTS = {"by_name": "name", "shared": "value", "per_use": "use"}
 
 def derive_all(model) -> tuple[list, dict, dict]:
     """(folded functions, {variant: (functions with the numbers input, their values)}, derivation s)."""
-    import sympy as sp
-
-    from hydrogen.symbolic.constants import numbers_as_symbols
-    from hydrogen.symbolic.functions import SymbolicFunction, derive_functions
+    from hydrogen.symbolic.functions import SymbolicFunction, derive_functions, derive_parametric
 
     t0 = time.perf_counter()
     folded = [f for f in derive_functions(model) if isinstance(f, SymbolicFunction)]
     seconds, variants = {"folded": time.perf_counter() - t0}, {}
     for variant, key in VARIANTS.items():
         t0 = time.perf_counter()
-        with numbers_as_symbols(key) as table:
-            funcs = [f for f in derive_functions(model) if isinstance(f, SymbolicFunction)]
+        funcs, _, values = derive_parametric(model, key=key)
         seconds[variant] = time.perf_counter() - t0
-        numbers = sp.Matrix(table.symbols)
-        variants[variant] = ([SymbolicFunction(f.name, [*f.inputs, (NUMBERS, numbers)], f.outputs, f.doc,
-                                               f.intermediates) for f in funcs], np.asarray(table.values))
+        variants[variant] = ([f for f in funcs if isinstance(f, SymbolicFunction)], np.asarray(values))
     return folded, variants, seconds
 
 
@@ -80,6 +72,7 @@ def agreement(fun_folded, fun_param, inputs: list, numbers) -> float:
 def run_robot(model, quick: bool = False, cc: str = "cc") -> dict:
     import hydrogen
     from hydrogen.codegen.generate import write_function
+    from hydrogen.symbolic.functions import NUMBERS
 
     t_start = time.perf_counter()
     cc_path = common.require_cc(cc)

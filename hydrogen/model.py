@@ -375,6 +375,45 @@ class Model:
         text = json.dumps(self.baked(), sort_keys=True, separators=(",", ":"))
         return hashlib.sha256(text.encode()).hexdigest()
 
+    def structure(self) -> dict:
+        """:meth:`baked` with every number replaced by its class: 0, 1 and -1 stay (the derivation
+        holds them exact: a zero coordinate, a unit axis), any other becomes "x". Two descriptions of
+        equal structure differ in numbers only, which a parametric derivation takes as inputs."""
+        def mask(v):
+            if isinstance(v, bool) or v is None or isinstance(v, str):
+                return v
+            if isinstance(v, (int, float)):
+                return float(v) + 0.0 if float(v) in (0.0, 1.0, -1.0) else "x"  # + 0.0: -0.0 is 0
+            if isinstance(v, dict):
+                return {k: mask(x) for k, x in v.items()}
+            return [mask(x) for x in v]
+        return mask(self.baked())
+
+    def numbers(self) -> dict:
+        """The description's numbers by the names the derivation gives them when it leaves them
+        as symbols (:func:`hydrogen.symbolic.constants.numbers_as_symbols`): ``gravity`` (m/s²);
+        ``<joint>.origin_xyz[k]`` (m), ``.origin_rpy[k]`` (rad), ``.axis[k]``; ``<link>.<parameter>``
+        (kg, kg m, kg m², link frame); ``<cylinder>.from[k]``, ``.to[k]`` (m, the link's frame),
+        ``.<parameter>`` (its kind's, SI) and ``.linkage.<field>`` (m, rad). A derivation reads
+        the subset it needs; a number it holds exact (a zero, a unit axis entry) is structure."""
+        from .actuators import actuator
+
+        def vector(name, values):
+            return {f"{name}[{k}]": float(v) for k, v in enumerate(values)}
+
+        out = {"gravity": float(self.gravity)}
+        for j in self.joints:
+            for key in ("origin_xyz", "origin_rpy", "axis"):
+                out.update(vector(f"{j.name}.{key}", getattr(j, key)))
+        out.update({k: float(v) for k, v in self.inertial_parameters().items()})
+        for c in self.cylinders:
+            out.update(vector(f"{c.name}.from", c.point_from))
+            out.update(vector(f"{c.name}.to", c.point_to))
+            out.update({f"{c.name}.{k}": float(v) for k, v in actuator(c.kind).parameters(c.table).items()})
+            if c.linkage is not None:
+                out.update(c.linkage.numbers(c.name))
+        return out
+
 
 def _baked_cylinder(c: Cylinder) -> list:
     out = [c.name, c.link_from, np.asarray(c.point_from).tolist(), c.link_to, np.asarray(c.point_to).tolist(),

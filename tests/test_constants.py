@@ -84,3 +84,97 @@ def test_the_derivation_with_numbers_as_symbols_equals_the_folded_one(fresh_cran
                     for name, m in base[f.name].inputs]
             for x, y in zip(a.call(args), b.call([*args, np.asarray(table.values)])):
                 np.testing.assert_allclose(np.array(y), np.array(x), rtol=1e-10, atol=1e-10, err_msg=f.name)
+
+
+# --- runtime parameters: every number by name, an edit of numbers served without a new derivation ---
+
+@pytest.fixture(scope="module")
+def parametric_arm():
+    from hydrogen.symbolic.functions import derive_parametric
+
+    model = hydrogen.load_model("excavator_arm")
+    return model, derive_parametric(model)
+
+
+@pytest.mark.parametrize("name", ["ubc_stewart", "loader_crane", "excavator_arm"])
+def test_every_number_the_derivation_meets_is_a_description_number_by_name(name, parametric_arm):
+    """Each symbol of a parametric derivation has a name of ``model.numbers()`` and its value: the
+    runtime fills the numbers vector from the description alone (no SymPy)."""
+    from hydrogen.symbolic.functions import NUMBERS, derive_parametric
+
+    model, (funcs, names, values) = parametric_arm if name == "excavator_arm" else \
+        (lambda m: (m, derive_parametric(m)))(hydrogen.load_model(name))
+    numbers = model.numbers()
+    assert names and None not in names and len(set(names)) == len(names)
+    assert [numbers[n] for n in names] == values
+    assert all(f.inputs[-1][0] == NUMBERS for f in funcs if hasattr(f, "inputs"))
+    if name == "excavator_arm":  # the linkage's derived lengths have names too
+        assert any(".linkage.crank" in n for n in names)
+
+
+def _edited_arm(folder, edits: dict):
+    import shutil
+
+    data = hydrogen.model.model_path("excavator_arm").parent
+    for ext, file_edits in edits.items():
+        text = (data / f"excavator_arm.{ext}").read_text()
+        for old, new in file_edits:
+            assert text.count(old) == 1, old
+            text = text.replace(old, new)
+        (folder / f"excavator_arm.{ext}").write_text(text)
+    if "urdf" not in edits:
+        shutil.copy(data / "excavator_arm.urdf", folder)
+    return hydrogen.load_model(folder / "excavator_arm.toml")
+
+
+#: An edit of numbers only: a pin point, the linkage's crank pin (its derived lengths move), a cap
+#: area, gravity, a known link mass.
+NUMERIC_EDIT = {"toml": [("point = [0.489, 0.0, 1.219]", "point = [0.495, 0.0, 1.225]"),
+                         ("crank_pin = [-0.011, 0.0, 0.370]", "crank_pin = [-0.010, 0.0, 0.369]"),
+                         ("cap_area = 2.2619e-2", "cap_area = 2.3e-2"), ("gravity = 9.81 ", "gravity = 9.80 ")],
+                "urdf": [('<mass value="2000.0"/>', '<mass value="2100.0"/>')]}
+
+
+def test_a_numeric_edit_keeps_the_structure_and_the_parametric_functions_serve_it(tmp_path, parametric_arm, rng):
+    """The parametric functions of the shipped arm, given the edited description's numbers, equal
+    the folded functions derived from the edited description: such an edit needs no new library."""
+    from hydrogen.codegen.generate import structure_hash
+    from test_codegen import _random_input
+
+    model, (funcs, names, _) = parametric_arm
+    edited = _edited_arm(tmp_path, NUMERIC_EDIT)
+    assert edited.baked_hash() != model.baked_hash()
+    assert edited.structure() == model.structure() and structure_hash(edited) == structure_hash(model)
+    numbers = edited.numbers()
+    changed = [n for n in names if numbers[n] != model.numbers()[n]]
+    assert {"gravity", "boom_cylinder.from[0]", "boom_cylinder.cap_area", "boom.mass"} <= set(changed)
+    assert any(".linkage.crank" in n for n in changed)
+    vector = np.array([numbers[n] for n in names])
+    folded_edit = {f.name: f for f in derive_functions_of(edited)}
+    for f in funcs:
+        if f.name not in folded_edit:
+            continue
+        a, b = to_casadi_function(folded_edit[f.name]), to_casadi_function(f)
+        args = [_random_input(n, m.shape, edited, rng, f.name) for n, m in folded_edit[f.name].inputs]
+        for x, y in zip(a.call(args), b.call([*args, vector])):
+            assert np.all(np.isfinite(np.array(x))), f.name
+            np.testing.assert_allclose(np.array(y), np.array(x), rtol=1e-9, atol=1e-9, err_msg=f.name)
+
+
+def derive_functions_of(model):
+    from hydrogen.symbolic.functions import derive_functions
+
+    return [f for f in derive_functions(model, controllers=False) if isinstance(f, SymbolicFunction)]
+
+
+@pytest.mark.parametrize("edit, why", [
+    ({"toml": [("point = [0.489, 0.0, 1.219]", "point = [0.489, 0.1, 1.219]")]}, "a zero coordinate becomes a number"),
+    ({"toml": [("supply_pressure = 35.0e6 ", "supply_pressure = 30.0e6 ")]}, "the loop's pressure bounds are constants"),
+    ({"toml": [('parameters = ["boom.mcx", ', 'parameters = ['), ("theta_min = [3060.0, ", "theta_min = ["),
+               ("theta_max = [7140.0, ", "theta_max = [")]}, "one parameter fewer adapted"),
+])
+def test_an_edit_of_structure_changes_the_structure_hash(tmp_path, edit, why):
+    from hydrogen.codegen.generate import structure_hash
+
+    model, edited = hydrogen.load_model("excavator_arm"), _edited_arm(tmp_path, edit)
+    assert structure_hash(edited) != structure_hash(model), why

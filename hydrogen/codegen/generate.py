@@ -24,7 +24,8 @@ from ..resources import templates_dir
 # runtime imports this module for the staleness check only, and stays free of both.
 
 __all__ = [
-    "generate", "generate_locked", "write_function", "check", "check_output", "derivation_hash", "read_manifest", "expected_manifest_inputs",
+    "generate", "generate_locked", "write_function", "check", "check_output", "derivation_hash", "structure_hash",
+    "read_manifest", "expected_manifest_inputs",
     "MANIFEST", "FORMAT_VERSION",
 ]
 
@@ -79,6 +80,17 @@ def render_drivers(manifest: dict, folder: Path) -> list:
         write_file(Path(folder) / name, render_template(template, ctx, TEMPLATES))
         names.append(name)
     return names
+
+
+def structure_hash(model) -> str:
+    """SHA-256 of what a parametric generation bakes into its C for ``model``: the description's
+    structure (:meth:`hydrogen.model.Model.structure`) and the summary the drivers are rendered
+    from (:func:`hydrogen.layout.model_summary`: its numbers are constants of the loop's C). Equal
+    for two descriptions one library with the numbers as inputs serves."""
+    from ..layout import model_summary
+
+    text = json.dumps([model.structure(), model_summary(model)], sort_keys=True, separators=(",", ":"))
+    return hashlib.sha256(text.encode()).hexdigest()
 
 
 def expected_manifest_inputs(model) -> dict:

@@ -19,7 +19,8 @@ from .plant import plant_rhs
 from .rigid_body import (bias_forces, coriolis_matrix, gravity, mass_matrix, mass_matrix_inverse, regressor,
                          regressor_offset, rigid_body_stages, theta_symbols)
 
-__all__ = ["SymbolicFunction", "SemiImplicitStep", "Specialisation", "derive_functions", "PRESSURE_EPS"]
+__all__ = ["SymbolicFunction", "SemiImplicitStep", "Specialisation", "derive_functions", "derive_parametric", "NUMBERS",
+           "PRESSURE_EPS"]
 
 
 @dataclass
@@ -203,3 +204,36 @@ def derive_functions(model, controllers: bool = True) -> list:
     funcs = kinematics_functions(model) + rigid_body_functions(model) + hydraulic_functions(model) \
         + plant_functions(model)
     return funcs + controller_functions(model) if controllers else funcs
+
+
+#: The input of a parametric function that holds the description's numbers.
+NUMBERS = "numbers"
+
+
+def derive_parametric(model, controllers: bool = True, key: str = "name") -> tuple:
+    """(functions, names, values): :func:`derive_functions` with the description's numbers left as
+    symbols (:func:`~hydrogen.symbolic.constants.numbers_as_symbols`), each :class:`SymbolicFunction`
+    taking them as one more input, :data:`NUMBERS` (the same vector for all, the numbers in the order
+    the derivation met them); ``names`` of its entries (``key`` "name": those of
+    ``model.numbers()``), ``values`` the description's. The specialisations and steps are made of
+    the parametric functions, so they take the input too."""
+    from .constants import numbers_as_symbols
+
+    with numbers_as_symbols(key) as table:
+        funcs = derive_functions(model, controllers)
+    vector = sp.Matrix(table.symbols)
+    made = {}
+
+    def parametric(f):
+        if f.name in made:
+            return made[f.name]
+        if isinstance(f, SymbolicFunction):
+            g = SymbolicFunction(f.name, [*f.inputs, (NUMBERS, vector)], f.outputs, f.doc, f.intermediates)
+        elif isinstance(f, Specialisation):
+            g = Specialisation(f.name, parametric(f.base), f.fixed, f.zero, f.doc)
+        else:
+            g = SemiImplicitStep(f.name, parametric(f.controller), parametric(f.rates), f.doc)
+        made[f.name] = g
+        return g
+
+    return [parametric(f) for f in funcs], list(table.names), list(table.values)

@@ -72,9 +72,19 @@ class FourBar:
         C = B + (a / D)[..., None] * d + self.branch * (h / D)[..., None] * perp
         return np.linalg.norm(C - np.asarray(self.cylinder_base, float), axis=-1)
 
-    def symbolic(self, q):
-        """(l, dl/dq, C) as SymPy expressions of the joint angle ``q`` (a symbol or expression)."""
-        return four_bar_length(self, q)
+    def symbolic(self, q, name: str | None = None):
+        """(l, dl/dq, C) as SymPy expressions of the joint angle ``q`` (a symbol or expression);
+        ``name``: the cylinder's, which names the numbers (:func:`four_bar_length`)."""
+        return four_bar_length(self, q, name)
+
+    def numbers(self, name: str) -> dict:
+        """``{"<name>.linkage.<field>[k]": value}``: the geometry's numbers as the derivation names
+        them (m, rad), the ones derived from the description (the crank, its offset, the cylinder
+        base in the joint's plane) included."""
+        out = {f"{name}.linkage.{k}": float(getattr(self, k)) for k in ("crank", "crank_offset", "coupler", "rocker")}
+        for k in ("rocker_pivot", "cylinder_base"):
+            out.update({f"{name}.linkage.{k}[{i}]": float(v) for i, v in enumerate(getattr(self, k))})
+        return out
 
     def check_assembles(self, q) -> None:
         """ValueError naming the first angle of ``q`` (rad, array) at which the coupler and rocker
@@ -89,12 +99,15 @@ class FourBar:
                              f"is outside ({abs(self.coupler - self.rocker):.6g}, {self.coupler + self.rocker:.6g}) m")
 
 
-def four_bar_length(geometry: FourBar, q):
-    """(l, dl/dq, C): the cylinder length (m), its Jacobian (m/rad) and the rod-end pin C (2-vector)."""
+def four_bar_length(geometry: FourBar, q, name: str | None = None):
+    """(l, dl/dq, C): the cylinder length (m), its Jacobian (m/rad) and the rod-end pin C (2-vector).
+    ``name`` (the cylinder's) names the numbers as :meth:`FourBar.numbers` does."""
     g = geometry
-    r2, r3, r4, phi0 = baked(g.crank), baked(g.coupler), baked(g.rocker), baked(g.crank_offset)
-    O4 = sp.Matrix([baked(v) for v in g.rocker_pivot])
-    P = sp.Matrix([baked(v) for v in g.cylinder_base])
+    num = {k: baked(v, name and k) for k, v in g.numbers(name or "").items()}
+    pre = f"{name or ''}.linkage."
+    r2, r3, r4, phi0 = (num[pre + k] for k in ("crank", "coupler", "rocker", "crank_offset"))
+    O4 = sp.Matrix([num[f"{pre}rocker_pivot[{i}]"] for i in range(2)])
+    P = sp.Matrix([num[f"{pre}cylinder_base[{i}]"] for i in range(2)])
     # C as a function of the crank pin B (symbols), then the chain rule through B(q)
     bx, by = sp.symbols("linkage_Bx linkage_By", real=True)
     B = sp.Matrix([bx, by])

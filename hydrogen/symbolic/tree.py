@@ -256,7 +256,7 @@ class SymbolicTree:
             if c.linkage is not None:  # a four-bar linkage: l(q) and dl/dq of its joint's angle alone
                 from .linkage import four_bar_length
                 col = self.columns[c.linkage_joint]
-                l_link, dl_link, _ = four_bar_length(c.linkage, self.q[col])
+                l_link, dl_link, _ = four_bar_length(c.linkage, self.q[col], c.name)
                 l_value.append(l_link)
                 rows.append(sp.Matrix([[dl_link if k == col else sp.S.Zero for k in range(self.n)]]))
                 continue
