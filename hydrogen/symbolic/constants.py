@@ -51,28 +51,27 @@ _table: NumberTable | None = None
 
 
 @contextmanager
+def _using(table: NumberTable | None):
+    """Within the block, :func:`baked` gives out ``table``'s symbols (None: folds numbers)."""
+    global _table
+    previous, _table = _table, table
+    try:
+        yield table
+    finally:
+        _table = previous
+
+
 def numbers_as_symbols(key: str = "name"):
     """Within the block, :func:`baked` gives each model number as a symbol of the yielded
     :class:`NumberTable` instead of a constant: the same derivation with the numbers left as
     inputs (what folding them into the expressions saves is measured against it)."""
-    global _table
-    previous, _table = _table, NumberTable(key)
-    try:
-        yield _table
-    finally:
-        _table = previous
+    return _using(NumberTable(key))
 
 
-@contextmanager
 def folded():
     """Within the block, :func:`baked` folds numbers again (a decision made on the folded
     derivation, such as the rigid body's form, stays the same in both)."""
-    global _table
-    previous, _table = _table, None
-    try:
-        yield
-    finally:
-        _table = previous
+    return _using(None)
 
 
 def mode_key():
