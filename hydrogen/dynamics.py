@@ -42,7 +42,9 @@ class Dynamics:
         self._inverse_dynamics = f.get("inverse_dynamics")
         self.functions = f
         symbol = getattr(library, "symbol", None)  # absent for pure-Python stand-ins (benchmarks)
-        self._many = symbol(f"{model.name}_leg_lengths_many") if symbol is not None else None
+        # no loop driver in a build with the numbers as inputs: one call per pose then
+        driven = symbol is not None and getattr(library, "numbers", None) is None
+        self._many = symbol(f"{model.name}_leg_lengths_many") if driven else None
         if self._many is not None:
             self._many.restype = ctypes.c_int
             self._many.argtypes = [ctypes.c_void_p, ctypes.c_longlong, ctypes.c_void_p]

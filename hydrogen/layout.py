@@ -9,9 +9,13 @@ from __future__ import annotations
 
 import math
 
-__all__ = ["SLOTS", "MAX_DELAY", "PREDICTOR_MODEL", "delay_split", "LOOP_CONFIG", "LOOP_STATE", "LOOP_SIGNALS",
+__all__ = ["NUMBERS", "SLOTS", "MAX_DELAY", "PREDICTOR_MODEL", "delay_split", "LOOP_CONFIG", "LOOP_STATE", "LOOP_SIGNALS",
            "model_summary", "loop_context", "log_widths", "loop_functions",
            "c_double", "config_fields", "struct_fields"]
+
+#: The input of every function of a folder generated with the description's numbers as inputs
+#: (the manifest's ``numbers`` names its entries): the runtime fills it, a caller never passes it.
+NUMBERS = "numbers"
 
 #: Signals the loop writes into a controller's inputs, by input name, in this order (``u_applied``:
 #: the spool commands the valves held over the last period, after the clip and the computation delay).

@@ -103,7 +103,7 @@ def test_a_corrupt_manifest_in_hydrogens_own_cache_is_generated_again(model, cac
         (entry / "manifest.json").write_text('{"model_hash": ')  # cut short, as by a crash or a full disk
         rendered = []
 
-        def render_by_copy(model, folder, progress=False):  # the same files, without SymPy's minutes
+        def render_by_copy(model, folder, progress=False, numbers="constants"):  # the same files, without SymPy's minutes
             rendered.append(folder)
             for p in committed.iterdir():
                 shutil.copy(p, folder / p.name)
@@ -183,3 +183,41 @@ def test_a_full_disk_during_generation_names_the_generated_file(tmp_path, monkey
     manifest = json.loads((committed_generated_dir() / model.name / "manifest.json").read_text())
     with pytest.raises(DiskFullError, match=rf"{model.name}_loop.h: cannot be written, the disk is full"):
         render_drivers(manifest, tmp_path)
+
+
+def test_a_build_with_the_numbers_as_inputs_serves_a_numeric_edit_without_compiling(tmp_path, cache, rng):
+    """numbers="inputs": the edited arm (a pin, the linkage's crank pin, an area, gravity, a mass) loads
+    the library built for the shipped one, no generation and no compile, and its functions give the
+    folded derivation of the edited description; the shipped build keeps its own numbers."""
+    from hydrogen.codegen.casadi_functions import to_casadi_function
+    from hydrogen.errors import ScenarioError
+    from hydrogen.symbolic.functions import SymbolicFunction, derive_functions
+    from test_codegen import _random_input
+    from test_constants import NUMERIC_EDIT, _edited_arm
+
+    arm = hydrogen.load_model("excavator_arm")
+    first = hydrogen.build(arm, numbers="inputs", cache=cache)
+    events = []
+    edited = _edited_arm(tmp_path, NUMERIC_EDIT)
+    dyn = hydrogen.build(edited, numbers="inputs", cache=cache, progress=events.append)
+    assert [e.stage for e in events] == ["loaded"] and dyn.library.path == first.library.path
+    assert dyn.backend == "ctypes" and "numbers" not in dyn.library.functions["mass_matrix"].in_names
+    checked = 0
+    for f in derive_functions(edited, controllers=False):
+        if not isinstance(f, SymbolicFunction):
+            continue
+        ref, fn = to_casadi_function(f), dyn.library.functions[f.name]
+        args = [_random_input(n, m.shape, edited, rng, f.name) for n, m in f.inputs]
+        want = [np.array(x) for x in ref.call(args)]
+        got = fn(*[np.ravel(a) if np.ndim(a) == 2 and np.shape(a)[1] == 1 else a for a in args])
+        got = got if isinstance(got, tuple) else (got,)
+        for x, y in zip(want, got):
+            np.testing.assert_allclose(np.reshape(y, x.shape), x, rtol=1e-9, atol=1e-9, err_msg=f.name)
+        checked += 1
+    assert checked >= 10
+    q = edited.neutral_pose
+    assert not np.allclose(first.gravity(q, arm.theta), dyn.gravity(q, arm.theta), rtol=1e-6)
+    with pytest.raises(ScenarioError, match="numbers='constants'"):
+        hydrogen.simulate("arm-sim", "backstepping", dyn=dyn, duration=0.01)
+    with pytest.raises(ScenarioError, match="numbers must be one of"):
+        hydrogen.build(arm, numbers="folded", cache=cache)

@@ -25,7 +25,7 @@ from ..resources import templates_dir
 
 __all__ = [
     "generate", "generate_locked", "write_function", "check", "check_output", "derivation_hash", "structure_hash",
-    "read_manifest", "expected_manifest_inputs",
+    "read_manifest", "expected_manifest_inputs", "numbers_mode", "NUMBERS_MODES",
     "MANIFEST", "FORMAT_VERSION",
 ]
 
@@ -93,10 +93,27 @@ def structure_hash(model) -> str:
     return hashlib.sha256(text.encode()).hexdigest()
 
 
-def expected_manifest_inputs(model) -> dict:
-    """What a manifest must record for its files to be current for ``model``."""
-    return {"model_hash": model.baked_hash(), "derivation_hash": derivation_hash(),
-            "format": FORMAT_VERSION}
+#: How the description's numbers reach the generated functions: folded into them as constants, or
+#: as one more input of each, ``numbers`` (the manifest lists the names, :meth:`Model.numbers`).
+NUMBERS_MODES = ("constants", "inputs")
+
+
+def _check_numbers_mode(numbers: str) -> str:
+    if numbers not in NUMBERS_MODES:
+        raise ValueError(f"numbers must be one of {', '.join(map(repr, NUMBERS_MODES))}, got {numbers!r}")
+    return numbers
+
+
+def numbers_mode(manifest: dict) -> str:
+    """The :data:`NUMBERS_MODES` entry a manifest was generated in."""
+    return "inputs" if "numbers" in manifest else "constants"
+
+
+def expected_manifest_inputs(model, numbers: str = "constants") -> dict:
+    """What a manifest must record for its files to be current for ``model``: with the numbers as
+    inputs, the model's structure hash (an edit of numbers only keeps the folder current)."""
+    key = model.baked_hash() if _check_numbers_mode(numbers) == "constants" else structure_hash(model)
+    return {"model_hash": key, "derivation_hash": derivation_hash(), "format": FORMAT_VERSION}
 
 
 _UNUSED_SIG = re.compile(
@@ -157,21 +174,28 @@ def _sha256(path: Path) -> str:
     return hashlib.sha256(path.read_bytes()).hexdigest()
 
 
-def render(model, folder: Path, functions=None, progress: bool = False) -> dict:
+def render(model, folder: Path, functions=None, progress: bool = False, numbers: str = "constants") -> dict:
     """Write every function's C and the manifest into an existing empty ``folder``.
 
-    ``progress`` shows a bar on a terminal (nothing when stderr is not one).
+    ``progress`` shows a bar on a terminal (nothing when stderr is not one). ``numbers``
+    (:data:`NUMBERS_MODES`): "inputs" gives every function the description's numbers as its input
+    ``numbers`` (names in the manifest's ``numbers``), and renders no loop driver (it calls the
+    functions with the numbers folded).
     """
     import casadi as ca
     import sympy as sp
     from tqdm import tqdm
 
-    from ..symbolic.functions import derive_functions
+    from ..symbolic.functions import derive_functions, derive_parametric
 
     folder = Path(folder)
+    names = None
     if functions is None:
         with tqdm(total=1, desc="deriving (SymPy)", disable=None if progress else True) as bar:
-            functions = derive_functions(model)
+            if _check_numbers_mode(numbers) == "inputs":
+                functions, names, _ = derive_parametric(model)
+            else:
+                functions = derive_functions(model)
             bar.update()
     from ..layout import model_summary
 
@@ -179,9 +203,10 @@ def render(model, folder: Path, functions=None, progress: bool = False) -> dict:
     entries = [write_function(sf, model.name, folder, cache)
                for sf in tqdm(functions, desc="generating C", unit="fn", disable=None if progress else True)]
     summary = model_summary(model)
-    drivers = render_drivers({"model": summary}, folder)
+    drivers = render_drivers({"model": summary}, folder) if names is None else []
     manifest = {
-        **expected_manifest_inputs(model),
+        **expected_manifest_inputs(model, numbers),
+        **({} if names is None else {"numbers": names}),
         "model_name": model.name,
         "model": summary,
         "casadi_version": ca.__version__,
@@ -196,7 +221,7 @@ def render(model, folder: Path, functions=None, progress: bool = False) -> dict:
     return manifest
 
 
-def generate(model, out_dir: Path, force: bool = False, progress: bool = False) -> bool:
+def generate(model, out_dir: Path, force: bool = False, progress: bool = False, numbers: str = "constants") -> bool:
     """Generate C for ``model`` into ``out_dir`` unless it is already current.
 
     Returns True when files were (re)written. The folder is swapped in whole
@@ -205,22 +230,23 @@ def generate(model, out_dir: Path, force: bool = False, progress: bool = False) 
     out_dir = Path(out_dir)
     check_replaceable_dir(out_dir, MANIFEST, GENERATED_KEYS, "a hydrogen generated folder")  # before the lock file
     with locked(out_dir):
-        return generate_locked(model, out_dir, force, progress)
+        return generate_locked(model, out_dir, force, progress, numbers)
 
 
-def generate_locked(model, out_dir: Path, force: bool = False, progress: bool = False) -> bool:
+def generate_locked(model, out_dir: Path, force: bool = False, progress: bool = False,
+                    numbers: str = "constants") -> bool:
     """:func:`generate` for a caller that already holds ``locked(out_dir)``."""
     out_dir = Path(out_dir)
     check_identifier(model.name, "model name")  # it becomes C symbols, file names and build-file text
     recover_dir(out_dir)
-    if not force and not check(model, out_dir):
+    if not force and not check(model, out_dir, numbers):
         return False
     check_replaceable_dir(out_dir, MANIFEST, GENERATED_KEYS, "a hydrogen generated folder", probe=False)  # even forced
     out_dir.parent.mkdir(parents=True, exist_ok=True)
     staging = Path(tempfile.mkdtemp(prefix=f".{out_dir.name}.new-", dir=out_dir.parent))
     staging.chmod(0o755)  # mkdtemp makes it private; generated code is for everyone
     try:
-        render(model, staging, progress=progress)
+        render(model, staging, progress=progress, numbers=numbers)
         replace_dir(staging, out_dir)
     except BaseException:
         shutil.rmtree(staging, ignore_errors=True)
@@ -249,7 +275,7 @@ def check_output(model, folder: Path) -> list:
         return reasons
     folder = Path(folder)
     with tempfile.TemporaryDirectory() as tmp:
-        render(model, Path(tmp))
+        render(model, Path(tmp), numbers=numbers_mode(read_manifest(folder) or {}))
         fresh = {p.name: p.read_bytes() for p in Path(tmp).iterdir()}
     present = {p.name for p in folder.iterdir() if not p.name.startswith(".")}
     out = []
@@ -267,18 +293,23 @@ def check_output(model, folder: Path) -> list:
     return out
 
 
-def check(model, folder: Path) -> list:
+def check(model, folder: Path, numbers: str | None = None) -> list:
     """Reasons ``folder`` is stale for ``model`` (empty list: current).
 
     Compares the recorded model and derivation hashes with the current ones,
-    and every file with the hash the manifest recorded for it.
+    and every file with the hash the manifest recorded for it. ``numbers``: the mode the folder
+    must be in (:data:`NUMBERS_MODES`; None: the manifest's own, whose model hash is then the
+    structure hash for "inputs").
     """
     folder = Path(folder)
     manifest = read_manifest(folder)
     if manifest is None:
         return [f"{folder}: no readable {MANIFEST}"]
     reasons = []
-    for key, value in expected_manifest_inputs(model).items():
+    mode = numbers_mode(manifest)
+    if numbers is not None and _check_numbers_mode(numbers) != mode:
+        reasons.append(f"{folder}: generated with the numbers as {mode}, wanted as {numbers}")
+    for key, value in expected_manifest_inputs(model, mode).items():
         if manifest.get(key) != value:
             reasons.append(f"{folder}: {key} changed (recorded {str(manifest.get(key))[:12]}, "
                            f"now {str(value)[:12]})")

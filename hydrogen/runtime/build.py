@@ -4,7 +4,7 @@ from __future__ import annotations
 import hashlib
 from pathlib import Path
 
-from ..codegen.generate import check, derivation_hash, generate_locked, read_manifest
+from ..codegen.generate import check, derivation_hash, generate_locked, read_manifest, structure_hash
 from ..errors import BuildCacheError
 from ..model import Model, load_model
 from .cachedir import cache_errors, check_cache_root, folder_lock, warm_library
@@ -21,18 +21,21 @@ def repo_generated_dir() -> Path:
     return committed_generated_dir()
 
 
-def generated_dir_for(model: Model, cache: Path | None = None) -> Path:
+def generated_dir_for(model: Model, cache: Path | None = None, numbers: str = "constants") -> Path:
     """Where the C for ``model`` lives: the committed folder when current, else a cache folder.
 
     The committed ``generated/<name>`` is used as it is when it matches the model
     and the derivation code; otherwise code is generated into the cache, keyed by
     the model hash, and the committed files are never touched by a library call.
+    With ``numbers="inputs"`` (``codegen.generate.NUMBERS_MODES``) the folder is keyed by the
+    structure hash: every description that differs from ``model`` in numbers only shares it.
     """
     committed = repo_generated_dir() / model.name
-    if committed.is_dir() and not check(model, committed):
+    if committed.is_dir() and not check(model, committed, numbers):
         return committed
     # Keyed by the derivation too: two hydrogen versions sharing one cache never fight over a folder.
-    key = f"{model.name}-{model.baked_hash()[:16]}-{derivation_hash()[:8]}"
+    shape = model.baked_hash() if numbers == "constants" else "s" + structure_hash(model)
+    key = f"{model.name}-{shape[:16]}-{derivation_hash()[:8]}"
     return Path(cache or cache_root()) / "generated" / key
 
 
@@ -141,7 +144,7 @@ def _check_controllers(controllers) -> tuple:
 
 def build(model: Model | str | Path | None = None, *, cc: str | None = None,
           cflags: tuple | None = None, cache: Path | None = None, generated: Path | None = None,
-          backend: str = "auto", progress=None, controllers=()):
+          backend: str = "auto", progress=None, controllers=(), numbers: str = "constants"):
     """Generate if stale, compile if needed, load, and return a :class:`~hydrogen.dynamics.Dynamics`.
 
     The compiled code is one core library (kinematics, rigid body, hydraulics, plant, the C loop)
@@ -171,6 +174,13 @@ def build(model: Model | str | Path | None = None, *, cc: str | None = None,
     controllers : sequence of str
         Controllers (names, as ``simulate`` takes them) whose libraries are compiled with the core,
         in the same pool of compilers, and loaded now. ``hydrogen.CONTROLLERS``: all of them.
+    numbers : "constants" or "inputs"
+        "constants" folds the description's numbers into the C (as the committed code is).
+        "inputs" generates every function with them as an input the runtime fills from the
+        description (``Model.numbers()``): a description that differs in numbers only (a mass, a
+        pin point, an area) loads the same compiled libraries, with no generation and no compile.
+        Such a build calls its functions through ctypes; the C loop (``simulate``), the extension,
+        the export and the FMU need "constants".
     """
     from ..dynamics import Dynamics
     from ..progress import Reporter, generation_reported
@@ -179,8 +189,9 @@ def build(model: Model | str | Path | None = None, *, cc: str | None = None,
         model = load_model(model)
     report = Reporter(progress, model.name)
     controllers = _check_controllers(controllers)
+    _check_numbers(numbers, backend)
     root = check_cache_root(Path(cache or cache_root()))
-    folder = Path(generated) if generated else generated_dir_for(model, cache)
+    folder = Path(generated) if generated else generated_dir_for(model, cache, numbers)
     toolchain = Toolchain(**{k: v for k, v in (("cc", cc), ("cflags", cflags)) if v is not None})
     committed = generated is None and folder == repo_generated_dir() / model.name
 
@@ -190,7 +201,7 @@ def build(model: Model | str | Path | None = None, *, cc: str | None = None,
         made.append(_Loader(model, folder, manifest, toolchain, root, cache, committed, report))
         return made[-1]
 
-    lib = warm_library(model, folder, toolchain, root, loader)  # no lock, no write: a read-only cache works
+    lib = warm_library(model, folder, toolchain, root, loader, numbers)  # no lock, no write: a read-only cache works
     if lib is not None:
         missing = [c for c in controllers if _cached_or_none(made[-1], c) is None]
         if missing:
@@ -203,7 +214,7 @@ def build(model: Model | str | Path | None = None, *, cc: str | None = None,
             if generated is None and not committed:
                 _drop_broken_entry(model, folder)
             with generation_reported(report, model, folder):
-                generate_locked(model, folder)  # no-op when current
+                generate_locked(model, folder, numbers=numbers)  # no-op when current
             manifest = read_manifest(folder)
             if manifest is None:
                 raise BuildCacheError(f"{folder}: generated folder has no readable manifest after generation")
@@ -211,17 +222,30 @@ def build(model: Model | str | Path | None = None, *, cc: str | None = None,
             # Progress around the compile call, not inside it: a build another process finished is no step.
             core = load.compile([CORE, *controllers])[0]
             try:
-                lib = GeneratedLibrary(core, manifest, folder, load)
+                lib = GeneratedLibrary(core, manifest, folder, load, numbers=model.numbers())
             except BuildCacheError:
                 # A cached build that does not match this runtime (other CasADi, other ABI): rebuild once.
-                lib = GeneratedLibrary(load.compile([CORE], force=True)[0], manifest, folder, load)
-    attach_extension(lib, toolchain, cache=cache, backend=backend)
+                lib = GeneratedLibrary(load.compile([CORE], force=True)[0], manifest, folder, load,
+                                       numbers=model.numbers())
+    if numbers == "constants":
+        attach_extension(lib, toolchain, cache=cache, backend=backend)
     for c in controllers:
         lib.load(c)
     steps = [s for s, done in (("generated", "generated"), ("compiled", "compiled")) if done in report.stages]
     report("built" if steps else "loaded", " + ".join(steps) if steps else f"already built: {lib.path}",
            report.total())
     return Dynamics(model, lib)
+
+
+def _check_numbers(numbers, backend) -> None:
+    from ..codegen.generate import NUMBERS_MODES
+    from ..errors import ScenarioError
+
+    if numbers not in NUMBERS_MODES:
+        raise ScenarioError(f"numbers must be one of {', '.join(map(repr, NUMBERS_MODES))}, got {numbers!r}")
+    if numbers == "inputs" and backend == "extension":
+        raise ScenarioError("backend 'extension' needs numbers='constants' (a build with the numbers as inputs "
+                            "calls its functions through ctypes)")
 
 
 def _cached_or_none(load, group):

@@ -67,23 +67,24 @@ def cache_errors(root: Path):
         raise
 
 
-def warm_library(model, folder: Path, toolchain, cache_root: Path, loader):
+def warm_library(model, folder: Path, toolchain, cache_root: Path, loader, numbers: str = "constants"):
     """The loaded core library already built for the current ``folder``, or None; takes no lock, writes
-    nothing. ``loader(manifest)`` makes the library's loader of the other libraries (controllers)."""
+    nothing. ``loader(manifest)`` makes the library's loader of the other libraries (controllers);
+    ``numbers``: the mode the folder must have been generated in (``codegen.generate.NUMBERS_MODES``)."""
     from ..codegen.generate import check, read_manifest
     from .compiler import build_key, cached_library
     from .library import CORE, GeneratedLibrary, group_sources
 
     try:
         folder = Path(folder)
-        if not folder.is_dir() or check(model, folder):
+        if not folder.is_dir() or check(model, folder, numbers):
             return None
         manifest = read_manifest(folder)
         sources = [folder / n for n in group_sources(manifest, CORE)]
         lib_path = cached_library(Path(cache_root) / "build" / build_key(sources, toolchain))
         if lib_path is None:
             return None
-        return GeneratedLibrary(lib_path, manifest, folder, loader(manifest))
+        return GeneratedLibrary(lib_path, manifest, folder, loader(manifest), numbers=model.numbers())
     except (OSError, KeyError, TypeError, BuildCacheError):
         return None  # anything odd: the locked path decides (and reports)
 

@@ -17,6 +17,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import BuildCacheError
+from ..layout import NUMBERS
 
 __all__ = ["GeneratedLibrary", "CompiledFunction", "LazyFunctions", "load_failure", "function_groups", "group_sources",
            "CORE"]
@@ -52,8 +53,8 @@ class CompiledFunction:
     the recorded shape (C order copies), vectors as 1-D arrays.
     """
 
-    def __init__(self, lib: ctypes.CDLL, entry: dict):
-        self._lib, self._entry = lib, entry
+    def __init__(self, lib: ctypes.CDLL, entry: dict, numbers=None):
+        self._lib, self._entry, self._numbers = lib, entry, numbers
         self._lock = threading.Lock()  # ctypes releases the GIL: one caller at a time per buffer set
         self.name = entry["name"]
         self.c_name = entry["c_name"]
@@ -66,34 +67,46 @@ class CompiledFunction:
         sz = [_c_int() for _ in range(4)]
         getattr(lib, self.c_name + "_work")(*map(ctypes.byref, sz))
         n_arg, n_res, n_iw, n_w = (s.value for s in sz)
-        self.in_shapes = [(int(r), int(c)) for _, r, c in entry["inputs"]]
+        shapes = [(int(r), int(c)) for _, r, c in entry["inputs"]]
+        names = [n for n, _, _ in entry["inputs"]]
         self.out_shapes = [(int(r), int(c)) for _, r, c in entry["outputs"]]
-        self.in_names = [n for n, _, _ in entry["inputs"]]
         self.out_names = [n for n, _, _ in entry["outputs"]]
         #: inputs no output depends on (from the manifest): setting them changes nothing
         self.unread_inputs = tuple(entry.get("unread_inputs", ()))
-        self._check_sparsity(lib)
+        self._check_sparsity(lib, shapes)
         # Fortran-ordered buffers match CasADi's column-major dense layout.
-        self._in = [np.zeros(s, order="F") for s in self.in_shapes]
+        self._in = [np.zeros(s, order="F") for s in shapes]
         self._out = [np.zeros(s, order="F") for s in self.out_shapes]
+        # The description's numbers (a library generated with them as inputs): filled here once,
+        # never an argument of a call.
+        hidden = names.index(NUMBERS) if NUMBERS in names else None
+        if hidden is not None:
+            if numbers is None or np.shape(numbers) != (shapes[hidden][0],):
+                raise BuildCacheError(f"{self.c_name}: takes the description's {shapes[hidden][0]} numbers as "
+                                      f"inputs, got {'none' if numbers is None else np.shape(numbers)}; build "
+                                      "it with hydrogen.build")
+            self._in[hidden][:, 0] = numbers
+        user = [i for i in range(len(names)) if i != hidden]
+        self.in_shapes = [shapes[i] for i in user]
+        self.in_names = [names[i] for i in user]
         self._arg = (ctypes.c_void_p * max(n_arg, len(self._in)))(*[b.ctypes.data for b in self._in])
         self._res = (ctypes.c_void_p * max(n_res, len(self._out)))(*[b.ctypes.data for b in self._out])
         self._iw = (_c_int * max(n_iw, 1))()
         self._w = (ctypes.c_double * max(n_w, 1))()
         self._mem = ctypes.c_int(0)
         # Column vectors are seen as 1-D arrays by the user; matrices as 2-D (C-order copies out).
-        self._in_views = [b[:, 0] if b.shape[1] == 1 else b for b in self._in]
+        self._in_views = [b[:, 0] if b.shape[1] == 1 else b for b in (self._in[i] for i in user)]
         self._in_vshapes = [v.shape for v in self._in_views]
         self._out_views = [b[:, 0] if b.shape[1] == 1 else b for b in self._out]
-        self._n_in = len(self._in)
+        self._n_in = len(self.in_names)
         self._single = len(self._out) == 1
 
-    def _check_sparsity(self, lib):
+    def _check_sparsity(self, lib, in_shapes):
         sp_out = getattr(lib, self.c_name + "_sparsity_out")
         sp_out.restype = ctypes.POINTER(_c_int)
         sp_in = getattr(lib, self.c_name + "_sparsity_in")
         sp_in.restype = ctypes.POINTER(_c_int)
-        for getter, shapes, kind in ((sp_in, self.in_shapes, "input"), (sp_out, self.out_shapes, "output")):
+        for getter, shapes, kind in ((sp_in, in_shapes, "input"), (sp_out, self.out_shapes, "output")):
             for i, (r, c) in enumerate(shapes):
                 sp = getter(_c_int(i))
                 rows, cols = sp[0], sp[1]
@@ -236,7 +249,7 @@ class CompiledFunction:
 
     def clone(self) -> "CompiledFunction":
         """The same function with buffers of its own (for a controller runtime or a loop runner)."""
-        return CompiledFunction(self._lib, self._entry)
+        return CompiledFunction(self._lib, self._entry, self._numbers)
 
 
 def _shape_text(shape: tuple, batch: bool = False) -> str:
@@ -348,8 +361,12 @@ class GeneratedLibrary:
     Without a ``loader``, ``path`` holds every function (one library for the whole folder).
     """
 
-    def __init__(self, path: Path, manifest: dict, generated_dir: Path | None = None, loader=None):
+    def __init__(self, path: Path, manifest: dict, generated_dir: Path | None = None, loader=None,
+                 numbers: dict | None = None):
         self.path = Path(path)
+        #: the values of the manifest's ``numbers`` (a folder generated with the description's numbers as
+        #: inputs), from ``numbers`` (``Model.numbers()``); None for a folder with the numbers folded
+        self.numbers = _numbers_vector(manifest, numbers)
         self.generated_dir = None if generated_dir is None else Path(generated_dir)
         self.manifest = manifest
         self._loader = loader
@@ -382,7 +399,7 @@ class GeneratedLibrary:
             raise BuildCacheError(load_failure(path, exc)) from None
         entries = [self._entries[n] for n in self._groups[group]]
         _check_abi(cdll, path, entries, self.manifest["casadi_version"])
-        fns = {e["name"]: CompiledFunction(cdll, e) for e in entries}
+        fns = {e["name"]: CompiledFunction(cdll, e, self.numbers) for e in entries}
         self._cdlls[group], self.paths[group] = cdll, path
         if group == CORE:
             self._lib = cdll
@@ -449,6 +466,19 @@ class GeneratedLibrary:
 
     def __getitem__(self, name) -> CompiledFunction:
         return self.functions[name]
+
+
+def _numbers_vector(manifest: dict, numbers: dict | None):
+    names = manifest.get("numbers")
+    if names is None:
+        return None
+    missing = [n for n in names if numbers is None or n not in numbers]
+    if missing:
+        raise BuildCacheError(f"the generated functions take the description's numbers, and {missing[0]} is not "
+                              f"among the ones given ({len(missing)} missing); build with hydrogen.build")
+    out = np.array([numbers[n] for n in names], float)
+    out.setflags(write=False)
+    return out
 
 
 def _check_abi(cdll, path: Path, entries: list, casadi_version: str) -> None:

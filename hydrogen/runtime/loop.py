@@ -104,6 +104,11 @@ class LoopRunner:
 
     def __init__(self, dyn, ctrl, values: dict):
         manifest = dyn.library.manifest
+        if dyn.library.numbers is not None:
+            from ..errors import ScenarioError
+            raise ScenarioError(f"model '{manifest['model_name']}' was built with its numbers as inputs "
+                                "(hydrogen.build(numbers='inputs')), which has no C loop yet; build it with "
+                                "numbers='constants' to simulate")
         self.context = ctx = loop_context(manifest)
         self._log_width = log_widths(manifest["model"])
         self.n_noise = ctx["n_noise"]

@@ -12,6 +12,7 @@ from dataclasses import dataclass, field
 import sympy as sp
 
 from ..actuators import actuator
+from ..layout import NUMBERS
 from ..pressures import blocks, n_pressures, uniform_three_way
 from .constants import PRESSURE_EPS, baked_table
 from .kinematics import leg_stages, pose_symbols, rate_symbols
@@ -206,8 +207,6 @@ def derive_functions(model, controllers: bool = True) -> list:
     return funcs + controller_functions(model) if controllers else funcs
 
 
-#: The input of a parametric function that holds the description's numbers.
-NUMBERS = "numbers"
 
 
 def derive_parametric(model, controllers: bool = True, key: str = "name") -> tuple:
