@@ -219,5 +219,11 @@ def test_a_build_with_the_numbers_as_inputs_serves_a_numeric_edit_without_compil
     assert not np.allclose(first.gravity(q, arm.theta), dyn.gravity(q, arm.theta), rtol=1e-6)
     with pytest.raises(ScenarioError, match="numbers='constants'"):
         hydrogen.simulate("arm-sim", "backstepping", dyn=dyn, duration=0.01)
+    # the Python loop runs on it: the shipped arm's run equals the one on the folded library
+    run = {d: hydrogen.simulate("arm-sim", "backstepping", dyn=d, engine="python", duration=0.2)
+           for d in (first, hydrogen.build(arm, cache=cache))}
+    a, b = run.values()
+    assert np.all(np.isfinite(a.q)) and len(a.q) > 10
+    np.testing.assert_allclose(a.q, b.q, rtol=1e-9, atol=1e-12)
     with pytest.raises(ScenarioError, match="numbers must be one of"):
         hydrogen.build(arm, numbers="folded", cache=cache)
