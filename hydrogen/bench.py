@@ -32,6 +32,7 @@ SUITE = (
     ("bench_scaling", "how cost grows with the robot: planar chains of n = 2 ... 7 links"),
     ("bench_predictor", "the delay predictor's cost per control period and in instructions, every controller"),
     ("bench_folding", "the description's numbers folded into the C against runtime inputs: instructions, ns per call"),
+    ("bench_edit", "a numeric edit of the description to the next run: numbers as inputs against folded"),
 )
 
 

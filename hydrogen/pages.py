@@ -358,6 +358,28 @@ def _folding(b) -> list:
     return out + _table(["robot", "function", "instructions folded", "by name", "ns folded", "by name"], rows)
 
 
+def _edit(b) -> list:
+    robots = b.get("robots", {})
+    if not robots:
+        return []
+    any_robot = next(iter(robots.values()))
+    out = ["## From a numeric edit to the next run", "",
+           f"`benchmarks/bench_edit.py`: a copy of each robot's description with gravity 0.1 % lower, then a fresh "
+           f"process that builds it and runs `{any_robot['controller']}` for {_f(any_robot['duration_s'])} s of its "
+           "first scenario, by two routes: `numbers=\"inputs\"` on a cache holding the shipped description's build "
+           "(the same structure: the build only loads, then the Python loop), and the default `numbers=\"constants\"` "
+           "(generated and compiled again, then the C loop). Seconds, median of "
+           f"{b.get('runs')} run{'s' if b.get('runs') != 1 else ''}:", ""]
+    rows = []
+    for name, r in robots.items():
+        for route in ("inputs", "constants"):
+            v = r[route]
+            rows.append([name, route, _f(v["process_wall_s"]), _f(v["import_s"]), _f(v["build_s"]),
+                         _f(v["simulate_s"]), "yes" if v["loaded_only"] else "no"])
+        rows.append([name, "constants / inputs", f"{_f(r['wall_ratio'])}×", "", "", "", ""])
+    return out + _table(["robot", "route", "process wall", "import", "build", "run", "build only loaded"], rows)
+
+
 def benchmarks_page(results: dict, repeats: dict | None = None, source: str = "docs/bench.json") -> str:
     """Markdown of a ``hydrogen bench`` run (the dict it writes as JSON), optionally with the whole-run
     spread of the release comparison (``bench_release_repeats.json``); sections of modules not run
@@ -382,6 +404,8 @@ def benchmarks_page(results: dict, repeats: dict | None = None, source: str = "d
         out += _scaling(results["bench_scaling"])
     if "bench_folding" in results:
         out += _folding(results["bench_folding"])
+    if "bench_edit" in results:
+        out += _edit(results["bench_edit"])
     return "\n".join(out).rstrip() + "\n"
 
 

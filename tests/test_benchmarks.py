@@ -191,3 +191,14 @@ def test_bench_scaling_states_its_target_only_for_developers(capsys):
     assert "generation 150.0 s" in out and "target" not in out and "met" not in out
     bench_scaling.print_table(res, checks=True)
     assert "(target < 120 s): NOT met" in capsys.readouterr().out
+
+
+@pytest.mark.parametrize("name", list(hydrogen.models()))
+def test_the_edit_benchmark_edits_a_number_and_keeps_the_structure(name, tmp_path):
+    import bench_edit
+
+    from hydrogen.codegen.generate import structure_hash
+
+    model, edited = hydrogen.load_model(name), hydrogen.load_model(bench_edit.edited_copy(name, tmp_path))
+    assert edited.gravity == pytest.approx(model.gravity * 0.999, rel=1e-12)
+    assert edited.baked_hash() != model.baked_hash() and structure_hash(edited) == structure_hash(model)
