@@ -25,7 +25,7 @@ from ..resources import templates_dir
 
 __all__ = [
     "generate", "generate_locked", "write_function", "check", "check_output", "derivation_hash", "structure_hash",
-    "read_manifest", "expected_manifest_inputs", "numbers_mode", "NUMBERS_MODES",
+    "read_manifest", "expected_manifest_inputs", "numbers_mode", "check_numbers_mode", "NUMBERS_MODES",
     "MANIFEST", "FORMAT_VERSION",
 ]
 
@@ -98,9 +98,11 @@ def structure_hash(model) -> str:
 NUMBERS_MODES = ("constants", "inputs")
 
 
-def _check_numbers_mode(numbers: str) -> str:
+def check_numbers_mode(numbers: str) -> str:
+    """``numbers`` if it is one of :data:`NUMBERS_MODES`, else a ScenarioError naming them."""
     if numbers not in NUMBERS_MODES:
-        raise ValueError(f"numbers must be one of {', '.join(map(repr, NUMBERS_MODES))}, got {numbers!r}")
+        from ..errors import ScenarioError
+        raise ScenarioError(f"numbers must be one of {', '.join(map(repr, NUMBERS_MODES))}, got {numbers!r}")
     return numbers
 
 
@@ -112,7 +114,7 @@ def numbers_mode(manifest: dict) -> str:
 def expected_manifest_inputs(model, numbers: str = "constants") -> dict:
     """What a manifest must record for its files to be current for ``model``: with the numbers as
     inputs, the model's structure hash (an edit of numbers only keeps the folder current)."""
-    key = model.baked_hash() if _check_numbers_mode(numbers) == "constants" else structure_hash(model)
+    key = model.baked_hash() if check_numbers_mode(numbers) == "constants" else structure_hash(model)
     return {"model_hash": key, "derivation_hash": derivation_hash(), "format": FORMAT_VERSION}
 
 
@@ -192,7 +194,7 @@ def render(model, folder: Path, functions=None, progress: bool = False, numbers:
     names = None
     if functions is None:
         with tqdm(total=1, desc="deriving (SymPy)", disable=None if progress else True) as bar:
-            if _check_numbers_mode(numbers) == "inputs":
+            if check_numbers_mode(numbers) == "inputs":
                 functions, names, _ = derive_parametric(model)
             else:
                 functions = derive_functions(model)
@@ -307,7 +309,7 @@ def check(model, folder: Path, numbers: str | None = None) -> list:
         return [f"{folder}: no readable {MANIFEST}"]
     reasons = []
     mode = numbers_mode(manifest)
-    if numbers is not None and _check_numbers_mode(numbers) != mode:
+    if numbers is not None and check_numbers_mode(numbers) != mode:
         reasons.append(f"{folder}: generated with the numbers as {mode}, wanted as {numbers}")
     for key, value in expected_manifest_inputs(model, mode).items():
         if manifest.get(key) != value:

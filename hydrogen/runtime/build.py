@@ -222,11 +222,11 @@ def build(model: Model | str | Path | None = None, *, cc: str | None = None,
             # Progress around the compile call, not inside it: a build another process finished is no step.
             core = load.compile([CORE, *controllers])[0]
             try:
-                lib = GeneratedLibrary(core, manifest, folder, load, numbers=model.numbers())
+                lib = GeneratedLibrary(core, manifest, folder, load, numbers=model.numbers)
             except BuildCacheError:
                 # A cached build that does not match this runtime (other CasADi, other ABI): rebuild once.
                 lib = GeneratedLibrary(load.compile([CORE], force=True)[0], manifest, folder, load,
-                                       numbers=model.numbers())
+                                       numbers=model.numbers)
     if numbers == "constants":
         attach_extension(lib, toolchain, cache=cache, backend=backend)
     for c in controllers:
@@ -238,12 +238,10 @@ def build(model: Model | str | Path | None = None, *, cc: str | None = None,
 
 
 def _check_numbers(numbers, backend) -> None:
-    from ..codegen.generate import NUMBERS_MODES
+    from ..codegen.generate import check_numbers_mode
     from ..errors import ScenarioError
 
-    if numbers not in NUMBERS_MODES:
-        raise ScenarioError(f"numbers must be one of {', '.join(map(repr, NUMBERS_MODES))}, got {numbers!r}")
-    if numbers == "inputs" and backend == "extension":
+    if check_numbers_mode(numbers) == "inputs" and backend == "extension":
         raise ScenarioError("backend 'extension' needs numbers='constants' (a build with the numbers as inputs "
                             "calls its functions through ctypes)")
 

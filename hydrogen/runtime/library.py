@@ -362,10 +362,11 @@ class GeneratedLibrary:
     """
 
     def __init__(self, path: Path, manifest: dict, generated_dir: Path | None = None, loader=None,
-                 numbers: dict | None = None):
+                 numbers=None):
         self.path = Path(path)
         #: the values of the manifest's ``numbers`` (a folder generated with the description's numbers as
-        #: inputs), from ``numbers`` (``Model.numbers()``); None for a folder with the numbers folded
+        #: inputs), from ``numbers`` (a dict by name, or what returns one: ``Model.numbers``, called only
+        #: for such a folder); None for a folder with the numbers folded
         self.numbers = _numbers_vector(manifest, numbers)
         self.generated_dir = None if generated_dir is None else Path(generated_dir)
         self.manifest = manifest
@@ -472,6 +473,7 @@ def _numbers_vector(manifest: dict, numbers: dict | None):
     names = manifest.get("numbers")
     if names is None:
         return None
+    numbers = numbers() if callable(numbers) else numbers
     missing = [n for n in names if numbers is None or n not in numbers]
     if missing:
         raise BuildCacheError(f"the generated functions take the description's numbers, and {missing[0]} is not "
