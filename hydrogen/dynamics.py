@@ -42,12 +42,13 @@ class Dynamics:
         self._inverse_dynamics = f.get("inverse_dynamics")
         self.functions = f
         symbol = getattr(library, "symbol", None)  # absent for pure-Python stand-ins (benchmarks)
-        # no loop driver in a build with the numbers as inputs: one call per pose then
-        driven = symbol is not None and getattr(library, "numbers", None) is None
-        self._many = symbol(f"{model.name}_leg_lengths_many") if driven else None
+        #: the values of the generated functions' ``numbers`` input (a library generated with the
+        #: description's numbers as inputs), or None (numbers folded)
+        self.numbers = getattr(library, "numbers", None)
+        self._many = symbol(f"{model.name}_leg_lengths_many") if symbol is not None else None
         if self._many is not None:
             self._many.restype = ctypes.c_int
-            self._many.argtypes = [ctypes.c_void_p, ctypes.c_longlong, ctypes.c_void_p]
+            self._many.argtypes = [ctypes.c_void_p, ctypes.c_void_p, ctypes.c_longlong, ctypes.c_void_p]
 
     # --- kinematics -------------------------------------------------------------------
     def leg_lengths(self, q, out=None) -> np.ndarray:
@@ -64,7 +65,8 @@ class Dynamics:
         if self._many is None:
             return np.array([self._leg_lengths(q) for q in qs]).reshape(-1, m)
         out = np.empty((qs.shape[0], m))
-        if self._many(qs.ctypes.data, len(qs), out.ctypes.data):
+        nb = None if self.numbers is None else self.numbers.ctypes.data
+        if self._many(nb, qs.ctypes.data, len(qs), out.ctypes.data):
             raise KinematicsError("leg_lengths_many: the generated leg_lengths function returned an error")
         return out
 

@@ -107,6 +107,12 @@ LOOP_CONFIG = (
       ("pred_theta_at", "long long", "P_PRED_THETA_AT", "run.pred_theta_at"),
       ("pred_gamma1_at", "long long", "P_PRED_GAMMA1_AT", "run.pred_gamma1_at"),
       ("pred_gamma2_at", "long long", "P_PRED_GAMMA2_AT", "run.pred_gamma2_at"))),
+    ("the description's numbers: bounds of each pressure state (Pa), the clip of the measurement and of\n"
+     " * the plant; numbers: the input of every generated function of a library generated with the\n"
+     " * description's numbers as inputs (the manifest's \"numbers\" names them; else one unused 0)",
+     (("p_low", "const double*", "P_PRESSURE_LOW", "run.pressure_low"),
+      ("p_high", "const double*", "P_PRESSURE_HIGH", "run.pressure_high"),
+      ("numbers", "const double*", "P_NUMBERS", "run.numbers"))),
     ("forward kinematics (Newton): tolerance (m), iterations",
      (("fk_tol", "double", "P_FK_TOL", "run.fk_tol"), ("fk_max_iter", "long long", "P_FK_MAX_ITER", "run.fk_max_iter"))),
 )
@@ -193,41 +199,29 @@ def c_double(x) -> str:
 
 
 def model_summary(model) -> dict:
-    """What the manifest records about the model for the drivers and the runtime.
-
-    A robot of three-way cylinders only: their areas (the loop computes f = p_c A − P_s a). Any
-    other: the kinds, the pressure vector's size and each state's clip bounds (Pa), the loop's
-    forces from the generated ``leg_force``."""
-    from .pressures import bounds, n_pressures, uniform_three_way
-    out = {
+    """What the manifest records about the model for the drivers and the runtime: sizes, names and
+    kinds, the loop's structure. No number of the description: the loop takes those from its
+    configuration (pressure bounds) or through the generated functions (forces, flows)."""
+    from .pressures import n_pressures
+    return {
         "name": model.name,
         "n": model.n, "m": model.n_cylinders, "p": model.n_theta,
         "coordinates": list(model.coordinate_names),
         "cylinders": [c.name for c in model.cylinders],
         "theta_names": list(model.theta_names),
+        "kinds": [c.kind for c in model.cylinders], "n_pressures": n_pressures(model),
+        "joint_encoders": bool(model.joint_encoders),
     }
-    if uniform_three_way(model):
-        out["piston_area"] = [float(c.piston_area) for c in model.cylinders]
-        out["rod_area"] = [float(c.rod_area) for c in model.cylinders]
-    else:
-        lo, hi = bounds(model)
-        out.update(kinds=[c.kind for c in model.cylinders], n_pressures=n_pressures(model),
-                   pressure_low=lo.tolist(), pressure_high=hi.tolist())
-    out["supply_pressure"] = [float(c.supply_pressure) for c in model.cylinders]
-    out["joint_encoders"] = bool(model.joint_encoders)
-    return out
 
 
 def n_pressures(summary: dict) -> int:
-    """Size of the pressure vector (one state per three-way cylinder)."""
-    return summary.get("n_pressures", summary["m"])
+    """Size of the pressure vector."""
+    return summary["n_pressures"]
 
 
 def loop_functions(summary: dict) -> tuple:
-    """The generated functions the loop driver calls (an export or FMU compiles them with it): the
-    forces of a robot whose actuators are not all three-way cylinders come from ``leg_force``."""
-    base = ("leg_lengths", "leg_kinematics", "plant_rhs")
-    return base if "piston_area" in summary else (*base, "leg_force")
+    """The generated functions the loop driver calls (an export or FMU compiles them with it)."""
+    return ("leg_lengths", "leg_kinematics", "plant_rhs", "leg_force")
 
 
 def log_widths(summary: dict) -> dict:
@@ -240,31 +234,24 @@ def loop_context(manifest: dict) -> dict:
     """Everything the loop templates and the ctypes structures need, from a manifest."""
     s = manifest["model"]
     n, m, name = s["n"], s["m"], s["name"]
-    pressures = "chamber pressures (one block per actuator), Pa" if "n_pressures" in s else "control pressures, Pa"
+    n_p = n_pressures(s)
+    pressures = "chamber pressures (one block per actuator), Pa" if n_p != m else "control pressures, Pa"
     what = {"t": "time, s", "q": "true pose", "q_d": "reference", "l": "true cylinder lengths, m",
             "f": "cylinder forces, N", "pc": pressures, "u": "spool commands computed, m",
             "u_applied": "spool commands the valves held at the end of each period (delay later), m",
             "l_meas": "measured cylinder lengths (noise, quantisation), m"}
     logs = [(k, w, what[k]) for k, w in log_widths(s).items()] + [("xc", "n_xc", "controller state")]
-    n_p, three_way = n_pressures(s), "piston_area" in s
     nx = 2 * n + n_p + 2 * m
     sizes = {"NQ": n, "NL": m, "NX": nx, "NPC": n_p, "MAX_DELAY": MAX_DELAY}
     ctx = {
         "model": name, "p": name, "P": name.upper(), "guard": f"{name.upper()}_LOOP_H",
         "n": n, "m": m, "nx": nx, "max_delay": MAX_DELAY,
-        "n_noise": m + n_p + (n if s["joint_encoders"] else 0), "n_pressures": n_p, "three_way": three_way,
+        "n_noise": m + n_p + (n if s["joint_encoders"] else 0), "n_pressures": n_p, "three_way": n_p == m,
+        "parametric": NUMBERS in manifest,
         "encoders": bool(s["joint_encoders"]), "slots": SLOTS, "logs": logs, "config": config_fields(name),
         "state": struct_fields(LOOP_STATE, name, sizes), "signals": struct_fields(LOOP_SIGNALS, name, sizes),
         "p_theta": ", ".join(s["theta_names"]),
-        "supply_pressure": ", ".join(map(c_double, s["supply_pressure"])),
         "pred_friction": ", ".join(map(c_double, PREDICTOR_MODEL["friction"])),
         "pred_valve": ", ".join(map(c_double, PREDICTOR_MODEL["valve"])),
     }
-    if three_way:  # each control pressure within [0, P_s]
-        ctx.update(piston_area=", ".join(map(c_double, s["piston_area"])),
-                   rod_area=", ".join(map(c_double, s["rod_area"])),
-                   pressure_low=", ".join(c_double(0.0) for _ in range(m)), pressure_high=ctx["supply_pressure"])
-    else:
-        ctx.update(pressure_low=", ".join(map(c_double, s["pressure_low"])),
-                   pressure_high=", ".join(map(c_double, s["pressure_high"])))
     return ctx

@@ -201,29 +201,42 @@ def test_a_build_with_the_numbers_as_inputs_serves_a_numeric_edit_without_compil
     edited = _edited_arm(tmp_path, NUMERIC_EDIT)
     dyn = hydrogen.build(edited, numbers="inputs", cache=cache, progress=events.append)
     assert [e.stage for e in events] == ["loaded"] and dyn.library.path == first.library.path
-    assert dyn.backend == "ctypes" and "numbers" not in dyn.library.functions["mass_matrix"].in_names
+    # the extension fills the numbers as the ctypes route does: a caller never passes them
+    assert dyn.backend == "extension"
+    for fns in (dyn.functions, dyn.library.functions):
+        assert "numbers" not in fns["mass_matrix"].in_names
     checked = 0
     for f in derive_functions(edited, controllers=False):
         if not isinstance(f, SymbolicFunction):
             continue
-        ref, fn = to_casadi_function(f), dyn.library.functions[f.name]
+        ref = to_casadi_function(f)
         args = [_random_input(n, m.shape, edited, rng, f.name) for n, m in f.inputs]
         want = [np.array(x) for x in ref.call(args)]
-        got = fn(*[np.ravel(a) if np.ndim(a) == 2 and np.shape(a)[1] == 1 else a for a in args])
-        got = got if isinstance(got, tuple) else (got,)
-        for x, y in zip(want, got):
-            np.testing.assert_allclose(np.reshape(y, x.shape), x, rtol=1e-9, atol=1e-9, err_msg=f.name)
+        for fn in (dyn.functions[f.name], dyn.library.functions[f.name]):
+            got = fn(*[np.ravel(a) if np.ndim(a) == 2 and np.shape(a)[1] == 1 else a for a in args])
+            got = got if isinstance(got, tuple) else (got,)
+            for x, y in zip(want, got):
+                np.testing.assert_allclose(np.reshape(y, x.shape), x, rtol=1e-9, atol=1e-9,
+                                           err_msg=f"{f.name} ({fn.backend})")
         checked += 1
     assert checked >= 10
     q = edited.neutral_pose
     assert not np.allclose(first.gravity(q, arm.theta), dyn.gravity(q, arm.theta), rtol=1e-6)
-    with pytest.raises(ScenarioError, match="numbers='constants'"):
-        hydrogen.simulate("arm-sim", "backstepping", dyn=dyn, duration=0.01)
-    # the Python loop runs on it: the shipped arm's run equals the one on the folded library
-    run = {d: hydrogen.simulate("arm-sim", "backstepping", dyn=d, engine="python", duration=0.2)
-           for d in (first, hydrogen.build(arm, cache=cache))}
-    a, b = run.values()
-    assert np.all(np.isfinite(a.q)) and len(a.q) > 10
-    np.testing.assert_allclose(a.q, b.q, rtol=1e-9, atol=1e-12)
+    qs = np.stack([q, q + 0.05])  # a batch: the extension's C loop over states passes the numbers too
+    np.testing.assert_allclose(dyn.functions["gravity"](qs, arm.theta),
+                               [dyn.library.functions["gravity"](x, arm.theta) for x in qs], rtol=1e-12)
+    # the C loop runs on it: on the shipped arm as on the folded library (a controller with a state:
+    # its semi-implicit step takes the numbers too); on the edited arm as the Python loop does
+    folded = hydrogen.build(arm, cache=cache)
+    shipped = {}
+    for ctrl in ("backstepping", "adaptive-robust"):
+        a, b = (hydrogen.simulate("arm-sim", ctrl, dyn=d, duration=0.2) for d in (first, folded))
+        assert np.all(np.isfinite(a.q)) and len(a.q) > 10
+        np.testing.assert_allclose(a.q, b.q, rtol=1e-9, atol=1e-12, err_msg=ctrl)
+        np.testing.assert_allclose(a.leg_forces, b.leg_forces, rtol=1e-9, atol=1e-6, err_msg=ctrl)
+        shipped[ctrl] = a
+    c, py = (hydrogen.simulate("arm-sim", "backstepping", dyn=dyn, engine=e, duration=0.2) for e in ("c", "python"))
+    np.testing.assert_allclose(c.q, py.q, rtol=1e-7, atol=1e-9)
+    assert not np.allclose(c.q, shipped["backstepping"].q, atol=1e-6)  # the edit reached the C loop
     with pytest.raises(ScenarioError, match="numbers must be one of"):
         hydrogen.build(arm, numbers="folded", cache=cache)

@@ -20,39 +20,39 @@
 #define MAX_DELAY LOADER_CRANE_MAX_DELAY
 static const double TWO_PI = 6.283185307179586;
 #define NPC LOADER_CRANE_NPC
-/* baked bounds of each pressure state (Pa), the clip of the measurement and of the plant */
-static const double P_LOW[NPC] = { 0.0, 0.0, 0.0, 0.0, 0.0, 0.0 };
-static const double P_HIGH[NPC] = { 24000000.0, 24000000.0, 24000000.0, 24000000.0, 24000000.0, 24000000.0 };
 
 /* actuator forces (N, N m) from the pressure vector: the actuators' own laws */
-static int leg_force(const double* p, double* f) {
+static int leg_force(const double* nb, const double* p, double* f) {
     const double* arg[1];
     double* res[1];
     arg[0] = p;
+    (void)nb;  /* the numbers are folded into the generated functions */
     res[0] = f;
     return loader_crane_leg_force(arg, res, 0, 0, 0);
 }
 
-static int leg_lengths(const double* q, double* l) {
+static int leg_lengths(const double* nb, const double* q, double* l) {
     const double* arg[1];
     double* res[1];
     arg[0] = q;
+    (void)nb;  /* the numbers are folded into the generated functions */
     res[0] = l;
     return loader_crane_leg_lengths(arg, res, 0, 0, 0);
 }
 
-int loader_crane_leg_lengths_many(const double* q, long long n, double* l) {
+int loader_crane_leg_lengths_many(const double* numbers, const double* q, long long n, double* l) {
     long long k;
     for (k = 0; k < n; ++k)
-        if (leg_lengths(q + NQ * k, l + NL * k)) return 1;
+        if (leg_lengths(numbers, q + NQ * k, l + NL * k)) return 1;
     return 0;
 }
 
 /* cylinder lengths and JL (column-major NL x NQ) in one call: they share the link poses */
-static int leg_kinematics(const double* q, double* l, double* J) {
+static int leg_kinematics(const double* nb, const double* q, double* l, double* J) {
     const double* arg[1];
     double* res[2];
     arg[0] = q;
+    (void)nb;  /* the numbers are folded into the generated functions */
     res[0] = l;
     res[1] = J;
     return loader_crane_leg_kinematics(arg, res, 0, 0, 0);
@@ -87,9 +87,9 @@ static int solve_n(double* A, double* b) {
 }
 
 /* The parameters the plant's model is evaluated at: the plant's own (c->theta, ...), or the
- * controller's own model's (the predictor) */
+ * controller's own model's (the predictor); the description's numbers and the pressure bounds */
 typedef struct {
-    const double *theta, *gamma1, *gamma2, *friction, *valve;
+    const double *theta, *gamma1, *gamma2, *friction, *valve, *numbers, *p_low, *p_high;
 } rhs_params;
 
 static int plant_rhs(const rhs_params* m, const double* x, const double* u, double* xdot) {
@@ -124,7 +124,7 @@ static int hold(const rhs_params* m, double* x, const double* u, long long n, do
     int i;
     for (j = 0; j < n; ++j) {
         if (!rk4(m, x, u, hs)) return 0;
-        for (i = 0; i < NPC; ++i) x[2 * NQ + i] = clip(x[2 * NQ + i], P_LOW[i], P_HIGH[i]);
+        for (i = 0; i < NPC; ++i) x[2 * NQ + i] = clip(x[2 * NQ + i], m->p_low[i], m->p_high[i]);
     }
     return 1;
 }
@@ -154,6 +154,7 @@ static int predict(const loader_crane_loop_config* c, const loader_crane_loop_st
     m.gamma2 = c->pred_gamma2_at >= 0 ? st->xc + c->pred_gamma2_at : c->pred_gamma2;
     m.friction = PRED_FRICTION;
     m.valve = PRED_VALVE;
+    m.numbers = c->numbers; m.p_low = c->p_low; m.p_high = c->p_high;
     memset(x, 0, NX * sizeof(double));  /* spool states: unused by the ideal valve */
     memcpy(x, st->q_meas, NQ * sizeof(double));
     memcpy(x + NQ, s->qdot_meas, NQ * sizeof(double));
@@ -187,10 +188,10 @@ int loader_crane_measure(const loader_crane_loop_config* c, const loader_crane_l
     int i;
     s->t = (double)st->k * c->h;  /* k h, not a running sum: no drift */
     /* JL at the true pose only for the ideal cylinder-rate sensor */
-    if (c->use_kalman ? leg_lengths(x, s->l_true) : leg_kinematics(x, s->l_true, J)) return LOADER_CRANE_CTRL_FAILED;
+    if (c->use_kalman ? leg_lengths(c->numbers, x, s->l_true) : leg_kinematics(c->numbers, x, s->l_true, J)) return LOADER_CRANE_CTRL_FAILED;
     loader_crane_sense_lengths(c, s->l_true, nz, s->l_meas);
     for (i = 0; i < NPC; ++i)
-        s->pc_meas[i] = nz ? clip(x[2 * NQ + i] + nz[NL + i], P_LOW[i], P_HIGH[i]) : x[2 * NQ + i];
+        s->pc_meas[i] = nz ? clip(x[2 * NQ + i] + nz[NL + i], c->p_low[i], c->p_high[i]) : x[2 * NQ + i];
     if (!c->use_kalman)
         for (i = 0; i < NL; ++i) {
             s->ldot[i] = 0;
@@ -214,7 +215,7 @@ int loader_crane_estimate(const loader_crane_loop_config* c, loader_crane_loop_s
     memcpy(st->q_meas, s->q_enc, sizeof s->q_enc);
     {
         double l_tmp[NL];
-        if (leg_kinematics(st->q_meas, l_tmp, J)) return LOADER_CRANE_CTRL_FAILED;
+        if (leg_kinematics(c->numbers, st->q_meas, l_tmp, J)) return LOADER_CRANE_CTRL_FAILED;
     }
     memcpy(s->qdot_meas, s->ldot, sizeof s->ldot);
     if (!solve_n(J, s->qdot_meas)) return LOADER_CRANE_FK_FAILED;
@@ -258,7 +259,7 @@ int loader_crane_control(const loader_crane_loop_config* c, loader_crane_loop_st
         if (!predict(c, st, s, xp)) return LOADER_CRANE_CTRL_FAILED;
         for (i = 0; i < NX; ++i)
             if (!isfinite(xp[i])) return LOADER_CRANE_NONFINITE;
-        if (leg_lengths(xp, lp)) return LOADER_CRANE_CTRL_FAILED;
+        if (leg_lengths(c->numbers, xp, lp)) return LOADER_CRANE_CTRL_FAILED;
         loader_crane_reference(c, s->t + ((double)c->delay + c->delay_frac) * c->h, qdp);
         q = xp; qdot = xp + NQ; pc = xp + 2 * NQ; l = lp; qd = qdp;
         if (c->delay > 0) {
@@ -329,6 +330,7 @@ int loader_crane_plant_step(const loader_crane_loop_config* c, loader_crane_loop
     rhs_params m;
     int i;
     m.theta = c->theta; m.gamma1 = c->gamma1; m.gamma2 = c->gamma2; m.friction = c->friction; m.valve = c->valve;
+    m.numbers = c->numbers; m.p_low = c->p_low; m.p_high = c->p_high;
     if (n < 1) return LOADER_CRANE_CTRL_FAILED;
     if (c->delay_frac > 0) {
         /* the command switches at delay_frac h: each part takes enough sub-steps that none is longer
@@ -359,7 +361,7 @@ static int write_log(const loader_crane_loop_state* st, const loader_crane_loop_
     if (log->u) memcpy(log->u + NL * k, s->u, NL * sizeof(double));
     if (log->u_applied) memcpy(log->u_applied + NL * k, s->u_app, NL * sizeof(double));
     if (log->l_meas) memcpy(log->l_meas + NL * k, s->l_meas, NL * sizeof(double));
-    if (log->f && leg_force(x + 2 * NQ, log->f + NL * k)) return LOADER_CRANE_CTRL_FAILED;
+    if (log->f && leg_force(c->numbers, x + 2 * NQ, log->f + NL * k)) return LOADER_CRANE_CTRL_FAILED;
     if (log->xc && c->n_xc) memcpy(log->xc + c->n_xc * k, st->xc, (size_t)c->n_xc * sizeof(double));
     return LOADER_CRANE_OK;
 }

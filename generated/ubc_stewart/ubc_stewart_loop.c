@@ -11,6 +11,7 @@
 #include "ubc_stewart_leg_lengths.h"
 #include "ubc_stewart_leg_kinematics.h"
 #include "ubc_stewart_plant_rhs.h"
+#include "ubc_stewart_leg_force.h"
 
 #define NQ UBC_STEWART_NQ
 #define NL UBC_STEWART_NL
@@ -19,34 +20,39 @@
 #define MAX_DELAY UBC_STEWART_MAX_DELAY
 static const double TWO_PI = 6.283185307179586;
 #define NPC UBC_STEWART_NPC
-/* baked bounds of each pressure state (Pa), the clip of the measurement and of the plant */
-static const double P_LOW[NPC] = { 0.0, 0.0, 0.0, 0.0, 0.0, 0.0 };
-static const double P_HIGH[NPC] = { 10340000.0, 10340000.0, 10340000.0, 10340000.0, 10340000.0, 10340000.0 };
-/* baked cylinder constants: cap area A (m^2), annulus area a (m^2), supply pressure P_s (Pa) */
-static const double PISTON_AREA[NL] = { 0.00114, 0.00114, 0.00114, 0.00114, 0.00114, 0.00114 };
-static const double ROD_AREA[NL] = { 0.000633, 0.000633, 0.000633, 0.000633, 0.000633, 0.000633 };
-static const double SUPPLY_PRESSURE[NL] = { 10340000.0, 10340000.0, 10340000.0, 10340000.0, 10340000.0, 10340000.0 };
 
-static int leg_lengths(const double* q, double* l) {
+/* actuator forces (N, N m) from the pressure vector: the actuators' own laws */
+static int leg_force(const double* nb, const double* p, double* f) {
+    const double* arg[1];
+    double* res[1];
+    arg[0] = p;
+    (void)nb;  /* the numbers are folded into the generated functions */
+    res[0] = f;
+    return ubc_stewart_leg_force(arg, res, 0, 0, 0);
+}
+
+static int leg_lengths(const double* nb, const double* q, double* l) {
     const double* arg[1];
     double* res[1];
     arg[0] = q;
+    (void)nb;  /* the numbers are folded into the generated functions */
     res[0] = l;
     return ubc_stewart_leg_lengths(arg, res, 0, 0, 0);
 }
 
-int ubc_stewart_leg_lengths_many(const double* q, long long n, double* l) {
+int ubc_stewart_leg_lengths_many(const double* numbers, const double* q, long long n, double* l) {
     long long k;
     for (k = 0; k < n; ++k)
-        if (leg_lengths(q + NQ * k, l + NL * k)) return 1;
+        if (leg_lengths(numbers, q + NQ * k, l + NL * k)) return 1;
     return 0;
 }
 
 /* cylinder lengths and JL (column-major NL x NQ) in one call: they share the link poses */
-static int leg_kinematics(const double* q, double* l, double* J) {
+static int leg_kinematics(const double* nb, const double* q, double* l, double* J) {
     const double* arg[1];
     double* res[2];
     arg[0] = q;
+    (void)nb;  /* the numbers are folded into the generated functions */
     res[0] = l;
     res[1] = J;
     return ubc_stewart_leg_kinematics(arg, res, 0, 0, 0);
@@ -83,12 +89,13 @@ static int solve_n(double* A, double* b) {
 /* Newton's method for q with l(q) = l_meas, starting from q (updated in place). Returns 1 with J holding
  * JL at the returned q (the converged iterate's own evaluation: no extra call for the velocities),
  * 0 if it does not converge or JL is singular, -1 if the generated function failed. */
-static int forward_kinematics(const double* l_meas, double* q, double tol, long long max_iter, double* J) {
+static int forward_kinematics(const double* nb, const double* l_meas, double* q, double tol, long long max_iter,
+                              double* J) {
     double l[NL], r[NL], err;
     long long it;
     int i;
     for (it = 0; it <= max_iter; ++it) {
-        if (leg_kinematics(q, l, J)) return -1;
+        if (leg_kinematics(nb, q, l, J)) return -1;
         err = 0;
         for (i = 0; i < NL; ++i) {
             r[i] = l[i] - l_meas[i];
@@ -102,9 +109,9 @@ static int forward_kinematics(const double* l_meas, double* q, double tol, long 
 }
 
 /* The parameters the plant's model is evaluated at: the plant's own (c->theta, ...), or the
- * controller's own model's (the predictor) */
+ * controller's own model's (the predictor); the description's numbers and the pressure bounds */
 typedef struct {
-    const double *theta, *gamma1, *gamma2, *friction, *valve;
+    const double *theta, *gamma1, *gamma2, *friction, *valve, *numbers, *p_low, *p_high;
 } rhs_params;
 
 static int plant_rhs(const rhs_params* m, const double* x, const double* u, double* xdot) {
@@ -139,7 +146,7 @@ static int hold(const rhs_params* m, double* x, const double* u, long long n, do
     int i;
     for (j = 0; j < n; ++j) {
         if (!rk4(m, x, u, hs)) return 0;
-        for (i = 0; i < NPC; ++i) x[2 * NQ + i] = clip(x[2 * NQ + i], P_LOW[i], P_HIGH[i]);
+        for (i = 0; i < NPC; ++i) x[2 * NQ + i] = clip(x[2 * NQ + i], m->p_low[i], m->p_high[i]);
     }
     return 1;
 }
@@ -169,6 +176,7 @@ static int predict(const ubc_stewart_loop_config* c, const ubc_stewart_loop_stat
     m.gamma2 = c->pred_gamma2_at >= 0 ? st->xc + c->pred_gamma2_at : c->pred_gamma2;
     m.friction = PRED_FRICTION;
     m.valve = PRED_VALVE;
+    m.numbers = c->numbers; m.p_low = c->p_low; m.p_high = c->p_high;
     memset(x, 0, NX * sizeof(double));  /* spool states: unused by the ideal valve */
     memcpy(x, st->q_meas, NQ * sizeof(double));
     memcpy(x + NQ, s->qdot_meas, NQ * sizeof(double));
@@ -202,10 +210,10 @@ int ubc_stewart_measure(const ubc_stewart_loop_config* c, const ubc_stewart_loop
     int i;
     s->t = (double)st->k * c->h;  /* k h, not a running sum: no drift */
     /* JL at the true pose only for the ideal cylinder-rate sensor */
-    if (c->use_kalman ? leg_lengths(x, s->l_true) : leg_kinematics(x, s->l_true, J)) return UBC_STEWART_CTRL_FAILED;
+    if (c->use_kalman ? leg_lengths(c->numbers, x, s->l_true) : leg_kinematics(c->numbers, x, s->l_true, J)) return UBC_STEWART_CTRL_FAILED;
     ubc_stewart_sense_lengths(c, s->l_true, nz, s->l_meas);
     for (i = 0; i < NPC; ++i)
-        s->pc_meas[i] = nz ? clip(x[2 * NQ + i] + nz[NL + i], P_LOW[i], P_HIGH[i]) : x[2 * NQ + i];
+        s->pc_meas[i] = nz ? clip(x[2 * NQ + i] + nz[NL + i], c->p_low[i], c->p_high[i]) : x[2 * NQ + i];
     if (!c->use_kalman)
         for (i = 0; i < NL; ++i) {
             s->ldot[i] = 0;
@@ -225,7 +233,7 @@ int ubc_stewart_estimate(const ubc_stewart_loop_config* c, ubc_stewart_loop_stat
             s->ldot[i] = st->kf[NL + i];
         }
     /* pose from cylinder lengths */
-    switch (forward_kinematics(s->l_meas, st->q_meas, c->fk_tol, c->fk_max_iter, J)) {
+    switch (forward_kinematics(c->numbers, s->l_meas, st->q_meas, c->fk_tol, c->fk_max_iter, J)) {
         case 1: break;
         case 0: return UBC_STEWART_FK_FAILED;
         default: return UBC_STEWART_CTRL_FAILED;
@@ -272,7 +280,7 @@ int ubc_stewart_control(const ubc_stewart_loop_config* c, ubc_stewart_loop_state
         if (!predict(c, st, s, xp)) return UBC_STEWART_CTRL_FAILED;
         for (i = 0; i < NX; ++i)
             if (!isfinite(xp[i])) return UBC_STEWART_NONFINITE;
-        if (leg_lengths(xp, lp)) return UBC_STEWART_CTRL_FAILED;
+        if (leg_lengths(c->numbers, xp, lp)) return UBC_STEWART_CTRL_FAILED;
         ubc_stewart_reference(c, s->t + ((double)c->delay + c->delay_frac) * c->h, qdp);
         q = xp; qdot = xp + NQ; pc = xp + 2 * NQ; l = lp; qd = qdp;
         if (c->delay > 0) {
@@ -343,6 +351,7 @@ int ubc_stewart_plant_step(const ubc_stewart_loop_config* c, ubc_stewart_loop_st
     rhs_params m;
     int i;
     m.theta = c->theta; m.gamma1 = c->gamma1; m.gamma2 = c->gamma2; m.friction = c->friction; m.valve = c->valve;
+    m.numbers = c->numbers; m.p_low = c->p_low; m.p_high = c->p_high;
     if (n < 1) return UBC_STEWART_CTRL_FAILED;
     if (c->delay_frac > 0) {
         /* the command switches at delay_frac h: each part takes enough sub-steps that none is longer
@@ -365,7 +374,6 @@ static int write_log(const ubc_stewart_loop_state* st, const ubc_stewart_loop_co
                      ubc_stewart_loop_log* log) {
     const double* x = st->x;
     const long long k = st->k;
-    int i;
     if (log->t) log->t[k] = s->t;
     if (log->q) memcpy(log->q + NQ * k, x, NQ * sizeof(double));
     if (log->q_d) memcpy(log->q_d + NQ * k, s->qd, NQ * sizeof(double));
@@ -374,9 +382,7 @@ static int write_log(const ubc_stewart_loop_state* st, const ubc_stewart_loop_co
     if (log->u) memcpy(log->u + NL * k, s->u, NL * sizeof(double));
     if (log->u_applied) memcpy(log->u_applied + NL * k, s->u_app, NL * sizeof(double));
     if (log->l_meas) memcpy(log->l_meas + NL * k, s->l_meas, NL * sizeof(double));
-    if (log->f)
-        for (i = 0; i < NL; ++i)
-            log->f[NL * k + i] = x[2 * NQ + i] * PISTON_AREA[i] - SUPPLY_PRESSURE[i] * ROD_AREA[i];
+    if (log->f && leg_force(c->numbers, x + 2 * NQ, log->f + NL * k)) return UBC_STEWART_CTRL_FAILED;
     if (log->xc && c->n_xc) memcpy(log->xc + c->n_xc * k, st->xc, (size_t)c->n_xc * sizeof(double));
     return UBC_STEWART_OK;
 }

@@ -87,6 +87,12 @@ typedef struct {
     long long pred_theta_at;
     long long pred_gamma1_at;
     long long pred_gamma2_at;
+    /* the description's numbers: bounds of each pressure state (Pa), the clip of the measurement and of
+     * the plant; numbers: the input of every generated function of a library generated with the
+     * description's numbers as inputs (the manifest's "numbers" names them; else one unused 0) */
+    const double* p_low;
+    const double* p_high;
+    const double* numbers;
     /* forward kinematics (Newton): tolerance (m), iterations */
     double fk_tol;
     long long fk_max_iter;
@@ -175,8 +181,9 @@ int ubc_stewart_plant_step(const ubc_stewart_loop_config* cfg, ubc_stewart_loop_
                        const double* u_app);
 
 /* Cylinder lengths (m) of n poses: row k of q (NQ) gives row k of l (NL). One call for a whole
- * trajectory (workspace checks). Returns 0, or 1 if the generated function failed. */
-int ubc_stewart_leg_lengths_many(const double* q, long long n, double* l);
+ * trajectory (workspace checks). numbers: the description's numbers (unused: they are folded into the generated functions; may be NULL).
+ * Returns 0, or 1 if the generated function failed. */
+int ubc_stewart_leg_lengths_many(const double* numbers, const double* q, long long n, double* l);
 
 #ifdef __cplusplus
 }

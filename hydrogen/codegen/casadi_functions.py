@@ -4,6 +4,7 @@ from __future__ import annotations
 import casadi as ca
 import sympy as sp
 
+from ..layout import NUMBERS
 from .sympy_to_casadi import SympyToCasadi
 
 __all__ = ["to_casadi_function", "semi_implicit_step", "specialisation", "casadi_function", "shape_of"]
@@ -61,7 +62,7 @@ def specialisation(spec, base: ca.Function, c_name: str | None = None) -> ca.Fun
 
 def semi_implicit_step(step, c_name: str | None = None, cache: dict | None = None) -> ca.Function:
     """The CasADi Function of a :class:`~hydrogen.symbolic.functions.SemiImplicitStep`: the controller's
-    inputs, then ``h`` (s), ``xc_lo``, ``xc_hi``; outputs ``u`` = U(y, xc⁺) and ``xc_next`` = xc⁺ =
+    inputs, then ``h`` (s), ``xc_lo``, ``xc_hi`` (then the description's numbers, if it takes them); outputs ``u`` = U(y, xc⁺) and ``xc_next`` = xc⁺ =
     clip(xc + h F, xc_lo, xc_hi). Both functions are inlined (SX) in one graph, so CSE computes
     what depends on the measurement only once."""
     ctrl, rates = (casadi_function(f, cache=cache) for f in (step.controller, step.rates))
@@ -74,7 +75,11 @@ def semi_implicit_step(step, c_name: str | None = None, cache: dict | None = Non
     # and hide a divergence from the loop's finiteness check)
     xc_next = ca.if_else(moved < lo, lo, ca.if_else(moved > hi, hi, moved))
     u = ctrl(*args[:ix], xc_next, *args[ix + 1:])[0]
-    return ca.Function(c_name or step.name, [*args, h, lo, hi], [u, xc_next], [*names, "h", "xc_lo", "xc_hi"],
+    # the description's numbers stay the last input, as in every generated function
+    last = [names.index(NUMBERS)] if NUMBERS in names else []
+    order = [i for i in range(len(names)) if i not in last]
+    return ca.Function(c_name or step.name, [*(args[i] for i in order), h, lo, hi, *(args[i] for i in last)],
+                       [u, xc_next], [*(names[i] for i in order), "h", "xc_lo", "xc_hi", *(names[i] for i in last)],
                        ["u", "xc_next"], {"cse": True})
 
 

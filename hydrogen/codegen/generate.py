@@ -85,8 +85,8 @@ def render_drivers(manifest: dict, folder: Path) -> list:
 def structure_hash(model) -> str:
     """SHA-256 of what a parametric generation bakes into its C for ``model``: the description's
     structure (:meth:`hydrogen.model.Model.structure`) and the summary the drivers are rendered
-    from (:func:`hydrogen.layout.model_summary`: its numbers are constants of the loop's C). Equal
-    for two descriptions one library with the numbers as inputs serves."""
+    from (:func:`hydrogen.layout.model_summary`: sizes, names, kinds; no number). Equal for two
+    descriptions one library with the numbers as inputs serves."""
     from ..layout import model_summary
 
     text = json.dumps([model.structure(), model_summary(model)], sort_keys=True, separators=(",", ":"))
@@ -181,8 +181,8 @@ def render(model, folder: Path, functions=None, progress: bool = False, numbers:
 
     ``progress`` shows a bar on a terminal (nothing when stderr is not one). ``numbers``
     (:data:`NUMBERS_MODES`): "inputs" gives every function the description's numbers as its input
-    ``numbers`` (names in the manifest's ``numbers``), and renders no loop driver (it calls the
-    functions with the numbers folded).
+    ``numbers`` (names in the manifest's ``numbers``); the loop driver then passes them on from its
+    configuration.
     """
     import casadi as ca
     import sympy as sp
@@ -205,7 +205,7 @@ def render(model, folder: Path, functions=None, progress: bool = False, numbers:
     entries = [write_function(sf, model.name, folder, cache)
                for sf in tqdm(functions, desc="generating C", unit="fn", disable=None if progress else True)]
     summary = model_summary(model)
-    drivers = render_drivers({"model": summary}, folder) if names is None else []
+    drivers = render_drivers({"model": summary, **({} if names is None else {"numbers": names})}, folder)
     manifest = {
         **expected_manifest_inputs(model, numbers),
         **({} if names is None else {"numbers": names}),

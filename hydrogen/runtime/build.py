@@ -4,7 +4,7 @@ from __future__ import annotations
 import hashlib
 from pathlib import Path
 
-from ..codegen.generate import check, derivation_hash, generate_locked, read_manifest, structure_hash
+from ..codegen.generate import check, check_numbers_mode, derivation_hash, generate_locked, read_manifest, structure_hash
 from ..errors import BuildCacheError
 from ..model import Model, load_model
 from .cachedir import cache_errors, check_cache_root, folder_lock, warm_library
@@ -179,8 +179,6 @@ def build(model: Model | str | Path | None = None, *, cc: str | None = None,
         "inputs" generates every function with them as an input the runtime fills from the
         description (``Model.numbers()``): a description that differs in numbers only (a mass, a
         pin point, an area) loads the same compiled libraries, with no generation and no compile.
-        Such a build calls its functions through ctypes; the C loop (``simulate``), the extension,
-        the export and the FMU need "constants".
     """
     from ..dynamics import Dynamics
     from ..progress import Reporter, generation_reported
@@ -189,7 +187,7 @@ def build(model: Model | str | Path | None = None, *, cc: str | None = None,
         model = load_model(model)
     report = Reporter(progress, model.name)
     controllers = _check_controllers(controllers)
-    _check_numbers(numbers, backend)
+    check_numbers_mode(numbers)
     root = check_cache_root(Path(cache or cache_root()))
     folder = Path(generated) if generated else generated_dir_for(model, cache, numbers)
     toolchain = Toolchain(**{k: v for k, v in (("cc", cc), ("cflags", cflags)) if v is not None})
@@ -227,23 +225,13 @@ def build(model: Model | str | Path | None = None, *, cc: str | None = None,
                 # A cached build that does not match this runtime (other CasADi, other ABI): rebuild once.
                 lib = GeneratedLibrary(load.compile([CORE], force=True)[0], manifest, folder, load,
                                        numbers=model.numbers)
-    if numbers == "constants":
-        attach_extension(lib, toolchain, cache=cache, backend=backend)
+    attach_extension(lib, toolchain, cache=cache, backend=backend)
     for c in controllers:
         lib.load(c)
     steps = [s for s, done in (("generated", "generated"), ("compiled", "compiled")) if done in report.stages]
     report("built" if steps else "loaded", " + ".join(steps) if steps else f"already built: {lib.path}",
            report.total())
     return Dynamics(model, lib)
-
-
-def _check_numbers(numbers, backend) -> None:
-    from ..codegen.generate import check_numbers_mode
-    from ..errors import ScenarioError
-
-    if check_numbers_mode(numbers) == "inputs" and backend == "extension":
-        raise ScenarioError("backend 'extension' needs numbers='constants' (a build with the numbers as inputs "
-                            "calls its functions through ctypes)")
 
 
 def _cached_or_none(load, group):

@@ -21,6 +21,7 @@ import warnings
 from pathlib import Path
 
 from ..errors import BuildCacheError
+from ..layout import NUMBERS
 from .compiler import Toolchain, compile_extension
 
 __all__ = ["attach_extension", "build_extension", "load_extension", "bind_functions", "abi_key",
@@ -72,10 +73,24 @@ def module_name(manifest: dict) -> str:
     return f"_hydrogen_{manifest['model_name']}"
 
 
+def _user_inputs(entry: dict) -> tuple:
+    """``(inputs a caller passes, whether the function takes the description's numbers)``: the
+    numbers input (:data:`hydrogen.layout.NUMBERS`, always the last) is filled at bind time."""
+    inputs = [(n, int(r), int(c)) for n, r, c in entry["inputs"]]
+    names = [n for n, _, _ in inputs]
+    if NUMBERS not in names:
+        return inputs, False
+    if names.index(NUMBERS) != len(names) - 1:
+        raise BuildCacheError(f"{entry['c_name']}: the numbers input is not the last; regenerate")
+    return inputs[:-1], True
+
+
 def render_context(manifest: dict) -> dict:
-    fns = [{"name": e["name"], "c_name": e["c_name"],
-            "inputs": [[n, int(r), int(c)] for n, r, c in e["inputs"]],
-            "outputs": [[n, int(r), int(c)] for n, r, c in e["outputs"]]} for e in manifest["functions"]]
+    fns = []
+    for e in manifest["functions"]:
+        inputs, numbers = _user_inputs(e)
+        fns.append({"name": e["name"], "c_name": e["c_name"], "inputs": [list(i) for i in inputs],
+                    "numbers": numbers, "outputs": [[n, int(r), int(c)] for n, r, c in e["outputs"]]})
     return {"model": manifest["model_name"], "module": module_name(manifest),
             "casadi_int": manifest.get("casadi_int", "long long int"), "functions": fns,
             "max_in": max([len(f["inputs"]) for f in fns] + [1]),
@@ -116,8 +131,9 @@ def bind_functions(module, library):
     The extension's table (names, C names, shapes) must equal the manifest's, or nothing is bound.
     """
     manifest = library.manifest
-    want = tuple((e["name"], e["c_name"], tuple((n, int(r), int(c)) for n, r, c in e["inputs"]),
-                  tuple((n, int(r), int(c)) for n, r, c in e["outputs"])) for e in manifest["functions"])
+    want = tuple((e["name"], e["c_name"], tuple(_user_inputs(e)[0]),
+                  tuple((n, int(r), int(c)) for n, r, c in e["outputs"]), int(_user_inputs(e)[1]))
+                 for e in manifest["functions"])
     if module.specs() != want:
         raise BuildCacheError(f"{module.__file__}: the extension's functions differ from the manifest's; rebuild")
     if module.CASADI_INT_SIZE != ctypes.sizeof(ctypes.c_longlong):
@@ -132,10 +148,11 @@ def bind_functions(module, library):
             c_name = entry["c_name"]
             addr = ctypes.cast(library.symbol(c_name), ctypes.c_void_p).value
             work = ctypes.cast(library.symbol(c_name + "_work"), ctypes.c_void_p).value
-            fn = module.bind(i, addr, work, library)
+            numbers = library.numbers.ctypes.data if _user_inputs(entry)[1] else 0  # kept alive by library
+            fn = module.bind(i, addr, work, library, numbers)
             slow = slow_fns[name]
             fn.__doc__ = entry.get("doc", "")
-            for attr in ("name", "c_name", "doc", "in_names", "out_names", "in_shapes", "out_shapes",
+            for attr in ("name", "c_name", "doc", "in_names", "arg_names", "out_names", "in_shapes", "out_shapes",
                          "unread_inputs"):
                 setattr(fn, attr, getattr(slow, attr))
             fn.backend = "extension"

@@ -86,6 +86,8 @@ class CompiledFunction:
                                       f"inputs, got {'none' if numbers is None else np.shape(numbers)}; build "
                                       "it with hydrogen.build")
             self._in[hidden][:, 0] = numbers
+        #: every input in the order of the C argument table (:meth:`c_tables`), the hidden one too
+        self.arg_names = list(names)
         user = [i for i in range(len(names)) if i != hidden]
         self.in_shapes = [shapes[i] for i in user]
         self.in_names = [names[i] for i in user]

@@ -56,17 +56,20 @@ def _ptr(a: np.ndarray):
     return a.ctypes.data_as(_D)
 
 
-def _check_values(values, ctx, ctrl, model) -> None:
+def _check_values(values, ctx, ctrl, dyn) -> None:
     """Refuse, before any C runs, configuration values the C loop would read past or misread: a missing
     field, arrays of the wrong size, a reference axis outside the coordinates, a delay beyond the ring."""
+    numbers = () if dyn.numbers is None else dyn.numbers
     missing = [f["name"] for g in ctx["config"] for f in g["fields"] if f["source"] and f["name"] not in values]
     if missing:
         raise ValueError(f"loop configuration: no value for {missing} (hydrogen.layout.LOOP_CONFIG)")
+    model = dyn.model
     n, m, n_xc = len(model.neutral_pose), ctx["m"], int(ctrl.xc.size)
     sizes = {"theta": len(model.theta), "gamma1": m, "gamma2": m,
              "friction": 3, "valve": 3, "bias": n, "terms": 3 * max(int(values["n_terms"]), 1),
              "xc_lo": max(n_xc, 1), "xc_hi": max(n_xc, 1), "kf_gain": 2, "slot": len(ctx["slots"]),
-             "pred_theta": len(model.theta), "pred_gamma1": m, "pred_gamma2": m}
+             "pred_theta": len(model.theta), "pred_gamma1": m, "pred_gamma2": m,
+             "p_low": ctx["n_pressures"], "p_high": ctx["n_pressures"], "numbers": max(len(numbers), 1)}
     for name, size in sizes.items():
         if np.size(values[name]) != size:
             raise ValueError(f"loop configuration: {name} must hold {size} numbers, got {np.size(values[name])}")
@@ -104,11 +107,6 @@ class LoopRunner:
 
     def __init__(self, dyn, ctrl, values: dict):
         manifest = dyn.library.manifest
-        if dyn.library.numbers is not None:
-            from ..errors import ScenarioError
-            raise ScenarioError(f"model '{manifest['model_name']}' was built with its numbers as inputs "
-                                "(hydrogen.build(numbers='inputs')), which has no C loop yet; build it with "
-                                "numbers='constants' to simulate")
         self.context = ctx = loop_context(manifest)
         self._log_width = log_widths(manifest["model"])
         self.n_noise = ctx["n_noise"]
@@ -124,7 +122,7 @@ class LoopRunner:
         self.ctrl, self.fn = ctrl, fn
         # Static inputs: written once into the function's own buffers.
         fn.set_inputs({k: v for k, v in ctrl.values.items() if k in fn.in_names})
-        _check_values(values, ctx, ctrl, dyn.model)
+        _check_values(values, ctx, ctrl, dyn)
         cfg = Config()
         arrays = self._fill(cfg, ctx, values)
         tables = fn.c_tables()
@@ -171,9 +169,11 @@ class LoopRunner:
         n_in = len(fn.in_names)
         if step.in_names[:n_in] != fn.in_names or step.in_names[n_in:] != ["h", "xc_lo", "xc_hi"]:
             raise ValueError(f"{step.name} does not take {fn.name}'s inputs then h, xc_lo, xc_hi; regenerate")
+        # by the C tables' names: the controller's buffers (the description's numbers too), then h, xc_lo, xc_hi
         ctrl_arg = C.cast(tables["arg"], C.POINTER(C.c_void_p))
-        step_arg = (C.c_void_p * (n_in + len(extra)))(*[ctrl_arg[i] for i in range(n_in)],
-                                                      *[a.ctypes.data for a in extra])
+        own = dict(zip(("h", "xc_lo", "xc_hi"), (a.ctypes.data for a in extra)))
+        step_arg = (C.c_void_p * len(step.arg_names))(
+            *[own[a] if a in own else ctrl_arg[fn.arg_names.index(a)] for a in step.arg_names])
         st = step.c_tables()
         step_res = C.cast(st["res"], C.POINTER(C.c_void_p))
         step_res[0] = C.cast(tables["res"], C.POINTER(C.c_void_p))[0]  # u lands where the controller writes it

@@ -13,6 +13,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .. import pressures
 from ..layout import LOOP_CONFIG, SLOTS, delay_split
 
 __all__ = ["Run", "DERIVED", "config_values", "FK_TOL", "FK_MAX_ITER"]
@@ -50,7 +51,7 @@ def _terms(run):
 
 
 def _slots(run):
-    names = run.ctrl.fn.in_names
+    names = run.ctrl.fn.arg_names  # the C argument table's order (the loop indexes it)
     return [names.index(s) if s in names else -1 for s in SLOTS]
 
 
@@ -89,6 +90,9 @@ DERIVED = {
     "pred_theta_at": _at("theta_hat"),
     "pred_gamma1_at": _at("gamma1_hat"),
     "pred_gamma2_at": _at("gamma2_hat"),
+    "pressure_low": lambda r: pressures.bounds(r.dyn.model)[0],
+    "pressure_high": lambda r: pressures.bounds(r.dyn.model)[1],
+    "numbers": lambda r: np.zeros(1) if r.dyn.numbers is None else np.asarray(r.dyn.numbers, float),
     "fk_tol": lambda r: FK_TOL,
     "fk_max_iter": lambda r: FK_MAX_ITER,
 }
