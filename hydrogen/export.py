@@ -34,7 +34,7 @@ from pathlib import Path
 import numpy as np
 
 from .errors import HydrogenError
-from .layout import loop_functions
+from .layout import NUMBERS, loop_functions
 
 __all__ = ["export", "EXPORT_MANIFEST", "TEMPLATE_NAMES", "export_context", "render_template", "read_sources", "resolve_dyn",
            "sensor_kalman_gain", "c_double", "c_doubles", "prepare_export", "controller_entries",
@@ -111,11 +111,12 @@ def _candidate_folders(dyn, generated):
     if generated is not None:
         return [Path(generated)]
     model = dyn.model
+    mode = "constants" if dyn.library.numbers is None else "inputs"
     out = []
     lib_path = Path(dyn.library.path)
     if len(lib_path.parents) >= 3:  # <cache>/build/<key>/lib….so: the cache this library was built in
-        out.append(generated_dir_for(model, lib_path.parents[2]))
-    out.append(generated_dir_for(model))
+        out.append(generated_dir_for(model, lib_path.parents[2], mode))
+    out.append(generated_dir_for(model, numbers=mode))
     seen, uniq = set(), []
     for f in out:
         if f not in seen:
@@ -187,21 +188,28 @@ def export_context(dyn, p, scenario_name, controller, prog, sources, headers, ct
     loop = loop_context(dyn.library.manifest)
     fn = ctrl.fn
     inputs = []
-    for i, (name, shape) in enumerate(zip(fn.in_names, fn.in_shapes)):
+    shapes = dict(zip(fn.in_names, fn.in_shapes))
+    for i, name in enumerate(fn.arg_names):  # the C argument table: the description's numbers too
         if not _IDENT.match(name):
             raise HydrogenError(f"export: controller input '{name}' is not a C identifier")
+        shape = shapes.get(name, (len(dyn.library.numbers), 1) if name == NUMBERS else None)
         size = int(shape[0]) * int(shape[1])
         dynamic = name in SLOTS
         entry = {"index": i, "name": name, "rows": int(shape[0]), "cols": int(shape[1]), "size": size,
-                 "dynamic": dynamic, "c_name": f"P_CTRL_{name}", "unread": name in getattr(fn, "unread_inputs", ())}
-        if not dynamic:
+                 "dynamic": dynamic, "c_name": f"P_CTRL_{name}", "unread": name in getattr(fn, "unread_inputs", ()),
+                 "shared": False}
+        if name == NUMBERS:  # the loop configuration's P_NUMBERS: one definition for every function
+            entry.update(c_name="P_NUMBERS", shared=True)
+        elif not dynamic:
             if name not in ctrl.values:
                 raise HydrogenError(f"export: controller '{controller}' input '{name}' has no value")
             value = np.reshape(np.asarray(ctrl.values[name], dtype=float), shape)
             entry["data"] = c_doubles(value)
         inputs.append(entry)
-    # with a state: the semi-implicit step (the controller's inputs, then h and the bounds)
+    # with a state: the semi-implicit step (the controller's inputs, h and the bounds), argument by name
     step = (controller_entries(dyn.library.manifest, ctrl)[1:] + [None])[0]
+    own = {"h": "step_h", "xc_lo": "step_lo", "xc_hi": "step_hi"}
+    step_args = [own.get(n) or f"ctrl_arg[{fn.arg_names.index(n)}]" for n, _, _ in step["inputs"]] if step else []
     n_xc = int(ctrl.xc.size)
     ref = sc.reference
     values = config_values(Run(dyn, sc, ctrl, p.h, p.kf_gain))
@@ -210,6 +218,7 @@ def export_context(dyn, p, scenario_name, controller, prog, sources, headers, ct
         "prog": prog, "sources": sources, "headers": headers, "ctrl_header": ctrl_header,
         "ctrl_c_name": fn.c_name, "loop_header": f"{model.name}_loop.h",
         "step_c_name": step["c_name"] if step else None, "step_header": step["header"] if step else None,
+        "step_args": step_args,
         "n_periods": int(p.n), "duration": c_double(sc.duration), "control_rate": c_double(sc.control_rate),
         "metric_start": c_double(sc.metric_start),
         "n": loop["n"], "m": loop["m"], "nx": loop["nx"], "three_way": loop["three_way"],
@@ -226,18 +235,36 @@ def export_context(dyn, p, scenario_name, controller, prog, sources, headers, ct
         "xc0": c_doubles(ctrl.xc if n_xc else np.zeros(1)),
         "x0": c_doubles(p.x0), "q_meas0": c_doubles(p.q0), "l0": c_doubles(dyn.leg_lengths(p.q0)),
         "coords": model.coordinate_names,
-        "config": _with_definitions(loop["config"], values),
+        "config": _with_definitions(loop["config"], values, dyn.library.manifest.get(NUMBERS)),
         "coord_units": model.coordinate_units, "amplitude": c_doubles(ref.amplitude()),
     }
 
 
-def _with_definitions(config: list, values: dict) -> list:
+_NUMBER_NAME = re.compile(r"^[A-Za-z0-9_.\[\]]+$")
+
+
+def _numbers_definition(name: str, values, names: list) -> str:
+    """The description's numbers as a C array, one per line with its name (a comment: checked to hold
+    nothing but identifier characters, dots and brackets, so no description text can end it)."""
+    bad = [n for n in names if not _NUMBER_NAME.match(n)]
+    if bad:
+        raise HydrogenError(f"export: the description's number name {bad[0]!r} is not of identifiers, dots and "
+                            "brackets")
+    rows = "\n".join(f"    {c_double(v)},  /* {k}: {n} */" for k, (v, n) in enumerate(zip(values, names)))
+    return f"static const double {name}[{len(names)}] = {{\n{rows}\n}};"
+
+
+def _with_definitions(config: list, values: dict, numbers: list | None = None) -> list:
     """The configuration's groups (:func:`hydrogen.layout.config_fields`) with each exported field's
-    params.h definition: the value :func:`hydrogen.simulation.loop_config.config_values` gave it, as C99."""
+    params.h definition: the value :func:`hydrogen.simulation.loop_config.config_values` gave it, as C99.
+    ``numbers``: the names of the description's numbers (a library generated with them as inputs):
+    their array is written one named entry a line, for a user to edit on the target."""
     from markupsafe import Markup  # numbers formatted here, names from hydrogen.layout: no user text
 
     def definition(f):
         name, ctype, v = f["value"], f["type"], values[f["name"]]
+        if f["name"] == NUMBERS and numbers is not None:
+            return _numbers_definition(name, v, numbers)
         if ctype == "double":
             return f"static const double {name} = {c_double(v)};"
         if ctype == "long long":

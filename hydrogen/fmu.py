@@ -39,6 +39,7 @@ from xml.etree import ElementTree as ET
 import numpy as np
 
 from .errors import CompilerError, FmuError, OutputPathError
+from .layout import NUMBERS
 
 __all__ = ["export_fmu", "PARTS", "fmi_headers_dir", "FMI_HEADERS"]
 
@@ -201,15 +202,17 @@ def _variables(part, dyn, p, ctx, fn, encoders, kalman):
     def add(*a, **k):
         out.append(Variable(*a, **k))
 
+    def add_array(a):
+        for j, (nm, unit, what) in enumerate(a["entries"]):
+            lo, hi = a["ranges"][j]
+            add(nm, "p", "fixed", what, f"inst->{a['field']}[{j}]", unit=unit, start=a["values"][j], lo=lo, hi=hi)
+
     if part == "plant":
         for i, c in enumerate(cyls):
             add(_dotted("u", c), "i", "continuous", f"spool command of cylinder {c} (held over each period)",
                 f"inst->u_in[{i}]", unit="m", start=0.0)
         for a in _plant_arrays(dyn, p):
-            for j, (nm, unit, what) in enumerate(a["entries"]):
-                lo, hi = a["ranges"][j]
-                add(nm, "p", "fixed", what, f"inst->{a['field']}[{j}]", unit=unit, start=a["values"][j], lo=lo,
-                    hi=hi)
+            add_array(a)
         for i, c in enumerate(coords):
             add(_dotted("q_start", c), "p", "fixed", f"initial {c} (the scenario's)", f"inst->q_start[{i}]",
                 unit=cunits[i], start=float(p.x0[i]))
@@ -233,7 +236,9 @@ def _variables(part, dyn, p, ctx, fn, encoders, kalman):
                 f"inst->y_pc[{j}]", unit="Pa")
         return out, []
 
-    offsets = np.cumsum([0] + [int(r) * int(c) for r, c in fn.in_shapes]).tolist()
+    # offsets of the controller's C arguments in ctrl_in (the export's table: the numbers too)
+    offsets = np.cumsum([0] + [e["size"] for e in ctx["inputs"]]).tolist()
+    at = {e["name"]: e["index"] for e in ctx["inputs"]}
     if part == "controller":
         l0 = dyn.leg_lengths(p.q0)
         for i, c in enumerate(cyls):
@@ -260,7 +265,9 @@ def _variables(part, dyn, p, ctx, fn, encoders, kalman):
         add("use_builtin_reference", "p", "fixed", f"true: the scenario's reference ({sc.name}), computed inside; "
             "false: the q_d inputs", "inst->builtin_ref", ctype="b", start=True)
         for e in ctx["inputs"]:
-            if e["dynamic"] or e["unread"]:  # unread (e.g. a lean controller's composite gains): no parameter
+            # unread (e.g. a lean controller's composite gains): no parameter; shared (the description's
+            # numbers): the plant arrays' parameters, which the controller reads too
+            if e["dynamic"] or e["unread"] or e["shared"]:
                 continue
             off, rows, cols = offsets[e["index"]], e["rows"], e["cols"]
             value = np.reshape(np.asarray(ctrl.values[e["name"]], float), (rows, cols))
@@ -277,6 +284,9 @@ def _variables(part, dyn, p, ctx, fn, encoders, kalman):
                     add(nm, "p", "fixed", f"controller {fn.name} input {e['name']}{where} (SI)",
                         f"inst->ctrl_in[{off + i + rows * j}]", start=float(value[i, j]), lo=lo, hi=hi)
 
+    for a in _plant_arrays(dyn, p):  # the model's numbers: of the controller's model (and the plant's)
+        if a["name"] == NUMBERS:
+            add_array(a)
     # outputs of the controller and the closed loop
     if part == "closed-loop":
         for i, c in enumerate(coords):
@@ -286,7 +296,7 @@ def _variables(part, dyn, p, ctx, fn, encoders, kalman):
             raise FmuError(f"controller {fn.name} takes no reference qd0: the closed-loop FMU has no q_d to output")
         for i, c in enumerate(coords):
             add(_dotted("q_d", c), "o", "discrete", f"reference of {c}",
-                f"inst->ctrl_in[{offsets[fn.in_names.index('qd0')] + i}]", unit=cunits[i])
+                f"inst->ctrl_in[{offsets[at['qd0']] + i}]", unit=cunits[i])
     if fn.out_names[0] != "u":
         raise FmuError(f"controller {fn.name}'s first output is {fn.out_names[0]!r}, not the command u")
     for i, c in enumerate(cyls):
@@ -307,6 +317,18 @@ def _variables(part, dyn, p, ctx, fn, encoders, kalman):
                 const.append(float(np.atleast_1d(default)[i]))
             add(_dotted(block, nm), "o", "discrete", desc, loc, unit=unit)
     return out, const
+
+
+def _number_variable(name: str) -> str:
+    """The FMU variable of the description's number ``name`` (``link.mass``, ``joint.origin_xyz[0]``):
+    ``numbers.<name>`` with an entry of an array as FMI writes it, 1-based (``origin_xyz[1]``)."""
+    import re
+
+    parts = []
+    for part in name.split("."):
+        m = re.match(r"^([A-Za-z_][A-Za-z0-9_]*)\[(\d+)\]$", part)
+        parts.append(f"{m.group(1)}[{int(m.group(2)) + 1}]" if m else _name_part(part))
+    return ".".join([NUMBERS, *parts])
 
 
 def _plant_arrays(dyn, p):
@@ -343,6 +365,13 @@ def _plant_arrays(dyn, p):
         out.append({"name": name, "field": f"plant_{name}", "size": size, "entries": entries,
                     "values": [float(v) for v in values], "data": ", ".join(c_double(v) for v in values),
                     "ranges": ranges[name]})
+    numbers = dyn.library.numbers
+    if numbers is not None:  # the description's numbers, inputs of every generated function: by name
+        names = dyn.library.manifest[NUMBERS]
+        out.append({"name": NUMBERS, "field": f"plant_{NUMBERS}", "size": len(names),
+                    "entries": [(_number_variable(k), None, f"the description's number {k} (SI)") for k in names],
+                    "values": [float(v) for v in numbers], "data": ", ".join(c_double(v) for v in numbers),
+                    "ranges": [(None, None)] * len(names)})
     return out
 
 

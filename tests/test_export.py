@@ -47,19 +47,24 @@ def _python_max_errors(dyn, scenario, controller, duration, metric_start):
     return np.abs(res.error[sel]).max(axis=0), len(res.t)
 
 
-@pytest.mark.parametrize("model_name, scenario, controller, duration, metric_start", [
-    ("ubc_stewart", "z-1hz", "adaptive-robust", 1.0, 0.5),
-    ("ubc_stewart", "z-step", "p", 1.5, 0.5),
-    ("excavator_arm", "arm-dig", "adaptive-observer", 1.0, 0.5),
-    ("excavator_arm", "arm-sim", "backstepping", 1.0, 0.5),
-    ("loader_crane", "crane-load", "adaptive-robust", 1.0, 0.5),
+@pytest.mark.parametrize("model_name, scenario, controller, duration, metric_start, numbers", [
+    ("ubc_stewart", "z-1hz", "adaptive-robust", 1.0, 0.5, "constants"),
+    ("ubc_stewart", "z-step", "p", 1.5, 0.5, "constants"),
+    ("excavator_arm", "arm-dig", "adaptive-observer", 1.0, 0.5, "constants"),
+    ("excavator_arm", "arm-sim", "backstepping", 1.0, 0.5, "constants"),
+    ("loader_crane", "crane-load", "adaptive-robust", 1.0, 0.5, "constants"),
+    ("excavator_arm", "arm-dig", "adaptive-robust", 1.0, 0.5, "inputs"),
 ])
 def test_exported_program_matches_the_noise_free_simulation(tmp_path, cache, model_name, scenario, controller,
-                                                           duration, metric_start):
+                                                           duration, metric_start, numbers):
     import hydrogen
-    dyn = hydrogen.build(hydrogen.load_model(model_name), cache=cache)
+    dyn = hydrogen.build(hydrogen.load_model(model_name), cache=cache, numbers=numbers)
     folder = export(tmp_path / "export", scenario, controller, duration=duration, dyn=dyn,
                     metric_start=metric_start)
+    if numbers == "inputs":  # params.h: the description's numbers, one named entry a line
+        params = (folder / "params.h").read_text()
+        for k, name in enumerate(dyn.library.manifest["numbers"]):
+            assert f"/* {k}: {name} */" in params
     build = _build(folder)
     assert "-Werror" in build.stdout and "-std=c99" in build.stdout and "-lm" in build.stdout
     out = _run(folder)
@@ -91,7 +96,7 @@ def test_export_folder_contents(tmp_path, dyn):
     names = {p.name for p in folder.iterdir()}
     m = dyn.model.name
     expected = {"main.c", "params.h", "Makefile", "CMakeLists.txt", "README.txt", EXPORT_MANIFEST}
-    for f in ("leg_lengths", "leg_kinematics", "plant_rhs", "ctrl_adaptive_robust_lean",
+    for f in ("leg_lengths", "leg_kinematics", "plant_rhs", "leg_force", "ctrl_adaptive_robust_lean",
               "ctrl_adaptive_robust_lean_step", "loop"):
         expected |= {f"{m}_{f}.c", f"{m}_{f}.h"}
     assert names == expected

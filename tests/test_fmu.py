@@ -466,3 +466,42 @@ def test_a_step_past_the_stop_time_is_refused(fmus):
         assert any("ends after the stop time" in m for m in s.messages), s.messages
         s.fmu.doStep(2 * h, h)  # nothing was done by the refused step; up to the stop time is fine
         s.close()
+
+
+def test_the_description_numbers_are_parameters_and_an_edit_equals_the_edited_description(cache, tmp_path):
+    """From a build with the description's numbers as inputs, every number is an FMU parameter named
+    after it (numbers.<name>, arrays 1-based); the FMU at the start values reproduces simulate, and
+    the FMU with gravity and a pin point set as parameters reproduces simulate of the edited
+    description (which loads the same library: no regeneration). The edit keeps the start state
+    (its holding pressures are not parameters): a dead volume."""
+    import hydrogen
+    from test_constants import _edited_arm
+
+    arm = hydrogen.load_model("excavator_arm")
+    dyn = hydrogen.build(arm, numbers="inputs", cache=cache)
+    scenario, controller = CASES["excavator_arm"]
+    path = export_fmu(tmp_path / "loop.fmu", "closed-loop", scenario, controller, dyn=dyn, duration=DURATION)
+    md = read_model_description(str(path))
+    params = {v.name: v for v in md.modelVariables if v.causality == "parameter"}
+    names = dyn.library.manifest["numbers"]
+    assert f"numbers.{names[0]}" in params and "numbers.gravity" in params
+    assert "numbers.boom_cylinder.from[1]" in params  # from[0]: FMI's arrays count from 1
+    assert len([n for n in params if n.startswith("numbers.")]) == len(names)
+    assert float(params["numbers.gravity"].start) == arm.gravity
+    coords = arm.coordinate_names
+    out = [f"q.{c}" for c in coords]
+
+    def q_of(result):
+        return np.column_stack([result[o] for o in out])
+
+    np.testing.assert_allclose(q_of(simulate_fmu(str(path), output=out)),
+                               _reference_run(dyn, scenario, controller).q, rtol=0, atol=1e-9)
+    edit = {"numbers.boom_cylinder.dead_volume_A": 3.5e-3}
+    edited = _edited_arm(tmp_path, {"toml": [("dead_volume_A = 2.7e-3 ", "dead_volume_A = 3.5e-3 ")]})
+    assert all(edited.numbers()[k[len("numbers."):]] == v for k, v in edit.items())
+    served = hydrogen.build(edited, numbers="inputs", cache=cache)
+    assert served.library.path == dyn.library.path
+    want = _reference_run(served, scenario, controller).q
+    got = q_of(simulate_fmu(str(path), output=out, start_values=edit))
+    np.testing.assert_allclose(got, want, rtol=0, atol=1e-9)
+    assert np.abs(want - _reference_run(dyn, scenario, controller).q).max() > 1e-6  # the edit matters
