@@ -151,7 +151,8 @@ else:  # every function in one library, as hydrogen.build compiled it before the
     from hydrogen.runtime.library import GeneratedLibrary
     manifest = read_manifest(generated)
     sources = [generated / e["source"] for e in manifest["functions"]] + [generated / d for d in manifest["drivers"]]
-    lib = GeneratedLibrary(compile_library(sources, model.name, Toolchain(), cache=cache), manifest, generated)
+    lib = GeneratedLibrary(compile_library(sources, model.name, Toolchain(), cache=cache), manifest, generated,
+                           numbers=model.numbers)
     attach_extension(lib, Toolchain(), cache=cache)
     dyn = Dynamics(model, lib)
 t2 = time.perf_counter()

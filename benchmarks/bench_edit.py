@@ -5,12 +5,12 @@ gravity, 0.1 % lower (a number every description has; any other number takes the
 Each route then runs in a fresh Python process, timed from its start to the end of a short
 ``hydrogen.simulate`` (the robot's first scenario, ``backstepping``, ``DURATION`` s):
 
-* ``inputs``: ``hydrogen.build(edited, numbers="inputs")`` on a cache that holds the build of the
-  shipped description (made beforehand, not timed): the structure is the same, so the build only
-  loads the libraries (checked: its progress events are "loaded" alone), then the Python loop
-  (``engine="python"``; the C loop needs the constants).
-* ``constants``: ``hydrogen.build(edited)`` as by default, numbers folded: the edited description
-  is generated and compiled again (its cache holds nothing of it), then the C loop.
+* ``inputs``: ``hydrogen.build(edited)`` as by default (the numbers as inputs) on a cache that holds
+  the build of the shipped description (made beforehand, not timed): the structure is the same, so
+  the build only loads the libraries (checked: its progress events are "loaded" alone), then the C
+  loop.
+* ``constants``: ``hydrogen.build(edited, numbers="constants")``, numbers folded: the edited
+  description is generated and compiled again (its cache holds nothing of it), then the C loop.
 
 Reported per route: process wall seconds, and inside it the import, the build and the run; and the
 ratio of the two walls. Median of ``RUNS`` runs (1 with ``--quick``).
@@ -93,7 +93,7 @@ def run_robot(name: str, runs: int) -> dict:
                 cache = warm if route == "inputs" else root / f"cold{i}"
                 stdout, wall = common.run_python(_RUN.format(
                     toml=str(toml), cache=str(cache), numbers=route, scenario=scenario, controller=CONTROLLER,
-                    duration=DURATION, engine="python" if route == "inputs" else "c"))
+                    duration=DURATION, engine="c"))
                 r = common.parse_keyed(stdout)
                 r["process_wall_s"] = wall
                 rows[route].append(r)

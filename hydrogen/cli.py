@@ -24,7 +24,7 @@ def _cmd_generate(args) -> int:
     model = load_model(args.model)
     out = Path(args.out) if args.out else repo_generated_dir() / model.name
     if args.check:
-        reasons = check_output(model, out)
+        reasons = check_output(model, out, args.numbers)
         if reasons:
             print(f"generated code in {out} is stale:", *reasons, sep="\n  ", file=sys.stderr)
             print("run 'hydrogen generate' to regenerate", file=sys.stderr)
@@ -33,7 +33,8 @@ def _cmd_generate(args) -> int:
         return 0
     from .progress import Reporter, generation_reported, print_event
     with generation_reported(Reporter(None if args.quiet else print_event, model.name), model, out, args.force):
-        changed = generate(model, out, force=args.force, progress=not args.quiet)
+        changed = generate(model, out, force=args.force, progress=not args.quiet,
+                           **({} if args.numbers is None else {"numbers": args.numbers}))
     print(f"{out}: {'generated' if changed else 'up to date, nothing regenerated'}")
     return 0
 
@@ -349,6 +350,7 @@ def _number(kind, low=None, strict=True, high=None):
 
 
 def build_parser() -> argparse.ArgumentParser:
+    from .codegen.generate import DEFAULT_NUMBERS, NUMBERS_MODES
     parser = argparse.ArgumentParser(prog="hydrogen", description=__doc__.splitlines()[0])
     sub = parser.add_subparsers(dest="command", required=True)
     g = sub.add_parser("generate", help="derive the model and write its C into generated/",
@@ -357,6 +359,10 @@ def build_parser() -> argparse.ArgumentParser:
     g.add_argument("--out", help="output folder (default: generated/<model name> of the checkout)")
     g.add_argument("--check", action="store_true", help="exit 1 if the folder is stale; write nothing")
     g.add_argument("--force", action="store_true", help="regenerate even when up to date")
+    g.add_argument("--numbers", choices=NUMBERS_MODES, default=None,
+                   help=f"the description's numbers as inputs of the generated functions (one library serves "
+                        f"every edit of numbers) or folded as constants (default: {DEFAULT_NUMBERS}; with "
+                        "--check: the folder's own)")
     g.add_argument("--quiet", action="store_true", help="no progress bar")
     g.set_defaults(func=_cmd_generate)
     from .controllers import CONTROLLERS

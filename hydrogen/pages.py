@@ -366,9 +366,9 @@ def _edit(b) -> list:
     out = ["## From a numeric edit to the next run", "",
            f"`benchmarks/bench_edit.py`: a copy of each robot's description with gravity 0.1 % lower, then a fresh "
            f"process that builds it and runs `{any_robot['controller']}` for {_f(any_robot['duration_s'])} s of its "
-           "first scenario, by two routes: `numbers=\"inputs\"` on a cache holding the shipped description's build "
-           "(the same structure: the build only loads, then the Python loop), and the default `numbers=\"constants\"` "
-           "(generated and compiled again, then the C loop). Seconds, median of "
+           "first scenario in the C loop, by two routes: the default, the numbers as inputs, on a cache holding the "
+           "shipped description's build (the same structure: the build only loads), and `numbers=\"constants\"` "
+           "(generated and compiled again). Seconds, median of "
            f"{b.get('runs')} run{'s' if b.get('runs') != 1 else ''}:", ""]
     rows = []
     for name, r in robots.items():

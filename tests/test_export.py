@@ -48,12 +48,12 @@ def _python_max_errors(dyn, scenario, controller, duration, metric_start):
 
 
 @pytest.mark.parametrize("model_name, scenario, controller, duration, metric_start, numbers", [
-    ("ubc_stewart", "z-1hz", "adaptive-robust", 1.0, 0.5, "constants"),
-    ("ubc_stewart", "z-step", "p", 1.5, 0.5, "constants"),
-    ("excavator_arm", "arm-dig", "adaptive-observer", 1.0, 0.5, "constants"),
-    ("excavator_arm", "arm-sim", "backstepping", 1.0, 0.5, "constants"),
-    ("loader_crane", "crane-load", "adaptive-robust", 1.0, 0.5, "constants"),
-    ("excavator_arm", "arm-dig", "adaptive-robust", 1.0, 0.5, "inputs"),
+    ("ubc_stewart", "z-1hz", "adaptive-robust", 1.0, 0.5, "inputs"),
+    ("ubc_stewart", "z-step", "p", 1.5, 0.5, "inputs"),
+    ("excavator_arm", "arm-dig", "adaptive-observer", 1.0, 0.5, "inputs"),
+    ("excavator_arm", "arm-sim", "backstepping", 1.0, 0.5, "inputs"),
+    ("loader_crane", "crane-load", "adaptive-robust", 1.0, 0.5, "inputs"),
+    ("excavator_arm", "arm-dig", "adaptive-robust", 1.0, 0.5, "constants"),
 ])
 def test_exported_program_matches_the_noise_free_simulation(tmp_path, cache, model_name, scenario, controller,
                                                            duration, metric_start, numbers):

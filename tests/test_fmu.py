@@ -277,8 +277,11 @@ def test_model_description(fmus):
             assert by[f"l.{cyls[0]}"].causality == "input" and by[f"u.{cyls[0]}"].causality == "output"
             assert f"theta_hat.{model.theta_names[0]}" in by and f"gamma1_hat.{cyls[0]}" in by
             assert (f"q.{coords[0]}" in by) == bool(model.joint_encoders)
-        else:
-            assert not [v for v in md.modelVariables if v.causality in ("input", "parameter")]
+        else:  # the closed loop: no input; its parameters are the description's numbers alone
+            assert not [v for v in md.modelVariables if v.causality == "input"]
+            params = [v.name for v in md.modelVariables if v.causality == "parameter"]
+            assert len(params) == len(dyn.library.manifest["numbers"])
+            assert all(n.startswith("numbers.") for n in params)
 
 
 def test_export_is_deterministic(dyn, tmp_path):
@@ -375,8 +378,9 @@ def test_parameters_declare_their_range_from_the_model(fmus):
     assert float(plant["friction.smooth_speed"].min) > 0 and float(plant["friction.coulomb"].min) == 0
     ctl = {v.name: v for v in read_model_description(str(paths["controller"])).modelVariables}
     params = [v for v in ctl.values() if v.causality == "parameter" and v.type == "Real"]
+    # the description's numbers (coordinates among them) are declared without a range: any finite value
     assert params and all(v.min is not None and float(v.min) >= 0 for v in params
-                          if not v.name.startswith(("theta_min", "theta_max")))
+                          if not v.name.startswith(("theta_min", "theta_max", "numbers.")))
     assert float(ctl["u_max"].min) > 0
     for v in list(plant.values()) + params:  # every start value inside its range
         if v.start is not None and v.type == "Real":

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 import hydrogen
-from hydrogen.controllers import CONTROLLERS
+from hydrogen.controllers import CONTROLLERS, LEAN, function_name, rates_function_name, step_function_name
 from hydrogen.runtime.library import CORE, function_groups, group_sources
 
 #: No optimisation: these tests are about which files are compiled, not about the code's speed.
@@ -36,7 +36,12 @@ def test_every_function_is_in_exactly_one_library(robot_dyn):
     groups = function_groups(manifest)
     names = [n for g in groups.values() for n in g]
     assert sorted(names) == sorted(e["name"] for e in manifest["functions"]) and len(set(names)) == len(names)
-    assert list(groups) == [CORE, *CONTROLLERS]
+    # per controller its full variant, then its lean one where it has one (the adaptive ones)
+    want = [CORE] + [g for c in CONTROLLERS for g in (c, f"{c}-{LEAN}") if g in groups]
+    assert list(groups) == want and set(CONTROLLERS) <= set(groups)
+    assert groups["adaptive-robust-lean"] == [function_name("adaptive-robust", LEAN),
+                                              rates_function_name("adaptive-robust", LEAN),
+                                              step_function_name("adaptive-robust", LEAN)]
     assert not any(n.startswith("ctrl_") for n in groups[CORE])
     assert groups["p"] == ["ctrl_p"] and groups["p-task"] == ["ctrl_p_task"]  # ctrl_p does not claim ctrl_p_task
     assert f"{manifest['model_name']}_loop.c" in group_sources(manifest, CORE)
@@ -76,6 +81,22 @@ def test_build_compiles_the_controllers_it_is_given_with_the_core(model, tmp_pat
     assert sorted(cached_builds(cache).values()) == sorted([sources_of(dyn, CORE), sources_of(dyn, "p")])
     with pytest.raises(hydrogen.ScenarioError, match="unknown controller 'nope'"):
         hydrogen.build(model, cache=cache, cflags=FAST, controllers=("nope",))
+
+
+def test_a_run_compiles_only_the_variant_it_runs(model, tmp_path):
+    """An adaptive controller with its composite law compiles its full variant alone; with the
+    paper's gradient laws (composite rates 0) its lean variant alone; build(controllers=) both."""
+    from controller_inputs import PAPER_LAWS
+
+    cache = tmp_path / "cache"
+    dyn = hydrogen.build(model, cache=cache, cflags=FAST, backend="ctypes")
+    hydrogen.simulate("z-1hz", "adaptive-robust", dyn=dyn, duration=0.02)
+    assert dyn.library.loaded_groups() == (CORE, "adaptive-robust")
+    assert sorted(cached_builds(cache).values()) == sorted([sources_of(dyn, CORE), sources_of(dyn, "adaptive-robust")])
+    hydrogen.simulate("z-1hz", "adaptive-robust", dyn=dyn, duration=0.02, gains=PAPER_LAWS)
+    assert dyn.library.loaded_groups() == (CORE, "adaptive-robust", "adaptive-robust-lean")
+    both = hydrogen.build(model, cache=cache, cflags=FAST, backend="ctypes", controllers=("adaptive-observer",))
+    assert both.library.loaded_groups() == (CORE, "adaptive-observer", "adaptive-observer-lean")
 
 
 def _library_of(dyn, group) -> Path:

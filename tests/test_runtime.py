@@ -164,7 +164,7 @@ def test_a_cache_on_a_noexec_mount_is_named(dyn, monkeypatch):
         raise OSError(f"{name}: failed to map segment from shared object")
     monkeypatch.setattr(ctypes, "CDLL", refuse)
     with pytest.raises(BuildCacheError, match=r"failed to map segment.*mounted noexec.*HYDROGEN_CACHE_DIR") as err:
-        GeneratedLibrary(path, dyn.library.manifest)
+        GeneratedLibrary(path, dyn.library.manifest, numbers=dyn.model.numbers)
     assert str(path.parent) in str(err.value)
 
 
@@ -186,9 +186,10 @@ def test_a_full_disk_during_generation_names_the_generated_file(tmp_path, monkey
 
 
 def test_a_build_with_the_numbers_as_inputs_serves_a_numeric_edit_without_compiling(tmp_path, cache, rng):
-    """numbers="inputs": the edited arm (a pin, the linkage's crank pin, an area, gravity, a mass) loads
-    the library built for the shipped one, no generation and no compile, and its functions give the
-    folded derivation of the edited description; the shipped build keeps its own numbers."""
+    """The numbers as inputs (the default): the edited arm (a pin, the linkage's crank pin, an area,
+    the supply pressure, gravity, a mass) loads the library built for the shipped one, no generation
+    and no compile, and its functions give the folded derivation of the edited description; the
+    shipped build keeps its own numbers."""
     from hydrogen.codegen.casadi_functions import to_casadi_function
     from hydrogen.errors import ScenarioError
     from hydrogen.symbolic.functions import SymbolicFunction, derive_functions
@@ -227,7 +228,7 @@ def test_a_build_with_the_numbers_as_inputs_serves_a_numeric_edit_without_compil
                                [dyn.library.functions["gravity"](x, arm.theta) for x in qs], rtol=1e-12)
     # the C loop runs on it: on the shipped arm as on the folded library (a controller with a state:
     # its semi-implicit step takes the numbers too); on the edited arm as the Python loop does
-    folded = hydrogen.build(arm, cache=cache)
+    folded = hydrogen.build(arm, cache=cache, numbers="constants")
     shipped = {}
     for ctrl in ("backstepping", "adaptive-robust"):
         a, b = (hydrogen.simulate("arm-sim", ctrl, dyn=d, duration=0.2) for d in (first, folded))

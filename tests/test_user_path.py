@@ -76,12 +76,12 @@ def test_library_from_another_casadi_version_is_reported(dyn):
     manifest = json.loads(json.dumps(dyn.library.manifest))
     manifest["casadi_version"] = "0.0.1"
     with pytest.raises(hydrogen.BuildCacheError, match="CasADi"):
-        GeneratedLibrary(dyn.library.path, manifest)
+        GeneratedLibrary(dyn.library.path, manifest, numbers=dyn.model.numbers)
 
 
 def test_missing_library_file_is_reported(tmp_path, dyn):
     with pytest.raises(hydrogen.BuildCacheError, match="cannot load"):
-        GeneratedLibrary(tmp_path / "nope.so", dyn.library.manifest)
+        GeneratedLibrary(tmp_path / "nope.so", dyn.library.manifest, numbers=dyn.model.numbers)
 
 
 def test_library_built_with_another_integer_size_is_detected(tmp_path, dyn):
@@ -94,4 +94,4 @@ def test_library_built_with_another_integer_size_is_detected(tmp_path, dyn):
     lib = compile_library(sources, "abi_test", Toolchain(cflags=("-O0", "-fPIC", "-std=c99", "-Dcasadi_int=int")),
                           cache=tmp_path)
     with pytest.raises(hydrogen.BuildCacheError, match="casadi_int of 4 bytes"):
-        GeneratedLibrary(lib, {**manifest, "functions": [entry]})
+        GeneratedLibrary(lib, {**manifest, "functions": [entry]}, numbers=dyn.model.numbers)

@@ -34,6 +34,7 @@ extern "C" {
 #define casadi_fmin CASADI_PREFIX(fmin)
 #define casadi_s0 CASADI_PREFIX(s0)
 #define casadi_s1 CASADI_PREFIX(s1)
+#define casadi_s2 CASADI_PREFIX(s2)
 #define casadi_sq CASADI_PREFIX(sq)
 
 /* Symbol visibility in DLLs */
@@ -82,30 +83,35 @@ CASADI_SYMBOL_EXPORT int excavator_arm_ctrl_p_casadi_real_size(void) { return (i
 
 static const casadi_int casadi_s0[3] = {3, 1, 1};
 static const casadi_int casadi_s1[3] = {1, 1, 1};
+static const casadi_int casadi_s2[3] = {81, 1, 1};
 
-/* excavator_arm_ctrl_p:(l[3],qd0[3],Kleg[3],u_max)->(u[3]) */
+/* excavator_arm_ctrl_p:(l[3],qd0[3],Kleg[3],u_max,numbers[81])->(u[3]) */
 static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   (void)arg; (void)res; (void)iw; (void)w; (void)mem;
   casadi_real a00, a01, a02, a03, a04, a05, a06, a07, a08, a09, a10, a11;
-  casadi_real a12, a13, a14;
+  casadi_real a12, a13;
   a00=arg[3]? arg[3][0] : 0;
   a01=(-a00);
   a02=arg[2]? arg[2][0] : 0;
-  a03=7.3099999999999987e-01;
-  a04=2.5500000000000000e-01;
-  a05=arg[1]? arg[1][0] : 0;
-  a06=cos(a05);
-  a07=(a04*a06);
+  a03=arg[4]? arg[4][21] : 0;
+  a04=arg[4]? arg[4][30] : 0;
+  a03=(a03-a04);
+  a04=arg[1]? arg[1][0] : 0;
+  a05=cos(a04);
+  a06=arg[4]? arg[4][28] : 0;
+  a07=(a05*a06);
   a03=(a03+a07);
-  a07=2.5459999999999998e+00;
-  a05=sin(a05);
-  a08=(a07*a05);
-  a03=(a03+a08);
+  a04=sin(a04);
+  a07=arg[4]? arg[4][29] : 0;
+  a08=(a04*a07);
+  a03=(a03-a08);
   a03=casadi_sq(a03);
-  a08=-3.3899999999999997e-01;
-  a04=(a04*a05);
-  a08=(a08-a04);
-  a07=(a07*a06);
+  a08=arg[4]? arg[4][22] : 0;
+  a09=arg[4]? arg[4][31] : 0;
+  a08=(a08-a09);
+  a06=(a04*a06);
+  a08=(a08+a06);
+  a07=(a05*a07);
   a08=(a08+a07);
   a08=casadi_sq(a08);
   a03=(a03+a08);
@@ -117,112 +123,103 @@ static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw,
   a02=casadi_fmin(a00,a02);
   if (res[0]!=0) res[0][0]=a02;
   a02=arg[2]? arg[2][1] : 0;
-  a03=-1.4999999999999999e-01;
-  a08=1.4999999999999999e-01;
-  a07=5.7000000000000002e+00;
-  a04=(a07*a06);
-  a08=(a08+a04);
-  a03=(a03+a08);
-  a08=2.2800000000000001e-01;
-  a04=arg[1]? arg[1][1] : 0;
-  a09=cos(a04);
-  a10=(a05*a09);
-  a04=sin(a04);
-  a11=(a06*a04);
-  a10=(a10+a11);
-  a11=(a08*a10);
-  a03=(a03-a11);
-  a11=-8.2099999999999995e-01;
-  a09=(a06*a09);
-  a04=(a05*a04);
-  a09=(a09-a04);
-  a04=(a11*a09);
-  a03=(a03+a04);
-  a04=-2.9990000000000001e+00;
-  a12=(a04*a06);
-  a03=(a03+a12);
-  a12=-9.8299999999999998e-01;
-  a13=(a12*a05);
-  a03=(a03-a13);
+  a03=arg[4]? arg[4][24] : 0;
+  a08=(a05*a03);
+  a07=arg[1]? arg[1][1] : 0;
+  a06=cos(a07);
+  a09=(a05*a06);
+  a07=sin(a07);
+  a10=(a04*a07);
+  a09=(a09-a10);
+  a10=arg[4]? arg[4][32] : 0;
+  a11=(a09*a10);
+  a08=(a08+a11);
+  a06=(a04*a06);
+  a07=(a05*a07);
+  a06=(a06+a07);
+  a07=arg[4]? arg[4][33] : 0;
+  a11=(a06*a07);
+  a08=(a08-a11);
+  a11=arg[4]? arg[4][34] : 0;
+  a12=(a05*a11);
+  a08=(a08-a12);
+  a12=arg[4]? arg[4][35] : 0;
+  a13=(a04*a12);
+  a08=(a08+a13);
+  a08=casadi_sq(a08);
+  a03=(a04*a03);
+  a06=(a06*a10);
+  a03=(a03+a06);
+  a09=(a09*a07);
+  a03=(a03+a09);
+  a04=(a04*a11);
+  a03=(a03-a04);
+  a05=(a05*a12);
+  a03=(a03-a05);
   a03=casadi_sq(a03);
-  a13=-1.9500000000000000e+00;
-  a14=1.9500000000000000e+00;
-  a07=(a07*a05);
-  a14=(a14+a07);
-  a13=(a13+a14);
-  a08=(a08*a09);
-  a13=(a13+a08);
-  a11=(a11*a10);
-  a13=(a13+a11);
-  a04=(a04*a05);
-  a13=(a13+a04);
-  a12=(a12*a06);
-  a13=(a13+a12);
-  a13=casadi_sq(a13);
-  a03=(a03+a13);
-  a03=sqrt(a03);
-  a13=arg[0]? arg[0][1] : 0;
-  a03=(a03-a13);
-  a02=(a02*a03);
+  a08=(a08+a03);
+  a08=sqrt(a08);
+  a03=arg[0]? arg[0][1] : 0;
+  a08=(a08-a03);
+  a02=(a02*a08);
   a02=casadi_fmax(a01,a02);
   a02=casadi_fmin(a00,a02);
   if (res[0]!=0) res[0][1]=a02;
   a02=arg[2]? arg[2][2] : 0;
-  a03=2.3550000000000000e+00;
-  a13=3.7016347739883793e-01;
-  a12=1.6005173022251293e+00;
-  a06=arg[1]? arg[1][2] : 0;
-  a12=(a12+a06);
-  a06=cos(a12);
-  a04=(a13*a06);
-  a03=(a03+a04);
+  a08=arg[4]? arg[4][36] : 0;
+  a03=arg[4]? arg[4][37] : 0;
+  a05=arg[1]? arg[1][2] : 0;
+  a03=(a03+a05);
+  a05=cos(a03);
+  a05=(a08*a05);
+  a12=arg[4]? arg[4][42] : 0;
+  a12=(a05-a12);
   a04=5.0000000000000000e-01;
-  a05=-1.0199999999999999e-01;
-  a11=-3.7016347739883793e-01;
-  a12=sin(a12);
-  a10=(a11*a12);
-  a05=(a05+a10);
-  a10=casadi_sq(a05);
-  a08=-2.1099999999999985e-01;
-  a11=(a11*a06);
-  a08=(a08+a11);
-  a11=casadi_sq(a08);
-  a06=(a10+a11);
+  a11=arg[4]? arg[4][40] : 0;
+  a11=(a11-a05);
+  a05=casadi_sq(a11);
+  a09=arg[4]? arg[4][41] : 0;
+  a03=sin(a03);
+  a08=(a08*a03);
+  a03=(a09-a08);
+  a07=casadi_sq(a03);
+  a06=(a05+a07);
   a04=(a04/a06);
-  a09=(a04*a08);
-  a14=-2.6402399999999993e-01;
-  a14=(a14+a10);
-  a14=(a14+a11);
-  a09=(a09*a14);
-  a03=(a03+a09);
-  a09=2.1622500000000003e-01;
-  a11=-2.5000000000000000e-01;
-  a11=(a11/a06);
-  a10=casadi_sq(a14);
-  a11=(a11*a10);
-  a09=(a09+a11);
-  a09=sqrt(a09);
+  a10=(a04*a11);
+  a13=arg[4]? arg[4][38] : 0;
+  a13=casadi_sq(a13);
+  a05=(a13+a05);
+  a05=(a05+a07);
+  a07=arg[4]? arg[4][39] : 0;
+  a07=casadi_sq(a07);
+  a05=(a05-a07);
+  a10=(a10*a05);
+  a12=(a12+a10);
+  a10=-2.5000000000000000e-01;
+  a10=(a10/a06);
+  a07=casadi_sq(a05);
+  a10=(a10*a07);
+  a13=(a13+a10);
+  a13=sqrt(a13);
   a06=sqrt(a06);
-  a09=(a09/a06);
-  a06=1.0199999999999999e-01;
-  a13=(a13*a12);
-  a06=(a06+a13);
-  a06=(a09*a06);
-  a03=(a03-a06);
-  a03=casadi_sq(a03);
-  a06=-3.3400000000000002e-01;
-  a06=(a06+a13);
+  a13=(a13/a06);
+  a09=(a08-a09);
+  a09=(a13*a09);
+  a12=(a12-a09);
+  a12=casadi_sq(a12);
+  a09=arg[4]? arg[4][43] : 0;
+  a08=(a08-a09);
+  a04=(a04*a03);
   a04=(a04*a05);
-  a04=(a04*a14);
-  a06=(a06+a04);
-  a09=(a09*a08);
-  a06=(a06-a09);
-  a06=casadi_sq(a06);
-  a03=(a03+a06);
-  a03=sqrt(a03);
-  a06=arg[0]? arg[0][2] : 0;
-  a03=(a03-a06);
-  a02=(a02*a03);
+  a08=(a08+a04);
+  a13=(a13*a11);
+  a08=(a08-a13);
+  a08=casadi_sq(a08);
+  a12=(a12+a08);
+  a12=sqrt(a12);
+  a08=arg[0]? arg[0][2] : 0;
+  a12=(a12-a08);
+  a02=(a02*a12);
   a01=casadi_fmax(a01,a02);
   a00=casadi_fmin(a00,a01);
   if (res[0]!=0) res[0][2]=a00;
@@ -247,7 +244,7 @@ CASADI_SYMBOL_EXPORT void excavator_arm_ctrl_p_incref(void) {
 CASADI_SYMBOL_EXPORT void excavator_arm_ctrl_p_decref(void) {
 }
 
-CASADI_SYMBOL_EXPORT casadi_int excavator_arm_ctrl_p_n_in(void) { return 4;}
+CASADI_SYMBOL_EXPORT casadi_int excavator_arm_ctrl_p_n_in(void) { return 5;}
 
 CASADI_SYMBOL_EXPORT casadi_int excavator_arm_ctrl_p_n_out(void) { return 1;}
 
@@ -263,6 +260,7 @@ CASADI_SYMBOL_EXPORT const char* excavator_arm_ctrl_p_name_in(casadi_int i) {
     case 1: return "qd0";
     case 2: return "Kleg";
     case 3: return "u_max";
+    case 4: return "numbers";
     default: return 0;
   }
 }
@@ -280,6 +278,7 @@ CASADI_SYMBOL_EXPORT const casadi_int* excavator_arm_ctrl_p_sparsity_in(casadi_i
     case 1: return casadi_s0;
     case 2: return casadi_s0;
     case 3: return casadi_s1;
+    case 4: return casadi_s2;
     default: return 0;
   }
 }
@@ -292,7 +291,7 @@ CASADI_SYMBOL_EXPORT const casadi_int* excavator_arm_ctrl_p_sparsity_out(casadi_
 }
 
 CASADI_SYMBOL_EXPORT int excavator_arm_ctrl_p_work(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w) {
-  if (sz_arg) *sz_arg = 4;
+  if (sz_arg) *sz_arg = 5;
   if (sz_res) *sz_res = 1;
   if (sz_iw) *sz_iw = 0;
   if (sz_w) *sz_w = 0;
@@ -300,7 +299,7 @@ CASADI_SYMBOL_EXPORT int excavator_arm_ctrl_p_work(casadi_int *sz_arg, casadi_in
 }
 
 CASADI_SYMBOL_EXPORT int excavator_arm_ctrl_p_work_bytes(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w) {
-  if (sz_arg) *sz_arg = 4*sizeof(const casadi_real*);
+  if (sz_arg) *sz_arg = 5*sizeof(const casadi_real*);
   if (sz_res) *sz_res = 1*sizeof(casadi_real*);
   if (sz_iw) *sz_iw = 0*sizeof(casadi_int);
   if (sz_w) *sz_w = 0*sizeof(casadi_real);

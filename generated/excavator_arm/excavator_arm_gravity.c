@@ -32,6 +32,7 @@ extern "C" {
 #define casadi_f0 CASADI_PREFIX(f0)
 #define casadi_s0 CASADI_PREFIX(s0)
 #define casadi_s1 CASADI_PREFIX(s1)
+#define casadi_s2 CASADI_PREFIX(s2)
 
 /* Symbol visibility in DLLs */
 #ifndef CASADI_SYMBOL_EXPORT
@@ -59,80 +60,79 @@ CASADI_SYMBOL_EXPORT int excavator_arm_gravity_casadi_real_size(void) { return (
 
 static const casadi_int casadi_s0[3] = {3, 1, 1};
 static const casadi_int casadi_s1[3] = {9, 1, 1};
+static const casadi_int casadi_s2[3] = {81, 1, 1};
 
-/* excavator_arm_gravity:(q[3],theta[9])->(G[3]) */
+/* excavator_arm_gravity:(q[3],theta[9],numbers[81])->(G[3]) */
 static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   (void)arg; (void)res; (void)iw; (void)w; (void)mem;
   casadi_real a00, a01, a02, a03, a04, a05, a06, a07, a08, a09, a10, a11;
-  casadi_real a12, a13, a14;
-  a00=1.0736064000000000e+05;
-  a01=arg[0]? arg[0][0] : 0;
-  a02=cos(a01);
-  a00=(a00*a02);
-  a03=9.8100000000000005e+00;
-  a04=arg[1]? arg[1][0] : 0;
-  a04=(a03*a04);
-  a04=(a04*a02);
-  a00=(a00+a04);
-  a04=arg[1]? arg[1][3] : 0;
-  a04=(a03*a04);
-  a05=arg[0]? arg[0][1] : 0;
-  a06=cos(a05);
-  a07=(a02*a06);
-  a01=sin(a01);
-  a05=sin(a05);
-  a08=(a01*a05);
-  a07=(a07-a08);
-  a04=(a04*a07);
-  a00=(a00+a04);
-  a08=arg[1]? arg[1][4] : 0;
-  a08=(a03*a08);
-  a09=(a02*a05);
-  a10=(a06*a01);
-  a09=(a09+a10);
-  a08=(a08*a09);
-  a00=(a00-a08);
-  a10=arg[1]? arg[1][6] : 0;
-  a10=(a03*a10);
-  a11=arg[0]? arg[0][2] : 0;
-  a12=cos(a11);
-  a13=(a07*a12);
-  a11=sin(a11);
-  a14=(a09*a11);
-  a13=(a13-a14);
-  a10=(a10*a13);
-  a00=(a00+a10);
-  a13=arg[1]? arg[1][7] : 0;
-  a03=(a03*a13);
-  a09=(a09*a12);
-  a07=(a07*a11);
-  a11=(a09+a07);
-  a11=(a03*a11);
-  a00=(a00-a11);
-  a12=2.7595530000000002e+04;
-  a12=(a12*a02);
-  a12=(a12*a06);
-  a00=(a00+a12);
-  a06=-9.8100000000000005e+00;
-  a02=arg[1]? arg[1][1] : 0;
-  a06=(a06*a02);
-  a06=(a06*a01);
-  a00=(a00+a06);
-  a06=-2.7595530000000002e+04;
-  a06=(a06*a01);
-  a06=(a06*a05);
-  a00=(a00+a06);
-  if (res[0]!=0) res[0][0]=a00;
-  a04=(a04-a08);
-  a04=(a04+a10);
-  a04=(a04-a11);
-  a04=(a04+a12);
-  a04=(a04+a06);
-  if (res[0]!=0) res[0][1]=a04;
-  a07=(a07+a09);
-  a03=(a03*a07);
-  a10=(a10-a03);
-  if (res[0]!=0) res[0][2]=a10;
+  casadi_real a12, a13, a14, a15;
+  a00=arg[2]? arg[2][44] : 0;
+  a01=arg[2]? arg[2][14] : 0;
+  a02=arg[2]? arg[2][24] : 0;
+  a03=arg[0]? arg[0][0] : 0;
+  a04=cos(a03);
+  a05=(a02*a04);
+  a06=arg[2]? arg[2][26] : 0;
+  a07=arg[0]? arg[0][1] : 0;
+  a08=cos(a07);
+  a09=(a04*a08);
+  a03=sin(a03);
+  a07=sin(a07);
+  a10=(a03*a07);
+  a09=(a09-a10);
+  a10=(a06*a09);
+  a05=(a05+a10);
+  a05=(a01*a05);
+  a10=arg[1]? arg[1][0] : 0;
+  a10=(a10*a04);
+  a05=(a05+a10);
+  a10=arg[1]? arg[1][3] : 0;
+  a10=(a10*a09);
+  a05=(a05+a10);
+  a11=arg[1]? arg[1][4] : 0;
+  a07=(a04*a07);
+  a08=(a08*a03);
+  a07=(a07+a08);
+  a11=(a11*a07);
+  a05=(a05-a11);
+  a08=arg[1]? arg[1][6] : 0;
+  a12=arg[0]? arg[0][2] : 0;
+  a13=cos(a12);
+  a14=(a09*a13);
+  a12=sin(a12);
+  a15=(a07*a12);
+  a14=(a14-a15);
+  a08=(a08*a14);
+  a05=(a05+a08);
+  a14=arg[1]? arg[1][7] : 0;
+  a07=(a07*a13);
+  a12=(a09*a12);
+  a13=(a07+a12);
+  a13=(a14*a13);
+  a05=(a05-a13);
+  a15=arg[1]? arg[1][1] : 0;
+  a15=(a15*a03);
+  a05=(a05-a15);
+  a15=arg[2]? arg[2][7] : 0;
+  a02=(a02*a15);
+  a02=(a02*a04);
+  a05=(a05+a02);
+  a05=(a00*a05);
+  if (res[0]!=0) res[0][0]=a05;
+  a10=(a10-a11);
+  a10=(a10+a08);
+  a10=(a10-a13);
+  a01=(a01*a06);
+  a01=(a01*a09);
+  a10=(a10+a01);
+  a10=(a00*a10);
+  if (res[0]!=0) res[0][1]=a10;
+  a12=(a12+a07);
+  a14=(a14*a12);
+  a08=(a08-a14);
+  a00=(a00*a08);
+  if (res[0]!=0) res[0][2]=a00;
   return 0;
 }
 
@@ -154,7 +154,7 @@ CASADI_SYMBOL_EXPORT void excavator_arm_gravity_incref(void) {
 CASADI_SYMBOL_EXPORT void excavator_arm_gravity_decref(void) {
 }
 
-CASADI_SYMBOL_EXPORT casadi_int excavator_arm_gravity_n_in(void) { return 2;}
+CASADI_SYMBOL_EXPORT casadi_int excavator_arm_gravity_n_in(void) { return 3;}
 
 CASADI_SYMBOL_EXPORT casadi_int excavator_arm_gravity_n_out(void) { return 1;}
 
@@ -168,6 +168,7 @@ CASADI_SYMBOL_EXPORT const char* excavator_arm_gravity_name_in(casadi_int i) {
   switch (i) {
     case 0: return "q";
     case 1: return "theta";
+    case 2: return "numbers";
     default: return 0;
   }
 }
@@ -183,6 +184,7 @@ CASADI_SYMBOL_EXPORT const casadi_int* excavator_arm_gravity_sparsity_in(casadi_
   switch (i) {
     case 0: return casadi_s0;
     case 1: return casadi_s1;
+    case 2: return casadi_s2;
     default: return 0;
   }
 }
@@ -195,7 +197,7 @@ CASADI_SYMBOL_EXPORT const casadi_int* excavator_arm_gravity_sparsity_out(casadi
 }
 
 CASADI_SYMBOL_EXPORT int excavator_arm_gravity_work(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w) {
-  if (sz_arg) *sz_arg = 2;
+  if (sz_arg) *sz_arg = 3;
   if (sz_res) *sz_res = 1;
   if (sz_iw) *sz_iw = 0;
   if (sz_w) *sz_w = 0;
@@ -203,7 +205,7 @@ CASADI_SYMBOL_EXPORT int excavator_arm_gravity_work(casadi_int *sz_arg, casadi_i
 }
 
 CASADI_SYMBOL_EXPORT int excavator_arm_gravity_work_bytes(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w) {
-  if (sz_arg) *sz_arg = 2*sizeof(const casadi_real*);
+  if (sz_arg) *sz_arg = 3*sizeof(const casadi_real*);
   if (sz_res) *sz_res = 1*sizeof(casadi_real*);
   if (sz_iw) *sz_iw = 0*sizeof(casadi_int);
   if (sz_w) *sz_w = 0*sizeof(casadi_real);

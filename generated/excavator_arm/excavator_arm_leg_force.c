@@ -32,6 +32,7 @@ extern "C" {
 #define casadi_f0 CASADI_PREFIX(f0)
 #define casadi_s0 CASADI_PREFIX(s0)
 #define casadi_s1 CASADI_PREFIX(s1)
+#define casadi_s2 CASADI_PREFIX(s2)
 
 /* Symbol visibility in DLLs */
 #ifndef CASADI_SYMBOL_EXPORT
@@ -58,35 +59,36 @@ CASADI_SYMBOL_EXPORT int excavator_arm_leg_force_casadi_int_size(void) { return 
 CASADI_SYMBOL_EXPORT int excavator_arm_leg_force_casadi_real_size(void) { return (int) sizeof(casadi_real); }
 
 static const casadi_int casadi_s0[3] = {6, 1, 1};
-static const casadi_int casadi_s1[3] = {3, 1, 1};
+static const casadi_int casadi_s1[3] = {81, 1, 1};
+static const casadi_int casadi_s2[3] = {3, 1, 1};
 
-/* excavator_arm_leg_force:(pc[6])->(f[3]) */
+/* excavator_arm_leg_force:(pc[6],numbers[81])->(f[3]) */
 static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   (void)arg; (void)res; (void)iw; (void)w; (void)mem;
   casadi_real a0, a1, a2;
-  a0=2.2619000000000000e-02;
+  a0=arg[1]? arg[1][45] : 0;
   a1=arg[0]? arg[0][0] : 0;
   a0=(a0*a1);
-  a1=-9.8960000000000003e-03;
+  a1=arg[1]? arg[1][46] : 0;
   a2=arg[0]? arg[0][1] : 0;
   a1=(a1*a2);
-  a0=(a0+a1);
+  a0=(a0-a1);
   if (res[0]!=0) res[0][0]=a0;
-  a0=1.5394000000000000e-02;
+  a0=arg[1]? arg[1][57] : 0;
   a1=arg[0]? arg[0][2] : 0;
   a0=(a0*a1);
-  a1=-7.5398000000000001e-03;
+  a1=arg[1]? arg[1][58] : 0;
   a2=arg[0]? arg[0][3] : 0;
   a1=(a1*a2);
-  a0=(a0+a1);
+  a0=(a0-a1);
   if (res[0]!=0) res[0][1]=a0;
-  a0=1.1310000000000001e-02;
+  a0=arg[1]? arg[1][69] : 0;
   a1=arg[0]? arg[0][4] : 0;
   a0=(a0*a1);
-  a1=-5.6351999999999999e-03;
+  a1=arg[1]? arg[1][70] : 0;
   a2=arg[0]? arg[0][5] : 0;
   a1=(a1*a2);
-  a0=(a0+a1);
+  a0=(a0-a1);
   if (res[0]!=0) res[0][2]=a0;
   return 0;
 }
@@ -109,7 +111,7 @@ CASADI_SYMBOL_EXPORT void excavator_arm_leg_force_incref(void) {
 CASADI_SYMBOL_EXPORT void excavator_arm_leg_force_decref(void) {
 }
 
-CASADI_SYMBOL_EXPORT casadi_int excavator_arm_leg_force_n_in(void) { return 1;}
+CASADI_SYMBOL_EXPORT casadi_int excavator_arm_leg_force_n_in(void) { return 2;}
 
 CASADI_SYMBOL_EXPORT casadi_int excavator_arm_leg_force_n_out(void) { return 1;}
 
@@ -122,6 +124,7 @@ CASADI_SYMBOL_EXPORT casadi_real excavator_arm_leg_force_default_in(casadi_int i
 CASADI_SYMBOL_EXPORT const char* excavator_arm_leg_force_name_in(casadi_int i) {
   switch (i) {
     case 0: return "pc";
+    case 1: return "numbers";
     default: return 0;
   }
 }
@@ -136,19 +139,20 @@ CASADI_SYMBOL_EXPORT const char* excavator_arm_leg_force_name_out(casadi_int i) 
 CASADI_SYMBOL_EXPORT const casadi_int* excavator_arm_leg_force_sparsity_in(casadi_int i) {
   switch (i) {
     case 0: return casadi_s0;
+    case 1: return casadi_s1;
     default: return 0;
   }
 }
 
 CASADI_SYMBOL_EXPORT const casadi_int* excavator_arm_leg_force_sparsity_out(casadi_int i) {
   switch (i) {
-    case 0: return casadi_s1;
+    case 0: return casadi_s2;
     default: return 0;
   }
 }
 
 CASADI_SYMBOL_EXPORT int excavator_arm_leg_force_work(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w) {
-  if (sz_arg) *sz_arg = 1;
+  if (sz_arg) *sz_arg = 2;
   if (sz_res) *sz_res = 1;
   if (sz_iw) *sz_iw = 0;
   if (sz_w) *sz_w = 0;
@@ -156,7 +160,7 @@ CASADI_SYMBOL_EXPORT int excavator_arm_leg_force_work(casadi_int *sz_arg, casadi
 }
 
 CASADI_SYMBOL_EXPORT int excavator_arm_leg_force_work_bytes(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w) {
-  if (sz_arg) *sz_arg = 1*sizeof(const casadi_real*);
+  if (sz_arg) *sz_arg = 2*sizeof(const casadi_real*);
   if (sz_res) *sz_res = 1*sizeof(casadi_real*);
   if (sz_iw) *sz_iw = 0*sizeof(casadi_int);
   if (sz_w) *sz_w = 0*sizeof(casadi_real);

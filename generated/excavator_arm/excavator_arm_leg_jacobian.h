@@ -31,7 +31,7 @@ const casadi_int* excavator_arm_leg_jacobian_sparsity_in(casadi_int i);
 const casadi_int* excavator_arm_leg_jacobian_sparsity_out(casadi_int i);
 int excavator_arm_leg_jacobian_work(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w);
 int excavator_arm_leg_jacobian_work_bytes(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w);
-#define excavator_arm_leg_jacobian_SZ_ARG 1
+#define excavator_arm_leg_jacobian_SZ_ARG 2
 #define excavator_arm_leg_jacobian_SZ_RES 1
 #define excavator_arm_leg_jacobian_SZ_IW 0
 #define excavator_arm_leg_jacobian_SZ_W 0

@@ -31,6 +31,7 @@ extern "C" {
 /* Add prefix to internal symbols */
 #define casadi_f0 CASADI_PREFIX(f0)
 #define casadi_s0 CASADI_PREFIX(s0)
+#define casadi_s1 CASADI_PREFIX(s1)
 #define casadi_sq CASADI_PREFIX(sq)
 
 /* Symbol visibility in DLLs */
@@ -60,129 +61,125 @@ CASADI_SYMBOL_EXPORT int excavator_arm_leg_lengths_casadi_int_size(void) { retur
 CASADI_SYMBOL_EXPORT int excavator_arm_leg_lengths_casadi_real_size(void) { return (int) sizeof(casadi_real); }
 
 static const casadi_int casadi_s0[3] = {3, 1, 1};
+static const casadi_int casadi_s1[3] = {81, 1, 1};
 
-/* excavator_arm_leg_lengths:(q[3])->(l[3]) */
+/* excavator_arm_leg_lengths:(q[3],numbers[81])->(l[3]) */
 static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   (void)arg; (void)res; (void)iw; (void)w; (void)mem;
-  casadi_real a00, a01, a02, a03, a04, a05, a06, a07, a08, a09, a10, a11;
-  a00=7.3099999999999987e-01;
-  a01=2.5500000000000000e-01;
-  a02=arg[0]? arg[0][0] : 0;
-  a03=cos(a02);
-  a04=(a01*a03);
+  casadi_real a00, a01, a02, a03, a04, a05, a06, a07, a08, a09, a10;
+  a00=arg[1]? arg[1][21] : 0;
+  a01=arg[1]? arg[1][30] : 0;
+  a00=(a00-a01);
+  a01=arg[0]? arg[0][0] : 0;
+  a02=cos(a01);
+  a03=arg[1]? arg[1][28] : 0;
+  a04=(a02*a03);
   a00=(a00+a04);
-  a04=2.5459999999999998e+00;
-  a02=sin(a02);
-  a05=(a04*a02);
-  a00=(a00+a05);
+  a01=sin(a01);
+  a04=arg[1]? arg[1][29] : 0;
+  a05=(a01*a04);
+  a00=(a00-a05);
   a00=casadi_sq(a00);
-  a05=-3.3899999999999997e-01;
-  a01=(a01*a02);
-  a05=(a05-a01);
-  a04=(a04*a03);
+  a05=arg[1]? arg[1][22] : 0;
+  a06=arg[1]? arg[1][31] : 0;
+  a05=(a05-a06);
+  a03=(a01*a03);
+  a05=(a05+a03);
+  a04=(a02*a04);
   a05=(a05+a04);
   a05=casadi_sq(a05);
   a00=(a00+a05);
   a00=sqrt(a00);
   if (res[0]!=0) res[0][0]=a00;
-  a00=-1.4999999999999999e-01;
-  a05=1.4999999999999999e-01;
-  a04=5.7000000000000002e+00;
-  a01=(a04*a03);
-  a05=(a05+a01);
-  a00=(a00+a05);
-  a05=2.2800000000000001e-01;
-  a01=arg[0]? arg[0][1] : 0;
-  a06=cos(a01);
-  a07=(a02*a06);
-  a01=sin(a01);
-  a08=(a03*a01);
-  a07=(a07+a08);
-  a08=(a05*a07);
-  a00=(a00-a08);
-  a08=-8.2099999999999995e-01;
-  a06=(a03*a06);
-  a01=(a02*a01);
-  a06=(a06-a01);
-  a01=(a08*a06);
-  a00=(a00+a01);
-  a01=-2.9990000000000001e+00;
-  a09=(a01*a03);
-  a00=(a00+a09);
-  a09=-9.8299999999999998e-01;
-  a10=(a09*a02);
-  a00=(a00-a10);
-  a00=casadi_sq(a00);
-  a10=-1.9500000000000000e+00;
-  a11=1.9500000000000000e+00;
-  a04=(a04*a02);
-  a11=(a11+a04);
-  a10=(a10+a11);
-  a05=(a05*a06);
-  a10=(a10+a05);
-  a08=(a08*a07);
-  a10=(a10+a08);
-  a01=(a01*a02);
-  a10=(a10+a01);
-  a09=(a09*a03);
-  a10=(a10+a09);
-  a10=casadi_sq(a10);
-  a00=(a00+a10);
-  a00=sqrt(a00);
-  if (res[0]!=0) res[0][1]=a00;
-  a00=2.3550000000000000e+00;
-  a10=3.7016347739883793e-01;
-  a09=1.6005173022251293e+00;
-  a03=arg[0]? arg[0][2] : 0;
-  a09=(a09+a03);
-  a03=cos(a09);
-  a01=(a10*a03);
-  a00=(a00+a01);
-  a01=5.0000000000000000e-01;
-  a02=-1.0199999999999999e-01;
-  a08=-3.7016347739883793e-01;
-  a09=sin(a09);
-  a07=(a08*a09);
-  a02=(a02+a07);
-  a07=casadi_sq(a02);
-  a05=-2.1099999999999985e-01;
-  a08=(a08*a03);
+  a00=arg[1]? arg[1][24] : 0;
+  a05=(a02*a00);
+  a04=arg[0]? arg[0][1] : 0;
+  a03=cos(a04);
+  a06=(a02*a03);
+  a04=sin(a04);
+  a07=(a01*a04);
+  a06=(a06-a07);
+  a07=arg[1]? arg[1][32] : 0;
+  a08=(a06*a07);
   a05=(a05+a08);
-  a08=casadi_sq(a05);
-  a03=(a07+a08);
-  a01=(a01/a03);
-  a06=(a01*a05);
-  a11=-2.6402399999999993e-01;
-  a11=(a11+a07);
-  a11=(a11+a08);
-  a06=(a06*a11);
-  a00=(a00+a06);
-  a06=2.1622500000000003e-01;
-  a08=-2.5000000000000000e-01;
-  a08=(a08/a03);
-  a07=casadi_sq(a11);
-  a08=(a08*a07);
-  a06=(a06+a08);
-  a06=sqrt(a06);
-  a03=sqrt(a03);
-  a06=(a06/a03);
-  a03=1.0199999999999999e-01;
-  a10=(a10*a09);
-  a03=(a03+a10);
-  a03=(a06*a03);
-  a00=(a00-a03);
-  a00=casadi_sq(a00);
-  a03=-3.3400000000000002e-01;
-  a03=(a03+a10);
-  a01=(a01*a02);
-  a01=(a01*a11);
-  a03=(a03+a01);
-  a06=(a06*a05);
-  a03=(a03-a06);
-  a03=casadi_sq(a03);
+  a03=(a01*a03);
+  a04=(a02*a04);
+  a03=(a03+a04);
+  a04=arg[1]? arg[1][33] : 0;
+  a08=(a03*a04);
+  a05=(a05-a08);
+  a08=arg[1]? arg[1][34] : 0;
+  a09=(a02*a08);
+  a05=(a05-a09);
+  a09=arg[1]? arg[1][35] : 0;
+  a10=(a01*a09);
+  a05=(a05+a10);
+  a05=casadi_sq(a05);
+  a00=(a01*a00);
+  a03=(a03*a07);
   a00=(a00+a03);
-  a00=sqrt(a00);
-  if (res[0]!=0) res[0][2]=a00;
+  a06=(a06*a04);
+  a00=(a00+a06);
+  a01=(a01*a08);
+  a00=(a00-a01);
+  a02=(a02*a09);
+  a00=(a00-a02);
+  a00=casadi_sq(a00);
+  a05=(a05+a00);
+  a05=sqrt(a05);
+  if (res[0]!=0) res[0][1]=a05;
+  a05=arg[1]? arg[1][36] : 0;
+  a00=arg[1]? arg[1][37] : 0;
+  a02=arg[0]? arg[0][2] : 0;
+  a00=(a00+a02);
+  a02=cos(a00);
+  a02=(a05*a02);
+  a09=arg[1]? arg[1][42] : 0;
+  a09=(a02-a09);
+  a01=5.0000000000000000e-01;
+  a08=arg[1]? arg[1][40] : 0;
+  a08=(a08-a02);
+  a02=casadi_sq(a08);
+  a06=arg[1]? arg[1][41] : 0;
+  a00=sin(a00);
+  a05=(a05*a00);
+  a00=(a06-a05);
+  a04=casadi_sq(a00);
+  a03=(a02+a04);
+  a01=(a01/a03);
+  a07=(a01*a08);
+  a10=arg[1]? arg[1][38] : 0;
+  a10=casadi_sq(a10);
+  a02=(a10+a02);
+  a02=(a02+a04);
+  a04=arg[1]? arg[1][39] : 0;
+  a04=casadi_sq(a04);
+  a02=(a02-a04);
+  a07=(a07*a02);
+  a09=(a09+a07);
+  a07=-2.5000000000000000e-01;
+  a07=(a07/a03);
+  a04=casadi_sq(a02);
+  a07=(a07*a04);
+  a10=(a10+a07);
+  a10=sqrt(a10);
+  a03=sqrt(a03);
+  a10=(a10/a03);
+  a06=(a05-a06);
+  a06=(a10*a06);
+  a09=(a09-a06);
+  a09=casadi_sq(a09);
+  a06=arg[1]? arg[1][43] : 0;
+  a05=(a05-a06);
+  a01=(a01*a00);
+  a01=(a01*a02);
+  a05=(a05+a01);
+  a10=(a10*a08);
+  a05=(a05-a10);
+  a05=casadi_sq(a05);
+  a09=(a09+a05);
+  a09=sqrt(a09);
+  if (res[0]!=0) res[0][2]=a09;
   return 0;
 }
 
@@ -204,7 +201,7 @@ CASADI_SYMBOL_EXPORT void excavator_arm_leg_lengths_incref(void) {
 CASADI_SYMBOL_EXPORT void excavator_arm_leg_lengths_decref(void) {
 }
 
-CASADI_SYMBOL_EXPORT casadi_int excavator_arm_leg_lengths_n_in(void) { return 1;}
+CASADI_SYMBOL_EXPORT casadi_int excavator_arm_leg_lengths_n_in(void) { return 2;}
 
 CASADI_SYMBOL_EXPORT casadi_int excavator_arm_leg_lengths_n_out(void) { return 1;}
 
@@ -217,6 +214,7 @@ CASADI_SYMBOL_EXPORT casadi_real excavator_arm_leg_lengths_default_in(casadi_int
 CASADI_SYMBOL_EXPORT const char* excavator_arm_leg_lengths_name_in(casadi_int i) {
   switch (i) {
     case 0: return "q";
+    case 1: return "numbers";
     default: return 0;
   }
 }
@@ -231,6 +229,7 @@ CASADI_SYMBOL_EXPORT const char* excavator_arm_leg_lengths_name_out(casadi_int i
 CASADI_SYMBOL_EXPORT const casadi_int* excavator_arm_leg_lengths_sparsity_in(casadi_int i) {
   switch (i) {
     case 0: return casadi_s0;
+    case 1: return casadi_s1;
     default: return 0;
   }
 }
@@ -243,7 +242,7 @@ CASADI_SYMBOL_EXPORT const casadi_int* excavator_arm_leg_lengths_sparsity_out(ca
 }
 
 CASADI_SYMBOL_EXPORT int excavator_arm_leg_lengths_work(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w) {
-  if (sz_arg) *sz_arg = 1;
+  if (sz_arg) *sz_arg = 2;
   if (sz_res) *sz_res = 1;
   if (sz_iw) *sz_iw = 0;
   if (sz_w) *sz_w = 0;
@@ -251,7 +250,7 @@ CASADI_SYMBOL_EXPORT int excavator_arm_leg_lengths_work(casadi_int *sz_arg, casa
 }
 
 CASADI_SYMBOL_EXPORT int excavator_arm_leg_lengths_work_bytes(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w) {
-  if (sz_arg) *sz_arg = 1*sizeof(const casadi_real*);
+  if (sz_arg) *sz_arg = 2*sizeof(const casadi_real*);
   if (sz_res) *sz_res = 1*sizeof(casadi_real*);
   if (sz_iw) *sz_iw = 0*sizeof(casadi_int);
   if (sz_w) *sz_w = 0*sizeof(casadi_real);

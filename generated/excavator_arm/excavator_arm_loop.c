@@ -23,19 +23,19 @@ static const double TWO_PI = 6.283185307179586;
 
 /* actuator forces (N, N m) from the pressure vector: the actuators' own laws */
 static int leg_force(const double* nb, const double* p, double* f) {
-    const double* arg[1];
+    const double* arg[2];
     double* res[1];
     arg[0] = p;
-    (void)nb;  /* the numbers are folded into the generated functions */
+    arg[1] = nb;  /* the description's numbers, the generated functions' last input */
     res[0] = f;
     return excavator_arm_leg_force(arg, res, 0, 0, 0);
 }
 
 static int leg_lengths(const double* nb, const double* q, double* l) {
-    const double* arg[1];
+    const double* arg[2];
     double* res[1];
     arg[0] = q;
-    (void)nb;  /* the numbers are folded into the generated functions */
+    arg[1] = nb;  /* the description's numbers, the generated functions' last input */
     res[0] = l;
     return excavator_arm_leg_lengths(arg, res, 0, 0, 0);
 }
@@ -49,10 +49,10 @@ int excavator_arm_leg_lengths_many(const double* numbers, const double* q, long 
 
 /* cylinder lengths and JL (column-major NL x NQ) in one call: they share the link poses */
 static int leg_kinematics(const double* nb, const double* q, double* l, double* J) {
-    const double* arg[1];
+    const double* arg[2];
     double* res[2];
     arg[0] = q;
-    (void)nb;  /* the numbers are folded into the generated functions */
+    arg[1] = nb;  /* the description's numbers, the generated functions' last input */
     res[0] = l;
     res[1] = J;
     return excavator_arm_leg_kinematics(arg, res, 0, 0, 0);
@@ -93,10 +93,11 @@ typedef struct {
 } rhs_params;
 
 static int plant_rhs(const rhs_params* m, const double* x, const double* u, double* xdot) {
-    const double* arg[7];
+    const double* arg[8];
     double* res[1];
     arg[0] = x; arg[1] = u; arg[2] = m->theta; arg[3] = m->gamma1; arg[4] = m->gamma2;
     arg[5] = m->friction; arg[6] = m->valve;
+    arg[7] = m->numbers;
     res[0] = xdot;
     return excavator_arm_plant_rhs(arg, res, 0, 0, 0);
 }

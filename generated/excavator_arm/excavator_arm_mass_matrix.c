@@ -33,6 +33,7 @@ extern "C" {
 #define casadi_s0 CASADI_PREFIX(s0)
 #define casadi_s1 CASADI_PREFIX(s1)
 #define casadi_s2 CASADI_PREFIX(s2)
+#define casadi_s3 CASADI_PREFIX(s3)
 #define casadi_sq CASADI_PREFIX(sq)
 
 /* Symbol visibility in DLLs */
@@ -63,155 +64,163 @@ CASADI_SYMBOL_EXPORT int excavator_arm_mass_matrix_casadi_real_size(void) { retu
 
 static const casadi_int casadi_s0[3] = {3, 1, 1};
 static const casadi_int casadi_s1[3] = {9, 1, 1};
-static const casadi_int casadi_s2[3] = {3, 3, 1};
+static const casadi_int casadi_s2[3] = {81, 1, 1};
+static const casadi_int casadi_s3[3] = {3, 3, 1};
 
-/* excavator_arm_mass_matrix:(q[3],theta[9])->(D[3x3]) */
+/* excavator_arm_mass_matrix:(q[3],theta[9],numbers[81])->(D[3x3]) */
 static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   (void)arg; (void)res; (void)iw; (void)w; (void)mem;
   casadi_real a00, a01, a02, a03, a04, a05, a06, a07, a08, a09, a10, a11;
-  casadi_real a12, a13, a14, a15, a16, a17, a18, a19, a20, a21, a22, a23;
-  casadi_real a24, a25, a26, a27;
-  a00=arg[1]? arg[1][2] : 0;
-  a01=arg[1]? arg[1][5] : 0;
-  a00=(a00+a01);
-  a02=arg[1]? arg[1][8] : 0;
-  a00=(a00+a02);
-  a03=970.;
-  a04=5.7000000000000002e+00;
-  a05=arg[0]? arg[0][0] : 0;
-  a06=cos(a05);
-  a07=(a04*a06);
-  a08=2.8999999999999999e+00;
-  a08=(a08*a06);
+  casadi_real a12, a13, a14, a15, a16, a17, a18, a19, a20;
+  a00=arg[2]? arg[2][14] : 0;
+  a01=arg[2]? arg[2][23] : 0;
+  a02=arg[2]? arg[2][24] : 0;
+  a03=(a01*a02);
+  a04=arg[0]? arg[0][0] : 0;
+  a05=sin(a04);
+  a06=(a03*a05);
+  a07=arg[2]? arg[2][26] : 0;
+  a08=(a01*a07);
+  a04=cos(a04);
   a09=arg[0]? arg[0][1] : 0;
-  a10=cos(a09);
+  a10=sin(a09);
+  a11=(a04*a10);
+  a09=cos(a09);
+  a12=(a09*a05);
+  a11=(a11+a12);
+  a12=(a08*a11);
+  a06=(a06+a12);
+  a12=casadi_sq(a06);
+  a13=(a03*a04);
+  a09=(a04*a09);
+  a10=(a05*a10);
+  a09=(a09-a10);
+  a08=(a08*a09);
+  a13=(a13+a08);
+  a08=casadi_sq(a13);
+  a12=(a12+a08);
+  a12=(a00*a12);
+  a08=arg[2]? arg[2][7] : 0;
+  a10=casadi_sq(a01);
+  a02=casadi_sq(a02);
+  a02=(a10*a02);
+  a08=(a08*a02);
+  a12=(a12+a08);
+  a08=arg[1]? arg[1][2] : 0;
   a08=(a08*a10);
-  a07=(a07+a08);
-  a11=-2.8999999999999999e+00;
-  a05=sin(a05);
-  a12=(a11*a05);
-  a09=sin(a09);
-  a12=(a12*a09);
-  a07=(a07+a12);
-  a13=casadi_sq(a07);
-  a13=(a03*a13);
-  a00=(a00+a13);
-  a13=-5.7000000000000002e+00;
-  a14=(a13*a05);
-  a15=(a11*a06);
-  a15=(a15*a09);
-  a14=(a14+a15);
-  a11=(a11*a10);
-  a11=(a11*a05);
-  a14=(a14+a11);
-  a16=casadi_sq(a14);
-  a16=(a03*a16);
-  a00=(a00+a16);
-  a16=3.0865500000000004e+04;
-  a17=casadi_sq(a06);
-  a17=(a16*a17);
-  a00=(a00+a17);
-  a17=casadi_sq(a05);
-  a16=(a16*a17);
-  a00=(a00+a16);
-  a16=arg[1]? arg[1][3] : 0;
-  a17=(2.*a16);
-  a18=(a06*a10);
-  a19=(a05*a09);
-  a18=(a18-a19);
-  a19=(a04*a18);
-  a19=(a19*a06);
-  a09=(a06*a09);
-  a10=(a10*a05);
-  a09=(a09+a10);
-  a10=(a13*a09);
-  a10=(a10*a05);
-  a19=(a19-a10);
-  a17=(a17*a19);
-  a00=(a00+a17);
+  a12=(a12+a08);
+  a08=arg[1]? arg[1][5] : 0;
+  a02=(a08*a10);
+  a12=(a12+a02);
+  a02=arg[1]? arg[1][8] : 0;
+  a10=(a02*a10);
+  a12=(a12+a10);
+  a10=-2.;
+  a14=(a10*a01);
+  a15=arg[1]? arg[1][3] : 0;
+  a16=(a03*a11);
+  a17=(a16*a05);
+  a03=(a03*a09);
+  a18=(a03*a04);
+  a17=(a17+a18);
+  a15=(a15*a17);
+  a17=arg[1]? arg[1][4] : 0;
+  a03=(a03*a05);
+  a16=(a16*a04);
+  a03=(a03-a16);
+  a17=(a17*a03);
+  a15=(a15+a17);
+  a17=(a14*a15);
+  a12=(a12-a17);
   a17=arg[1]? arg[1][6] : 0;
-  a10=(2.*a17);
-  a20=arg[0]? arg[0][2] : 0;
-  a21=cos(a20);
-  a22=(a18*a21);
-  a20=sin(a20);
-  a23=(a09*a20);
-  a22=(a22-a23);
-  a23=(a22*a07);
-  a21=(a09*a21);
-  a20=(a18*a20);
-  a24=(a21+a20);
-  a25=(a24*a14);
-  a23=(a23-a25);
-  a25=(a10*a23);
-  a00=(a00+a25);
-  a25=-2.;
-  a26=arg[1]? arg[1][4] : 0;
-  a27=(a25*a26);
-  a04=(a04*a09);
-  a04=(a04*a06);
-  a13=(a13*a18);
-  a13=(a13*a05);
-  a04=(a04+a13);
-  a27=(a27*a04);
-  a00=(a00+a27);
-  a27=arg[1]? arg[1][7] : 0;
-  a25=(a25*a27);
-  a13=(a22*a14);
-  a20=(a20+a21);
-  a21=(a20*a07);
-  a13=(a13+a21);
-  a21=(a25*a13);
-  a00=(a00+a21);
-  if (res[0]!=0) res[0][0]=a00;
-  a01=(a01+a02);
-  a16=(a16*a19);
-  a16=(a01+a16);
-  a08=(a08+a12);
-  a12=(a22*a08);
-  a15=(a15+a11);
-  a24=(a24*a15);
-  a12=(a12-a24);
-  a24=(a17*a12);
-  a16=(a16+a24);
-  a17=(a17*a23);
-  a16=(a16+a17);
-  a23=(a03*a08);
-  a23=(a23*a07);
-  a16=(a16+a23);
-  a23=(a03*a15);
-  a23=(a23*a14);
-  a16=(a16+a23);
-  a26=(a26*a04);
-  a16=(a16-a26);
-  a22=(a22*a15);
-  a20=(a20*a08);
-  a22=(a22+a20);
-  a20=(a27*a22);
-  a16=(a16-a20);
-  a27=(a27*a13);
-  a16=(a16-a27);
-  if (res[0]!=0) res[0][1]=a16;
-  a17=(a02+a17);
-  a17=(a17-a27);
-  if (res[0]!=0) res[0][2]=a17;
-  if (res[0]!=0) res[0][3]=a16;
-  a08=casadi_sq(a08);
-  a08=(a03*a08);
-  a01=(a01+a08);
-  a15=casadi_sq(a15);
-  a03=(a03*a15);
-  a01=(a01+a03);
+  a03=arg[0]? arg[0][2] : 0;
+  a16=cos(a03);
+  a04=(a09*a16);
+  a03=sin(a03);
+  a05=(a11*a03);
+  a04=(a04-a05);
+  a05=(a04*a13);
+  a16=(a11*a16);
+  a03=(a09*a03);
+  a18=(a16+a03);
+  a19=(a18*a06);
+  a05=(a05+a19);
+  a05=(a17*a05);
+  a19=arg[1]? arg[1][7] : 0;
+  a20=(a04*a06);
+  a03=(a03+a16);
+  a16=(a03*a13);
+  a20=(a20-a16);
+  a20=(a19*a20);
+  a05=(a05+a20);
+  a14=(a14*a05);
+  a12=(a12-a14);
+  if (res[0]!=0) res[0][0]=a12;
+  a12=arg[2]? arg[2][25] : 0;
+  a14=(a12*a07);
+  a20=(a14*a11);
+  a20=(a20*a06);
+  a06=(a14*a09);
+  a06=(a06*a13);
+  a20=(a20+a06);
+  a20=(a00*a20);
+  a18=(a14*a18);
+  a18=(a18*a11);
+  a04=(a14*a04);
+  a06=(a04*a09);
+  a18=(a18+a06);
+  a17=(a17*a18);
+  a04=(a04*a11);
+  a14=(a14*a03);
+  a14=(a14*a09);
+  a04=(a04-a14);
+  a19=(a19*a04);
+  a17=(a17+a19);
+  a19=(a01*a17);
+  a20=(a20+a19);
+  a15=(a12*a15);
+  a20=(a20+a15);
+  a15=(a12*a05);
+  a20=(a20+a15);
+  a15=(a01*a12);
+  a19=(a15*a08);
+  a20=(a20+a19);
+  a15=(a15*a02);
+  a20=(a20+a15);
+  if (res[0]!=0) res[0][1]=a20;
+  a15=arg[2]? arg[2][27] : 0;
+  a05=(a15*a05);
+  a01=(a01*a15);
+  a01=(a01*a02);
+  a05=(a05+a01);
+  if (res[0]!=0) res[0][2]=a05;
+  if (res[0]!=0) res[0][3]=a20;
+  a20=casadi_sq(a12);
+  a07=casadi_sq(a07);
+  a07=(a20*a07);
+  a09=casadi_sq(a09);
+  a09=(a07*a09);
+  a11=casadi_sq(a11);
+  a07=(a07*a11);
+  a09=(a09+a07);
+  a00=(a00*a09);
+  a08=(a08*a20);
+  a00=(a00+a08);
+  a20=(a02*a20);
+  a00=(a00+a20);
   a10=(a10*a12);
-  a01=(a01+a10);
-  a25=(a25*a22);
-  a01=(a01+a25);
-  if (res[0]!=0) res[0][4]=a01;
-  a24=(a02+a24);
-  a24=(a24-a20);
-  if (res[0]!=0) res[0][5]=a24;
-  if (res[0]!=0) res[0][6]=a17;
-  if (res[0]!=0) res[0][7]=a24;
+  a10=(a10*a17);
+  a00=(a00-a10);
+  if (res[0]!=0) res[0][4]=a00;
+  a17=(a15*a17);
+  a12=(a12*a15);
+  a12=(a12*a02);
+  a17=(a17+a12);
+  if (res[0]!=0) res[0][5]=a17;
+  if (res[0]!=0) res[0][6]=a05;
+  if (res[0]!=0) res[0][7]=a17;
+  a15=casadi_sq(a15);
+  a02=(a02*a15);
   if (res[0]!=0) res[0][8]=a02;
   return 0;
 }
@@ -234,7 +243,7 @@ CASADI_SYMBOL_EXPORT void excavator_arm_mass_matrix_incref(void) {
 CASADI_SYMBOL_EXPORT void excavator_arm_mass_matrix_decref(void) {
 }
 
-CASADI_SYMBOL_EXPORT casadi_int excavator_arm_mass_matrix_n_in(void) { return 2;}
+CASADI_SYMBOL_EXPORT casadi_int excavator_arm_mass_matrix_n_in(void) { return 3;}
 
 CASADI_SYMBOL_EXPORT casadi_int excavator_arm_mass_matrix_n_out(void) { return 1;}
 
@@ -248,6 +257,7 @@ CASADI_SYMBOL_EXPORT const char* excavator_arm_mass_matrix_name_in(casadi_int i)
   switch (i) {
     case 0: return "q";
     case 1: return "theta";
+    case 2: return "numbers";
     default: return 0;
   }
 }
@@ -263,19 +273,20 @@ CASADI_SYMBOL_EXPORT const casadi_int* excavator_arm_mass_matrix_sparsity_in(cas
   switch (i) {
     case 0: return casadi_s0;
     case 1: return casadi_s1;
+    case 2: return casadi_s2;
     default: return 0;
   }
 }
 
 CASADI_SYMBOL_EXPORT const casadi_int* excavator_arm_mass_matrix_sparsity_out(casadi_int i) {
   switch (i) {
-    case 0: return casadi_s2;
+    case 0: return casadi_s3;
     default: return 0;
   }
 }
 
 CASADI_SYMBOL_EXPORT int excavator_arm_mass_matrix_work(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w) {
-  if (sz_arg) *sz_arg = 2;
+  if (sz_arg) *sz_arg = 3;
   if (sz_res) *sz_res = 1;
   if (sz_iw) *sz_iw = 0;
   if (sz_w) *sz_w = 0;
@@ -283,7 +294,7 @@ CASADI_SYMBOL_EXPORT int excavator_arm_mass_matrix_work(casadi_int *sz_arg, casa
 }
 
 CASADI_SYMBOL_EXPORT int excavator_arm_mass_matrix_work_bytes(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w) {
-  if (sz_arg) *sz_arg = 2*sizeof(const casadi_real*);
+  if (sz_arg) *sz_arg = 3*sizeof(const casadi_real*);
   if (sz_res) *sz_res = 1*sizeof(casadi_real*);
   if (sz_iw) *sz_iw = 0*sizeof(casadi_int);
   if (sz_w) *sz_w = 0*sizeof(casadi_real);

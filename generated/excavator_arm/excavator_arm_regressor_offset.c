@@ -31,6 +31,7 @@ extern "C" {
 /* Add prefix to internal symbols */
 #define casadi_f0 CASADI_PREFIX(f0)
 #define casadi_s0 CASADI_PREFIX(s0)
+#define casadi_s1 CASADI_PREFIX(s1)
 #define casadi_sq CASADI_PREFIX(sq)
 
 /* Symbol visibility in DLLs */
@@ -60,175 +61,160 @@ CASADI_SYMBOL_EXPORT int excavator_arm_regressor_offset_casadi_int_size(void) { 
 CASADI_SYMBOL_EXPORT int excavator_arm_regressor_offset_casadi_real_size(void) { return (int) sizeof(casadi_real); }
 
 static const casadi_int casadi_s0[3] = {3, 1, 1};
+static const casadi_int casadi_s1[3] = {81, 1, 1};
 
-/* excavator_arm_regressor_offset:(q[3],v[3],w[3],a[3])->(y0[3]) */
+/* excavator_arm_regressor_offset:(q[3],v[3],w[3],a[3],numbers[81])->(y0[3]) */
 static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   (void)arg; (void)res; (void)iw; (void)w; (void)mem;
   casadi_real a00, a01, a02, a03, a04, a05, a06, a07, a08, a09, a10, a11;
   casadi_real a12, a13, a14, a15, a16, a17, a18, a19, a20, a21, a22, a23;
-  casadi_real a24, a25, a26, a27, a28, a29, a30, a31;
-  a00=1.0736064000000000e+05;
-  a01=arg[0]? arg[0][0] : 0;
-  a02=cos(a01);
-  a00=(a00*a02);
-  a03=arg[3]? arg[3][0] : 0;
-  a04=970.;
-  a05=5.7000000000000002e+00;
-  a05=(a05*a02);
-  a06=2.8999999999999999e+00;
-  a07=(a06*a02);
-  a08=arg[0]? arg[0][1] : 0;
-  a09=cos(a08);
-  a07=(a07*a09);
-  a05=(a05+a07);
-  a10=-2.8999999999999999e+00;
-  a01=sin(a01);
-  a11=(a10*a01);
-  a08=sin(a08);
-  a11=(a11*a08);
-  a05=(a05+a11);
-  a12=casadi_sq(a05);
-  a12=(a04*a12);
-  a13=-5.7000000000000002e+00;
-  a14=(a13*a01);
-  a15=(a10*a02);
-  a16=(a15*a08);
-  a14=(a14+a16);
-  a10=(a10*a09);
-  a10=(a10*a01);
-  a14=(a14+a10);
-  a17=casadi_sq(a14);
-  a17=(a04*a17);
-  a12=(a12+a17);
-  a17=3.0865500000000004e+04;
-  a18=casadi_sq(a02);
-  a18=(a17*a18);
-  a12=(a12+a18);
-  a18=casadi_sq(a01);
-  a17=(a17*a18);
-  a12=(a12+a17);
-  a12=(a03*a12);
-  a00=(a00+a12);
-  a12=arg[3]? arg[3][1] : 0;
-  a07=(a07+a11);
-  a11=(a04*a07);
-  a17=(a11*a05);
-  a16=(a16+a10);
-  a10=(a04*a16);
-  a18=(a10*a14);
-  a17=(a17+a18);
-  a18=(a12*a17);
-  a00=(a00+a18);
-  a18=arg[2]? arg[2][0] : 0;
-  a19=arg[1]? arg[1][0] : 0;
-  a20=485.;
-  a21=(a20*a05);
-  a22=-1.1400000000000000e+01;
-  a23=(a22*a01);
-  a24=-5.7999999999999998e+00;
-  a25=(a24*a02);
-  a26=(a25*a08);
-  a23=(a23+a26);
-  a24=(a24*a09);
-  a24=(a24*a01);
-  a23=(a23+a24);
-  a21=(a21*a23);
-  a23=(a20*a14);
-  a22=(a22*a02);
-  a27=5.7999999999999998e+00;
-  a27=(a27*a01);
-  a27=(a27*a08);
-  a22=(a22+a27);
-  a25=(a25*a09);
-  a22=(a22+a25);
-  a23=(a23*a22);
-  a21=(a21+a23);
-  a21=(a19*a21);
-  a23=arg[1]? arg[1][1] : 0;
-  a27=(a27+a25);
-  a25=(a20*a27);
-  a22=(a25*a14);
-  a26=(a26+a24);
-  a24=(a20*a26);
-  a24=(a24*a05);
-  a22=(a22+a24);
-  a24=(a23*a22);
-  a21=(a21+a24);
-  a21=(a18*a21);
-  a00=(a00+a21);
-  a21=arg[2]? arg[2][1] : 0;
-  a22=(a19*a22);
-  a24=(a11*a16);
-  a06=(a06*a01);
-  a06=(a06*a08);
-  a15=(a15*a09);
-  a28=(a06+a15);
-  a28=(a04*a28);
-  a29=(a28*a16);
-  a24=(a24+a29);
-  a28=(a28*a14);
-  a24=(a24+a28);
-  a29=(a10*a05);
-  a24=(a24+a29);
-  a30=-485.;
-  a31=(a30*a07);
-  a31=(a31*a26);
-  a24=(a24+a31);
-  a27=(a30*a27);
-  a31=(a27*a16);
-  a24=(a24+a31);
-  a24=(a23*a24);
-  a22=(a22+a24);
-  a22=(a21*a22);
-  a00=(a00+a22);
-  a22=2.7595530000000002e+04;
-  a22=(a22*a02);
-  a22=(a22*a09);
-  a00=(a00+a22);
-  a09=-2.7595530000000002e+04;
-  a09=(a09*a01);
-  a09=(a09*a08);
-  a00=(a00+a09);
-  if (res[0]!=0) res[0][0]=a00;
-  a03=(a03*a17);
-  a17=casadi_sq(a07);
-  a17=(a04*a17);
-  a00=casadi_sq(a16);
-  a04=(a04*a00);
-  a17=(a17+a04);
-  a12=(a12*a17);
-  a03=(a03+a12);
-  a11=(a11*a14);
-  a11=(a11+a28);
-  a11=(a11+a29);
-  a13=(a13*a02);
-  a13=(a13+a06);
+  casadi_real a24, a25, a26, a27, a28;
+  a00=arg[3]? arg[3][0] : 0;
+  a01=arg[4]? arg[4][14] : 0;
+  a02=arg[4]? arg[4][23] : 0;
+  a03=arg[4]? arg[4][24] : 0;
+  a04=(a02*a03);
+  a05=arg[0]? arg[0][0] : 0;
+  a06=sin(a05);
+  a07=(a04*a06);
+  a08=arg[4]? arg[4][26] : 0;
+  a09=(a02*a08);
+  a05=cos(a05);
+  a10=arg[0]? arg[0][1] : 0;
+  a11=sin(a10);
+  a12=(a05*a11);
+  a10=cos(a10);
+  a13=(a10*a06);
+  a12=(a12+a13);
+  a13=(a09*a12);
+  a07=(a07+a13);
+  a13=casadi_sq(a07);
+  a04=(a04*a05);
+  a14=(a05*a10);
+  a15=(a06*a11);
+  a14=(a14-a15);
+  a09=(a09*a14);
+  a04=(a04+a09);
+  a09=casadi_sq(a04);
+  a13=(a13+a09);
+  a13=(a01*a13);
+  a09=arg[4]? arg[4][7] : 0;
+  a15=casadi_sq(a02);
+  a16=casadi_sq(a03);
+  a15=(a15*a16);
+  a15=(a09*a15);
   a13=(a13+a15);
-  a10=(a10*a13);
-  a11=(a11+a10);
-  a27=(a27*a14);
-  a11=(a11+a27);
-  a30=(a30*a26);
-  a30=(a30*a05);
-  a11=(a11+a30);
-  a11=(a19*a11);
-  a20=(a20*a07);
-  a20=(a20*a26);
-  a25=(a25*a16);
-  a20=(a20+a25);
-  a23=(a23*a20);
-  a11=(a11+a23);
-  a18=(a18*a11);
-  a03=(a03+a18);
-  a19=(a19*a20);
-  a19=(a19+a23);
-  a21=(a21*a19);
-  a03=(a03+a21);
-  a03=(a03+a22);
-  a03=(a03+a09);
-  if (res[0]!=0) res[0][1]=a03;
-  a03=0.;
-  if (res[0]!=0) res[0][2]=a03;
+  a13=(a00*a13);
+  a15=arg[4]? arg[4][44] : 0;
+  a16=(a03*a05);
+  a17=(a08*a14);
+  a16=(a16+a17);
+  a16=(a01*a16);
+  a09=(a03*a09);
+  a09=(a09*a05);
+  a16=(a16+a09);
+  a16=(a15*a16);
+  a13=(a13+a16);
+  a16=arg[2]? arg[2][0] : 0;
+  a09=5.0000000000000000e-01;
+  a09=(a09*a01);
+  a17=arg[1]? arg[1][0] : 0;
+  a18=(a09*a17);
+  a19=(2.*a02);
+  a03=(a19*a03);
+  a20=(a03*a05);
+  a19=(a19*a08);
+  a19=(a19*a14);
+  a20=(a20+a19);
+  a20=(a07*a20);
+  a03=(a03*a06);
+  a21=-2.;
+  a02=(a21*a02);
+  a02=(a02*a08);
+  a02=(a02*a12);
+  a03=(a03-a02);
+  a03=(a04*a03);
+  a20=(a20-a03);
+  a20=(a18*a20);
+  a03=arg[1]? arg[1][1] : 0;
+  a09=(a09*a03);
+  a02=(a02*a04);
+  a19=(a19*a07);
+  a02=(a02+a19);
+  a19=(a09*a02);
+  a20=(a20+a19);
+  a20=(a16*a20);
+  a13=(a13+a20);
+  a20=arg[2]? arg[2][1] : 0;
+  a19=arg[4]? arg[4][25] : 0;
+  a22=(a19*a08);
+  a23=(a22*a14);
+  a24=(a23*a07);
+  a22=(a22*a12);
+  a25=(a22*a04);
+  a24=(a24-a25);
+  a24=(a01*a24);
+  a25=-5.0000000000000000e-01;
+  a25=(a25*a01);
+  a19=casadi_sq(a19);
+  a26=casadi_sq(a08);
+  a19=(a19*a26);
+  a26=(a19*a14);
+  a27=(a21*a05);
+  a27=(a27*a11);
+  a28=(a21*a10);
+  a28=(a28*a06);
+  a27=(a27+a28);
+  a26=(a26*a27);
+  a27=(a19*a12);
+  a21=(a21*a06);
+  a21=(a21*a11);
+  a05=(2.*a05);
+  a05=(a05*a10);
+  a21=(a21+a05);
+  a27=(a27*a21);
+  a26=(a26+a27);
+  a27=(a25*a26);
+  a24=(a24+a27);
+  a03=(a03*a24);
+  a24=(a18*a02);
+  a03=(a03+a24);
+  a03=(a20*a03);
+  a13=(a13+a03);
+  a03=arg[3]? arg[3][1] : 0;
+  a03=(a03*a01);
+  a22=(a22*a07);
+  a23=(a23*a04);
+  a22=(a22+a23);
+  a23=(a03*a22);
+  a13=(a13+a23);
+  if (res[0]!=0) res[0][0]=a13;
+  a25=(a25*a02);
+  a17=(a17*a25);
+  a09=(a09*a26);
+  a17=(a17+a09);
+  a16=(a16*a17);
+  a18=(a18*a26);
+  a18=(a18+a09);
+  a20=(a20*a18);
+  a16=(a16+a20);
+  a00=(a00*a01);
+  a00=(a00*a22);
+  a16=(a16+a00);
+  a00=casadi_sq(a14);
+  a00=(a19*a00);
+  a12=casadi_sq(a12);
+  a19=(a19*a12);
+  a00=(a00+a19);
+  a03=(a03*a00);
+  a16=(a16+a03);
+  a01=(a01*a08);
+  a01=(a01*a15);
+  a01=(a01*a14);
+  a16=(a16+a01);
+  if (res[0]!=0) res[0][1]=a16;
+  a16=0.;
+  if (res[0]!=0) res[0][2]=a16;
   return 0;
 }
 
@@ -250,7 +236,7 @@ CASADI_SYMBOL_EXPORT void excavator_arm_regressor_offset_incref(void) {
 CASADI_SYMBOL_EXPORT void excavator_arm_regressor_offset_decref(void) {
 }
 
-CASADI_SYMBOL_EXPORT casadi_int excavator_arm_regressor_offset_n_in(void) { return 4;}
+CASADI_SYMBOL_EXPORT casadi_int excavator_arm_regressor_offset_n_in(void) { return 5;}
 
 CASADI_SYMBOL_EXPORT casadi_int excavator_arm_regressor_offset_n_out(void) { return 1;}
 
@@ -266,6 +252,7 @@ CASADI_SYMBOL_EXPORT const char* excavator_arm_regressor_offset_name_in(casadi_i
     case 1: return "v";
     case 2: return "w";
     case 3: return "a";
+    case 4: return "numbers";
     default: return 0;
   }
 }
@@ -283,6 +270,7 @@ CASADI_SYMBOL_EXPORT const casadi_int* excavator_arm_regressor_offset_sparsity_i
     case 1: return casadi_s0;
     case 2: return casadi_s0;
     case 3: return casadi_s0;
+    case 4: return casadi_s1;
     default: return 0;
   }
 }
@@ -295,7 +283,7 @@ CASADI_SYMBOL_EXPORT const casadi_int* excavator_arm_regressor_offset_sparsity_o
 }
 
 CASADI_SYMBOL_EXPORT int excavator_arm_regressor_offset_work(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w) {
-  if (sz_arg) *sz_arg = 4;
+  if (sz_arg) *sz_arg = 5;
   if (sz_res) *sz_res = 1;
   if (sz_iw) *sz_iw = 0;
   if (sz_w) *sz_w = 0;
@@ -303,7 +291,7 @@ CASADI_SYMBOL_EXPORT int excavator_arm_regressor_offset_work(casadi_int *sz_arg,
 }
 
 CASADI_SYMBOL_EXPORT int excavator_arm_regressor_offset_work_bytes(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w) {
-  if (sz_arg) *sz_arg = 4*sizeof(const casadi_real*);
+  if (sz_arg) *sz_arg = 5*sizeof(const casadi_real*);
   if (sz_res) *sz_res = 1*sizeof(casadi_real*);
   if (sz_iw) *sz_iw = 0*sizeof(casadi_int);
   if (sz_w) *sz_w = 0*sizeof(casadi_real);

@@ -34,6 +34,7 @@ extern "C" {
 #define casadi_fmin CASADI_PREFIX(fmin)
 #define casadi_s0 CASADI_PREFIX(s0)
 #define casadi_s1 CASADI_PREFIX(s1)
+#define casadi_s2 CASADI_PREFIX(s2)
 #define casadi_sq CASADI_PREFIX(sq)
 
 /* Symbol visibility in DLLs */
@@ -82,12 +83,13 @@ CASADI_SYMBOL_EXPORT int loader_crane_ctrl_p_casadi_real_size(void) { return (in
 
 static const casadi_int casadi_s0[3] = {3, 1, 1};
 static const casadi_int casadi_s1[3] = {1, 1, 1};
+static const casadi_int casadi_s2[3] = {71, 1, 1};
 
-/* loader_crane_ctrl_p:(l[3],qd0[3],Kleg[3],u_max)->(u[3]) */
+/* loader_crane_ctrl_p:(l[3],qd0[3],Kleg[3],u_max,numbers[71])->(u[3]) */
 static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   (void)arg; (void)res; (void)iw; (void)w; (void)mem;
   casadi_real a00, a01, a02, a03, a04, a05, a06, a07, a08, a09, a10, a11;
-  casadi_real a12, a13, a14, a15, a16, a17, a18;
+  casadi_real a12, a13, a14, a15, a16, a17;
   a00=arg[3]? arg[3][0] : 0;
   a01=(-a00);
   a02=arg[2]? arg[2][0] : 0;
@@ -99,117 +101,115 @@ static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw,
   a02=casadi_fmin(a00,a02);
   if (res[0]!=0) res[0][0]=a02;
   a02=arg[2]? arg[2][1] : 0;
-  a04=1.4999999999999999e-01;
-  a05=cos(a03);
+  a04=cos(a03);
+  a05=arg[4]? arg[4][22] : 0;
   a06=(a04*a05);
   a07=arg[1]? arg[1][1] : 0;
-  a08=sin(a07);
-  a09=(a05*a08);
-  a10=(a04*a09);
-  a06=(a06-a10);
-  a10=7.3499999999999999e-01;
-  a07=cos(a07);
-  a11=(a05*a07);
-  a12=(a10*a11);
-  a06=(a06+a12);
-  a12=-2.9999999999999999e-01;
-  a05=(a12*a05);
-  a06=(a06+a05);
+  a08=cos(a07);
+  a09=(a04*a08);
+  a10=arg[4]? arg[4][27] : 0;
+  a11=(a09*a10);
+  a06=(a06+a11);
+  a07=sin(a07);
+  a11=(a04*a07);
+  a12=arg[4]? arg[4][28] : 0;
+  a13=(a11*a12);
+  a06=(a06-a13);
+  a13=arg[4]? arg[4][29] : 0;
+  a04=(a04*a13);
+  a06=(a06-a04);
   a06=casadi_sq(a06);
   a03=sin(a03);
-  a05=(a04*a03);
-  a13=(a03*a08);
-  a14=(a04*a13);
-  a05=(a05-a14);
+  a05=(a03*a05);
+  a04=(a03*a08);
+  a14=(a04*a10);
+  a05=(a05+a14);
   a14=(a03*a07);
-  a15=(a10*a14);
-  a05=(a05+a15);
-  a12=(a12*a03);
-  a05=(a05+a12);
+  a15=(a14*a12);
+  a05=(a05-a15);
+  a03=(a03*a13);
+  a05=(a05-a03);
   a05=casadi_sq(a05);
   a06=(a06+a05);
-  a05=2.2000000000000002e+00;
-  a04=(a04*a07);
-  a04=(a05+a04);
-  a10=(a10*a08);
-  a04=(a04+a10);
-  a10=-1.1100000000000001e+00;
-  a04=(a04+a10);
-  a04=casadi_sq(a04);
-  a06=(a06+a04);
+  a05=arg[4]? arg[4][23] : 0;
+  a10=(a07*a10);
+  a05=(a05+a10);
+  a12=(a08*a12);
+  a05=(a05+a12);
+  a12=arg[4]? arg[4][30] : 0;
+  a05=(a05-a12);
+  a05=casadi_sq(a05);
+  a06=(a06+a05);
   a06=sqrt(a06);
-  a04=arg[0]? arg[0][1] : 0;
-  a06=(a06-a04);
+  a05=arg[0]? arg[0][1] : 0;
+  a06=(a06-a05);
   a02=(a02*a06);
   a02=casadi_fmax(a01,a02);
   a02=casadi_fmin(a00,a02);
   if (res[0]!=0) res[0][1]=a02;
   a02=arg[2]? arg[2][2] : 0;
-  a06=3.7999999999999998e+00;
-  a04=(a06*a11);
-  a10=2.0399999999999999e-01;
+  a06=arg[4]? arg[4][25] : 0;
+  a05=(a09*a06);
   a12=arg[1]? arg[1][2] : 0;
-  a03=cos(a12);
-  a15=(a09*a03);
+  a10=cos(a12);
+  a03=(a09*a10);
   a12=sin(a12);
-  a16=(a11*a12);
-  a15=(a15+a16);
-  a15=(a10*a15);
-  a04=(a04-a15);
-  a15=-4.0100000000000002e-01;
-  a16=(a11*a03);
-  a17=(a09*a12);
+  a13=(a11*a12);
+  a03=(a03-a13);
+  a13=arg[4]? arg[4][31] : 0;
+  a03=(a03*a13);
+  a05=(a05+a03);
+  a03=(a11*a10);
+  a15=(a09*a12);
+  a03=(a03+a15);
+  a15=arg[4]? arg[4][32] : 0;
+  a03=(a03*a15);
+  a05=(a05-a03);
+  a03=arg[4]? arg[4][33] : 0;
+  a09=(a09*a03);
+  a05=(a05-a09);
+  a09=arg[4]? arg[4][34] : 0;
+  a11=(a11*a09);
+  a05=(a05+a11);
+  a05=casadi_sq(a05);
+  a11=(a04*a06);
+  a16=(a04*a10);
+  a17=(a14*a12);
   a16=(a16-a17);
-  a16=(a15*a16);
-  a04=(a04+a16);
-  a16=-4.0000000000000002e-01;
-  a09=(a16*a09);
-  a04=(a04-a09);
-  a09=-1.9500000000000000e+00;
-  a11=(a09*a11);
-  a04=(a04+a11);
-  a04=casadi_sq(a04);
-  a11=(a06*a14);
-  a17=(a13*a03);
-  a18=(a14*a12);
-  a17=(a17+a18);
-  a17=(a10*a17);
-  a11=(a11-a17);
-  a17=(a14*a03);
-  a18=(a13*a12);
-  a17=(a17-a18);
-  a17=(a15*a17);
-  a11=(a11+a17);
-  a13=(a16*a13);
-  a11=(a11-a13);
-  a14=(a09*a14);
+  a16=(a16*a13);
+  a11=(a11+a16);
+  a16=(a14*a10);
+  a17=(a04*a12);
+  a16=(a16+a17);
+  a16=(a16*a15);
+  a11=(a11-a16);
+  a04=(a04*a03);
+  a11=(a11-a04);
+  a14=(a14*a09);
   a11=(a11+a14);
   a11=casadi_sq(a11);
-  a04=(a04+a11);
-  a06=(a06*a08);
-  a05=(a05+a06);
-  a06=-2.2000000000000002e+00;
-  a05=(a05+a06);
-  a06=(a07*a03);
-  a11=(a08*a12);
-  a06=(a06-a11);
-  a10=(a10*a06);
-  a05=(a05+a10);
-  a03=(a08*a03);
+  a05=(a05+a11);
+  a06=(a07*a06);
+  a11=(a07*a10);
+  a14=(a08*a12);
+  a11=(a11+a14);
+  a11=(a11*a13);
+  a06=(a06+a11);
+  a10=(a08*a10);
   a12=(a07*a12);
-  a03=(a03+a12);
-  a15=(a15*a03);
-  a05=(a05+a15);
-  a16=(a16*a07);
-  a05=(a05+a16);
-  a09=(a09*a08);
-  a05=(a05+a09);
-  a05=casadi_sq(a05);
-  a04=(a04+a05);
-  a04=sqrt(a04);
-  a05=arg[0]? arg[0][2] : 0;
-  a04=(a04-a05);
-  a02=(a02*a04);
+  a10=(a10-a12);
+  a10=(a10*a15);
+  a06=(a06+a10);
+  a07=(a07*a03);
+  a06=(a06-a07);
+  a08=(a08*a09);
+  a06=(a06-a08);
+  a06=casadi_sq(a06);
+  a05=(a05+a06);
+  a05=sqrt(a05);
+  a06=arg[0]? arg[0][2] : 0;
+  a05=(a05-a06);
+  a02=(a02*a05);
   a01=casadi_fmax(a01,a02);
   a00=casadi_fmin(a00,a01);
   if (res[0]!=0) res[0][2]=a00;
@@ -234,7 +234,7 @@ CASADI_SYMBOL_EXPORT void loader_crane_ctrl_p_incref(void) {
 CASADI_SYMBOL_EXPORT void loader_crane_ctrl_p_decref(void) {
 }
 
-CASADI_SYMBOL_EXPORT casadi_int loader_crane_ctrl_p_n_in(void) { return 4;}
+CASADI_SYMBOL_EXPORT casadi_int loader_crane_ctrl_p_n_in(void) { return 5;}
 
 CASADI_SYMBOL_EXPORT casadi_int loader_crane_ctrl_p_n_out(void) { return 1;}
 
@@ -250,6 +250,7 @@ CASADI_SYMBOL_EXPORT const char* loader_crane_ctrl_p_name_in(casadi_int i) {
     case 1: return "qd0";
     case 2: return "Kleg";
     case 3: return "u_max";
+    case 4: return "numbers";
     default: return 0;
   }
 }
@@ -267,6 +268,7 @@ CASADI_SYMBOL_EXPORT const casadi_int* loader_crane_ctrl_p_sparsity_in(casadi_in
     case 1: return casadi_s0;
     case 2: return casadi_s0;
     case 3: return casadi_s1;
+    case 4: return casadi_s2;
     default: return 0;
   }
 }
@@ -279,7 +281,7 @@ CASADI_SYMBOL_EXPORT const casadi_int* loader_crane_ctrl_p_sparsity_out(casadi_i
 }
 
 CASADI_SYMBOL_EXPORT int loader_crane_ctrl_p_work(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w) {
-  if (sz_arg) *sz_arg = 4;
+  if (sz_arg) *sz_arg = 5;
   if (sz_res) *sz_res = 1;
   if (sz_iw) *sz_iw = 0;
   if (sz_w) *sz_w = 0;
@@ -287,7 +289,7 @@ CASADI_SYMBOL_EXPORT int loader_crane_ctrl_p_work(casadi_int *sz_arg, casadi_int
 }
 
 CASADI_SYMBOL_EXPORT int loader_crane_ctrl_p_work_bytes(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w) {
-  if (sz_arg) *sz_arg = 4*sizeof(const casadi_real*);
+  if (sz_arg) *sz_arg = 5*sizeof(const casadi_real*);
   if (sz_res) *sz_res = 1*sizeof(casadi_real*);
   if (sz_iw) *sz_iw = 0*sizeof(casadi_int);
   if (sz_w) *sz_w = 0*sizeof(casadi_real);

@@ -34,6 +34,7 @@ extern "C" {
 #define casadi_fmin CASADI_PREFIX(fmin)
 #define casadi_s0 CASADI_PREFIX(s0)
 #define casadi_s1 CASADI_PREFIX(s1)
+#define casadi_s2 CASADI_PREFIX(s2)
 #define casadi_sq CASADI_PREFIX(sq)
 
 /* Symbol visibility in DLLs */
@@ -82,13 +83,14 @@ CASADI_SYMBOL_EXPORT int loader_crane_ctrl_p_task_casadi_real_size(void) { retur
 
 static const casadi_int casadi_s0[3] = {3, 1, 1};
 static const casadi_int casadi_s1[3] = {1, 1, 1};
+static const casadi_int casadi_s2[3] = {71, 1, 1};
 
-/* loader_crane_ctrl_p_task:(q[3],qd0[3],Kq[3],u_max)->(u[3]) */
+/* loader_crane_ctrl_p_task:(q[3],qd0[3],Kq[3],u_max,numbers[71])->(u[3]) */
 static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   (void)arg; (void)res; (void)iw; (void)w; (void)mem;
   casadi_real a00, a01, a02, a03, a04, a05, a06, a07, a08, a09, a10, a11;
   casadi_real a12, a13, a14, a15, a16, a17, a18, a19, a20, a21, a22, a23;
-  casadi_real a24;
+  casadi_real a24, a25, a26;
   a00=arg[3]? arg[3][0] : 0;
   a01=(-a00);
   a02=arg[2]? arg[2][0] : 0;
@@ -99,149 +101,153 @@ static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw,
   a02=casadi_fmax(a01,a02);
   a02=casadi_fmin(a00,a02);
   if (res[0]!=0) res[0][0]=a02;
-  a02=sin(a04);
-  a03=7.3499999999999999e-01;
-  a05=arg[0]? arg[0][1] : 0;
-  a06=cos(a05);
-  a07=(a02*a06);
-  a08=(a03*a07);
-  a09=1.4999999999999999e-01;
-  a10=sin(a05);
-  a11=(a02*a10);
-  a12=(a09*a11);
-  a13=(a08-a12);
-  a04=cos(a04);
-  a14=(a09*a04);
-  a15=(a04*a10);
-  a16=(a09*a15);
-  a14=(a14-a16);
-  a17=(a04*a06);
-  a18=(a03*a17);
-  a14=(a14+a18);
-  a19=-2.9999999999999999e-01;
-  a20=(a19*a04);
-  a14=(a14+a20);
-  a20=casadi_sq(a14);
-  a21=(a09*a02);
-  a21=(a21-a12);
-  a21=(a21+a08);
-  a19=(a19*a02);
-  a21=(a21+a19);
-  a19=casadi_sq(a21);
-  a20=(a20+a19);
-  a19=2.2000000000000002e+00;
-  a09=(a09*a06);
-  a08=(a19+a09);
-  a03=(a03*a10);
-  a08=(a08+a03);
-  a12=-1.1100000000000001e+00;
-  a08=(a08+a12);
-  a12=casadi_sq(a08);
-  a20=(a20+a12);
-  a20=sqrt(a20);
-  a13=(a13/a20);
-  a13=(a13*a08);
-  a09=(a09+a03);
-  a09=(a09/a20);
-  a21=(a09*a21);
-  a13=(a13-a21);
-  a13=(a02*a13);
-  a09=(a09*a14);
-  a18=(a18-a16);
-  a18=(a18/a20);
-  a18=(a18*a08);
-  a09=(a09-a18);
-  a09=(a04*a09);
-  a13=(a13-a09);
-  a09=arg[2]? arg[2][1] : 0;
-  a13=(a13*a09);
-  a09=arg[1]? arg[1][1] : 0;
-  a09=(a09-a05);
-  a13=(a13*a09);
-  a13=casadi_fmax(a01,a13);
-  a13=casadi_fmin(a00,a13);
-  if (res[0]!=0) res[0][1]=a13;
-  a13=-4.0100000000000002e-01;
-  a09=arg[0]? arg[0][2] : 0;
-  a05=cos(a09);
-  a18=(a07*a05);
-  a08=sin(a09);
-  a20=(a11*a08);
-  a18=(a18-a20);
-  a18=(a13*a18);
-  a20=2.0399999999999999e-01;
-  a16=(a11*a05);
-  a14=(a07*a08);
-  a16=(a16+a14);
-  a16=(a20*a16);
-  a14=(a18-a16);
-  a21=3.7999999999999998e+00;
-  a03=(a21*a17);
-  a12=(a15*a05);
-  a22=(a17*a08);
-  a12=(a12+a22);
-  a12=(a20*a12);
-  a03=(a03-a12);
-  a22=(a17*a05);
-  a23=(a15*a08);
-  a22=(a22-a23);
-  a22=(a13*a22);
-  a03=(a03+a22);
-  a23=-4.0000000000000002e-01;
-  a15=(a23*a15);
-  a03=(a03-a15);
-  a15=-1.9500000000000000e+00;
-  a17=(a15*a17);
-  a03=(a03+a17);
-  a17=casadi_sq(a03);
-  a24=(a21*a07);
-  a24=(a24-a16);
-  a24=(a24+a18);
+  a02=cos(a04);
+  a03=arg[4]? arg[4][24] : 0;
+  a05=(a02*a03);
+  a06=arg[0]? arg[0][1] : 0;
+  a07=sin(a06);
+  a08=arg[4]? arg[4][27] : 0;
+  a09=(a07*a08);
+  a10=cos(a06);
+  a11=arg[4]? arg[4][28] : 0;
+  a12=(a10*a11);
+  a13=(a09+a12);
+  a14=arg[4]? arg[4][22] : 0;
+  a15=(a02*a14);
+  a16=(a02*a10);
+  a17=(a16*a08);
+  a15=(a15+a17);
+  a18=(a02*a07);
+  a19=(a18*a11);
+  a15=(a15-a19);
+  a20=arg[4]? arg[4][29] : 0;
+  a21=(a02*a20);
+  a15=(a15-a21);
+  a21=casadi_sq(a15);
+  a04=sin(a04);
+  a14=(a04*a14);
+  a22=(a04*a10);
+  a08=(a22*a08);
+  a14=(a14+a08);
+  a23=(a04*a07);
   a11=(a23*a11);
-  a24=(a24-a11);
-  a07=(a15*a07);
-  a24=(a24+a07);
-  a07=casadi_sq(a24);
-  a17=(a17+a07);
-  a21=(a21*a10);
-  a19=(a19+a21);
-  a21=-2.2000000000000002e+00;
-  a19=(a19+a21);
-  a21=(a06*a05);
-  a07=(a10*a08);
-  a21=(a21-a07);
+  a14=(a14-a11);
+  a20=(a04*a20);
+  a14=(a14-a20);
+  a20=casadi_sq(a14);
+  a21=(a21+a20);
+  a20=arg[4]? arg[4][23] : 0;
+  a20=(a20+a09);
+  a20=(a20+a12);
+  a12=arg[4]? arg[4][30] : 0;
+  a20=(a20-a12);
+  a12=casadi_sq(a20);
+  a21=(a21+a12);
+  a21=sqrt(a21);
+  a13=(a13/a21);
+  a15=(a13*a15);
+  a17=(a17-a19);
+  a17=(a17/a21);
+  a17=(a17*a20);
+  a15=(a15-a17);
+  a05=(a05*a15);
+  a03=(a04*a03);
+  a08=(a08-a11);
+  a08=(a08/a21);
+  a08=(a08*a20);
+  a13=(a13*a14);
+  a08=(a08-a13);
+  a03=(a03*a08);
+  a05=(a05-a03);
+  a03=arg[2]? arg[2][1] : 0;
+  a05=(a05*a03);
+  a03=arg[1]? arg[1][1] : 0;
+  a03=(a03-a06);
+  a05=(a05*a03);
+  a05=casadi_fmax(a01,a05);
+  a05=casadi_fmin(a00,a05);
+  if (res[0]!=0) res[0][1]=a05;
+  a05=arg[4]? arg[4][26] : 0;
+  a02=(a02*a05);
+  a03=arg[0]? arg[0][2] : 0;
+  a06=cos(a03);
+  a08=(a07*a06);
+  a13=sin(a03);
+  a14=(a10*a13);
+  a08=(a08+a14);
+  a14=arg[4]? arg[4][31] : 0;
+  a08=(a08*a14);
+  a20=(a10*a06);
+  a21=(a07*a13);
+  a20=(a20-a21);
+  a21=arg[4]? arg[4][32] : 0;
   a20=(a20*a21);
-  a19=(a19+a20);
-  a05=(a10*a05);
-  a08=(a06*a08);
-  a05=(a05+a08);
-  a13=(a13*a05);
-  a19=(a19+a13);
-  a23=(a23*a06);
-  a19=(a19+a23);
-  a15=(a15*a10);
-  a19=(a19+a15);
-  a15=casadi_sq(a19);
-  a17=(a17+a15);
-  a17=sqrt(a17);
-  a14=(a14/a17);
-  a14=(a14*a19);
-  a20=(a20+a13);
-  a20=(a20/a17);
-  a24=(a20*a24);
-  a14=(a14-a24);
-  a02=(a02*a14);
-  a20=(a20*a03);
-  a22=(a22-a12);
-  a22=(a22/a17);
-  a22=(a22*a19);
-  a20=(a20-a22);
-  a04=(a04*a20);
+  a11=(a08+a20);
+  a15=arg[4]? arg[4][25] : 0;
+  a17=(a16*a15);
+  a19=(a16*a06);
+  a12=(a18*a13);
+  a19=(a19-a12);
+  a19=(a19*a14);
+  a17=(a17+a19);
+  a12=(a18*a06);
+  a09=(a16*a13);
+  a12=(a12+a09);
+  a12=(a12*a21);
+  a17=(a17-a12);
+  a09=arg[4]? arg[4][33] : 0;
+  a16=(a16*a09);
+  a17=(a17-a16);
+  a16=arg[4]? arg[4][34] : 0;
+  a18=(a18*a16);
+  a17=(a17+a18);
+  a18=casadi_sq(a17);
+  a24=(a22*a15);
+  a25=(a22*a06);
+  a26=(a23*a13);
+  a25=(a25-a26);
+  a25=(a25*a14);
+  a24=(a24+a25);
+  a06=(a23*a06);
+  a13=(a22*a13);
+  a06=(a06+a13);
+  a06=(a06*a21);
+  a24=(a24-a06);
+  a22=(a22*a09);
+  a24=(a24-a22);
+  a23=(a23*a16);
+  a24=(a24+a23);
+  a23=casadi_sq(a24);
+  a18=(a18+a23);
+  a15=(a07*a15);
+  a15=(a15+a08);
+  a15=(a15+a20);
+  a07=(a07*a09);
+  a15=(a15-a07);
+  a10=(a10*a16);
+  a15=(a15-a10);
+  a10=casadi_sq(a15);
+  a18=(a18+a10);
+  a18=sqrt(a18);
+  a11=(a11/a18);
+  a17=(a11*a17);
+  a19=(a19-a12);
+  a19=(a19/a18);
+  a19=(a19*a15);
+  a17=(a17-a19);
+  a02=(a02*a17);
+  a04=(a04*a05);
+  a25=(a25-a06);
+  a25=(a25/a18);
+  a25=(a25*a15);
+  a11=(a11*a24);
+  a25=(a25-a11);
+  a04=(a04*a25);
   a02=(a02-a04);
   a04=arg[2]? arg[2][2] : 0;
   a02=(a02*a04);
   a04=arg[1]? arg[1][2] : 0;
-  a04=(a04-a09);
+  a04=(a04-a03);
   a02=(a02*a04);
   a01=casadi_fmax(a01,a02);
   a00=casadi_fmin(a00,a01);
@@ -267,7 +273,7 @@ CASADI_SYMBOL_EXPORT void loader_crane_ctrl_p_task_incref(void) {
 CASADI_SYMBOL_EXPORT void loader_crane_ctrl_p_task_decref(void) {
 }
 
-CASADI_SYMBOL_EXPORT casadi_int loader_crane_ctrl_p_task_n_in(void) { return 4;}
+CASADI_SYMBOL_EXPORT casadi_int loader_crane_ctrl_p_task_n_in(void) { return 5;}
 
 CASADI_SYMBOL_EXPORT casadi_int loader_crane_ctrl_p_task_n_out(void) { return 1;}
 
@@ -283,6 +289,7 @@ CASADI_SYMBOL_EXPORT const char* loader_crane_ctrl_p_task_name_in(casadi_int i) 
     case 1: return "qd0";
     case 2: return "Kq";
     case 3: return "u_max";
+    case 4: return "numbers";
     default: return 0;
   }
 }
@@ -300,6 +307,7 @@ CASADI_SYMBOL_EXPORT const casadi_int* loader_crane_ctrl_p_task_sparsity_in(casa
     case 1: return casadi_s0;
     case 2: return casadi_s0;
     case 3: return casadi_s1;
+    case 4: return casadi_s2;
     default: return 0;
   }
 }
@@ -312,7 +320,7 @@ CASADI_SYMBOL_EXPORT const casadi_int* loader_crane_ctrl_p_task_sparsity_out(cas
 }
 
 CASADI_SYMBOL_EXPORT int loader_crane_ctrl_p_task_work(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w) {
-  if (sz_arg) *sz_arg = 4;
+  if (sz_arg) *sz_arg = 5;
   if (sz_res) *sz_res = 1;
   if (sz_iw) *sz_iw = 0;
   if (sz_w) *sz_w = 0;
@@ -320,7 +328,7 @@ CASADI_SYMBOL_EXPORT int loader_crane_ctrl_p_task_work(casadi_int *sz_arg, casad
 }
 
 CASADI_SYMBOL_EXPORT int loader_crane_ctrl_p_task_work_bytes(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w) {
-  if (sz_arg) *sz_arg = 4*sizeof(const casadi_real*);
+  if (sz_arg) *sz_arg = 5*sizeof(const casadi_real*);
   if (sz_res) *sz_res = 1*sizeof(casadi_real*);
   if (sz_iw) *sz_iw = 0*sizeof(casadi_int);
   if (sz_w) *sz_w = 0*sizeof(casadi_real);

@@ -32,6 +32,7 @@ extern "C" {
 #define casadi_f0 CASADI_PREFIX(f0)
 #define casadi_s0 CASADI_PREFIX(s0)
 #define casadi_s1 CASADI_PREFIX(s1)
+#define casadi_s2 CASADI_PREFIX(s2)
 
 /* Symbol visibility in DLLs */
 #ifndef CASADI_SYMBOL_EXPORT
@@ -59,48 +60,48 @@ CASADI_SYMBOL_EXPORT int loader_crane_gravity_casadi_real_size(void) { return (i
 
 static const casadi_int casadi_s0[3] = {3, 1, 1};
 static const casadi_int casadi_s1[3] = {8, 1, 1};
+static const casadi_int casadi_s2[3] = {71, 1, 1};
 
-/* loader_crane_gravity:(q[3],theta[8])->(G[3]) */
+/* loader_crane_gravity:(q[3],theta[8],numbers[71])->(G[3]) */
 static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   (void)arg; (void)res; (void)iw; (void)w; (void)mem;
   casadi_real a0, a1, a2, a3, a4, a5, a6, a7, a8;
   a0=0.;
   if (res[0]!=0) res[0][0]=a0;
-  a0=1.2674520000000000e+04;
-  a1=arg[0]? arg[0][1] : 0;
-  a2=cos(a1);
-  a0=(a0*a2);
-  a3=9.8100000000000005e+00;
-  a4=arg[1]? arg[1][0] : 0;
-  a4=(a3*a4);
-  a4=(a4*a2);
-  a0=(a0+a4);
+  a0=arg[2]? arg[2][35] : 0;
+  a1=arg[1]? arg[1][0] : 0;
+  a2=arg[0]? arg[0][1] : 0;
+  a3=cos(a2);
+  a1=(a1*a3);
   a4=arg[1]? arg[1][4] : 0;
-  a4=(a3*a4);
   a5=arg[0]? arg[0][2] : 0;
   a6=cos(a5);
-  a7=(a2*a6);
-  a1=sin(a1);
+  a7=(a3*a6);
+  a2=sin(a2);
   a5=sin(a5);
-  a8=(a1*a5);
+  a8=(a2*a5);
   a7=(a7-a8);
   a4=(a4*a7);
-  a0=(a0+a4);
+  a1=(a1+a4);
   a7=arg[1]? arg[1][5] : 0;
-  a3=(a3*a7);
-  a2=(a2*a5);
-  a6=(a6*a1);
-  a2=(a2+a6);
-  a3=(a3*a2);
-  a0=(a0-a3);
-  a2=-9.8100000000000005e+00;
-  a6=arg[1]? arg[1][1] : 0;
-  a2=(a2*a6);
-  a2=(a2*a1);
-  a0=(a0+a2);
-  if (res[0]!=0) res[0][1]=a0;
-  a4=(a4-a3);
-  if (res[0]!=0) res[0][2]=a4;
+  a5=(a3*a5);
+  a6=(a6*a2);
+  a5=(a5+a6);
+  a7=(a7*a5);
+  a1=(a1-a7);
+  a5=arg[1]? arg[1][1] : 0;
+  a5=(a5*a2);
+  a1=(a1-a5);
+  a5=arg[2]? arg[2][14] : 0;
+  a2=arg[2]? arg[2][25] : 0;
+  a5=(a5*a2);
+  a5=(a5*a3);
+  a1=(a1+a5);
+  a1=(a0*a1);
+  if (res[0]!=0) res[0][1]=a1;
+  a4=(a4-a7);
+  a0=(a0*a4);
+  if (res[0]!=0) res[0][2]=a0;
   return 0;
 }
 
@@ -122,7 +123,7 @@ CASADI_SYMBOL_EXPORT void loader_crane_gravity_incref(void) {
 CASADI_SYMBOL_EXPORT void loader_crane_gravity_decref(void) {
 }
 
-CASADI_SYMBOL_EXPORT casadi_int loader_crane_gravity_n_in(void) { return 2;}
+CASADI_SYMBOL_EXPORT casadi_int loader_crane_gravity_n_in(void) { return 3;}
 
 CASADI_SYMBOL_EXPORT casadi_int loader_crane_gravity_n_out(void) { return 1;}
 
@@ -136,6 +137,7 @@ CASADI_SYMBOL_EXPORT const char* loader_crane_gravity_name_in(casadi_int i) {
   switch (i) {
     case 0: return "q";
     case 1: return "theta";
+    case 2: return "numbers";
     default: return 0;
   }
 }
@@ -151,6 +153,7 @@ CASADI_SYMBOL_EXPORT const casadi_int* loader_crane_gravity_sparsity_in(casadi_i
   switch (i) {
     case 0: return casadi_s0;
     case 1: return casadi_s1;
+    case 2: return casadi_s2;
     default: return 0;
   }
 }
@@ -163,7 +166,7 @@ CASADI_SYMBOL_EXPORT const casadi_int* loader_crane_gravity_sparsity_out(casadi_
 }
 
 CASADI_SYMBOL_EXPORT int loader_crane_gravity_work(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w) {
-  if (sz_arg) *sz_arg = 2;
+  if (sz_arg) *sz_arg = 3;
   if (sz_res) *sz_res = 1;
   if (sz_iw) *sz_iw = 0;
   if (sz_w) *sz_w = 0;
@@ -171,7 +174,7 @@ CASADI_SYMBOL_EXPORT int loader_crane_gravity_work(casadi_int *sz_arg, casadi_in
 }
 
 CASADI_SYMBOL_EXPORT int loader_crane_gravity_work_bytes(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w) {
-  if (sz_arg) *sz_arg = 2*sizeof(const casadi_real*);
+  if (sz_arg) *sz_arg = 3*sizeof(const casadi_real*);
   if (sz_res) *sz_res = 1*sizeof(casadi_real*);
   if (sz_iw) *sz_iw = 0*sizeof(casadi_int);
   if (sz_w) *sz_w = 0*sizeof(casadi_real);

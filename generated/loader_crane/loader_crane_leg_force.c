@@ -32,6 +32,7 @@ extern "C" {
 #define casadi_f0 CASADI_PREFIX(f0)
 #define casadi_s0 CASADI_PREFIX(s0)
 #define casadi_s1 CASADI_PREFIX(s1)
+#define casadi_s2 CASADI_PREFIX(s2)
 
 /* Symbol visibility in DLLs */
 #ifndef CASADI_SYMBOL_EXPORT
@@ -58,36 +59,36 @@ CASADI_SYMBOL_EXPORT int loader_crane_leg_force_casadi_int_size(void) { return (
 CASADI_SYMBOL_EXPORT int loader_crane_leg_force_casadi_real_size(void) { return (int) sizeof(casadi_real); }
 
 static const casadi_int casadi_s0[3] = {6, 1, 1};
-static const casadi_int casadi_s1[3] = {3, 1, 1};
+static const casadi_int casadi_s1[3] = {71, 1, 1};
+static const casadi_int casadi_s2[3] = {3, 1, 1};
 
-/* loader_crane_leg_force:(pc[6])->(f[3]) */
+/* loader_crane_leg_force:(pc[6],numbers[71])->(f[3]) */
 static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   (void)arg; (void)res; (void)iw; (void)w; (void)mem;
   casadi_real a0, a1, a2;
-  a0=8.0000000000000004e-04;
+  a0=arg[1]? arg[1][36] : 0;
   a1=arg[0]? arg[0][0] : 0;
-  a0=(a0*a1);
-  a1=-8.0000000000000004e-04;
+  a1=(a0*a1);
   a2=arg[0]? arg[0][1] : 0;
-  a1=(a1*a2);
-  a0=(a0+a1);
-  if (res[0]!=0) res[0][0]=a0;
-  a0=7.8539999999999999e-03;
-  a1=arg[0]? arg[0][2] : 0;
-  a0=(a0*a1);
-  a1=-5.0264999999999997e-03;
+  a0=(a0*a2);
+  a1=(a1-a0);
+  if (res[0]!=0) res[0][0]=a1;
+  a1=arg[1]? arg[1][47] : 0;
+  a0=arg[0]? arg[0][2] : 0;
+  a1=(a1*a0);
+  a0=arg[1]? arg[1][48] : 0;
   a2=arg[0]? arg[0][3] : 0;
-  a1=(a1*a2);
-  a0=(a0+a1);
-  if (res[0]!=0) res[0][1]=a0;
-  a0=6.3616999999999996e-03;
-  a1=arg[0]? arg[0][4] : 0;
-  a0=(a0*a1);
-  a1=-4.3981999999999997e-03;
+  a0=(a0*a2);
+  a1=(a1-a0);
+  if (res[0]!=0) res[0][1]=a1;
+  a1=arg[1]? arg[1][59] : 0;
+  a0=arg[0]? arg[0][4] : 0;
+  a1=(a1*a0);
+  a0=arg[1]? arg[1][60] : 0;
   a2=arg[0]? arg[0][5] : 0;
-  a1=(a1*a2);
-  a0=(a0+a1);
-  if (res[0]!=0) res[0][2]=a0;
+  a0=(a0*a2);
+  a1=(a1-a0);
+  if (res[0]!=0) res[0][2]=a1;
   return 0;
 }
 
@@ -109,7 +110,7 @@ CASADI_SYMBOL_EXPORT void loader_crane_leg_force_incref(void) {
 CASADI_SYMBOL_EXPORT void loader_crane_leg_force_decref(void) {
 }
 
-CASADI_SYMBOL_EXPORT casadi_int loader_crane_leg_force_n_in(void) { return 1;}
+CASADI_SYMBOL_EXPORT casadi_int loader_crane_leg_force_n_in(void) { return 2;}
 
 CASADI_SYMBOL_EXPORT casadi_int loader_crane_leg_force_n_out(void) { return 1;}
 
@@ -122,6 +123,7 @@ CASADI_SYMBOL_EXPORT casadi_real loader_crane_leg_force_default_in(casadi_int i)
 CASADI_SYMBOL_EXPORT const char* loader_crane_leg_force_name_in(casadi_int i) {
   switch (i) {
     case 0: return "pc";
+    case 1: return "numbers";
     default: return 0;
   }
 }
@@ -136,19 +138,20 @@ CASADI_SYMBOL_EXPORT const char* loader_crane_leg_force_name_out(casadi_int i) {
 CASADI_SYMBOL_EXPORT const casadi_int* loader_crane_leg_force_sparsity_in(casadi_int i) {
   switch (i) {
     case 0: return casadi_s0;
+    case 1: return casadi_s1;
     default: return 0;
   }
 }
 
 CASADI_SYMBOL_EXPORT const casadi_int* loader_crane_leg_force_sparsity_out(casadi_int i) {
   switch (i) {
-    case 0: return casadi_s1;
+    case 0: return casadi_s2;
     default: return 0;
   }
 }
 
 CASADI_SYMBOL_EXPORT int loader_crane_leg_force_work(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w) {
-  if (sz_arg) *sz_arg = 1;
+  if (sz_arg) *sz_arg = 2;
   if (sz_res) *sz_res = 1;
   if (sz_iw) *sz_iw = 0;
   if (sz_w) *sz_w = 0;
@@ -156,7 +159,7 @@ CASADI_SYMBOL_EXPORT int loader_crane_leg_force_work(casadi_int *sz_arg, casadi_
 }
 
 CASADI_SYMBOL_EXPORT int loader_crane_leg_force_work_bytes(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w) {
-  if (sz_arg) *sz_arg = 1*sizeof(const casadi_real*);
+  if (sz_arg) *sz_arg = 2*sizeof(const casadi_real*);
   if (sz_res) *sz_res = 1*sizeof(casadi_real*);
   if (sz_iw) *sz_iw = 0*sizeof(casadi_int);
   if (sz_w) *sz_w = 0*sizeof(casadi_real);

@@ -32,6 +32,7 @@ extern "C" {
 #define casadi_f0 CASADI_PREFIX(f0)
 #define casadi_s0 CASADI_PREFIX(s0)
 #define casadi_s1 CASADI_PREFIX(s1)
+#define casadi_s2 CASADI_PREFIX(s2)
 #define casadi_sq CASADI_PREFIX(sq)
 
 /* Symbol visibility in DLLs */
@@ -61,13 +62,14 @@ CASADI_SYMBOL_EXPORT int loader_crane_leg_jacobian_casadi_int_size(void) { retur
 CASADI_SYMBOL_EXPORT int loader_crane_leg_jacobian_casadi_real_size(void) { return (int) sizeof(casadi_real); }
 
 static const casadi_int casadi_s0[3] = {3, 1, 1};
-static const casadi_int casadi_s1[3] = {3, 3, 1};
+static const casadi_int casadi_s1[3] = {71, 1, 1};
+static const casadi_int casadi_s2[3] = {3, 3, 1};
 
-/* loader_crane_leg_jacobian:(q[3])->(JL[3x3]) */
+/* loader_crane_leg_jacobian:(q[3],numbers[71])->(JL[3x3]) */
 static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   (void)arg; (void)res; (void)iw; (void)w; (void)mem;
   casadi_real a00, a01, a02, a03, a04, a05, a06, a07, a08, a09, a10, a11;
-  casadi_real a12, a13, a14, a15, a16, a17, a18, a19, a20, a21;
+  casadi_real a12, a13, a14, a15, a16, a17, a18, a19, a20, a21, a22, a23;
   a00=1.;
   if (res[0]!=0) res[0][0]=a00;
   a00=0.;
@@ -75,140 +77,144 @@ static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw,
   if (res[0]!=0) res[0][2]=a00;
   if (res[0]!=0) res[0][3]=a00;
   a01=arg[0]? arg[0][0] : 0;
-  a02=sin(a01);
-  a03=7.3499999999999999e-01;
-  a04=arg[0]? arg[0][1] : 0;
-  a05=cos(a04);
-  a06=(a02*a05);
-  a07=(a03*a06);
-  a08=1.4999999999999999e-01;
-  a04=sin(a04);
-  a09=(a02*a04);
-  a10=(a08*a09);
-  a11=(a07-a10);
-  a01=cos(a01);
-  a12=(a08*a01);
-  a13=(a01*a04);
-  a14=(a08*a13);
-  a12=(a12-a14);
-  a15=(a01*a05);
-  a16=(a03*a15);
-  a12=(a12+a16);
-  a17=-2.9999999999999999e-01;
-  a18=(a17*a01);
-  a12=(a12+a18);
+  a02=cos(a01);
+  a03=arg[1]? arg[1][24] : 0;
+  a04=(a02*a03);
+  a05=arg[0]? arg[0][1] : 0;
+  a06=sin(a05);
+  a07=arg[1]? arg[1][27] : 0;
+  a08=(a06*a07);
+  a05=cos(a05);
+  a09=arg[1]? arg[1][28] : 0;
+  a10=(a05*a09);
+  a11=(a08+a10);
+  a12=arg[1]? arg[1][22] : 0;
+  a13=(a02*a12);
+  a14=(a02*a05);
+  a15=(a14*a07);
+  a13=(a13+a15);
+  a16=(a02*a06);
+  a17=(a16*a09);
+  a13=(a13-a17);
+  a18=arg[1]? arg[1][29] : 0;
+  a19=(a02*a18);
+  a13=(a13-a19);
+  a19=casadi_sq(a13);
+  a01=sin(a01);
+  a12=(a01*a12);
+  a20=(a01*a05);
+  a07=(a20*a07);
+  a12=(a12+a07);
+  a21=(a01*a06);
+  a09=(a21*a09);
+  a12=(a12-a09);
+  a18=(a01*a18);
+  a12=(a12-a18);
   a18=casadi_sq(a12);
-  a19=(a08*a02);
-  a19=(a19-a10);
-  a19=(a19+a07);
-  a17=(a17*a02);
-  a19=(a19+a17);
-  a17=casadi_sq(a19);
-  a18=(a18+a17);
-  a17=2.2000000000000002e+00;
-  a08=(a08*a05);
-  a07=(a17+a08);
-  a03=(a03*a04);
-  a07=(a07+a03);
-  a10=-1.1100000000000001e+00;
-  a07=(a07+a10);
-  a10=casadi_sq(a07);
+  a19=(a19+a18);
+  a18=arg[1]? arg[1][23] : 0;
+  a18=(a18+a08);
   a18=(a18+a10);
-  a18=sqrt(a18);
-  a11=(a11/a18);
-  a11=(a11*a07);
-  a08=(a08+a03);
-  a08=(a08/a18);
-  a19=(a08*a19);
-  a11=(a11-a19);
-  a11=(a02*a11);
-  a08=(a08*a12);
-  a16=(a16-a14);
-  a16=(a16/a18);
-  a16=(a16*a07);
-  a08=(a08-a16);
-  a08=(a01*a08);
-  a11=(a11-a08);
-  if (res[0]!=0) res[0][4]=a11;
+  a10=arg[1]? arg[1][30] : 0;
+  a18=(a18-a10);
+  a10=casadi_sq(a18);
+  a19=(a19+a10);
+  a19=sqrt(a19);
+  a11=(a11/a19);
+  a13=(a11*a13);
+  a15=(a15-a17);
+  a15=(a15/a19);
+  a15=(a15*a18);
+  a13=(a13-a15);
+  a04=(a04*a13);
+  a03=(a01*a03);
+  a07=(a07-a09);
+  a07=(a07/a19);
+  a07=(a07*a18);
+  a11=(a11*a12);
+  a07=(a07-a11);
+  a03=(a03*a07);
+  a04=(a04-a03);
+  if (res[0]!=0) res[0][4]=a04;
   if (res[0]!=0) res[0][5]=a00;
   if (res[0]!=0) res[0][6]=a00;
   if (res[0]!=0) res[0][7]=a00;
-  a00=-4.0100000000000002e-01;
-  a11=arg[0]? arg[0][2] : 0;
-  a08=cos(a11);
-  a16=(a06*a08);
-  a11=sin(a11);
-  a07=(a09*a11);
-  a16=(a16-a07);
-  a16=(a00*a16);
-  a07=2.0399999999999999e-01;
-  a18=(a09*a08);
-  a14=(a06*a11);
-  a18=(a18+a14);
-  a18=(a07*a18);
-  a14=(a16-a18);
-  a12=3.7999999999999998e+00;
-  a19=(a12*a15);
-  a03=(a13*a08);
-  a10=(a15*a11);
-  a03=(a03+a10);
-  a03=(a07*a03);
-  a19=(a19-a03);
-  a10=(a15*a08);
-  a20=(a13*a11);
-  a10=(a10-a20);
-  a10=(a00*a10);
-  a19=(a19+a10);
-  a20=-4.0000000000000002e-01;
-  a13=(a20*a13);
-  a19=(a19-a13);
-  a13=-1.9500000000000000e+00;
-  a15=(a13*a15);
-  a19=(a19+a15);
-  a15=casadi_sq(a19);
-  a21=(a12*a06);
-  a21=(a21-a18);
-  a21=(a21+a16);
-  a09=(a20*a09);
-  a21=(a21-a09);
-  a06=(a13*a06);
-  a21=(a21+a06);
-  a06=casadi_sq(a21);
-  a15=(a15+a06);
-  a12=(a12*a04);
-  a17=(a17+a12);
-  a12=-2.2000000000000002e+00;
-  a17=(a17+a12);
-  a12=(a05*a08);
-  a06=(a04*a11);
-  a12=(a12-a06);
-  a07=(a07*a12);
-  a17=(a17+a07);
-  a08=(a04*a08);
-  a11=(a05*a11);
-  a08=(a08+a11);
-  a00=(a00*a08);
-  a17=(a17+a00);
-  a20=(a20*a05);
-  a17=(a17+a20);
-  a13=(a13*a04);
-  a17=(a17+a13);
-  a13=casadi_sq(a17);
-  a15=(a15+a13);
-  a15=sqrt(a15);
-  a14=(a14/a15);
-  a14=(a14*a17);
-  a07=(a07+a00);
-  a07=(a07/a15);
-  a21=(a07*a21);
-  a14=(a14-a21);
-  a02=(a02*a14);
-  a07=(a07*a19);
-  a10=(a10-a03);
-  a10=(a10/a15);
-  a10=(a10*a17);
-  a07=(a07-a10);
-  a01=(a01*a07);
+  a00=arg[1]? arg[1][26] : 0;
+  a02=(a02*a00);
+  a04=arg[0]? arg[0][2] : 0;
+  a03=cos(a04);
+  a07=(a06*a03);
+  a04=sin(a04);
+  a11=(a05*a04);
+  a07=(a07+a11);
+  a11=arg[1]? arg[1][31] : 0;
+  a07=(a07*a11);
+  a12=(a05*a03);
+  a18=(a06*a04);
+  a12=(a12-a18);
+  a18=arg[1]? arg[1][32] : 0;
+  a12=(a12*a18);
+  a19=(a07+a12);
+  a09=arg[1]? arg[1][25] : 0;
+  a13=(a14*a09);
+  a15=(a14*a03);
+  a17=(a16*a04);
+  a15=(a15-a17);
+  a15=(a15*a11);
+  a13=(a13+a15);
+  a17=(a16*a03);
+  a10=(a14*a04);
+  a17=(a17+a10);
+  a17=(a17*a18);
+  a13=(a13-a17);
+  a10=arg[1]? arg[1][33] : 0;
+  a14=(a14*a10);
+  a13=(a13-a14);
+  a14=arg[1]? arg[1][34] : 0;
+  a16=(a16*a14);
+  a13=(a13+a16);
+  a16=casadi_sq(a13);
+  a08=(a20*a09);
+  a22=(a20*a03);
+  a23=(a21*a04);
+  a22=(a22-a23);
+  a22=(a22*a11);
+  a08=(a08+a22);
+  a03=(a21*a03);
+  a04=(a20*a04);
+  a03=(a03+a04);
+  a03=(a03*a18);
+  a08=(a08-a03);
+  a20=(a20*a10);
+  a08=(a08-a20);
+  a21=(a21*a14);
+  a08=(a08+a21);
+  a21=casadi_sq(a08);
+  a16=(a16+a21);
+  a09=(a06*a09);
+  a09=(a09+a07);
+  a09=(a09+a12);
+  a06=(a06*a10);
+  a09=(a09-a06);
+  a05=(a05*a14);
+  a09=(a09-a05);
+  a05=casadi_sq(a09);
+  a16=(a16+a05);
+  a16=sqrt(a16);
+  a19=(a19/a16);
+  a13=(a19*a13);
+  a15=(a15-a17);
+  a15=(a15/a16);
+  a15=(a15*a09);
+  a13=(a13-a15);
+  a02=(a02*a13);
+  a01=(a01*a00);
+  a22=(a22-a03);
+  a22=(a22/a16);
+  a22=(a22*a09);
+  a19=(a19*a08);
+  a22=(a22-a19);
+  a01=(a01*a22);
   a02=(a02-a01);
   if (res[0]!=0) res[0][8]=a02;
   return 0;
@@ -232,7 +238,7 @@ CASADI_SYMBOL_EXPORT void loader_crane_leg_jacobian_incref(void) {
 CASADI_SYMBOL_EXPORT void loader_crane_leg_jacobian_decref(void) {
 }
 
-CASADI_SYMBOL_EXPORT casadi_int loader_crane_leg_jacobian_n_in(void) { return 1;}
+CASADI_SYMBOL_EXPORT casadi_int loader_crane_leg_jacobian_n_in(void) { return 2;}
 
 CASADI_SYMBOL_EXPORT casadi_int loader_crane_leg_jacobian_n_out(void) { return 1;}
 
@@ -245,6 +251,7 @@ CASADI_SYMBOL_EXPORT casadi_real loader_crane_leg_jacobian_default_in(casadi_int
 CASADI_SYMBOL_EXPORT const char* loader_crane_leg_jacobian_name_in(casadi_int i) {
   switch (i) {
     case 0: return "q";
+    case 1: return "numbers";
     default: return 0;
   }
 }
@@ -259,19 +266,20 @@ CASADI_SYMBOL_EXPORT const char* loader_crane_leg_jacobian_name_out(casadi_int i
 CASADI_SYMBOL_EXPORT const casadi_int* loader_crane_leg_jacobian_sparsity_in(casadi_int i) {
   switch (i) {
     case 0: return casadi_s0;
+    case 1: return casadi_s1;
     default: return 0;
   }
 }
 
 CASADI_SYMBOL_EXPORT const casadi_int* loader_crane_leg_jacobian_sparsity_out(casadi_int i) {
   switch (i) {
-    case 0: return casadi_s1;
+    case 0: return casadi_s2;
     default: return 0;
   }
 }
 
 CASADI_SYMBOL_EXPORT int loader_crane_leg_jacobian_work(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w) {
-  if (sz_arg) *sz_arg = 1;
+  if (sz_arg) *sz_arg = 2;
   if (sz_res) *sz_res = 1;
   if (sz_iw) *sz_iw = 0;
   if (sz_w) *sz_w = 0;
@@ -279,7 +287,7 @@ CASADI_SYMBOL_EXPORT int loader_crane_leg_jacobian_work(casadi_int *sz_arg, casa
 }
 
 CASADI_SYMBOL_EXPORT int loader_crane_leg_jacobian_work_bytes(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w) {
-  if (sz_arg) *sz_arg = 1*sizeof(const casadi_real*);
+  if (sz_arg) *sz_arg = 2*sizeof(const casadi_real*);
   if (sz_res) *sz_res = 1*sizeof(casadi_real*);
   if (sz_iw) *sz_iw = 0*sizeof(casadi_int);
   if (sz_w) *sz_w = 0*sizeof(casadi_real);

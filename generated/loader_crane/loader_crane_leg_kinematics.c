@@ -32,6 +32,7 @@ extern "C" {
 #define casadi_f0 CASADI_PREFIX(f0)
 #define casadi_s0 CASADI_PREFIX(s0)
 #define casadi_s1 CASADI_PREFIX(s1)
+#define casadi_s2 CASADI_PREFIX(s2)
 #define casadi_sq CASADI_PREFIX(sq)
 
 /* Symbol visibility in DLLs */
@@ -61,160 +62,165 @@ CASADI_SYMBOL_EXPORT int loader_crane_leg_kinematics_casadi_int_size(void) { ret
 CASADI_SYMBOL_EXPORT int loader_crane_leg_kinematics_casadi_real_size(void) { return (int) sizeof(casadi_real); }
 
 static const casadi_int casadi_s0[3] = {3, 1, 1};
-static const casadi_int casadi_s1[3] = {3, 3, 1};
+static const casadi_int casadi_s1[3] = {71, 1, 1};
+static const casadi_int casadi_s2[3] = {3, 3, 1};
 
-/* loader_crane_leg_kinematics:(q[3])->(l[3],JL[3x3]) */
+/* loader_crane_leg_kinematics:(q[3],numbers[71])->(l[3],JL[3x3]) */
 static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   (void)arg; (void)res; (void)iw; (void)w; (void)mem;
   casadi_real a00, a01, a02, a03, a04, a05, a06, a07, a08, a09, a10, a11;
   casadi_real a12, a13, a14, a15, a16, a17, a18, a19, a20, a21, a22, a23;
-  casadi_real a24, a25, a26, a27, a28, a29, a30, a31;
+  casadi_real a24, a25, a26, a27, a28, a29, a30;
   a00=arg[0]? arg[0][0] : 0;
   if (res[0]!=0) res[0][0]=a00;
-  a01=1.4999999999999999e-01;
-  a02=cos(a00);
+  a01=cos(a00);
+  a02=arg[1]? arg[1][22] : 0;
   a03=(a01*a02);
   a04=arg[0]? arg[0][1] : 0;
-  a05=sin(a04);
-  a06=(a02*a05);
-  a07=(a01*a06);
-  a03=(a03-a07);
-  a08=7.3499999999999999e-01;
-  a04=cos(a04);
-  a09=(a02*a04);
-  a10=(a08*a09);
-  a03=(a03+a10);
-  a11=-2.9999999999999999e-01;
-  a12=(a11*a02);
-  a03=(a03+a12);
-  a12=casadi_sq(a03);
+  a05=cos(a04);
+  a06=(a01*a05);
+  a07=arg[1]? arg[1][27] : 0;
+  a08=(a06*a07);
+  a03=(a03+a08);
+  a04=sin(a04);
+  a09=(a01*a04);
+  a10=arg[1]? arg[1][28] : 0;
+  a11=(a09*a10);
+  a03=(a03-a11);
+  a12=arg[1]? arg[1][29] : 0;
+  a13=(a01*a12);
+  a03=(a03-a13);
+  a13=casadi_sq(a03);
   a00=sin(a00);
-  a13=(a01*a00);
+  a02=(a00*a02);
   a14=(a00*a05);
-  a15=(a01*a14);
-  a13=(a13-a15);
+  a15=(a14*a07);
+  a02=(a02+a15);
   a16=(a00*a04);
-  a17=(a08*a16);
-  a13=(a13+a17);
-  a11=(a11*a00);
-  a13=(a13+a11);
-  a11=casadi_sq(a13);
-  a12=(a12+a11);
-  a11=2.2000000000000002e+00;
-  a01=(a01*a04);
-  a18=(a11+a01);
-  a08=(a08*a05);
-  a18=(a18+a08);
-  a19=-1.1100000000000001e+00;
-  a18=(a18+a19);
-  a19=casadi_sq(a18);
-  a12=(a12+a19);
-  a12=sqrt(a12);
-  if (res[0]!=0) res[0][1]=a12;
-  a19=3.7999999999999998e+00;
-  a20=(a19*a09);
-  a21=2.0399999999999999e-01;
-  a22=arg[0]? arg[0][2] : 0;
-  a23=cos(a22);
-  a24=(a06*a23);
-  a22=sin(a22);
-  a25=(a09*a22);
+  a17=(a16*a10);
+  a02=(a02-a17);
+  a12=(a00*a12);
+  a02=(a02-a12);
+  a12=casadi_sq(a02);
+  a13=(a13+a12);
+  a12=arg[1]? arg[1][23] : 0;
+  a07=(a04*a07);
+  a12=(a12+a07);
+  a10=(a05*a10);
+  a12=(a12+a10);
+  a18=arg[1]? arg[1][30] : 0;
+  a12=(a12-a18);
+  a18=casadi_sq(a12);
+  a13=(a13+a18);
+  a13=sqrt(a13);
+  if (res[0]!=0) res[0][1]=a13;
+  a18=arg[1]? arg[1][25] : 0;
+  a19=(a06*a18);
+  a20=arg[0]? arg[0][2] : 0;
+  a21=cos(a20);
+  a22=(a06*a21);
+  a20=sin(a20);
+  a23=(a09*a20);
+  a22=(a22-a23);
+  a23=arg[1]? arg[1][31] : 0;
+  a22=(a22*a23);
+  a19=(a19+a22);
+  a24=(a09*a21);
+  a25=(a06*a20);
   a24=(a24+a25);
-  a24=(a21*a24);
-  a20=(a20-a24);
-  a25=-4.0100000000000002e-01;
-  a26=(a09*a23);
-  a27=(a06*a22);
-  a26=(a26-a27);
-  a26=(a25*a26);
-  a20=(a20+a26);
-  a27=-4.0000000000000002e-01;
-  a06=(a27*a06);
-  a20=(a20-a06);
-  a06=-1.9500000000000000e+00;
-  a09=(a06*a09);
-  a20=(a20+a09);
-  a09=casadi_sq(a20);
-  a28=(a19*a16);
-  a29=(a14*a23);
-  a30=(a16*a22);
-  a29=(a29+a30);
-  a29=(a21*a29);
+  a25=arg[1]? arg[1][32] : 0;
+  a24=(a24*a25);
+  a19=(a19-a24);
+  a26=arg[1]? arg[1][33] : 0;
+  a06=(a06*a26);
+  a19=(a19-a06);
+  a06=arg[1]? arg[1][34] : 0;
+  a09=(a09*a06);
+  a19=(a19+a09);
+  a09=casadi_sq(a19);
+  a27=(a14*a18);
+  a28=(a14*a21);
+  a29=(a16*a20);
   a28=(a28-a29);
-  a30=(a16*a23);
-  a31=(a14*a22);
-  a30=(a30-a31);
-  a30=(a25*a30);
-  a28=(a28+a30);
-  a14=(a27*a14);
-  a28=(a28-a14);
-  a16=(a06*a16);
-  a28=(a28+a16);
-  a16=casadi_sq(a28);
+  a28=(a28*a23);
+  a27=(a27+a28);
+  a29=(a16*a21);
+  a30=(a14*a20);
+  a29=(a29+a30);
+  a29=(a29*a25);
+  a27=(a27-a29);
+  a14=(a14*a26);
+  a27=(a27-a14);
+  a16=(a16*a06);
+  a27=(a27+a16);
+  a16=casadi_sq(a27);
   a09=(a09+a16);
-  a19=(a19*a05);
-  a11=(a11+a19);
-  a19=-2.2000000000000002e+00;
-  a11=(a11+a19);
-  a19=(a04*a23);
-  a16=(a05*a22);
-  a19=(a19-a16);
-  a21=(a21*a19);
-  a11=(a11+a21);
-  a23=(a05*a23);
-  a22=(a04*a22);
-  a23=(a23+a22);
-  a25=(a25*a23);
-  a11=(a11+a25);
-  a27=(a27*a04);
-  a11=(a11+a27);
-  a06=(a06*a05);
-  a11=(a11+a06);
-  a06=casadi_sq(a11);
-  a09=(a09+a06);
+  a18=(a04*a18);
+  a16=(a04*a21);
+  a14=(a05*a20);
+  a16=(a16+a14);
+  a16=(a16*a23);
+  a18=(a18+a16);
+  a21=(a05*a21);
+  a20=(a04*a20);
+  a21=(a21-a20);
+  a21=(a21*a25);
+  a18=(a18+a21);
+  a04=(a04*a26);
+  a18=(a18-a04);
+  a05=(a05*a06);
+  a18=(a18-a05);
+  a05=casadi_sq(a18);
+  a09=(a09+a05);
   a09=sqrt(a09);
   if (res[0]!=0) res[0][2]=a09;
-  a06=1.;
-  if (res[1]!=0) res[1][0]=a06;
-  a06=0.;
-  if (res[1]!=0) res[1][1]=a06;
-  if (res[1]!=0) res[1][2]=a06;
-  if (res[1]!=0) res[1][3]=a06;
-  a17=(a17-a15);
-  a17=(a17/a12);
-  a17=(a17*a18);
-  a01=(a01+a08);
-  a01=(a01/a12);
-  a13=(a01*a13);
-  a17=(a17-a13);
-  a17=(a00*a17);
-  a01=(a01*a03);
-  a10=(a10-a07);
-  a10=(a10/a12);
-  a10=(a10*a18);
-  a01=(a01-a10);
-  a01=(a02*a01);
-  a17=(a17-a01);
-  if (res[1]!=0) res[1][4]=a17;
-  if (res[1]!=0) res[1][5]=a06;
-  if (res[1]!=0) res[1][6]=a06;
-  if (res[1]!=0) res[1][7]=a06;
-  a30=(a30-a29);
-  a30=(a30/a09);
-  a30=(a30*a11);
-  a21=(a21+a25);
-  a21=(a21/a09);
-  a28=(a21*a28);
-  a30=(a30-a28);
-  a00=(a00*a30);
-  a21=(a21*a20);
-  a26=(a26-a24);
-  a26=(a26/a09);
-  a26=(a26*a11);
-  a21=(a21-a26);
-  a02=(a02*a21);
-  a00=(a00-a02);
-  if (res[1]!=0) res[1][8]=a00;
+  a05=1.;
+  if (res[1]!=0) res[1][0]=a05;
+  a05=0.;
+  if (res[1]!=0) res[1][1]=a05;
+  if (res[1]!=0) res[1][2]=a05;
+  if (res[1]!=0) res[1][3]=a05;
+  a06=arg[1]? arg[1][24] : 0;
+  a04=(a01*a06);
+  a07=(a07+a10);
+  a07=(a07/a13);
+  a03=(a07*a03);
+  a08=(a08-a11);
+  a08=(a08/a13);
+  a08=(a08*a12);
+  a03=(a03-a08);
+  a04=(a04*a03);
+  a06=(a00*a06);
+  a15=(a15-a17);
+  a15=(a15/a13);
+  a15=(a15*a12);
+  a07=(a07*a02);
+  a15=(a15-a07);
+  a06=(a06*a15);
+  a04=(a04-a06);
+  if (res[1]!=0) res[1][4]=a04;
+  if (res[1]!=0) res[1][5]=a05;
+  if (res[1]!=0) res[1][6]=a05;
+  if (res[1]!=0) res[1][7]=a05;
+  a05=arg[1]? arg[1][26] : 0;
+  a01=(a01*a05);
+  a16=(a16+a21);
+  a16=(a16/a09);
+  a19=(a16*a19);
+  a22=(a22-a24);
+  a22=(a22/a09);
+  a22=(a22*a18);
+  a19=(a19-a22);
+  a01=(a01*a19);
+  a00=(a00*a05);
+  a28=(a28-a29);
+  a28=(a28/a09);
+  a28=(a28*a18);
+  a16=(a16*a27);
+  a28=(a28-a16);
+  a00=(a00*a28);
+  a01=(a01-a00);
+  if (res[1]!=0) res[1][8]=a01;
   return 0;
 }
 
@@ -236,7 +242,7 @@ CASADI_SYMBOL_EXPORT void loader_crane_leg_kinematics_incref(void) {
 CASADI_SYMBOL_EXPORT void loader_crane_leg_kinematics_decref(void) {
 }
 
-CASADI_SYMBOL_EXPORT casadi_int loader_crane_leg_kinematics_n_in(void) { return 1;}
+CASADI_SYMBOL_EXPORT casadi_int loader_crane_leg_kinematics_n_in(void) { return 2;}
 
 CASADI_SYMBOL_EXPORT casadi_int loader_crane_leg_kinematics_n_out(void) { return 2;}
 
@@ -249,6 +255,7 @@ CASADI_SYMBOL_EXPORT casadi_real loader_crane_leg_kinematics_default_in(casadi_i
 CASADI_SYMBOL_EXPORT const char* loader_crane_leg_kinematics_name_in(casadi_int i) {
   switch (i) {
     case 0: return "q";
+    case 1: return "numbers";
     default: return 0;
   }
 }
@@ -264,6 +271,7 @@ CASADI_SYMBOL_EXPORT const char* loader_crane_leg_kinematics_name_out(casadi_int
 CASADI_SYMBOL_EXPORT const casadi_int* loader_crane_leg_kinematics_sparsity_in(casadi_int i) {
   switch (i) {
     case 0: return casadi_s0;
+    case 1: return casadi_s1;
     default: return 0;
   }
 }
@@ -271,13 +279,13 @@ CASADI_SYMBOL_EXPORT const casadi_int* loader_crane_leg_kinematics_sparsity_in(c
 CASADI_SYMBOL_EXPORT const casadi_int* loader_crane_leg_kinematics_sparsity_out(casadi_int i) {
   switch (i) {
     case 0: return casadi_s0;
-    case 1: return casadi_s1;
+    case 1: return casadi_s2;
     default: return 0;
   }
 }
 
 CASADI_SYMBOL_EXPORT int loader_crane_leg_kinematics_work(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w) {
-  if (sz_arg) *sz_arg = 1;
+  if (sz_arg) *sz_arg = 2;
   if (sz_res) *sz_res = 2;
   if (sz_iw) *sz_iw = 0;
   if (sz_w) *sz_w = 0;
@@ -285,7 +293,7 @@ CASADI_SYMBOL_EXPORT int loader_crane_leg_kinematics_work(casadi_int *sz_arg, ca
 }
 
 CASADI_SYMBOL_EXPORT int loader_crane_leg_kinematics_work_bytes(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w) {
-  if (sz_arg) *sz_arg = 1*sizeof(const casadi_real*);
+  if (sz_arg) *sz_arg = 2*sizeof(const casadi_real*);
   if (sz_res) *sz_res = 2*sizeof(casadi_real*);
   if (sz_iw) *sz_iw = 0*sizeof(casadi_int);
   if (sz_w) *sz_w = 0*sizeof(casadi_real);

@@ -31,6 +31,7 @@ extern "C" {
 /* Add prefix to internal symbols */
 #define casadi_f0 CASADI_PREFIX(f0)
 #define casadi_s0 CASADI_PREFIX(s0)
+#define casadi_s1 CASADI_PREFIX(s1)
 #define casadi_sq CASADI_PREFIX(sq)
 
 /* Symbol visibility in DLLs */
@@ -60,117 +61,116 @@ CASADI_SYMBOL_EXPORT int loader_crane_leg_lengths_casadi_int_size(void) { return
 CASADI_SYMBOL_EXPORT int loader_crane_leg_lengths_casadi_real_size(void) { return (int) sizeof(casadi_real); }
 
 static const casadi_int casadi_s0[3] = {3, 1, 1};
+static const casadi_int casadi_s1[3] = {71, 1, 1};
 
-/* loader_crane_leg_lengths:(q[3])->(l[3]) */
+/* loader_crane_leg_lengths:(q[3],numbers[71])->(l[3]) */
 static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   (void)arg; (void)res; (void)iw; (void)w; (void)mem;
   casadi_real a00, a01, a02, a03, a04, a05, a06, a07, a08, a09, a10, a11;
-  casadi_real a12, a13, a14, a15;
+  casadi_real a12, a13, a14;
   a00=arg[0]? arg[0][0] : 0;
   if (res[0]!=0) res[0][0]=a00;
-  a01=1.4999999999999999e-01;
-  a02=cos(a00);
+  a01=cos(a00);
+  a02=arg[1]? arg[1][22] : 0;
   a03=(a01*a02);
   a04=arg[0]? arg[0][1] : 0;
-  a05=sin(a04);
-  a06=(a02*a05);
-  a07=(a01*a06);
-  a03=(a03-a07);
-  a07=7.3499999999999999e-01;
-  a04=cos(a04);
-  a08=(a02*a04);
-  a09=(a07*a08);
-  a03=(a03+a09);
-  a09=-2.9999999999999999e-01;
-  a02=(a09*a02);
-  a03=(a03+a02);
+  a05=cos(a04);
+  a06=(a01*a05);
+  a07=arg[1]? arg[1][27] : 0;
+  a08=(a06*a07);
+  a03=(a03+a08);
+  a04=sin(a04);
+  a08=(a01*a04);
+  a09=arg[1]? arg[1][28] : 0;
+  a10=(a08*a09);
+  a03=(a03-a10);
+  a10=arg[1]? arg[1][29] : 0;
+  a01=(a01*a10);
+  a03=(a03-a01);
   a03=casadi_sq(a03);
   a00=sin(a00);
-  a02=(a01*a00);
-  a10=(a00*a05);
-  a11=(a01*a10);
-  a02=(a02-a11);
+  a02=(a00*a02);
+  a01=(a00*a05);
+  a11=(a01*a07);
+  a02=(a02+a11);
   a11=(a00*a04);
-  a12=(a07*a11);
-  a02=(a02+a12);
-  a09=(a09*a00);
-  a02=(a02+a09);
+  a12=(a11*a09);
+  a02=(a02-a12);
+  a00=(a00*a10);
+  a02=(a02-a00);
   a02=casadi_sq(a02);
   a03=(a03+a02);
-  a02=2.2000000000000002e+00;
-  a01=(a01*a04);
-  a01=(a02+a01);
-  a07=(a07*a05);
-  a01=(a01+a07);
-  a07=-1.1100000000000001e+00;
-  a01=(a01+a07);
-  a01=casadi_sq(a01);
-  a03=(a03+a01);
+  a02=arg[1]? arg[1][23] : 0;
+  a07=(a04*a07);
+  a02=(a02+a07);
+  a09=(a05*a09);
+  a02=(a02+a09);
+  a09=arg[1]? arg[1][30] : 0;
+  a02=(a02-a09);
+  a02=casadi_sq(a02);
+  a03=(a03+a02);
   a03=sqrt(a03);
   if (res[0]!=0) res[0][1]=a03;
-  a03=3.7999999999999998e+00;
-  a01=(a03*a08);
-  a07=2.0399999999999999e-01;
+  a03=arg[1]? arg[1][25] : 0;
+  a02=(a06*a03);
   a09=arg[0]? arg[0][2] : 0;
-  a00=cos(a09);
-  a12=(a06*a00);
+  a07=cos(a09);
+  a00=(a06*a07);
   a09=sin(a09);
-  a13=(a08*a09);
-  a12=(a12+a13);
-  a12=(a07*a12);
-  a01=(a01-a12);
-  a12=-4.0100000000000002e-01;
-  a13=(a08*a00);
-  a14=(a06*a09);
+  a10=(a08*a09);
+  a00=(a00-a10);
+  a10=arg[1]? arg[1][31] : 0;
+  a00=(a00*a10);
+  a02=(a02+a00);
+  a00=(a08*a07);
+  a12=(a06*a09);
+  a00=(a00+a12);
+  a12=arg[1]? arg[1][32] : 0;
+  a00=(a00*a12);
+  a02=(a02-a00);
+  a00=arg[1]? arg[1][33] : 0;
+  a06=(a06*a00);
+  a02=(a02-a06);
+  a06=arg[1]? arg[1][34] : 0;
+  a08=(a08*a06);
+  a02=(a02+a08);
+  a02=casadi_sq(a02);
+  a08=(a01*a03);
+  a13=(a01*a07);
+  a14=(a11*a09);
   a13=(a13-a14);
-  a13=(a12*a13);
-  a01=(a01+a13);
-  a13=-4.0000000000000002e-01;
-  a06=(a13*a06);
-  a01=(a01-a06);
-  a06=-1.9500000000000000e+00;
-  a08=(a06*a08);
-  a01=(a01+a08);
-  a01=casadi_sq(a01);
-  a08=(a03*a11);
-  a14=(a10*a00);
-  a15=(a11*a09);
-  a14=(a14+a15);
-  a14=(a07*a14);
-  a08=(a08-a14);
-  a14=(a11*a00);
-  a15=(a10*a09);
-  a14=(a14-a15);
-  a14=(a12*a14);
-  a08=(a08+a14);
-  a10=(a13*a10);
-  a08=(a08-a10);
-  a11=(a06*a11);
+  a13=(a13*a10);
+  a08=(a08+a13);
+  a13=(a11*a07);
+  a14=(a01*a09);
+  a13=(a13+a14);
+  a13=(a13*a12);
+  a08=(a08-a13);
+  a01=(a01*a00);
+  a08=(a08-a01);
+  a11=(a11*a06);
   a08=(a08+a11);
   a08=casadi_sq(a08);
-  a01=(a01+a08);
-  a03=(a03*a05);
-  a02=(a02+a03);
-  a03=-2.2000000000000002e+00;
-  a02=(a02+a03);
-  a03=(a04*a00);
-  a08=(a05*a09);
-  a03=(a03-a08);
-  a07=(a07*a03);
-  a02=(a02+a07);
-  a00=(a05*a00);
+  a02=(a02+a08);
+  a03=(a04*a03);
+  a08=(a04*a07);
+  a11=(a05*a09);
+  a08=(a08+a11);
+  a08=(a08*a10);
+  a03=(a03+a08);
+  a07=(a05*a07);
   a09=(a04*a09);
-  a00=(a00+a09);
-  a12=(a12*a00);
-  a02=(a02+a12);
-  a13=(a13*a04);
-  a02=(a02+a13);
-  a06=(a06*a05);
-  a02=(a02+a06);
-  a02=casadi_sq(a02);
-  a01=(a01+a02);
-  a01=sqrt(a01);
-  if (res[0]!=0) res[0][2]=a01;
+  a07=(a07-a09);
+  a07=(a07*a12);
+  a03=(a03+a07);
+  a04=(a04*a00);
+  a03=(a03-a04);
+  a05=(a05*a06);
+  a03=(a03-a05);
+  a03=casadi_sq(a03);
+  a02=(a02+a03);
+  a02=sqrt(a02);
+  if (res[0]!=0) res[0][2]=a02;
   return 0;
 }
 
@@ -192,7 +192,7 @@ CASADI_SYMBOL_EXPORT void loader_crane_leg_lengths_incref(void) {
 CASADI_SYMBOL_EXPORT void loader_crane_leg_lengths_decref(void) {
 }
 
-CASADI_SYMBOL_EXPORT casadi_int loader_crane_leg_lengths_n_in(void) { return 1;}
+CASADI_SYMBOL_EXPORT casadi_int loader_crane_leg_lengths_n_in(void) { return 2;}
 
 CASADI_SYMBOL_EXPORT casadi_int loader_crane_leg_lengths_n_out(void) { return 1;}
 
@@ -205,6 +205,7 @@ CASADI_SYMBOL_EXPORT casadi_real loader_crane_leg_lengths_default_in(casadi_int 
 CASADI_SYMBOL_EXPORT const char* loader_crane_leg_lengths_name_in(casadi_int i) {
   switch (i) {
     case 0: return "q";
+    case 1: return "numbers";
     default: return 0;
   }
 }
@@ -219,6 +220,7 @@ CASADI_SYMBOL_EXPORT const char* loader_crane_leg_lengths_name_out(casadi_int i)
 CASADI_SYMBOL_EXPORT const casadi_int* loader_crane_leg_lengths_sparsity_in(casadi_int i) {
   switch (i) {
     case 0: return casadi_s0;
+    case 1: return casadi_s1;
     default: return 0;
   }
 }
@@ -231,7 +233,7 @@ CASADI_SYMBOL_EXPORT const casadi_int* loader_crane_leg_lengths_sparsity_out(cas
 }
 
 CASADI_SYMBOL_EXPORT int loader_crane_leg_lengths_work(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w) {
-  if (sz_arg) *sz_arg = 1;
+  if (sz_arg) *sz_arg = 2;
   if (sz_res) *sz_res = 1;
   if (sz_iw) *sz_iw = 0;
   if (sz_w) *sz_w = 0;
@@ -239,7 +241,7 @@ CASADI_SYMBOL_EXPORT int loader_crane_leg_lengths_work(casadi_int *sz_arg, casad
 }
 
 CASADI_SYMBOL_EXPORT int loader_crane_leg_lengths_work_bytes(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w) {
-  if (sz_arg) *sz_arg = 1*sizeof(const casadi_real*);
+  if (sz_arg) *sz_arg = 2*sizeof(const casadi_real*);
   if (sz_res) *sz_res = 1*sizeof(casadi_real*);
   if (sz_iw) *sz_iw = 0*sizeof(casadi_int);
   if (sz_w) *sz_w = 0*sizeof(casadi_real);

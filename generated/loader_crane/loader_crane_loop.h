@@ -181,7 +181,7 @@ int loader_crane_plant_step(const loader_crane_loop_config* cfg, loader_crane_lo
                        const double* u_app);
 
 /* Cylinder lengths (m) of n poses: row k of q (NQ) gives row k of l (NL). One call for a whole
- * trajectory (workspace checks). numbers: the description's numbers (unused: they are folded into the generated functions; may be NULL).
+ * trajectory (workspace checks). numbers: the description's numbers (the generated functions' input).
  * Returns 0, or 1 if the generated function failed. */
 int loader_crane_leg_lengths_many(const double* numbers, const double* q, long long n, double* l);
 

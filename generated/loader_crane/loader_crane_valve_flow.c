@@ -33,6 +33,7 @@ extern "C" {
 #define casadi_fmax CASADI_PREFIX(fmax)
 #define casadi_s0 CASADI_PREFIX(s0)
 #define casadi_s1 CASADI_PREFIX(s1)
+#define casadi_s2 CASADI_PREFIX(s2)
 
 /* Symbol visibility in DLLs */
 #ifndef CASADI_SYMBOL_EXPORT
@@ -69,105 +70,121 @@ CASADI_SYMBOL_EXPORT int loader_crane_valve_flow_casadi_real_size(void) { return
 
 static const casadi_int casadi_s0[3] = {3, 1, 1};
 static const casadi_int casadi_s1[3] = {6, 1, 1};
+static const casadi_int casadi_s2[3] = {71, 1, 1};
 
-/* loader_crane_valve_flow:(u[3],pc[6])->(q_per_c[6]) */
+/* loader_crane_valve_flow:(u[3],pc[6],numbers[71])->(q_per_c[6]) */
 static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   (void)arg; (void)res; (void)iw; (void)w; (void)mem;
   casadi_real a0, a1, a2, a3, a4, a5, a6, a7, a8, a9;
   a0=arg[0]? arg[0][0] : 0;
-  a1=1.0000000000000001e-05;
-  a2=(a0<=a1);
+  a1=arg[2]? arg[2][43] : 0;
+  a2=(-a1);
+  a2=(a0<a2);
+  a2=(!a2);
   a3=0.;
-  a4=arg[1]? arg[1][0] : 0;
-  a5=casadi_fmax(a3,a4);
+  a4=arg[2]? arg[2][41] : 0;
+  a5=arg[1]? arg[1][0] : 0;
+  a6=(a4-a5);
+  a6=casadi_fmax(a3,a6);
+  a6=sqrt(a6);
+  a7=(a1+a0);
+  a6=(a6*a7);
+  a6=(a2?a6:0);
+  a8=(a0<=a1);
+  a9=arg[2]? arg[2][42] : 0;
+  a5=(a5-a9);
+  a5=casadi_fmax(a3,a5);
   a5=sqrt(a5);
-  a6=-1.0000000000000001e-05;
-  a7=(a6+a0);
-  a5=(a5*a7);
-  a5=(a2?a5:0);
-  a8=(a0<a6);
-  a8=(!a8);
-  a9=24000000.;
-  a4=(a9-a4);
+  a0=(a0-a1);
+  a5=(a5*a0);
+  a5=(a8?a5:0);
+  a6=(a6+a5);
+  if (res[0]!=0) res[0][0]=a6;
+  a6=arg[1]? arg[1][1] : 0;
+  a4=(a4-a6);
   a4=casadi_fmax(a3,a4);
-  a4=sqrt(a4);
-  a0=(a1+a0);
-  a4=(a4*a0);
-  a4=(a8?a4:0);
-  a5=(a5+a4);
-  if (res[0]!=0) res[0][0]=a5;
-  a5=arg[1]? arg[1][1] : 0;
-  a4=casadi_fmax(a3,a5);
   a4=sqrt(a4);
   a4=(a4*a0);
   a8=(a8?a4:0);
-  a5=(a9-a5);
-  a5=casadi_fmax(a3,a5);
-  a5=sqrt(a5);
-  a5=(a5*a7);
-  a2=(a2?a5:0);
+  a6=(a6-a9);
+  a6=casadi_fmax(a3,a6);
+  a6=sqrt(a6);
+  a6=(a6*a7);
+  a2=(a2?a6:0);
   a8=(a8+a2);
   if (res[0]!=0) res[0][1]=a8;
   a8=arg[0]? arg[0][1] : 0;
-  a2=(a8<=a1);
-  a5=arg[1]? arg[1][2] : 0;
-  a7=casadi_fmax(a3,a5);
-  a7=sqrt(a7);
-  a4=(a6+a8);
-  a7=(a7*a4);
-  a7=(a2?a7:0);
-  a0=(a8<a6);
-  a0=(!a0);
-  a5=(a9-a5);
-  a5=casadi_fmax(a3,a5);
-  a5=sqrt(a5);
-  a8=(a1+a8);
-  a5=(a5*a8);
-  a5=(a0?a5:0);
-  a7=(a7+a5);
-  if (res[0]!=0) res[0][2]=a7;
-  a7=arg[1]? arg[1][3] : 0;
-  a5=casadi_fmax(a3,a7);
-  a5=sqrt(a5);
-  a5=(a5*a8);
-  a0=(a0?a5:0);
-  a7=(a9-a7);
-  a7=casadi_fmax(a3,a7);
-  a7=sqrt(a7);
-  a7=(a7*a4);
-  a2=(a2?a7:0);
-  a0=(a0+a2);
-  if (res[0]!=0) res[0][3]=a0;
-  a0=arg[0]? arg[0][2] : 0;
-  a2=(a0<=a1);
-  a7=arg[1]? arg[1][4] : 0;
-  a4=casadi_fmax(a3,a7);
-  a4=sqrt(a4);
-  a5=(a6+a0);
-  a4=(a4*a5);
-  a4=(a2?a4:0);
-  a6=(a0<a6);
+  a2=arg[2]? arg[2][55] : 0;
+  a6=(-a2);
+  a6=(a8<a6);
   a6=(!a6);
-  a7=(a9-a7);
+  a7=arg[2]? arg[2][53] : 0;
+  a9=arg[1]? arg[1][2] : 0;
+  a4=(a7-a9);
+  a4=casadi_fmax(a3,a4);
+  a4=sqrt(a4);
+  a0=(a2+a8);
+  a4=(a4*a0);
+  a4=(a6?a4:0);
+  a5=(a8<=a2);
+  a1=arg[2]? arg[2][54] : 0;
+  a9=(a9-a1);
+  a9=casadi_fmax(a3,a9);
+  a9=sqrt(a9);
+  a8=(a8-a2);
+  a9=(a9*a8);
+  a9=(a5?a9:0);
+  a4=(a4+a9);
+  if (res[0]!=0) res[0][2]=a4;
+  a4=arg[1]? arg[1][3] : 0;
+  a7=(a7-a4);
   a7=casadi_fmax(a3,a7);
   a7=sqrt(a7);
-  a1=(a1+a0);
-  a7=(a7*a1);
-  a7=(a6?a7:0);
-  a4=(a4+a7);
-  if (res[0]!=0) res[0][4]=a4;
-  a4=arg[1]? arg[1][5] : 0;
-  a7=casadi_fmax(a3,a4);
+  a7=(a7*a8);
+  a5=(a5?a7:0);
+  a4=(a4-a1);
+  a4=casadi_fmax(a3,a4);
+  a4=sqrt(a4);
+  a4=(a4*a0);
+  a6=(a6?a4:0);
+  a5=(a5+a6);
+  if (res[0]!=0) res[0][3]=a5;
+  a5=arg[0]? arg[0][2] : 0;
+  a6=arg[2]? arg[2][67] : 0;
+  a4=(-a6);
+  a4=(a5<a4);
+  a4=(!a4);
+  a0=arg[2]? arg[2][65] : 0;
+  a1=arg[1]? arg[1][4] : 0;
+  a7=(a0-a1);
+  a7=casadi_fmax(a3,a7);
   a7=sqrt(a7);
-  a7=(a7*a1);
-  a6=(a6?a7:0);
-  a9=(a9-a4);
-  a3=casadi_fmax(a3,a9);
+  a8=(a6+a5);
+  a7=(a7*a8);
+  a7=(a4?a7:0);
+  a9=(a5<=a6);
+  a2=arg[2]? arg[2][66] : 0;
+  a1=(a1-a2);
+  a1=casadi_fmax(a3,a1);
+  a1=sqrt(a1);
+  a5=(a5-a6);
+  a1=(a1*a5);
+  a1=(a9?a1:0);
+  a7=(a7+a1);
+  if (res[0]!=0) res[0][4]=a7;
+  a7=arg[1]? arg[1][5] : 0;
+  a0=(a0-a7);
+  a0=casadi_fmax(a3,a0);
+  a0=sqrt(a0);
+  a0=(a0*a5);
+  a9=(a9?a0:0);
+  a7=(a7-a2);
+  a3=casadi_fmax(a3,a7);
   a3=sqrt(a3);
-  a3=(a3*a5);
-  a2=(a2?a3:0);
-  a6=(a6+a2);
-  if (res[0]!=0) res[0][5]=a6;
+  a3=(a3*a8);
+  a4=(a4?a3:0);
+  a9=(a9+a4);
+  if (res[0]!=0) res[0][5]=a9;
   return 0;
 }
 
@@ -189,7 +206,7 @@ CASADI_SYMBOL_EXPORT void loader_crane_valve_flow_incref(void) {
 CASADI_SYMBOL_EXPORT void loader_crane_valve_flow_decref(void) {
 }
 
-CASADI_SYMBOL_EXPORT casadi_int loader_crane_valve_flow_n_in(void) { return 2;}
+CASADI_SYMBOL_EXPORT casadi_int loader_crane_valve_flow_n_in(void) { return 3;}
 
 CASADI_SYMBOL_EXPORT casadi_int loader_crane_valve_flow_n_out(void) { return 1;}
 
@@ -203,6 +220,7 @@ CASADI_SYMBOL_EXPORT const char* loader_crane_valve_flow_name_in(casadi_int i) {
   switch (i) {
     case 0: return "u";
     case 1: return "pc";
+    case 2: return "numbers";
     default: return 0;
   }
 }
@@ -218,6 +236,7 @@ CASADI_SYMBOL_EXPORT const casadi_int* loader_crane_valve_flow_sparsity_in(casad
   switch (i) {
     case 0: return casadi_s0;
     case 1: return casadi_s1;
+    case 2: return casadi_s2;
     default: return 0;
   }
 }
@@ -230,7 +249,7 @@ CASADI_SYMBOL_EXPORT const casadi_int* loader_crane_valve_flow_sparsity_out(casa
 }
 
 CASADI_SYMBOL_EXPORT int loader_crane_valve_flow_work(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w) {
-  if (sz_arg) *sz_arg = 2;
+  if (sz_arg) *sz_arg = 3;
   if (sz_res) *sz_res = 1;
   if (sz_iw) *sz_iw = 0;
   if (sz_w) *sz_w = 0;
@@ -238,7 +257,7 @@ CASADI_SYMBOL_EXPORT int loader_crane_valve_flow_work(casadi_int *sz_arg, casadi
 }
 
 CASADI_SYMBOL_EXPORT int loader_crane_valve_flow_work_bytes(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w) {
-  if (sz_arg) *sz_arg = 2*sizeof(const casadi_real*);
+  if (sz_arg) *sz_arg = 3*sizeof(const casadi_real*);
   if (sz_res) *sz_res = 1*sizeof(casadi_real*);
   if (sz_iw) *sz_iw = 0*sizeof(casadi_int);
   if (sz_w) *sz_w = 0*sizeof(casadi_real);

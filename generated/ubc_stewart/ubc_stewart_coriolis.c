@@ -33,6 +33,7 @@ extern "C" {
 #define casadi_s0 CASADI_PREFIX(s0)
 #define casadi_s1 CASADI_PREFIX(s1)
 #define casadi_s2 CASADI_PREFIX(s2)
+#define casadi_s3 CASADI_PREFIX(s3)
 #define casadi_sq CASADI_PREFIX(sq)
 
 /* Symbol visibility in DLLs */
@@ -63,9 +64,10 @@ CASADI_SYMBOL_EXPORT int ubc_stewart_coriolis_casadi_real_size(void) { return (i
 
 static const casadi_int casadi_s0[3] = {6, 1, 1};
 static const casadi_int casadi_s1[3] = {4, 1, 1};
-static const casadi_int casadi_s2[3] = {6, 6, 1};
+static const casadi_int casadi_s2[3] = {89, 1, 1};
+static const casadi_int casadi_s3[3] = {6, 6, 1};
 
-/* ubc_stewart_coriolis:(q[6],qdot[6],theta[4])->(C[6x6]) */
+/* ubc_stewart_coriolis:(q[6],qdot[6],theta[4],numbers[89])->(C[6x6]) */
 static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   (void)arg; (void)res; (void)iw; (void)w; (void)mem;
   casadi_real a00, a01, a02, a03, a04, a05, a06, a07, a08, a09, a10, a11;
@@ -235,7 +237,7 @@ CASADI_SYMBOL_EXPORT void ubc_stewart_coriolis_incref(void) {
 CASADI_SYMBOL_EXPORT void ubc_stewart_coriolis_decref(void) {
 }
 
-CASADI_SYMBOL_EXPORT casadi_int ubc_stewart_coriolis_n_in(void) { return 3;}
+CASADI_SYMBOL_EXPORT casadi_int ubc_stewart_coriolis_n_in(void) { return 4;}
 
 CASADI_SYMBOL_EXPORT casadi_int ubc_stewart_coriolis_n_out(void) { return 1;}
 
@@ -250,6 +252,7 @@ CASADI_SYMBOL_EXPORT const char* ubc_stewart_coriolis_name_in(casadi_int i) {
     case 0: return "q";
     case 1: return "qdot";
     case 2: return "theta";
+    case 3: return "numbers";
     default: return 0;
   }
 }
@@ -266,19 +269,20 @@ CASADI_SYMBOL_EXPORT const casadi_int* ubc_stewart_coriolis_sparsity_in(casadi_i
     case 0: return casadi_s0;
     case 1: return casadi_s0;
     case 2: return casadi_s1;
+    case 3: return casadi_s2;
     default: return 0;
   }
 }
 
 CASADI_SYMBOL_EXPORT const casadi_int* ubc_stewart_coriolis_sparsity_out(casadi_int i) {
   switch (i) {
-    case 0: return casadi_s2;
+    case 0: return casadi_s3;
     default: return 0;
   }
 }
 
 CASADI_SYMBOL_EXPORT int ubc_stewart_coriolis_work(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w) {
-  if (sz_arg) *sz_arg = 3;
+  if (sz_arg) *sz_arg = 4;
   if (sz_res) *sz_res = 1;
   if (sz_iw) *sz_iw = 0;
   if (sz_w) *sz_w = 0;
@@ -286,7 +290,7 @@ CASADI_SYMBOL_EXPORT int ubc_stewart_coriolis_work(casadi_int *sz_arg, casadi_in
 }
 
 CASADI_SYMBOL_EXPORT int ubc_stewart_coriolis_work_bytes(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w) {
-  if (sz_arg) *sz_arg = 3*sizeof(const casadi_real*);
+  if (sz_arg) *sz_arg = 4*sizeof(const casadi_real*);
   if (sz_res) *sz_res = 1*sizeof(casadi_real*);
   if (sz_iw) *sz_iw = 0*sizeof(casadi_int);
   if (sz_w) *sz_w = 0*sizeof(casadi_real);

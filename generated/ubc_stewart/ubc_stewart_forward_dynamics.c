@@ -32,6 +32,7 @@ extern "C" {
 #define casadi_f0 CASADI_PREFIX(f0)
 #define casadi_s0 CASADI_PREFIX(s0)
 #define casadi_s1 CASADI_PREFIX(s1)
+#define casadi_s2 CASADI_PREFIX(s2)
 #define casadi_sq CASADI_PREFIX(sq)
 
 /* Symbol visibility in DLLs */
@@ -62,8 +63,9 @@ CASADI_SYMBOL_EXPORT int ubc_stewart_forward_dynamics_casadi_real_size(void) { r
 
 static const casadi_int casadi_s0[3] = {6, 1, 1};
 static const casadi_int casadi_s1[3] = {4, 1, 1};
+static const casadi_int casadi_s2[3] = {89, 1, 1};
 
-/* ubc_stewart_forward_dynamics:(q[6],qdot[6],tau[6],theta[4])->(qddot[6]) */
+/* ubc_stewart_forward_dynamics:(q[6],qdot[6],tau[6],theta[4],numbers[89])->(qddot[6]) */
 static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   (void)arg; (void)res; (void)iw; (void)w; (void)mem;
   casadi_real a00, a01, a02, a03, a04, a05, a06, a07, a08, a09, a10, a11;
@@ -78,9 +80,9 @@ static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw,
   a00=(a00/a01);
   if (res[0]!=0) res[0][1]=a00;
   a00=arg[2]? arg[2][2] : 0;
-  a02=-9.8100000000000005e+00;
+  a02=arg[4]? arg[4][40] : 0;
   a02=(a02*a01);
-  a00=(a00+a02);
+  a00=(a00-a02);
   a00=(a00/a01);
   if (res[0]!=0) res[0][2]=a00;
   a00=arg[3]? arg[3][2] : 0;
@@ -284,7 +286,7 @@ CASADI_SYMBOL_EXPORT void ubc_stewart_forward_dynamics_incref(void) {
 CASADI_SYMBOL_EXPORT void ubc_stewart_forward_dynamics_decref(void) {
 }
 
-CASADI_SYMBOL_EXPORT casadi_int ubc_stewart_forward_dynamics_n_in(void) { return 4;}
+CASADI_SYMBOL_EXPORT casadi_int ubc_stewart_forward_dynamics_n_in(void) { return 5;}
 
 CASADI_SYMBOL_EXPORT casadi_int ubc_stewart_forward_dynamics_n_out(void) { return 1;}
 
@@ -300,6 +302,7 @@ CASADI_SYMBOL_EXPORT const char* ubc_stewart_forward_dynamics_name_in(casadi_int
     case 1: return "qdot";
     case 2: return "tau";
     case 3: return "theta";
+    case 4: return "numbers";
     default: return 0;
   }
 }
@@ -317,6 +320,7 @@ CASADI_SYMBOL_EXPORT const casadi_int* ubc_stewart_forward_dynamics_sparsity_in(
     case 1: return casadi_s0;
     case 2: return casadi_s0;
     case 3: return casadi_s1;
+    case 4: return casadi_s2;
     default: return 0;
   }
 }
@@ -329,7 +333,7 @@ CASADI_SYMBOL_EXPORT const casadi_int* ubc_stewart_forward_dynamics_sparsity_out
 }
 
 CASADI_SYMBOL_EXPORT int ubc_stewart_forward_dynamics_work(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w) {
-  if (sz_arg) *sz_arg = 4;
+  if (sz_arg) *sz_arg = 5;
   if (sz_res) *sz_res = 1;
   if (sz_iw) *sz_iw = 0;
   if (sz_w) *sz_w = 0;
@@ -337,7 +341,7 @@ CASADI_SYMBOL_EXPORT int ubc_stewart_forward_dynamics_work(casadi_int *sz_arg, c
 }
 
 CASADI_SYMBOL_EXPORT int ubc_stewart_forward_dynamics_work_bytes(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w) {
-  if (sz_arg) *sz_arg = 4*sizeof(const casadi_real*);
+  if (sz_arg) *sz_arg = 5*sizeof(const casadi_real*);
   if (sz_res) *sz_res = 1*sizeof(casadi_real*);
   if (sz_iw) *sz_iw = 0*sizeof(casadi_int);
   if (sz_w) *sz_w = 0*sizeof(casadi_real);

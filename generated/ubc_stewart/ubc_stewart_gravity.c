@@ -32,6 +32,7 @@ extern "C" {
 #define casadi_f0 CASADI_PREFIX(f0)
 #define casadi_s0 CASADI_PREFIX(s0)
 #define casadi_s1 CASADI_PREFIX(s1)
+#define casadi_s2 CASADI_PREFIX(s2)
 
 /* Symbol visibility in DLLs */
 #ifndef CASADI_SYMBOL_EXPORT
@@ -59,15 +60,16 @@ CASADI_SYMBOL_EXPORT int ubc_stewart_gravity_casadi_real_size(void) { return (in
 
 static const casadi_int casadi_s0[3] = {6, 1, 1};
 static const casadi_int casadi_s1[3] = {4, 1, 1};
+static const casadi_int casadi_s2[3] = {89, 1, 1};
 
-/* ubc_stewart_gravity:(q[6],theta[4])->(G[6]) */
+/* ubc_stewart_gravity:(q[6],theta[4],numbers[89])->(G[6]) */
 static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   (void)arg; (void)res; (void)iw; (void)w; (void)mem;
   casadi_real a0, a1, a2;
   a0=0.;
   if (res[0]!=0) res[0][0]=a0;
   if (res[0]!=0) res[0][1]=a0;
-  a1=9.8100000000000005e+00;
+  a1=arg[2]? arg[2][40] : 0;
   a2=arg[1]? arg[1][0] : 0;
   a1=(a1*a2);
   if (res[0]!=0) res[0][2]=a1;
@@ -95,7 +97,7 @@ CASADI_SYMBOL_EXPORT void ubc_stewart_gravity_incref(void) {
 CASADI_SYMBOL_EXPORT void ubc_stewart_gravity_decref(void) {
 }
 
-CASADI_SYMBOL_EXPORT casadi_int ubc_stewart_gravity_n_in(void) { return 2;}
+CASADI_SYMBOL_EXPORT casadi_int ubc_stewart_gravity_n_in(void) { return 3;}
 
 CASADI_SYMBOL_EXPORT casadi_int ubc_stewart_gravity_n_out(void) { return 1;}
 
@@ -109,6 +111,7 @@ CASADI_SYMBOL_EXPORT const char* ubc_stewart_gravity_name_in(casadi_int i) {
   switch (i) {
     case 0: return "q";
     case 1: return "theta";
+    case 2: return "numbers";
     default: return 0;
   }
 }
@@ -124,6 +127,7 @@ CASADI_SYMBOL_EXPORT const casadi_int* ubc_stewart_gravity_sparsity_in(casadi_in
   switch (i) {
     case 0: return casadi_s0;
     case 1: return casadi_s1;
+    case 2: return casadi_s2;
     default: return 0;
   }
 }
@@ -136,7 +140,7 @@ CASADI_SYMBOL_EXPORT const casadi_int* ubc_stewart_gravity_sparsity_out(casadi_i
 }
 
 CASADI_SYMBOL_EXPORT int ubc_stewart_gravity_work(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w) {
-  if (sz_arg) *sz_arg = 2;
+  if (sz_arg) *sz_arg = 3;
   if (sz_res) *sz_res = 1;
   if (sz_iw) *sz_iw = 0;
   if (sz_w) *sz_w = 0;
@@ -144,7 +148,7 @@ CASADI_SYMBOL_EXPORT int ubc_stewart_gravity_work(casadi_int *sz_arg, casadi_int
 }
 
 CASADI_SYMBOL_EXPORT int ubc_stewart_gravity_work_bytes(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w) {
-  if (sz_arg) *sz_arg = 2*sizeof(const casadi_real*);
+  if (sz_arg) *sz_arg = 3*sizeof(const casadi_real*);
   if (sz_res) *sz_res = 1*sizeof(casadi_real*);
   if (sz_iw) *sz_iw = 0*sizeof(casadi_int);
   if (sz_w) *sz_w = 0*sizeof(casadi_real);

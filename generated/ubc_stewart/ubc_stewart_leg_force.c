@@ -31,6 +31,7 @@ extern "C" {
 /* Add prefix to internal symbols */
 #define casadi_f0 CASADI_PREFIX(f0)
 #define casadi_s0 CASADI_PREFIX(s0)
+#define casadi_s1 CASADI_PREFIX(s1)
 
 /* Symbol visibility in DLLs */
 #ifndef CASADI_SYMBOL_EXPORT
@@ -57,36 +58,59 @@ CASADI_SYMBOL_EXPORT int ubc_stewart_leg_force_casadi_int_size(void) { return (i
 CASADI_SYMBOL_EXPORT int ubc_stewart_leg_force_casadi_real_size(void) { return (int) sizeof(casadi_real); }
 
 static const casadi_int casadi_s0[3] = {6, 1, 1};
+static const casadi_int casadi_s1[3] = {89, 1, 1};
 
-/* ubc_stewart_leg_force:(pc[6])->(f[6]) */
+/* ubc_stewart_leg_force:(pc[6],numbers[89])->(f[6]) */
 static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   (void)arg; (void)res; (void)iw; (void)w; (void)mem;
   casadi_real a0, a1, a2;
-  a0=-6.5452200000000003e+03;
-  a1=1.1400000000000000e-03;
-  a2=arg[0]? arg[0][0] : 0;
-  a2=(a1*a2);
-  a2=(a0+a2);
-  if (res[0]!=0) res[0][0]=a2;
-  a2=arg[0]? arg[0][1] : 0;
-  a2=(a1*a2);
-  a2=(a0+a2);
-  if (res[0]!=0) res[0][1]=a2;
-  a2=arg[0]? arg[0][2] : 0;
-  a2=(a1*a2);
-  a2=(a0+a2);
-  if (res[0]!=0) res[0][2]=a2;
-  a2=arg[0]? arg[0][3] : 0;
-  a2=(a1*a2);
-  a2=(a0+a2);
-  if (res[0]!=0) res[0][3]=a2;
-  a2=arg[0]? arg[0][4] : 0;
-  a2=(a1*a2);
-  a2=(a0+a2);
-  if (res[0]!=0) res[0][4]=a2;
-  a2=arg[0]? arg[0][5] : 0;
+  a0=arg[1]? arg[1][41] : 0;
+  a1=arg[0]? arg[0][0] : 0;
+  a0=(a0*a1);
+  a1=arg[1]? arg[1][42] : 0;
+  a2=arg[1]? arg[1][44] : 0;
   a1=(a1*a2);
-  a0=(a0+a1);
+  a0=(a0-a1);
+  if (res[0]!=0) res[0][0]=a0;
+  a0=arg[1]? arg[1][49] : 0;
+  a1=arg[0]? arg[0][1] : 0;
+  a0=(a0*a1);
+  a1=arg[1]? arg[1][50] : 0;
+  a2=arg[1]? arg[1][52] : 0;
+  a1=(a1*a2);
+  a0=(a0-a1);
+  if (res[0]!=0) res[0][1]=a0;
+  a0=arg[1]? arg[1][57] : 0;
+  a1=arg[0]? arg[0][2] : 0;
+  a0=(a0*a1);
+  a1=arg[1]? arg[1][58] : 0;
+  a2=arg[1]? arg[1][60] : 0;
+  a1=(a1*a2);
+  a0=(a0-a1);
+  if (res[0]!=0) res[0][2]=a0;
+  a0=arg[1]? arg[1][65] : 0;
+  a1=arg[0]? arg[0][3] : 0;
+  a0=(a0*a1);
+  a1=arg[1]? arg[1][66] : 0;
+  a2=arg[1]? arg[1][68] : 0;
+  a1=(a1*a2);
+  a0=(a0-a1);
+  if (res[0]!=0) res[0][3]=a0;
+  a0=arg[1]? arg[1][73] : 0;
+  a1=arg[0]? arg[0][4] : 0;
+  a0=(a0*a1);
+  a1=arg[1]? arg[1][74] : 0;
+  a2=arg[1]? arg[1][76] : 0;
+  a1=(a1*a2);
+  a0=(a0-a1);
+  if (res[0]!=0) res[0][4]=a0;
+  a0=arg[1]? arg[1][81] : 0;
+  a1=arg[0]? arg[0][5] : 0;
+  a0=(a0*a1);
+  a1=arg[1]? arg[1][82] : 0;
+  a2=arg[1]? arg[1][84] : 0;
+  a1=(a1*a2);
+  a0=(a0-a1);
   if (res[0]!=0) res[0][5]=a0;
   return 0;
 }
@@ -109,7 +133,7 @@ CASADI_SYMBOL_EXPORT void ubc_stewart_leg_force_incref(void) {
 CASADI_SYMBOL_EXPORT void ubc_stewart_leg_force_decref(void) {
 }
 
-CASADI_SYMBOL_EXPORT casadi_int ubc_stewart_leg_force_n_in(void) { return 1;}
+CASADI_SYMBOL_EXPORT casadi_int ubc_stewart_leg_force_n_in(void) { return 2;}
 
 CASADI_SYMBOL_EXPORT casadi_int ubc_stewart_leg_force_n_out(void) { return 1;}
 
@@ -122,6 +146,7 @@ CASADI_SYMBOL_EXPORT casadi_real ubc_stewart_leg_force_default_in(casadi_int i) 
 CASADI_SYMBOL_EXPORT const char* ubc_stewart_leg_force_name_in(casadi_int i) {
   switch (i) {
     case 0: return "pc";
+    case 1: return "numbers";
     default: return 0;
   }
 }
@@ -136,6 +161,7 @@ CASADI_SYMBOL_EXPORT const char* ubc_stewart_leg_force_name_out(casadi_int i) {
 CASADI_SYMBOL_EXPORT const casadi_int* ubc_stewart_leg_force_sparsity_in(casadi_int i) {
   switch (i) {
     case 0: return casadi_s0;
+    case 1: return casadi_s1;
     default: return 0;
   }
 }
@@ -148,7 +174,7 @@ CASADI_SYMBOL_EXPORT const casadi_int* ubc_stewart_leg_force_sparsity_out(casadi
 }
 
 CASADI_SYMBOL_EXPORT int ubc_stewart_leg_force_work(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w) {
-  if (sz_arg) *sz_arg = 1;
+  if (sz_arg) *sz_arg = 2;
   if (sz_res) *sz_res = 1;
   if (sz_iw) *sz_iw = 0;
   if (sz_w) *sz_w = 0;
@@ -156,7 +182,7 @@ CASADI_SYMBOL_EXPORT int ubc_stewart_leg_force_work(casadi_int *sz_arg, casadi_i
 }
 
 CASADI_SYMBOL_EXPORT int ubc_stewart_leg_force_work_bytes(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w) {
-  if (sz_arg) *sz_arg = 1*sizeof(const casadi_real*);
+  if (sz_arg) *sz_arg = 2*sizeof(const casadi_real*);
   if (sz_res) *sz_res = 1*sizeof(casadi_real*);
   if (sz_iw) *sz_iw = 0*sizeof(casadi_int);
   if (sz_w) *sz_w = 0*sizeof(casadi_real);

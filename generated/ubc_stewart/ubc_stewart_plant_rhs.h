@@ -31,7 +31,7 @@ const casadi_int* ubc_stewart_plant_rhs_sparsity_in(casadi_int i);
 const casadi_int* ubc_stewart_plant_rhs_sparsity_out(casadi_int i);
 int ubc_stewart_plant_rhs_work(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w);
 int ubc_stewart_plant_rhs_work_bytes(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w);
-#define ubc_stewart_plant_rhs_SZ_ARG 7
+#define ubc_stewart_plant_rhs_SZ_ARG 8
 #define ubc_stewart_plant_rhs_SZ_RES 1
 #define ubc_stewart_plant_rhs_SZ_IW 0
 #define ubc_stewart_plant_rhs_SZ_W 0

@@ -32,6 +32,7 @@ extern "C" {
 #define casadi_f0 CASADI_PREFIX(f0)
 #define casadi_s0 CASADI_PREFIX(s0)
 #define casadi_s1 CASADI_PREFIX(s1)
+#define casadi_s2 CASADI_PREFIX(s2)
 #define casadi_sq CASADI_PREFIX(sq)
 
 /* Symbol visibility in DLLs */
@@ -61,9 +62,10 @@ CASADI_SYMBOL_EXPORT int ubc_stewart_regressor_casadi_int_size(void) { return (i
 CASADI_SYMBOL_EXPORT int ubc_stewart_regressor_casadi_real_size(void) { return (int) sizeof(casadi_real); }
 
 static const casadi_int casadi_s0[3] = {6, 1, 1};
-static const casadi_int casadi_s1[3] = {6, 4, 1};
+static const casadi_int casadi_s1[3] = {89, 1, 1};
+static const casadi_int casadi_s2[3] = {6, 4, 1};
 
-/* ubc_stewart_regressor:(q[6],v[6],w[6],a[6])->(Y[6x4]) */
+/* ubc_stewart_regressor:(q[6],v[6],w[6],a[6],numbers[89])->(Y[6x4]) */
 static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   (void)arg; (void)res; (void)iw; (void)w; (void)mem;
   casadi_real a00, a01, a02, a03, a04, a05, a06, a07, a08, a09, a10, a11;
@@ -73,8 +75,8 @@ static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw,
   if (res[0]!=0) res[0][0]=a00;
   a00=arg[3]? arg[3][1] : 0;
   if (res[0]!=0) res[0][1]=a00;
-  a00=9.8100000000000005e+00;
-  a01=arg[3]? arg[3][2] : 0;
+  a00=arg[3]? arg[3][2] : 0;
+  a01=arg[4]? arg[4][40] : 0;
   a00=(a00+a01);
   if (res[0]!=0) res[0][2]=a00;
   a00=0.;
@@ -272,7 +274,7 @@ CASADI_SYMBOL_EXPORT void ubc_stewart_regressor_incref(void) {
 CASADI_SYMBOL_EXPORT void ubc_stewart_regressor_decref(void) {
 }
 
-CASADI_SYMBOL_EXPORT casadi_int ubc_stewart_regressor_n_in(void) { return 4;}
+CASADI_SYMBOL_EXPORT casadi_int ubc_stewart_regressor_n_in(void) { return 5;}
 
 CASADI_SYMBOL_EXPORT casadi_int ubc_stewart_regressor_n_out(void) { return 1;}
 
@@ -288,6 +290,7 @@ CASADI_SYMBOL_EXPORT const char* ubc_stewart_regressor_name_in(casadi_int i) {
     case 1: return "v";
     case 2: return "w";
     case 3: return "a";
+    case 4: return "numbers";
     default: return 0;
   }
 }
@@ -305,19 +308,20 @@ CASADI_SYMBOL_EXPORT const casadi_int* ubc_stewart_regressor_sparsity_in(casadi_
     case 1: return casadi_s0;
     case 2: return casadi_s0;
     case 3: return casadi_s0;
+    case 4: return casadi_s1;
     default: return 0;
   }
 }
 
 CASADI_SYMBOL_EXPORT const casadi_int* ubc_stewart_regressor_sparsity_out(casadi_int i) {
   switch (i) {
-    case 0: return casadi_s1;
+    case 0: return casadi_s2;
     default: return 0;
   }
 }
 
 CASADI_SYMBOL_EXPORT int ubc_stewart_regressor_work(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w) {
-  if (sz_arg) *sz_arg = 4;
+  if (sz_arg) *sz_arg = 5;
   if (sz_res) *sz_res = 1;
   if (sz_iw) *sz_iw = 0;
   if (sz_w) *sz_w = 0;
@@ -325,7 +329,7 @@ CASADI_SYMBOL_EXPORT int ubc_stewart_regressor_work(casadi_int *sz_arg, casadi_i
 }
 
 CASADI_SYMBOL_EXPORT int ubc_stewart_regressor_work_bytes(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w) {
-  if (sz_arg) *sz_arg = 4*sizeof(const casadi_real*);
+  if (sz_arg) *sz_arg = 5*sizeof(const casadi_real*);
   if (sz_res) *sz_res = 1*sizeof(casadi_real*);
   if (sz_iw) *sz_iw = 0*sizeof(casadi_int);
   if (sz_w) *sz_w = 0*sizeof(casadi_real);

@@ -31,6 +31,7 @@ extern "C" {
 /* Add prefix to internal symbols */
 #define casadi_f0 CASADI_PREFIX(f0)
 #define casadi_s0 CASADI_PREFIX(s0)
+#define casadi_s1 CASADI_PREFIX(s1)
 
 /* Symbol visibility in DLLs */
 #ifndef CASADI_SYMBOL_EXPORT
@@ -57,109 +58,125 @@ CASADI_SYMBOL_EXPORT int ubc_stewart_valve_flow_casadi_int_size(void) { return (
 CASADI_SYMBOL_EXPORT int ubc_stewart_valve_flow_casadi_real_size(void) { return (int) sizeof(casadi_real); }
 
 static const casadi_int casadi_s0[3] = {6, 1, 1};
+static const casadi_int casadi_s1[3] = {89, 1, 1};
 
-/* ubc_stewart_valve_flow:(u[6],pc[6])->(ql_per_c[6]) */
+/* ubc_stewart_valve_flow:(u[6],pc[6],numbers[89])->(ql_per_c[6]) */
 static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   (void)arg; (void)res; (void)iw; (void)w; (void)mem;
-  casadi_real a0, a1, a2, a3, a4, a5, a6, a7;
+  casadi_real a0, a1, a2, a3, a4, a5;
   a0=arg[0]? arg[0][0] : 0;
-  a1=5.5399999999999998e-05;
+  a1=arg[2]? arg[2][45] : 0;
   a2=(a0<=a1);
   a3=arg[1]? arg[1][0] : 0;
   a4=sqrt(a3);
-  a5=-5.5399999999999998e-05;
-  a6=(a5+a0);
-  a4=(a4*a6);
+  a5=(a0-a1);
+  a4=(a4*a5);
   a2=(a2?a4:0);
-  a4=(a0<a5);
+  a4=(-a1);
+  a4=(a0<a4);
   a4=(!a4);
-  a6=10340000.;
-  a3=(a6-a3);
-  a3=sqrt(a3);
-  a0=(a1+a0);
-  a3=(a3*a0);
-  a4=(a4?a3:0);
+  a5=arg[2]? arg[2][44] : 0;
+  a5=(a5-a3);
+  a5=sqrt(a5);
+  a1=(a1+a0);
+  a5=(a5*a1);
+  a4=(a4?a5:0);
   a2=(a2+a4);
   if (res[0]!=0) res[0][0]=a2;
   a2=arg[0]? arg[0][1] : 0;
-  a4=(a2<=a1);
-  a3=arg[1]? arg[1][1] : 0;
-  a0=sqrt(a3);
-  a7=(a5+a2);
-  a0=(a0*a7);
-  a4=(a4?a0:0);
-  a0=(a2<a5);
+  a4=arg[2]? arg[2][53] : 0;
+  a5=(a2<=a4);
+  a1=arg[1]? arg[1][1] : 0;
+  a0=sqrt(a1);
+  a3=(a2-a4);
+  a0=(a0*a3);
+  a5=(a5?a0:0);
+  a0=(-a4);
+  a0=(a2<a0);
   a0=(!a0);
-  a3=(a6-a3);
+  a3=arg[2]? arg[2][52] : 0;
+  a3=(a3-a1);
   a3=sqrt(a3);
-  a2=(a1+a2);
-  a3=(a3*a2);
-  a0=(a0?a3:0);
-  a4=(a4+a0);
-  if (res[0]!=0) res[0][1]=a4;
-  a4=arg[0]? arg[0][2] : 0;
-  a0=(a4<=a1);
-  a3=arg[1]? arg[1][2] : 0;
-  a2=sqrt(a3);
-  a7=(a5+a4);
-  a2=(a2*a7);
-  a0=(a0?a2:0);
-  a2=(a4<a5);
-  a2=(!a2);
-  a3=(a6-a3);
-  a3=sqrt(a3);
-  a4=(a1+a4);
+  a4=(a4+a2);
   a3=(a3*a4);
-  a2=(a2?a3:0);
-  a0=(a0+a2);
-  if (res[0]!=0) res[0][2]=a0;
-  a0=arg[0]? arg[0][3] : 0;
-  a2=(a0<=a1);
-  a3=arg[1]? arg[1][3] : 0;
-  a4=sqrt(a3);
-  a7=(a5+a0);
-  a4=(a4*a7);
-  a2=(a2?a4:0);
-  a4=(a0<a5);
-  a4=(!a4);
-  a3=(a6-a3);
-  a3=sqrt(a3);
-  a0=(a1+a0);
+  a0=(a0?a3:0);
+  a5=(a5+a0);
+  if (res[0]!=0) res[0][1]=a5;
+  a5=arg[0]? arg[0][2] : 0;
+  a0=arg[2]? arg[2][61] : 0;
+  a3=(a5<=a0);
+  a4=arg[1]? arg[1][2] : 0;
+  a2=sqrt(a4);
+  a1=(a5-a0);
+  a2=(a2*a1);
+  a3=(a3?a2:0);
+  a2=(-a0);
+  a2=(a5<a2);
+  a2=(!a2);
+  a1=arg[2]? arg[2][60] : 0;
+  a1=(a1-a4);
+  a1=sqrt(a1);
+  a0=(a0+a5);
+  a1=(a1*a0);
+  a2=(a2?a1:0);
+  a3=(a3+a2);
+  if (res[0]!=0) res[0][2]=a3;
+  a3=arg[0]? arg[0][3] : 0;
+  a2=arg[2]? arg[2][69] : 0;
+  a1=(a3<=a2);
+  a0=arg[1]? arg[1][3] : 0;
+  a5=sqrt(a0);
+  a4=(a3-a2);
+  a5=(a5*a4);
+  a1=(a1?a5:0);
+  a5=(-a2);
+  a5=(a3<a5);
+  a5=(!a5);
+  a4=arg[2]? arg[2][68] : 0;
+  a4=(a4-a0);
+  a4=sqrt(a4);
+  a2=(a2+a3);
+  a4=(a4*a2);
+  a5=(a5?a4:0);
+  a1=(a1+a5);
+  if (res[0]!=0) res[0][3]=a1;
+  a1=arg[0]? arg[0][4] : 0;
+  a5=arg[2]? arg[2][77] : 0;
+  a4=(a1<=a5);
+  a2=arg[1]? arg[1][4] : 0;
+  a3=sqrt(a2);
+  a0=(a1-a5);
   a3=(a3*a0);
   a4=(a4?a3:0);
-  a2=(a2+a4);
-  if (res[0]!=0) res[0][3]=a2;
-  a2=arg[0]? arg[0][4] : 0;
-  a4=(a2<=a1);
-  a3=arg[1]? arg[1][4] : 0;
-  a0=sqrt(a3);
-  a7=(a5+a2);
-  a0=(a0*a7);
-  a4=(a4?a0:0);
-  a0=(a2<a5);
-  a0=(!a0);
-  a3=(a6-a3);
-  a3=sqrt(a3);
-  a2=(a1+a2);
-  a3=(a3*a2);
-  a0=(a0?a3:0);
-  a4=(a4+a0);
+  a3=(-a5);
+  a3=(a1<a3);
+  a3=(!a3);
+  a0=arg[2]? arg[2][76] : 0;
+  a0=(a0-a2);
+  a0=sqrt(a0);
+  a5=(a5+a1);
+  a0=(a0*a5);
+  a3=(a3?a0:0);
+  a4=(a4+a3);
   if (res[0]!=0) res[0][4]=a4;
   a4=arg[0]? arg[0][5] : 0;
-  a0=(a4<=a1);
-  a3=arg[1]? arg[1][5] : 0;
-  a2=sqrt(a3);
-  a7=(a5+a4);
-  a2=(a2*a7);
-  a0=(a0?a2:0);
-  a5=(a4<a5);
-  a5=(!a5);
-  a6=(a6-a3);
-  a6=sqrt(a6);
-  a1=(a1+a4);
-  a6=(a6*a1);
-  a5=(a5?a6:0);
-  a0=(a0+a5);
+  a3=arg[2]? arg[2][85] : 0;
+  a0=(a4<=a3);
+  a5=arg[1]? arg[1][5] : 0;
+  a1=sqrt(a5);
+  a2=(a4-a3);
+  a1=(a1*a2);
+  a0=(a0?a1:0);
+  a1=(-a3);
+  a1=(a4<a1);
+  a1=(!a1);
+  a2=arg[2]? arg[2][84] : 0;
+  a2=(a2-a5);
+  a2=sqrt(a2);
+  a3=(a3+a4);
+  a2=(a2*a3);
+  a1=(a1?a2:0);
+  a0=(a0+a1);
   if (res[0]!=0) res[0][5]=a0;
   return 0;
 }
@@ -182,7 +199,7 @@ CASADI_SYMBOL_EXPORT void ubc_stewart_valve_flow_incref(void) {
 CASADI_SYMBOL_EXPORT void ubc_stewart_valve_flow_decref(void) {
 }
 
-CASADI_SYMBOL_EXPORT casadi_int ubc_stewart_valve_flow_n_in(void) { return 2;}
+CASADI_SYMBOL_EXPORT casadi_int ubc_stewart_valve_flow_n_in(void) { return 3;}
 
 CASADI_SYMBOL_EXPORT casadi_int ubc_stewart_valve_flow_n_out(void) { return 1;}
 
@@ -196,6 +213,7 @@ CASADI_SYMBOL_EXPORT const char* ubc_stewart_valve_flow_name_in(casadi_int i) {
   switch (i) {
     case 0: return "u";
     case 1: return "pc";
+    case 2: return "numbers";
     default: return 0;
   }
 }
@@ -211,6 +229,7 @@ CASADI_SYMBOL_EXPORT const casadi_int* ubc_stewart_valve_flow_sparsity_in(casadi
   switch (i) {
     case 0: return casadi_s0;
     case 1: return casadi_s0;
+    case 2: return casadi_s1;
     default: return 0;
   }
 }
@@ -223,7 +242,7 @@ CASADI_SYMBOL_EXPORT const casadi_int* ubc_stewart_valve_flow_sparsity_out(casad
 }
 
 CASADI_SYMBOL_EXPORT int ubc_stewart_valve_flow_work(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w) {
-  if (sz_arg) *sz_arg = 2;
+  if (sz_arg) *sz_arg = 3;
   if (sz_res) *sz_res = 1;
   if (sz_iw) *sz_iw = 0;
   if (sz_w) *sz_w = 0;
@@ -231,7 +250,7 @@ CASADI_SYMBOL_EXPORT int ubc_stewart_valve_flow_work(casadi_int *sz_arg, casadi_
 }
 
 CASADI_SYMBOL_EXPORT int ubc_stewart_valve_flow_work_bytes(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w) {
-  if (sz_arg) *sz_arg = 2*sizeof(const casadi_real*);
+  if (sz_arg) *sz_arg = 3*sizeof(const casadi_real*);
   if (sz_res) *sz_res = 1*sizeof(casadi_real*);
   if (sz_iw) *sz_iw = 0*sizeof(casadi_int);
   if (sz_w) *sz_w = 0*sizeof(casadi_real);

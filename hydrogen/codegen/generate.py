@@ -26,6 +26,7 @@ from ..resources import templates_dir
 __all__ = [
     "generate", "generate_locked", "write_function", "check", "check_output", "derivation_hash", "structure_hash",
     "read_manifest", "expected_manifest_inputs", "numbers_mode", "check_numbers_mode", "NUMBERS_MODES",
+    "DEFAULT_NUMBERS",
     "MANIFEST", "FORMAT_VERSION",
 ]
 
@@ -96,6 +97,10 @@ def structure_hash(model) -> str:
 #: How the description's numbers reach the generated functions: folded into them as constants, or
 #: as one more input of each, ``numbers`` (the manifest lists the names, :meth:`Model.numbers`).
 NUMBERS_MODES = ("constants", "inputs")
+#: The default: the numbers as inputs. Folding them buys no speed (benchmarks/bench_folding.py: the
+#: instructions and ns per call within a few % either way), and with them as inputs an edit of
+#: numbers loads the same compiled code.
+DEFAULT_NUMBERS = "inputs"
 
 
 def check_numbers_mode(numbers: str) -> str:
@@ -111,7 +116,7 @@ def numbers_mode(manifest: dict) -> str:
     return "inputs" if "numbers" in manifest else "constants"
 
 
-def expected_manifest_inputs(model, numbers: str = "constants") -> dict:
+def expected_manifest_inputs(model, numbers: str = DEFAULT_NUMBERS) -> dict:
     """What a manifest must record for its files to be current for ``model``: with the numbers as
     inputs, the model's structure hash (an edit of numbers only keeps the folder current)."""
     key = model.baked_hash() if check_numbers_mode(numbers) == "constants" else structure_hash(model)
@@ -176,7 +181,7 @@ def _sha256(path: Path) -> str:
     return hashlib.sha256(path.read_bytes()).hexdigest()
 
 
-def render(model, folder: Path, functions=None, progress: bool = False, numbers: str = "constants") -> dict:
+def render(model, folder: Path, functions=None, progress: bool = False, numbers: str = DEFAULT_NUMBERS) -> dict:
     """Write every function's C and the manifest into an existing empty ``folder``.
 
     ``progress`` shows a bar on a terminal (nothing when stderr is not one). ``numbers``
@@ -223,7 +228,7 @@ def render(model, folder: Path, functions=None, progress: bool = False, numbers:
     return manifest
 
 
-def generate(model, out_dir: Path, force: bool = False, progress: bool = False, numbers: str = "constants") -> bool:
+def generate(model, out_dir: Path, force: bool = False, progress: bool = False, numbers: str = DEFAULT_NUMBERS) -> bool:
     """Generate C for ``model`` into ``out_dir`` unless it is already current.
 
     Returns True when files were (re)written. The folder is swapped in whole
@@ -236,7 +241,7 @@ def generate(model, out_dir: Path, force: bool = False, progress: bool = False, 
 
 
 def generate_locked(model, out_dir: Path, force: bool = False, progress: bool = False,
-                    numbers: str = "constants") -> bool:
+                    numbers: str = DEFAULT_NUMBERS) -> bool:
     """:func:`generate` for a caller that already holds ``locked(out_dir)``."""
     out_dir = Path(out_dir)
     check_identifier(model.name, "model name")  # it becomes C symbols, file names and build-file text
@@ -264,14 +269,15 @@ def read_manifest(folder: Path) -> dict | None:
         return None
 
 
-def check_output(model, folder: Path) -> list:
+def check_output(model, folder: Path, numbers: str | None = None) -> list:
     """Reasons ``folder`` is stale for ``model``, judged by the generated output (``generate --check``).
 
     When only the derivation code's hash differs (an edit that may not change what is generated,
     such as a comment), the code is generated again into a temporary folder and compared byte for
-    byte, the manifest without its derivation hash: identical output is current.
+    byte, the manifest without its derivation hash: identical output is current. ``numbers``: the
+    mode the folder must be in (None: its own), as for :func:`check`.
     """
-    reasons = check(model, folder)
+    reasons = check(model, folder, numbers)
     derivation_only = reasons and all("derivation_hash changed" in r for r in reasons)
     if not derivation_only:
         return reasons

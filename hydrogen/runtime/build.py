@@ -4,13 +4,14 @@ from __future__ import annotations
 import hashlib
 from pathlib import Path
 
-from ..codegen.generate import check, check_numbers_mode, derivation_hash, generate_locked, read_manifest, structure_hash
+from ..codegen.generate import (DEFAULT_NUMBERS, check, check_numbers_mode, derivation_hash, generate_locked,
+                                read_manifest, structure_hash)
 from ..errors import BuildCacheError
 from ..model import Model, load_model
 from .cachedir import cache_errors, check_cache_root, folder_lock, warm_library
 from .compiler import Toolchain, build_key_of, cache_root, cached_library, compile_libraries
 from .extension import attach_extension
-from .library import CORE, GeneratedLibrary, group_sources
+from .library import CORE, GeneratedLibrary, controller_groups, group_sources
 
 __all__ = ["build", "repo_generated_dir", "generated_dir_for", "library_name"]
 
@@ -21,7 +22,7 @@ def repo_generated_dir() -> Path:
     return committed_generated_dir()
 
 
-def generated_dir_for(model: Model, cache: Path | None = None, numbers: str = "constants") -> Path:
+def generated_dir_for(model: Model, cache: Path | None = None, numbers: str = DEFAULT_NUMBERS) -> Path:
     """Where the C for ``model`` lives: the committed folder when current, else a cache folder.
 
     The committed ``generated/<name>`` is used as it is when it matches the model
@@ -144,13 +145,15 @@ def _check_controllers(controllers) -> tuple:
 
 def build(model: Model | str | Path | None = None, *, cc: str | None = None,
           cflags: tuple | None = None, cache: Path | None = None, generated: Path | None = None,
-          backend: str = "auto", progress=None, controllers=(), numbers: str = "constants"):
+          backend: str = "auto", progress=None, controllers=(), numbers: str = DEFAULT_NUMBERS):
     """Generate if stale, compile if needed, load, and return a :class:`~hydrogen.dynamics.Dynamics`.
 
     The compiled code is one core library (kinematics, rigid body, hydraulics, plant, the C loop)
-    and one library per controller (the controller and its variants). A build compiles the core
-    and the libraries of ``controllers``; any other controller's library is compiled (or found in
-    the cache) the first time one of its functions is used, e.g. by a run with that controller.
+    and per controller one library for each variant a run calls on its own (the full controller
+    with its rates and step; the lean one: :func:`~hydrogen.runtime.library.function_groups`). A
+    build compiles the core and the libraries of ``controllers``; any other library is compiled
+    (or found in the cache) the first time one of its functions is used, e.g. by a run with that
+    controller, which compiles only the variant it runs.
 
     Parameters
     ----------
@@ -174,11 +177,13 @@ def build(model: Model | str | Path | None = None, *, cc: str | None = None,
     controllers : sequence of str
         Controllers (names, as ``simulate`` takes them) whose libraries are compiled with the core,
         in the same pool of compilers, and loaded now. ``hydrogen.CONTROLLERS``: all of them.
-    numbers : "constants" or "inputs"
-        "constants" folds the description's numbers into the C (as the committed code is).
-        "inputs" generates every function with them as an input the runtime fills from the
-        description (``Model.numbers()``): a description that differs in numbers only (a mass, a
-        pin point, an area) loads the same compiled libraries, with no generation and no compile.
+    numbers : "inputs" (default) or "constants"
+        "inputs" generates every function with the description's numbers as an input the runtime
+        fills from the description (``Model.numbers()``), as the committed code is: a description
+        that differs in numbers only (a mass, a pin point, an area, a pressure) loads the same
+        compiled libraries, with no generation and no compile; the C loop, the export and the
+        FMU take the numbers as parameters. "constants" folds them into the C (a library per
+        set of numbers).
     """
     from ..dynamics import Dynamics
     from ..progress import Reporter, generation_reported
@@ -201,7 +206,8 @@ def build(model: Model | str | Path | None = None, *, cc: str | None = None,
 
     lib = warm_library(model, folder, toolchain, root, loader, numbers)  # no lock, no write: a read-only cache works
     if lib is not None:
-        missing = [c for c in controllers if _cached_or_none(made[-1], c) is None]
+        groups = [g for c in controllers for g in controller_groups(made[-1].manifest, c)]
+        missing = [g for g in groups if _cached_or_none(made[-1], g) is None]
         if missing:
             with cache_errors(root), folder_lock(folder, current=committed):
                 made[-1].compile(missing)
@@ -218,7 +224,8 @@ def build(model: Model | str | Path | None = None, *, cc: str | None = None,
                 raise BuildCacheError(f"{folder}: generated folder has no readable manifest after generation")
             load = loader(manifest)
             # Progress around the compile call, not inside it: a build another process finished is no step.
-            core = load.compile([CORE, *controllers])[0]
+            groups = [g for c in controllers for g in controller_groups(manifest, c)]
+            core = load.compile([CORE, *groups])[0]
             try:
                 lib = GeneratedLibrary(core, manifest, folder, load, numbers=model.numbers)
             except BuildCacheError:
@@ -226,8 +233,8 @@ def build(model: Model | str | Path | None = None, *, cc: str | None = None,
                 lib = GeneratedLibrary(load.compile([CORE], force=True)[0], manifest, folder, load,
                                        numbers=model.numbers)
     attach_extension(lib, toolchain, cache=cache, backend=backend)
-    for c in controllers:
-        lib.load(c)
+    for g in groups:
+        lib.load(g)
     steps = [s for s, done in (("generated", "generated"), ("compiled", "compiled")) if done in report.stages]
     report("built" if steps else "loaded", " + ".join(steps) if steps else f"already built: {lib.path}",
            report.total())

@@ -16,6 +16,7 @@ import errno
 from contextlib import ExitStack, contextmanager
 from pathlib import Path
 
+from ..codegen.generate import DEFAULT_NUMBERS
 from ..errors import BuildCacheError, CompilerError, DiskFullError, HydrogenError
 from ..fileio import DISK_FULL
 
@@ -67,7 +68,7 @@ def cache_errors(root: Path):
         raise
 
 
-def warm_library(model, folder: Path, toolchain, cache_root: Path, loader, numbers: str = "constants"):
+def warm_library(model, folder: Path, toolchain, cache_root: Path, loader, numbers: str = DEFAULT_NUMBERS):
     """The loaded core library already built for the current ``folder``, or None; takes no lock, writes
     nothing. ``loader(manifest)`` makes the library's loader of the other libraries (controllers);
     ``numbers``: the mode the folder must have been generated in (``codegen.generate.NUMBERS_MODES``)."""

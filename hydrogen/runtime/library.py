@@ -20,7 +20,7 @@ from ..errors import BuildCacheError
 from ..layout import NUMBERS
 
 __all__ = ["GeneratedLibrary", "CompiledFunction", "LazyFunctions", "load_failure", "function_groups", "group_sources",
-           "CORE"]
+           "group_name", "controller_groups", "CORE"]
 
 _c_int = ctypes.c_longlong  # casadi_int, fixed by the code generator options
 _DOUBLE_P = ctypes.POINTER(ctypes.c_double)
@@ -121,8 +121,8 @@ class CompiledFunction:
                         f"library, manifest says dense {r}x{c}; regenerate")
 
     def _bad_input(self, args):
-        if len(args) != len(self._in):
-            return TypeError(f"{self.name} takes {len(self._in)} inputs "
+        if len(args) != len(self.in_names):  # the inputs a caller passes: not the description's numbers
+            return TypeError(f"{self.name} takes {len(self.in_names)} inputs "
                              f"({', '.join(self.in_names)}), got {len(args)}")
         for view, x, name in zip(self._in_views, args, self.in_names):
             if np.shape(x) != view.shape:
@@ -298,21 +298,38 @@ def load_failure(path: Path, exc: Exception) -> str:
 CORE = "core"
 
 
+def group_name(kind: str, variant: str | None = None) -> str:
+    """The library of controller ``kind``'s ``variant`` (None: the full controller): ``kind``, or
+    ``kind-variant`` (e.g. ``adaptive-robust-lean``)."""
+    return kind if variant is None else f"{kind}-{variant}"
+
+
 def function_groups(manifest: dict) -> dict:
-    """The manifest's function names by the library that holds them: :data:`CORE` first, then one
-    group per controller (its user-facing name) holding the controller and its variants (rates,
-    semi-implicit step, lean ones), in the order the controllers are registered."""
+    """The manifest's function names by the library that holds them: :data:`CORE` first, then per
+    controller (in the order the controllers are registered) one group per variant that a run calls
+    on its own, the full one (:func:`group_name` ``kind``: the controller, its rates and its
+    semi-implicit step) and the lean one (``kind-lean``, run when every composite rate is 0), so a
+    run compiles only the variant it runs."""
     from ..controllers import CONTROLLERS, LEAN, function_name, rates_function_name, step_function_name
 
     names = [e["name"] for e in manifest["functions"]]
-    owner = {namer(kind, variant): kind for kind in CONTROLLERS for variant in (None, LEAN)
+    owner = {namer(kind, variant): group_name(kind, variant) for kind in CONTROLLERS for variant in (None, LEAN)
              for namer in (function_name, rates_function_name, step_function_name)}
     groups = {CORE: [n for n in names if n not in owner]}
     for kind in CONTROLLERS:
-        mine = [n for n in names if owner.get(n) == kind]
-        if mine:
-            groups[kind] = mine
+        for variant in (None, LEAN):
+            mine = [n for n in names if owner.get(n) == group_name(kind, variant)]
+            if mine:
+                groups[group_name(kind, variant)] = mine
     return groups
+
+
+def controller_groups(manifest: dict, kind: str) -> list:
+    """The libraries of controller ``kind`` (:func:`function_groups`): its full and lean variants'."""
+    from ..controllers import LEAN
+
+    groups = function_groups(manifest)
+    return [g for g in (group_name(kind), group_name(kind, LEAN)) if g in groups]
 
 
 def group_sources(manifest: dict, group: str) -> list:
