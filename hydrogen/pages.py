@@ -380,6 +380,22 @@ def _edit(b) -> list:
     return out + _table(["robot", "route", "process wall", "import", "build", "run", "build only loaded"], rows)
 
 
+def _cold(b) -> list:
+    rows = b.get("rows", [])
+    if not rows:
+        return []
+    out = ["## From a structural edit to the first run", "",
+           f"`benchmarks/bench_cold.py`: a description whose structure changed (each shipped robot with gravity 0: "
+           f"a number become zero, which the derivation holds exact), a spatial 3-DOF leg and a 7-link planar chain, "
+           f"each in a fresh process with an empty cache: generation, the core library's compile, and the first "
+           f"`{b.get('controller')}` run of {_f(b.get('duration_s'))} s (its first use compiles the library of the "
+           f"variant it runs; the leg, with no scenario, compiles the full one). Seconds, median of {b.get('runs')} "
+           f"run{'s' if b.get('runs') != 1 else ''}:", ""]
+    table = [[r["case"], _f(r["process_wall_s"]), _f(r["cpu_s"]), _f(r["generate_s"]), _f(r["core_compile_s"]),
+              _f(r["first_use_s"])] for r in rows]
+    return out + _table(["case", "process wall", "CPU", "generation", "core compile", "first use"], table)
+
+
 def benchmarks_page(results: dict, repeats: dict | None = None, source: str = "docs/bench.json") -> str:
     """Markdown of a ``hydrogen bench`` run (the dict it writes as JSON), optionally with the whole-run
     spread of the release comparison (``bench_release_repeats.json``); sections of modules not run
@@ -406,6 +422,8 @@ def benchmarks_page(results: dict, repeats: dict | None = None, source: str = "d
         out += _folding(results["bench_folding"])
     if "bench_edit" in results:
         out += _edit(results["bench_edit"])
+    if "bench_cold" in results:
+        out += _cold(results["bench_cold"])
     return "\n".join(out).rstrip() + "\n"
 
 

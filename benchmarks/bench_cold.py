@@ -1,0 +1,158 @@
+"""From an edit of a description's structure to its first run, with an empty cache.
+
+An edit of structure (a joint, an actuator, an adapted parameter, a number that becomes 0 or ±1)
+generates and compiles again; an edit of numbers does not (``bench_edit.py``). Cases, each in a
+fresh Python process with a fresh cache, timed from the process start:
+
+* every shipped robot (``hydrogen.models()``) with its gravity set to 0: a number becomes zero, which
+  the derivation holds exact, so its structure changes and nothing committed or cached serves it;
+* the spatial 3-DOF leg of ``bench_forms.py`` (``leg_description``), the class of a quadruped's leg;
+* the planar chain of ``bench_scaling.py`` (``chain_description``) of ``CHAIN_N`` links.
+
+Each process builds (``hydrogen.build``: the derivation, the rendering and the core library's
+compile), then runs ``CONTROLLER`` for ``DURATION`` s of the first scenario (whose first use
+compiles the library of the variant the scenario's gains run); a description with no scenario (the
+leg) takes the controller's full variant instead, as a run with the composite law compiles it.
+Reported: process wall and CPU seconds (the process and its compilers), the generation and the core
+compile (from the build's progress events) and the first use; with the release checks, the target
+wall time of each class. Median of ``RUNS`` runs (1 with ``--quick``).
+
+Run: ``python benchmarks/bench_cold.py [--quick] [--json FILE]`` (about 2-3 minutes).
+"""
+from __future__ import annotations
+
+import json
+import re
+import shutil
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+try:  # imported as benchmarks.bench_cold
+    from . import common
+except ImportError:  # run as a script, or loaded from its path
+    sys.path.insert(0, str(Path(__file__).resolve().parent))
+    import common
+
+CONTROLLER = "adaptive-robust"
+DURATION = 0.05
+RUNS = 2
+CHAIN_N = 7
+#: The wall-time target of each case's class, s (2 cores): a platform like the Stewart one, a spatial
+#: 3-DOF leg, a 7-link chain.
+TARGETS = {"robot": 15.0, "leg": 30.0, "chain": 60.0}
+_GRAVITY = re.compile(r"^(gravity\s*=\s*)([0-9.eE+-]+)", re.M)
+
+_RUN = """
+import json, resource, sys, time
+t0 = time.perf_counter()
+sys.path.insert(0, {bench!r})
+import hydrogen
+from hydrogen.controllers import function_name
+from hydrogen.model import model_from_dict
+from hydrogen.simulation.scenarios import scenario_names
+kind, arg = {kind!r}, {arg!r}
+if kind == "robot":
+    model = hydrogen.load_model(arg)
+elif kind == "leg":
+    from bench_forms import leg_description
+    model = model_from_dict(leg_description())
+else:
+    from bench_scaling import chain_description
+    model = model_from_dict(chain_description(int(arg)))
+events = []
+dyn = hydrogen.build(model, cache={cache!r}, progress=events.append)
+t1 = time.perf_counter()
+scenarios = scenario_names(model)
+if scenarios:  # compiles the library of the variant the scenario's gains run, then runs
+    hydrogen.simulate(scenarios[0], {controller!r}, dyn=dyn, duration={duration!r})
+else:  # no scenario to run: the full variant's library, as a run with composite rates compiles it
+    dyn.functions[function_name({controller!r})]
+t2 = time.perf_counter()
+stages = {{}}
+for e in events:
+    if e.stage in ("generated", "compiled"):
+        stages.setdefault(e.stage, e.elapsed_s)
+own, kids = resource.getrusage(resource.RUSAGE_SELF), resource.getrusage(resource.RUSAGE_CHILDREN)
+print("build_s", t1 - t0)
+print("generate_s", stages.get("generated", 0.0))
+print("core_compile_s", stages.get("compiled", 0.0))
+print("first_use_s", t2 - t1)
+print("ran", int(bool(scenarios)))
+print("cpu_s", own.ru_utime + own.ru_stime + kids.ru_utime + kids.ru_stime)
+"""
+
+
+def structural_copy(name: str, folder: Path) -> Path:
+    """A copy of robot ``name``'s description folder in ``folder`` with gravity 0; the TOML."""
+    import hydrogen
+
+    toml = hydrogen.model.model_path(name)
+    for p in toml.parent.iterdir():
+        if p.is_file():
+            shutil.copy(p, folder / p.name)
+    text = toml.read_text()
+    if _GRAVITY.search(text) is None:
+        raise RuntimeError(f"{toml}: no 'gravity =' line to edit")
+    (folder / toml.name).write_text(_GRAVITY.sub(lambda m: f"{m[1]}0.0", text, count=1))
+    return folder / toml.name
+
+
+def cases(root: Path) -> list:
+    """``(label, class, kind, argument)`` of every case; robots' edited copies written under ``root``."""
+    out = []
+    for name in common.robots():
+        folder = root / f"desc-{name}"
+        folder.mkdir()
+        out.append((f"{name}, gravity 0", "robot", "robot", str(structural_copy(name, folder))))
+    out.append(("spatial 3-DOF leg", "leg", "leg", ""))
+    out.append((f"planar chain, n = {CHAIN_N}", "chain", "chain", str(CHAIN_N)))
+    return out
+
+
+def run(quick: bool = False) -> dict:
+    t0 = time.perf_counter()
+    runs = 1 if quick else RUNS
+    rows = []
+    with tempfile.TemporaryDirectory(prefix="bench_cold_") as root:
+        root = Path(root)
+        for label, cls, kind, arg in cases(root):
+            rs = []
+            for i in range(runs):
+                cache = root / f"cache-{len(rows)}-{i}"
+                stdout, wall = common.run_python(_RUN.format(
+                    bench=str(Path(__file__).resolve().parent), kind=kind, arg=arg, cache=str(cache),
+                    controller=CONTROLLER, duration=DURATION))
+                r = common.parse_keyed(stdout)
+                r["process_wall_s"] = wall
+                rs.append(r)
+                shutil.rmtree(cache, ignore_errors=True)
+            row = {k: common.median(r[k] for r in rs) for k in
+                   ("process_wall_s", "cpu_s", "generate_s", "core_compile_s", "first_use_s")}
+            row.update(case=label, cls=cls, target_s=TARGETS[cls], ran=bool(rs[0]["ran"]), runs=rs,
+                       within_target=row["process_wall_s"] < TARGETS[cls])
+            rows.append(row)
+    return {"rows": rows, "controller": CONTROLLER, "duration_s": DURATION, "runs": runs, "quick": quick,
+            "wall_s": time.perf_counter() - t0, "machine": common.machine_info()}
+
+
+def print_table(res: dict, checks: bool = False) -> None:
+    """The table; with ``checks`` (the project's release checks) each class's target and whether it holds."""
+    print(f"A structural edit to the first {res['controller']} run, fresh process and cache; seconds "
+          f"(median of {res['runs']}):")
+    header = f"{'case':<32} {'wall':>7} {'CPU':>7} {'generate':>9} {'core cc':>8} {'first use':>10}"
+    header += f" {'target':>7} {'met':>4}" if checks else ""
+    print(header)
+    print("-" * len(header))
+    for r in res["rows"]:
+        line = (f"{r['case']:<32} {r['process_wall_s']:>7.2f} {r['cpu_s']:>7.2f} {r['generate_s']:>9.2f} "
+                f"{r['core_compile_s']:>8.2f} {r['first_use_s']:>10.2f}")
+        if checks:
+            line += f" {r['target_s']:>7.0f} {'yes' if r['within_target'] else 'NO':>4}"
+        print(line)
+    print(f"whole benchmark {res['wall_s']:.1f} s")
+
+
+if __name__ == "__main__":
+    sys.exit(common.script_main(__doc__, run, print_table))
