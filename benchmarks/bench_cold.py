@@ -21,8 +21,6 @@ Run: ``python benchmarks/bench_cold.py [--quick] [--json FILE]`` (about 2-3 minu
 """
 from __future__ import annotations
 
-import json
-import re
 import shutil
 import sys
 import tempfile
@@ -42,7 +40,6 @@ CHAIN_N = 7
 #: The wall-time target of each case's class, s (2 cores): a platform like the Stewart one, a spatial
 #: 3-DOF leg, a 7-link chain.
 TARGETS = {"robot": 15.0, "leg": 30.0, "chain": 60.0}
-_GRAVITY = re.compile(r"^(gravity\s*=\s*)([0-9.eE+-]+)", re.M)
 
 _RUN = """
 import json, resource, sys, time
@@ -86,17 +83,7 @@ print("cpu_s", own.ru_utime + own.ru_stime + kids.ru_utime + kids.ru_stime)
 
 def structural_copy(name: str, folder: Path) -> Path:
     """A copy of robot ``name``'s description folder in ``folder`` with gravity 0; the TOML."""
-    import hydrogen
-
-    toml = hydrogen.model.model_path(name)
-    for p in toml.parent.iterdir():
-        if p.is_file():
-            shutil.copy(p, folder / p.name)
-    text = toml.read_text()
-    if _GRAVITY.search(text) is None:
-        raise RuntimeError(f"{toml}: no 'gravity =' line to edit")
-    (folder / toml.name).write_text(_GRAVITY.sub(lambda m: f"{m[1]}0.0", text, count=1))
-    return folder / toml.name
+    return common.copy_with_gravity(name, folder, lambda g: 0.0)
 
 
 def cases(root: Path) -> list:

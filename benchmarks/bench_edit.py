@@ -19,7 +19,6 @@ Run: ``python benchmarks/bench_edit.py [--quick] [--json FILE]`` (about 1-2 minu
 """
 from __future__ import annotations
 
-import re
 import shutil
 import sys
 import tempfile
@@ -36,7 +35,6 @@ DURATION = 0.05
 CONTROLLER = "backstepping"
 RUNS = 3
 ROUTES = ("inputs", "constants")
-_GRAVITY = re.compile(r"^(gravity\s*=\s*)([0-9.eE+-]+)", re.M)
 
 _RUN = """
 import time
@@ -59,18 +57,7 @@ print("periods", len(r.q))
 
 def edited_copy(name: str, folder: Path) -> Path:
     """A copy of robot ``name``'s description folder in ``folder`` with gravity 0.1 % lower; the TOML."""
-    import hydrogen
-
-    toml = hydrogen.model.model_path(name)
-    for p in toml.parent.iterdir():
-        if p.is_file():
-            shutil.copy(p, folder / p.name)
-    text = toml.read_text()
-    old = _GRAVITY.search(text)
-    if old is None:
-        raise RuntimeError(f"{toml}: no 'gravity =' line to edit")
-    (folder / toml.name).write_text(_GRAVITY.sub(lambda m: f"{m[1]}{float(m[2]) * 0.999!r}", text, count=1))
-    return folder / toml.name
+    return common.copy_with_gravity(name, folder, lambda g: g * 0.999)
 
 
 def run_robot(name: str, runs: int) -> dict:

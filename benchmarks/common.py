@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import os
 import platform
+import re
 import shutil
 import statistics
 import subprocess
@@ -277,3 +278,23 @@ def script_main(doc: str, run, print_table, argv=None) -> int:
     if a.json:
         atomic_write(a.json, json.dumps(r, indent=2, default=str) + "\n")
     return 0
+
+
+_GRAVITY = re.compile(r"^(gravity\s*=\s*)([0-9.eE+-]+)", re.M)
+
+
+def copy_with_gravity(name: str, folder: Path, gravity) -> Path:
+    """A copy of robot ``name``'s description folder in ``folder`` with its gravity replaced by
+    ``gravity(old)`` (m/s²); the copy's TOML path. Every description has a gravity: the edit is generic."""
+    import hydrogen
+
+    toml = hydrogen.model.model_path(name)
+    for p in toml.parent.iterdir():
+        if p.is_file():
+            shutil.copy(p, folder / p.name)
+    text = toml.read_text()
+    if _GRAVITY.search(text) is None:
+        raise RuntimeError(f"{toml}: no 'gravity =' line to edit")
+    (folder / toml.name).write_text(_GRAVITY.sub(lambda m: f"{m[1]}{float(gravity(float(m[2])))!r}", text, count=1))
+    return folder / toml.name
+

@@ -26,7 +26,7 @@ static int leg_force(const double* nb, const double* p, double* f) {
     const double* arg[2];
     double* res[1];
     arg[0] = p;
-    arg[1] = nb;  /* the description's numbers, the generated functions' last input */
+    arg[1] = nb;  /* the description's numbers (their last input), unless folded */
     res[0] = f;
     return excavator_arm_leg_force(arg, res, 0, 0, 0);
 }
@@ -35,7 +35,7 @@ static int leg_lengths(const double* nb, const double* q, double* l) {
     const double* arg[2];
     double* res[1];
     arg[0] = q;
-    arg[1] = nb;  /* the description's numbers, the generated functions' last input */
+    arg[1] = nb;  /* the description's numbers (their last input), unless folded */
     res[0] = l;
     return excavator_arm_leg_lengths(arg, res, 0, 0, 0);
 }
@@ -52,7 +52,7 @@ static int leg_kinematics(const double* nb, const double* q, double* l, double* 
     const double* arg[2];
     double* res[2];
     arg[0] = q;
-    arg[1] = nb;  /* the description's numbers, the generated functions' last input */
+    arg[1] = nb;  /* the description's numbers (their last input), unless folded */
     res[0] = l;
     res[1] = J;
     return excavator_arm_leg_kinematics(arg, res, 0, 0, 0);
