@@ -22,8 +22,9 @@ __all__ = ["FORMS", "COUNTED", "STAGED_DEPTH", "rigid_body_form", "form_costs", 
 
 #: The forms, in the order that breaks a tie of instruction counts.
 FORMS = ("closed", "staged")
-#: The rigid-body functions whose CasADi instructions decide "auto": q̈ (the simulator's plant, D and
-#: its solve), the regressor Y and D a + C w + G (the controllers' dynamics) and D itself.
+#: The rigid-body functions whose CasADi instructions decide "auto": q̈ (the simulator's plant; by the
+#: articulated-body algorithm in either form wherever there is no floating joint, so it counts the
+#: same in both), the regressor Y and D a + C w + G (the controllers' dynamics) and D itself.
 COUNTED = ("mass_matrix", "regressor", "inverse_dynamics", "forward_dynamics")
 #: The depth (moving joints on one path) from which "auto" stages without counting: on the 4-link
 #: chain of benchmarks/bench_scaling.py the staged form is smaller in every function already.

@@ -17,8 +17,8 @@ from ..pressures import blocks, n_pressures, uniform_three_way
 from .constants import PRESSURE_EPS, baked_table
 from .kinematics import leg_stages, pose_symbols, rate_symbols
 from .plant import plant_rhs
-from .rigid_body import (bias_forces, coriolis_matrix, gravity, mass_matrix, mass_matrix_inverse, regressor,
-                         regressor_offset, rigid_body_stages, theta_symbols)
+from .rigid_body import (bias_forces, coriolis_matrix, gravity, mass_matrix, mass_matrix_inverse,
+                         recursive_forward_dynamics, regressor, regressor_offset, rigid_body_stages, theta_symbols)
 
 __all__ = ["SymbolicFunction", "SemiImplicitStep", "Specialisation", "derive_functions", "derive_parametric", "NUMBERS",
            "PRESSURE_EPS"]
@@ -98,16 +98,22 @@ def rigid_body_functions(model) -> list:
         funcs.append(SymbolicFunction("regressor_offset", [("q", q), ("v", v), ("w", w), ("a", a)],
                                       [("y0", y0)], "y0 = D a + C(q, v) w + G - Y theta (non-adapted share).",
                                       poses))
-    # q̈ = D⁻¹ (τ − C q̇ − G): the closed-form inverse where the tree has one, else a linear solve.
+    # q̈ = D⁻¹ (τ − C q̇ − G): the articulated-body algorithm on a tree without floating joints (its
+    # own stages, no pose symbols), else the closed-form inverse where the tree has one, else a solve.
     bias = bias_forces(model, q, qd, th)
-    rhs = tau - bias
-    Dinv = mass_matrix_inverse(model, q, th)
-    qdd, solve = (Dinv * rhs, []) if Dinv is not None else (rate_symbols("fd_qdd", n), None)
-    if solve is None:
-        solve = [(qdd, ("solve", D, rhs))]
+    recursive = recursive_forward_dynamics(model, q, qd, tau, th)
+    if recursive is not None:
+        qdd, fd_stages = recursive
+    else:
+        rhs = tau - bias
+        Dinv = mass_matrix_inverse(model, q, th)
+        qdd, fd_stages = (Dinv * rhs, []) if Dinv is not None else (rate_symbols("fd_qdd", n), None)
+        if fd_stages is None:
+            fd_stages = [(qdd, ("solve", D, rhs))]
+        fd_stages = [*poses, *fd_stages]
     funcs.append(SymbolicFunction("forward_dynamics", [("q", q), ("qdot", qd), ("tau", tau), ("theta", th)],
                                   [("qddot", qdd)], "Forward dynamics qddot = D^-1 (tau - C(q, qdot) qdot - G).",
-                                  [*poses, *solve]))
+                                  fd_stages))
     funcs.append(SymbolicFunction("inverse_dynamics", [("q", q), ("qdot", qd), ("qddot", a), ("theta", th)],
                                   [("tau", D * a + bias)],
                                   "Inverse dynamics tau = D(q) qddot + C(q, qdot) qdot + G, N or N m.", poses))

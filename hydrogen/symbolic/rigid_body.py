@@ -26,6 +26,7 @@ from .tree import SymbolicTree
 __all__ = [
     "theta_symbols", "mass_matrix", "mass_matrix_inverse", "coriolis", "coriolis_matrix", "gravity", "regressor",
     "regressor_offset", "coriolis_paper", "symbolic_tree", "inverse_dynamics", "bias_forces", "rigid_body_stages",
+    "recursive_forward_dynamics",
 ]
 
 _TREES = {}
@@ -109,6 +110,21 @@ def _dynamics_of(tree, q, v, w, a, g):
         return tree.staged_inverse_dynamics(sp.Matrix(v), sp.Matrix(w), sp.Matrix(a), g)
     D = tree.mass_matrix()
     return D * sp.Matrix(a) + coriolis(D, q, v) * sp.Matrix(w) + tree.gravity(g)
+
+
+def recursive_forward_dynamics(model, q, qdot, tau, theta, prefix: str = "aba"):
+    """q̈ = D⁻¹ (τ − C q̇ − G) by the articulated-body algorithm: ``(qdd, stages)``
+    (:func:`~hydrogen.symbolic.articulated.articulated_body_stages`, linear in the number of links
+    where the solve of D is cubic), on any tree the staged form applies to, whichever form D, C, G
+    take (it works in link frames from the joint angles, not from either form's expressions); None
+    for a floating joint (a symbolic solve, or a single floating body's closed-form D⁻¹).
+    ``tau``: joint forces, N m or N."""
+    tree = symbolic_tree(model, q, theta)
+    if not tree.staged_applies():
+        return None
+    from .articulated import articulated_body_stages
+
+    return articulated_body_stages(tree, qdot, tau, baked(model.gravity, "gravity"), prefix)
 
 
 def regressor(model, q, v, w, a, theta) -> sp.Matrix:

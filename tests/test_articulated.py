@@ -1,0 +1,102 @@
+"""Forward dynamics by the articulated-body algorithm (hydrogen.symbolic.articulated): the same q̈ as
+the symbolic solve of D q̈ = τ − C q̇ − G it replaced and as Pinocchio's aba, on the planar chain of
+benchmarks/bench_scaling.py (n = 2 ... 6, closed and staged forms) and on a branched tree of every
+joint type it takes; its CasADi instructions grow by a constant per link.
+
+The functions are evaluated as CasADi Functions straight from the derivation (no C compile)."""
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from hydrogen.codegen.casadi_functions import to_casadi_function
+from hydrogen.symbolic import kinematics as K
+from hydrogen.symbolic import rigid_body as RB
+from hydrogen.symbolic.articulated import articulated_body_stages
+from hydrogen.symbolic.functions import SymbolicFunction, rigid_body_functions
+from hydrogen.symbolic.tree import SymbolicTree
+
+sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "benchmarks"))
+from bench_scaling import chain_model  # noqa: E402
+from test_staged_rigid_body import _branching_tree, _close, _pinocchio  # noqa: E402
+
+pin = pytest.importorskip("pinocchio")
+
+
+def _solve_function(model):
+    """q̈ by the symbolic solve of D q̈ = τ − C q̇ − G (what forward_dynamics was), in the model's form."""
+    n = model.n
+    q, qd, tau, th = K.pose_symbols(model), K.rate_symbols("qdot", n), K.rate_symbols("tau", n), RB.theta_symbols(model)
+    qdd = K.rate_symbols("solve_qdd", n)
+    stages = [*RB.rigid_body_stages(model, q),
+              (qdd, ("solve", RB.mass_matrix(model, q, th), tau - RB.bias_forces(model, q, qd, th)))]
+    return to_casadi_function(SymbolicFunction("solve", [("q", q), ("qdot", qd), ("tau", tau), ("theta", th)],
+                                               [("qddot", qdd)], "", stages))
+
+
+@pytest.mark.parametrize("n", range(2, 7))
+def test_chain_forward_dynamics_equals_the_solve_pinocchio_and_D_C_G(n, rng):
+    chain = chain_model(n)
+    funcs = {sf.name: to_casadi_function(sf) for sf in rigid_body_functions(chain)}
+    solve = _solve_function(chain)
+    pm = _pinocchio(chain)
+    data = pm.createData()
+    for _ in range(4):
+        q = chain.neutral_pose + rng.uniform(-1, 1, n)
+        v, tau = rng.normal(size=n), rng.normal(size=n) * 100
+        _close(funcs["forward_dynamics"](q, v, tau, chain.theta), pin.aba(pm, data, q, v, tau))
+        th = chain.theta * rng.uniform(0.5, 1.5, chain.n_theta)  # θ an input: any parameters
+        qdd = np.asarray(funcs["forward_dynamics"](q, v, tau, th)).ravel()
+        # the solve (CasADi's symbolic QR) loses digits with D's condition number: a looser bound
+        # than against Pinocchio, whose aba the recursive q̈ meets to round-off
+        np.testing.assert_allclose(qdd, np.asarray(solve(q, v, tau, th)).ravel(), rtol=1e-6)
+        D, C, G = (np.asarray(f) for f in (funcs["mass_matrix"](q, th), funcs["coriolis"](q, v, th),
+                                           funcs["gravity"](q, th)))
+        _residual(D, C @ v + G.ravel(), qdd, tau)
+
+
+def _residual(D, bias, qdd, tau):
+    """D q̈ + bias = τ to round-off of the largest term."""
+    scale = max(np.abs(tau).max(), np.abs(D @ qdd).max(), np.abs(bias).max())
+    np.testing.assert_allclose(D @ qdd + bias, tau, rtol=0, atol=1e-11 * scale)
+
+
+def test_branched_tree_forward_dynamics_equals_pinocchio_and_D_C_G(rng):
+    """Revolute, prismatic and fixed joints on two branches, adapted parameters of every kind."""
+    model, theta = _branching_tree(rng)
+    n = len(model.coordinate_names)
+    q, qd, tau, th = K.rate_symbols("q", n), K.rate_symbols("v", n), K.rate_symbols("tau", n), RB.theta_symbols(model)
+    tree = SymbolicTree(model, q, th)
+    qdd, stages = articulated_body_stages(tree, qd, tau, model.gravity)
+    D = tree.mass_matrix()
+    inputs = [("q", q), ("v", qd), ("tau", tau), ("th", th)]
+    fd = to_casadi_function(SymbolicFunction("fd", inputs, [("qdd", qdd)], "", stages))
+    dcg = to_casadi_function(SymbolicFunction("dcg", inputs, [("D", D), ("C", RB.coriolis(D, q, qd)),
+                                                              ("G", tree.gravity(model.gravity))], ""))
+    pm = _pinocchio(model)
+    data = pm.createData()
+    for _ in range(5):
+        q0, v0, tau0 = rng.normal(size=n), rng.normal(size=n), rng.normal(size=n) * 10
+        got = np.asarray(fd(q0, v0, tau0, theta)).ravel()
+        _close(got, pin.aba(pm, data, q0, v0, tau0))
+        th0 = theta * rng.uniform(0.5, 1.5, len(theta))
+        got = np.asarray(fd(q0, v0, tau0, th0)).ravel()
+        D0, C0, G0 = (np.asarray(x) for x in dcg(q0, v0, tau0, th0))
+        _residual(D0, C0 @ v0 + G0.ravel(), got, tau0)
+
+
+def _aba_instructions(n):
+    chain = chain_model(n)
+    q, qd, tau, th = K.pose_symbols(chain), K.rate_symbols("qdot", n), K.rate_symbols("tau", n), \
+        RB.theta_symbols(chain)
+    qdd, stages = articulated_body_stages(SymbolicTree(chain, q, th), qd, tau, chain.gravity)
+    inputs = [("q", q), ("qdot", qd), ("tau", tau), ("theta", th)]
+    return to_casadi_function(SymbolicFunction("fd", inputs, [("qdd", qdd)], "", stages)).n_instructions()
+
+
+def test_instructions_grow_by_a_constant_per_link():
+    """Each link adds the same work (its stages refer to its neighbours' symbols only)."""
+    counts = [_aba_instructions(n) for n in (4, 5, 6, 7)]
+    steps = np.diff(counts)
+    assert steps.min() > 0 and steps.max() - steps.min() <= 0.05 * steps.mean(), counts
