@@ -1,7 +1,8 @@
-"""Forward dynamics by the articulated-body algorithm (hydrogen.symbolic.articulated): the same q̈ as
-the symbolic solve of D q̈ = τ − C q̇ − G it replaced and as Pinocchio's aba, on the planar chain of
+"""Forward dynamics by the articulated-body algorithm and inverse dynamics by recursive Newton-Euler
+(hydrogen.symbolic.articulated): the same q̈ as the symbolic solve of D q̈ = τ − C q̇ − G it replaced
+and as Pinocchio's aba, the same τ as D a + C q̇ + G and Pinocchio's rnea, on the planar chain of
 benchmarks/bench_scaling.py (n = 2 ... 6, closed and staged forms) and on a branched tree of every
-joint type it takes; its CasADi instructions grow by a constant per link.
+joint type they take; their CasADi instructions grow by a constant per link.
 
 The functions are evaluated as CasADi Functions straight from the derivation (no C compile)."""
 import sys
@@ -13,7 +14,7 @@ import pytest
 from hydrogen.codegen.casadi_functions import to_casadi_function
 from hydrogen.symbolic import kinematics as K
 from hydrogen.symbolic import rigid_body as RB
-from hydrogen.symbolic.articulated import articulated_body_stages
+from hydrogen.symbolic.articulated import articulated_body_stages, newton_euler_stages
 from hydrogen.symbolic.functions import SymbolicFunction, rigid_body_functions
 from hydrogen.symbolic.tree import SymbolicTree
 
@@ -54,6 +55,9 @@ def test_chain_forward_dynamics_equals_the_solve_pinocchio_and_D_C_G(n, rng):
         D, C, G = (np.asarray(f) for f in (funcs["mass_matrix"](q, th), funcs["coriolis"](q, v, th),
                                            funcs["gravity"](q, th)))
         _residual(D, C @ v + G.ravel(), qdd, tau)
+        a = rng.normal(size=n)
+        _close(funcs["inverse_dynamics"](q, v, a, th), D @ a + C @ v + G.ravel())
+        _close(funcs["inverse_dynamics"](q, v, a, chain.theta), pin.rnea(pm, data, q, v, a))
 
 
 def _residual(D, bias, qdd, tau):
@@ -72,6 +76,8 @@ def test_branched_tree_forward_dynamics_equals_pinocchio_and_D_C_G(rng):
     D = tree.mass_matrix()
     inputs = [("q", q), ("v", qd), ("tau", tau), ("th", th)]
     fd = to_casadi_function(SymbolicFunction("fd", inputs, [("qdd", qdd)], "", stages))
+    tau_id, id_stages = newton_euler_stages(tree, qd, tau, model.gravity)  # "tau" is the acceleration here
+    rnea = to_casadi_function(SymbolicFunction("id", inputs, [("f", tau_id)], "", id_stages))
     dcg = to_casadi_function(SymbolicFunction("dcg", inputs, [("D", D), ("C", RB.coriolis(D, q, qd)),
                                                               ("G", tree.gravity(model.gravity))], ""))
     pm = _pinocchio(model)
@@ -84,19 +90,23 @@ def test_branched_tree_forward_dynamics_equals_pinocchio_and_D_C_G(rng):
         got = np.asarray(fd(q0, v0, tau0, th0)).ravel()
         D0, C0, G0 = (np.asarray(x) for x in dcg(q0, v0, tau0, th0))
         _residual(D0, C0 @ v0 + G0.ravel(), got, tau0)
+        a0 = rng.normal(size=n)
+        _close(rnea(q0, v0, a0, th0), D0 @ a0 + C0 @ v0 + G0.ravel())
+        _close(rnea(q0, v0, a0, theta), pin.rnea(pm, data, q0, v0, a0))
 
 
-def _aba_instructions(n):
+def _instructions(n, stages_of):
     chain = chain_model(n)
-    q, qd, tau, th = K.pose_symbols(chain), K.rate_symbols("qdot", n), K.rate_symbols("tau", n), \
+    q, qd, x, th = K.pose_symbols(chain), K.rate_symbols("qdot", n), K.rate_symbols("x", n), \
         RB.theta_symbols(chain)
-    qdd, stages = articulated_body_stages(SymbolicTree(chain, q, th), qd, tau, chain.gravity)
-    inputs = [("q", q), ("qdot", qd), ("tau", tau), ("theta", th)]
-    return to_casadi_function(SymbolicFunction("fd", inputs, [("qdd", qdd)], "", stages)).n_instructions()
+    out, stages = stages_of(SymbolicTree(chain, q, th), qd, x, chain.gravity)
+    inputs = [("q", q), ("qdot", qd), ("x", x), ("theta", th)]
+    return to_casadi_function(SymbolicFunction("f", inputs, [("out", out)], "", stages)).n_instructions()
 
 
-def test_instructions_grow_by_a_constant_per_link():
+@pytest.mark.parametrize("stages_of", [articulated_body_stages, newton_euler_stages])
+def test_instructions_grow_by_a_constant_per_link(stages_of):
     """Each link adds the same work (its stages refer to its neighbours' symbols only)."""
-    counts = [_aba_instructions(n) for n in (4, 5, 6, 7)]
+    counts = [_instructions(n, stages_of) for n in (4, 5, 6, 7)]
     steps = np.diff(counts)
     assert steps.min() > 0 and steps.max() - steps.min() <= 0.05 * steps.mean(), counts

@@ -19,9 +19,10 @@ from __future__ import annotations
 
 import sympy as sp
 
-from .tree import _axis_rotation, _cross, _cross_force, _cross_motion, _dot, _mm, _mul, _rot_xyz, _vec
+from .tree import (_apply_inertia, _axis_rotation, _cross, _cross_force, _cross_motion, _dot, _mm, _mul, _rot_xyz,
+                   _vec)
 
-__all__ = ["articulated_body_stages"]
+__all__ = ["articulated_body_stages", "newton_euler_stages"]
 
 
 def articulated_body_stages(tree, qdot, tau, g, prefix: str = "aba"):
@@ -30,6 +31,37 @@ def articulated_body_stages(tree, qdot, tau, g, prefix: str = "aba"):
     ``(qdd, stages)``, qdd an n×1 Matrix of symbols that ``stages`` (``(symbols, expression)`` pairs,
     evaluated in order) define. Symbol names start with ``prefix``."""
     return _Articulated(tree, sp.Matrix(qdot), sp.Matrix(tau), g, prefix).run()
+
+
+def newton_euler_stages(tree, qdot, qddot, g, prefix: str = "rnea"):
+    """τ = D(q) q̈ + C(q, q̇) q̇ + G(q) of ``tree`` by recursive Newton-Euler (Featherstone 2008,
+    Table 5.1) in link frames, each link's velocity, acceleration and force (its subtree's) bound to
+    symbols: ``(tau, stages)`` as :func:`articulated_body_stages`; τ in N m or N."""
+    qdot, qddot = sp.Matrix(qdot), sp.Matrix(qddot)
+    stages, root, joints = [], tree.model.root, tree.model.joints
+    X = {j.child: _joint_transform(tree, j) for j in joints}
+    S = {j.child: _motion_axis(j) for j in joints}
+    vel, acc, force = {root: sp.zeros(6, 1)}, {root: sp.Matrix([0, 0, 0, 0, 0, g])}, {}
+    for k, j in enumerate(joints):
+        lk, i = j.child, tree.columns[j.name]
+        v, a = X[lk].motion(vel[j.parent]), X[lk].motion(acc[j.parent])
+        if j.dof:
+            vJ = S[lk] * qdot[i]
+            v = v + vJ
+            a = a + S[lk] * qddot[i] + _cross_motion(v, vJ)
+        vel[lk], acc[lk] = _bind(f"{prefix}_v{k}", v, stages), _bind(f"{prefix}_a{k}", a, stages)
+        inertia = tree._inertia(lk)
+        force[lk] = _apply_inertia(inertia, acc[lk]) + _cross_force(vel[lk], _apply_inertia(inertia, vel[lk]))
+    tau = sp.zeros(tree.n, 1)
+    for k in reversed(range(len(joints))):
+        j = joints[k]
+        lk = j.child
+        force[lk] = _bind(f"{prefix}_f{k}", force[lk], stages)  # with its children's, added below
+        if j.dof:
+            tau[tree.columns[j.name]] = _dot(S[lk], force[lk])
+        if j.parent != root:
+            force[j.parent] = force[j.parent] + X[lk].force_up(force[lk])
+    return tau, stages
 
 
 class _Articulated:

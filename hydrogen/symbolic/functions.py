@@ -18,7 +18,8 @@ from .constants import PRESSURE_EPS, baked_table
 from .kinematics import leg_stages, pose_symbols, rate_symbols
 from .plant import plant_rhs
 from .rigid_body import (bias_forces, coriolis_matrix, gravity, mass_matrix, mass_matrix_inverse,
-                         recursive_forward_dynamics, regressor, regressor_offset, rigid_body_stages, theta_symbols)
+                         recursive_forward_dynamics, recursive_inverse_dynamics, regressor, regressor_offset,
+                         rigid_body_stages, theta_symbols)
 
 __all__ = ["SymbolicFunction", "SemiImplicitStep", "Specialisation", "derive_functions", "derive_parametric", "NUMBERS",
            "PRESSURE_EPS"]
@@ -76,7 +77,10 @@ def kinematics_functions(model) -> list:
     ]
 
 
-def rigid_body_functions(model) -> list:
+def rigid_body_functions(model, form_dynamics: bool = False) -> list:
+    """D, C, G, Y (and y0), q̈ and τ of ``model``'s rigid body. ``form_dynamics``: τ as the form's
+    own D a + C q̇ + G rather than by recursive Newton-Euler (what :func:`~hydrogen.symbolic.forms.form_costs`
+    counts: the form's share of the controllers' dynamics)."""
     n = model.n
     q, qd = pose_symbols(model), rate_symbols("qdot", n)
     v, w, a, tau = (rate_symbols(k, n) for k in ("v", "w", "a", "tau"))
@@ -114,9 +118,13 @@ def rigid_body_functions(model) -> list:
     funcs.append(SymbolicFunction("forward_dynamics", [("q", q), ("qdot", qd), ("tau", tau), ("theta", th)],
                                   [("qddot", qdd)], "Forward dynamics qddot = D^-1 (tau - C(q, qdot) qdot - G).",
                                   fd_stages))
+    # τ by recursive Newton-Euler where the tree allows it; "auto" weighs the forms by their own
+    # D a + C q̇ + G instead (forms_dynamics), the kind of expression the controllers evaluate
+    recursive = None if form_dynamics else recursive_inverse_dynamics(model, q, qd, a, th)
+    tau_out, id_stages = (D * a + bias, poses) if recursive is None else recursive
     funcs.append(SymbolicFunction("inverse_dynamics", [("q", q), ("qdot", qd), ("qddot", a), ("theta", th)],
-                                  [("tau", D * a + bias)],
-                                  "Inverse dynamics tau = D(q) qddot + C(q, qdot) qdot + G, N or N m.", poses))
+                                  [("tau", tau_out)],
+                                  "Inverse dynamics tau = D(q) qddot + C(q, qdot) qdot + G, N or N m.", id_stages))
     return funcs
 
 

@@ -26,7 +26,7 @@ from .tree import SymbolicTree
 __all__ = [
     "theta_symbols", "mass_matrix", "mass_matrix_inverse", "coriolis", "coriolis_matrix", "gravity", "regressor",
     "regressor_offset", "coriolis_paper", "symbolic_tree", "inverse_dynamics", "bias_forces", "rigid_body_stages",
-    "recursive_forward_dynamics",
+    "recursive_forward_dynamics", "recursive_inverse_dynamics",
 ]
 
 _TREES = {}
@@ -125,6 +125,19 @@ def recursive_forward_dynamics(model, q, qdot, tau, theta, prefix: str = "aba"):
     from .articulated import articulated_body_stages
 
     return articulated_body_stages(tree, qdot, tau, baked(model.gravity, "gravity"), prefix)
+
+
+def recursive_inverse_dynamics(model, q, qdot, qddot, theta, prefix: str = "rnea"):
+    """τ = D q̈ + C q̇ + G by recursive Newton-Euler in link frames: ``(tau, stages)``
+    (:func:`~hydrogen.symbolic.articulated.newton_euler_stages`, linear in the number of links), on
+    the trees :func:`recursive_forward_dynamics` takes, in either form; else None. Only at w = v:
+    the Christoffel slots C(q, v) w of :func:`inverse_dynamics` need the forms' own passes."""
+    tree = symbolic_tree(model, q, theta)
+    if not tree.staged_applies():
+        return None
+    from .articulated import newton_euler_stages
+
+    return newton_euler_stages(tree, qdot, qddot, baked(model.gravity, "gravity"), prefix)
 
 
 def regressor(model, q, v, w, a, theta) -> sp.Matrix:
