@@ -1,6 +1,7 @@
-"""Forward dynamics by the articulated-body algorithm and inverse dynamics by recursive Newton-Euler
-(hydrogen.symbolic.articulated): the same q̈ as the symbolic solve of D q̈ = τ − C q̇ − G it replaced
-and as Pinocchio's aba, the same τ as D a + C q̇ + G and Pinocchio's rnea, on the planar chain of
+"""Forward dynamics by the articulated-body algorithm, inverse dynamics by recursive Newton-Euler and
+D by composite bodies (hydrogen.symbolic.articulated): the same q̈ as the symbolic solve of
+D q̈ = τ − C q̇ − G it replaced and as Pinocchio's aba, the same τ as D a + C q̇ + G and Pinocchio's
+rnea, the same D as the form's and Pinocchio's crba, on the planar chain of
 benchmarks/bench_scaling.py (n = 2 ... 6, closed and staged forms) and on a branched tree of every
 joint type they take; their CasADi instructions grow by a constant per link.
 
@@ -14,7 +15,7 @@ import pytest
 from hydrogen.codegen.casadi_functions import to_casadi_function
 from hydrogen.symbolic import kinematics as K
 from hydrogen.symbolic import rigid_body as RB
-from hydrogen.symbolic.articulated import articulated_body_stages, newton_euler_stages
+from hydrogen.symbolic.articulated import articulated_body_stages, composite_body_stages, newton_euler_stages
 from hydrogen.symbolic.functions import SymbolicFunction, rigid_body_functions
 from hydrogen.symbolic.tree import SymbolicTree
 
@@ -36,11 +37,23 @@ def _solve_function(model):
                                                [("qddot", qdd)], "", stages))
 
 
+def _form_mass_matrix(model):
+    """D as the model's form derives it (what C, G and the controllers are derived with)."""
+    q, th = K.pose_symbols(model), RB.theta_symbols(model)
+    return to_casadi_function(SymbolicFunction("D", [("q", q), ("theta", th)], [("D", RB.mass_matrix(model, q, th))],
+                                               "", RB.rigid_body_stages(model, q)))
+
+
+def _crba(pm, data, q):
+    M = pin.crba(pm, data, q)
+    return np.triu(M) + np.triu(M, 1).T
+
+
 @pytest.mark.parametrize("n", range(2, 7))
 def test_chain_forward_dynamics_equals_the_solve_pinocchio_and_D_C_G(n, rng):
     chain = chain_model(n)
     funcs = {sf.name: to_casadi_function(sf) for sf in rigid_body_functions(chain)}
-    solve = _solve_function(chain)
+    solve, form_D = _solve_function(chain), _form_mass_matrix(chain)
     pm = _pinocchio(chain)
     data = pm.createData()
     for _ in range(4):
@@ -55,6 +68,8 @@ def test_chain_forward_dynamics_equals_the_solve_pinocchio_and_D_C_G(n, rng):
         D, C, G = (np.asarray(f) for f in (funcs["mass_matrix"](q, th), funcs["coriolis"](q, v, th),
                                            funcs["gravity"](q, th)))
         _residual(D, C @ v + G.ravel(), qdd, tau)
+        _close(D, form_D(q, th))
+        _close(funcs["mass_matrix"](q, chain.theta), _crba(pm, data, q))
         a = rng.normal(size=n)
         _close(funcs["inverse_dynamics"](q, v, a, th), D @ a + C @ v + G.ravel())
         _close(funcs["inverse_dynamics"](q, v, a, chain.theta), pin.rnea(pm, data, q, v, a))
@@ -78,6 +93,8 @@ def test_branched_tree_forward_dynamics_equals_pinocchio_and_D_C_G(rng):
     fd = to_casadi_function(SymbolicFunction("fd", inputs, [("qdd", qdd)], "", stages))
     tau_id, id_stages = newton_euler_stages(tree, qd, tau, model.gravity)  # "tau" is the acceleration here
     rnea = to_casadi_function(SymbolicFunction("id", inputs, [("f", tau_id)], "", id_stages))
+    D_crba, crba_stages = composite_body_stages(tree)
+    crba = to_casadi_function(SymbolicFunction("crba", inputs, [("D", D_crba)], "", crba_stages))
     dcg = to_casadi_function(SymbolicFunction("dcg", inputs, [("D", D), ("C", RB.coriolis(D, q, qd)),
                                                               ("G", tree.gravity(model.gravity))], ""))
     pm = _pinocchio(model)
@@ -93,6 +110,8 @@ def test_branched_tree_forward_dynamics_equals_pinocchio_and_D_C_G(rng):
         a0 = rng.normal(size=n)
         _close(rnea(q0, v0, a0, th0), D0 @ a0 + C0 @ v0 + G0.ravel())
         _close(rnea(q0, v0, a0, theta), pin.rnea(pm, data, q0, v0, a0))
+        _close(crba(q0, v0, tau0, th0), D0)
+        _close(crba(q0, v0, tau0, theta), _crba(pm, data, q0))
 
 
 def _instructions(n, stages_of):

@@ -22,7 +22,7 @@ import sympy as sp
 from .tree import (_apply_inertia, _axis_rotation, _cross, _cross_force, _cross_motion, _dot, _mm, _mul, _rot_xyz,
                    _vec)
 
-__all__ = ["articulated_body_stages", "newton_euler_stages"]
+__all__ = ["articulated_body_stages", "newton_euler_stages", "composite_body_stages"]
 
 
 def articulated_body_stages(tree, qdot, tau, g, prefix: str = "aba"):
@@ -62,6 +62,37 @@ def newton_euler_stages(tree, qdot, qddot, g, prefix: str = "rnea"):
         if j.parent != root:
             force[j.parent] = force[j.parent] + X[lk].force_up(force[lk])
     return tau, stages
+
+
+def composite_body_stages(tree, prefix: str = "crba"):
+    """D(q) (n×n, symmetric) of ``tree`` by composite rigid bodies (Featherstone 2008, Table 6.2) in
+    link frames: ``(D, stages)`` as :func:`articulated_body_stages`. Each link's composite inertia
+    (its subtree's, upper triangle) and each force F = I^c S carried up the path are bound to
+    symbols; D_ij = S_jᵀ F (kg m², kg m or kg)."""
+    stages, root, joints = [], tree.model.root, tree.model.joints
+    X = {j.child: _joint_transform(tree, j) for j in joints}
+    S = {j.child: _motion_axis(j) for j in joints}
+    parent = {j.child: j for j in joints}
+    Ic = {j.child: _inertia6(*tree._inertia(j.child)) for j in joints}
+    D = sp.zeros(tree.n, tree.n)
+    for k in reversed(range(len(joints))):
+        j = joints[k]
+        lk = j.child
+        Ic[lk] = _bind(f"{prefix}_Ic{k}", Ic[lk], stages)  # with its children's, added below
+        if j.dof:
+            i = tree.columns[j.name]
+            F = _bind(f"{prefix}_F{k}_{k}", _apply6(Ic[lk], S[lk]), stages)
+            D[i, i] = _dot(S[lk], F)
+            up = j
+            while up.parent != root:  # the same force, seen by each joint above
+                F = X[up.child].force_up(F)
+                up = parent[up.parent]
+                if up.dof:
+                    F = _bind(f"{prefix}_F{k}_{joints.index(up)}", F, stages)
+                    D[i, tree.columns[up.name]] = D[tree.columns[up.name], i] = _dot(S[up.child], F)
+        if j.parent != root:
+            Ic[j.parent] = Ic[j.parent] + X[lk].inertia_up(Ic[lk])
+    return D, stages
 
 
 class _Articulated:

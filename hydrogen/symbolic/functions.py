@@ -18,7 +18,8 @@ from .constants import PRESSURE_EPS, baked_table
 from .kinematics import leg_stages, pose_symbols, rate_symbols
 from .plant import plant_rhs
 from .rigid_body import (bias_forces, coriolis_matrix, gravity, mass_matrix, mass_matrix_inverse,
-                         recursive_forward_dynamics, recursive_inverse_dynamics, regressor, regressor_offset,
+                         recursive_forward_dynamics, recursive_inverse_dynamics, recursive_mass_matrix,
+                         regressor, regressor_offset,
                          rigid_body_stages, theta_symbols)
 
 __all__ = ["SymbolicFunction", "SemiImplicitStep", "Specialisation", "derive_functions", "derive_parametric", "NUMBERS",
@@ -78,17 +79,21 @@ def kinematics_functions(model) -> list:
 
 
 def rigid_body_functions(model, form_dynamics: bool = False) -> list:
-    """D, C, G, Y (and y0), q̈ and τ of ``model``'s rigid body. ``form_dynamics``: τ as the form's
-    own D a + C q̇ + G rather than by recursive Newton-Euler (what :func:`~hydrogen.symbolic.forms.form_costs`
-    counts: the form's share of the controllers' dynamics)."""
+    """D, C, G, Y (and y0), q̈ and τ of ``model``'s rigid body. ``form_dynamics``: D and τ as the
+    form's own D and D a + C q̇ + G rather than by composite bodies and Newton-Euler in link frames
+    (what :func:`~hydrogen.symbolic.forms.form_costs` counts: the form's share of the controllers'
+    dynamics)."""
     n = model.n
     q, qd = pose_symbols(model), rate_symbols("qdot", n)
     v, w, a, tau = (rate_symbols(k, n) for k in ("v", "w", "a", "tau"))
     th = theta_symbols(model)
     D = mass_matrix(model, q, th)
     poses = rigid_body_stages(model, q)  # the link poses a staged tree's expressions refer to
+    # D by composite rigid bodies where the tree allows it; "auto" weighs the forms' own D
+    crba = None if form_dynamics else recursive_mass_matrix(model, q, th)
+    D_out, D_stages = (D, poses) if crba is None else crba
     funcs = [
-        SymbolicFunction("mass_matrix", [("q", q), ("theta", th)], [("D", D)], "D(q) (n x n).", poses),
+        SymbolicFunction("mass_matrix", [("q", q), ("theta", th)], [("D", D_out)], "D(q) (n x n).", D_stages),
         SymbolicFunction("coriolis", [("q", q), ("qdot", qd), ("theta", th)],
                          [("C", coriolis_matrix(model, q, qd, th))], "Christoffel-form C(q, qdot).", poses),
         SymbolicFunction("gravity", [("q", q), ("theta", th)], [("G", gravity(model, q, th))],
@@ -119,7 +124,7 @@ def rigid_body_functions(model, form_dynamics: bool = False) -> list:
                                   [("qddot", qdd)], "Forward dynamics qddot = D^-1 (tau - C(q, qdot) qdot - G).",
                                   fd_stages))
     # τ by recursive Newton-Euler where the tree allows it; "auto" weighs the forms by their own
-    # D a + C q̇ + G instead (forms_dynamics), the kind of expression the controllers evaluate
+    # D a + C q̇ + G instead (form_dynamics), the kind of expression the controllers evaluate
     recursive = None if form_dynamics else recursive_inverse_dynamics(model, q, qd, a, th)
     tau_out, id_stages = (D * a + bias, poses) if recursive is None else recursive
     funcs.append(SymbolicFunction("inverse_dynamics", [("q", q), ("qdot", qd), ("qddot", a), ("theta", th)],

@@ -26,7 +26,7 @@ from .tree import SymbolicTree
 __all__ = [
     "theta_symbols", "mass_matrix", "mass_matrix_inverse", "coriolis", "coriolis_matrix", "gravity", "regressor",
     "regressor_offset", "coriolis_paper", "symbolic_tree", "inverse_dynamics", "bias_forces", "rigid_body_stages",
-    "recursive_forward_dynamics", "recursive_inverse_dynamics",
+    "recursive_forward_dynamics", "recursive_inverse_dynamics", "recursive_mass_matrix",
 ]
 
 _TREES = {}
@@ -138,6 +138,19 @@ def recursive_inverse_dynamics(model, q, qdot, qddot, theta, prefix: str = "rnea
     from .articulated import newton_euler_stages
 
     return newton_euler_stages(tree, qdot, qddot, baked(model.gravity, "gravity"), prefix)
+
+
+def recursive_mass_matrix(model, q, theta, prefix: str = "crba"):
+    """D(q) by composite rigid bodies in link frames: ``(D, stages)``
+    (:func:`~hydrogen.symbolic.articulated.composite_body_stages`), on the trees
+    :func:`recursive_forward_dynamics` takes, in either form; else None. The form's own D
+    (:func:`mass_matrix`) is the one C, G and the controllers are derived with."""
+    tree = symbolic_tree(model, q, theta)
+    if not tree.staged_applies():
+        return None
+    from .articulated import composite_body_stages
+
+    return composite_body_stages(tree, prefix)
 
 
 def regressor(model, q, v, w, a, theta) -> sp.Matrix:
