@@ -17,7 +17,8 @@ inputs (there the inertial parameters are all numbers: the package reads them fr
 
 Per n: instruction counts, the ratio hydrogen / reference, and the seconds to derive and convert
 hydrogen's rigid-body functions (``rigid_body_functions`` derives all of them: D, C, G, Y, y0, q̈, τ)
-and to build the reference's.
+and to build the reference's; and the counts of D and D a + C q̇ + G as the rigid body's form
+(closed or staged, the one ``form`` names) derives them for C, G, Y and the controllers.
 
 Run: ``python benchmarks/bench_recursive.py [--quick] [--json FILE] [--pinocchio-python PYTHON]``
 """
@@ -47,6 +48,9 @@ except ImportError:  # run as a script, or loaded from its path
 NS, QUICK_NS = tuple(range(2, 13)), (2, 3, 4)
 #: hydrogen function -> the recursive algorithm it is compared with
 PAIRS = (("forward_dynamics", "aba"), ("inverse_dynamics", "rnea"), ("mass_matrix", "crba"))
+#: The functions also counted as the form derives them (its own D and D a + C q̇ + G: what C, G, Y and
+#: the controllers are derived with, and what "auto" weighs the forms by).
+FORM_OWN = ("mass_matrix", "inverse_dynamics")
 #: Random states per n at which the reference is checked against pinocchio.
 CHECK_STATES = 5
 
@@ -392,7 +396,10 @@ def hydrogen_counts(model) -> dict:
     for sf in funcs:
         if sf.name in dict(PAIRS):
             counts[sf.name] = int(casadi_function(sf, cache=cache).n_instructions())
-    return {"form": form, "counts": counts, "derive_s": t1 - t0, "convert_s": time.perf_counter() - t1}
+    convert_s = time.perf_counter() - t1
+    own = {sf.name: int(casadi_function(sf, cache={}).n_instructions())
+           for sf in rigid_body_functions(model, form_dynamics=True) if sf.name in FORM_OWN}
+    return {"form": form, "counts": counts, "form_own": own, "derive_s": t1 - t0, "convert_s": convert_s}
 
 
 def run_one(n: int, pinocchio_python: str | None = None) -> dict:
@@ -402,7 +409,7 @@ def run_one(n: int, pinocchio_python: str | None = None) -> dict:
     ref = reference_functions(model)
     ref_counts = {k: int(f.n_instructions()) for k, f in ref.items()}
     build_s = time.perf_counter() - t0
-    row = {"n": n, "form": hyd["form"], "hydrogen": hyd["counts"], "reference": ref_counts,
+    row = {"n": n, "form": hyd["form"], "hydrogen": hyd["counts"], "form_own": hyd["form_own"], "reference": ref_counts,
            "ratio": {h: hyd["counts"][h] / ref_counts[r] for h, r in PAIRS},
            "hydrogen_derive_s": hyd["derive_s"], "hydrogen_convert_s": hyd["convert_s"], "reference_s": build_s,
            "check_max_rel": check_reference(model, ref)}
@@ -458,6 +465,8 @@ def print_table(res: dict) -> None:
               f"{x['reference_s']:>6.2f} {max(x['check_max_rel'].values()):>18.1e}")
     if res["growth"]:
         print("growth exponent k (count ~ n^k): " + ", ".join(f"{k} {v:.2f}" for k, v in res["growth"].items()))
+    print("the form's own D and D a + C q̇ + G: " + ", ".join(
+        f"n={x['n']} {x['form_own']['mass_matrix']}/{x['form_own']['inverse_dynamics']}" for x in rows))
     traced = [x for x in rows if x.get("pinocchio_traced")]
     if traced:
         print(f"Pinocchio traced on SX (casadi {traced[0]['pinocchio_traced'].get('casadi')}) against this "

@@ -384,6 +384,11 @@ def _edit(b) -> list:
 _RECURSIVE = (("forward_dynamics", "ABA", "aba"), ("inverse_dynamics", "RNEA", "rnea"), ("mass_matrix", "CRBA", "crba"))
 
 
+def _own(r) -> str:
+    own = r.get("form_own") or {}
+    return f"{_f(own.get('mass_matrix'))} / {_f(own.get('inverse_dynamics'))}" if own else "–"
+
+
 def _recursive(b) -> list:
     rows = b.get("rows", [])
     if not rows:
@@ -393,13 +398,14 @@ def _recursive(b) -> list:
            "`inverse_dynamics` and `mass_matrix` against Featherstone's ABA, RNEA and CRBA (what Pinocchio "
            "implements) in local link frames, written over CasADi SX with the same inputs (θ symbolic), checked "
            "against `pinocchio` at random states. CasADi instructions with CSE, hydrogen / reference (ratio); "
-           "seconds: hydrogen's rigid-body derivation and conversion.", ""]
+           "*form*: the form of C, G and Y, whose own D and D a + C q̇ + G (what the controllers are derived "
+           "with) the last column counts; seconds: hydrogen's rigid-body derivation and conversion.", ""]
     table = [[r["n"], r["form"],
               *(f"{_f(r['hydrogen'][h])} / {_f(r['reference'][k])} ({_f(r['ratio'][h])})" for h, _, k in _RECURSIVE),
-              _f(r["hydrogen_derive_s"] + r["hydrogen_convert_s"], 1), f"{max(r['check_max_rel'].values()):.0e}"]
-             for r in rows]
-    out += _table(["n", "form", *(f"`{h}` / {a}" for h, a, _ in _RECURSIVE), "hydrogen s", "reference vs pinocchio"],
-                  table)
+              _own(r), _f(r["hydrogen_derive_s"] + r["hydrogen_convert_s"], 1),
+              f"{max(r['check_max_rel'].values()):.0e}"] for r in rows]
+    out += _table(["n", "form", *(f"`{h}` / {a}" for h, a, _ in _RECURSIVE), "form's D / D a + C q̇ + G",
+                   "hydrogen s", "reference vs pinocchio"], table)
     g = b.get("growth") or {}
     if g:
         out += ["Growth, count ∝ nᵏ fitted over the table: " + ", ".join(
