@@ -129,3 +129,59 @@ def test_instructions_grow_by_a_constant_per_link(stages_of):
     counts = [_instructions(n, stages_of) for n in (4, 5, 6, 7)]
     steps = np.diff(counts)
     assert steps.min() > 0 and steps.max() - steps.min() <= 0.05 * steps.mean(), counts
+
+
+def test_a_fixed_mount_on_the_root_and_two_branches_from_it(rng):
+    """The branched tree hung from the base by a fixed, rotated mount (its body weighs on no joint),
+    with a second branch from the mount: q̈, τ and D against Pinocchio."""
+    from dataclasses import replace
+
+    from hydrogen.model import Joint, Link
+
+    model, _ = _branching_tree(rng)
+    mount = Joint("mount", "fixed", "base", "m", np.array([0.1, 0.2, 0.3]), np.array([0.3, -0.2, 0.5]),
+                  np.array([1.0, 0.0, 0.0]))
+    side = Joint("side", "revolute", "m", "s", np.array([0.0, 0.2, 0.0]), np.array([0.0, 0.0, 0.4]),
+                 np.array([0.0, 0.0, 1.0]))
+    joints = (mount, *(replace(j, parent="m") if j.parent == "base" else j for j in model.joints), side)
+    links = (*model.links, Link("m", 7.0, np.array([0.1, 0.0, 0.0]), np.eye(3)),
+             Link("s", 2.0, np.array([0.0, 0.1, 0.0]), np.diag([0.1, 0.2, 0.3])))
+    model = replace(model, joints=joints, links=links, coordinate_names=(*model.coordinate_names, "side"))
+    theta = np.array([model.link(x.split(".")[0]).parameters()[x.split(".")[1]] for x in model.theta_names])
+    n = len(model.coordinate_names)
+    q, qd, x, th = K.rate_symbols("q", n), K.rate_symbols("v", n), K.rate_symbols("x", n), RB.theta_symbols(model)
+    tree = SymbolicTree(model, q, th)
+    inputs = [("q", q), ("v", qd), ("x", x), ("th", th)]
+    fns = {}
+    for name, (out, stages) in (("aba", articulated_body_stages(tree, qd, x, model.gravity)),
+                                ("rnea", newton_euler_stages(tree, qd, x, model.gravity)),
+                                ("crba", composite_body_stages(tree))):
+        fns[name] = to_casadi_function(SymbolicFunction(name, inputs, [("out", out)], "", stages))
+    pm = _pinocchio(model)
+    data = pm.createData()
+    assert pm.nv == n
+    for _ in range(3):
+        q0, v0, x0 = rng.normal(size=n), rng.normal(size=n), rng.normal(size=n)
+        _close(fns["aba"](q0, v0, x0 * 10, theta), pin.aba(pm, data, q0, v0, x0 * 10))
+        _close(fns["rnea"](q0, v0, x0, theta), pin.rnea(pm, data, q0, v0, x0))
+        _close(fns["crba"](q0, v0, x0, theta), _crba(pm, data, q0))
+
+
+def test_the_plants_accelerations_are_the_forward_dynamics_of_the_cylinder_forces(rng):
+    """plant_rhs's q̈ rows (its own articulated-body pass) = forward_dynamics(q, q̇, JLᵀ f), f the
+    cylinders' pressure forces (no friction), on the chain in the staged form."""
+    from hydrogen.pressures import n_pressures
+    from hydrogen.symbolic.functions import derive_functions
+
+    chain = chain_model(4)
+    n = chain.n
+    f = {sf.name: to_casadi_function(sf) for sf in derive_functions(chain, controllers=False)
+         if sf.name in ("plant_rhs", "forward_dynamics", "leg_jacobian", "leg_force")}
+    for _ in range(3):
+        q, qd = chain.neutral_pose + rng.uniform(-0.2, 0.2, n), rng.normal(size=n)
+        pc = np.asarray(chain.supply_pressure, float) * rng.uniform(0.3, 0.7, n_pressures(chain))
+        x = np.concatenate([q, qd, pc, np.zeros(2 * chain.n_cylinders)])
+        xdot = np.asarray(f["plant_rhs"](x, np.zeros(chain.n_cylinders), chain.theta, *chain.gamma,
+                                         np.array([0.0, 0.0, 1e-3]), np.zeros(3))).ravel()
+        tau = np.asarray(f["leg_jacobian"](q)).T @ np.asarray(f["leg_force"](pc)).ravel()
+        _close(xdot[n:2 * n], f["forward_dynamics"](q, qd, tau, chain.theta))
