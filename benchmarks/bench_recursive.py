@@ -425,7 +425,8 @@ def run(quick: bool = False, pinocchio_python: str | None = None) -> dict:
     t0 = time.perf_counter()
     rows = [run_one(n, pinocchio_python) for n in (QUICK_NS if quick else NS)]
     return {"rows": rows, "quick": quick, "growth": growth(rows), "reference": "own SX Featherstone, checked "
-            "against pinocchio " + _pin_version(), "cores": os.cpu_count(), "wall_s": time.perf_counter() - t0}
+            "against pinocchio " + _pin_version(), "machine": common.machine_info(), "cores": os.cpu_count(),
+            "wall_s": time.perf_counter() - t0}
 
 
 def _pin_version() -> str:

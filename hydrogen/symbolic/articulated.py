@@ -1,10 +1,11 @@
-"""Forward dynamics by the articulated-body algorithm, traced in SymPy with per-link stages.
+"""Featherstone's recursive algorithms, traced in SymPy with per-link stages.
 
-q̈ = D(q)⁻¹ (τ − C(q, q̇) q̇ − G(q)) without forming D: Featherstone's articulated-body algorithm
-(ABA, *Rigid Body Dynamics Algorithms* 2008, Table 7.1), in local link frames (each link's own axes
-and origin; motion vectors [ω; v], forces [n; f], Plücker coordinates), on trees of revolute,
-prismatic and fixed joints. Three passes: velocities and bias terms root to leaves, articulated
-inertias and bias forces leaves to root, accelerations root to leaves.
+q̈ = D(q)⁻¹ (τ − C(q, q̇) q̇ − G(q)) without forming D by the articulated-body algorithm (ABA,
+*Rigid Body Dynamics Algorithms* 2008, Table 7.1: velocities and bias terms root to leaves,
+articulated inertias and bias forces leaves to root, accelerations root to leaves); τ = D q̈ + C q̇ + G
+by recursive Newton-Euler (Table 5.1) and D by composite rigid bodies (Table 6.2). All in local link
+frames (each link's own axes and origin; motion vectors [ω; v], forces [n; f], Plücker
+coordinates), on trees of revolute, prismatic and fixed joints.
 
 Every link's quantities are bound to intermediate symbols as they are computed (:func:`_bind`), so
 each expression refers to its parent's or children's symbols, never to their expansions: the stages
@@ -108,8 +109,8 @@ class _Articulated:
 
     def run(self):
         root = self.tree.model.root
-        vel, bias, IA, pA = self._outward(root)
-        U, dinv, u = self._inward(root, vel, bias, IA, pA)
+        bias, IA, pA = self._outward(root)
+        U, dinv, u = self._inward(root, bias, IA, pA)
         qdd = self._accelerations(root, bias, U, dinv, u)
         return qdd, self.stages
 
@@ -128,9 +129,9 @@ class _Articulated:
             vel[lk] = v
             IA[lk] = _inertia6(*self.tree._inertia(lk))
             pA[lk] = _cross_force(v, _apply6(IA[lk], v))  # bound in pass 2, with the children's share
-        return vel, bias, IA, pA
+        return bias, IA, pA
 
-    def _inward(self, root, vel, bias, IA, pA):
+    def _inward(self, root, bias, IA, pA):
         """Pass 2: per link, U = IA S, 1/d = 1/(Sᵀ U), u = τ − Sᵀ pA; the parent gets the
         articulated inertia Xᵀ (IA − U Uᵀ/d) X and force Xᵀ (pA + Ia c + U u/d)."""
         U, dinv, u = {}, {}, {}

@@ -19,8 +19,7 @@ from .kinematics import leg_stages, pose_symbols, rate_symbols
 from .plant import plant_rhs
 from .rigid_body import (bias_forces, coriolis_matrix, gravity, mass_matrix, mass_matrix_inverse,
                          recursive_forward_dynamics, recursive_inverse_dynamics, recursive_mass_matrix,
-                         regressor, regressor_offset,
-                         rigid_body_stages, theta_symbols)
+                         regressor, regressor_offset, rigid_body_stages, theta_symbols)
 
 __all__ = ["SymbolicFunction", "SemiImplicitStep", "Specialisation", "derive_functions", "derive_parametric", "NUMBERS",
            "PRESSURE_EPS"]
@@ -109,12 +108,11 @@ def rigid_body_functions(model, form_dynamics: bool = False) -> list:
                                       poses))
     # q̈ = D⁻¹ (τ − C q̇ − G): the articulated-body algorithm on a tree without floating joints (its
     # own stages, no pose symbols), else the closed-form inverse where the tree has one, else a solve.
-    bias = bias_forces(model, q, qd, th)
     recursive = recursive_forward_dynamics(model, q, qd, tau, th)
     if recursive is not None:
         qdd, fd_stages = recursive
     else:
-        rhs = tau - bias
+        rhs = tau - bias_forces(model, q, qd, th)
         Dinv = mass_matrix_inverse(model, q, th)
         qdd, fd_stages = (Dinv * rhs, []) if Dinv is not None else (rate_symbols("fd_qdd", n), None)
         if fd_stages is None:
@@ -126,7 +124,7 @@ def rigid_body_functions(model, form_dynamics: bool = False) -> list:
     # τ by recursive Newton-Euler where the tree allows it; "auto" weighs the forms by their own
     # D a + C q̇ + G instead (form_dynamics), the kind of expression the controllers evaluate
     recursive = None if form_dynamics else recursive_inverse_dynamics(model, q, qd, a, th)
-    tau_out, id_stages = (D * a + bias, poses) if recursive is None else recursive
+    tau_out, id_stages = (D * a + bias_forces(model, q, qd, th), poses) if recursive is None else recursive
     funcs.append(SymbolicFunction("inverse_dynamics", [("q", q), ("qdot", qd), ("qddot", a), ("theta", th)],
                                   [("tau", tau_out)],
                                   "Inverse dynamics tau = D(q) qddot + C(q, qdot) qdot + G, N or N m.", id_stages))
