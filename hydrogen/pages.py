@@ -399,11 +399,11 @@ def _recursive(b) -> list:
            "implements) in local link frames, written over CasADi SX with the same inputs (θ symbolic), checked "
            "against `pinocchio` at random states. CasADi instructions with CSE, hydrogen / reference (ratio); "
            "*form*: the form of C, G and Y, whose own D and D a + C q̇ + G (what the controllers are derived "
-           "with) the last column counts; seconds: hydrogen's rigid-body derivation and conversion.", ""]
+           "with) the column after the three counts; seconds: hydrogen's rigid-body derivation and conversion.", ""]
     table = [[r["n"], r["form"],
               *(f"{_f(r['hydrogen'][h])} / {_f(r['reference'][k])} ({_f(r['ratio'][h])})" for h, _, k in _RECURSIVE),
               _own(r), _f(r["hydrogen_derive_s"] + r["hydrogen_convert_s"], 1),
-              f"{max(r['check_max_rel'].values()):.0e}"] for r in rows]
+              f"{max(r['check_max_rel'].values()):.0e}" if r.get("check_max_rel") else "–"] for r in rows]
     out += _table(["n", "form", *(f"`{h}` / {a}" for h, a, _ in _RECURSIVE), "form's D / D a + C q̇ + G",
                    "hydrogen s", "reference vs pinocchio"], table)
     g = b.get("growth") or {}
