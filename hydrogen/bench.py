@@ -34,6 +34,7 @@ SUITE = (
     ("bench_folding", "the description's numbers folded into the C against runtime inputs: instructions, ns per call"),
     ("bench_edit", "a numeric edit of the description to the next run: numbers as inputs against folded"),
     ("bench_cold", "a structural edit to the first run, empty cache: shipped robots, a spatial leg, a 7-link chain"),
+    ("bench_recursive", "the rigid body against Featherstone's ABA, RNEA and CRBA on SX: instructions, n = 2 ... 12"),
 )
 
 

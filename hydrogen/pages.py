@@ -396,6 +396,46 @@ def _cold(b) -> list:
     return out + _table(["case", "process wall", "CPU", "generation", "core compile", "first use"], table)
 
 
+#: hydrogen's function and the recursive algorithm of benchmarks/bench_recursive.py it is compared with.
+_RECURSIVE = (("forward_dynamics", "ABA", "aba"), ("inverse_dynamics", "RNEA", "rnea"), ("mass_matrix", "CRBA", "crba"))
+
+
+def _own(r) -> str:
+    own = r.get("form_own") or {}
+    return f"{_f(own.get('mass_matrix'))} / {_f(own.get('inverse_dynamics'))}" if own else "–"
+
+
+def _recursive(b) -> list:
+    rows = b.get("rows", [])
+    if not rows:
+        return []
+    out = ["## Against the recursive algorithms", "",
+           "`benchmarks/bench_recursive.py`: on the planar chain of `bench_scaling.py`, hydrogen's `forward_dynamics`, "
+           "`inverse_dynamics` and `mass_matrix` against Featherstone's ABA, RNEA and CRBA (what Pinocchio "
+           "implements) in local link frames, written over CasADi SX with the same inputs (θ symbolic), checked "
+           "against `pinocchio` at random states. CasADi instructions with CSE, hydrogen / reference (ratio); "
+           "*form*: the form of C, G and Y, whose own D and D a + C q̇ + G (what the controllers are derived "
+           "with) the column after the three counts; seconds: hydrogen's rigid-body derivation and conversion.", ""]
+    table = [[r["n"], r["form"],
+              *(f"{_f(r['hydrogen'][h])} / {_f(r['reference'][k])} ({_f(r['ratio'][h])})" for h, _, k in _RECURSIVE),
+              _own(r), _f(r["hydrogen_derive_s"] + r["hydrogen_convert_s"], 1),
+              f"{max(r['check_max_rel'].values()):.0e}" if r.get("check_max_rel") else "–"] for r in rows]
+    out += _table(["n", "form", *(f"`{h}` / {a}" for h, a, _ in _RECURSIVE), "form's D / D a + C q̇ + G",
+                   "hydrogen s", "reference vs pinocchio"], table)
+    g = b.get("growth") or {}
+    if g:
+        out += ["Growth, count ∝ nᵏ fitted over the table: " + ", ".join(
+            f"`{h}` k = {_f(g[h])} ({a} {_f(g[k])})" for h, a, k in _RECURSIVE) + ".", ""]
+    traced = [r for r in rows if r.get("pinocchio_traced")]
+    if traced:  # the reference's fairness: Pinocchio itself on SX, both with θ as numbers
+        r = traced[-1]
+        out += [f"Pinocchio itself traced on SX (`cmeel-casadi-kin-dyn`, CasADi {r['pinocchio_traced'].get('casadi')}, "
+                f"θ numbers) at n = {r['n']}: " + ", ".join(
+                    f"{a} {_f(r['pinocchio_traced'][k])} against the reference's {_f(r['reference_theta_numeric'][k])}"
+                    for _, a, k in _RECURSIVE) + " at the same inputs.", ""]
+    return out
+
+
 def benchmarks_page(results: dict, repeats: dict | None = None, source: str = "docs/bench.json") -> str:
     """Markdown of a ``hydrogen bench`` run (the dict it writes as JSON), optionally with the whole-run
     spread of the release comparison (``bench_release_repeats.json``); sections of modules not run
@@ -424,6 +464,8 @@ def benchmarks_page(results: dict, repeats: dict | None = None, source: str = "d
         out += _edit(results["bench_edit"])
     if "bench_cold" in results:
         out += _cold(results["bench_cold"])
+    if "bench_recursive" in results:
+        out += _recursive(results["bench_recursive"])
     return "\n".join(out).rstrip() + "\n"
 
 

@@ -226,3 +226,35 @@ def test_the_cold_benchmark_states_targets_only_for_developers(capsys):
     assert "target" not in capsys.readouterr().out
     bench_cold.print_table(res, checks=True)
     assert "yes" in capsys.readouterr().out
+
+
+def test_recursive_reference_equals_pinocchio_in_quick_mode():
+    """bench_recursive's quick mode (n = 2 ... 4): its SX ABA, RNEA and CRBA agree with pinocchio's
+    at random states, and each row has hydrogen's counts, the reference's and their ratios."""
+    pytest.importorskip("pinocchio")
+    import bench_recursive
+
+    res = bench_recursive.run(quick=True)
+    assert [r["n"] for r in res["rows"]] == list(bench_recursive.QUICK_NS)
+    for r in res["rows"]:
+        assert max(r["check_max_rel"].values()) < 1e-12, r["check_max_rel"]
+        for h, k in bench_recursive.PAIRS:
+            assert r["hydrogen"][h] > 0 and r["reference"][k] > 0
+            assert r["ratio"][h] == pytest.approx(r["hydrogen"][h] / r["reference"][k])
+    from hydrogen.pages import benchmarks_page
+
+    assert "## Against the recursive algorithms" in benchmarks_page({"bench_recursive": res})
+
+
+def test_recursive_urdf_gives_pinocchio_the_same_chain():
+    """The URDF bench_recursive hands Pinocchio's SX trace describes the chain it checks against."""
+    pin = pytest.importorskip("pinocchio")
+    import bench_recursive
+
+    model = bench_scaling.chain_model(3)
+    built = pin.buildModelFromXML(bench_recursive.urdf_text(model))
+    ours = bench_recursive.pinocchio_model(model)
+    built.gravity.linear = ours.gravity.linear
+    q, v, a = np.array([1.6, -0.3, 0.4]), np.array([0.2, -1.0, 0.5]), np.array([0.3, 0.1, -0.7])
+    np.testing.assert_allclose(pin.rnea(built, built.createData(), q, v, a),
+                               pin.rnea(ours, ours.createData(), q, v, a), rtol=1e-12, atol=1e-9)

@@ -76,3 +76,10 @@ def test_regressor_columns_equal_pinocchios_joint_torque_regressor(robot, rng):
         R = pin.computeJointTorqueRegressor(pm, data, q, v, a)
         _close(dyn.regressor(q, v, v, a), R[:, [cols[n] for n in model.theta_names]])
         _close(dyn.regressor(q, v, v, a) @ model.theta + dyn.regressor_offset(q, v, v, a), R @ pi)
+
+
+def test_generated_forward_dynamics_equals_aba(robot, rng):
+    model, dyn, pm, data = robot
+    for q, v, _ in _states(model, rng):
+        tau = rng.normal(size=model.n) * 1e3
+        _close(dyn.forward_dynamics(q, v, tau, model.theta), pin.aba(pm, data, q, v, tau))

@@ -22,8 +22,10 @@ __all__ = ["FORMS", "COUNTED", "STAGED_DEPTH", "rigid_body_form", "form_costs", 
 
 #: The forms, in the order that breaks a tie of instruction counts.
 FORMS = ("closed", "staged")
-#: The rigid-body functions whose CasADi instructions decide "auto": q̈ (the simulator's plant, D and
-#: its solve), the regressor Y and D a + C w + G (the controllers' dynamics) and D itself.
+#: The rigid-body functions whose CasADi instructions decide "auto": q̈ (the simulator's plant; by the
+#: articulated-body algorithm in either form wherever there is no floating joint, so it counts the
+#: same in both), the regressor Y and D a + C w + G (the controllers' dynamics: counted as the form's
+#: own D a + C q̇ + G, not the generated function's Newton-Euler pass) and D itself.
 COUNTED = ("mass_matrix", "regressor", "inverse_dynamics", "forward_dynamics")
 #: The depth (moving joints on one path) from which "auto" stages without counting: on the 4-link
 #: chain of benchmarks/bench_scaling.py the staged form is smaller in every function already.
@@ -45,7 +47,7 @@ def form_costs(model, form: str) -> dict:
 
     cache = {}
     return {sf.name: int(casadi_function(sf, cache=cache).n_instructions())
-            for sf in rigid_body_functions(with_form(model, form)) if sf.name in COUNTED}
+            for sf in rigid_body_functions(with_form(model, form), form_dynamics=True) if sf.name in COUNTED}
 
 
 def rigid_body_form(model) -> str:

@@ -17,8 +17,9 @@ from ..pressures import blocks, n_pressures, uniform_three_way
 from .constants import PRESSURE_EPS, baked_table
 from .kinematics import leg_stages, pose_symbols, rate_symbols
 from .plant import plant_rhs
-from .rigid_body import (bias_forces, coriolis_matrix, gravity, mass_matrix, mass_matrix_inverse, regressor,
-                         regressor_offset, rigid_body_stages, theta_symbols)
+from .rigid_body import (bias_forces, coriolis_matrix, gravity, mass_matrix, mass_matrix_inverse,
+                         recursive_forward_dynamics, recursive_inverse_dynamics, recursive_mass_matrix,
+                         regressor, regressor_offset, rigid_body_stages, theta_symbols)
 
 __all__ = ["SymbolicFunction", "SemiImplicitStep", "Specialisation", "derive_functions", "derive_parametric", "NUMBERS",
            "PRESSURE_EPS"]
@@ -76,15 +77,22 @@ def kinematics_functions(model) -> list:
     ]
 
 
-def rigid_body_functions(model) -> list:
+def rigid_body_functions(model, form_dynamics: bool = False) -> list:
+    """D, C, G, Y (and y0), q̈ and τ of ``model``'s rigid body. ``form_dynamics``: D and τ as the
+    form's own D and D a + C q̇ + G rather than by composite bodies and Newton-Euler in link frames
+    (what :func:`~hydrogen.symbolic.forms.form_costs` counts: the form's share of the controllers'
+    dynamics)."""
     n = model.n
     q, qd = pose_symbols(model), rate_symbols("qdot", n)
     v, w, a, tau = (rate_symbols(k, n) for k in ("v", "w", "a", "tau"))
     th = theta_symbols(model)
     D = mass_matrix(model, q, th)
     poses = rigid_body_stages(model, q)  # the link poses a staged tree's expressions refer to
+    # D by composite rigid bodies where the tree allows it; "auto" weighs the forms' own D
+    crba = None if form_dynamics else recursive_mass_matrix(model, q, th)
+    D_out, D_stages = (D, poses) if crba is None else crba
     funcs = [
-        SymbolicFunction("mass_matrix", [("q", q), ("theta", th)], [("D", D)], "D(q) (n x n).", poses),
+        SymbolicFunction("mass_matrix", [("q", q), ("theta", th)], [("D", D_out)], "D(q) (n x n).", D_stages),
         SymbolicFunction("coriolis", [("q", q), ("qdot", qd), ("theta", th)],
                          [("C", coriolis_matrix(model, q, qd, th))], "Christoffel-form C(q, qdot).", poses),
         SymbolicFunction("gravity", [("q", q), ("theta", th)], [("G", gravity(model, q, th))],
@@ -98,19 +106,28 @@ def rigid_body_functions(model) -> list:
         funcs.append(SymbolicFunction("regressor_offset", [("q", q), ("v", v), ("w", w), ("a", a)],
                                       [("y0", y0)], "y0 = D a + C(q, v) w + G - Y theta (non-adapted share).",
                                       poses))
-    # q̈ = D⁻¹ (τ − C q̇ − G): the closed-form inverse where the tree has one, else a linear solve.
-    bias = bias_forces(model, q, qd, th)
-    rhs = tau - bias
-    Dinv = mass_matrix_inverse(model, q, th)
-    qdd, solve = (Dinv * rhs, []) if Dinv is not None else (rate_symbols("fd_qdd", n), None)
-    if solve is None:
-        solve = [(qdd, ("solve", D, rhs))]
+    # q̈ = D⁻¹ (τ − C q̇ − G): the articulated-body algorithm on a tree without floating joints (its
+    # own stages, no pose symbols), else the closed-form inverse where the tree has one, else a solve.
+    recursive = recursive_forward_dynamics(model, q, qd, tau, th)
+    if recursive is not None:
+        qdd, fd_stages = recursive
+    else:
+        rhs = tau - bias_forces(model, q, qd, th)
+        Dinv = mass_matrix_inverse(model, q, th)
+        qdd, fd_stages = (Dinv * rhs, []) if Dinv is not None else (rate_symbols("fd_qdd", n), None)
+        if fd_stages is None:
+            fd_stages = [(qdd, ("solve", D, rhs))]
+        fd_stages = [*poses, *fd_stages]
     funcs.append(SymbolicFunction("forward_dynamics", [("q", q), ("qdot", qd), ("tau", tau), ("theta", th)],
                                   [("qddot", qdd)], "Forward dynamics qddot = D^-1 (tau - C(q, qdot) qdot - G).",
-                                  [*poses, *solve]))
+                                  fd_stages))
+    # τ by recursive Newton-Euler where the tree allows it; "auto" weighs the forms by their own
+    # D a + C q̇ + G instead (form_dynamics), the kind of expression the controllers evaluate
+    recursive = None if form_dynamics else recursive_inverse_dynamics(model, q, qd, a, th)
+    tau_out, id_stages = (D * a + bias_forces(model, q, qd, th), poses) if recursive is None else recursive
     funcs.append(SymbolicFunction("inverse_dynamics", [("q", q), ("qdot", qd), ("qddot", a), ("theta", th)],
-                                  [("tau", D * a + bias)],
-                                  "Inverse dynamics tau = D(q) qddot + C(q, qdot) qdot + G, N or N m.", poses))
+                                  [("tau", tau_out)],
+                                  "Inverse dynamics tau = D(q) qddot + C(q, qdot) qdot + G, N or N m.", id_stages))
     return funcs
 
 

@@ -26,6 +26,7 @@ from .tree import SymbolicTree
 __all__ = [
     "theta_symbols", "mass_matrix", "mass_matrix_inverse", "coriolis", "coriolis_matrix", "gravity", "regressor",
     "regressor_offset", "coriolis_paper", "symbolic_tree", "inverse_dynamics", "bias_forces", "rigid_body_stages",
+    "recursive_forward_dynamics", "recursive_inverse_dynamics", "recursive_mass_matrix",
 ]
 
 _TREES = {}
@@ -109,6 +110,47 @@ def _dynamics_of(tree, q, v, w, a, g):
         return tree.staged_inverse_dynamics(sp.Matrix(v), sp.Matrix(w), sp.Matrix(a), g)
     D = tree.mass_matrix()
     return D * sp.Matrix(a) + coriolis(D, q, v) * sp.Matrix(w) + tree.gravity(g)
+
+
+def recursive_forward_dynamics(model, q, qdot, tau, theta, prefix: str = "aba"):
+    """q̈ = D⁻¹ (τ − C q̇ − G) by the articulated-body algorithm: ``(qdd, stages)``
+    (:func:`~hydrogen.symbolic.articulated.articulated_body_stages`, linear in the number of links
+    where the solve of D is cubic), on any tree the staged form applies to, whichever form D, C, G
+    take (it works in link frames from the joint angles, not from either form's expressions); None
+    for a floating joint (a symbolic solve, or a single floating body's closed-form D⁻¹).
+    ``tau``: joint forces, N m or N."""
+    tree = symbolic_tree(model, q, theta)
+    if not tree.staged_applies():
+        return None
+    from .articulated import articulated_body_stages
+
+    return articulated_body_stages(tree, qdot, tau, baked(model.gravity, "gravity"), prefix)
+
+
+def recursive_inverse_dynamics(model, q, qdot, qddot, theta, prefix: str = "rnea"):
+    """τ = D q̈ + C q̇ + G by recursive Newton-Euler in link frames: ``(tau, stages)``
+    (:func:`~hydrogen.symbolic.articulated.newton_euler_stages`, linear in the number of links), on
+    the trees :func:`recursive_forward_dynamics` takes, in either form; else None. Only at w = v:
+    the Christoffel slots C(q, v) w of :func:`inverse_dynamics` need the forms' own passes."""
+    tree = symbolic_tree(model, q, theta)
+    if not tree.staged_applies():
+        return None
+    from .articulated import newton_euler_stages
+
+    return newton_euler_stages(tree, qdot, qddot, baked(model.gravity, "gravity"), prefix)
+
+
+def recursive_mass_matrix(model, q, theta, prefix: str = "crba"):
+    """D(q) by composite rigid bodies in link frames: ``(D, stages)``
+    (:func:`~hydrogen.symbolic.articulated.composite_body_stages`), on the trees
+    :func:`recursive_forward_dynamics` takes, in either form; else None. The form's own D
+    (:func:`mass_matrix`) is the one C, G and the controllers are derived with."""
+    tree = symbolic_tree(model, q, theta)
+    if not tree.staged_applies():
+        return None
+    from .articulated import composite_body_stages
+
+    return composite_body_stages(tree, prefix)
 
 
 def regressor(model, q, v, w, a, theta) -> sp.Matrix:
