@@ -166,8 +166,8 @@ class Version:
         return stdout, wall
 
 
-def _extract_previous(dest: Path) -> str | None:
-    """Extract PREVIOUS into ``dest``; None, or the reason it cannot be done."""
+def _extract_previous(dest: Path, commit: str = PREVIOUS) -> str | None:
+    """Extract ``commit`` (default: PREVIOUS) into ``dest``; None, or the reason it cannot be done."""
     try:
         top = subprocess.run(["git", "-C", str(common.REPO), "rev-parse", "--show-toplevel"],
                              capture_output=True, text=True, timeout=60)
@@ -175,14 +175,14 @@ def _extract_previous(dest: Path) -> str | None:
         return f"git is not available ({exc})"
     if top.returncode != 0:
         return f"{common.REPO} is not a git checkout ({top.stderr.strip()})"
-    ok = subprocess.run(["git", "-C", str(common.REPO), "cat-file", "-e", f"{PREVIOUS}^{{commit}}"],
+    ok = subprocess.run(["git", "-C", str(common.REPO), "cat-file", "-e", f"{commit}^{{commit}}"],
                         capture_output=True, text=True, timeout=60)
     if ok.returncode != 0:
-        return f"commit {PREVIOUS} (the previous release) is not in this repository (a shallow clone?)"
-    tar = subprocess.run(["git", "-C", str(common.REPO), "archive", "--format=tar", PREVIOUS],
+        return f"commit {commit} is not in this repository (a shallow clone?)"
+    tar = subprocess.run(["git", "-C", str(common.REPO), "archive", "--format=tar", commit],
                          capture_output=True, timeout=300)
     if tar.returncode != 0:
-        return f"git archive {PREVIOUS} failed: {tar.stderr.decode(errors='replace').strip()}"
+        return f"git archive {commit} failed: {tar.stderr.decode(errors='replace').strip()}"
     with tarfile.open(fileobj=io.BytesIO(tar.stdout)) as tf:
         tf.extractall(dest)
     return None

@@ -436,6 +436,21 @@ def _recursive(b) -> list:
     return out
 
 
+def _period(b) -> list:
+    rows = b.get("rows", [])
+    if not rows:
+        return []
+    out = ["## Per period and per call, against an earlier version", "",
+           f"`benchmarks/bench_period.py`: commit `{b.get('baseline')}` (the numbers folded into the code, the rigid "
+           f"body without the recursive algorithms) and the current version, each in its own processes, alternating "
+           f"for {b.get('rounds')} rounds (medians): the C loop's µs per control period of every scenario "
+           f"(`{b.get('controller')}`, the fastest of a few runs per round) and the ns per call from Python of every "
+           "function both versions have with the same inputs (the extension).", ""]
+    table = [[r["robot"], r["what"], f"`{r['name']}`" if r["what"] == "call" else r["name"], _f(r["earlier"]),
+              _f(r["current"]), f"{r['ratio']:.2f}"] for r in rows]
+    return out + _table(["robot", "", "scenario or function", "earlier", "current", "current / earlier"], table)
+
+
 def benchmarks_page(results: dict, repeats: dict | None = None, source: str = "docs/bench.json") -> str:
     """Markdown of a ``hydrogen bench`` run (the dict it writes as JSON), optionally with the whole-run
     spread of the release comparison (``bench_release_repeats.json``); sections of modules not run
@@ -466,6 +481,8 @@ def benchmarks_page(results: dict, repeats: dict | None = None, source: str = "d
         out += _cold(results["bench_cold"])
     if "bench_recursive" in results:
         out += _recursive(results["bench_recursive"])
+    if "bench_period" in results:
+        out += _period(results["bench_period"])
     return "\n".join(out).rstrip() + "\n"
 
 

@@ -258,3 +258,14 @@ def test_recursive_urdf_gives_pinocchio_the_same_chain():
     q, v, a = np.array([1.6, -0.3, 0.4]), np.array([0.2, -1.0, 0.5]), np.array([0.3, 0.1, -0.7])
     np.testing.assert_allclose(pin.rnea(built, built.createData(), q, v, a),
                                pin.rnea(ours, ours.createData(), q, v, a), rtol=1e-12, atol=1e-9)
+
+
+def test_the_period_benchmark_states_its_bound_only_for_developers(capsys):
+    import bench_period
+
+    row = {"robot": "r", "what": "loop", "name": "s", "earlier": 5.0, "current": 6.0, "ratio": 1.2}
+    res = {"baseline": "abc", "controller": "p", "rounds": 1, "bound": 1.1, "rows": [row], "wall_s": 1.0}
+    bench_period.print_table(res)
+    assert "FAIL" not in capsys.readouterr().out
+    bench_period.print_table(res, checks=True)
+    assert "FAIL" in capsys.readouterr().out
