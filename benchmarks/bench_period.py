@@ -1,9 +1,11 @@
 """Per-period and per-call cost, side by side with an earlier version in one run.
 
-The earlier version is git commit ``BASELINE`` of this repository (the numbers folded into the
-generated code, the rigid body without the recursive algorithms), extracted with ``git archive``
-as ``bench_release.py`` does; each version runs in its own fresh processes with its own cache.
-For every shipped robot the earlier version knows, in each version:
+Three routes, each in its own fresh processes with its own cache: ``current`` (the numbers as
+inputs, the default), ``folded`` (the current code built with ``numbers="constants"``: like for like,
+the one difference is the numbers) and ``earlier``, git commit ``BASELINE`` of this repository
+(the numbers folded, the rigid body without the recursive algorithms, its own gains where they
+were tuned since), extracted with ``git archive`` as ``bench_release.py`` does. For every shipped
+robot the earlier version knows, in each route:
 
 * every scenario's C loop: ``hydrogen.simulate`` of ``CONTROLLER`` (the scenario's own gains,
   duration and rig), ``loop_wall_s`` over the periods, µs per control period, the fastest of
@@ -12,9 +14,9 @@ For every shipped robot the earlier version knows, in each version:
   Python (``dyn.functions[name](*inputs)``, the compiled extension), the best of ``CALL_REPEATS``
   timings of ``CALL_NUMBER`` calls.
 
-The versions alternate (which runs first swaps each round) for ``ROUNDS`` rounds (2 with
-``--quick``); each figure is the median over the rounds; reported with the ratio current /
-earlier and, with the release checks, the bound (``BOUND``: no more than 10 % above).
+The routes rotate (which runs first changes each round) for ``ROUNDS`` rounds (2 with
+``--quick``); each figure is the median over the rounds. Reported with the ratios current / folded
+(bounded with the release checks: no more than ``BOUND``) and current / earlier.
 
 Run: ``python benchmarks/bench_period.py [--quick] [--json FILE]`` (about 3-5 minutes).
 """
@@ -54,7 +56,7 @@ for name in {robots!r}:
     if name not in hydrogen.models():
         continue
     model = hydrogen.load_model(name)
-    dyn = hydrogen.build(model)
+    dyn = hydrogen.build(model, **{build_kw!r})
     loops = {{}}
     for s in scenario_names(model):
         hydrogen.simulate(s, {controller!r}, dyn=dyn, duration=0.2)  # warm-up: its library compiled and loaded
@@ -76,9 +78,9 @@ print("JSON", json.dumps(out))
 """
 
 
-def _measure(version: Version, robots: list) -> dict:
+def _measure(version: Version, robots: list, build_kw: dict) -> dict:
     stdout, _ = version.run(_MEASURE.format(robots=robots, controller=CONTROLLER, number=CALL_NUMBER,
-                                            repeats=CALL_REPEATS, loop_repeats=LOOP_REPEATS))
+                                            repeats=CALL_REPEATS, loop_repeats=LOOP_REPEATS, build_kw=build_kw))
     line = next(line for line in stdout.splitlines() if line.startswith("JSON "))
     return json.loads(line[5:])
 
@@ -103,28 +105,30 @@ def run(quick: bool = False) -> dict:
         reason = _extract_previous(tmp / "earlier", BASELINE)
         if reason:
             return {"skipped": f"no side-by-side comparison: {reason}", "baseline": BASELINE}
-        versions = {"earlier": Version(f"commit {BASELINE}", tmp / "earlier", tmp / "cache-earlier"),
-                    "current": Version("current", common.REPO, tmp / "cache-current")}
-        results = {k: [] for k in versions}
+        routes = {"earlier": (Version(f"commit {BASELINE}", tmp / "earlier", tmp / "cache-earlier"), {}),
+                  "folded": (Version("current", common.REPO, tmp / "cache-folded"), {"numbers": "constants"}),
+                  "current": (Version("current", common.REPO, tmp / "cache-current"), {})}
+        results = {k: [] for k in routes}
+        order = list(routes)
         for i in range(rounds):
-            for key in (("earlier", "current") if i % 2 == 0 else ("current", "earlier")):
-                results[key].append(_measure(versions[key], robots))
+            for key in order[i % 3:] + order[:i % 3]:
+                results[key].append(_measure(*routes[key], robots))
     rows = []
     for name in robots:
         if name not in results["earlier"][0]:
             continue
         for s in results["current"][0][name]["loops"]:
-            prev, cur = (_median_of(results[k], (name, "loops", s)) for k in ("earlier", "current"))
-            if prev is not None and cur is not None:
-                rows.append({"robot": name, "what": "loop", "name": s, "earlier": prev, "current": cur,
-                             "ratio": cur / prev})
+            v = {k: _median_of(results[k], (name, "loops", s)) for k in results}
+            if None not in v.values():
+                rows.append({"robot": name, "what": "loop", "name": s, **v, "ratio": v["current"] / v["folded"],
+                             "ratio_earlier": v["current"] / v["earlier"]})
         for f, c in results["current"][0][name]["calls"].items():
             p = results["earlier"][0][name]["calls"].get(f)
             if p is None or p["inputs"] != c["inputs"]:
                 continue  # new, or another caller's signature: not like for like
-            prev, cur = (_median_of(results[k], (name, "calls", f, "ns")) for k in ("earlier", "current"))
-            rows.append({"robot": name, "what": "call", "name": f, "earlier": prev, "current": cur,
-                         "ratio": cur / prev})
+            v = {k: _median_of(results[k], (name, "calls", f, "ns")) for k in results}
+            rows.append({"robot": name, "what": "call", "name": f, **v, "ratio": v["current"] / v["folded"],
+                         "ratio_earlier": v["current"] / v["earlier"]})
     return {"baseline": BASELINE, "controller": CONTROLLER, "rounds": rounds, "bound": BOUND, "rows": rows,
             "within_bound": all(r["ratio"] <= BOUND for r in rows), "wall_s": time.perf_counter() - t0,
             "machine": common.machine_info()}
@@ -135,15 +139,17 @@ def print_table(res: dict, checks: bool = False) -> None:
     if "skipped" in res:
         print(res["skipped"])
         return
-    print(f"Against commit {res['baseline']} in one run (median of {res['rounds']} alternating rounds): C loop "
-          f"µs per period of every scenario ({res['controller']}) and ns per call from Python:")
-    header = f"{'robot':<15} {'what':<5} {'scenario or function':<24} {'earlier':>9} {'current':>9} {'ratio':>6}"
+    print(f"The current version (numbers as inputs), the same built folded, and commit {res['baseline']}, in one "
+          f"run (median of {res['rounds']} rotating rounds): C loop µs per period of every scenario "
+          f"({res['controller']}) and ns per call from Python:")
+    header = (f"{'robot':<15} {'what':<5} {'scenario or function':<24} {'earlier':>9} {'folded':>9} {'current':>9} "
+              f"{'/folded':>8} {'/earlier':>8}")
     header += f" {'<= ' + format(res['bound'], '.2f'):>7}" if checks else ""
     print(header)
     print("-" * len(header))
     for r in res["rows"]:
-        line = (f"{r['robot']:<15} {r['what']:<5} {r['name']:<24} {r['earlier']:>9.2f} {r['current']:>9.2f} "
-                f"{r['ratio']:>6.2f}")
+        line = (f"{r['robot']:<15} {r['what']:<5} {r['name']:<24} {r['earlier']:>9.2f} {r['folded']:>9.2f} "
+                f"{r['current']:>9.2f} {r['ratio']:>8.2f} {r['ratio_earlier']:>8.2f}")
         if checks:
             line += f" {'ok' if r['ratio'] <= res['bound'] else 'FAIL':>7}"
         print(line)

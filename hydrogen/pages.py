@@ -440,15 +440,17 @@ def _period(b) -> list:
     rows = b.get("rows", [])
     if not rows:
         return []
-    out = ["## Per period and per call, against an earlier version", "",
-           f"`benchmarks/bench_period.py`: commit `{b.get('baseline')}` (the numbers folded into the code, the rigid "
-           f"body without the recursive algorithms) and the current version, each in its own processes, alternating "
-           f"for {b.get('rounds')} rounds (medians): the C loop's µs per control period of every scenario "
-           f"(`{b.get('controller')}`, the fastest of a few runs per round) and the ns per call from Python of every "
-           "function both versions have with the same inputs (the extension).", ""]
+    out = ["## Per period and per call: numbers as inputs, folded, and an earlier version", "",
+           f"`benchmarks/bench_period.py`: the current version (the numbers as inputs), the same code built with "
+           f"them folded (like for like) and commit `{b.get('baseline')}` (folded, before the recursive rigid body; "
+           f"its own gains where they were tuned since), each in its own processes, rotating for {b.get('rounds')} "
+           f"rounds (medians): the C loop's µs per control period of every scenario (`{b.get('controller')}`, the "
+           "fastest of a few runs per round) and the ns per call from Python of every function all have with the "
+           "same inputs (the extension).", ""]
     table = [[r["robot"], r["what"], f"`{r['name']}`" if r["what"] == "call" else r["name"], _f(r["earlier"]),
-              _f(r["current"]), f"{r['ratio']:.2f}"] for r in rows]
-    return out + _table(["robot", "", "scenario or function", "earlier", "current", "current / earlier"], table)
+              _f(r["folded"]), _f(r["current"]), f"{r['ratio']:.2f}", f"{r['ratio_earlier']:.2f}"] for r in rows]
+    return out + _table(["robot", "", "scenario or function", "earlier", "folded", "current", "current / folded",
+                         "current / earlier"], table)
 
 
 def benchmarks_page(results: dict, repeats: dict | None = None, source: str = "docs/bench.json") -> str:

@@ -263,7 +263,8 @@ def test_recursive_urdf_gives_pinocchio_the_same_chain():
 def test_the_period_benchmark_states_its_bound_only_for_developers(capsys):
     import bench_period
 
-    row = {"robot": "r", "what": "loop", "name": "s", "earlier": 5.0, "current": 6.0, "ratio": 1.2}
+    row = {"robot": "r", "what": "loop", "name": "s", "earlier": 5.0, "folded": 5.0, "current": 6.0, "ratio": 1.2,
+           "ratio_earlier": 1.2}
     res = {"baseline": "abc", "controller": "p", "rounds": 1, "bound": 1.1, "rows": [row], "wall_s": 1.0}
     bench_period.print_table(res)
     assert "FAIL" not in capsys.readouterr().out
