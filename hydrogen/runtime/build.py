@@ -151,9 +151,9 @@ def build(model: Model | str | Path | None = None, *, cc: str | None = None,
     The compiled code is one core library (kinematics, rigid body, hydraulics, plant, the C loop)
     and per controller one library for each variant a run calls on its own (the full controller
     with its rates and step; the lean one: :func:`~hydrogen.runtime.library.function_groups`). A
-    build compiles the core and the libraries of ``controllers``; any other library is compiled
-    (or found in the cache) the first time one of its functions is used, e.g. by a run with that
-    controller, which compiles only the variant it runs.
+    build compiles the core and the full variant of each of ``controllers``; any other library (a
+    lean variant, another controller) is compiled (or found in the cache) the first time one of its
+    functions is used, e.g. by a run with the paper's gradient laws.
 
     Parameters
     ----------
@@ -175,8 +175,9 @@ def build(model: Model | str | Path | None = None, *, cc: str | None = None,
         "built"; a library already built gives "loaded" alone. A controller's library compiled
         later, on its first use, gives "compiling"/"compiled" then.
     controllers : sequence of str
-        Controllers (names, as ``simulate`` takes them) whose libraries are compiled with the core,
-        in the same pool of compilers, and loaded now. ``hydrogen.CONTROLLERS``: all of them.
+        Controllers (names, as ``simulate`` takes them) whose full variant's library is compiled
+        with the core, in the same pool of compilers, and loaded now (the variant a run with the
+        composite law runs, the default gains). ``hydrogen.CONTROLLERS``: all of them.
     numbers : "inputs" (default) or "constants"
         "inputs" generates every function with the description's numbers as an input the runtime
         fills from the description (``Model.numbers()``), as the committed code is: a description
@@ -206,7 +207,7 @@ def build(model: Model | str | Path | None = None, *, cc: str | None = None,
 
     lib = warm_library(model, folder, toolchain, root, loader, numbers)  # no lock, no write: a read-only cache works
     if lib is not None:
-        groups = [g for c in controllers for g in controller_groups(made[-1].manifest, c)]
+        groups = [g for c in controllers for g in controller_groups(made[-1].manifest, c)[:1]]
         missing = [g for g in groups if _cached_or_none(made[-1], g) is None]
         if missing:
             with cache_errors(root), folder_lock(folder, current=committed):
@@ -224,7 +225,7 @@ def build(model: Model | str | Path | None = None, *, cc: str | None = None,
                 raise BuildCacheError(f"{folder}: generated folder has no readable manifest after generation")
             load = loader(manifest)
             # Progress around the compile call, not inside it: a build another process finished is no step.
-            groups = [g for c in controllers for g in controller_groups(manifest, c)]
+            groups = [g for c in controllers for g in controller_groups(manifest, c)[:1]]
             core = load.compile([CORE, *groups])[0]
             try:
                 lib = GeneratedLibrary(core, manifest, folder, load, numbers=model.numbers)
