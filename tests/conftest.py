@@ -52,6 +52,29 @@ def warm_copy(cache, folder):
 
 
 @pytest.fixture(scope="session")
+def shared_fmu(cache):
+    """``shared_fmu(dyn, part, scenario, controller, **kw)``: the FMU ``export_fmu`` writes for these
+    arguments, exported once per run into the run's cache (the workers share it: the first exports
+    under a lock, the others find the file). Tests only read it."""
+    import hashlib
+    import json
+
+    from hydrogen.fileio import locked
+    from hydrogen.fmu import export_fmu
+
+    def get(dyn, part, scenario, controller, **kw):
+        key = json.dumps([dyn.model.name, dyn.model.baked_hash(), repr(dyn.model.gains), str(dyn.library.path),
+                          part, scenario, controller, sorted(kw.items())], default=repr)
+        folder = cache / "fmu" / hashlib.sha256(key.encode()).hexdigest()[:24]
+        path = folder / f"{part}.fmu"
+        with locked(folder):
+            if not path.exists():
+                export_fmu(path, part, scenario, controller, dyn=dyn, **kw)
+        return path
+    return get
+
+
+@pytest.fixture(scope="session")
 def dyn(model, cache):
     return hydrogen.build(model, cache=cache)
 

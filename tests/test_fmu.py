@@ -53,12 +53,10 @@ def _reference_run(dyn, scenario, controller, duration=DURATION, **overrides):
 
 
 @pytest.fixture(scope="module")
-def fmus(robot_dyn, tmp_path_factory):
-    """The three parts of one robot's case, exported once."""
+def fmus(robot_dyn, shared_fmu):
+    """The three parts of one robot's case, exported once per run (shared by the workers)."""
     scenario, controller = _case(robot_dyn)
-    folder = tmp_path_factory.mktemp(f"fmu-{robot_dyn.model.name}")
-    paths = {part: export_fmu(folder / f"{part}.fmu", part, scenario, controller, dyn=robot_dyn, duration=DURATION)
-             for part in PARTS}
+    paths = {part: shared_fmu(robot_dyn, part, scenario, controller, duration=DURATION) for part in PARTS}
     return robot_dyn, scenario, controller, paths
 
 
@@ -182,12 +180,12 @@ def test_controller_fmu_follows_an_external_reference(fmus):
     np.testing.assert_allclose(q, res.q, rtol=0, atol=1e-9)
 
 
-def test_a_python_p_controller_drives_the_plant_fmu(dyn, tmp_path):
+def test_a_python_p_controller_drives_the_plant_fmu(dyn, shared_fmu):
     """The README's example: a user's P controller on the cylinder lengths, in Python, drives the plant
     FMU; written like hydrogen's own P controller, it reproduces hydrogen.simulate(..., "p")."""
     from hydrogen.simulation.scenarios import scenario as named_scenario
 
-    plant = export_fmu(tmp_path / "plant.fmu", "plant", "z-1hz", dyn=dyn, duration=DURATION)
+    plant = shared_fmu(dyn, "plant", "z-1hz", "p", duration=DURATION)  # the plant part ignores the controller
     from hydrogen.simulation.simulator import prepare_run
 
     sc = named_scenario("z-1hz", dyn.model)
@@ -284,10 +282,12 @@ def test_model_description(fmus):
             assert all(n.startswith("numbers.") for n in params)
 
 
-def test_export_is_deterministic(dyn, tmp_path):
-    a = export_fmu(tmp_path / "a.fmu", "plant", "z-1hz", dyn=dyn)
-    b = export_fmu(tmp_path / "b.fmu", "plant", "z-1hz", dyn=dyn)
-    assert a.read_bytes() == b.read_bytes()
+def test_export_is_deterministic(dyn, tmp_path, shared_fmu):
+    """Two exports with the same arguments are byte-identical (the first is the run's shared one,
+    possibly written by another worker process)."""
+    a = shared_fmu(dyn, "plant", "z-1hz", "p", duration=DURATION)
+    b = export_fmu(tmp_path / "b.fmu", "plant", "z-1hz", "p", dyn=dyn, duration=DURATION)
+    assert a != b and a.read_bytes() == b.read_bytes()
 
 
 def test_bad_input_is_refused_before_any_work(dyn, tmp_path):
@@ -472,7 +472,8 @@ def test_a_step_past_the_stop_time_is_refused(fmus):
         s.close()
 
 
-def test_the_description_numbers_are_parameters_and_an_edit_equals_the_edited_description(cache, tmp_path):
+def test_the_description_numbers_are_parameters_and_an_edit_equals_the_edited_description(cache, tmp_path,
+                                                                                              shared_fmu):
     """From a build with the description's numbers as inputs, every number is an FMU parameter named
     after it (numbers.<name>, arrays 1-based); the FMU at the start values reproduces simulate, and
     the FMU with gravity and a pin point set as parameters reproduces simulate of the edited
@@ -484,7 +485,7 @@ def test_the_description_numbers_are_parameters_and_an_edit_equals_the_edited_de
     arm = hydrogen.load_model("excavator_arm")
     dyn = hydrogen.build(arm, numbers="inputs", cache=cache)
     scenario, controller = CASES["excavator_arm"]
-    path = export_fmu(tmp_path / "loop.fmu", "closed-loop", scenario, controller, dyn=dyn, duration=DURATION)
+    path = shared_fmu(dyn, "closed-loop", scenario, controller, duration=DURATION)
     md = read_model_description(str(path))
     params = {v.name: v for v in md.modelVariables if v.causality == "parameter"}
     names = dyn.library.manifest["numbers"]
