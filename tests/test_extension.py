@@ -397,3 +397,25 @@ def test_forward_dynamics_of_urdf_robots_matches_pinocchio_aba(cache, rng):
         for q, qd, tau, qdd in zip(qs, qds, taus, got):
             want = pin.aba(pm, data, q, qd, tau)
             np.testing.assert_allclose(qdd, want, rtol=1e-9, atol=1e-9 * np.abs(want).max())
+
+
+@NEEDS_EXTENSION
+def test_two_extensions_of_one_robot_stay_apart_when_loaded_again(tmp_path):
+    """Two builds of one robot (the numbers as inputs, the numbers folded) have extensions of the same
+    module name with different tables; loading each again (another build of the same robot) must
+    neither give one build the other's functions nor change a module loaded before."""
+    def manifest(numbers: bool):
+        inputs = [["q", 2, 1]] + ([[NUMBERS, 3, 1]] if numbers else [])
+        return {"model_name": "twin", "functions": [
+            {"name": "f", "c_name": "twin_f", "inputs": inputs, "outputs": [["y", 2, 1]]}]}
+
+    want = {k: ext.render_context(manifest(k))["functions"][0]["numbers"] for k in (True, False)}
+    assert want == {True: True, False: False}
+    paths = {k: ext.build_extension(manifest(k), cache=tmp_path) for k in (True, False)}
+    assert paths[True] != paths[False]
+    loaded = []
+    for k in (True, False, True, False, True):
+        module = ext.load_extension(paths[k], ext.module_name(manifest(k)))
+        loaded.append((k, module))
+        for kk, m in loaded:  # each module, the new one and those before it, keeps its own table
+            assert m.specs()[0][-1] == int(want[kk]), (kk, m)

@@ -310,6 +310,10 @@ def compile_extension(render, key_material: str, module: str, toolchain: Toolcha
                          [str(d) for d in include_dirs]]).encode())
     key = h.hexdigest()
     build_dir = Path(cache or cache_root()) / "extension" / key
+    if not force:  # a warm cache serves without a lock (a read-only cache works once warm)
+        lib = cached_library(build_dir)
+        if lib is not None:
+            return lib
     with locked(build_dir):
         if not force:
             lib = cached_library(build_dir)
