@@ -270,3 +270,27 @@ def test_the_period_benchmark_states_its_bound_only_for_developers(capsys):
     assert "FAIL" not in capsys.readouterr().out
     bench_period.print_table(res, checks=True)
     assert "FAIL" in capsys.readouterr().out
+
+
+def test_the_period_benchmark_measures_every_robot_in_every_route(monkeypatch):
+    """run() hands each route's measurement the robots and that route's build options: with a stand-in
+    measurement, one row per robot's scenario and shared function, and an empty table is no pass."""
+    import bench_period
+
+    seen = []
+
+    def measure(version, robots, build_kw):
+        seen.append((version.label, tuple(robots), dict(build_kw)))
+        per = {"loops": {"s": 2.0}, "calls": {"f": {"ns": 100.0, "inputs": ["q"]}}}
+        return {name: per for name in robots}
+
+    monkeypatch.setattr(bench_period, "_extract_previous", lambda dest, commit: None)
+    monkeypatch.setattr(bench_period, "_measure", measure)
+    res = bench_period.run(quick=True)
+    robots = tuple(common.robots())
+    assert {(label, r) for label, r, _ in seen} == {(f"commit {bench_period.BASELINE}", robots), ("current", robots)}
+    assert {"numbers": "constants"} in [kw for _, _, kw in seen] and {} in [kw for _, _, kw in seen]
+    assert len(seen) == 3 * bench_period.QUICK_ROUNDS
+    assert len(res["rows"]) == 2 * len(robots) and res["within_bound"]
+    monkeypatch.setattr(bench_period, "_measure", lambda version, robots, build_kw: {})
+    assert not bench_period.run(quick=True)["within_bound"]
