@@ -16,7 +16,10 @@ robot the earlier version knows, in each route:
 
 The routes rotate (which runs first changes each round) for ``ROUNDS`` rounds (2 with
 ``--quick``); each figure is the median over the rounds. Reported with the ratios current / folded
-(bounded with the release checks: no more than ``BOUND``) and current / earlier.
+and current / earlier, both bounded with the release checks (no more than ``BOUND``); current /
+earlier only where it is like for like: the same robot in the description (links, joints,
+hydraulics, cylinders), and for a loop the same rig, timing and scenario and the same controller
+variant (gains tuned since may run the lean one, or no longer).
 
 Run: ``python benchmarks/bench_period.py [--quick] [--json FILE]`` (about 3-5 minutes).
 """
@@ -46,10 +49,14 @@ LOOP_REPEATS = 3
 BOUND = 1.10
 
 _MEASURE = """
-import json, timeit
+import hashlib, json, timeit, tomllib
 import numpy as np
 import hydrogen
+from hydrogen.model import model_path
+from hydrogen.simulation.simulator import prepare_run
 print("hydrogen_file", 0, hydrogen.__file__)
+def digest(x):
+    return hashlib.sha256(json.dumps(x, sort_keys=True, default=str).encode()).hexdigest()
 from hydrogen.simulation.scenarios import scenario_names
 out = {{}}
 for name in {robots!r}:
@@ -57,11 +64,17 @@ for name in {robots!r}:
         continue
     model = hydrogen.load_model(name)
     dyn = hydrogen.build(model, **{build_kw!r})
-    loops = {{}}
+    # what the generated functions depend on (not the gains, rig, timing or scenarios), and per scenario
+    # what its loop's cost depends on besides (the variant is recorded on its own)
+    toml = tomllib.loads(model_path(name).read_text())
+    robot = {{k: v for k, v in toml.items() if k not in ("gains", "variants", "scenarios", "rig", "control")}}
+    loops, variants, setups = {{}}, {{}}, {{}}
     for s in scenario_names(model):
         hydrogen.simulate(s, {controller!r}, dyn=dyn, duration=0.2)  # warm-up: its library compiled and loaded
         runs = [hydrogen.simulate(s, {controller!r}, dyn=dyn) for _ in range({loop_repeats})]
         loops[s] = min(r.loop_wall_s / len(r.t) for r in runs) * 1e6  # the least disturbed run
+        variants[s] = prepare_run(dyn, s, {controller!r}, None, 0.05, True, {{}}).ctrl.variant or "full"
+        setups[s] = digest([robot, toml.get("rig"), toml.get("control"), toml.get("scenarios", {{}}).get(s)])
     calls = {{}}
     rng = np.random.default_rng(0)
     for fname in sorted(dyn.functions):
@@ -73,7 +86,7 @@ for name in {robots!r}:
         args = [model.neutral_pose + a if n == "q" else a for n, a in zip(fn.in_names, args)]
         best = min(timeit.repeat(lambda: fn(*args), number={number}, repeat={repeats}))
         calls[fname] = {{"ns": best / {number} * 1e9, "inputs": list(fn.in_names)}}
-    out[name] = {{"loops": loops, "calls": calls}}
+    out[name] = {{"loops": loops, "variants": variants, "setups": setups, "calls": calls, "robot": digest(robot)}}
 print("JSON", json.dumps(out))
 """
 
@@ -118,21 +131,48 @@ def run(quick: bool = False) -> dict:
     for name in robots:
         if name not in results["earlier"][0]:
             continue
-        for s in results["current"][0][name]["loops"]:
+        now, then = results["current"][0][name], results["earlier"][0][name]
+        # Against the earlier version, like for like only where it describes the same robot (links,
+        # joints, hydraulics, cylinders: what the functions depend on) and, for a loop, the same rig,
+        # timing and scenario, run with the same controller variant (gains tuned since may switch the
+        # lean one on or off).
+        same_robot = now.get("robot") == then.get("robot")
+        for s in now["loops"]:
             v = {k: _median_of(results[k], (name, "loops", s)) for k in results}
             if None not in v.values():
+                variants = (then.get("variants", {}).get(s), now.get("variants", {}).get(s))
                 rows.append({"robot": name, "what": "loop", "name": s, **v, "ratio": v["current"] / v["folded"],
-                             "ratio_earlier": v["current"] / v["earlier"]})
-        for f, c in results["current"][0][name]["calls"].items():
-            p = results["earlier"][0][name]["calls"].get(f)
+                             "ratio_earlier": v["current"] / v["earlier"], "variants": list(variants),
+                             "like_for_like": same_robot and variants[0] == variants[1]
+                             and now.get("setups", {}).get(s) == then.get("setups", {}).get(s),
+                             "same_setup": now.get("setups", {}).get(s) == then.get("setups", {}).get(s)})
+        for f, c in now["calls"].items():
+            p = then["calls"].get(f)
             if p is None or p["inputs"] != c["inputs"]:
                 continue  # new, or another caller's signature: not like for like
             v = {k: _median_of(results[k], (name, "calls", f, "ns")) for k in results}
             rows.append({"robot": name, "what": "call", "name": f, **v, "ratio": v["current"] / v["folded"],
-                         "ratio_earlier": v["current"] / v["earlier"]})
+                         "ratio_earlier": v["current"] / v["earlier"], "like_for_like": same_robot})
+    for r in rows:
+        r["unlike"] = unlike(r)  # why current / earlier is not like for like, '' when it is
     return {"baseline": BASELINE, "controller": CONTROLLER, "rounds": rounds, "bound": BOUND, "rows": rows,
-            "within_bound": bool(rows) and all(r["ratio"] <= BOUND for r in rows), "wall_s": time.perf_counter() - t0,
-            "machine": common.machine_info()}
+            "within_bound": bool(rows) and all(within_bound(r, BOUND) for r in rows),
+            "wall_s": time.perf_counter() - t0, "machine": common.machine_info()}
+
+
+def within_bound(row: dict, bound: float) -> bool:
+    """current / folded within ``bound``, and current / earlier too where that is like for like."""
+    return row["ratio"] <= bound and (not row.get("like_for_like", True) or row["ratio_earlier"] <= bound)
+
+
+def unlike(row: dict) -> str:
+    """Why the row's comparison with the earlier version is not like for like ('' when it is)."""
+    if row.get("like_for_like", True):
+        return ""
+    v = row.get("variants")
+    if v and v[0] != v[1]:
+        return f"{v[0]} vs {v[1]} variant"
+    return "other rig, timing or scenario" if row.get("same_setup") is False else "other robot description"
 
 
 def print_table(res: dict, checks: bool = False) -> None:
@@ -152,8 +192,9 @@ def print_table(res: dict, checks: bool = False) -> None:
         line = (f"{r['robot']:<15} {r['what']:<5} {r['name']:<24} {r['earlier']:>9.2f} {r['folded']:>9.2f} "
                 f"{r['current']:>9.2f} {r['ratio']:>8.2f} {r['ratio_earlier']:>8.2f}")
         if checks:
-            line += f" {'ok' if r['ratio'] <= res['bound'] else 'FAIL':>7}"
-        print(line)
+            line += f" {'ok' if within_bound(r, res['bound']) else 'FAIL':>7}"
+        why = r.get("unlike") or unlike(r)
+        print(line + (f"  (/earlier not like for like: {why})" if why else ""))
     print(f"whole benchmark {res['wall_s']:.1f} s")
 
 

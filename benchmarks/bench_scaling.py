@@ -27,7 +27,8 @@ and 3 only). A process that runs out of it is stopped; the stages it finished an
 in are reported (what bounds the generation), the growth per link is extrapolated to n = 7, and
 larger n are not attempted.
 
-Run: ``python benchmarks/bench_scaling.py [--quick] [--budget S] [--json FILE]``
+Run: ``python benchmarks/bench_scaling.py [--quick] [--budget S] [--json FILE] [--n N ...]`` (``--n 12``:
+other chain lengths than 2 ... 7)
 """
 from __future__ import annotations
 
@@ -225,11 +226,11 @@ def _extrapolate(rows: list, key: str, target: int):
     return factor, b[key] * factor ** (target - b["n"])
 
 
-def run(quick: bool = False, budget: float | None = None) -> dict:
+def run(quick: bool = False, budget: float | None = None, ns: tuple | None = None) -> dict:
     budget = float(budget or os.environ.get("HYDROGEN_BENCH_SCALING_BUDGET") or
                    (QUICK_BUDGET_S if quick else BUDGET_S))
     t_start = time.perf_counter()
-    ns = QUICK_NS if quick else NS
+    ns = tuple(ns) if ns else (QUICK_NS if quick else NS)
     rows, skipped = [], []
     for n in ns:
         if rows and rows[-1]["timed_out"]:
@@ -308,8 +309,11 @@ def main(argv=None) -> int:
     ap.add_argument("--quick", action="store_true", help=f"n = {', '.join(map(str, QUICK_NS))} only")
     ap.add_argument("--budget", type=float, help="seconds per n (default 600; 300 with --quick)")
     ap.add_argument("--json", type=Path, metavar="FILE", help="also write the results as JSON")
+    ap.add_argument("--n", type=int, nargs="+", metavar="N", help="these chain lengths instead (e.g. --n 12)")
     a = ap.parse_args(argv)
-    res = run(quick=a.quick, budget=a.budget)
+    if a.n and min(a.n) < 1:
+        ap.error("--n: chain lengths are at least 1")
+    res = run(quick=a.quick, budget=a.budget, ns=a.n)
     print_table(res)
     if a.json:
         a.json.write_text(json.dumps(res, indent=2) + "\n")

@@ -442,15 +442,18 @@ def _period(b) -> list:
         return []
     out = ["## Per period and per call: numbers as inputs, folded, and an earlier version", "",
            f"`benchmarks/bench_period.py`: the current version (the numbers as inputs), the same code built with "
-           f"them folded (like for like) and commit `{b.get('baseline')}` (folded, before the recursive rigid body; "
-           f"its own gains where they were tuned since), each in its own processes, rotating for {b.get('rounds')} "
-           f"rounds (medians): the C loop's µs per control period of every scenario (`{b.get('controller')}`, the "
-           "fastest of a few runs per round) and the ns per call from Python of every function all have with the "
-           "same inputs (the extension).", ""]
+           f"them folded (like for like) and commit `{b.get('baseline')}` (folded, before the recursive rigid body), "
+           f"each in its own processes, rotating for {b.get('rounds')} rounds (medians): the C loop's µs per "
+           f"control period of every scenario (`{b.get('controller')}`, the fastest of a few runs per round) and "
+           "the ns per call from Python of every function all have with the same inputs (the extension). Against "
+           "the earlier version a row is like for like only for the same robot (links, joints, hydraulics, "
+           "cylinders) and, for a loop, the same rig, timing, scenario and controller variant; the last column "
+           "says where it is not.", ""]
     table = [[r["robot"], r["what"], f"`{r['name']}`" if r["what"] == "call" else r["name"], _f(r["earlier"]),
-              _f(r["folded"]), _f(r["current"]), f"{r['ratio']:.2f}", f"{r['ratio_earlier']:.2f}"] for r in rows]
+              _f(r["folded"]), _f(r["current"]), f"{r['ratio']:.2f}", f"{r['ratio_earlier']:.2f}", r.get("unlike", "")]
+             for r in rows]
     return out + _table(["robot", "", "scenario or function", "earlier", "folded", "current", "current / folded",
-                         "current / earlier"], table)
+                         "current / earlier", "not like for like"], table)
 
 
 def benchmarks_page(results: dict, repeats: dict | None = None, source: str = "docs/bench.json") -> str:

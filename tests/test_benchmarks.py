@@ -281,7 +281,8 @@ def test_the_period_benchmark_measures_every_robot_in_every_route(monkeypatch):
 
     def measure(version, robots, build_kw):
         seen.append((version.label, tuple(robots), dict(build_kw)))
-        per = {"loops": {"s": 2.0}, "calls": {"f": {"ns": 100.0, "inputs": ["q"]}}}
+        per = {"loops": {"s": 2.0}, "variants": {"s": "full"}, "setups": {"s": "x"}, "robot": "d",
+               "calls": {"f": {"ns": 100.0, "inputs": ["q"]}}}
         return {name: per for name in robots}
 
     monkeypatch.setattr(bench_period, "_extract_previous", lambda dest, commit: None)
@@ -294,3 +295,27 @@ def test_the_period_benchmark_measures_every_robot_in_every_route(monkeypatch):
     assert len(res["rows"]) == 2 * len(robots) and res["within_bound"]
     monkeypatch.setattr(bench_period, "_measure", lambda version, robots, build_kw: {})
     assert not bench_period.run(quick=True)["within_bound"]
+
+
+def test_the_period_benchmark_bounds_the_earlier_version_only_like_for_like(capsys):
+    """current / earlier counts against the bound only with the same description and controller variant;
+    the table says why a row is not like for like."""
+    import bench_period
+
+    base = {"robot": "r", "what": "loop", "name": "s", "earlier": 5.0, "folded": 6.0, "current": 6.3, "ratio": 1.05,
+            "ratio_earlier": 1.26}
+    same = {**base, "variants": ["full", "full"], "like_for_like": True}
+    lean = {**base, "variants": ["lean", "full"], "like_for_like": False}
+    other = {**base, "what": "call", "like_for_like": False}
+    assert not bench_period.within_bound(same, 1.1)
+    assert bench_period.within_bound(lean, 1.1) and bench_period.within_bound(other, 1.1)
+    assert bench_period.unlike(lean) == "lean vs full variant"
+    assert bench_period.unlike(other) == "other robot description"
+    assert bench_period.unlike({**same, "like_for_like": False, "same_setup": False}) == "other rig, timing or scenario"
+    assert bench_period.unlike(same) == ""
+    res = {"baseline": "abc", "controller": "p", "rounds": 1, "bound": 1.1, "rows": [same, lean, other], "wall_s": 1.0}
+    bench_period.print_table(res, checks=True)
+    lines = capsys.readouterr().out.splitlines()
+    failing = [ln for ln in lines if ln.startswith("r ") and "FAIL" in ln]
+    assert len(failing) == 1 and "not like for like" not in failing[0]
+    assert sum("not like for like: lean vs full variant" in ln for ln in lines) == 1
