@@ -56,14 +56,13 @@ _GENERATE = """
 import time
 t0 = time.perf_counter()
 import hydrogen
-from hydrogen.codegen.generate import render
-from hydrogen.symbolic.functions import derive_functions
+from hydrogen.codegen.generate import DEFAULT_NUMBERS, derive, render
 t1 = time.perf_counter()
 model = hydrogen.load_model({model!r})
 t2 = time.perf_counter()
-functions = derive_functions(model)
+functions, names = derive(model, DEFAULT_NUMBERS)  # as hydrogen.build generates by default
 t3 = time.perf_counter()
-render(model, {out!r}, functions=functions)
+render(model, {out!r}, functions=functions, names=names, numbers=DEFAULT_NUMBERS)
 t4 = time.perf_counter()
 print("import_s", t1 - t0)
 print("load_model_s", t2 - t1)

@@ -12,11 +12,12 @@ and 0.25 m off the links' line: 1.0 m long at the neutral pose (stroke [0.75, 1.
 
 For each n, in a fresh Python process:
 
-* the SymPy derivation (``derive_functions``), timed by stage: the cylinder kinematics, the rigid
-  body (D, C, G, the regressor Y, its offset y0: closed form for short chains, staged link poses
-  from 4 links on, see ``hydrogen.symbolic.forms``), the hydraulics, the plant and each controller; with
-  the SymPy size (``count_ops``, a tree count: shared subexpressions count each time they occur) of
-  D and C, whose own time (``count_ops_s``) is left out of the stages and of the derivation;
+* the SymPy derivation as ``hydrogen.build`` does by default (the numbers as inputs), timed by
+  stage: the cylinder kinematics, the rigid body (D, C, G, the regressor Y, its offset y0: closed
+  form for short chains, staged link poses from 4 links on, see ``hydrogen.symbolic.forms``), the
+  hydraulics, the plant and each controller; with the SymPy size (``count_ops``, a tree count:
+  shared subexpressions count each time they occur) of D and C, whose own time (``count_ops_s``)
+  is left out of the stages and of the derivation;
 * the generation (``render``: SymPy -> CasADi -> C) and the clean compile (``hydrogen.build`` on the
   rendered folder, a fresh cache);
 * each controller's CasADi instruction count (the manifest);
@@ -111,7 +112,7 @@ import sympy as sp
 import hydrogen
 import hydrogen.symbolic.functions as F
 from hydrogen.controllers import CONTROLLERS, controller
-from hydrogen.codegen.generate import render
+from hydrogen.codegen.generate import DEFAULT_NUMBERS, derive, render
 from bench_scaling import chain_model, SCENARIO, LOOP_CONTROLLER
 import common
 print("import_s", time.perf_counter() - t0, flush=True)
@@ -146,7 +147,7 @@ for c in CONTROLLERS:
     mod = controller(c)
     mod.derive = timed("ctrl." + c, mod.derive)
 t0 = time.perf_counter()
-functions = F.derive_functions(model)
+functions, names = derive(model, DEFAULT_NUMBERS)  # as hydrogen.build generates by default
 print("derive_s", time.perf_counter() - t0 - counting[0], flush=True)
 print("count_ops_s", counting[0], flush=True)
 with tempfile.TemporaryDirectory() as tmp:
@@ -154,7 +155,7 @@ with tempfile.TemporaryDirectory() as tmp:
     folder.mkdir(parents=True)
     print("start render", flush=True)
     t0 = time.perf_counter()
-    manifest = render(model, folder, functions=functions)
+    manifest = render(model, folder, functions=functions, names=names, numbers=DEFAULT_NUMBERS)
     print("render_s", time.perf_counter() - t0, flush=True)
     print("JSON", json.dumps({{f["name"]: f["instructions"] for f in manifest["functions"]}}), flush=True)
     print("start compile", flush=True)

@@ -414,3 +414,14 @@ def test_semi_implicit_step_is_the_clipped_rate_update_then_the_command(mname, k
         u, xc = step(*args, np.array([h]), lo, hi)
         np.testing.assert_array_equal(xc, want_xc)
         np.testing.assert_allclose(u, want_u, rtol=1e-13, atol=1e-13 * np.abs(want_u).max())
+
+
+def test_render_refuses_functions_derived_for_the_other_numbers_mode(tmp_path, model):
+    """Functions handed to render must be what derive gives for its numbers mode: folded functions
+    rendered as "inputs" (or parametric ones without their names) would write a manifest that claims
+    inputs the C does not take."""
+    with pytest.raises(ValueError, match="come with the names"):
+        gen.render(model, tmp_path, functions=[], numbers="inputs")
+    with pytest.raises(ValueError, match="come with no names"):
+        gen.render(model, tmp_path, functions=[], numbers="constants", names=["a"])
+    assert not list(tmp_path.iterdir())

@@ -24,7 +24,7 @@ from ..resources import templates_dir
 # runtime imports this module for the staleness check only, and stays free of both.
 
 __all__ = [
-    "generate", "generate_locked", "write_function", "check", "check_output", "derivation_hash", "structure_hash",
+    "generate", "generate_locked", "derive", "render", "write_function", "check", "check_output", "derivation_hash", "structure_hash",
     "read_manifest", "expected_manifest_inputs", "numbers_mode", "check_numbers_mode", "NUMBERS_MODES",
     "DEFAULT_NUMBERS",
     "MANIFEST", "FORMAT_VERSION",
@@ -181,29 +181,40 @@ def _sha256(path: Path) -> str:
     return hashlib.sha256(path.read_bytes()).hexdigest()
 
 
-def render(model, folder: Path, functions=None, progress: bool = False, numbers: str = DEFAULT_NUMBERS) -> dict:
+def derive(model, numbers: str = DEFAULT_NUMBERS) -> tuple:
+    """``(functions, names)``: every function derived for ``numbers`` (:data:`NUMBERS_MODES`), and
+    the names of the description's numbers they take as their input ``numbers`` ("inputs"; None
+    for "constants", which folds them)."""
+    from ..symbolic.functions import derive_functions, derive_parametric
+
+    if check_numbers_mode(numbers) == "inputs":
+        functions, names, _ = derive_parametric(model)
+        return functions, names
+    return derive_functions(model), None
+
+
+def render(model, folder: Path, functions=None, progress: bool = False, numbers: str = DEFAULT_NUMBERS,
+           names=None) -> dict:
     """Write every function's C and the manifest into an existing empty ``folder``.
 
     ``progress`` shows a bar on a terminal (nothing when stderr is not one). ``numbers``
     (:data:`NUMBERS_MODES`): "inputs" gives every function the description's numbers as its input
     ``numbers`` (names in the manifest's ``numbers``); the loop driver then passes them on from its
-    configuration.
+    configuration. ``functions`` and ``names``: what :func:`derive` gives for ``numbers``, when
+    derived already (else derived here).
     """
     import casadi as ca
     import sympy as sp
     from tqdm import tqdm
 
-    from ..symbolic.functions import derive_functions, derive_parametric
-
     folder = Path(folder)
-    names = None
     if functions is None:
         with tqdm(total=1, desc="deriving (SymPy)", disable=None if progress else True) as bar:
-            if check_numbers_mode(numbers) == "inputs":
-                functions, names, _ = derive_parametric(model)
-            else:
-                functions = derive_functions(model)
+            functions, names = derive(model, numbers)
             bar.update()
+    elif (names is None) != (check_numbers_mode(numbers) == "constants"):
+        raise ValueError(f"render: functions derived for numbers={numbers!r} come with "
+                         f"{'the names of their numbers (derive)' if names is None else 'no names'}")
     from ..layout import model_summary
 
     cache = {}  # CasADi conversions by function name: the composed functions reuse them
