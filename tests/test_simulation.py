@@ -362,7 +362,9 @@ def rig_over_seeds(dyn):
 
     def get(name, kind):
         if (name, kind) not in runs:
-            runs[name, kind] = simulate(dyn, name, kind, seeds=SEEDS, max_workers=2).metrics
+            metrics = simulate(dyn, name, kind, seeds=SEEDS, max_workers=2).metrics
+            assert "error" not in metrics, f"{name}, {kind}: {metrics['error']}"  # no seed ran: say why
+            runs[name, kind] = metrics
         return runs[name, kind]
     return get
 
