@@ -17,9 +17,9 @@ from ..pressures import blocks, n_pressures, uniform_three_way
 from .constants import PRESSURE_EPS, baked_table
 from .kinematics import leg_stages, pose_symbols, rate_symbols
 from .plant import plant_rhs
-from .rigid_body import (bias_forces, coriolis_matrix, gravity, mass_matrix, mass_matrix_inverse,
-                         recursive_forward_dynamics, recursive_inverse_dynamics, recursive_mass_matrix,
-                         regressor, regressor_offset, rigid_body_stages, theta_symbols)
+from .rigid_body import (bias_forces, coriolis_matrix, forward_dynamics, gravity, mass_matrix,
+                         recursive_inverse_dynamics, recursive_mass_matrix, regressor, regressor_offset,
+                         rigid_body_stages, theta_symbols)
 
 __all__ = ["SymbolicFunction", "SemiImplicitStep", "Specialisation", "derive_functions", "derive_parametric", "NUMBERS",
            "PRESSURE_EPS"]
@@ -106,18 +106,7 @@ def rigid_body_functions(model, form_dynamics: bool = False) -> list:
         funcs.append(SymbolicFunction("regressor_offset", [("q", q), ("v", v), ("w", w), ("a", a)],
                                       [("y0", y0)], "y0 = D a + C(q, v) w + G - Y theta (non-adapted share).",
                                       poses))
-    # q̈ = D⁻¹ (τ − C q̇ − G): the articulated-body algorithm on a tree without floating joints (its
-    # own stages, no pose symbols), else the closed-form inverse where the tree has one, else a solve.
-    recursive = recursive_forward_dynamics(model, q, qd, tau, th)
-    if recursive is not None:
-        qdd, fd_stages = recursive
-    else:
-        rhs = tau - bias_forces(model, q, qd, th)
-        Dinv = mass_matrix_inverse(model, q, th)
-        qdd, fd_stages = (Dinv * rhs, []) if Dinv is not None else (rate_symbols("fd_qdd", n), None)
-        if fd_stages is None:
-            fd_stages = [(qdd, ("solve", D, rhs))]
-        fd_stages = [*poses, *fd_stages]
+    qdd, fd_stages = forward_dynamics(model, q, qd, tau, th, poses)
     funcs.append(SymbolicFunction("forward_dynamics", [("q", q), ("qdot", qd), ("tau", tau), ("theta", th)],
                                   [("qddot", qdd)], "Forward dynamics qddot = D^-1 (tau - C(q, qdot) qdot - G).",
                                   fd_stages))

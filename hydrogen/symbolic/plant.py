@@ -18,24 +18,9 @@ from ..actuators import actuator
 from ..pressures import blocks, n_pressures
 from .constants import baked_table
 from .kinematics import leg_intermediates, pose_symbols, rate_symbols
-from .rigid_body import bias_forces, mass_matrix, mass_matrix_inverse, recursive_forward_dynamics, theta_symbols
+from .rigid_body import forward_dynamics, theta_symbols
 
 __all__ = ["plant_rhs"]
-
-
-def _accelerations(model, q, qd, th, tau):
-    """q̈ under joint forces ``tau`` and its stages: the articulated-body algorithm on a tree without
-    floating joints, the closed-form D⁻¹ of a single floating body, else a linear solve (the link
-    poses are in the kinematics' stages)."""
-    recursive = recursive_forward_dynamics(model, q, qd, tau, th, prefix="plant_aba")
-    if recursive is not None:
-        return recursive
-    rhs = tau - bias_forces(model, q, qd, th)
-    Dinv = mass_matrix_inverse(model, q, th)
-    if Dinv is not None:
-        return Dinv * rhs, []
-    qdd = rate_symbols("plant_qdd", model.n)
-    return qdd, [(qdd, ("solve", mass_matrix(model, q, th), rhs))]
 
 
 def plant_rhs(model):
@@ -76,7 +61,7 @@ def plant_rhs(model):
     f_leg = rate_symbols("plant_fleg", m)
     f_leg_value = sp.Matrix([laws[i].force(p[i], P[i])
                              - fric[0] * sp.tanh(ldot[i] / fric[2]) - fric[1] * ldot[i] for i in range(m)])
-    qdd, solve = _accelerations(model, q, qd, th, JL.T * f_leg)
+    qdd, solve = forward_dynamics(model, q, qd, JL.T * f_leg, th, prefix="plant_aba", solve="plant_qdd")  # poses: in kin
     # c = γ2/γ1, β = γ1; the orifice law linearised near Δp = 0 (smooth)
     pc_dot = sp.Matrix([rate for i in range(m) for rate in
                         laws[i].pressure_rates(l[i], ldot[i], p[i], spool_eff[i], g1[i], g2[i] / g1[i], P[i], smooth=True)])

@@ -20,13 +20,13 @@ from __future__ import annotations
 import sympy as sp
 
 from .constants import baked, mode_key
-from .kinematics import angular_velocity_map, rotation
+from .kinematics import angular_velocity_map, rate_symbols, rotation
 from .tree import SymbolicTree
 
 __all__ = [
     "theta_symbols", "mass_matrix", "mass_matrix_inverse", "coriolis", "coriolis_matrix", "gravity", "regressor",
     "regressor_offset", "coriolis_paper", "symbolic_tree", "inverse_dynamics", "bias_forces", "rigid_body_stages",
-    "recursive_forward_dynamics", "recursive_inverse_dynamics", "recursive_mass_matrix",
+    "recursive_forward_dynamics", "recursive_inverse_dynamics", "recursive_mass_matrix", "forward_dynamics",
 ]
 
 _TREES = {}
@@ -125,6 +125,23 @@ def recursive_forward_dynamics(model, q, qdot, tau, theta, prefix: str = "aba"):
     from .articulated import articulated_body_stages
 
     return articulated_body_stages(tree, qdot, tau, baked(model.gravity, "gravity"), prefix)
+
+
+def forward_dynamics(model, q, qdot, tau, theta, poses=(), prefix: str = "aba", solve: str = "fd_qdd"):
+    """q̈ = D⁻¹ (τ − C q̇ − G) and the stages it needs: ``(qdd, stages)``. The articulated-body
+    algorithm where the tree allows it (its own stages), else the closed-form D⁻¹ of a single
+    floating body, else a linear solve of D into symbols ``<solve>_i``; these two refer to the link
+    ``poses`` (:func:`rigid_body_stages`), which lead their stages (pass none when the caller's
+    stages hold them already). ``tau``: joint forces, N m or N; ``prefix``: of the ABA's symbols."""
+    recursive = recursive_forward_dynamics(model, q, qdot, tau, theta, prefix)
+    if recursive is not None:
+        return recursive
+    rhs = tau - bias_forces(model, q, qdot, theta)
+    Dinv = mass_matrix_inverse(model, q, theta)
+    if Dinv is not None:
+        return Dinv * rhs, [*poses]
+    qdd = rate_symbols(solve, model.n)
+    return qdd, [*poses, (qdd, ("solve", mass_matrix(model, q, theta), rhs))]
 
 
 def recursive_inverse_dynamics(model, q, qdot, qddot, theta, prefix: str = "rnea"):
