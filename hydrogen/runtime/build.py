@@ -207,7 +207,7 @@ def build(model: Model | str | Path | None = None, *, cc: str | None = None,
 
     lib = warm_library(model, folder, toolchain, root, loader, numbers)  # no lock, no write: a read-only cache works
     if lib is not None:
-        groups = [g for c in controllers for g in controller_groups(made[-1].manifest, c)[:1]]
+        groups = _full_variants(made[-1].manifest, controllers)
         missing = [g for g in groups if _cached_or_none(made[-1], g) is None]
         if missing:
             with cache_errors(root), folder_lock(folder, current=committed):
@@ -225,7 +225,7 @@ def build(model: Model | str | Path | None = None, *, cc: str | None = None,
                 raise BuildCacheError(f"{folder}: generated folder has no readable manifest after generation")
             load = loader(manifest)
             # Progress around the compile call, not inside it: a build another process finished is no step.
-            groups = [g for c in controllers for g in controller_groups(manifest, c)[:1]]
+            groups = _full_variants(manifest, controllers)
             core = load.compile([CORE, *groups])[0]
             try:
                 lib = GeneratedLibrary(core, manifest, folder, load, numbers=model.numbers)
@@ -240,6 +240,11 @@ def build(model: Model | str | Path | None = None, *, cc: str | None = None,
     report("built" if steps else "loaded", " + ".join(steps) if steps else f"already built: {lib.path}",
            report.total())
     return Dynamics(model, lib)
+
+
+def _full_variants(manifest: dict, controllers: tuple) -> list:
+    """The library of each controller's full variant (the first of its ``controller_groups``)."""
+    return [g for c in controllers for g in controller_groups(manifest, c)[:1]]
 
 
 def _cached_or_none(load, group):
