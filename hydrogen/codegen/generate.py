@@ -143,21 +143,11 @@ def c_name(model_name: str, fname: str) -> str:
 def write_function(sf, model_name: str, folder: Path, cache: dict) -> dict:
     """Write ``sf``'s C (``<model>_<name>.c`` and ``.h``) into ``folder``; returns its manifest
     entry. ``cache``: the CasADi conversions made so far (:func:`casadi_function`)."""
-    import casadi as ca
-
     from .casadi_functions import casadi_function
 
     name = c_name(model_name, sf.name)
     fun = casadi_function(sf, c_name=name, cache=cache)
-    cg = ca.CodeGenerator(f"{name}.c", dict(CODEGEN_OPTIONS))
-    cg.add(fun)
-    with tempfile.TemporaryDirectory() as tmp:
-        cg.generate(tmp + "/")
-        for ext in (".c", ".h"):
-            text = Path(tmp, name + ext).read_text()
-            if ext == ".c":
-                text = _mark_unused(text)
-            write_file(folder / (name + ext), text)  # a full disk names the file
+    write_casadi([fun], name, folder)
     return {
         "name": sf.name, "c_name": name, "doc": sf.doc,
         "source": f"{name}.c", "header": f"{name}.h",
@@ -170,11 +160,28 @@ def write_function(sf, model_name: str, folder: Path, cache: dict) -> dict:
     }
 
 
-def _unread_inputs(fun) -> list:
+def write_casadi(functions: list, name: str, folder: Path) -> None:
+    """Write CasADi ``functions`` into ``folder`` as ``<name>.c`` and ``<name>.h`` (a function they
+    call is written once), clean under -Wall -Wextra."""
     import casadi as ca
 
-    outs = ca.veccat(*fun.call(fun.sx_in()))
-    return [fun.name_in(i) for i in range(fun.n_in()) if not ca.depends_on(outs, fun.sx_in(i))]
+    cg = ca.CodeGenerator(f"{name}.c", dict(CODEGEN_OPTIONS))
+    for fun in functions:
+        cg.add(fun)
+    with tempfile.TemporaryDirectory() as tmp:
+        cg.generate(tmp + "/")
+        for ext in (".c", ".h"):
+            text = Path(tmp, name + ext).read_text()
+            if ext == ".c":
+                text = _mark_unused(text)
+            write_file(folder / (name + ext), text)  # a full disk names the file
+
+
+def _unread_inputs(fun) -> list:
+    # structural, by sparsity propagation: no symbolic evaluation of the graph (which costs seconds
+    # on a large controller)
+    outs = list(fun.name_out())
+    return [name for name in fun.name_in() if not any(fun.which_depends(name, outs, 1, False))]
 
 
 def _sha256(path: Path) -> str:

@@ -96,15 +96,13 @@ class SympyToCasadi:
             return ca.SX(float(sp.E))
         if node in (sp.true, sp.false):
             return ca.SX(1.0 if node is sp.true else 0.0)
-        if isinstance(node, sp.Add):
+        if isinstance(node, (sp.Add, sp.Mul)):
+            # SX.binary builds the node `+` / `*` would (same simplifications), without the operator's
+            # overload resolution, which costs several times the node itself on large controllers
+            op = ca.OP_ADD if isinstance(node, sp.Add) else ca.OP_MUL
             out = m[node.args[0]]
             for a in node.args[1:]:
-                out = out + m[a]
-            return out
-        if isinstance(node, sp.Mul):
-            out = m[node.args[0]]
-            for a in node.args[1:]:
-                out = out * m[a]
+                out = ca.SX.binary(op, out, m[a])
             return out
         if isinstance(node, sp.Pow):
             base, exp = node.args
