@@ -1,11 +1,13 @@
 """Per-period and per-call cost, side by side with an earlier version in one run.
 
-Three routes, each in its own fresh processes with its own cache: ``current`` (the numbers as
+Four routes, each in its own fresh processes with its own cache: ``current`` (the numbers as
 inputs, the default), ``folded`` (the current code built with ``numbers="constants"``: like for like,
-the one difference is the numbers) and ``earlier``, git commit ``BASELINE`` of this repository
-(the numbers folded, the rigid body without the recursive algorithms, its own gains where they
-were tuned since), extracted with ``git archive`` as ``bench_release.py`` does. For every shipped
-robot the earlier version knows, in each route:
+the one difference is the numbers), ``earlier``, git commit ``BASELINE`` of this repository
+(the numbers folded, the rigid body without the recursive algorithms, its own descriptions and
+gains), extracted with ``git archive`` as ``bench_release.py`` does, and ``described``, the
+current code on the earlier version's own descriptions (the keys renamed since migrated,
+:data:`RENAMED`): like for like with ``earlier`` by construction. For every shipped robot the
+earlier version knows, in each route:
 
 * every scenario's C loop: ``hydrogen.simulate`` of ``CONTROLLER`` (the scenario's own gains,
   duration and rig), ``loop_wall_s`` over the periods, µs per control period, the fastest of
@@ -15,13 +17,14 @@ robot the earlier version knows, in each route:
   timings of ``CALL_NUMBER`` calls.
 
 The routes rotate (which runs first changes each round) for ``ROUNDS`` rounds (2 with
-``--quick``); each figure is the median over the rounds. Reported with the ratios current / folded
-and current / earlier, both bounded with the release checks (no more than ``BOUND``); current /
-earlier only where it is like for like: the same robot in the description (links, joints,
-hydraulics, cylinders), and for a loop the same rig, timing and scenario and the same controller
-variant (gains tuned since may run the lean one, or no longer).
+``--quick``); each figure is the median over the rounds. Reported with the ratios current / folded,
+current / earlier and described / earlier, all bounded with the release checks (no more than
+``BOUND``) where they are like for like: current / earlier only for the same robot in the
+description (links, joints, hydraulics, cylinders, an included URDF), and for a loop the same rig,
+timing and scenario and the same controller variant (gains tuned since may run the lean one, or no
+longer); described / earlier unless the current code runs another controller variant.
 
-Run: ``python benchmarks/bench_period.py [--quick] [--json FILE]`` (about 3-5 minutes).
+Run: ``python benchmarks/bench_period.py [--quick] [--json FILE]`` (about 5-8 minutes).
 """
 from __future__ import annotations
 
@@ -50,6 +53,7 @@ BOUND = 1.10
 
 _MEASURE = """
 import hashlib, json, timeit, tomllib
+from pathlib import Path
 import numpy as np
 import hydrogen
 from hydrogen.model import model_path
@@ -59,15 +63,21 @@ def digest(x):
     return hashlib.sha256(json.dumps(x, sort_keys=True, default=str).encode()).hexdigest()
 from hydrogen.simulation.scenarios import scenario_names
 out = {{}}
+described = {described!r}  # robot name -> the description file to load in its place (None: the shipped one)
 for name in {robots!r}:
     if name not in hydrogen.models():
         continue
-    model = hydrogen.load_model(name)
+    path = described.get(name)
+    model = hydrogen.load_model(path or name)
     dyn = hydrogen.build(model, **{build_kw!r})
     # what the generated functions depend on (not the gains, rig, timing or scenarios), and per scenario
     # what its loop's cost depends on besides (the variant is recorded on its own)
-    toml = tomllib.loads(model_path(name).read_text())
+    toml = tomllib.loads((Path(path) if path else model_path(name)).read_text())
     robot = {{k: v for k, v in toml.items() if k not in ("gains", "variants", "scenarios", "rig", "control")}}
+    # a kinematic tree read from a URDF beside the description: its text is part of the robot
+    urdf = toml.get("urdf")
+    if isinstance(urdf, str):
+        robot["urdf text"] = ((Path(path) if path else model_path(name)).parent / urdf).read_text()
     loops, variants, setups = {{}}, {{}}, {{}}
     for s in scenario_names(model):
         hydrogen.simulate(s, {controller!r}, dyn=dyn, duration=0.2)  # warm-up: its library compiled and loaded
@@ -91,11 +101,40 @@ print("JSON", json.dumps(out))
 """
 
 
-def _measure(version: Version, robots: list, build_kw: dict) -> dict:
+def _measure(version: Version, robots: list, build_kw: dict, described: dict | None = None) -> dict:
     stdout, _ = version.run(_MEASURE.format(robots=robots, controller=CONTROLLER, number=CALL_NUMBER,
-                                            repeats=CALL_REPEATS, loop_repeats=LOOP_REPEATS, build_kw=build_kw))
+                                            repeats=CALL_REPEATS, loop_repeats=LOOP_REPEATS, build_kw=build_kw,
+                                            described={k: str(v) for k, v in (described or {}).items()}))
     line = next(line for line in stdout.splitlines() if line.startswith("JSON "))
     return json.loads(line[5:])
+
+
+#: Description keys renamed since ``BASELINE``: (table, old key, new key, new value from the old one
+#: and the table), so the current code loads the earlier version's descriptions.
+RENAMED = (("rig", "delay_periods", "delay", lambda v, table: v / table["control_rate"]),)
+
+
+def earlier_descriptions(data: Path, dest: Path) -> dict:
+    """The descriptions shipped in ``data`` (the earlier version's ``hydrogen/data``) copied into
+    ``dest`` with the keys of :data:`RENAMED` migrated: {robot name: TOML path}."""
+    import re
+    import shutil
+    import tomllib
+
+    shutil.copytree(data, dest)
+    out = {}
+    for toml in sorted(dest.glob("*.toml")):
+        text = toml.read_text(encoding="utf-8")
+        parsed = tomllib.loads(text)
+        for table, old, new, value in RENAMED:
+            if old not in parsed.get(table, {}):
+                continue
+            head = re.search(rf"^\[{table}\]\s*$", text, re.M)
+            key = re.compile(rf"^{old}\s*=.*$", re.M).search(text, head.end())
+            text = f"{text[:key.start()]}{new} = {value(parsed[table][old], parsed[table])!r}{text[key.end():]}"
+        toml.write_text(text, encoding="utf-8")
+        out[toml.stem] = toml
+    return out
 
 
 def _median_of(rounds: list, path) -> float | None:
@@ -118,41 +157,48 @@ def run(quick: bool = False) -> dict:
         reason = _extract_previous(tmp / "earlier", BASELINE)
         if reason:
             return {"skipped": f"no side-by-side comparison: {reason}", "baseline": BASELINE}
-        routes = {"earlier": (Version(f"commit {BASELINE}", tmp / "earlier", tmp / "cache-earlier"), {}),
-                  "folded": (Version("current", common.REPO, tmp / "cache-folded"), {"numbers": "constants"}),
-                  "current": (Version("current", common.REPO, tmp / "cache-current"), {})}
+        described = earlier_descriptions(tmp / "earlier" / "hydrogen" / "data", tmp / "described")
+        routes = {"earlier": (Version(f"commit {BASELINE}", tmp / "earlier", tmp / "cache-earlier"), {}, {}),
+                  "folded": (Version("current", common.REPO, tmp / "cache-folded"), {"numbers": "constants"}, {}),
+                  "current": (Version("current", common.REPO, tmp / "cache-current"), {}, {}),
+                  # the current code on the earlier version's descriptions: like for like with it
+                  "described": (Version("current", common.REPO, tmp / "cache-described"), {}, described)}
         results = {k: [] for k in routes}
         order = list(routes)
         for i in range(rounds):
-            for key in order[i % 3:] + order[:i % 3]:
-                version, build_kw = routes[key]
-                results[key].append(_measure(version, robots, build_kw))
+            for key in order[i % len(order):] + order[:i % len(order)]:
+                version, build_kw, files = routes[key]
+                results[key].append(_measure(version, robots, build_kw, files))
     rows = []
     for name in robots:
         if name not in results["earlier"][0]:
             continue
         now, then = results["current"][0][name], results["earlier"][0][name]
+        same = results["described"][0].get(name, {})  # the current code, the earlier description
         # Against the earlier version, like for like only where it describes the same robot (links,
         # joints, hydraulics, cylinders: what the functions depend on) and, for a loop, the same rig,
         # timing and scenario, run with the same controller variant (gains tuned since may switch the
         # lean one on or off).
         same_robot = now.get("robot") == then.get("robot")
-        for s in now["loops"]:
+        for s in dict.fromkeys([*now["loops"], *then["loops"]]):
             v = {k: _median_of(results[k], (name, "loops", s)) for k in results}
-            if None not in v.values():
-                variants = (then.get("variants", {}).get(s), now.get("variants", {}).get(s))
-                rows.append({"robot": name, "what": "loop", "name": s, **v, "ratio": v["current"] / v["folded"],
-                             "ratio_earlier": v["current"] / v["earlier"], "variants": list(variants),
-                             "like_for_like": same_robot and variants[0] == variants[1]
-                             and now.get("setups", {}).get(s) == then.get("setups", {}).get(s),
-                             "same_setup": now.get("setups", {}).get(s) == then.get("setups", {}).get(s)})
-        for f, c in now["calls"].items():
+            variants = (then.get("variants", {}).get(s), now.get("variants", {}).get(s))
+            setups = (then.get("setups", {}).get(s), now.get("setups", {}).get(s))
+            rows.append(_ratios({"robot": name, "what": "loop", "name": s, **v, "variants": list(variants),
+                                 "like_for_like": same_robot and variants[0] == variants[1] and setups[0] == setups[1],
+                                 "same_setup": setups[0] == setups[1],
+                                 # the same description file: like for like unless another variant runs
+                                 "described_like_for_like": same.get("variants", {}).get(s) == variants[0]}))
+        for f in dict.fromkeys([*now["calls"], *same.get("calls", {})]):
             p = then["calls"].get(f)
-            if p is None or p["inputs"] != c["inputs"]:
-                continue  # new, or another caller's signature: not like for like
+            if p is None:
+                continue  # new since
             v = {k: _median_of(results[k], (name, "calls", f, "ns")) for k in results}
-            rows.append({"robot": name, "what": "call", "name": f, **v, "ratio": v["current"] / v["folded"],
-                         "ratio_earlier": v["current"] / v["earlier"], "like_for_like": same_robot})
+            # another caller's signature is not like for like
+            like = {k: r.get("calls", {}).get(f, {}).get("inputs") == p["inputs"] for k, r in (("now", now), ("same", same))}
+            rows.append(_ratios({"robot": name, "what": "call", "name": f, **v,
+                                 "like_for_like": same_robot and like["now"], "described_like_for_like": like["same"]}))
+    rows = [r for r in rows if "ratio" in r or "ratio_described" in r]
     for r in rows:
         r["unlike"] = unlike(r)  # why current / earlier is not like for like, '' when it is
     return {"baseline": BASELINE, "controller": CONTROLLER, "rounds": rounds, "bound": BOUND, "rows": rows,
@@ -160,13 +206,28 @@ def run(quick: bool = False) -> dict:
             "wall_s": time.perf_counter() - t0, "machine": common.machine_info()}
 
 
+def _ratios(row: dict) -> dict:
+    """``row`` with the ratios its figures give: current / folded (``ratio``), current / earlier
+    (``ratio_earlier``) and, on the earlier descriptions, current / earlier (``ratio_described``)."""
+    for key, (a, b) in {"ratio": ("current", "folded"), "ratio_earlier": ("current", "earlier"),
+                        "ratio_described": ("described", "earlier")}.items():
+        if row.get(a) is not None and row.get(b) is not None:
+            row[key] = row[a] / row[b]
+    return row
+
+
 def within_bound(row: dict, bound: float) -> bool:
-    """current / folded within ``bound``, and current / earlier too where that is like for like."""
-    return row["ratio"] <= bound and (not row.get("like_for_like", True) or row["ratio_earlier"] <= bound)
+    """current / folded within ``bound``, and current / earlier (shipped descriptions, and the earlier
+    descriptions run by both versions) too where that is like for like."""
+    return all(row.get(key, 0.0) <= bound for key, like in (("ratio", True), ("ratio_earlier", "like_for_like"),
+                                                            ("ratio_described", "described_like_for_like"))
+               if like is True or row.get(like, True))
 
 
 def unlike(row: dict) -> str:
     """Why the row's comparison with the earlier version is not like for like ('' when it is)."""
+    if "ratio_earlier" not in row:
+        return "one version has no such scenario or function"
     if row.get("like_for_like", True):
         return ""
     v = row.get("variants")
@@ -183,14 +244,19 @@ def print_table(res: dict, checks: bool = False) -> None:
     print(f"The current version (numbers as inputs), the same built folded, and commit {res['baseline']}, in one "
           f"run (median of {res['rounds']} rotating rounds): C loop µs per period of every scenario "
           f"({res['controller']}) and ns per call from Python:")
+    print("'described': the current code on the commit's own descriptions (renamed keys migrated), like for like "
+          "with it unless another controller variant runs ('*').")
+    num = lambda v, w=9: f"{v:>{w}.2f}" if v is not None else f"{'–':>{w}}"  # noqa: E731
     header = (f"{'robot':<15} {'what':<5} {'scenario or function':<24} {'earlier':>9} {'folded':>9} {'current':>9} "
-              f"{'/folded':>8} {'/earlier':>8}")
+              f"{'described':>9} {'/folded':>8} {'/earlier':>8} {'desc./earlier':>13}")
     header += f" {'<= ' + format(res['bound'], '.2f'):>7}" if checks else ""
     print(header)
     print("-" * len(header))
     for r in res["rows"]:
-        line = (f"{r['robot']:<15} {r['what']:<5} {r['name']:<24} {r['earlier']:>9.2f} {r['folded']:>9.2f} "
-                f"{r['current']:>9.2f} {r['ratio']:>8.2f} {r['ratio_earlier']:>8.2f}")
+        line = (f"{r['robot']:<15} {r['what']:<5} {r['name']:<24} {num(r.get('earlier'))} {num(r.get('folded'))} "
+                f"{num(r.get('current'))} {num(r.get('described'))} {num(r.get('ratio'), 8)} "
+                f"{num(r.get('ratio_earlier'), 8)} {num(r.get('ratio_described'), 12)}"
+                f"{'*' if 'ratio_described' in r and not r.get('described_like_for_like', True) else ' '}")
         if checks:
             line += f" {'ok' if within_bound(r, res['bound']) else 'FAIL':>7}"
         why = r.get("unlike") or unlike(r)

@@ -19,7 +19,9 @@ For each n, in a fresh Python process:
   shared subexpressions count each time they occur) of D and C, whose own time (``count_ops_s``)
   is left out of the stages and of the derivation;
 * the generation (``render``: SymPy -> CasADi -> C) and the clean compile (``hydrogen.build`` on the
-  rendered folder, a fresh cache);
+  rendered folder, a fresh cache: the core library), then the first run of the adaptive-robust
+  controller (``ADAPTIVE``, 10 ms of the scenario: mostly the compile of the library of the variant
+  its gains run, which a first run waits for);
 * each controller's CasADi instruction count (the manifest);
 * the C loop's cost per control period, backstepping on chain-sim (no logs).
 
@@ -53,6 +55,8 @@ BUDGET_S, QUICK_BUDGET_S = 600.0, 300.0
 #: The generation-time target for n = 7 on 2 cores (s).
 TARGET_N, TARGET_S = 7, 120.0
 SCENARIO, LOOP_CONTROLLER = "chain-sim", "backstepping"
+#: The controller whose first use (its library's compile) is timed.
+ADAPTIVE = "adaptive-robust"
 
 LINK_LENGTH, LINK_MASS = 1.0, 100.0
 COM = (0.5, 0.0, 0.02)
@@ -162,6 +166,14 @@ with tempfile.TemporaryDirectory() as tmp:
     t0 = time.perf_counter()
     dyn = hydrogen.build(model, cache=Path(tmp) / "cache", generated=folder)
     print("compile_s", time.perf_counter() - t0, flush=True)
+    print("start controller_compile", flush=True)
+    t0 = time.perf_counter()
+    # its first run compiles the library of the variant the scenario's gains run
+    hydrogen.simulate(SCENARIO, {adaptive!r}, dyn=dyn, duration=0.01)
+    print("controller_compile_s", time.perf_counter() - t0, flush=True)
+    from hydrogen.simulation.simulator import prepare_run
+    print("controller_variant", prepare_run(dyn, SCENARIO, {adaptive!r}, None, 0.01, True, {{}}).ctrl.variant or "full",
+          flush=True)
     print("start loop", flush=True)
     per = [common.c_loop_per_period(dyn, SCENARIO, LOOP_CONTROLLER, {periods}) for _ in range({repeats})]
     print("loop_us", sorted(per)[len(per) // 2] * 1e6, flush=True)
@@ -182,12 +194,15 @@ def _parse(stdout: str) -> dict:
             out["instructions"] = json.loads(line.split(None, 1)[1])
         elif parts[0].startswith("ops_") and len(parts) == 2:
             out["sizes"][parts[0][4:]] = int(parts[1])
+        elif parts[0] == "controller_variant" and len(parts) == 2:
+            out["controller_variant"] = parts[1]
         elif len(parts) == 2:
             try:
                 out[parts[0]] = float(parts[1])
             except ValueError:
                 pass
     done = set(out["stages"]) | {"render" if "render_s" in out else "", "compile" if "compile_s" in out else "",
+                                 "controller_compile" if "controller_compile_s" in out else "",
                                  "loop" if "loop_us" in out else ""}
     running = [s for s in out["started"] if s not in done]
     out["running"] = running[-1] if running else None
@@ -195,7 +210,8 @@ def _parse(stdout: str) -> dict:
 
 
 def run_one(n: int, budget: float, quick: bool) -> dict:
-    code = _ONE.format(bench=str(Path(__file__).resolve().parent), n=n, periods=2000, repeats=3 if quick else 5)
+    code = _ONE.format(bench=str(Path(__file__).resolve().parent), n=n, periods=2000, repeats=3 if quick else 5,
+                       adaptive=ADAPTIVE)
     env = common.python_env()
     t0 = time.perf_counter()
     try:
@@ -267,7 +283,7 @@ def print_table(res: dict, checks: bool = True) -> None:
     print(f"planar chain of n links, one cylinder per joint (budget {res['budget_s']:.0f} s per n, "
           f"{res['cores']} cores):")
     short = {"ctrl_backstepping": "bs", "ctrl_adaptive_robust": "ar", "ctrl_adaptive_observer": "ao", "ctrl_p": "p"}
-    header = (f"{'n':>2} {'derive s':>9} {'render s':>9} {'generate s':>11} {'compile s':>10} "
+    header = (f"{'n':>2} {'derive s':>9} {'render s':>9} {'generate s':>11} {'compile s':>10} {'ar 1st run s':>12} "
               + " ".join(f"{'instr ' + short.get(c, c):>10}" for c in ctrls) + f" {'loop us':>8}")
     print(header)
     print("-" * len(header))
@@ -275,7 +291,7 @@ def print_table(res: dict, checks: bool = True) -> None:
     for r in rows:
         ins = r.get("controller_instructions", {})
         line = (f"{r['n']:>2} {f(r, 'derive_s'):>9} {f(r, 'render_s'):>9} {f(r, 'generate_s'):>11} "
-                f"{f(r, 'compile_s'):>10} " + " ".join(f"{ins.get(c, '-'):>10}" for c in ctrls)
+                f"{f(r, 'compile_s'):>10} {f(r, 'controller_compile_s'):>12} " + " ".join(f"{ins.get(c, '-'):>10}" for c in ctrls)
                 + f" {f(r, 'loop_us', '.2f'):>8}")
         if r["timed_out"]:
             line += f"  stopped after {r['budget_s']:.0f} s in '{r['running']}'"

@@ -36,6 +36,8 @@ SUITE = (
     ("bench_cold", "a structural edit to the first run, empty cache: shipped robots, a spatial leg, a 7-link chain"),
     ("bench_recursive", "the rigid body against Featherstone's ABA, RNEA and CRBA on SX: instructions, n = 2 ... 12"),
     ("bench_period", "per-period cost of every scenario's C loop and per-call cost from Python against an earlier commit"),
+    ("bench_shared_step", "the semi-implicit step with the controller inlined against calling it: per call, "
+                          "per period, compile"),
 )
 
 

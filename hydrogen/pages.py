@@ -306,7 +306,8 @@ def _scaling(b) -> list:
     out = ["## How cost grows with the robot", "",
            "`benchmarks/bench_scaling.py`: a synthetic planar chain of n links (one cylinder per joint; θ = each "
            "link's mcx, mcz, Iyy) derived, generated, compiled and run, each n in a fresh process with a time "
-           f"budget of {_f(b.get('budget_s'))} s. Instruction counts are exact; seconds vary between runs.", ""]
+           f"budget of {_f(b.get('budget_s'))} s; the adaptive-robust controller's first run compiles the library "
+           "of the variant its gains run. Instruction counts are exact; seconds vary between runs.", ""]
     table = []
     for r in rows:
         i = r.get("instructions") or {}
@@ -314,8 +315,10 @@ def _scaling(b) -> list:
                 f"({_f(i.get('ctrl_adaptive_robust_lean'))}) / {_f(i.get('ctrl_adaptive_observer'))} "
                 f"({_f(i.get('ctrl_adaptive_observer_lean'))})")
         table.append([r["n"], _f(r.get("derive_s"), 1), f"{_f(r.get('generate_s'), 1)} + {_f(r.get('compile_s'), 1)}",
-                      ctrl, _f(r.get("loop_us"), 1), "timed out" if r.get("timed_out") else ""])
-    out += _table(["n", "derivation s", "generation + compile s",
+                      f"{_f(r.get('controller_compile_s'), 1)}"
+                      + (f" ({r['controller_variant']})" if r.get("controller_variant") else ""), ctrl, _f(r.get("loop_us"), 1),
+                      "timed out" if r.get("timed_out") else ""])
+    out += _table(["n", "derivation s", "generation + compile s", "adaptive-robust first run s (variant)",
                    "backstepping / adaptive-robust (lean) / adaptive-observer (lean) instructions",
                    "C loop µs per period", ""], table)
     return out
@@ -443,17 +446,46 @@ def _period(b) -> list:
     out = ["## Per period and per call: numbers as inputs, folded, and an earlier version", "",
            f"`benchmarks/bench_period.py`: the current version (the numbers as inputs), the same code built with "
            f"them folded (like for like) and commit `{b.get('baseline')}` (folded, before the recursive rigid body), "
-           f"each in its own processes, rotating for {b.get('rounds')} rounds (medians): the C loop's µs per "
-           f"control period of every scenario (`{b.get('controller')}`, the fastest of a few runs per round) and "
-           "the ns per call from Python of every function all have with the same inputs (the extension). Against "
-           "the earlier version a row is like for like only for the same robot (links, joints, hydraulics, "
-           "cylinders) and, for a loop, the same rig, timing, scenario and controller variant; the last column "
-           "says where it is not.", ""]
-    table = [[r["robot"], r["what"], f"`{r['name']}`" if r["what"] == "call" else r["name"], _f(r["earlier"]),
-              _f(r["folded"]), _f(r["current"]), f"{r['ratio']:.2f}", f"{r['ratio_earlier']:.2f}", r.get("unlike", "")]
+           "and the current code on that commit's own descriptions (\"described\"; renamed keys migrated), each in "
+           f"its own processes, rotating for {b.get('rounds')} rounds (medians): the C loop's µs per control period "
+           f"of every scenario (`{b.get('controller')}`, the fastest of a few runs per round) and the ns per call "
+           "from Python of every function all have with the same inputs (the extension). Against the earlier "
+           "version, current / earlier is like for like only for the same robot (links, joints, hydraulics, "
+           "cylinders) and, for a loop, the same rig, timing, scenario and controller variant (the last column "
+           "says where it is not); described / earlier is like for like unless another controller variant runs "
+           "(marked *).", ""]
+    ratio = lambda r, key: f"{r[key]:.2f}" if key in r else "–"  # noqa: E731
+    table = [[r["robot"], r["what"], f"`{r['name']}`" if r["what"] == "call" else r["name"], _f(r.get("earlier")),
+              _f(r.get("folded")), _f(r.get("current")), _f(r.get("described")), ratio(r, "ratio"),
+              ratio(r, "ratio_earlier"),
+              ratio(r, "ratio_described") + (" *" if "ratio_described" in r
+                                              and not r.get("described_like_for_like", True) else ""),
+              r.get("unlike", "")]
              for r in rows]
-    return out + _table(["robot", "", "scenario or function", "earlier", "folded", "current", "current / folded",
-                         "current / earlier", "not like for like"], table)
+    return out + _table(["robot", "", "scenario or function", "earlier", "folded", "current", "described",
+                         "current / folded", "current / earlier", "described / earlier", "not like for like"], table)
+
+
+def _shared_step(b) -> list:
+    robots = b.get("robots", {})
+    if not robots:
+        return []
+    out = ["## The semi-implicit step: the controller inlined or called", "",
+           "`benchmarks/bench_shared_step.py`: each adaptive controller's step (full variant), as shipped (the "
+           "controller and its rates inlined in one graph: what depends on the measurement only is computed once, "
+           "the C repeats the controller's) and as two calls of the controller's and the rates' functions (the "
+           f"controller compiled once). The two agree (relative {_f(b.get('agreement_rtol'))}). Per call: the "
+           "step's C cost; per period: the extra cost against the scenario's C loop period; compile: every source "
+           "of the variant's library, CPU seconds one after another and wall seconds on all cores.", ""]
+    table = []
+    for rob in robots.values():
+        for kind, r in rob["controllers"].items():
+            ns, c = r["ns_per_call"], r["compile"]
+            table.append([rob["model"], kind, _f(ns["inlined"], 0), _f(ns["calls"], 0), f"{r['time_ratio']:.2f}",
+                          f"{100 * r['period_increase']:+.0f} %", _f(c["inlined"]["serial_s"]),
+                          _f(c["calls"]["serial_s"]), _f(c["inlined"]["wall_s"]), _f(c["calls"]["wall_s"])])
+    return out + _table(["robot", "controller", "step ns, inlined", "calls", "calls / inlined", "per period",
+                         "compile CPU s, inlined", "calls", "compile wall s, inlined", "calls"], table)
 
 
 def benchmarks_page(results: dict, repeats: dict | None = None, source: str = "docs/bench.json") -> str:
@@ -488,6 +520,8 @@ def benchmarks_page(results: dict, repeats: dict | None = None, source: str = "d
         out += _recursive(results["bench_recursive"])
     if "bench_period" in results:
         out += _period(results["bench_period"])
+    if "bench_shared_step" in results:
+        out += _shared_step(results["bench_shared_step"])
     return "\n".join(out).rstrip() + "\n"
 
 

@@ -279,21 +279,25 @@ def test_the_period_benchmark_measures_every_robot_in_every_route(monkeypatch):
 
     seen = []
 
-    def measure(version, robots, build_kw):
-        seen.append((version.label, tuple(robots), dict(build_kw)))
+    def measure(version, robots, build_kw, described=None):
+        seen.append((version.label, tuple(robots), dict(build_kw), dict(described or {})))
         per = {"loops": {"s": 2.0}, "variants": {"s": "full"}, "setups": {"s": "x"}, "robot": "d",
                "calls": {"f": {"ns": 100.0, "inputs": ["q"]}}}
         return {name: per for name in robots}
 
+    files = {"r": "earlier/r.toml"}
     monkeypatch.setattr(bench_period, "_extract_previous", lambda dest, commit: None)
+    monkeypatch.setattr(bench_period, "earlier_descriptions", lambda data, dest: files)
     monkeypatch.setattr(bench_period, "_measure", measure)
     res = bench_period.run(quick=True)
     robots = tuple(common.robots())
-    assert {(label, r) for label, r, _ in seen} == {(f"commit {bench_period.BASELINE}", robots), ("current", robots)}
-    assert {"numbers": "constants"} in [kw for _, _, kw in seen] and {} in [kw for _, _, kw in seen]
-    assert len(seen) == 3 * bench_period.QUICK_ROUNDS
+    assert {(label, r) for label, r, _, _ in seen} == {(f"commit {bench_period.BASELINE}", robots), ("current", robots)}
+    assert {"numbers": "constants"} in [kw for _, _, kw, _ in seen] and {} in [kw for _, _, kw, _ in seen]
+    assert [d for _, _, _, d in seen].count(files) == bench_period.QUICK_ROUNDS  # one route on the earlier files
+    assert len(seen) == 4 * bench_period.QUICK_ROUNDS
     assert len(res["rows"]) == 2 * len(robots) and res["within_bound"]
-    monkeypatch.setattr(bench_period, "_measure", lambda version, robots, build_kw: {})
+    assert all(r["ratio_described"] == 1.0 for r in res["rows"])
+    monkeypatch.setattr(bench_period, "_measure", lambda version, robots, build_kw, described=None: {})
     assert not bench_period.run(quick=True)["within_bound"]
 
 
@@ -313,9 +317,70 @@ def test_the_period_benchmark_bounds_the_earlier_version_only_like_for_like(caps
     assert bench_period.unlike(other) == "other robot description"
     assert bench_period.unlike({**same, "like_for_like": False, "same_setup": False}) == "other rig, timing or scenario"
     assert bench_period.unlike(same) == ""
+    # the current code on the earlier description: bounded unless another variant runs
+    described = {**lean, "described": 6.0, "ratio_described": 1.2, "described_like_for_like": True}
+    assert not bench_period.within_bound(described, 1.1)
+    assert bench_period.within_bound({**described, "described_like_for_like": False}, 1.1)
     res = {"baseline": "abc", "controller": "p", "rounds": 1, "bound": 1.1, "rows": [same, lean, other], "wall_s": 1.0}
     bench_period.print_table(res, checks=True)
     lines = capsys.readouterr().out.splitlines()
     failing = [ln for ln in lines if ln.startswith("r ") and "FAIL" in ln]
     assert len(failing) == 1 and "not like for like" not in failing[0]
     assert sum("not like for like: lean vs full variant" in ln for ln in lines) == 1
+
+
+def test_the_step_as_calls_computes_the_shipped_step():
+    """bench_shared_step's alternative layout (the step calling the controller and its rates) is the
+    same function as the shipped step, inlined: the comparison is between two routes to one result."""
+    import casadi as ca
+
+    import bench_shared_step
+    from hydrogen.codegen.casadi_functions import casadi_function
+    from hydrogen.codegen.generate import derive
+    from hydrogen.controllers import function_name, rates_function_name, step_function_name
+
+    model = hydrogen.load_model("loader_crane")
+    by_name = {f.name: f for f in derive(model)[0]}
+    kind, cache = "adaptive-robust", {}
+    ctrl, rates, step = (casadi_function(by_name[namer(kind)], cache=cache)
+                         for namer in (function_name, rates_function_name, step_function_name))
+    shared = bench_shared_step.calls_step(step, ctrl, rates, "shared")
+    assert shared.is_a("MXFunction") and list(shared.name_in()) == list(step.name_in())
+    rng = np.random.default_rng(3)
+    args = [rng.uniform(0.2, 0.8, step.nnz_in(i)) for i in range(step.n_in())]
+    names = list(step.name_in())
+    args[names.index("h")] = np.array([1e-3])
+    # bounds that clip some entries, so both clips are exercised
+    args[names.index("xc_lo")] = args[names.index("xc")] - 1e-6
+    args[names.index("xc_hi")] = args[names.index("xc")] + 1e-6
+    for a, b in zip(step.call(args), shared.call(args)):
+        np.testing.assert_allclose(np.asarray(a), np.asarray(b), rtol=1e-12, atol=1e-12)
+    assert float(ca.norm_inf(step.call(args)[1] - args[names.index("xc")])) > 0
+
+
+def test_the_period_benchmark_migrates_renamed_keys_of_earlier_descriptions(tmp_path):
+    import tomllib
+
+    import bench_period
+
+    data = tmp_path / "data"
+    data.mkdir()
+    (data / "r.toml").write_text("name = 'r'\n[rig]\ncontrol_rate = 512.0\ndelay_periods = 2\nnoise = 1\n"
+                                 "[other]\ndelay_periods = 7\n")
+    files = bench_period.earlier_descriptions(data, tmp_path / "out")
+    parsed = tomllib.loads(files["r"].read_text())
+    assert parsed["rig"] == {"control_rate": 512.0, "delay": 2 / 512.0, "noise": 1}
+    assert parsed["other"] == {"delay_periods": 7}  # only the table the key was renamed in
+    assert (data / "r.toml").read_text().count("delay_periods") == 2  # the source is left as it was
+
+
+def test_the_period_benchmarks_earlier_descriptions_load_with_the_current_code(tmp_path):
+    """The route that runs the current code on the baseline's own descriptions needs them to load."""
+    import bench_period
+
+    if bench_period._extract_previous(tmp_path / "earlier", bench_period.BASELINE):
+        pytest.skip("the baseline commit is not in this checkout")
+    files = bench_period.earlier_descriptions(tmp_path / "earlier" / "hydrogen" / "data", tmp_path / "described")
+    assert files
+    for name, path in files.items():
+        assert hydrogen.load_model(path).name == name
