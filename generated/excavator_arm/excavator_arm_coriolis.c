@@ -67,27 +67,33 @@ static const casadi_int casadi_s1[3] = {9, 1, 1};
 static const casadi_int casadi_s2[3] = {81, 1, 1};
 static const casadi_int casadi_s3[3] = {3, 3, 1};
 
+static const casadi_real hg_zeros[28] = {0};
+
 /* excavator_arm_coriolis:(q[3],qdot[3],theta[9],numbers[81])->(C[3x3]) */
 static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   (void)arg; (void)res; (void)iw; (void)w; (void)mem;
+  const casadi_real* hg_in0 = arg[0] ? arg[0] : hg_zeros;
+  const casadi_real* hg_in1 = arg[1] ? arg[1] : hg_zeros;
+  const casadi_real* hg_in2 = arg[2] ? arg[2] : hg_zeros;
+  const casadi_real* hg_in3 = arg[3] ? arg[3] : hg_zeros;
   casadi_real a00, a01, a02, a03, a04, a05, a06, a07, a08, a09, a10, a11;
   casadi_real a12, a13, a14, a15, a16, a17, a18, a19, a20, a21, a22, a23;
   casadi_real a24, a25, a26, a27, a28, a29, a30, a31, a32, a33, a34, a35;
   casadi_real a36, a37, a38;
-  a00=arg[1]? arg[1][0] : 0;
+  a00=hg_in1[0];
   a01=5.0000000000000000e-01;
-  a02=arg[3]? arg[3][14] : 0;
+  a02=hg_in3[14];
   a03=(a01*a02);
-  a04=arg[3]? arg[3][23] : 0;
-  a05=arg[3]? arg[3][24] : 0;
+  a04=hg_in3[23];
+  a05=hg_in3[24];
   a06=(a04*a05);
-  a07=arg[0]? arg[0][0] : 0;
+  a07=hg_in0[0];
   a08=sin(a07);
   a09=(a06*a08);
-  a10=arg[3]? arg[3][26] : 0;
+  a10=hg_in3[26];
   a11=(a04*a10);
   a07=cos(a07);
-  a12=arg[0]? arg[0][1] : 0;
+  a12=hg_in0[1];
   a13=sin(a12);
   a14=(a07*a13);
   a12=cos(a12);
@@ -117,7 +123,7 @@ static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw,
   a05=(a20*a05);
   a16=(a16-a05);
   a16=(a03*a16);
-  a05=arg[2]? arg[2][3] : 0;
+  a05=hg_in2[3];
   a23=(a06*a19);
   a24=(a23*a08);
   a18=(a18-a17);
@@ -127,8 +133,8 @@ static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw,
   a24=(a05*a24);
   a25=(a04*a24);
   a16=(a16-a25);
-  a25=arg[2]? arg[2][6] : 0;
-  a26=arg[0]? arg[0][2] : 0;
+  a25=hg_in2[6];
+  a26=hg_in0[2];
   a27=cos(a26);
   a28=(a19*a27);
   a26=sin(a26);
@@ -140,7 +146,7 @@ static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw,
   a33=(a32*a09);
   a31=(a31+a33);
   a31=(a25*a31);
-  a34=arg[2]? arg[2][7] : 0;
+  a34=hg_in2[7];
   a35=(a19*a26);
   a27=(a14*a27);
   a36=(a35+a27);
@@ -154,7 +160,7 @@ static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw,
   a37=(a04*a31);
   a16=(a16-a37);
   a16=(a00*a16);
-  a37=arg[1]? arg[1][1] : 0;
+  a37=hg_in1[1];
   a22=(a22*a20);
   a15=(a15*a09);
   a22=(a22+a15);
@@ -163,7 +169,7 @@ static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw,
   a38=(a06*a07);
   a17=(a17+a38);
   a05=(a05*a17);
-  a17=arg[2]? arg[2][4] : 0;
+  a17=hg_in2[4];
   a06=(a06*a08);
   a23=(a23*a07);
   a06=(a06+a23);
@@ -194,7 +200,7 @@ static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw,
   a15=(a15-a26);
   a11=(a37*a15);
   a16=(a16+a11);
-  a11=arg[1]? arg[1][2] : 0;
+  a11=hg_in1[2];
   a35=(a04*a11);
   a29=(a29-a28);
   a28=(a29*a09);
@@ -209,7 +215,7 @@ static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw,
   a16=(a16-a35);
   if (res[0]!=0) res[0][0]=a16;
   a17=(a17+a26);
-  a26=arg[3]? arg[3][25] : 0;
+  a26=hg_in3[25];
   a16=(a26*a10);
   a32=(a16*a32);
   a32=(a32*a14);
@@ -258,7 +264,7 @@ static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw,
   a03=(a03-a22);
   a21=(a37*a03);
   a17=(a17+a21);
-  a07=arg[3]? arg[3][27] : 0;
+  a07=hg_in3[27];
   a12=(a01*a07);
   a13=(a12*a33);
   a08=(a24*a04);

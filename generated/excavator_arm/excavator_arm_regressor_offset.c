@@ -63,24 +63,31 @@ CASADI_SYMBOL_EXPORT int excavator_arm_regressor_offset_casadi_real_size(void) {
 static const casadi_int casadi_s0[3] = {3, 1, 1};
 static const casadi_int casadi_s1[3] = {81, 1, 1};
 
+static const casadi_real hg_zeros[45] = {0};
+
 /* excavator_arm_regressor_offset:(q[3],v[3],w[3],a[3],numbers[81])->(y0[3]) */
 static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   (void)arg; (void)res; (void)iw; (void)w; (void)mem;
+  const casadi_real* hg_in0 = arg[0] ? arg[0] : hg_zeros;
+  const casadi_real* hg_in1 = arg[1] ? arg[1] : hg_zeros;
+  const casadi_real* hg_in2 = arg[2] ? arg[2] : hg_zeros;
+  const casadi_real* hg_in3 = arg[3] ? arg[3] : hg_zeros;
+  const casadi_real* hg_in4 = arg[4] ? arg[4] : hg_zeros;
   casadi_real a00, a01, a02, a03, a04, a05, a06, a07, a08, a09, a10, a11;
   casadi_real a12, a13, a14, a15, a16, a17, a18, a19, a20, a21, a22, a23;
   casadi_real a24, a25, a26, a27, a28;
-  a00=arg[3]? arg[3][0] : 0;
-  a01=arg[4]? arg[4][14] : 0;
-  a02=arg[4]? arg[4][23] : 0;
-  a03=arg[4]? arg[4][24] : 0;
+  a00=hg_in3[0];
+  a01=hg_in4[14];
+  a02=hg_in4[23];
+  a03=hg_in4[24];
   a04=(a02*a03);
-  a05=arg[0]? arg[0][0] : 0;
+  a05=hg_in0[0];
   a06=sin(a05);
   a07=(a04*a06);
-  a08=arg[4]? arg[4][26] : 0;
+  a08=hg_in4[26];
   a09=(a02*a08);
   a05=cos(a05);
-  a10=arg[0]? arg[0][1] : 0;
+  a10=hg_in0[1];
   a11=sin(a10);
   a12=(a05*a11);
   a10=cos(a10);
@@ -98,14 +105,14 @@ static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw,
   a09=casadi_sq(a04);
   a13=(a13+a09);
   a13=(a01*a13);
-  a09=arg[4]? arg[4][7] : 0;
+  a09=hg_in4[7];
   a15=casadi_sq(a02);
   a16=casadi_sq(a03);
   a15=(a15*a16);
   a15=(a09*a15);
   a13=(a13+a15);
   a13=(a00*a13);
-  a15=arg[4]? arg[4][44] : 0;
+  a15=hg_in4[44];
   a16=(a03*a05);
   a17=(a08*a14);
   a16=(a16+a17);
@@ -115,10 +122,10 @@ static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw,
   a16=(a16+a09);
   a16=(a15*a16);
   a13=(a13+a16);
-  a16=arg[2]? arg[2][0] : 0;
+  a16=hg_in2[0];
   a09=5.0000000000000000e-01;
   a09=(a09*a01);
-  a17=arg[1]? arg[1][0] : 0;
+  a17=hg_in1[0];
   a18=(a09*a17);
   a19=(2.*a02);
   a03=(a19*a03);
@@ -136,7 +143,7 @@ static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw,
   a03=(a04*a03);
   a20=(a20-a03);
   a20=(a18*a20);
-  a03=arg[1]? arg[1][1] : 0;
+  a03=hg_in1[1];
   a09=(a09*a03);
   a02=(a02*a04);
   a19=(a19*a07);
@@ -145,8 +152,8 @@ static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw,
   a20=(a20+a19);
   a20=(a16*a20);
   a13=(a13+a20);
-  a20=arg[2]? arg[2][1] : 0;
-  a19=arg[4]? arg[4][25] : 0;
+  a20=hg_in2[1];
+  a19=hg_in4[25];
   a22=(a19*a08);
   a23=(a22*a14);
   a24=(a23*a07);
@@ -181,7 +188,7 @@ static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw,
   a03=(a03+a24);
   a03=(a20*a03);
   a13=(a13+a03);
-  a03=arg[3]? arg[3][1] : 0;
+  a03=hg_in3[1];
   a03=(a03*a01);
   a22=(a22*a07);
   a23=(a23*a04);

@@ -62,19 +62,24 @@ static const casadi_int casadi_s0[3] = {3, 1, 1};
 static const casadi_int casadi_s1[3] = {8, 1, 1};
 static const casadi_int casadi_s2[3] = {71, 1, 1};
 
+static const casadi_real hg_zeros[36] = {0};
+
 /* loader_crane_gravity:(q[3],theta[8],numbers[71])->(G[3]) */
 static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   (void)arg; (void)res; (void)iw; (void)w; (void)mem;
+  const casadi_real* hg_in0 = arg[0] ? arg[0] : hg_zeros;
+  const casadi_real* hg_in1 = arg[1] ? arg[1] : hg_zeros;
+  const casadi_real* hg_in2 = arg[2] ? arg[2] : hg_zeros;
   casadi_real a0, a1, a2, a3, a4, a5, a6, a7, a8;
   a0=0.;
   if (res[0]!=0) res[0][0]=a0;
-  a0=arg[2]? arg[2][35] : 0;
-  a1=arg[1]? arg[1][0] : 0;
-  a2=arg[0]? arg[0][1] : 0;
+  a0=hg_in2[35];
+  a1=hg_in1[0];
+  a2=hg_in0[1];
   a3=cos(a2);
   a1=(a1*a3);
-  a4=arg[1]? arg[1][4] : 0;
-  a5=arg[0]? arg[0][2] : 0;
+  a4=hg_in1[4];
+  a5=hg_in0[2];
   a6=cos(a5);
   a7=(a3*a6);
   a2=sin(a2);
@@ -83,17 +88,17 @@ static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw,
   a7=(a7-a8);
   a4=(a4*a7);
   a1=(a1+a4);
-  a7=arg[1]? arg[1][5] : 0;
+  a7=hg_in1[5];
   a5=(a3*a5);
   a6=(a6*a2);
   a5=(a5+a6);
   a7=(a7*a5);
   a1=(a1-a7);
-  a5=arg[1]? arg[1][1] : 0;
+  a5=hg_in1[1];
   a5=(a5*a2);
   a1=(a1-a5);
-  a5=arg[2]? arg[2][14] : 0;
-  a2=arg[2]? arg[2][25] : 0;
+  a5=hg_in2[14];
+  a2=hg_in2[25];
   a5=(a5*a2);
   a5=(a5*a3);
   a1=(a1+a5);

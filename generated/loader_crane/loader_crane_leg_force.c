@@ -62,30 +62,34 @@ static const casadi_int casadi_s0[3] = {6, 1, 1};
 static const casadi_int casadi_s1[3] = {71, 1, 1};
 static const casadi_int casadi_s2[3] = {3, 1, 1};
 
+static const casadi_real hg_zeros[61] = {0};
+
 /* loader_crane_leg_force:(pc[6],numbers[71])->(f[3]) */
 static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   (void)arg; (void)res; (void)iw; (void)w; (void)mem;
+  const casadi_real* hg_in0 = arg[0] ? arg[0] : hg_zeros;
+  const casadi_real* hg_in1 = arg[1] ? arg[1] : hg_zeros;
   casadi_real a0, a1, a2;
-  a0=arg[1]? arg[1][36] : 0;
-  a1=arg[0]? arg[0][0] : 0;
+  a0=hg_in1[36];
+  a1=hg_in0[0];
   a1=(a0*a1);
-  a2=arg[0]? arg[0][1] : 0;
+  a2=hg_in0[1];
   a0=(a0*a2);
   a1=(a1-a0);
   if (res[0]!=0) res[0][0]=a1;
-  a1=arg[1]? arg[1][47] : 0;
-  a0=arg[0]? arg[0][2] : 0;
+  a1=hg_in1[47];
+  a0=hg_in0[2];
   a1=(a1*a0);
-  a0=arg[1]? arg[1][48] : 0;
-  a2=arg[0]? arg[0][3] : 0;
+  a0=hg_in1[48];
+  a2=hg_in0[3];
   a0=(a0*a2);
   a1=(a1-a0);
   if (res[0]!=0) res[0][1]=a1;
-  a1=arg[1]? arg[1][59] : 0;
-  a0=arg[0]? arg[0][4] : 0;
+  a1=hg_in1[59];
+  a0=hg_in0[4];
   a1=(a1*a0);
-  a0=arg[1]? arg[1][60] : 0;
-  a2=arg[0]? arg[0][5] : 0;
+  a0=hg_in1[60];
+  a2=hg_in0[5];
   a0=(a0*a2);
   a1=(a1-a0);
   if (res[0]!=0) res[0][2]=a1;

@@ -72,18 +72,23 @@ static const casadi_int casadi_s0[3] = {3, 1, 1};
 static const casadi_int casadi_s1[3] = {6, 1, 1};
 static const casadi_int casadi_s2[3] = {71, 1, 1};
 
+static const casadi_real hg_zeros[68] = {0};
+
 /* loader_crane_valve_flow:(u[3],pc[6],numbers[71])->(q_per_c[6]) */
 static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   (void)arg; (void)res; (void)iw; (void)w; (void)mem;
+  const casadi_real* hg_in0 = arg[0] ? arg[0] : hg_zeros;
+  const casadi_real* hg_in1 = arg[1] ? arg[1] : hg_zeros;
+  const casadi_real* hg_in2 = arg[2] ? arg[2] : hg_zeros;
   casadi_real a0, a1, a2, a3, a4, a5, a6, a7, a8, a9;
-  a0=arg[0]? arg[0][0] : 0;
-  a1=arg[2]? arg[2][43] : 0;
+  a0=hg_in0[0];
+  a1=hg_in2[43];
   a2=(-a1);
   a2=(a0<a2);
   a2=(!a2);
   a3=0.;
-  a4=arg[2]? arg[2][41] : 0;
-  a5=arg[1]? arg[1][0] : 0;
+  a4=hg_in2[41];
+  a5=hg_in1[0];
   a6=(a4-a5);
   a6=casadi_fmax(a3,a6);
   a6=sqrt(a6);
@@ -91,7 +96,7 @@ static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw,
   a6=(a6*a7);
   a6=(a2?a6:0);
   a8=(a0<=a1);
-  a9=arg[2]? arg[2][42] : 0;
+  a9=hg_in2[42];
   a5=(a5-a9);
   a5=casadi_fmax(a3,a5);
   a5=sqrt(a5);
@@ -100,7 +105,7 @@ static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw,
   a5=(a8?a5:0);
   a6=(a6+a5);
   if (res[0]!=0) res[0][0]=a6;
-  a6=arg[1]? arg[1][1] : 0;
+  a6=hg_in1[1];
   a4=(a4-a6);
   a4=casadi_fmax(a3,a4);
   a4=sqrt(a4);
@@ -113,13 +118,13 @@ static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw,
   a2=(a2?a6:0);
   a8=(a8+a2);
   if (res[0]!=0) res[0][1]=a8;
-  a8=arg[0]? arg[0][1] : 0;
-  a2=arg[2]? arg[2][55] : 0;
+  a8=hg_in0[1];
+  a2=hg_in2[55];
   a6=(-a2);
   a6=(a8<a6);
   a6=(!a6);
-  a7=arg[2]? arg[2][53] : 0;
-  a9=arg[1]? arg[1][2] : 0;
+  a7=hg_in2[53];
+  a9=hg_in1[2];
   a4=(a7-a9);
   a4=casadi_fmax(a3,a4);
   a4=sqrt(a4);
@@ -127,7 +132,7 @@ static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw,
   a4=(a4*a0);
   a4=(a6?a4:0);
   a5=(a8<=a2);
-  a1=arg[2]? arg[2][54] : 0;
+  a1=hg_in2[54];
   a9=(a9-a1);
   a9=casadi_fmax(a3,a9);
   a9=sqrt(a9);
@@ -136,7 +141,7 @@ static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw,
   a9=(a5?a9:0);
   a4=(a4+a9);
   if (res[0]!=0) res[0][2]=a4;
-  a4=arg[1]? arg[1][3] : 0;
+  a4=hg_in1[3];
   a7=(a7-a4);
   a7=casadi_fmax(a3,a7);
   a7=sqrt(a7);
@@ -149,13 +154,13 @@ static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw,
   a6=(a6?a4:0);
   a5=(a5+a6);
   if (res[0]!=0) res[0][3]=a5;
-  a5=arg[0]? arg[0][2] : 0;
-  a6=arg[2]? arg[2][67] : 0;
+  a5=hg_in0[2];
+  a6=hg_in2[67];
   a4=(-a6);
   a4=(a5<a4);
   a4=(!a4);
-  a0=arg[2]? arg[2][65] : 0;
-  a1=arg[1]? arg[1][4] : 0;
+  a0=hg_in2[65];
+  a1=hg_in1[4];
   a7=(a0-a1);
   a7=casadi_fmax(a3,a7);
   a7=sqrt(a7);
@@ -163,7 +168,7 @@ static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw,
   a7=(a7*a8);
   a7=(a4?a7:0);
   a9=(a5<=a6);
-  a2=arg[2]? arg[2][66] : 0;
+  a2=hg_in2[66];
   a1=(a1-a2);
   a1=casadi_fmax(a3,a1);
   a1=sqrt(a1);
@@ -172,7 +177,7 @@ static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw,
   a1=(a9?a1:0);
   a7=(a7+a1);
   if (res[0]!=0) res[0][4]=a7;
-  a7=arg[1]? arg[1][5] : 0;
+  a7=hg_in1[5];
   a0=(a0-a7);
   a0=casadi_fmax(a3,a0);
   a0=sqrt(a0);

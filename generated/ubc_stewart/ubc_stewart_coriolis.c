@@ -67,9 +67,14 @@ static const casadi_int casadi_s1[3] = {4, 1, 1};
 static const casadi_int casadi_s2[3] = {89, 1, 1};
 static const casadi_int casadi_s3[3] = {6, 6, 1};
 
+static const casadi_real hg_zeros[6] = {0};
+
 /* ubc_stewart_coriolis:(q[6],qdot[6],theta[4],numbers[89])->(C[6x6]) */
 static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   (void)arg; (void)res; (void)iw; (void)w; (void)mem;
+  const casadi_real* hg_in0 = arg[0] ? arg[0] : hg_zeros;
+  const casadi_real* hg_in1 = arg[1] ? arg[1] : hg_zeros;
+  const casadi_real* hg_in2 = arg[2] ? arg[2] : hg_zeros;
   casadi_real a00, a01, a02, a03, a04, a05, a06, a07, a08, a09, a10, a11;
   casadi_real a12, a13, a14, a15, a16, a17, a18, a19, a20, a21, a22, a23;
   casadi_real a24, a25, a26;
@@ -96,23 +101,23 @@ static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw,
   if (res[0]!=0) res[0][19]=a00;
   if (res[0]!=0) res[0][20]=a00;
   if (res[0]!=0) res[0][21]=a00;
-  a01=arg[1]? arg[1][4] : 0;
-  a02=arg[2]? arg[2][3] : 0;
-  a03=arg[0]? arg[0][3] : 0;
+  a01=hg_in1[4];
+  a02=hg_in2[3];
+  a03=hg_in0[3];
   a04=cos(a03);
   a05=(a02*a04);
   a03=sin(a03);
   a05=(a05*a03);
-  a06=arg[2]? arg[2][2] : 0;
+  a06=hg_in2[2];
   a07=(a06*a04);
   a07=(a07*a03);
   a08=(a05-a07);
   a09=(a01*a08);
-  a10=arg[1]? arg[1][5] : 0;
+  a10=hg_in1[5];
   a11=5.0000000000000000e-01;
-  a12=arg[2]? arg[2][1] : 0;
+  a12=hg_in2[1];
   a13=(a11*a12);
-  a14=arg[0]? arg[0][4] : 0;
+  a14=hg_in0[4];
   a15=cos(a14);
   a13=(a13*a15);
   a16=(a11*a06);
@@ -175,7 +180,7 @@ static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw,
   a24=(a10*a21);
   a25=(a25+a24);
   if (res[0]!=0) res[0][27]=a25;
-  a25=arg[1]? arg[1][3] : 0;
+  a25=hg_in1[3];
   a08=(a25*a08);
   if (res[0]!=0) res[0][28]=a08;
   a18=(a25*a18);

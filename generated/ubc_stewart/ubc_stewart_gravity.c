@@ -62,15 +62,19 @@ static const casadi_int casadi_s0[3] = {6, 1, 1};
 static const casadi_int casadi_s1[3] = {4, 1, 1};
 static const casadi_int casadi_s2[3] = {89, 1, 1};
 
+static const casadi_real hg_zeros[41] = {0};
+
 /* ubc_stewart_gravity:(q[6],theta[4],numbers[89])->(G[6]) */
 static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   (void)arg; (void)res; (void)iw; (void)w; (void)mem;
+  const casadi_real* hg_in1 = arg[1] ? arg[1] : hg_zeros;
+  const casadi_real* hg_in2 = arg[2] ? arg[2] : hg_zeros;
   casadi_real a0, a1, a2;
   a0=0.;
   if (res[0]!=0) res[0][0]=a0;
   if (res[0]!=0) res[0][1]=a0;
-  a1=arg[2]? arg[2][40] : 0;
-  a2=arg[1]? arg[1][0] : 0;
+  a1=hg_in2[40];
+  a2=hg_in1[0];
   a1=(a1*a2);
   if (res[0]!=0) res[0][2]=a1;
   if (res[0]!=0) res[0][3]=a0;

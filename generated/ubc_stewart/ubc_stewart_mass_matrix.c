@@ -67,12 +67,16 @@ static const casadi_int casadi_s1[3] = {4, 1, 1};
 static const casadi_int casadi_s2[3] = {89, 1, 1};
 static const casadi_int casadi_s3[3] = {6, 6, 1};
 
+static const casadi_real hg_zeros[5] = {0};
+
 /* ubc_stewart_mass_matrix:(q[6],theta[4],numbers[89])->(D[6x6]) */
 static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   (void)arg; (void)res; (void)iw; (void)w; (void)mem;
+  const casadi_real* hg_in0 = arg[0] ? arg[0] : hg_zeros;
+  const casadi_real* hg_in1 = arg[1] ? arg[1] : hg_zeros;
   casadi_real a00, a01, a02, a03, a04, a05, a06, a07, a08, a09, a10, a11;
   casadi_real a12;
-  a00=arg[1]? arg[1][0] : 0;
+  a00=hg_in1[0];
   if (res[0]!=0) res[0][0]=a00;
   a01=0.;
   if (res[0]!=0) res[0][1]=a01;
@@ -95,10 +99,10 @@ static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw,
   if (res[0]!=0) res[0][18]=a01;
   if (res[0]!=0) res[0][19]=a01;
   if (res[0]!=0) res[0][20]=a01;
-  a00=arg[1]? arg[1][1] : 0;
+  a00=hg_in1[1];
   if (res[0]!=0) res[0][21]=a00;
   if (res[0]!=0) res[0][22]=a01;
-  a02=arg[0]? arg[0][4] : 0;
+  a02=hg_in0[4];
   a03=sin(a02);
   a04=(a00*a03);
   a04=(-a04);
@@ -107,12 +111,12 @@ static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw,
   if (res[0]!=0) res[0][25]=a01;
   if (res[0]!=0) res[0][26]=a01;
   if (res[0]!=0) res[0][27]=a01;
-  a05=arg[1]? arg[1][2] : 0;
-  a06=arg[0]? arg[0][3] : 0;
+  a05=hg_in1[2];
+  a06=hg_in0[3];
   a07=cos(a06);
   a08=casadi_sq(a07);
   a09=(a05*a08);
-  a10=arg[1]? arg[1][3] : 0;
+  a10=hg_in1[3];
   a06=sin(a06);
   a11=casadi_sq(a06);
   a12=(a10*a11);

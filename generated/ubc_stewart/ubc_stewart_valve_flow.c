@@ -60,14 +60,19 @@ CASADI_SYMBOL_EXPORT int ubc_stewart_valve_flow_casadi_real_size(void) { return 
 static const casadi_int casadi_s0[3] = {6, 1, 1};
 static const casadi_int casadi_s1[3] = {89, 1, 1};
 
+static const casadi_real hg_zeros[86] = {0};
+
 /* ubc_stewart_valve_flow:(u[6],pc[6],numbers[89])->(ql_per_c[6]) */
 static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   (void)arg; (void)res; (void)iw; (void)w; (void)mem;
+  const casadi_real* hg_in0 = arg[0] ? arg[0] : hg_zeros;
+  const casadi_real* hg_in1 = arg[1] ? arg[1] : hg_zeros;
+  const casadi_real* hg_in2 = arg[2] ? arg[2] : hg_zeros;
   casadi_real a0, a1, a2, a3, a4, a5;
-  a0=arg[0]? arg[0][0] : 0;
-  a1=arg[2]? arg[2][45] : 0;
+  a0=hg_in0[0];
+  a1=hg_in2[45];
   a2=(a0<=a1);
-  a3=arg[1]? arg[1][0] : 0;
+  a3=hg_in1[0];
   a4=sqrt(a3);
   a5=(a0-a1);
   a4=(a4*a5);
@@ -75,7 +80,7 @@ static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw,
   a4=(-a1);
   a4=(a0<a4);
   a4=(!a4);
-  a5=arg[2]? arg[2][44] : 0;
+  a5=hg_in2[44];
   a5=(a5-a3);
   a5=sqrt(a5);
   a1=(a1+a0);
@@ -83,10 +88,10 @@ static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw,
   a4=(a4?a5:0);
   a2=(a2+a4);
   if (res[0]!=0) res[0][0]=a2;
-  a2=arg[0]? arg[0][1] : 0;
-  a4=arg[2]? arg[2][53] : 0;
+  a2=hg_in0[1];
+  a4=hg_in2[53];
   a5=(a2<=a4);
-  a1=arg[1]? arg[1][1] : 0;
+  a1=hg_in1[1];
   a0=sqrt(a1);
   a3=(a2-a4);
   a0=(a0*a3);
@@ -94,7 +99,7 @@ static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw,
   a0=(-a4);
   a0=(a2<a0);
   a0=(!a0);
-  a3=arg[2]? arg[2][52] : 0;
+  a3=hg_in2[52];
   a3=(a3-a1);
   a3=sqrt(a3);
   a4=(a4+a2);
@@ -102,10 +107,10 @@ static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw,
   a0=(a0?a3:0);
   a5=(a5+a0);
   if (res[0]!=0) res[0][1]=a5;
-  a5=arg[0]? arg[0][2] : 0;
-  a0=arg[2]? arg[2][61] : 0;
+  a5=hg_in0[2];
+  a0=hg_in2[61];
   a3=(a5<=a0);
-  a4=arg[1]? arg[1][2] : 0;
+  a4=hg_in1[2];
   a2=sqrt(a4);
   a1=(a5-a0);
   a2=(a2*a1);
@@ -113,7 +118,7 @@ static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw,
   a2=(-a0);
   a2=(a5<a2);
   a2=(!a2);
-  a1=arg[2]? arg[2][60] : 0;
+  a1=hg_in2[60];
   a1=(a1-a4);
   a1=sqrt(a1);
   a0=(a0+a5);
@@ -121,10 +126,10 @@ static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw,
   a2=(a2?a1:0);
   a3=(a3+a2);
   if (res[0]!=0) res[0][2]=a3;
-  a3=arg[0]? arg[0][3] : 0;
-  a2=arg[2]? arg[2][69] : 0;
+  a3=hg_in0[3];
+  a2=hg_in2[69];
   a1=(a3<=a2);
-  a0=arg[1]? arg[1][3] : 0;
+  a0=hg_in1[3];
   a5=sqrt(a0);
   a4=(a3-a2);
   a5=(a5*a4);
@@ -132,7 +137,7 @@ static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw,
   a5=(-a2);
   a5=(a3<a5);
   a5=(!a5);
-  a4=arg[2]? arg[2][68] : 0;
+  a4=hg_in2[68];
   a4=(a4-a0);
   a4=sqrt(a4);
   a2=(a2+a3);
@@ -140,10 +145,10 @@ static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw,
   a5=(a5?a4:0);
   a1=(a1+a5);
   if (res[0]!=0) res[0][3]=a1;
-  a1=arg[0]? arg[0][4] : 0;
-  a5=arg[2]? arg[2][77] : 0;
+  a1=hg_in0[4];
+  a5=hg_in2[77];
   a4=(a1<=a5);
-  a2=arg[1]? arg[1][4] : 0;
+  a2=hg_in1[4];
   a3=sqrt(a2);
   a0=(a1-a5);
   a3=(a3*a0);
@@ -151,7 +156,7 @@ static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw,
   a3=(-a5);
   a3=(a1<a3);
   a3=(!a3);
-  a0=arg[2]? arg[2][76] : 0;
+  a0=hg_in2[76];
   a0=(a0-a2);
   a0=sqrt(a0);
   a5=(a5+a1);
@@ -159,10 +164,10 @@ static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw,
   a3=(a3?a0:0);
   a4=(a4+a3);
   if (res[0]!=0) res[0][4]=a4;
-  a4=arg[0]? arg[0][5] : 0;
-  a3=arg[2]? arg[2][85] : 0;
+  a4=hg_in0[5];
+  a3=hg_in2[85];
   a0=(a4<=a3);
-  a5=arg[1]? arg[1][5] : 0;
+  a5=hg_in1[5];
   a1=sqrt(a5);
   a2=(a4-a3);
   a1=(a1*a2);
@@ -170,7 +175,7 @@ static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw,
   a1=(-a3);
   a1=(a4<a1);
   a1=(!a1);
-  a2=arg[2]? arg[2][84] : 0;
+  a2=hg_in2[84];
   a2=(a2-a5);
   a2=sqrt(a2);
   a3=(a3+a4);

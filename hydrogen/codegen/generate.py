@@ -9,7 +9,6 @@ from __future__ import annotations
 
 import hashlib
 import json
-import re
 import shutil
 import tempfile
 from pathlib import Path
@@ -19,6 +18,7 @@ from ..fileio import locked, recover_dir, replace_dir, write_file
 from ..names import check_identifier
 from ..outputs import check_replaceable_dir
 from ..resources import templates_dir
+from .c_source import tidy
 
 # SymPy, CasADi and the derivation are imported where code is generated, not at import: the
 # runtime imports this module for the staleness check only, and stays free of both.
@@ -123,18 +123,6 @@ def expected_manifest_inputs(model, numbers: str = DEFAULT_NUMBERS) -> dict:
     return {"model_hash": key, "derivation_hash": derivation_hash(), "format": FORMAT_VERSION}
 
 
-_UNUSED_SIG = re.compile(
-    r"^(static int casadi_f\d+\(const casadi_real\*\* arg, casadi_real\*\* res, "
-    r"casadi_int\* iw, casadi_real\* w, int mem\) \{)$", re.M)
-_UNUSED_RELEASE = re.compile(r"^(CASADI_SYMBOL_EXPORT void \w+_release\(int mem\) \{)$", re.M)
-
-
-def _mark_unused(c_source: str) -> str:
-    """Mark the parameters CasADi leaves unused, so the C is clean under -Wall -Wextra -Werror."""
-    c_source = _UNUSED_SIG.sub(r"\1\n  (void)arg; (void)res; (void)iw; (void)w; (void)mem;", c_source)
-    return _UNUSED_RELEASE.sub(r"\1\n  (void)mem;", c_source)
-
-
 def c_name(model_name: str, fname: str) -> str:
     """C symbol of a generated function: ``<model>_<function>``."""
     return f"{model_name}_{fname}"
@@ -173,7 +161,7 @@ def write_casadi(functions: list, name: str, folder: Path) -> None:
         for ext in (".c", ".h"):
             text = Path(tmp, name + ext).read_text()
             if ext == ".c":
-                text = _mark_unused(text)
+                text = tidy(text)
             write_file(folder / (name + ext), text)  # a full disk names the file
 
 
