@@ -106,13 +106,18 @@ def c_costs(entries: list, gen_dir: Path, repeats: int, values) -> dict:
     return out
 
 
-def _user_inputs(entry: dict, values) -> list:
-    """The driver's inputs as the arrays a user passes: (rows,) vectors, C-order matrices."""
-    out = []
+def _inputs(entry: dict, values) -> tuple:
+    """The driver's inputs as the arrays a user passes ((rows,) vectors, C-order matrices): those of
+    the Python call, which fills in the description's numbers itself, and every input of the C."""
+    from hydrogen.layout import NUMBERS
+
+    every, user = [], []
     for (name, r, c), (_, flat) in zip(entry["inputs"], values.function_inputs(entry)):
         x = np.asarray(flat, float).reshape((int(r), int(c)), order="F")
-        out.append(np.ascontiguousarray(x[:, 0] if int(c) == 1 else x))
-    return out
+        every.append(np.ascontiguousarray(x[:, 0] if int(c) == 1 else x))
+        if name != NUMBERS:
+            user.append(every[-1])
+    return user, every
 
 
 def _pinocchio_body(theta):
@@ -145,7 +150,7 @@ def run(quick: bool = False) -> dict:
     per_call = {}
     for name in FUNCTIONS:
         entry = entries[name]
-        args = _user_inputs(entry, values)
+        args, c_args = _inputs(entry, values)
         method = getattr(dyn, name)
         want = method(*args)
         out = np.empty_like(want)
@@ -158,9 +163,9 @@ def run(quick: bool = False) -> dict:
         if dyn.backend != "extension":
             routes = {"ctypes": routes["ctypes"]}
         ext_fn = casadi.external(entry["c_name"], str(dyn.library.path))
-        routes["casadi_external"] = _call(ext_fn, args)
-        np.testing.assert_allclose(np.array(ext_fn(*args)).reshape(want.shape, order="F") if want.ndim == 2
-                                   else np.array(ext_fn(*args)).ravel(), want, rtol=1e-12)
+        routes["casadi_external"] = _call(ext_fn, c_args)
+        np.testing.assert_allclose(np.array(ext_fn(*c_args)).reshape(want.shape, order="F") if want.ndim == 2
+                                   else np.array(ext_fn(*c_args)).ravel(), want, rtol=1e-12)
         if name == "forward_dynamics":
             q, qdot, tau, th = args
 
@@ -187,15 +192,15 @@ def run(quick: bool = False) -> dict:
             "rnea": lambda: pin.rnea(pmodel, d1, qp, vp, ap),
             "computeJointTorqueRegressor": lambda: pin.computeJointTorqueRegressor(pmodel, d2, qp, vp, ap),
             "aba": lambda: pin.aba(pmodel, d3, qp, vp, taup),
-            "dyn_regressor": _call(dyn.regressor, _user_inputs(entries["regressor"], values)),
-            "dyn_forward_dynamics": _call(dyn.forward_dynamics, _user_inputs(entries["forward_dynamics"], values)),
+            "dyn_regressor": _call(dyn.regressor, _inputs(entries["regressor"], values)[0]),
+            "dyn_forward_dynamics": _call(dyn.forward_dynamics, _inputs(entries["forward_dynamics"], values)[0]),
         }, repeats)}
 
     batches, reference = {}, {}
     if dyn.backend == "extension":
         rng = np.random.default_rng(1)
         for name in FUNCTIONS:
-            base = _user_inputs(entries[name], values)
+            base = _inputs(entries[name], values)[0]
             method = getattr(dyn, name)
             rows = {}
             for n in BATCH_SIZES:
@@ -209,7 +214,7 @@ def run(quick: bool = False) -> dict:
         # Same conditions, same moment: the batch through the extension against the library's own
         # C loop over states (the loop driver's <model>_leg_lengths_many, called once through ctypes).
         if dyn._many is not None:
-            base = _user_inputs(entries["leg_lengths"], values)[0]
+            base = _inputs(entries["leg_lengths"], values)[0][0]
             for n in BATCH_SIZES[-2:]:
                 stacked = base + 1e-6 * rng.standard_normal((n,) + base.shape)
                 t = _time_all({"extension": _call(dyn.leg_lengths, [stacked]),

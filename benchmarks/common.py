@@ -67,6 +67,7 @@ class InputValues:
 
     def value(self, fname: str, name: str, rows: int, cols: int, rng: np.random.Generator) -> np.ndarray:
         """Flat (column-major) values of input ``name`` (rows x cols) of function ``fname``."""
+        from hydrogen.layout import NUMBERS
         from hydrogen.tree import cylinder_lengths
 
         m = self.model
@@ -95,6 +96,8 @@ class InputValues:
             out = np.asarray(ctrl.values[name], float).ravel(order="F")
         elif name == "theta":
             out = m.theta
+        elif name == NUMBERS and self.dyn.numbers is not None:  # the description's, as the runtime passes them
+            out = self.dyn.numbers
         elif name in ("gamma1", "gamma2"):
             out = m.gamma[0 if name == "gamma1" else 1]
         elif name in FIXED:

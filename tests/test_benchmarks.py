@@ -54,6 +54,16 @@ def test_input_values_fit_every_generated_function(robot_dyn):
     got = dict(values.function_inputs(entry))
     np.testing.assert_array_equal(got["theta"], robot_dyn.model.theta)
     np.testing.assert_array_equal(got["gamma1"], robot_dyn.model.gamma[0])
+    np.testing.assert_array_equal(got["numbers"], robot_dyn.numbers)  # the description's, not random
+
+
+def test_the_calls_benchmark_agrees_with_the_c_and_times_every_route():
+    import bench_calls
+
+    res = bench_calls.run(quick=True)  # asserts each route's result against the C through CasADi
+    for name, routes in res["per_call"].items():
+        assert {"extension", "ctypes", "casadi_external"} <= set(routes), name
+        assert all(r["min_s"] > 0 for r in routes.values()), name
 
 
 @pytest.mark.parametrize("n", range(2, 8))
