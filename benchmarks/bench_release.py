@@ -113,9 +113,12 @@ for _ in range({repeats}):
 
 _RUNS = _PREAMBLE + """
 from hydrogen.simulation import scenarios as SC
-try:
+import os
+# asked of the checkout's own files: an editable install's import finder would answer a module
+# the previous release lacks from the current source
+if os.path.isdir(os.path.join(os.path.dirname(hydrogen.__file__), "controllers")):
     from hydrogen.controllers import CONTROLLERS
-except ImportError:  # the previous release
+else:  # the previous release
     from hydrogen.simulation.control import CONTROLLERS
 model = hydrogen.load_model()
 names = SC.scenario_names(model) if hasattr(SC, "scenario_names") else SC.SCENARIOS
