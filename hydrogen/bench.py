@@ -70,17 +70,34 @@ def run_suite(quick: bool = False, json_path: str | None = None, only=None, prog
     sys.path.insert(0, str(folder))
     from tqdm import tqdm
 
-    results = {}
+    results, failed = {}, {}
     todo = [(n, w) for n, w in SUITE if not only or n in only]
     bar = tqdm(total=len(todo), desc="bench", unit="module", disable=None if progress else True)
     for name, what in todo:
         bar.set_postfix_str(name)
         mod = importlib.import_module(name)
-        results[name] = mod.run(quick=quick)
+        try:
+            results[name] = mod.run(quick=quick)
+        except Exception as exc:  # one module's failure must not lose what the others measured
+            failed[name] = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
+            bar.update()
+            tqdm.write(f"\n== {name}: failed: {failed[name]}")
+            continue
         bar.update()
         tqdm.write(f"\n== {name}: {what}")
         _print(mod, results[name], release_checks)
     bar.close()
+    if failed:
+        # the figures of the modules that ran go beside the file asked for, never over it: a page
+        # rendered from them would drop the failed modules' sections
+        kept = ""
+        if json_path and results:
+            partial = Path(json_path).with_suffix(".partial.json")
+            atomic_write(partial, json.dumps(results if release_checks else _figures_only(results),
+                                             indent=2, default=str) + "\n")
+            kept = f"; the other modules' results are in {partial}"
+        raise HydrogenError("benchmark module(s) failed: " + "; ".join(f"{k}: {v}" for k, v in failed.items())
+                            + kept)
     if json_path:
         written = results if release_checks else _figures_only(results)
         atomic_write(Path(json_path), json.dumps(written, indent=2, default=str) + "\n")

@@ -192,6 +192,30 @@ def test_a_users_bench_reports_figures_not_the_projects_release_targets(capsys, 
     assert "all bounds hold: False" in capsys.readouterr().out
 
 
+def test_a_failing_module_is_named_and_the_others_results_are_kept(capsys, tmp_path, monkeypatch):
+    import hydrogen.bench as hb
+    from hydrogen.cli import main as cli
+
+    import bench_edit
+
+    monkeypatch.setattr(bench_release, "run", lambda quick: _release_result())
+
+    def broken(quick):
+        raise RuntimeError("benchmark subprocess failed (exit 1):\nthe details")
+
+    monkeypatch.setattr(bench_edit, "run", broken)
+    target = tmp_path / "b.json"
+    target.write_text("{}\n")  # an earlier run's results: not overwritten by a partial one
+    assert cli(["bench", "--quiet", "--json", str(target), "--only", "bench_release", "bench_edit"]) == 2
+    err = capsys.readouterr().err
+    assert "bench_edit: benchmark subprocess failed (exit 1)" in err and "Traceback" not in err
+    assert target.read_text() == "{}\n"
+    kept = json.loads((tmp_path / "b.partial.json").read_text())
+    assert set(kept) == {"bench_release"} and kept["bench_release"]["instructions"]["regressor"]["current"] == 120
+    with pytest.raises(hb.HydrogenError, match="bench_edit"):
+        hb.run_suite(quick=True, only=["bench_edit"], progress=False)
+
+
 def test_bench_scaling_states_its_target_only_for_developers(capsys):
     res = {"rows": [], "not_attempted": [], "budget_s": 600.0, "cores": 2, "wall_s": 1.0,
            "target": {"n": 7, "seconds": 120.0, "measured_generate_s": 150.0, "met": False,
