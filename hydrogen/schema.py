@@ -56,8 +56,8 @@ DESCRIPTION_KEYS = (
     Key("top level", "gravity", "m/s²", "gravity along −z of the base frame; 0 allowed"),
     Key("top level", "rigid_body_form", "", "the rigid body's code: \"closed\" (expanded link Jacobians, C "
         "from ∂D/∂q), \"staged\" (link poses as intermediate symbols, spatial algebra; revolute, prismatic and "
-        "fixed joints only) or \"auto\", the one of fewer CasADi instructions (Code generation page); all give "
-        "the same D, C, G, Y", default="auto"),
+        "fixed joints only) or \"auto\", the one of fewer CasADi instructions, staged without counting for a "
+        "tree with a rotated joint origin or a tilted axis (Code generation page); all give the same D, C, G, Y", default="auto"),
     Key("top level", "urdf", "", "a URDF file for the tree, relative to the TOML file, instead of "
         "[[links]] and [[joints]]", default=None, default_text="none: the tree is [[links]]/[[joints]]"),
     Key("top level", "tree", "", "the [tree] table: which part of the tree is kept (below)", default=None,

@@ -14,7 +14,7 @@ from hydrogen.errors import ModelError
 from hydrogen.model import INERTIAL_PARAMETERS
 from hydrogen.symbolic import kinematics as K
 from hydrogen.symbolic import rigid_body as RB
-from hydrogen.symbolic.forms import FORMS, form_costs, rigid_body_form, with_form
+from hydrogen.symbolic.forms import FORMS, form_costs, oblique_joints, rigid_body_form, with_form
 from hydrogen.symbolic.functions import rigid_body_functions
 from hydrogen.symbolic.tree import SymbolicTree
 
@@ -87,6 +87,31 @@ def test_auto_takes_the_form_of_fewer_instructions(leg):
 def test_auto_without_counting_a_floating_body_and_a_deep_chain():
     assert rigid_body_form(hydrogen.load_model("ubc_stewart")) == "closed"  # the staged form cannot take it
     assert rigid_body_form(chain_model(4)) == "staged"
+
+
+URDF_LEG = Path(__file__).resolve().parent.parent / "benchmarks" / "data" / "urdf_leg.toml"
+
+
+def test_auto_stages_a_tree_of_oblique_joints_without_counting(monkeypatch):
+    # the URDF-born leg (rpy origins): its closed form is never derived, not even to be counted
+    import hydrogen.symbolic.forms as forms
+
+    model = hydrogen.load_model(URDF_LEG)
+    assert forms.oblique_joints(model) == ["haa_joint", "hfe_joint"]
+    monkeypatch.setattr(forms, "form_costs", lambda *a: pytest.fail("counted the forms"))
+    assert rigid_body_form(model) == "staged"
+
+
+def test_oblique_joints_are_rotated_origins_and_tilted_axes(leg):
+    import dataclasses
+
+    assert oblique_joints(leg) == []  # axis-aligned: counted as before
+    j = leg.joints[1]
+    for changed in (dataclasses.replace(j, origin_rpy=np.array([0.0, 0.0, 1e-3])),
+                    dataclasses.replace(j, axis=np.array([0.0, 0.6, 0.8]))):
+        assert oblique_joints(dataclasses.replace(leg, joints=(leg.joints[0], changed, *leg.joints[2:]))) == [j.name]
+    flipped = dataclasses.replace(j, axis=np.array([0.0, -1.0, 0.0]))  # a flipped axis is still a coordinate axis
+    assert oblique_joints(dataclasses.replace(leg, joints=(leg.joints[0], flipped, *leg.joints[2:]))) == []
 
 
 @pytest.mark.parametrize("form", FORMS)

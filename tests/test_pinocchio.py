@@ -8,7 +8,11 @@ from hydrogen.model import INERTIAL_PARAMETERS
 from conftest import MODELS, workspace_poses
 
 pin = pytest.importorskip("pinocchio")
-URDF_MODELS = [m for m in MODELS if hydrogen.load_model(m).urdf is not None]
+from pathlib import Path
+
+# every shipped URDF-described robot, and the benchmarks' URDF-born leg (rpy origins, full inertias)
+URDF_MODELS = [m for m in MODELS if hydrogen.load_model(m).urdf is not None] \
+    + [str(Path(__file__).resolve().parent.parent / "benchmarks" / "data" / "urdf_leg.toml")]
 
 
 @pytest.fixture(scope="module", params=URDF_MODELS)
@@ -69,9 +73,13 @@ def test_regressor_columns_equal_pinocchios_joint_torque_regressor(robot, rng):
         link = child[pm.names[jid]]
         for k, p in enumerate(INERTIAL_PARAMETERS):
             cols[f"{link}.{p}"] = 10 * (jid - 1) + k
-    # Pinocchio's parameters must be ours: same inertias from the same URDF
+    # Pinocchio's parameters must be ours: same inertias from the same URDF (but for a link with a
+    # fixed child, which Pinocchio merges into it and hydrogen keeps apart, as a non-adapted share)
     pi = np.concatenate([pm.inertias[j].toDynamicParameters() for j in range(1, pm.njoints)])
-    _close(model.theta, pi[[cols[n] for n in model.theta_names]])
+    merged = {j.parent for j in model.joints if j.type == "fixed"}
+    own = [i for i, n in enumerate(model.theta_names) if n.split(".")[0] not in merged]
+    assert own  # something is compared
+    _close(np.asarray(model.theta)[own], pi[[cols[model.theta_names[i]] for i in own]])
     for q, v, a in _states(model, rng):
         R = pin.computeJointTorqueRegressor(pm, data, q, v, a)
         _close(dyn.regressor(q, v, v, a), R[:, [cols[n] for n in model.theta_names]])

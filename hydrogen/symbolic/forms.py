@@ -8,17 +8,21 @@ counted functions are those the controllers and the simulator evaluate (:data:`C
 totals rank the forms as the controllers' own counts do on the shipped robots and a spatial leg
 (``tests/test_forms.py``, ``docs/guide/codegen.md``).
 
-Two cases are decided without counting: a tree the staged form cannot represent (a floating joint)
-takes the closed form, and a tree at least :data:`STAGED_DEPTH` moving joints deep the staged one,
-whose closed form grows about 3.5× per link (its derivation alone would cost minutes by 5 links).
+Three cases are decided without counting: a tree the staged form cannot represent (a floating joint)
+takes the closed form; a tree at least :data:`STAGED_DEPTH` moving joints deep the staged one,
+whose closed form grows about 3.5× per link (its derivation alone would cost minutes by 5 links);
+and so does a tree with an oblique moving joint (:func:`oblique_joints`: a rotated origin or a
+tilted axis, as a URDF from CAD has), whose closed form is a product of full rotations.
 """
 from __future__ import annotations
 
 import dataclasses
 
+import numpy as np
+
 from .constants import folded
 
-__all__ = ["FORMS", "COUNTED", "STAGED_DEPTH", "rigid_body_form", "form_costs", "with_form"]
+__all__ = ["FORMS", "COUNTED", "STAGED_DEPTH", "rigid_body_form", "form_costs", "with_form", "oblique_joints"]
 
 #: The forms, in the order that breaks a tie of instruction counts.
 FORMS = ("closed", "staged")
@@ -65,6 +69,20 @@ def rigid_body_form(model) -> str:
     return _CHOSEN[key]
 
 
+def oblique_joints(model) -> list:
+    """Names of the moving joints whose frame is turned off the parent's axes: an origin rotation
+    (rpy) that is not zero, or an axis that is not a coordinate axis (entries other than 0 and ±1).
+    A URDF exported from CAD is made of them. In the closed form each is a full 3×3 of sines and
+    cosines (of symbols, with the numbers as inputs) multiplied along the chain and differentiated
+    for C: a 3-DOF leg of such joints derived its closed form's composite law for more than 5 minutes
+    against 6 s staged (benchmarks/bench_cold.py)."""
+    def oblique(j):
+        axis = np.asarray(j.axis, dtype=float)
+        return bool(np.any(np.asarray(j.origin_rpy, dtype=float) != 0.0)) \
+            or bool(np.any((axis != 0.0) & (np.abs(axis) != 1.0)))
+    return [j.name for j in model.joints if j.type in ("revolute", "prismatic") and oblique(j)]
+
+
 def _cheaper(model) -> str:
     from .kinematics import pose_symbols
     from .rigid_body import theta_symbols
@@ -73,7 +91,7 @@ def _cheaper(model) -> str:
     tree = SymbolicTree(with_form(model, "closed"), pose_symbols(model), theta_symbols(model))
     if not tree.staged_applies():
         return "closed"
-    if tree.depth() >= STAGED_DEPTH:
+    if tree.depth() >= STAGED_DEPTH or oblique_joints(model):
         return "staged"
     totals = {f: sum(form_costs(model, f).values()) for f in FORMS}
     return min(FORMS, key=lambda f: (totals[f], FORMS.index(f)))
