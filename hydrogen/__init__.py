@@ -49,12 +49,16 @@ def default_dynamics(model=None, progress=None, controller=None):
     compilers); any other is compiled on its first use."""
     from .dynamics import Dynamics
     from .simulation.sweep import _model_path
+    from .controllers import CONTROLLERS, function_name
+
     m = model if isinstance(model, Model) else load_model(_model_path(model))
     key = m.baked_hash()
-    if key not in _DEFAULT_DYN:
-        from .controllers import CONTROLLERS
-        _DEFAULT_DYN[key] = build(m, progress=progress,
-                                  controllers=tuple(c for c in (controller,) if c in CONTROLLERS)).library
+    wanted = tuple(c for c in (controller,) if c in CONTROLLERS)
+    lib = _DEFAULT_DYN.get(key)
+    if lib is None or any(function_name(c) not in lib.group_of for c in wanted):
+        # a new structure derives only the controller run; another one later is added to it
+        held = () if lib is None else tuple(c for c in CONTROLLERS if function_name(c) in lib.group_of)
+        _DEFAULT_DYN[key] = build(m, progress=progress, controllers=(*held, *wanted) if wanted else ()).library
     return Dynamics(m, _DEFAULT_DYN[key])
 
 

@@ -63,16 +63,20 @@ def c_size(paths) -> str:
 
 
 @contextmanager
-def generation_reported(report: Reporter, model, folder, force: bool = False):
-    """Around a generation call: "generating" and "generated" when ``folder`` is stale for ``model``
-    or ``force`` regenerates it (a current folder is no step: nothing reported). Outside the generator, whose source is part
-    of the derivation hash."""
-    from .codegen.generate import check, read_manifest
+def generation_reported(report: Reporter, model, folder, force: bool = False, controllers=()):
+    """Around a generation call: "generating" and "generated" when ``folder`` is stale for ``model``,
+    lacks one of ``controllers`` (names; empty: all) or ``force`` regenerates it (a current folder is
+    no step: nothing reported). Outside the generator, whose source is part of the derivation hash."""
+    from .codegen.generate import check, missing_controllers, read_manifest
 
     stale = force or bool(check(model, Path(folder)))
+    missing = () if stale else missing_controllers(read_manifest(Path(folder)) or {}, controllers or None)
     clock = report.start()
     if stale:
         report("generating", "deriving the model (SymPy) and writing C for each function")
+    elif missing:
+        report("generating", f"deriving {', '.join(missing)} (SymPy) and writing C for each function")
+    stale = stale or bool(missing)
     yield
     if stale:
         manifest = read_manifest(Path(folder)) or {}

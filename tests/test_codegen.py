@@ -15,6 +15,7 @@ import hydrogen
 from hydrogen.cli import main as cli
 from hydrogen.codegen import generate as gen
 from hydrogen.codegen.casadi_functions import to_casadi_function
+from hydrogen.controllers import CONTROLLERS
 from hydrogen.runtime.build import repo_generated_dir
 from hydrogen.symbolic.functions import derive_functions
 
@@ -425,3 +426,39 @@ def test_render_refuses_functions_derived_for_the_other_numbers_mode(tmp_path, m
     with pytest.raises(ValueError, match="come with no names"):
         gen.render(model, tmp_path, functions=[], numbers="constants", names=["a"])
     assert not list(tmp_path.iterdir())
+
+
+def test_a_folder_grown_controller_by_controller_is_a_whole_generation(tmp_path, fresh_render):
+    """Generated for one controller, then for all: only the missing controllers are derived, and the
+    folder is byte for byte the whole generation (the manifest's functions in the same order)."""
+    model = hydrogen.load_model("loader_crane")
+    folder = tmp_path / "grown"
+    assert gen.generate(model, folder, controllers=("adaptive-robust",))
+    manifest = gen.read_manifest(folder)
+    assert gen.held_controllers(manifest) == ("adaptive-robust",)
+    assert gen.check(model, folder) == []  # current for what it holds
+    assert "adaptive-observer" in gen.check_output(model, folder)[0]  # but not a whole generation
+    derived = []
+    real = gen.derive
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(gen, "derive", lambda *a, **k: (derived.append((tuple(a[2]), k["core"])), real(*a, **k))[1])
+        assert not gen.generate(model, folder, controllers=("adaptive-robust",))  # holds it: nothing done
+        assert gen.generate(model, folder)
+    assert derived == [(tuple(c for c in CONTROLLERS if c != "adaptive-robust"), False)]  # those alone
+    fresh = fresh_render(model)
+    assert sorted(os.listdir(folder)) == sorted(os.listdir(fresh))
+    for name in os.listdir(fresh):
+        assert (folder / name).read_bytes() == (fresh / name).read_bytes(), name
+    assert gen.check_output(model, folder) == []
+
+
+def test_controllers_reading_a_number_the_folder_lacks_regenerate_it_whole(tmp_path, monkeypatch):
+    model = hydrogen.load_model("loader_crane")
+    folder = tmp_path / "grown"
+    gen.generate(model, folder, controllers=("p",))
+    monkeypatch.setattr(gen, "extend", lambda *a, **k: False)  # as when a new number was met
+    rendered = []
+    real = gen.render
+    monkeypatch.setattr(gen, "render", lambda *a, **k: (rendered.append(k["controllers"]), real(*a, **k))[1])
+    assert gen.generate(model, folder, controllers=("p-task",))
+    assert rendered == [("p", "p-task")] and gen.held_controllers(gen.read_manifest(folder)) == ("p", "p-task")

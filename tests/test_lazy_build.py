@@ -185,3 +185,44 @@ def test_a_controller_first_used_after_its_sources_changed_is_refused(model, tmp
     with pytest.raises(hydrogen.BuildCacheError, match=f"{source}: differs from the generated folder"):
         dyn.functions["ctrl_p"]
     assert dyn.library.loaded_groups() == (CORE,) and len(cached_builds(tmp_path / "cache")) == 1
+
+
+def test_a_build_for_one_controller_derives_it_alone_and_grows_on_demand(tmp_path):
+    """A new structure built for one controller derives that one only (what ``hydrogen simulate``
+    does); another is an error naming what the build holds; building for it derives it alone."""
+    from hydrogen.codegen.generate import held_controllers
+
+    model = hydrogen.load_model(Path(__file__).parent / "data" / "four_way_arm.toml")
+    cache = tmp_path / "cache"
+    events = []
+    dyn = hydrogen.build(model, cache=cache, cflags=FAST, backend="ctypes", controllers=("p",),
+                         progress=events.append)
+    assert held_controllers(dyn.library.manifest) == ("p",)
+    assert [e.stage for e in events][:2] == ["generating", "generated"]
+    with pytest.raises(hydrogen.ScenarioError, match=r"controller 'backstepping' is not in this build of "
+                       r"'four_way_arm' \(it holds p\); build with"):
+        hydrogen.simulate("arm-sim", "backstepping", dyn=dyn, duration=0.01)
+    events.clear()
+    grown = hydrogen.build(model, cache=cache, cflags=FAST, backend="ctypes", controllers=("backstepping",),
+                           progress=events.append)
+    assert held_controllers(grown.library.manifest) == ("backstepping", "p")
+    assert events[0].stage == "generating" and events[0].detail.startswith("deriving backstepping (SymPy)")
+    assert grown.library.manifest["files"] | dyn.library.manifest["files"] == grown.library.manifest["files"]
+    r = hydrogen.simulate("arm-sim", "backstepping", dyn=grown, duration=0.01)
+    assert np.isfinite(r.q).all()
+    # no controller named: every one, the missing ones derived
+    assert held_controllers(hydrogen.build(model, cache=cache, cflags=FAST, backend="ctypes").library.manifest) \
+        == tuple(CONTROLLERS)
+
+
+def test_the_default_dynamics_grow_with_the_controllers_run(tmp_path, monkeypatch):
+    from hydrogen.codegen.generate import held_controllers
+
+    monkeypatch.setenv("HYDROGEN_CACHE_DIR", str(tmp_path / "cache"))
+    model = hydrogen.load_model(Path(__file__).parent / "data" / "four_way_arm.toml")
+    first = hydrogen.default_dynamics(model, controller="p")
+    assert held_controllers(first.library.manifest) == ("p",)
+    assert hydrogen.default_dynamics(model, controller="p").library is first.library  # built once
+    second = hydrogen.default_dynamics(model, controller="p-task")
+    assert held_controllers(second.library.manifest) == ("p", "p-task")
+    assert hydrogen.default_dynamics(model, controller="p").library is second.library

@@ -24,7 +24,8 @@ from .c_source import tidy
 # runtime imports this module for the staleness check only, and stays free of both.
 
 __all__ = [
-    "generate", "generate_locked", "derive", "render", "write_function", "check", "check_output", "derivation_hash", "structure_hash",
+    "generate", "generate_locked", "extend", "held_controllers", "missing_controllers", "derive", "render",
+    "write_function", "check", "check_output", "derivation_hash", "structure_hash",
     "read_manifest", "expected_manifest_inputs", "numbers_mode", "check_numbers_mode", "NUMBERS_MODES",
     "DEFAULT_NUMBERS",
     "MANIFEST", "FORMAT_VERSION",
@@ -176,27 +177,71 @@ def _sha256(path: Path) -> str:
     return hashlib.sha256(path.read_bytes()).hexdigest()
 
 
-def derive(model, numbers: str = DEFAULT_NUMBERS) -> tuple:
-    """``(functions, names)``: every function derived for ``numbers`` (:data:`NUMBERS_MODES`), and
+def derive(model, numbers: str = DEFAULT_NUMBERS, controllers=None, core: bool = True, seed=None) -> tuple:
+    """``(functions, names)``: the functions derived for ``numbers`` (:data:`NUMBERS_MODES`), and
     the names of the description's numbers they take as their input ``numbers`` ("inputs"; None
-    for "constants", which folds them)."""
+    for "constants", which folds them). ``controllers``: the controllers derived (None: all);
+    ``core``: whether the core's functions are; ``seed``: the numbers' names of functions derived
+    before, which these must share ("inputs")."""
     from ..symbolic.functions import derive_functions, derive_parametric
 
+    kinds = True if controllers is None else tuple(controllers)
     if check_numbers_mode(numbers) == "inputs":
-        functions, names, _ = derive_parametric(model)
+        functions, names, _ = derive_parametric(model, kinds, core=core, seed=seed)
         return functions, names
-    return derive_functions(model), None
+    return derive_functions(model, kinds, core), None
+
+
+def _owner(name: str) -> str | None:
+    """The controller a generated function belongs to (by the registry's names), None for the core."""
+    from ..controllers import CONTROLLERS, LEAN, function_name, rates_function_name, step_function_name
+
+    for kind in CONTROLLERS:
+        for variant in (None, LEAN):
+            if name in (function_name(kind, variant), rates_function_name(kind, variant),
+                        step_function_name(kind, variant)):
+                return kind
+    return None
+
+
+def held_controllers(manifest: dict) -> tuple:
+    """The controllers whose functions a generated folder holds, in the registry's order."""
+    from ..controllers import CONTROLLERS
+
+    held = {_owner(e["name"]) for e in manifest.get("functions", [])}
+    return tuple(k for k in CONTROLLERS if k in held)
+
+
+def missing_controllers(manifest: dict, controllers=None) -> tuple:
+    """Of ``controllers`` (None: all), those a generated folder does not hold yet."""
+    from ..controllers import CONTROLLERS
+
+    held = held_controllers(manifest)
+    return tuple(k for k in (CONTROLLERS if controllers is None else controllers) if k not in held)
+
+
+def _canonical(entries: list) -> list:
+    """Manifest entries in the order a whole generation writes them: the core's, then each
+    controller's in the registry's order (a folder grown controller by controller reads the same)."""
+    from ..controllers import CONTROLLERS
+
+    rank = {None: -1, **{k: i for i, k in enumerate(CONTROLLERS)}}
+    return sorted(entries, key=lambda e: rank[_owner(e["name"])])  # stable: each group keeps its order
+
+
+def _file_hashes(folder: Path) -> dict:
+    return {p.name: _sha256(p) for p in sorted(folder.iterdir()) if p.name != MANIFEST}
 
 
 def render(model, folder: Path, functions=None, progress: bool = False, numbers: str = DEFAULT_NUMBERS,
-           names=None) -> dict:
+           names=None, controllers=None) -> dict:
     """Write every function's C and the manifest into an existing empty ``folder``.
 
     ``progress`` shows a bar on a terminal (nothing when stderr is not one). ``numbers``
     (:data:`NUMBERS_MODES`): "inputs" gives every function the description's numbers as its input
     ``numbers`` (names in the manifest's ``numbers``); the loop driver then passes them on from its
     configuration. ``functions`` and ``names``: what :func:`derive` gives for ``numbers``, when
-    derived already (else derived here).
+    derived already (else derived here, the core and ``controllers``: None for all).
     """
     import casadi as ca
     import sympy as sp
@@ -205,7 +250,7 @@ def render(model, folder: Path, functions=None, progress: bool = False, numbers:
     folder = Path(folder)
     if functions is None:
         with tqdm(total=1, desc="deriving (SymPy)", disable=None if progress else True) as bar:
-            functions, names = derive(model, numbers)
+            functions, names = derive(model, numbers, controllers)
             bar.update()
     elif (names is None) != (check_numbers_mode(numbers) == "constants"):
         raise ValueError(f"render: functions derived for numbers={numbers!r} come with "
@@ -226,44 +271,89 @@ def render(model, folder: Path, functions=None, progress: bool = False, numbers:
         "sympy_version": sp.__version__,
         "casadi_int": CODEGEN_OPTIONS["casadi_int"],
         "casadi_real": CODEGEN_OPTIONS["casadi_real"],
-        "functions": entries,
+        "functions": _canonical(entries),
         "drivers": [d for d in drivers if d.endswith(".c")],
-        "files": {p.name: _sha256(p) for p in sorted(folder.iterdir())},
+        "files": _file_hashes(folder),
     }
     write_file(folder / MANIFEST, json.dumps(manifest, indent=2, sort_keys=True) + "\n")
     return manifest
 
 
-def generate(model, out_dir: Path, force: bool = False, progress: bool = False, numbers: str = DEFAULT_NUMBERS) -> bool:
+def generate(model, out_dir: Path, force: bool = False, progress: bool = False, numbers: str = DEFAULT_NUMBERS,
+             controllers=None) -> bool:
     """Generate C for ``model`` into ``out_dir`` unless it is already current.
 
-    Returns True when files were (re)written. The folder is swapped in whole
-    under a lock; concurrent callers wait, then find it current.
+    ``controllers``: the controllers the folder must hold (None: all); a current folder that lacks
+    some gets theirs added (:func:`extend`), nothing else derived again. Returns True when files
+    were (re)written. The folder is swapped in whole under a lock; concurrent callers wait, then
+    find it current.
     """
     out_dir = Path(out_dir)
     check_replaceable_dir(out_dir, MANIFEST, GENERATED_KEYS, "a hydrogen generated folder")  # before the lock file
     with locked(out_dir):
-        return generate_locked(model, out_dir, force, progress, numbers)
+        return generate_locked(model, out_dir, force, progress, numbers, controllers)
+
+
+def _staged(out_dir: Path, write) -> None:
+    """Fill a new folder beside ``out_dir`` with ``write(staging)``, then swap it in whole."""
+    out_dir.parent.mkdir(parents=True, exist_ok=True)
+    staging = Path(tempfile.mkdtemp(prefix=f".{out_dir.name}.new-", dir=out_dir.parent))
+    staging.chmod(0o755)  # mkdtemp makes it private; generated code is for everyone
+    try:
+        write(staging)
+        replace_dir(staging, out_dir)
+    except BaseException:
+        shutil.rmtree(staging, ignore_errors=True)
+        raise
 
 
 def generate_locked(model, out_dir: Path, force: bool = False, progress: bool = False,
-                    numbers: str = DEFAULT_NUMBERS) -> bool:
+                    numbers: str = DEFAULT_NUMBERS, controllers=None) -> bool:
     """:func:`generate` for a caller that already holds ``locked(out_dir)``."""
     out_dir = Path(out_dir)
     check_identifier(model.name, "model name")  # it becomes C symbols, file names and build-file text
     recover_dir(out_dir)
     if not force and not check(model, out_dir, numbers):
-        return False
+        missing = missing_controllers(read_manifest(out_dir), controllers)
+        if not missing or extend(model, out_dir, missing, progress):
+            return bool(missing)
+        controllers = (*held_controllers(read_manifest(out_dir)), *missing)  # whole again, with them
     check_replaceable_dir(out_dir, MANIFEST, GENERATED_KEYS, "a hydrogen generated folder", probe=False)  # even forced
-    out_dir.parent.mkdir(parents=True, exist_ok=True)
-    staging = Path(tempfile.mkdtemp(prefix=f".{out_dir.name}.new-", dir=out_dir.parent))
-    staging.chmod(0o755)  # mkdtemp makes it private; generated code is for everyone
-    try:
-        render(model, staging, progress=progress, numbers=numbers)
-        replace_dir(staging, out_dir)
-    except BaseException:
-        shutil.rmtree(staging, ignore_errors=True)
-        raise
+    _staged(out_dir, lambda staging: render(model, staging, progress=progress, numbers=numbers,
+                                            controllers=controllers))
+    return True
+
+
+def extend(model, folder: Path, controllers, progress: bool = False) -> bool:
+    """Add the functions of ``controllers`` to the current generated ``folder`` (the caller holds its
+    lock): they alone are derived and written, the folder swapped in whole with its manifest. The
+    result is byte for byte what a whole generation of the same controllers writes. False (nothing
+    written) when they read a description number the folder's functions do not take: then only a
+    whole generation can give every function the same numbers input."""
+    from tqdm import tqdm
+
+    folder = Path(folder)
+    manifest = read_manifest(folder)
+    mode = numbers_mode(manifest)
+    seed = manifest.get("numbers")
+    with tqdm(total=1, desc="deriving (SymPy)", disable=None if progress else True) as bar:
+        functions, names = derive(model, mode, controllers, core=False, seed=seed)
+        bar.update()
+    if names != seed:
+        return False
+
+    def write(staging):
+        for p in folder.iterdir():
+            if not p.name.startswith("."):
+                shutil.copy2(p, staging / p.name)
+        cache = {}
+        added = [write_function(sf, model.name, staging, cache)
+                 for sf in tqdm(functions, desc="generating C", unit="fn", disable=None if progress else True)]
+        grown = {**manifest, "functions": _canonical([*manifest["functions"], *added]),
+                 "files": _file_hashes(staging)}
+        write_file(staging / MANIFEST, json.dumps(grown, indent=2, sort_keys=True) + "\n")
+
+    _staged(folder, write)
     return True
 
 
@@ -284,7 +374,11 @@ def check_output(model, folder: Path, numbers: str | None = None) -> list:
     mode the folder must be in (None: its own), as for :func:`check`.
     """
     reasons = check(model, folder, numbers)
-    derivation_only = reasons and all("derivation_hash changed" in r for r in reasons)
+    if not reasons:  # current, but a folder grown for some controllers only is not a whole generation
+        missing = missing_controllers(read_manifest(folder))
+        return [f"{folder}: holds no functions of {', '.join(missing)} (generated for some controllers "
+                "only)"] if missing else []
+    derivation_only = all("derivation_hash changed" in r for r in reasons)
     if not derivation_only:
         return reasons
     folder = Path(folder)

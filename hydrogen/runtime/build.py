@@ -5,7 +5,7 @@ import hashlib
 from pathlib import Path
 
 from ..codegen.generate import (DEFAULT_NUMBERS, check, check_numbers_mode, derivation_hash, generate_locked,
-                                read_manifest, structure_hash)
+                                missing_controllers, read_manifest, structure_hash)
 from ..errors import BuildCacheError
 from ..model import Model, load_model
 from .cachedir import cache_errors, check_cache_root, folder_lock, warm_library
@@ -177,7 +177,11 @@ def build(model: Model | str | Path | None = None, *, cc: str | None = None,
     controllers : sequence of str
         Controllers (names, as ``simulate`` takes them) whose full variant's library is compiled
         with the core, in the same pool of compilers, and loaded now (the variant a run with the
-        composite law runs, the default gains). ``hydrogen.CONTROLLERS``: all of them.
+        composite law runs, the default gains). ``hydrogen.CONTROLLERS``: all of them. Where the C
+        is generated now (a new structure), only these controllers are derived; empty (the
+        default): all. A build whose folder lacks one adds it (derives it alone); a controller
+        the build does not hold is an error naming the build's controllers when it is run.
+        Empty: a folder that lacks some controller gets it.
     numbers : "inputs" (default) or "constants"
         "inputs" generates every function with the description's numbers as an input the runtime
         fills from the description (``Model.numbers()``), as the committed code is: a description
@@ -206,6 +210,8 @@ def build(model: Model | str | Path | None = None, *, cc: str | None = None,
         return made[-1]
 
     lib = warm_library(model, folder, toolchain, root, loader, numbers)  # no lock, no write: a read-only cache works
+    if lib is not None and missing_controllers(lib.manifest, controllers or None):
+        lib = None  # the folder holds other controllers: theirs are added under the lock
     if lib is not None:
         groups = _full_variants(made[-1].manifest, controllers)
         missing = [g for g in groups if _cached_or_none(made[-1], g) is None]
@@ -218,8 +224,9 @@ def build(model: Model | str | Path | None = None, *, cc: str | None = None,
         with cache_errors(root), folder_lock(folder, current=committed):
             if generated is None and not committed:
                 _drop_broken_entry(model, folder)
-            with generation_reported(report, model, folder):
-                generate_locked(model, folder, numbers=numbers)  # no-op when current
+            with generation_reported(report, model, folder, controllers=controllers):
+                # no-op when current; a build for some controllers derives only theirs
+                generate_locked(model, folder, numbers=numbers, controllers=controllers or None)
             manifest = read_manifest(folder)
             if manifest is None:
                 raise BuildCacheError(f"{folder}: generated folder has no readable manifest after generation")

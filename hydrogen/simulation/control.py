@@ -241,6 +241,11 @@ def make_controller(dyn, kind, gains=None, theta0=None, gamma0=None, period=None
     if kind not in CONTROLLERS:
         raise ScenarioError(f"unknown controller '{kind}'; choose one of {', '.join(CONTROLLERS)}")
     model = dyn.model
+    if function_name(kind) not in dyn.functions:  # a build for some controllers only
+        held = [k for k in CONTROLLERS if function_name(k) in dyn.functions]
+        raise ScenarioError(f"controller '{kind}' is not in this build of '{model.name}' (it holds "
+                            f"{', '.join(held) or 'no controller'}); build with hydrogen.build(model, "
+                            f"controllers=[..., '{kind}']), or with no controllers named for all")
     theta0 = model.theta if theta0 is None else np.asarray(theta0, float)
     gamma0 = model.gamma if gamma0 is None else np.asarray(gamma0, float)
     origin = {}  # where a gain set by the description or the caller came from, for the messages

@@ -174,8 +174,8 @@ def plant_functions(model) -> list:
                              f"Plant state rate: x = [q, qdot, pc, spool, spool rate] ({size}), SI units; valve = [lag s, natural frequency rad/s, damping].", intermediates)]
 
 
-def controller_functions(model) -> list:
-    """Each controller; and, for a controller with a state, its rates-only function: the same inputs
+def controller_functions(model, kinds=None) -> list:
+    """Each controller (of ``kinds``, in the registry's order; None: all); and, for a controller with a state, its rates-only function: the same inputs
     (so one argument table serves both) and the output ``xc_dot`` alone, from which CasADi keeps only
     what the rates need (no τ̇_d, ḟ_d, v or valve inverse): the loop's semi-implicit state update;
     and its semi-implicit step. A controller with the composite adaptation's blocks gets the three
@@ -186,6 +186,8 @@ def controller_functions(model) -> list:
 
     out = []
     for name in CONTROLLERS:
+        if kinds is not None and name not in kinds:
+            continue
         mod = controller(name)
         parts = mod.derive(model)
         full = SymbolicFunction(function_name(name), parts.inputs, parts.outputs, mod.DOC, parts.intermediates)
@@ -206,26 +208,37 @@ def controller_functions(model) -> list:
     return out
 
 
-def derive_functions(model, controllers: bool = True) -> list:
-    """Every function generated for ``model``, in a fixed order."""
+def derive_functions(model, controllers=True, core: bool = True) -> list:
+    """Every function generated for ``model``, in a fixed order: the core's (kinematics, rigid
+    body, hydraulics, plant) unless ``core`` is false, then the controllers' (``controllers``: True
+    for all, False for none, or the names of some)."""
     funcs = kinematics_functions(model) + rigid_body_functions(model) + hydraulic_functions(model) \
-        + plant_functions(model)
-    return funcs + controller_functions(model) if controllers else funcs
+        + plant_functions(model) if core else []
+    if controllers is False:
+        return funcs
+    return funcs + controller_functions(model, None if controllers is True else tuple(controllers))
 
 
 
 
-def derive_parametric(model, controllers: bool = True, key: str = "name") -> tuple:
+def derive_parametric(model, controllers=True, key: str = "name", core: bool = True, seed=None) -> tuple:
     """(functions, names, values): :func:`derive_functions` with the description's numbers left as
     symbols (:func:`~hydrogen.symbolic.constants.numbers_as_symbols`), each :class:`SymbolicFunction`
     taking them as one more input, :data:`NUMBERS` (the same vector for all, the numbers in the order
     the derivation met them); ``names`` of its entries (``key`` "name": those of
     ``model.numbers()``), ``values`` the description's. The specialisations and steps are made of
-    the parametric functions, so they take the input too."""
+    the parametric functions, so they take the input too. ``controllers`` and ``core``: as for
+    :func:`derive_functions`. ``seed``: names of numbers to enter first, in order (the vector of
+    functions derived before, which functions derived now must share); a number met that is not
+    among them is appended (the caller sees ``names`` grow)."""
     from .constants import numbers_as_symbols
 
     with numbers_as_symbols(key) as table:
-        funcs = derive_functions(model, controllers)
+        if seed:
+            values = model.numbers()
+            for name in seed:
+                table.symbol(values[name], name)
+        funcs = derive_functions(model, controllers, core)
     vector = sp.Matrix(table.symbols)
     made = {}
 
