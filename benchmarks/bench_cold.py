@@ -7,10 +7,14 @@ fresh Python process with a fresh cache, timed from the process start:
 * every shipped robot (``hydrogen.models()``) with its gravity set to 0: a number becomes zero, which
   the derivation holds exact, so its structure changes and nothing committed or cached serves it;
 * the spatial 3-DOF leg of ``bench_forms.py`` (``leg_description``), the class of a quadruped's leg;
-* the planar chain of ``bench_scaling.py`` (``chain_description``) of ``CHAIN_N`` links.
+* the planar chain of ``bench_scaling.py`` (``chain_description``) of ``CHAIN_N`` links;
+* the URDF-born leg (``common.URDF_LEG``: rpy joint origins, full inertias, nine adapted
+  parameters, as users load a robot) to its first ``LEG_CONTROLLER`` run, by both routes side by side:
+  the numbers as inputs (the default) and folded (``numbers="constants"``).
 
-Each process builds (``hydrogen.build``: the derivation, the rendering and the core library's
-compile), then runs ``CONTROLLER`` for ``DURATION`` s of the first scenario (whose first use
+Each process builds for the controller it runs, as ``hydrogen simulate`` does (``hydrogen.build(...,
+controllers=[CONTROLLER])``: the derivation of the core and of that controller alone, the rendering
+and the core library's compile), then runs ``CONTROLLER`` for ``DURATION`` s of the first scenario (whose first use
 compiles the library of the variant the scenario's gains run); a description with no scenario (the
 leg) takes the controller's full variant instead, as a run with the composite law compiles it.
 Reported: process wall and CPU seconds (the process and its compilers), the generation and the core
@@ -34,12 +38,14 @@ except ImportError:  # run as a script, or loaded from its path
     import common
 
 CONTROLLER = "adaptive-robust"
+#: The URDF-born leg's first run: the controller a new robot is tried with first.
+LEG_CONTROLLER = "backstepping"
 DURATION = 0.05
 RUNS = 2
 CHAIN_N = 7
 #: The wall-time target of each case's class, s (2 cores): a platform like the Stewart one, a spatial
-#: 3-DOF leg, a 7-link chain.
-TARGETS = {"robot": 15.0, "leg": 30.0, "chain": 60.0}
+#: 3-DOF leg, a 7-link chain, a leg from a URDF (numbers as inputs; the folded route has none).
+TARGETS = {"robot": 15.0, "leg": 30.0, "chain": 60.0, "urdf": 60.0}
 
 _RUN = """
 import json, resource, sys, time
@@ -59,7 +65,7 @@ else:
     from bench_scaling import chain_description
     model = model_from_dict(chain_description(int(arg)))
 events = []
-dyn = hydrogen.build(model, cache={cache!r}, progress=events.append)
+dyn = hydrogen.build(model, cache={cache!r}, progress=events.append, numbers={numbers!r}, controllers=({controller!r},))
 t1 = time.perf_counter()
 scenarios = scenario_names(model)
 if scenarios:  # compiles the library of the variant the scenario's gains run, then runs
@@ -87,14 +93,17 @@ def structural_copy(name: str, folder: Path) -> Path:
 
 
 def cases(root: Path) -> list:
-    """``(label, class, kind, argument)`` of every case; robots' edited copies written under ``root``."""
+    """``(label, class, kind, argument, controller, numbers)`` of every case; robots' edited copies
+    written under ``root``."""
     out = []
     for name in common.robots():
         folder = root / f"desc-{name}"
         folder.mkdir()
-        out.append((f"{name}, gravity 0", "robot", "robot", str(structural_copy(name, folder))))
-    out.append(("spatial 3-DOF leg", "leg", "leg", ""))
-    out.append((f"planar chain, n = {CHAIN_N}", "chain", "chain", str(CHAIN_N)))
+        out.append((f"{name}, gravity 0", "robot", "robot", str(structural_copy(name, folder)), CONTROLLER, "inputs"))
+    out.append(("spatial 3-DOF leg", "leg", "leg", "", CONTROLLER, "inputs"))
+    out.append((f"planar chain, n = {CHAIN_N}", "chain", "chain", str(CHAIN_N), CONTROLLER, "inputs"))
+    for numbers in ("inputs", "constants"):  # side by side: the default route and the folded one
+        out.append((f"URDF leg, numbers as {numbers}", "urdf", "robot", str(common.URDF_LEG), LEG_CONTROLLER, numbers))
     return out
 
 
@@ -104,21 +113,23 @@ def run(quick: bool = False) -> dict:
     rows = []
     with tempfile.TemporaryDirectory(prefix="bench_cold_") as root:
         root = Path(root)
-        for label, cls, kind, arg in cases(root):
+        for label, cls, kind, arg, controller, numbers in cases(root):
             rs = []
             for i in range(runs):
                 cache = root / f"cache-{len(rows)}-{i}"
                 stdout, wall = common.run_python(_RUN.format(
                     bench=str(Path(__file__).resolve().parent), kind=kind, arg=arg, cache=str(cache),
-                    controller=CONTROLLER, duration=DURATION))
+                    controller=controller, duration=DURATION, numbers=numbers))
                 r = common.parse_keyed(stdout)
                 r["process_wall_s"] = wall
                 rs.append(r)
                 shutil.rmtree(cache, ignore_errors=True)
             row = {k: common.median(r[k] for r in rs) for k in
                    ("process_wall_s", "cpu_s", "generate_s", "core_compile_s", "first_use_s")}
-            row.update(case=label, cls=cls, target_s=TARGETS[cls], ran=bool(rs[0]["ran"]), runs=rs,
-                       within_target=row["process_wall_s"] < TARGETS[cls])
+            target = TARGETS[cls] if numbers == "inputs" else None  # the folded route is shown beside it
+            row.update(case=label, cls=cls, controller=controller, numbers=numbers, target_s=target,
+                       ran=bool(rs[0]["ran"]), runs=rs,
+                       within_target=None if target is None else row["process_wall_s"] < target)
             rows.append(row)
     return {"rows": rows, "controller": CONTROLLER, "duration_s": DURATION, "runs": runs, "quick": quick,
             "wall_s": time.perf_counter() - t0, "machine": common.machine_info()}
@@ -126,17 +137,18 @@ def run(quick: bool = False) -> dict:
 
 def print_table(res: dict, checks: bool = False) -> None:
     """The table; with ``checks`` (the project's release checks) each class's target and whether it holds."""
-    print(f"A structural edit to the first {res['controller']} run, fresh process and cache; seconds "
-          f"(median of {res['runs']}):")
-    header = f"{'case':<32} {'wall':>7} {'CPU':>7} {'generate':>9} {'core cc':>8} {'first use':>10}"
+    print(f"A structural edit to the first run, fresh process and cache; seconds (median of {res['runs']}):")
+    header = (f"{'case':<32} {'controller':<16} {'wall':>7} {'CPU':>7} {'generate':>9} {'core cc':>8} "
+              f"{'first use':>10}")
     header += f" {'target':>7} {'met':>4}" if checks else ""
     print(header)
     print("-" * len(header))
     for r in res["rows"]:
-        line = (f"{r['case']:<32} {r['process_wall_s']:>7.2f} {r['cpu_s']:>7.2f} {r['generate_s']:>9.2f} "
-                f"{r['core_compile_s']:>8.2f} {r['first_use_s']:>10.2f}")
+        line = (f"{r['case']:<32} {r.get('controller', res['controller']):<16} {r['process_wall_s']:>7.2f} "
+                f"{r['cpu_s']:>7.2f} {r['generate_s']:>9.2f} {r['core_compile_s']:>8.2f} {r['first_use_s']:>10.2f}")
         if checks:
-            line += f" {r['target_s']:>7.0f} {'yes' if r['within_target'] else 'NO':>4}"
+            met = {True: "yes", False: "NO", None: "-"}[r["within_target"]]
+            line += f" {'-' if r['target_s'] is None else format(r['target_s'], '.0f'):>7} {met:>4}"
         print(line)
     print(f"whole benchmark {res['wall_s']:.1f} s")
 

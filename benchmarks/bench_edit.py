@@ -1,6 +1,7 @@
 """From an edit of a number in a robot's description to the next run finishing, by two routes.
 
-For every shipped robot (``hydrogen.models()``), the description is copied and one number edited:
+For every shipped robot (``hydrogen.models()``) and the URDF-born leg (``common.URDF_LEG``), the
+description is copied and one number edited:
 gravity, 0.1 % lower (a number every description has; any other number takes the same route).
 Each route then runs in a fresh Python process, timed from its start to the end of a short
 ``hydrogen.simulate`` (the robot's first scenario, ``backstepping``, ``DURATION`` s):
@@ -99,7 +100,10 @@ def run_robot(name: str, runs: int) -> dict:
 def run(quick: bool = False, models=None) -> dict:
     t0 = time.perf_counter()
     runs = 1 if quick else RUNS
-    robots = {name: run_robot(name, runs) for name in (models or common.robots())}
+    import hydrogen
+
+    names = models or [*common.robots(), str(common.URDF_LEG)]
+    robots = {hydrogen.load_model(name).name: run_robot(name, runs) for name in names}
     return {"robots": robots, "quick": quick, "runs": runs, "wall_s": time.perf_counter() - t0,
             "machine": common.machine_info()}
 

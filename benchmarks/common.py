@@ -124,6 +124,12 @@ def robots() -> list:
     return sorted(names, key=lambda x: (x != DEFAULT_MODEL, x))
 
 
+#: The benchmarks' URDF-born robot: one leg of a hydraulic quadruped as a CAD export gives it (rpy
+#: joint origins, full inertia tensors, fixed foot and sensor links; a rotary vane and two four-way
+#: cylinders; nine adapted parameters), the kind of description users load. Its own numbers.
+URDF_LEG = Path(__file__).resolve().parent / "data" / "urdf_leg.toml"
+
+
 def _scenario_tables(model) -> list:
     from hydrogen.simulation.scenarios import scenario_names
 

@@ -390,14 +390,17 @@ def _cold(b) -> list:
         return []
     out = ["## From a structural edit to the first run", "",
            f"`benchmarks/bench_cold.py`: a description whose structure changed (each shipped robot with gravity 0: "
-           f"a number become zero, which the derivation holds exact), a spatial 3-DOF leg and a 7-link planar chain, "
-           f"each in a fresh process with an empty cache: generation, the core library's compile, and the first "
-           f"`{b.get('controller')}` run of {_f(b.get('duration_s'))} s (its first use compiles the library of the "
-           f"variant it runs; the leg, with no scenario, compiles the full one). Seconds, median of {b.get('runs')} "
-           f"run{'s' if b.get('runs') != 1 else ''}:", ""]
-    table = [[r["case"], _f(r["process_wall_s"]), _f(r["cpu_s"]), _f(r["generate_s"]), _f(r["core_compile_s"]),
-              _f(r["first_use_s"])] for r in rows]
-    return out + _table(["case", "process wall", "CPU", "generation", "core compile", "first use"], table)
+           f"a number become zero, which the derivation holds exact), a spatial 3-DOF leg, a 7-link planar chain "
+           f"and a leg loaded from a URDF (`benchmarks/data/urdf_leg.toml`: rpy joint origins, full inertia "
+           f"tensors, a rotary vane and two four-way cylinders, nine adapted parameters) by both routes, the numbers "
+           f"as inputs and folded, each in a fresh process with an empty cache: generation, the core library's "
+           f"compile, and the first run of {_f(b.get('duration_s'))} s of the controller named (its first use "
+           f"compiles the library of the variant it runs; the spatial leg, with no scenario, compiles the full one). "
+           f"Seconds, median of {b.get('runs')} run{'s' if b.get('runs') != 1 else ''}:", ""]
+    table = [[r["case"], r.get("controller", b.get("controller")), _f(r["process_wall_s"]), _f(r["cpu_s"]),
+              _f(r["generate_s"]), _f(r["core_compile_s"]), _f(r["first_use_s"])] for r in rows]
+    return out + _table(["case", "controller", "process wall", "CPU", "generation", "core compile", "first use"],
+                        table)
 
 
 #: hydrogen's function and the recursive algorithm of benchmarks/bench_recursive.py it is compared with.
