@@ -116,7 +116,7 @@ def _simulate_seeds(args, model, dyn, events) -> int:
     if last is not None and last.stage == "built":
         print(f"built in {last.elapsed_s:.1f} s ({last.detail})")
     seeds = res.seeds
-    names = f"{seeds[0]}..{seeds[-1]}" if seeds == list(range(seeds[0], seeds[-1] + 1)) else ",".join(map(str, seeds))
+    names = f"{seeds[0]}..{seeds[-1]}" if seeds == list(range(seeds[0], seeds[0] + len(seeds))) else ",".join(map(str, seeds))
     if m["completed"]:
         print(f"scenario {res.scenario_name}, controller {res.controller}: {len(seeds)} noise seeds ({names}), "
               f"{m['median']['sim_time_s']:.2f} s simulated each, in {wall:.1f} s")
