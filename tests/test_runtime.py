@@ -1,5 +1,6 @@
 """Build cache, compiler selection and failure reporting of the runtime."""
 import os
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -280,3 +281,34 @@ def test_a_cached_manifest_whose_numbers_list_was_swapped_is_generated_again(mod
     q = model.neutral_pose
     np.testing.assert_array_equal(d.library.numbers, dyn.library.numbers)  # each value in its own place
     np.testing.assert_allclose(d.gravity(q, model.theta), dyn.gravity(q, model.theta), rtol=1e-12)
+
+
+def test_separate_caches_build_under_their_own_locks(model, tmp_path, monkeypatch):
+    """A build from the committed generated/ only reads it: its lock is in the cache, so two caches
+    never wait for each other's compile, and no lock file is made in the checkout."""
+    from contextlib import contextmanager
+
+    import hydrogen.fileio as fileio
+    from hydrogen.runtime.build import repo_generated_dir
+    from hydrogen.runtime.cachedir import build_lock_path
+
+    committed = repo_generated_dir() / model.name
+    a, b = (build_lock_path(committed, tmp_path / r, committed=True) for r in ("a", "b"))
+    assert a != b and a.is_relative_to(tmp_path / "a") and b.is_relative_to(tmp_path / "b")
+    mine = tmp_path / "mine"
+    assert build_lock_path(mine, tmp_path / "a", committed=False) == mine  # a folder the build may write
+
+    real, taken = fileio.locked, []
+
+    @contextmanager
+    def recorded(path, timeout=None):
+        taken.append(Path(path))
+        with real(path, timeout):
+            yield
+    monkeypatch.setattr(fileio, "locked", recorded)
+    fast = ("-O0", "-fPIC", "-std=c99")  # the lock is under test, not the optimiser
+    for root in (tmp_path / "a", tmp_path / "b"):
+        dyn = hydrogen.build(model, cache=root, cflags=fast)
+        assert dyn.library.generated_dir == committed
+    assert taken and a in taken and b in taken
+    assert not [p for p in taken if p.is_relative_to(repo_generated_dir())], taken
