@@ -41,24 +41,28 @@ def simulate(scenario="paper-sim", controller="adaptive-robust", *, model=None, 
     return _simulate(dyn or default_dynamics(model, progress, controller), scenario, controller, **overrides)
 
 
-def default_dynamics(model=None, progress=None, controller=None):
-    """Compiled dynamics for ``model``: the library is built once per process and baked model; the
-    returned Dynamics carries this very model, so its runtime parameters (θ, γ, bounds) are used.
+def default_dynamics(model=None, progress=None, controller=None, numbers=None):
+    """Compiled dynamics for ``model``: the library is built once per process, baked model and
+    ``numbers`` mode (:func:`hydrogen.runtime.build.build`'s; None: its default); the returned
+    Dynamics carries this very model, so its runtime parameters (θ, γ, bounds) are used.
     ``progress``: the build's callback (called only when this process builds or loads it).
     ``controller``: a controller whose library the first build compiles with the core (in one pool of
     compilers); any other is compiled on its first use."""
+    from .codegen.generate import DEFAULT_NUMBERS
     from .dynamics import Dynamics
     from .simulation.sweep import _model_path
     from .controllers import CONTROLLERS, function_name
 
     m = model if isinstance(model, Model) else load_model(_model_path(model))
-    key = m.baked_hash()
+    numbers = DEFAULT_NUMBERS if numbers is None else numbers
+    key = (m.baked_hash(), numbers)
     wanted = tuple(c for c in (controller,) if c in CONTROLLERS)
     lib = _DEFAULT_DYN.get(key)
     if lib is None or any(function_name(c) not in lib.group_of for c in wanted):
         # a new structure derives only the controller run; another one later is added to it
         held = () if lib is None else tuple(c for c in CONTROLLERS if function_name(c) in lib.group_of)
-        _DEFAULT_DYN[key] = build(m, progress=progress, controllers=(*held, *wanted) if wanted else ()).library
+        _DEFAULT_DYN[key] = build(m, progress=progress, numbers=numbers,
+                                  controllers=(*held, *wanted) if wanted else ()).library
     return Dynamics(m, _DEFAULT_DYN[key])
 
 

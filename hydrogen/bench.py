@@ -65,6 +65,9 @@ def run_suite(quick: bool = False, json_path: str | None = None, only=None, prog
     unknown = sorted(set(only or ()) - {n for n, _ in SUITE})
     if unknown:
         raise HydrogenError(f"unknown benchmark module(s) {unknown}; the suite has {', '.join(n for n, _ in SUITE)}")
+    if json_path:
+        from .pages import check_benchmarks_page
+        check_benchmarks_page(json_path)  # before minutes of benchmarks, not after
     folder = Path(__file__).resolve().parents[1] / "benchmarks"
     if not folder.is_dir():
         raise HydrogenError(f"{folder}: no benchmarks folder; run 'hydrogen bench' from a source checkout")

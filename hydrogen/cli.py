@@ -68,7 +68,7 @@ def _cmd_simulate(args) -> int:
     # Built apart from the run, so the summary tells the two times apart (stages on stderr).
     events = []
     dyn = hydrogen.build(model, progress=lambda e: (events.append(e), print_event(e)),
-                         controllers=(args.controller,))
+                         controllers=(args.controller,), **_build_options(args))
     if args.seeds is not None:
         return _simulate_seeds(args, model, dyn, events)
     try:
@@ -116,7 +116,7 @@ def _simulate_seeds(args, model, dyn, events) -> int:
     if last is not None and last.stage == "built":
         print(f"built in {last.elapsed_s:.1f} s ({last.detail})")
     seeds = res.seeds
-    names = f"{seeds[0]}..{seeds[-1]}" if seeds == list(range(seeds[0], seeds[-1] + 1)) else ",".join(map(str, seeds))
+    names = f"{seeds[0]}..{seeds[-1]}" if seeds == list(range(seeds[0], seeds[0] + len(seeds))) else ",".join(map(str, seeds))
     if m["completed"]:
         print(f"scenario {res.scenario_name}, controller {res.controller}: {len(seeds)} noise seeds ({names}), "
               f"{m['median']['sim_time_s']:.2f} s simulated each, in {wall:.1f} s")
@@ -173,7 +173,7 @@ def _cmd_identify(args) -> int:
     if args.json:
         check_output_file(args.json, "--json")
     res = hydrogen.identify(Path(args.log), model=args.model, cutoff_hz=args.cutoff,
-                            zoh_correction=args.zoh_correction)
+                            zoh_correction=args.zoh_correction, **_build_options(args))
     print(res.summary())
     if args.json:
         atomic_write(Path(args.json), json.dumps(res.to_dict(), indent=2, sort_keys=True) + "\n")
@@ -187,8 +187,8 @@ def _cmd_figures(args) -> int:
     from .outputs import check_output_dir
 
     check_output_dir(args.out, "figures --out")
-    paths = make_all(hydrogen.build(hydrogen.load_model(args.model)), Path(args.out), quiet=args.quiet,
-                     seeds=args.seeds)
+    paths = make_all(hydrogen.build(hydrogen.load_model(args.model), **_build_options(args)), Path(args.out),
+                     quiet=args.quiet, seeds=args.seeds)
     for name, path in paths.items():
         print(f"{name}: {path}")
     return 0
@@ -205,7 +205,8 @@ def _cmd_export(args) -> int:
         raise HydrogenError("--part and --step are options of --format fmu")
     model = hydrogen.load_model(args.model)
     args.scenario = args.scenario or default_scenario_name(model)
-    out = export(Path(args.out), args.scenario, args.controller, model=model, duration=args.duration)
+    out = export(Path(args.out), args.scenario, args.controller, model=model, duration=args.duration,
+                 **_build_options(args))
     print(f"{out}: {args.controller} on {args.scenario}; build and run with 'make -C {out} run'")
     return 0
 
@@ -221,7 +222,7 @@ def _cmd_export_fmu(args) -> int:
     model = hydrogen.load_model(args.model)
     args.scenario = args.scenario or default_scenario_name(model)
     out = export_fmu(Path(args.out), args.part, args.scenario, args.controller, model=model, duration=args.duration,
-                     step=args.step)
+                     step=args.step, **_build_options(args))
     what = "plant" if args.part == "plant" else f"{args.part} ({args.controller})"
     print(f"{out}: FMI 2.0 co-simulation FMU of the {what} on {args.scenario}; check it with "
           f"'python -m fmpy validate {out}'")
@@ -242,7 +243,7 @@ def _cmd_tune(args, controller=None) -> int:
             raise HydrogenError(f"--min ({lo:g}) must be below --max ({hi:g})")
         grid = np.geomspace(lo, hi, args.n or 25)
     res = tune(controller, grid, model=args.model, max_workers=args.workers, progress=not args.quiet,
-               seeds=args.seeds, variant=args.variant)
+               seeds=args.seeds, variant=args.variant, **_build_options(args))
     name = res["main_gain"]
     print(f"{controller} on model {res['model']}: main gain {name}; every point over {len(res['seeds'])} noise "
           f"seeds (stable: on every seed; max err: median [min - max] over the seeds)")
@@ -295,7 +296,7 @@ def _cmd_margins(args) -> int:
     from .simulation.tuning import margins
 
     res = margins(args.controller or None, model=args.model, max_workers=args.workers, progress=not args.quiet,
-                  seeds=args.seeds, variant=args.variant)
+                  seeds=args.seeds, variant=args.variant, **_build_options(args))
     n = len(res["seeds"])
     print(f"stability margins on model {res['model']}: factor by which the main gain can grow while stable on "
           f"every one of {n} noise seeds; max error at the robot's gains: median [min - max] over the seeds")
@@ -349,6 +350,20 @@ def _number(kind, low=None, strict=True, high=None):
     return parse
 
 
+def _add_build_options(sp) -> None:
+    """The options of every command that builds the model: ``--numbers``."""
+    from .codegen.generate import DEFAULT_NUMBERS, NUMBERS_MODES
+    sp.add_argument("--numbers", choices=NUMBERS_MODES, default=DEFAULT_NUMBERS,
+                    help=f"build with the description's numbers as inputs of the generated functions (one "
+                         f"library serves every edit of numbers) or folded as constants (a library per set of "
+                         f"numbers; default: {DEFAULT_NUMBERS})")
+
+
+def _build_options(args) -> dict:
+    """The keywords of :func:`hydrogen.build` that :func:`_add_build_options` added, from ``args``."""
+    return {"numbers": args.numbers}
+
+
 def build_parser() -> argparse.ArgumentParser:
     from .codegen.generate import DEFAULT_NUMBERS, NUMBERS_MODES
     parser = argparse.ArgumentParser(prog="hydrogen", description=__doc__.splitlines()[0])
@@ -388,6 +403,7 @@ def build_parser() -> argparse.ArgumentParser:
                           "seeds 0..N-1, or a list such as 0,3,7 (default: one run, the scenario's seed)")
     sim.add_argument("--workers", type=_number(int, 1, strict=False),
                      help="with --seeds: processes (default: the core count)")
+    _add_build_options(sim)
     sim.set_defaults(func=_cmd_simulate)
     ident = sub.add_parser("identify", help="estimate theta (and gamma) by least squares from a rig log CSV",
                            description="Least-squares identification of the rigid-body parameters theta and the "
@@ -400,6 +416,7 @@ def build_parser() -> argparse.ArgumentParser:
     ident.add_argument("--zoh-correction", action="store_true",
                        help="pressures sampled where the held spool command changes, ideal valve (hydrogen's "
                             "paper-sim): correct for the pressure's curve within the period")
+    _add_build_options(ident)
     ident.set_defaults(func=_cmd_identify)
     fig = sub.add_parser("figures", help="run every scenario and write the paper's figures and table",
                          description="Counterparts of Figs. 2, 3, 5-8 (PNG) and the comparison table (Markdown).")
@@ -410,6 +427,7 @@ def build_parser() -> argparse.ArgumentParser:
                      help=f"sensor-noise seeds of the rig scenarios: the figures show the median run and the band "
                           f"of the seeds, the table median and range (N: seeds 0..N-1, or a list such as 0,3,7; "
                           f"default: {DEFAULT_SEEDS})")
+    _add_build_options(fig)
     fig.set_defaults(func=_cmd_figures)
     b = sub.add_parser("bench", help="run the benchmark suite (per-step cost, build times)",
                        description="Per-period cost of the loop through four routes, C cost of each function, "
@@ -440,6 +458,7 @@ def build_parser() -> argparse.ArgumentParser:
         sp.add_argument("--workers", type=_number(int, 1, strict=False), help="processes (default: the core count)")
         sp.add_argument("--quiet", action="store_true", help="no progress bar")
         seeds_arg(sp)
+        _add_build_options(sp)
 
     tn = sub.add_parser("tune", help="the documented gain search for a controller on the model's rig (parallel sweep)",
                         description="Sweep a controller's main gain on the model's rig scenarios; pick the gain with "
@@ -459,6 +478,7 @@ def build_parser() -> argparse.ArgumentParser:
     mg.add_argument("--workers", type=_number(int, 1, strict=False), help="processes (default: the core count)")
     mg.add_argument("--quiet", action="store_true", help="no progress bar")
     seeds_arg(mg)
+    _add_build_options(mg)
     mg.set_defaults(func=_cmd_margins)
     ex = sub.add_parser("export", help="write deployable C (sources, params.h, main.c, Makefile) or an FMU",
                         description="A folder that builds with only a C compiler and runs one scenario's "
@@ -476,6 +496,7 @@ def build_parser() -> argparse.ArgumentParser:
     ex.add_argument("--controller", default="adaptive-robust", choices=CONTROLLERS)
     ex.add_argument("--duration", type=_number(float, 0), help="simulated time, s (default: the scenario's)")
     ex.add_argument("--model", help="built-in model name (hydrogen.models()) or TOML file (default: ubc_stewart)")
+    _add_build_options(ex)
     ex.set_defaults(func=_cmd_export)
     return parser
 

@@ -90,13 +90,14 @@ def _sha256(data: bytes) -> str:
     return hashlib.sha256(data).hexdigest()
 
 
-def resolve_dyn(model, dyn):
+def resolve_dyn(model, dyn, numbers=None):
     """The compiled dynamics to export: ``dyn``, or those of ``model`` (default robot when both are
-    None); a ``model`` that differs from ``dyn``'s raises ValueError."""
+    None) built with ``numbers`` (:func:`hydrogen.build`'s); a ``model`` that differs from ``dyn``'s
+    raises ValueError."""
     import hydrogen
 
     if dyn is None:
-        return hydrogen.default_dynamics(model)
+        return hydrogen.default_dynamics(model, numbers=numbers)
     if model is not None:
         m = model if isinstance(model, hydrogen.Model) else hydrogen.load_model(model)
         if m.baked_hash() != dyn.model.baked_hash():
@@ -330,7 +331,7 @@ _STEP_NOTE = """
                   the command at the updated state)"""
 
 
-def prepare_export(model, dyn, scenario, controller, gains, duration, check_workspace, overrides):
+def prepare_export(model, dyn, scenario, controller, gains, duration, check_workspace, overrides, numbers=None):
     """What an exported program (C folder or FMU) runs: ``(dyn, scenario, its name, the prepared run)``.
 
     The names are checked, as they are written into generated files; the run is prepared exactly
@@ -342,7 +343,7 @@ def prepare_export(model, dyn, scenario, controller, gains, duration, check_work
     from .simulation.scenarios import default_scenario_name, scenario as named_scenario
     from .simulation.simulator import prepare_run
 
-    dyn = resolve_dyn(model, dyn)
+    dyn = resolve_dyn(model, dyn, numbers)
     if scenario is None:
         scenario = default_scenario_name(dyn.model)
     sc = named_scenario(scenario, dyn.model) if isinstance(scenario, str) else scenario
@@ -369,7 +370,7 @@ def sensor_kalman_gain(p):
 
 
 def export(out_dir, scenario=None, controller="adaptive-robust", model=None, duration=None, *,
-           dyn=None, gains=None, generated=None, check_workspace=True, **overrides) -> Path:
+           dyn=None, gains=None, generated=None, check_workspace=True, numbers=None, **overrides) -> Path:
     """Write a self-contained C99 program of ``controller`` on ``scenario`` into ``out_dir``.
 
     Parameters
@@ -384,7 +385,9 @@ def export(out_dir, scenario=None, controller="adaptive-robust", model=None, dur
     duration : float or None
         Simulated time, s (default: the scenario's).
     dyn : Dynamics, optional
-        Compiled dynamics to export from (default ``hydrogen.build(model)``).
+        Compiled dynamics to export from (default ``hydrogen.build(model, numbers=numbers)``).
+    numbers : "inputs", "constants" or None
+        How ``model`` is built when ``dyn`` is not given (:func:`hydrogen.build`; None: its default).
     gains : dict, optional
         Controller gain overrides, as for :func:`hydrogen.simulate`.
     generated : path, optional
@@ -403,7 +406,7 @@ def export(out_dir, scenario=None, controller="adaptive-robust", model=None, dur
     # Refused before anything is built or run: the folder must be new, empty or an earlier export.
     check_export_dir(Path(out_dir).absolute())
     dyn, sc, sc_name, p = prepare_export(model, dyn, scenario, controller, gains, duration, check_workspace,
-                                         overrides)
+                                         overrides, numbers)
     overrides = dict(overrides)
     sensor_gain = sensor_kalman_gain(p)
 

@@ -346,7 +346,7 @@ def _check_samples(log, t, fs, edge, step, what):
 def identify(log, model=None, *, dyn=None, cutoff_hz: float | None = None, order: int = 4,
              decimate: int | None = None, edge_cycles: float = 3.0, max_cond: float = 1e3,
              gamma: bool = True, gamma_cutoff_hz: float | None = None,
-             zoh_correction: bool = False) -> Identification:
+             zoh_correction: bool = False, numbers: str | None = None) -> Identification:
     """Estimate θ (and γ = [β, βc] when the log has spool commands) by least squares from a log.
 
     ``log``: a :class:`~hydrogen.simulation.simulator.SimulationResult` (its true leg lengths and
@@ -362,6 +362,8 @@ def identify(log, model=None, *, dyn=None, cutoff_hz: float | None = None, order
     the spool follows its command at once (a zero-order-hold controller with an ideal valve, as in
     hydrogen's paper-sim): add β h² l̈/(12 (l − L)) to each pressure, the offset between such a
     sample and the pressure the differenced positions see (see below); uses the model's β.
+    ``numbers``: how ``model`` is built when ``dyn`` is not given (:func:`hydrogen.build`'s; None: its
+    default).
 
     Returns an :class:`Identification`: ``.theta.estimate``, ``.theta.std_error``, ``.theta.cond``,
     ``.theta.identifiable``, ``.theta.direction``, the same for ``.gamma`` (or None), and
@@ -381,7 +383,7 @@ def identify(log, model=None, *, dyn=None, cutoff_hz: float | None = None, order
     timings = {}
     log = as_log(log)
     if dyn is None:
-        dyn = hydrogen.default_dynamics(model)
+        dyn = hydrogen.default_dynamics(model, numbers=numbers)
     model = dyn.model
     p = len(model.theta)
     m = len(dyn.leg_lengths(np.asarray(model.neutral_pose, float)))

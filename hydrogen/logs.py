@@ -104,7 +104,7 @@ def read_log(path) -> Log:
     """Read a CSV log (see the module docstring). Every error names the file, and the line or column."""
     path = Path(path)
     try:
-        text = path.read_text(encoding="utf-8")
+        text = path.read_text(encoding="utf-8-sig")  # a BOM (spreadsheets save one) is no part of the header
     except FileNotFoundError:
         raise IdentificationError(f"{path}: log file not found") from None
     except (OSError, UnicodeDecodeError) as exc:

@@ -1218,7 +1218,11 @@ def model_from_dict(data: dict, source: str = "<memory>", base_dir: Path | None 
     scen = r.table(data, "scenarios", required=False)
     for sname in scen:  # written into exported Makefiles, headers and FMUs
         from .names import check_label
+        from .simulation.scenarios import VARIANT_SEPARATOR
         check_label(sname, f"{source}: [scenarios.{sname}]")
+        if VARIANT_SEPARATOR in sname:  # '<scenario>.<variant>' would name a variant, never this table
+            raise r.error(f'[scenarios."{sname}"]', f"a scenario name may not contain '{VARIANT_SEPARATOR}', which "
+                          "joins a scenario to a variant (<scenario>.<variant>); rename it")
     if "rig" in scen:
         raise r.error("[scenarios.rig]", "'rig' is the name of the shared [rig] table: give the scenario another name")
     rig = r.table(data, "rig", required=False)

@@ -15,6 +15,7 @@ from pathlib import Path
 from .fileio import atomic_write
 
 __all__ = ["figures_folder", "results_page", "write_results_page", "benchmarks_page", "write_benchmarks_page",
+           "check_benchmarks_page",
            "RESULTS_PAGE", "BENCHMARKS_PAGE", "REPEATS_JSON"]
 
 RESULTS_PAGE = "results.md"
@@ -23,6 +24,8 @@ BENCHMARKS_PAGE = "benchmarks.md"
 REPEATS_JSON = "bench_release_repeats.json"
 
 _DO_NOT_EDIT = "<!-- written by {cmd}; do not edit: rerun it -->"
+#: The start of the first line of every page ``hydrogen bench --json`` writes: how it knows its own.
+_BENCH_MARK = _DO_NOT_EDIT.split("{cmd}")[0] + "hydrogen bench --json "
 
 
 # --------------------------------------------------------------------------------------------
@@ -529,10 +532,42 @@ def benchmarks_page(results: dict, repeats: dict | None = None, source: str = "d
     return "\n".join(out).rstrip() + "\n"
 
 
+def check_benchmarks_page(json_path) -> Path:
+    """The page ``hydrogen bench --json json_path`` writes (``benchmarks.md`` beside it), or an
+    OutputPathError when writing it would destroy something: the JSON itself (``--json
+    d/benchmarks.md``), or a file there that is not a page bench wrote (its first line is the mark
+    this module writes). Checked before any benchmark runs."""
+    from .errors import OutputPathError
+
+    json_path = Path(json_path)
+    page = json_path.with_name(BENCHMARKS_PAGE)
+    if json_path.name == BENCHMARKS_PAGE or (page.exists() and json_path.exists()
+                                             and page.resolve() == json_path.resolve()):
+        raise OutputPathError(f"--json {json_path}: the results would be overwritten by the page rendered "
+                              f"from them ({page}); give the JSON another name, e.g. {page.with_name('bench.json')}")
+    if page.is_symlink() or (page.exists() and not page.is_file()):
+        raise OutputPathError(f"{page}: not a regular file; 'bench --json {json_path}' writes its page "
+                              "there: move it, or write the JSON into another folder")
+    if page.exists():
+        try:
+            with page.open(encoding="utf-8", errors="replace") as fh:
+                first = fh.readline()
+        except OSError as exc:
+            raise OutputPathError(f"{page}: cannot be read ({exc.strerror}); 'bench --json' writes its page "
+                                  "there") from None
+        if not first.startswith(_BENCH_MARK):
+            raise OutputPathError(f"{page}: not a page 'hydrogen bench' wrote (its first line is not "
+                                  f"'{_BENCH_MARK}...'), and 'bench --json {json_path}' writes its page "
+                                  "there: move that file, or write the JSON into another folder")
+    return page
+
+
 def write_benchmarks_page(json_path) -> Path:
     """Render the run in ``json_path`` (and ``bench_release_repeats.json`` beside it) to
-    ``benchmarks.md`` beside it, atomically; returns its path."""
+    ``benchmarks.md`` beside it, atomically; returns its path. Refused (:func:`check_benchmarks_page`)
+    where that page would overwrite the JSON or a file bench did not write."""
     json_path = Path(json_path)
+    check_benchmarks_page(json_path)
     results = json.loads(json_path.read_text(encoding="utf-8"))
     rep = json_path.with_name(REPEATS_JSON)
     repeats = json.loads(rep.read_text(encoding="utf-8")) if rep.is_file() else None

@@ -216,6 +216,35 @@ def test_a_failing_module_is_named_and_the_others_results_are_kept(capsys, tmp_p
         hb.run_suite(quick=True, only=["bench_edit"], progress=False)
 
 
+def test_bench_json_never_writes_its_page_over_a_users_file_or_its_own_results(capsys, tmp_path, monkeypatch):
+    """``--json d/x.json`` writes d/benchmarks.md: refused (exit 2, before any benchmark runs) when that
+    file is not a page bench wrote, or when it is the JSON itself; a page bench wrote is replaced."""
+    from hydrogen.cli import main as cli
+
+    ran = []
+    monkeypatch.setattr(bench_release, "run", lambda quick: ran.append(1) or _release_result())
+    mine = tmp_path / "benchmarks.md"
+    mine.write_text("# My notes on the benchmarks\n")
+    argv = ["bench", "--quiet", "--only", "bench_release", "--json"]
+    assert cli(argv + [str(tmp_path / "x.json")]) == 2
+    err = capsys.readouterr().err
+    assert f"{mine}: not a page 'hydrogen bench' wrote" in err and "Traceback" not in err
+    assert mine.read_text() == "# My notes on the benchmarks\n" and not (tmp_path / "x.json").exists() and not ran
+    assert cli(argv + [str(mine)]) == 2
+    assert "the results would be overwritten by the page rendered from them" in capsys.readouterr().err
+    assert mine.read_text() == "# My notes on the benchmarks\n" and not ran
+    (tmp_path / "sub").mkdir()
+    (tmp_path / "sub" / "benchmarks.md").mkdir()  # a folder where the page goes
+    assert cli(argv + [str(tmp_path / "sub" / "x.json")]) == 2 and "not a regular file" in capsys.readouterr().err
+    # its own page (as a run writes it) is replaced by the next run
+    own = tmp_path / "own"
+    own.mkdir()
+    assert cli(argv + [str(own / "x.json")]) == 0 and ran
+    first = (own / "benchmarks.md").read_text()
+    assert cli(argv + [str(own / "x.json")]) == 0 and (own / "benchmarks.md").read_text() == first
+    assert json.loads((own / "x.json").read_text())["bench_release"]["instructions"]["regressor"]["current"] == 120
+
+
 def test_bench_scaling_states_its_target_only_for_developers(capsys):
     res = {"rows": [], "not_attempted": [], "budget_s": 600.0, "cores": 2, "wall_s": 1.0,
            "target": {"n": 7, "seconds": 120.0, "measured_generate_s": 150.0, "met": False,

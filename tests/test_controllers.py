@@ -93,3 +93,29 @@ def test_the_pose_p_controller_is_the_weighted_pose_error_mapped_by_JL(robot_dyn
     u = fn(*[args[name] for name in fn.in_names])
     dl = robot_dyn.leg_lengths(q + dq) - robot_dyn.leg_lengths(q)
     np.testing.assert_allclose(u, 0.03 * dl, rtol=1e-4)
+
+
+def test_a_gain_list_of_the_wrong_length_is_named_never_broadcast(dyn, tmp_path):
+    """``Gtau_inv = [900.0]`` for six actuators was taken as 900 for each: a list must hold one value per
+    entry (the message names the gain, the file and table, and the count: n, m or p); one scalar still
+    applies to every entry."""
+    from hydrogen.dynamics import Dynamics
+    from hydrogen.model import model_path
+    from hydrogen.simulation.control import default_gains
+
+    text = model_path("ubc_stewart").read_text()
+    path = tmp_path / "stewart.toml"
+    path.write_text(text.replace("[gains.backstepping]\n", "[gains.backstepping]\nGtau_inv = [900.0]\n", 1))
+    edited = Dynamics(hydrogen.load_model(path), dyn.library)
+    with pytest.raises(ScenarioError, match=rf"{re.escape(str(path))}: \[gains.backstepping\]: controller "
+                                            r"'backstepping': gain 'Gtau_inv' needs 6 values \(n = m = 6\) \(or one "
+                                            r"scalar for all\), got \[900.0\]"):
+        default_gains(edited, "backstepping")
+    with pytest.raises(ScenarioError, match=r"gain 'Gtheta_inv' needs 4 values \(p = 4\)"):
+        hydrogen.simulate("paper-sim", "adaptive-robust", dyn=dyn, duration=0.01, gains={"Gtheta_inv": [1.0, 2.0]})
+    with pytest.raises(ScenarioError, match=r"gain 'u_max' needs 1 value \(or one scalar"):
+        hydrogen.simulate("paper-sim", "p", dyn=dyn, duration=0.01, gains={"u_max": [1.0, 1.0]})
+    path.write_text(text.replace("[gains.backstepping]\n", "[gains.backstepping]\nGtau_inv = 900.0\n", 1))
+    g = default_gains(Dynamics(hydrogen.load_model(path), dyn.library), "backstepping")
+    np.testing.assert_array_equal(g["Gtau_inv"], np.full(6, 900.0))
+    assert default_gains(dyn, "p")["u_max"].shape == (1,)

@@ -271,6 +271,23 @@ def test_a_time_column_in_ms_is_refused_against_the_control_rate(dyn, model, pap
              rf"{rates} Hz")
 
 
+def test_a_log_saved_with_a_utf8_byte_order_mark_is_read(tmp_path):
+    """Spreadsheets save CSV as "UTF-8 with BOM": the mark before the header is no part of column t."""
+    t = np.arange(5) * 1e-3
+    log = Log(t, {"l0": 1.8 + t, "pc0": 1e6 + t, "u0": 0.1 * t})
+    written = write_log(log, tmp_path / "log.csv")
+    plain = tmp_path / "plain.csv"
+    plain.write_text("t,l0,pc0,u0\n" + "\n".join(",".join(map(repr, map(float, row))) for row in
+                                                  zip(t, *log.columns.values())))
+    for path in (written, plain):
+        bom = tmp_path / f"bom-{path.name}"
+        bom.write_bytes(b"\xef\xbb\xbf" + path.read_bytes())
+        back = read_log(bom)
+        np.testing.assert_array_equal(back.t, t)
+        assert list(back.columns) == ["l0", "pc0", "u0"]
+        np.testing.assert_array_equal(back.columns["pc0"], log.columns["pc0"])
+
+
 def test_a_tab_separated_log_is_read_and_mixed_delimiters_are_named(dyn, paper_sim_log, tmp_path):
     short = Log(paper_sim_log.t[:50], {k: v[:50] for k, v in paper_sim_log.columns.items()}, paper_sim_log.meta)
     comma = write_log(short, tmp_path / "log.csv")

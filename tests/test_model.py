@@ -662,3 +662,17 @@ def test_bad_rotary_actuators_are_named(tmp_path, old, new, words):
         hydrogen.load_model(path)
     for w in [str(path), *words]:
         assert w in str(err.value), (w, str(err.value))
+
+
+def test_a_scenario_name_holding_the_variant_separator_is_refused_at_load(tmp_path):
+    """``[scenarios."z-1hz.paper-timing"]`` could never run: that name runs z-1hz at the variant
+    paper-timing. The load names the file and the table."""
+    text = default_model_path().read_text()
+    path = tmp_path / "my.toml"
+    path.write_text(text + '\n[scenarios."z-1hz.paper-timing"]\nrig = true\nduration = 1.0\n')
+    with pytest.raises(hydrogen.ModelError) as err:
+        hydrogen.load_model(path)
+    msg = str(err.value)
+    assert msg.startswith(f"{path}: [scenarios.\"z-1hz.paper-timing\"]: ") and "may not contain '.'" in msg
+    path.write_text(text + '\n[scenarios.z-1hz-paper-timing]\nrig = true\nduration = 1.0\n')
+    assert "z-1hz-paper-timing" in hydrogen.load_model(path).scenarios

@@ -1,11 +1,13 @@
 """Build cache, compiler selection and failure reporting of the runtime."""
 import os
+from pathlib import Path
 
 import numpy as np
 import pytest
 
 import hydrogen
 from hydrogen.runtime.compiler import Toolchain, compile_library
+from conftest import warm_copy
 
 
 def test_build_reuses_the_cache(model, cache, dyn):
@@ -241,3 +243,72 @@ def test_a_build_with_the_numbers_as_inputs_serves_a_numeric_edit_without_compil
     assert not np.allclose(c.q, shipped["backstepping"].q, atol=1e-6)  # the edit reached the C loop
     with pytest.raises(ScenarioError, match="numbers must be one of"):
         hydrogen.build(arm, numbers="folded", cache=cache)
+
+
+def test_a_cached_manifest_whose_numbers_list_was_swapped_is_generated_again(model, cache, dyn, tmp_path,
+                                                                            monkeypatch):
+    """The manifest's ``numbers`` list maps each value the runtime fills to its place in the C: two names
+    swapped (gravity and a mass: gravity hundreds of times wrong) fail the check, and the cache entry is
+    generated again instead of loaded."""
+    import json
+    import shutil
+
+    import hydrogen.runtime.build as build_mod
+    from hydrogen.codegen import generate as gen
+
+    committed = build_mod.repo_generated_dir() / model.name
+    monkeypatch.setattr(build_mod, "repo_generated_dir", lambda: tmp_path / "no-committed-code")
+    root = warm_copy(cache, tmp_path / "cache")
+    entry = build_mod.generated_dir_for(model, root)
+    _copy_of_committed(model, entry)
+    assert gen.check(model, entry) == []
+    manifest = json.loads((entry / "manifest.json").read_text())
+    names = manifest["numbers"]
+    i, j = names.index("gravity"), names.index("platform.mass")
+    names[i], names[j] = names[j], names[i]
+    (entry / "manifest.json").write_text(json.dumps(manifest, indent=2, sort_keys=True) + "\n")
+    assert any("numbers list does not match" in r for r in gen.check(model, entry))
+
+    rendered = []
+
+    def render_by_copy(model, folder, progress=False, numbers="inputs"):  # the same files, without the derivation
+        rendered.append(folder)
+        for p in committed.iterdir():
+            shutil.copy(p, folder / p.name)
+    monkeypatch.setattr(gen, "render", render_by_copy)
+    d = hydrogen.build(model, cache=root)
+    assert rendered and gen.check(model, entry) == []
+    q = model.neutral_pose
+    np.testing.assert_array_equal(d.library.numbers, dyn.library.numbers)  # each value in its own place
+    np.testing.assert_allclose(d.gravity(q, model.theta), dyn.gravity(q, model.theta), rtol=1e-12)
+
+
+def test_separate_caches_build_under_their_own_locks(model, tmp_path, monkeypatch):
+    """A build from the committed generated/ only reads it: its lock is in the cache, so two caches
+    never wait for each other's compile, and no lock file is made in the checkout."""
+    from contextlib import contextmanager
+
+    import hydrogen.fileio as fileio
+    from hydrogen.runtime.build import repo_generated_dir
+    from hydrogen.runtime.cachedir import build_lock_path
+
+    committed = repo_generated_dir() / model.name
+    a, b = (build_lock_path(committed, tmp_path / r, committed=True) for r in ("a", "b"))
+    assert a != b and a.is_relative_to(tmp_path / "a") and b.is_relative_to(tmp_path / "b")
+    mine = tmp_path / "mine"
+    assert build_lock_path(mine, tmp_path / "a", committed=False) == mine  # a folder the build may write
+
+    real, taken = fileio.locked, []
+
+    @contextmanager
+    def recorded(path, timeout=None):
+        taken.append(Path(path))
+        with real(path, timeout):
+            yield
+    monkeypatch.setattr(fileio, "locked", recorded)
+    fast = ("-O0", "-fPIC", "-std=c99")  # the lock is under test, not the optimiser
+    for root in (tmp_path / "a", tmp_path / "b"):
+        dyn = hydrogen.build(model, cache=root, cflags=fast)
+        assert dyn.library.generated_dir == committed
+    assert taken and a in taken and b in taken
+    assert not [p for p in taken if p.is_relative_to(repo_generated_dir())], taken

@@ -10,7 +10,7 @@ import pytest
 
 import hydrogen
 from hydrogen.cli import main as cli
-from hydrogen.simulation.seeds import DEFAULT_SEEDS, SeedResults, parse_seeds, seed_list, summarize
+from hydrogen.simulation.seeds import DEFAULT_SEEDS, MAX_SEED, MAX_SEED_COUNT, SeedResults, parse_seeds, seed_list, summarize
 from hydrogen.simulation.simulator import simulate
 from hydrogen.simulation.tuning import SEEDS, judge_seeds, margins, tune
 
@@ -84,11 +84,33 @@ def test_median_of_an_even_count_and_the_median_run():
 
 
 @pytest.mark.parametrize("bad,match", [(0, "must be >= 1"), (-2, "must be >= 1"), ([1, 1], "given twice"),
-                                       ([], "empty"), ([0, -1], "not an integer >= 0"), (True, "count"),
+                                       ([], "empty"), ([0, -1], "not an integer in 0 "), (True, "count"),
                                        ("3", "count"), ([0.5], "not an integer")])
 def test_bad_seeds_are_named(dyn, bad, match):
     with pytest.raises(hydrogen.ScenarioError, match=match):
         simulate(dyn, "z-1hz", "p", duration=0.1, seeds=bad)
+
+
+@pytest.mark.parametrize("seeds,match", [
+    (10**9, r"at most 10000 seeds"), (MAX_SEED_COUNT + 1, r"at most 10000 seeds"),
+    (range(10**15), r"more than 10000 seeds"), (iter(range(10**15)), r"more than 10000 seeds"),
+    ([0, 99999999999999999999999], r"seed 99999999999999999999999 is not an integer in 0 \.\. 9223372036854775807"),
+    ([2**63], r"0 \.\. 9223372036854775807"), ([10**5000], r"seed of 16610 bits is not an integer in 0 \.\.")])
+def test_seeds_are_bounded_in_count_and_value_before_anything_is_allocated(seeds, match):
+    """A count of 10**9 would list a billion runs (gigabytes) before the first; a seed past 2**63 - 1 ran
+    and then broke the summary. Both are refused at once with the bound."""
+    import time
+
+    start = time.perf_counter()
+    with pytest.raises(hydrogen.ScenarioError, match=match):
+        seed_list(seeds)
+    assert time.perf_counter() - start < 1.0
+    assert seed_list([0, MAX_SEED]) == [0, MAX_SEED] and len(seed_list(MAX_SEED_COUNT)) == MAX_SEED_COUNT
+
+
+def test_a_scenario_seed_past_the_bound_is_named(dyn):
+    with pytest.raises(hydrogen.ScenarioError, match=r"seed must be an integer in 0 \.\. 9223372036854775807"):
+        simulate(dyn, "z-1hz", "p", duration=0.1, seed=2**63)
 
 
 def test_seeds_and_pool_arguments_are_checked_before_any_run(dyn):
@@ -252,7 +274,8 @@ def test_cli_simulate_seeds_prints_median_and_range(tmp_path, capsys):
 
 @pytest.mark.parametrize("argv", [["simulate", "--seeds", "0"], ["simulate", "--seeds", "a,b"],
                                   ["tune-p", "--seeds", "1,1"], ["margins", "--seeds", "-3"],
-                                  ["figures", "--seeds", "0"]])
+                                  ["figures", "--seeds", "0"], ["simulate", "--seeds", "1000000000"],
+                                  ["simulate", "--seeds", "0,99999999999999999999999"]])
 def test_cli_bad_seeds_exit_2(argv, capsys):
     with pytest.raises(SystemExit) as exc:
         cli(argv)

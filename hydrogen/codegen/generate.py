@@ -26,7 +26,7 @@ from .c_source import tidy
 __all__ = [
     "generate", "generate_locked", "extend", "held_controllers", "missing_controllers", "derive", "render",
     "write_function", "check", "check_output", "derivation_hash", "structure_hash",
-    "read_manifest", "expected_manifest_inputs", "numbers_mode", "check_numbers_mode", "NUMBERS_MODES",
+    "read_manifest", "expected_manifest_inputs", "numbers_mode", "numbers_hash", "check_numbers_mode", "NUMBERS_MODES",
     "DEFAULT_NUMBERS",
     "MANIFEST", "FORMAT_VERSION",
 ]
@@ -124,6 +124,13 @@ def expected_manifest_inputs(model, numbers: str = DEFAULT_NUMBERS) -> dict:
     return {"model_hash": key, "derivation_hash": derivation_hash(), "format": FORMAT_VERSION}
 
 
+def numbers_hash(names: list) -> str:
+    """SHA-256 of the names of a folder's numbers, in order: the manifest records it beside the list,
+    since the list maps each value the runtime fills to its place in the generated C (two names
+    swapped would feed one number where the other belongs, with no file changed)."""
+    return hashlib.sha256(json.dumps(list(names), separators=(",", ":")).encode()).hexdigest()
+
+
 def c_name(model_name: str, fname: str) -> str:
     """C symbol of a generated function: ``<model>_<function>``."""
     return f"{model_name}_{fname}"
@@ -171,6 +178,13 @@ def _unread_inputs(fun) -> list:
     # on a large controller)
     outs = list(fun.name_out())
     return [name for name in fun.name_in() if not any(fun.which_depends(name, outs, 1, False))]
+
+
+def _listed_numbers_hash(names) -> str | None:
+    """:func:`numbers_hash` of a manifest's list, None when it is not a list of names."""
+    if not isinstance(names, list) or not all(isinstance(n, str) for n in names):
+        return None
+    return numbers_hash(names)
 
 
 def _sha256(path: Path) -> str:
@@ -264,7 +278,7 @@ def render(model, folder: Path, functions=None, progress: bool = False, numbers:
     drivers = render_drivers({"model": summary, **({} if names is None else {"numbers": names})}, folder)
     manifest = {
         **expected_manifest_inputs(model, numbers),
-        **({} if names is None else {"numbers": names}),
+        **({} if names is None else {"numbers": names, "numbers_hash": numbers_hash(names)}),
         "model_name": model.name,
         "model": summary,
         "casadi_version": ca.__version__,
@@ -421,6 +435,10 @@ def check(model, folder: Path, numbers: str | None = None) -> list:
         if manifest.get(key) != value:
             reasons.append(f"{folder}: {key} changed (recorded {str(manifest.get(key))[:12]}, "
                            f"now {str(value)[:12]})")
+    listed = _listed_numbers_hash(manifest.get("numbers"))
+    if mode == "inputs" and (listed is None or manifest.get("numbers_hash") != listed):
+        reasons.append(f"{folder / MANIFEST}: its numbers list does not match the numbers_hash recorded "
+                       "at generation (edited since, or from another generation)")
     recorded = manifest.get("files", {})
     present = {p.name for p in folder.iterdir() if p.name != MANIFEST and not p.name.startswith(".")}
     for name in sorted(present | set(recorded)):

@@ -8,7 +8,7 @@ from ..codegen.generate import (DEFAULT_NUMBERS, check, check_numbers_mode, deri
                                 missing_controllers, read_manifest, structure_hash)
 from ..errors import BuildCacheError
 from ..model import Model, load_model
-from .cachedir import cache_errors, check_cache_root, folder_lock, warm_library
+from .cachedir import build_lock_path, cache_errors, check_cache_root, folder_lock, warm_library
 from .compiler import Toolchain, build_key_of, cache_root, cached_library, compile_libraries
 from .extension import attach_extension
 from .library import CORE, GeneratedLibrary, controller_groups, group_sources
@@ -76,6 +76,7 @@ class _Loader:
         self.model, self.folder, self.manifest = model, Path(folder), manifest
         self.toolchain, self.root, self.cache, self.committed, self.report = \
             toolchain, Path(root), cache, committed, report
+        self.lock = build_lock_path(self.folder, self.root, committed)
 
     def _contents(self, group: str) -> list:
         """``[(path, bytes)]`` of the group's sources, each read once and checked against the manifest."""
@@ -103,7 +104,7 @@ class _Loader:
                 lib = self.cached(group)
             if lib is not None:
                 return lib
-        with cache_errors(self.root), folder_lock(self.folder, current=self.committed):
+        with cache_errors(self.root), folder_lock(self.lock, current=self.committed):
             return self.compile([group], force)[0]
 
     def compile(self, groups: list, force: bool = False) -> list:
@@ -216,17 +217,21 @@ def build(model: Model | str | Path | None = None, *, cc: str | None = None,
         groups = _full_variants(made[-1].manifest, controllers)
         missing = [g for g in groups if _cached_or_none(made[-1], g) is None]
         if missing:
-            with cache_errors(root), folder_lock(folder, current=committed):
+            with cache_errors(root), folder_lock(made[-1].lock, current=committed):
                 made[-1].compile(missing)
     else:
         # One lock from generation through compilation: the manifest read and the sources compiled
-        # are the same generation even if another process regenerates the folder meanwhile.
-        with cache_errors(root), folder_lock(folder, current=committed):
+        # are the same generation even if another process regenerates the folder meanwhile. The
+        # committed folder is only read (under this cache's lock, not the folder's: no generation).
+        with cache_errors(root), folder_lock(build_lock_path(folder, root, committed), current=committed):
             if generated is None and not committed:
                 _drop_broken_entry(model, folder)
-            with generation_reported(report, model, folder, controllers=controllers):
-                # no-op when current; a build for some controllers derives only theirs
-                generate_locked(model, folder, numbers=numbers, controllers=controllers or None)
+            if committed:  # whole (generate --check): it holds every controller
+                _still_current(model, folder, numbers)
+            else:
+                with generation_reported(report, model, folder, controllers=controllers):
+                    # no-op when current; a build for some controllers derives only theirs
+                    generate_locked(model, folder, numbers=numbers, controllers=controllers or None)
             manifest = read_manifest(folder)
             if manifest is None:
                 raise BuildCacheError(f"{folder}: generated folder has no readable manifest after generation")
@@ -247,6 +252,14 @@ def build(model: Model | str | Path | None = None, *, cc: str | None = None,
     report("built" if steps else "loaded", " + ".join(steps) if steps else f"already built: {lib.path}",
            report.total())
     return Dynamics(model, lib)
+
+
+def _still_current(model, folder: Path, numbers: str) -> None:
+    """The committed ``folder`` found current a moment ago is still so, else a BuildCacheError (it was
+    regenerated meanwhile, by ``hydrogen generate``): a build never writes it."""
+    reasons = check(model, folder, numbers)
+    if reasons:
+        raise BuildCacheError(f"{folder}: changed since this build chose it ({reasons[0]}); build again")
 
 
 def _full_variants(manifest: dict, controllers: tuple) -> list:

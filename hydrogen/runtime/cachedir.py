@@ -9,10 +9,13 @@
   installed package) stays usable once warm.
 * :func:`folder_lock` takes a generated folder's lock, or none for a current folder that
   cannot be written (the committed code of a read-only installation: nobody regenerates it).
+* :func:`build_lock_path` is what a build locks: the generated folder, or for the committed one a
+  path in the cache, so builds into separate caches never wait for each other.
 """
 from __future__ import annotations
 
 import errno
+import hashlib
 from contextlib import ExitStack, contextmanager
 from pathlib import Path
 
@@ -20,7 +23,7 @@ from ..codegen.generate import DEFAULT_NUMBERS
 from ..errors import BuildCacheError, CompilerError, DiskFullError, HydrogenError
 from ..fileio import DISK_FULL
 
-__all__ = ["check_cache_root", "cache_errors", "warm_library", "folder_lock"]
+__all__ = ["check_cache_root", "cache_errors", "warm_library", "folder_lock", "build_lock_path"]
 
 _HINT = "set HYDROGEN_CACHE_DIR (or build(cache=...)) to a folder you can write"
 _READ_ONLY = (errno.EACCES, errno.EPERM, errno.EROFS)
@@ -88,6 +91,19 @@ def warm_library(model, folder: Path, toolchain, cache_root: Path, loader, numbe
         return GeneratedLibrary(lib_path, manifest, folder, loader(manifest), numbers=model.numbers)
     except (OSError, KeyError, TypeError, BuildCacheError):
         return None  # anything odd: the locked path decides (and reports)
+
+
+def build_lock_path(folder: Path, cache_root: Path, committed: bool) -> Path:
+    """The path whose lock (:func:`folder_lock`) a build of generated ``folder`` into ``cache_root``
+    holds: the folder itself when the build may write it (a cache entry, a folder given by
+    ``generated=``); for the committed folder, which a build only reads, a path in the cache root
+    (keyed by the folder's path): each cache builds under its own lock, and the checkout's
+    ``generated/`` gets no lock file."""
+    folder = Path(folder)
+    if not committed:
+        return folder
+    key = hashlib.sha256(str(folder.resolve()).encode()).hexdigest()[:16]
+    return Path(cache_root) / "locks" / f"{folder.name}-{key}"
 
 
 @contextmanager

@@ -15,6 +15,7 @@ from collections.abc import Mapping
 import numpy as np
 
 from ..errors import ScenarioError
+from .seeds import MAX_SEED
 
 __all__ = ["check_fields", "check_reference", "check_call", "check_against_model", "check_gain_values",
            "gain_must_be_positive", "check_run_size", "run_doubles_per_period", "metric_window", "max_run_bytes",
@@ -116,8 +117,8 @@ def check_fields(sc) -> None:
             _fail(name, f, "must be True or False", getattr(sc, f))
     seed = sc.seed
     if seed is not None and (isinstance(seed, (bool, np.bool_)) or not isinstance(seed, numbers.Integral)
-                             or seed < 0):
-        _fail(name, "seed", "must be an integer >= 0", seed)
+                             or not 0 <= seed <= MAX_SEED):
+        _fail(name, "seed", f"must be an integer in 0 .. {MAX_SEED} (2**63 - 1)", seed)
     _vector(name, "friction", sc.friction, "must be (Coulomb N, viscous N s/m, smoothing speed m/s)")
     _vector(name, "q0_offset", sc.q0_offset)
     for f in ("theta0_factor", "gamma0_factor"):

@@ -59,18 +59,31 @@ def _default_gains(dyn, kind, origin: dict) -> dict:
             if table == COMMON_GAINS and k not in g:
                 continue
             origin[k] = f"{dyn.model.source}: [gains.{table}]"
-            g[k] = _checked(kind, g, k, v, origin[k])
+            g[k] = _checked(kind, g, k, v, origin[k], dyn.model)
     return g
 
 
-def _checked(kind, g, k, v, where):
+def _sizes(model, size: int) -> str:
+    """"6 values (n = m = 6)": ``size`` and the model's counts it equals (n coordinates, m actuators,
+    p θ parameters)."""
+    names = [k for k, c in (("n", model.n), ("m", model.n_cylinders), ("p", model.n_theta)) if c == size]
+    return f"{size} value{'s' * (size != 1)}" + (f" ({' = '.join(names)} = {size})" if names else "")
+
+
+def _checked(kind, g, k, v, where, model):
+    """Gain ``k`` of controller ``kind`` from ``v``: a scalar applies to every entry; a list must hold
+    exactly the default's entries (never broadcast: [900.0] for three actuators is a typo, not 900 each)."""
     if k not in g:
         raise ScenarioError(f"{where}: controller '{kind}' has no gain '{k}'; it has {sorted(g)}")
+    shape = np.shape(g[k])
     try:
-        value = np.broadcast_to(np.asarray(v, float), np.shape(g[k])).copy()
+        value = np.asarray(v, float)
+        if value.ndim and value.shape != shape:
+            raise ValueError
+        value = np.broadcast_to(value, shape).copy()
     except (TypeError, ValueError):
-        raise ScenarioError(f"{where}: controller '{kind}': gain '{k}' needs shape {np.shape(g[k])} "
-                            f"(or a scalar), got {v!r}") from None
+        raise ScenarioError(f"{where}: controller '{kind}': gain '{k}' needs {_sizes(model, int(np.prod(shape)))} "
+                            f"(or one scalar for all), got {v!r}") from None
     if not np.all(np.isfinite(value)):
         raise ScenarioError(f"{where}: controller '{kind}': gain '{k}' must be finite, got {v!r}")
     return value
@@ -80,7 +93,7 @@ def _gains(dyn, kind, overrides, origin: dict, sources: dict):
     g = _default_gains(dyn, kind, origin)
     for k, v in (overrides or {}).items():
         origin[k] = sources.get(k, "gains")
-        g[k] = _checked(kind, g, k, v, origin[k])
+        g[k] = _checked(kind, g, k, v, origin[k], dyn.model)
     return g
 
 

@@ -197,10 +197,14 @@ def variant_names(model) -> tuple:
     return tuple(getattr(model, "variants", None) or {})
 
 
+#: Joins a scenario's name to a variant's (``<scenario>.<variant>``): neither name may hold it.
+VARIANT_SEPARATOR = "."
+
+
 def split_variant(name: str, model) -> tuple:
     """``(scenario, variant or None)`` of a scenario name: ``<scenario>.<variant>`` names a variant of
     the model's description over one of its scenarios."""
-    base, dot, var = name.rpartition(".") if isinstance(name, str) else ("", "", "")
+    base, dot, var = name.rpartition(VARIANT_SEPARATOR) if isinstance(name, str) else ("", "", "")
     if dot and var in variant_names(model) and base in scenario_names(model):
         return base, var
     return name, None

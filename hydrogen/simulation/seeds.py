@@ -7,7 +7,8 @@ coordinate, the median, min and max over the seeds, and which seed is the *media
 
 **Seeds.** ``seeds=N`` (an integer >= 1) means the seeds 0, 1, ..., N-1 (the scenario field
 ``seed`` of each run); a list means those seeds. :data:`DEFAULT_SEEDS` is the count the documented
-gain search and the margins judge over.
+gain search and the margins judge over. A call runs at most :data:`MAX_SEED_COUNT` seeds, each at
+most :data:`MAX_SEED` (both refused before anything is allocated or run).
 
 **Median run.** The seed whose worst max error (% of amplitude, over the coordinates the reference
 moves) is the lower median of the completed runs: a run that exists (with an even count, the
@@ -16,22 +17,49 @@ statistics are the usual medians (the mean of the two middle values for an even 
 """
 from __future__ import annotations
 
+import itertools
 import math
 import numbers
+from collections import Counter
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 
 import numpy as np
 
-__all__ = ["DEFAULT_SEEDS", "seed_list", "parse_seeds", "summarize", "median_seed", "SeedResults"]
+__all__ = ["DEFAULT_SEEDS", "MAX_SEED_COUNT", "MAX_SEED", "check_seed", "seed_list", "parse_seeds", "summarize", "median_seed", "SeedResults"]
 
 #: Noise seeds (0 .. DEFAULT_SEEDS - 1) the documented search (tune) and the margins judge over.
 DEFAULT_SEEDS = 10
+#: The most seeds one call runs: each is a full simulation, so more is a typo (10**9 would fill the
+#: memory with its list of runs before the first one starts).
+MAX_SEED_COUNT = 10_000
+#: The largest seed: a signed 64-bit integer, what NumPy arrays, TOML and JSON readers hold exactly
+#: (NumPy's generator would take a larger one, the summaries and files of the runs would not).
+MAX_SEED = 2**63 - 1
+
+
+def check_seed(seed, what: str = "seed") -> int:
+    """``seed`` as an int if it is an integer in 0 .. MAX_SEED, else a ScenarioError naming ``what``."""
+    from ..errors import ScenarioError
+
+    if isinstance(seed, (bool, np.bool_)) or not isinstance(seed, numbers.Integral) or not 0 <= seed <= MAX_SEED:
+        raise ScenarioError(f"{what}: seed {_short(seed)} is not an integer in 0 .. {MAX_SEED} (2**63 - 1)")
+    return int(seed)
+
+
+def _short(value) -> str:
+    """``repr(value)`` cut to 40 characters (an integer of 10**5000 has no repr in Python >= 3.11)."""
+    try:
+        text = repr(value)
+    except ValueError:
+        return f"of {value.bit_length()} bits" if isinstance(value, numbers.Integral) else type(value).__name__
+    return text if len(text) <= 40 else text[:37] + "..."
 
 
 def seed_list(seeds, what: str = "seeds") -> list:
-    """The seeds ``seeds`` stands for: an integer N >= 1 -> [0, ..., N-1]; a list of distinct
-    integers >= 0 -> that list. Anything else: a ScenarioError naming ``what``."""
+    """The seeds ``seeds`` stands for: an integer N in 1 .. MAX_SEED_COUNT -> [0, ..., N-1]; a list of
+    at most MAX_SEED_COUNT distinct integers in 0 .. MAX_SEED -> that list. Anything else: a
+    ScenarioError naming ``what``."""
     from ..errors import ScenarioError
 
     if isinstance(seeds, (bool, np.bool_)):
@@ -39,20 +67,22 @@ def seed_list(seeds, what: str = "seeds") -> list:
     if isinstance(seeds, numbers.Integral):
         if seeds < 1:
             raise ScenarioError(f"{what} = {seeds}: a count of seeds must be >= 1 (seeds 0 .. N-1)")
+        if seeds > MAX_SEED_COUNT:
+            raise ScenarioError(f"{what} = {_short(seeds)}: at most {MAX_SEED_COUNT} seeds (each is one simulation)")
         return list(range(int(seeds)))
     if isinstance(seeds, (str, bytes, Mapping)) or not hasattr(seeds, "__iter__"):
         raise ScenarioError(f"{what} must be a count (an integer >= 1) or a list of seeds, got "
                             f"{type(seeds).__name__} {seeds!r}"[:200])
-    out = list(seeds)
+    out = list(itertools.islice(seeds, MAX_SEED_COUNT + 1))  # a huge iterable is never listed whole
     if not out:
         raise ScenarioError(f"{what} is an empty list; give at least one seed")
-    for s in out:
-        if isinstance(s, (bool, np.bool_)) or not isinstance(s, numbers.Integral) or s < 0:
-            raise ScenarioError(f"{what}: seed {s!r} is not an integer >= 0")
-    dup = sorted({int(s) for s in out if out.count(s) > 1})
+    if len(out) > MAX_SEED_COUNT:
+        raise ScenarioError(f"{what}: more than {MAX_SEED_COUNT} seeds (each is one simulation)")
+    out = [check_seed(s, what) for s in out]
+    dup = sorted(s for s, k in Counter(out).items() if k > 1)
     if dup:
         raise ScenarioError(f"{what}: seed(s) {dup} given twice; each seed is one run")
-    return [int(s) for s in out]
+    return out
 
 
 def parse_seeds(text: str):

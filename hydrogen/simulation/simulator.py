@@ -215,7 +215,9 @@ def _simulate_seeds(dyn, scenario, controller, seeds, executor, max_workers, arg
     prepare_run(dyn, scenario, controller, args["gains"], args["duration"], args["check_workspace"],
                 {**overrides, "seed": seeds[0]})
     runs = [dict(scenario=scenario, controller=controller, **args, **overrides, seed=s) for s in seeds]
-    out = sweep(runs, executor=executor, max_workers=max_workers, model=dyn.model, results=True)
+    from ..codegen.generate import numbers_mode
+    out = sweep(runs, executor=executor, max_workers=max_workers, model=dyn.model, results=True,
+                numbers=numbers_mode(dyn.library.manifest))  # the workers build as dyn was built
     results = [r if isinstance(r, SimulationResult) else None for r in out]
     failures = {s: r["error"] for s, r in zip(seeds, out) if not isinstance(r, SimulationResult)}
     per_seed = [r.metrics if isinstance(r, SimulationResult) else r for r in out]

@@ -38,7 +38,7 @@ def _run_one(job):
     import hydrogen
     from ..errors import HydrogenError
 
-    model, run, keep = job
+    model, run, keep, numbers = job
     problem = entry_problem(run)
     if problem:
         return {"error": problem}
@@ -46,7 +46,8 @@ def _run_one(job):
     scenario = run.pop("scenario", "paper-sim")
     controller = run.pop("controller", "adaptive-robust")
     try:
-        res = hydrogen.simulate(scenario, controller, model=model, **run)
+        dyn = hydrogen.default_dynamics(model, controller=controller, numbers=numbers)
+        res = hydrogen.simulate(scenario, controller, dyn=dyn, **run)
     except HydrogenError as exc:
         out = {"error": str(exc).splitlines()[0][:500]}
         if getattr(exc, "result", None) is not None and len(exc.result.t):
@@ -63,7 +64,7 @@ def _run_one(job):
 
 
 def sweep(runs, *, executor: Executor | None = None, max_workers: int | None = None, model=None,
-          progress: bool = False, seeds=None, results: bool = False) -> list:
+          progress: bool = False, seeds=None, results: bool = False, numbers: str | None = None) -> list:
     """Run each of ``runs`` (dicts of :func:`hydrogen.simulate` arguments: scenario, controller,
     gains, duration, scenario overrides) and return their metrics in order.
 
@@ -73,7 +74,8 @@ def sweep(runs, *, executor: Executor | None = None, max_workers: int | None = N
     (per-seed metrics, median/min/max per coordinate, the median seed; ``"error"`` only when every
     seed failed). ``results``: give each run's SimulationResult (its ``metrics`` with
     ``u_saturation_frac``) instead of its metrics (not with ``seeds``); a failed run still gives
-    ``{"error": message}``.
+    ``{"error": message}``. ``numbers``: how the workers build the model (:func:`hydrogen.build`'s
+    ``numbers``; None: its default).
 
     A run that fails (it diverges, or its entry is not valid: not a dict, an unknown key, a bad
     value) gives ``{"error": message}`` in its place and the others still run. Only a malformed
@@ -103,14 +105,18 @@ def sweep(runs, *, executor: Executor | None = None, max_workers: int | None = N
         clash = "entry sets 'seed' and the sweep runs seeds=; give one of the two"
         mine = [i for i, r in enumerate(runs) if not (isinstance(r, Mapping) and "seed" in r)]
         flat = [dict(runs[i], seed=s) if isinstance(runs[i], Mapping) else runs[i] for i in mine for s in seeds]
-        done = iter(sweep(flat, executor=executor, max_workers=max_workers, model=model, progress=progress))
+        done = iter(sweep(flat, executor=executor, max_workers=max_workers, model=model, progress=progress,
+                          numbers=numbers))
         per = {i: [next(done) for _ in seeds] for i in mine}
         return [summarize(seeds, per.get(i) or [{"error": clash}] * len(seeds)) for i in range(len(runs))]
     # The Model itself goes to the workers (not its file name): in-memory edits are kept.
     model = model if isinstance(model, hydrogen.Model) else hydrogen.load_model(_model_path(model))
     from tqdm import tqdm
 
-    jobs = [(model, r, bool(results)) for r in runs]
+    if numbers is not None:
+        from ..codegen.generate import check_numbers_mode
+        check_numbers_mode(numbers)  # once here, not once per run in the workers
+    jobs = [(model, r, bool(results), numbers) for r in runs]
 
     def collect(ex, workers):
         futures = []

@@ -241,7 +241,7 @@ def secondary_grid(dyn, controller) -> dict:
 
 def tune(controller, grid=None, *, model=None, scenarios=None, secondary=None, adaptation=None,
          executor=None, max_workers=None, progress: bool = False, seeds=None,
-         variant: str | None = None) -> dict:
+         variant: str | None = None, numbers: str | None = None) -> dict:
     """The documented search for ``controller`` on ``model``'s rig scenarios (module doc).
 
     ``grid``: main-gain values (default :func:`default_grid`); ``secondary``: {gain: values} searched
@@ -250,7 +250,8 @@ def tune(controller, grid=None, *, model=None, scenarios=None, secondary=None, a
     the chosen point, each over the whole main grid (default :func:`adaptation_grid`, the
     controller's spec; ``{}``: none); ``seeds``: the noise seeds every point is judged over (a count N: 0..N-1, or a
     list; default :data:`SEEDS`); ``variant``: the rig scenarios at that variant of the description
-    (``<scenario>.<variant>``). Returns {"controller", "main_gain", "grid", "seeds", "table": [row
+    (``<scenario>.<variant>``); ``numbers``: how the model is built (:func:`hydrogen.build`'s; None: its
+    default). Returns {"controller", "main_gain", "grid", "seeds", "table": [row
     per scenario, secondary value and gain: "max_error_pct" the median over the seeds of the worst
     moving coordinate's max error %, "max_error_range" [min, max], "errors" {coordinate: {median, min,
     max}}, "unstable_seeds"], "best": g or None, "best_gains": the gains dict at the tuned point,
@@ -269,7 +270,7 @@ def tune(controller, grid=None, *, model=None, scenarios=None, secondary=None, a
         check_workers(max_workers)
     scen = dict(scenarios) if scenarios else require_rig_scenarios(model, f"tune --controller {controller}", variant)
     seeds = seed_list(DEFAULT_SEEDS if seeds is None else seeds)
-    dyn = hydrogen.build(model)
+    dyn = hydrogen.build(model, **({} if numbers is None else {"numbers": numbers}))
     grid = np.sort(np.asarray(default_grid(controller) if grid is None else grid, float))
     sec = secondary_grid(dyn, controller) if secondary is None else dict(secondary)
     sec_points = [dict(zip(sec, v)) for v in itertools.product(*sec.values())] or [{}]
@@ -291,7 +292,7 @@ def tune(controller, grid=None, *, model=None, scenarios=None, secondary=None, a
         runs = [dict(scenario=s, controller=controller, gains=gains(g, x))
                 for x in points for s in scen for g in grid]
         out = iter(sweep(runs, executor=executor, max_workers=max_workers, model=model, progress=progress,
-                         seeds=seeds))
+                         seeds=seeds, numbers=numbers))
         picks = []
         for x in points:
             ok, worst, bounded = _judge_point(out, scen, gs, seeds, name, x, table)
@@ -391,18 +392,18 @@ def adaptation_grid(dyn, controller, own=None) -> list:
 
 
 def tune_p(gains=None, scenarios=None, *, executor=None, max_workers=None, model=None,
-           progress: bool = False, seeds=None, variant: str | None = None) -> dict:
+           progress: bool = False, seeds=None, variant: str | None = None, numbers: str | None = None) -> dict:
     """:func:`tune` for the baseline P controller (its rows also carry its main gain)."""
     from ..controllers import baseline
     return tune(baseline(), gains, model=model, scenarios=scenarios, executor=executor, max_workers=max_workers,
-                progress=progress, seeds=seeds, variant=variant)
+                progress=progress, seeds=seeds, variant=variant, numbers=numbers)
 
 
 def margins(controllers=None, *, model=None, scenarios=None, executor=None, max_workers=None,
-            progress: bool = False, seeds=None, variant: str | None = None) -> dict:
+            progress: bool = False, seeds=None, variant: str | None = None, numbers: str | None = None) -> dict:
     """Stability margin of each controller's main gain on each rig scenario (module doc), from the
     robot's gains, judged over ``seeds`` (a count N: 0..N-1, or a list; default :data:`SEEDS`): a
-    factor is stable only when every seed's run is; ``variant``: as :func:`tune`. Returns {"model", "seeds", "rows": [{controller,
+    factor is stable only when every seed's run is; ``variant``, ``numbers``: as :func:`tune`. Returns {"model", "seeds", "rows": [{controller,
     scenario, main_gain, gain, margin, margin_capped, limit_reason, errors: {moving coordinate:
     {median, min, max} of the max error % at the robot's gains}, median_seed, unstable_seeds: the
     seeds unstable at the first unstable factor}]}; ``margin`` is the largest factor found stable
@@ -416,7 +417,7 @@ def margins(controllers=None, *, model=None, scenarios=None, executor=None, max_
         check_workers(max_workers)
     scen = list(scenarios) if scenarios else list(require_rig_scenarios(model, "margins", variant))
     seeds = seed_list(DEFAULT_SEEDS if seeds is None else seeds)
-    dyn = hydrogen.build(model)
+    dyn = hydrogen.build(model, **({} if numbers is None else {"numbers": numbers}))
     cases = [(c, s) for c in (controllers or CONTROLLERS) for s in scen]
     # The gains each case runs with: the robot's, under the scenario's own (a variant's gains).
     base = [_own_gains(dyn, c, s, model) for c, s in cases]
@@ -427,7 +428,8 @@ def margins(controllers=None, *, model=None, scenarios=None, executor=None, max_
         todo = sorted(factors)
         runs = [dict(scenario=cases[i][1], controller=cases[i][0],
                      gains=family(dyn, cases[i][0], g0[i] * factors[i], base[i])) for i in todo]
-        out = sweep(runs, executor=executor, max_workers=max_workers, model=model, progress=progress, seeds=seeds)
+        out = sweep(runs, executor=executor, max_workers=max_workers, model=model, progress=progress, seeds=seeds,
+                    numbers=numbers)
         return dict(zip(todo, out))
 
     ref = run({i: 1.0 for i in range(len(cases))})

@@ -1,0 +1,66 @@
+"""The command line (hydrogen/cli.py): options shared by the commands that build the model."""
+import json
+from concurrent.futures import ThreadPoolExecutor
+
+import pytest
+
+import hydrogen
+from hydrogen.cli import main as cli
+from hydrogen.errors import HydrogenError
+
+#: Every command that builds the model, with the arguments it needs to reach the build.
+BUILDING = [["simulate", "--duration", "0.1"], ["simulate", "--duration", "0.1", "--seeds", "2"],
+            ["figures", "--out", "{tmp}/figs"], ["tune", "--controller", "p"], ["tune-p"], ["margins"],
+            ["export", "--out", "{tmp}/c"], ["export", "--format", "fmu", "--part", "plant", "--out", "{tmp}/p.fmu"],
+            ["identify", "{tmp}/log.csv"]]
+
+
+@pytest.mark.parametrize("argv", BUILDING, ids=lambda a: " ".join(a[:3]))
+@pytest.mark.parametrize("numbers", ["constants", "inputs", None])
+def test_numbers_reaches_the_build_of_every_command(argv, numbers, tmp_path, monkeypatch, capsys):
+    """``--numbers`` is an option of every command that builds, and the build gets it (default: the
+    build's own default); the build is stopped at once here, before any run."""
+    import hydrogen.runtime.build as build_mod
+    from hydrogen.codegen.generate import DEFAULT_NUMBERS
+
+    (tmp_path / "log.csv").write_text("t,l0,pc0\n0,1,1\n0.001,1,1\n")
+    asked = []
+
+    def stop(model=None, **kw):
+        asked.append(kw.get("numbers", DEFAULT_NUMBERS))
+        raise HydrogenError("build stopped by the test")
+    monkeypatch.setattr(build_mod, "build", stop)
+    hydrogen._DEFAULT_DYN.clear()
+    args = [a.format(tmp=tmp_path) for a in argv] + ([] if numbers is None else ["--numbers", numbers])
+    assert cli(args) == 2
+    assert "build stopped by the test" in capsys.readouterr().err
+    assert asked == [numbers or DEFAULT_NUMBERS]
+
+
+def test_simulate_numbers_constants_builds_a_folded_library(tmp_path, monkeypatch, capsys):
+    """``simulate --numbers constants`` runs on a library with the numbers folded: its cache folder is
+    keyed by the baked model, its manifest has no numbers list; runs over seeds build as it did."""
+    from hydrogen.codegen.generate import read_manifest
+    from hydrogen.runtime.build import generated_dir_for
+
+    model = hydrogen.load_model()
+    monkeypatch.setattr("hydrogen.runtime.build.repo_generated_dir", lambda: tmp_path / "no-committed-code")
+    cache = tmp_path / "cache"
+    monkeypatch.setenv("HYDROGEN_CACHE_DIR", str(cache))
+    out = tmp_path / "m.json"
+    assert cli(["simulate", "--scenario", "z-1hz", "--controller", "p", "--duration", "0.1", "--numbers",
+                "constants", "--json", str(out)]) == 0
+    assert json.loads(out.read_text())["sim_time_s"] > 0
+    folded = generated_dir_for(model, cache, "constants")
+    assert folded.name.startswith(f"{model.name}-{model.baked_hash()[:16]}-")
+    assert "numbers" not in read_manifest(folded)
+    assert [p.name for p in (cache / "generated").iterdir() if not p.name.startswith(".")] == [folded.name]
+
+    # runs over seeds: the workers build the way the dynamics they were given were built
+    dyn = hydrogen.build(model, cache=cache, numbers="constants")
+    assert dyn.library.numbers is None
+    hydrogen._DEFAULT_DYN.clear()
+    with ThreadPoolExecutor(1) as pool:  # in this process: its per-process builds can be read
+        res = hydrogen.simulate("z-1hz", "p", dyn=dyn, duration=0.1, seeds=2, executor=pool)
+    assert not res.failures and set(hydrogen._DEFAULT_DYN) == {(model.baked_hash(), "constants")}
+    assert hydrogen._DEFAULT_DYN[(model.baked_hash(), "constants")].numbers is None
