@@ -519,6 +519,26 @@ def arm_dyn(cache):
     return hydrogen.build(hydrogen.load_model("excavator_arm"), numbers="inputs", cache=cache)
 
 
+@pytest.mark.parametrize("update", ["semi-implicit", "euler"])
+def test_closed_loop_estimates_at_t_are_simulates_row_at_t_after_adaptation_starts(arm_dyn, shared_fmu, update):
+    """theta_hat at t = k h is simulate's row k, the estimate the command at t used (after the update
+    from the measurement at t, for the semi-implicit update), checked after adaptation has started
+    (arm-sim adapts from 0.5 s), where the estimate changes every period."""
+    scenario, controller = CASES["excavator_arm"]
+    kw = {} if update == "semi-implicit" else {"estimator_update": update}
+    path = shared_fmu(arm_dyn, "closed-loop", scenario, controller, duration=0.7, **kw)
+    res = _reference_run(arm_dyn, scenario, controller, duration=0.7, **kw)
+    theta = [f"theta_hat.{t}" for t in arm_dyn.model.theta_names]
+    out = simulate_fmu(str(path), output=theta)
+    np.testing.assert_allclose(out["time"], res.t, rtol=0, atol=1e-12)
+    got = np.column_stack([out[t] for t in theta])
+    rows = np.searchsorted(res.t, [0.52, 0.55, 0.6, 0.65, 0.7])
+    np.testing.assert_allclose(got[rows], res.theta_hat[rows], rtol=1e-12, atol=0)
+    # the rows differ from their neighbours there: an off-by-one would fail
+    assert np.all(np.abs(res.theta_hat[rows] - res.theta_hat[rows - 1]).max(axis=1) > 1e-9)
+    np.testing.assert_allclose(got, res.theta_hat, rtol=1e-12, atol=0)
+
+
 def _numbers_slave(arm_dyn, shared_fmu, name):
     scenario, controller = CASES["excavator_arm"]
     return Slave(shared_fmu(arm_dyn, "closed-loop", scenario, controller, duration=DURATION), name)
