@@ -471,9 +471,11 @@ def _numbers_vr0(variables, ctx):
     """The value reference of the first of the description's numbers (they follow one another, in
     params.h's order), or None without them."""
     vrs = [v.vr for v in variables if v.c_loc.startswith(f"inst->plant_{NUMBERS}[")]
-    if len(vrs) != len(ctx["numbers"]) or vrs != list(range(vrs[0] if vrs else 0, (vrs[0] if vrs else 0) + len(vrs))):
+    if not vrs:
+        return None
+    if vrs != list(range(vrs[0], vrs[0] + len(ctx["numbers"]))):
         raise FmuError("the FMU's variables of the description's numbers are not params.h's, in order")
-    return vrs[0] if vrs else None
+    return vrs[0]
 
 
 def _guid(payload: dict) -> str:
