@@ -239,19 +239,57 @@ def export_context(dyn, p, scenario_name, controller, prog, sources, headers, ct
         "coords": model.coordinate_names,
         "config": _with_definitions(loop["config"], values, dyn.library.manifest.get(NUMBERS)),
         "coord_units": model.coordinate_units, "amplitude": c_doubles(ref.amplitude()),
+        **_number_checks(dyn),
     }
 
 
-_NUMBER_NAME = re.compile(r"^[A-Za-z0-9_.\[\]]+$")
+def number_ranges(model, names) -> list:
+    """(low, high) of each of the description's numbers ``names`` (None: unbounded): the description's
+    own (:meth:`hydrogen.model.Model.number_ranges`), which the loader holds them to."""
+    ranges = model.number_ranges()
+    missing = [k for k in names if k not in ranges]
+    if missing:
+        raise HydrogenError(f"export: the compiled dynamics take the number '{missing[0]}', which model "
+                            f"{model.name} does not give; rebuild")
+    return [ranges[k] for k in names]
+
+
+def _number_checks(dyn) -> dict:
+    """What params.h needs to check the description's numbers (a library generated with them as
+    inputs): each one's name and range (C literals; HUGE_VAL: unbounded), and the order rules between
+    a cylinder's constants by index (:meth:`hydrogen.model.Model.number_orders`)."""
+    if dyn.library.numbers is None:
+        return {"numbers": [], "number_order": []}
+    names = list(dyn.library.manifest[NUMBERS])
+    at = {k: i for i, k in enumerate(names)}
+    _check_number_names(names)
+    ranges = number_ranges(dyn.model, names)
+    for k, v, (lo, hi) in zip(names, dyn.library.numbers, ranges):
+        if not ((lo is None or v >= lo) and (hi is None or v <= hi)):  # the loader holds them: never seen
+            raise HydrogenError(f"export: the description's number '{k}' = {v!r} is outside its range [{lo}, {hi}]")
+    numbers = [{"name": k, "min": "-HUGE_VAL" if lo is None else c_double(lo),
+                "max": "HUGE_VAL" if hi is None else c_double(hi)} for k, (lo, hi) in zip(names, ranges)]
+    order = [{"a": at[a], "b": at[b], "strict": int(strict), "why": why}
+             for a, b, strict, why in dyn.model.number_orders() if a in at and b in at]
+    return {"numbers": numbers, "number_order": order}
+
+
+#: A number's name: a description's names (hydrogen.names.check_name: letters, digits, '_', '-'), dots
+#: and brackets. It is written into a C comment as it is: nothing in it can end the comment.
+_NUMBER_NAME = re.compile(r"^[A-Za-z0-9_.\[\]-]+$")
+
+
+def _check_number_names(names):
+    bad = [n for n in names if not _NUMBER_NAME.match(n)]
+    if bad:
+        raise HydrogenError(f"export: the description's number name {bad[0]!r} holds other characters than "
+                            "names' (letters, digits, '_', '-'), dots and brackets")
 
 
 def _numbers_definition(name: str, values, names: list) -> str:
     """The description's numbers as a C array, one per line with its name (a comment: checked to hold
-    nothing but identifier characters, dots and brackets, so no description text can end it)."""
-    bad = [n for n in names if not _NUMBER_NAME.match(n)]
-    if bad:
-        raise HydrogenError(f"export: the description's number name {bad[0]!r} is not of identifiers, dots and "
-                            "brackets")
+    nothing but names' characters, dots and brackets, so no description text can end it)."""
+    _check_number_names(names)
     rows = "\n".join(f"    {c_double(v)},  /* {k}: {n} */" for k, (v, n) in enumerate(zip(values, names)))
     return f"static const double {name}[{len(names)}] = {{\n{rows}\n}};"
 
@@ -312,6 +350,9 @@ Output, one item per line:
   periods <n>                 control periods run
   status <code>               0 ok, 1 non-finite state, 2 forward kinematics failed, 3 a generated
                               function failed (the exit status is non-zero unless status is 0)
+Before it runs, the program checks the description's numbers in params.h (P_NUMBERS, which may be
+edited) against their ranges (P_NUMBER_MIN, P_NUMBER_MAX) and the order between a cylinder's
+constants (P_NUMBER_ORDER); a number that breaks one is named on stderr, and the exit status is 2.
 
 The program runs without sensor noise (leg-length and pressure noise are a simulator
 feature; the loop gets a NULL noise table). Its errors therefore equal those of

@@ -40,6 +40,7 @@ import numpy as np
 
 from .errors import CompilerError, FmuError, OutputPathError
 from .layout import NUMBERS
+from .model import POSITIVE  # FMI's min is inclusive: "> 0" is min = the smallest positive double
 
 __all__ = ["export_fmu", "PARTS", "fmi_headers_dir", "FMI_HEADERS"]
 
@@ -333,6 +334,7 @@ def _number_variable(name: str) -> str:
 
 def _plant_arrays(dyn, p):
     """One array per input of plant_rhs besides x and u: name, loop-config field, entries, values."""
+    from .export import number_ranges
     from .simulation.simulator import valve_vector
     model, sc = dyn.model, p.sc
     cyls = [c.name for c in model.cylinders]
@@ -371,12 +373,8 @@ def _plant_arrays(dyn, p):
         out.append({"name": NUMBERS, "field": f"plant_{NUMBERS}", "size": len(names),
                     "entries": [(_number_variable(k), None, f"the description's number {k} (SI)") for k in names],
                     "values": [float(v) for v in numbers], "data": ", ".join(c_double(v) for v in numbers),
-                    "ranges": [(None, None)] * len(names)})
+                    "ranges": number_ranges(model, names)})
     return out
-
-
-#: FMI's min is inclusive: "> 0" is declared as min = the smallest positive double.
-POSITIVE = 5e-324
 
 
 def _plant_ranges(model, sc) -> dict:
@@ -469,6 +467,17 @@ def _model_description(ident, part, model_name, sc, controller, guid, variables,
     return b'<?xml version="1.0" encoding="UTF-8"?>\n' + ET.tostring(root, encoding="utf-8") + b"\n"
 
 
+def _numbers_vr0(variables, ctx):
+    """The value reference of the first of the description's numbers (they follow one another, in
+    params.h's order), or None without them."""
+    vrs = [v.vr for v in variables if v.c_loc.startswith(f"inst->plant_{NUMBERS}[")]
+    if not vrs:
+        return None
+    if vrs != list(range(vrs[0], vrs[0] + len(ctx["numbers"]))):
+        raise FmuError("the FMU's variables of the description's numbers are not params.h's, in order")
+    return vrs[0]
+
+
 def _guid(payload: dict) -> str:
     h = hashlib.sha256(json.dumps(payload, sort_keys=True).encode()).hexdigest()
     return "{" + f"{h[:8]}-{h[8:12]}-{h[12:16]}-{h[16:20]}-{h[20:32]}" + "}"
@@ -514,8 +523,10 @@ fmi2DoStep return fmi2Error with a logged message, and nothing is done.</li>
 <li>Parameters are fixed: set them before fmi2ExitInitializationMode.{start}</li>
 <li>A Real parameter or input must be a finite number inside its declared min and max (the model's bounds
 and the scenario's rules); fmi2SetReal refuses any other value with fmi2Error and a logged message naming
-the variable, and sets nothing (outputs keep their last values). fmi2ExitInitializationMode checks them all
-again{pose}.</li>
+the variable and its range, and sets nothing (outputs keep their last values). The description's numbers
+(<code>numbers.*</code>) have the description's own ranges. fmi2ExitInitializationMode checks them all
+again{pose}, and that the numbers keep the order between a cylinder's constants (the rod's annulus area no
+larger than the cap area, tank below supply pressure, ...), naming both.</li>
 <li>With a stop time given to fmi2SetupExperiment (stopTimeDefined), a step that would end after it is
 refused with fmi2Error, and nothing is done.</li>
 <li>Controller + plant: step the controller first (inputs: the plant's outputs at t), then hand its u to the
@@ -631,7 +642,7 @@ def export_fmu(out, part, scenario=None, controller="adaptive-robust", model=Non
     glue = render_template("fmu_glue.c.j2", dict(
         ctx, part=part, guid=guid, variables=variables, plant_arrays=_plant_arrays(dyn, p),
         est_const_size=len(est_const), est_const=", ".join(c_double(v) for v in est_const),
-        encoders=encoders, kalman=kalman,
+        encoders=encoders, kalman=kalman, numbers_vr0=_numbers_vr0(variables, ctx),
         stroke_min=", ".join(c_double(v) for v in model.leg_min),
         stroke_max=", ".join(c_double(v) for v in model.leg_max),
         length_vrs=", ".join(str(v.vr) for v in variables if v.kind == "o" and v.c_loc.startswith("inst->y_l["))

@@ -108,7 +108,20 @@ DEFAULT_KIND = "three_way_cylinder"
 SHARED_KEYS = ("supply_pressure", "underlap", "flow_gain", "bulk_modulus", "orifice_linear_below", "stroke")
 #: The quantity (QUANTITIES) of a kind's parameter whose name is not one.
 _QUANTITY_OF = {"cap_area": "piston_area", "annulus_area": "rod_area", "dead_volume_A": "dead_volume",
-                "dead_volume_B": "dead_volume", "displacement": "displacement"}
+                "dead_volume_B": "dead_volume", "displacement": "displacement", "stroke_min": "stroke",
+                "stroke_max": "stroke", "angle_min": "angle", "angle_max": "angle"}
+#: Order between two constants of one cylinder: (smaller, larger, strict, why). The loader refuses a
+#: description that breaks one; the exported programs (C and FMU) refuse edited numbers that do.
+CYLINDER_ORDER = (
+    ("rod_area", "piston_area", True, "the rod side's annulus is the piston area less the rod's section"),
+    ("chamber_length", "stroke_min", True, "the control chamber keeps a positive volume at the shortest length"),
+    ("annulus_area", "cap_area", False, "the annulus is the cap area less the rod's section"),
+    ("tank_pressure", "supply_pressure", True, "oil flows from supply to tank"),
+    ("stroke_min", "stroke_max", True, "[shortest, longest] length"),
+    ("angle_min", "angle_max", True, "[lowest, highest] angle"),
+)
+#: The smallest positive double: the low end of a range "> 0" (closed ranges hold every rule).
+POSITIVE = 5e-324
 #: Largest description file read (the TOML and the URDF it names), bytes: the shipped ones are a few kB.
 MAX_DESCRIPTION_BYTES = 16 * 1024 * 1024
 _MAX_QUOTE = 200  # characters of a bad value quoted in an error message
@@ -396,22 +409,66 @@ class Model:
         (kg, kg m, kg m², link frame); ``<cylinder>.from[k]``, ``.to[k]`` (m, the link's frame),
         ``.<parameter>`` (its kind's, SI) and ``.linkage.<field>`` (m, rad). A derivation reads
         the subset it needs; a number it holds exact (a zero, a unit axis entry) is structure."""
+        return {name: value for name, (value, _) in self._numbered().items()}
+
+    def number_ranges(self) -> dict:
+        """``{name: (low, high)}`` of every number of :meth:`numbers` (SI, inclusive; None: unbounded):
+        the range the loader holds it to (QUANTITIES), or, for one it derives (the inertia about the
+        link origin, m·c, a linkage's plane geometry), the range those checks imply. An exported
+        program (C, FMU) refuses an edited number outside it."""
+        return {name: rng for name, (_, rng) in self._numbered().items()}
+
+    def number_orders(self) -> list:
+        """``(smaller, larger, strict, why)``: the rules of CYLINDER_ORDER between two numbers of one
+        cylinder, the numbers by name (both of :meth:`numbers`)."""
+        names = self._numbered()
+        return [(f"{c.name}.{a}", f"{c.name}.{b}", strict, why) for c in self.cylinders
+                for a, b, strict, why in CYLINDER_ORDER if f"{c.name}.{a}" in names and f"{c.name}.{b}" in names]
+
+    def _numbered(self) -> dict:
+        """``{name: (value, (low, high))}``: :meth:`numbers` with :meth:`number_ranges`, made together
+        so the two always name the same numbers."""
         from .actuators import actuator
 
-        def vector(name, values):
-            return {f"{name}[{k}]": float(v) for k, v in enumerate(values)}
+        def span(q):
+            return (float(q.low), float(q.high))
 
-        out = {"gravity": float(self.gravity)}
+        pos, mass, inertia = QUANTITIES["position"], QUANTITIES["mass"], QUANTITIES["inertia"]
+        mc = mass.high * pos.high  # |m c| per axis, c within the position range
+        # about the origin: I_oo = I_cc + m (c_j^2 + c_k^2) and I_oj = I_cj - m c_o c_j, where a
+        # diagonal entry of I_c is inside its principal moments and an off-diagonal one inside the largest
+        inertial = {"mass": span(mass), "mcx": (-mc, mc), "mcy": (-mc, mc), "mcz": (-mc, mc),
+                    **{k: (inertia.low, inertia.high + 2 * mc * pos.high) for k in ("Ixx", "Iyy", "Izz")},
+                    **{k: (-(inertia.high + mc * pos.high), inertia.high + mc * pos.high)
+                       for k in ("Ixy", "Ixz", "Iyz")}}
+        # a linkage's lengths as the loader reads them, its crank > 0, its angle of atan2; its plane
+        # points are differences of positions in rotated frames: any finite value
+        linkage = {"crank": (POSITIVE, None), "crank_offset": (-np.pi, np.pi), "coupler": span(QUANTITIES["stroke"]),
+                   "rocker": span(QUANTITIES["stroke"])}
+        ranges = {"origin_xyz": span(pos), "origin_rpy": span(QUANTITIES["angle"]),
+                  "axis": (-1.0, 1.0),  # a unit vector's entries
+                  "from": span(pos), "to": span(pos)}
+
+        def vector(name, key, values):
+            return {f"{name}.{key}[{k}]": (float(v), ranges[key]) for k, v in enumerate(values)}
+
+        out = {"gravity": (float(self.gravity), span(QUANTITIES["gravity"]))}
         for j in self.joints:
             for key in ("origin_xyz", "origin_rpy", "axis"):
-                out.update(vector(f"{j.name}.{key}", getattr(j, key)))
-        out.update({k: float(v) for k, v in self.inertial_parameters().items()})
+                out.update(vector(j.name, key, getattr(j, key)))
+        for lk in self.links:  # a massless link (a URDF frame link) is held to none: 0 is its only value
+            out.update({f"{lk.name}.{k}": (float(v), inertial[k] if lk.mass else (0.0, 0.0))
+                        for k, v in lk.parameters().items()})
         for c in self.cylinders:
-            out.update(vector(f"{c.name}.from", c.point_from))
-            out.update(vector(f"{c.name}.to", c.point_to))
-            out.update({f"{c.name}.{k}": float(v) for k, v in actuator(c.kind).parameters(c.table).items()})
+            out.update(vector(c.name, "from", c.point_from))
+            out.update(vector(c.name, "to", c.point_to))
+            for k, v in actuator(c.kind).parameters(c.table).items():
+                q = QUANTITIES.get(_QUANTITY_OF.get(k, k))
+                out[f"{c.name}.{k}"] = (float(v), (None, None) if q is None else span(q))
             if c.linkage is not None:
-                out.update(c.linkage.numbers(c.name))
+                for k, v in c.linkage.numbers(c.name).items():
+                    field = k[len(f"{c.name}.linkage."):]
+                    out[k] = (v, linkage.get(field, (None, None)))
         return out
 
 
@@ -987,16 +1044,11 @@ def _cylinders(r: _Reader, data: dict, link_names: set, root_note: str = "", joi
             raise r.error(f"{w} stroke", f"must be [shortest, longest] with shortest < longest, got {[smin, smax]}")
         if linkage:
             _check_linkage(r, w, linkage, smin, smax, linkage_joint)
+        _check_order(r, w, {**vals, "stroke_min": smin, "stroke_max": smax})
         if kind == DEFAULT_KIND:
-            if vals["chamber_length"] >= smin:
-                raise r.error(f"{w} chamber_length", f"must be < the shortest length {smin} m so the control "
-                                                     "chamber keeps a positive volume")
-            if vals["rod_area"] >= vals["piston_area"]:
-                raise r.error(f"{w} rod_area", "must be < piston_area")
             out.append(Cylinder(name, ends[0][0], ends[0][1], ends[1][0], ends[1][1], stroke_min=smin,
                                 stroke_max=smax, **linkage, **vals))
             continue
-        _check_two_chamber(r, w, vals)
         shared = {k: vals.pop(k) for k in SHARED_KEYS if k in vals}
         out.append(Cylinder(name, ends[0][0], ends[0][1], ends[1][0], ends[1][1], piston_area=None, rod_area=None,
                             chamber_length=None, stroke_min=smin, stroke_max=smax, kind=kind, params=vals,
@@ -1089,7 +1141,7 @@ def _joint_actuator(r: _Reader, w: str, cy: dict, defaults: dict, kind: str, key
     amin, amax = (float(v) for v in vals.pop("angle"))
     if amin >= amax:
         raise r.error(f"{w} angle", f"must be [lowest, highest] with lowest < highest, got {[amin, amax]}")
-    _check_two_chamber(r, w, vals)
+    _check_order(r, w, vals)
     shared = {k: vals.pop(k) for k in SHARED_KEYS if k in vals}
     zero = np.zeros(3)
     return Cylinder(cy["name"], joint.parent, zero, joint.child, zero, piston_area=None, rod_area=None,
@@ -1118,13 +1170,22 @@ def _cylinder_values(r: _Reader, w: str, cy: dict, defaults: dict, kind: str, ke
     return vals
 
 
-def _check_two_chamber(r: _Reader, w: str, vals: dict):
-    """The cross-checks of a two-chamber actuator's constants (each in range already)."""
-    if "annulus_area" in vals and vals["annulus_area"] > vals["cap_area"]:
-        raise r.error(f"{w} annulus_area", f"must be <= cap_area {vals['cap_area']} m^2 (the annulus is the cap "
-                                           "area less the rod's section)")
-    if vals["tank_pressure"] >= vals["supply_pressure"]:
-        raise r.error(f"{w} tank_pressure", f"must be < supply_pressure {vals['supply_pressure']} Pa")
+def order_broken(values: dict):
+    """The first rule of CYLINDER_ORDER that a cylinder's constants ``values`` (by key) break, or None."""
+    for a, b, strict, why in CYLINDER_ORDER:
+        if a in values and b in values and not (values[a] < values[b] if strict else values[a] <= values[b]):
+            return a, b, strict, why
+    return None
+
+
+def _check_order(r: _Reader, w: str, vals: dict):
+    """The cross-checks of a cylinder's constants (each in range already): CYLINDER_ORDER."""
+    broken = order_broken(vals)
+    if broken:
+        a, b, strict, why = broken
+        q = QUANTITIES.get(_QUANTITY_OF.get(b, b))
+        raise r.error(f"{w} {a}", f"must be {'<' if strict else '<='} {b} {vals[b]}{' ' + q.unit if q else ''} "
+                                  f"({why})")
 
 
 def model_from_dict(data: dict, source: str = "<memory>", base_dir: Path | None = None) -> Model:

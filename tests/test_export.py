@@ -162,3 +162,69 @@ def test_cmake_build_with_werror(tmp_path, dyn):
     prog = json.loads((folder / EXPORT_MANIFEST).read_text())["program"]
     proc = subprocess.run([str(folder / "build" / prog)], capture_output=True, text=True, timeout=600)
     assert proc.returncode == 0 and "status 0" in proc.stdout
+
+
+def _edit_number(params: str, name: str, value: str) -> str:
+    """params.h with the description's number ``name`` (one entry a line, named in a comment) set to ``value``."""
+    import re
+    edited, n = re.subn(rf"^(    )[^,\n]+(,  /\* \d+: {re.escape(name)} \*/)$", rf"\g<1>{value}\g<2>", params,
+                        flags=re.M)
+    assert n == 1, name
+    return edited
+
+
+@pytest.mark.parametrize("name, value, message", [
+    ("boom.mass", "-3.0", "params.h: number 'boom.mass' = -3 is outside [1e-06, 1000000]"),
+    ("gravity", "NAN", "params.h: number 'gravity' = nan is outside [0, 30]"),
+    ("boom_cylinder.cap_area", "0.0", "params.h: number 'boom_cylinder.cap_area' = 0 is outside [1e-08, 10]"),
+    ("boom_cylinder.annulus_area", "1.0", "params.h: number 'boom_cylinder.annulus_area' = 1 must be <= number "
+     "'boom_cylinder.cap_area' = 0.022619 (the annulus is the cap area less the rod's section)"),
+])
+def test_an_edited_number_outside_its_range_is_named_and_nothing_runs(tmp_path, cache, name, value, message):
+    """params.h's numbers may be edited on the target: the program checks them against the
+    description's ranges and the order of a cylinder's constants (rendered from hydrogen.model) and
+    names the first bad one, exiting 2 before it runs; the unedited export runs."""
+    import hydrogen
+    dyn = hydrogen.build(hydrogen.load_model("excavator_arm"), cache=cache, numbers="inputs")
+    folder = export(tmp_path / "export", "arm-sim", "p", duration=0.05, dyn=dyn)
+    params = folder / "params.h"
+    params.write_text(_edit_number(params.read_text(), name, value))
+    proc = subprocess.run(["make", "-s", "run"], cwd=folder, capture_output=True, text=True, timeout=600)
+    assert proc.returncode != 0
+    assert message in proc.stderr, proc.stderr
+    assert "status" not in proc.stdout  # refused before the loop ran
+
+
+
+def dashed_arm(folder):
+    """The shipped excavator arm with a '-' in a link's name and a cylinder's (the name rule allows
+    it: hydrogen.names.check_name), written into ``folder`` and loaded."""
+    import re
+
+    import hydrogen
+    data = hydrogen.model.model_path("excavator_arm").parent
+    toml = (data / "excavator_arm.toml").read_text()
+    toml = toml.replace('name = "boom_cylinder"', 'name = "boom-cylinder"')
+    toml = toml.replace('link = "boom"', 'link = "boom-link"').replace('"boom.', '"boom-link.')
+    urdf = re.sub(r'(link|name)="boom"', r'\1="boom-link"', (data / "excavator_arm.urdf").read_text())
+    (folder / "excavator_arm.toml").write_text(toml)
+    (folder / "excavator_arm.urdf").write_text(urdf)
+    model = hydrogen.load_model(folder / "excavator_arm.toml")
+    assert "boom-cylinder" in [c.name for c in model.cylinders] and "boom-link.mass" in model.numbers()
+    return model
+
+
+def test_names_with_a_dash_export_and_run(tmp_path, cache):
+    """A '-' in a link's or cylinder's name reaches only comments and strings of the exported C (the
+    numbers' names in params.h), never an identifier: the export builds, runs and checks its numbers."""
+    import hydrogen
+    dyn = hydrogen.build(dashed_arm(tmp_path), cache=cache, numbers="inputs")
+    folder = export(tmp_path / "export", "arm-sim", "p", duration=0.05, dyn=dyn)
+    params = (folder / "params.h").read_text()
+    assert ": boom-cylinder.cap_area */" in params and '"boom-link.mass",' in params
+    _build(folder)
+    assert _run(folder)["status"] == "0"
+    params_h = folder / "params.h"
+    params_h.write_text(_edit_number(params, "boom-link.mass", "-1.0"))
+    proc = subprocess.run(["make", "-s", "run"], cwd=folder, capture_output=True, text=True, timeout=600)
+    assert proc.returncode == 2 and "number 'boom-link.mass' = -1 is outside" in proc.stderr, proc.stderr

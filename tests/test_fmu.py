@@ -18,7 +18,7 @@ from fmpy.fmi2 import FMU2Slave, fmi2CallbackFunctions, fmi2CallbackLoggerTYPE, 
 from fmpy.validation import validate_fmu  # noqa: E402
 
 from hydrogen.errors import FmuError, HydrogenError, OutputPathError  # noqa: E402
-from hydrogen.fmu import FMI_HEADERS, PARTS, export_fmu, fmi_headers_dir  # noqa: E402
+from hydrogen.fmu import FMI_HEADERS, PARTS, _number_variable, export_fmu, fmi_headers_dir  # noqa: E402
 from hydrogen.simulation.simulator import simulate  # noqa: E402
 from hydrogen.actuators import actuator  # noqa: E402
 from hydrogen.pressures import bounds as pressure_bounds  # noqa: E402
@@ -378,7 +378,7 @@ def test_parameters_declare_their_range_from_the_model(fmus):
     assert float(plant["friction.smooth_speed"].min) > 0 and float(plant["friction.coulomb"].min) == 0
     ctl = {v.name: v for v in read_model_description(str(paths["controller"])).modelVariables}
     params = [v for v in ctl.values() if v.causality == "parameter" and v.type == "Real"]
-    # the description's numbers (coordinates among them) are declared without a range: any finite value
+    # the description's numbers have the description's ranges, a position's below 0 (checked below)
     assert params and all(v.min is not None and float(v.min) >= 0 for v in params
                           if not v.name.startswith(("theta_min", "theta_max", "numbers.")))
     assert float(ctl["u_max"].min) > 0
@@ -510,3 +510,107 @@ def test_the_description_numbers_are_parameters_and_an_edit_equals_the_edited_de
     got = q_of(simulate_fmu(str(path), output=out, start_values=edit))
     np.testing.assert_allclose(got, want, rtol=0, atol=1e-9)
     assert np.abs(want - _reference_run(dyn, scenario, controller).q).max() > 1e-6  # the edit matters
+
+
+@pytest.fixture(scope="module")
+def arm_dyn(cache):
+    """The excavator arm built with the description's numbers as inputs (they are FMU parameters)."""
+    import hydrogen
+    return hydrogen.build(hydrogen.load_model("excavator_arm"), numbers="inputs", cache=cache)
+
+
+@pytest.mark.parametrize("update", ["semi-implicit", "euler"])
+def test_closed_loop_estimates_at_t_are_simulates_row_at_t_after_adaptation_starts(arm_dyn, shared_fmu, update):
+    """theta_hat at t = k h is simulate's row k, the estimate the command at t used (after the update
+    from the measurement at t, for the semi-implicit update), checked after adaptation has started
+    (arm-sim adapts from 0.5 s), where the estimate changes every period."""
+    scenario, controller = CASES["excavator_arm"]
+    kw = {} if update == "semi-implicit" else {"estimator_update": update}
+    path = shared_fmu(arm_dyn, "closed-loop", scenario, controller, duration=0.7, **kw)
+    res = _reference_run(arm_dyn, scenario, controller, duration=0.7, **kw)
+    theta = [f"theta_hat.{t}" for t in arm_dyn.model.theta_names]
+    out = simulate_fmu(str(path), output=theta)
+    np.testing.assert_allclose(out["time"], res.t, rtol=0, atol=1e-12)
+    got = np.column_stack([out[t] for t in theta])
+    rows = np.searchsorted(res.t, [0.52, 0.55, 0.6, 0.65, 0.7])
+    np.testing.assert_allclose(got[rows], res.theta_hat[rows], rtol=1e-12, atol=0)
+    # the rows differ from their neighbours there: an off-by-one would fail
+    assert np.all(np.abs(res.theta_hat[rows] - res.theta_hat[rows - 1]).max(axis=1) > 1e-9)
+    np.testing.assert_allclose(got, res.theta_hat, rtol=1e-12, atol=0)
+
+
+def _numbers_slave(arm_dyn, shared_fmu, name):
+    scenario, controller = CASES["excavator_arm"]
+    return Slave(shared_fmu(arm_dyn, "closed-loop", scenario, controller, duration=DURATION), name)
+
+
+def test_the_description_numbers_declare_the_descriptions_ranges(arm_dyn, shared_fmu):
+    """Each numbers.<name> parameter has min and max: the description's own range (the loader's
+    QUANTITIES, or what they imply for a derived number), and its start value inside it."""
+    model = arm_dyn.model
+    ranges = model.number_ranges()
+    s = _numbers_slave(arm_dyn, shared_fmu, "ranges")
+    by = {n[len("numbers."):]: v for n, v in s.var.items() if n.startswith("numbers.")}
+    assert float(by["boom.mass"].min) == 1e-6 and float(by["boom.mass"].max) == 1e6
+    assert (float(by["gravity"].min), float(by["gravity"].max)) == ranges["gravity"] == (0.0, 30.0)
+    assert float(by["boom_cylinder.cap_area"].min) > 0 and float(by["boom_cylinder.bulk_modulus"].min) > 0
+    assert float(by["boom.Ixx"].min) > 0 and float(by["boom.mcx"].min) < 0  # about the origin: derived ranges
+    names = arm_dyn.library.manifest["numbers"]
+    assert len(by) == len(names)
+    for name in names:
+        lo, hi = ranges[name]
+        v = s.var[_number_variable(name)]  # an array's entry as FMI counts, from 1
+        assert (v.min is None) == (lo is None) and (v.max is None) == (hi is None), name
+        assert lo is None or float(v.min) == lo, name
+        assert hi is None or float(v.max) == hi, name
+        assert (lo is None or lo <= float(v.start)) and (hi is None or float(v.start) <= hi), name
+    s.fmu.freeInstance()
+
+
+@pytest.mark.parametrize("number, value, words", [
+    ("boom.mass", -3.0, ["numbers.boom.mass = -3", ">= 1e-06", "[1e-06, 1000000]"]),
+    ("boom_cylinder.cap_area", 0.0, ["numbers.boom_cylinder.cap_area = 0", "[1e-08, 10]"]),
+    ("boom_cylinder.bulk_modulus", -1.4e9, ["numbers.boom_cylinder.bulk_modulus", "[10000000, 1e+10]"]),
+    ("gravity", float("nan"), ["numbers.gravity", "not a finite number"]),
+])
+def test_a_number_outside_its_range_is_refused_naming_it(arm_dyn, shared_fmu, number, value, words):
+    s = _numbers_slave(arm_dyn, shared_fmu, "refuse")
+    name = f"numbers.{number}"
+    start = s.get([name])[0]
+    with pytest.raises(FMICallException):
+        s.set([name], [value])
+    assert any(all(w in m for w in words) for m in s.messages), s.messages
+    assert s.get([name])[0] == start  # nothing was set
+    s.fmu.freeInstance()
+
+
+def test_an_annulus_larger_than_the_cap_is_refused_at_initialisation(arm_dyn, shared_fmu):
+    """Each area inside its range, but the annulus larger than the cap: fmi2ExitInitializationMode
+    refuses it, naming both parameters; the loader's own rule (hydrogen.model.CYLINDER_ORDER)."""
+    s = _numbers_slave(arm_dyn, shared_fmu, "order")
+    cap, annulus = "numbers.boom_cylinder.cap_area", "numbers.boom_cylinder.annulus_area"
+    s.set([annulus], [2 * s.get([cap])[0]])  # in its own range: accepted when set
+    with pytest.raises(FMICallException):
+        s.fmu.exitInitializationMode()
+    assert any(annulus in m and cap in m and "must be <=" in m for m in s.messages), s.messages
+    s.fmu.freeInstance()
+
+
+def test_names_with_a_dash_are_quoted_fmu_names(tmp_path, cache, shared_fmu):
+    """A '-' in a link's or cylinder's name: the FMU's variables quote that part of the structured
+    name (numbers.'boom-cylinder'.cap_area), the FMU validates and runs, and its refusals name them."""
+    import hydrogen
+    from test_export import dashed_arm
+
+    dyn = hydrogen.build(dashed_arm(tmp_path), numbers="inputs", cache=cache)
+    scenario, controller = CASES["excavator_arm"]
+    path = shared_fmu(dyn, "closed-loop", scenario, controller, duration=DURATION)
+    assert validate_fmu(str(path)) == []
+    s = Slave(path, "dash")
+    assert {"numbers.'boom-cylinder'.cap_area", "numbers.'boom-link'.mass", "u.'boom-cylinder'"} <= set(s.vr)
+    with pytest.raises(FMICallException):
+        s.set(["numbers.'boom-link'.mass"], [-1.0])
+    assert any("numbers.'boom-link'.mass = -1 is out of range" in m for m in s.messages), s.messages
+    s.fmu.freeInstance()
+    out = simulate_fmu(str(path), output=["q.boom"])
+    np.testing.assert_allclose(out["q.boom"], _reference_run(dyn, scenario, controller).q[:, 0], rtol=0, atol=1e-9)

@@ -676,3 +676,26 @@ def test_a_scenario_name_holding_the_variant_separator_is_refused_at_load(tmp_pa
     assert msg.startswith(f"{path}: [scenarios.\"z-1hz.paper-timing\"]: ") and "may not contain '.'" in msg
     path.write_text(text + '\n[scenarios.z-1hz-paper-timing]\nrig = true\nduration = 1.0\n')
     assert "z-1hz-paper-timing" in hydrogen.load_model(path).scenarios
+
+
+@pytest.mark.parametrize("name", hydrogen.models())
+def test_every_number_has_the_range_the_loader_holds_it_to(name):
+    """Model.number_ranges names the numbers Model.numbers does, each inside its range; the ranges are
+    QUANTITIES' (an exported program refuses an edited number outside), and number_orders names the
+    loader's CYLINDER_ORDER rules between numbers."""
+    from hydrogen.model import CYLINDER_ORDER, QUANTITIES, order_broken
+
+    model = hydrogen.load_model(name)
+    numbers, ranges = model.numbers(), model.number_ranges()
+    assert numbers.keys() == ranges.keys()
+    for k, v in numbers.items():
+        lo, hi = ranges[k]
+        assert (lo is None or lo <= v) and (hi is None or v <= hi), (k, v, lo, hi)
+    q = QUANTITIES["mass"]
+    assert all(ranges[f"{lk.name}.mass"] == (q.low, q.high) for lk in model.links if lk.mass > 0)
+    assert ranges["gravity"] == (QUANTITIES["gravity"].low, QUANTITIES["gravity"].high)
+    orders = model.number_orders()
+    assert orders and all(a in numbers and b in numbers for a, b, _, _ in orders)
+    for a, b, strict, why in orders:
+        assert order_broken({a.rsplit(".", 1)[1]: numbers[a], b.rsplit(".", 1)[1]: numbers[b]}) is None
+    assert {(a.rsplit(".", 1)[1], b.rsplit(".", 1)[1]) for a, b, _, _ in orders} <= {r[:2] for r in CYLINDER_ORDER}

@@ -69,6 +69,10 @@ def hostile_arm(arm, tmp_path_factory):
         links=tuple(dataclasses.replace(lk, name=links[lk.name]) for lk in m.links),
         theta_names=tuple(links[t.split(".")[0]] + "." + t.split(".")[1] for t in m.theta_names))
     assert np.array_equal(model.theta, m.theta)
+    # the library's numbers keep the arm's names (the manifest lists them so; a hostile name is refused
+    # in params.h's comments): their ranges and order rules are the arm's, by those names
+    for attr in ("number_ranges", "number_orders"):
+        object.__setattr__(model, attr, getattr(m, attr))
     manifest = json.loads(json.dumps(arm.library.manifest))
     manifest["model"].update(coordinates=list(model.coordinate_names),
                              cylinders=[c.name for c in model.cylinders], theta_names=list(model.theta_names))
