@@ -22,6 +22,7 @@ import stat
 from dataclasses import dataclass, field
 from importlib import resources
 from pathlib import Path
+from types import SimpleNamespace
 
 try:  # Python 3.11+
     import tomllib
@@ -97,6 +98,14 @@ QUANTITIES = {
     # rad: a joint origin's roll, pitch and yaw: within two turns either way
     "angle": Quantity(None, -4 * np.pi, 4 * np.pi, "rad"),
 }
+#: A URDF link's inertial is a placeholder, taken as massless with a note, when it is not a rigid
+#: body's (inertia not positive definite or breaking the triangle inequality, or a mass under the
+#: plausible range) and yet at most PLACEHOLDER_MASS kg with every principal moment at most
+#: PLACEHOLDER_INERTIA kg m² in magnitude: exporters write one where a link is a frame (every entry
+#: 1e-6, or all zero). Massless, it changes D by at most PLACEHOLDER_MASS r² + 3 PLACEHOLDER_INERTIA
+#: (r, m, its distance from a joint axis).
+PLACEHOLDER_MASS = 1e-3
+PLACEHOLDER_INERTIA = 1e-5
 #: Cylinder constants (each a quantity above): [hydraulics] gives defaults, each [[cylinders]] entry may
 #: override them.
 HYDRAULIC_KEYS = ("piston_area", "rod_area", "chamber_length", "supply_pressure", "underlap", "flow_gain",
@@ -588,13 +597,14 @@ def _inertia_matrix(r: _Reader, where, value) -> np.ndarray:
     return _positive_inertia(r, where, I)
 
 
-def _positive_inertia(r: _Reader, where, I) -> np.ndarray:
+def _positive_inertia(r: _Reader, where, I, hint: str = "") -> np.ndarray:
+    """``I`` (kg m²) checked as a rigid body's; ``hint`` ends the message of a refusal."""
     eig = np.linalg.eigvalsh(I)
     if not np.all(eig > 0):
-        raise r.error(where, f"the inertia tensor must be positive definite (principal moments {eig.tolist()})")
+        raise r.error(where, f"the inertia tensor must be positive definite (principal moments {eig.tolist()}){hint}")
     # the triangle inequality of a physical body's principal moments
     if eig[0] + eig[1] < eig[2] * (1 - 1e-9):
-        raise r.error(where, f"principal moments {eig.tolist()} violate I1 + I2 >= I3 (no rigid body has them)")
+        raise r.error(where, f"principal moments {eig.tolist()} violate I1 + I2 >= I3 (no rigid body has them){hint}")
     _in_range(r, f"{where} (principal moments)", eig, QUANTITIES["inertia"])
     return I
 
@@ -683,45 +693,65 @@ _URDF_NUMBERS = {
 }
 
 
-def _tree_from_urdf(path: Path, data: bytes):
-    """Links and joints of URDF file ``path`` (its bytes ``data``): parsed strictly by
-    :mod:`hydrogen.urdf` (lxml, no entities), its structure and numbers checked here with each
-    element named. Joint origins are the file's numbers (a rotation matrix would round the rpy)."""
-    from .urdf import load_robot, parse_xml  # lxml, strict, no entities; yourdfpy's shape of data
+def _tree_from_urdf(path: Path, data: bytes, select):
+    """Links and joints of URDF file ``path`` (its bytes ``data``) that ``select(link names, joints)``
+    keeps (it returns the names of the links kept: :func:`_kept_links`): parsed strictly by
+    :mod:`hydrogen.urdf` (lxml, no entities), the whole file's structure checked, then the numbers
+    and inertias of what is kept only, each element named (a file must still be URDF: a number that
+    is not one is refused anywhere, as any URDF reader does). Joint origins are the file's numbers (a
+    rotation matrix would round the rpy)."""
+    from .urdf import load_robot, parse_xml  # lxml, strict, no entities
 
     root = parse_xml(path, data)
     ur = _Reader(str(path))
-    numbers = _check_urdf(ur, root)
+    kept = select([el.get("name") for el in root.findall("link")], _check_urdf(ur, root))
+    numbers = _check_urdf_elements(ur, root, kept)
     robot = load_robot(path, data)
-    links = []
-    by_child = {j.child: j for j in robot.joints}
+    by_child = {j.child: j for j in robot.joints if j.parent in kept and j.child in kept}
 
-    def static(name):  # the root, or fixed to it through fixed joints: its inertia never enters the dynamics
+    def moved_by(name):  # the moving joint the link hangs from (through fixed joints), None if static
         seen = set()
         while name in by_child and name not in seen:
             seen.add(name)
             if by_child[name].type != "fixed":
-                return False
+                return by_child[name].name
             name = by_child[name].parent
-        return True
+        return None  # the root (or the selected base), or fixed to it: its inertia never enters the dynamics
 
+    links = []
     for lk in robot.links:
         w = f"link '{lk.name}'"
         if lk.name not in by_child:
-            continue  # the root (or a loose link, named by the tree check): the fixed base, any inertia
-        if static(lk.name) or lk.inertial is None or lk.inertial.mass is None or lk.inertial.mass == 0:
+            continue  # the root or a link left out (or a loose link, named by the tree check)
+        massless = Link(lk.name, 0.0, np.zeros(3), np.zeros((3, 3)))
+        joint = moved_by(lk.name)
+        if joint is None or lk.inertial is None or lk.inertial.mass is None or lk.inertial.mass == 0:
             # a placeholder on the fixed base, or a massless frame link (Pinocchio accepts both): mass 0
-            links.append(Link(lk.name, 0.0, np.zeros(3), np.zeros((3, 3))))
-            if not static(lk.name):
+            links.append(massless)
+            if joint is not None:
                 _note(f"{path}: {w} has no mass: it moves as a frame only (its parent joint must move a link "
                       "with mass below it)")
             continue
         T = np.asarray(lk.inertial.origin if lk.inertial.origin is not None else np.eye(4), float)
         mass = numbers["link", lk.name]["inertial/mass", "value"]
         I = T[:3, :3] @ np.asarray(lk.inertial.inertia, float) @ T[:3, :3].T
-        links.append(Link(lk.name, mass, T[:3, 3].copy(), _positive_inertia(ur, f"{w} inertia", I)))
+        try:
+            links.append(Link(lk.name, ur.number(f"{w} <inertial><mass value>", mass, "mass"), T[:3, 3].copy(),
+                              _positive_inertia(ur, f"{w} inertia", I, hint=(
+                                  f"; it moves with joint '{joint}', so it enters the dynamics (massless placeholders: "
+                                  f"mass <= {PLACEHOLDER_MASS:g} kg, principal moments <= {PLACEHOLDER_INERTIA:g} "
+                                  "kg m^2; a link on a fixed joint can be left out with [tree] drop)"))))
+        except ModelError:
+            moments = np.abs(np.linalg.eigvalsh(I))
+            if not (mass <= PLACEHOLDER_MASS and moments.max() <= PLACEHOLDER_INERTIA):
+                raise
+            links.append(massless)
+            _note(f"{path}: {w} has a placeholder inertial (mass {mass:g} kg, principal moments up to "
+                  f"{moments.max():.3g} kg m^2, not a rigid body's): taken as massless, it moves as a frame only")
     joints = []
     for jt in robot.joints:
+        if jt.parent not in kept or jt.child not in kept:
+            continue
         w = f"joint '{jt.name}'"
         jtype = _joint_type(ur, w, jt.type)
         given = numbers["joint", jt.name]
@@ -737,15 +767,14 @@ def _tree_from_urdf(path: Path, data: bytes):
     return links, joints
 
 
-def _check_urdf(ur: _Reader, root) -> dict:
-    """Check a parsed URDF's structure and numbers; every error names the element. Returns the
-    numbers of _URDF_NUMBERS given: (element, name) -> {(path, attribute): value}."""
+def _check_urdf(ur: _Reader, root) -> list:
+    """Check a parsed URDF's structure (names, joints' types and links); every error names the
+    element. Returns the joints (name, type, parent, child) the sub-tree is selected from."""
     if root.tag != "robot":
         raise ur.error("root element", f"<{root.tag}> is not <robot name=\"...\">: this is not a URDF file")
     if not root.get("name"):
         raise ur.error("root element <robot>", "lacks the attribute 'name'")
     names = {"link": [], "joint": []}
-    numbers = {}
     for kind in names:
         for i, el in enumerate(root.findall(kind)):
             name = el.get("name")
@@ -754,9 +783,34 @@ def _check_urdf(ur: _Reader, root) -> dict:
             if name in names[kind]:
                 raise ur.error(f"{kind} '{name}'", f"is defined twice ({kind} names must be distinct)")
             names[kind].append(name)
-            numbers[kind, name] = _urdf_numbers(ur, f"{kind} '{name}'", el, _URDF_NUMBERS[kind])
     links = names["link"]
+    joints = []
+    for el in root.findall("joint"):
+        w = f"joint '{el.get('name')}'"
+        if not el.get("type"):
+            raise ur.error(w, "lacks the attribute 'type'")
+        ends = {}
+        for end in ("parent", "child"):
+            e = el.find(end)
+            if e is None or not e.get("link"):
+                raise ur.error(w, f"lacks <{end} link=\"...\">")
+            if e.get("link") not in links:
+                raise ur.error(w, f"names {end} link '{e.get('link')}' that is not defined "
+                                  f"(links: {', '.join(links)})")
+            ends[end] = e.get("link")
+        joints.append(SimpleNamespace(name=el.get("name"), type=el.get("type"), **ends))
+    return joints
+
+
+def _check_urdf_elements(ur: _Reader, root, kept) -> dict:
+    """Check the links named in ``kept``, and the joints between two of them, of a parsed URDF; every
+    error names the element. Returns the numbers of _URDF_NUMBERS given: (element, name) ->
+    {(path, attribute): value}."""
+    numbers = {}
     for el in root.findall("link"):
+        if el.get("name") not in kept:
+            continue
+        numbers["link", el.get("name")] = _urdf_numbers(ur, f"link '{el.get('name')}'", el, _URDF_NUMBERS["link"])
         inertial = el.find("inertial")
         if inertial is None:
             continue
@@ -770,16 +824,10 @@ def _check_urdf(ur: _Reader, root) -> dict:
         if absent:  # a lenient reader would take 1 or 0 for them
             raise ur.error(w, f"its <inertia> lacks the attribute(s) {', '.join(absent)} (URDF requires all six)")
     for el in root.findall("joint"):
+        if el.find("parent").get("link") not in kept or el.find("child").get("link") not in kept:
+            continue
         w = f"joint '{el.get('name')}'"
-        if not el.get("type"):
-            raise ur.error(w, "lacks the attribute 'type'")
-        for end in ("parent", "child"):
-            e = el.find(end)
-            if e is None or not e.get("link"):
-                raise ur.error(w, f"lacks <{end} link=\"...\">")
-            if e.get("link") not in links:
-                raise ur.error(w, f"names {end} link '{e.get('link')}' that is not defined "
-                                  f"(links: {', '.join(links)})")
+        numbers["joint", el.get("name")] = _urdf_numbers(ur, w, el, _URDF_NUMBERS["joint"])
         mimic = el.find("mimic")
         if mimic is not None:
             raise ur.error(w, f"mimics joint '{mimic.get('joint')}' (<mimic>): mimic joints are not supported "
@@ -805,8 +853,8 @@ def _urdf_numbers(ur: _Reader, where, element, spec) -> dict:
                 values = None
             if values is None or len(values) != count:
                 raise ur.error(w, f"expected {'a number' if count == 1 else f'{count} numbers'}, got {_quote(text)}")
-            if quantity == "mass" and values == [0.0]:
-                pass  # a massless link (a frame, or a placeholder on the base): checked with the tree
+            if quantity == "mass" and 0 <= values[0] <= PLACEHOLDER_MASS:
+                pass  # a massless link (a frame) or a placeholder's mass: checked with the tree
             elif quantity != "any":
                 values = ur.vector(w, values, count, quantity)
             out[sub, attr] = values[0] if count == 1 else np.asarray(values, float)
@@ -831,20 +879,74 @@ def _locked(j: Joint, value: float) -> Joint:
     return Joint(j.name, "fixed", j.parent, j.child, xyz, _matrix_rpy(R), np.asarray(j.axis, float))
 
 
-def _select_tree(r: _Reader, links, joints, spec: dict):
-    """The part of a tree a description keeps ([tree]): ``locked`` = {joint = position} holds those
-    joints fixed (rad or m: the other legs of a quadruped, a gripper); ``base`` = a link whose sub-tree
-    alone is kept, that link becoming the fixed root (what is above it and beside it is left out)."""
+def _kept_links(r: _Reader, spec: dict, link_names, joints) -> set:
+    """The names of the links a description keeps ([tree]): ``base`` = a link whose sub-tree alone is
+    kept, that link becoming the fixed root (what is above it and beside it is left out); ``drop`` =
+    fixed joints left out with the sub-tree below them (a sensor frame, a tool). ``joints``: a tree's
+    or a URDF's (name, type, parent, child); a note names the links left out."""
+    r.known(spec, _keys("[tree]"), "[tree]")
+    link_names = set(link_names) | {j.parent for j in joints} | {j.child for j in joints}
+    children = {}
+    for j in joints:
+        children.setdefault(j.parent, []).append(j)
+
+    def below(top):  # top and the links under it
+        out, frontier = {top}, [top]
+        while frontier:
+            for j in children.get(frontier.pop(), []):
+                if j.child not in out:
+                    out.add(j.child)
+                    frontier.append(j.child)
+        return out
+
+    kept = link_names
+    base = spec.get("base")
+    if base is not None:
+        base = r.name("[tree] base", base)
+        if base not in link_names:
+            raise r.error("[tree] base", f"no link '{base}' (links: {', '.join(sorted(link_names))})")
+        kept = below(base)
+        if kept != link_names:
+            _note(f"{r.source}: [tree] base = '{base}': links {sorted(link_names - kept)} are left out (not below "
+                  "the base)")
+    drop = spec.get("drop", [])
+    if not isinstance(drop, list) or not all(isinstance(d, str) and d for d in drop):
+        raise r.error("[tree] drop", f"expected a list of joint names, got {_quote(drop)}")
+    by_name = {j.name: j for j in joints if j.child in kept and j.parent in kept}
+    fixed = sorted(n for n, j in by_name.items() if j.type == "fixed")
+    for name in drop:
+        j = by_name.get(name)
+        if j is None or j.type != "fixed":
+            what = f"joint '{name}' is {j.type}" if j is not None else f"no joint '{name}' in the tree kept"
+            raise r.error("[tree] drop", f"{what}: only a fixed joint can be dropped (fixed joints: "
+                                         f"{', '.join(fixed) or 'none'}; [tree] locked holds a moving one)")
+    if drop:
+        gone = {n for name in drop for n in below(by_name[name].child)}
+        kept = kept - gone
+        _note(f"{r.source}: [tree] drop = {drop}: links {sorted(gone)} are left out (below the dropped joints)")
+    return kept
+
+
+def _select_tree(r: _Reader, links, joints, spec: dict, kept=None):
+    """The part of a tree a description keeps ([tree]): the links :func:`_kept_links` keeps (``kept``
+    when already selected, as a URDF is, with its base's name) and the joints between them, then
+    ``locked`` = {joint = position} holds those joints fixed (rad or m: the other legs of a
+    quadruped, a gripper)."""
     if not spec:
         return links, joints
-    r.known(spec, _keys("[tree]"), "[tree]")
+    if kept is None:
+        kept = _kept_links(r, spec, [lk.name for lk in links], joints)
+    base = spec.get("base")
+    links = [lk for lk in links if lk.name in kept and lk.name != base]
+    joints = [j for j in joints if j.parent in kept and j.child in kept]
     locked = spec.get("locked", {})
     if not isinstance(locked, dict):
         raise r.error("[tree] locked", f"expected a table {{ joint = position }}, got {_quote(locked)}")
     names = {j.name: j for j in joints}
     for jn, value in locked.items():
         if jn not in names:
-            raise r.error(f"[tree] locked.{jn}", f"no joint '{jn}' (joints: {', '.join(sorted(names))})")
+            raise r.error(f"[tree] locked.{jn}", f"no joint '{jn}' in the tree kept (joints: "
+                                                 f"{', '.join(sorted(names))})")
         if names[jn].type not in ("revolute", "prismatic"):
             raise r.error(f"[tree] locked.{jn}", f"joint '{jn}' is {names[jn].type}: only revolute and prismatic "
                                                  "joints can be locked")
@@ -853,26 +955,7 @@ def _select_tree(r: _Reader, links, joints, spec: dict):
         if not lim.get("lower", -np.inf) <= v <= lim.get("upper", np.inf):
             raise r.error(f"[tree] locked.{jn}", f"{v} is outside the joint's limits [{lim.get('lower')}, "
                                                  f"{lim.get('upper')}]")
-    joints = [_locked(j, float(locked[j.name])) if j.name in locked else j for j in joints]
-    base = spec.get("base")
-    if base is None:
-        return links, joints
-    base = r.name("[tree] base", base)
-    link_names = {lk.name for lk in links} | {j.parent for j in joints}
-    if base not in link_names:
-        raise r.error("[tree] base", f"no link '{base}' (links: {', '.join(sorted(link_names))})")
-    keep, frontier = {base}, [base]
-    while frontier:
-        p = frontier.pop()
-        for j in joints:
-            if j.parent == p and j.child not in keep:
-                keep.add(j.child)
-                frontier.append(j.child)
-    dropped = sorted(n for n in link_names if n not in keep)
-    if dropped:
-        _note(f"{r.source}: [tree] base = '{base}': links {dropped} are left out (not below the base)")
-    return ([lk for lk in links if lk.name in keep and lk.name != base],
-            [j for j in joints if j.parent in keep and j.child in keep])
+    return links, [_locked(j, float(locked[j.name])) if j.name in locked else j for j in joints]
 
 
 def _check_moving_mass(r: _Reader, root, links, joints):
@@ -1198,6 +1281,7 @@ def model_from_dict(data: dict, source: str = "<memory>", base_dir: Path | None 
     if form not in RIGID_BODY_FORMS:
         raise r.error("rigid_body_form", f"expected one of {', '.join(map(repr, RIGID_BODY_FORMS))}, got {_quote(form)}")
     urdf = None
+    tree = r.table(data, "tree", required=False)
     if "urdf" in data:
         if "links" in data or "joints" in data:
             raise r.error("urdf", "give the tree either as a URDF file or as [[links]]/[[joints]], not both")
@@ -1207,10 +1291,13 @@ def model_from_dict(data: dict, source: str = "<memory>", base_dir: Path | None 
             text = read_description(urdf, "URDF")
         except ModelError as exc:
             raise r.error("urdf", str(exc)) from None
-        links, joints = _tree_from_urdf(urdf, text)
+        # [tree] selects while the file is read: what it leaves out is not checked
+        links, joints = _tree_from_urdf(urdf, text, lambda names, js: _kept_links(r, tree, names, js))
+        kept = {lk.name for lk in links} | {j.parent for j in joints}
     else:
         links, joints = _tree_from_toml(r, data)
-    links, joints = _select_tree(r, links, joints, r.table(data, "tree", required=False))
+        kept = None
+    links, joints = _select_tree(r, links, joints, tree, kept)
     root, joints, links = _order_tree(r, links, joints, "tree" if urdf is None else f"URDF {urdf}")
     floating = [j.name for j in joints if j.type == "floating"]
     if form == "staged" and floating:

@@ -100,6 +100,8 @@ DESCRIPTION_KEYS = (
         default_text="the tree's root"),
     Key("[tree]", "locked", "rad or m", "{ joint = position }: revolute or prismatic joints held fixed (the "
         "other legs of a quadruped, a gripper)", default=None, default_text="none"),
+    Key("[tree]", "drop", "", "[joint, ...]: fixed joints of the kept tree left out with every link below them "
+        "(a sensor frame, a tool); of a URDF, what is left out is not checked", default=None, default_text="none"),
     Key("[[cylinders]]", "name", "", "the cylinder's name"),
     Key("[[cylinders]]", "from", "", "{ link, point }: the first pin"),
     Key("[[cylinders]]", "to", "", "{ link, point }: the second pin, on another link"),

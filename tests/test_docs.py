@@ -2,7 +2,9 @@
 and the description reference rendered from the loader's own definitions."""
 from __future__ import annotations
 
+import functools
 import importlib
+import importlib.util
 import inspect
 import json
 import re
@@ -246,3 +248,132 @@ def test_every_nonlinear_controller_keeps_its_margin_in_the_committed_distributi
     assert {r["controller"] for _, r in rows} == model_based
     short = [(m, r["scenario"], r["controller"], r["margin"]) for m, r in rows if not r["margin"] >= 2.0]
     assert not short, short
+
+
+# --- what the pages say hydrogen has ------------------------------------------------------------
+
+#: ``hydrogen.<module>[.<name>...]`` and repository paths (``hydrogen/urdf.py``, ``tests/...``) in a page
+_MODULE_REF = re.compile(r"(?<![\w/.-])hydrogen((?:\.[A-Za-z_]\w*)+)")
+_PATH_REF = re.compile(r"(?<![\w/.-])((?:hydrogen|tests|tools|benchmarks|templates)/[\w./-]*\w)")
+#: a tool hydrogen itself uses: "is read with X", "are parsed by hydrogen/urdf.py using X", "needs X"
+_USES = re.compile(r"\b(?:(?:is|are)\s+(?:first\s+)?(?:read|parsed|loaded|written|drawn|plotted|rendered|"
+                   r"solved|derived|generated)\b[^.;:()\n]{0,40}?\b(?:with|using|through)|needs?|requires?)"
+                   r"\s+[\[`]*([A-Za-z](?:[\w.-]*\w)?)")
+_PIP = re.compile(r"\bpip install\s+([^`\n;&|)#]+)")
+#: extras for working on hydrogen, not for using it: a page saying hydrogen uses one of their
+#: packages names something a user's install does not have
+DEV_EXTRAS = ("test", "docs")
+
+
+def _requirement_name(spec: str) -> str:
+    return re.match(r"[A-Za-z0-9_.-]+", spec.strip()).group(0).lower().replace("_", "-")
+
+
+def _declared() -> tuple:
+    """(runtime, every) distribution names pyproject.toml declares: dependencies and the extras a
+    user installs; and those with the extras for working on hydrogen. Plus the extras' names."""
+    from hydrogen.model import tomllib
+    project = tomllib.loads((ROOT / "pyproject.toml").read_text(encoding="utf-8"))["project"]
+    extras = project.get("optional-dependencies", {})
+    runtime = {_requirement_name(r) for r in project["dependencies"]}
+    runtime |= {_requirement_name(r) for k, reqs in extras.items() if k not in DEV_EXTRAS for r in reqs}
+    every = runtime | {_requirement_name(r) for reqs in extras.values() for r in reqs}
+    return runtime, every, set(extras)
+
+
+@functools.lru_cache(maxsize=None)
+def _import_names() -> dict:
+    """Installed import name -> its distributions' names (``pinocchio`` -> ``pin``)."""
+    import importlib.metadata as md
+    return {k.lower(): {d.lower().replace("_", "-") for d in v} for k, v in md.packages_distributions().items()}
+
+
+def _distributions(name: str) -> set:
+    """The distribution names a package or import name may be."""
+    name = name.lower().replace("_", "-")
+    return {name} | _import_names().get(name.replace("-", "_"), set())
+
+
+@functools.lru_cache(maxsize=None)
+def _packaged_dirs() -> dict:
+    """setup.py's package_dir: a package the wheel holds -> its folder in the repository."""
+    import ast
+    for node in ast.walk(ast.parse((ROOT / "setup.py").read_text(encoding="utf-8"))):
+        if isinstance(node, ast.keyword) and node.arg == "package_dir":
+            return ast.literal_eval(node.value)
+    return {}
+
+
+def _resolves(dotted: str) -> bool:
+    """``hydrogen.a.b.C``: the longest importable module, then attributes (or a packaged folder)."""
+    packaged = _packaged_dirs()
+    parts = dotted.split(".")
+    for k in range(len(parts), 0, -1):
+        module = ".".join(parts[:k])
+        if module in packaged:
+            return k == len(parts) and (ROOT / packaged[module]).is_dir()
+        try:
+            obj = importlib.import_module(module)
+        except ImportError:
+            continue
+        for attr in parts[k:]:
+            if not hasattr(obj, attr):
+                return False
+            obj = getattr(obj, attr)
+        return True
+    return False
+
+
+def _path_exists(path: str) -> bool:
+    for package, folder in _packaged_dirs().items():  # hydrogen/_templates is templates/ in the repository
+        prefix = package.replace(".", "/")
+        if path == prefix or path.startswith(prefix + "/"):
+            path = folder + path[len(prefix):]
+    return (ROOT / path).exists()
+
+
+def _missing_references(text: str) -> list:
+    """What ``text`` (a page) names of hydrogen that it does not have: a ``hydrogen.<module>...``
+    that does not import or resolve, a repository path that does not exist, a package hydrogen is
+    said to use ("read with X", "needs X") that pyproject.toml's dependencies and user extras lack,
+    and a ``pip install`` of a package or extra pyproject.toml does not declare."""
+    runtime, every, extras = _declared()
+    known = every | {d for n in every for d in _distributions(n)}
+    problems = [f"hydrogen{m}" for m in dict.fromkeys(_MODULE_REF.findall(text)) if not _resolves(f"hydrogen{m}")]
+    problems += [p for p in dict.fromkeys(_PATH_REF.findall(text)) if "<" not in p and not _path_exists(p)]
+    for name in dict.fromkeys(_USES.findall(text)):
+        if name == "hydrogen":  # the package itself (a Dask worker needs hydrogen)
+            continue
+        dists = _distributions(name)
+        importable = name.isidentifier() and importlib.util.find_spec(name) is not None
+        is_package = dists & known or len(dists) > 1 or importable  # a name pyproject or an installed package has
+        if is_package and not dists & runtime:
+            problems.append(f"uses {name}")
+    for args in _PIP.findall(text):
+        for arg in args.replace("'", " ").replace('"', " ").split():
+            extra = re.fullmatch(r"(?:\.|hydrogen)\[([\w,-]+)\]", arg)
+            if extra:
+                problems += [f"pip install extra {e}" for e in extra.group(1).split(",") if e not in extras]
+            elif re.fullmatch(r"[A-Za-z][\w.-]*", arg) and arg != "hydrogen" and not _distributions(arg) & every:
+                problems.append(f"pip install {arg}")
+    return problems
+
+
+def test_the_pages_name_only_modules_files_and_dependencies_hydrogen_has():
+    pages_ = [ROOT / "README.md", *sorted((ROOT / "docs").rglob("*.md"))]
+    found = {str(p.relative_to(ROOT)): _missing_references(p.read_text(encoding="utf-8")) for p in pages_}
+    assert {p: v for p, v in found.items() if v} == {}
+
+
+def test_the_reference_check_finds_what_a_page_names_wrongly():
+    stale = ("The URDF is read with [yourdfpy](https://github.com/clemense/yourdfpy), a maintained parser; "
+             "see `hydrogen.urdfpy.load` and `hydrogen/yourdf.py`; `pip install -e '.[viewer]'`, then "
+             "`pip install meshcat`.")
+    assert _missing_references(stale) == ["hydrogen.urdfpy.load", "hydrogen/yourdf.py", "uses yourdfpy",
+                                          "pip install extra viewer", "pip install meshcat"]
+    fine = ("The URDF is read by `hydrogen/urdf.py` with lxml (`hydrogen.urdf.load_robot`, "
+            "`hydrogen.model.QUANTITIES`); figures need matplotlib: `pip install -e '.[plot]'`; the wheel holds "
+            "`hydrogen/_templates`; Pinocchio (`pip install pin`, in the test extra) is loaded with the URDF.")
+    assert _missing_references(fine) == []
+    # a tool only the test suite installs is not one hydrogen uses
+    assert _missing_references("Running a sweep needs pytest-xdist.") == ["uses pytest-xdist"]
