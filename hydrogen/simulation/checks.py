@@ -27,6 +27,8 @@ MAX_RUN_BYTES = 2 * 1024 ** 3
 
 
 def _shown(v) -> str:
+    if isinstance(v, numbers.Integral) and not isinstance(v, (bool, np.bool_)) and abs(int(v)) > 10 ** 120:
+        return f"an integer of {int(v).bit_length()} bits"  # repr of a huge int is slow, or refused by Python
     text = repr(v)
     return text if len(text) <= 120 else text[:100] + f"... ({len(text)} characters)"
 
