@@ -898,13 +898,12 @@ def _order_tree(r: _Reader, links, joints, where):
     return root, tuple(ordered), tuple(moving)
 
 
-#: The travel key of a kind moving a length (``stroke``) or a joint angle (``angle``), as [min, max].
-_TRAVEL = {"prismatic": ("stroke", "stroke_min", "stroke_max"), "revolute": ("angle", "angle_min", "angle_max")}
-
-
 def _travel(kind: str) -> tuple:
+    """The travel key of ``kind`` (``stroke`` for a length, ``angle`` for a joint angle, as [min, max])
+    and its ends' parameter names: the kind's own declaration (``TRAVEL``)."""
     from .actuators import actuator
-    return _TRAVEL[actuator(kind).MOTION]
+    travel = actuator(kind).TRAVEL
+    return (travel.key, *travel.ends)
 
 
 def _kind_keys(kind: str) -> tuple:
@@ -1099,10 +1098,9 @@ def _joint_actuator(r: _Reader, w: str, cy: dict, defaults: dict, kind: str, key
 
 def _cylinder_values(r: _Reader, w: str, cy: dict, defaults: dict, kind: str, keys) -> dict:
     """The constants ``keys`` of cylinder ``w`` (kind ``kind``): its own, else [hydraulics]', else the
-    kind's default (the three-way cylinder's keys have none); each checked against its quantity."""
+    kind's declared default; each checked against its quantity."""
     from .actuators import actuator
-    fallback = {} if kind == DEFAULT_KIND else \
-        {p.name: p.default for p in actuator(kind).PARAMETERS if p.default is not None}
+    fallback = {p.name: p.default for p in actuator(kind).PARAMETERS if p.default is not None}
     vals = {}
     for key in keys:
         if key in cy:

@@ -662,3 +662,19 @@ def test_bad_rotary_actuators_are_named(tmp_path, old, new, words):
         hydrogen.load_model(path)
     for w in [str(path), *words]:
         assert w in str(err.value), (w, str(err.value))
+
+
+def test_three_way_valve_constants_take_the_kinds_shared_defaults(tmp_path):
+    """A three-way cylinder without underlap and orifice_linear_below takes the defaults the four-way
+    kind takes: one declaration (hydrogen.actuators.declarations) for both."""
+    from hydrogen.actuators import actuator
+    from hydrogen.actuators.declarations import ORIFICE_LINEAR_BELOW, UNDERLAP
+    text = _write_variant(tmp_path, "underlap = 55.4e-6", "").read_text()
+    path = tmp_path / "no_valve_constants.toml"
+    path.write_text(text.replace("orifice_linear_below = 5.0e4", ""))
+    model = hydrogen.load_model(path)
+    assert model.underlap == pytest.approx(np.zeros(model.n_cylinders))
+    assert model.orifice_linear_below == pytest.approx(np.full(model.n_cylinders, 5.0e4))
+    for kind in ("three_way_cylinder", "four_way_cylinder"):
+        params = actuator(kind).PARAMETERS
+        assert UNDERLAP in params and ORIFICE_LINEAR_BELOW in params
