@@ -166,6 +166,13 @@ SCENARIO_TABLE_KEYS = (
     Key("[scenarios.<name>]", "label", "", "caption in figures and tables", default_text="the scenario's name"),
     Key("[scenarios.<name>]", "paper", "%", "published max errors {coordinate: [nonlinear, P]}", default=None,
         default_text="none"),
+    Key("[scenarios.<name>], [rig], [variants.<name>]", "actuators",
+        "the actuator's own: N or N m, m or rad", "actuators.<actuator> = { friction, quantization_l, noise_l }: "
+        "those settings for one actuator, in its own unit (a cylinder's length in m and force in "
+        "N, a rotary vane's angle in rad and torque in N m); merged per actuator over [rig]'s. A cylinder "
+        "without them takes the scenario's; a rotary actuator's friction is none unless given, and it must give "
+        "its own quantization_l and noise_l where the scenario's are on",
+        default=None, default_text="none"),
 )
 
 _TABLES = {}
