@@ -1296,8 +1296,10 @@ def _check_neutral(r: _Reader, m: Model):
     lengths = cylinder_lengths(m, q0)
     for c, l in zip(m.cylinders, lengths):
         if not c.stroke_min <= l <= c.stroke_max:
-            raise r.error(f"[[cylinders]] '{c.name}'", f"length {l:.4f} m at the neutral pose is outside its stroke "
-                                                       f"[{c.stroke_min}, {c.stroke_max}] m")
+            from .actuators import actuator
+            t = actuator(c.kind).TRAVEL  # its own travel: a cylinder's length (m), a vane's angle (rad)
+            raise r.error(f"[[cylinders]] '{c.name}'", f"{t.quantity} {l:.4f} {t.unit} at the neutral pose is outside "
+                                                       f"its {t.range_word} [{c.stroke_min}, {c.stroke_max}] {t.unit}")
     J = cylinder_jacobian(m, q0)
     cond = np.linalg.cond(J)
     if not np.isfinite(cond) or cond > 1e8:

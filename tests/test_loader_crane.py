@@ -176,3 +176,15 @@ def test_the_slews_friction_reaches_the_plant_in_both_loops(crane):
     err = lambda r: np.abs(r.q - r.q_d)[:, slew].max()  # noqa: E731
     assert err(slowed) > 1.5 * err(base)
     np.testing.assert_allclose(py.q, slowed.q, rtol=0, atol=1e-9)
+
+
+def test_a_vanes_start_pose_is_named_in_its_own_angle(crane):
+    """A start pose past the slew vane's angle range names the vane's angle in rad, not a length."""
+    from hydrogen.simulation.checks import check_against_model
+    slew = [c.kind for c in crane.model.cylinders].index("rotary")
+    offset = [0.0] * crane.model.n
+    offset[slew] = 3.0  # the slew is the first coordinate, its vane the first actuator
+    sc = _crane_load_with(crane.model, q0_offset=tuple(offset))
+    with pytest.raises(hydrogen.ScenarioError, match=r"actuator 'slew_motor''s angle range \(angle 3\.0000 rad, "
+                                                     r"angle range \[-1\.8, 1\.8\] rad\)"):
+        check_against_model(sc, crane.model, "p", crane)

@@ -648,7 +648,7 @@ def test_a_rotary_actuator_on_a_revolute_joint(tmp_path):
                                             "shoulder, elbow"]),
     ('joint = "elbow"\n', '', ["'elbow_motor' (kind rotary)", "missing key 'joint'"]),
     ("angle = [-1.9, -0.1]", "angle = [-0.1, -1.9]", ["'elbow_motor' angle", "lowest < highest"]),
-    ("angle = [-1.9, -0.1]", "angle = [-0.5, -0.1]", ["'elbow_motor'", "outside its stroke"]),
+    ("angle = [-1.9, -0.1]", "angle = [-0.5, -0.1]", ["'elbow_motor'", "angle -0.", "rad at the neutral pose is outside its angle range"]),
     ("displacement = 4.0e-5", "displacement = 20.0", ["'elbow_motor' displacement", "plausible range"]),
     ("displacement = 4.0e-5", 'displacement = 2.0e-5\nfrom = { link = "upper", point = [0.0, 0.0, 0.0] }',
      ["'elbow_motor' (kind rotary)", "unknown key 'from'"]),
