@@ -100,6 +100,8 @@ class InputValues:
             out = self.dyn.numbers
         elif name in ("gamma1", "gamma2"):
             out = m.gamma[0 if name == "gamma1" else 1]
+        elif name == "friction":  # one triple per actuator
+            out = np.tile(FIXED[name], m.n_cylinders)
         elif name in FIXED:
             out = FIXED[name]
         if out is None or np.size(out) != size:

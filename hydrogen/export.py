@@ -382,7 +382,7 @@ def prepare_export(model, dyn, scenario, controller, gains, duration, check_work
     from .errors import ScenarioError
     from .names import check_identifier, check_label
     from .simulation.scenarios import default_scenario_name, scenario as named_scenario
-    from .simulation.simulator import prepare_run
+    from .simulation.simulator import filter_gain, prepare_run
 
     dyn = resolve_dyn(model, dyn, numbers)
     if scenario is None:
@@ -395,19 +395,16 @@ def prepare_export(model, dyn, scenario, controller, gains, duration, check_work
     overrides = dict(overrides)
     sensor = sc.with_overrides(**overrides) if overrides else sc
     p = prepare_run(dyn, sc, controller, gains, duration, check_workspace,
-                    {**overrides, "noise_l": 0.0, "noise_p": 0.0, "noise_q": 0.0})
+                    {**overrides, **sensor.noise_free()})
     p.sensor_noise_l, p.sensor_noise_p = float(sensor.noise_l), float(sensor.noise_p)
+    p.sensor_kf_gain = filter_gain(sensor, p.h)
     return dyn, sc, sc_name, p
 
 
 def sensor_kalman_gain(p):
     """The steady-state Kalman gain [position, rate /s] of the prepared export ``p``'s scenario, or None
     when it has no Kalman filter."""
-    from .simulation.simulator import kalman_gain, length_noise_variance
-
-    if not p.sc.kalman:
-        return None
-    return kalman_gain(p.h, length_noise_variance(p.sensor_noise_l, p.sc.quantization_l), p.sc.kalman_accel)
+    return p.sensor_kf_gain
 
 
 def export(out_dir, scenario=None, controller="adaptive-robust", model=None, duration=None, *,

@@ -60,16 +60,21 @@ UNITS = {
     "m": {"m": 1}, "rad": {"rad": 1}, "m/s": {"m": 1, "s": -1}, "rad/s": {"rad": 1, "s": -1},
     "m/s2": {"m": 1, "s": -2}, "rad/s2": {"rad": 1, "s": -2}, "m/s3": {"m": 1, "s": -3},
     "rad/s3": {"rad": 1, "s": -3}, "Pa": {"kg": 1, "m": -1, "s": -2}, "N": {"kg": 1, "m": 1, "s": -2},
-    "N.s/m": {"kg": 1, "s": -1}, "s": {"s": 1}, "kg": {"kg": 1}, "kg.m": {"kg": 1, "m": 1},
+    "N.s/m": {"kg": 1, "s": -1}, "N.m": {"kg": 1, "m": 2, "s": -2}, "N.m.s/rad": {"kg": 1, "m": 2, "s": -1, "rad": -1}, "s": {"s": 1}, "kg": {"kg": 1}, "kg.m": {"kg": 1, "m": 1},
     "kg.m2": {"kg": 1, "m": 2}, "m2.Pa0.5/s": None,
 }
 #: Unit of each kind of inertial parameter (the part of a theta name after the link's name).
 _THETA_UNITS = {"mass": "kg", "mcx": "kg.m", "mcy": "kg.m", "mcz": "kg.m", "Ixx": "kg.m2", "Ixy": "kg.m2",
                 "Iyy": "kg.m2", "Ixz": "kg.m2", "Iyz": "kg.m2", "Izz": "kg.m2"}
 #: Plant parameters (inputs of plant_rhs besides x and u): per-entry names, units and what they are.
-_FRICTION = (("coulomb", "N", "Coulomb friction force of every cylinder"),
-             ("viscous", "N.s/m", "viscous friction coefficient of every cylinder"),
-             ("smooth_speed", "m/s", "speed of the tanh smoothing of Coulomb friction"))
+def _friction_entries(c) -> list:
+    """The friction entries of actuator ``c`` in its own unit (its kind's TRAVEL)."""
+    from .actuators import actuator
+    t = actuator(c.kind).TRAVEL
+    f = t.force_unit.replace(" ", ".")
+    return [(_dotted("friction", c.name, "coulomb"), f, f"Coulomb friction of actuator {c.name}"),
+            (_dotted("friction", c.name, "viscous"), f"{f}.s/{t.unit}", f"viscous friction coefficient of actuator {c.name}"),
+            (_dotted("friction", c.name, "smooth_speed"), f"{t.unit}/s", "speed of the tanh smoothing of its Coulomb friction")]
 _REF_ORDERS = (("qd0", "q_d", "", "reference"), ("qd1", "q_d_dot", "/s", "reference velocity"),
                ("qd2", "q_d_ddot", "/s2", "reference acceleration"), ("qd3", "q_d_dddot", "/s3", "reference jerk"))
 
@@ -335,6 +340,7 @@ def _number_variable(name: str) -> str:
 def _plant_arrays(dyn, p):
     """One array per input of plant_rhs besides x and u: name, loop-config field, entries, values."""
     from .export import number_ranges
+    from .simulation.scenarios import actuator_settings
     from .simulation.simulator import valve_vector
     model, sc = dyn.model, p.sc
     cyls = [c.name for c in model.cylinders]
@@ -347,7 +353,8 @@ def _plant_arrays(dyn, p):
                                     for c in cyls]),
         "gamma2": (model.gamma[1], [(_dotted("gamma2", c), "m2.Pa0.5/s", f"beta c (bulk modulus times valve flow "
                                      f"gain) of cylinder {c}") for c in cyls]),
-        "friction": (np.asarray(sc.friction, float), [(_dotted("friction", nm), u, w) for nm, u, w in _FRICTION]),
+        "friction": (actuator_settings(sc, model)["friction"].ravel(),
+                     [e for c in model.cylinders for e in _friction_entries(c)]),
         "valve": (valve_vector(sc), [("valve.lag", "s", "valve first-order lag (used when the natural frequency is 0; 0: none)"),
                                      ("valve.omega", "rad/s", "second-order servo-valve natural frequency (0: none)"),
                                      ("valve.zeta", "", "second-order servo-valve damping (dimensionless)")]),
@@ -388,7 +395,7 @@ def _plant_ranges(model, sc) -> dict:
         "theta": [(float(a), float(b)) for a, b in zip(model.theta_min, model.theta_max)],
         "gamma1": [(float(model.gamma1_min), float(model.gamma1_max))] * m,
         "gamma2": [(float(model.gamma2_min), float(model.gamma2_max))] * m,
-        "friction": [(0.0, None), (0.0, None), (POSITIVE, None)],
+        "friction": [(0.0, None), (0.0, None), (POSITIVE, None)] * m,
         "valve": [(0.0, None), (0.0, omega_max), (POSITIVE, None)],
     }
 

@@ -26,7 +26,7 @@ SLOTS = ("q", "qdot", "pc", "l", "qd0", "qd1", "qd2", "qd3", "xc", "adapt", "u_a
 #: measurement it came from; 8 leaves room for slower targets and delay-margin studies.
 MAX_DELAY = 8
 
-#: The controller's own model in the delay predictor: no friction ([F_c N, b N s/m, v_s m/s]; the
+#: The controller's own model in the delay predictor: no friction ([F_c, b, v_s] of every actuator; the
 #: smoothing speed v_s only keeps tanh's argument finite) and the ideal valve (no lag: [0, 0, 0]).
 #: The C loop's PRED_FRICTION and PRED_VALVE are rendered from it; the Python stages use it as is.
 PREDICTOR_MODEL = {"friction": (0.0, 0.0, 1.0), "valve": (0.0, 0.0, 0.0)}
@@ -63,14 +63,15 @@ LOOP_CONFIG = (
       ("delay", "long long", "P_DELAY_PERIODS", "run.delay_periods"),
       ("delay_frac", "double", "P_DELAY_FRACTION", "run.delay_fraction"))),
     ("plant (SI): true theta ({p_theta}), gamma1 = beta and gamma2 = beta c per cylinder,\n"
-     " * friction [Fc, b, v_s], valve [first-order lag s, second-order natural frequency rad/s, damping]",
+     " * friction [Fc, b, v_s] per actuator in its own unit (N, N s/m, m/s; N m, N m s/rad, rad/s),\n"
+     " * valve [first-order lag s, second-order natural frequency rad/s, damping]",
      (("theta", "const double*", "P_THETA", "run.theta"), ("gamma1", "const double*", "P_GAMMA1", "run.gamma1"),
       ("gamma2", "const double*", "P_GAMMA2", "run.gamma2"),
-      ("friction", "const double*", "P_FRICTION", "scenario.friction"),
+      ("friction", "const double*", "P_FRICTION", "run.friction"),
       ("valve", "const double*", "P_VALVE", "run.valve"))),
-    ("sensors: cylinder-length resolution quant_l (m, 0: none; lengths rounded to its grid after the noise);\n"
-     " * fixed-gain Kalman filter on cylinder lengths (use_kalman != 0), gain [K_l, K_ldot]",
-     (("quant_l", "double", "P_QUANTIZATION_L", "scenario.quantization_l"),
+    ("sensors: each actuator's travel resolution quant_l (m or rad, its own unit; 0: none; rounded to its grid\n"
+     " * after the noise); fixed-gain Kalman filter on the actuators' travel (use_kalman != 0), gain [K_l, K_ldot]",
+     (("quant_l", "const double*", "P_QUANTIZATION_L", "run.quantization_l"),
       ("use_kalman", "long long", "P_USE_KALMAN", "run.use_kalman"),
       ("kf_gain", "double[2]", "P_KF_GAIN", "run.kf_gain"))),
     ("reference: bias + sum of amplitude sin(2 pi f t) over terms (coordinate, amplitude, frequency),\n"
@@ -251,7 +252,7 @@ def loop_context(manifest: dict) -> dict:
         "encoders": bool(s["joint_encoders"]), "slots": SLOTS, "logs": logs, "config": config_fields(name),
         "state": struct_fields(LOOP_STATE, name, sizes), "signals": struct_fields(LOOP_SIGNALS, name, sizes),
         "p_theta": ", ".join(s["theta_names"]),
-        "pred_friction": ", ".join(map(c_double, PREDICTOR_MODEL["friction"])),
+        "pred_friction": ", ".join(map(c_double, PREDICTOR_MODEL["friction"] * m)),
         "pred_valve": ", ".join(map(c_double, PREDICTOR_MODEL["valve"])),
     }
     return ctx

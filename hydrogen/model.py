@@ -1038,13 +1038,12 @@ def _order_tree(r: _Reader, links, joints, where):
     return root, tuple(ordered), tuple(moving)
 
 
-#: The travel key of a kind moving a length (``stroke``) or a joint angle (``angle``), as [min, max].
-_TRAVEL = {"prismatic": ("stroke", "stroke_min", "stroke_max"), "revolute": ("angle", "angle_min", "angle_max")}
-
-
 def _travel(kind: str) -> tuple:
+    """The travel key of ``kind`` (``stroke`` for a length, ``angle`` for a joint angle, as [min, max])
+    and its ends' parameter names: the kind's own declaration (``TRAVEL``)."""
     from .actuators import actuator
-    return _TRAVEL[actuator(kind).MOTION]
+    travel = actuator(kind).TRAVEL
+    return (travel.key, *travel.ends)
 
 
 def _kind_keys(kind: str) -> tuple:
@@ -1234,10 +1233,9 @@ def _joint_actuator(r: _Reader, w: str, cy: dict, defaults: dict, kind: str, key
 
 def _cylinder_values(r: _Reader, w: str, cy: dict, defaults: dict, kind: str, keys) -> dict:
     """The constants ``keys`` of cylinder ``w`` (kind ``kind``): its own, else [hydraulics]', else the
-    kind's default (the three-way cylinder's keys have none); each checked against its quantity."""
+    kind's declared default; each checked against its quantity."""
     from .actuators import actuator
-    fallback = {} if kind == DEFAULT_KIND else \
-        {p.name: p.default for p in actuator(kind).PARAMETERS if p.default is not None}
+    fallback = {p.name: p.default for p in actuator(kind).PARAMETERS if p.default is not None}
     vals = {}
     for key in keys:
         if key in cy:
@@ -1450,8 +1448,10 @@ def _check_neutral(r: _Reader, m: Model):
     lengths = cylinder_lengths(m, q0)
     for c, l in zip(m.cylinders, lengths):
         if not c.stroke_min <= l <= c.stroke_max:
-            raise r.error(f"[[cylinders]] '{c.name}'", f"length {l:.4f} m at the neutral pose is outside its stroke "
-                                                       f"[{c.stroke_min}, {c.stroke_max}] m")
+            from .actuators import actuator
+            t = actuator(c.kind).TRAVEL  # its own travel: a cylinder's length (m), a vane's angle (rad)
+            raise r.error(f"[[cylinders]] '{c.name}'", f"{t.quantity} {l:.4f} {t.unit} at the neutral pose is outside "
+                                                       f"its {t.range_word} [{c.stroke_min}, {c.stroke_max}] {t.unit}")
     J = cylinder_jacobian(m, q0)
     cond = np.linalg.cond(J)
     if not np.isfinite(cond) or cond > 1e8:

@@ -50,6 +50,13 @@ _HYDRAULIC = (  # [hydraulics] gives them for every cylinder; a [[cylinders]] en
     ("stroke", "m", "[shortest, longest] pin-to-pin length"),
 )
 
+def _three_way_default(key: str) -> str:
+    """The default of a three-way cylinder's key as its kind declares it, else "required ..."."""
+    from .actuators import actuator
+    default = {p.name: p.default for p in actuator("three_way_cylinder").PARAMETERS}.get(key)
+    return "required here or in [hydraulics]" if default is None else repr(default)
+
+
 DESCRIPTION_KEYS = (
     Key("top level", "name", "", "the model's name: ASCII letters, digits and single underscores, "
         "starting with a letter (it names C symbols and files)"),
@@ -105,8 +112,7 @@ DESCRIPTION_KEYS = (
     Key("[[cylinders]]", "name", "", "the cylinder's name"),
     Key("[[cylinders]]", "from", "", "{ link, point }: the first pin"),
     Key("[[cylinders]]", "to", "", "{ link, point }: the second pin, on another link"),
-    *(Key("[[cylinders]]", k, unit, what, default_text="required here or in [hydraulics]")
-      for k, unit, what in _HYDRAULIC),
+    *(Key("[[cylinders]]", k, unit, what, default_text=_three_way_default(k)) for k, unit, what in _HYDRAULIC),
     Key("[[cylinders]] from/to", "link", "", "the link the pin is on"),
     Key("[[cylinders]] from/to", "point", "m", "the pin in that link's frame"),
     Key("[[cylinders]]", "linkage", "", "the rod end drives a revolute joint through a planar four-bar "
@@ -162,6 +168,13 @@ SCENARIO_TABLE_KEYS = (
     Key("[scenarios.<name>]", "label", "", "caption in figures and tables", default_text="the scenario's name"),
     Key("[scenarios.<name>]", "paper", "%", "published max errors {coordinate: [nonlinear, P]}", default=None,
         default_text="none"),
+    Key("[scenarios.<name>], [rig], [variants.<name>]", "actuators",
+        "the actuator's own: N or N m, m or rad", "actuators.<actuator> = { friction, quantization_l, noise_l }: "
+        "those settings for one actuator, in its own unit (a cylinder's length in m and force in "
+        "N, a rotary vane's angle in rad and torque in N m); merged per actuator over [rig]'s. A cylinder "
+        "without them takes the scenario's; a rotary actuator's friction is none unless given, and it must give "
+        "its own quantization_l and noise_l where the scenario's are on",
+        default=None, default_text="none"),
 )
 
 _TABLES = {}
@@ -207,9 +220,8 @@ def _actuator_rows() -> list:
     for kind in KINDS[1:] if KINDS[0] == "three_way_cylinder" else KINDS:
         mod = actuator(kind)
         table = f"[[cylinders]] kind = {kind}"
-        travel = {"prismatic": ("stroke", "m", "[shortest, longest] pin-to-pin length", ("stroke_min", "stroke_max")),
-                  "revolute": ("angle", "rad", "[lowest, highest] joint angle", ("angle_min", "angle_max"))}
-        key, unit, what, ends = travel[mod.MOTION]
+        travel = mod.TRAVEL
+        key, unit, what, ends = travel.key, travel.unit, travel.doc, travel.ends
         if mod.MOTION == "revolute":
             rows.append(_row(table, "joint", "", "required", "the revolute joint it turns (no from/to)"))
         rows.append(_row(table, key, unit, "required", what))

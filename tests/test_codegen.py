@@ -68,7 +68,7 @@ def _random_input(name, shape, model, rng, fname=""):
             parts[b] = lambda k: rng.normal(size=k) * 1e3
         x = np.concatenate([parts[b](k) for b, k in controller(kind).state_layout(model)])
     elif name in ("friction",):
-        x = np.array([100.0, 300.0, 1e-3])
+        x = np.tile([100.0, 300.0, 1e-3], size // 3)  # per actuator
     elif name == "valve":  # [lag s, natural frequency rad/s, damping]: the second-order valve
         x = np.array([0.0, 2 * np.pi * rng.uniform(30, 100), rng.uniform(0.5, 1.0)])
     elif name in ("sat_width", "u_max"):

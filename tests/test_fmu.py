@@ -375,7 +375,8 @@ def test_parameters_declare_their_range_from_the_model(fmus):
     for j, name in enumerate(_pressure_variables(model, "_start")):
         assert (float(plant[name].min), float(plant[name].max)) == (lo[j], hi[j])
         assert hi[j] == model.cylinders[[c.name for c in model.cylinders].index(name.split(".", 1)[1])].supply_pressure
-    assert float(plant["friction.smooth_speed"].min) > 0 and float(plant["friction.coulomb"].min) == 0
+    for c in cyls:  # one friction triple per actuator, in its own unit
+        assert float(plant[f"friction.{c}.smooth_speed"].min) > 0 and float(plant[f"friction.{c}.coulomb"].min) == 0
     ctl = {v.name: v for v in read_model_description(str(paths["controller"])).modelVariables}
     params = [v for v in ctl.values() if v.causality == "parameter" and v.type == "Real"]
     # the description's numbers have the description's ranges, a position's below 0 (checked below)
@@ -403,7 +404,7 @@ def test_impossible_parameters_and_inputs_are_refused_and_change_nothing(fmus):
     start = plant.get([theta])[0]
     _refused(plant, [theta], [lo - abs(lo) - 1.0], "is out of range: it must be >=")  # e.g. a negative mass
     _refused(plant, [theta], [float("nan")], "is not a finite number")
-    _refused(plant, ["friction.smooth_speed"], [0.0], "must be > 0")
+    _refused(plant, [f"friction.{model.cylinders[0].name}.smooth_speed"], [0.0], "must be > 0")
     assert plant.get([theta])[0] == start
     u = plant.names("u.")
     _refused(plant, u, [0.0] * (len(u) - 1) + [float("inf")], "is not a finite number")

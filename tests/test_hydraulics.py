@@ -117,7 +117,7 @@ def test_valve_laws_and_plant_pressure_and_spool_rates_match_numpy(robot_dyn, ro
     A, L = model.piston_area, np.array([c.chamber_length for c in model.cylinders])
     p_lin = np.array([c.orifice_linear_below for c in model.cylinders])
     g1, g2 = model.gamma
-    fric = np.array([0.0, 0.0, 1e-3])
+    fric = np.tile([0.0, 0.0, 1e-3], m)
     for k in range(60):
         u = np.where(rng.random(m) < 0.3, rng.choice([-1.0, 1.0], m), rng.uniform(-3, 3, m)) * d
         inside = rng.uniform(0.01, 0.99, m) * ps

@@ -112,3 +112,79 @@ def rig_errors(crane):
 @pytest.mark.parametrize("controller", NONLINEAR)
 def test_nonlinear_control_is_at_least_3x_better_than_p_on_the_rig(rig_errors, controller):
     assert rig_errors["p"] > 3 * rig_errors[controller], rig_errors
+
+
+def _crane_load_with(model, **fields):
+    """The crane's rig scenario with some fields replaced (its per-actuator settings among them)."""
+    from hydrogen.simulation.scenarios import scenario
+    return scenario(_rig(model), model).with_overrides(**fields)
+
+
+def test_the_rigs_friction_is_a_cylinders_and_the_slew_takes_its_own():
+    """[rig] friction (N, N s/m) acts on the cylinders only; the slew vane's friction is its own
+    actuators.slew_motor.friction (N m, N m s/rad), none unless given."""
+    from hydrogen.simulation.scenarios import actuator_settings
+    model = hydrogen.load_model(MODEL)
+    slew = [c.kind for c in model.cylinders].index("rotary")
+    cyl = [i for i in range(model.n_cylinders) if i != slew]
+    sc = _crane_load_with(model, friction=(300.0, 900.0, 1e-3), actuators={"slew_motor": {
+        "quantization_l": 1e-5, "noise_l": 5e-6}})
+    fr = actuator_settings(sc, model)["friction"]
+    assert fr[slew, :2].tolist() == [0.0, 0.0]
+    assert (fr[cyl] == [300.0, 900.0, 1e-3]).all()
+    sc = sc.with_overrides(actuators={"slew_motor": {**sc.actuators["slew_motor"], "friction": [40.0, 80.0, 1e-3]}})
+    fr = actuator_settings(sc, model)["friction"]
+    assert fr[slew].tolist() == [40.0, 80.0, 1e-3] and (fr[cyl] == [300.0, 900.0, 1e-3]).all()
+
+
+@pytest.mark.parametrize("key", ["quantization_l", "noise_l"])
+def test_a_cylinders_sensor_setting_is_never_applied_to_the_slews_angle(key):
+    """A sensor setting in m the rig switches on is refused for the slew unless it gives its own in rad."""
+    from hydrogen.simulation.scenarios import actuator_settings
+    model = hydrogen.load_model(MODEL)
+    sc = _crane_load_with(model)
+    own = {k: v for k, v in sc.actuators["slew_motor"].items() if k != key}
+    with pytest.raises(hydrogen.ScenarioError, match=rf"{key} .* actuator 'slew_motor' \(kind rotary\) moves an "
+                                                     rf"angle: give its own as actuators.slew_motor.{key} in rad"):
+        actuator_settings(sc.with_overrides(actuators={"slew_motor": own}), model)
+
+
+@pytest.mark.parametrize("actuators,words", [
+    ({"swing": {"friction": [1.0, 1.0, 1e-3]}}, "actuators.swing: the model has no actuator of that name"),
+    ({"slew_motor": {"stiction": 1.0}}, "actuators.slew_motor: unknown setting(s) ['stiction']"),
+    ({"slew_motor": {"friction": [-1.0, 1.0, 1e-3]}}, "actuators.slew_motor.friction must be (Coulomb"),
+    ({"slew_motor": {"noise_l": -1.0}}, "actuators.slew_motor.noise_l must be finite and >= 0"),
+])
+def test_per_actuator_settings_are_checked(actuators, words):
+    from hydrogen.simulation.scenarios import actuator_settings
+    model = hydrogen.load_model(MODEL)
+    with pytest.raises(hydrogen.ScenarioError) as exc:
+        actuator_settings(_crane_load_with(model, actuators=actuators), model)
+    assert words in str(exc.value)
+
+
+def test_the_slews_friction_reaches_the_plant_in_both_loops(crane):
+    """The slew's own friction slows it in the C loop and the Python stages alike (same numbers), and
+    the cylinders' friction does not act on it."""
+    sc = _crane_load_with(crane.model, duration=0.3, noise_l=0.0, noise_p=0.0, noise_q=0.0, quantization_l=0.0,
+                          kalman=False, actuators={})
+    slew = [c.kind for c in crane.model.cylinders].index("rotary")
+    base = simulate(crane, sc, "backstepping")
+    own = sc.with_overrides(actuators={"slew_motor": {"friction": [5000.0, 20000.0, 1e-3]}})
+    slowed = simulate(crane, own, "backstepping")
+    py = simulate(crane, own, "backstepping", engine="python")
+    err = lambda r: np.abs(r.q - r.q_d)[:, slew].max()  # noqa: E731
+    assert err(slowed) > 1.5 * err(base)
+    np.testing.assert_allclose(py.q, slowed.q, rtol=0, atol=1e-9)
+
+
+def test_a_vanes_start_pose_is_named_in_its_own_angle(crane):
+    """A start pose past the slew vane's angle range names the vane's angle in rad, not a length."""
+    from hydrogen.simulation.checks import check_against_model
+    slew = [c.kind for c in crane.model.cylinders].index("rotary")
+    offset = [0.0] * crane.model.n
+    offset[slew] = 3.0  # the slew is the first coordinate, its vane the first actuator
+    sc = _crane_load_with(crane.model, q0_offset=tuple(offset))
+    with pytest.raises(hydrogen.ScenarioError, match=r"actuator 'slew_motor''s angle range \(angle 3\.0000 rad, "
+                                                     r"angle range \[-1\.8, 1\.8\] rad\)"):
+        check_against_model(sc, crane.model, "p", crane)

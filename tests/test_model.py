@@ -648,7 +648,7 @@ def test_a_rotary_actuator_on_a_revolute_joint(tmp_path):
                                             "shoulder, elbow"]),
     ('joint = "elbow"\n', '', ["'elbow_motor' (kind rotary)", "missing key 'joint'"]),
     ("angle = [-1.9, -0.1]", "angle = [-0.1, -1.9]", ["'elbow_motor' angle", "lowest < highest"]),
-    ("angle = [-1.9, -0.1]", "angle = [-0.5, -0.1]", ["'elbow_motor'", "outside its stroke"]),
+    ("angle = [-1.9, -0.1]", "angle = [-0.5, -0.1]", ["'elbow_motor'", "angle -0.", "rad at the neutral pose is outside its angle range"]),
     ("displacement = 4.0e-5", "displacement = 20.0", ["'elbow_motor' displacement", "plausible range"]),
     ("displacement = 4.0e-5", 'displacement = 2.0e-5\nfrom = { link = "upper", point = [0.0, 0.0, 0.0] }',
      ["'elbow_motor' (kind rotary)", "unknown key 'from'"]),
@@ -699,3 +699,19 @@ def test_every_number_has_the_range_the_loader_holds_it_to(name):
     for a, b, strict, why in orders:
         assert order_broken({a.rsplit(".", 1)[1]: numbers[a], b.rsplit(".", 1)[1]: numbers[b]}) is None
     assert {(a.rsplit(".", 1)[1], b.rsplit(".", 1)[1]) for a, b, _, _ in orders} <= {r[:2] for r in CYLINDER_ORDER}
+
+
+def test_three_way_valve_constants_take_the_kinds_shared_defaults(tmp_path):
+    """A three-way cylinder without underlap and orifice_linear_below takes the defaults the four-way
+    kind takes: one declaration (hydrogen.actuators.declarations) for both."""
+    from hydrogen.actuators import actuator
+    from hydrogen.actuators.declarations import ORIFICE_LINEAR_BELOW, UNDERLAP
+    text = _write_variant(tmp_path, "underlap = 55.4e-6", "").read_text()
+    path = tmp_path / "no_valve_constants.toml"
+    path.write_text(text.replace("orifice_linear_below = 5.0e4", ""))
+    model = hydrogen.load_model(path)
+    assert model.underlap == pytest.approx(np.zeros(model.n_cylinders))
+    assert model.orifice_linear_below == pytest.approx(np.full(model.n_cylinders, 5.0e4))
+    for kind in ("three_way_cylinder", "four_way_cylinder"):
+        params = actuator(kind).PARAMETERS
+        assert UNDERLAP in params and ORIFICE_LINEAR_BELOW in params

@@ -17,7 +17,9 @@ from hydrogen.controllers import controller as controller_module
 from reference import controller_rate_map
 from controller_inputs import PAPER_LAWS
 
-FRIC, NO_LAG = np.array([100.0, 300.0, 1e-3]), np.zeros(3)  # valve [lag, natural frequency, damping]: ideal
+#: friction [Coulomb N, viscous N s/m, tanh speed m/s] of each of the six legs; valve [lag, natural
+#: frequency, damping]: ideal
+FRIC, NO_LAG = np.tile([100.0, 300.0, 1e-3], 6), np.zeros(3)
 
 
 def test_rk4_matches_a_stiff_adaptive_reference(dyn, model, rng):
@@ -44,7 +46,7 @@ def test_plant_at_equilibrium_stays_still(dyn, model):
     d, ps = model.underlap, model.supply_pressure
     r = np.sqrt(pc0 / (ps - pc0))
     u = d * (r - 1) / (r + 1)
-    xdot = dyn.functions["plant_rhs"](x0, u, model.theta, *model.gamma, np.zeros(3) + [0, 0, 1e-3], NO_LAG)
+    xdot = dyn.functions["plant_rhs"](x0, u, model.theta, *model.gamma, np.tile([0, 0, 1e-3], 6), NO_LAG)
     np.testing.assert_allclose(xdot[6:12], 0, atol=1e-9)
     np.testing.assert_allclose(xdot[12:18], 0, atol=1e-3)
 
@@ -122,7 +124,7 @@ def test_tau_d_dot_matches_finite_differences_along_a_trajectory(kind, dyn, mode
     t = res.t[-1]
     u = ctrl.command(q, x[6:12], pc, dyn.leg_lengths(q), sc.reference(t), True)
     tau_dot, xc, xc_dot = ctrl.tau_d_dot.copy(), ctrl.xc.copy(), ctrl.xc_dot.copy()
-    rhs = lambda xx: dyn.functions["plant_rhs"](xx, u, model.theta, *model.gamma, np.array([0, 0, 1e-3]), NO_LAG)  # noqa
+    rhs = lambda xx: dyn.functions["plant_rhs"](xx, u, model.theta, *model.gamma, np.tile([0, 0, 1e-3], 6), NO_LAG)  # noqa
     delta = 1e-6
     taus = []
     for sgn in (+1, -1):

@@ -132,7 +132,7 @@ static int hold(const rhs_params* m, double* x, const double* u, long long n, do
 
 /* The controller's own model has an ideal valve (spool = command) and no friction (the smoothing
  * speed only keeps tanh's argument finite). */
-static const double PRED_FRICTION[3] = { 0.0, 0.0, 1.0 };
+static const double PRED_FRICTION[3 * NL] = { 0.0, 0.0, 1.0, 0.0, 0.0, 1.0, 0.0, 0.0, 1.0 };
 static const double PRED_VALVE[3] = { 0.0, 0.0, 0.0 };
 
 /* The model held at u over dt (s) in steps no longer than h / pred_substeps. */
@@ -177,7 +177,7 @@ void excavator_arm_sense_lengths(const excavator_arm_loop_config* c, const doubl
     int i;
     for (i = 0; i < NL; ++i) {
         l_meas[i] = l[i] + (nz ? nz[i] : 0);
-        if (c->quant_l > 0) l_meas[i] = c->quant_l * floor(l_meas[i] / c->quant_l + 0.5);
+        if (c->quant_l[i] > 0) l_meas[i] = c->quant_l[i] * floor(l_meas[i] / c->quant_l[i] + 0.5);
     }
 }
 

@@ -33,15 +33,16 @@ typedef struct {
     long long delay;
     double delay_frac;
     /* plant (SI): true theta (boom.mcx, boom.mcz, boom.Iyy, boom.Izz, jib.mcx, jib.mcz, jib.Iyy, jib.Izz), gamma1 = beta and gamma2 = beta c per cylinder,
-     * friction [Fc, b, v_s], valve [first-order lag s, second-order natural frequency rad/s, damping] */
+     * friction [Fc, b, v_s] per actuator in its own unit (N, N s/m, m/s; N m, N m s/rad, rad/s),
+     * valve [first-order lag s, second-order natural frequency rad/s, damping] */
     const double* theta;
     const double* gamma1;
     const double* gamma2;
     const double* friction;
     const double* valve;
-    /* sensors: cylinder-length resolution quant_l (m, 0: none; lengths rounded to its grid after the noise);
-     * fixed-gain Kalman filter on cylinder lengths (use_kalman != 0), gain [K_l, K_ldot] */
-    double quant_l;
+    /* sensors: each actuator's travel resolution quant_l (m or rad, its own unit; 0: none; rounded to its grid
+     * after the noise); fixed-gain Kalman filter on the actuators' travel (use_kalman != 0), gain [K_l, K_ldot] */
+    const double* quant_l;
     long long use_kalman;
     double kf_gain[2];
     /* reference: bias + sum of amplitude sin(2 pi f t) over terms (coordinate, amplitude, frequency),
@@ -153,7 +154,7 @@ int loader_crane_loop_run(const loader_crane_loop_config* cfg, loader_crane_loop
 int loader_crane_measure(const loader_crane_loop_config* cfg, const loader_crane_loop_state* st, const double* nz,
                     loader_crane_loop_signals* s);
 
-/* The length sensor alone: l plus noise nz (NL entries, or NULL), rounded to the resolution quant_l. */
+/* The length sensor alone: l plus noise nz (NL entries, or NULL), rounded to each one's resolution quant_l. */
 void loader_crane_sense_lengths(const loader_crane_loop_config* cfg, const double* l, const double* nz, double* l_meas);
 
 /* Estimation from the measured signals: the Kalman filter on s->l_meas (state st->kf) gives s->ldot

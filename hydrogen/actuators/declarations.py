@@ -12,7 +12,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["State", "Parameter", "Sensor", "parameter_values", "stacked_parameters", "state_bounds", "sp"]
+__all__ = ["State", "Parameter", "Sensor", "Travel", "LENGTH", "ANGLE", "UNDERLAP", "ORIFICE_LINEAR_BELOW", "parameter_values", "stacked_parameters", "state_bounds", "sp"]
 
 
 @dataclass(frozen=True)
@@ -42,6 +42,13 @@ class Parameter:
     gamma: bool = False
 
 
+#: The valve constants every kind with an orifice valve takes, with one default each (the three-way
+#: cylinder's and the two-chamber kinds' alike).
+UNDERLAP = Parameter("underlap", "m", 0.0, "d, valve underlap (0: critically centred)")
+ORIFICE_LINEAR_BELOW = Parameter("orifice_linear_below", "Pa", 5.0e4,
+                                 "the simulated plant's orifice roots turn linear below this drop")
+
+
 @dataclass(frozen=True)
 class Sensor:
     """A signal the robot measures on this actuator: ``name`` (prefix of its columns), ``unit``, ``doc``."""
@@ -49,6 +56,34 @@ class Sensor:
     name: str
     unit: str
     doc: str
+
+
+@dataclass(frozen=True)
+class Travel:
+    """What an actuator's coordinate is and in which units, for the description, the rig settings and
+    every message about its travel: ``quantity`` ("length", "angle"), ``unit`` of the coordinate,
+    ``force_unit`` of what it exerts, the description ``key`` of its range as [min, max] and the
+    parameter names of its ``ends``, ``range_word`` for that range in messages ("stroke")."""
+
+    quantity: str
+    unit: str
+    force_unit: str
+    key: str
+    ends: tuple
+    range_word: str
+    doc: str
+
+    def rate_unit(self, power: int = 1) -> str:
+        """The coordinate's unit per s^power (m/s, rad/s^3)."""
+        return f"{self.unit}/s" if power == 1 else f"{self.unit}/s^{power}"
+
+
+#: A cylinder's travel: its pin-to-pin length l (m) within its stroke, force in N.
+LENGTH = Travel("length", "m", "N", "stroke", ("stroke_min", "stroke_max"), "stroke",
+                "[shortest, longest] pin-to-pin length")
+#: A joint actuator's travel: its joint angle θ (rad) within its angle range, torque in N m.
+ANGLE = Travel("angle", "rad", "N m", "angle", ("angle_min", "angle_max"), "angle range",
+               "[lowest, highest] joint angle")
 
 
 class _LazySympy:

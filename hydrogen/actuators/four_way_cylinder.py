@@ -15,15 +15,17 @@ f0, g0 and the valve inverse are :class:`~hydrogen.actuators.two_chamber.Laws` o
 from __future__ import annotations
 
 from . import orifices as orf
-from .declarations import Parameter, Sensor, State, parameter_values, stacked_parameters
+from .declarations import LENGTH, Parameter, Sensor, State, parameter_values, stacked_parameters
 from .two_chamber import VALVE_PARAMETERS, Laws
 
-__all__ = ["NAME", "DOC", "MOTION", "COUPLING_GAIN", "STATES", "PARAMETERS", "SENSORS", "Symbolic", "Numeric",
+__all__ = ["NAME", "DOC", "MOTION", "TRAVEL", "COUPLING_GAIN", "STATES", "PARAMETERS", "SENSORS", "Symbolic", "Numeric",
            "parameters", "stacked"]
 
 NAME = "four_way_cylinder"
 DOC = "Double-acting cylinder on a four-way valve (cap- and rod-side pressures both states)."
 MOTION = "prismatic"
+#: Its coordinate, units and range key (messages and rig settings name them).
+TRAVEL = LENGTH
 #: Default Γ_τ⁻¹ of the force loop (N/m, as the three-way cylinder).
 COUPLING_GAIN = 1.0e4
 STATES = (State("pA", "Pa", "tank_pressure", "supply_pressure", "cap-side chamber pressure"),

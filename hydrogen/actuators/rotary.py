@@ -14,16 +14,18 @@ The laws are :class:`~hydrogen.actuators.two_chamber.Laws` with both effective a
 from __future__ import annotations
 
 from . import orifices as orf
-from .declarations import Parameter, Sensor, State, parameter_values, stacked_parameters
+from .declarations import ANGLE, Parameter, Sensor, State, parameter_values, stacked_parameters
 from .two_chamber import VALVE_PARAMETERS, Laws
 
-__all__ = ["NAME", "DOC", "MOTION", "COUPLING_GAIN", "STATES", "PARAMETERS", "SENSORS", "Symbolic", "Numeric",
+__all__ = ["NAME", "DOC", "MOTION", "TRAVEL", "COUPLING_GAIN", "STATES", "PARAMETERS", "SENSORS", "Symbolic", "Numeric",
            "parameters", "stacked"]
 
 NAME = "rotary"
 DOC = "Rotary vane actuator (displacement per radian) on a revolute joint, four-way valve."
 #: The coordinate the actuator moves: the joint angle θ (rad), θ̇ (rad/s).
 MOTION = "revolute"
+#: Its coordinate, units and range key (messages and rig settings name them).
+TRAVEL = ANGLE
 #: Default Γ_τ⁻¹ of the force loop (no sound default: about 1e4 r² N·m/rad, r the lever (m) of a cylinder doing the same job).
 COUPLING_GAIN = None
 STATES = (State("pA", "Pa", "tank_pressure", "supply_pressure", "chamber A pressure (fills for positive rotation)"),

@@ -23,15 +23,17 @@ from __future__ import annotations
 import numpy as np
 
 from . import orifices as orf
-from .declarations import Parameter, Sensor, State, parameter_values, sp, stacked_parameters
+from .declarations import LENGTH, ORIFICE_LINEAR_BELOW, UNDERLAP, Parameter, Sensor, State, parameter_values, sp, stacked_parameters
 
-__all__ = ["NAME", "DOC", "MOTION", "COUPLING_GAIN", "STATES", "PARAMETERS", "SENSORS", "Symbolic", "Numeric",
+__all__ = ["NAME", "DOC", "MOTION", "TRAVEL", "COUPLING_GAIN", "STATES", "PARAMETERS", "SENSORS", "Symbolic", "Numeric",
            "parameters", "stacked"]
 
 NAME = "three_way_cylinder"
 DOC = "Cylinder on a three-way valve, rod side at supply pressure (the paper's eqs. (56)-(59))."
 #: The coordinate the actuator moves: its length l (m), l̇ (m/s).
 MOTION = "prismatic"
+#: Its coordinate, units and range key (messages and rig settings name them).
+TRAVEL = LENGTH
 #: Default Γ_τ⁻¹ of the force loop (N/m: the paper's platform legs).
 COUPLING_GAIN = 1.0e4
 STATES = (State("pc", "Pa", 0.0, "supply_pressure", "control (cap-side) chamber pressure"),)
@@ -40,10 +42,10 @@ PARAMETERS = (
     Parameter("rod_area", "m^2", None, "a, annulus area on the rod side (at supply pressure), < A"),
     Parameter("chamber_length", "m", None, "L: length at which the control chamber would be empty"),
     Parameter("supply_pressure", "Pa", None, "P_s"),
-    Parameter("underlap", "m", 0.0, "d, valve underlap (0: critically centred)"),
+    UNDERLAP,
     Parameter("flow_gain", "m^2/(s sqrt(Pa))", None, "c: q = c u sqrt(dp)", gamma=True),
     Parameter("bulk_modulus", "Pa", None, "beta, effective oil bulk modulus", gamma=True),
-    Parameter("orifice_linear_below", "Pa", 5.0e4, "the simulated plant's orifice roots turn linear below this drop"),
+    ORIFICE_LINEAR_BELOW,
 )
 SENSORS = (Sensor("l", "m", "cylinder length, pin to pin"),
            Sensor("pc", "Pa", "control-chamber pressure"))

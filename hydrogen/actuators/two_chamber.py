@@ -34,7 +34,7 @@ critically centred valve holds any pair; the same pair is taken (the limit d →
 """
 from __future__ import annotations
 
-from .declarations import Parameter
+from .declarations import ORIFICE_LINEAR_BELOW, UNDERLAP, Parameter
 
 __all__ = ["Laws", "VALVE_PARAMETERS"]
 
@@ -121,8 +121,8 @@ class Laws:
 VALVE_PARAMETERS = (
     Parameter("supply_pressure", "Pa", None, "P_s"),
     Parameter("tank_pressure", "Pa", 0.0, "P_t (gauge)"),
-    Parameter("underlap", "m", 0.0, "d, valve underlap (0: critically centred)"),
+    UNDERLAP,
     Parameter("flow_gain", "m^2/(s sqrt(Pa))", None, "c: q = c opening sqrt(dp), each orifice", gamma=True),
     Parameter("bulk_modulus", "Pa", None, "beta, effective oil bulk modulus", gamma=True),
-    Parameter("orifice_linear_below", "Pa", 5.0e4, "the simulated plant's orifice roots turn linear below this drop"),
+    ORIFICE_LINEAR_BELOW,
 )

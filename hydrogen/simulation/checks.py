@@ -189,10 +189,13 @@ def check_against_model(sc, model, controller, dyn=None) -> None:
         legs = np.asarray(dyn.leg_lengths(q0))
         bad = ~((legs >= model.leg_min) & (legs <= model.leg_max))
         if bad.any():
+            from ..actuators import actuator
             i = int(np.nonzero(bad)[0][0])
-            _fail(name, "q0_offset", f"puts the start pose outside the cylinders' stroke (cylinder "
-                  f"'{model.cylinders[i].name}' would be {legs[i]:.4f} m, stroke is [{model.leg_min[i]}, "
-                  f"{model.leg_max[i]}] m)", sc.q0_offset)
+            c = model.cylinders[i]
+            t = actuator(c.kind).TRAVEL  # the actuator's own travel: a length in m, an angle in rad
+            _fail(name, "q0_offset", f"puts the start pose outside actuator '{c.name}''s {t.range_word} "
+                  f"({t.quantity} {legs[i]:.4f} {t.unit}, {t.range_word} [{model.leg_min[i]}, "
+                  f"{model.leg_max[i]}] {t.unit})", sc.q0_offset)
 
 
 #: Gains that must be > 0 (divisors or limits); every other gain must be >= 0.

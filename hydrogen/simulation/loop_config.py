@@ -39,6 +39,12 @@ def _valve(run):
     return valve_vector(run.sc)
 
 
+def _per_actuator(key):
+    """A per-actuator rig setting, flat: :func:`hydrogen.simulation.scenarios.actuator_settings`."""
+    from .scenarios import actuator_settings
+    return lambda r: actuator_settings(r.sc, r.dyn.model)[key].ravel()
+
+
 def _bounds(run, i):
     b = np.asarray(run.ctrl.bounds[i], float)
     b = np.where(np.isfinite(b), b, -1e300 if i == 0 else 1e300)  # the C loop's "unbounded"
@@ -69,6 +75,8 @@ DERIVED = {
     "theta": lambda r: np.asarray(r.dyn.model.theta, float),
     "gamma1": lambda r: np.asarray(r.dyn.model.gamma[0], float),
     "gamma2": lambda r: np.asarray(r.dyn.model.gamma[1], float),
+    "friction": _per_actuator("friction"),
+    "quantization_l": _per_actuator("quantization_l"),
     "valve": _valve,
     "use_kalman": lambda r: int(r.kf_gain is not None),
     "kf_gain": lambda r: np.zeros(2) if r.kf_gain is None else np.asarray(r.kf_gain, float),

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import math
 
+from collections.abc import Mapping
 from dataclasses import dataclass, field, fields, replace
 
 import numpy as np
@@ -14,7 +15,7 @@ from ..layout import MAX_DELAY, delay_split
 from .checks import check_fields
 from .reference import MultiSine, Step
 
-__all__ = ["Scenario", "setting", "settings", "scenario", "scenario_names", "variant_names", "split_variant", "table_keys", "default_scenario_name", "RENAMED"]
+__all__ = ["Scenario", "setting", "settings", "PER_ACTUATOR", "actuator_settings", "per_actuator_unit", "scenario", "scenario_names", "variant_names", "split_variant", "table_keys", "default_scenario_name", "RENAMED"]
 
 #: Scenario fields that were renamed: the old name and what to write instead (named in the error).
 RENAMED = {"delay_periods": "delay (the computation delay in s; one period is 1/control_rate)"}
@@ -83,9 +84,16 @@ class Scenario:
                                default_text="0 for every coordinate")
     seed: int = setting(0, "", "noise seed")
     estimator_update: str = setting("semi-implicit", "", 'controller state update: "semi-implicit" or "euler"')
+    #: actuator name -> {setting of PER_ACTUATOR: value in that actuator's own unit}
+    actuators: dict = field(default_factory=dict)
     gains: dict = field(default_factory=dict)  # controller name -> gain overrides for this scenario
     label: str = ""        # caption in figures and tables (e.g. the paper's figure it reproduces)
     paper: dict = field(default_factory=dict)  # published max errors (%): {coordinate: [nonlinear, P]}
+
+    def noise_free(self) -> dict:
+        """The overrides that switch every sensor noise off, the per-actuator ones included."""
+        quiet = {a: {**v, "noise_l": 0.0} for a, v in self.actuators.items() if isinstance(v, Mapping)}
+        return {"noise_l": 0.0, "noise_p": 0.0, "noise_q": 0.0, "actuators": quiet}
 
     def delay_split(self) -> tuple:
         """The delay as (whole control periods, fraction of a period): :func:`hydrogen.layout.delay_split`."""
@@ -136,7 +144,70 @@ class Scenario:
         need(finite(self.q0_offset), "q0_offset", "must be finite numbers (one per coordinate)")
         need(self.estimator_update in ("semi-implicit", "euler"), "estimator_update",
              "must be 'semi-implicit' or 'euler'")
+        need(isinstance(self.actuators, Mapping) and all(isinstance(v, Mapping) for v in self.actuators.values()),
+             "actuators", "must be a table {actuator name: {setting: value}}")
+        for name, values in self.actuators.items():
+            unknown = sorted(set(values) - set(PER_ACTUATOR))
+            if unknown:
+                raise ScenarioError(f"scenario '{self.name}': actuators.{name}: unknown setting(s) {unknown}; "
+                                    f"settings given per actuator: {', '.join(PER_ACTUATOR)}")
+            try:  # each value as the scenario's own field of that name checks it
+                replace(self, actuators={}, **{k: _tuple(v) for k, v in values.items()}).validated()
+            except ScenarioError as exc:
+                text = str(exc).removeprefix(f"scenario '{self.name}': ")
+                raise ScenarioError(f"scenario '{self.name}': actuators.{name}.{text} (in the actuator's own "
+                                    "unit)") from None
         return self
+
+
+#: The rig settings that act on one actuator's travel, given per actuator in its own unit (the kind's
+#: TRAVEL: m for a cylinder, rad for a rotary vane) under ``actuators.<name>``. The scenario's own
+#: field (in a cylinder's units) is every cylinder's default; a joint actuator's friction defaults
+#: to none, and it must give the others itself where the scenario's are on (never a length in m
+#: applied to an angle). The Kalman filter's gain is one for all, dimensionless and 1/s (kalman_accel
+#: designs it with the scenario's noise_l and quantization_l).
+PER_ACTUATOR = ("friction", "quantization_l", "noise_l")
+
+
+def _tuple(v):
+    return tuple(v) if isinstance(v, list) else v
+
+
+def per_actuator_unit(key: str, travel) -> str:
+    """The unit of per-actuator setting ``key`` for an actuator of ``travel`` (its kind's TRAVEL)."""
+    u, f = travel.unit, travel.force_unit
+    return {"friction": f"{f}, {f} s/{u}, {u}/s", "quantization_l": u, "noise_l": u}[key]
+
+
+def actuator_settings(sc: Scenario, model) -> dict:
+    """Each setting of :data:`PER_ACTUATOR` per actuator of ``model``, in that actuator's own unit:
+    ``{"friction": (m, 3) array, "quantization_l": (m,), "noise_l": (m,)}``.
+    ScenarioError for an actuator the model lacks, or a joint actuator not given a sensor setting
+    the scenario switches on (the scenario's is a cylinder's, in m)."""
+    from ..actuators import actuator
+    from ..actuators.declarations import LENGTH
+
+    names = [c.name for c in model.cylinders]
+    unknown = sorted(set(sc.actuators) - set(names))
+    if unknown:
+        raise ScenarioError(f"scenario '{sc.name}': actuators.{unknown[0]}: the model has no actuator of that name; "
+                            f"actuators: {', '.join(names)}")
+    out = {k: [] for k in PER_ACTUATOR}
+    for c in model.cylinders:
+        own, travel = sc.actuators.get(c.name, {}), actuator(c.kind).TRAVEL
+        for key in PER_ACTUATOR:
+            value = _tuple(own.get(key, getattr(sc, key)))
+            if key not in own and travel != LENGTH:
+                if key == "friction":
+                    value = (0.0, 0.0, sc.friction[2])  # none unless given (the smoothing speed only keeps tanh finite)
+                elif getattr(sc, key):
+                    raise ScenarioError(
+                        f"scenario '{sc.name}': {key} = {getattr(sc, key)!r} is a cylinder's, in "
+                        f"{per_actuator_unit(key, LENGTH)}; actuator '{c.name}' (kind {c.kind}) moves an "
+                        f"{travel.quantity}: give its own as actuators.{c.name}.{key} in "
+                        f"{per_actuator_unit(key, travel)}")
+            out[key].append(value)
+    return {k: np.asarray(v, float) for k, v in out.items()}
 
 
 def _field_names() -> tuple:
@@ -147,12 +218,14 @@ _FIELDS = _field_names()
 #: Keys of a ``[scenarios.<name>]`` table besides the fields: the rig it starts from, its gains per
 #: controller, its reference, caption and published errors.
 _TABLE_KEYS = ("rig", "gains", "reference", "label", "paper")
+#: Keys of a ``[rig]`` table besides the fields: its per-actuator settings.
+_RIG_KEYS = ("actuators",)
 
 
 def table_keys(rig: bool = False) -> frozenset:
     """The keys a description's ``[scenarios.<name>]`` table may hold, or its ``[rig]`` table (``rig``:
     fields only)."""
-    return frozenset(_FIELDS if rig else _FIELDS + _TABLE_KEYS)
+    return frozenset(_FIELDS + _RIG_KEYS if rig else _FIELDS + _RIG_KEYS + _TABLE_KEYS)
 
 
 def _reference(model, where, spec, neutral):
@@ -229,20 +302,27 @@ def scenario(name: str, model) -> Scenario:
         raise ScenarioError(f"unknown scenario {name!r} for model '{model.name}'; choose one of {shown}")
     where = f"{model.source}: [scenarios.{base}]"
     spec = dict(tables[base])
-    fields = {}
+    fields, actuators = {}, {}
+
+    def take(table):  # its fields over the ones taken, its per-actuator settings merged per actuator
+        table = dict(table)
+        for a, values in (table.pop("actuators", None) or {}).items():
+            actuators[a] = {**actuators.get(a, {}), **values} if isinstance(values, dict) else values
+        fields.update(table)
+
     if spec.pop("rig", False):
-        fields.update(tables.get("rig") or {})
+        take(tables.get("rig") or {})
     gains = {c: dict(g) for c, g in spec.pop("gains", {}).items()}
     ref = spec.pop("reference", None)
     label = spec.pop("label", base)
     paper = spec.pop("paper", {})
-    fields.update(spec)
+    take(spec)
     if var is not None:
         vspec = dict(model.variants[var])
         for c, g in vspec.pop("gains", {}).items():
             gains[c] = {**gains.get(c, {}), **g}
         label = f"{label}, {vspec.pop('label', var)}"
-        fields.update(vspec)
+        take(vspec)
         where = f"{model.source}: [scenarios.{base}] with [variants.{var}]"
     unknown = set(fields) - table_keys(rig=True)
     if unknown:
@@ -258,7 +338,7 @@ def scenario(name: str, model) -> Scenario:
     neutral = np.asarray(model.neutral_pose, float)
     try:
         sc = Scenario(name=name, reference=_reference(model, where, ref, neutral), gains=gains,
-                      label=str(label), paper=dict(paper), **fields)
+                      label=str(label), paper=dict(paper), actuators=actuators, **fields)
     except TypeError as exc:
         raise ScenarioError(f"{where}: {exc}") from None
     return sc.validated()

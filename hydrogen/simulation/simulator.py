@@ -15,7 +15,7 @@ from ..layout import PREDICTOR_MODEL
 from ..summary import estimated_blocks
 from .checks import check_against_model, check_call, check_run_size, checked_float, metric_window
 from .control import make_controller
-from .scenarios import Scenario, scenario as named_scenario, scenario_names
+from .scenarios import Scenario, actuator_settings, scenario as named_scenario, scenario_names
 from .seeds import SeedResults
 
 __all__ = ["simulate", "SimulationResult", "SeedResults", "equilibrium_pressures", "Stepper", "prepare_run", "new_logs",
@@ -281,14 +281,14 @@ def prepare_run(dyn, scenario, controller, gains, duration, check_workspace, ove
     rng = np.random.default_rng(sc.seed)
     n_p = pressures.n_pressures(model)
     noise = np.zeros((n, m + n_p + (nq if model.joint_encoders else 0)))
-    if sc.noise_l:
-        noise[:, :m] = sc.noise_l * rng.standard_normal((n, m))
+    own = actuator_settings(sc, model)  # each actuator's travel noise, resolution, friction in its own unit
+    if own["noise_l"].any():
+        noise[:, :m] = own["noise_l"] * rng.standard_normal((n, m))
     if sc.noise_p:
         noise[:, m:m + n_p] = sc.noise_p * rng.standard_normal((n, n_p))
     if sc.noise_q and model.joint_encoders:
         noise[:, m + n_p:] = sc.noise_q * rng.standard_normal((n, nq))
-    kf_gain = kalman_gain(h, length_noise_variance(sc.noise_l, sc.quantization_l), sc.kalman_accel) \
-        if sc.kalman else None
+    kf_gain = filter_gain(sc, h)
     return _Prepared(sc, ctrl, n, h, x0, q0, noise, kf_gain, theta0, gamma0)
 
 
@@ -296,6 +296,14 @@ def length_noise_variance(noise_l, quantization_l) -> float:
     """Variance of a measured cylinder length, m²: white noise plus the encoder's quantisation
     (uniform over one step Δ: Δ²/12); a floor of (1 nm)² keeps the filter defined without either."""
     return max(float(noise_l) ** 2 + float(quantization_l) ** 2 / 12.0, 1e-18)
+
+
+def filter_gain(sc, h):
+    """The loop's one Kalman gain [K, K̇] (dimensionless, 1/s: the same on a length as on an angle) for
+    ``sc`` at period ``h``, designed for the scenario's (a cylinder's) noise_l, quantization_l and
+    kalman_accel; None without ``kalman``."""
+    return kalman_gain(h, length_noise_variance(sc.noise_l, sc.quantization_l), sc.kalman_accel) \
+        if sc.kalman else None
 
 
 def kalman_gain(h, r, accel):
@@ -407,7 +415,9 @@ class PythonStages:
         model = self.model = dyn.model
         self.dyn, self.sc, self.ctrl, self.h, self.kf_gain = dyn, sc, ctrl, h, kf_gain
         self._rhs_fn = dyn.functions["plant_rhs"]
-        self._fric, self._valve = np.asarray(sc.friction, float), valve_vector(sc)
+        own = actuator_settings(sc, model)  # friction and resolution of each actuator, in its own unit
+        self._fric, self._quant, self._valve = own["friction"].ravel(), own["quantization_l"], valve_vector(sc)
+        self._pred_fric = np.tile(_PRED_FRICTION, model.n_cylinders)
         self._lo, self._hi = pressures.bounds(model)  # each pressure state's clip (0 and P_s for p_c)
         self.nq, self.m, self.n_p = model.n, model.n_cylinders, pressures.n_pressures(model)
         self._max_delay = MAX_DELAY
@@ -426,8 +436,8 @@ class PythonStages:
         q, qdot, pc = x[:nq], x[nq:2 * nq], x[2 * nq:2 * nq + n_p]
         s.l_true = self.dyn.leg_lengths(q)
         s.l_meas = s.l_true + nz[:m]
-        if sc.quantization_l > 0:
-            s.l_meas = sc.quantization_l * np.floor(s.l_meas / sc.quantization_l + 0.5)
+        step = np.where(self._quant > 0, self._quant, 1.0)  # each actuator's resolution (0: none)
+        s.l_meas = np.where(self._quant > 0, step * np.floor(s.l_meas / step + 0.5), s.l_meas)
         s.pc_meas = np.clip(pc + nz[m:m + n_p], self._lo, self._hi) if sc.noise_p else pc
         s.ldot = None if self.kf is not None else self.dyn.leg_jacobian(q) @ qdot  # ideal rate sensor
         s.q_enc = q + nz[m + n_p:] if self.model.joint_encoders else None
@@ -484,7 +494,7 @@ class PythonStages:
 
         def hold(x, u, dt):
             n = self.sc.predictor_steps(dt / h)
-            rhs = lambda xx: self._rhs_fn(xx, u, th, g1, g2, _PRED_FRICTION, _PRED_VALVE)  # noqa: E731
+            rhs = lambda xx: self._rhs_fn(xx, u, th, g1, g2, self._pred_fric, _PRED_VALVE)  # noqa: E731
             for _ in range(n):
                 x = _rk4(rhs, x, dt / n)
                 np.clip(x[2 * nq:2 * nq + n_p], self._lo, self._hi, out=x[2 * nq:2 * nq + n_p])

@@ -3,7 +3,8 @@
 State x = [q (n), q̇ (n), pressures (one block per actuator, its kind's states: p_c of a three-way
 cylinder, p_A, p_B of a four-way one; :mod:`hydrogen.pressures`), spool (m), spool rate (m)];
 input u = spool command (m, metres).
-Cylinder friction: f_fric = F_c tanh(l̇ / v_s) + b l̇ opposing the cylinder's motion (N).
+Friction of each actuator, input ``friction`` = [F_c, b, v_s] per actuator in its own unit:
+f_fric = F_c tanh(l̇ / v_s) + b l̇ opposing its motion (N on a cylinder, N m on a rotary actuator).
 Valve, input ``valve`` = [τ_v, ω_v, ζ_v]:
 - ω_v > 0: second-order servo-valve, spool̈ = ω_v² (u − spool) − 2 ζ_v ω_v spool̇ (ω_v rad/s, the
   natural frequency, where the spool lags the command by 90°);
@@ -30,7 +31,8 @@ def plant_rhs(model):
     pc, spool, u = rate_symbols("pc", n_pressures(model)), rate_symbols("spool", m), rate_symbols("u", m)
     th = theta_symbols(model)
     g1, g2 = rate_symbols("gamma1", m), rate_symbols("gamma2", m)
-    fric = sp.Matrix(sp.symbols("F_coulomb b_viscous v_smooth", real=True))
+    fric = sp.Matrix([s for i in range(m) for s in sp.symbols(f"F_coulomb_{i} b_viscous_{i} v_smooth_{i}",
+                                                                      real=True)])
     spool_rate = rate_symbols("spool_rate", m)
     tau_v, w_v, z_v = valve = sp.symbols("tau_valve omega_valve zeta_valve", real=True)
     x = sp.Matrix([*q, *qd, *pc, *spool, *spool_rate])
@@ -60,7 +62,8 @@ def plant_rhs(model):
                                          (0, True), evaluate=False) for i in range(m)])
     f_leg = rate_symbols("plant_fleg", m)
     f_leg_value = sp.Matrix([laws[i].force(p[i], P[i])
-                             - fric[0] * sp.tanh(ldot[i] / fric[2]) - fric[1] * ldot[i] for i in range(m)])
+                             - fric[3 * i] * sp.tanh(ldot[i] / fric[3 * i + 2]) - fric[3 * i + 1] * ldot[i]
+                             for i in range(m)])
     qdd, solve = forward_dynamics(model, q, qd, JL.T * f_leg, th, prefix="plant_aba", solve="plant_qdd")  # poses: in kin
     # c = γ2/γ1, β = γ1; the orifice law linearised near Δp = 0 (smooth)
     pc_dot = sp.Matrix([rate for i in range(m) for rate in
