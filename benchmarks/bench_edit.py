@@ -4,7 +4,8 @@ For every shipped robot (``hydrogen.models()``) and the URDF-born leg (``common.
 description is copied and one number edited:
 gravity, 0.1 % lower (a number every description has; any other number takes the same route).
 Each route then runs in a fresh Python process, timed from its start to the end of a short
-``hydrogen.simulate`` (the robot's first scenario, ``backstepping``, ``DURATION`` s):
+``hydrogen.simulate`` (the robot's first scenario, ``backstepping``, ``DURATION`` s), building for
+that controller as ``hydrogen simulate`` does:
 
 * ``inputs``: ``hydrogen.build(edited)`` as by default (the numbers as inputs) on a cache that holds
   the build of the shipped description (made beforehand, not timed): the structure is the same, so
@@ -44,7 +45,7 @@ import hydrogen
 t1 = time.perf_counter()
 model = hydrogen.load_model({toml!r})
 events = []
-dyn = hydrogen.build(model, cache={cache!r}, numbers={numbers!r}, progress=events.append)
+dyn = hydrogen.build(model, cache={cache!r}, numbers={numbers!r}, progress=events.append, controllers=({controller!r},))
 t2 = time.perf_counter()
 r = hydrogen.simulate({scenario!r}, {controller!r}, dyn=dyn, duration={duration!r}, engine={engine!r})
 t3 = time.perf_counter()

@@ -447,3 +447,25 @@ def test_the_period_benchmarks_earlier_descriptions_load_with_the_current_code(t
     assert files
     for name, path in files.items():
         assert hydrogen.load_model(path).name == name
+
+
+def test_the_urdf_leg_is_timed_by_both_routes_and_edited_like_the_robots(tmp_path, monkeypatch):
+    """bench_cold runs the URDF-born leg to its first backstepping run with the numbers as inputs
+    (its target) and folded (shown beside it, no target); bench_edit edits its gravity like a
+    shipped robot's, keeping its structure."""
+    import bench_cold
+    import bench_edit
+    import common
+
+    from hydrogen.codegen.generate import structure_hash
+
+    leg = [c for c in bench_cold.cases(tmp_path) if c[1] == "urdf"]
+    assert [(c[3], c[4], c[5]) for c in leg] == [(str(common.URDF_LEG), "backstepping", "inputs"),
+                                                 (str(common.URDF_LEG), "backstepping", "constants")]
+    assert bench_cold.TARGETS["urdf"] == 60.0
+    model = hydrogen.load_model(common.URDF_LEG)
+    edited = hydrogen.load_model(bench_edit.edited_copy(str(common.URDF_LEG), tmp_path))
+    assert edited.gravity == pytest.approx(model.gravity * 0.999) and structure_hash(edited) == structure_hash(model)
+    ran = []
+    monkeypatch.setattr(bench_edit, "run_robot", lambda name, runs: ran.append(name) or {})
+    assert "urdf_leg" in bench_edit.run(quick=True)["robots"] and ran[-1] == str(common.URDF_LEG)
