@@ -1,4 +1,5 @@
 """A build compiles a core library; each controller's library is compiled on its first use and cached."""
+import dataclasses
 import json
 import os
 import subprocess
@@ -85,7 +86,8 @@ def test_build_compiles_the_controllers_it_is_given_with_the_core(model, tmp_pat
 
 def test_a_run_compiles_only_the_variant_it_runs(model, tmp_path):
     """An adaptive controller with its composite law compiles its full variant alone; with the
-    paper's gradient laws (composite rates 0) its lean variant then; build(controllers=) the full one."""
+    paper's gradient laws (composite rates 0) its lean variant then; build(controllers=) the one the
+    description's gains run (the Stewart's adaptive-observer sets a composite rate: the full one)."""
     from controller_inputs import PAPER_LAWS
 
     cache = tmp_path / "cache"
@@ -97,6 +99,11 @@ def test_a_run_compiles_only_the_variant_it_runs(model, tmp_path):
     assert dyn.library.loaded_groups() == (CORE, "adaptive-robust", "adaptive-robust-lean")
     both = hydrogen.build(model, cache=cache, cflags=FAST, backend="ctypes", controllers=("adaptive-observer",))
     assert both.library.loaded_groups() == (CORE, "adaptive-observer")
+    # a description that sets no composite rate runs the lean variant: that one is compiled with the core
+    plain = dataclasses.replace(model, gains={k: {g: v for g, v in t.items() if not g.startswith("rate_ls")}
+                                              for k, t in model.gains.items()})
+    lean = hydrogen.build(plain, cache=cache, cflags=FAST, backend="ctypes", controllers=("adaptive-observer",))
+    assert lean.library.loaded_groups() == (CORE, "adaptive-observer-lean")
 
 
 def _library_of(dyn, group) -> Path:

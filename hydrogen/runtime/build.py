@@ -152,9 +152,9 @@ def build(model: Model | str | Path | None = None, *, cc: str | None = None,
     The compiled code is one core library (kinematics, rigid body, hydraulics, plant, the C loop)
     and per controller one library for each variant a run calls on its own (the full controller
     with its rates and step; the lean one: :func:`~hydrogen.runtime.library.function_groups`). A
-    build compiles the core and the full variant of each of ``controllers``; any other library (a
-    lean variant, another controller) is compiled (or found in the cache) the first time one of its
-    functions is used, e.g. by a run with the paper's gradient laws.
+    build compiles the core and, of each of ``controllers``, the variant the description's gains run;
+    any other library (the other variant, another controller) is compiled (or found in the cache)
+    the first time one of its functions is used, e.g. by a run with other gains.
 
     Parameters
     ----------
@@ -176,9 +176,9 @@ def build(model: Model | str | Path | None = None, *, cc: str | None = None,
         "built"; a library already built gives "loaded" alone. A controller's library compiled
         later, on its first use, gives "compiling"/"compiled" then.
     controllers : sequence of str
-        Controllers (names, as ``simulate`` takes them) whose full variant's library is compiled
-        with the core, in the same pool of compilers, and loaded now (the variant a run with the
-        composite law runs, the default gains). ``hydrogen.CONTROLLERS``: all of them. Where the C
+        Controllers (names, as ``simulate`` takes them) whose library is compiled with the core, in
+        the same pool of compilers, and loaded now: the variant the description's own gains run (the
+        lean one when they set no composite rate, else the full one). ``hydrogen.CONTROLLERS``: all. Where the C
         is generated now (a new structure), only these controllers are derived; empty (the
         default): all. A build whose folder lacks one adds it (derives it alone); a controller
         the build does not hold is an error naming the build's controllers when it is run.
@@ -214,7 +214,7 @@ def build(model: Model | str | Path | None = None, *, cc: str | None = None,
     if lib is not None and missing_controllers(lib.manifest, controllers or None):
         lib = None  # the folder holds other controllers: theirs are added under the lock
     if lib is not None:
-        groups = _full_variants(made[-1].manifest, controllers)
+        groups = _own_variants(model, made[-1].manifest, controllers)
         missing = [g for g in groups if _cached_or_none(made[-1], g) is None]
         if missing:
             with cache_errors(root), folder_lock(made[-1].lock, current=committed):
@@ -237,7 +237,7 @@ def build(model: Model | str | Path | None = None, *, cc: str | None = None,
                 raise BuildCacheError(f"{folder}: generated folder has no readable manifest after generation")
             load = loader(manifest)
             # Progress around the compile call, not inside it: a build another process finished is no step.
-            groups = _full_variants(manifest, controllers)
+            groups = _own_variants(model, manifest, controllers)
             core = load.compile([CORE, *groups])[0]
             try:
                 lib = GeneratedLibrary(core, manifest, folder, load, numbers=model.numbers)
@@ -262,9 +262,18 @@ def _still_current(model, folder: Path, numbers: str) -> None:
         raise BuildCacheError(f"{folder}: changed since this build chose it ({reasons[0]}); build again")
 
 
-def _full_variants(manifest: dict, controllers: tuple) -> list:
-    """The library of each controller's full variant (the first of its ``controller_groups``)."""
-    return [g for c in controllers for g in controller_groups(manifest, c)[:1]]
+def _own_variants(model: Model, manifest: dict, controllers: tuple) -> list:
+    """The library each controller runs with the description's own gains: its lean variant where it
+    has one and the description sets no composite rate (the default, the paper's laws), else its full
+    one. A run with other gains compiles the other variant on its first use."""
+    from ..controllers.common import COMPOSITE_RATES, runs_lean
+
+    out = []
+    for c in controllers:
+        groups = controller_groups(manifest, c)
+        gains = {**{r: 0.0 for r in COMPOSITE_RATES}, **((model.gains or {}).get(c) or {})}
+        out += groups[1:2] if len(groups) > 1 and runs_lean(gains) else groups[:1]
+    return out
 
 
 def _cached_or_none(load, group):
