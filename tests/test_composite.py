@@ -205,16 +205,29 @@ def test_composite_rates_are_checked_against_the_control_period(dyn):
         hydrogen.simulate("paper-sim", "adaptive-robust", dyn=dyn, gains={"rate_ls_gamma": 2000.0}, duration=0.01)
 
 
-def test_theta_signals_of_a_staged_tree_equal_the_closed_forms(rng):
+def _tilted_arm():
+    """The arm with its stick joint's origin turned by 0.2 rad about x: an oblique joint."""
+    import dataclasses
+
+    arm = hydrogen.load_model("excavator_arm")
+    j = dataclasses.replace(arm.joints[1], origin_rpy=np.array([0.2, 0.0, 0.0]))
+    return dataclasses.replace(arm, joints=(arm.joints[0], j, *arm.joints[2:]))
+
+
+@pytest.mark.parametrize("tilted", [False, True], ids=["arm", "tilted arm"])
+def test_theta_signals_of_a_staged_tree_equal_the_closed_forms(rng, tilted):
     """Y_p, p0, Y_b, b0 of the momentum form on a staged tree (D holds link-pose symbols, so Cᵀ q̇
     comes from the tree's Christoffel C, not from ∂D/∂q) equal the closed form's (∂/∂q of the
-    kinetic energy) for the same robot, at random states: the arm, staged by its rigid_body_form."""
+    kinetic energy) for the same robot, at random states: the arm, staged by its rigid_body_form;
+    and the arm with an oblique joint, whose closed form takes Y_p and Y_b as Jacobians in θ
+    instead of expanding D once per parameter."""
     from hydrogen.symbolic import rigid_body
     from hydrogen.symbolic.composite import RigidBodyComposite
     from hydrogen.symbolic.control_laws import Common
-    from hydrogen.symbolic.forms import with_form
+    from hydrogen.symbolic.forms import oblique_joints, with_form
 
-    arm = hydrogen.load_model("excavator_arm")
+    arm = _tilted_arm() if tilted else hydrogen.load_model("excavator_arm")
+    assert bool(oblique_joints(arm)) == tilted
 
     def signals(form):
         model = with_form(arm, form)

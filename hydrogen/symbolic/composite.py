@@ -323,19 +323,30 @@ class RigidBodyComposite:
         return Yp, p0, Yb, b0
 
     def _closed_form_signals(self):
+        from .forms import oblique_joints
         from .rigid_body import gravity, mass_matrix
 
         c, n, p = self.c, self.c.n, self.c.p
         q, qd = c.q, c.qdot
-        zero = [sp.S.Zero] * p
-        D0, G0 = mass_matrix(c.model, q, zero), gravity(c.model, q, zero)
-        p0 = D0 * qd
-        Yp_cols, YG_cols = [], []
-        for k, unit in enumerate(_units(p)):
-            Yp_cols.append(sp.expand(mass_matrix(c.model, q, unit) * qd - p0))
-            YG_cols.append(sp.expand(gravity(c.model, q, unit) - G0))
-        Yp = sp.Matrix.hstack(*Yp_cols)
-        YG = sp.Matrix.hstack(*YG_cols)
+        if oblique_joints(c.model):
+            # Full rotations (of symbols, with the numbers as inputs): expanding D once per θ entry
+            # does not end in minutes; D(θ) q̇ and G(θ) are linear in θ, so their Jacobians in θ are
+            # the same columns without expanding anything.
+            th = sp.Matrix(sp.symbols(f"composite_theta0:{p}", real=True))
+            at_zero = {s: sp.S.Zero for s in th}
+            mom, G = mass_matrix(c.model, q, th) * qd, gravity(c.model, q, th)
+            p0, G0 = mom.subs(at_zero), G.subs(at_zero)
+            Yp, YG = mom.jacobian(th), G.jacobian(th)
+        else:
+            zero = [sp.S.Zero] * p
+            D0, G0 = mass_matrix(c.model, q, zero), gravity(c.model, q, zero)
+            p0 = D0 * qd
+            Yp_cols, YG_cols = [], []
+            for k, unit in enumerate(_units(p)):
+                Yp_cols.append(sp.expand(mass_matrix(c.model, q, unit) * qd - p0))
+                YG_cols.append(sp.expand(gravity(c.model, q, unit) - G0))
+            Yp = sp.Matrix.hstack(*Yp_cols)
+            YG = sp.Matrix.hstack(*YG_cols)
 
         def half_dT(mom):  # (Cᵀ q̇)_i = ∂/∂q_i of ½ q̇ᵀ (D q̇)
             T = sp.Rational(1, 2) * (qd.T * mom)[0, 0]
