@@ -31,7 +31,8 @@ def _cmd_generate(args) -> int:
             return 1
         print(f"{out}: up to date")
         return 0
-    from .progress import Reporter, generation_reported, print_event
+    from .progress import Reporter, print_event
+    from .runtime.build import generation_reported
     with generation_reported(Reporter(None if args.quiet else print_event, model.name), model, out, args.force):
         changed = generate(model, out, force=args.force, progress=not args.quiet,
                            **({} if args.numbers is None else {"numbers": args.numbers}))

@@ -71,7 +71,7 @@ import numpy as np
 from . import pressures
 from .actuators import actuator
 from .errors import IdentificationError, KinematicsError
-from .logcheck import fmt_number, check_log
+from .logcheck import fmt_number, check_log, noise_std
 from .logs import as_log
 
 __all__ = ["identify", "Identification", "ParameterFit", "auto_cutoff", "hydraulic_mode_hz"]
@@ -324,14 +324,6 @@ def _check_physical(fit: ParameterFit, positive, lo, hi, bounds_key: str) -> Par
             fit.warnings.append(f"{name} = {fit.estimate[i]:.6g} is outside the model's bounds [{lo[i]:.6g}, "
                                 f"{hi[i]:.6g}] ({bounds_key}): check the log's units and the model")
     return fit
-
-
-def noise_std(x) -> np.ndarray:
-    """Standard deviation of white noise on each column of ``x``, from its fourth differences: Δ⁴ of
-    white noise has variance 70 σ², and a smooth trajectory's Δ⁴ is negligible at a rig's sample
-    rates (a 3 Hz, 3 cm motion sampled at 1 kHz: 4·10⁻⁹ m, against 4·10⁻⁵ m for 5 µm of noise)."""
-    d4 = np.diff(np.asarray(x, float), n=4, axis=0)
-    return np.sqrt(np.mean(d4 ** 2, axis=0) / 70.0)
 
 
 def _check_samples(log, t, fs, edge, step, what):

@@ -21,7 +21,7 @@ import numpy as np
 
 from .errors import IdentificationError, ScenarioError
 
-__all__ = ["check_log", "control_rates", "fmt_number", "RATE_FACTOR", "STROKE_TOL", "NOISE_RANGES", "PRESSURE_TOL",
+__all__ = ["check_log", "noise_std", "control_rates", "fmt_number", "RATE_FACTOR", "STROKE_TOL", "NOISE_RANGES", "PRESSURE_TOL",
            "TINY_PRESSURE"]
 
 #: The log's sample rate may be this factor below the slowest or above the fastest control rate.
@@ -60,8 +60,15 @@ def control_rates(model) -> list:
     return sorted(rates)
 
 
+def noise_std(x) -> np.ndarray:
+    """Standard deviation of white noise on each column of ``x``, from its fourth differences: Δ⁴ of
+    white noise has variance 70 σ², and a smooth trajectory's Δ⁴ is negligible at a rig's sample
+    rates (a 3 Hz, 3 cm motion sampled at 1 kHz: 4·10⁻⁹ m, against 4·10⁻⁵ m for 5 µm of noise)."""
+    d4 = np.diff(np.asarray(x, float), n=4, axis=0)
+    return np.sqrt(np.mean(d4 ** 2, axis=0) / 70.0)
+
+
 def _noise(x) -> np.ndarray:
-    from .identification import noise_std
     return noise_std(x) if len(x) > 4 else np.zeros(np.shape(x)[1])
 
 

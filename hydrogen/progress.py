@@ -9,11 +9,9 @@ from __future__ import annotations
 
 import sys
 import time
-from contextlib import contextmanager
 from dataclasses import dataclass
-from pathlib import Path
 
-__all__ = ["BuildEvent", "STAGES", "Reporter", "print_event", "c_size", "generation_reported"]
+__all__ = ["BuildEvent", "STAGES", "Reporter", "print_event", "c_size"]
 
 #: The stages, in the order a build from scratch reports them.
 STAGES = ("generating", "generated", "compiling", "compiled", "built", "loaded")
@@ -60,28 +58,6 @@ def c_size(paths) -> str:
     """Total size of the files, as '1.9 MB' or '85 kB' (of C)."""
     n = sum(p.stat().st_size for p in paths if p.is_file())
     return f"{n / 1e6:.1f} MB" if n >= 1e6 else f"{n / 1e3:.0f} kB"
-
-
-@contextmanager
-def generation_reported(report: Reporter, model, folder, force: bool = False, controllers=()):
-    """Around a generation call: "generating" and "generated" when ``folder`` is stale for ``model``,
-    lacks one of ``controllers`` (names; empty: all) or ``force`` regenerates it (a current folder is
-    no step: nothing reported). Outside the generator, whose source is part of the derivation hash."""
-    from .codegen.generate import check, missing_controllers, read_manifest
-
-    stale = force or bool(check(model, Path(folder)))
-    missing = () if stale else missing_controllers(read_manifest(Path(folder)) or {}, controllers or None)
-    clock = report.start()
-    if stale:
-        report("generating", "deriving the model (SymPy) and writing C for each function")
-    elif missing:
-        report("generating", f"deriving {', '.join(missing)} (SymPy) and writing C for each function")
-    stale = stale or bool(missing)
-    yield
-    if stale:
-        manifest = read_manifest(Path(folder)) or {}
-        n = len(manifest.get("functions", ()))
-        report("generated", f"{n} functions, {c_size(Path(folder).glob('*.c'))} of C", clock())
 
 
 def print_event(event: BuildEvent, file=None) -> None:

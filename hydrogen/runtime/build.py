@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import hashlib
+from contextlib import contextmanager
 from pathlib import Path
 
 from ..codegen.generate import (DEFAULT_NUMBERS, check, check_numbers_mode, derivation_hash, generate_locked,
@@ -13,7 +14,7 @@ from .compiler import Toolchain, build_key_of, cache_root, cached_library, compi
 from .extension import attach_extension
 from .library import CORE, GeneratedLibrary, controller_groups, group_sources
 
-__all__ = ["build", "repo_generated_dir", "generated_dir_for", "library_name"]
+__all__ = ["build", "repo_generated_dir", "generated_dir_for", "library_name", "generation_reported"]
 
 
 def repo_generated_dir() -> Path:
@@ -38,6 +39,30 @@ def generated_dir_for(model: Model, cache: Path | None = None, numbers: str = DE
     shape = model.baked_hash() if numbers == "constants" else "s" + structure_hash(model)
     key = f"{model.name}-{shape[:16]}-{derivation_hash()[:8]}"
     return Path(cache or cache_root()) / "generated" / key
+
+
+@contextmanager
+def generation_reported(report, model, folder, force: bool = False, controllers=()):
+    """Around a generation call: "generating" and "generated" (to ``report``, a
+    :class:`~hydrogen.progress.Reporter`) when ``folder`` is stale for ``model``, lacks one of
+    ``controllers`` (names; empty: all) or ``force`` regenerates it (a current folder is no step:
+    nothing reported). Outside the generator, whose source is part of the derivation hash."""
+    from ..codegen.generate import missing_controllers
+    from ..progress import c_size
+
+    stale = force or bool(check(model, Path(folder)))
+    missing = () if stale else missing_controllers(read_manifest(Path(folder)) or {}, controllers or None)
+    clock = report.start()
+    if stale:
+        report("generating", "deriving the model (SymPy) and writing C for each function")
+    elif missing:
+        report("generating", f"deriving {', '.join(missing)} (SymPy) and writing C for each function")
+    stale = stale or bool(missing)
+    yield
+    if stale:
+        manifest = read_manifest(Path(folder)) or {}
+        n = len(manifest.get("functions", ()))
+        report("generated", f"{n} functions, {c_size(Path(folder).glob('*.c'))} of C", clock())
 
 
 def _drop_broken_entry(model: Model, folder: Path) -> None:
@@ -192,7 +217,7 @@ def build(model: Model | str | Path | None = None, *, cc: str | None = None,
         set of numbers).
     """
     from ..dynamics import Dynamics
-    from ..progress import Reporter, generation_reported
+    from ..progress import Reporter
 
     if not isinstance(model, Model):
         model = load_model(model)
