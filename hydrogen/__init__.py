@@ -20,7 +20,6 @@ def build(model=None, **kwargs):
     return _build(model, **kwargs)
 
 
-_DEFAULT_DYN = {}
 
 
 def simulate(scenario="paper-sim", controller="adaptive-robust", *, model=None, dyn=None, progress=None,
@@ -42,28 +41,10 @@ def simulate(scenario="paper-sim", controller="adaptive-robust", *, model=None, 
 
 
 def default_dynamics(model=None, progress=None, controller=None, numbers=None):
-    """Compiled dynamics for ``model``: the library is built once per process, baked model and
-    ``numbers`` mode (:func:`hydrogen.runtime.build.build`'s; None: its default); the returned
-    Dynamics carries this very model, so its runtime parameters (θ, γ, bounds) are used.
-    ``progress``: the build's callback (called only when this process builds or loads it).
-    ``controller``: a controller whose library the first build compiles with the core (in one pool of
-    compilers); any other is compiled on its first use."""
-    from .codegen.generate import DEFAULT_NUMBERS
-    from .dynamics import Dynamics
-    from .simulation.sweep import _model_path
-    from .controllers import CONTROLLERS, function_name
-
-    m = model if isinstance(model, Model) else load_model(_model_path(model))
-    numbers = DEFAULT_NUMBERS if numbers is None else numbers
-    key = (m.baked_hash(), numbers)
-    wanted = tuple(c for c in (controller,) if c in CONTROLLERS)
-    lib = _DEFAULT_DYN.get(key)
-    if lib is None or any(function_name(c) not in lib.group_of for c in wanted):
-        # a new structure derives only the controller run; another one later is added to it
-        held = () if lib is None else tuple(c for c in CONTROLLERS if function_name(c) in lib.group_of)
-        _DEFAULT_DYN[key] = build(m, progress=progress, numbers=numbers,
-                                  controllers=(*held, *wanted) if wanted else ()).library
-    return Dynamics(m, _DEFAULT_DYN[key])
+    """The compiled dynamics of ``model``, built once per process: see
+    :func:`hydrogen.runtime.build.default_dynamics`."""
+    from .runtime.build import default_dynamics as _default_dynamics
+    return _default_dynamics(model, progress, controller, numbers)
 
 
 def stepper(scenario="paper-sim", controller="adaptive-robust", *, model=None, dyn=None, progress=None,

@@ -7,6 +7,7 @@ import pytest
 import hydrogen
 from hydrogen.cli import main as cli
 from hydrogen.errors import HydrogenError
+from hydrogen.runtime.build import DEFAULT_DYNAMICS
 
 #: Every command that builds the model, with the arguments it needs to reach the build.
 BUILDING = [["simulate", "--duration", "0.1"], ["simulate", "--duration", "0.1", "--seeds", "2"],
@@ -30,7 +31,7 @@ def test_numbers_reaches_the_build_of_every_command(argv, numbers, tmp_path, mon
         asked.append(kw.get("numbers", DEFAULT_NUMBERS))
         raise HydrogenError("build stopped by the test")
     monkeypatch.setattr(build_mod, "build", stop)
-    hydrogen._DEFAULT_DYN.clear()
+    DEFAULT_DYNAMICS.clear()
     args = [a.format(tmp=tmp_path) for a in argv] + ([] if numbers is None else ["--numbers", numbers])
     assert cli(args) == 2
     assert "build stopped by the test" in capsys.readouterr().err
@@ -59,8 +60,8 @@ def test_simulate_numbers_constants_builds_a_folded_library(tmp_path, monkeypatc
     # runs over seeds: the workers build the way the dynamics they were given were built
     dyn = hydrogen.build(model, cache=cache, numbers="constants")
     assert dyn.library.numbers is None
-    hydrogen._DEFAULT_DYN.clear()
+    DEFAULT_DYNAMICS.clear()
     with ThreadPoolExecutor(1) as pool:  # in this process: its per-process builds can be read
         res = hydrogen.simulate("z-1hz", "p", dyn=dyn, duration=0.1, seeds=2, executor=pool)
-    assert not res.failures and set(hydrogen._DEFAULT_DYN) == {(model.baked_hash(), "constants")}
-    assert hydrogen._DEFAULT_DYN[(model.baked_hash(), "constants")].numbers is None
+    assert not res.failures and set(DEFAULT_DYNAMICS) == {(model.baked_hash(), "constants")}
+    assert DEFAULT_DYNAMICS[(model.baked_hash(), "constants")].numbers is None

@@ -183,9 +183,10 @@ def test_simulate_summary_gives_the_build_time_apart_from_the_run(capsys, monkey
 
 def test_simulate_and_stepper_pass_progress_to_their_build(monkeypatch):
     import hydrogen
+    import hydrogen.runtime.build as runtime_build
     for make in (lambda cb: hydrogen.simulate("z-1hz", "p", duration=0.01, progress=cb),
                  lambda cb: hydrogen.stepper("z-1hz", "p", progress=cb)):
-        monkeypatch.setattr(hydrogen, "_DEFAULT_DYN", {})  # this process has built nothing yet
+        monkeypatch.setattr(runtime_build, "DEFAULT_DYNAMICS", {})  # this process has built nothing yet
         events = []
         make(events.append)
         assert [e.stage for e in events] in (["loaded"], ["compiling", "compiled", "built"],

@@ -14,7 +14,8 @@ from .compiler import Toolchain, build_key_of, cache_root, cached_library, compi
 from .extension import attach_extension
 from .library import CORE, GeneratedLibrary, controller_groups, group_sources
 
-__all__ = ["build", "repo_generated_dir", "generated_dir_for", "library_name", "generation_reported"]
+__all__ = ["build", "default_dynamics", "DEFAULT_DYNAMICS", "as_model", "repo_generated_dir", "generated_dir_for", "library_name",
+           "generation_reported"]
 
 
 def repo_generated_dir() -> Path:
@@ -306,3 +307,46 @@ def _cached_or_none(load, group):
         return load.cached(group)
     except (OSError, BuildCacheError):
         return None
+
+
+def as_model(model) -> Model:
+    """``model`` itself (a Model), or the description it names (a built-in name, a path; None: the
+    default robot), loaded; anything else is a ScenarioError naming what was given."""
+    import os
+
+    from ..errors import ScenarioError
+
+    if isinstance(model, Model):
+        return model
+    if model is None or isinstance(model, (str, os.PathLike)):
+        return load_model(model)
+    raise ScenarioError(f"model must be a hydrogen.Model, a path to a model TOML file or None, "
+                        f"got {type(model).__name__} {model!r}"[:300])
+
+
+#: The libraries :func:`default_dynamics` built in this process, by (baked model hash, numbers mode).
+DEFAULT_DYNAMICS = {}
+
+
+def default_dynamics(model=None, progress=None, controller=None, numbers=None):
+    """Compiled dynamics for ``model`` (a Model, a built-in name, a path or None for the default):
+    the library is built once per process, baked model and ``numbers`` mode (:func:`build`'s; None:
+    its default); the returned Dynamics carries this very model, so its runtime parameters (θ, γ,
+    bounds) are used. ``progress``: the build's callback (called only when this process builds or
+    loads it). ``controller``: the controller a run needs: the first build derives and compiles it
+    with the core; one the library does not hold yet is added to it (a build for it and those it
+    holds)."""
+    from ..controllers import CONTROLLERS, function_name
+
+    m = as_model(model)
+    numbers = DEFAULT_NUMBERS if numbers is None else numbers
+    key = (m.baked_hash(), numbers)
+    wanted = tuple(c for c in (controller,) if c in CONTROLLERS)
+    lib = DEFAULT_DYNAMICS.get(key)
+    if lib is None or any(function_name(c) not in lib.group_of for c in wanted):
+        # a new structure derives only the controller run; another one later is added to it
+        held = () if lib is None else tuple(c for c in CONTROLLERS if function_name(c) in lib.group_of)
+        DEFAULT_DYNAMICS[key] = build(m, progress=progress, numbers=numbers,
+                                      controllers=(*held, *wanted) if wanted else ()).library
+    from ..dynamics import Dynamics
+    return Dynamics(m, DEFAULT_DYNAMICS[key])

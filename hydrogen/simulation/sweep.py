@@ -35,8 +35,9 @@ def entry_problem(run) -> str | None:
 def _run_one(job):
     """Worker: build (once per process) and run one simulation; return its metrics (its
     SimulationResult when ``keep``, the metrics completed the same way) or its error."""
-    import hydrogen
     from ..errors import HydrogenError
+    from ..runtime.build import default_dynamics
+    from .simulator import simulate
 
     model, run, keep, numbers = job
     problem = entry_problem(run)
@@ -46,8 +47,8 @@ def _run_one(job):
     scenario = run.pop("scenario", "paper-sim")
     controller = run.pop("controller", "adaptive-robust")
     try:
-        dyn = hydrogen.default_dynamics(model, controller=controller, numbers=numbers)
-        res = hydrogen.simulate(scenario, controller, dyn=dyn, **run)
+        dyn = default_dynamics(model, controller=controller, numbers=numbers)
+        res = simulate(dyn, scenario, controller, **run)
     except HydrogenError as exc:
         out = {"error": str(exc).splitlines()[0][:500]}
         if getattr(exc, "result", None) is not None and len(exc.result.t):
@@ -86,8 +87,8 @@ def sweep(runs, *, executor: Executor | None = None, max_workers: int | None = N
     executor spreads the sweep past one machine); by default a local process pool
     with ``max_workers`` (default: the core count) processes.
     """
-    import hydrogen
     from ..errors import ScenarioError, WorkerError
+    from ..runtime.build import as_model
     from .seeds import seed_list, summarize
 
     if isinstance(runs, (str, bytes, Mapping)) or not hasattr(runs, "__iter__"):
@@ -110,7 +111,7 @@ def sweep(runs, *, executor: Executor | None = None, max_workers: int | None = N
         per = {i: [next(done) for _ in seeds] for i in mine}
         return [summarize(seeds, per.get(i) or [{"error": clash}] * len(seeds)) for i in range(len(runs))]
     # The Model itself goes to the workers (not its file name): in-memory edits are kept.
-    model = model if isinstance(model, hydrogen.Model) else hydrogen.load_model(_model_path(model))
+    model = as_model(model)
     from tqdm import tqdm
 
     if numbers is not None:
@@ -200,15 +201,3 @@ def _abandon(pool, before) -> None:
         if p.is_alive():
             p.kill()
             p.join(timeout=5)
-
-
-def _model_path(model):
-    """``model`` if it can name a model file (None, str or path), else a ScenarioError."""
-    import os
-
-    from ..errors import ScenarioError
-
-    if model is None or isinstance(model, (str, os.PathLike)):
-        return model
-    raise ScenarioError(f"model must be a hydrogen.Model, a path to a model TOML file or None, "
-                        f"got {type(model).__name__} {model!r}"[:300])

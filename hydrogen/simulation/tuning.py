@@ -71,8 +71,8 @@ SEEDS = DEFAULT_SEEDS  # noise seeds (0 .. SEEDS-1) every gain is judged over
 
 
 def _load(model):
-    import hydrogen
-    return model if isinstance(model, hydrogen.Model) else hydrogen.load_model(model)
+    from ..runtime.build import as_model
+    return as_model(model)
 
 
 def rig_scenarios(model=None, variant: str | None = None) -> dict:
@@ -262,7 +262,7 @@ def tune(controller, grid=None, *, model=None, scenarios=None, secondary=None, a
     """
     import itertools
 
-    import hydrogen
+    from ..runtime.build import build
     from .sweep import check_workers, sweep
 
     model = _load(model)
@@ -270,7 +270,7 @@ def tune(controller, grid=None, *, model=None, scenarios=None, secondary=None, a
         check_workers(max_workers)
     scen = dict(scenarios) if scenarios else require_rig_scenarios(model, f"tune --controller {controller}", variant)
     seeds = seed_list(DEFAULT_SEEDS if seeds is None else seeds)
-    dyn = hydrogen.build(model, **({} if numbers is None else {"numbers": numbers}))
+    dyn = build(model, **({} if numbers is None else {"numbers": numbers}))
     grid = np.sort(np.asarray(default_grid(controller) if grid is None else grid, float))
     sec = secondary_grid(dyn, controller) if secondary is None else dict(secondary)
     sec_points = [dict(zip(sec, v)) for v in itertools.product(*sec.values())] or [{}]
@@ -408,7 +408,7 @@ def margins(controllers=None, *, model=None, scenarios=None, executor=None, max_
     {median, min, max} of the max error % at the robot's gains}, median_seed, unstable_seeds: the
     seeds unstable at the first unstable factor}]}; ``margin`` is the largest factor found stable
     (>= MARGIN_MAX: ``margin_capped``), 0 when the robot's gains themselves fail on a seed."""
-    import hydrogen
+    from ..runtime.build import build
     from ..controllers import CONTROLLERS
     from .sweep import check_workers, sweep
 
@@ -417,7 +417,7 @@ def margins(controllers=None, *, model=None, scenarios=None, executor=None, max_
         check_workers(max_workers)
     scen = list(scenarios) if scenarios else list(require_rig_scenarios(model, "margins", variant))
     seeds = seed_list(DEFAULT_SEEDS if seeds is None else seeds)
-    dyn = hydrogen.build(model, **({} if numbers is None else {"numbers": numbers}))
+    dyn = build(model, **({} if numbers is None else {"numbers": numbers}))
     cases = [(c, s) for c in (controllers or CONTROLLERS) for s in scen]
     # The gains each case runs with: the robot's, under the scenario's own (a variant's gains).
     base = [_own_gains(dyn, c, s, model) for c, s in cases]
