@@ -56,6 +56,30 @@ def _figures_only(res):
     return res
 
 
+def check_results_file(path: Path) -> None:
+    """Nothing, when ``bench`` may write its results to ``path``: no file there, or one it wrote (a
+    JSON object whose keys are the suite's modules); else an OutputPathError naming the file."""
+    from .errors import OutputPathError
+
+    path = Path(path)
+    if not (path.exists() or path.is_symlink()):
+        return
+    why = None
+    if path.is_symlink() or not path.is_file():
+        why = "not a regular file"
+    else:
+        try:
+            data = json.loads(path.read_text(encoding="utf-8"))
+        except (OSError, UnicodeDecodeError, ValueError):
+            data = None
+        modules = {n for n, _ in SUITE}
+        if not (isinstance(data, dict) and data and set(data) <= modules):
+            why = "not results 'hydrogen bench' wrote (a JSON object of its modules' results)"
+    if why:
+        raise OutputPathError(f"{path}: {why}, and 'hydrogen bench' would write its results over it: move that "
+                              "file, or give --json another name")
+
+
 def run_suite(quick: bool = False, json_path: str | None = None, only=None, progress: bool = True,
               release_checks: bool = False) -> dict:
     """Run the suite's modules (all, or those named in ``only``) in this process, print each one's
@@ -68,6 +92,8 @@ def run_suite(quick: bool = False, json_path: str | None = None, only=None, prog
     if json_path:
         from .pages import check_benchmarks_page
         check_benchmarks_page(json_path)  # before minutes of benchmarks, not after
+        for path in (Path(json_path), Path(json_path).with_suffix(".partial.json")):
+            check_results_file(path)
     folder = Path(__file__).resolve().parents[1] / "benchmarks"
     if not folder.is_dir():
         raise HydrogenError(f"{folder}: no benchmarks folder; run 'hydrogen bench' from a source checkout")

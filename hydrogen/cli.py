@@ -437,7 +437,7 @@ def build_parser() -> argparse.ArgumentParser:
     b.add_argument("--json", help="write all results as JSON to this file")
     from .bench import SUITE
     b.add_argument("--only", nargs="*", choices=[n for n, _ in SUITE], metavar="MODULE",
-                   help="run only these modules (see 'hydrogen bench --help')")
+                   help="run only these modules: " + ", ".join(n for n, _ in SUITE))
     b.add_argument("--quiet", action="store_true", help="no progress bar")
     b.add_argument("--release-checks", action="store_true",
                    help="for hydrogen's developers: also check the project's release targets (bounds against "

@@ -243,6 +243,18 @@ def test_bench_json_never_writes_its_page_over_a_users_file_or_its_own_results(c
     first = (own / "benchmarks.md").read_text()
     assert cli(argv + [str(own / "x.json")]) == 0 and (own / "benchmarks.md").read_text() == first
     assert json.loads((own / "x.json").read_text())["bench_release"]["instructions"]["regressor"]["current"] == 120
+    # nor its results over a user's file: the JSON named (or its partial twin) must be results it wrote
+    ran.clear()
+    for name, text in (("mine.json", '{"mine": "precious"}'), ("notes.json", "not JSON"),
+                       ("x.partial.json", '{"mine": 1}')):
+        folder = tmp_path / f"user-{name}"
+        folder.mkdir()
+        (folder / name).write_text(text)
+        target = folder / (name if name != "x.partial.json" else "x.json")
+        assert cli(argv + [str(target)]) == 2
+        assert f"{folder / name}: not results 'hydrogen bench' wrote" in capsys.readouterr().err
+        assert (folder / name).read_text() == text and not ran
+    assert cli(argv + [str(own / "x.json")]) == 0 and ran  # its own results are replaced
 
 
 def test_bench_scaling_states_its_target_only_for_developers(capsys):
