@@ -132,8 +132,13 @@ def read_sources(dyn, names, generated) -> dict:
     Each file is checked against the SHA-256 the library's manifest recorded, so
     the export never mixes sources of another generation.
     """
-    from .fileio import locked, recover_dir
+    from contextlib import nullcontext
 
+    from .fileio import recover_dir
+    from .runtime import cachedir
+    from .runtime.build import repo_generated_dir
+
+    committed = (repo_generated_dir() / dyn.model.name).resolve()
     recorded = dyn.library.manifest.get("files", {})
     missing = [n for n in names if n not in recorded]
     if missing:
@@ -143,8 +148,12 @@ def read_sources(dyn, names, generated) -> dict:
         if not folder.is_dir():
             tried.append(f"{folder}: missing")
             continue
-        with locked(folder):  # the generator swaps this folder under the same lock
-            recover_dir(folder)
+        # A cache folder is swapped by the generator under its lock; the committed one is only read
+        # (the recorded hashes catch a file that changed): no lock, so no lock file in the checkout.
+        mine = folder.resolve() != committed
+        with cachedir.folder_lock(folder, current=True) if mine else nullcontext():
+            if mine:
+                recover_dir(folder)
             data, bad = {}, []
             for n in names:
                 p = folder / n

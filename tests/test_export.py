@@ -1,5 +1,6 @@
 """hydrogen.export: a self-contained C99 folder that builds with make and reproduces the simulator."""
 import json
+import pathlib
 import shutil
 import subprocess
 
@@ -228,3 +229,25 @@ def test_names_with_a_dash_export_and_run(tmp_path, cache):
     params_h.write_text(_edit_number(params, "boom-link.mass", "-1.0"))
     proc = subprocess.run(["make", "-s", "run"], cwd=folder, capture_output=True, text=True, timeout=600)
     assert proc.returncode == 2 and "number 'boom-link.mass' = -1 is outside" in proc.stderr, proc.stderr
+
+
+def test_an_export_from_the_committed_folder_takes_no_lock_there(tmp_path, dyn, monkeypatch):
+    """The committed generated/ is only read (its recorded hashes catch a changed file): an export
+    from it locks nothing in the checkout, so builds into other caches never wait on it."""
+    from contextlib import contextmanager
+
+    import hydrogen.fileio as fileio
+    from hydrogen.runtime.build import repo_generated_dir
+
+    assert dyn.library.generated_dir == repo_generated_dir() / dyn.model.name
+    real, taken = fileio.locked, []
+
+    @contextmanager
+    def recorded(path, timeout=None):
+        taken.append(pathlib.Path(path))
+        with real(path, timeout):
+            yield
+    monkeypatch.setattr(fileio, "locked", recorded)
+    folder = export(tmp_path / "out", "z-1hz", "p", duration=0.1, dyn=dyn)
+    assert (folder / "params.h").is_file()
+    assert not [p for p in taken if p.is_relative_to(repo_generated_dir())], taken
