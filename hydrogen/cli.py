@@ -69,7 +69,8 @@ def _cmd_simulate(args) -> int:
     # Built apart from the run, so the summary tells the two times apart (stages on stderr).
     events = []
     dyn = hydrogen.build(model, progress=lambda e: (events.append(e), print_event(e)),
-                         controllers=(args.controller,), **_build_options(args))
+                         controllers=(args.controller,), gains={args.controller: sc.gains.get(args.controller)},
+                         **_build_options(args))
     if args.seeds is not None:
         return _simulate_seeds(args, model, dyn, events)
     try:

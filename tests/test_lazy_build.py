@@ -104,6 +104,10 @@ def test_a_run_compiles_only_the_variant_it_runs(model, tmp_path):
                                               for k, t in model.gains.items()})
     lean = hydrogen.build(plain, cache=cache, cflags=FAST, backend="ctypes", controllers=("adaptive-observer",))
     assert lean.library.loaded_groups() == (CORE, "adaptive-observer-lean")
+    # a run's own gains (a scenario's) over the description's decide it too
+    full = hydrogen.build(plain, cache=cache, cflags=FAST, backend="ctypes", controllers=("adaptive-observer",),
+                          gains={"adaptive-observer": {"rate_ls_theta": 5.0}})
+    assert full.library.loaded_groups() == (CORE, "adaptive-observer")
 
 
 def _library_of(dyn, group) -> Path:

@@ -172,7 +172,8 @@ def _check_controllers(controllers) -> tuple:
 
 def build(model: Model | str | Path | None = None, *, cc: str | None = None,
           cflags: tuple | None = None, cache: Path | None = None, generated: Path | None = None,
-          backend: str = "auto", progress=None, controllers=(), numbers: str = DEFAULT_NUMBERS):
+          backend: str = "auto", progress=None, controllers=(), numbers: str = DEFAULT_NUMBERS,
+          gains=None):
     """Generate if stale, compile if needed, load, and return a :class:`~hydrogen.dynamics.Dynamics`.
 
     The compiled code is one core library (kinematics, rigid body, hydraulics, plant, the C loop)
@@ -208,6 +209,9 @@ def build(model: Model | str | Path | None = None, *, cc: str | None = None,
         is generated now (a new structure), only these controllers are derived; empty (the
         default): all. A build whose folder lacks one adds it (derives it alone); a controller
         the build does not hold is an error naming the build's controllers when it is run.
+    gains : dict, optional
+        By controller, gains a run will set over the description's (a scenario's own): they decide
+        which variant of the controller is compiled with the core.
         Empty: a folder that lacks some controller gets it.
     numbers : "inputs" (default) or "constants"
         "inputs" generates every function with the description's numbers as an input the runtime
@@ -240,7 +244,7 @@ def build(model: Model | str | Path | None = None, *, cc: str | None = None,
     if lib is not None and missing_controllers(lib.manifest, controllers or None):
         lib = None  # the folder holds other controllers: theirs are added under the lock
     if lib is not None:
-        groups = _own_variants(model, made[-1].manifest, controllers)
+        groups = _own_variants(model, made[-1].manifest, controllers, gains)
         missing = [g for g in groups if _cached_or_none(made[-1], g) is None]
         if missing:
             with cache_errors(root), folder_lock(made[-1].lock, current=committed):
@@ -263,7 +267,7 @@ def build(model: Model | str | Path | None = None, *, cc: str | None = None,
                 raise BuildCacheError(f"{folder}: generated folder has no readable manifest after generation")
             load = loader(manifest)
             # Progress around the compile call, not inside it: a build another process finished is no step.
-            groups = _own_variants(model, manifest, controllers)
+            groups = _own_variants(model, manifest, controllers, gains)
             core = load.compile([CORE, *groups])[0]
             try:
                 lib = GeneratedLibrary(core, manifest, folder, load, numbers=model.numbers)
@@ -288,17 +292,18 @@ def _still_current(model, folder: Path, numbers: str) -> None:
         raise BuildCacheError(f"{folder}: changed since this build chose it ({reasons[0]}); build again")
 
 
-def _own_variants(model: Model, manifest: dict, controllers: tuple) -> list:
-    """The library each controller runs with the description's own gains: its lean variant where it
-    has one and the description sets no composite rate (the default, the paper's laws), else its full
-    one. A run with other gains compiles the other variant on its first use."""
+def _own_variants(model: Model, manifest: dict, controllers: tuple, gains=None) -> list:
+    """The library each controller runs with the description's own gains (and ``gains[c]`` over
+    them, a scenario's): its lean variant where it has one and no composite rate is set (the
+    default, the paper's laws), else its full one. A run with other gains compiles the other
+    variant on its first use."""
     from ..controllers.common import COMPOSITE_RATES, runs_lean
 
     out = []
     for c in controllers:
         groups = controller_groups(manifest, c)
-        gains = {**{r: 0.0 for r in COMPOSITE_RATES}, **((model.gains or {}).get(c) or {})}
-        out += groups[1:2] if len(groups) > 1 and runs_lean(gains) else groups[:1]
+        g = {**{r: 0.0 for r in COMPOSITE_RATES}, **((model.gains or {}).get(c) or {}), **((gains or {}).get(c) or {})}
+        out += groups[1:2] if len(groups) > 1 and runs_lean(g) else groups[:1]
     return out
 
 
@@ -328,14 +333,14 @@ def as_model(model) -> Model:
 DEFAULT_DYNAMICS = {}
 
 
-def default_dynamics(model=None, progress=None, controller=None, numbers=None):
+def default_dynamics(model=None, progress=None, controller=None, numbers=None, gains=None):
     """Compiled dynamics for ``model`` (a Model, a built-in name, a path or None for the default):
     the library is built once per process, baked model and ``numbers`` mode (:func:`build`'s; None:
     its default); the returned Dynamics carries this very model, so its runtime parameters (θ, γ,
     bounds) are used. ``progress``: the build's callback (called only when this process builds or
     loads it). ``controller``: the controller a run needs: the first build derives and compiles it
     with the core; one the library does not hold yet is added to it (a build for it and those it
-    holds)."""
+    holds). ``gains``: the run's own over the description's (as for :func:`build`)."""
     from ..controllers import CONTROLLERS, function_name
 
     m = as_model(model)
@@ -346,7 +351,7 @@ def default_dynamics(model=None, progress=None, controller=None, numbers=None):
     if lib is None or any(function_name(c) not in lib.group_of for c in wanted):
         # a new structure derives only the controller run; another one later is added to it
         held = () if lib is None else tuple(c for c in CONTROLLERS if function_name(c) in lib.group_of)
-        DEFAULT_DYNAMICS[key] = build(m, progress=progress, numbers=numbers,
+        DEFAULT_DYNAMICS[key] = build(m, progress=progress, numbers=numbers, gains=gains,
                                       controllers=(*held, *wanted) if wanted else ()).library
     from ..dynamics import Dynamics
     return Dynamics(m, DEFAULT_DYNAMICS[key])
