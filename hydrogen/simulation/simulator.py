@@ -642,8 +642,9 @@ def excitation(dyn, res, ctrl=None) -> dict:
 
 
 def _check_reference(dyn, sc, n, h):
-    """Reject a reference that leaves the cylinders' stroke at any control period, naming the time and
-    the cylinder (one compiled call for the whole trajectory)."""
+    """Reject a reference that leaves an actuator's travel range (a cylinder's stroke in m, a vane's
+    angle range in rad: its kind's TRAVEL) or a joint's limits at any control period, naming the time
+    and the actuator or joint (one compiled call for the whole trajectory)."""
     m = dyn.model
     t = np.arange(n) * h
     q_ref = sc.reference.positions(t)  # once: the stroke and the joint-limit checks read it
@@ -651,9 +652,10 @@ def _check_reference(dyn, sc, n, h):
     bad = (legs < m.leg_min) | (legs > m.leg_max)
     if bad.any():
         k, i = (int(v[0]) for v in np.nonzero(bad))
+        c, travel = m.cylinders[i], m.cylinders[i].travel
         raise KinematicsError(
-            f"reference of scenario '{sc.name}' leaves the workspace at t = {k * h:.3f} s: cylinder "
-            f"'{m.cylinders[i].name}' would be {legs[k, i]:.4f} m, stroke is [{m.leg_min[i]}, {m.leg_max[i]}] m")
+            f"reference of scenario '{sc.name}' leaves the workspace at t = {k * h:.3f} s: actuator "
+            f"'{c.name}' would be at {travel.value(legs[k, i])}, outside its {travel.span(m.leg_min[i], m.leg_max[i])}")
     lim = m.coordinate_limits()
     units = m.coordinate_units
     for what, values, lo, hi in (("position", q_ref, lim["lower"], lim["upper"]),
