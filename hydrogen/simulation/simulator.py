@@ -194,7 +194,9 @@ def simulate(dyn, scenario, controller: str, *, gains=None, duration=None, check
     if res.metrics:
         res.metrics["wall_time_s"] = res.wall_time_s
     if failure:
-        raise SimulationError(f"simulation '{sc.name}' with '{controller}' {failure}", result=res)
+        cause = diverged_block(ctrl, log["xc"][:k_done], t_log[:k_done]) if ctrl.xc.size else None
+        lead = f": {cause}; then it" if cause else ""  # the cause first, then the state at the stop
+        raise SimulationError(f"simulation '{sc.name}' with '{controller}'{lead} {failure}", result=res)
     return res
 
 
@@ -353,6 +355,40 @@ def _describe(x, t, ctrl=None, xc=None, u=None):
     if not parts:
         parts.append(f"a value went non-finite inside the step (every signal is finite at its end): x = {np.array2string(x, precision=6, threshold=60)}")
     return f"diverged at t = {t:.4f} s: " + "; ".join(parts)
+
+
+def diverged_block(ctrl, xc, t):
+    """The controller state block that diverged first, as a sentence naming its role and what to
+    lower (its :class:`~hydrogen.controllers.spec.StateBlock` declaration), or None when no block
+    went non-finite or past its bound. ``xc``: the state at the periods of ``t`` (k, size; s), in
+    order. The earliest period at which an entry is non-finite or past its block's bound decides;
+    among the blocks bad at that period, the one furthest past its bound (a non-finite value is
+    what the others' overflow leaves, so it counts last), then the one declared first. With one
+    period (the stepper keeps no history) that ranking alone names the block."""
+    xc = np.atleast_2d(np.asarray(xc, float))
+    with np.errstate(invalid="ignore"):
+        bad = {b.name: ~np.isfinite(xc[:, ctrl.slices[b.name]]) | (np.abs(xc[:, ctrl.slices[b.name]]) > b.bound)
+               for b in getattr(ctrl, "layout", ())}
+    rows = [int(np.flatnonzero(v.any(axis=1))[0]) for v in bad.values() if v.any()]
+    if not rows:
+        return None
+    r = min(rows)
+
+    def excess(block):  # how far past its bound the block's worst finite entry is at period r (0: none)
+        x = np.abs(xc[r, ctrl.slices[block.name]])
+        x = x[np.isfinite(x)]
+        return float(x.max() / block.bound) if x.size and x.max() > block.bound else 0.0
+
+    hit = [b for b in ctrl.layout if bad[b.name][r].any()]
+    block = max(hit, key=excess)  # max keeps the first declared of equals
+    x = xc[r, ctrl.slices[block.name]]
+    finite_past = np.isfinite(x) & (np.abs(x) > block.bound)
+    j = int(np.argmax(np.where(finite_past, np.abs(x), -1.0))) if finite_past.any() else \
+        int(np.flatnonzero(bad[block.name][r])[0])
+    v = x[j]
+    why = f"{v:.3g}, past its bound {block.bound:g}" if np.isfinite(v) else f"{v}"
+    return (f"{block.role} diverged at t = {float(np.ravel(t)[r]):.4f} s ({block.name}[{j}] = {why}): "
+            f"lower {block.lower}")
 
 
 def make_runner(dyn, sc, ctrl, x0, q0, kf_gain, h):
@@ -702,7 +738,11 @@ class Stepper:
             raise IndexError(f"scenario '{self.scenario.name}' has {self.n_max} periods; pass a longer duration")
         code = self._step(k)
         if code:
-            raise SimulationError(f"simulation '{self.scenario.name}' {_loop_failure(code, self._runner, self.h)}")
+            ctrl = self.controller
+            cause = diverged_block(ctrl, self.xc, self.t) if ctrl.xc.size else None
+            lead = f": {cause}; then it" if cause else ""
+            raise SimulationError(f"simulation '{self.scenario.name}' with '{ctrl.kind}'{lead} "
+                                  f"{_loop_failure(code, self._runner, self.h)}")
 
     @property
     def t(self) -> float:
