@@ -66,6 +66,12 @@ class ControllerSpec:
     search_description_proportions: bool = False
     adaptation_search: tuple = ()
 
+    @property
+    def command_gains(self) -> tuple:
+        """The gains that set how hard it drives the valves, to lower when they saturate: the main
+        gain, and K_d and K_τ where the search varies them with it."""
+        return (self.main_gain, *(("Kd", "Ktau") if self.secondary_search else ()))
+
 
 @dataclass(frozen=True)
 class StateBlock:

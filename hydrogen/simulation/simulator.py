@@ -20,7 +20,16 @@ from .seeds import SeedResults
 
 __all__ = ["simulate", "SimulationResult", "SeedResults", "equilibrium_pressures", "Stepper", "prepare_run", "new_logs",
            "make_runner", "run_python_loop", "PythonStages", "kalman_gain",
-           "valve_vector", "length_noise_variance", "excitation"]
+           "valve_vector", "length_noise_variance", "excitation", "diverged_block", "SATURATED_AT", "SATURATION"]
+
+
+#: A valve counts as saturated in a period when its command |u| is at least this fraction of u_max
+#: (the controllers clip it at u_max; the margin takes rounding).
+SATURATED_AT = 0.999
+#: Fraction of a run's periods a valve may spend saturated: above it the summary says so, per
+#: actuator, with what to change, and the documented gain search refuses the point
+#: (:data:`hydrogen.simulation.tuning.SATURATION`).
+SATURATION = 0.01
 
 
 @dataclass
@@ -55,6 +64,7 @@ class SimulationResult:
     wall_time_s: float = 0.0  # the run: setup, loop, result, with the library already loaded (s)
     loop_wall_s: float = 0.0  # the closed loop alone (s)
     u_max: float = 0.0
+    actuators: tuple = ()     # the actuators' names, in the order of the columns of u
     metrics: dict = field(default_factory=dict)
 
     @property
@@ -69,7 +79,9 @@ class SimulationResult:
 
     def compute_metrics(self) -> dict:
         """Max error in % of each coordinate's reference amplitude (None where it has none), RMS error,
-        final parameter estimates, over t ≥ metric_start."""
+        final parameter estimates, over t ≥ metric_start; and over the whole run the fraction of
+        periods with a saturated valve (|u| ≥ SATURATED_AT × u_max): ``u_saturation_frac`` over every
+        valve and period, ``u_saturation_frac_by_actuator`` per actuator."""
         sel, start, note = metric_window(self.t, self.metric_start)  # clamped to the run, and said so
         e = self.error[sel]
         n = self.q.shape[1]
@@ -97,6 +109,12 @@ class SimulationResult:
             "loop_wall_s": float(self.loop_wall_s),
             "metric_start_s": start,
         }
+        # over the whole run: a valve held at its stop during the start is a valve too small too
+        sat = (np.abs(self.u) >= SATURATED_AT * self.u_max) if self.u_max else np.zeros(np.shape(self.u), bool)
+        names = self.actuators or tuple(f"u{i}" for i in range(np.shape(self.u)[1]))
+        self.metrics["u_saturation_frac"] = float(sat.mean()) if sat.size else 0.0
+        self.metrics["u_saturation_frac_by_actuator"] = {
+            c: float(v) for c, v in zip(names, sat.mean(axis=0) if len(sat) else np.zeros(len(names)))}
         hf = self.high_frequency_error()
         if hf is not None:
             self.metrics["hf_error_rms"] = dict(zip(coords, map(float, hf)))
@@ -613,7 +631,8 @@ def _result(sc, controller, ctrl, t, log, k, theta0, gamma0, theta_true, gamma_t
         theta_true=theta_true, gamma_true=gamma_true, amplitude=sc.reference.amplitude(),
         metric_start=sc.metric_start, coordinates=tuple(model.coordinate_names), units=model.coordinate_units,
         theta_names=tuple(model.theta_names), estimated=estimated_blocks(ctrl), wall_time_s=wall, loop_wall_s=wall,
-        u_max=float(ctrl.values["u_max"][0]) if "u_max" in ctrl.values else 0.0)
+        u_max=float(ctrl.values["u_max"][0]) if "u_max" in ctrl.values else 0.0,
+        actuators=tuple(c.name for c in model.cylinders))
     if k:
         res.compute_metrics()
     return res
