@@ -48,7 +48,7 @@ def _cmd_simulate(args) -> int:
     from .simulation.checks import check_run_size
     from .simulation.scenarios import default_scenario_name, scenario as named_scenario
     from .progress import print_event
-    from .summary import error_lines, estimate_lines, excitation_lines
+    from .summary import error_lines, estimate_lines, excitation_lines, saturation_lines
 
     # Everything that can be refused is refused before the run: outputs, then the run's size.
     if args.json:
@@ -92,7 +92,7 @@ def _cmd_simulate(args) -> int:
           f"'-': the reference does not move that coordinate):")
     for line in error_lines(res.coordinates, res.units, m["max_error"], m["max_error_pct"]):
         print(line)
-    for line in estimate_lines(res) + excitation_lines(res):
+    for line in saturation_lines(res) + estimate_lines(res) + excitation_lines(res):
         print(line)
     _write_outputs(args, res)
     return 0

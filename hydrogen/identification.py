@@ -361,8 +361,8 @@ def identify(log, model=None, *, dyn=None, cutoff_hz: float | None = None, order
     ``.theta.identifiable``, ``.theta.direction``, the same for ``.gamma`` (or None), and
     ``.summary()``. A missing column, too few samples, a non-finite value or a non-uniform time
     column raise :class:`~hydrogen.errors.IdentificationError` naming it; so do units or ranges
-    that do not fit the model (:mod:`hydrogen.logcheck`: a time column not in s, lengths outside
-    the strokes or not moving, pressures all 0, not in Pa or outside [0, P_s]). A family the log
+    that do not fit the model (:mod:`hydrogen.logcheck`: a time column not in s, an actuator's
+    travel column outside its range (a stroke in m, an angle range in rad) or none moving, pressures all 0, not in Pa or outside [0, P_s]). A family the log
     does not determine (its condition number above ``max_cond``, or a mass, principal inertia, β or
     βc that comes out <= 0) has ``identifiable`` False, a ``reason``, and ``determined`` False for the
     parameters concerned (the summary says "not identifiable" for them, the JSON gives null);

@@ -6,14 +6,16 @@ message naming the column and what looks wrong, from the model's own values only
 
 * **sample rate** (column ``t``, s): within a factor ``RATE_FACTOR`` of the control rates of the
   model's scenarios (``control_rate``; no check for a model without scenarios);
-* **cylinder lengths** (``l0..``, m): inside each cylinder's stroke, widened by ``STROKE_TOL`` of
-  the stroke and 6 × the sensor noise estimated on the log; and moving (excitation) by more than
-  ``NOISE_RANGES`` × that noise;
+* **actuator travel** (``l0..``, each in its actuator's unit, its kind's ``TRAVEL``: a cylinder's
+  length in m, a rotary vane's angle in rad): inside its range (stroke, angle range), widened by
+  ``STROKE_TOL`` of the range and 6 × the sensor noise estimated on the log; and moving (excitation)
+  by more than ``NOISE_RANGES`` × that noise;
 * **chamber pressures** (``pc0..``, Pa): not all 0, not all below ``TINY_PRESSURE`` × P_s (a unit
   other than Pa), and within [0, P_s] widened by ``PRESSURE_TOL`` × P_s and 6 × the noise.
 
-A unit is guessed when the numbers rescaled by a common factor fit (ms and µs for time, mm for
-lengths, kPa, bar, psi and MPa for pressures) and named in the message.
+A unit is guessed when the numbers rescaled by a common factor fit (ms and µs for time, the
+travel's ``misread`` units: mm for a length, degrees for an angle; kPa, bar, psi and MPa for
+pressures) and named in the message.
 """
 from __future__ import annotations
 
@@ -92,29 +94,32 @@ def check_sample_rate(source, fs: float, h: float, model) -> None:
 
 
 def check_lengths(source, t, L, model) -> None:
-    """Refuse cylinder lengths outside the strokes (m) or that do not move (no excitation)."""
-    names = [c.name for c in model.cylinders]
+    """Refuse travel columns ``L`` (each in its actuator's unit: m, rad) outside their actuators'
+    ranges, or none of which moves (no excitation)."""
     lo, hi = model.leg_min, model.leg_max
     sigma = _noise(L)
     tol = STROKE_TOL * (hi - lo) + 6.0 * sigma
     out = (L < lo - tol) | (L > hi + tol)
     if out.any():
         k, i = (int(v[0]) for v in np.nonzero(out))
-        hint = ""
-        if np.all((L / 1000.0 >= lo - tol) & (L / 1000.0 <= hi + tol)):
-            hint = "; the lengths look like mm: write them in m"
+        c, col = model.cylinders[i], L[:, i]
+        tr = c.travel
+        fits = [u for u, f in tr.misread if np.all((col * f >= lo[i] - tol[i]) & (col * f <= hi[i] + tol[i]))]
+        hint = f"; its {tr.quantity}s look like {fits[0]}: write them in {tr.unit}" if fits else ""
         raise IdentificationError(
-            f"{source}: lengths outside the strokes: cylinder '{names[i]}' (column l{i}) at t = {_num(t[k])} s is "
-            f"{_num(L[k, i])} m, stroke [{_num(lo[i])}, {_num(hi[i])}] m ({int(out.sum())} sample(s) outside)"
-            f"{hint}")
+            f"{source}: column l{i} leaves actuator '{c.name}''s {tr.range_word}: at t = {_num(t[k])} s it is "
+            f"{tr.quantity} {_num(L[k, i])} {tr.unit}, {tr.span(lo[i], hi[i], '.6g')} ({int(out.sum())} sample(s) "
+            f"outside){hint}")
     span = np.ptp(L, axis=0)
     floor = np.maximum(NOISE_RANGES * sigma, 1e-6 * (hi - lo))
     if np.all(span <= floor):
-        i = int(np.argmax(span))
+        i = int(np.argmax(span / (hi - lo)))  # the most, for its range: columns differ in unit
+        c = model.cylinders[i]
+        unit = c.travel.unit
         raise IdentificationError(
-            f"{source}: no excitation: the cylinder lengths do not move (range {_num(span[i])} m, the largest, "
-            f"cylinder '{names[i]}'; sensor noise {_num(sigma[i])} m): identification needs a log of the robot "
-            f"moving")
+            f"{source}: no excitation: no actuator moves (the most, for its range: '{c.name}', column l{i}, range "
+            f"{_num(span[i])} {unit}; sensor noise {_num(sigma[i])} {unit}): identification needs a log of the "
+            f"robot moving")
 
 
 def check_pressures(source, t, PC, model) -> None:

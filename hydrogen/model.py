@@ -244,6 +244,13 @@ class Cylinder:
     linkage: object = None
 
     @property
+    def travel(self):
+        """Its kind's TRAVEL (:class:`~hydrogen.actuators.declarations.Travel`): what its coordinate is
+        (a length in m, an angle in rad) and what its range is called, for every message about it."""
+        from .actuators import actuator
+        return actuator(self.kind).TRAVEL
+
+    @property
     def table(self) -> dict:
         """Every parameter of its kind by name (SI), for ``actuator(kind).parameters(table)``."""
         from .actuators import actuator
@@ -1156,11 +1163,7 @@ def _linkage(r: _Reader, w: str, table, base: tuple, joints) -> dict:
                           f"got {_quote(table)}")
     r.known(table, _keys("[[cylinders]] linkage"), wl)
     jname = r.name(f"{wl}.joint", r.require(table, "joint", wl))
-    joint = next((j for j in joints if j.name == jname), None)
-    if joint is None or joint.type != "revolute":
-        revolute = [j.name for j in joints if j.type == "revolute"]
-        raise r.error(f"{wl}.joint", f"'{jname}' is not a revolute joint of the tree (revolute joints: "
-                                     f"{', '.join(revolute) or 'none'})")
+    joint = _revolute_joint(r, f"{wl}.joint", jname, joints, "a linkage cylinder")
     if base[0] != joint.parent:
         raise r.error(f"{w} from.link", f"is '{base[0]}', but a linkage cylinder's base must be on the link that "
                                         f"carries joint '{jname}''s pivot, '{joint.parent}'")
@@ -1210,15 +1213,23 @@ def _check_linkage(r: _Reader, w: str, linkage: dict, smin: float, smax: float, 
                           f"'{jname}''s range [{lo}, {hi}] rad: it cannot drive the joint through it")
 
 
+def _revolute_joint(r: _Reader, where: str, jname: str, joints, what: str):
+    """The revolute joint ``jname`` that ``what`` (e.g. "a rotary actuator") drives; else an error at
+    ``where`` naming the joint's type (a fixed one, or one [tree] locked, has no coordinate to move)."""
+    joint = next((j for j in joints if j.name == jname), None)
+    if joint is not None and joint.type == "revolute":
+        return joint
+    revolute = ", ".join(j.name for j in joints if j.type == "revolute") or "none"
+    if joint is None:
+        raise r.error(where, f"'{jname}' is not a revolute joint of the tree (revolute joints: {revolute})")
+    raise r.error(where, f"{what} needs a revolute joint; '{jname}' is {joint.type} (revolute joints: {revolute})")
+
+
 def _joint_actuator(r: _Reader, w: str, cy: dict, defaults: dict, kind: str, keys, joints) -> Cylinder:
     """A [[cylinders]] entry of a joint actuator (rotary): ``joint`` names a revolute joint of the tree."""
     r.known(cy, {"name", "joint", "kind", *keys}, f"{w} (kind {kind})")
     jname = r.name(f"{w} joint", r.require(cy, "joint", f"{w} (kind {kind})"))
-    joint = next((j for j in joints if j.name == jname), None)
-    revolute = [j.name for j in joints if j.type == "revolute"]
-    if joint is None or joint.type != "revolute":
-        raise r.error(f"{w} joint", f"'{jname}' is not a revolute joint of the tree (revolute joints: "
-                                    f"{', '.join(revolute) or 'none'})")
+    joint = _revolute_joint(r, f"{w} joint", jname, joints, f"a {kind} actuator")
     vals = _cylinder_values(r, w, cy, defaults, kind, keys)
     amin, amax = (float(v) for v in vals.pop("angle"))
     if amin >= amax:
@@ -1319,11 +1330,13 @@ def model_from_dict(data: dict, source: str = "<memory>", base_dir: Path | None 
         raise r.error("[coordinates] names", f"expected {n} distinct names (one per coordinate), got {_quote(names)}")
     for c in names:
         r.label("[coordinates] names" if "names" in coords else f"coordinate {c!r} (from its joint's name)", c)
-    neutral = r.vector("[coordinates] neutral", r.require(coords, "neutral", "[coordinates]"), n)
     # a TOML tree's root is named only as a parent: a misspelt one shows as a cylinder's unknown link
     root_note = "" if urdf is not None else \
         f"; the root '{root}' is the parent named by joint(s) {[j.name for j in joints if j.parent == root]}"
+    # the actuators before the neutral pose: one on a fixed joint is the cause of a neutral pose
+    # written for the joint moving, one number too many
     cylinders = _cylinders(r, data, link_names, root_note, joints)
+    neutral = r.vector("[coordinates] neutral", r.require(coords, "neutral", "[coordinates]"), n)
     if len(cylinders) != n:
         raise r.error("[[cylinders]]", f"{len(cylinders)} cylinders for {n} coordinates: the method needs one "
                                        "cylinder per coordinate (a square JL)")
@@ -1442,16 +1455,24 @@ def _check_bounds(r: _Reader, m: Model):
 
 
 def _check_neutral(r: _Reader, m: Model):
-    """Cylinders inside their stroke and JL well conditioned at the neutral pose."""
+    """The neutral pose within the joints' limits, the actuators inside their travel's range there
+    and JL well conditioned. The joints first: a pose past a joint's limit is the pose's fault, not
+    the stroke's that it also leaves."""
     from .tree import cylinder_jacobian, cylinder_lengths
     q0 = m.neutral_pose
+    lim, units = m.coordinate_limits(), m.coordinate_units
+    for i, (q, lo, hi) in enumerate(zip(q0, lim["lower"], lim["upper"])):
+        if not lo <= q <= hi:
+            side = "lower" if q < lo else "upper"
+            raise r.error("[coordinates] neutral", f"{m.coordinate_names[i]} = {q:.6g} {units[i]} is past joint "
+                                                   f"'{m.coordinate_joint(i)}''s {side} limit (limits [{lo:g}, "
+                                                   f"{hi:g}] {units[i]})")
     lengths = cylinder_lengths(m, q0)
     for c, l in zip(m.cylinders, lengths):
         if not c.stroke_min <= l <= c.stroke_max:
-            from .actuators import actuator
-            t = actuator(c.kind).TRAVEL  # its own travel: a cylinder's length (m), a vane's angle (rad)
-            raise r.error(f"[[cylinders]] '{c.name}'", f"{t.quantity} {l:.4f} {t.unit} at the neutral pose is outside "
-                                                       f"its {t.range_word} [{c.stroke_min}, {c.stroke_max}] {t.unit}")
+            t = c.travel  # its own travel: a cylinder's length (m), a vane's angle (rad)
+            raise r.error(f"[[cylinders]] '{c.name}'", f"{t.value(l)} at the neutral pose is outside its "
+                                                       f"{t.span(c.stroke_min, c.stroke_max)}")
     J = cylinder_jacobian(m, q0)
     cond = np.linalg.cond(J)
     if not np.isfinite(cond) or cond > 1e8:

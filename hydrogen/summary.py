@@ -11,7 +11,7 @@ import numpy as np
 
 from .controllers import ESTIMATE_BLOCKS  # the estimate blocks of a controller's state, defined there
 
-__all__ = ["display_unit", "error_lines", "estimated_blocks", "estimate_lines", "excitation_lines",
+__all__ = ["display_unit", "error_lines", "estimated_blocks", "estimate_lines", "excitation_lines", "saturation_lines",
            "ESTIMATE_BLOCKS", "PCT_WIDTH", "POOR_EXCITATION"]
 
 #: λmin/λmax of a run's normalised information matrix below which the summary says the run does not
@@ -57,6 +57,22 @@ def seed_error_lines(coordinates, units, metrics) -> list:
         spread = f"  [{lo[c]:.2f} - {hi[c]:.2f} %]" if med[c] is not None else " " * 19
         lines.append(f"  {c:>{width}}: {_pct(med[c])}{spread:>19}   {abs_med[c] * 1e3:9.4f} {unit}")
     return lines
+
+
+def saturation_lines(res) -> list:
+    """One line per actuator whose valve was saturated (|u| at u_max) in more than
+    :data:`~hydrogen.simulation.simulator.SATURATION` of the run's periods
+    (``metrics["u_saturation_frac_by_actuator"]``), with what to change: the controller's gains that
+    drive the valve (its spec's ``command_gains``), the reference, or the valve. None: no line."""
+    from .controllers import CONTROLLERS, spec
+    from .simulation.simulator import SATURATION
+
+    by = (res.metrics or {}).get("u_saturation_frac_by_actuator") or {}
+    gains = ", ".join(spec(res.controller).command_gains) if res.controller in CONTROLLERS else "the gains"
+    return [f"valve of {name} saturated {100 * frac:.1f} % of the time (|u| at u_max = {res.u_max * 1e3:g} mm, "
+            f"more than {100 * SATURATION:g} %): lower the gains ({gains}), slow the reference, or raise u_max / "
+            "a larger valve"
+            for name, frac in by.items() if frac > SATURATION]
 
 
 def estimated_blocks(ctrl) -> tuple:

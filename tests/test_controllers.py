@@ -119,3 +119,132 @@ def test_a_gain_list_of_the_wrong_length_is_named_never_broadcast(dyn, tmp_path)
     g = default_gains(Dynamics(hydrogen.load_model(path), dyn.library), "backstepping")
     np.testing.assert_array_equal(g["Gtau_inv"], np.full(6, 900.0))
     assert default_gains(dyn, "p")["u_max"].shape == (1,)
+
+
+# --- defaults on a robot that gives none ---------------------------------------------------------
+#: A 2-DOF boom and stick in the vertical x-z plane on four-way cylinders (50 mm bore, 30 mm rod,
+#: 14 MPa), written for this test: no [gains] table and no [control] scale, so every gain is the
+#: controllers' default derived from the description. One ideal-plant scenario, a slow multi-sine
+#: (0.15-0.5 Hz, 0.16 / 0.19 rad), with wrong initial estimates and adaptation on at 0.5 s.
+BOOM_STICK = """
+name = "boom_stick"
+gravity = 9.81
+
+[[links]]
+name = "boom"
+mass = 60.0
+com = [0.75, 0.0, 0.0]              # a 1.5 m boom
+inertia = [0.6, 11.5, 11.5]
+
+[[links]]
+name = "stick"
+mass = 25.0
+com = [0.5, 0.0, 0.0]               # a 1 m stick
+inertia = [0.2, 2.1, 2.1]
+
+[[joints]]
+name = "shoulder"
+type = "revolute"
+parent = "base"
+child = "boom"
+axis = [0.0, -1.0, 0.0]
+
+[[joints]]
+name = "elbow"
+type = "revolute"
+parent = "boom"
+child = "stick"
+origin_xyz = [1.5, 0.0, 0.0]
+axis = [0.0, -1.0, 0.0]
+
+[coordinates]
+neutral = [0.25, -1.1]
+
+[hydraulics]
+kind = "four_way_cylinder"
+cap_area = 1.9635e-3                # pi/4 x 0.050^2
+annulus_area = 1.2566e-3            # cap area - pi/4 x 0.030^2
+dead_volume_A = 8.0e-5
+dead_volume_B = 8.0e-5
+supply_pressure = 14.0e6
+tank_pressure = 0.0
+underlap = 1.0e-5
+flow_gain = 1.2e-4
+bulk_modulus = 1.2e9
+orifice_linear_below = 5.0e4
+
+[[cylinders]]
+name = "boom_cylinder"
+from = { link = "base", point = [0.35, 0.0, -0.45] }
+to = { link = "boom", point = [0.55, 0.0, -0.10] }
+stroke = [0.36, 0.76]               # 0.53 m at the neutral pose; the reference keeps within 0.45..0.61
+
+[[cylinders]]
+name = "stick_cylinder"
+from = { link = "boom", point = [0.60, 0.0, 0.14] }
+to = { link = "stick", point = [-0.20, 0.0, 0.12] }
+stroke = [0.75, 1.15]               # 0.92 m at the neutral pose
+
+[adaptation]
+parameters = ["boom.mcx", "boom.Iyy", "stick.mcx", "stick.Iyy"]
+theta_min = [30.0, 20.0, 6.0, 3.0]
+theta_max = [70.0, 60.0, 20.0, 12.0]
+gamma1_min = 6.0e8
+gamma1_max = 2.4e9
+gamma2_min = 6.0e4
+gamma2_max = 2.4e5
+
+[sensors]
+joint_encoders = true
+
+[scenarios.slow-sines]
+duration = 4.0
+control_rate = 1000.0
+substeps = 2
+t_adapt = 0.5
+metric_start = 2.0
+theta0_factor = [1.15, 0.85, 1.2, 0.85]
+gamma0_factor = [0.8, 1.2]
+reference.sines = [
+  ["shoulder", 0.12, 0.15], ["shoulder", 0.04, 0.4],
+  ["elbow", -0.15, 0.2], ["elbow", 0.04, 0.5],
+]
+"""
+
+#: The nonlinear controllers' max error on it, % of each coordinate's amplitude. They track the
+#: ideal plant to well under 1 % (backstepping 0.02 %, the adaptive ones 0.05 % when written); 20 %
+#: is below the P controllers' lag (about 25 %) and far below a lost or ringing loop's error, yet
+#: leaves room for a default that is merely less tight.
+NONLINEAR_MAX_ERROR_PCT = 20.0
+#: Every controller's, P included: a loop that follows the reference at all stays within its
+#: amplitude; one that is unstable or lost leaves it.
+ANY_MAX_ERROR_PCT = 100.0
+
+
+@pytest.fixture(scope="module")
+def boom_stick(tmp_path_factory, cache):
+    """The robot above, built once for every controller (its functions derived here)."""
+    path = tmp_path_factory.mktemp("boom_stick") / "boom_stick.toml"
+    path.write_text(BOOM_STICK)
+    model = hydrogen.load_model(path)
+    assert not model.gains and model.scale is None  # every gain is a default
+    return hydrogen.build(model, cache=cache, controllers=CONTROLLERS)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("name", CONTROLLERS)
+def test_default_gains_are_stable_on_a_new_robots_ideal_plant(boom_stick, name):
+    """Each controller at its default gains on a robot that gives none: finite (a divergence raises),
+    the valves rarely at their stop, the pose inside the strokes, and the nonlinear controllers
+    tracking."""
+    from hydrogen.simulation.simulator import SATURATION
+    res = hydrogen.simulate("slow-sines", name, dyn=boom_stick)
+    m = boom_stick.model
+    for signal in (res.q, res.u, res.pressures, res.theta_hat, res.gamma1_hat, res.gamma2_hat):
+        assert np.all(np.isfinite(signal))
+    assert np.all((res.leg_lengths >= m.leg_min) & (res.leg_lengths <= m.leg_max))
+    assert res.metrics["u_saturation_frac"] <= SATURATION, res.metrics["u_saturation_frac_by_actuator"]
+    worst = max(res.metrics["max_error_pct"].values())
+    assert worst < ANY_MAX_ERROR_PCT, res.metrics["max_error_pct"]
+    if not spec(name).baseline and not spec(name).compared:  # the nonlinear controllers
+        assert worst < NONLINEAR_MAX_ERROR_PCT, res.metrics["max_error_pct"]

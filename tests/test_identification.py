@@ -233,7 +233,8 @@ def test_lengths_that_do_not_move_say_no_excitation(dyn, paper_sim):
     cols = _columns(paper_sim, 4001)
     m = paper_sim.leg_lengths.shape[1]
     still = dict(cols, **{f"l{i}": np.full(4001, cols[f"l{i}"][0]) for i in range(m)})
-    msg = _refused(still, dyn, r"no excitation: the cylinder lengths do not move \(range 0 m")
+    msg = _refused(still, dyn, r"no excitation: no actuator moves \(the most, for its range: '.+', column l\d, "
+                               r"range 0 m; sensor noise 0 m\)")
     assert "too few samples" not in msg
 
 
@@ -242,10 +243,31 @@ def test_lengths_outside_the_strokes_name_the_cylinder_time_and_stroke(dyn, mode
     bad = dict(cols, l0=cols["l0"].copy())
     bad["l0"][300] = 10.0
     c = model.cylinders[0]
-    _refused(bad, dyn, rf"lengths outside the strokes: cylinder '{c.name}' \(column l0\) at t = 0.3 s is 10 m, "
-                       rf"stroke \[{c.stroke_min:g}, {c.stroke_max:g}\] m")
+    _refused(bad, dyn, rf"column l0 leaves actuator '{c.name}''s stroke: at t = 0.3 s it is length 10 m, "
+                       rf"stroke \[{c.stroke_min:g}, {c.stroke_max:g}\] m \(1 sample\(s\) outside\)$")
     m = paper_sim.leg_lengths.shape[1]
-    _refused(dict(cols, **{f"l{i}": 1000 * cols[f"l{i}"] for i in range(m)}), dyn, "lengths look like mm")
+    _refused(dict(cols, **{f"l{i}": 1000 * cols[f"l{i}"] for i in range(m)}), dyn,
+             "its lengths look like mm: write them in m")
+
+
+def test_a_vanes_angle_column_is_checked_in_its_angle_range_and_rad():
+    """A rotary vane's column is its angle: checked against its angle range in rad, and one logged in
+    degrees is named so, never as a length in m or a stroke (the crane's slew; no build needed)."""
+    from hydrogen.logcheck import check_lengths
+    model = hydrogen.load_model("loader_crane")
+    slew = [c.kind for c in model.cylinders].index("rotary")
+    t = np.linspace(0.0, 2.0, 201)
+    L = (model.leg_min + 0.5 * (model.leg_max - model.leg_min)) + 0.05 * np.sin(2 * np.pi * t)[:, None] * (
+        model.leg_max - model.leg_min)
+    check_lengths("log.csv", t, L, model)  # inside every range: accepted
+    deg = L.copy()
+    deg[:, slew] = np.degrees(0.3 + 0.5 * np.sin(2 * np.pi * t))
+    with pytest.raises(IdentificationError) as err:
+        check_lengths("log.csv", t, deg, model)
+    msg = str(err.value)
+    assert msg.startswith(f"log.csv: column l{slew} leaves actuator 'slew_motor''s angle range: at t = ")
+    assert "rad, angle range [-1.8, 1.8] rad" in msg and msg.endswith("its angles look like degrees: write them in rad")
+    assert "stroke" not in msg and "length" not in msg
 
 
 def test_pressures_all_zero_in_bar_or_above_supply_are_refused(dyn, model, paper_sim):

@@ -2,6 +2,8 @@
 one shipped robot; adaptive control on its ideal scenario and the nonlinear controllers against P on
 its rig. D, C, G and Y θ + y0 against Pinocchio: tests/test_pinocchio.py (every URDF robot); export
 and FMUs: tests/test_export.py, tests/test_fmu.py."""
+import re
+
 import numpy as np
 import pytest
 
@@ -188,3 +190,19 @@ def test_a_vanes_start_pose_is_named_in_its_own_angle(crane):
     with pytest.raises(hydrogen.ScenarioError, match=r"actuator 'slew_motor''s angle range \(angle 3\.0000 rad, "
                                                      r"angle range \[-1\.8, 1\.8\] rad\)"):
         check_against_model(sc, crane.model, "p", crane)
+
+
+def test_a_reference_past_the_vanes_angle_range_is_named_in_its_angle(crane):
+    """A reference that turns the slew past its vane's angle range names the angle in rad, never a
+    length in m or a stroke."""
+    from hydrogen.simulation.reference import MultiSine
+    from hydrogen.simulation.scenarios import scenario
+    m = crane.model
+    slew = [c.kind for c in m.cylinders].index("rotary")
+    far = MultiSine(m.neutral_pose, ((slew, 2.5, 0.5),))
+    sc = scenario(_ideal(m), m).with_overrides(reference=far)
+    with pytest.raises(hydrogen.KinematicsError) as err:
+        simulate(crane, sc, "p", duration=1.0)
+    msg = str(err.value)
+    assert "actuator 'slew_motor' would be at angle 1.8" in msg and "rad, outside its angle range [-1.8, 1.8] rad" in msg
+    assert "stroke" not in msg and not re.search(r"\d m\b", msg)

@@ -647,8 +647,11 @@ def test_a_rotary_actuator_on_a_revolute_joint(tmp_path):
     ('joint = "elbow"', 'joint = "wrist"', ["'elbow_motor' joint", "'wrist' is not a revolute joint",
                                             "shoulder, elbow"]),
     ('joint = "elbow"\n', '', ["'elbow_motor' (kind rotary)", "missing key 'joint'"]),
+    # the cause, not the neutral pose's two numbers for the one coordinate left
+    ('name = "elbow"\ntype = "revolute"', 'name = "elbow"\ntype = "fixed"',
+     ["'elbow_motor' joint: a rotary actuator needs a revolute joint; 'elbow' is fixed (revolute joints: shoulder)"]),
     ("angle = [-1.9, -0.1]", "angle = [-0.1, -1.9]", ["'elbow_motor' angle", "lowest < highest"]),
-    ("angle = [-1.9, -0.1]", "angle = [-0.5, -0.1]", ["'elbow_motor'", "angle -0.", "rad at the neutral pose is outside its angle range"]),
+    ("angle = [-1.9, -0.1]", "angle = [-0.5, -0.1]", ["'elbow_motor': angle -1.0000 rad at the neutral pose is outside its angle range [-0.5, -0.1] rad"]),
     ("displacement = 4.0e-5", "displacement = 20.0", ["'elbow_motor' displacement", "plausible range"]),
     ("displacement = 4.0e-5", 'displacement = 2.0e-5\nfrom = { link = "upper", point = [0.0, 0.0, 0.0] }',
      ["'elbow_motor' (kind rotary)", "unknown key 'from'"]),
@@ -662,6 +665,24 @@ def test_bad_rotary_actuators_are_named(tmp_path, old, new, words):
         hydrogen.load_model(path)
     for w in [str(path), *words]:
         assert w in str(err.value), (w, str(err.value))
+
+
+@pytest.mark.parametrize("rotary", [False, True])
+def test_a_neutral_pose_past_a_joint_limit_names_the_joint_not_the_stroke(tmp_path, rotary):
+    """The elbow's neutral -1.0 rad is past its lower limit -0.9 rad and outside the actuator's range
+    (a cylinder's stroke, or a vane's angle range [-0.8, -0.1] rad): the joint's limit is named."""
+    text = rotary_arm_text().replace("angle = [-1.9, -0.1]", "angle = [-0.8, -0.1]") if rotary else \
+        FOUR_WAY_ARM.read_text().replace("stroke = [0.40, 0.80]", "stroke = [0.60, 0.80]")
+    path = tmp_path / "arm.toml"
+    path.write_text(text.replace('child = "fore"\n', 'child = "fore"\nlimit = { lower = -0.9, upper = 0.5 }\n', 1))
+    with pytest.raises(hydrogen.ModelError) as err:
+        hydrogen.load_model(path)
+    assert str(err.value) == (f"{path}: [coordinates] neutral: elbow = -1 rad is past joint 'elbow''s lower limit "
+                              "(limits [-0.9, 0.5] rad)")
+    path.write_text(text)  # without the limit: the actuator's own range, in its own unit
+    with pytest.raises(hydrogen.ModelError, match="at the neutral pose is outside its "
+                                                  + ("angle range" if rotary else "stroke")):
+        hydrogen.load_model(path)
 
 
 def test_a_scenario_name_holding_the_variant_separator_is_refused_at_load(tmp_path):

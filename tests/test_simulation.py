@@ -287,6 +287,45 @@ def test_divergence_stops_with_time_state_and_partial_result(dyn):
     assert res is not None and 0 < len(res.t) < 401
 
 
+#: The message of an observer driven past its bound: its role, the time, the entry, what to lower.
+_OBSERVER_DIVERGED = (r"with 'adaptive-observer': the adaptive observer's velocity estimate \(z / q_hat_dot\) "
+                      r"diverged at t = \d\.\d{4} s \(z\[\d\] = [-0-9.e+]+, past its bound 1000\): lower its gains "
+                      r"\(Lambda2, Lp, Kd_obs\) and the loop's \(Lambda, Kd\), or the adaptation rates \(rate_theta, "
+                      r"rate_gamma1, rate_gamma2\); then it diverged at t = ")
+
+
+def test_a_diverged_observer_is_named_by_its_role_with_what_to_lower(dyn, model):
+    """An absurd observer gain Lp drives z past any velocity a robot has long before a block goes
+    non-finite (the estimates theta_hat go NaN last): the message names the observer's velocity
+    estimate and its gains first, in simulate and in the stepper."""
+    gains = {"Lp": [1e9] * model.n}
+    with pytest.raises(hydrogen.SimulationError, match=_OBSERVER_DIVERGED):
+        simulate(dyn, "paper-sim", "adaptive-observer", duration=0.5, gains=gains)
+    st = hydrogen.stepper("paper-sim", "adaptive-observer", dyn=dyn, duration=0.5, gains=gains)
+    with pytest.raises(hydrogen.SimulationError, match=_OBSERVER_DIVERGED):
+        for _ in range(st.n_max):
+            st.step()
+
+
+def test_the_first_block_past_its_bound_or_non_finite_is_named():
+    """The earliest period decides, whichever block goes non-finite later; a block without a bound
+    (inf) is named when it goes non-finite; a state within its bounds names none."""
+    from types import SimpleNamespace
+
+    from hydrogen.controllers.spec import StateBlock
+    from hydrogen.simulation.simulator import diverged_block
+    layout = [StateBlock("theta_hat", 2, "the estimates", "rate_theta"), StateBlock("z", 1, "the observer", "K_o", 10.0)]
+    ctrl = SimpleNamespace(layout=layout, slices={"theta_hat": slice(0, 2), "z": slice(2, 3)})
+    t = np.array([0.0, 0.1, 0.2, 0.3])
+    xc = np.array([[1.0, 2.0, 0.0], [1.0, 2.0, 20.0], [1.0, np.nan, 1e9], [np.nan, np.nan, np.nan]])
+    assert diverged_block(ctrl, xc, t) == ("the observer diverged at t = 0.1000 s (z[0] = 20, past its bound 10): "
+                                           "lower K_o")
+    xc[1, 2] = 5.0
+    xc[2, 2] = 5.0
+    assert diverged_block(ctrl, xc, t) == "the estimates diverged at t = 0.2000 s (theta_hat[1] = nan): lower rate_theta"
+    assert diverged_block(ctrl, xc[:2], t[:2]) is None
+
+
 def test_reference_outside_workspace_is_rejected(dyn, model):
     """Every control period is checked, and the message names the first one and its first leg
     (found here with the numpy geometry of tests/reference.py)."""
@@ -301,7 +340,8 @@ def test_reference_outside_workspace_is_rejected(dyn, model):
         if bad.size:
             break
     with pytest.raises(hydrogen.KinematicsError,
-                       match=rf"leaves the workspace at t = {k * h:.3f} s: cylinder '{model.cylinders[bad[0]].name}' "):
+                       match=rf"leaves the workspace at t = {k * h:.3f} s: actuator '{model.cylinders[bad[0]].name}' "
+                             r"would be at length \d\.\d{4} m, outside its stroke \["):
         simulate(dyn, sc, "p")
 
 

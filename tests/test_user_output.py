@@ -56,6 +56,34 @@ def test_summary_reports_estimates_only_for_controllers_that_adapt(capsys, contr
     assert "(mm or mrad)" not in out and " mm" in out and " mrad" in out
 
 
+def test_a_run_that_saturates_its_valves_says_so_per_actuator(capsys, monkeypatch):
+    """A valve at u_max in more than SATURATION of the periods: one summary line per actuator with what
+    to change (the controller's own command gains), the fractions in res.metrics; a run that does
+    not saturate gets no line."""
+    import hydrogen
+    from hydrogen.simulation.simulator import SATURATION
+    from hydrogen.summary import saturation_lines
+
+    tiny = {"u_max": [2e-4]}  # m of spool: a tenth of the stroke's need on z-1hz
+    res = hydrogen.simulate("z-1hz", "p", duration=0.3, gains=tiny)
+    by = res.metrics["u_saturation_frac_by_actuator"]
+    assert list(by) == [c.name for c in hydrogen.load_model().cylinders]
+    assert min(by.values()) > 0.3 and res.metrics["u_saturation_frac"] == pytest.approx(np.mean(list(by.values())))
+    lines = saturation_lines(res)
+    assert len(lines) == len(by) and lines[0] == (
+        f"valve of leg1 saturated {100 * by['leg1']:.1f} % of the time (|u| at u_max = 0.2 mm, more than "
+        f"{100 * SATURATION:g} %): lower the gains (Kleg), slow the reference, or raise u_max / a larger valve")
+    res = hydrogen.simulate("z-1hz", "adaptive-robust", duration=0.3, gains=tiny)
+    assert "lower the gains (Lambda, Kd, Ktau)" in saturation_lines(res)[0]
+    out = _simulate_cli(capsys, "--scenario", "z-1hz", "--controller", "p")
+    assert "saturated" not in out
+    real = hydrogen.simulate
+    # 1 um of spool: saturated within the CLI's 0.05 s
+    monkeypatch.setattr(hydrogen, "simulate", lambda *a, **k: real(*a, gains={"u_max": [1e-6]}, **k))
+    out = _simulate_cli(capsys, "--scenario", "z-1hz", "--controller", "p")
+    assert out.count("% of the time (|u| at u_max") == len(by) and "valve of leg6 saturated" in out
+
+
 def test_estimated_blocks_come_from_the_controllers_declared_state():
     import hydrogen
     from hydrogen.controllers import controller

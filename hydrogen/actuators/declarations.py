@@ -63,7 +63,9 @@ class Travel:
     """What an actuator's coordinate is and in which units, for the description, the rig settings and
     every message about its travel: ``quantity`` ("length", "angle"), ``unit`` of the coordinate,
     ``force_unit`` of what it exerts, the description ``key`` of its range as [min, max] and the
-    parameter names of its ``ends``, ``range_word`` for that range in messages ("stroke")."""
+    parameter names of its ``ends``, ``range_word`` for that range in messages ("stroke"), and
+    ``misread``: units a log may hold it in by mistake, as (name, size in ``unit``): a rig log's
+    check names the one its numbers fit."""
 
     quantity: str
     unit: str
@@ -72,6 +74,15 @@ class Travel:
     ends: tuple
     range_word: str
     doc: str
+    misread: tuple = ()
+
+    def value(self, x, fmt: str = ".4f") -> str:
+        """``x`` named in this travel for a message: "length 0.4512 m", "angle -0.5000 rad"."""
+        return f"{self.quantity} {float(x):{fmt}} {self.unit}"
+
+    def span(self, lo, hi, fmt: str = "") -> str:
+        """The range [lo, hi] named for a message: "stroke [0.4, 0.8] m", "angle range [-1.8, 1.8] rad"."""
+        return f"{self.range_word} [{float(lo):{fmt}}, {float(hi):{fmt}}] {self.unit}"
 
     def rate_unit(self, power: int = 1) -> str:
         """The coordinate's unit per s^power (m/s, rad/s^3)."""
@@ -80,10 +91,10 @@ class Travel:
 
 #: A cylinder's travel: its pin-to-pin length l (m) within its stroke, force in N.
 LENGTH = Travel("length", "m", "N", "stroke", ("stroke_min", "stroke_max"), "stroke",
-                "[shortest, longest] pin-to-pin length")
+                "[shortest, longest] pin-to-pin length", (("mm", 1e-3),))
 #: A joint actuator's travel: its joint angle θ (rad) within its angle range, torque in N m.
 ANGLE = Travel("angle", "rad", "N m", "angle", ("angle_min", "angle_max"), "angle range",
-               "[lowest, highest] joint angle")
+               "[lowest, highest] joint angle", (("degrees", math.pi / 180.0),))
 
 
 class _LazySympy:

@@ -4,7 +4,9 @@ A controller module defines
 
 * ``SPEC``, its :class:`~hydrogen.controllers.spec.ControllerSpec` (name, main gain and search grid,
   whether it knows the true parameters or is the baseline), and ``NAME``, ``DOC`` from it;
-* ``state_layout(model)``: the blocks of its state xc, ``[(block, size)]`` in order;
+* ``state_layout(model)``: the blocks of its state xc in order, each a
+  :class:`~hydrogen.controllers.spec.StateBlock` (unpacking as ``(block, size)``) declaring its role
+  and what to lower when it diverges (the message of a diverged run names them);
 * ``default_gains(model, scale)``: its gains (numpy arrays, SI), ``scale`` being the
   per-coordinate inertia scale of the model;
 * ``static_inputs(dyn, theta0, gamma0)``: numeric inputs computed once per run (may be empty);
@@ -27,10 +29,10 @@ from __future__ import annotations
 
 import importlib
 
-from .spec import ControllerSpec
+from .spec import ControllerSpec, StateBlock
 
 __all__ = ["CONTROLLERS", "controller", "spec", "baseline", "adapts", "function_name", "rates_function_name",
-           "step_function_name", "LEAN", "ControllerSpec", "ESTIMATE_BLOCKS"]
+           "step_function_name", "LEAN", "ControllerSpec", "StateBlock", "ESTIMATE_BLOCKS"]
 
 #: The controller-state blocks that hold parameter estimates, in the order they are reported.
 ESTIMATE_BLOCKS = ("theta_hat", "gamma1_hat", "gamma2_hat")

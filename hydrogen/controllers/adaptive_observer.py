@@ -3,8 +3,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from .common import ADAPTATION_SEARCH, adaptation_gains, composite_layout, composite_static_inputs, model_gains
-from .spec import ControllerSpec
+from .common import (ADAPTATION_SEARCH, adaptation_gains, composite_layout, composite_static_inputs, estimate_layout,
+                     model_gains)
+from .spec import POSITION_BOUND, VELOCITY_BOUND, ControllerSpec, StateBlock
 
 SPEC = ControllerSpec(name="adaptive-observer", doc="Theorem 2: adaptive controller, adaptive observer.",
                       main_gain="Lambda", grid_low=5.0, adaptation_search=ADAPTATION_SEARCH)
@@ -12,9 +13,12 @@ NAME, DOC = SPEC.name, SPEC.doc
 
 
 def state_layout(model) -> list:
-    n, m = model.n, model.n_cylinders
-    return [("q_hat", n), ("z", n), ("theta_hat", model.n_theta), ("gamma1_hat", m), ("gamma2_hat", m),
-            *composite_layout(model)]
+    n = model.n
+    lower = ("its gains (Lambda2, Lp, Kd_obs) and the loop's (Lambda, Kd), or the adaptation rates "
+             "(rate_theta, rate_gamma1, rate_gamma2)")
+    return [StateBlock("q_hat", n, "the adaptive observer's position estimate (q_hat)", lower, POSITION_BOUND),
+            StateBlock("z", n, "the adaptive observer's velocity estimate (z / q_hat_dot)", lower, VELOCITY_BOUND),
+            *estimate_layout(model), *composite_layout(model)]
 
 
 def default_gains(model, scale) -> dict:

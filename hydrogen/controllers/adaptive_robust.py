@@ -16,8 +16,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from .common import ADAPTATION_SEARCH, adaptation_gains, composite_layout, composite_static_inputs, model_gains
-from .spec import ControllerSpec
+from .common import (ADAPTATION_SEARCH, adaptation_gains, composite_layout, composite_static_inputs, estimate_layout,
+                     model_gains)
+from .spec import VELOCITY_BOUND, ControllerSpec, StateBlock
 
 SPEC = ControllerSpec(name="adaptive-robust", doc="Theorem 3: adaptive controller, robust sliding observer.",
                       main_gain="Lambda", grid_low=5.0,
@@ -28,9 +29,10 @@ NAME, DOC = SPEC.name, SPEC.doc
 
 
 def state_layout(model) -> list:
-    n, m = model.n, model.n_cylinders
-    return [("z", n), ("theta_hat", model.n_theta), ("gamma1_hat", m), ("gamma2_hat", m),
-            *composite_layout(model)]
+    return [StateBlock("z", model.n, "the robust sliding observer's velocity estimate (z)",
+                       "its gains (Ko, Gz_inv, lambda_o) and the loop's (Lambda, Kd), or the adaptation rates "
+                       "(rate_theta, rate_gamma1, rate_gamma2)", VELOCITY_BOUND),
+            *estimate_layout(model), *composite_layout(model)]
 
 
 def default_gains(model, scale) -> dict:

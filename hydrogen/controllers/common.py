@@ -3,7 +3,9 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["model_gains", "check_coupling_gains", "adaptation_gains", "RAW_ADAPTATION_GAINS", "adaptation_references",
+from .spec import StateBlock
+
+__all__ = ["model_gains", "estimate_layout", "check_coupling_gains", "adaptation_gains", "RAW_ADAPTATION_GAINS", "adaptation_references",
            "normalised_adaptation", "composite_layout", "composite_static_inputs", "initial_gain_matrix",
            "COMPOSITE_BLOCKS", "COMPOSITE_GAIN_BLOCKS", "COMPOSITE_RATES", "ADAPTATION_SEARCH", "gain_block_shape", "lean_variant", "runs_lean"]
 
@@ -100,7 +102,8 @@ def composite_gains() -> dict:
 
 
 def composite_layout(model) -> list:
-    """The state blocks the composite adaptation adds to an adaptive controller, in order: per
+    """The state blocks (:class:`~hydrogen.controllers.spec.StateBlock`) the composite adaptation adds
+    to an adaptive controller, in order: per
     cylinder the filtered force (N), ln(l − L) (a three-way cylinder; another kind's f0_potential) and g0
     (N/s per unit γ2), the previous period's pressures (Pa, the pressure vector) and length (m), and the 2×2 least-squares gain's upper
     triangle [P11, P12, P22] (dimensionless) (:class:`hydrogen.symbolic.composite.HydraulicComposite`);
@@ -111,7 +114,23 @@ def composite_layout(model) -> list:
     m, n_p = model.n_cylinders, n_pressures(model)
     n, p = model.n, model.n_theta
     sizes = (m, m, m, n_p, m, 3 * m, n * p, n, n * p, n, n, p * (p + 1) // 2)
-    return list(zip(COMPOSITE_BLOCKS, sizes))
+    laws = [("gamma", "beta and beta c")] * 6 + [("theta", "inertial parameters")] * 6
+    return [StateBlock(name, size, f"the composite {law} law's {name.replace('_', ' ')} (for the {what})",
+                       f"its rate rate_ls_{law} (0: the paper's gradient law) or its filter's lambda_f_{law}")
+            for name, size, (law, what) in zip(COMPOSITE_BLOCKS, sizes, laws)]
+
+
+def estimate_layout(model) -> list:
+    """The parameter-estimate blocks (:data:`~hydrogen.controllers.ESTIMATE_BLOCKS`) of an adaptive
+    controller's state, each kept inside the model's projection bounds: θ̂ (the [adaptation]
+    parameters' units), γ̂1 = β̂ (Pa) and γ̂2 = β̂c per cylinder."""
+    m = model.n_cylinders
+    return [StateBlock("theta_hat", model.n_theta, "the inertial parameter estimates (theta_hat)",
+                       "its adaptation rate (rate_theta, or rate_ls_theta with the composite law)"),
+            StateBlock("gamma1_hat", m, "the bulk modulus estimates (gamma1_hat, beta)",
+                       "its adaptation rate (rate_gamma1, or rate_ls_gamma with the composite law)"),
+            StateBlock("gamma2_hat", m, "the flow gain estimates (gamma2_hat, beta c)",
+                       "its adaptation rate (rate_gamma2, or rate_ls_gamma with the composite law)")]
 
 
 def composite_static_inputs(dyn, theta0, gamma0) -> dict:

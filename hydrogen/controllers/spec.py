@@ -5,9 +5,17 @@ instead of testing a controller's name; a new controller states them in its modu
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
-__all__ = ["ControllerSpec"]
+__all__ = ["ControllerSpec", "StateBlock", "POSITION_BOUND", "VELOCITY_BOUND"]
+
+#: |position estimate| (m or rad) past which an observer has left the robot: no hydraulic joint
+#: travels a thousand metres or radians (160 turns).
+POSITION_BOUND = 1.0e3
+#: |velocity estimate| (m/s or rad/s) past which an observer has left the robot: a hydraulic joint
+#: moves at a few m/s or rad/s at most.
+VELOCITY_BOUND = 1.0e3
 
 
 @dataclass(frozen=True)
@@ -57,3 +65,36 @@ class ControllerSpec:
     compared: bool = False
     search_description_proportions: bool = False
     adaptation_search: tuple = ()
+
+    @property
+    def command_gains(self) -> tuple:
+        """The gains that set how hard it drives the valves, to lower when they saturate: the main
+        gain, and K_d and K_τ where the search varies them with it."""
+        return (self.main_gain, *(("Kd", "Ktau") if self.secondary_search else ()))
+
+
+@dataclass(frozen=True)
+class StateBlock:
+    """A block of a controller's state xc, as ``state_layout`` declares it; unpacks as the pair
+    ``(name, size)``.
+
+    name, size
+        The block and its number of entries.
+    role : str
+        What it is, for a message: "the adaptive observer's velocity estimate (z / q_hat_dot)".
+    lower : str
+        What to lower when it diverges: "its gains (Lambda, Kd_obs) or the adaptation rates (...)".
+    bound : float
+        |entry| past which the run has diverged, in the block's own unit (inf: a non-finite value
+        only; an estimate's projection bounds hold it anyway). The first block of a diverged run's
+        state to go non-finite or past its bound is named with its role and what to lower.
+    """
+
+    name: str
+    size: int
+    role: str
+    lower: str
+    bound: float = math.inf
+
+    def __iter__(self):  # the layout's (name, size) pairs: ``for name, size in state_layout(model)``
+        return iter((self.name, self.size))

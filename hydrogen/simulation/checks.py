@@ -2,7 +2,8 @@
 
 Called by :class:`~hydrogen.simulation.scenarios.Scenario` (types and values that need no
 model) and by the simulator's preparation (sizes against the model, initial estimates against
-the projection bounds, the start pose against the legs' stroke, the memory one run may take).
+the projection bounds, the start pose against each actuator's travel (a cylinder's stroke, a
+vane's angle range: its kind's TRAVEL), the memory one run may take).
 Robot sizes always come from the model (``len(model.neutral_pose)``, ``len(model.theta)``, the
 number of legs), never from literals.
 """
@@ -163,7 +164,8 @@ def adapts(controller, model) -> bool:
 
 def check_against_model(sc, model, controller, dyn=None) -> None:
     """Sizes against the model, initial estimates inside the projection bounds (controllers that
-    adapt), and the start pose inside the legs' stroke (with ``dyn``)."""
+    adapt), and the start pose inside each actuator's travel range (with ``dyn``): a cylinder's stroke
+    in m, a vane's angle range in rad (its kind's TRAVEL)."""
     name = sc.name
     n = len(model.neutral_pose)
     check_reference(sc.reference, name, n)
@@ -189,13 +191,11 @@ def check_against_model(sc, model, controller, dyn=None) -> None:
         legs = np.asarray(dyn.leg_lengths(q0))
         bad = ~((legs >= model.leg_min) & (legs <= model.leg_max))
         if bad.any():
-            from ..actuators import actuator
             i = int(np.nonzero(bad)[0][0])
             c = model.cylinders[i]
-            t = actuator(c.kind).TRAVEL  # the actuator's own travel: a length in m, an angle in rad
+            t = c.travel  # the actuator's own travel: a length in m, an angle in rad
             _fail(name, "q0_offset", f"puts the start pose outside actuator '{c.name}''s {t.range_word} "
-                  f"({t.quantity} {legs[i]:.4f} {t.unit}, {t.range_word} [{model.leg_min[i]}, "
-                  f"{model.leg_max[i]}] {t.unit})", sc.q0_offset)
+                  f"({t.value(legs[i])}, {t.span(model.leg_min[i], model.leg_max[i])})", sc.q0_offset)
 
 
 #: Gains that must be > 0 (divisors or limits); every other gain must be >= 0.

@@ -20,7 +20,16 @@ from .seeds import SeedResults
 
 __all__ = ["simulate", "SimulationResult", "SeedResults", "equilibrium_pressures", "Stepper", "prepare_run", "new_logs",
            "make_runner", "run_python_loop", "PythonStages", "kalman_gain",
-           "valve_vector", "length_noise_variance", "excitation"]
+           "valve_vector", "length_noise_variance", "excitation", "diverged_block", "SATURATED_AT", "SATURATION"]
+
+
+#: A valve counts as saturated in a period when its command |u| is at least this fraction of u_max
+#: (the controllers clip it at u_max; the margin takes rounding).
+SATURATED_AT = 0.999
+#: Fraction of a run's periods a valve may spend saturated: above it the summary says so, per
+#: actuator, with what to change, and the documented gain search refuses the point
+#: (:data:`hydrogen.simulation.tuning.SATURATION`).
+SATURATION = 0.01
 
 
 @dataclass
@@ -55,6 +64,7 @@ class SimulationResult:
     wall_time_s: float = 0.0  # the run: setup, loop, result, with the library already loaded (s)
     loop_wall_s: float = 0.0  # the closed loop alone (s)
     u_max: float = 0.0
+    actuators: tuple = ()     # the actuators' names, in the order of the columns of u
     metrics: dict = field(default_factory=dict)
 
     @property
@@ -69,7 +79,9 @@ class SimulationResult:
 
     def compute_metrics(self) -> dict:
         """Max error in % of each coordinate's reference amplitude (None where it has none), RMS error,
-        final parameter estimates, over t ≥ metric_start."""
+        final parameter estimates, over t ≥ metric_start; and over the whole run the fraction of
+        periods with a saturated valve (|u| ≥ SATURATED_AT × u_max): ``u_saturation_frac`` over every
+        valve and period, ``u_saturation_frac_by_actuator`` per actuator."""
         sel, start, note = metric_window(self.t, self.metric_start)  # clamped to the run, and said so
         e = self.error[sel]
         n = self.q.shape[1]
@@ -97,6 +109,12 @@ class SimulationResult:
             "loop_wall_s": float(self.loop_wall_s),
             "metric_start_s": start,
         }
+        # over the whole run: a valve held at its stop during the start is a valve too small too
+        sat = (np.abs(self.u) >= SATURATED_AT * self.u_max) if self.u_max else np.zeros(np.shape(self.u), bool)
+        names = self.actuators or tuple(f"u{i}" for i in range(np.shape(self.u)[1]))
+        self.metrics["u_saturation_frac"] = float(sat.mean()) if sat.size else 0.0
+        self.metrics["u_saturation_frac_by_actuator"] = {
+            c: float(v) for c, v in zip(names, sat.mean(axis=0) if len(sat) else np.zeros(len(names)))}
         hf = self.high_frequency_error()
         if hf is not None:
             self.metrics["hf_error_rms"] = dict(zip(coords, map(float, hf)))
@@ -194,7 +212,9 @@ def simulate(dyn, scenario, controller: str, *, gains=None, duration=None, check
     if res.metrics:
         res.metrics["wall_time_s"] = res.wall_time_s
     if failure:
-        raise SimulationError(f"simulation '{sc.name}' with '{controller}' {failure}", result=res)
+        cause = diverged_block(ctrl, log["xc"][:k_done], t_log[:k_done]) if ctrl.xc.size else None
+        lead = f": {cause}; then it" if cause else ""  # the cause first, then the state at the stop
+        raise SimulationError(f"simulation '{sc.name}' with '{controller}'{lead} {failure}", result=res)
     return res
 
 
@@ -353,6 +373,40 @@ def _describe(x, t, ctrl=None, xc=None, u=None):
     if not parts:
         parts.append(f"a value went non-finite inside the step (every signal is finite at its end): x = {np.array2string(x, precision=6, threshold=60)}")
     return f"diverged at t = {t:.4f} s: " + "; ".join(parts)
+
+
+def diverged_block(ctrl, xc, t):
+    """The controller state block that diverged first, as a sentence naming its role and what to
+    lower (its :class:`~hydrogen.controllers.spec.StateBlock` declaration), or None when no block
+    went non-finite or past its bound. ``xc``: the state at the periods of ``t`` (k, size; s), in
+    order. The earliest period at which an entry is non-finite or past its block's bound decides;
+    among the blocks bad at that period, the one furthest past its bound (a non-finite value is
+    what the others' overflow leaves, so it counts last), then the one declared first. With one
+    period (the stepper keeps no history) that ranking alone names the block."""
+    xc = np.atleast_2d(np.asarray(xc, float))
+    with np.errstate(invalid="ignore"):
+        bad = {b.name: ~np.isfinite(xc[:, ctrl.slices[b.name]]) | (np.abs(xc[:, ctrl.slices[b.name]]) > b.bound)
+               for b in getattr(ctrl, "layout", ())}
+    rows = [int(np.flatnonzero(v.any(axis=1))[0]) for v in bad.values() if v.any()]
+    if not rows:
+        return None
+    r = min(rows)
+
+    def excess(block):  # how far past its bound the block's worst finite entry is at period r (0: none)
+        x = np.abs(xc[r, ctrl.slices[block.name]])
+        x = x[np.isfinite(x)]
+        return float(x.max() / block.bound) if x.size and x.max() > block.bound else 0.0
+
+    hit = [b for b in ctrl.layout if bad[b.name][r].any()]
+    block = max(hit, key=excess)  # max keeps the first declared of equals
+    x = xc[r, ctrl.slices[block.name]]
+    finite_past = np.isfinite(x) & (np.abs(x) > block.bound)
+    j = int(np.argmax(np.where(finite_past, np.abs(x), -1.0))) if finite_past.any() else \
+        int(np.flatnonzero(bad[block.name][r])[0])
+    v = x[j]
+    why = f"{v:.3g}, past its bound {block.bound:g}" if np.isfinite(v) else f"{v}"
+    return (f"{block.role} diverged at t = {float(np.ravel(t)[r]):.4f} s ({block.name}[{j}] = {why}): "
+            f"lower {block.lower}")
 
 
 def make_runner(dyn, sc, ctrl, x0, q0, kf_gain, h):
@@ -577,7 +631,8 @@ def _result(sc, controller, ctrl, t, log, k, theta0, gamma0, theta_true, gamma_t
         theta_true=theta_true, gamma_true=gamma_true, amplitude=sc.reference.amplitude(),
         metric_start=sc.metric_start, coordinates=tuple(model.coordinate_names), units=model.coordinate_units,
         theta_names=tuple(model.theta_names), estimated=estimated_blocks(ctrl), wall_time_s=wall, loop_wall_s=wall,
-        u_max=float(ctrl.values["u_max"][0]) if "u_max" in ctrl.values else 0.0)
+        u_max=float(ctrl.values["u_max"][0]) if "u_max" in ctrl.values else 0.0,
+        actuators=tuple(c.name for c in model.cylinders))
     if k:
         res.compute_metrics()
     return res
@@ -642,8 +697,9 @@ def excitation(dyn, res, ctrl=None) -> dict:
 
 
 def _check_reference(dyn, sc, n, h):
-    """Reject a reference that leaves the cylinders' stroke at any control period, naming the time and
-    the cylinder (one compiled call for the whole trajectory)."""
+    """Reject a reference that leaves an actuator's travel range (a cylinder's stroke in m, a vane's
+    angle range in rad: its kind's TRAVEL) or a joint's limits at any control period, naming the time
+    and the actuator or joint (one compiled call for the whole trajectory)."""
     m = dyn.model
     t = np.arange(n) * h
     q_ref = sc.reference.positions(t)  # once: the stroke and the joint-limit checks read it
@@ -651,9 +707,10 @@ def _check_reference(dyn, sc, n, h):
     bad = (legs < m.leg_min) | (legs > m.leg_max)
     if bad.any():
         k, i = (int(v[0]) for v in np.nonzero(bad))
+        c, travel = m.cylinders[i], m.cylinders[i].travel
         raise KinematicsError(
-            f"reference of scenario '{sc.name}' leaves the workspace at t = {k * h:.3f} s: cylinder "
-            f"'{m.cylinders[i].name}' would be {legs[k, i]:.4f} m, stroke is [{m.leg_min[i]}, {m.leg_max[i]}] m")
+            f"reference of scenario '{sc.name}' leaves the workspace at t = {k * h:.3f} s: actuator "
+            f"'{c.name}' would be at {travel.value(legs[k, i])}, outside its {travel.span(m.leg_min[i], m.leg_max[i])}")
     lim = m.coordinate_limits()
     units = m.coordinate_units
     for what, values, lo, hi in (("position", q_ref, lim["lower"], lim["upper"]),
@@ -700,7 +757,11 @@ class Stepper:
             raise IndexError(f"scenario '{self.scenario.name}' has {self.n_max} periods; pass a longer duration")
         code = self._step(k)
         if code:
-            raise SimulationError(f"simulation '{self.scenario.name}' {_loop_failure(code, self._runner, self.h)}")
+            ctrl = self.controller
+            cause = diverged_block(ctrl, self.xc, self.t) if ctrl.xc.size else None
+            lead = f": {cause}; then it" if cause else ""
+            raise SimulationError(f"simulation '{self.scenario.name}' with '{ctrl.kind}'{lead} "
+                                  f"{_loop_failure(code, self._runner, self.h)}")
 
     @property
     def t(self) -> float:

@@ -56,8 +56,7 @@ def _run_one(job):
         return out
     except Exception as exc:  # noqa: BLE001 - one bad entry must not cost the others their results
         return {"error": f"{type(exc).__name__}: {str(exc).splitlines()[0][:500] if str(exc) else ''}"}
-    m = dict(res.metrics)
-    m["u_saturation_frac"] = float((abs(res.u) >= 0.999 * res.u_max).mean()) if res.u_max else 0.0
+    m = dict(res.metrics)  # u_saturation_frac among them (SimulationResult.compute_metrics)
     if keep:
         res.metrics = m
         return res

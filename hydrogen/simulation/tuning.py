@@ -55,12 +55,12 @@ from __future__ import annotations
 import numpy as np
 
 from .seeds import DEFAULT_SEEDS, seed_list
+from .simulator import SATURATION  # largest fraction of periods with a saturated valve
 
 __all__ = ["tune", "tune_p", "margins", "rig_scenarios", "require_rig_scenarios", "family", "main_gain",
            "default_grid", "secondary_grid", "adaptation_grid", "judge_seeds",
            "SATURATION", "OSCILLATION", "HF_FLOOR", "HF_CAP", "SEEDS"]
 
-SATURATION = 0.01    # largest fraction of periods with a saturated valve
 OSCILLATION = 2.0    # high-frequency error may grow to this multiple of its reference value
 HF_FLOOR = 0.005     # x the largest reference amplitude: below it, no oscillation is declared
 HF_CAP = 0.05        # x the largest reference amplitude: above it, always an oscillation
