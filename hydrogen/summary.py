@@ -11,7 +11,7 @@ import numpy as np
 
 from .controllers import ESTIMATE_BLOCKS  # the estimate blocks of a controller's state, defined there
 
-__all__ = ["display_unit", "error_lines", "estimated_blocks", "estimate_lines", "excitation_lines", "saturation_lines",
+__all__ = ["display_unit", "error_lines", "estimated_blocks", "estimate_lines", "excitation_lines", "saturation_lines", "SATURATION", "SATURATED_AT",
            "ESTIMATE_BLOCKS", "PCT_WIDTH", "POOR_EXCITATION"]
 
 #: λmin/λmax of a run's normalised information matrix below which the summary says the run does not
@@ -59,13 +59,21 @@ def seed_error_lines(coordinates, units, metrics) -> list:
     return lines
 
 
+#: A valve counts as saturated in a period when its command |u| is at least this fraction of u_max
+#: (the controllers clip it at u_max; the margin takes rounding).
+SATURATED_AT = 0.999
+#: Fraction of a run's periods a valve may spend saturated: above it the summary says so, per
+#: actuator, with what to change, and the documented gain search refuses the point
+#: (:mod:`hydrogen.simulation.tuning`).
+SATURATION = 0.01
+
+
 def saturation_lines(res) -> list:
     """One line per actuator whose valve was saturated (|u| at u_max) in more than
-    :data:`~hydrogen.simulation.simulator.SATURATION` of the run's periods
+    :data:`SATURATION` of the run's periods
     (``metrics["u_saturation_frac_by_actuator"]``), with what to change: the controller's gains that
     drive the valve (its spec's ``command_gains``), the reference, or the valve. None: no line."""
     from .controllers import CONTROLLERS, spec
-    from .simulation.simulator import SATURATION
 
     by = (res.metrics or {}).get("u_saturation_frac_by_actuator") or {}
     gains = ", ".join(spec(res.controller).command_gains) if res.controller in CONTROLLERS else "the gains"

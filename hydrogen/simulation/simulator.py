@@ -12,7 +12,7 @@ from ..actuators import actuator
 from ..controllers import spec as controller_spec
 from ..errors import KinematicsError, SimulationError
 from ..layout import PREDICTOR_MODEL
-from ..summary import estimated_blocks
+from ..summary import SATURATED_AT, SATURATION, estimated_blocks  # saturation: defined with its line
 from .checks import check_against_model, check_call, check_run_size, checked_float, metric_window
 from .control import make_controller
 from .scenarios import Scenario, actuator_settings, scenario as named_scenario, scenario_names
@@ -21,15 +21,6 @@ from .seeds import SeedResults
 __all__ = ["simulate", "SimulationResult", "SeedResults", "equilibrium_pressures", "Stepper", "prepare_run", "new_logs",
            "make_runner", "run_python_loop", "PythonStages", "kalman_gain",
            "valve_vector", "length_noise_variance", "excitation", "diverged_block", "SATURATED_AT", "SATURATION"]
-
-
-#: A valve counts as saturated in a period when its command |u| is at least this fraction of u_max
-#: (the controllers clip it at u_max; the margin takes rounding).
-SATURATED_AT = 0.999
-#: Fraction of a run's periods a valve may spend saturated: above it the summary says so, per
-#: actuator, with what to change, and the documented gain search refuses the point
-#: (:data:`hydrogen.simulation.tuning.SATURATION`).
-SATURATION = 0.01
 
 
 @dataclass
