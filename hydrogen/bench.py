@@ -73,7 +73,7 @@ def check_results_file(path: Path) -> None:
         except (OSError, UnicodeDecodeError, ValueError):
             data = None
         modules = {n for n, _ in SUITE}
-        if not (isinstance(data, dict) and data and set(data) <= modules):
+        if not (isinstance(data, dict) and set(data) <= modules):
             why = "not results 'hydrogen bench' wrote (a JSON object of its modules' results)"
     if why:
         raise OutputPathError(f"{path}: {why}, and 'hydrogen bench' would write its results over it: move that "
