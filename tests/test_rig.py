@@ -351,3 +351,22 @@ def test_an_unknown_variant_is_one_clear_error(capsys):
         assert cli.main([*argv, "--quiet"] if argv[0] != "simulate" else argv) == 2
         err = capsys.readouterr().err.strip().splitlines()
         assert len(err) == 1 and "bogus" in err[0], err
+
+
+def test_kalman_gain_is_solved_once_per_setting(monkeypatch):
+    """A sweep's runs of one scenario share the filter's gain: the Riccati equation is solved once
+    per (period, noise, acceleration) in a process, and each caller gets its own array."""
+    import scipy.linalg
+
+    from hydrogen.simulation import simulator
+
+    calls = []
+    real = scipy.linalg.solve_discrete_are
+    monkeypatch.setattr(scipy.linalg, "solve_discrete_are", lambda *a: (calls.append(a), real(*a))[1])
+    simulator._kalman_gain.cache_clear()
+    a = kalman_gain(1 / 512, 2e-11, 1e-3)
+    a[0] = -1.0  # the caller's own copy
+    b = kalman_gain(1 / 512, 2e-11, 1e-3)
+    assert len(calls) == 1 and b[0] != -1.0
+    kalman_gain(1 / 512, 3e-11, 1e-3)
+    assert len(calls) == 2

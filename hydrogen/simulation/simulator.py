@@ -1,6 +1,7 @@
 """The closed loop: plant (RK4 sub-steps), sensors, forward kinematics, controller at a fixed rate."""
 from __future__ import annotations
 
+import functools
 import json
 import time
 from dataclasses import dataclass, field
@@ -326,12 +327,18 @@ def kalman_gain(h, r, accel):
     covariance P solves the filter's DARE (scipy's solver, in its control form with Fᵀ, Hᵀ);
     K = P Hᵀ (H P Hᵀ + r)⁻¹, applied after each prediction.
     """
+    return np.array(_kalman_gain(float(h), float(r), float(accel)))
+
+
+@functools.lru_cache(maxsize=256)
+def _kalman_gain(h: float, r: float, accel: float) -> tuple:
+    # once per process and (period, noise, acceleration): a sweep's runs of one scenario share it
     from scipy.linalg import solve_discrete_are
     F = np.array([[1.0, h], [0.0, 1.0]])
     Q = accel * np.array([[h ** 3 / 3, h ** 2 / 2], [h ** 2 / 2, h]])
     H = np.array([[1.0, 0.0]])
     P = solve_discrete_are(F.T, H.T, Q, np.array([[r]]))
-    return P[:, 0] / (P[0, 0] + r)
+    return tuple(P[:, 0] / (P[0, 0] + r))
 
 
 def valve_vector(sc) -> np.ndarray:
