@@ -65,9 +65,13 @@ else:
     from bench_scaling import chain_description
     model = model_from_dict(chain_description(int(arg)))
 events = []
-dyn = hydrogen.build(model, cache={cache!r}, progress=events.append, numbers={numbers!r}, controllers=({controller!r},))
-t1 = time.perf_counter()
 scenarios = scenario_names(model)
+# as hydrogen simulate builds: for its controller, with the scenario's own gains over the description's
+from hydrogen.simulation.scenarios import scenario as named_scenario
+gains = {{{controller!r}: named_scenario(scenarios[0], model).gains.get({controller!r})}} if scenarios else None
+dyn = hydrogen.build(model, cache={cache!r}, progress=events.append, numbers={numbers!r}, controllers=({controller!r},),
+                     gains=gains)
+t1 = time.perf_counter()
 if scenarios:  # compiles the library of the variant the scenario's gains run, then runs
     hydrogen.simulate(scenarios[0], {controller!r}, dyn=dyn, duration={duration!r})
 else:  # no scenario to run: the full variant's library, as a run with composite rates compiles it
