@@ -369,7 +369,6 @@ def make_all(dyn, out_dir, quiet=True, *, durations=None, gains=None, nonlinear=
         written file; ``results`` is the Markdown page of the table and figures
         (:func:`hydrogen.pages.write_results_page`).
     """
-    from .controllers import CONTROLLERS
     from .errors import ScenarioError
     from .simulation.reference import Step
     from .simulation.scenarios import scenario as named_scenario, scenario_names
@@ -384,11 +383,14 @@ def make_all(dyn, out_dir, quiet=True, *, durations=None, gains=None, nonlinear=
     nonlinear = model.figures_nonlinear if nonlinear is None else nonlinear
     from .controllers import baseline, spec
     base = baseline()
-    known = [c for c in CONTROLLERS if spec(c).knows_true_parameters]  # the reference column
-    compared = [c for c in CONTROLLERS if spec(c).compared and c != nonlinear] or [base]  # "P": the better
-    if nonlinear not in CONTROLLERS or nonlinear == base:
+    listed = model.controllers  # the controllers generated for this robot
+    known = [c for c in listed if spec(c).knows_true_parameters]  # the reference column
+    compared = [c for c in listed if spec(c).compared and c != nonlinear] or [base]  # "P": the better
+    if nonlinear not in listed or nonlinear == base:
         raise ScenarioError(f"{model.source}: the figures' nonlinear controller must be one of "
-                            f"{', '.join(c for c in CONTROLLERS if c != base)}, got {nonlinear!r}")
+                            f"{', '.join(c for c in listed if c != base)}, got {nonlinear!r}")
+    if base not in listed:
+        raise ScenarioError(model.not_listed(base) + " (the figures compare with it)")
     scenarios = [named_scenario(nm, model) for nm in scenario_names(model)]
     total = sum(1 if sc.friction[0] == 0 and not sc.kalman and not isinstance(sc.reference, Step)
                 else (2 if isinstance(sc.reference, Step) else 2 + len(compared)) for sc in scenarios)

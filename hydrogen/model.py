@@ -300,6 +300,19 @@ class Model:
     variants: dict = field(default_factory=dict, repr=False, compare=False)
     # "auto" (chosen by cost), "closed" or "staged": the rigid body's form (hydrogen.symbolic.forms)
     rigid_body_form: str = "auto"
+    # the controllers generated for this robot, in the registry's order (the description's
+    # ``controllers``; default all): what a whole generation holds, what a run may ask for
+    controllers: tuple = field(default=None, compare=False)
+
+    def __post_init__(self):
+        if self.controllers is None:  # a Model made in code: every controller
+            from .controllers import CONTROLLERS
+            object.__setattr__(self, "controllers", tuple(CONTROLLERS))
+
+    def not_listed(self, controller: str) -> str:
+        """The message for a controller this description does not list (its ``controllers``)."""
+        return (f"{self.source}: controllers: controller '{controller}' is not generated for '{self.name}' (its "
+                f"description lists {', '.join(self.controllers)}); add it to controllers to run it")
     source: str = "<memory>"
     urdf: Path | None = None
     raw: dict = field(default=None, repr=False, compare=False)
@@ -1280,6 +1293,22 @@ def _check_order(r: _Reader, w: str, vals: dict):
                                   f"({why})")
 
 
+def _controllers(r, listed) -> tuple:
+    """The description's ``controllers`` (None: all), checked, in the registry's order."""
+    from .controllers import CONTROLLERS
+
+    if listed is None:
+        return tuple(CONTROLLERS)
+    if not isinstance(listed, list) or not listed or not all(isinstance(c, str) for c in listed):
+        raise r.error("controllers", f"expected a non-empty list of controller names, got {_quote(listed)}")
+    unknown = [c for c in listed if c not in CONTROLLERS]
+    if unknown:
+        raise r.error("controllers", f"unknown controller {unknown[0]!r}; hydrogen's controllers: {', '.join(CONTROLLERS)}")
+    if len(set(listed)) != len(listed):
+        raise r.error("controllers", f"a controller is listed twice: {_quote(listed)}")
+    return tuple(c for c in CONTROLLERS if c in listed)
+
+
 def model_from_dict(data: dict, source: str = "<memory>", base_dir: Path | None = None) -> Model:
     """Validate parsed TOML data and build a :class:`Model`; errors name the source and the key."""
     r = _Reader(source)
@@ -1289,6 +1318,7 @@ def model_from_dict(data: dict, source: str = "<memory>", base_dir: Path | None 
     form = data.get("rigid_body_form", _default("top level", "rigid_body_form"))
     if form not in RIGID_BODY_FORMS:
         raise r.error("rigid_body_form", f"expected one of {', '.join(map(repr, RIGID_BODY_FORMS))}, got {_quote(form)}")
+    listed = _controllers(r, data.get("controllers"))
     urdf = None
     tree = r.table(data, "tree", required=False)
     if "urdf" in data:
@@ -1391,7 +1421,7 @@ def model_from_dict(data: dict, source: str = "<memory>", base_dir: Path | None 
     model = Model(name=name, gravity=gravity, root=root, links=links, joints=joints, cylinders=cylinders,
                   coordinate_names=tuple(names), neutral_pose=neutral, theta_names=tuple(params),
                   theta_min=tmin, theta_max=tmax, joint_encoders=enc, scale=scale, figures_nonlinear=nonlinear, gains=gains,
-                  scenarios={"rig": rig, **scen}, variants=variants, rigid_body_form=form, source=source, urdf=urdf,
+                  scenarios={"rig": rig, **scen}, variants=variants, rigid_body_form=form, controllers=listed, source=source, urdf=urdf,
                   raw=data, **gb)
     _check_tables(r, model)
     _check_bounds(r, model)

@@ -65,6 +65,9 @@ DESCRIPTION_KEYS = (
         "from ∂D/∂q), \"staged\" (link poses as intermediate symbols, spatial algebra; revolute, prismatic and "
         "fixed joints only) or \"auto\", the one of fewer CasADi instructions, staged without counting for a "
         "tree with a rotated joint origin or a tilted axis (Code generation page); all give the same D, C, G, Y", default="auto"),
+    Key("top level", "controllers", "", "the controllers generated for this robot (names of "
+        "hydrogen.CONTROLLERS); a run, export or FMU of another is refused naming this key",
+        default=None, default_text="all of hydrogen's controllers"),
     Key("top level", "urdf", "", "a URDF file for the tree, relative to the TOML file, instead of "
         "[[links]] and [[joints]]", default=None, default_text="none: the tree is [[links]]/[[joints]]"),
     Key("top level", "tree", "", "the [tree] table: which part of the tree is kept (below)", default=None,

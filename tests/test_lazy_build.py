@@ -237,3 +237,42 @@ def test_the_default_dynamics_grow_with_the_controllers_run(tmp_path, monkeypatc
     second = hydrogen.default_dynamics(model, controller="p-task")
     assert held_controllers(second.library.manifest) == ("p", "p-task")
     assert hydrogen.default_dynamics(model, controller="p").library is second.library
+
+
+def test_a_robot_generates_the_controllers_its_description_lists(tmp_path):
+    """``controllers = [...]``: a whole generation holds those (in the registry's order); a build,
+    run or export of another is refused naming the file and the key."""
+    from hydrogen.codegen import generate as gen
+    from hydrogen.codegen.generate import held_controllers
+
+    text = (Path(__file__).parent / "data" / "four_way_arm.toml").read_text()
+    path = tmp_path / "two.toml"
+    path.write_text('controllers = ["p", "backstepping"]\n' + text)
+    model = hydrogen.load_model(path)
+    assert model.controllers == ("backstepping", "p")
+    cache = tmp_path / "cache"
+    dyn = hydrogen.build(model, cache=cache, cflags=FAST, backend="ctypes")
+    assert held_controllers(dyn.library.manifest) == ("backstepping", "p")
+    assert gen.check_output(model, dyn.library.generated_dir) == []  # whole, for this robot
+    r = hydrogen.simulate("arm-sim", "backstepping", dyn=dyn, duration=0.01)
+    assert np.isfinite(r.q).all()
+    want = rf"{path}: controllers: controller 'adaptive-robust' is not generated for 'four_way_arm' \(its " \
+           r"description lists backstepping, p\); add it to controllers to run it"
+    with pytest.raises(hydrogen.ScenarioError, match=want):
+        hydrogen.simulate("arm-sim", "adaptive-robust", dyn=dyn, duration=0.01)
+    with pytest.raises(hydrogen.ScenarioError, match=want):
+        hydrogen.build(model, cache=cache, cflags=FAST, controllers=("adaptive-robust",))
+
+
+@pytest.mark.parametrize("value, words", [
+    ('["nope"]', "unknown controller 'nope'; hydrogen's controllers: backstepping"),
+    ("[]", "expected a non-empty list of controller names"),
+    ('"p"', "expected a non-empty list of controller names"),
+    ('["p", "p"]', "a controller is listed twice"),
+])
+def test_a_bad_controllers_list_names_the_file_and_key(tmp_path, value, words):
+    path = tmp_path / "bad.toml"
+    path.write_text(f"controllers = {value}\n" + (Path(__file__).parent / "data" / "four_way_arm.toml").read_text())
+    with pytest.raises(hydrogen.ModelError) as err:
+        hydrogen.load_model(path)
+    assert str(err.value).startswith(f"{path}: controllers: ") and words in str(err.value)

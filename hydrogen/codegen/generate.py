@@ -196,10 +196,10 @@ def derive(model, numbers: str = DEFAULT_NUMBERS, controllers=None, core: bool =
     the names of the description's numbers they take as their input ``numbers`` ("inputs"; None
     for "constants", which folds them). ``controllers``: the controllers derived (None: all);
     ``core``: whether the core's functions are; ``seed``: the numbers' names of functions derived
-    before, which these must share ("inputs")."""
+    before, which these must share ("inputs"). None for ``controllers``: those the model lists."""
     from ..symbolic.functions import derive_functions, derive_parametric
 
-    kinds = True if controllers is None else tuple(controllers)
+    kinds = tuple(model.controllers if controllers is None else controllers)
     if check_numbers_mode(numbers) == "inputs":
         functions, names, _ = derive_parametric(model, kinds, core=core, seed=seed)
         return functions, names
@@ -226,12 +226,10 @@ def held_controllers(manifest: dict) -> tuple:
     return tuple(k for k in CONTROLLERS if k in held)
 
 
-def missing_controllers(manifest: dict, controllers=None) -> tuple:
-    """Of ``controllers`` (None: all), those a generated folder does not hold yet."""
-    from ..controllers import CONTROLLERS
-
+def missing_controllers(manifest: dict, controllers) -> tuple:
+    """Of ``controllers`` (names), those a generated folder does not hold yet."""
     held = held_controllers(manifest)
-    return tuple(k for k in (CONTROLLERS if controllers is None else controllers) if k not in held)
+    return tuple(k for k in controllers if k not in held)
 
 
 def _canonical(entries: list) -> list:
@@ -328,7 +326,7 @@ def generate_locked(model, out_dir: Path, force: bool = False, progress: bool = 
     check_identifier(model.name, "model name")  # it becomes C symbols, file names and build-file text
     recover_dir(out_dir)
     if not force and not check(model, out_dir, numbers):
-        missing = missing_controllers(read_manifest(out_dir), controllers)
+        missing = missing_controllers(read_manifest(out_dir), model.controllers if controllers is None else controllers)
         if not missing or extend(model, out_dir, missing, progress):
             return bool(missing)
         controllers = (*held_controllers(read_manifest(out_dir)), *missing)  # whole again, with them
@@ -389,7 +387,7 @@ def check_output(model, folder: Path, numbers: str | None = None) -> list:
     """
     reasons = check(model, folder, numbers)
     if not reasons:  # current, but a folder grown for some controllers only is not a whole generation
-        missing = missing_controllers(read_manifest(folder))
+        missing = missing_controllers(read_manifest(folder), model.controllers)
         return [f"{folder}: holds no functions of {', '.join(missing)} (generated for some controllers "
                 "only)"] if missing else []
     derivation_only = all("derivation_hash changed" in r for r in reasons)

@@ -52,7 +52,7 @@ def generation_reported(report, model, folder, force: bool = False, controllers=
     from ..progress import c_size
 
     stale = force or bool(check(model, Path(folder)))
-    missing = () if stale else missing_controllers(read_manifest(Path(folder)) or {}, controllers or None)
+    missing = () if stale else missing_controllers(read_manifest(Path(folder)) or {}, controllers or model.controllers)
     clock = report.start()
     if stale:
         report("generating", "deriving the model (SymPy) and writing C for each function")
@@ -157,7 +157,7 @@ def library_name(model_name: str, group: str) -> str:
     return model_name if group == CORE else f"{model_name}_{group.replace('-', '_')}"
 
 
-def _check_controllers(controllers) -> tuple:
+def _check_controllers(controllers, model: Model) -> tuple:
     from ..controllers import CONTROLLERS
     from ..errors import ScenarioError
 
@@ -167,7 +167,11 @@ def _check_controllers(controllers) -> tuple:
     unknown = [c for c in controllers if c not in CONTROLLERS]
     if unknown:
         raise ScenarioError(f"unknown controller '{unknown[0]}'; choose one of {', '.join(CONTROLLERS)}")
+    unlisted = [c for c in controllers if c not in model.controllers]
+    if unlisted:
+        raise ScenarioError(model.not_listed(unlisted[0]))
     return controllers
+
 
 
 def build(model: Model | str | Path | None = None, *, cc: str | None = None,
@@ -227,7 +231,7 @@ def build(model: Model | str | Path | None = None, *, cc: str | None = None,
     if not isinstance(model, Model):
         model = load_model(model)
     report = Reporter(progress, model.name)
-    controllers = _check_controllers(controllers)
+    controllers = _check_controllers(controllers, model)
     check_numbers_mode(numbers)
     root = check_cache_root(Path(cache or cache_root()))
     folder = Path(generated) if generated else generated_dir_for(model, cache, numbers)
@@ -241,7 +245,7 @@ def build(model: Model | str | Path | None = None, *, cc: str | None = None,
         return made[-1]
 
     lib = warm_library(model, folder, toolchain, root, loader, numbers)  # no lock, no write: a read-only cache works
-    if lib is not None and missing_controllers(lib.manifest, controllers or None):
+    if lib is not None and missing_controllers(lib.manifest, controllers or model.controllers):
         lib = None  # the folder holds other controllers: theirs are added under the lock
     if lib is not None:
         groups = _own_variants(model, made[-1].manifest, controllers, gains)

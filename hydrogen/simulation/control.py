@@ -254,6 +254,8 @@ def make_controller(dyn, kind, gains=None, theta0=None, gamma0=None, period=None
     if kind not in CONTROLLERS:
         raise ScenarioError(f"unknown controller '{kind}'; choose one of {', '.join(CONTROLLERS)}")
     model = dyn.model
+    if kind not in model.controllers:
+        raise ScenarioError(model.not_listed(kind))
     if function_name(kind) not in dyn.functions:  # a build for some controllers only
         held = [k for k in CONTROLLERS if function_name(k) in dyn.functions]
         raise ScenarioError(f"controller '{kind}' is not in this build of '{model.name}' (it holds "

@@ -409,7 +409,6 @@ def margins(controllers=None, *, model=None, scenarios=None, executor=None, max_
     seeds unstable at the first unstable factor}]}; ``margin`` is the largest factor found stable
     (>= MARGIN_MAX: ``margin_capped``), 0 when the robot's gains themselves fail on a seed."""
     from ..runtime.build import build
-    from ..controllers import CONTROLLERS
     from .sweep import check_workers, sweep
 
     model = _load(model)
@@ -418,7 +417,7 @@ def margins(controllers=None, *, model=None, scenarios=None, executor=None, max_
     scen = list(scenarios) if scenarios else list(require_rig_scenarios(model, "margins", variant))
     seeds = seed_list(DEFAULT_SEEDS if seeds is None else seeds)
     dyn = build(model, **({} if numbers is None else {"numbers": numbers}))
-    cases = [(c, s) for c in (controllers or CONTROLLERS) for s in scen]
+    cases = [(c, s) for c in (controllers or model.controllers) for s in scen]
     # The gains each case runs with: the robot's, under the scenario's own (a variant's gains).
     base = [_own_gains(dyn, c, s, model) for c, s in cases]
     g0 = [float(np.mean(b[main_gain(c)])) for b, (c, _) in zip(base, cases)]
