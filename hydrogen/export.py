@@ -90,14 +90,14 @@ def _sha256(data: bytes) -> str:
     return hashlib.sha256(data).hexdigest()
 
 
-def resolve_dyn(model, dyn, numbers=None):
+def resolve_dyn(model, dyn, numbers=None, controller=None):
     """The compiled dynamics to export: ``dyn``, or those of ``model`` (default robot when both are
-    None) built with ``numbers`` (:func:`hydrogen.build`'s); a ``model`` that differs from ``dyn``'s
-    raises ValueError."""
+    None) built with ``numbers`` (:func:`hydrogen.build`'s) for ``controller`` (a new structure
+    derives that one alone); a ``model`` that differs from ``dyn``'s raises ValueError."""
     import hydrogen
 
     if dyn is None:
-        return hydrogen.default_dynamics(model, numbers=numbers)
+        return hydrogen.default_dynamics(model, numbers=numbers, controller=controller)
     if model is not None:
         m = model if isinstance(model, hydrogen.Model) else hydrogen.load_model(model)
         if m.baked_hash() != dyn.model.baked_hash():
@@ -393,7 +393,7 @@ def prepare_export(model, dyn, scenario, controller, gains, duration, check_work
     from .simulation.scenarios import default_scenario_name, scenario as named_scenario
     from .simulation.simulator import filter_gain, prepare_run
 
-    dyn = resolve_dyn(model, dyn, numbers)
+    dyn = resolve_dyn(model, dyn, numbers, controller if isinstance(controller, str) else None)
     if scenario is None:
         scenario = default_scenario_name(dyn.model)
     sc = named_scenario(scenario, dyn.model) if isinstance(scenario, str) else scenario

@@ -252,3 +252,17 @@ def test_an_export_from_the_committed_folder_takes_no_lock_there(tmp_path, dyn, 
     folder = export(tmp_path / "out", "z-1hz", "p", duration=0.1, dyn=dyn)
     assert (folder / "params.h").is_file()
     assert not [p for p in taken if p.is_relative_to(repo_generated_dir())], taken
+
+
+def test_an_export_of_a_new_robot_derives_its_controller_alone(tmp_path, monkeypatch):
+    import hydrogen
+    import hydrogen.runtime.build as runtime_build
+    from hydrogen.codegen.generate import held_controllers
+
+    monkeypatch.setenv("HYDROGEN_CACHE_DIR", str(tmp_path / "cache"))
+    monkeypatch.setattr(runtime_build, "DEFAULT_DYNAMICS", {})
+    arm = pathlib.Path(__file__).parent / "data" / "four_way_arm.toml"
+    folder = export(tmp_path / "out", "arm-sim", "p", duration=0.05, model=str(arm))
+    assert (folder / "params.h").is_file()
+    (lib,) = runtime_build.DEFAULT_DYNAMICS.values()
+    assert held_controllers(lib.manifest) == ("p",)
