@@ -270,7 +270,7 @@ def tune(controller, grid=None, *, model=None, scenarios=None, secondary=None, a
         check_workers(max_workers)
     scen = dict(scenarios) if scenarios else require_rig_scenarios(model, f"tune --controller {controller}", variant)
     seeds = seed_list(DEFAULT_SEEDS if seeds is None else seeds)
-    dyn = build(model, **({} if numbers is None else {"numbers": numbers}))
+    dyn = build(model, controllers=(controller,), **({} if numbers is None else {"numbers": numbers}))
     grid = np.sort(np.asarray(default_grid(controller) if grid is None else grid, float))
     sec = secondary_grid(dyn, controller) if secondary is None else dict(secondary)
     sec_points = [dict(zip(sec, v)) for v in itertools.product(*sec.values())] or [{}]
@@ -416,8 +416,9 @@ def margins(controllers=None, *, model=None, scenarios=None, executor=None, max_
         check_workers(max_workers)
     scen = list(scenarios) if scenarios else list(require_rig_scenarios(model, "margins", variant))
     seeds = seed_list(DEFAULT_SEEDS if seeds is None else seeds)
-    dyn = build(model, **({} if numbers is None else {"numbers": numbers}))
     cases = [(c, s) for c in (controllers or model.controllers) for s in scen]
+    dyn = build(model, controllers=tuple(dict.fromkeys(c for c, _ in cases)),
+                **({} if numbers is None else {"numbers": numbers}))
     # The gains each case runs with: the robot's, under the scenario's own (a variant's gains).
     base = [_own_gains(dyn, c, s, model) for c, s in cases]
     g0 = [float(np.mean(b[main_gain(c)])) for b, (c, _) in zip(base, cases)]
