@@ -368,14 +368,14 @@ def identify(log, model=None, *, dyn=None, cutoff_hz: float | None = None, order
     parameters concerned (the summary says "not identifiable" for them, the JSON gives null);
     estimates outside the model's [adaptation] bounds are listed in ``warnings``.
     """
-    import hydrogen
     from scipy.signal import butter
 
     t_start = time.perf_counter()
     timings = {}
     log = as_log(log)
-    if dyn is None:
-        dyn = hydrogen.default_dynamics(model, numbers=numbers)
+    if dyn is None:  # the core alone: identification calls no controller
+        from .runtime.build import as_model, build
+        dyn = build(as_model(model), controllers=(), **({} if numbers is None else {"numbers": numbers}))
     model = dyn.model
     p = len(model.theta)
     m = len(dyn.leg_lengths(np.asarray(model.neutral_pose, float)))

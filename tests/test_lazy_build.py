@@ -276,3 +276,19 @@ def test_a_bad_controllers_list_names_the_file_and_key(tmp_path, value, words):
     with pytest.raises(hydrogen.ModelError) as err:
         hydrogen.load_model(path)
     assert str(err.value).startswith(f"{path}: controllers: ") and words in str(err.value)
+
+
+def test_a_build_for_no_controller_holds_the_core_alone(tmp_path):
+    """``controllers=()``: the core only (what identification calls); a later build for a
+    controller adds it."""
+    from hydrogen.codegen.generate import held_controllers
+
+    model = hydrogen.load_model(Path(__file__).parent / "data" / "four_way_arm.toml")
+    cache = tmp_path / "cache"
+    core = hydrogen.build(model, cache=cache, cflags=FAST, backend="ctypes", controllers=())
+    assert held_controllers(core.library.manifest) == () and core.library.loaded_groups() == (CORE,)
+    assert np.all(np.isfinite(core.leg_lengths(model.neutral_pose)))  # the core's functions run
+    grown = hydrogen.build(model, cache=cache, cflags=FAST, backend="ctypes", controllers=("p",))
+    assert held_controllers(grown.library.manifest) == ("p",)
+    every = hydrogen.build(model, cache=cache, cflags=FAST, backend="ctypes")  # None: all it lists
+    assert held_controllers(every.library.manifest) == tuple(CONTROLLERS)

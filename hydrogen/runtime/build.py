@@ -43,16 +43,18 @@ def generated_dir_for(model: Model, cache: Path | None = None, numbers: str = DE
 
 
 @contextmanager
-def generation_reported(report, model, folder, force: bool = False, controllers=()):
+def generation_reported(report, model, folder, force: bool = False, controllers=None):
     """Around a generation call: "generating" and "generated" (to ``report``, a
     :class:`~hydrogen.progress.Reporter`) when ``folder`` is stale for ``model``, lacks one of
-    ``controllers`` (names; empty: all) or ``force`` regenerates it (a current folder is no step:
-    nothing reported). Outside the generator, whose source is part of the derivation hash."""
+    ``controllers`` (names; None: those the model lists) or ``force`` regenerates it (a current
+    folder is no step: nothing reported). Outside the generator, whose source is part of the
+    derivation hash."""
     from ..codegen.generate import missing_controllers
     from ..progress import c_size
 
     stale = force or bool(check(model, Path(folder)))
-    missing = () if stale else missing_controllers(read_manifest(Path(folder)) or {}, controllers or model.controllers)
+    need = model.controllers if controllers is None else controllers
+    missing = () if stale else missing_controllers(read_manifest(Path(folder)) or {}, need)
     clock = report.start()
     if stale:
         report("generating", "deriving the model (SymPy) and writing C for each function")
@@ -176,7 +178,7 @@ def _check_controllers(controllers, model: Model) -> tuple:
 
 def build(model: Model | str | Path | None = None, *, cc: str | None = None,
           cflags: tuple | None = None, cache: Path | None = None, generated: Path | None = None,
-          backend: str = "auto", progress=None, controllers=(), numbers: str = DEFAULT_NUMBERS,
+          backend: str = "auto", progress=None, controllers=None, numbers: str = DEFAULT_NUMBERS,
           gains=None):
     """Generate if stale, compile if needed, load, and return a :class:`~hydrogen.dynamics.Dynamics`.
 
@@ -206,17 +208,18 @@ def build(model: Model | str | Path | None = None, *, cc: str | None = None,
         stage: "generating"/"generated" and "compiling"/"compiled" around the long steps, then
         "built"; a library already built gives "loaded" alone. A controller's library compiled
         later, on its first use, gives "compiling"/"compiled" then.
-    controllers : sequence of str
+    controllers : sequence of str, optional
         Controllers (names, as ``simulate`` takes them) whose library is compiled with the core, in
         the same pool of compilers, and loaded now: the variant the description's own gains run (the
-        lean one when they set no composite rate, else the full one). ``hydrogen.CONTROLLERS``: all. Where the C
-        is generated now (a new structure), only these controllers are derived; empty (the
-        default): all. A build whose folder lacks one adds it (derives it alone); a controller
-        the build does not hold is an error naming the build's controllers when it is run.
+        lean one when they set no composite rate, else the full one). Where the C is generated now
+        (a new structure), only these controllers are derived, and a folder that lacks one gets it
+        added (derived alone); a controller the build does not hold is an error naming the build's
+        controllers when it is run. None (the default): the folder holds every controller the
+        description lists (a folder that lacks one gets it), none compiled before its first use.
+        An empty sequence: the core alone (kinematics, rigid body, hydraulics, plant).
     gains : dict, optional
         By controller, gains a run will set over the description's (a scenario's own): they decide
         which variant of the controller is compiled with the core.
-        Empty: a folder that lacks some controller gets it.
     numbers : "inputs" (default) or "constants"
         "inputs" generates every function with the description's numbers as an input the runtime
         fills from the description (``Model.numbers()``), as the committed code is: a description
@@ -231,7 +234,10 @@ def build(model: Model | str | Path | None = None, *, cc: str | None = None,
     if not isinstance(model, Model):
         model = load_model(model)
     report = Reporter(progress, model.name)
-    controllers = _check_controllers(controllers, model)
+    # what the folder must hold (None: every controller the description lists; (): the core only),
+    # and the controllers whose library is compiled now
+    need = model.controllers if controllers is None else _check_controllers(controllers, model)
+    controllers = () if controllers is None else need
     check_numbers_mode(numbers)
     root = check_cache_root(Path(cache or cache_root()))
     folder = Path(generated) if generated else generated_dir_for(model, cache, numbers)
@@ -245,7 +251,7 @@ def build(model: Model | str | Path | None = None, *, cc: str | None = None,
         return made[-1]
 
     lib = warm_library(model, folder, toolchain, root, loader, numbers)  # no lock, no write: a read-only cache works
-    if lib is not None and missing_controllers(lib.manifest, controllers or model.controllers):
+    if lib is not None and missing_controllers(lib.manifest, need):
         lib = None  # the folder holds other controllers: theirs are added under the lock
     if lib is not None:
         groups = _own_variants(model, made[-1].manifest, controllers, gains)
@@ -263,9 +269,9 @@ def build(model: Model | str | Path | None = None, *, cc: str | None = None,
             if committed:  # whole (generate --check): it holds every controller
                 _still_current(model, folder, numbers)
             else:
-                with generation_reported(report, model, folder, controllers=controllers):
+                with generation_reported(report, model, folder, controllers=need):
                     # no-op when current; a build for some controllers derives only theirs
-                    generate_locked(model, folder, numbers=numbers, controllers=controllers or None)
+                    generate_locked(model, folder, numbers=numbers, controllers=need)
             manifest = read_manifest(folder)
             if manifest is None:
                 raise BuildCacheError(f"{folder}: generated folder has no readable manifest after generation")
@@ -356,6 +362,6 @@ def default_dynamics(model=None, progress=None, controller=None, numbers=None, g
         # a new structure derives only the controller run; another one later is added to it
         held = () if lib is None else tuple(c for c in CONTROLLERS if function_name(c) in lib.group_of)
         DEFAULT_DYNAMICS[key] = build(m, progress=progress, numbers=numbers, gains=gains,
-                                      controllers=(*held, *wanted) if wanted else ()).library
+                                      controllers=(*held, *wanted) if wanted else None).library
     from ..dynamics import Dynamics
     return Dynamics(m, DEFAULT_DYNAMICS[key])
