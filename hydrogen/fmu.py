@@ -378,7 +378,9 @@ def _plant_arrays(dyn, p):
     if numbers is not None:  # the description's numbers, inputs of every generated function: by name
         names = dyn.library.manifest[NUMBERS]
         out.append({"name": NUMBERS, "field": f"plant_{NUMBERS}", "size": len(names),
-                    "entries": [(_number_variable(k), None, f"the description's number {k} (SI)") for k in names],
+                    # the variable's array index is FMI's, 1-based; the description's (and params.h's) 0-based
+                    "entries": [(_number_variable(k), None, f"the description's number {k} (SI; FMI index from 1)"
+                                 if "[" in k else f"the description's number {k} (SI)") for k in names],
                     "values": [float(v) for v in numbers], "data": ", ".join(c_double(v) for v in numbers),
                     "ranges": number_ranges(model, names)})
     return out

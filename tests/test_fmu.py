@@ -492,6 +492,8 @@ def test_the_description_numbers_are_parameters_and_an_edit_equals_the_edited_de
     names = dyn.library.manifest["numbers"]
     assert f"numbers.{names[0]}" in params and "numbers.gravity" in params
     assert "numbers.boom_cylinder.from[1]" in params  # from[0]: FMI's arrays count from 1
+    assert params["numbers.boom_cylinder.from[1]"].description == \
+        "the description's number boom_cylinder.from[0] (SI; FMI index from 1)"  # the two indices told apart
     assert len([n for n in params if n.startswith("numbers.")]) == len(names)
     assert float(params["numbers.gravity"].start) == arm.gravity
     coords = arm.coordinate_names
