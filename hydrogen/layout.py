@@ -9,13 +9,12 @@ from __future__ import annotations
 
 import math
 
+from .names import NUMBERS  # the numbers input's name, part of the loop's layout
+
 __all__ = ["NUMBERS", "SLOTS", "MAX_DELAY", "PREDICTOR_MODEL", "delay_split", "LOOP_CONFIG", "LOOP_STATE", "LOOP_SIGNALS",
            "model_summary", "loop_context", "log_widths", "loop_functions",
            "c_double", "config_fields", "struct_fields"]
 
-#: The input of every function of a folder generated with the description's numbers as inputs
-#: (the manifest's ``numbers`` names its entries): the runtime fills it, a caller never passes it.
-NUMBERS = "numbers"
 
 #: Signals the loop writes into a controller's inputs, by input name, in this order (``u_applied``:
 #: the spool commands the valves held over the last period, after the clip and the computation delay).

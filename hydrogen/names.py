@@ -31,7 +31,12 @@ import re
 
 from .errors import ModelError
 
-__all__ = ["check_identifier", "check_label", "check_name", "MAX_IDENTIFIER"]
+__all__ = ["check_identifier", "check_label", "check_name", "MAX_IDENTIFIER", "NUMBERS"]
+
+#: The input of every function of a folder generated with the description's numbers as inputs
+#: (the manifest's ``numbers`` names its entries): the runtime fills it, a caller never passes it.
+#: Named here, below the derivation, which gives its functions the input by this name.
+NUMBERS = "numbers"
 
 #: Longest accepted model name (characters).
 MAX_IDENTIFIER = 64

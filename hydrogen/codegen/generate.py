@@ -45,8 +45,9 @@ DRIVERS = (("loop.h.j2", "_loop.h"), ("loop.c.j2", "_loop.c"))
 
 
 #: Top-level modules of the package that shape generated output besides the layers of
-#: :func:`derivation_hash`: the loop context, the escape of its values, the pressure blocks.
-DERIVATION_FILES = ("layout.py", "templating.py", "pressures.py")
+#: :func:`derivation_hash`: the loop context, the escape of its values, the pressure blocks, the names
+#: (the numbers input's).
+DERIVATION_FILES = ("layout.py", "templating.py", "pressures.py", "names.py")
 
 
 def derivation_hash() -> str:

@@ -12,7 +12,7 @@ from dataclasses import dataclass, field
 import sympy as sp
 
 from ..actuators import actuator
-from ..layout import NUMBERS
+from ..names import NUMBERS
 from ..pressures import blocks, n_pressures, uniform_three_way
 from .constants import PRESSURE_EPS, baked_table
 from .kinematics import leg_stages, pose_symbols, rate_symbols
