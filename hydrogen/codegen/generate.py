@@ -209,14 +209,10 @@ def derive(model, numbers: str = DEFAULT_NUMBERS, controllers=None, core: bool =
 
 def _owner(name: str) -> str | None:
     """The controller a generated function belongs to (by the registry's names), None for the core."""
-    from ..controllers import CONTROLLERS, LEAN, function_name, rates_function_name, step_function_name
+    from ..controllers import function_owner
 
-    for kind in CONTROLLERS:
-        for variant in (None, LEAN):
-            if name in (function_name(kind, variant), rates_function_name(kind, variant),
-                        step_function_name(kind, variant)):
-                return kind
-    return None
+    owner = function_owner(name)
+    return None if owner is None else owner[0]
 
 
 def held_controllers(manifest: dict) -> tuple:

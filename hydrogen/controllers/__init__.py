@@ -32,7 +32,7 @@ import importlib
 from .spec import ControllerSpec, StateBlock
 
 __all__ = ["CONTROLLERS", "controller", "spec", "baseline", "adapts", "function_name", "rates_function_name",
-           "step_function_name", "LEAN", "ControllerSpec", "StateBlock", "ESTIMATE_BLOCKS"]
+           "step_function_name", "function_owner", "LEAN", "ControllerSpec", "StateBlock", "ESTIMATE_BLOCKS"]
 
 #: The controller-state blocks that hold parameter estimates, in the order they are reported.
 ESTIMATE_BLOCKS = ("theta_hat", "gamma1_hat", "gamma2_hat")
@@ -91,3 +91,14 @@ def step_function_name(name: str, variant: str | None = None) -> str:
     ``ctrl_<module>[_<variant>]_step``, the controller's inputs then ``h``, ``xc_lo``, ``xc_hi``; outputs the
     command ``u`` at the updated state and that state ``xc_next``."""
     return function_name(name, variant) + "_step"
+
+
+def function_owner(fname: str):
+    """``(controller, variant)`` whose generated function is named ``fname`` (its controller, rates
+    or step function; variant None or :data:`LEAN`), or None for a function of no controller."""
+    for kind in CONTROLLERS:
+        for variant in (None, LEAN):
+            if fname in (function_name(kind, variant), rates_function_name(kind, variant),
+                         step_function_name(kind, variant)):
+                return kind, variant
+    return None

@@ -310,11 +310,10 @@ def function_groups(manifest: dict) -> dict:
     on its own, the full one (:func:`group_name` ``kind``: the controller, its rates and its
     semi-implicit step) and the lean one (``kind-lean``, run when every composite rate is 0), so a
     run compiles only the variant it runs."""
-    from ..controllers import CONTROLLERS, LEAN, function_name, rates_function_name, step_function_name
+    from ..controllers import CONTROLLERS, LEAN, function_owner
 
     names = [e["name"] for e in manifest["functions"]]
-    owner = {namer(kind, variant): group_name(kind, variant) for kind in CONTROLLERS for variant in (None, LEAN)
-             for namer in (function_name, rates_function_name, step_function_name)}
+    owner = {n: group_name(*o) for n in names if (o := function_owner(n)) is not None}
     groups = {CORE: [n for n in names if n not in owner]}
     for kind in CONTROLLERS:
         for variant in (None, LEAN):
