@@ -296,8 +296,9 @@ def test_three_way_cylinder_is_the_papers_actuator():
         mod.Symbolic.flow_inverse(s, (pc,), Ps, EPS)
 
 
-def test_the_derivation_hash_covers_the_actuators(tmp_path, monkeypatch):
-    """An edit to an actuator module changes what is generated, so it must make the generated code stale."""
+def test_the_derivation_hash_covers_the_actuators_a_robot_uses(tmp_path, monkeypatch):
+    """An edit to an actuator module changes what is generated for a robot using the kind, so it must
+    make that code stale; a robot without the kind stays current."""
     import shutil
     from pathlib import Path
 
@@ -305,14 +306,19 @@ def test_the_derivation_hash_covers_the_actuators(tmp_path, monkeypatch):
     pkg = Path(gen.__file__).resolve().parent.parent
     for name in gen.DERIVATION_FILES:
         shutil.copy(pkg / name, tmp_path / name)
-    for sub in ("symbolic", "codegen", "controllers", "actuators"):
+    for sub in gen.DERIVATION_DIRS:
         shutil.copytree(pkg / sub, tmp_path / sub)
     monkeypatch.setattr(gen, "_PACKAGE", tmp_path)
-    before = gen.derivation_hash()
+    before = {kinds: gen.derivation_hash(kinds) for kinds in (("rotary",), ("three_way_cylinder",))}
     path = tmp_path / "actuators" / "rotary.py"
     path.write_text(path.read_text() + "\n# an edit\n")
-    assert gen.derivation_hash() != before
-    before = gen.derivation_hash()
+    assert gen.derivation_hash(("rotary",)) != before[("rotary",)]
+    assert gen.derivation_hash(("three_way_cylinder",)) == before[("three_way_cylinder",)]
+    before = gen.derivation_hash(("three_way_cylinder",))
     path = tmp_path / "pressures.py"  # the pressure blocks shape the plant state and the controllers' inputs
     path.write_text(path.read_text() + "\n# an edit\n")
-    assert gen.derivation_hash() != before
+    assert gen.derivation_hash(("three_way_cylinder",)) != before
+    before = gen.derivation_hash(("three_way_cylinder",))
+    path = tmp_path / "actuators" / "two_chamber.py"  # shared by kinds: every robot's
+    path.write_text(path.read_text() + "\n# an edit\n")
+    assert gen.derivation_hash(("three_way_cylinder",)) != before

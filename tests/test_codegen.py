@@ -306,7 +306,7 @@ def test_check_compares_output_not_source_text(tmp_path, model, monkeypatch):
     for ``generate --check``; an edited file still does."""
     out = tmp_path / "gen"
     gen.generate(model, out)
-    monkeypatch.setattr(gen, "derivation_hash", lambda: "0" * 64)  # as after a comment edit
+    monkeypatch.setattr(gen, "derivation_hash", lambda kinds=(): "0" * 64)  # as after a comment edit
     assert gen.check(model, out) and all("derivation_hash" in r for r in gen.check(model, out))
     assert gen.check_output(model, out) == []
     victim = next(out.glob("*_gravity.c"))
@@ -462,3 +462,64 @@ def test_controllers_reading_a_number_the_folder_lacks_regenerate_it_whole(tmp_p
     monkeypatch.setattr(gen, "render", lambda *a, **k: (rendered.append(k["controllers"]), real(*a, **k))[1])
     assert gen.generate(model, folder, controllers=("p-task",))
     assert rendered == [("p", "p-task")] and gen.held_controllers(gen.read_manifest(folder)) == ("p", "p-task")
+
+
+def _package_copy(tmp_path, monkeypatch):
+    """The derivation code copied under ``tmp_path`` and read from there by the hashes: an edit of
+    the copy is an edit of hydrogen as far as staleness goes (the code run stays the installed one)."""
+    import shutil
+    pkg = Path(gen.__file__).resolve().parent.parent
+    copy = tmp_path / "package"
+    copy.mkdir()
+    for name in gen.DERIVATION_FILES:
+        shutil.copy(pkg / name, copy / name)
+    for sub in gen.DERIVATION_DIRS:
+        shutil.copytree(pkg / sub, copy / sub)
+    monkeypatch.setattr(gen, "_PACKAGE", copy)
+    return copy
+
+
+def test_a_controller_module_shapes_its_own_functions_alone(tmp_path, monkeypatch):
+    """The folder's derivation hash leaves out the controllers' modules (each function records its
+    controller's): editing or adding a controller stales no other function."""
+    copy = _package_copy(tmp_path, monkeypatch)
+    kinds = ("three_way_cylinder",)
+    before, own = gen.derivation_hash(kinds), gen.block_hash("controller", "p")
+    other = gen.block_hash("controller", "backstepping")
+    path = copy / "controllers" / "p.py"
+    path.write_text(path.read_text() + "\n# an edit\n")
+    assert gen.derivation_hash(kinds) == before
+    assert gen.block_hash("controller", "p") != own
+    assert gen.block_hash("controller", "backstepping") == other
+    (copy / "controllers" / "helper_not_registered.py").write_text("# shared by controllers\n")
+    assert gen.derivation_hash(kinds) != before  # a shared module of the blocks counts for all
+
+
+def test_an_edited_controller_is_derived_again_alone(tmp_path, monkeypatch, fresh_render):
+    """A folder whose one controller's module changed is stale for that controller only; generating
+    derives it alone and writes what a whole generation writes."""
+    model = hydrogen.load_model("loader_crane")
+    folder = tmp_path / "gen"
+    assert gen.generate(model, folder)
+    copy = _package_copy(tmp_path, monkeypatch)
+    path = copy / "controllers" / "p.py"
+    path.write_text(path.read_text() + "\n# an edit\n")
+    reasons = gen.check(model, folder)
+    assert len(reasons) == 1 and gen.STALE_CONTROLLER in reasons[0] and "'p'" in reasons[0]
+    untouched = {p.name: p.stat().st_mtime_ns for p in folder.iterdir() if "_ctrl_p" not in p.name}
+    derived = []
+    real = gen.derive
+    monkeypatch.setattr(gen, "derive", lambda *a, **k: (derived.append((tuple(a[2]), k["core"])), real(*a, **k))[1])
+    assert gen.generate(model, folder)
+    assert derived == [(("p",), False)]
+    assert gen.check(model, folder) == []
+    fresh = fresh_render(model)
+    assert sorted(os.listdir(folder)) == sorted(os.listdir(fresh))
+    for name in os.listdir(fresh):
+        if name != gen.MANIFEST:
+            assert (folder / name).read_bytes() == (fresh / name).read_bytes(), name
+    assert gen.check_output(model, folder) == []
+    assert untouched  # the core's files were copied, not written again
+    for name, mtime in untouched.items():
+        if name != gen.MANIFEST:
+            assert (folder / name).stat().st_mtime_ns == mtime, name

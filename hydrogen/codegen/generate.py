@@ -34,7 +34,7 @@ __all__ = [
 MANIFEST = "manifest.json"
 #: Keys every manifest holds: a folder whose manifest has them is a generated folder (may be replaced).
 GENERATED_KEYS = ("model_hash", "derivation_hash", "functions")
-FORMAT_VERSION = 1
+FORMAT_VERSION = 2
 CODEGEN_OPTIONS = {"with_header": True, "casadi_int": "long long int", "casadi_real": "double",
                    "verbose": True}
 
@@ -48,15 +48,48 @@ DRIVERS = (("loop.h.j2", "_loop.h"), ("loop.c.j2", "_loop.c"))
 #: :func:`derivation_hash`: the loop context, the escape of its values, the pressure blocks, the names
 #: (the numbers input's).
 DERIVATION_FILES = ("layout.py", "templating.py", "pressures.py", "names.py")
+#: The package's folders of derivation code; in the blocks' folders, a block's own module is hashed
+#: apart (:func:`block_hash`) and shapes only the functions that use it.
+DERIVATION_DIRS = ("symbolic", "codegen", "controllers", "actuators")
 
 
-def derivation_hash() -> str:
-    """SHA-256 of the code that shapes generated output: the symbolic, codegen, controller and actuator layers."""
+def _block_files() -> dict:
+    """``{(folder, file name): (role, name)}`` of every registered block's own module: the actuator
+    kinds ("kind") and the controllers ("controller")."""
+    from ..actuators import KINDS, actuator
+    from ..controllers import CONTROLLERS, controller
+
+    out = {}
+    for role, names, module in (("kind", KINDS, actuator), ("controller", CONTROLLERS, controller)):
+        for name in names:
+            folder, file = module(name).__name__.split(".")[-2:]
+            out[(folder, file + ".py")] = (role, name)
+    return out
+
+
+def block_hash(role: str, name: str) -> str:
+    """SHA-256 of the module of block ``name`` (``role`` "kind": an actuator kind; "controller")."""
+    for (folder, file), block in _block_files().items():
+        if block == (role, name):
+            return hashlib.sha256((_PACKAGE / folder / file).read_bytes()).hexdigest()
+    raise KeyError(f"no {role} {name!r}")
+
+
+def derivation_hash(kinds=()) -> str:
+    """SHA-256 of the code that shapes generated output for a robot with actuator ``kinds``: the
+    symbolic and codegen layers, the blocks' shared modules, the loop's templates and each of those
+    kinds' modules. A controller's module is covered by its functions' own hash
+    (:func:`block_hash`, recorded per function): adding or editing a controller or a kind leaves
+    every robot's functions that do not use it current."""
     h = hashlib.sha256()
     for name in DERIVATION_FILES:
         h.update((_PACKAGE / name).read_bytes())
-    for sub in ("symbolic", "codegen", "controllers", "actuators"):
+    blocks = _block_files()
+    own = {blocks_key for blocks_key, block in blocks.items() if block in {("kind", k) for k in kinds}}
+    for sub in DERIVATION_DIRS:
         for path in sorted((_PACKAGE / sub).glob("*.py")):
+            if (sub, path.name) in blocks and (sub, path.name) not in own:
+                continue
             h.update(f"{sub}/{path.name}\0".encode())
             h.update(path.read_bytes())
     for name, _ in DRIVERS:
@@ -68,6 +101,11 @@ def derivation_hash() -> str:
         h.update(f"templates/{name}\0".encode())
         h.update(path.read_bytes())
     return h.hexdigest()
+
+
+def model_kinds(model) -> tuple:
+    """The actuator kinds ``model`` uses, sorted."""
+    return tuple(sorted({c.kind for c in model.cylinders}))
 
 
 def render_drivers(manifest: dict, folder: Path) -> list:
@@ -122,7 +160,7 @@ def expected_manifest_inputs(model, numbers: str = DEFAULT_NUMBERS) -> dict:
     """What a manifest must record for its files to be current for ``model``: with the numbers as
     inputs, the model's structure hash (an edit of numbers only keeps the folder current)."""
     key = model.baked_hash() if check_numbers_mode(numbers) == "constants" else structure_hash(model)
-    return {"model_hash": key, "derivation_hash": derivation_hash(), "format": FORMAT_VERSION}
+    return {"model_hash": key, "derivation_hash": derivation_hash(model_kinds(model)), "format": FORMAT_VERSION}
 
 
 def numbers_hash(names: list) -> str:
@@ -145,8 +183,11 @@ def write_function(sf, model_name: str, folder: Path, cache: dict) -> dict:
     name = c_name(model_name, sf.name)
     fun = casadi_function(sf, c_name=name, cache=cache)
     write_casadi([fun], name, folder)
+    owner = _owner(sf.name)
     return {
         "name": sf.name, "c_name": name, "doc": sf.doc,
+        # a controller's functions record its module's hash: an edit of it stales them alone
+        **({} if owner is None else {"block_hash": block_hash("controller", owner)}),
         "source": f"{name}.c", "header": f"{name}.h",
         "inputs": [[fun.name_in(i), *fun.size_in(i)] for i in range(fun.n_in())],
         "outputs": [[fun.name_out(i), *fun.size_out(i)] for i in range(fun.n_out())],
@@ -213,6 +254,23 @@ def _owner(name: str) -> str | None:
 
     owner = function_owner(name)
     return None if owner is None else owner[0]
+
+
+#: The words of :func:`check`'s reason for a controller whose functions' derivation changed.
+STALE_CONTROLLER = "derivation changed for controller"
+
+
+def stale_controllers(manifest: dict) -> tuple:
+    """The controllers a generated folder holds whose module changed since their functions were
+    generated (or that are not registered any more), in the registry's order."""
+    from ..controllers import CONTROLLERS
+
+    out = []
+    for e in manifest.get("functions", []):
+        owner = _owner(e["name"])
+        if owner is not None and owner not in out and e.get("block_hash") != block_hash("controller", owner):
+            out.append(owner)
+    return tuple(k for k in CONTROLLERS if k in out)
 
 
 def held_controllers(manifest: dict) -> tuple:
@@ -322,23 +380,29 @@ def generate_locked(model, out_dir: Path, force: bool = False, progress: bool = 
     out_dir = Path(out_dir)
     check_identifier(model.name, "model name")  # it becomes C symbols, file names and build-file text
     recover_dir(out_dir)
-    if not force and not check(model, out_dir, numbers):
-        missing = missing_controllers(read_manifest(out_dir), model.controllers if controllers is None else controllers)
-        if not missing or extend(model, out_dir, missing, progress):
-            return bool(missing)
-        controllers = (*held_controllers(read_manifest(out_dir)), *missing)  # whole again, with them
+    reasons = [] if force else check(model, out_dir, numbers)
+    manifest = read_manifest(out_dir) or {}
+    stale = stale_controllers(manifest) if reasons else ()
+    if not force and len(reasons) == len(stale):  # current, but for controllers changed or missing
+        missing = missing_controllers(manifest, model.controllers if controllers is None else controllers)
+        redo = (*stale, *(k for k in missing if k not in stale))
+        if not redo or extend(model, out_dir, redo, progress, replacing=stale):
+            return bool(redo)
+        controllers = (*held_controllers(manifest), *(k for k in missing if k not in stale))  # whole again
     check_replaceable_dir(out_dir, MANIFEST, GENERATED_KEYS, "a hydrogen generated folder", probe=False)  # even forced
     _staged(out_dir, lambda staging: render(model, staging, progress=progress, numbers=numbers,
                                             controllers=controllers))
     return True
 
 
-def extend(model, folder: Path, controllers, progress: bool = False) -> bool:
+def extend(model, folder: Path, controllers, progress: bool = False, replacing=()) -> bool:
     """Add the functions of ``controllers`` to the current generated ``folder`` (the caller holds its
     lock): they alone are derived and written, the folder swapped in whole with its manifest. The
-    result is byte for byte what a whole generation of the same controllers writes. False (nothing
-    written) when they read a description number the folder's functions do not take: then only a
-    whole generation can give every function the same numbers input."""
+    result is byte for byte what a whole generation of the same controllers writes. ``replacing``:
+    controllers among them the folder holds already (their module changed): their functions' files
+    and entries give way to the new ones. False (nothing written) when they read a description
+    number the folder's functions do not take: then only a whole generation can give every function
+    the same numbers input."""
     from tqdm import tqdm
 
     folder = Path(folder)
@@ -351,14 +415,17 @@ def extend(model, folder: Path, controllers, progress: bool = False) -> bool:
     if names != seed:
         return False
 
+    kept = [e for e in manifest["functions"] if _owner(e["name"]) not in replacing]
+    dropped = {f for e in manifest["functions"] if e not in kept for f in (e["source"], e["header"])}
+
     def write(staging):
         for p in folder.iterdir():
-            if not p.name.startswith("."):
+            if not p.name.startswith(".") and p.name not in dropped:
                 shutil.copy2(p, staging / p.name)
         cache = {}
         added = [write_function(sf, model.name, staging, cache)
                  for sf in tqdm(functions, desc="generating C", unit="fn", disable=None if progress else True)]
-        grown = {**manifest, "functions": _canonical([*manifest["functions"], *added]),
+        grown = {**manifest, "functions": _canonical([*kept, *added]),
                  "files": _file_hashes(staging)}
         write_file(staging / MANIFEST, json.dumps(grown, indent=2, sort_keys=True) + "\n")
 
@@ -387,7 +454,7 @@ def check_output(model, folder: Path, numbers: str | None = None) -> list:
         missing = missing_controllers(read_manifest(folder), model.controllers)
         return [f"{folder}: holds no functions of {', '.join(missing)} (generated for some controllers "
                 "only)"] if missing else []
-    derivation_only = all("derivation_hash changed" in r for r in reasons)
+    derivation_only = all("derivation_hash changed" in r or STALE_CONTROLLER in r for r in reasons)
     if not derivation_only:
         return reasons
     folder = Path(folder)
@@ -401,8 +468,10 @@ def check_output(model, folder: Path, numbers: str | None = None) -> list:
             out.append(f"{folder / name}: {'not generated any more' if name not in fresh else 'missing'}")
         elif name == MANIFEST:
             old, new = (json.loads(b) for b in ((folder / name).read_bytes(), fresh[name]))
-            old.pop("derivation_hash", None)
-            new.pop("derivation_hash", None)
+            for m in (old, new):  # the hashes of the code; what it generated is compared
+                m.pop("derivation_hash", None)
+                for e in m.get("functions", []):
+                    e.pop("block_hash", None)
             if old != new:
                 out.append(f"{folder / name}: differs from a fresh generation")
         elif (folder / name).read_bytes() != fresh[name]:
@@ -430,6 +499,8 @@ def check(model, folder: Path, numbers: str | None = None) -> list:
         if manifest.get(key) != value:
             reasons.append(f"{folder}: {key} changed (recorded {str(manifest.get(key))[:12]}, "
                            f"now {str(value)[:12]})")
+    for k in stale_controllers(manifest):
+        reasons.append(f"{folder}: {STALE_CONTROLLER} '{k}' (its module changed since its functions were generated)")
     listed = _listed_numbers_hash(manifest.get("numbers"))
     if mode == "inputs" and (listed is None or manifest.get("numbers_hash") != listed):
         reasons.append(f"{folder / MANIFEST}: its numbers list does not match the numbers_hash recorded "
