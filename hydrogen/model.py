@@ -1407,7 +1407,7 @@ def model_from_dict(data: dict, source: str = "<memory>", base_dir: Path | None 
     scen = r.table(data, "scenarios", required=False)
     for sname in scen:  # written into exported Makefiles, headers and FMUs
         from .names import check_label
-        from .simulation.scenarios import VARIANT_SEPARATOR
+        from .scenario_settings import VARIANT_SEPARATOR
         check_label(sname, f"{source}: [scenarios.{sname}]")
         if VARIANT_SEPARATOR in sname:  # '<scenario>.<variant>' would name a variant, never this table
             raise r.error(f'[scenarios."{sname}"]', f"a scenario name may not contain '{VARIANT_SEPARATOR}', which "
@@ -1432,8 +1432,8 @@ def model_from_dict(data: dict, source: str = "<memory>", base_dir: Path | None 
 def _check_tables(r: _Reader, m: Model):
     """Every gain and scenario table and key known, at load time (they are read only when a run
     starts); the known ones come from their definitions: the controllers' gains, the Scenario fields."""
-    from .simulation.control import COMMON_GAINS, CONTROLLERS, gain_names
-    from .simulation.scenarios import RENAMED, table_keys
+    from .controllers import COMMON_GAINS, CONTROLLERS, gain_names
+    from .scenario_settings import RENAMED, table_keys
     names = {c: gain_names(c, m) for c in CONTROLLERS}
     _check_gains(r, m.gains, "[gains]", {**names, COMMON_GAINS: frozenset().union(*names.values())})
     r.known(m.scenarios["rig"], table_keys(rig=True), "[rig]", RENAMED)

@@ -237,7 +237,7 @@ def _actuator_rows() -> list:
 
 def description_table() -> str:
     """Markdown: every description key and scenario field with its unit, default and meaning."""
-    from .simulation.scenarios import settings
+    from .scenario_settings import settings
     lines = ["| table | key | unit | default | meaning |", "|---|---|---|---|---|"]
     for k in DESCRIPTION_KEYS + SCENARIO_TABLE_KEYS + VARIANT_KEYS:
         shown = k.default_text or ("none" if k.default is None else _toml(k.default))

@@ -1,4 +1,4 @@
-"""Composite adaptation of γ (hydrogen/symbolic/composite.py): the prediction error, the
+"""Composite adaptation of γ (hydrogen/controllers/composite.py): the prediction error, the
 least-squares gain, weight 0 = the paper's gradient law, and convergence on paper-sim."""
 import numpy as np
 import pytest
@@ -8,7 +8,7 @@ import hydrogen
 from hydrogen.controllers.common import initial_gain_matrix
 from hydrogen.pressures import n_pressures
 from hydrogen.simulation.control import make_controller
-from hydrogen.symbolic.composite import normalised_least_squares, pack_symmetric, unpack_symmetric
+from hydrogen.controllers.composite import normalised_least_squares, pack_symmetric, unpack_symmetric
 
 from controller_inputs import PAPER_LAWS, kind_laws, random_controller_inputs
 
@@ -222,7 +222,7 @@ def test_theta_signals_of_a_staged_tree_equal_the_closed_forms(rng, tilted):
     and the arm with an oblique joint, whose closed form takes Y_p and Y_b as Jacobians in θ
     instead of expanding D once per parameter."""
     from hydrogen.symbolic import rigid_body
-    from hydrogen.symbolic.composite import RigidBodyComposite
+    from hydrogen.controllers.composite import RigidBodyComposite
     from hydrogen.symbolic.control_laws import Common
     from hydrogen.symbolic.forms import oblique_joints, with_form
 
@@ -268,7 +268,7 @@ def test_copies_of_the_last_period_start_at_the_initial_measurement(robot_dyn):
 def test_staged_least_squares_equals_the_plain_law(rng):
     """The controllers' staged form (W, ε, P Wᵀ and k/m² bound to symbols) gives the same ẋ and Ṗ as
     the plain law, the stages substituted in order, at random values."""
-    from hydrogen.symbolic.composite import staged_least_squares
+    from hydrogen.controllers.composite import staged_least_squares
 
     rows, p = 3, 4
     W = sp.Matrix(rows, p, lambda i, j: sp.Symbol(f"w{i}_{j}"))

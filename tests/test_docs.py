@@ -163,7 +163,7 @@ def test_bench_run_ends_by_writing_its_page(tmp_path, monkeypatch):
 
 def test_description_table_lists_every_key_the_loader_accepts():
     from hydrogen.model import HYDRAULIC_KEYS
-    from hydrogen.simulation.scenarios import _FIELDS
+    from hydrogen.scenario_settings import _FIELDS
     table = schema.description_table()
     rows = {tuple(c.strip(" `") for c in line.split("|")[1:3]) for line in table.splitlines()[2:]}
     for k in schema.DESCRIPTION_KEYS + schema.SCENARIO_TABLE_KEYS + schema.VARIANT_KEYS:
@@ -177,7 +177,7 @@ def test_scenario_rows_come_from_the_fields_own_declarations(monkeypatch):
     """A scenario field's unit, meaning and default are declared once, on the field: the table shows
     what the declaration says, and a changed declaration changes the row."""
     import dataclasses
-    from hydrogen.simulation import scenarios
+    from hydrogen import scenario_settings as scenarios
     rows = {line.split("|")[2].strip(" `"): line for line in schema.description_table().splitlines()[2:]
             if "[rig]" in line}
     for f in scenarios.settings():
@@ -187,7 +187,7 @@ def test_scenario_rows_come_from_the_fields_own_declarations(monkeypatch):
     patched = dataclasses.field(default=7, metadata={**seed.metadata, "meaning": "a changed meaning"})
     patched.name = "seed"
     monkeypatch.setattr(scenarios, "settings", lambda: tuple(patched if f.name == "seed" else f
-                                                             for f in dataclasses.fields(scenarios.Scenario)
+                                                             for f in dataclasses.fields(scenarios.ScenarioFields)
                                                              if "unit" in f.metadata))
     assert "| `seed` | – | 7 | a changed meaning |" in schema.description_table()
 

@@ -5,6 +5,8 @@ explicit rule. A memo keyed by the (hashable, structurally compared) SymPy node
 means a subexpression that occurs many times becomes one SX node, so shared
 work stays shared in the generated C. A node without a rule raises
 :class:`~hydrogen.errors.UnsupportedExpressionError` naming its type.
+:func:`to_casadi_function` makes a derived function's casadi.Function (the
+derivation's form choice counts its instructions, code generation writes its C).
 """
 from __future__ import annotations
 
@@ -14,7 +16,7 @@ from sympy.functions.elementary.piecewise import ExprCondPair
 
 from ..errors import UnsupportedExpressionError
 
-__all__ = ["SympyToCasadi", "to_casadi"]
+__all__ = ["SympyToCasadi", "to_casadi", "to_casadi_function", "shape_of"]
 
 _UNARY = {
     sp.sin: ca.sin, sp.cos: ca.cos, sp.tan: ca.tan,
@@ -159,3 +161,42 @@ class SympyToCasadi:
 def to_casadi(expr, symbols: dict):
     """One-shot conversion of ``expr`` (scalar or Matrix) with the given symbol table."""
     return SympyToCasadi(symbols)(expr)
+
+
+def shape_of(mat) -> tuple:
+    """(rows, cols) of a SymPy Matrix (a scalar counts as 1×1)."""
+    return tuple(mat.shape) if isinstance(mat, sp.MatrixBase) else (1, 1)
+
+
+def to_casadi_function(sf, c_name: str | None = None, cse: bool = True) -> ca.Function:
+    """Build the CasADi Function of a :class:`~hydrogen.symbolic.functions.SymbolicFunction`.
+
+    Each input symbol maps to one element of a dense SX input; one converter
+    is shared by all outputs so their common subexpressions are one node.
+    Intermediates ``(symbols, value)`` are converted in order and bound to their
+    symbols; ``value`` may be ``("inverse", M)`` for a numeric matrix inverse or
+    ``("solve", A, b)`` for the solution of A x = b.
+    """
+    table, sx_in = {}, []
+    for name, mat in sf.inputs:
+        rows, cols = shape_of(mat)
+        sym = ca.SX.sym(name, rows, cols)
+        for i in range(rows):
+            for j in range(cols):
+                table[mat[i, j]] = sym[i, j]
+        sx_in.append(sym)
+    conv = SympyToCasadi(table)
+    for symbols, value in getattr(sf, "intermediates", []):
+        if isinstance(value, tuple) and value[0] == "inverse":
+            # A numeric inverse (CasADi's symbolic QR solve), never a SymPy closed form.
+            mat = conv(value[1])
+            sx = ca.solve(mat, ca.SX.eye(mat.shape[0]))
+        elif isinstance(value, tuple) and value[0] == "solve":
+            sx = ca.solve(conv(value[1]), conv(value[2]))  # A x = b without forming A⁻¹
+        else:
+            sx = conv(value)
+        conv.define(symbols, sx)
+    sx_out = [conv(sp.Matrix(expr) if not isinstance(expr, sp.MatrixBase) else expr)
+              for _, expr in sf.outputs]
+    return ca.Function(c_name or sf.name, sx_in, sx_out,
+                       [n for n, _ in sf.inputs], [n for n, _ in sf.outputs], {"cse": cse})

@@ -29,10 +29,13 @@ from __future__ import annotations
 
 import importlib
 
+import numpy as np
+
 from .spec import ControllerSpec, StateBlock
 
 __all__ = ["CONTROLLERS", "controller", "spec", "baseline", "adapts", "function_name", "rates_function_name",
-           "step_function_name", "function_owner", "LEAN", "ControllerSpec", "StateBlock", "ESTIMATE_BLOCKS"]
+           "step_function_name", "function_owner", "gain_names", "COMMON_GAINS", "LEAN", "ControllerSpec", "StateBlock",
+           "ESTIMATE_BLOCKS"]
 
 #: The controller-state blocks that hold parameter estimates, in the order they are reported.
 ESTIMATE_BLOCKS = ("theta_hat", "gamma1_hat", "gamma2_hat")
@@ -51,6 +54,9 @@ for _mod in _MODULES:
 #: User-facing controller names.
 CONTROLLERS = tuple(_REGISTRY)
 
+#: The description's ``[gains.<this>]`` table, whose gains apply to every controller that has them.
+COMMON_GAINS = "common"
+
 
 def controller(name: str):
     """The module of controller ``name`` (KeyError if unknown)."""
@@ -60,6 +66,12 @@ def controller(name: str):
 def spec(name: str) -> ControllerSpec:
     """The :class:`ControllerSpec` of controller ``name`` (KeyError if unknown)."""
     return _REGISTRY[name].SPEC
+
+
+def gain_names(kind, model) -> frozenset:
+    """Names of the gains of controller ``kind`` for ``model``: those its defaults define, the only ones
+    a description's ``[gains.<kind>]`` or the caller may set (KeyError if the controller is unknown)."""
+    return frozenset(controller(kind).default_gains(model, np.ones(model.n)))
 
 
 def baseline() -> str:

@@ -73,7 +73,7 @@ def static_inputs(dyn, theta0, gamma0) -> dict:
 def derive(model):
     import sympy as sp
 
-    from ..symbolic.composite import HydraulicComposite, RigidBodyComposite
+    from .composite import HydraulicComposite, RigidBodyComposite
     from ..symbolic.calculus import clip, time_derivative
     from ..symbolic.control_laws import Common, ControllerParts, diag, solve_or_inverse, state_and_rates, vector
 

@@ -85,7 +85,7 @@ def adaptation_gains(model) -> dict:
 
 
 def composite_gains() -> dict:
-    """Gains of the composite (prediction-error, least-squares) terms (:mod:`hydrogen.symbolic.composite`).
+    """Gains of the composite (prediction-error, least-squares) terms (:mod:`hydrogen.controllers.composite`).
 
     ``rate_ls_gamma`` k (1/s) weighs the composite term of γ; 0 (the default) is the paper's gradient
     law exactly. ``lambda_f_gamma`` (1/s) is the bandwidth of the filters that make the prediction
@@ -106,10 +106,10 @@ def composite_layout(model) -> list:
     to an adaptive controller, in order: per
     cylinder the filtered force (N), ln(l − L) (a three-way cylinder; another kind's f0_potential) and g0
     (N/s per unit γ2), the previous period's pressures (Pa, the pressure vector) and length (m), and the 2×2 least-squares gain's upper
-    triangle [P11, P12, P22] (dimensionless) (:class:`hydrogen.symbolic.composite.HydraulicComposite`);
+    triangle [P11, P12, P22] (dimensionless) (:class:`hydrogen.controllers.composite.HydraulicComposite`);
     then for θ the filtered momentum regressor Y_p (n×p, row-major) and offset p0, the filtered
     Y_b and b0 of G − Cᵀq̇, the filtered generalised force (JL)ᵀ f, and the p×p gain's upper
-    triangle (:class:`hydrogen.symbolic.composite.RigidBodyComposite`)."""
+    triangle (:class:`hydrogen.controllers.composite.RigidBodyComposite`)."""
     from ..pressures import n_pressures
     m, n_p = model.n_cylinders, n_pressures(model)
     n, p = model.n, model.n_theta

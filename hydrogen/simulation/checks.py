@@ -102,7 +102,7 @@ def check_fields(sc) -> None:
     name = sc.name
     if not isinstance(name, str) or not name:
         raise ScenarioError(f"scenario name must be a non-empty string, got {_shown(name)}")
-    from .scenarios import settings
+    from ..scenario_settings import settings
     for f in settings():  # each number's check as its field declares it
         v = getattr(sc, f.name)
         if f.metadata["check"] in ("number", ">=0") and (not _is_real(v) or not np.isfinite(v)):
@@ -136,7 +136,7 @@ def check_fields(sc) -> None:
 
 def check_call(scenario, controller, gains, duration, check_workspace) -> None:
     """The arguments of simulate/stepper/export, before anything is built from them."""
-    from .control import CONTROLLERS
+    from ..controllers import CONTROLLERS
     from .scenarios import Scenario
 
     if not isinstance(scenario, (str, Scenario)):

@@ -14,8 +14,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..controllers import (CONTROLLERS, LEAN, controller as controller_module, function_name, rates_function_name,
-                           step_function_name)
+from ..controllers import (COMMON_GAINS, CONTROLLERS, LEAN, controller as controller_module, function_name,
+                           gain_names, rates_function_name, step_function_name)
 from ..controllers.common import COMPOSITE_GAIN_BLOCKS, check_coupling_gains, gain_block_shape, initial_gain_matrix, \
     normalised_adaptation, runs_lean
 from .. import pressures
@@ -23,16 +23,6 @@ from ..errors import ScenarioError
 from .checks import check_gain_values
 
 __all__ = ["make_controller", "default_gains", "CONTROLLERS", "gain_scale", "COMMON_GAINS", "gain_names"]
-
-#: The description's ``[gains.<this>]`` table, whose gains apply to every controller that has them.
-COMMON_GAINS = "common"
-
-
-def gain_names(kind, model) -> frozenset:
-    """Names of the gains of controller ``kind`` for ``model``: those its defaults define, the only ones
-    a description's ``[gains.<kind>]`` or the caller may set (KeyError if the controller is unknown)."""
-    return frozenset(controller_module(kind).default_gains(model, np.ones(model.n)))
-
 
 def gain_scale(dyn) -> np.ndarray:
     """Per-coordinate inertia scale of the default gains: the model's ``[control] scale``, else the

@@ -6,42 +6,27 @@ from __future__ import annotations
 import math
 
 from collections.abc import Mapping
-from dataclasses import dataclass, field, fields, replace
+from dataclasses import dataclass, replace
 
 import numpy as np
 
 from ..errors import ScenarioError
 from ..layout import MAX_DELAY, delay_split
+from ..scenario_settings import (_FIELDS, RENAMED, VARIANT_SEPARATOR, ScenarioFields, setting, settings,  # noqa: F401
+                                 table_keys)
 from .checks import check_fields
 from .reference import MultiSine, Step
 
 __all__ = ["Scenario", "setting", "settings", "PER_ACTUATOR", "actuator_settings", "per_actuator_unit", "scenario", "scenario_names", "variant_names", "split_variant", "table_keys", "default_scenario_name", "RENAMED"]
 
-#: Scenario fields that were renamed: the old name and what to write instead (named in the error).
-RENAMED = {"delay_periods": "delay (the computation delay in s; one period is 1/control_rate)"}
-
-
-def setting(default, unit: str, meaning: str, check: str | None = None, default_text: str | None = None):
-    """A scenario field that a description's ``[scenarios.<name>]`` or ``[rig]`` table may set, declared
-    once: its default (None: required), unit and meaning (the description table's row, rendered by
-    :func:`hydrogen.schema.description_table`) and its check: ``"number"`` a finite number, ``">=0"``
-    also not negative (None: checked by :meth:`Scenario.validated` itself)."""
-    meta = {"unit": unit, "meaning": meaning, "check": check, "default_text": default_text}
-    return field(metadata=meta) if default is None else field(default=default, metadata=meta)
-
-
-def settings() -> tuple:
-    """The :class:`Scenario` fields a description table may set, in declaration order (dataclass fields)."""
-    return tuple(f for f in fields(Scenario) if "unit" in f.metadata)
-
 
 @dataclass(frozen=True)
-class Scenario:
+class Scenario(ScenarioFields):
     """Everything a run needs besides the controller. Units SI.
 
-    Each field a description may set is declared below with its default, unit, meaning and check
-    (:func:`setting`; the description table in the documentation lists them). Two behaviours need
-    more words than a table cell: the command computed from the measurement at t_k is applied from
+    Each field a description may set is declared with its default, unit, meaning and check in
+    :class:`~hydrogen.scenario_settings.ScenarioFields` (the description table in the documentation
+    lists them). Two behaviours need more words than a table cell: the command computed from the measurement at t_k is applied from
     t_k + ``delay`` (a fraction of a period switches the valves' command inside the plant's
     sub-steps); with ``kalman`` the leg rates come from fixed-gain Kalman filters on the measured leg
     lengths (constant-velocity model, white acceleration of density ``kalman_accel``, measurement
@@ -49,46 +34,6 @@ class Scenario:
     equation). ``gains`` holds this scenario's tuning per controller, under any gains the caller
     passes. The robot starts at rest at q_d(0) + q0_offset, its pressures holding it against gravity.
     """
-
-    name: str
-    reference: object
-    duration: float = setting(None, "s", "length of the run", "number")
-    control_rate: float = setting(None, "Hz", "control rate, zero-order hold", "number")
-    substeps: int = setting(None, "", "RK4 plant steps per control period")
-    t_adapt: float = setting(None, "s", "adaptation switched on from this time", "number")
-    friction: tuple = setting((0.0, 0.0, 1e-3), "N, N s/m, m/s", "per cylinder: Coulomb, viscous, tanh smoothing speed")
-    valve_lag: float = setting(0.0, "s", "first-order valve lag (0: none); exclusive with valve_bandwidth_hz", ">=0")
-    valve_bandwidth_hz: float = setting(0.0, "Hz", "second-order servo-valve natural frequency (the spool lags 90° "
-                                        "there); 0: none", ">=0")
-    valve_damping: float = setting(0.7, "", "second-order valve damping ratio", "number")
-    delay: float = setting(0.0, "s", "computation delay: the command computed at t_k is applied from t_k + this (0 to "
-                           "8 control periods; a fraction of a period switches the command inside the plant's "
-                           "sub-steps)", "number")
-    predictor: bool = setting(False, "", "delay compensation: the command is computed at the state predicted for "
-                              "t_k + delay by the controller's own model (its estimates where it adapts them, "
-                              "ideal valve, no friction) over the commands still in flight, and at the reference "
-                              "of that time")
-    predictor_substeps: int = setting(4, "", "the predictor's RK4 steps per control period (a fraction of a period "
-                                      "takes its share, at least one)")
-    quantization_l: float = setting(0.0, "m", "cylinder-length encoder resolution (0: none)", ">=0")
-    noise_l: float = setting(0.0, "m", "std of white cylinder-length noise", ">=0")
-    noise_q: float = setting(0.0, "rad or m", "std of white joint-encoder noise (robots with joint encoders)", ">=0")
-    noise_p: float = setting(0.0, "Pa", "std of white pressure noise", ">=0")
-    kalman: bool = setting(False, "", "cylinder rates from fixed-gain Kalman filters (else exact)")
-    kalman_accel: float = setting(50.0, "m²/s³", "the filter's white-acceleration density", ">=0")
-    theta0_factor: tuple = setting((), "", "initial θ̂ = θ × factor, one per parameter",
-                                   default_text="1 for every parameter")
-    gamma0_factor: tuple = setting((1.0, 1.0), "", "initial [γ̂1, γ̂2] = γ × factor")
-    metric_start: float = setting(0.0, "s", "metrics over t ≥ this (clamped to the run)", "number")
-    q0_offset: tuple = setting((), "m, rad", "start pose offset from q_d(0), one per coordinate",
-                               default_text="0 for every coordinate")
-    seed: int = setting(0, "", "noise seed")
-    estimator_update: str = setting("semi-implicit", "", 'controller state update: "semi-implicit" or "euler"')
-    #: actuator name -> {setting of PER_ACTUATOR: value in that actuator's own unit}
-    actuators: dict = field(default_factory=dict)
-    gains: dict = field(default_factory=dict)  # controller name -> gain overrides for this scenario
-    label: str = ""        # caption in figures and tables (e.g. the paper's figure it reproduces)
-    paper: dict = field(default_factory=dict)  # published max errors (%): {coordinate: [nonlinear, P]}
 
     def noise_free(self) -> dict:
         """The overrides that switch every sensor noise off, the per-actuator ones included."""
@@ -210,24 +155,6 @@ def actuator_settings(sc: Scenario, model) -> dict:
     return {k: np.asarray(v, float) for k, v in out.items()}
 
 
-def _field_names() -> tuple:
-    return tuple(f.name for f in settings())
-
-
-_FIELDS = _field_names()
-#: Keys of a ``[scenarios.<name>]`` table besides the fields: the rig it starts from, its gains per
-#: controller, its reference, caption and published errors.
-_TABLE_KEYS = ("rig", "gains", "reference", "label", "paper")
-#: Keys of a ``[rig]`` table besides the fields: its per-actuator settings.
-_RIG_KEYS = ("actuators",)
-
-
-def table_keys(rig: bool = False) -> frozenset:
-    """The keys a description's ``[scenarios.<name>]`` table may hold, or its ``[rig]`` table (``rig``:
-    fields only)."""
-    return frozenset(_FIELDS + _RIG_KEYS if rig else _FIELDS + _RIG_KEYS + _TABLE_KEYS)
-
-
 def _reference(model, where, spec, neutral):
     """A reference from its description: ``sines = [[coordinate, amplitude, Hz], ...]`` or
     ``step = { coordinate, height, time }``; coordinates by name or index, offsets from neutral."""
@@ -268,10 +195,6 @@ def default_scenario_name(model) -> str:
 def variant_names(model) -> tuple:
     """Names of the variants the model's description defines (``[variants.<name>]``)."""
     return tuple(getattr(model, "variants", None) or {})
-
-
-#: Joins a scenario's name to a variant's (``<scenario>.<variant>``): neither name may hold it.
-VARIANT_SEPARATOR = "."
 
 
 def split_variant(name: str, model) -> tuple:

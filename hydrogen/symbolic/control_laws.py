@@ -217,7 +217,7 @@ class Common:
 
         ``combine(t1, t2) -> (r1, r2)`` turns the tracking terms (lists per cylinder) into the
         rates that go through the projection (the composite adaptation,
-        :class:`hydrogen.symbolic.composite.HydraulicComposite`); None keeps the paper's law."""
+        :class:`hydrogen.controllers.composite.HydraulicComposite`); None keeps the paper's law."""
         m = self.m
         g0 = self.g0_applied  # bound by force_loop to g0(u_applied), the spool the valves received
         t1 = [Gg1_inv[i] / self.Gtau_inv[i] * f0[i] * ftil[i] for i in range(m)]

@@ -46,11 +46,10 @@ def with_form(model, form: str):
 def form_costs(model, form: str) -> dict:
     """CasADi instructions (with CSE) of the :data:`COUNTED` rigid-body functions of ``model`` in
     ``form`` ("closed" or "staged"), by function name."""
-    from ..codegen.casadi_functions import casadi_function
-    from .functions import rigid_body_functions
+    from ..codegen.sympy_to_casadi import to_casadi_function
+    from .body_functions import rigid_body_functions
 
-    cache = {}
-    return {sf.name: int(casadi_function(sf, cache=cache).n_instructions())
+    return {sf.name: int(to_casadi_function(sf).n_instructions())
             for sf in rigid_body_functions(with_form(model, form), form_dynamics=True) if sf.name in COUNTED}
 
 

@@ -31,7 +31,7 @@ from __future__ import annotations
 
 import sympy as sp
 
-from ..controllers.common import COMPOSITE_BLOCKS
+from .common import COMPOSITE_BLOCKS
 from ..pressures import blocks
 
 __all__ = ["triangle_size", "unpack_symmetric", "pack_symmetric", "normalised_least_squares",
@@ -294,7 +294,7 @@ class RigidBodyComposite:
 
     def signals(self):
         """(Y_p, p0, Y_b, b0) as expressions of q, q̇ (and, on a staged tree, its link-pose symbols)."""
-        from .rigid_body import rigid_body_stages
+        from ..symbolic.rigid_body import rigid_body_stages
 
         if rigid_body_stages(self.c.model, self.c.q):
             return self._staged_signals()
@@ -306,8 +306,8 @@ class RigidBodyComposite:
         D q̇ = Y(q, 0, 0, q̇) − Y(q, 0, 0, 0), C q̇ + G = Y(q, q̇, q̇, 0), and Cᵀ q̇ = Ḋ q̇ − C q̇
         (Ḋ = C + Cᵀ) with Ḋ q̇ the forward-mode time derivative of D q̇ through q and the poses,
         q̇ held (the same quantities as the closed form's, tested)."""
-        from .calculus import time_derivative
-        from .rigid_body import regressor, regressor_offset
+        from ..symbolic.calculus import time_derivative
+        from ..symbolic.rigid_body import regressor, regressor_offset
 
         c = self.c
         q, qd, th = c.q, c.qdot, self.th_hat
@@ -323,8 +323,8 @@ class RigidBodyComposite:
         return Yp, p0, Yb, b0
 
     def _closed_form_signals(self):
-        from .forms import oblique_joints
-        from .rigid_body import gravity, mass_matrix
+        from ..symbolic.forms import oblique_joints
+        from ..symbolic.rigid_body import gravity, mass_matrix
 
         c, n, p = self.c, self.c.n, self.c.p
         q, qd = c.q, c.qdot
