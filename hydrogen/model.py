@@ -31,6 +31,7 @@ except ModuleNotFoundError:  # pragma: no cover - Python 3.10
 
 import numpy as np
 
+from .actuators import DEFAULT_KIND as _DEFAULT_KIND
 from .errors import ModelError
 from .schema import default as _default, keys as _keys
 
@@ -111,7 +112,7 @@ PLACEHOLDER_INERTIA = 1e-5
 HYDRAULIC_KEYS = ("piston_area", "rod_area", "chamber_length", "supply_pressure", "underlap", "flow_gain",
                   "bulk_modulus", "orifice_linear_below", "stroke")
 #: The actuator kind of a cylinder that names none (``kind``, in [[cylinders]] or [hydraulics]).
-DEFAULT_KIND = "three_way_cylinder"
+DEFAULT_KIND = _DEFAULT_KIND
 #: The constants every cylinder kind has, held as :class:`Cylinder` fields (the rest of a kind's
 #: parameters are in ``Cylinder.params``); ``stroke`` is the pair (stroke_min, stroke_max).
 SHARED_KEYS = ("supply_pressure", "underlap", "flow_gain", "bulk_modulus", "orifice_linear_below", "stroke")

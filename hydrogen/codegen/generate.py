@@ -25,7 +25,7 @@ from .c_source import tidy
 
 __all__ = [
     "generate", "generate_locked", "extend", "held_controllers", "missing_controllers", "derive", "render",
-    "write_function", "check", "check_output", "derivation_hash", "structure_hash",
+    "write_function", "check", "check_output", "derivation_hash", "model_kinds", "structure_hash",
     "read_manifest", "expected_manifest_inputs", "numbers_mode", "numbers_hash", "check_numbers_mode", "NUMBERS_MODES",
     "DEFAULT_NUMBERS",
     "MANIFEST", "FORMAT_VERSION",
@@ -50,13 +50,20 @@ DRIVERS = (("loop.h.j2", "_loop.h"), ("loop.c.j2", "_loop.c"))
 DERIVATION_FILES = ("layout.py", "templating.py", "pressures.py", "names.py")
 
 
-def derivation_hash() -> str:
-    """SHA-256 of the code that shapes generated output: the symbolic, codegen, controller and actuator layers."""
+def derivation_hash(kinds=None) -> str:
+    """SHA-256 of the code that shapes generated output: the symbolic, codegen, controller and actuator layers.
+
+    ``kinds``: the actuator kinds of the model (None: every kind). The module of a kind the model does
+    not use shapes none of its output, so a new kind's module leaves other robots' code current."""
+    from ..actuators import KINDS, actuator
+    unused = {Path(actuator(k).__file__).name for k in KINDS if kinds is not None and k not in kinds}
     h = hashlib.sha256()
     for name in DERIVATION_FILES:
         h.update((_PACKAGE / name).read_bytes())
     for sub in ("symbolic", "codegen", "controllers", "actuators"):
         for path in sorted((_PACKAGE / sub).glob("*.py")):
+            if sub == "actuators" and path.name in unused:
+                continue
             h.update(f"{sub}/{path.name}\0".encode())
             h.update(path.read_bytes())
     for name, _ in DRIVERS:
@@ -122,7 +129,12 @@ def expected_manifest_inputs(model, numbers: str = DEFAULT_NUMBERS) -> dict:
     """What a manifest must record for its files to be current for ``model``: with the numbers as
     inputs, the model's structure hash (an edit of numbers only keeps the folder current)."""
     key = model.baked_hash() if check_numbers_mode(numbers) == "constants" else structure_hash(model)
-    return {"model_hash": key, "derivation_hash": derivation_hash(), "format": FORMAT_VERSION}
+    return {"model_hash": key, "derivation_hash": derivation_hash(model_kinds(model)), "format": FORMAT_VERSION}
+
+
+def model_kinds(model) -> tuple:
+    """The actuator kinds ``model``'s cylinders use (the part of the actuator layer its code depends on)."""
+    return tuple(sorted({c.kind for c in model.cylinders}))
 
 
 def numbers_hash(names: list) -> str:

@@ -6,7 +6,7 @@ from contextlib import contextmanager
 from pathlib import Path
 
 from ..codegen.generate import (DEFAULT_NUMBERS, check, check_numbers_mode, derivation_hash, generate_locked,
-                                missing_controllers, read_manifest, structure_hash)
+                                missing_controllers, model_kinds, read_manifest, structure_hash)
 from ..errors import BuildCacheError
 from ..model import Model, load_model
 from .cachedir import build_lock_path, cache_errors, check_cache_root, folder_lock, warm_library
@@ -38,7 +38,7 @@ def generated_dir_for(model: Model, cache: Path | None = None, numbers: str = DE
         return committed
     # Keyed by the derivation too: two hydrogen versions sharing one cache never fight over a folder.
     shape = model.baked_hash() if numbers == "constants" else "s" + structure_hash(model)
-    key = f"{model.name}-{shape[:16]}-{derivation_hash()[:8]}"
+    key = f"{model.name}-{shape[:16]}-{derivation_hash(model_kinds(model))[:8]}"
     return Path(cache or cache_root()) / "generated" / key
 
 
