@@ -119,6 +119,15 @@ def c_double(x) -> str:
     return c_double(x)
 
 
+def _c_limit(x) -> str:
+    """An end of an actuator's travel range as C: a double literal, or ±INFINITY (math.h) for an
+    actuator of unlimited travel, whose range then holds every value."""
+    x = float(x)
+    if np.isinf(x):
+        return "INFINITY" if x > 0 else "-INFINITY"
+    return c_double(x)
+
+
 def _name_part(s: str) -> str:
     """One part of a structured FMI name: an identifier as is, anything else quoted."""
     import re
@@ -652,8 +661,8 @@ def export_fmu(out, part, scenario=None, controller="adaptive-robust", model=Non
         ctx, part=part, guid=guid, variables=variables, plant_arrays=_plant_arrays(dyn, p),
         est_const_size=len(est_const), est_const=", ".join(c_double(v) for v in est_const),
         encoders=encoders, kalman=kalman, numbers_vr0=_numbers_vr0(variables, ctx),
-        stroke_min=", ".join(c_double(v) for v in model.leg_min),
-        stroke_max=", ".join(c_double(v) for v in model.leg_max),
+        stroke_min=", ".join(_c_limit(v) for v in model.leg_min),
+        stroke_max=", ".join(_c_limit(v) for v in model.leg_max),
         length_vrs=", ".join(str(v.vr) for v in variables if v.kind == "o" and v.c_loc.startswith("inst->y_l["))
         )).encode()
 

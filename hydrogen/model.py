@@ -194,7 +194,8 @@ class Cylinder:
     the control chamber (cap side, area A) has volume A (l − L); the rod side (area a) is at P_s;
     force f = p_c A − P_s a (positive extends). Another kind holds the constants it does not share
     with the three-way cylinder (:data:`SHARED_KEYS`) in ``params`` (by parameter name, SI), and
-    ``piston_area``, ``rod_area``, ``chamber_length`` are None."""
+    ``piston_area``, ``rod_area``, ``chamber_length`` are None. A kind with unlimited travel (its
+    TRAVEL not ``limited``) has ``stroke_min`` = −∞ and ``stroke_max`` = ∞."""
 
     name: str
     link_from: str
@@ -1064,6 +1065,12 @@ def _travel(kind: str) -> tuple:
     return (travel.key, *travel.ends)
 
 
+def _motion(kind: str) -> str:
+    """``kind``'s MOTION: "revolute" for a joint actuator (its coordinate a joint's angle)."""
+    from .actuators import actuator
+    return actuator(kind).MOTION
+
+
 def _kind_keys(kind: str) -> tuple:
     """The description keys of a cylinder of actuator ``kind``: its parameters, with the travel
     limits as one key ``stroke`` = [shortest, longest] (m, as the three-way cylinder's) or, for a
@@ -1071,9 +1078,9 @@ def _kind_keys(kind: str) -> tuple:
     if kind == DEFAULT_KIND:
         return HYDRAULIC_KEYS
     from .actuators import actuator
-    key, lo, hi = _travel(kind)
-    names = [p.name for p in actuator(kind).PARAMETERS if p.name not in (lo, hi)]
-    return (*names, key)
+    key, *ends = _travel(kind)
+    names = [p.name for p in actuator(kind).PARAMETERS if p.name not in ends]
+    return (*names, key) if key is not None else tuple(names)
 
 
 def _cylinder_kinds() -> tuple:
@@ -1112,7 +1119,7 @@ def _cylinders(r: _Reader, data: dict, link_names: set, root_note: str = "", joi
         kind = _kind(r, f"{w} kind", cy["kind"]) if "kind" in cy else default_kind
         keys = _kind_keys(kind)
         used.update(keys)
-        if _travel(kind)[0] == "angle":
+        if _motion(kind) == "revolute":
             out.append(_joint_actuator(r, w, cy, defaults, kind, keys, joints))
             continue
         r.known(cy, {"name", "from", "to", "linkage", "kind", *keys}, w if kind == DEFAULT_KIND else f"{w} (kind {kind})")
@@ -1237,20 +1244,25 @@ def _revolute_joint(r: _Reader, where: str, jname: str, joints, what: str):
 
 
 def _joint_actuator(r: _Reader, w: str, cy: dict, defaults: dict, kind: str, keys, joints) -> Cylinder:
-    """A [[cylinders]] entry of a joint actuator (rotary): ``joint`` names a revolute joint of the tree."""
+    """A [[cylinders]] entry of a joint actuator (rotary, motor): ``joint`` names a revolute joint of the
+    tree; its angle range is its travel's key, or none for unlimited travel (−∞, ∞)."""
     r.known(cy, {"name", "joint", "kind", *keys}, f"{w} (kind {kind})")
     jname = r.name(f"{w} joint", r.require(cy, "joint", f"{w} (kind {kind})"))
     joint = _revolute_joint(r, f"{w} joint", jname, joints, f"a {kind} actuator")
     vals = _cylinder_values(r, w, cy, defaults, kind, keys)
-    amin, amax = (float(v) for v in vals.pop("angle"))
-    if amin >= amax:
-        raise r.error(f"{w} angle", f"must be [lowest, highest] with lowest < highest, got {[amin, amax]}")
+    key, *ends = _travel(kind)
+    amin, amax, limits = -np.inf, np.inf, {}
+    if key is not None:
+        amin, amax = (float(v) for v in vals.pop(key))
+        if amin >= amax:
+            raise r.error(f"{w} {key}", f"must be [lowest, highest] with lowest < highest, got {[amin, amax]}")
+        limits = dict(zip(ends, (amin, amax)))
     _check_order(r, w, vals, kind)
     shared = {k: vals.pop(k) for k in SHARED_KEYS if k in vals}
     zero = np.zeros(3)
     return Cylinder(cy["name"], joint.parent, zero, joint.child, zero, piston_area=None, rod_area=None,
                     chamber_length=None, stroke_min=amin, stroke_max=amax, kind=kind,
-                    params={**vals, "angle_min": amin, "angle_max": amax}, joint=jname, **shared)
+                    params={**vals, **limits}, joint=jname, **shared)
 
 
 def _cylinder_values(r: _Reader, w: str, cy: dict, defaults: dict, kind: str, keys) -> dict:

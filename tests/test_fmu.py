@@ -617,3 +617,10 @@ def test_names_with_a_dash_are_quoted_fmu_names(tmp_path, cache, shared_fmu):
     s.fmu.freeInstance()
     out = simulate_fmu(str(path), output=["q.boom"])
     np.testing.assert_allclose(out["q.boom"], _reference_run(dyn, scenario, controller).q[:, 0], rtol=0, atol=1e-9)
+
+
+def test_an_unlimited_travel_range_is_written_as_infinity():
+    """The plant FMU's start-pose check holds each actuator to its range: an actuator of unlimited
+    travel (−∞, ∞) is written as ±INFINITY (every start angle inside), a finite end exactly."""
+    from hydrogen.fmu import _c_limit
+    assert (_c_limit(-np.inf), _c_limit(np.inf), _c_limit(0.45)) == ("-INFINITY", "INFINITY", "0.45")

@@ -701,6 +701,32 @@ def test_an_actuators_ranges_are_its_kinds_declarations(tmp_path, monkeypatch):
         hydrogen.load_model(path)
 
 
+def test_a_kind_of_unlimited_travel_loads_with_no_range(tmp_path, monkeypatch):
+    """A kind whose TRAVEL is not limited (ROTATION) takes no range key: its actuator's range is
+    (−∞, ∞), the neutral pose check passes any angle, its numbers hold no range ends and the
+    description table lists no range row for it. Handled from the declaration, not the kind's name
+    (here the rotary kind, declared unlimited for the test)."""
+    from hydrogen import schema
+    from hydrogen.actuators import actuator
+    from hydrogen.actuators.declarations import ROTATION
+    rotary = actuator("rotary")
+    monkeypatch.setattr(rotary, "TRAVEL", ROTATION)
+    monkeypatch.setattr(rotary, "PARAMETERS", tuple(p for p in rotary.PARAMETERS
+                                                    if p.name not in ("angle_min", "angle_max")))
+    path = tmp_path / "arm.toml"
+    path.write_text(rotary_arm_text().replace("angle = [-1.9, -0.1]\n", "", 1))
+    m = hydrogen.load_model(path)
+    c = m.cylinders[1]
+    assert (c.stroke_min, c.stroke_max) == (-np.inf, np.inf) and m.leg_max[1] == np.inf
+    assert not [k for k in m.numbers() if k.startswith("elbow_motor.angle")]
+    from hydrogen.codegen.generate import structure_hash
+    assert len(structure_hash(m)) == 64 and m.baked_hash()
+    assert "| `[[cylinders]] kind = rotary` | `angle` |" not in schema.description_table()
+    path.write_text(rotary_arm_text())
+    with pytest.raises(hydrogen.ModelError, match=r"'elbow_motor' \(kind rotary\): unknown key 'angle'"):
+        hydrogen.load_model(path)
+
+
 @pytest.mark.parametrize("rotary", [False, True])
 def test_a_neutral_pose_past_a_joint_limit_names_the_joint_not_the_stroke(tmp_path, rotary):
     """The elbow's neutral -1.0 rad is past its lower limit -0.9 rad and outside the actuator's range

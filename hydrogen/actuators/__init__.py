@@ -5,8 +5,10 @@ An actuator module declares
 * ``NAME`` (the kind, as a model file will name it) and ``DOC``;
 * ``MOTION``: ``"prismatic"`` (its coordinate x is a length l, m) or ``"revolute"`` (a joint angle, rad);
 * ``TRAVEL``: its coordinate's quantity, unit, force unit and range key
-  (:data:`~hydrogen.actuators.declarations.LENGTH` or :data:`~hydrogen.actuators.declarations.ANGLE`):
-  every message about its travel and every per-actuator rig setting takes its units from it;
+  (:data:`~hydrogen.actuators.declarations.LENGTH`, :data:`~hydrogen.actuators.declarations.ANGLE`, or
+  :data:`~hydrogen.actuators.declarations.ROTATION`: unlimited, no range):
+  every message about its travel, every per-actuator rig setting, FMU variable and log column takes
+  its units from it;
 * ``STATES``: its chamber pressure states (:class:`~hydrogen.actuators.declarations.State`: name, unit,
   bounds), in the order the laws take them as the tuple ``p``;
 * ``PARAMETERS``: its constants and their defaults (:class:`~hydrogen.actuators.declarations.Parameter`);

@@ -13,7 +13,7 @@ from dataclasses import dataclass
 import numpy as np
 
 __all__ = ["State", "Range", "Parameter", "Sensor", "Travel", "LENGTH", "ANGLE", "UNDERLAP", "ORIFICE_LINEAR_BELOW",
-           "SUPPLY_PRESSURE", "TANK_PRESSURE", "BULK_MODULUS", "FLOW_GAIN", "AREA", "PIN_LENGTH", "CHAMBER_LENGTH",
+           "ROTATION", "SUPPLY_PRESSURE", "TANK_PRESSURE", "BULK_MODULUS", "FLOW_GAIN", "AREA", "PIN_LENGTH", "CHAMBER_LENGTH",
            "VOLUME", "DISPLACEMENT", "TURNS", "parameter_values", "stacked_parameters", "state_bounds", "sp"]
 
 
@@ -110,17 +110,26 @@ class Travel:
     ``force_unit`` of what it exerts, the description ``key`` of its range as [min, max] and the
     parameter names of its ``ends``, ``range_word`` for that range in messages ("stroke"), and
     ``misread``: units a log may hold it in by mistake, as (name, size in ``unit``): a rig log's
-    check names the one its numbers fit. ``limits``: the :class:`Range` each end of its range is held to."""
+    check names the one its numbers fit. ``limits``: the :class:`Range` each end of its range is held to.
+
+    Unlimited travel (a motor on a continuous joint) has no ``key`` (None) and no ``ends``: the
+    description gives no range, and every check of travel (stroke at load and along a reference, a
+    rig log's columns, the FMU's start pose) takes its range as (−∞, ∞)."""
 
     quantity: str
     unit: str
     force_unit: str
-    key: str
+    key: str | None
     ends: tuple
     range_word: str
     doc: str
     misread: tuple = ()
     limits: Range | None = None
+
+    @property
+    def limited(self) -> bool:
+        """Whether the coordinate has a range (the description gives ``key``), else it travels freely."""
+        return self.key is not None
 
     def value(self, x, fmt: str = ".4f") -> str:
         """``x`` named in this travel for a message: "length 0.4512 m", "angle -0.5000 rad"."""
@@ -141,6 +150,10 @@ LENGTH = Travel("length", "m", "N", "stroke", ("stroke_min", "stroke_max"), "str
 #: A joint actuator's travel: its joint angle θ (rad) within its angle range, torque in N m.
 ANGLE = Travel("angle", "rad", "N m", "angle", ("angle_min", "angle_max"), "angle range",
                "[lowest, highest] joint angle", (("degrees", math.pi / 180.0),), TURNS)
+#: A joint actuator turning without limit (a motor on a continuous joint): its joint angle θ (rad),
+#: torque in N m, no range.
+ROTATION = Travel("angle", "rad", "N m", None, (), "rotation", "continuous rotation: no travel limits",
+                  (("degrees", math.pi / 180.0),))
 
 
 class _LazySympy:
