@@ -119,6 +119,21 @@ def c_double(x) -> str:
     return c_double(x)
 
 
+def _what(c) -> str:
+    """What actuator ``c`` is called in a variable's description: a cylinder (its coordinate a
+    length), else an actuator (a joint actuator's angle)."""
+    return "cylinder" if c.travel.quantity == "length" else "actuator"
+
+
+def _c_limit(x) -> str:
+    """An end of an actuator's travel range as C: a double literal, or ±INFINITY (math.h) for an
+    actuator of unlimited travel, whose range then holds every value."""
+    x = float(x)
+    if np.isinf(x):
+        return "INFINITY" if x > 0 else "-INFINITY"
+    return c_double(x)
+
+
 def _name_part(s: str) -> str:
     """One part of a structured FMI name: an identifier as is, anything else quoted."""
     import re
@@ -201,6 +216,7 @@ def _variables(part, dyn, p, ctx, fn, encoders, kalman):
     n, m = model.n, model.n_cylinders
     coords, cyls, cunits = list(model.coordinate_names), [c.name for c in model.cylinders], _coord_units(model)
     theta_units = [_THETA_UNITS.get(t.split(".")[-1]) for t in model.theta_names]
+    travels = [c.travel for c in model.cylinders]  # each actuator's coordinate and unit: its kind's TRAVEL
     pstates = _pressure_states(model)
     from .pressures import bounds as pressure_bounds
     out = []
@@ -232,10 +248,11 @@ def _variables(part, dyn, p, ctx, fn, encoders, kalman):
         for i, c in enumerate(coords):
             add(_dotted("qdot", c), "o", "continuous", f"rate of {c}", f"inst->y_qdot[{i}]", unit=cunits[i] + "/s")
         for i, c in enumerate(cyls):
-            add(_dotted("l", c), "o", "continuous", f"length of cylinder {c}", f"inst->y_l[{i}]", unit="m")
+            add(_dotted("l", c), "o", "continuous", f"{travels[i].quantity} of {_what(model.cylinders[i])} {c}",
+                f"inst->y_l[{i}]", unit=travels[i].unit)
         for i, c in enumerate(cyls):
-            add(_dotted("ldot", c), "o", "continuous", f"rate of cylinder {c} (JL qdot)", f"inst->y_ldot[{i}]",
-                unit="m/s")
+            add(_dotted("ldot", c), "o", "continuous", f"rate of {_what(model.cylinders[i])} {c} (JL qdot)",
+                f"inst->y_ldot[{i}]", unit=travels[i].rate_unit())
         for j, (nm, what) in enumerate(pstates):
             note = "; the rod side is at supply pressure" if nm == "pc" else ""
             add(_dotted(nm, what[0]), "o", "continuous", f"{what[1]} of cylinder {what[0]}{note}",
@@ -248,8 +265,8 @@ def _variables(part, dyn, p, ctx, fn, encoders, kalman):
     if part == "controller":
         l0 = dyn.leg_lengths(p.q0)
         for i, c in enumerate(cyls):
-            add(_dotted("l", c), "i", "continuous", f"measured length of cylinder {c}", f"inst->l_in[{i}]",
-                unit="m", start=float(l0[i]))
+            add(_dotted("l", c), "i", "continuous", f"measured {travels[i].quantity} of {_what(model.cylinders[i])} "
+                f"{c}", f"inst->l_in[{i}]", unit=travels[i].unit, start=float(l0[i]))
         for j, (nm, what) in enumerate(pstates):
             add(_dotted(nm, what[0]), "i", "continuous", f"measured {what[2]} of cylinder {what[0]}",
                 f"inst->pc_in[{j}]", unit="Pa", start=float(p.x0[2 * n + j]))
@@ -259,8 +276,9 @@ def _variables(part, dyn, p, ctx, fn, encoders, kalman):
                     unit=cunits[i], start=float(p.q0[i]))
         if not kalman:
             for i, c in enumerate(cyls):
-                add(_dotted("ldot", c), "i", "continuous", f"measured rate of cylinder {c} (the scenario's ideal "
-                    "rate sensor: no Kalman filter)", f"inst->ldot_in[{i}]", unit="m/s", start=0.0)
+                add(_dotted("ldot", c), "i", "continuous", f"measured rate of {_what(model.cylinders[i])} {c} (the "
+                    "scenario's ideal rate sensor: no Kalman filter)", f"inst->ldot_in[{i}]",
+                    unit=travels[i].rate_unit(), start=0.0)
         ref0 = sc.reference(0.0)
         for k, (slot, base, suffix, what) in enumerate(_REF_ORDERS):
             if slot not in fn.in_names:
@@ -652,8 +670,10 @@ def export_fmu(out, part, scenario=None, controller="adaptive-robust", model=Non
         ctx, part=part, guid=guid, variables=variables, plant_arrays=_plant_arrays(dyn, p),
         est_const_size=len(est_const), est_const=", ".join(c_double(v) for v in est_const),
         encoders=encoders, kalman=kalman, numbers_vr0=_numbers_vr0(variables, ctx),
-        stroke_min=", ".join(c_double(v) for v in model.leg_min),
-        stroke_max=", ".join(c_double(v) for v in model.leg_max),
+        stroke_min=", ".join(_c_limit(v) for v in model.leg_min),
+        stroke_max=", ".join(_c_limit(v) for v in model.leg_max),
+        travel_units=[c.travel.unit for c in model.cylinders],
+        travel_words=[c.travel.range_word for c in model.cylinders],
         length_vrs=", ".join(str(v.vr) for v in variables if v.kind == "o" and v.c_loc.startswith("inst->y_l["))
         )).encode()
 

@@ -95,10 +95,12 @@ def check_sample_rate(source, fs: float, h: float, model) -> None:
 
 def check_lengths(source, t, L, model) -> None:
     """Refuse travel columns ``L`` (each in its actuator's unit: m, rad) outside their actuators'
-    ranges, or none of which moves (no excitation)."""
+    ranges, or none of which moves (no excitation). An actuator of unlimited travel (its range
+    (−∞, ∞), a motor) is never outside, and moves when its column's span exceeds its noise."""
     lo, hi = model.leg_min, model.leg_max
     sigma = _noise(L)
-    tol = STROKE_TOL * (hi - lo) + 6.0 * sigma
+    width = np.where(np.isfinite(hi - lo), hi - lo, 0.0)  # 0: unlimited, no range to scale by
+    tol = STROKE_TOL * width + 6.0 * sigma
     out = (L < lo - tol) | (L > hi + tol)
     if out.any():
         k, i = (int(v[0]) for v in np.nonzero(out))
@@ -111,9 +113,10 @@ def check_lengths(source, t, L, model) -> None:
             f"{tr.quantity} {_num(L[k, i])} {tr.unit}, {tr.span(lo[i], hi[i], '.6g')} ({int(out.sum())} sample(s) "
             f"outside){hint}")
     span = np.ptp(L, axis=0)
-    floor = np.maximum(NOISE_RANGES * sigma, 1e-6 * (hi - lo))
+    floor = np.maximum(NOISE_RANGES * sigma, 1e-6 * width)
     if np.all(span <= floor):
-        i = int(np.argmax(span / (hi - lo)))  # the most, for its range: columns differ in unit
+        # the most, for its range (columns differ in unit), else for its noise floor
+        i = int(np.argmax(span / np.where(width > 0, width, np.maximum(floor, 1e-300))))
         c = model.cylinders[i]
         unit = c.travel.unit
         raise IdentificationError(

@@ -3,7 +3,8 @@
 A log holds, per sample k (one row), at a uniform sample rate:
 
 * ``t`` (s): sample time, strictly increasing, uniform spacing (jitter ≤ 1 %);
-* ``l0`` … ``l{m-1}`` (m): measured cylinder (leg) lengths;
+* ``l0`` … ``l{m-1}``: each actuator's measured travel in its kind's unit (``TRAVEL``): a cylinder's
+  length in m, a joint actuator's angle in rad;
 * ``pc0`` … ``pc{N-1}`` (Pa): the measured pressure vector (:mod:`hydrogen.pressures`): the control-chamber
   (cap side) pressure of each three-way cylinder (N = m), p_A and p_B of each four-way one or rotary actuator;
 * ``u0`` … ``u{m-1}`` (m): spool commands, each held from t_k to t_{k+1} (zero-order hold);

@@ -31,6 +31,8 @@ except ModuleNotFoundError:  # pragma: no cover - Python 3.10
 
 import numpy as np
 
+from .actuators import DEFAULT_KIND as _DEFAULT_KIND
+from .actuators.declarations import PIN_LENGTH as _PIN_LENGTH, TURNS as _TURNS
 from .errors import ModelError
 from .schema import default as _default, keys as _keys
 
@@ -51,42 +53,22 @@ RIGID_BODY_FORMS = ("auto", "closed", "staged")
 @dataclass(frozen=True)
 class Quantity:
     """A physical quantity of a description: its sign rule ("positive", "nonnegative" or None),
-    the plausible range [low, high] of every value (SI) and its unit."""
+    the plausible range [low, high] of every value (SI), its unit and where that range is declared
+    (named in the message that refuses a value outside)."""
 
     sign: str | None
     low: float
     high: float
     unit: str
+    source: str = "hydrogen.model.QUANTITIES"
 
 
-#: The physical quantities a description gives, with plausible ranges (SI). Generous enough for any
-#: real hydraulic machine, from micro-actuators (sub-millimetre bores, milligram links) to 100-t
+#: The physical quantities a description gives besides its actuators' constants (each kind declares
+#: those with their ranges: :class:`hydrogen.actuators.declarations.Range`), with plausible ranges
+#: (SI). Generous enough for any real machine, from micro-actuators (milligram links) to 100-t
 #: excavators, presses and draglines; a value outside is a slip of unit or a typo (1e308 overflows the
 #: plant's arithmetic), refused with the range.
 QUANTITIES = {
-    # Pa: 1 bar (low-pressure water hydraulics) .. 1000 bar (above the 700 bar of the highest-pressure
-    # industrial tools)
-    "supply_pressure": Quantity("positive", 1e5, 1e8, "Pa"),
-    # Pa: oil full of entrained air (1e7) .. 5x the stiffest hydraulic fluids (water, oil: ~2e9)
-    "bulk_modulus": Quantity("positive", 1e7, 1e10, "Pa"),
-    # m^2: a 0.1 mm bore (8e-9) .. a 3.5 m press bore (10)
-    "piston_area": Quantity("positive", 1e-8, 10.0, "m^2"),
-    "rod_area": Quantity("positive", 1e-8, 10.0, "m^2"),
-    # m, pin to pin: 10 um (a micro-actuator) .. 100 m (longer than any telescopic cylinder's stroke)
-    "stroke": Quantity("positive", 1e-5, 100.0, "m"),
-    "chamber_length": Quantity("nonnegative", 0.0, 100.0, "m"),
-    # m of spool travel: 0 (critical centre) .. 1 cm (spools travel millimetres)
-    "underlap": Quantity("nonnegative", 0.0, 1e-2, "m"),
-    # c = c_d w sqrt(2/rho), q = c u sqrt(dp): a 10 um-wide micro-valve port (3e-7) .. a 30 m port periphery
-    "flow_gain": Quantity("positive", 1e-9, 1.0, "m^2/(s sqrt(Pa))"),
-    # m^3: a chamber's dead volume (hoses, ports): 1 mm^3 (a micro-actuator) .. 100 m^3
-    "dead_volume": Quantity("positive", 1e-9, 100.0, "m^3"),
-    # m^3/rad: a rotary actuator's displacement: a 1 cm^3/rad micro-actuator (1e-6 .. ) .. 1 m^3/rad
-    "displacement": Quantity("positive", 1e-9, 1.0, "m^3/rad"),
-    # Pa (gauge): the return line's pressure, 0 .. the largest supply
-    "tank_pressure": Quantity("nonnegative", 0.0, 1e8, "Pa"),
-    # Pa: the pressure drop below which the plant's orifice roots turn linear: up to the largest supply
-    "orifice_linear_below": Quantity("positive", 1.0, 1e8, "Pa"),
     # m/s^2: 0 (a horizontal or orbital machine) .. 30 (above Jupiter's 24.8)
     "gravity": Quantity("nonnegative", 0.0, 30.0, "m/s^2"),
     # kg per link: 1 mg .. 1000 t (a dragline's boom)
@@ -96,7 +78,9 @@ QUANTITIES = {
     # m: joint origins, centres of mass and cylinder pins, in their frame: within 1 km
     "position": Quantity(None, -1e3, 1e3, "m"),
     # rad: a joint origin's roll, pitch and yaw: within two turns either way
-    "angle": Quantity(None, -4 * np.pi, 4 * np.pi, "rad"),
+    "angle": Quantity(_TURNS.sign, _TURNS.low, _TURNS.high, "rad"),
+    # m: a linkage's rocker and coupler, pin to pin, as a cylinder's length
+    "pin_length": Quantity(_PIN_LENGTH.sign, _PIN_LENGTH.low, _PIN_LENGTH.high, "m"),
 }
 #: A URDF link's inertial is a placeholder, taken as massless with a note, when it is not a rigid
 #: body's (inertia not positive definite or breaking the triangle inequality, or a mass under the
@@ -106,19 +90,15 @@ QUANTITIES = {
 #: (r, m, its distance from a joint axis).
 PLACEHOLDER_MASS = 1e-3
 PLACEHOLDER_INERTIA = 1e-5
-#: Cylinder constants (each a quantity above): [hydraulics] gives defaults, each [[cylinders]] entry may
+#: Cylinder constants (each declared by the three-way kind): [hydraulics] gives defaults, each [[cylinders]] entry may
 #: override them.
 HYDRAULIC_KEYS = ("piston_area", "rod_area", "chamber_length", "supply_pressure", "underlap", "flow_gain",
                   "bulk_modulus", "orifice_linear_below", "stroke")
 #: The actuator kind of a cylinder that names none (``kind``, in [[cylinders]] or [hydraulics]).
-DEFAULT_KIND = "three_way_cylinder"
+DEFAULT_KIND = _DEFAULT_KIND
 #: The constants every cylinder kind has, held as :class:`Cylinder` fields (the rest of a kind's
 #: parameters are in ``Cylinder.params``); ``stroke`` is the pair (stroke_min, stroke_max).
 SHARED_KEYS = ("supply_pressure", "underlap", "flow_gain", "bulk_modulus", "orifice_linear_below", "stroke")
-#: The quantity (QUANTITIES) of a kind's parameter whose name is not one.
-_QUANTITY_OF = {"cap_area": "piston_area", "annulus_area": "rod_area", "dead_volume_A": "dead_volume",
-                "dead_volume_B": "dead_volume", "displacement": "displacement", "stroke_min": "stroke",
-                "stroke_max": "stroke", "angle_min": "angle", "angle_max": "angle"}
 #: Order between two constants of one cylinder: (smaller, larger, strict, why). The loader refuses a
 #: description that breaks one; the exported programs (C and FMU) refuse edited numbers that do.
 CYLINDER_ORDER = (
@@ -214,7 +194,8 @@ class Cylinder:
     the control chamber (cap side, area A) has volume A (l − L); the rod side (area a) is at P_s;
     force f = p_c A − P_s a (positive extends). Another kind holds the constants it does not share
     with the three-way cylinder (:data:`SHARED_KEYS`) in ``params`` (by parameter name, SI), and
-    ``piston_area``, ``rod_area``, ``chamber_length`` are None."""
+    ``piston_area``, ``rod_area``, ``chamber_length`` are None. A kind with unlimited travel (its
+    TRAVEL not ``limited``) has ``stroke_min`` = −∞ and ``stroke_max`` = ∞."""
 
     name: str
     link_from: str
@@ -442,7 +423,7 @@ class Model:
 
     def number_ranges(self) -> dict:
         """``{name: (low, high)}`` of every number of :meth:`numbers` (SI, inclusive; None: unbounded):
-        the range the loader holds it to (QUANTITIES), or, for one it derives (the inertia about the
+        the range the loader holds it to (QUANTITIES, or an actuator kind's declaration), or, for one it derives (the inertia about the
         link origin, m·c, a linkage's plane geometry), the range those checks imply. An exported
         program (C, FMU) refuses an edited number outside it."""
         return {name: rng for name, (_, rng) in self._numbered().items()}
@@ -472,8 +453,8 @@ class Model:
                        for k in ("Ixy", "Ixz", "Iyz")}}
         # a linkage's lengths as the loader reads them, its crank > 0, its angle of atan2; its plane
         # points are differences of positions in rotated frames: any finite value
-        linkage = {"crank": (POSITIVE, None), "crank_offset": (-np.pi, np.pi), "coupler": span(QUANTITIES["stroke"]),
-                   "rocker": span(QUANTITIES["stroke"])}
+        linkage = {"crank": (POSITIVE, None), "crank_offset": (-np.pi, np.pi),
+                   "coupler": span(QUANTITIES["pin_length"]), "rocker": span(QUANTITIES["pin_length"])}
         ranges = {"origin_xyz": span(pos), "origin_rpy": span(QUANTITIES["angle"]),
                   "axis": (-1.0, 1.0),  # a unit vector's entries
                   "from": span(pos), "to": span(pos)}
@@ -492,7 +473,7 @@ class Model:
             out.update(vector(c.name, "from", c.point_from))
             out.update(vector(c.name, "to", c.point_to))
             for k, v in actuator(c.kind).parameters(c.table).items():
-                q = QUANTITIES.get(_QUANTITY_OF.get(k, k))
+                q = declared_range(c.kind, k)
                 out[f"{c.name}.{k}"] = (float(v), (None, None) if q is None else span(q))
             if c.linkage is not None:
                 for k, v in c.linkage.numbers(c.name).items():
@@ -546,8 +527,9 @@ class _Reader:
         return self._check(where, np.array(value, float), constraint, value)
 
     def _check(self, where, arr, constraint, value):
-        """``constraint``: a sign rule ("positive", "nonnegative"), a quantity of QUANTITIES or None."""
-        quantity = QUANTITIES.get(constraint)
+        """``constraint``: a sign rule ("positive", "nonnegative"), a :class:`Quantity` or the name of
+        one of QUANTITIES, or None."""
+        quantity = constraint if isinstance(constraint, Quantity) else QUANTITIES.get(constraint)
         sign = quantity.sign if quantity is not None else constraint
         if not np.all(np.isfinite(arr)):
             raise self.error(where, f"must be finite, got {_quote(value)}")
@@ -597,7 +579,7 @@ def _in_range(r: _Reader, where, arr, q: Quantity):
     outside = np.asarray(arr, float)[(arr < q.low) | (arr > q.high)]
     if outside.size:
         raise r.error(where, f"{outside[0]:.6g} {q.unit} is outside the plausible range [{q.low:.6g}, "
-                             f"{q.high:.6g}] {q.unit} of any hydraulic machine (hydrogen.model.QUANTITIES)")
+                             f"{q.high:.6g}] {q.unit} of any hydraulic machine ({q.source})")
 
 
 def check_model_name(source: str, value) -> str:
@@ -1058,12 +1040,35 @@ def _order_tree(r: _Reader, links, joints, where):
     return root, tuple(ordered), tuple(moving)
 
 
+def declared_range(kind: str, key: str) -> Quantity | None:
+    """The range of constant ``key`` of an actuator of ``kind``, from the kind's own declarations
+    (a parameter's :class:`~hydrogen.actuators.declarations.Range`, or its travel's limits for the
+    travel key and its ends), with its unit; None where the kind declares none."""
+    from .actuators import actuator
+    mod = actuator(kind)
+    travel = mod.TRAVEL
+    par = next((p for p in mod.PARAMETERS if p.name == key), None)
+    if par is not None:
+        rng, unit = par.range, par.unit
+    elif key == travel.key or key in travel.ends:
+        rng, unit = travel.limits, travel.unit
+    else:
+        return None
+    return None if rng is None else Quantity(rng.sign, rng.low, rng.high, unit, f"declared in {mod.__name__}")
+
+
 def _travel(kind: str) -> tuple:
     """The travel key of ``kind`` (``stroke`` for a length, ``angle`` for a joint angle, as [min, max])
     and its ends' parameter names: the kind's own declaration (``TRAVEL``)."""
     from .actuators import actuator
     travel = actuator(kind).TRAVEL
     return (travel.key, *travel.ends)
+
+
+def _motion(kind: str) -> str:
+    """``kind``'s MOTION: "revolute" for a joint actuator (its coordinate a joint's angle)."""
+    from .actuators import actuator
+    return actuator(kind).MOTION
 
 
 def _kind_keys(kind: str) -> tuple:
@@ -1073,9 +1078,9 @@ def _kind_keys(kind: str) -> tuple:
     if kind == DEFAULT_KIND:
         return HYDRAULIC_KEYS
     from .actuators import actuator
-    key, lo, hi = _travel(kind)
-    names = [p.name for p in actuator(kind).PARAMETERS if p.name not in (lo, hi)]
-    return (*names, key)
+    key, *ends = _travel(kind)
+    names = [p.name for p in actuator(kind).PARAMETERS if p.name not in ends]
+    return (*names, key) if key is not None else tuple(names)
 
 
 def _cylinder_kinds() -> tuple:
@@ -1114,7 +1119,7 @@ def _cylinders(r: _Reader, data: dict, link_names: set, root_note: str = "", joi
         kind = _kind(r, f"{w} kind", cy["kind"]) if "kind" in cy else default_kind
         keys = _kind_keys(kind)
         used.update(keys)
-        if _travel(kind)[0] == "angle":
+        if _motion(kind) == "revolute":
             out.append(_joint_actuator(r, w, cy, defaults, kind, keys, joints))
             continue
         r.known(cy, {"name", "from", "to", "linkage", "kind", *keys}, w if kind == DEFAULT_KIND else f"{w} (kind {kind})")
@@ -1146,7 +1151,7 @@ def _cylinders(r: _Reader, data: dict, link_names: set, root_note: str = "", joi
             raise r.error(f"{w} stroke", f"must be [shortest, longest] with shortest < longest, got {[smin, smax]}")
         if linkage:
             _check_linkage(r, w, linkage, smin, smax, linkage_joint)
-        _check_order(r, w, {**vals, "stroke_min": smin, "stroke_max": smax})
+        _check_order(r, w, {**vals, "stroke_min": smin, "stroke_max": smax}, kind)
         if kind == DEFAULT_KIND:
             out.append(Cylinder(name, ends[0][0], ends[0][1], ends[1][0], ends[1][1], stroke_min=smin,
                                 stroke_max=smax, **linkage, **vals))
@@ -1182,7 +1187,7 @@ def _linkage(r: _Reader, w: str, table, base: tuple, joints) -> dict:
                                         f"carries joint '{jname}''s pivot, '{joint.parent}'")
     pivot = r.vector(f"{wl}.rocker_pivot", r.require(table, "rocker_pivot", wl), 3, "position")
     crank_pin = r.vector(f"{wl}.crank_pin", r.require(table, "crank_pin", wl), 3, "position")
-    lengths = {k: r.number(f"{wl}.{k}", r.require(table, k, wl), "stroke") for k in ("rocker", "coupler")}
+    lengths = {k: r.number(f"{wl}.{k}", r.require(table, k, wl), "pin_length") for k in ("rocker", "coupler")}
     branch = r.require(table, "branch", wl)
     if branch not in (1, -1) or isinstance(branch, bool) or not isinstance(branch, int):
         raise r.error(f"{wl}.branch", f"expected 1 or -1 (which of the linkage's two assemblies), got {_quote(branch)}")
@@ -1239,25 +1244,30 @@ def _revolute_joint(r: _Reader, where: str, jname: str, joints, what: str):
 
 
 def _joint_actuator(r: _Reader, w: str, cy: dict, defaults: dict, kind: str, keys, joints) -> Cylinder:
-    """A [[cylinders]] entry of a joint actuator (rotary): ``joint`` names a revolute joint of the tree."""
+    """A [[cylinders]] entry of a joint actuator (rotary, motor): ``joint`` names a revolute joint of the
+    tree; its angle range is its travel's key, or none for unlimited travel (−∞, ∞)."""
     r.known(cy, {"name", "joint", "kind", *keys}, f"{w} (kind {kind})")
     jname = r.name(f"{w} joint", r.require(cy, "joint", f"{w} (kind {kind})"))
     joint = _revolute_joint(r, f"{w} joint", jname, joints, f"a {kind} actuator")
     vals = _cylinder_values(r, w, cy, defaults, kind, keys)
-    amin, amax = (float(v) for v in vals.pop("angle"))
-    if amin >= amax:
-        raise r.error(f"{w} angle", f"must be [lowest, highest] with lowest < highest, got {[amin, amax]}")
-    _check_order(r, w, vals)
+    key, *ends = _travel(kind)
+    amin, amax, limits = -np.inf, np.inf, {}
+    if key is not None:
+        amin, amax = (float(v) for v in vals.pop(key))
+        if amin >= amax:
+            raise r.error(f"{w} {key}", f"must be [lowest, highest] with lowest < highest, got {[amin, amax]}")
+        limits = dict(zip(ends, (amin, amax)))
+    _check_order(r, w, vals, kind)
     shared = {k: vals.pop(k) for k in SHARED_KEYS if k in vals}
     zero = np.zeros(3)
     return Cylinder(cy["name"], joint.parent, zero, joint.child, zero, piston_area=None, rod_area=None,
                     chamber_length=None, stroke_min=amin, stroke_max=amax, kind=kind,
-                    params={**vals, "angle_min": amin, "angle_max": amax}, joint=jname, **shared)
+                    params={**vals, **limits}, joint=jname, **shared)
 
 
 def _cylinder_values(r: _Reader, w: str, cy: dict, defaults: dict, kind: str, keys) -> dict:
     """The constants ``keys`` of cylinder ``w`` (kind ``kind``): its own, else [hydraulics]', else the
-    kind's declared default; each checked against its quantity."""
+    kind's declared default; each checked against the range its kind declares for it."""
     from .actuators import actuator
     fallback = {p.name: p.default for p in actuator(kind).PARAMETERS if p.default is not None}
     vals = {}
@@ -1270,8 +1280,11 @@ def _cylinder_values(r: _Reader, w: str, cy: dict, defaults: dict, kind: str, ke
             value, wk = fallback[key], f"{w} {key} (default)"
         else:
             raise r.error(w, f"missing key '{key}' (give it here or in [hydraulics])")
-        quantity = _QUANTITY_OF.get(key, key)
-        vals[key] = r.vector(wk, value, 2, quantity) if key in ("stroke", "angle") else r.number(wk, value, quantity)
+        quantity = declared_range(kind, key)
+        if key == _travel(kind)[0]:
+            vals[key] = r.vector(wk, value, 2, quantity)
+        else:
+            vals[key] = r.number(wk, value, quantity)
     return vals
 
 
@@ -1283,12 +1296,12 @@ def order_broken(values: dict):
     return None
 
 
-def _check_order(r: _Reader, w: str, vals: dict):
+def _check_order(r: _Reader, w: str, vals: dict, kind: str):
     """The cross-checks of a cylinder's constants (each in range already): CYLINDER_ORDER."""
     broken = order_broken(vals)
     if broken:
         a, b, strict, why = broken
-        q = QUANTITIES.get(_QUANTITY_OF.get(b, b))
+        q = declared_range(kind, b)
         raise r.error(f"{w} {a}", f"must be {'<' if strict else '<='} {b} {vals[b]}{' ' + q.unit if q else ''} "
                                   f"({why})")
 

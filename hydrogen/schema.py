@@ -227,7 +227,8 @@ def _actuator_rows() -> list:
         key, unit, what, ends = travel.key, travel.unit, travel.doc, travel.ends
         if mod.MOTION == "revolute":
             rows.append(_row(table, "joint", "", "required", "the revolute joint it turns (no from/to)"))
-        rows.append(_row(table, key, unit, "required", what))
+        if travel.limited:  # unlimited travel (a motor) has no range to give
+            rows.append(_row(table, key, unit, "required", what))
         for par in mod.PARAMETERS:
             if par.name not in ends:
                 rows.append(_row(table, par.name, par.unit.replace("^2", "²").replace("^3", "³"),

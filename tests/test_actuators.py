@@ -2,6 +2,8 @@
 force rate, the valve inverse on every branch, equilibrium pressures, SymPy = numpy."""
 import subprocess
 import sys
+import tomllib
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -12,21 +14,25 @@ from hydrogen.actuators import KINDS, actuator
 from hydrogen.actuators.declarations import state_bounds
 from hydrogen.errors import ModelError
 
-# Example actuators (SI). three_way: the UBC Stewart legs (Table I); four_way: a 100/50 mm bore/rod
-# cylinder; rotary: a vane actuator of 0.1 L/rad.
-BORE, ROD = np.pi / 4 * 0.1 ** 2, np.pi / 4 * 0.05 ** 2
-EXAMPLES = {
-    "three_way_cylinder": dict(piston_area=1.14e-3, rod_area=6.33e-4, chamber_length=1.37, supply_pressure=10.34e6,
-                               underlap=55.4e-6, flow_gain=1.5e-4, bulk_modulus=700e6, orifice_linear_below=5e4),
-    "four_way_cylinder": dict(cap_area=BORE, annulus_area=BORE - ROD, stroke_min=1.0, stroke_max=1.6,
-                              dead_volume_A=5e-4, dead_volume_B=4e-4, supply_pressure=21e6, tank_pressure=0.3e6,
-                              underlap=2e-5, flow_gain=1e-3, bulk_modulus=1e9, orifice_linear_below=5e4),
-    "rotary": dict(displacement=1e-4, angle_min=-1.5, angle_max=1.5, dead_volume_A=5e-5, dead_volume_B=6e-5,
-                   supply_pressure=21e6, tank_pressure=0.3e6, underlap=2e-5, flow_gain=5e-4, bulk_modulus=1e9,
-                   orifice_linear_below=5e4),
-}
-#: the coordinate range of each example (m or rad)
-RANGE = {"three_way_cylinder": (1.55, 2.15), "four_way_cylinder": (1.0, 1.6), "rotary": (-1.5, 1.5)}
+#: Each kind's example (SI), its sampled coordinate range (m or rad) and the sign of each chamber's
+#: pressure rate with the valve opened the positive way: tests/data/actuators/<kind>.toml, one file a
+#: kind, so a new kind's module and its example file are all the physics checks need.
+EXAMPLE_DIR = Path(__file__).parent / "data" / "actuators"
+
+
+def _example(kind):
+    path = EXAMPLE_DIR / f"{kind}.toml"
+    if not path.is_file():
+        pytest.fail(f"actuator kind {kind!r} has no example {path}: add one for the physics checks")
+    return tomllib.loads(path.read_text())
+
+
+EXAMPLES = {k: _example(k)["parameters"] for k in KINDS}
+RANGE = {k: tuple(_example(k)["range"]) for k in KINDS}
+#: sign of each chamber's pressure rate with the valve opened the positive way (u > d), blocked
+OPEN_POSITIVE = {k: tuple(_example(k)["open_positive"]) for k in KINDS}
+#: the kinds hydrogen ships, in the order every list of kinds gives them
+SHIPPED = ("three_way_cylinder", "four_way_cylinder", "rotary")
 EPS = 1.0  # Pa, the controllers' pressure floor in the valve inverse
 
 
@@ -61,7 +67,8 @@ def _gamma(P):
 # --- the registry ---------------------------------------------------------------------------------
 
 def test_registry_lists_the_kinds():
-    assert KINDS == ("three_way_cylinder", "four_way_cylinder", "rotary")
+    assert KINDS[0] == "three_way_cylinder" and list(KINDS[1:]) == sorted(KINDS[1:])
+    assert [k for k in KINDS if k in SHIPPED] == list(SHIPPED)
     for kind in KINDS:
         mod = actuator(kind)
         assert mod.NAME == kind and mod.DOC and mod.MOTION in ("prismatic", "revolute")
@@ -76,8 +83,27 @@ def test_registry_lists_the_kinds():
 @pytest.mark.parametrize("bad", ["piston", "", None, "Three_Way_Cylinder"])
 def test_unknown_kind_is_a_clear_error(bad):
     with pytest.raises(ModelError, match=r"unknown actuator kind .*; known kinds: three_way_cylinder, "
-                                         r"four_way_cylinder, rotary"):
+                                         r"four_way_cylinder, (.*, )?rotary"):
         actuator(bad)
+
+
+def test_the_registry_finds_a_kind_module_by_itself(tmp_path, monkeypatch):
+    """A module declaring NAME and Symbolic is a kind with no list to edit; a helper module is not;
+    the default kind comes first, the others by name."""
+    from hydrogen import actuators
+    pkg = tmp_path / "fake_kinds"
+    pkg.mkdir()
+    (pkg / "__init__.py").write_text("")
+    for mod, name in (("zeta", "zeta_kind"), ("alpha", "three_way_cylinder"), ("beta", "beta_kind")):
+        (pkg / f"{mod}.py").write_text(f"NAME = {name!r}\nSymbolic = object()\n")
+    (pkg / "helpers.py").write_text("NAME = 'not a kind: no laws'\n")
+    monkeypatch.syspath_prepend(str(tmp_path))
+    import fake_kinds
+    found = actuators._discover(fake_kinds.__path__, "fake_kinds")
+    assert list(found) == ["three_way_cylinder", "beta_kind", "zeta_kind"]
+    (pkg / "gamma.py").write_text("NAME = 'zeta_kind'\nSymbolic = object()\n")
+    with pytest.raises(ImportError, match=r"'zeta_kind' is declared twice"):
+        actuators._discover(fake_kinds.__path__, "fake_kinds")
 
 
 def test_missing_or_bad_parameter_names_it():
@@ -103,10 +129,6 @@ def test_numeric_layer_does_not_import_sympy():
 
 
 # --- physics of every kind ------------------------------------------------------------------------
-
-#: sign of each chamber's pressure rate with the valve opened the positive way (u > d), blocked
-OPEN_POSITIVE = {"three_way_cylinder": (1,), "four_way_cylinder": (1, -1), "rotary": (1, -1)}
-
 
 @pytest.mark.parametrize("kind", KINDS)
 def test_flow_into_a_chamber_raises_its_pressure(kind):
@@ -322,3 +344,30 @@ def test_the_derivation_hash_covers_the_actuators_a_robot_uses(tmp_path, monkeyp
     path = tmp_path / "actuators" / "two_chamber.py"  # shared by kinds: every robot's
     path.write_text(path.read_text() + "\n# an edit\n")
     assert gen.derivation_hash(("three_way_cylinder",)) != before
+
+
+def test_a_new_kind_leaves_other_robots_code_current(tmp_path, monkeypatch):
+    """The module of a kind a robot does not use is outside its derivation hash: adding a kind keeps
+    the committed code of the robots that do not use it current; editing it stales those that do."""
+    import shutil
+    import types
+    from pathlib import Path
+
+    import hydrogen.actuators as acts
+    import hydrogen.codegen.generate as gen
+    pkg = Path(gen.__file__).resolve().parent.parent
+    for name in gen.DERIVATION_FILES:
+        shutil.copy(pkg / name, tmp_path / name)
+    for sub in gen.DERIVATION_DIRS:
+        shutil.copytree(pkg / sub, tmp_path / sub)
+    monkeypatch.setattr(gen, "_PACKAGE", tmp_path)
+    crane = gen.derivation_hash(("four_way_cylinder", "rotary"))
+    new = tmp_path / "actuators" / "new_kind.py"
+    new.write_text("NAME = 'new_kind'\n")
+    monkeypatch.setattr(acts, "_REGISTRY", {**acts._REGISTRY, "new_kind": types.SimpleNamespace(__file__=str(new))})
+    monkeypatch.setattr(acts, "KINDS", (*acts.KINDS, "new_kind"))
+    assert gen.derivation_hash(("four_way_cylinder", "rotary")) == crane
+    mine = gen.derivation_hash(("new_kind",))
+    new.write_text("NAME = 'new_kind'\n# an edit\n")
+    assert gen.derivation_hash(("new_kind",)) != mine
+    assert gen.derivation_hash(("four_way_cylinder", "rotary")) == crane

@@ -455,7 +455,8 @@ def test_a_start_pose_outside_the_strokes_is_refused_at_initialisation(fmus):
     plant.set(names, q)
     with pytest.raises(FMICallException):
         plant.fmu.exitInitializationMode()
-    assert any("q_start puts l." in m and "outside the cylinder's stroke" in m for m in plant.messages), plant.messages
+    assert any("q_start puts l." in m and (" m, outside its stroke [" in m or " rad, outside its angle range [" in m)
+               for m in plant.messages), plant.messages
     plant.fmu.freeInstance()
 
 
@@ -617,3 +618,26 @@ def test_names_with_a_dash_are_quoted_fmu_names(tmp_path, cache, shared_fmu):
     s.fmu.freeInstance()
     out = simulate_fmu(str(path), output=["q.boom"])
     np.testing.assert_allclose(out["q.boom"], _reference_run(dyn, scenario, controller).q[:, 0], rtol=0, atol=1e-9)
+
+
+def test_an_unlimited_travel_range_is_written_as_infinity():
+    """The plant FMU's start-pose check holds each actuator to its range: an actuator of unlimited
+    travel (−∞, ∞) is written as ±INFINITY (every start angle inside), a finite end exactly."""
+    from hydrogen.fmu import _c_limit
+    assert (_c_limit(-np.inf), _c_limit(np.inf), _c_limit(0.45)) == ("-INFINITY", "INFINITY", "0.45")
+
+
+def test_the_cranes_slew_angle_is_exported_in_rad(cache, tmp_path):
+    """An actuator's travel variables take their unit and word from its kind's TRAVEL: the crane's
+    rotary slew exports its angle in rad (its rate in rad/s), its cylinders their lengths in m."""
+    import hydrogen
+    dyn = hydrogen.build(hydrogen.load_model("loader_crane"), cache=cache)
+    path = export_fmu(tmp_path / "crane.fmu", "plant", dyn=dyn, controller="adaptive-robust", duration=DURATION)
+    var = {v.name: v for v in read_model_description(str(path)).modelVariables}
+    for c in dyn.model.cylinders:
+        unit = c.travel.unit
+        assert (var[f"l.{c.name}"].unit, var[f"ldot.{c.name}"].unit) == (unit, f"{unit}/s"), c.name
+    slew = next(c for c in dyn.model.cylinders if c.kind == "rotary")
+    assert var[f"l.{slew.name}"].unit == "rad" and var[f"l.{slew.name}"].description == f"angle of actuator {slew.name}"
+    boom = next(c for c in dyn.model.cylinders if c.kind == "four_way_cylinder")
+    assert var[f"l.{boom.name}"].unit == "m" and var[f"l.{boom.name}"].description == f"length of cylinder {boom.name}"

@@ -270,6 +270,26 @@ def test_a_vanes_angle_column_is_checked_in_its_angle_range_and_rad():
     assert "stroke" not in msg and "length" not in msg
 
 
+def test_an_unlimited_actuators_column_is_never_outside_and_moves_past_turns():
+    """An actuator of unlimited travel (range (−∞, ∞): a motor's turns) is never outside its range, and
+    its column moving counts as excitation whatever the others do; held still with the rest, the log
+    is refused as one that does not move (the crane, its slew taken as unlimited; no build needed)."""
+    from hydrogen.logcheck import check_lengths
+    model = hydrogen.load_model("loader_crane")
+    slew = [c.kind for c in model.cylinders].index("rotary")
+    lo, hi = model.leg_min.copy(), model.leg_max.copy()
+    lo[slew], hi[slew] = -np.inf, np.inf
+    from types import SimpleNamespace
+    free = SimpleNamespace(leg_min=lo, leg_max=hi, cylinders=model.cylinders)
+    t = np.linspace(0.0, 2.0, 201)
+    L = np.tile(0.5 * (model.leg_min + model.leg_max), (t.size, 1))
+    L[:, slew] = 3.0 * t * np.pi  # two turns and more, past any angle range
+    check_lengths("log.csv", t, L, free)  # only the motor moves: excitation, never outside
+    L[:, slew] = 0.25
+    with pytest.raises(IdentificationError, match="no excitation: no actuator moves"):
+        check_lengths("log.csv", t, L, free)
+
+
 def test_pressures_all_zero_in_bar_or_above_supply_are_refused(dyn, model, paper_sim):
     cols = _columns(paper_sim, 4001)
     m = paper_sim.leg_lengths.shape[1]

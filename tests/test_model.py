@@ -667,6 +667,66 @@ def test_bad_rotary_actuators_are_named(tmp_path, old, new, words):
         assert w in str(err.value), (w, str(err.value))
 
 
+def test_an_actuators_ranges_are_its_kinds_declarations(tmp_path, monkeypatch):
+    """The loader and Model.number_ranges hold an actuator's constants to the ranges its kind declares
+    (hydrogen.actuators.declarations.Parameter.range), with no table of the loader to extend: a kind's
+    new range is checked as declared, and the message names the file, actuator, key, unit, range and
+    the declaring module."""
+    import dataclasses
+
+    from hydrogen import model as model_module
+    from hydrogen.actuators import KINDS, actuator
+    from hydrogen.actuators.declarations import Range
+    # no actuator constant is a quantity of the loader's own
+    for kind in KINDS:
+        assert not {p.name for p in actuator(kind).PARAMETERS} & set(model_module.QUANTITIES), kind
+    assert not hasattr(model_module, "_QUANTITY_OF")
+    path = tmp_path / "arm.toml"
+    own = rotary_arm_text().replace("displacement = 4.0e-5", "displacement = 4.0e-5\ndead_volume_A = 5.0e-5", 1)
+    path.write_text(own)
+    ranges = hydrogen.load_model(path).number_ranges()
+    assert ranges["elbow_motor.dead_volume_A"] == (1e-9, 100.0)
+    rotary = actuator("rotary")
+    narrow = tuple(dataclasses.replace(p, range=Range("positive", 1.0, 2.0)) if p.name == "dead_volume_A" else p
+                   for p in rotary.PARAMETERS)
+    monkeypatch.setattr(rotary, "PARAMETERS", narrow)
+    with pytest.raises(hydrogen.ModelError) as err:
+        hydrogen.load_model(path)
+    assert str(err.value).startswith(f"{path}: [[cylinders]] 'elbow_motor' dead_volume_A: 5e-05 m^3 is outside the "
+                                     "plausible range [1, 2] m^3")
+    assert "hydrogen.actuators.rotary" in str(err.value)
+    monkeypatch.undo()
+    path.write_text(own.replace("dead_volume_A = 5.0e-5\n", "dead_volume_A = -1.5\n", 1))
+    with pytest.raises(hydrogen.ModelError, match=r"'elbow_motor' dead_volume_A: must be > 0, got -1.5"):
+        hydrogen.load_model(path)
+
+
+def test_a_kind_of_unlimited_travel_loads_with_no_range(tmp_path, monkeypatch):
+    """A kind whose TRAVEL is not limited (ROTATION) takes no range key: its actuator's range is
+    (−∞, ∞), the neutral pose check passes any angle, its numbers hold no range ends and the
+    description table lists no range row for it. Handled from the declaration, not the kind's name
+    (here the rotary kind, declared unlimited for the test)."""
+    from hydrogen import schema
+    from hydrogen.actuators import actuator
+    from hydrogen.actuators.declarations import ROTATION
+    rotary = actuator("rotary")
+    monkeypatch.setattr(rotary, "TRAVEL", ROTATION)
+    monkeypatch.setattr(rotary, "PARAMETERS", tuple(p for p in rotary.PARAMETERS
+                                                    if p.name not in ("angle_min", "angle_max")))
+    path = tmp_path / "arm.toml"
+    path.write_text(rotary_arm_text().replace("angle = [-1.9, -0.1]\n", "", 1))
+    m = hydrogen.load_model(path)
+    c = m.cylinders[1]
+    assert (c.stroke_min, c.stroke_max) == (-np.inf, np.inf) and m.leg_max[1] == np.inf
+    assert not [k for k in m.numbers() if k.startswith("elbow_motor.angle")]
+    from hydrogen.codegen.generate import structure_hash
+    assert len(structure_hash(m)) == 64 and m.baked_hash()
+    assert "| `[[cylinders]] kind = rotary` | `angle` |" not in schema.description_table()
+    path.write_text(rotary_arm_text())
+    with pytest.raises(hydrogen.ModelError, match=r"'elbow_motor' \(kind rotary\): unknown key 'angle'"):
+        hydrogen.load_model(path)
+
+
 @pytest.mark.parametrize("rotary", [False, True])
 def test_a_neutral_pose_past_a_joint_limit_names_the_joint_not_the_stroke(tmp_path, rotary):
     """The elbow's neutral -1.0 rad is past its lower limit -0.9 rad and outside the actuator's range

@@ -5,8 +5,10 @@ An actuator module declares
 * ``NAME`` (the kind, as a model file will name it) and ``DOC``;
 * ``MOTION``: ``"prismatic"`` (its coordinate x is a length l, m) or ``"revolute"`` (a joint angle, rad);
 * ``TRAVEL``: its coordinate's quantity, unit, force unit and range key
-  (:data:`~hydrogen.actuators.declarations.LENGTH` or :data:`~hydrogen.actuators.declarations.ANGLE`):
-  every message about its travel and every per-actuator rig setting takes its units from it;
+  (:data:`~hydrogen.actuators.declarations.LENGTH`, :data:`~hydrogen.actuators.declarations.ANGLE`, or
+  :data:`~hydrogen.actuators.declarations.ROTATION`: unlimited, no range):
+  every message about its travel, every per-actuator rig setting, FMU variable and log column takes
+  its units from it;
 * ``STATES``: its chamber pressure states (:class:`~hydrogen.actuators.declarations.State`: name, unit,
   bounds), in the order the laws take them as the tuple ``p``;
 * ``PARAMETERS``: its constants and their defaults (:class:`~hydrogen.actuators.declarations.Parameter`);
@@ -29,25 +31,41 @@ An actuator module declares
   - ``equilibrium_pressures(force, P)``: pressures (a tuple, ``STATES`` order) whose force is
     ``force``; ``force_range(P)``: the forces reachable with every pressure within its bounds.
 
-Adding a kind: write the module, add it to ``_MODULES``, add its tests (tests/test_actuators.py
-runs the physics checks on every registered kind). Importing this package does not import SymPy.
+Adding a kind: write the module and its tests; the registry finds it (every module of this package
+that declares ``NAME`` and ``Symbolic``), and tests/test_actuators.py runs the physics checks on it
+from its example in tests/data/actuators/. Importing this package does not import SymPy.
 """
 from __future__ import annotations
 
 import importlib
+import pkgutil
 
 from ..errors import ModelError
 
-__all__ = ["KINDS", "actuator"]
+__all__ = ["KINDS", "DEFAULT_KIND", "actuator"]
 
-_MODULES = ("three_way_cylinder", "four_way_cylinder", "rotary")
+#: The kind of a cylinder whose description names none: the paper's actuator.
+DEFAULT_KIND = "three_way_cylinder"
 
-_REGISTRY = {}
-for _mod in _MODULES:
-    _m = importlib.import_module(f"{__name__}.{_mod}")
-    _REGISTRY[_m.NAME] = _m
 
-#: The actuator kinds, in registration order.
+def _discover(path=__path__, package=__name__) -> dict:
+    """``{NAME: module}`` of every module of this package that declares a kind (``NAME`` and
+    ``Symbolic``): the default kind first, then by name, so lists of kinds read the same on every
+    machine whatever order the file system gives. ``path``, ``package``: where to look (this package)."""
+    found = {}
+    for info in pkgutil.iter_modules(path):
+        mod = importlib.import_module(f"{package}.{info.name}")
+        if hasattr(mod, "NAME") and hasattr(mod, "Symbolic"):
+            if mod.NAME in found:
+                raise ImportError(f"actuator kind {mod.NAME!r} is declared twice ({found[mod.NAME].__name__}, "
+                                  f"{mod.__name__})")
+            found[mod.NAME] = mod
+    return {k: found[k] for k in sorted(found, key=lambda k: (k != DEFAULT_KIND, k))}
+
+
+_REGISTRY = _discover()
+
+#: The actuator kinds: the default (the paper's three-way cylinder) first, then by name.
 KINDS = tuple(_REGISTRY)
 
 

@@ -12,7 +12,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["State", "Parameter", "Sensor", "Travel", "LENGTH", "ANGLE", "UNDERLAP", "ORIFICE_LINEAR_BELOW", "parameter_values", "stacked_parameters", "state_bounds", "sp"]
+__all__ = ["State", "Range", "Parameter", "Sensor", "Travel", "LENGTH", "ANGLE", "UNDERLAP", "ORIFICE_LINEAR_BELOW",
+           "ROTATION", "SUPPLY_PRESSURE", "TANK_PRESSURE", "BULK_MODULUS", "FLOW_GAIN", "AREA", "PIN_LENGTH", "CHAMBER_LENGTH",
+           "VOLUME", "DISPLACEMENT", "TURNS", "parameter_values", "stacked_parameters", "state_bounds", "sp"]
 
 
 @dataclass(frozen=True)
@@ -28,8 +30,46 @@ class State:
 
 
 @dataclass(frozen=True)
+class Range:
+    """The values a constant may take: its sign rule ``sign`` ("positive", "nonnegative" or None) and
+    the plausible range [``low``, ``high``] (SI, in the constant's unit), generous enough for any real
+    hydraulic machine, from micro-actuators to 100-t excavators and presses: a value outside is a slip
+    of unit or a typo (1e308 overflows the plant's arithmetic). The loader refuses one outside with
+    the range; an exported program (C, FMU) refuses an edited number outside it."""
+
+    sign: str | None
+    low: float
+    high: float
+
+
+#: Pa: 1 bar (low-pressure water hydraulics) .. 1000 bar (above the 700 bar of the highest-pressure tools)
+SUPPLY_PRESSURE = Range("positive", 1e5, 1e8)
+#: Pa (gauge): the return line's pressure, 0 .. the largest supply
+TANK_PRESSURE = Range("nonnegative", 0.0, 1e8)
+#: Pa: oil full of entrained air (1e7) .. 5x the stiffest hydraulic fluids (water, oil: ~2e9)
+BULK_MODULUS = Range("positive", 1e7, 1e10)
+#: m^2/(s sqrt(Pa)): c = c_d w sqrt(2/rho), q = c u sqrt(dp): a 10 um-wide micro-valve port (3e-7) .. a
+#: 30 m port periphery
+FLOW_GAIN = Range("positive", 1e-9, 1.0)
+#: m^2: a piston's area, a 0.1 mm bore (8e-9) .. a 3.5 m press bore (10)
+AREA = Range("positive", 1e-8, 10.0)
+#: m, pin to pin: 10 um (a micro-actuator) .. 100 m (longer than any telescopic cylinder's stroke)
+PIN_LENGTH = Range("positive", 1e-5, 100.0)
+#: m: the length at which a three-way cylinder's control chamber would be empty
+CHAMBER_LENGTH = Range("nonnegative", 0.0, 100.0)
+#: m^3: a chamber's dead volume (hoses, ports): 1 mm^3 (a micro-actuator) .. 100 m^3
+VOLUME = Range("positive", 1e-9, 100.0)
+#: m^3/rad: a rotary actuator's displacement: a 1 mm^3/rad micro-actuator .. 1 m^3/rad
+DISPLACEMENT = Range("positive", 1e-9, 1.0)
+#: rad: an angle within two turns either way
+TURNS = Range(None, -4 * math.pi, 4 * math.pi)
+
+
+@dataclass(frozen=True)
 class Parameter:
-    """A constant of the actuator: ``name``, ``unit``, ``default`` (None: required), ``doc``.
+    """A constant of the actuator: ``name``, ``unit``, ``default`` (None: required), ``doc``, and
+    ``range`` (:class:`Range`, in ``unit``; None: any finite number): the loader and the exported
+    programs hold the value to it.
 
     ``gamma``: one of the paper's hydraulic parameters γ = [β, βc] (the bulk modulus β or the flow gain
     c): the model holds its true value, but the symbolic laws take β and c as arguments, since the
@@ -40,13 +80,18 @@ class Parameter:
     default: float | None
     doc: str
     gamma: bool = False
+    range: Range | None = None
 
 
 #: The valve constants every kind with an orifice valve takes, with one default each (the three-way
 #: cylinder's and the two-chamber kinds' alike).
-UNDERLAP = Parameter("underlap", "m", 0.0, "d, valve underlap (0: critically centred)")
+#: m of spool travel: 0 (critical centre) .. 1 cm (spools travel millimetres)
+UNDERLAP = Parameter("underlap", "m", 0.0, "d, valve underlap (0: critically centred)",
+                     range=Range("nonnegative", 0.0, 1e-2))
+#: Pa: the pressure drop below which the plant's orifice roots turn linear: up to the largest supply
 ORIFICE_LINEAR_BELOW = Parameter("orifice_linear_below", "Pa", 5.0e4,
-                                 "the simulated plant's orifice roots turn linear below this drop")
+                                 "the simulated plant's orifice roots turn linear below this drop",
+                                 range=Range("positive", 1.0, 1e8))
 
 
 @dataclass(frozen=True)
@@ -65,16 +110,26 @@ class Travel:
     ``force_unit`` of what it exerts, the description ``key`` of its range as [min, max] and the
     parameter names of its ``ends``, ``range_word`` for that range in messages ("stroke"), and
     ``misread``: units a log may hold it in by mistake, as (name, size in ``unit``): a rig log's
-    check names the one its numbers fit."""
+    check names the one its numbers fit. ``limits``: the :class:`Range` each end of its range is held to.
+
+    Unlimited travel (a motor on a continuous joint) has no ``key`` (None) and no ``ends``: the
+    description gives no range, and every check of travel (stroke at load and along a reference, a
+    rig log's columns, the FMU's start pose) takes its range as (−∞, ∞)."""
 
     quantity: str
     unit: str
     force_unit: str
-    key: str
+    key: str | None
     ends: tuple
     range_word: str
     doc: str
     misread: tuple = ()
+    limits: Range | None = None
+
+    @property
+    def limited(self) -> bool:
+        """Whether the coordinate has a range (the description gives ``key``), else it travels freely."""
+        return self.key is not None
 
     def value(self, x, fmt: str = ".4f") -> str:
         """``x`` named in this travel for a message: "length 0.4512 m", "angle -0.5000 rad"."""
@@ -91,10 +146,14 @@ class Travel:
 
 #: A cylinder's travel: its pin-to-pin length l (m) within its stroke, force in N.
 LENGTH = Travel("length", "m", "N", "stroke", ("stroke_min", "stroke_max"), "stroke",
-                "[shortest, longest] pin-to-pin length", (("mm", 1e-3),))
+                "[shortest, longest] pin-to-pin length", (("mm", 1e-3),), PIN_LENGTH)
 #: A joint actuator's travel: its joint angle θ (rad) within its angle range, torque in N m.
 ANGLE = Travel("angle", "rad", "N m", "angle", ("angle_min", "angle_max"), "angle range",
-               "[lowest, highest] joint angle", (("degrees", math.pi / 180.0),))
+               "[lowest, highest] joint angle", (("degrees", math.pi / 180.0),), TURNS)
+#: A joint actuator turning without limit (a motor on a continuous joint): its joint angle θ (rad),
+#: torque in N m, no range.
+ROTATION = Travel("angle", "rad", "N m", None, (), "rotation", "continuous rotation: no travel limits",
+                  (("degrees", math.pi / 180.0),))
 
 
 class _LazySympy:

@@ -15,7 +15,7 @@ f0, g0 and the valve inverse are :class:`~hydrogen.actuators.two_chamber.Laws` o
 from __future__ import annotations
 
 from . import orifices as orf
-from .declarations import LENGTH, Parameter, Sensor, State, parameter_values, stacked_parameters
+from .declarations import AREA, LENGTH, PIN_LENGTH, VOLUME, Parameter, Sensor, State, parameter_values, stacked_parameters
 from .two_chamber import VALVE_PARAMETERS, Laws
 
 __all__ = ["NAME", "DOC", "MOTION", "TRAVEL", "COUPLING_GAIN", "STATES", "PARAMETERS", "SENSORS", "Symbolic", "Numeric",
@@ -31,12 +31,13 @@ COUPLING_GAIN = 1.0e4
 STATES = (State("pA", "Pa", "tank_pressure", "supply_pressure", "cap-side chamber pressure"),
           State("pB", "Pa", "tank_pressure", "supply_pressure", "rod-side (annulus) chamber pressure"))
 PARAMETERS = (
-    Parameter("cap_area", "m^2", None, "A_A, piston area on the cap side"),
-    Parameter("annulus_area", "m^2", None, "A_B, piston area on the rod side = cap area - rod section"),
-    Parameter("stroke_min", "m", None, "length pin to pin with the piston at the cap end"),
-    Parameter("stroke_max", "m", None, "length pin to pin with the piston at the rod end"),
-    Parameter("dead_volume_A", "m^3", None, "V_A0, cap-side volume at the shortest length"),
-    Parameter("dead_volume_B", "m^3", None, "V_B0, rod-side volume at the longest length"),
+    Parameter("cap_area", "m^2", None, "A_A, piston area on the cap side", range=AREA),
+    Parameter("annulus_area", "m^2", None, "A_B, piston area on the rod side = cap area - rod section",
+              range=AREA),
+    Parameter("stroke_min", "m", None, "length pin to pin with the piston at the cap end", range=PIN_LENGTH),
+    Parameter("stroke_max", "m", None, "length pin to pin with the piston at the rod end", range=PIN_LENGTH),
+    Parameter("dead_volume_A", "m^3", None, "V_A0, cap-side volume at the shortest length", range=VOLUME),
+    Parameter("dead_volume_B", "m^3", None, "V_B0, rod-side volume at the longest length", range=VOLUME),
     *VALVE_PARAMETERS,
 )
 SENSORS = (Sensor("l", "m", "cylinder length, pin to pin"),

@@ -14,7 +14,7 @@ The laws are :class:`~hydrogen.actuators.two_chamber.Laws` with both effective a
 from __future__ import annotations
 
 from . import orifices as orf
-from .declarations import ANGLE, Parameter, Sensor, State, parameter_values, stacked_parameters
+from .declarations import ANGLE, DISPLACEMENT, TURNS, VOLUME, Parameter, Sensor, State, parameter_values, stacked_parameters
 from .two_chamber import VALVE_PARAMETERS, Laws
 
 __all__ = ["NAME", "DOC", "MOTION", "TRAVEL", "COUPLING_GAIN", "STATES", "PARAMETERS", "SENSORS", "Symbolic", "Numeric",
@@ -31,11 +31,11 @@ COUPLING_GAIN = None
 STATES = (State("pA", "Pa", "tank_pressure", "supply_pressure", "chamber A pressure (fills for positive rotation)"),
           State("pB", "Pa", "tank_pressure", "supply_pressure", "chamber B pressure"))
 PARAMETERS = (
-    Parameter("displacement", "m^3/rad", None, "D_m, volume swept per radian"),
-    Parameter("angle_min", "rad", None, "joint angle with chamber A at its dead volume"),
-    Parameter("angle_max", "rad", None, "joint angle with chamber B at its dead volume"),
-    Parameter("dead_volume_A", "m^3", None, "V_A0, chamber A volume at angle_min"),
-    Parameter("dead_volume_B", "m^3", None, "V_B0, chamber B volume at angle_max"),
+    Parameter("displacement", "m^3/rad", None, "D_m, volume swept per radian", range=DISPLACEMENT),
+    Parameter("angle_min", "rad", None, "joint angle with chamber A at its dead volume", range=TURNS),
+    Parameter("angle_max", "rad", None, "joint angle with chamber B at its dead volume", range=TURNS),
+    Parameter("dead_volume_A", "m^3", None, "V_A0, chamber A volume at angle_min", range=VOLUME),
+    Parameter("dead_volume_B", "m^3", None, "V_B0, chamber B volume at angle_max", range=VOLUME),
     *VALVE_PARAMETERS,
 )
 SENSORS = (Sensor("q", "rad", "joint angle (encoder)"),

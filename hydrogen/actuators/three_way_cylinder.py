@@ -23,7 +23,8 @@ from __future__ import annotations
 import numpy as np
 
 from . import orifices as orf
-from .declarations import LENGTH, ORIFICE_LINEAR_BELOW, UNDERLAP, Parameter, Sensor, State, parameter_values, sp, stacked_parameters
+from .declarations import (AREA, BULK_MODULUS, CHAMBER_LENGTH, FLOW_GAIN, LENGTH, ORIFICE_LINEAR_BELOW, SUPPLY_PRESSURE, UNDERLAP,
+                           Parameter, Sensor, State, parameter_values, sp, stacked_parameters)
 
 __all__ = ["NAME", "DOC", "MOTION", "TRAVEL", "COUPLING_GAIN", "STATES", "PARAMETERS", "SENSORS", "Symbolic", "Numeric",
            "parameters", "stacked"]
@@ -38,13 +39,14 @@ TRAVEL = LENGTH
 COUPLING_GAIN = 1.0e4
 STATES = (State("pc", "Pa", 0.0, "supply_pressure", "control (cap-side) chamber pressure"),)
 PARAMETERS = (
-    Parameter("piston_area", "m^2", None, "A, cap-side (control chamber) area"),
-    Parameter("rod_area", "m^2", None, "a, annulus area on the rod side (at supply pressure), < A"),
-    Parameter("chamber_length", "m", None, "L: length at which the control chamber would be empty"),
-    Parameter("supply_pressure", "Pa", None, "P_s"),
+    Parameter("piston_area", "m^2", None, "A, cap-side (control chamber) area", range=AREA),
+    Parameter("rod_area", "m^2", None, "a, annulus area on the rod side (at supply pressure), < A", range=AREA),
+    Parameter("chamber_length", "m", None, "L: length at which the control chamber would be empty",
+              range=CHAMBER_LENGTH),
+    Parameter("supply_pressure", "Pa", None, "P_s", range=SUPPLY_PRESSURE),
     UNDERLAP,
-    Parameter("flow_gain", "m^2/(s sqrt(Pa))", None, "c: q = c u sqrt(dp)", gamma=True),
-    Parameter("bulk_modulus", "Pa", None, "beta, effective oil bulk modulus", gamma=True),
+    Parameter("flow_gain", "m^2/(s sqrt(Pa))", None, "c: q = c u sqrt(dp)", gamma=True, range=FLOW_GAIN),
+    Parameter("bulk_modulus", "Pa", None, "beta, effective oil bulk modulus", gamma=True, range=BULK_MODULUS),
     ORIFICE_LINEAR_BELOW,
 )
 SENSORS = (Sensor("l", "m", "cylinder length, pin to pin"),

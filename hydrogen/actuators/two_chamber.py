@@ -34,7 +34,7 @@ critically centred valve holds any pair; the same pair is taken (the limit d →
 """
 from __future__ import annotations
 
-from .declarations import ORIFICE_LINEAR_BELOW, UNDERLAP, Parameter
+from .declarations import BULK_MODULUS, FLOW_GAIN, ORIFICE_LINEAR_BELOW, SUPPLY_PRESSURE, TANK_PRESSURE, UNDERLAP, Parameter
 
 __all__ = ["Laws", "VALVE_PARAMETERS"]
 
@@ -119,10 +119,11 @@ class Laws:
 
 #: The four-way valve's and the oil's parameters, the same for every two-chamber kind.
 VALVE_PARAMETERS = (
-    Parameter("supply_pressure", "Pa", None, "P_s"),
-    Parameter("tank_pressure", "Pa", 0.0, "P_t (gauge)"),
+    Parameter("supply_pressure", "Pa", None, "P_s", range=SUPPLY_PRESSURE),
+    Parameter("tank_pressure", "Pa", 0.0, "P_t (gauge)", range=TANK_PRESSURE),
     UNDERLAP,
-    Parameter("flow_gain", "m^2/(s sqrt(Pa))", None, "c: q = c opening sqrt(dp), each orifice", gamma=True),
-    Parameter("bulk_modulus", "Pa", None, "beta, effective oil bulk modulus", gamma=True),
+    Parameter("flow_gain", "m^2/(s sqrt(Pa))", None, "c: q = c opening sqrt(dp), each orifice", gamma=True,
+              range=FLOW_GAIN),
+    Parameter("bulk_modulus", "Pa", None, "beta, effective oil bulk modulus", gamma=True, range=BULK_MODULUS),
     ORIFICE_LINEAR_BELOW,
 )

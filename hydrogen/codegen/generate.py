@@ -62,8 +62,8 @@ def _block_files() -> dict:
     out = {}
     for role, names, module in (("kind", KINDS, actuator), ("controller", CONTROLLERS, controller)):
         for name in names:
-            folder, file = module(name).__name__.split(".")[-2:]
-            out[(folder, file + ".py")] = (role, name)
+            path = Path(module(name).__file__)
+            out[(path.parent.name, path.name)] = (role, name)
     return out
 
 
