@@ -28,6 +28,44 @@ def test_exactly_one_baseline_and_it_estimates_nothing(model):
     assert adapts("adaptive-robust", model) and not adapts("backstepping", model)
 
 
+def test_the_registry_keeps_the_shipped_order_by_rank():
+    assert CONTROLLERS[:5] == ("backstepping", "adaptive-robust", "adaptive-observer", "p", "p-task")
+    assert [spec(c).rank for c in CONTROLLERS[:5]] == [0, 1, 2, 3, 4]
+
+
+def _package(tmp_path, name, modules):
+    """A package ``name`` in ``tmp_path`` holding ``modules`` (module name -> source)."""
+    root = tmp_path / name
+    root.mkdir()
+    (root / "__init__.py").write_text("")
+    for mod, text in modules.items():
+        (root / f"{mod}.py").write_text(text)
+    return root
+
+
+_SPEC = "from hydrogen.controllers.spec import ControllerSpec\nSPEC = ControllerSpec(name={!r}, doc='', main_gain='K', grid_low=1.0{})\n"
+
+
+def test_the_registry_finds_every_module_declaring_a_spec_ranked_then_by_name(tmp_path, monkeypatch):
+    from hydrogen.controllers import _discover
+
+    monkeypatch.syspath_prepend(str(tmp_path))
+    root = _package(tmp_path, "found_ctrls", {"zeta": _SPEC.format("zeta", ""), "alpha": _SPEC.format("alpha", ""),
+                                               "first": _SPEC.format("first", ", rank=0"),
+                                               "helpers": "X = 1\n"})  # no SPEC: not a controller
+    assert list(_discover("found_ctrls", [str(root)])) == ["first", "alpha", "zeta"]
+
+
+def test_two_modules_declaring_one_name_are_refused_naming_both(tmp_path, monkeypatch):
+    from hydrogen.controllers import _discover
+    from hydrogen.errors import HydrogenError
+
+    monkeypatch.syspath_prepend(str(tmp_path))
+    root = _package(tmp_path, "twin_ctrls", {"a": _SPEC.format("same", ""), "b": _SPEC.format("same", "")})
+    with pytest.raises(HydrogenError, match=r"b\.py: controller name 'same' is already declared by .*a\.py"):
+        _discover("twin_ctrls", [str(root)])
+
+
 def test_no_module_outside_the_controllers_tests_a_controller_name():
     root = Path(hydrogen.__file__).parent
     names = "|".join(re.escape(c) for c in CONTROLLERS)

@@ -24,7 +24,7 @@ SPEC = ControllerSpec(name="adaptive-robust", doc="Theorem 3: adaptive controlle
                       main_gain="Lambda", grid_low=5.0,
                       # K_o first: it caps Λ (NaN: from Λ and K_d, complete_gains)
                       adaptation_search=(("Ko", "=", (float("nan"), 30.0, 100.0, 300.0, 1000.0)),
-                                         *ADAPTATION_SEARCH))
+                                         *ADAPTATION_SEARCH), rank=1)
 NAME, DOC = SPEC.name, SPEC.doc
 
 

@@ -52,6 +52,10 @@ class ControllerSpec:
         the point the main and secondary search chose (adaptation rates, observer gains), each over
         its values: ``how`` "=" values in the gain's own unit (NaN: the controller's rule for it),
         "x" factors of the robot's own value. Empty: no second stage.
+    rank : float
+        Where it comes among the controllers (generation order, listings, the command line's
+        choices): the shipped ones 0 to 4; a new one leaves it at inf and comes after them, by
+        module name.
     """
 
     name: str
@@ -65,6 +69,7 @@ class ControllerSpec:
     compared: bool = False
     search_description_proportions: bool = False
     adaptation_search: tuple = ()
+    rank: float = math.inf
 
     @property
     def command_gains(self) -> tuple:
