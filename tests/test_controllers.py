@@ -286,3 +286,43 @@ def test_default_gains_are_stable_on_a_new_robots_ideal_plant(boom_stick, name):
     assert worst < ANY_MAX_ERROR_PCT, res.metrics["max_error_pct"]
     if not spec(name).baseline and not spec(name).compared:  # the nonlinear controllers
         assert worst < NONLINEAR_MAX_ERROR_PCT, res.metrics["max_error_pct"]
+
+
+def test_the_start_and_projection_of_the_state_are_the_blocks_own(monkeypatch, dyn):
+    """The runtime sets each block to the initial value it declares and clips it to the limits it
+    declares (numbers, a gain's name or a model range's): no table of blocks by name."""
+    import dataclasses
+
+    from hydrogen.simulation.control import make_controller
+
+    model, mod = dyn.model, controller("adaptive-robust")
+    q0, qdot0 = model.neutral_pose, np.full(model.n, 0.01)
+    ctrl = make_controller(dyn, "adaptive-robust")
+    ctrl.reset(q0, qdot0)
+    assert np.array_equal(ctrl.part("z"), qdot0) and np.array_equal(ctrl.part("theta_hat"), model.theta)
+    assert np.array_equal(ctrl.part("gamma1_hat"), np.full(model.n_cylinders, model.gamma[0][0]))
+    assert np.array_equal(ctrl.part("legl_prev"), np.asarray(dyn.leg_lengths(q0), float).ravel())
+    lo, hi = ctrl.bounds
+    assert np.array_equal(lo[ctrl.slices["theta_hat"]], model.theta_min)
+    assert np.all(hi[ctrl.slices["gamma2_hat"]] == model.gamma2_max) and np.all(np.isinf(hi[ctrl.slices["z"]]))
+
+    full = mod.state_layout
+    changed = {"z": dict(initial=lambda s: 2.0 * s.q0, limits=(-0.5, "u_max")), "theta_hat": dict(limits=(0.0, 9.0))}
+    monkeypatch.setattr(mod, "state_layout", lambda m: [dataclasses.replace(b, **changed.get(b.name, {}))
+                                                        for b in full(m)])
+    ctrl = make_controller(dyn, "adaptive-robust", gains={"u_max": 0.004})
+    ctrl.reset(q0, qdot0)
+    assert np.array_equal(ctrl.part("z"), 2.0 * q0)
+    lo, hi = ctrl.bounds
+    assert np.all(lo[ctrl.slices["z"]] == -0.5) and np.all(hi[ctrl.slices["z"]] == 0.004)
+    assert np.all(lo[ctrl.slices["theta_hat"]] == 0.0) and np.all(hi[ctrl.slices["theta_hat"]] == 9.0)
+
+
+def test_a_block_names_its_entries_and_units_from_the_model(robot_model):
+    blocks = {b.name: b for b in controller("adaptive-observer").state_layout(robot_model)}
+    m = robot_model
+    assert blocks["z"].entry_names(m) == list(m.coordinate_names)
+    assert blocks["z"].units(m) == [f"{u}/s" for u in m.coordinate_units]
+    assert blocks["gamma1_hat"].entry_names(m) == [c.name for c in m.cylinders]
+    assert blocks["theta_hat"].entry_names(m) == list(m.theta_names) and None not in blocks["theta_hat"].units(m)
+    assert blocks["gamma_gain"].entry_names(m)[:2] == ["[1]", "[2]"] and blocks["gamma_gain"].units(m)[0] is None
