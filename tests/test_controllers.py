@@ -307,14 +307,15 @@ def test_the_start_and_projection_of_the_state_are_the_blocks_own(monkeypatch, d
     assert np.all(hi[ctrl.slices["gamma2_hat"]] == model.gamma2_max) and np.all(np.isinf(hi[ctrl.slices["z"]]))
 
     full = mod.state_layout
-    changed = {"z": dict(initial=lambda s: 2.0 * s.q0, limits=(-0.5, "u_max")), "theta_hat": dict(limits=(0.0, 9.0))}
+    changed = {"z": dict(initial=lambda s: 2.0 * s.q0, limits=(lambda m, g: -g["u_max"], "u_max")),
+               "theta_hat": dict(limits=(0.0, 9.0))}
     monkeypatch.setattr(mod, "state_layout", lambda m: [dataclasses.replace(b, **changed.get(b.name, {}))
                                                         for b in full(m)])
     ctrl = make_controller(dyn, "adaptive-robust", gains={"u_max": 0.004})
     ctrl.reset(q0, qdot0)
     assert np.array_equal(ctrl.part("z"), 2.0 * q0)
     lo, hi = ctrl.bounds
-    assert np.all(lo[ctrl.slices["z"]] == -0.5) and np.all(hi[ctrl.slices["z"]] == 0.004)
+    assert np.all(lo[ctrl.slices["z"]] == -0.004) and np.all(hi[ctrl.slices["z"]] == 0.004)
     assert np.all(lo[ctrl.slices["theta_hat"]] == 0.0) and np.all(hi[ctrl.slices["theta_hat"]] == 9.0)
 
 

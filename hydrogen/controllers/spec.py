@@ -123,8 +123,9 @@ class StateBlock:
         :class:`Start` and giving the entries (or one number for all).
     limits : (low, high)
         The projection the loop keeps every entry inside (both loops clip the state to it each
-        period), in the block's own unit: each a number (one for all entries or one per entry) or a
-        name, the controller's gain of that name, else the model's attribute (``"theta_min"``).
+        period), in the block's own unit: each a number (one for all entries or one per entry), a
+        name, the controller's gain of that name, else the model's attribute (``"theta_min"``), or a
+        rule taking the model and the gains (``lambda model, gains: -gains["d_max"]``).
     unit : str, callable or None
         The unit of its entries as the FMU and the logs show it (FMI spelling: "Pa", "m/s"): one for
         every entry, or a rule taking the model and giving one per entry; None: not declared.
@@ -162,8 +163,8 @@ class StateBlock:
 
     def limit_values(self, model, gains: dict) -> tuple:
         """(low, high) of :attr:`limits` for ``model`` and the controller's ``gains`` (numbers or sequences)."""
-        return tuple((gains[v] if v in gains else getattr(model, v)) if isinstance(v, str) else v
-                     for v in self.limits)
+        return tuple(v(model, gains) if callable(v) else (gains[v] if v in gains else getattr(model, v))
+                     if isinstance(v, str) else v for v in self.limits)
 
     def __iter__(self):  # the layout's (name, size) pairs: ``for name, size in state_layout(model)``
         return iter((self.name, self.size))
