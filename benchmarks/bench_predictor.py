@@ -14,7 +14,7 @@ import sys
 from pathlib import Path
 
 import hydrogen
-from hydrogen.controllers import CONTROLLERS, function_name
+from hydrogen.controllers import function_name
 from hydrogen.layout import delay_split
 from hydrogen.simulation.scenarios import scenario as named_scenario
 
@@ -42,7 +42,7 @@ def run_robot(name: str, quick: bool = False) -> dict | None:
     n_rhs = _instructions(dyn, "plant_rhs")
     n, repeats = (2000, 3) if quick else (8000, 5)
     rows = {}
-    for c in CONTROLLERS:
+    for c in model.controllers:  # the controllers the robot lists
         off = _per_period(dyn, named_scenario(rig, model), c, n, repeats)
         on = _per_period(dyn, named_scenario(rig, model).with_overrides(predictor=True), c, n, repeats)
         rows[c] = {"off_us": off * 1e6, "on_us": on * 1e6, "added_us": (on - off) * 1e6, "ratio": on / off,

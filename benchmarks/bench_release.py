@@ -130,7 +130,7 @@ for s in names:
     fields = {{f.name: getattr(sc, f.name) for f in dataclasses.fields(sc)
               if f.name not in ("name", "reference", "label", "paper")}}
     fields = json.loads(json.dumps(fields, default=plain))
-    for c in CONTROLLERS:
+    for c in getattr(model, "controllers", CONTROLLERS):  # those the robot lists (a release before: all)
         key = s + "__" + c
         err = None
         try:

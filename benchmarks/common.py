@@ -53,14 +53,14 @@ class InputValues:
     """
 
     def __init__(self, dyn):
-        from hydrogen.controllers import CONTROLLERS, function_name, rates_function_name, step_function_name
+        from hydrogen.controllers import function_name, rates_function_name, step_function_name
         from hydrogen.simulation.control import make_controller
 
         self.dyn, self.model = dyn, dyn.model
         m = self.model
         self.q = np.asarray(m.neutral_pose, float) + pose_offset(m.n)
         self.ctrl = {}
-        for kind in CONTROLLERS:
+        for kind in m.controllers:  # the controllers the robot lists (those its build holds)
             self.ctrl[function_name(kind)] = make_controller(dyn, kind, None, m.theta, m.gamma)
             self.ctrl[rates_function_name(kind)] = self.ctrl[function_name(kind)]  # same inputs
             self.ctrl[step_function_name(kind)] = self.ctrl[function_name(kind)]  # same, then h and the bounds

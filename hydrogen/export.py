@@ -189,6 +189,17 @@ def render_template(template: str, ctx: dict) -> str:
     return render(template, ctx, TEMPLATES)
 
 
+def _xc_blocks(ctrl, model) -> list:
+    """The blocks of the controller's state as it declares them: name, C macro part, where it starts in
+    xc, size, role, and its unit where it declares one unit for every entry (else the entries' units)."""
+    out = []
+    for block in ctrl.layout:
+        units = [u for u in dict.fromkeys(block.units(model)) if u]
+        out.append({"name": block.name, "macro": block.name.upper(), "start": ctrl.slices[block.name].start,
+                    "size": block.size, "role": block.role, "unit": ", ".join(units)})
+    return out
+
+
 def export_context(dyn, p, scenario_name, controller, prog, sources, headers, ctrl_header, sensor_gain):
     """Everything the templates need, numbers already formatted as C literals."""
     from .layout import SLOTS, loop_context
@@ -244,6 +255,7 @@ def export_context(dyn, p, scenario_name, controller, prog, sources, headers, ct
         "out_total": sum(int(r) * int(c) for r, c in fn.out_shapes),
         "n_slots": len(SLOTS), "n_xc": n_xc, "xc_cap": max(n_xc, 1),
         "xc0": c_doubles(ctrl.xc if n_xc else np.zeros(1)),
+        "xc_blocks": _xc_blocks(ctrl, model),
         "x0": c_doubles(p.x0), "q_meas0": c_doubles(p.q0), "l0": c_doubles(dyn.leg_lengths(p.q0)),
         "coords": model.coordinate_names,
         "config": _with_definitions(loop["config"], values, dyn.library.manifest.get(NUMBERS)),

@@ -38,6 +38,8 @@ from xml.etree import ElementTree as ET
 
 import numpy as np
 
+from .controllers import ESTIMATE_BLOCKS
+from .controllers.common import estimate_layout, theta_units as _theta_units
 from .errors import CompilerError, FmuError, OutputPathError
 from .layout import NUMBERS
 from .model import POSITIVE  # FMI's min is inclusive: "> 0" is min = the smallest positive double
@@ -63,9 +65,6 @@ UNITS = {
     "N.s/m": {"kg": 1, "s": -1}, "N.m": {"kg": 1, "m": 2, "s": -2}, "N.m.s/rad": {"kg": 1, "m": 2, "s": -1, "rad": -1}, "s": {"s": 1}, "kg": {"kg": 1}, "kg.m": {"kg": 1, "m": 1},
     "kg.m2": {"kg": 1, "m": 2}, "m2.Pa0.5/s": None,
 }
-#: Unit of each kind of inertial parameter (the part of a theta name after the link's name).
-_THETA_UNITS = {"mass": "kg", "mcx": "kg.m", "mcy": "kg.m", "mcz": "kg.m", "Ixx": "kg.m2", "Ixy": "kg.m2",
-                "Iyy": "kg.m2", "Ixz": "kg.m2", "Iyz": "kg.m2", "Izz": "kg.m2"}
 #: Plant parameters (inputs of plant_rhs besides x and u): per-entry names, units and what they are.
 def _friction_entries(c) -> list:
     """The friction entries of actuator ``c`` in its own unit (its kind's TRAVEL)."""
@@ -215,7 +214,6 @@ def _variables(part, dyn, p, ctx, fn, encoders, kalman):
     model, sc, ctrl = dyn.model, p.sc, p.ctrl
     n, m = model.n, model.n_cylinders
     coords, cyls, cunits = list(model.coordinate_names), [c.name for c in model.cylinders], _coord_units(model)
-    theta_units = [_THETA_UNITS.get(t.split(".")[-1]) for t in model.theta_names]
     travels = [c.travel for c in model.cylinders]  # each actuator's coordinate and unit: its kind's TRAVEL
     pstates = _pressure_states(model)
     from .pressures import bounds as pressure_bounds
@@ -327,19 +325,23 @@ def _variables(part, dyn, p, ctx, fn, encoders, kalman):
         add(_dotted("u", c), "o", "discrete", f"spool command of cylinder {c} for the period", f"inst->ctrl_out[{i}]",
             unit="m")
     xc_name = "xc_row" if part == "closed-loop" else "xc"
-    est = [("theta_hat", list(model.theta_names), theta_units, "estimate of inertial parameter", p.theta0),
-           ("gamma1_hat", cyls, ["Pa"] * m, "estimate of beta (bulk modulus) of cylinder", p.gamma0[0]),
-           ("gamma2_hat", cyls, ["m2.Pa0.5/s"] * m, "estimate of beta c of cylinder", p.gamma0[1])]
+    # every block of the controller's state as it declares it (entry names, units); the parameter
+    # estimates a controller does not adapt too, as the constants its own model holds
+    held = {b.name: b for b in ctrl.layout}
+    estimates = {b.name: b for b in estimate_layout(model)}
+    fixed = dict(zip(ESTIMATE_BLOCKS, (p.theta0, p.gamma0[0], p.gamma0[1])))
     const = []
-    for block, names, units, what, default in est:
-        sl = ctrl.slices.get(block)
-        for i, (nm, unit) in enumerate(zip(names, units)):
+    for block in [held.get(b, estimates[b]) for b in ESTIMATE_BLOCKS] + [b for b in ctrl.layout
+                                                                        if b.name not in ESTIMATE_BLOCKS]:
+        sl = ctrl.slices.get(block.name)
+        for i, (nm, unit) in enumerate(zip(block.entry_names(model), block.units(model))):
             if sl is not None:
-                loc, desc = f"inst->{xc_name}[{sl.start + i}]", f"{what} {nm}"
+                loc, desc = f"inst->{xc_name}[{sl.start + i}]", f"{block.role}: {nm.strip('[]')}"
             else:
-                loc, desc = f"inst->est_const[{len(const)}]", f"{what} {nm} (not adapted by this controller)"
-                const.append(float(np.atleast_1d(default)[i]))
-            add(_dotted(block, nm), "o", "discrete", desc, loc, unit=unit)
+                loc, desc = f"inst->est_const[{len(const)}]", f"{block.role}: {nm} (not adapted by this controller)"
+                const.append(float(np.atleast_1d(fixed[block.name])[i]))
+            name = f"{_name_part(block.name)}{nm}" if nm.startswith("[") else _dotted(block.name, nm)
+            add(name, "o", "discrete", desc, loc, unit=unit)
     return out, const
 
 
@@ -363,7 +365,7 @@ def _plant_arrays(dyn, p):
     model, sc = dyn.model, p.sc
     cyls = [c.name for c in model.cylinders]
     fn = dyn.functions["plant_rhs"]
-    theta_units = [_THETA_UNITS.get(t.split(".")[-1]) for t in model.theta_names]
+    theta_units = _theta_units(model)
     known = {
         "theta": (model.theta, [(_dotted("theta", t), u, f"inertial parameter {t} (true value)")
                                 for t, u in zip(model.theta_names, theta_units)]),
@@ -458,7 +460,7 @@ def _model_description(ident, part, model_name, sc, controller, guid, variables,
         units = ET.SubElement(root, "UnitDefinitions")
         for u in used:
             el = ET.SubElement(units, "Unit", {"name": u})
-            if UNITS[u] is not None:
+            if UNITS.get(u) is not None:  # a unit FMI exponents cannot spell (or a block's own): by name
                 ET.SubElement(el, "BaseUnit", {k: str(e) for k, e in UNITS[u].items()})
     cats = ET.SubElement(root, "LogCategories")
     ET.SubElement(cats, "Category", {"name": "logStatusError", "description": "refused calls and failed steps"})

@@ -315,9 +315,9 @@ def test_check_compares_output_not_source_text(tmp_path, model, monkeypatch):
 
 
 def _stateful():
-    from hydrogen.controllers import CONTROLLERS, controller
+    from hydrogen.controllers import controller
 
-    return [(name, kind) for name in MODELS for kind in CONTROLLERS
+    return [(name, kind) for name in MODELS for kind in hydrogen.load_model(name).controllers
             if controller(kind).state_layout(hydrogen.load_model(name))]
 
 
@@ -444,7 +444,7 @@ def test_a_folder_grown_controller_by_controller_is_a_whole_generation(tmp_path,
         mp.setattr(gen, "derive", lambda *a, **k: (derived.append((tuple(a[2]), k["core"])), real(*a, **k))[1])
         assert not gen.generate(model, folder, controllers=("adaptive-robust",))  # holds it: nothing done
         assert gen.generate(model, folder)
-    assert derived == [(tuple(c for c in CONTROLLERS if c != "adaptive-robust"), False)]  # those alone
+    assert derived == [(tuple(c for c in model.controllers if c != "adaptive-robust"), False)]  # those alone
     fresh = fresh_render(model)
     assert sorted(os.listdir(folder)) == sorted(os.listdir(fresh))
     for name in os.listdir(fresh):

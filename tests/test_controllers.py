@@ -28,6 +28,44 @@ def test_exactly_one_baseline_and_it_estimates_nothing(model):
     assert adapts("adaptive-robust", model) and not adapts("backstepping", model)
 
 
+def test_the_registry_keeps_the_shipped_order_by_rank():
+    assert CONTROLLERS[:5] == ("backstepping", "adaptive-robust", "adaptive-observer", "p", "p-task")
+    assert [spec(c).rank for c in CONTROLLERS[:5]] == [0, 1, 2, 3, 4]
+
+
+def _package(tmp_path, name, modules):
+    """A package ``name`` in ``tmp_path`` holding ``modules`` (module name -> source)."""
+    root = tmp_path / name
+    root.mkdir()
+    (root / "__init__.py").write_text("")
+    for mod, text in modules.items():
+        (root / f"{mod}.py").write_text(text)
+    return root
+
+
+_SPEC = "from hydrogen.controllers.spec import ControllerSpec\nSPEC = ControllerSpec(name={!r}, doc='', main_gain='K', grid_low=1.0{})\n"
+
+
+def test_the_registry_finds_every_module_declaring_a_spec_ranked_then_by_name(tmp_path, monkeypatch):
+    from hydrogen.controllers import _discover
+
+    monkeypatch.syspath_prepend(str(tmp_path))
+    root = _package(tmp_path, "found_ctrls", {"zeta": _SPEC.format("zeta", ""), "alpha": _SPEC.format("alpha", ""),
+                                               "first": _SPEC.format("first", ", rank=0"),
+                                               "helpers": "X = 1\n"})  # no SPEC: not a controller
+    assert list(_discover("found_ctrls", [str(root)])) == ["first", "alpha", "zeta"]
+
+
+def test_two_modules_declaring_one_name_are_refused_naming_both(tmp_path, monkeypatch):
+    from hydrogen.controllers import _discover
+    from hydrogen.errors import HydrogenError
+
+    monkeypatch.syspath_prepend(str(tmp_path))
+    root = _package(tmp_path, "twin_ctrls", {"a": _SPEC.format("same", ""), "b": _SPEC.format("same", "")})
+    with pytest.raises(HydrogenError, match=r"b\.py: controller name 'same' is already declared by .*a\.py"):
+        _discover("twin_ctrls", [str(root)])
+
+
 def test_no_module_outside_the_controllers_tests_a_controller_name():
     root = Path(hydrogen.__file__).parent
     names = "|".join(re.escape(c) for c in CONTROLLERS)
@@ -248,3 +286,44 @@ def test_default_gains_are_stable_on_a_new_robots_ideal_plant(boom_stick, name):
     assert worst < ANY_MAX_ERROR_PCT, res.metrics["max_error_pct"]
     if not spec(name).baseline and not spec(name).compared:  # the nonlinear controllers
         assert worst < NONLINEAR_MAX_ERROR_PCT, res.metrics["max_error_pct"]
+
+
+def test_the_start_and_projection_of_the_state_are_the_blocks_own(monkeypatch, dyn):
+    """The runtime sets each block to the initial value it declares and clips it to the limits it
+    declares (numbers, a gain's name or a model range's): no table of blocks by name."""
+    import dataclasses
+
+    from hydrogen.simulation.control import make_controller
+
+    model, mod = dyn.model, controller("adaptive-robust")
+    q0, qdot0 = model.neutral_pose, np.full(model.n, 0.01)
+    ctrl = make_controller(dyn, "adaptive-robust")
+    ctrl.reset(q0, qdot0)
+    assert np.array_equal(ctrl.part("z"), qdot0) and np.array_equal(ctrl.part("theta_hat"), model.theta)
+    assert np.array_equal(ctrl.part("gamma1_hat"), np.full(model.n_cylinders, model.gamma[0][0]))
+    assert np.array_equal(ctrl.part("legl_prev"), np.asarray(dyn.leg_lengths(q0), float).ravel())
+    lo, hi = ctrl.bounds
+    assert np.array_equal(lo[ctrl.slices["theta_hat"]], model.theta_min)
+    assert np.all(hi[ctrl.slices["gamma2_hat"]] == model.gamma2_max) and np.all(np.isinf(hi[ctrl.slices["z"]]))
+
+    full = mod.state_layout
+    changed = {"z": dict(initial=lambda s: 2.0 * s.q0, limits=(lambda m, g: -g["u_max"], "u_max")),
+               "theta_hat": dict(limits=(0.0, 9.0))}
+    monkeypatch.setattr(mod, "state_layout", lambda m: [dataclasses.replace(b, **changed.get(b.name, {}))
+                                                        for b in full(m)])
+    ctrl = make_controller(dyn, "adaptive-robust", gains={"u_max": 0.004})
+    ctrl.reset(q0, qdot0)
+    assert np.array_equal(ctrl.part("z"), 2.0 * q0)
+    lo, hi = ctrl.bounds
+    assert np.all(lo[ctrl.slices["z"]] == -0.004) and np.all(hi[ctrl.slices["z"]] == 0.004)
+    assert np.all(lo[ctrl.slices["theta_hat"]] == 0.0) and np.all(hi[ctrl.slices["theta_hat"]] == 9.0)
+
+
+def test_a_block_names_its_entries_and_units_from_the_model(robot_model):
+    blocks = {b.name: b for b in controller("adaptive-observer").state_layout(robot_model)}
+    m = robot_model
+    assert blocks["z"].entry_names(m) == list(m.coordinate_names)
+    assert blocks["z"].units(m) == [f"{u}/s" for u in m.coordinate_units]
+    assert blocks["gamma1_hat"].entry_names(m) == [c.name for c in m.cylinders]
+    assert blocks["theta_hat"].entry_names(m) == list(m.theta_names) and None not in blocks["theta_hat"].units(m)
+    assert blocks["gamma_gain"].entry_names(m)[:2] == ["[1]", "[2]"] and blocks["gamma_gain"].units(m)[0] is None

@@ -112,6 +112,9 @@ def test_export_folder_contents(tmp_path, dyn):
     for name in ("P_CTRL_Gz_inv[6]", "P_CTRL_Lambda[6]", "P_XC0[P_XC_CAP]", "P_X0[30]", "P_L0[6]",
                  "P_KF_GAIN[2]", "P_THETA[4]", "P_REF_TERMS"):
         assert name in params
+    # where each declared block of the state starts in xc, with its role (and unit where declared)
+    assert "#define P_XC_AT_Z 0  /* 6 entries: the robust sliding observer's velocity estimate (z), m" in params
+    assert "#define P_XC_AT_THETA_HAT 6  /* " in params and "#define P_XC_AT_GAMMA_GAIN " in params
     assert "noise" in (folder / "main.c").read_text() and "make run" in (folder / "README.txt").read_text()
     assert not [p for p in tmp_path.iterdir() if p.name.startswith(".out.new-")]  # staging cleaned up
     # the lean controller's composite gains are in params.h (every input has a value) but marked unread

@@ -262,6 +262,14 @@ def test_model_description(fmus):
             for name, digest in dyn.library.manifest["files"].items():
                 if f"sources/{name}" in names:
                     assert hashlib.sha256(zf.read(f"sources/{name}")).hexdigest() == digest
+        if part != "plant":  # every block of the controller's state, as it declares it, with its unit
+            from hydrogen.controllers import controller as controller_module
+            blocks = controller_module(controller).state_layout(model)
+            for b in blocks:
+                for nm, unit in zip(b.entry_names(model), b.units(model)):
+                    v = by[f"{b.name}{nm}" if nm.startswith("[") else f"{b.name}.{nm}"]
+                    assert v.causality == "output" and v.unit == unit and b.role in v.description
+            assert blocks or controller == "p"
         if part == "plant":
             assert {f"q.{c}" for c in coords} | {f"l.{c}" for c in cyls} | set(_pressure_variables(model)) <= set(by)
             assert by[f"q_start.{coords[0]}"].causality == "parameter"

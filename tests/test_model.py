@@ -796,3 +796,12 @@ def test_three_way_valve_constants_take_the_kinds_shared_defaults(tmp_path):
     for kind in ("three_way_cylinder", "four_way_cylinder"):
         params = actuator(kind).PARAMETERS
         assert UNDERLAP in params and ORIFICE_LINEAR_BELOW in params
+
+
+@pytest.mark.parametrize("name", ["ubc_stewart", "excavator_arm", "loader_crane"])
+def test_a_shipped_robot_lists_its_controllers_so_a_new_one_is_not_generated_for_it(name):
+    """The shipped descriptions name their five controllers: a controller added to hydrogen later
+    grows neither their committed generated C nor their builds."""
+    assert hydrogen.load_model(name).controllers == ("backstepping", "adaptive-robust", "adaptive-observer", "p",
+                                                     "p-task")
+    assert "controllers" in hydrogen.load_model(name).raw

@@ -614,3 +614,15 @@ def test_the_loop_is_its_stages_composed(robot_dyn, kind):
     for field in ("q_meas", "kf", "u_hist", "u_app"):
         assert list(getattr(staged.state, field)) == list(getattr(whole.state, field)), field
     assert np.abs(noise[:n]).max() > 0 if kind == "rig" else True
+
+
+def test_a_run_logs_every_declared_block_of_the_controller_state(dyn):
+    from hydrogen.controllers import controller as controller_module
+
+    res = simulate(dyn, "z-1hz", "adaptive-robust", duration=0.05)
+    layout = controller_module("adaptive-robust").state_layout(dyn.model)
+    assert list(res.states) == [b.name for b in layout]
+    assert all(res.states[b.name].shape == (len(res.t), b.size) for b in layout)
+    np.testing.assert_array_equal(res.states["theta_hat"], res.theta_hat)
+    np.testing.assert_array_equal(res.states["z"][0], np.zeros(dyn.model.n))  # at rest: its declared start
+    assert simulate(dyn, "z-1hz", "p", duration=0.05).states == {}

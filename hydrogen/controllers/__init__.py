@@ -21,16 +21,18 @@ The generated C function is ``ctrl_<module name>``; a controller with a state al
 ``ctrl_<module name>_step``, the loop's semi-implicit period in one call. A controller with the
 composite adaptation's state blocks (:func:`hydrogen.controllers.common.composite_layout`) also
 gets the three as ``ctrl_<module name>_lean…``: the same inputs and state with the composite
-terms left out (their rates fixed at 0), which the runtime runs when those rates are 0. Adding a controller: write the module, add
-it to ``_MODULES`` below, regenerate (``hydrogen generate``), add its tests. Importing this
-package imports neither SymPy nor CasADi.
+terms left out (their rates fixed at 0), which the runtime runs when those rates are 0. Adding a controller: write the module (the
+registry finds every module of this package that declares ``SPEC``; its ``rank`` orders it, a new
+one after the shipped ones), add its tests. Importing this package imports neither SymPy nor CasADi.
 """
 from __future__ import annotations
 
 import importlib
+import pkgutil
 
 import numpy as np
 
+from ..errors import HydrogenError
 from .spec import ControllerSpec, StateBlock
 
 __all__ = ["CONTROLLERS", "controller", "spec", "baseline", "adapts", "function_name", "rates_function_name",
@@ -43,13 +45,22 @@ ESTIMATE_BLOCKS = ("theta_hat", "gamma1_hat", "gamma2_hat")
 #: The variant of an adaptive controller without the composite adaptation terms.
 LEAN = "lean"
 
-#: Module names, in the order functions are generated.
-_MODULES = ("backstepping", "adaptive_robust", "adaptive_observer", "p", "p_task")
 
-_REGISTRY = {}
-for _mod in _MODULES:
-    _m = importlib.import_module(f"{__name__}.{_mod}")
-    _REGISTRY[_m.NAME] = _m
+def _discover(package: str, path) -> dict:
+    """Every module of ``package`` (its ``__path__`` ``path``) that declares ``SPEC``, by user name, in the
+    order functions are generated: by the spec's rank, then by module name."""
+    found = [importlib.import_module(f"{package}.{info.name}") for info in pkgutil.iter_modules(path)]
+    found = sorted((m for m in found if hasattr(m, "SPEC")), key=lambda m: (m.SPEC.rank, m.__name__))
+    registry = {}
+    for m in found:
+        if m.SPEC.name in registry:
+            raise HydrogenError(f"{m.__file__}: controller name '{m.SPEC.name}' is already declared by "
+                                f"{registry[m.SPEC.name].__file__}")
+        registry[m.SPEC.name] = m
+    return registry
+
+
+_REGISTRY = _discover(__name__, __path__)
 
 #: User-facing controller names.
 CONTROLLERS = tuple(_REGISTRY)

@@ -4,11 +4,11 @@ from __future__ import annotations
 import numpy as np
 
 from .common import (ADAPTATION_SEARCH, adaptation_gains, composite_layout, composite_static_inputs, estimate_layout,
-                     model_gains)
+                     model_gains, velocity_units)
 from .spec import POSITION_BOUND, VELOCITY_BOUND, ControllerSpec, StateBlock
 
 SPEC = ControllerSpec(name="adaptive-observer", doc="Theorem 2: adaptive controller, adaptive observer.",
-                      main_gain="Lambda", grid_low=5.0, adaptation_search=ADAPTATION_SEARCH)
+                      main_gain="Lambda", grid_low=5.0, adaptation_search=ADAPTATION_SEARCH, rank=2)
 NAME, DOC = SPEC.name, SPEC.doc
 
 
@@ -16,8 +16,10 @@ def state_layout(model) -> list:
     n = model.n
     lower = ("its gains (Lambda2, Lp, Kd_obs) and the loop's (Lambda, Kd), or the adaptation rates "
              "(rate_theta, rate_gamma1, rate_gamma2)")
-    return [StateBlock("q_hat", n, "the adaptive observer's position estimate (q_hat)", lower, POSITION_BOUND),
-            StateBlock("z", n, "the adaptive observer's velocity estimate (z / q_hat_dot)", lower, VELOCITY_BOUND),
+    return [StateBlock("q_hat", n, "the adaptive observer's position estimate (q_hat)", lower, POSITION_BOUND,
+                       initial=lambda s: s.q0, unit=lambda m: list(m.coordinate_units), entries="coordinates"),
+            StateBlock("z", n, "the adaptive observer's velocity estimate (z / q_hat_dot)", lower, VELOCITY_BOUND,
+                       initial=lambda s: s.qdot0, unit=velocity_units, entries="coordinates"),
             *estimate_layout(model), *composite_layout(model)]
 
 

@@ -17,21 +17,22 @@ from __future__ import annotations
 import numpy as np
 
 from .common import (ADAPTATION_SEARCH, adaptation_gains, composite_layout, composite_static_inputs, estimate_layout,
-                     model_gains)
+                     model_gains, velocity_units)
 from .spec import VELOCITY_BOUND, ControllerSpec, StateBlock
 
 SPEC = ControllerSpec(name="adaptive-robust", doc="Theorem 3: adaptive controller, robust sliding observer.",
                       main_gain="Lambda", grid_low=5.0,
                       # K_o first: it caps Λ (NaN: from Λ and K_d, complete_gains)
                       adaptation_search=(("Ko", "=", (float("nan"), 30.0, 100.0, 300.0, 1000.0)),
-                                         *ADAPTATION_SEARCH))
+                                         *ADAPTATION_SEARCH), rank=1)
 NAME, DOC = SPEC.name, SPEC.doc
 
 
 def state_layout(model) -> list:
     return [StateBlock("z", model.n, "the robust sliding observer's velocity estimate (z)",
                        "its gains (Ko, Gz_inv, lambda_o) and the loop's (Lambda, Kd), or the adaptation rates "
-                       "(rate_theta, rate_gamma1, rate_gamma2)", VELOCITY_BOUND),
+                       "(rate_theta, rate_gamma1, rate_gamma2)", VELOCITY_BOUND, initial=lambda s: s.qdot0,
+                       unit=velocity_units, entries="coordinates"),
             *estimate_layout(model), *composite_layout(model)]
 
 

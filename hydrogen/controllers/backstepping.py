@@ -7,7 +7,7 @@ from .common import model_gains
 from .spec import ControllerSpec
 
 SPEC = ControllerSpec(name="backstepping", doc="Theorem 1 (known parameters): spool command u, m.",
-                      main_gain="Lambda", grid_low=5.0, knows_true_parameters=True)
+                      main_gain="Lambda", grid_low=5.0, knows_true_parameters=True, rank=0)
 NAME, DOC = SPEC.name, SPEC.doc
 
 

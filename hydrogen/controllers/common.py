@@ -5,7 +5,7 @@ import numpy as np
 
 from .spec import StateBlock
 
-__all__ = ["model_gains", "estimate_layout", "check_coupling_gains", "adaptation_gains", "RAW_ADAPTATION_GAINS", "adaptation_references",
+__all__ = ["model_gains", "estimate_layout", "THETA_UNITS", "theta_units", "velocity_units", "check_coupling_gains", "adaptation_gains", "RAW_ADAPTATION_GAINS", "adaptation_references",
            "normalised_adaptation", "composite_layout", "composite_static_inputs", "initial_gain_matrix",
            "COMPOSITE_BLOCKS", "COMPOSITE_GAIN_BLOCKS", "COMPOSITE_RATES", "ADAPTATION_SEARCH", "gain_block_shape", "lean_variant", "runs_lean"]
 
@@ -115,9 +115,28 @@ def composite_layout(model) -> list:
     n, p = model.n, model.n_theta
     sizes = (m, m, m, n_p, m, 3 * m, n * p, n, n * p, n, n, p * (p + 1) // 2)
     laws = [("gamma", "beta and beta c")] * 6 + [("theta", "inertial parameters")] * 6
+    # the copies of the last period's signals start at the start's (never the chamber's dead length, where
+    # g0 divides by l - L); the least-squares gains at P0 I; the filters at 0
+    initial = {"pc_prev": lambda s: s.pc0, "legl_prev": lambda s: s.l0,
+               **{name: _initial_gain(name, size) for name, size in zip(COMPOSITE_BLOCKS, sizes)
+                  if name in COMPOSITE_GAIN_BLOCKS}}
     return [StateBlock(name, size, f"the composite {law} law's {name.replace('_', ' ')} (for the {what})",
-                       f"its rate rate_ls_{law} (0: the paper's gradient law) or its filter's lambda_f_{law}")
-            for name, size, (law, what) in zip(COMPOSITE_BLOCKS, sizes, laws)]
+                       f"its rate rate_ls_{law} (0: the paper's gradient law) or its filter's lambda_f_{law}",
+                       initial=initial.get(name, 0.0), unit="Pa" if name == "pc_prev" else None,
+                       entries=entries)
+            for name, size, (law, what), entries in zip(COMPOSITE_BLOCKS, sizes, laws, _COMPOSITE_ENTRIES)]
+
+
+#: What the entries of each block of :func:`composite_layout` are ("": numbered).
+_COMPOSITE_ENTRIES = ("actuators", "actuators", "actuators", "", "actuators", "", "", "coordinates", "",
+                      "coordinates", "coordinates", "")
+
+
+def _initial_gain(block: str, size: int):
+    """The initial-value rule of least-squares gain block ``block`` (``size`` entries): P0 I."""
+    k, copies = gain_block_shape(block, size)
+    p0 = COMPOSITE_GAIN_BLOCKS[block][1]
+    return lambda s: initial_gain_matrix(k, copies, float(np.asarray(s.gains[p0]).ravel()[0]))
 
 
 def estimate_layout(model) -> list:
@@ -126,11 +145,32 @@ def estimate_layout(model) -> list:
     parameters' units), γ̂1 = β̂ (Pa) and γ̂2 = β̂c per cylinder."""
     m = model.n_cylinders
     return [StateBlock("theta_hat", model.n_theta, "the inertial parameter estimates (theta_hat)",
-                       "its adaptation rate (rate_theta, or rate_ls_theta with the composite law)"),
+                       "its adaptation rate (rate_theta, or rate_ls_theta with the composite law)",
+                       initial=lambda s: s.theta0, limits=("theta_min", "theta_max"), unit=theta_units,
+                       entries="parameters"),
             StateBlock("gamma1_hat", m, "the bulk modulus estimates (gamma1_hat, beta)",
-                       "its adaptation rate (rate_gamma1, or rate_ls_gamma with the composite law)"),
+                       "its adaptation rate (rate_gamma1, or rate_ls_gamma with the composite law)",
+                       initial=lambda s: s.gamma0[0], limits=("gamma1_min", "gamma1_max"), unit="Pa",
+                       entries="actuators"),
             StateBlock("gamma2_hat", m, "the flow gain estimates (gamma2_hat, beta c)",
-                       "its adaptation rate (rate_gamma2, or rate_ls_gamma with the composite law)")]
+                       "its adaptation rate (rate_gamma2, or rate_ls_gamma with the composite law)",
+                       initial=lambda s: s.gamma0[1], limits=("gamma2_min", "gamma2_max"), unit="m2.Pa0.5/s",
+                       entries="actuators")]
+
+
+#: Unit of each kind of inertial parameter (the part of a θ name after the link's name).
+THETA_UNITS = {"mass": "kg", "mcx": "kg.m", "mcy": "kg.m", "mcz": "kg.m", "Ixx": "kg.m2", "Ixy": "kg.m2",
+               "Iyy": "kg.m2", "Ixz": "kg.m2", "Iyz": "kg.m2", "Izz": "kg.m2"}
+
+
+def theta_units(model) -> list:
+    """The unit of each of the model's inertial parameters θ (None for a kind not in :data:`THETA_UNITS`)."""
+    return [THETA_UNITS.get(t.split(".")[-1]) for t in model.theta_names]
+
+
+def velocity_units(model) -> list:
+    """The unit of each coordinate's rate (m/s or rad/s): an observer's velocity estimate's."""
+    return [f"{u}/s" for u in model.coordinate_units]
 
 
 def composite_static_inputs(dyn, theta0, gamma0) -> dict:

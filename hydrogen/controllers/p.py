@@ -7,7 +7,7 @@ from .spec import ControllerSpec
 
 SPEC = ControllerSpec(name="p", doc="P controller on cylinder lengths (the paper's baseline).",
                       main_gain="Kleg", grid_low=0.005, main_gain_shared=True, secondary_search=False,
-                      baseline=True, compared=True)
+                      baseline=True, compared=True, rank=3)
 NAME, DOC = SPEC.name, SPEC.doc
 
 

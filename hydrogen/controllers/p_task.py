@@ -13,7 +13,7 @@ from .spec import ControllerSpec
 
 SPEC = ControllerSpec(name="p-task", doc="P controller on the pose error, per-axis gains, mapped by JL.",
                       main_gain="Kq", grid_low=0.005, secondary_search=False,
-                      search_description_proportions=True, compared=True)
+                      search_description_proportions=True, compared=True, rank=4)
 NAME, DOC = SPEC.name, SPEC.doc
 
 

@@ -16,8 +16,8 @@ import numpy as np
 
 from ..controllers import (COMMON_GAINS, CONTROLLERS, LEAN, controller as controller_module, function_name,
                            gain_names, rates_function_name, step_function_name)
-from ..controllers.common import COMPOSITE_GAIN_BLOCKS, check_coupling_gains, gain_block_shape, initial_gain_matrix, \
-    normalised_adaptation, runs_lean
+from ..controllers.common import check_coupling_gains, normalised_adaptation, runs_lean
+from ..controllers.spec import Start
 from .. import pressures
 from ..errors import ScenarioError
 from .checks import check_gain_values
@@ -87,17 +87,6 @@ def _gains(dyn, kind, overrides, origin: dict, sources: dict):
     return g
 
 
-#: Initial value of a state block, by block name: (q0, q̇0, θ0, γ0) -> value.
-_INITIAL = {
-    "z": lambda q0, qd0, th0, g0: qd0,
-    "q_hat": lambda q0, qd0, th0, g0: q0,
-    "theta_hat": lambda q0, qd0, th0, g0: th0,
-    "gamma1_hat": lambda q0, qd0, th0, g0: g0[0],
-    "gamma2_hat": lambda q0, qd0, th0, g0: g0[1],
-}
-
-
-
 class _Controller:
     def __init__(self, dyn, kind, gains, theta0, gamma0, model):
         self.kind = kind
@@ -126,17 +115,15 @@ class _Controller:
         for name, n in self.layout:
             self.slices[name] = slice(i, i + n)
             i += n
-        lo, hi = np.full(self.xc.size, -np.inf), np.full(self.xc.size, np.inf)
         m = model
-        limits = {"theta_hat": (m.theta_min, m.theta_max), "gamma1_hat": (m.gamma1_min, m.gamma1_max),
-                  "gamma2_hat": (m.gamma2_min, m.gamma2_max)}
-        for name, (a, b) in limits.items():
-            if name in self.slices:
-                lo[self.slices[name]], hi[self.slices[name]] = a, b
         if "theta_min" in self.fn.in_names:
             self.values.update(theta_min=m.theta_min, theta_max=m.theta_max,
                                gamma1_min=np.array([m.gamma1_min]), gamma1_max=np.array([m.gamma1_max]),
                                gamma2_min=np.array([m.gamma2_min]), gamma2_max=np.array([m.gamma2_max]))
+        # each block's projection, as it declares it (its gains' or the model's ranges, or numbers)
+        lo, hi = np.full(self.xc.size, -np.inf), np.full(self.xc.size, np.inf)
+        for block in self.layout:
+            lo[self.slices[block.name]], hi[self.slices[block.name]] = block.limit_values(m, self.values)
         self.bounds = (lo, hi)
         # Every input the loop does not write must have a value: a gain no table gives would
         # otherwise be a KeyError in the Python loop and a silent 0 in the C loop.
@@ -166,26 +153,18 @@ class _Controller:
                 self.gamma0[1] if g2 is None else g2)
 
     def reset(self, q0, qdot0, pc0=None):
-        """The state at the start: estimates at θ0, γ0, observers at (q0, q̇0), least-squares gains at
-        P0 I, filters at 0, and the composite law's copies of the last period's length and control
-        pressure at l(q0) and ``pc0`` (Pa; default half the supply pressure): never the chamber's
-        dead length, where g0 divides by l − L."""
-        for name, s in self.slices.items():
-            if name == "legl_prev":
-                self.xc[s] = np.asarray(self.leg_lengths(q0), float).ravel()
-            elif name == "pc_prev":
-                if pc0 is None:  # the middle of each pressure state's range (P_s / 2 for p_c)
-                    lo, hi = pressures.bounds(self.model)
-                    pc0 = 0.5 * self.model.supply_pressure if pressures.uniform_three_way(self.model) else (lo + hi) / 2
-                self.xc[s] = np.asarray(pc0, float)
-            elif name in _INITIAL:
-                self.xc[s] = _INITIAL[name](q0, qdot0, self.theta0, self.gamma0)
-            elif name in COMPOSITE_GAIN_BLOCKS:
-                k, copies = gain_block_shape(name, s.stop - s.start)
-                p0 = COMPOSITE_GAIN_BLOCKS[name][1]
-                self.xc[s] = initial_gain_matrix(k, copies, float(self.values[p0][0]))
-            else:
-                self.xc[s] = 0.0
+        """The state at the start: each block at the initial value it declares (estimates at θ0, γ0,
+        observers at (q0, q̇0), …) from q0, q̇0, l(q0) and ``pc0`` (Pa; default the middle of each
+        pressure state's range, half the supply pressure for three-way cylinders)."""
+        if self.layout:
+            if pc0 is None:
+                lo, hi = pressures.bounds(self.model)
+                pc0 = 0.5 * self.model.supply_pressure if pressures.uniform_three_way(self.model) else (lo + hi) / 2
+            start = Start(q0=np.asarray(q0, float), qdot0=np.asarray(qdot0, float), theta0=self.theta0,
+                          gamma0=self.gamma0, l0=np.asarray(self.leg_lengths(q0), float).ravel(),
+                          pc0=np.asarray(pc0, float), gains=self.values)
+            for block in self.layout:
+                self.xc[self.slices[block.name]] = block.initial_value(start)
         self.u_applied[:] = 0.0
 
     def _signals(self, q, qdot, pc, l, ref, adapt):

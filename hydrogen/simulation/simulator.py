@@ -58,6 +58,9 @@ class SimulationResult:
     u_max: float = 0.0
     actuators: tuple = ()     # the actuators' names, in the order of the columns of u
     metrics: dict = field(default_factory=dict)
+    #: Every block of the controller's state as it declares it, by name: its rows (k, size) over the run,
+    #: in the block's own unit (the estimates above too, where the controller holds them).
+    states: dict = field(default_factory=dict)
 
     @property
     def scenario_name(self) -> str:
@@ -630,7 +633,8 @@ def _result(sc, controller, ctrl, t, log, k, theta0, gamma0, theta_true, gamma_t
         metric_start=sc.metric_start, coordinates=tuple(model.coordinate_names), units=model.coordinate_units,
         theta_names=tuple(model.theta_names), estimated=estimated_blocks(ctrl), wall_time_s=wall, loop_wall_s=wall,
         u_max=float(ctrl.values["u_max"][0]) if "u_max" in ctrl.values else 0.0,
-        actuators=tuple(c.name for c in model.cylinders))
+        actuators=tuple(c.name for c in model.cylinders),
+        states={b.name: log["xc"][:k, ctrl.slices[b.name]] for b in ctrl.layout})
     if k:
         res.compute_metrics()
     return res
