@@ -58,7 +58,8 @@ def _params_stub(ctx):
     env = jinja2.Environment()
     names = jinja2.meta.find_undeclared_variables(env.parse(source))
     stub = {n: "0" for n in names}
-    stub.update(model=ctx["model"], inputs=[], outputs=[], slots=[], terms=[], n_terms=0, numbers=[], number_order=[])
+    stub.update(model=ctx["model"], inputs=[], outputs=[], slots=[], terms=[], n_terms=0, numbers=[], number_order=[],
+                xc_blocks=[])
     return stub
 
 

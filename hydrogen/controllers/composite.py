@@ -29,7 +29,7 @@ triangle, so it is symmetric by construction.
 """
 from __future__ import annotations
 
-import sympy as sp
+from ..actuators.declarations import sp  # SymPy on first use: the registry imports this module
 
 from .common import COMPOSITE_BLOCKS
 from ..pressures import blocks

@@ -24,8 +24,10 @@ def repo_generated_dir() -> Path:
     return committed_generated_dir()
 
 
-def generated_dir_for(model: Model, cache: Path | None = None, numbers: str = DEFAULT_NUMBERS) -> Path:
-    """Where the C for ``model`` lives: the committed folder when current, else a cache folder.
+def generated_dir_for(model: Model, cache: Path | None = None, numbers: str = DEFAULT_NUMBERS,
+                      controllers=None) -> Path:
+    """Where the C for ``model`` lives: the committed folder when current and holding
+    ``controllers`` (names; None: those the model lists), else a cache folder.
 
     The committed ``generated/<name>`` is used as it is when it matches the model
     and the derivation code; otherwise code is generated into the cache, keyed by
@@ -34,7 +36,8 @@ def generated_dir_for(model: Model, cache: Path | None = None, numbers: str = DE
     structure hash: every description that differs from ``model`` in numbers only shares it.
     """
     committed = repo_generated_dir() / model.name
-    if committed.is_dir() and not check(model, committed, numbers):
+    if committed.is_dir() and not check(model, committed, numbers) and not missing_controllers(
+            read_manifest(committed), model.controllers if controllers is None else controllers):
         return committed
     # Keyed by the derivation too: two hydrogen versions sharing one cache never fight over a folder.
     shape = model.baked_hash() if numbers == "constants" else "s" + structure_hash(model)
@@ -240,7 +243,7 @@ def build(model: Model | str | Path | None = None, *, cc: str | None = None,
     controllers = () if controllers is None else need
     check_numbers_mode(numbers)
     root = check_cache_root(Path(cache or cache_root()))
-    folder = Path(generated) if generated else generated_dir_for(model, cache, numbers)
+    folder = Path(generated) if generated else generated_dir_for(model, cache, numbers, need)
     toolchain = Toolchain(**{k: v for k, v in (("cc", cc), ("cflags", cflags)) if v is not None})
     committed = generated is None and folder == repo_generated_dir() / model.name
 

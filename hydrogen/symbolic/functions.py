@@ -119,7 +119,7 @@ def plant_functions(model) -> list:
 
 
 def controller_functions(model, kinds=None) -> list:
-    """Each controller (of ``kinds``, in the registry's order; None: all); and, for a controller with a state, its rates-only function: the same inputs
+    """Each controller (of ``kinds``, in the registry's order; None: those ``model`` lists); and, for a controller with a state, its rates-only function: the same inputs
     (so one argument table serves both) and the output ``xc_dot`` alone, from which CasADi keeps only
     what the rates need (no τ̇_d, ḟ_d, v or valve inverse): the loop's semi-implicit state update;
     and its semi-implicit step. A controller with the composite adaptation's blocks gets the three
@@ -129,8 +129,9 @@ def controller_functions(model, kinds=None) -> list:
     from ..controllers.common import lean_variant
 
     out = []
+    listed = model.controllers if kinds is None else kinds
     for name in CONTROLLERS:
-        if kinds is not None and name not in kinds:
+        if name not in listed:
             continue
         mod = controller(name)
         parts = mod.derive(model)
@@ -155,7 +156,7 @@ def controller_functions(model, kinds=None) -> list:
 def derive_functions(model, controllers=True, core: bool = True) -> list:
     """Every function generated for ``model``, in a fixed order: the core's (kinematics, rigid
     body, hydraulics, plant) unless ``core`` is false, then the controllers' (``controllers``: True
-    for all, False for none, or the names of some)."""
+    for those ``model`` lists, False for none, or the names of some)."""
     funcs = kinematics_functions(model) + rigid_body_functions(model) + hydraulic_functions(model) \
         + plant_functions(model) if core else []
     if controllers is False:
