@@ -568,6 +568,57 @@ def test_thread_sweep_equals_serial_sweep(dyn):
     assert [r["max_error"] for r in serial] == [r["max_error"] for r in threaded]
 
 
+def test_a_batched_chunk_equals_its_runs_one_at_a_time(dyn, monkeypatch):
+    """The sweep's worker runs a chunk of entries through one Batch per scenario (the scenario resolved
+    and checked once, a controller and loop runner per gain set): every run's metrics and series are the
+    ones its run alone gives, to the bit, failures with the same message."""
+    from hydrogen.simulation import simulator as S
+    from hydrogen.simulation import sweep as W
+    model = dyn.model
+    runs = [dict(scenario="z-1hz", controller=c, gains=g, seed=s, duration=0.5)
+            for c, g in (("p", {"Kleg": 0.02}), ("p", {"Kleg": 0.05}), ("adaptive-robust", {"Lambda": 30.0}),
+                         ("adaptive-robust", {"Lambda": 60.0})) for s in (0, 1, 2)]
+    runs.insert(4, dict(scenario="z-1hz", controller="p", gains={"Kleg": 0.02}, seed=2, duration=0.5))  # gains again
+    runs += [dict(scenario="z-1hz", controller="p", duration=0.5, seed=2**64),  # a bad seed
+             dict(scenario="z-1hz", controller="p", duration=0.5, gains={"Kleg": -1.0}, seed=1),  # a bad gain
+             dict(scenario="z-1hz", controller="p", duration=-1.0, seed=1),  # a bad scenario field: no Batch
+             dict(scenario="z-1hz", controller="p", duration=0.5),  # the scenario's own seed
+             dict(scenario="paper-sim", controller="backstepping", duration=1.0, seed=0,  # diverges
+                  gains={"Ktau": 5e4, "u_max": 1.0}, control_rate=200.0, substeps=2)]
+    plans = []
+    real_plan = S.plan_run
+    monkeypatch.setattr(S, "plan_run", lambda *a, **k: plans.append(a[1]) or real_plan(*a, **k))
+    W._run_chunk((model, runs[:13] + runs[-2:], False, None))  # the runs that start: a plan per scenario
+    assert plans == ["z-1hz", "z-1hz", "paper-sim"]  # z-1hz for P (its own seed too), for adaptive-robust
+    batched = W._run_chunk((model, runs, True, None))
+    alone = [W._run_one((model, r, True, None)) for r in runs]
+    timings = {"wall_time_s", "loop_wall_s"}
+    for r, b, a in zip(runs, batched, alone):
+        assert type(b) is type(a), r
+        if isinstance(a, dict):
+            assert b == a and "error" in a, r
+            continue
+        assert {k: v for k, v in b.metrics.items() if k not in timings} == \
+            {k: v for k, v in a.metrics.items() if k not in timings}, r
+        for series in ("q", "u", "pressures", "leg_lengths_measured", "theta_hat", "gamma1_hat"):
+            np.testing.assert_array_equal(getattr(b, series), getattr(a, series), err_msg=f"{r} {series}")
+    errors = [a["error"] for a in alone if isinstance(a, dict)]
+    assert "seed must be an integer" in errors[0] and "'Kleg' must be >= 0" in errors[1]
+    assert "duration" in errors[2] and "t = " in errors[3] and "failed_at_s" in alone[-1]
+    # seeds 0 and 1 differ (their noise), the same seed and gains twice do not
+    assert batched[0].metrics["max_error"] != batched[1].metrics["max_error"]
+    np.testing.assert_array_equal(batched[2].q, batched[4].q)
+
+
+def test_sweep_cuts_its_runs_into_chunks_per_worker():
+    from hydrogen.simulation.sweep import CHUNKS_PER_WORKER, MAX_CHUNK, chunks
+    parts = chunks(100, 2)
+    assert [i for p in parts for i in p] == list(range(100))
+    assert len(parts) >= CHUNKS_PER_WORKER * 2 and max(map(len, parts)) <= MAX_CHUNK
+    assert chunks(3, 8) == [range(0, 1), range(1, 2), range(2, 3)] and chunks(0, 2) == []
+    assert max(map(len, chunks(10_000, 1))) == MAX_CHUNK
+
+
 def test_a_parameter_whose_true_value_is_zero_has_an_absolute_error_not_nan(dyn):
     from hydrogen.summary import estimate_lines
 
