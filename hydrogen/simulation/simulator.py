@@ -20,7 +20,8 @@ from .scenarios import Scenario, actuator_settings, scenario as named_scenario, 
 from .seeds import SeedResults
 
 __all__ = ["simulate", "SimulationResult", "SeedResults", "equilibrium_pressures", "Stepper", "prepare_run", "new_logs",
-           "make_runner", "run_python_loop", "Batch", "RunPlan", "plan_run", "run_prepared", "PythonStages", "kalman_gain",
+           "make_runner", "run_python_loop", "Batch", "RunPlan", "plan_run", "run_prepared", "PythonStages",
+           "kalman_gain",
            "valve_vector", "length_noise_variance", "excitation", "diverged_block", "SATURATED_AT", "SATURATION"]
 
 
@@ -128,10 +129,14 @@ class SimulationResult:
         e = self.error[sel]
         if f_max <= 0 or len(e) < 8:
             return None
-        h = float(self.t[1] - self.t[0])
-        spec = np.fft.rfft(e - e.mean(axis=0), axis=0)
-        spec[np.fft.rfftfreq(len(e), h) <= self.HF_FACTOR * f_max] = 0
-        return np.sqrt((np.fft.irfft(spec, n=len(e), axis=0) ** 2).mean(axis=0))
+        h, k = float(self.t[1] - self.t[0]), len(e)
+        spec = np.fft.rfft(np.ascontiguousarray((e - e.mean(axis=0)).T), axis=1)  # a row per coordinate
+        # Parseval, not the inverse transform: the mean square of the high-passed signal is the sum of
+        # its bins' power over k², each bin but the constant and (k even) the last one standing for two
+        weight = np.where(np.fft.rfftfreq(k, h) <= self.HF_FACTOR * f_max, 0.0, 2.0)
+        if k % 2 == 0:
+            weight[-1] /= 2
+        return np.sqrt((spec.real ** 2 + spec.imag ** 2) @ weight) / k
 
     def to_json(self) -> str:
         """The metrics (:meth:`compute_metrics`) as indented JSON text, SI units and % as named."""
@@ -794,10 +799,12 @@ def excitation(dyn, res, ctrl=None) -> dict:
     qdd = np.gradient(qd, h, axis=0)
     Theta = np.abs(model.theta)
     S_inv = 1.0 / gain_scale(dyn)
-    # one batched call for the whole run (k, n, p), not a call per period; the sums over k and the
-    # coordinates as one matrix product (an einsum of three operands is an unblocked loop, 10x slower)
-    Yn = np.asarray(dyn.regressor(q, qd, qd, qdd)).reshape(len(t), model.n, model.n_theta) * Theta
-    M = h * ((Yn * S_inv[:, None]).reshape(-1, model.n_theta).T @ Yn.reshape(-1, model.n_theta))
+    # one batched call for the whole run (k n rows of p), not a call per period; the sums over k and the
+    # coordinates as one matrix product (an einsum of three operands is an unblocked loop, 10x slower),
+    # Θ applied to the p x p result: (YΘ)ᵀ S⁻¹ (YΘ) = Θ (Yᵀ S⁻¹ Y) Θ
+    Y = np.asarray(dyn.regressor(q, qd, qd, qdd)).reshape(len(t), model.n, model.n_theta)
+    Yw = (Y * S_inv[:, None]).reshape(-1, model.n_theta)
+    M = h * (Yw.T @ Y.reshape(-1, model.n_theta)) * np.outer(Theta, Theta)
     out = {"theta": _ratio(M), "theta_least_excited": _least_excited(M, model.theta_names)}
     l, u, pc = res.leg_lengths, res.u, res.pressures
     ld = np.gradient(l, h, axis=0)
