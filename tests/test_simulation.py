@@ -610,6 +610,18 @@ def test_a_batched_chunk_equals_its_runs_one_at_a_time(dyn, monkeypatch):
     np.testing.assert_array_equal(batched[2].q, batched[4].q)
 
 
+@pytest.mark.parametrize("duration,rows", [(3.0, 513), (3.0 - 1 / 512, 512)])  # even and odd: the last bin
+def test_high_frequency_error_is_the_rms_of_the_high_passed_error(dyn, duration, rows):
+    res = simulate(dyn, "z-1hz", "p", duration=duration, check_workspace=False)
+    sel = res.t >= res.metric_start - 1e-12
+    e = res.error[sel]
+    spec = np.fft.rfft(e - e.mean(axis=0), axis=0)
+    spec[np.fft.rfftfreq(len(e), res.t[1] - res.t[0]) <= res.HF_FACTOR * 1.0] = 0  # z-1hz: 1 Hz
+    want = np.sqrt((np.fft.irfft(spec, n=len(e), axis=0) ** 2).mean(axis=0))
+    assert len(e) == rows and want.max() > 0
+    np.testing.assert_allclose(res.high_frequency_error(), want, rtol=1e-12, atol=1e-300)
+
+
 def test_sweep_cuts_its_runs_into_chunks_per_worker():
     from hydrogen.simulation.sweep import CHUNKS_PER_WORKER, MAX_CHUNK, chunks
     parts = chunks(100, 2)
