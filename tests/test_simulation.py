@@ -622,6 +622,20 @@ def test_high_frequency_error_is_the_rms_of_the_high_passed_error(dyn, duration,
     np.testing.assert_allclose(res.high_frequency_error(), want, rtol=1e-12, atol=1e-300)
 
 
+def test_a_batch_grid_gives_arrays_over_gain_sets_and_seeds(dyn):
+    from hydrogen.simulation.simulator import Batch
+    batch = Batch(dyn, "z-1hz", "p", duration=0.5)
+    out = batch.grid([{"Kleg": 0.02}, {"Kleg": -1.0}, {"Kleg": 0.05}], [0, 3])
+    assert out["max_error_pct"].shape == (3, 2, dyn.model.n) and out["failed"].tolist() == [[False] * 2, [True] * 2,
+                                                                                            [False] * 2]
+    z = dyn.model.coordinate_names.index("z")
+    assert out["max_error_pct"][2, 1, z] == simulate(dyn, "z-1hz", "p", duration=0.5, gains={"Kleg": 0.05},
+                                                     seed=3).metrics["max_error_pct"]["z"]
+    assert np.isnan(out["max_error_pct"][1]).all() and "'Kleg' must be >= 0" in out["metrics"][1][0]["error"]
+    with pytest.raises(hydrogen.ScenarioError, match="seed is each run's"):
+        Batch(dyn, "z-1hz", "p", seed=1)
+
+
 def test_sweep_cuts_its_runs_into_chunks_per_worker():
     from hydrogen.simulation.sweep import CHUNKS_PER_WORKER, MAX_CHUNK, chunks
     parts = chunks(100, 2)

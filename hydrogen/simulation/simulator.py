@@ -318,6 +318,32 @@ class Batch:
         p, runner = self.prepare(gains, seed)
         return run_prepared(self.dyn, p, self.controller, "c", start, runner)
 
+    def grid(self, gain_sets, seeds) -> dict:
+        """Every run of ``gain_sets`` (a list of gains dicts, None: the scenario's) times ``seeds`` (a
+        list), the seeds of a gain set in a row: {"metrics": per gain set, per seed, the run's metrics
+        or {"error": message} (as a sweep gives them); "max_error_pct": a (gain sets, seeds,
+        coordinates) array of the max errors in % of the amplitude (NaN where the run failed or the
+        coordinate has no amplitude); "failed": a (gain sets, seeds) bool array}."""
+        from .sweep import _error
+
+        gain_sets, seeds = list(gain_sets), list(seeds)
+        coords = tuple(self.dyn.model.coordinate_names)
+        out = np.full((len(gain_sets), len(seeds), len(coords)), np.nan)
+        table = []
+        for i, gains in enumerate(gain_sets):
+            row = []
+            for j, seed in enumerate(seeds):
+                try:
+                    m = self.run(gains, seed).metrics
+                except Exception as exc:  # noqa: BLE001 - one failed run must not cost the others theirs
+                    m = _error(exc)
+                else:
+                    out[i, j] = [np.nan if v is None else v for v in (m["max_error_pct"][c] for c in coords)]
+                row.append(m)
+            table.append(row)
+        failed = np.array([["error" in m for m in row] for row in table], bool).reshape(len(gain_sets), len(seeds))
+        return {"metrics": table, "max_error_pct": out, "failed": failed}
+
 
 @dataclass
 class _Prepared:
