@@ -588,9 +588,9 @@ def test_a_batched_chunk_equals_its_runs_one_at_a_time(dyn, monkeypatch):
     plans = []
     real_plan = S.plan_run
     monkeypatch.setattr(S, "plan_run", lambda *a, **k: plans.append(a[1]) or real_plan(*a, **k))
-    W._run_chunk((model, runs[:13] + runs[-2:], False, None))  # the runs that start: a plan per scenario
+    W._run_chunk((model, runs[:13] + runs[-2:], False, None, {}))  # the runs that start: a plan per scenario
     assert plans == ["z-1hz", "z-1hz", "paper-sim"]  # z-1hz for P (its own seed too), for adaptive-robust
-    batched = W._run_chunk((model, runs, True, None))
+    batched = W._run_chunk((model, runs, True, None, {}))
     alone = [W._run_one((model, r, True, None)) for r in runs]
     timings = {"wall_time_s", "loop_wall_s"}
     for r, b, a in zip(runs, batched, alone):
@@ -634,6 +634,27 @@ def test_a_batch_grid_gives_arrays_over_gain_sets_and_seeds(dyn):
     assert np.isnan(out["max_error_pct"][1]).all() and "'Kleg' must be >= 0" in out["metrics"][1][0]["error"]
     with pytest.raises(hydrogen.ScenarioError, match="seed is each run's"):
         Batch(dyn, "z-1hz", "p", seed=1)
+
+
+def test_a_sweeps_workers_take_the_kalman_gains_its_parent_solved(dyn, monkeypatch):
+    """The parent solves each scenario's filter gain once and hands it over with every chunk: a
+    worker neither imports SciPy for it nor solves the Riccati equation again."""
+    import scipy.linalg
+
+    from hydrogen.simulation import simulator as S
+    from hydrogen.simulation import sweep as W
+    runs = [dict(scenario="z-1hz", controller="p", duration=0.2, seed=s) for s in (0, 1)] + [{"bogus": 1}]
+    runs.append(dict(scenario="z-1hz", controller="p", duration=0.2, noise_l=1e-5))  # another filter
+    filters = W._filter_gains(dyn.model, runs)
+    assert len(filters) == 2
+    alone = W._run_one((dyn.model, runs[3], False, None))
+    S._kalman_gain.cache_clear()
+    monkeypatch.setattr(S, "_KNOWN_GAINS", {})
+    monkeypatch.setattr(scipy.linalg, "solve_discrete_are", lambda *a: pytest.fail("solved again in the worker"))
+    out = W._run_chunk((dyn.model, runs, False, None, filters))
+    assert [("error" in m) for m in out] == [False, False, True, False]
+    assert out[3]["max_error"] == alone["max_error"]
+    S._kalman_gain.cache_clear()  # no gain of the handed-over table stays in the cache
 
 
 def test_sweep_cuts_its_runs_into_chunks_per_worker():

@@ -466,8 +466,28 @@ def filter_gain(sc, h):
     """The loop's one Kalman gain [K, K̇] (dimensionless, 1/s: the same on a length as on an angle) for
     ``sc`` at period ``h``, designed for the scenario's (a cylinder's) noise_l, quantization_l and
     kalman_accel; None without ``kalman``."""
-    return kalman_gain(h, length_noise_variance(sc.noise_l, sc.quantization_l), sc.kalman_accel) \
-        if sc.kalman else None
+    return kalman_gain(*filter_setting(sc, h)) if sc.kalman else None
+
+
+def filter_setting(sc, h) -> tuple:
+    """(h, r, accel) of :func:`kalman_gain` for ``sc``'s filter at period ``h`` (s)."""
+    return float(h), length_noise_variance(sc.noise_l, sc.quantization_l), float(sc.kalman_accel)
+
+
+def filter_gains(settings) -> dict:
+    """{(h, r, accel): gain} of the filter ``settings`` (:func:`filter_setting`), solved (or remembered)
+    here: a sweep's parent hands them to its workers (:func:`remember_filter_gains`), which then
+    neither import SciPy nor solve the Riccati equation again."""
+    return {s: _kalman_gain(*s) for s in set(settings)}
+
+
+def remember_filter_gains(gains: dict) -> None:
+    """Take the gains :func:`filter_gains` solved in another process as this process's own."""
+    _KNOWN_GAINS.update(gains)
+
+
+#: Kalman gains by (h, r, accel) that a sweep's parent solved (:func:`remember_filter_gains`).
+_KNOWN_GAINS = {}
 
 
 def kalman_gain(h, r, accel):
@@ -485,6 +505,9 @@ def kalman_gain(h, r, accel):
 @functools.lru_cache(maxsize=256)
 def _kalman_gain(h: float, r: float, accel: float) -> tuple:
     # once per process and (period, noise, acceleration): a sweep's runs of one scenario share it
+    known = _KNOWN_GAINS.get((h, r, accel))
+    if known is not None:
+        return known
     from scipy.linalg import solve_discrete_are
     F = np.array([[1.0, h], [0.0, 1.0]])
     Q = accel * np.array([[h ** 3 / 3, h ** 2 / 2], [h ** 2 / 2, h]])
