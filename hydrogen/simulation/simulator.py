@@ -858,14 +858,19 @@ def excitation(dyn, res, ctrl=None) -> dict:
     l, u, pc = res.leg_lengths, res.u, res.pressures
     ld = np.gradient(l, h, axis=0)
     g1, g2 = model.gamma
-    parts = pressures.split(model, pc)
-    f0, g0 = np.empty(l.shape[::-1]), np.empty(l.shape[::-1])  # (m, k): a row per cylinder
+    f0, g0 = np.empty_like(l), np.empty_like(l)
+    blocks = pressures.blocks(model)
+    kinds = {}
     for i, c in enumerate(model.cylinders):
-        kind = actuator(c.kind)
-        P = kind.parameters(c.table)
-        f0[i] = kind.Numeric.f0(l[:, i], ld[:, i], parts[i], P)
-        g0[i] = kind.Numeric.g0(l[:, i], parts[i], u[:, i], P)
-    phi = np.stack([g1[:, None] * f0, g2[:, None] * g0], axis=1)  # (m, 2, k): φ_i over the run
+        kinds.setdefault(c.kind, []).append(i)
+    for name, idx in kinds.items():  # the cylinders of a kind at once: its numeric laws broadcast over them
+        kind = actuator(name)
+        each = [kind.parameters(model.cylinders[i].table) for i in idx]
+        P = {k: np.array([e[k] for e in each], float) for k in each[0]}
+        parts = tuple(pc[:, [blocks[i][0] + j for i in idx]] for j in range(blocks[idx[0]][1] - blocks[idx[0]][0]))
+        f0[:, idx] = kind.Numeric.f0(l[:, idx], ld[:, idx], parts, P)
+        g0[:, idx] = kind.Numeric.g0(l[:, idx], parts, u[:, idx], P)
+    phi = np.stack([(g1 * f0).T, (g2 * g0).T], axis=1)  # (m, 2, k): φ_i over the run
     Mg = (phi @ phi.transpose(0, 2, 1)) * h
     out["gamma"] = [_ratio(Mi) for Mi in Mg]
     out["gamma_cylinders"] = [c.name for c in model.cylinders]
