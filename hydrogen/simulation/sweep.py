@@ -196,6 +196,13 @@ def sweep(runs, *, executor: Executor | None = None, max_workers: int | None = N
     ``executor`` may be any :class:`concurrent.futures.Executor` (a Dask or Ray
     executor spreads the sweep past one machine); by default a local process pool
     with ``max_workers`` (default: the core count) processes.
+
+    Each task of the executor is a chunk of consecutive runs (:func:`chunks`); in it the runs that
+    differ only in gains and seed share one :class:`~hydrogen.simulation.simulator.Batch` (the scenario
+    resolved and checked once, a controller per gain set), and the parent solves each scenario's
+    Kalman gain once for all the workers. Every run's metrics are those of the run alone, to the bit.
+    The compiled loop releases the GIL, so a ``ThreadPoolExecutor`` runs the chunks side by side in
+    this process, with no worker start-up.
     """
     from ..errors import ScenarioError, WorkerError
     from ..runtime.build import as_model
