@@ -643,7 +643,8 @@ def test_a_sweeps_workers_take_the_kalman_gains_its_parent_solved(dyn, monkeypat
 
     from hydrogen.simulation import simulator as S
     from hydrogen.simulation import sweep as W
-    runs = [dict(scenario="z-1hz", controller="p", duration=0.2, seed=s) for s in (0, 1)] + [{"bogus": 1}]
+    runs = [dict(scenario="z-1hz", controller="p", duration=0.2, seed=s, gains={"Kleg": 0.05}) for s in (0, 1)]
+    runs.append({"bogus": 1})
     runs.append(dict(scenario="z-1hz", controller="p", duration=0.2, noise_l=1e-5))  # another filter
     filters = W._filter_gains(dyn.model, runs)
     assert len(filters) == 2

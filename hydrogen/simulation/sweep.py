@@ -145,7 +145,9 @@ def _filter_gains(model, runs) -> dict:
     for run in runs:
         if entry_problem(run):
             continue
-        fields = {k: v for k, v in run.items() if k in Scenario.__dataclass_fields__ and k != "seed"}
+        # the scenario fields an entry overrides ("gains" and "duration" are simulate's own arguments)
+        fields = {k: v for k, v in run.items()
+                  if k in Scenario.__dataclass_fields__ and k not in _ENTRY_KEYS and k != "seed"}
         name = run.get("scenario", "paper-sim")
         try:
             key = pickle.dumps((name, fields))
