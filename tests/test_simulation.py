@@ -658,6 +658,17 @@ def test_a_sweeps_workers_take_the_kalman_gains_its_parent_solved(dyn, monkeypat
     S._kalman_gain.cache_clear()  # no gain of the handed-over table stays in the cache
 
 
+def test_an_entry_that_cannot_be_pickled_fails_alone_not_its_chunk(dyn):
+    """A process pool pickles a chunk after submit: the entry that cannot be pickled spoils its chunk,
+    whose runs then go one by one, so it alone fails."""
+    good = dict(scenario="z-step", controller="p", duration=0.05)
+    runs = [dict(good, gains={"Kleg": 0.03 + 0.01 * i}) for i in range(12)]
+    runs[5] = dict(good, gains={"Kleg": lambda: 0.05})  # a local function: no pickle
+    out = hydrogen.sweep(runs, max_workers=2)
+    assert [i for i, m in enumerate(out) if "error" in m] == [5] and "pickle" in out[5]["error"].lower()
+    assert out[4]["max_error"] == hydrogen.sweep(runs[4:5], max_workers=1)[0]["max_error"]
+
+
 def test_sweep_cuts_its_runs_into_chunks_per_worker():
     from hydrogen.simulation.sweep import CHUNKS_PER_WORKER, MAX_CHUNK, chunks
     parts = chunks(100, 2)

@@ -252,34 +252,43 @@ def sweep(runs, *, executor: Executor | None = None, max_workers: int | None = N
             except (OSError, BrokenExecutor) as exc:  # the executor, not the entry: no run can be trusted
                 _cancel(futures)
                 raise WorkerError(_start_failure(exc, workers)) from None
-            except Exception:  # noqa: BLE001 - e.g. an entry that cannot be pickled: its runs one by one
-                for i in part:
-                    try:
-                        futures.append(submit(ex, range(i, i + 1)))
-                    except (OSError, BrokenExecutor) as exc:
-                        _cancel(futures)
-                        raise WorkerError(_start_failure(exc, workers)) from None
-                    except Exception as exc:  # noqa: BLE001 - this entry's error, in its place
-                        futures.append((range(i, i + 1), exc))
+            except Exception as exc:  # noqa: BLE001 - e.g. an entry that cannot be pickled: result() sorts it out
+                futures.append((part, exc))
+
+        def result(part, f):
+            try:
+                if isinstance(f, Exception):
+                    raise f
+                done = f.result()
+                if not isinstance(done, list) or len(done) != len(part):
+                    raise RuntimeError(f"a worker gave {type(done).__name__} for a chunk of {len(part)} runs")
+                return done
+            except BrokenExecutor as exc:  # a worker died: every pending run fails with it, not one entry
+                _cancel(futures)
+                raise WorkerError(f"sweep: a worker process died abruptly while run {part[0] + 1} of {len(runs)} "
+                                  f"was pending ({type(exc).__name__}: {str(exc)[:200]}): killed by the system "
+                                  f"(out of memory?) or a crash in compiled code; no result of the sweep is "
+                                  f"reported. Run the entries alone with hydrogen.simulate to find the one that "
+                                  f"crashes, or use fewer workers") from None
+            except Exception as exc:  # noqa: BLE001 - these entries' error, in their place
+                if len(part) == 1:
+                    return [{"error": f"{type(exc).__name__}: {str(exc)[:500]}"}]
+            # one entry may spoil its chunk (a process pool pickles it after submit): the runs one by one
+            single = []
+            for i in part:
+                try:
+                    single.append(submit(ex, range(i, i + 1)))
+                except (OSError, BrokenExecutor) as exc:
+                    _cancel(futures)
+                    raise WorkerError(_start_failure(exc, workers)) from None
+                except Exception as exc:  # noqa: BLE001 - this entry's error, in its place
+                    single.append((range(i, i + 1), exc))
+            return [m for one, g in single for m in result(one, g)]
+
         out = []
         with tqdm(total=len(runs), desc="sweep", unit="run", disable=None if progress else True) as bar:
             for part, f in futures:
-                try:
-                    if isinstance(f, Exception):
-                        raise f
-                    done = f.result()
-                    if not isinstance(done, list) or len(done) != len(part):
-                        raise RuntimeError(f"a worker gave {type(done).__name__} for a chunk of {len(part)} runs")
-                    out += done
-                except BrokenExecutor as exc:  # a worker died: every pending run fails with it, not one entry
-                    _cancel(futures)
-                    raise WorkerError(f"sweep: a worker process died abruptly while run {part[0] + 1} of {len(runs)} "
-                                      f"was pending ({type(exc).__name__}: {str(exc)[:200]}): killed by the system "
-                                      f"(out of memory?) or a crash in compiled code; no result of the sweep is "
-                                      f"reported. Run the entries alone with hydrogen.simulate to find the one that "
-                                      f"crashes, or use fewer workers") from None
-                except Exception as exc:  # noqa: BLE001 - these entries' error, in their place
-                    out += [{"error": f"{type(exc).__name__}: {str(exc)[:500]}"}] * len(part)
+                out += result(part, f)
                 bar.update(len(part))
         return out
 
