@@ -269,7 +269,9 @@ class Batch:
     and its metrics. :meth:`run` gives what :func:`simulate` gives for the same arguments, to the bit.
 
     ``scenario``, ``duration``, ``check_workspace`` and ``overrides`` (scenario fields, not ``seed``:
-    a run's own) as for :func:`simulate`; the checks that need no gains or seed raise here.
+    a run's own) as for :func:`simulate`; the checks that need no gains or seed raise here. One
+    thread at a time: its runner is one set of buffers (a thread pool gives each task its own Batch,
+    as the sweep's chunks do).
     """
 
     def __init__(self, dyn, scenario, controller: str, *, duration=None, check_workspace=True, **overrides):
