@@ -15,7 +15,21 @@ executors (the workers import hydrogen and load the library once):
 Identification: ``hydrogen.identify`` on paper-sim's 10 s log (10,001 samples) with the rig's
 sensor noise, median of ``repeats`` calls, with its stages.
 
-Run: ``python benchmarks/bench_sweep.py [--quick] [--json FILE]``
+Batched sweeps against the C loop (``--batch`` runs this part alone): 100 runs of z-1hz with P
+(10 gain sets x 10 noise seeds, ``sweep(runs, seeds=10)``), in runs per CPU-second (the parent's CPU
+time and its joined workers', so a worker's start-up counts), the routes interleaved, median of
+``repeats``:
+
+* ``c_loop``: the bare C loop (``LoopRunner.run``) of the same 100 runs, timed alone in one process:
+  the most any route can reach;
+* ``per_run``: one run per task in a new 2-process pool, each run prepared alone (``_run_one``, the
+  sweep's route before batching);
+* ``batched``: ``hydrogen.sweep(runs, seeds=10, max_workers=2)``, the default: chunks of runs per task,
+  one Batch per scenario in each;
+* ``batched_threads``: the same on a ``ThreadPoolExecutor(2)`` (the C loop releases the GIL: no
+  worker start-up, no pickling).
+
+Run: ``python benchmarks/bench_sweep.py [--quick] [--batch] [--json FILE]``
 """
 from __future__ import annotations
 
@@ -80,6 +94,103 @@ if __name__ == "__main__":
 """
 
 
+_BATCH = """
+import resource, statistics, time
+from concurrent.futures import ProcessPoolExecutor, ThreadPoolExecutor
+import numpy as np
+import hydrogen
+from hydrogen.runtime.build import as_model, default_dynamics
+from hydrogen.simulation import simulator as S
+from hydrogen.simulation.sweep import _run_one
+
+DURATION, SEEDS, WORKERS = {duration}, 10, {workers}
+runs = [dict(scenario="z-1hz", controller="p", gains={{"Kleg": float(k)}}, duration=DURATION)
+        for k in np.geomspace(0.02, 0.3, 10)]
+flat = [dict(r, seed=s) for r in runs for s in range(SEEDS)]
+model = as_model(None)
+dyn = default_dynamics(model, controller="p")  # built and loaded once, as any first call does
+
+def cpu():  # this process (its threads) and its children that were joined
+    s, c = resource.getrusage(resource.RUSAGE_SELF), resource.getrusage(resource.RUSAGE_CHILDREN)
+    return s.ru_utime + s.ru_stime + c.ru_utime + c.ru_stime
+
+def c_loop():
+    spent = 0.0
+    for r in flat:
+        p = S.prepare_run(dyn, r["scenario"], r["controller"], r["gains"], r["duration"], True, {{"seed": r["seed"]}})
+        runner = S.make_runner(dyn, p.sc, p.ctrl, p.x0, p.q0, p.kf_gain, p.h)
+        log = S.new_logs(dyn.model, p.n, p.ctrl.xc.size)
+        logs = {{k: log[k] for k in ("q", "q_d", "l", "f", "pc", "u", "u_applied", "l_meas")}}
+        t0 = time.process_time()
+        assert runner.run(p.n, p.noise, logs) == 0
+        spent += time.process_time() - t0
+    return spent
+
+def per_run():
+    with ProcessPoolExecutor(WORKERS) as pool:
+        out = list(pool.map(_run_one, [(model, r, False, None) for r in flat]))
+    assert not any("error" in m for m in out)
+
+def batched():
+    out = hydrogen.sweep(runs, seeds=SEEDS, max_workers=WORKERS)
+    assert all(o["completed"] == SEEDS for o in out)
+
+def batched_threads():
+    with ThreadPoolExecutor(WORKERS) as ex:
+        out = hydrogen.sweep(runs, seeds=SEEDS, executor=ex)
+    assert all(o["completed"] == SEEDS for o in out)
+
+if __name__ == "__main__":
+    routes = {{"per_run": per_run, "batched": batched, "batched_threads": batched_threads}}
+    rates = {{k: [] for k in ("c_loop", *routes)}}
+    walls = {{k: [] for k in routes}}
+    for _ in range({repeats}):  # interleaved, so a change in the machine's load reaches every route alike
+        rates["c_loop"].append(len(flat) / c_loop())
+        for k, f in routes.items():
+            c0, w0 = cpu(), time.perf_counter()
+            f()
+            c, w = cpu() - c0, time.perf_counter() - w0
+            rates[k].append(len(flat) / c)
+            walls[k].append(len(flat) / w)
+    for k, v in rates.items():
+        print(f"runs_per_cpu_s_{{k}}", statistics.median(v))
+    for k, v in walls.items():
+        print(f"runs_per_wall_s_{{k}}", statistics.median(v))
+"""
+
+
+def batch_throughput(quick: bool = False) -> dict:
+    """The batched sweep against the per-run route and the bare C loop (module doc)."""
+    repeats = 1 if quick else 3
+    duration = 2.0 if quick else 6.0
+    load_before = os.getloadavg()[0]
+    stdout, _ = common.run_python(_BATCH.format(duration=duration, repeats=repeats, workers=WORKERS), timeout=1800)
+    k = common.parse_keyed(stdout)
+    routes = ("c_loop", "per_run", "batched", "batched_threads")
+    out = {"runs": 100, "gain_sets": 10, "seeds": 10, "sim_duration_s": duration, "workers": WORKERS,
+           "repeats": repeats, "runs_per_cpu_s": {r: k.get(f"runs_per_cpu_s_{r}") for r in routes},
+           "runs_per_wall_s": {r: k.get(f"runs_per_wall_s_{r}") for r in routes[1:]}}
+    c = out["runs_per_cpu_s"]
+    out["of_c_loop"] = {r: c[r] / c["c_loop"] for r in routes[1:]}
+    out["batched_over_per_run"] = c["batched"] / c["per_run"]
+    out["load_avg_1min"] = [load_before, os.getloadavg()[0]]
+    return out
+
+
+def print_batch(res) -> None:
+    print(f"batched sweep: {res['runs']} z-1hz P runs ({res['gain_sets']} gain sets x {res['seeds']} seeds, "
+          f"{res['sim_duration_s']:.0f} s each), {res['workers']} workers, median of {res['repeats']} "
+          f"(1-min load average {res['load_avg_1min'][0]:.1f} before, {res['load_avg_1min'][1]:.1f} after):")
+    names = {"c_loop": "bare C loop (LoopRunner.run alone)", "per_run": "one run per task (before batching)",
+             "batched": "batched, process pool (default)", "batched_threads": "batched, thread pool"}
+    for key, label in names.items():
+        cpu = res["runs_per_cpu_s"][key]
+        wall = res["runs_per_wall_s"].get(key)
+        of = f"{res['of_c_loop'][key]:5.2f} of the C loop" if key in res["of_c_loop"] else ""
+        print(f"  {label:38} {cpu:7.1f} runs/CPU-s {'' if wall is None else f'{wall:7.1f} runs/wall-s'}  {of}")
+    print(f"  batched / one run per task: {res['batched_over_per_run']:.2f}x runs per CPU-second")
+
+
 def identification_time(repeats: int) -> dict:
     from hydrogen.logs import log_from_result
     dyn = hydrogen.build()
@@ -107,6 +218,7 @@ def run(quick: bool = False) -> dict:
            "dask_cluster_start_s": k.get("dask_cluster_start_s"), "dask_first_sweep_s": k.get("dask_first_sweep_s"),
            "dask_installed": "dask_missing" not in k}
     out["identify_paper_sim"] = identification_time(repeats)
+    out["batch"] = batch_throughput(quick)
     out["load_avg_1min"] = [load_before, os.getloadavg()[0]]  # other processes on the machine, before/after
     return out
 
@@ -128,7 +240,11 @@ def print_table(res):
     ident = res["identify_paper_sim"]
     stages = ", ".join(f"{k} {v * 1e3:.0f} ms" for k, v in ident["stages_s"].items() if k != "total")
     print(f"identify on the paper-sim log ({ident['samples']} samples): {ident['wall_s']:.2f} s ({stages})")
+    print_batch(res["batch"])
 
 
 if __name__ == "__main__":
+    if "--batch" in sys.argv:  # the batched-sweep part alone
+        sys.argv.remove("--batch")
+        sys.exit(common.script_main(__doc__, batch_throughput, print_batch))
     sys.exit(common.script_main(__doc__, run, print_table))

@@ -154,6 +154,17 @@ def _sweep(b) -> list:
         out += _table(["executor", "runs/s"], [[names.get(k, k), _f(v, 1)] for k, v in rates.items()])
         if b.get("dask_cluster_start_s") is not None:
             out += [f"The Dask cluster took {_f(b['dask_cluster_start_s'])} s to start.", ""]
+    batch = b.get("batch")
+    if batch:
+        names = {"c_loop": "bare C loop (`LoopRunner.run` alone)", "per_run": "one run per task",
+                 "batched": "batched, process pool (default)", "batched_threads": "batched, thread pool"}
+        out.append(f"{batch.get('runs')} runs of z-1hz with P ({batch.get('gain_sets')} gain sets x "
+                   f"{batch.get('seeds')} seeds, {_f(batch.get('sim_duration_s'))} s each) on "
+                   f"{batch.get('workers')} workers, per CPU-second of the parent and its workers:")
+        out.append("")
+        of = batch.get("of_c_loop", {})
+        out += _table(["route", "runs/CPU-s", "of the C loop"],
+                      [[names.get(k, k), _f(v, 1), _f(of.get(k))] for k, v in batch.get("runs_per_cpu_s", {}).items()])
     ident = b.get("identify_paper_sim")
     if ident:
         st = ident.get("stages_s", {})

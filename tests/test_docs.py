@@ -133,6 +133,16 @@ def test_benchmarks_page_renders_what_the_run_holds(tmp_path):
     assert "## The closed loop" not in text and "## How cost grows" not in text
 
 
+def test_benchmarks_page_renders_the_batched_sweep(tmp_path):
+    batch = {"runs": 100, "gain_sets": 10, "seeds": 10, "sim_duration_s": 6.0, "workers": 2,
+             "runs_per_cpu_s": {"c_loop": 31.25, "per_run": 25.4, "batched": 27.75},
+             "of_c_loop": {"per_run": 0.81, "batched": 0.888}}
+    (tmp_path / "bench.json").write_text(json.dumps({"bench_sweep": {"batch": batch}}), encoding="utf-8")
+    text = pages.write_benchmarks_page(tmp_path / "bench.json").read_text(encoding="utf-8")
+    assert "| batched, process pool (default) | 27.8 | 0.89 |" in text and "| bare C loop" in text
+    assert "10 gain sets x 10 seeds" in text
+
+
 def test_figures_run_ends_by_writing_its_results_page(tmp_path, cache):
     from hydrogen import figures
     model = hydrogen.load_model("excavator_arm")

@@ -626,7 +626,7 @@ import hydrogen
 import hydrogen.simulation.sweep as sweep_module
 def die(job):  # a worker killed mid-run (out of memory, a crash in compiled code)
     os._exit(9)
-sweep_module._run_one = die
+sweep_module._run_chunk = die
 try:
     hydrogen.sweep([{{}}, {{}}, {{}}], max_workers=2)
 except hydrogen.WorkerError as exc:

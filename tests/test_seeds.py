@@ -3,7 +3,7 @@ gain search and margins judged over every seed, --seeds on the command line, see
 from __future__ import annotations
 
 import json
-from concurrent.futures import Future, ThreadPoolExecutor
+from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
 import pytest
@@ -158,13 +158,14 @@ class FailingSeed(ThreadPoolExecutor):
         self.seed, self.when, self.seen = seed, when, []
 
     def submit(self, fn, job):
-        run = job[1]
-        self.seen.append(run.get("seed"))
-        if run.get("seed") == self.seed and self.when(run.get("gains") or {}):
-            f = Future()
-            f.set_result({"error": "diverged at t = 1.0000 s: test"})
-            return f
-        return super().submit(fn, job)
+        model, runs, *rest = job  # a chunk of entries (sweep's worker call), results in their order
+        self.seen += [run.get("seed") for run in runs]
+        fails = [run.get("seed") == self.seed and self.when(run.get("gains") or {}) for run in runs]
+
+        def chunk():
+            done = iter(fn((model, [r for r, bad in zip(runs, fails) if not bad], *rest)))
+            return [{"error": "diverged at t = 1.0000 s: test"} if bad else next(done) for bad in fails]
+        return super().submit(chunk)
 
 
 def test_tune_calls_a_gain_unstable_when_one_seed_fails(short_model):

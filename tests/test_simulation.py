@@ -568,6 +568,116 @@ def test_thread_sweep_equals_serial_sweep(dyn):
     assert [r["max_error"] for r in serial] == [r["max_error"] for r in threaded]
 
 
+def test_a_batched_chunk_equals_its_runs_one_at_a_time(dyn, monkeypatch):
+    """The sweep's worker runs a chunk of entries through one Batch per scenario (the scenario resolved
+    and checked once, a controller and loop runner per gain set): every run's metrics and series are the
+    ones its run alone gives, to the bit, failures with the same message."""
+    from hydrogen.simulation import simulator as S
+    from hydrogen.simulation import sweep as W
+    model = dyn.model
+    runs = [dict(scenario="z-1hz", controller=c, gains=g, seed=s, duration=0.5)
+            for c, g in (("p", {"Kleg": 0.02}), ("p", {"Kleg": 0.05}), ("adaptive-robust", {"Lambda": 30.0}),
+                         ("adaptive-robust", {"Lambda": 60.0})) for s in (0, 1, 2)]
+    runs.insert(4, dict(scenario="z-1hz", controller="p", gains={"Kleg": 0.02}, seed=2, duration=0.5))  # gains again
+    runs += [dict(scenario="z-1hz", controller="p", duration=0.5, seed=2**64),  # a bad seed
+             dict(scenario="z-1hz", controller="p", duration=0.5, gains={"Kleg": -1.0}, seed=1),  # a bad gain
+             dict(scenario="z-1hz", controller="p", duration=-1.0, seed=1),  # a bad scenario field: no Batch
+             dict(scenario="z-1hz", controller="p", duration=0.5),  # the scenario's own seed
+             dict(scenario="paper-sim", controller="backstepping", duration=1.0, seed=0,  # diverges
+                  gains={"Ktau": 5e4, "u_max": 1.0}, control_rate=200.0, substeps=2)]
+    plans = []
+    real_plan = S.plan_run
+    monkeypatch.setattr(S, "plan_run", lambda *a, **k: plans.append(a[1]) or real_plan(*a, **k))
+    W._run_chunk((model, runs[:13] + runs[-2:], False, None, {}))  # the runs that start: a plan per scenario
+    assert plans == ["z-1hz", "z-1hz", "paper-sim"]  # z-1hz for P (its own seed too), for adaptive-robust
+    batched = W._run_chunk((model, runs, True, None, {}))
+    alone = [W._run_one((model, r, True, None)) for r in runs]
+    timings = {"wall_time_s", "loop_wall_s"}
+    for r, b, a in zip(runs, batched, alone):
+        assert type(b) is type(a), r
+        if isinstance(a, dict):
+            assert b == a and "error" in a, r
+            continue
+        assert {k: v for k, v in b.metrics.items() if k not in timings} == \
+            {k: v for k, v in a.metrics.items() if k not in timings}, r
+        for series in ("q", "u", "pressures", "leg_lengths_measured", "theta_hat", "gamma1_hat"):
+            np.testing.assert_array_equal(getattr(b, series), getattr(a, series), err_msg=f"{r} {series}")
+    errors = [a["error"] for a in alone if isinstance(a, dict)]
+    assert "seed must be an integer" in errors[0] and "'Kleg' must be >= 0" in errors[1]
+    assert "duration" in errors[2] and "t = " in errors[3] and "failed_at_s" in alone[-1]
+    # seeds 0 and 1 differ (their noise), the same seed and gains twice do not
+    assert batched[0].metrics["max_error"] != batched[1].metrics["max_error"]
+    np.testing.assert_array_equal(batched[2].q, batched[4].q)
+
+
+@pytest.mark.parametrize("duration,rows", [(3.0, 513), (3.0 - 1 / 512, 512)])  # even and odd: the last bin
+def test_high_frequency_error_is_the_rms_of_the_high_passed_error(dyn, duration, rows):
+    res = simulate(dyn, "z-1hz", "p", duration=duration, check_workspace=False)
+    sel = res.t >= res.metric_start - 1e-12
+    e = res.error[sel]
+    spec = np.fft.rfft(e - e.mean(axis=0), axis=0)
+    spec[np.fft.rfftfreq(len(e), res.t[1] - res.t[0]) <= res.HF_FACTOR * 1.0] = 0  # z-1hz: 1 Hz
+    want = np.sqrt((np.fft.irfft(spec, n=len(e), axis=0) ** 2).mean(axis=0))
+    assert len(e) == rows and want.max() > 0
+    np.testing.assert_allclose(res.high_frequency_error(), want, rtol=1e-12, atol=1e-300)
+
+
+def test_a_batch_grid_gives_arrays_over_gain_sets_and_seeds(dyn):
+    from hydrogen.simulation.simulator import Batch
+    batch = Batch(dyn, "z-1hz", "p", duration=0.5)
+    out = batch.grid([{"Kleg": 0.02}, {"Kleg": -1.0}, {"Kleg": 0.05}], [0, 3])
+    assert out["max_error_pct"].shape == (3, 2, dyn.model.n) and out["failed"].tolist() == [[False] * 2, [True] * 2,
+                                                                                            [False] * 2]
+    z = dyn.model.coordinate_names.index("z")
+    assert out["max_error_pct"][2, 1, z] == simulate(dyn, "z-1hz", "p", duration=0.5, gains={"Kleg": 0.05},
+                                                     seed=3).metrics["max_error_pct"]["z"]
+    assert np.isnan(out["max_error_pct"][1]).all() and "'Kleg' must be >= 0" in out["metrics"][1][0]["error"]
+    with pytest.raises(hydrogen.ScenarioError, match="seed is each run's"):
+        Batch(dyn, "z-1hz", "p", seed=1)
+
+
+def test_a_sweeps_workers_take_the_kalman_gains_its_parent_solved(dyn, monkeypatch):
+    """The parent solves each scenario's filter gain once and hands it over with every chunk: a
+    worker neither imports SciPy for it nor solves the Riccati equation again."""
+    import scipy.linalg
+
+    from hydrogen.simulation import simulator as S
+    from hydrogen.simulation import sweep as W
+    runs = [dict(scenario="z-1hz", controller="p", duration=0.2, seed=s, gains={"Kleg": 0.05}) for s in (0, 1)]
+    runs.append({"bogus": 1})
+    runs.append(dict(scenario="z-1hz", controller="p", duration=0.2, noise_l=1e-5))  # another filter
+    filters = W._filter_gains(dyn.model, runs)
+    assert len(filters) == 2
+    alone = W._run_one((dyn.model, runs[3], False, None))
+    S._kalman_gain.cache_clear()
+    monkeypatch.setattr(S, "_KNOWN_GAINS", {})
+    monkeypatch.setattr(scipy.linalg, "solve_discrete_are", lambda *a: pytest.fail("solved again in the worker"))
+    out = W._run_chunk((dyn.model, runs, False, None, filters))
+    assert [("error" in m) for m in out] == [False, False, True, False]
+    assert out[3]["max_error"] == alone["max_error"]
+    S._kalman_gain.cache_clear()  # no gain of the handed-over table stays in the cache
+
+
+def test_an_entry_that_cannot_be_pickled_fails_alone_not_its_chunk(dyn):
+    """A process pool pickles a chunk after submit: the entry that cannot be pickled spoils its chunk,
+    whose runs then go one by one, so it alone fails."""
+    good = dict(scenario="z-step", controller="p", duration=0.05)
+    runs = [dict(good, gains={"Kleg": 0.03 + 0.01 * i}) for i in range(12)]
+    runs[5] = dict(good, gains={"Kleg": lambda: 0.05})  # a local function: no pickle
+    out = hydrogen.sweep(runs, max_workers=2)
+    assert [i for i, m in enumerate(out) if "error" in m] == [5] and "pickle" in out[5]["error"].lower()
+    assert out[4]["max_error"] == hydrogen.sweep(runs[4:5], max_workers=1)[0]["max_error"]
+
+
+def test_sweep_cuts_its_runs_into_chunks_per_worker():
+    from hydrogen.simulation.sweep import CHUNKS_PER_WORKER, MAX_CHUNK, chunks
+    parts = chunks(100, 2)
+    assert [i for p in parts for i in p] == list(range(100))
+    assert len(parts) >= CHUNKS_PER_WORKER * 2 and max(map(len, parts)) <= MAX_CHUNK
+    assert chunks(3, 8) == [range(0, 1), range(1, 2), range(2, 3)] and chunks(0, 2) == []
+    assert max(map(len, chunks(10_000, 1))) == MAX_CHUNK
+
+
 def test_a_parameter_whose_true_value_is_zero_has_an_absolute_error_not_nan(dyn):
     from hydrogen.summary import estimate_lines
 

@@ -97,6 +97,12 @@ def check_reference(ref, name: str, n: int | None = None) -> None:
                 _fail(name, f"reference.{what}", "must be a finite number", v)
 
 
+def seed_ok(seed) -> bool:
+    """Whether ``seed`` is a scenario's noise seed: None or an integer in 0 .. MAX_SEED (not a bool)."""
+    return seed is None or (not isinstance(seed, (bool, np.bool_)) and isinstance(seed, numbers.Integral)
+                            and 0 <= seed <= MAX_SEED)
+
+
 def check_fields(sc) -> None:
     """Types and values of a Scenario's fields that need no model (called by ``Scenario.validated``)."""
     name = sc.name
@@ -118,10 +124,8 @@ def check_fields(sc) -> None:
     for f in ("kalman", "predictor"):
         if not isinstance(getattr(sc, f), (bool, np.bool_)):
             _fail(name, f, "must be True or False", getattr(sc, f))
-    seed = sc.seed
-    if seed is not None and (isinstance(seed, (bool, np.bool_)) or not isinstance(seed, numbers.Integral)
-                             or not 0 <= seed <= MAX_SEED):
-        _fail(name, "seed", f"must be an integer in 0 .. {MAX_SEED} (2**63 - 1)", seed)
+    if not seed_ok(sc.seed):
+        _fail(name, "seed", f"must be an integer in 0 .. {MAX_SEED} (2**63 - 1)", sc.seed)
     _vector(name, "friction", sc.friction, "must be (Coulomb N, viscous N s/m, smoothing speed m/s)")
     _vector(name, "q0_offset", sc.q0_offset)
     for f in ("theta0_factor", "gamma0_factor"):
