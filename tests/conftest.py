@@ -1,4 +1,5 @@
 import os
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -108,3 +109,23 @@ def workspace_poses(model, n, rng, scale=1.0):
 def random_theta(model, rng, spread=0.5):
     """The true adapted parameters, each scaled by a factor in [1 − spread, 1 + spread]."""
     return model.theta * rng.uniform(1 - spread, 1 + spread, model.n_theta)
+
+
+@pytest.fixture
+def package_copy(tmp_path, monkeypatch):
+    """hydrogen's derivation code copied under ``tmp_path/package``, which the derivation hashes then
+    read: an edit of the copy is an edit of hydrogen as far as staleness goes (the code run stays
+    the installed one)."""
+    import shutil
+
+    import hydrogen.codegen.generate as gen
+
+    pkg = Path(gen.__file__).resolve().parent.parent
+    copy = tmp_path / "package"
+    copy.mkdir()
+    for name in gen.DERIVATION_FILES:
+        shutil.copy(pkg / name, copy / name)
+    for sub in gen.DERIVATION_DIRS:
+        shutil.copytree(pkg / sub, copy / sub)
+    monkeypatch.setattr(gen, "_PACKAGE", copy)
+    return copy

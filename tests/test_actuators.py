@@ -318,19 +318,11 @@ def test_three_way_cylinder_is_the_papers_actuator():
         mod.Symbolic.flow_inverse(s, (pc,), Ps, EPS)
 
 
-def test_the_derivation_hash_covers_the_actuators_a_robot_uses(tmp_path, monkeypatch):
+def test_the_derivation_hash_covers_the_actuators_a_robot_uses(package_copy):
     """An edit to an actuator module changes what is generated for a robot using the kind, so it must
     make that code stale; a robot without the kind stays current."""
-    import shutil
-    from pathlib import Path
-
     import hydrogen.codegen.generate as gen
-    pkg = Path(gen.__file__).resolve().parent.parent
-    for name in gen.DERIVATION_FILES:
-        shutil.copy(pkg / name, tmp_path / name)
-    for sub in gen.DERIVATION_DIRS:
-        shutil.copytree(pkg / sub, tmp_path / sub)
-    monkeypatch.setattr(gen, "_PACKAGE", tmp_path)
+    tmp_path = package_copy
     before = {kinds: gen.derivation_hash(kinds) for kinds in (("rotary",), ("three_way_cylinder",))}
     path = tmp_path / "actuators" / "rotary.py"
     path.write_text(path.read_text() + "\n# an edit\n")
@@ -346,21 +338,14 @@ def test_the_derivation_hash_covers_the_actuators_a_robot_uses(tmp_path, monkeyp
     assert gen.derivation_hash(("three_way_cylinder",)) != before
 
 
-def test_a_new_kind_leaves_other_robots_code_current(tmp_path, monkeypatch):
+def test_a_new_kind_leaves_other_robots_code_current(package_copy, monkeypatch):
     """The module of a kind a robot does not use is outside its derivation hash: adding a kind keeps
     the committed code of the robots that do not use it current; editing it stales those that do."""
-    import shutil
     import types
-    from pathlib import Path
 
     import hydrogen.actuators as acts
     import hydrogen.codegen.generate as gen
-    pkg = Path(gen.__file__).resolve().parent.parent
-    for name in gen.DERIVATION_FILES:
-        shutil.copy(pkg / name, tmp_path / name)
-    for sub in gen.DERIVATION_DIRS:
-        shutil.copytree(pkg / sub, tmp_path / sub)
-    monkeypatch.setattr(gen, "_PACKAGE", tmp_path)
+    tmp_path = package_copy
     crane = gen.derivation_hash(("four_way_cylinder", "rotary"))
     new = tmp_path / "actuators" / "new_kind.py"
     new.write_text("NAME = 'new_kind'\n")

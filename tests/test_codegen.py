@@ -464,25 +464,10 @@ def test_controllers_reading_a_number_the_folder_lacks_regenerate_it_whole(tmp_p
     assert rendered == [("p", "p-task")] and gen.held_controllers(gen.read_manifest(folder)) == ("p", "p-task")
 
 
-def _package_copy(tmp_path, monkeypatch):
-    """The derivation code copied under ``tmp_path`` and read from there by the hashes: an edit of
-    the copy is an edit of hydrogen as far as staleness goes (the code run stays the installed one)."""
-    import shutil
-    pkg = Path(gen.__file__).resolve().parent.parent
-    copy = tmp_path / "package"
-    copy.mkdir()
-    for name in gen.DERIVATION_FILES:
-        shutil.copy(pkg / name, copy / name)
-    for sub in gen.DERIVATION_DIRS:
-        shutil.copytree(pkg / sub, copy / sub)
-    monkeypatch.setattr(gen, "_PACKAGE", copy)
-    return copy
-
-
-def test_a_controller_module_shapes_its_own_functions_alone(tmp_path, monkeypatch):
+def test_a_controller_module_shapes_its_own_functions_alone(package_copy):
     """The folder's derivation hash leaves out the controllers' modules (each function records its
     controller's): editing or adding a controller stales no other function."""
-    copy = _package_copy(tmp_path, monkeypatch)
+    copy = package_copy
     kinds = ("three_way_cylinder",)
     before, own = gen.derivation_hash(kinds), gen.block_hash("controller", "p")
     other = gen.block_hash("controller", "backstepping")
@@ -495,25 +480,24 @@ def test_a_controller_module_shapes_its_own_functions_alone(tmp_path, monkeypatc
     assert gen.derivation_hash(kinds) != before  # a shared module of the blocks counts for all
 
 
-def test_an_edited_controller_is_derived_again_alone(tmp_path, monkeypatch, fresh_render):
+def test_an_edited_controller_is_derived_again_alone(tmp_path, monkeypatch, fresh_render, package_copy):
     """A folder whose one controller's module changed is stale for that controller only; generating
     derives it alone and writes what a whole generation writes."""
     model = hydrogen.load_model("loader_crane")
     folder = tmp_path / "gen"
     assert gen.generate(model, folder)
-    copy = _package_copy(tmp_path, monkeypatch)
-    path = copy / "controllers" / "p.py"
+    path = package_copy / "controllers" / "p.py"
     path.write_text(path.read_text() + "\n# an edit\n")
     reasons = gen.check(model, folder)
     assert len(reasons) == 1 and gen.STALE_CONTROLLER in reasons[0] and "'p'" in reasons[0]
     untouched = {p.name: p.stat().st_mtime_ns for p in folder.iterdir() if "_ctrl_p" not in p.name}
+    fresh = fresh_render(model)  # a whole generation, before derive is watched
     derived = []
     real = gen.derive
     monkeypatch.setattr(gen, "derive", lambda *a, **k: (derived.append((tuple(a[2]), k["core"])), real(*a, **k))[1])
     assert gen.generate(model, folder)
     assert derived == [(("p",), False)]
     assert gen.check(model, folder) == []
-    fresh = fresh_render(model)
     assert sorted(os.listdir(folder)) == sorted(os.listdir(fresh))
     for name in os.listdir(fresh):
         if name != gen.MANIFEST:
