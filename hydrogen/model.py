@@ -398,6 +398,14 @@ class Model:
         text = json.dumps(self.baked(), sort_keys=True, separators=(",", ":"))
         return hashlib.sha256(text.encode()).hexdigest()
 
+    def rigid_body_form_chosen(self) -> str:
+        """The form the rigid body takes, "closed" or "staged": ``rigid_body_form``, or for "auto"
+        the cheaper (:func:`hydrogen.symbolic.forms.rigid_body_form`, once per process). The
+        derivation's tree asks its model: choosing derives trees of both forms, so it is made here,
+        above the tree, not by the tree itself."""
+        from .symbolic.forms import rigid_body_form
+        return rigid_body_form(self)
+
     def structure(self) -> dict:
         """:meth:`baked` with every number replaced by its class: 0, 1 and -1 stay (the derivation
         holds them exact: a zero coordinate, a unit axis), any other becomes "x". Two descriptions of

@@ -18,7 +18,7 @@ import numpy as np
 from ..errors import ScenarioError
 from .seeds import MAX_SEED
 
-__all__ = ["check_fields", "check_reference", "check_call", "check_against_model", "check_gain_values",
+__all__ = ["check_fields", "check_reference", "check_against_model", "check_gain_values",
            "gain_must_be_positive", "check_run_size", "run_doubles_per_period", "metric_window", "max_run_bytes",
            "checked_float", "MAX_RUN_BYTES"]
 
@@ -136,23 +136,6 @@ def check_fields(sc) -> None:
     if not isinstance(sc.gains, Mapping) or not all(isinstance(g, Mapping) for g in sc.gains.values()):
         _fail(name, "gains", "must be a dict {controller: {gain: value}}", sc.gains)
     check_reference(sc.reference, name)
-
-
-def check_call(scenario, controller, gains, duration, check_workspace) -> None:
-    """The arguments of simulate/stepper/export, before anything is built from them."""
-    from ..controllers import CONTROLLERS
-    from .scenarios import Scenario
-
-    if not isinstance(scenario, (str, Scenario)):
-        raise ScenarioError(f"scenario must be a scenario name or a Scenario, got {_shown(scenario)}")
-    if not isinstance(controller, str) or controller not in CONTROLLERS:
-        raise ScenarioError(f"unknown controller {_shown(controller)}; choose one of {', '.join(CONTROLLERS)}")
-    if gains is not None and (not isinstance(gains, Mapping) or not all(isinstance(k, str) for k in gains)):
-        raise ScenarioError(f"gains must be a dict {{gain name: value}}, got {_shown(gains)}")
-    if duration is not None:
-        checked_float(duration, "duration")
-    if not isinstance(check_workspace, (bool, np.bool_)):
-        raise ScenarioError(f"check_workspace must be True or False, got {_shown(check_workspace)}")
 
 
 def _layout(controller, model) -> list:

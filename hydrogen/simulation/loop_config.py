@@ -35,7 +35,7 @@ class Run:
 
 
 def _valve(run):
-    from .simulator import valve_vector
+    from .scenarios import valve_vector
     return valve_vector(run.sc)
 
 

@@ -17,7 +17,7 @@ from ..scenario_settings import (_FIELDS, RENAMED, VARIANT_SEPARATOR, ScenarioFi
 from .checks import check_fields
 from .reference import MultiSine, Step
 
-__all__ = ["Scenario", "setting", "settings", "PER_ACTUATOR", "actuator_settings", "per_actuator_unit", "scenario", "scenario_names", "variant_names", "split_variant", "table_keys", "default_scenario_name", "RENAMED"]
+__all__ = ["Scenario", "setting", "settings", "PER_ACTUATOR", "actuator_settings", "per_actuator_unit", "scenario", "scenario_names", "variant_names", "split_variant", "table_keys", "default_scenario_name", "RENAMED", "valve_vector"]
 
 
 @dataclass(frozen=True)
@@ -153,6 +153,11 @@ def actuator_settings(sc: Scenario, model) -> dict:
                         f"{per_actuator_unit(key, travel)}")
             out[key].append(value)
     return {k: np.asarray(v, float) for k, v in out.items()}
+
+
+def valve_vector(sc) -> np.ndarray:
+    """The plant's valve input [first-order lag s, natural frequency rad/s, damping] of a scenario."""
+    return np.array([sc.valve_lag, 2 * np.pi * sc.valve_bandwidth_hz, sc.valve_damping], float)
 
 
 def _reference(model, where, spec, neutral):

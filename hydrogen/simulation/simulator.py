@@ -4,6 +4,7 @@ from __future__ import annotations
 import functools
 import json
 import time
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -11,12 +12,13 @@ import numpy as np
 from .. import pressures
 from ..actuators import actuator
 from ..controllers import spec as controller_spec
-from ..errors import KinematicsError, SimulationError
+from ..errors import KinematicsError, ScenarioError, SimulationError
 from ..layout import PREDICTOR_MODEL
 from ..summary import SATURATED_AT, SATURATION, estimated_blocks  # saturation: defined with its line
-from .checks import check_against_model, check_call, check_run_size, checked_float, metric_window
+from .checks import _shown, check_against_model, check_run_size, checked_float, metric_window
 from .control import make_controller
-from .scenarios import Scenario, actuator_settings, scenario as named_scenario, scenario_names
+from .pool import _ENTRY_KEYS, _error, _outcome, check_workers, entry_problem, run_sweep
+from .scenarios import Scenario, actuator_settings, scenario as named_scenario, scenario_names, valve_vector
 from .seeds import SeedResults
 
 __all__ = ["simulate", "SimulationResult", "SeedResults", "equilibrium_pressures", "Stepper", "prepare_run", "new_logs",
@@ -230,12 +232,27 @@ def run_prepared(dyn, p, controller: str, engine: str = "c", call_start=None, ru
     return res
 
 
+def check_call(scenario, controller, gains, duration, check_workspace) -> None:
+    """The arguments of simulate/stepper/export, before anything is built from them."""
+    from ..controllers import CONTROLLERS
+
+    if not isinstance(scenario, (str, Scenario)):
+        raise ScenarioError(f"scenario must be a scenario name or a Scenario, got {_shown(scenario)}")
+    if not isinstance(controller, str) or controller not in CONTROLLERS:
+        raise ScenarioError(f"unknown controller {_shown(controller)}; choose one of {', '.join(CONTROLLERS)}")
+    if gains is not None and (not isinstance(gains, Mapping) or not all(isinstance(k, str) for k in gains)):
+        raise ScenarioError(f"gains must be a dict {{gain name: value}}, got {_shown(gains)}")
+    if duration is not None:
+        checked_float(duration, "duration")
+    if not isinstance(check_workspace, (bool, np.bool_)):
+        raise ScenarioError(f"check_workspace must be True or False, got {_shown(check_workspace)}")
+
+
 def _simulate_seeds(dyn, scenario, controller, seeds, executor, max_workers, args, overrides):
     """:func:`simulate` over ``seeds``: checked here first (one clear message, no pool started),
     then one run per seed through the sweep."""
     from ..errors import ScenarioError
     from .seeds import SeedResults, seed_list, summarize
-    from .sweep import check_workers, sweep
 
     seeds = seed_list(seeds)
     if "seed" in overrides:
@@ -248,12 +265,120 @@ def _simulate_seeds(dyn, scenario, controller, seeds, executor, max_workers, arg
                 {**overrides, "seed": seeds[0]})
     runs = [dict(scenario=scenario, controller=controller, **args, **overrides, seed=s) for s in seeds]
     from ..codegen.generate import numbers_mode
-    out = sweep(runs, executor=executor, max_workers=max_workers, model=dyn.model, results=True,
-                numbers=numbers_mode(dyn.library.manifest))  # the workers build as dyn was built
+    out = run_sweep(runs, _run_chunk, _filter_gains, executor=executor, max_workers=max_workers, model=dyn.model,
+                    results=True, numbers=numbers_mode(dyn.library.manifest))  # the workers build as dyn was built
     results = [r if isinstance(r, SimulationResult) else None for r in out]
     failures = {s: r["error"] for s, r in zip(seeds, out) if not isinstance(r, SimulationResult)}
     per_seed = [r.metrics if isinstance(r, SimulationResult) else r for r in out]
     return SeedResults(seeds, results, failures, summarize(seeds, per_seed))
+
+
+def _run_one(job):
+    """Worker: build (once per process) and run one simulation alone, as :func:`hydrogen.simulate`
+    does; return its metrics (its SimulationResult when ``keep``, the metrics completed the same way)
+    or its error."""
+    from ..runtime.build import default_dynamics
+
+    model, run, keep, numbers = job
+    problem = entry_problem(run)
+    if problem:
+        return {"error": problem}
+    run = dict(run)
+    scenario = run.pop("scenario", "paper-sim")
+    controller = run.pop("controller", "adaptive-robust")
+    try:
+        dyn = default_dynamics(model, controller=controller, numbers=numbers)
+        res = simulate(dyn, scenario, controller, **run)
+    except Exception as exc:  # noqa: BLE001 - one bad entry must not cost the others their results
+        return _error(exc)
+    return _outcome(res, keep)
+
+
+#: Entry keys a run of a batch takes one by one; the rest (scenario, controller, duration, check_workspace
+#: and the scenario fields) decide which runs share one Batch.
+_PER_RUN = ("gains", "seed")
+
+
+def _run_chunk(job):
+    """Worker: the runs of a chunk of entries (``job``: model, entries, keep, numbers, the Kalman gains
+    the parent solved for their scenarios: :func:`_filter_gains`), in order, each
+    as :func:`_run_one` would give it. Entries that differ only in gains and seed share one
+    :class:`~hydrogen.simulation.simulator.Batch` (the scenario resolved and checked once, a controller
+    per gain set). Whatever fails before a run's loop starts is run again alone, so that its message is
+    exactly the one the run alone gives."""
+    import pickle
+
+    from ..runtime.build import default_dynamics
+
+    model, runs, keep, numbers, filters = job
+    remember_filter_gains(filters)
+    batches, out = {}, []
+    for run in runs:
+        alone = (model, run, keep, numbers)
+        engine = run.get("engine", "c") if isinstance(run, Mapping) else None
+        if entry_problem(run) or not (isinstance(engine, str) and engine == "c"):
+            out.append(_run_one(alone))
+            continue
+        rest = {k: v for k, v in run.items() if k not in _PER_RUN}
+        try:
+            key = pickle.dumps(rest)  # equal bytes, equal arguments: one Batch
+        except Exception:  # noqa: BLE001 - not picklable: it runs alone
+            out.append(_run_one(alone))
+            continue
+        if key not in batches:
+            rest.pop("engine", None)
+            scenario, controller = rest.pop("scenario", "paper-sim"), rest.pop("controller", "adaptive-robust")
+            try:
+                dyn = default_dynamics(model, controller=controller, numbers=numbers)
+                batches[key] = Batch(dyn, scenario, controller, **rest)
+            except Exception:  # noqa: BLE001 - each of its runs alone gives its own message
+                batches[key] = None
+        batch = batches[key]
+        if batch is None:
+            out.append(_run_one(alone))
+            continue
+        try:
+            p, runner = batch.prepare(run.get("gains"), run.get("seed", SCENARIO_SEED))
+        except Exception:  # noqa: BLE001 - the run alone raises it with its own message
+            out.append(_run_one(alone))
+            continue
+        try:
+            res = run_prepared(batch.dyn, p, batch.controller, "c", None, runner)
+        except Exception as exc:  # noqa: BLE001 - it diverged: the run's error in its place
+            out.append(_error(exc))
+            continue
+        out.append(_outcome(res, keep))
+    return out
+
+
+def _filter_gains(model, runs) -> dict:
+    """The Kalman gains of the runs' scenarios, solved once here for the whole sweep: each worker
+    would otherwise import SciPy and solve the same Riccati equation (a third of a second of CPU per
+    worker process). An entry whose scenario does not resolve is left to its run to report."""
+    import pickle
+
+    from .scenarios import Scenario, scenario as named_scenario
+
+    settings, seen = [], set()
+    for run in runs:
+        if entry_problem(run):
+            continue
+        # the scenario fields an entry overrides ("gains" and "duration" are simulate's own arguments)
+        fields = {k: v for k, v in run.items()
+                  if k in Scenario.__dataclass_fields__ and k not in _ENTRY_KEYS and k != "seed"}
+        name = run.get("scenario", "paper-sim")
+        try:
+            key = pickle.dumps((name, fields))
+            if key in seen:
+                continue
+            seen.add(key)
+            sc = named_scenario(name, model) if isinstance(name, str) else name
+            sc = sc.with_overrides(**fields) if fields else sc
+            if sc.kalman:
+                settings.append(filter_setting(sc, 1.0 / sc.control_rate))
+        except Exception:  # noqa: BLE001 - the run reports it with its own message
+            continue
+    return filter_gains(settings)
 
 
 class _ScenarioSeed:
@@ -329,8 +454,6 @@ class Batch:
         or {"error": message} (as a sweep gives them); "max_error_pct": a (gain sets, seeds,
         coordinates) array of the max errors in % of the amplitude (NaN where the run failed or the
         coordinate has no amplitude); "failed": a (gain sets, seeds) bool array}."""
-        from .sweep import _error
-
         gain_sets, seeds = list(gain_sets), list(seeds)
         coords = tuple(self.dyn.model.coordinate_names)
         out = np.full((len(gain_sets), len(seeds), len(coords)), np.nan)
@@ -519,11 +642,6 @@ def _kalman_gain(h: float, r: float, accel: float) -> tuple:
     H = np.array([[1.0, 0.0]])
     P = solve_discrete_are(F.T, H.T, Q, np.array([[r]]))
     return tuple(P[:, 0] / (P[0, 0] + r))
-
-
-def valve_vector(sc) -> np.ndarray:
-    """The plant's valve input [first-order lag s, natural frequency rad/s, damping] of a scenario."""
-    return np.array([sc.valve_lag, 2 * np.pi * sc.valve_bandwidth_hz, sc.valve_damping], float)
 
 
 def _describe(x, t, ctrl=None, xc=None, u=None):

@@ -1,4 +1,5 @@
-"""Kinematics (SymPy): rotations of a floating joint, coordinate symbols, the cylinders' stages.
+"""Kinematics (SymPy): rotations of a floating joint, coordinate symbols (both defined in
+:mod:`hydrogen.symbolic.coordinates`), the cylinders' stages.
 
 A floating joint's coordinates are [x, y, z, ψ, θ, φ]: position in the parent frame (m) and
 angles (rad) with R = Rz(φ) Ry(θ) Rx(ψ) mapping child-frame vectors to the parent frame.
@@ -8,74 +9,14 @@ from __future__ import annotations
 import sympy as sp
 
 from .constants import mode_key
+# the symbols and rotations sit below the tree (which builds on them); this is their public path too
+from .coordinates import (angular_velocity_map, body_angular_velocity_map, matrix_symbols, pose_symbols,  # noqa: F401
+                          rate_symbols, rotation, task_map)
 
 __all__ = [
     "pose_symbols", "rate_symbols", "rotation", "angular_velocity_map",
     "body_angular_velocity_map", "task_map", "leg_stages", "leg_intermediates", "matrix_symbols", "pose_rates",
 ]
-
-
-def pose_symbols(model, prefix: str = "q") -> sp.Matrix:
-    """Column of the model's coordinate symbols ``prefix_<coordinate name>``."""
-    return sp.Matrix([sp.Symbol(f"{prefix}_{n}", real=True) for n in model.coordinate_names])
-
-
-def rate_symbols(prefix: str, n: int) -> sp.Matrix:
-    """Column of ``n`` real symbols ``prefix_0 … prefix_{n-1}``."""
-    return sp.Matrix([sp.Symbol(f"{prefix}_{i}", real=True) for i in range(n)])
-
-
-def _rx(a):
-    c, s = sp.cos(a), sp.sin(a)
-    return sp.Matrix([[1, 0, 0], [0, c, -s], [0, s, c]])
-
-
-def _ry(a):
-    c, s = sp.cos(a), sp.sin(a)
-    return sp.Matrix([[c, 0, s], [0, 1, 0], [-s, 0, c]])
-
-
-def _rz(a):
-    c, s = sp.cos(a), sp.sin(a)
-    return sp.Matrix([[c, -s, 0], [s, c, 0], [0, 0, 1]])
-
-
-def rotation(q) -> sp.Matrix:
-    """R = Rz(φ) Ry(θ) Rx(ψ): platform-frame coordinates → base frame."""
-    return _rz(q[5]) * _ry(q[4]) * _rx(q[3])
-
-
-def angular_velocity_map(q) -> sp.Matrix:
-    """T of eq. (62): ω (base frame, rad/s) = T [ψ̇ θ̇ φ̇]ᵀ."""
-    th, ph = q[4], q[5]
-    return sp.Matrix([
-        [sp.cos(th) * sp.cos(ph), -sp.sin(ph), 0],
-        [sp.cos(th) * sp.sin(ph), sp.cos(ph), 0],
-        [-sp.sin(th), 0, 1],
-    ])
-
-
-def body_angular_velocity_map(q) -> sp.Matrix:
-    """T_b = Rᵀ T: angular velocity in the platform frame; depends on ψ and θ only."""
-    psi, th = q[3], q[4]
-    return sp.Matrix([
-        [1, 0, -sp.sin(th)],
-        [0, sp.cos(psi), sp.sin(psi) * sp.cos(th)],
-        [0, -sp.sin(psi), sp.cos(psi) * sp.cos(th)],
-    ])
-
-
-def task_map(q) -> sp.Matrix:
-    """L of eq. (61): [ṗ; ω] = L q̇."""
-    L = sp.zeros(6, 6)
-    L[:3, :3] = sp.eye(3)
-    L[3:, 3:] = angular_velocity_map(q)
-    return L
-
-
-def matrix_symbols(prefix: str, rows: int, cols: int) -> sp.Matrix:
-    """rows × cols real symbols ``prefix_ij`` (vectors: :func:`rate_symbols`)."""
-    return sp.Matrix(rows, cols, lambda i, j: sp.Symbol(f"{prefix}_{i}{j}", real=True))
 
 
 def leg_stages(model, q, prefix: str = ""):

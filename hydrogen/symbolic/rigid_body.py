@@ -20,7 +20,7 @@ from __future__ import annotations
 import sympy as sp
 
 from .constants import baked, mode_key
-from .kinematics import angular_velocity_map, rate_symbols, rotation
+from .coordinates import angular_velocity_map, rate_symbols, rotation
 from .tree import SymbolicTree
 
 __all__ = [

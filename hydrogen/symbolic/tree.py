@@ -28,7 +28,7 @@ from __future__ import annotations
 import sympy as sp
 
 from .constants import baked
-from .kinematics import angular_velocity_map, body_angular_velocity_map, matrix_symbols, rotation
+from .coordinates import angular_velocity_map, body_angular_velocity_map, matrix_symbols, rotation
 
 __all__ = ["SymbolicTree", "skew"]
 
@@ -360,10 +360,11 @@ class SymbolicTree:
 
     def form(self) -> str:
         """The rigid body's form, "closed" or "staged": the description's ``rigid_body_form``, or
-        for "auto" the cheaper one (:func:`hydrogen.symbolic.forms.rigid_body_form`)."""
+        for "auto" the cheaper one (:func:`hydrogen.symbolic.forms.rigid_body_form`), as the model
+        gives it (:meth:`hydrogen.model.Model.rigid_body_form_chosen`): choosing derives trees of
+        both forms, so the choice is made above the tree and handed down with the model."""
         if self._form is None:
-            from .forms import rigid_body_form
-            self._form = rigid_body_form(self.model)
+            self._form = self.model.rigid_body_form_chosen()
         return self._form
 
     def staged(self) -> bool:
