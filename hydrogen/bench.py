@@ -39,6 +39,8 @@ SUITE = (
     ("bench_period", "per-period cost of every scenario's C loop and per-call cost from Python against an earlier commit"),
     ("bench_shared_step", "the semi-implicit step with the controller inlined against calling it: per call, "
                           "per period, compile"),
+    ("bench_integrator", "the rig's plant sub-steps (and the predictor's) against a reference over noise seeds: "
+                         "errors and cost per period"),
 )
 
 

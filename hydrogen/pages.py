@@ -506,6 +506,66 @@ def _shared_step(b) -> list:
                          "compile CPU s, inlined", "calls", "compile wall s, inlined", "calls"], table)
 
 
+def _integrator(b) -> list:
+    robots = b.get("robots", {})
+    if not robots:
+        return []
+    tol = b.get("tolerance")
+    out = ["## The rig's plant integration: sub-steps against a reference", "",
+           "`benchmarks/bench_integrator.py`: every rig scenario and variant of each robot, every controller it "
+           f"lists, noise seeds {', '.join(map(str, b.get('seeds', [])))}: the C loop at each count of RK4 plant "
+           f"sub-steps per control period against a reference of {b.get('reference')} sub-steps. Each reported "
+           "error (max tracking error, % of the amplitude, per moving coordinate) is a distribution over the seeds; "
+           "a count's deviation is the largest difference of its median or worst from the reference's (percentage "
+           "points). The adaptive runs are chaotic on the rig, so the reference itself moves: the floor is the "
+           f"deviation of {b.get('check')} sub-steps. A count keeps the errors when its deviation is within "
+           f"{_f(tol)} point, or within the floor where that is larger (the seeds resolve no less; * marks "
+           "such a controller); `!` marks a count that does not, `fail` one with a failed run. Cheapest: the "
+           "smallest count from which every tested count keeps every controller's errors. Cost: the loop's µs per "
+           "control period (median over seeds and controllers) and `plant_rhs` instructions x calls per period "
+           "(4 per RK4 step, of the plant and of the predictor). Valve ω h: the servo-valve's natural frequency "
+           "times the sub-step, which the scenario check bounds by 1.", ""]
+    out += _integrator_field(b, "scenarios", "substeps", "sub-steps")
+    if any(r.get("predictor") for r in robots.values()):
+        out += ["The delay predictor's own RK4 steps per period (`predictor_substeps`) on every scenario whose loop "
+                f"predicts, the plant at the scenario's sub-steps, against {b.get('predictor_reference')} steps "
+                f"(floor: {b.get('predictor_check')}):", ""]
+        out += _integrator_field(b, "predictor", "predictor_substeps", "predictor steps")
+    return out
+
+
+def _integrator_field(b, key, field, what) -> list:
+    dev = lambda x: ("fail" if x["dev"] is None else _f(x["dev"]) + ("" if x["keeps"] else " !"))  # noqa: E731
+    summary, detail, values = [], [], set()
+    for rob in b["robots"].values():
+        for s in rob.get(key, {}).values():
+            values.update(r[field] for r in s["per_value"])
+    values = sorted(values)
+    for rob in b["robots"].values():
+        for s in rob.get(key, {}).values():
+            at = {r[field]: r for r in s["per_value"]}
+            now, best = at[s["current"]], at.get(s["cheapest"])
+            pair = lambda k: f"{_f(now[k], 1)} → {_f(best[k], 1)}" if best else _f(now[k], 1)  # noqa: E731
+            chaotic = [c for c, r in s["controllers"].items() if r["chaotic"]]
+            summary.append([rob["model"], s["scenario"], s["current"], s["cheapest"] or "none",
+                            pair("us_per_period"), pair("rhs_instructions"),
+                            _f(best["dev"]) if best else "–", _f(best["paired_not_chaotic"]) if best else "–",
+                            _f(max((r["floor"] for r in s["controllers"].values()), default=None)),
+                            ", ".join(chaotic) or "none"]
+                           + ([_f(at[min(at)]["valve_omega_h"])] if field == "substeps" else []))
+            for c, r in s["controllers"].items():
+                counts = {x[field]: x for x in r["counts"]}
+                detail.append([rob["model"], s["scenario"], c + (" *" if r["chaotic"] else ""),
+                               ", ".join(f"{k} {_f(v['median'])} / {_f(v['worst'])}" for k, v in r["reference"].items()),
+                               _f(r["floor"])] + [dev(counts[v]) if v in counts else "–" for v in values])
+    omega = ["valve ω h at the fewest"] if field == "substeps" else []
+    out = _table(["robot", "scenario", "now", "cheapest", "µs per period, now → cheapest",
+                  "instructions per period, now → cheapest", "deviation at cheapest",
+                  "paired, controllers not chaotic", "largest floor", "chaotic"] + omega, summary)
+    return out + _table(["robot", "scenario", "controller", "reference median / worst %", "floor"]
+                        + [f"{what} {v}" for v in values], detail)
+
+
 def benchmarks_page(results: dict, repeats: dict | None = None, source: str = "docs/bench.json") -> str:
     """Markdown of a ``hydrogen bench`` run (the dict it writes as JSON), optionally with the whole-run
     spread of the release comparison (``bench_release_repeats.json``); sections of modules not run
@@ -540,6 +600,8 @@ def benchmarks_page(results: dict, repeats: dict | None = None, source: str = "d
         out += _period(results["bench_period"])
     if "bench_shared_step" in results:
         out += _shared_step(results["bench_shared_step"])
+    if "bench_integrator" in results:
+        out += _integrator(results["bench_integrator"])
     return "\n".join(out).rstrip() + "\n"
 
 

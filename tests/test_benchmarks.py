@@ -481,3 +481,69 @@ def test_the_urdf_leg_is_timed_by_both_routes_and_edited_like_the_robots(tmp_pat
     ran = []
     monkeypatch.setattr(bench_edit, "run_robot", lambda name, runs: ran.append(name) or {})
     assert "urdf_leg" in bench_edit.run(quick=True)["robots"] and ran[-1] == str(common.URDF_LEG)
+
+
+def test_the_integrator_benchmark_tests_every_count_against_the_reference(capsys):
+    """bench_integrator's quick run: each robot's first rig scenario and each of its counts (the
+    scenario's own among them) against the reference, per controller and moving coordinate, with the
+    cost of each count; the predictor's steps on a scenario that predicts; the table and the page."""
+    import bench_integrator as bi
+    from hydrogen.pages import benchmarks_page
+
+    res = bi.run(quick=True)
+    assert set(res["robots"]) == set(hydrogen.models()) and res["seeds"] == list(bi.QUICK_SEEDS)
+    for name, rob in res["robots"].items():
+        model = hydrogen.load_model(name)
+        assert list(rob["scenarios"]) == bi.rig_scenarios(model, quick=True)
+        assert list(rob["predictor"]) == bi.predicting_scenarios(model, quick=True) != []
+        for key, field, tested in (("scenarios", "substeps", bi.QUICK_SUBSTEPS),
+                                   ("predictor", "predictor_substeps", bi.QUICK_PRED_SUBSTEPS)):
+            for s in rob[key].values():
+                sc = scenario(s["scenario"], model)
+                values = sorted({*tested, getattr(sc, field)})
+                assert s["current"] == getattr(sc, field) and [r[field] for r in s["per_value"]] == values
+                assert list(s["controllers"]) == list(model.controllers[:1])
+                for r in s["controllers"].values():
+                    moving = set(r["reference"])
+                    assert moving and moving <= set(model.coordinate_names)
+                    assert all(v["median"] <= v["worst"] for v in r["reference"].values())
+                    assert [x[field] for x in r["counts"]] == values
+                    assert all(x["dev"] is not None and x["dev"] >= 0 and x["keeps"] == (x["dev"] <= max(
+                        bi.TOLERANCE, r["floor"])) for x in r["counts"])
+                    assert r["cheapest"] in values
+                    assert r["cheapest"] == bi.cheapest(values, {x[field]: x["keeps"] for x in r["counts"]})
+                # the cost: plant_rhs calls per period, 4 per RK4 step of the plant and of the predictor
+                for row in s["per_value"]:
+                    at = sc.with_overrides(**{field: row[field]})
+                    assert row["rhs_evaluations"] == 4 * (bi.plant_steps(at) + bi.predictor_steps(at)) > 0
+                    assert row["rhs_instructions"] == rob["plant_rhs_instructions"] * row["rhs_evaluations"]
+                    assert row["us_per_period"] > 0
+                evals = [row["rhs_evaluations"] for row in s["per_value"]]
+                assert evals == sorted(evals) and evals[0] < evals[-1]
+    bi.print_table(res)
+    out = capsys.readouterr().out
+    assert out.count("cheapest that keeps every controller's errors") == sum(
+        len(r["scenarios"]) + len(r["predictor"]) for r in res["robots"].values())
+    page = benchmarks_page({"bench_integrator": res})
+    assert "## The rig's plant integration" in page and "predictor_substeps" in page
+
+
+def test_the_integrator_benchmark_counts_steps_and_picks_the_cheapest_count_that_holds():
+    import bench_integrator as bi
+
+    model = hydrogen.load_model("ubc_stewart")
+    rig = scenario("z-1hz", model)  # a whole period of delay: the plant's sub-steps alone
+    assert bi.plant_steps(rig) == rig.substeps and bi.predictor_steps(rig) == 0
+    paper = scenario("z-1hz.paper-timing", model)  # the command switches inside the period: one step more
+    assert bi.plant_steps(paper) == paper.substeps + 1
+    pred = scenario("z-1hz.predictor", model)
+    assert bi.predictor_steps(pred) == pred.predictor_substeps
+    # the smallest count from which every larger one holds, not the smallest that holds
+    assert bi.cheapest([1, 2, 4, 8], {1: True, 2: False, 4: True, 8: True}) == 4
+    assert bi.cheapest([1, 2], {1: True, 2: False}) is None
+    ref = {"errors": {"z": [1.0, 2.0, 3.0]}, "failed": {}}
+    assert bi.deviation({"errors": {"z": [1.0, 2.0, 3.05]}, "failed": {}}, ref)["dev"] == pytest.approx(0.05)
+    assert bi.deviation({"errors": {"z": [1.2, 2.0, 3.0]}, "failed": {}}, ref) == pytest.approx(
+        {"dev": 0.0, "paired": 0.2})  # the distribution holds, one seed moved
+    assert bi.deviation({"errors": {"z": [1.0, None, 3.0]}, "failed": {"1": "diverged"}}, ref)["dev"] is None
+    assert not bi._keeps(None, 1.0) and bi._keeps(0.3, 0.4) and not bi._keeps(0.3, 0.01)
