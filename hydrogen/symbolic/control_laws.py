@@ -188,7 +188,7 @@ class Common:
         return S["fd"], ftil, f0, S["v"], u, S["taud"], stages
 
     def friction_compensation(self, qr_dot, qr_ddot, s, estimates=None, adapt=None):
-        """Friction compensation in actuator space (a deviation from the paper, README "Deviations"):
+        """Friction compensation in actuator space (a deviation from the paper, docs/paper.md):
         f_fr = F_c tanh(l̇_r / v_s) + b l̇_r per actuator at the reference velocity l̇_r = JL q̇_r, and
         ḟ_fr with l̈_r = J̇L q̇_r + JL q̈_r (``qr_ddot`` the exact rate of ``qr_dot``: no measured q̈).
 
