@@ -13,6 +13,7 @@ Run: ``python benchmarks/friction_compensation.py [--seeds 100-119] [--workers W
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import itertools
 import json
 import sys
@@ -23,6 +24,7 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # this checkout's hydrogen, run from anywhere
 
 from hydrogen.fileio import atomic_write  # noqa: E402
+import hydrogen  # noqa: E402
 from hydrogen.runtime.build import default_dynamics  # noqa: E402
 from hydrogen.simulation.seeds import parse_seeds, seed_list  # noqa: E402
 from hydrogen.simulation.simulator import simulate  # noqa: E402
@@ -65,8 +67,14 @@ def worst_error(metrics) -> float:
 
 
 def errors(robot, scenario, controller, seeds, gains, workers) -> dict:
-    """{"median", "min", "max", "failed"} of the worst error over ``seeds`` (a failed seed counts as inf)."""
-    dyn = default_dynamics(robot, None, controller)
+    """{"median", "min", "max", "failed"} of the worst error over ``seeds`` (a failed seed counts as inf).
+    ``gains`` None: the shipped robot (the paper's laws, generated without compensation); else the
+    robot generated with it (``[control] friction_compensation``) and these gains."""
+    if gains:
+        model = dataclasses.replace(hydrogen.load_model(robot), friction_compensation=True)
+        dyn = hydrogen.build(model, controllers=[controller])
+    else:
+        dyn = default_dynamics(robot, None, controller)
     res = simulate(dyn, scenario, controller, gains=gains or None, seeds=seeds, max_workers=workers)
     e = np.array([worst_error(r.metrics) if r is not None else np.inf for r in res.results])
     return {"median": float(np.median(e)), "min": float(e.min()), "max": float(e.max()),

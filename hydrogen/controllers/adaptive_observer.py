@@ -81,10 +81,12 @@ def derive(model):
     g1_dot, g2_dot = c.hydraulic_adaptation(
         ftil, f0, u, g1, g2, scal["adapt"], vecs["Ggamma1_inv"], vecs["Ggamma2_inv"],
         scal["gamma1_min"], scal["gamma1_max"], scal["gamma2_min"], scal["gamma2_max"], combine=hc.combine)
-    xc, xc_dot = state_and_rates(state_layout(model), [
+    parts = [
         ("q_hat", q_hat, q_hat_dot), ("z", z, z_dot), ("theta_hat", th_hat, th_dot), ("gamma1_hat", g1, g1_dot),
-        ("gamma2_hat", g2, g2_dot), (hc.BLOCKS, hc.states(), hc_rates), (rc.BLOCKS, rc.states(), rc.rates(scal["adapt"])),
-        (FRICTION_BLOCKS, [*fr_hat[0], *fr_hat[1]], fr_rates)])
+        ("gamma2_hat", g2, g2_dot), (hc.BLOCKS, hc.states(), hc_rates), (rc.BLOCKS, rc.states(), rc.rates(scal["adapt"]))]
+    if fr_rates is not None:  # generated with friction compensation: its estimates last
+        parts.append((FRICTION_BLOCKS, [*fr_hat[0], *fr_hat[1]], fr_rates))
+    xc, xc_dot = state_and_rates(state_layout(model), parts)
     return ControllerParts(
         inputs=[*c.base_inputs(), ("xc", xc), *c.gain_inputs(), ("Lambda2", Lam2), ("Lp", Lp),
                 ("Kd_obs", Kd2), *ad_inputs, *hc.inputs(), *rc.inputs(), *fr_inputs],

@@ -182,6 +182,8 @@ def friction_gains(model, adaptive: bool) -> dict:
     normalisation as :func:`adaptation_gains`, by the bounds), and the projection's upper bounds
     ``friction_coulomb_max``, ``friction_viscous_max`` (lower bounds 0), by default
     :data:`FRICTION_BOUND_FRACTIONS` of each actuator's force range."""
+    if not model.friction_compensation:  # generated without it: no gains to set
+        return {}
     m = model.n_cylinders
     out = {"friction_coulomb": np.zeros(m), "friction_viscous": np.zeros(m), "friction_speed": np.full(m, 1.0e-2)}
     if adaptive:
@@ -196,6 +198,8 @@ def check_friction_start(gains: dict) -> dict:
     ``friction_viscous``) lies above its projection bound (``..._max``): the loop would clip it there
     at the first period, silently starting elsewhere than asked."""
     for k in ("friction_coulomb", "friction_viscous"):
+        if f"{k}_max" not in gains:  # no friction estimates (compensation not generated)
+            continue
         start, bound = np.asarray(gains[k], float), np.asarray(gains[f"{k}_max"], float)
         if np.any(start > bound):
             raise ValueError(f"gain '{k}' = {start.tolist()} (the estimates' initial values) lies above its "
@@ -207,6 +211,8 @@ def friction_layout(model) -> list:
     """The friction estimate blocks (:data:`FRICTION_BLOCKS`) of an adaptive controller's state: F̂_c
     and b̂ per actuator, starting at the gains ``friction_coulomb``, ``friction_viscous`` and kept
     inside [0, ``friction_coulomb_max``], [0, ``friction_viscous_max``]."""
+    if not model.friction_compensation:
+        return []
     m = model.n_cylinders
     lower = "its adaptation rate (rate_friction) or its smoothing speed (friction_speed)"
     return [StateBlock("coulomb_hat", m, "the Coulomb friction estimates (coulomb_hat)", lower,

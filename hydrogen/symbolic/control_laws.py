@@ -201,7 +201,10 @@ class Common:
         F̂̇_c = −κ Γ_c tanh(l̇_r/v_s) (JL s), b̂̇ = −κ Γ_b l̇_r (JL s) (Γ = ``rate_friction`` × the
         upper bound², projected onto [0, bound]), which cancels (JL s)ᵀ φᵀ c̃ in V̇ against
         ½ c̃ᵀ Γ⁻¹ c̃; ``adapt`` the switch κ. Returns ((f_fr, ḟ_fr, stages) for :meth:`force_loop`,
-        the estimates' rates (2m, or None), the inputs)."""
+        the estimates' rates (2m, or None), the inputs); (None, None, []) for a model generated
+        without it (``[control] friction_compensation`` false, the default)."""
+        if not self.model.friction_compensation:  # generated without it: the paper's f_d
+            return None, None, []
         m = self.m
         vs = vector("friction_speed", m)
         S = {k: vector(k, m) for k in ("ldot_r", "lddot_r", "fric_sign")}
