@@ -272,6 +272,10 @@ class Model:
     gamma2_max: float
     joint_encoders: bool = False
     scale: np.ndarray = None
+    #: ``[control] friction_compensation``: the controllers that can compensate friction
+    #: (backstepping, adaptive-robust, adaptive-observer) are generated with it (a deviation from the
+    #: paper, its coefficients gains; docs/guide/controllers.md). Off: the paper's laws, as generated.
+    friction_compensation: bool = False
     # The controller the figures and their table call "nonlinear" ([figures] nonlinear); default the
     # paper's experiments' controller (Theorem 3). Checked against the controllers where it is used.
     figures_nonlinear: str = field(default="adaptive-robust", compare=False)
@@ -391,6 +395,8 @@ class Model:
             # recorded only when forced, so an "auto" model's hash is what it always was ("auto" is a
             # function of the rest and of the derivation code, which the derivation hash covers)
             **({"rigid_body_form": self.rigid_body_form} if self.rigid_body_form != "auto" else {}),
+            # recorded only when on: the generated controllers differ, and a model without it hashes as before
+            **({"friction_compensation": True} if self.friction_compensation else {}),
         }
 
     def baked_hash(self) -> str:
@@ -1420,6 +1426,9 @@ def model_from_dict(data: dict, source: str = "<memory>", base_dir: Path | None 
     control = r.table(data, "control", required=False)
     r.known(control, _keys("[control]"), "[control]")
     scale = r.vector("[control] scale", control["scale"], n, "positive") if "scale" in control else None
+    fcomp = control.get("friction_compensation", _default("[control]", "friction_compensation"))
+    if not isinstance(fcomp, bool):
+        raise r.error("[control] friction_compensation", f"expected true or false, got {_quote(fcomp)}")
     figs = r.table(data, "figures", required=False)
     r.known(figs, _keys("[figures]"), "[figures]")
     nonlinear = r.label("[figures] nonlinear", figs["nonlinear"]) if "nonlinear" in figs \
@@ -1441,7 +1450,7 @@ def model_from_dict(data: dict, source: str = "<memory>", base_dir: Path | None 
         r.label(f"[variants.{vname}]", vname)
     model = Model(name=name, gravity=gravity, root=root, links=links, joints=joints, cylinders=cylinders,
                   coordinate_names=tuple(names), neutral_pose=neutral, theta_names=tuple(params),
-                  theta_min=tmin, theta_max=tmax, joint_encoders=enc, scale=scale, figures_nonlinear=nonlinear, gains=gains,
+                  theta_min=tmin, theta_max=tmax, joint_encoders=enc, scale=scale, friction_compensation=fcomp, figures_nonlinear=nonlinear, gains=gains,
                   scenarios={"rig": rig, **scen}, variants=variants, rigid_body_form=form, controllers=listed, source=source, urdf=urdf,
                   raw=data, **gb)
     _check_tables(r, model)

@@ -148,6 +148,9 @@ DESCRIPTION_KEYS = (
         "forward kinematics on the measured cylinder lengths", default=False),
     Key("[control]", "scale", "kg, kg m²", "per-coordinate inertia the default gains scale with",
         default=None, default_text="the diagonal of D at the neutral pose"),
+    Key("[control]", "friction_compensation", "", "true: backstepping, adaptive-robust and adaptive-observer "
+        "are generated with friction compensation in the force they track (known or adapted coefficients, "
+        "gains friction_*; a deviation from the paper)", default=False),
     Key("[figures]", "nonlinear", "", "the controller the figures and their table call \"nonlinear\"",
         default="adaptive-robust"),
 )

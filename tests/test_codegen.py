@@ -64,11 +64,19 @@ def _random_input(name, shape, model, rng, fname=""):
                  "gamma_gain": lambda k: np.tile([1.0, 0.1, 0.5], k // 3),
                  "theta_gain": lambda k: np.concatenate([[1.0 if j == i else 0.01 for j in range(i, p)]
                                                         for i in range(p)])}
+        # friction compensation: estimates inside and past their bounds (the projection's both branches)
+        parts.update(coulomb_hat=lambda k: rng.uniform(0.0, 1500.0, k), viscous_hat=lambda k: rng.uniform(0.0, 1500.0, k))
         for b in ("momentum_filter", "momentum_offset_filter", "bias_filter", "bias_offset_filter", "torque_filter"):
             parts[b] = lambda k: rng.normal(size=k) * 1e3
         x = np.concatenate([parts[b](k) for b, k in controller(kind).state_layout(model)])
     elif name in ("friction",):
         x = np.tile([100.0, 300.0, 1e-3], size // 3)  # per actuator
+    elif name in ("friction_coulomb", "friction_viscous", "friction_coulomb_max", "friction_viscous_max"):
+        x = rng.uniform(100.0, 1000.0, size)
+    elif name == "friction_speed":  # the smooth sign's slope, not only its saturation, at q̇ ~ 0.1
+        x = rng.uniform(0.05, 0.2, size)
+    elif name == "rate_friction":
+        x = rng.uniform(0.1, 1.0, size)
     elif name == "valve":  # [lag s, natural frequency rad/s, damping]: the second-order valve
         x = np.array([0.0, 2 * np.pi * rng.uniform(30, 100), rng.uniform(0.5, 1.0)])
     elif name in ("sat_width", "u_max"):
@@ -100,10 +108,27 @@ def _random_input(name, shape, model, rng, fname=""):
     return np.asarray(x, float).reshape(shape, order="F")
 
 
+#: A case's model name with this suffix: the shipped robot generated with friction compensation
+#: (``[control] friction_compensation``), whose controllers differ from the committed ones.
+FRICTION = "+friction"
+#: The controllers generated differently with friction compensation, checked on this robot.
+FRICTION_CASES = [("loader_crane" + FRICTION, f) for f in (
+    "ctrl_backstepping", "ctrl_adaptive_robust", "ctrl_adaptive_robust_rates", "ctrl_adaptive_observer",
+    "ctrl_adaptive_observer_rates")]
+
+
+@functools.lru_cache(maxsize=None)
+def _model(mname):
+    """A shipped robot by name, or with :data:`FRICTION` appended, with friction compensation."""
+    import dataclasses
+    base = hydrogen.load_model(mname.removesuffix(FRICTION))
+    return dataclasses.replace(base, friction_compensation=True) if mname.endswith(FRICTION) else base
+
+
 @functools.lru_cache(maxsize=None)
 def _derived(mname) -> dict:
     """The model's derived functions by name, derived on first use (not at collection)."""
-    return {f.name: f for f in derive_functions(hydrogen.load_model(mname))}
+    return {f.name: f for f in derive_functions(_model(mname))}
 
 
 def _composed_names() -> set:
@@ -159,10 +184,11 @@ def test_every_derived_function_is_compared(robot_model):
     assert derived == {f for m, f in _CASES if m == robot_model.name}
 
 
-@pytest.mark.parametrize("mname,fname", _CASES)
+@pytest.mark.parametrize("mname,fname", _CASES + FRICTION_CASES)
 def test_compiled_equals_casadi_equals_sympy(mname, fname, cache, rng):
-    model = hydrogen.load_model(mname)
-    dyn = hydrogen.build(model, cache=cache)
+    model = _model(mname)
+    dyn = hydrogen.build(model, cache=cache, controllers=["backstepping", "adaptive-robust", "adaptive-observer"]
+                         if mname.endswith(FRICTION) else None)
     sf = _derived(mname)[fname]
     fun = to_casadi_function(sf)
     compiled = dyn.functions[fname]

@@ -16,8 +16,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from .common import (ADAPTATION_SEARCH, adaptation_gains, composite_layout, composite_static_inputs, estimate_layout,
-                     model_gains, velocity_units)
+from .common import (ADAPTATION_SEARCH, FRICTION_BLOCKS, adaptation_gains, check_friction_start, composite_layout,
+                     composite_static_inputs, estimate_layout, friction_gains, friction_layout, model_gains,
+                     velocity_units)
 from .spec import VELOCITY_BOUND, ControllerSpec, StateBlock
 
 SPEC = ControllerSpec(name="adaptive-robust", doc="Theorem 3: adaptive controller, robust sliding observer.",
@@ -33,12 +34,12 @@ def state_layout(model) -> list:
                        "its gains (Ko, Gz_inv, lambda_o) and the loop's (Lambda, Kd), or the adaptation rates "
                        "(rate_theta, rate_gamma1, rate_gamma2)", VELOCITY_BOUND, initial=lambda s: s.qdot0,
                        unit=velocity_units, entries="coordinates"),
-            *estimate_layout(model), *composite_layout(model)]
+            *estimate_layout(model), *composite_layout(model), *friction_layout(model)]
 
 
 def default_gains(model, scale) -> dict:
     n = model.n
-    return {**model_gains(model, scale), **adaptation_gains(model),
+    return {**model_gains(model, scale), **adaptation_gains(model), **friction_gains(model, adaptive=True),
             "Ko": np.full(n, np.nan),                   # 1/s; NaN: from Λ and K_d (complete_gains)
             "Gz_inv": 1.0 / np.asarray(scale, float),   # Γ_z⁻¹ ≈ D⁻¹
             "lambda_o": np.zeros(4),                    # λ0..λ3 of (55): the sliding term off
@@ -57,8 +58,9 @@ def observer_gain(Lam, Kd, scale) -> np.ndarray:
 
 
 def complete_gains(gains: dict, scale) -> dict:
-    """``gains`` with K_o filled from Λ and K_d (:func:`observer_gain`) where it is NaN (the default)."""
-    out = dict(gains)
+    """``gains`` with K_o filled from Λ and K_d (:func:`observer_gain`) where it is NaN (the default);
+    the friction estimates' start checked against their bounds (:func:`check_friction_start`)."""
+    out = check_friction_start(dict(gains))
     ko = np.array(out["Ko"], float)
     nan = np.isnan(ko)
     if nan.any():
@@ -110,18 +112,24 @@ def derive(model):
     rho = -diag(vecs["Gtheta_inv"]) * c.Y(c.qdot, qr_dot, qr_ddot, th_hat).T * s
     rc = RigidBodyComposite(c, th_hat)  # composite θ law; rate_ls_theta = 0 gives the paper's law
     th_dot_value = c.theta_rate(rc.combine(rho), th_hat, vecs, scal["adapt"])
-    fd, ftil, f0, v, u, taud, stages = c.force_loop(tau_d, tau_d_dot, s, g1, g2)
+    # friction compensation (off by default): the estimates F̂_c, b̂ at the reference velocity
+    fr_hat = vector("coulomb_hat", c.m), vector("viscous_hat", c.m)
+    friction, fr_rates, fr_inputs = c.friction_compensation(qr_dot, qr_ddot, s, fr_hat, scal["adapt"])
+    fd, ftil, f0, v, u, taud, stages = c.force_loop(tau_d, tau_d_dot, s, g1, g2, friction)
     hc = HydraulicComposite(c, g1, g2)  # composite γ law; rate_ls_gamma = 0 gives the paper's law
     hc_rates = hc.rates(scal["adapt"])
     g1_dot, g2_dot = c.hydraulic_adaptation(
         ftil, f0, u, g1, g2, scal["adapt"], vecs["Ggamma1_inv"], vecs["Ggamma2_inv"],
         scal["gamma1_min"], scal["gamma1_max"], scal["gamma2_min"], scal["gamma2_max"], combine=hc.combine)
-    xc, xc_dot = state_and_rates(state_layout(model), [
+    parts = [
         ("z", z, z_dot), ("theta_hat", th_hat, th_dot), ("gamma1_hat", g1, g1_dot), ("gamma2_hat", g2, g2_dot),
-        (hc.BLOCKS, hc.states(), hc_rates), (rc.BLOCKS, rc.states(), rc.rates(scal["adapt"]))])
+        (hc.BLOCKS, hc.states(), hc_rates), (rc.BLOCKS, rc.states(), rc.rates(scal["adapt"]))]
+    if fr_rates is not None:  # generated with friction compensation: its estimates last
+        parts.append((FRICTION_BLOCKS, [*fr_hat[0], *fr_hat[1]], fr_rates))
+    xc, xc_dot = state_and_rates(state_layout(model), parts)
     return ControllerParts(
         inputs=[*c.base_inputs(), ("xc", xc), *c.gain_inputs(), ("Ko", Ko), ("lambda_o", lam_o),
-                ("Gz_inv", Gz_inv), ("sat_width", eps), *ad_inputs, *hc.inputs(), *rc.inputs()],
+                ("Gz_inv", Gz_inv), ("sat_width", eps), *ad_inputs, *hc.inputs(), *rc.inputs(), *fr_inputs],
         intermediates=[*c.kin, c.jit_intermediate(), *solve_stages, (qdd_bar, sp.Matrix(qdd_value)),
                        (z_dot, z_dot_value), *rc.stages, (th_dot, th_dot_value), *stages, *hc.stages],
         outputs=[("u", u), ("xc_dot", xc_dot), ("tau_d", taud), ("tau_d_dot", c.taud_dot), ("f_d", fd)],

@@ -1,9 +1,12 @@
-"""Theorem 1: backstepping with known parameters θ and γ; q̈ from (14) with the measured forces."""
+"""Theorem 1: backstepping with known parameters θ and γ; q̈ from (14) with the measured forces.
+
+Optionally (a deviation, off by default) with a known friction compensation in f_d
+(:meth:`hydrogen.symbolic.control_laws.Common.friction_compensation`, gains ``friction_*``)."""
 from __future__ import annotations
 
 import numpy as np
 
-from .common import model_gains
+from .common import friction_gains, model_gains
 from .spec import ControllerSpec
 
 SPEC = ControllerSpec(name="backstepping", doc="Theorem 1 (known parameters): spool command u, m.",
@@ -16,7 +19,7 @@ def state_layout(model) -> list:
 
 
 def default_gains(model, scale) -> dict:
-    return model_gains(model, scale)
+    return {**model_gains(model, scale), **friction_gains(model, adaptive=False)}
 
 
 def static_inputs(dyn, theta0, gamma0) -> dict:
@@ -43,9 +46,10 @@ def derive(model):
     tau_d_dot = time_derivative(tau_d, [(c.q, c.qdot), (c.qdot, acc), *c.desired_rates(), *c.pose_rates])
     acc_value, acc_stages = solve_or_inverse(model, c.q, th, c.JL.T * c.f - c.dynamics(th, c.qdot, c.qdot),
                                              "acc_solve")
-    fd, _, _, _, u, taud, stages = c.force_loop(tau_d, tau_d_dot, s, g1, g2)
+    friction, _, fr_inputs = c.friction_compensation(qr_dot, qr_ddot, s)
+    fd, _, _, _, u, taud, stages = c.force_loop(tau_d, tau_d_dot, s, g1, g2, friction)
     return ControllerParts(
-        inputs=[*c.base_inputs(), ("theta", th), ("gamma1", g1), ("gamma2", g2), *c.gain_inputs()],
+        inputs=[*c.base_inputs(), ("theta", th), ("gamma1", g1), ("gamma2", g2), *c.gain_inputs(), *fr_inputs],
         intermediates=[*c.kin, c.jit_intermediate(), *acc_stages, (acc, sp.Matrix(acc_value)), *stages],
         outputs=[("u", u), ("tau_d", taud), ("tau_d_dot", c.taud_dot), ("f_d", fd)],
     )

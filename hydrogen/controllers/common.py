@@ -7,7 +7,8 @@ from .spec import StateBlock
 
 __all__ = ["model_gains", "estimate_layout", "THETA_UNITS", "theta_units", "velocity_units", "check_coupling_gains", "adaptation_gains", "RAW_ADAPTATION_GAINS", "adaptation_references",
            "normalised_adaptation", "composite_layout", "composite_static_inputs", "initial_gain_matrix",
-           "COMPOSITE_BLOCKS", "COMPOSITE_GAIN_BLOCKS", "COMPOSITE_RATES", "ADAPTATION_SEARCH", "gain_block_shape", "lean_variant", "runs_lean"]
+           "COMPOSITE_BLOCKS", "COMPOSITE_GAIN_BLOCKS", "COMPOSITE_RATES", "ADAPTATION_SEARCH", "gain_block_shape", "lean_variant", "runs_lean",
+           "FRICTION_BLOCKS", "friction_gains", "friction_layout", "friction_units", "check_friction_start"]
 
 #: The composite law's weights (1/s), one per family: all 0 is the paper's gradient law.
 COMPOSITE_RATES = ("rate_ls_gamma", "rate_ls_theta")
@@ -137,6 +138,89 @@ def _initial_gain(block: str, size: int):
     k, copies = gain_block_shape(block, size)
     p0 = COMPOSITE_GAIN_BLOCKS[block][1]
     return lambda s: initial_gain_matrix(k, copies, float(np.asarray(s.gains[p0]).ravel()[0]))
+
+
+#: The friction-compensation estimate blocks of :func:`friction_layout`, in order: Coulomb, viscous.
+FRICTION_BLOCKS = ("coulomb_hat", "viscous_hat")
+
+#: The default projection bounds of the friction estimates, as fractions of each actuator's force
+#: range (the width of its kind's ``force_range``): F̂_c ≤ 5 % of it, b̂ ≤ 10 % of it per unit of
+#: travel per second (N s/m, N m s/rad). A compensation force beyond those would be a model error,
+#: not friction.
+FRICTION_BOUND_FRACTIONS = (0.05, 0.1)
+
+
+def friction_units(model) -> tuple:
+    """(Coulomb, viscous, speed) units of each actuator, its kind's TRAVEL in FMI spelling: N, N.s/m,
+    m/s on a cylinder; N.m, N.m.s/rad, rad/s on a rotary actuator (lists, one entry per actuator)."""
+    from ..actuators import actuator
+    travel = [actuator(c.kind).TRAVEL for c in model.cylinders]
+    force = [t.force_unit.replace(" ", ".") for t in travel]
+    return (force, [f"{f}.s/{t.unit}" for f, t in zip(force, travel)], [f"{t.unit}/s" for t in travel])
+
+
+def _force_widths(model) -> np.ndarray:
+    """Each actuator's force range width (its own force unit), from its kind's numeric law."""
+    from ..actuators import actuator
+    widths = []
+    for c in model.cylinders:
+        kind = actuator(c.kind)
+        lo, hi = kind.Numeric.force_range(kind.parameters(c.table))
+        widths.append(float(hi) - float(lo))
+    return np.array(widths)
+
+
+def friction_gains(model, adaptive: bool) -> dict:
+    """Gains of the friction compensation (a deviation from the paper, off by default), per actuator
+    in its own unit (:func:`friction_units`): f_d gets + F_c tanh(l̇_r / v_s) + b l̇_r, l̇_r = JL q̇_r.
+
+    ``friction_coulomb`` F_c (N, N m) and ``friction_viscous`` b (N s/m, N m s/rad): the known
+    coefficients (backstepping) or the estimates' initial values (the adaptive controllers), 0 by
+    default (the paper's law exactly); ``friction_speed`` v_s (m/s, rad/s), the width of the smooth
+    sign. An adaptive controller also has ``rate_friction`` (1/J, 0: the estimates hold), the rate
+    of F̂̇_c = −κ rate F_c,max² tanh(l̇_r/v_s) (JL s), b̂̇ = −κ rate b_max² l̇_r (JL s) (the same
+    normalisation as :func:`adaptation_gains`, by the bounds), and the projection's upper bounds
+    ``friction_coulomb_max``, ``friction_viscous_max`` (lower bounds 0), by default
+    :data:`FRICTION_BOUND_FRACTIONS` of each actuator's force range."""
+    if not model.friction_compensation:  # generated without it: no gains to set
+        return {}
+    m = model.n_cylinders
+    out = {"friction_coulomb": np.zeros(m), "friction_viscous": np.zeros(m), "friction_speed": np.full(m, 1.0e-2)}
+    if adaptive:
+        width = _force_widths(model)
+        out.update(rate_friction=np.array([0.0]), friction_coulomb_max=FRICTION_BOUND_FRACTIONS[0] * width,
+                   friction_viscous_max=FRICTION_BOUND_FRACTIONS[1] * width)
+    return out
+
+
+def check_friction_start(gains: dict) -> dict:
+    """``gains``, or a ValueError naming the friction estimate whose initial value (``friction_coulomb``,
+    ``friction_viscous``) lies above its projection bound (``..._max``): the loop would clip it there
+    at the first period, silently starting elsewhere than asked."""
+    for k in ("friction_coulomb", "friction_viscous"):
+        if f"{k}_max" not in gains:  # no friction estimates (compensation not generated)
+            continue
+        start, bound = np.asarray(gains[k], float), np.asarray(gains[f"{k}_max"], float)
+        if np.any(start > bound):
+            raise ValueError(f"gain '{k}' = {start.tolist()} (the estimates' initial values) lies above its "
+                             f"projection bound '{k}_max' = {bound.tolist()}; raise the bound or lower the start")
+    return gains
+
+
+def friction_layout(model) -> list:
+    """The friction estimate blocks (:data:`FRICTION_BLOCKS`) of an adaptive controller's state: F̂_c
+    and b̂ per actuator, starting at the gains ``friction_coulomb``, ``friction_viscous`` and kept
+    inside [0, ``friction_coulomb_max``], [0, ``friction_viscous_max``]."""
+    if not model.friction_compensation:
+        return []
+    m = model.n_cylinders
+    lower = "its adaptation rate (rate_friction) or its smoothing speed (friction_speed)"
+    return [StateBlock("coulomb_hat", m, "the Coulomb friction estimates (coulomb_hat)", lower,
+                       initial=lambda s: s.gains["friction_coulomb"], limits=(0.0, "friction_coulomb_max"),
+                       unit=lambda model: friction_units(model)[0], entries="actuators"),
+            StateBlock("viscous_hat", m, "the viscous friction estimates (viscous_hat)", lower,
+                       initial=lambda s: s.gains["friction_viscous"], limits=(0.0, "friction_viscous_max"),
+                       unit=lambda model: friction_units(model)[1], entries="actuators")]
 
 
 def estimate_layout(model) -> list:

@@ -187,7 +187,7 @@ def check_against_model(sc, model, controller, dyn=None) -> None:
 
 #: Gains that must be > 0 (divisors or limits); every other gain must be >= 0.
 _POSITIVE_GAINS = ("u_max", "sat_width", "lambda_f_gamma", "P0_gamma", "ls_nu_gamma",
-                   "lambda_f_theta", "P0_theta", "ls_nu_theta")
+                   "lambda_f_theta", "P0_theta", "ls_nu_theta", "friction_speed")
 
 
 def gain_must_be_positive(name: str) -> bool:

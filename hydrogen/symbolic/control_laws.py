@@ -142,21 +142,29 @@ class Common:
     def desired_rates(self):
         return [(self.qd[k], self.qd[k + 1]) for k in range(3)]
 
-    def force_loop(self, tau_d, tau_d_dot, s, g1, g2):
+    def force_loop(self, tau_d, tau_d_dot, s, g1, g2, friction=None):
         """Stages of the cylinder-force loop as intermediates; returns (f_d, f̃, f0, v, u, τ_d, stages).
 
         Each stage is bound to symbols so later stages (and τ̇_d's users) refer to
-        a symbol, not to a copy of a large expression.
+        a symbol, not to a copy of a large expression. ``friction``: (f_fr, ḟ_fr, stages) of
+        :meth:`friction_compensation`, added to f_d and ḟ_d (None: the paper's f_d).
         """
         n, m = self.n, self.m
         S = {k: vector(k, n) for k in ("taud", "taud_dot")}
-        S.update({k: vector(k, m) for k in ("fd", "fd_dot", "v", "u_raw", "u_cmd", "g0_app")})
+        S.update({k: vector(k, m) for k in ("fd", "fd_rb", "fd_dot", "v", "u_raw", "u_cmd", "g0_app")})
         stages = [
             (S["taud"], tau_d),
             (S["taud_dot"], tau_d_dot),
-            (S["fd"], self.Jit * S["taud"]),
-            (S["fd_dot"], self.Jit * (S["taud_dot"] - self.JLdot.T * S["fd"])),
         ]
+        if friction is None:
+            stages += [(S["fd"], self.Jit * S["taud"]),
+                       (S["fd_dot"], self.Jit * (S["taud_dot"] - self.JLdot.T * S["fd"]))]
+        else:
+            # the rigid-body part first, as the paper's f_d, then the compensation added: with its
+            # coefficients 0 the sums add exact zeros, so f_d and ḟ_d are the paper's to the bit
+            f_fr, f_fr_dot, fr_stages = friction
+            stages += [*fr_stages, (S["fd_rb"], self.Jit * S["taud"]), (S["fd"], S["fd_rb"] + f_fr),
+                       (S["fd_dot"], self.Jit * (S["taud_dot"] - self.JLdot.T * S["fd_rb"]) + f_fr_dot)]
         ftil = self.f - S["fd"]
         f0 = sp.Matrix([self.laws[i].f0(self.l[i], self.ldot[i], self.pb[i], self.P[i]) for i in range(m)])
         Js = self.JL * s
@@ -178,6 +186,55 @@ class Common:
             self.g0_applied = S["g0_app"]
         self.taud_dot = S["taud_dot"]
         return S["fd"], ftil, f0, S["v"], u, S["taud"], stages
+
+    def friction_compensation(self, qr_dot, qr_ddot, s, estimates=None, adapt=None):
+        """Friction compensation in actuator space (a deviation from the paper, docs/paper.md):
+        f_fr = F_c tanh(l̇_r / v_s) + b l̇_r per actuator at the reference velocity l̇_r = JL q̇_r, and
+        ḟ_fr with l̈_r = J̇L q̇_r + JL q̈_r (``qr_ddot`` the exact rate of ``qr_dot``: no measured q̈).
+
+        The reference velocity, not the measured one: ḟ_d then needs no acceleration, and the
+        mismatch with the plant's friction at l̇, (l̇ − l̇_r)(f(l̇_r) − f(l̇)) = (JL s)ᵀ(…) ≤ 0
+        (f increasing), is dissipative in V̇ (Slotine and Li's regressor at q̇_r).
+
+        ``estimates`` None: the known coefficients, inputs ``friction_coulomb``,
+        ``friction_viscous``; else the state symbols (F̂_c, b̂), adapted with
+        F̂̇_c = −κ Γ_c tanh(l̇_r/v_s) (JL s), b̂̇ = −κ Γ_b l̇_r (JL s) (Γ = ``rate_friction`` × the
+        upper bound², projected onto [0, bound]), which cancels (JL s)ᵀ φᵀ c̃ in V̇ against
+        ½ c̃ᵀ Γ⁻¹ c̃; ``adapt`` the switch κ. Returns ((f_fr, ḟ_fr, stages) for :meth:`force_loop`,
+        the estimates' rates (2m, or None), the inputs); (None, None, []) for a model generated
+        without it (``[control] friction_compensation`` false, the default)."""
+        if not self.model.friction_compensation:  # generated without it: the paper's f_d
+            return None, None, []
+        m = self.m
+        vs = vector("friction_speed", m)
+        S = {k: vector(k, m) for k in ("ldot_r", "lddot_r", "fric_sign")}
+        stages = [(S["ldot_r"], self.JL * qr_dot), (S["lddot_r"], self.JLdot * qr_dot + self.JL * qr_ddot),
+                  (S["fric_sign"], sp.Matrix([sp.tanh(S["ldot_r"][i] / vs[i]) for i in range(m)]))]
+        ld, ldd, sgn = S["ldot_r"], S["lddot_r"], S["fric_sign"]
+        if estimates is None:
+            Fc, Fv = vector("friction_coulomb", m), vector("friction_viscous", m)
+            Fc_dot = Fv_dot = sp.zeros(m, 1)
+            inputs = [("friction_coulomb", Fc), ("friction_viscous", Fv), ("friction_speed", vs)]
+            rates = None
+        else:
+            Fc, Fv = estimates
+            rate = scalar("rate_friction")
+            c_max, v_max = vector("friction_coulomb_max", m), vector("friction_viscous_max", m)
+            Js = self.JL * s
+            rates = sp.Matrix([adapt * projection(Fc[i], -rate * c_max[i] ** 2 * sgn[i] * Js[i], 0, c_max[i])
+                               for i in range(m)]
+                              + [adapt * projection(Fv[i], -rate * v_max[i] ** 2 * ld[i] * Js[i], 0, v_max[i])
+                                 for i in range(m)])
+            rate_sym = vector("fric_rate", 2 * m)
+            stages.append((rate_sym, rates))
+            Fc_dot, Fv_dot = rate_sym[:m, :], rate_sym[m:, :]
+            rates = rate_sym
+            inputs = [("friction_speed", vs), ("rate_friction", sp.Matrix([rate])),
+                      ("friction_coulomb_max", c_max), ("friction_viscous_max", v_max)]
+        f = sp.Matrix([Fc[i] * sgn[i] + Fv[i] * ld[i] for i in range(m)])
+        f_dot = sp.Matrix([Fc_dot[i] * sgn[i] + Fc[i] * (1 - sgn[i] ** 2) * ldd[i] / vs[i]
+                           + Fv_dot[i] * ld[i] + Fv[i] * ldd[i] for i in range(m)])
+        return (f, f_dot, stages), rates, inputs
 
     def g0(self, i, l, p, u):
         """g0 of (59) (its kind's) for cylinder ``i`` at its pressure block ``p`` (a tuple) as the
