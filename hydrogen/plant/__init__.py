@@ -24,7 +24,7 @@ from dataclasses import dataclass
 import numpy as np
 
 __all__ = ["BLOCKS", "SIZES", "PlantState", "PlantParameter", "Slot", "block", "plant_layout", "state_size",
-           "slot", "entry_names", "describe_entries"]
+           "slot", "entry_names", "describe_entries", "state_vector"]
 
 #: The plant's blocks with a state, in the order of x.
 BLOCKS = ("mechanics", "chambers", "valve")
@@ -173,3 +173,11 @@ def describe_entries(layout, indices) -> str:
     """Entries ``indices`` of x named by their part and what they belong to, for a message."""
     names = entry_names(layout)
     return ", ".join(names[i] for i in np.asarray(indices, int).tolist())
+
+
+def state_vector(layout, **parts) -> np.ndarray:
+    """x with each of ``parts`` (name: values, in its unit) at its place in ``layout``, 0 elsewhere."""
+    x = np.zeros(state_size(layout))
+    for name, values in parts.items():
+        x[slot(layout, name).slice] = values
+    return x

@@ -14,11 +14,11 @@ STATES = ()
 
 #: Per actuator, in order, each in the actuator's own unit (its kind's TRAVEL).
 PARAMETERS = (
-    PlantParameter("coulomb", lambda t: t.force_unit, "Coulomb friction F_c", per_actuator=True),
-    PlantParameter("viscous", lambda t: f"{t.force_unit} s/{t.unit}", "viscous friction coefficient b",
+    PlantParameter("coulomb", lambda t: t.force_unit, "Coulomb friction (F_c)", per_actuator=True),
+    PlantParameter("viscous", lambda t: f"{t.force_unit} s/{t.unit}", "viscous friction coefficient (b)",
                    per_actuator=True),
-    PlantParameter("smooth_speed", lambda t: f"{t.unit}/s", "speed v_s of the tanh smoothing of the Coulomb "
-                   "friction", per_actuator=True),
+    PlantParameter("smooth_speed", lambda t: f"{t.unit}/s", "speed of the tanh smoothing of the Coulomb "
+                   "friction (v_s)", per_actuator=True),
 )
 
 
