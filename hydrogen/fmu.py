@@ -43,7 +43,7 @@ from .controllers.common import estimate_layout, theta_units as _theta_units
 from .errors import CompilerError, FmuError, OutputPathError
 from .layout import NUMBERS
 from .model import POSITIVE  # FMI's min is inclusive: "> 0" is min = the smallest positive double
-from .plant import plant_layout, slot, valve
+from .plant import plant_layout, slot as plant_slot, valve
 
 __all__ = ["export_fmu", "PARTS", "fmi_headers_dir", "FMI_HEADERS"]
 
@@ -219,7 +219,7 @@ def _variables(part, dyn, p, ctx, fn, encoders, kalman):
     travels = [c.travel for c in model.cylinders]  # each actuator's coordinate and unit: its kind's TRAVEL
     pstates = _pressure_states(model)
     layout = plant_layout(model)
-    x0_q, x0_pc = (p.x0[slot(layout, k).slice] for k in ("q", "pc"))  # the start state's parts
+    x0_q, x0_pc = (p.x0[plant_slot(layout, k).slice] for k in ("q", "pc"))  # the start state's parts
     out = []
 
     def add(*a, **k):
@@ -239,7 +239,7 @@ def _variables(part, dyn, p, ctx, fn, encoders, kalman):
         for i, c in enumerate(coords):
             add(_dotted("q_start", c), "p", "fixed", f"initial {c} (the scenario's)", f"inst->q_start[{i}]",
                 unit=cunits[i], start=float(x0_q[i]))
-        p_lo, p_hi = slot(layout, "pc").lower, slot(layout, "pc").upper
+        p_lo, p_hi = plant_slot(layout, "pc").lower, plant_slot(layout, "pc").upper
         for j, (nm, what) in enumerate(pstates):
             add(_dotted(f"{nm}_start", what[0]), "p", "fixed", f"initial {what[2]} of cylinder {what[0]} (holding "
                 "the robot still at the start pose)", f"inst->pc_start[{j}]", unit="Pa", start=float(x0_pc[j]),
