@@ -243,6 +243,7 @@ def export_context(dyn, p, scenario_name, controller, prog, sources, headers, ct
         "n_periods": int(p.n), "duration": c_double(sc.duration), "control_rate": c_double(sc.control_rate),
         "metric_start": c_double(sc.metric_start),
         "n": loop["n"], "m": loop["m"], "nx": loop["nx"], "three_way": loop["three_way"],
+        "x_plus": loop["x_plus"], "x_index": loop["x_index"], "x_parts": loop["x_parts"],  # the plant state's parts
         "parametric": loop["parametric"],
         "theta_names": ", ".join(model.theta_names),
         "kf_gain_sensor": c_doubles(sensor_gain if sensor_gain is not None else np.zeros(2)),

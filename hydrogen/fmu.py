@@ -43,6 +43,7 @@ from .controllers.common import estimate_layout, theta_units as _theta_units
 from .errors import CompilerError, FmuError, OutputPathError
 from .layout import NUMBERS
 from .model import POSITIVE  # FMI's min is inclusive: "> 0" is min = the smallest positive double
+from .plant import plant_layout, slot as plant_slot, valve
 
 __all__ = ["export_fmu", "PARTS", "fmi_headers_dir", "FMI_HEADERS"]
 
@@ -67,13 +68,14 @@ UNITS = {
 }
 #: Plant parameters (inputs of plant_rhs besides x and u): per-entry names, units and what they are.
 def _friction_entries(c) -> list:
-    """The friction entries of actuator ``c`` in its own unit (its kind's TRAVEL)."""
-    from .actuators import actuator
-    t = actuator(c.kind).TRAVEL
-    f = t.force_unit.replace(" ", ".")
-    return [(_dotted("friction", c.name, "coulomb"), f, f"Coulomb friction of actuator {c.name}"),
-            (_dotted("friction", c.name, "viscous"), f"{f}.s/{t.unit}", f"viscous friction coefficient of actuator {c.name}"),
-            (_dotted("friction", c.name, "smooth_speed"), f"{t.unit}/s", "speed of the tanh smoothing of its Coulomb friction")]
+    """The friction entries of actuator ``c`` in its own unit (its kind's TRAVEL): the friction block's
+    parameters (:mod:`hydrogen.plant.friction`)."""
+    from .plant import friction
+    t = c.travel
+    return [(_dotted("friction", c.name, par.name), par.unit_of(t).replace(" ", "."), f"{par.doc} of actuator {c.name}")
+            for par in friction.PARAMETERS]
+
+
 _REF_ORDERS = (("qd0", "q_d", "", "reference"), ("qd1", "q_d_dot", "/s", "reference velocity"),
                ("qd2", "q_d_ddot", "/s2", "reference acceleration"), ("qd3", "q_d_dddot", "/s3", "reference jerk"))
 
@@ -216,7 +218,8 @@ def _variables(part, dyn, p, ctx, fn, encoders, kalman):
     coords, cyls, cunits = list(model.coordinate_names), [c.name for c in model.cylinders], _coord_units(model)
     travels = [c.travel for c in model.cylinders]  # each actuator's coordinate and unit: its kind's TRAVEL
     pstates = _pressure_states(model)
-    from .pressures import bounds as pressure_bounds
+    layout = plant_layout(model)
+    x0_q, x0_pc = (p.x0[plant_slot(layout, k).slice] for k in ("q", "pc"))  # the start state's parts
     out = []
 
     def add(*a, **k):
@@ -235,11 +238,11 @@ def _variables(part, dyn, p, ctx, fn, encoders, kalman):
             add_array(a)
         for i, c in enumerate(coords):
             add(_dotted("q_start", c), "p", "fixed", f"initial {c} (the scenario's)", f"inst->q_start[{i}]",
-                unit=cunits[i], start=float(p.x0[i]))
-        p_lo, p_hi = pressure_bounds(model)
+                unit=cunits[i], start=float(x0_q[i]))
+        p_lo, p_hi = plant_slot(layout, "pc").lower, plant_slot(layout, "pc").upper
         for j, (nm, what) in enumerate(pstates):
             add(_dotted(f"{nm}_start", what[0]), "p", "fixed", f"initial {what[2]} of cylinder {what[0]} (holding "
-                "the robot still at the start pose)", f"inst->pc_start[{j}]", unit="Pa", start=float(p.x0[2 * n + j]),
+                "the robot still at the start pose)", f"inst->pc_start[{j}]", unit="Pa", start=float(x0_pc[j]),
                 lo=float(p_lo[j]), hi=float(p_hi[j]))
         for i, c in enumerate(coords):
             add(_dotted("q", c), "o", "continuous", f"coordinate {c}", f"inst->y_q[{i}]", unit=cunits[i])
@@ -267,7 +270,7 @@ def _variables(part, dyn, p, ctx, fn, encoders, kalman):
                 f"{c}", f"inst->l_in[{i}]", unit=travels[i].unit, start=float(l0[i]))
         for j, (nm, what) in enumerate(pstates):
             add(_dotted(nm, what[0]), "i", "continuous", f"measured {what[2]} of cylinder {what[0]}",
-                f"inst->pc_in[{j}]", unit="Pa", start=float(p.x0[2 * n + j]))
+                f"inst->pc_in[{j}]", unit="Pa", start=float(x0_pc[j]))
         if encoders:
             for i, c in enumerate(coords):
                 add(_dotted("q", c), "i", "continuous", f"joint encoder reading of {c}", f"inst->q_in[{i}]",
@@ -375,9 +378,7 @@ def _plant_arrays(dyn, p):
                                      f"gain) of cylinder {c}") for c in cyls]),
         "friction": (actuator_settings(sc, model)["friction"].ravel(),
                      [e for c in model.cylinders for e in _friction_entries(c)]),
-        "valve": (valve_vector(sc), [("valve.lag", "s", "valve first-order lag (used when the natural frequency is 0; 0: none)"),
-                                     ("valve.omega", "rad/s", "second-order servo-valve natural frequency (0: none)"),
-                                     ("valve.zeta", "", "second-order servo-valve damping (dimensionless)")]),
+        "valve": (valve_vector(sc), [(_dotted("valve", par.name), par.unit, par.doc) for par in valve.PARAMETERS]),
     }
     ranges = _plant_ranges(model, sc)
     out = []

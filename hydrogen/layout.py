@@ -12,7 +12,7 @@ import math
 from .names import NUMBERS  # the numbers input's name, part of the loop's layout
 
 __all__ = ["NUMBERS", "SLOTS", "MAX_DELAY", "PREDICTOR_MODEL", "delay_split", "LOOP_CONFIG", "LOOP_STATE", "LOOP_SIGNALS",
-           "model_summary", "loop_context", "log_widths", "loop_functions",
+           "model_summary", "loop_context", "log_widths", "loop_functions", "C_SIZES", "plant_offsets", "plant_size",
            "c_double", "config_fields", "struct_fields"]
 
 
@@ -125,7 +125,7 @@ LOOP_CONFIG = (
 LOOP_STATE = (
     ("t", "double", None, "s"),
     ("k", "long long", None, "control periods done"),
-    ("x", "double", ("NX",), "plant: q, qdot, pc, spool, spool rate"),
+    ("x", "double", ("NX",), "plant: {x_parts}"),
     ("q_meas", "double", ("NQ",), "last measured pose (Newton's warm start)"),
     ("kf", "double", (2, "NL"), "Kalman state: cylinder lengths, cylinder rates"),
     ("u_hist", "double", ("MAX_DELAY", "NL"), "commands of past periods: ring, slot k % MAX_DELAY (0 at reset)"),
@@ -152,10 +152,11 @@ LOOP_SIGNALS = (
 )
 
 
-def struct_fields(description, p: str, sizes: dict) -> list:
+def struct_fields(description, p: str, sizes: dict, x_parts: str = "") -> list:
     """A struct description (:data:`LOOP_STATE`, :data:`LOOP_SIGNALS`) for the templates and the
     ctypes mirrors: ``[{"name", "type", "decl", "length", "comment"}]`` (``length``: the number of
-    entries for ``sizes``, which maps the header's size names to numbers; None for a scalar)."""
+    entries for ``sizes``, which maps the header's size names to numbers; None for a scalar;
+    ``x_parts``: the plant state's parts, named in its comment)."""
     from markupsafe import Markup  # hydrogen's own declaration text (hydrogen.templating)
 
     out = []
@@ -168,7 +169,7 @@ def struct_fields(description, p: str, sizes: dict) -> list:
             for t in size:
                 length *= t if isinstance(t, int) else sizes[t]
         out.append({"name": name, "type": ctype, "decl": Markup(decl), "length": length,
-                    "comment": Markup(comment.replace("\n * ", "\n     * "))})
+                    "comment": Markup(comment.replace("{x_parts}", x_parts).replace("\n * ", "\n     * "))})
     return out
 
 
@@ -202,6 +203,7 @@ def model_summary(model) -> dict:
     """What the manifest records about the model for the drivers and the runtime: sizes, names and
     kinds, the loop's structure. No number of the description: the loop takes those from its
     configuration (pressure bounds) or through the generated functions (forces, flows)."""
+    from .plant import plant_layout
     from .pressures import n_pressures
     return {
         "name": model.name,
@@ -211,7 +213,30 @@ def model_summary(model) -> dict:
         "theta_names": list(model.theta_names),
         "kinds": [c.kind for c in model.cylinders], "n_pressures": n_pressures(model),
         "joint_encoders": bool(model.joint_encoders),
+        # the plant state's parts in order (hydrogen.plant): name, size (a robot size's name), offset, entries
+        "plant": [{"name": s.name, "size": s.size_name, "start": s.start, "entries": s.size}
+                  for s in plant_layout(model)],
     }
+
+
+#: The loop header's C name of each robot size a plant state's size is given in (hydrogen.plant.SIZES).
+C_SIZES = {"n": "NQ", "m": "NL", "n_pressures": "NPC"}
+
+
+def plant_offsets(summary: dict) -> dict:
+    """``{part: C expression of its offset in x}`` ("0", "NQ", "2 * NQ + NPC") from a manifest's
+    model summary: the sizes of the parts before it, each robot size counted once, in order."""
+    out, before = {}, {}
+    for part in summary["plant"]:
+        terms = [C_SIZES[k] if c == 1 else f"{c} * {C_SIZES[k]}" for k, c in before.items()]
+        out[part["name"]] = " + ".join(terms) or "0"
+        before[part["size"]] = before.get(part["size"], 0) + 1
+    return out
+
+
+def plant_size(summary: dict) -> int:
+    """Number of entries of the plant state x, from a manifest's model summary."""
+    return sum(part["entries"] for part in summary["plant"])
 
 
 def n_pressures(summary: dict) -> int:
@@ -241,15 +266,22 @@ def loop_context(manifest: dict) -> dict:
             "u_applied": "spool commands the valves held at the end of each period (delay later), m",
             "l_meas": "measured cylinder lengths (noise, quantisation), m"}
     logs = [(k, w, what[k]) for k, w in log_widths(s).items()] + [("xc", "n_xc", "controller state")]
-    nx = 2 * n + n_p + 2 * m
+    nx = plant_size(s)
+    # each part of x as the C loop writes it: a pointer offset ("x + NQ") and an index prefix ("x[NQ + i]")
+    from markupsafe import Markup  # hydrogen's own C expressions (hydrogen.templating)
+    offsets = plant_offsets(s)
+    x_plus = {k: Markup("" if v == "0" else f" + {v}") for k, v in offsets.items()}
+    x_index = {k: Markup("" if v == "0" else f"{v} + ") for k, v in offsets.items()}
+    x_parts = ", ".join(part["name"].replace("_", " ") for part in s["plant"])
     sizes = {"NQ": n, "NL": m, "NX": nx, "NPC": n_p, "MAX_DELAY": MAX_DELAY}
     ctx = {
         "model": name, "p": name, "P": name.upper(), "guard": f"{name.upper()}_LOOP_H",
         "n": n, "m": m, "nx": nx, "max_delay": MAX_DELAY,
+        "x_plus": x_plus, "x_index": x_index, "x_parts": x_parts,
         "n_noise": m + n_p + (n if s["joint_encoders"] else 0), "n_pressures": n_p, "three_way": n_p == m,
         "parametric": NUMBERS in manifest,
         "encoders": bool(s["joint_encoders"]), "slots": SLOTS, "logs": logs, "config": config_fields(name),
-        "state": struct_fields(LOOP_STATE, name, sizes), "signals": struct_fields(LOOP_SIGNALS, name, sizes),
+        "state": struct_fields(LOOP_STATE, name, sizes, x_parts), "signals": struct_fields(LOOP_SIGNALS, name, sizes),
         "p_theta": ", ".join(s["theta_names"]),
         "pred_friction": ", ".join(map(c_double, PREDICTOR_MODEL["friction"] * m)),
         "pred_valve": ", ".join(map(c_double, PREDICTOR_MODEL["valve"])),

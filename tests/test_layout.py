@@ -1,11 +1,12 @@
 """hydrogen/layout.py: the loop configuration is described once; the C header, the ctypes mirror
 and the exported programs' fill agree with that description."""
+import copy
 import re
 import subprocess
 
 import ctypes as C
 
-from hydrogen.layout import LOOP_CONFIG, loop_context
+from hydrogen.layout import LOOP_CONFIG, loop_context, plant_offsets
 from hydrogen.pressures import n_pressures
 from hydrogen.runtime.build import generated_dir_for
 from hydrogen.runtime.compiler import Toolchain
@@ -110,3 +111,28 @@ def test_the_runtime_and_the_exported_params_fill_the_same_configuration(dyn, tm
     for name in expected:
         assert got[name] == [float(x) for x in expected[name]], name
     assert got["delay"] == [1.0] and got["use_kalman"] == [1.0]  # the rig's: one period, filtered rates
+
+
+def test_each_plant_parts_c_offset_is_read_off_the_layout():
+    parts = [("q", "n"), ("qdot", "n"), ("pc", "n_pressures"), ("spool", "m"), ("spool_rate", "m")]
+    summary = {"plant": [{"name": k, "size": s, "start": 0, "entries": 1} for k, s in parts]}
+    assert plant_offsets(summary) == {"q": "0", "qdot": "NQ", "pc": "2 * NQ", "spool": "2 * NQ + NPC",
+                                      "spool_rate": "2 * NQ + NPC + NL"}
+
+
+def test_the_c_loop_follows_a_new_plant_part_in_the_layout(dyn):
+    """A part declared before the pressures (one per actuator) moves every pressure access of the
+    rendered loop and the state's size: the template writes no part's place itself."""
+    from hydrogen.templating import render
+
+    manifest = copy.deepcopy(dyn.library.manifest)
+    s = manifest["model"]
+    at = [p["name"] for p in s["plant"]].index("pc")
+    s["plant"].insert(at, {"name": "extra", "size": "m", "start": -1, "entries": s["m"]})
+    old = render("loop.c.j2", loop_context(dyn.library.manifest))
+    new = render("loop.c.j2", loop_context(manifest))
+    assert "x[2 * NQ + i] = clip(x[2 * NQ + i]" in old
+    assert "x[2 * NQ + NL + i] = clip(x[2 * NQ + NL + i]" in new and "x[2 * NQ + i]" not in new
+    assert "memcpy(x + 2 * NQ + NL, s->pc_meas" in new and "pc = xp + 2 * NQ + NL;" in new
+    assert loop_context(manifest)["nx"] == loop_context(dyn.library.manifest)["nx"] + s["m"]
+    assert "plant state x = [q, qdot, extra, pc, spool, spool rate]" in render("loop.h.j2", loop_context(manifest))

@@ -736,3 +736,20 @@ def test_a_run_logs_every_declared_block_of_the_controller_state(dyn):
     np.testing.assert_array_equal(res.states["theta_hat"], res.theta_hat)
     np.testing.assert_array_equal(res.states["z"][0], np.zeros(dyn.model.n))  # at rest: its declared start
     assert simulate(dyn, "z-1hz", "p", duration=0.05).states == {}
+
+
+def test_a_diverged_plant_state_names_each_bad_entry_by_its_part(model):
+    """The divergence message names each non-finite entry of x by its part of the plant's layout and
+    what it belongs to (hydrogen.plant.plant_layout), not by a bare index."""
+    import types
+
+    from hydrogen.plant import plant_layout, slot, state_size
+    from hydrogen.simulation.simulator import _describe
+
+    layout = plant_layout(model)
+    x = np.zeros(state_size(layout))
+    bad = [slot(layout, "pc").start + 1, slot(layout, "spool").start]
+    x[bad] = np.nan
+    msg = _describe(x, 0.5, types.SimpleNamespace(model=model, slices={}))
+    assert (f"the plant state is non-finite at entries {bad} (pc[{model.cylinders[1].name}.pc], "
+            f"spool[{model.cylinders[0].name}])") in msg

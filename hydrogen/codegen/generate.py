@@ -50,7 +50,7 @@ DRIVERS = (("loop.h.j2", "_loop.h"), ("loop.c.j2", "_loop.c"))
 DERIVATION_FILES = ("layout.py", "templating.py", "pressures.py", "names.py")
 #: The package's folders of derivation code; in the blocks' folders, a block's own module is hashed
 #: apart (:func:`block_hash`) and shapes only the functions that use it.
-DERIVATION_DIRS = ("symbolic", "codegen", "controllers", "actuators")
+DERIVATION_DIRS = ("symbolic", "codegen", "controllers", "actuators", "plant")
 
 
 def _block_files() -> dict:

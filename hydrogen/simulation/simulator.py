@@ -14,6 +14,7 @@ from ..actuators import actuator
 from ..controllers import spec as controller_spec
 from ..errors import KinematicsError, ScenarioError, SimulationError
 from ..layout import PREDICTOR_MODEL
+from ..plant import describe_entries, plant_layout, slot, state_vector
 from ..summary import SATURATED_AT, SATURATION, estimated_blocks  # saturation: defined with its line
 from .checks import _shown, check_against_model, check_run_size, checked_float, metric_window
 from .control import make_controller
@@ -564,10 +565,9 @@ def plan_run(dyn, scenario, controller, duration, check_workspace, overrides, *,
         _check_reference(dyn, sc, n, h)
     pinned = sc.gains.get(controller, {})  # the scenario's own tuning, named in messages about it
     table = f"{model.source}: [scenarios.{sc.name}]" if sc.name in scenario_names(model) else f"scenario {sc.name!r}:"
-    nq, m = model.n, model.n_cylinders
     q0 = sc.reference(0.0)[0] + np.asarray(sc.q0_offset, float)
     pc0 = equilibrium_pressures(dyn, q0, model.theta)
-    x0 = np.concatenate([q0, np.zeros(nq), pc0, np.zeros(2 * m)])
+    x0 = state_vector(plant_layout(model), q=q0, pc=pc0)  # at rest, the valves closed
     own = actuator_settings(sc, model)  # each actuator's travel noise, resolution, friction in its own unit
     return RunPlan(dyn, controller, sc, n, h, theta0, gamma0, q0, pc0, x0, filter_gain(sc, h), own, pinned,
                    {k: f"{table} gains.{controller}" for k in pinned})
@@ -665,7 +665,9 @@ def _describe(x, t, ctrl=None, xc=None, u=None):
             parts.append(f"the controller state is non-finite at {[names[i] or i for i in bad_c]}: xc = {xc.tolist()}")
     bad = np.flatnonzero(~np.isfinite(x)).tolist()
     if bad:
-        parts.append(f"the plant state is non-finite at entries {bad} (x = [q, qdot, pc, spool, spool rate]): x = {np.array2string(x, precision=6, threshold=60)}")
+        # each entry by its part of x and what it belongs to: "pc[leg1.pc]", "q[x]"
+        where = f" ({describe_entries(plant_layout(ctrl.model), bad)})" if ctrl is not None else ""
+        parts.append(f"the plant state is non-finite at entries {bad}{where}: x = {np.array2string(x, precision=6, threshold=60)}")
     if not parts:
         parts.append(f"a value went non-finite inside the step (every signal is finite at its end): x = {np.array2string(x, precision=6, threshold=60)}")
     return f"diverged at t = {t:.4f} s: " + "; ".join(parts)
@@ -768,8 +770,11 @@ class PythonStages:
         own = actuator_settings(sc, model)  # friction and resolution of each actuator, in its own unit
         self._fric, self._quant, self._valve = own["friction"].ravel(), own["quantization_l"], valve_vector(sc)
         self._pred_fric = np.tile(_PRED_FRICTION, model.n_cylinders)
-        self._lo, self._hi = pressures.bounds(model)  # each pressure state's clip (0 and P_s for p_c)
-        self.nq, self.m, self.n_p = model.n, model.n_cylinders, pressures.n_pressures(model)
+        self.layout = plant_layout(model)
+        self._q, self._qdot, self._pc = (slot(self.layout, k).slice for k in ("q", "qdot", "pc"))
+        pc = slot(self.layout, "pc")
+        self._lo, self._hi = np.array(pc.lower), np.array(pc.upper)  # each pressure state's clip (0 and P_s for p_c)
+        self.nq, self.m, self.n_p = model.n, model.n_cylinders, pc.size
         self._max_delay = MAX_DELAY
         self.u_hist = np.zeros((MAX_DELAY, self.m))  # the C loop's ring: command of period k in slot k % MAX_DELAY
         self.kf = np.vstack([dyn.leg_lengths(q0), np.zeros(self.m)]) if kf_gain is not None else None
@@ -781,9 +786,9 @@ class PythonStages:
 
     def measure(self, nz) -> _Signals:
         """The sensors' readings of the plant state with the noise row ``nz``."""
-        s, sc, nq, m, n_p, x = _Signals(), self.sc, self.nq, self.m, self.n_p, self.x
+        s, sc, m, n_p, x = _Signals(), self.sc, self.m, self.n_p, self.x
         s.t = self.k * self.h
-        q, qdot, pc = x[:nq], x[nq:2 * nq], x[2 * nq:2 * nq + n_p]
+        q, qdot, pc = x[self._q], x[self._qdot], x[self._pc]
         s.l_true = self.dyn.leg_lengths(q)
         s.l_meas = s.l_true + nz[:m]
         step = np.where(self._quant > 0, self._quant, 1.0)  # each actuator's resolution (0: none)
@@ -814,9 +819,9 @@ class PythonStages:
         """The controller state's semi-implicit update, the command, the command applied (delay)."""
         sc, ctrl, delay = self.sc, self.ctrl, self.delay
         if self.predict:  # the plant as it will be when this command reaches the valves
-            nq, x = self.nq, self.predicted(s)
-            q = x[:nq]
-            args = (q, x[nq:2 * nq], x[2 * nq:2 * nq + self.n_p], np.asarray(self.dyn.leg_lengths(q), float),
+            x = self.predicted(s)
+            q = x[self._q]
+            args = (q, x[self._qdot], x[self._pc], np.asarray(self.dyn.leg_lengths(q), float),
                     sc.reference(s.t + (delay + self.delay_frac) * self.h), s.t >= sc.t_adapt)
         else:
             args = (self.q_meas, s.qdot_meas, s.pc_meas, s.l_meas, s.ref, s.t >= sc.t_adapt)
@@ -837,17 +842,16 @@ class PythonStages:
         controller's own model (its estimates, ideal valve, no friction) over the commands in flight:
         the one the valves hold over the period's first ``delay_frac`` h, then a period each of the
         commands of periods k − delay … k − 1 (the C loop's ``predict``)."""
-        nq, n_p, h = self.nq, self.n_p, self.h
+        h, pc = self.h, self._pc
         th, g1, g2 = self.ctrl.own_parameters()
-        x = np.zeros_like(self.x)
-        x[:nq], x[nq:2 * nq], x[2 * nq:2 * nq + n_p] = self.q_meas, s.qdot_meas, s.pc_meas
+        x = state_vector(self.layout, q=self.q_meas, qdot=s.qdot_meas, pc=s.pc_meas)  # spool states: unused
 
         def hold(x, u, dt):
             n = self.sc.predictor_steps(dt / h)
             rhs = lambda xx: self._rhs_fn(xx, u, th, g1, g2, self._pred_fric, _PRED_VALVE)  # noqa: E731
             for _ in range(n):
                 x = _rk4(rhs, x, dt / n)
-                np.clip(x[2 * nq:2 * nq + n_p], self._lo, self._hi, out=x[2 * nq:2 * nq + n_p])
+                np.clip(x[pc], self._lo, self._hi, out=x[pc])
             return x
 
         if self.delay_frac > 0:
@@ -859,14 +863,14 @@ class PythonStages:
     def plant_step(self, u_held, u_app) -> None:
         """RK4 sub-steps over one period holding ``u_held`` over its first ``delay_frac`` h and ``u_app``
         over the rest (the sub-steps shared out as the C loop does), each pressure clipped to its bounds."""
-        nq, n_p, lo, hi = self.nq, self.n_p, self._lo, self._hi
+        pc, lo, hi = self._pc, self._lo, self._hi
         th, g = self.model.theta, self.model.gamma
 
         def hold(x, u, n, hs):
             rhs = lambda xx: self._rhs_fn(xx, u, th, g[0], g[1], self._fric, self._valve)  # noqa: E731
             for _ in range(n):
                 x = _rk4(rhs, x, hs)
-                np.clip(x[2 * nq:2 * nq + n_p], lo, hi, out=x[2 * nq:2 * nq + n_p])  # e.g. 0 ≤ p_c ≤ p_s
+                np.clip(x[pc], lo, hi, out=x[pc])  # e.g. 0 ≤ p_c ≤ p_s
             return x
 
         n, frac, h = self.sc.substeps, self.delay_frac, self.h
@@ -898,8 +902,8 @@ def run_python_loop(dyn, sc, ctrl, x, q0, noise, kf_gain, log, n, h):
             return k, f"stopped at t = {s.t:.4f} s: {exc}"
         loop.reference(s)
         loop.control(s)
-        pc = x[2 * loop.nq:2 * loop.nq + loop.n_p]
-        log["q"][k], log["q_d"][k], log["l"][k], log["pc"][k], log["u"][k] = x[:loop.nq], s.ref[0], s.l_true, pc, s.u
+        pc = x[loop._pc]
+        log["q"][k], log["q_d"][k], log["l"][k], log["pc"][k], log["u"][k] = x[loop._q], s.ref[0], s.l_true, pc, s.u
         log["u_applied"][k], log["l_meas"][k] = s.u_app, s.l_meas
         log["f"][k] = pressures.forces(model, pc)
         if ctrl.xc.size:
@@ -1075,13 +1079,14 @@ class Stepper:
 
     @property
     def x(self) -> np.ndarray:
-        """Plant state [q, q̇, pressures, spool, spool rate] (2n + pressures + 2m,)."""
+        """Plant state x, its parts in :func:`hydrogen.plant.plant_layout`'s order: [q, q̇, pressures,
+        spool, spool rate] (2n + pressures + 2m,)."""
         return self._runner.plant_state
 
     @property
     def q(self) -> np.ndarray:
         """True coordinates (n,)."""
-        return self._runner.plant_state[: self.controller.model.n]
+        return self._runner.plant_state[slot(plant_layout(self.controller.model), "q").slice]
 
     @property
     def u(self) -> np.ndarray:

@@ -13,6 +13,7 @@ import sympy as sp
 
 from ..actuators import actuator
 from ..names import NUMBERS
+from ..plant import plant_layout
 from ..pressures import blocks, n_pressures, uniform_three_way
 from .body_functions import SymbolicFunction, rigid_body_functions  # noqa: F401 (also their public path)
 from .constants import PRESSURE_EPS, baked_table
@@ -114,8 +115,9 @@ def hydraulic_functions(model) -> list:
 def plant_functions(model) -> list:
     inputs, xdot, intermediates = plant_rhs(model)
     size = "2n + 3m" if uniform_three_way(model) else "2n + pressures + 2m"
+    parts = ", ".join(s.label for s in plant_layout(model))
     return [SymbolicFunction("plant_rhs", inputs, [("xdot", xdot)],
-                             f"Plant state rate: x = [q, qdot, pc, spool, spool rate] ({size}), SI units; valve = [lag s, natural frequency rad/s, damping].", intermediates)]
+                             f"Plant state rate: x = [{parts}] ({size}), SI units; valve = [lag s, natural frequency rad/s, damping].", intermediates)]
 
 
 def controller_functions(model, kinds=None) -> list:

@@ -1,0 +1,183 @@
+"""The simulated plant's blocks: one module each, and the plant state's layout read off them.
+
+A block module declares
+
+* ``STATES``: its parts of the plant state x (:class:`PlantState`: name, size in terms of the robot,
+  unit, bounds, meaning), in order; a block with no state (friction) declares none;
+* ``PARAMETERS``: the numbers its law takes besides the state (:class:`PlantParameter`);
+* ``Symbolic``: its law over SymPy, once (:mod:`hydrogen.symbolic.plant` composes the blocks into
+  the one fused ``plant_rhs``); and ``Numeric``, its numpy twin where the numeric layer needs one
+  (tested equal).
+
+x is the blocks' states in :data:`BLOCKS` order: [q, q̇ (:mod:`.mechanics`), the chamber pressures
+(:mod:`.chambers`: each actuator kind's ``STATES``, :mod:`hydrogen.pressures`), spool, spool rate
+(:mod:`.valve`)]. Every user of x's parts (the Python and C loops, the FMU, the exported programs,
+the divergence message) reads :func:`plant_layout`. Plain data: importing this package imports
+neither SymPy nor a block's law.
+"""
+from __future__ import annotations
+
+import importlib
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+__all__ = ["BLOCKS", "SIZES", "PlantState", "PlantParameter", "Slot", "block", "plant_layout", "state_size",
+           "slot", "entry_names", "describe_entries", "state_vector"]
+
+#: The plant's blocks with a state, in the order of x.
+BLOCKS = ("mechanics", "chambers", "valve")
+
+#: The robot sizes a plant state's size is given in: what each entry stands for.
+SIZES = {"n": "coordinates", "m": "actuators", "n_pressures": "pressure states"}
+
+
+@dataclass(frozen=True)
+class PlantState:
+    """A part of the plant state x as a block declares it.
+
+    name
+        Its name (``q``, ``pc``, ``spool_rate``): the symbols' prefix and the layout's key.
+    size
+        One entry per what: a key of :data:`SIZES` (``"n"``: per coordinate, ``"m"``: per actuator,
+        ``"n_pressures"``: per pressure state).
+    unit
+        One unit for every entry, or a rule taking the model and giving one per entry.
+    doc
+        What it is, for messages and comments.
+    lower, upper
+        The bounds the plant holds each entry to (±inf: none): a number, or a rule taking the model
+        and giving one per entry.
+    """
+
+    name: str
+    size: str
+    unit: object
+    doc: str
+    lower: object = -math.inf
+    upper: object = math.inf
+
+    @property
+    def label(self) -> str:
+        """Its name as the comments write it ("spool rate")."""
+        return self.name.replace("_", " ")
+
+
+@dataclass(frozen=True)
+class PlantParameter:
+    """A number a block's law takes: ``name``, ``unit`` (a string, or a rule taking an actuator's
+    :class:`~hydrogen.actuators.declarations.Travel` for a per-actuator parameter in that actuator's own
+    unit), ``doc``; ``per_actuator``: one per actuator (else one for the rig)."""
+
+    name: str
+    unit: object
+    doc: str
+    per_actuator: bool = False
+
+    def unit_of(self, travel=None) -> str:
+        """Its unit (for a per-actuator parameter, on an actuator of ``travel``)."""
+        return self.unit(travel) if callable(self.unit) else self.unit
+
+
+@dataclass(frozen=True)
+class Slot:
+    """A part of x in a model's layout: ``name``, its ``block`` (module name), ``size_name`` (a key of
+    :data:`SIZES`), ``start`` and ``size`` (entries), per-entry ``units``, ``lower``, ``upper`` and
+    ``entries`` (what each entry belongs to: a coordinate, an actuator, a pressure state), ``doc``."""
+
+    name: str
+    block: str
+    size_name: str
+    start: int
+    size: int
+    units: tuple
+    lower: tuple
+    upper: tuple
+    entries: tuple
+    doc: str
+
+    @property
+    def stop(self) -> int:
+        return self.start + self.size
+
+    @property
+    def slice(self) -> slice:
+        return slice(self.start, self.stop)
+
+    @property
+    def label(self) -> str:
+        """Its name as the comments write it ("spool rate")."""
+        return self.name.replace("_", " ")
+
+
+def block(name: str):
+    """The module of plant block ``name``."""
+    return importlib.import_module(f"{__name__}.{name}")
+
+
+def _sizes(model) -> dict:
+    """The size of each :data:`SIZES` entry for ``model``, and the names of its entries."""
+    from ..pressures import state_names
+    coords, cyls, press = list(model.coordinate_names), [c.name for c in model.cylinders], state_names(model)
+    return {"n": coords, "m": cyls, "n_pressures": press}
+
+
+def _per_entry(value, model, size: int) -> tuple:
+    v = value(model) if callable(value) else value
+    if isinstance(v, (str, int, float)):
+        return (v,) * size
+    v = tuple(v)
+    if len(v) != size:
+        raise ValueError(f"a plant state declares {len(v)} entries, its size is {size}")
+    return v
+
+
+def plant_layout(model, blocks=None) -> tuple:
+    """The plant state's layout of ``model``: one :class:`Slot` per declared state, in x's order (the
+    states of each block of ``blocks``, module objects; None: :data:`BLOCKS`). Plain data."""
+    mods = [block(b) for b in BLOCKS] if blocks is None else list(blocks)
+    names = _sizes(model)
+    out, start = [], 0
+    for mod in mods:
+        for st in mod.STATES:
+            entries = tuple(names[st.size])
+            size = len(entries)
+            lower = tuple(float(v) for v in _per_entry(st.lower, model, size))
+            upper = tuple(float(v) for v in _per_entry(st.upper, model, size))
+            out.append(Slot(st.name, mod.__name__.rsplit(".", 1)[-1], st.size, start, size,
+                            _per_entry(st.unit, model, size), lower, upper, entries, st.doc))
+            start += size
+    return tuple(out)
+
+
+def state_size(layout) -> int:
+    """Number of entries of x."""
+    return sum(s.size for s in layout)
+
+
+def slot(layout, name: str) -> Slot:
+    """The part ``name`` of a layout."""
+    for s in layout:
+        if s.name == name:
+            return s
+    raise KeyError(f"the plant state has no part {name!r}; it has {', '.join(s.name for s in layout)}")
+
+
+def entry_names(layout) -> list:
+    """``"<part>[<entry>]"`` of every entry of x, in order ("q[x]", "pc[leg1.pc]", "spool[leg1]")."""
+    return [f"{s.name}[{e}]" for s in layout for e in s.entries]
+
+
+def describe_entries(layout, indices) -> str:
+    """Entries ``indices`` of x named by their part and what they belong to, for a message."""
+    names = entry_names(layout)
+    return ", ".join(names[i] for i in np.asarray(indices, int).tolist())
+
+
+def state_vector(layout, **parts) -> np.ndarray:
+    """x with each of ``parts`` (name: values, in its unit) at its place in ``layout``, 0 elsewhere."""
+    x = np.zeros(state_size(layout))
+    for name, values in parts.items():
+        x[slot(layout, name).slice] = values
+    return x
