@@ -534,7 +534,7 @@ def test_the_integrator_benchmark_counts_steps_and_picks_the_cheapest_count_that
     model = hydrogen.load_model("ubc_stewart")
     rig = scenario("z-1hz", model)  # a whole period of delay: the plant's sub-steps alone
     assert bi.plant_steps(rig) == rig.substeps and bi.predictor_steps(rig) == 0
-    paper = scenario("z-1hz.paper-timing", model)  # the command switches inside the period: one step more
+    paper = scenario("z-1hz.low-latency", model)  # the command switches inside the period: one step more
     assert bi.plant_steps(paper) == paper.substeps + 1
     pred = scenario("z-1hz.predictor", model)
     assert bi.predictor_steps(pred) == pred.predictor_substeps

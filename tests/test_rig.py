@@ -255,7 +255,7 @@ def test_default_p_gain_has_a_margin_of_at_least_2():
 
 @pytest.mark.parametrize("periods", [0.4, 1.5])
 def test_a_fractional_delay_switches_the_command_inside_the_period(robot, periods):
-    """A delay of a fraction of a period (the paper's timing: the command applied once computed):
+    """A delay of a fraction of a period (low-latency: the command applied once computed):
     the C and the Python loops agree, the valves' commands are the whole-period ones, and the motion
     lies between that of the two whole-period delays around it."""
     dyn, name = robot
@@ -356,6 +356,13 @@ def test_a_former_variant_name_runs_the_same_variant_and_names_the_new_one_once(
     assert [line for line in err.splitlines() if "low-latency" in line] == [
         line for line in err.splitlines() if line.startswith("hydrogen: note: ") and "is now 'low-latency'" in line]
     assert sum("is now 'low-latency'" in line for line in err.splitlines()) == 1, err
+
+
+def test_a_former_variant_name_over_seeds_is_noted_once_not_by_each_worker(dyn, capfd):
+    (runs, notes) = _notes(lambda: simulate(dyn, "z-1hz.paper-timing", "p", duration=0.1, seeds=2, max_workers=2))
+    assert not runs.failures and [r.scenario_name for r in runs.results] == ["z-1hz.low-latency"] * 2
+    assert len(notes) == 1 and "is now 'low-latency'" in notes[0], notes
+    assert "is now" not in capfd.readouterr().err  # the workers got the current name
 
 
 @pytest.mark.parametrize("table, where", [

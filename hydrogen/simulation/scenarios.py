@@ -17,7 +17,7 @@ from ..scenario_settings import (_FIELDS, RENAMED, VARIANT_SEPARATOR, ScenarioFi
 from .checks import check_fields
 from .reference import MultiSine, Step
 
-__all__ = ["Scenario", "setting", "settings", "PER_ACTUATOR", "actuator_settings", "per_actuator_unit", "scenario", "scenario_names", "variant_names", "variant_name", "split_variant", "table_keys", "default_scenario_name", "RENAMED", "valve_vector"]
+__all__ = ["Scenario", "setting", "settings", "PER_ACTUATOR", "actuator_settings", "per_actuator_unit", "scenario", "scenario_names", "variant_names", "variant_name", "split_variant", "current_name", "table_keys", "default_scenario_name", "RENAMED", "valve_vector"]
 
 
 @dataclass(frozen=True)
@@ -232,6 +232,13 @@ def split_variant(name: str, model) -> tuple:
     return name, None
 
 
+def current_name(name, model):
+    """``name`` with a former variant name replaced by the variant's current one (its note shown here,
+    once, not again by each worker a sweep runs it in); anything else as given."""
+    base, var = split_variant(name, model)
+    return name if var is None else f"{base}{VARIANT_SEPARATOR}{var}"
+
+
 def scenario(name: str, model) -> Scenario:
     """The named scenario of ``model``'s description (references are offsets from its neutral pose).
 
@@ -243,9 +250,8 @@ def scenario(name: str, model) -> Scenario:
     """
     tables = model.scenarios or {}
     names = scenario_names(model)
+    name = current_name(name, model)  # a former variant name runs as the current one
     base, var = split_variant(name, model)
-    if var is not None:  # a former variant name runs as the current one
-        name = f"{base}{VARIANT_SEPARATOR}{var}"
     if not isinstance(name, str) or base not in names:
         shown = ", ".join(names)
         if variant_names(model):
