@@ -1,5 +1,5 @@
 """Friction compensation (a deviation from the paper, off by default) measured on the rig scenarios:
-for each robot's rig scenarios (the Stewart platform's also at ``.paper-timing``) and adaptive
+for each robot's rig scenarios (the Stewart platform's also at ``.low-latency``) and adaptive
 controller, the max tracking error (% of the reference amplitude, the worst moving coordinate)
 over noise seeds, median [min - max], with the shipped gains (no compensation) and with the
 compensation of :data:`COMPENSATION` on top of them.
@@ -30,8 +30,8 @@ from hydrogen.simulation.seeds import parse_seeds, seed_list  # noqa: E402
 from hydrogen.simulation.simulator import simulate  # noqa: E402
 
 #: (robot, scenarios, controllers) measured.
-CASES = (("ubc_stewart", ("z-1hz", "z-2hz", "psi-1hz", "z-1hz.paper-timing", "z-2hz.paper-timing",
-                          "psi-1hz.paper-timing"), ("adaptive-robust",)),
+CASES = (("ubc_stewart", ("z-1hz", "z-2hz", "psi-1hz", "z-1hz.low-latency", "z-2hz.low-latency",
+                          "psi-1hz.low-latency"), ("adaptive-robust",)),
          ("excavator_arm", ("arm-dig",), ("adaptive-robust", "adaptive-observer")),
          ("loader_crane", ("crane-load",), ("adaptive-robust", "adaptive-observer")))
 

@@ -41,6 +41,8 @@ SUITE = (
                           "per period, compile"),
     ("bench_integrator", "the rig's plant sub-steps (and the predictor's) against a reference over noise seeds: "
                          "errors and cost per period"),
+    ("bench_delay", "the rig's tracking error against the computation delay, 0 to 1 control period, every "
+                    "controller over noise seeds; its figure"),
 )
 
 

@@ -1448,6 +1448,7 @@ def model_from_dict(data: dict, source: str = "<memory>", base_dir: Path | None 
     variants = r.table(data, "variants", required=False)
     for vname in variants:  # joined to a scenario's name with '.', so no '.' of its own
         r.label(f"[variants.{vname}]", vname)
+    _check_formerly(r, variants)
     model = Model(name=name, gravity=gravity, root=root, links=links, joints=joints, cylinders=cylinders,
                   coordinate_names=tuple(names), neutral_pose=neutral, theta_names=tuple(params),
                   theta_min=tmin, theta_max=tmax, joint_encoders=enc, scale=scale, friction_compensation=fcomp, figures_nonlinear=nonlinear, gains=gains,
@@ -1487,6 +1488,23 @@ def _check_tables(r: _Reader, m: Model):
         if not isinstance(gains, dict):
             raise r.error(f"{w} gains", f"expected a table of controllers, got {_quote(gains)}")
         _check_gains(r, gains, f"{w} gains", names)
+
+
+def _check_formerly(r: _Reader, variants: dict):
+    """Each variant's ``formerly`` (the names it was known by, which still run it): a list of names,
+    none another variant's current or former name, so an old name runs exactly one variant."""
+    owner = {}
+    for vname, table in variants.items():
+        old = table.get("formerly", []) if isinstance(table, dict) else []
+        w = f"[variants.{vname}] formerly"
+        if not isinstance(old, list) or not all(isinstance(o, str) for o in old):
+            raise r.error(w, f"expected a list of the variant's former names, got {_quote(old)}")
+        for o in old:
+            r.label(w, o)
+            if o in variants or o in owner:
+                taken = f"[variants.{o}]" if o in variants else f"[variants.{owner[o]}] formerly"
+                raise r.error(w, f"'{o}' is already {taken}: a former name runs one variant only")
+            owner[o] = vname
 
 
 def _check_gains(r: _Reader, gains: dict, where: str, names: dict):

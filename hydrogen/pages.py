@@ -566,6 +566,37 @@ def _integrator_field(b, key, field, what) -> list:
                         + [f"{what} {v}" for v in values], detail)
 
 
+def _delay(b) -> list:
+    rows = b.get("scenarios", {})
+    if not rows:
+        return []
+    fr = b.get("fractions", [])
+    out = ["## The computation delay: tracking error from 0 to 1 control period", "",
+           f"`benchmarks/bench_delay.py`: {b.get('model')}'s rig scenarios, every controller it lists, the command "
+           "applied a fraction of a control period after its measurement (the scenario's `delay`: 1 is the rig's "
+           f"full period, the `{b.get('variant')}` variant's 5 µs about 0), over noise seeds "
+           f"{', '.join(map(str, b.get('seeds', [])))} (not the seeds the gains were tuned on). Each controller runs "
+           f"with the description's gains at the rig and, where the `{b.get('variant')}` variant gives it its own, "
+           "with those too (main gain shown). Max tracking error, % of the amplitude of the coordinate the "
+           "reference moves: median [min - max] over the seeds; `!` marks a delay where a seed's run failed "
+           "(diverged; the statistics are over the others). The paper states no computation delay "
+           "([The timing](paper.md#the-timing)).", ""]
+    if b.get("figure"):
+        out += [f"![max error against computation delay]({Path(b['figure']).name})", ""]
+    table = []
+    for row in rows.values():
+        coord = row["coordinates"][0]
+        for c, sets in row["controllers"].items():
+            for label, e in sets.items():
+                g = e["gains"]
+                table.append([row["scenario"], coord, c, f"{label}: {g['main_gain']} {g['value']:.4g}"]
+                             + [(f"{_f(p['median'][coord])} [{_f(p['min'][coord])} - {_f(p['max'][coord])}]"
+                                 if p["median"][coord] is not None else "fail") + (" !" if p["failed"] else "")
+                                for p in e["delays"]])
+    return out + _table(["scenario", "coordinate", "controller", "gains"] + [f"delay {f:g} period" for f in fr],
+                        table)
+
+
 def benchmarks_page(results: dict, repeats: dict | None = None, source: str = "docs/bench.json") -> str:
     """Markdown of a ``hydrogen bench`` run (the dict it writes as JSON), optionally with the whole-run
     spread of the release comparison (``bench_release_repeats.json``); sections of modules not run
@@ -602,6 +633,8 @@ def benchmarks_page(results: dict, repeats: dict | None = None, source: str = "d
         out += _shared_step(results["bench_shared_step"])
     if "bench_integrator" in results:
         out += _integrator(results["bench_integrator"])
+    if "bench_delay" in results:
+        out += _delay(results["bench_delay"])
     return "\n".join(out).rstrip() + "\n"
 
 

@@ -162,6 +162,9 @@ VARIANT_KEYS = (
         default_text="the variant's name"),
     Key("[variants.<name>]", "gains", "", "gains.<controller> tables: this variant's tuning, over the scenario's",
         default=None, default_text="none"),
+    Key("[variants.<name>]", "formerly", "", "the names the variant was known by: <scenario>.<old name> "
+        "(and --variant <old name>) still runs it, with a note naming the new name", default=None,
+        default_text="none"),
 )
 
 #: Keys of a [scenarios.<name>] table besides the scenario fields.

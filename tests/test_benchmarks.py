@@ -534,7 +534,7 @@ def test_the_integrator_benchmark_counts_steps_and_picks_the_cheapest_count_that
     model = hydrogen.load_model("ubc_stewart")
     rig = scenario("z-1hz", model)  # a whole period of delay: the plant's sub-steps alone
     assert bi.plant_steps(rig) == rig.substeps and bi.predictor_steps(rig) == 0
-    paper = scenario("z-1hz.paper-timing", model)  # the command switches inside the period: one step more
+    paper = scenario("z-1hz.low-latency", model)  # the command switches inside the period: one step more
     assert bi.plant_steps(paper) == paper.substeps + 1
     pred = scenario("z-1hz.predictor", model)
     assert bi.predictor_steps(pred) == pred.predictor_substeps
@@ -547,3 +547,42 @@ def test_the_integrator_benchmark_counts_steps_and_picks_the_cheapest_count_that
         {"dev": 0.0, "paired": 0.2})  # the distribution holds, one seed moved
     assert bi.deviation({"errors": {"z": [1.0, None, 3.0]}, "failed": {"1": "diverged"}}, ref)["dev"] is None
     assert not bi._keeps(None, 1.0) and bi._keeps(0.3, 0.4) and not bi._keeps(0.3, 0.01)
+
+
+def test_the_delay_benchmark_gives_every_controller_at_every_delay(capsys):
+    """bench_delay's quick run: the default robot's first rig scenario, every controller it lists at
+    each delay (in periods, in s), with the rig's gains and the low-latency variant's where it gives
+    a controller its own; median within [min, max] over the seeds; the table and the page."""
+    import bench_delay as bd
+    from hydrogen.pages import benchmarks_page
+    from hydrogen.simulation.tuning import rig_scenarios
+
+    model = hydrogen.load_model()
+    res = bd.run(quick=True)
+    assert res["seeds"] == list(bd.QUICK_SEEDS) and res["fractions"] == list(bd.QUICK_FRACTIONS)
+    assert res["figure"] is None and list(res["scenarios"]) == list(rig_scenarios(model))[:1]
+    own = model.variants["low-latency"]["gains"]
+    for name, row in res["scenarios"].items():
+        assert row["coordinates"] == list(rig_scenarios(model)[name])
+        assert list(row["controllers"]) == list(model.controllers)
+        period = 1.0 / scenario(name, model).control_rate
+        for c, sets in row["controllers"].items():
+            assert list(sets) == (["rig", "low-latency"] if c in own else ["rig"])
+            for label, e in sets.items():
+                assert e["gains"]["scenario"] == (name if label == "rig" else f"{name}.low-latency")
+                assert e["gains"]["main_gain"] and e["gains"]["value"] > 0
+                assert [p["periods"] for p in e["delays"]] == list(bd.QUICK_FRACTIONS)
+                for p in e["delays"]:
+                    assert p["delay_s"] == pytest.approx(p["periods"] * period)
+                    assert p["completed"] + p["failed"] == len(bd.QUICK_SEEDS)
+                    for k in row["coordinates"]:
+                        assert p["min"][k] <= p["median"][k] <= p["max"][k]
+        # the low-latency gains run what the rig's do not: other errors at the same delay
+        ar = row["controllers"]["adaptive-robust"]
+        assert ar["rig"]["delays"][0]["median"] != ar["low-latency"]["delays"][0]["median"]
+    bd.print_table(res)
+    out = capsys.readouterr().out
+    for c in model.controllers:
+        assert f"\n{c:20} rig " in out
+    page = benchmarks_page({"bench_delay": res})
+    assert "## The computation delay" in page and "| z-1hz | z | adaptive-robust | low-latency: Lambda 20 |" in page

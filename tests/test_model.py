@@ -746,17 +746,17 @@ def test_a_neutral_pose_past_a_joint_limit_names_the_joint_not_the_stroke(tmp_pa
 
 
 def test_a_scenario_name_holding_the_variant_separator_is_refused_at_load(tmp_path):
-    """``[scenarios."z-1hz.paper-timing"]`` could never run: that name runs z-1hz at the variant
-    paper-timing. The load names the file and the table."""
+    """``[scenarios."z-1hz.low-latency"]`` could never run: that name runs z-1hz at the variant
+    low-latency. The load names the file and the table."""
     text = default_model_path().read_text()
     path = tmp_path / "my.toml"
-    path.write_text(text + '\n[scenarios."z-1hz.paper-timing"]\nrig = true\nduration = 1.0\n')
+    path.write_text(text + '\n[scenarios."z-1hz.low-latency"]\nrig = true\nduration = 1.0\n')
     with pytest.raises(hydrogen.ModelError) as err:
         hydrogen.load_model(path)
     msg = str(err.value)
-    assert msg.startswith(f"{path}: [scenarios.\"z-1hz.paper-timing\"]: ") and "may not contain '.'" in msg
-    path.write_text(text + '\n[scenarios.z-1hz-paper-timing]\nrig = true\nduration = 1.0\n')
-    assert "z-1hz-paper-timing" in hydrogen.load_model(path).scenarios
+    assert msg.startswith(f"{path}: [scenarios.\"z-1hz.low-latency\"]: ") and "may not contain '.'" in msg
+    path.write_text(text + '\n[scenarios.z-1hz-low-latency]\nrig = true\nduration = 1.0\n')
+    assert "z-1hz-low-latency" in hydrogen.load_model(path).scenarios
 
 
 @pytest.mark.parametrize("name", hydrogen.models())

@@ -255,7 +255,7 @@ def test_default_p_gain_has_a_margin_of_at_least_2():
 
 @pytest.mark.parametrize("periods", [0.4, 1.5])
 def test_a_fractional_delay_switches_the_command_inside_the_period(robot, periods):
-    """A delay of a fraction of a period (the paper's timing: the command applied once computed):
+    """A delay of a fraction of a period (low-latency: the command applied once computed):
     the C and the Python loops agree, the valves' commands are the whole-period ones, and the motion
     lies between that of the two whole-period delays around it."""
     dyn, name = robot
@@ -315,17 +315,54 @@ def test_a_variant_sets_its_fields_over_every_scenario_and_its_gains_over_the_sc
                                                     "adaptive-observer": {"Ktau": 99.0}}
 
 
-def test_the_shipped_paper_timing_runs_and_differs_from_the_full_period(dyn):
+def test_the_shipped_low_latency_runs_and_differs_from_the_full_period(dyn):
     from hydrogen.simulation.tuning import rig_scenarios
-    assert list(rig_scenarios(dyn.model, "paper-timing")) == ["z-1hz.paper-timing", "z-2hz.paper-timing",
-                                                              "psi-1hz.paper-timing"]
+    assert list(rig_scenarios(dyn.model, "low-latency")) == ["z-1hz.low-latency", "z-2hz.low-latency",
+                                                             "psi-1hz.low-latency"]
     full = simulate(dyn, "z-1hz", "backstepping", duration=0.3)
-    fast = simulate(dyn, "z-1hz.paper-timing", "backstepping", duration=0.3)
+    fast = simulate(dyn, "z-1hz.low-latency", "backstepping", duration=0.3)
     assert fast.scenario.delay == 5e-6 and fast.scenario.delay_split() == (0, pytest.approx(5e-6 * 512))
-    assert fast.scenario_name == "z-1hz.paper-timing"
-    # the paper's timing applies each command within the period it was computed in, not one period later
+    assert fast.scenario_name == "z-1hz.low-latency"
+    # near-zero latency applies each command within the period it was computed in, not one period later
     np.testing.assert_array_equal(fast.u_applied, fast.u)
     assert not np.array_equal(full.u_applied[1:], full.u[1:]) and np.array_equal(full.u_applied[1:], full.u[:-1])
+
+
+def _notes(call):
+    """``call()``'s result and the DescriptionNotes it showed (as Python shows them: each once)."""
+    import warnings
+
+    from hydrogen.errors import DescriptionNote
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("default")
+        out = call()
+    return out, [str(w.message) for w in caught if issubclass(w.category, DescriptionNote)]
+
+
+def test_a_former_variant_name_runs_the_same_variant_and_names_the_new_one_once(dyn, capsys):
+    from hydrogen import cli
+    from hydrogen.simulation.tuning import rig_scenarios
+    new = simulate(dyn, "z-1hz.low-latency", "adaptive-robust", duration=0.3)
+    old, notes = _notes(lambda: simulate(dyn, "z-1hz.paper-timing", "adaptive-robust", duration=0.3))
+    assert old.scenario == new.scenario and old.scenario_name == "z-1hz.low-latency"
+    for k in ("q", "u", "u_applied"):
+        np.testing.assert_array_equal(getattr(old, k), getattr(new, k))
+    assert len(notes) == 1 and "'paper-timing' is now 'low-latency'" in notes[0], notes
+    assert _notes(lambda: rig_scenarios(dyn.model, "paper-timing"))[0] == rig_scenarios(dyn.model, "low-latency")
+    # the command line: one note, and the run under the new name
+    assert cli.main(["simulate", "--scenario", "z-1hz.paper-timing", "--controller", "p", "--duration", "0.1"]) == 0
+    out, err = capsys.readouterr()
+    assert "scenario z-1hz.low-latency" in out
+    assert [line for line in err.splitlines() if "low-latency" in line] == [
+        line for line in err.splitlines() if line.startswith("hydrogen: note: ") and "is now 'low-latency'" in line]
+    assert sum("is now 'low-latency'" in line for line in err.splitlines()) == 1, err
+
+
+def test_a_former_variant_name_over_seeds_is_noted_once_not_by_each_worker(dyn, capfd):
+    (runs, notes) = _notes(lambda: simulate(dyn, "z-1hz.paper-timing", "p", duration=0.1, seeds=2, max_workers=2))
+    assert not runs.failures and [r.scenario_name for r in runs.results] == ["z-1hz.low-latency"] * 2
+    assert len(notes) == 1 and "is now 'low-latency'" in notes[0], notes
+    assert "is now" not in capfd.readouterr().err  # the workers got the current name
 
 
 @pytest.mark.parametrize("table, where", [
@@ -333,6 +370,10 @@ def test_the_shipped_paper_timing_runs_and_differs_from_the_full_period(dyn):
     ('[variants.slow]\nbogus = 1', "[variants.slow]"),
     ('[variants.slow]\ngains.nosuch = { Lambda = 1.0 }', "[variants.slow] gains"),
     ('[variants."a.b"]\ndelay = 0.0', "[variants.a.b]"),
+    ('[variants.slow]\nformerly = "fast"', "[variants.slow] formerly"),
+    ('[variants.slow]\nformerly = ["predictor"]', "[variants.slow] formerly.*'predictor' is already"),
+    ('[variants.slow]\nformerly = ["paper-timing"]', "[variants.slow] formerly.*already .variants.low-latency. formerly"),
+    ('[variants.slow]\nformerly = ["a.b"]', "[variants.slow] formerly"),
 ])
 def test_a_bad_variant_is_named_at_load(tmp_path, table, where):
     with pytest.raises(hydrogen.ModelError, match=where.replace("[", r"\[").replace("]", r"\]")):
@@ -342,9 +383,9 @@ def test_a_bad_variant_is_named_at_load(tmp_path, table, where):
 def test_an_unknown_variant_is_one_clear_error(capsys):
     from hydrogen import cli
     from hydrogen.simulation.tuning import margins
-    with pytest.raises(hydrogen.ScenarioError, match="unknown variant 'bogus'.*variants: paper-timing"):
+    with pytest.raises(hydrogen.ScenarioError, match="unknown variant 'bogus'.*variants: low-latency, predictor"):
         margins(variant="bogus")
-    with pytest.raises(hydrogen.ScenarioError, match=r"z-1hz.bogus.*variants: paper-timing"):
+    with pytest.raises(hydrogen.ScenarioError, match=r"z-1hz.bogus.*variants: low-latency, predictor"):
         hydrogen.simulate("z-1hz.bogus", "p", duration=0.1)
     for argv in (["margins", "--variant", "bogus"], ["tune-p", "--variant", "bogus"],
                  ["simulate", "--scenario", "z-1hz.bogus"]):

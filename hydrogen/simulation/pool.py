@@ -105,7 +105,10 @@ def run_sweep(runs, chunk_worker, filters_of, *, executor: Executor | None = Non
     if numbers is not None:
         from ..codegen.generate import check_numbers_mode
         check_numbers_mode(numbers)  # once here, not once per run in the workers
-    runs = list(runs)
+    from .scenarios import current_name
+    # a former variant name resolved here: its note shown once, by this process, not by each worker
+    runs = [dict(r, scenario=current_name(r["scenario"], model)) if isinstance(r, Mapping)
+            and isinstance(r.get("scenario"), str) else r for r in runs]
     keep = bool(results)
     parts = chunks(len(runs), max_workers or os.cpu_count() or 1)
     filters = filters_of(model, runs)

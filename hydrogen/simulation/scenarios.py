@@ -17,7 +17,7 @@ from ..scenario_settings import (_FIELDS, RENAMED, VARIANT_SEPARATOR, ScenarioFi
 from .checks import check_fields
 from .reference import MultiSine, Step
 
-__all__ = ["Scenario", "setting", "settings", "PER_ACTUATOR", "actuator_settings", "per_actuator_unit", "scenario", "scenario_names", "variant_names", "split_variant", "table_keys", "default_scenario_name", "RENAMED", "valve_vector"]
+__all__ = ["Scenario", "setting", "settings", "PER_ACTUATOR", "actuator_settings", "per_actuator_unit", "scenario", "scenario_names", "variant_names", "variant_name", "split_variant", "current_name", "table_keys", "default_scenario_name", "RENAMED", "valve_vector"]
 
 
 @dataclass(frozen=True)
@@ -202,13 +202,41 @@ def variant_names(model) -> tuple:
     return tuple(getattr(model, "variants", None) or {})
 
 
+def variant_name(name, model) -> str | None:
+    """The variant of the model's description that ``name`` names: itself, or the variant that lists
+    it in its ``formerly`` names (its old name: a :class:`~hydrogen.errors.DescriptionNote` names the
+    new one, shown once); None for no variant."""
+    import warnings
+
+    from ..errors import DescriptionNote
+
+    variants = getattr(model, "variants", None) or {}
+    if name in variants:
+        return name
+    new = next((v for v, table in variants.items() if name in (table.get("formerly") or ())), None)
+    if new is not None:  # stacklevel 1: one warning location, so Python shows the note once per process
+        warnings.warn(f"{model.source}: variant '{name}' is now '{new}' ([variants.{new}] formerly = "
+                      f"[\"{name}\"]): it runs as '{new}'", DescriptionNote)
+    return new
+
+
 def split_variant(name: str, model) -> tuple:
     """``(scenario, variant or None)`` of a scenario name: ``<scenario>.<variant>`` names a variant of
-    the model's description over one of its scenarios."""
+    the model's description over one of its scenarios (by its name or a former one: the variant's
+    current name is returned)."""
     base, dot, var = name.rpartition(VARIANT_SEPARATOR) if isinstance(name, str) else ("", "", "")
-    if dot and var in variant_names(model) and base in scenario_names(model):
-        return base, var
+    if dot and base in scenario_names(model):
+        var = variant_name(var, model)
+        if var is not None:
+            return base, var
     return name, None
+
+
+def current_name(name, model):
+    """``name`` with a former variant name replaced by the variant's current one (its note shown here,
+    once, not again by each worker a sweep runs it in); anything else as given."""
+    base, var = split_variant(name, model)
+    return name if var is None else f"{base}{VARIANT_SEPARATOR}{var}"
 
 
 def scenario(name: str, model) -> Scenario:
@@ -222,6 +250,7 @@ def scenario(name: str, model) -> Scenario:
     """
     tables = model.scenarios or {}
     names = scenario_names(model)
+    name = current_name(name, model)  # a former variant name runs as the current one
     base, var = split_variant(name, model)
     if not isinstance(name, str) or base not in names:
         shown = ", ".join(names)
@@ -250,6 +279,7 @@ def scenario(name: str, model) -> Scenario:
         for c, g in vspec.pop("gains", {}).items():
             gains[c] = {**gains.get(c, {}), **g}
         label = f"{label}, {vspec.pop('label', var)}"
+        vspec.pop("formerly", None)
         take(vspec)
         where = f"{model.source}: [scenarios.{base}] with [variants.{var}]"
     unknown = set(fields) - table_keys(rig=True)

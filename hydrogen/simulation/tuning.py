@@ -80,12 +80,13 @@ def rig_scenarios(model=None, variant: str | None = None) -> dict:
     with ``variant`` (a ``[variants.<name>]`` of the description), each as ``<scenario>.<variant>``."""
     from ..errors import ScenarioError
     from .reference import MultiSine
-    from .scenarios import scenario, scenario_names, variant_names
+    from .scenarios import scenario, scenario_names, variant_name, variant_names
 
     model = _load(model)
-    if variant is not None and variant not in variant_names(model):
+    if variant is not None and variant_name(variant, model) is None:
         known = ", ".join(variant_names(model)) or "none: add [variants.<name>] tables to its description"
         raise ScenarioError(f"unknown variant {variant!r} for model '{model.name}'; variants: {known}")
+    variant = None if variant is None else variant_name(variant, model)  # a former name: the current one
     out = {}
     for name in scenario_names(model):
         if not (model.scenarios[name] or {}).get("rig"):
