@@ -196,7 +196,8 @@ class Cylinder:
     the control chamber (cap side, area A) has volume A (l − L); the rod side (area a) is at P_s;
     force f = p_c A − P_s a (positive extends). Another kind holds the constants it does not share
     with the three-way cylinder (:data:`SHARED_KEYS`) in ``params`` (by parameter name, SI), and
-    ``piston_area``, ``rod_area``, ``chamber_length`` are None. A kind with unlimited travel (its
+    ``piston_area``, ``rod_area``, ``chamber_length`` are None; a three-way cylinder's ``params`` holds
+    its constants that are no field (:data:`THREE_WAY_EXTRA_KEYS`: ``leakage``). A kind with unlimited travel (its
     TRAVEL not ``limited``) has ``stroke_min`` = −∞ and ``stroke_max`` = ∞."""
 
     name: str
