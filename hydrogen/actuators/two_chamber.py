@@ -93,8 +93,8 @@ class Laws:
         return beta * (c * qa - aa * xdot - la) / va, beta * (-c * qb + ab * xdot - lb) / vb
 
     def f0(self, x, xdot, p, P):
-        """f0 = −ẋ (a_A²/V_A + a_B²/V_B) − (a_A/V_A) Q_A + (a_B/V_B) Q_B (m³/s per m³, times the
-        areas): β f0 is the force rate at a closed valve, the leakage's included."""
+        """f0 = −ẋ (a_A²/V_A + a_B²/V_B) − (a_A/V_A) Q_A + (a_B/V_B) Q_B: β f0 is the force rate
+        (N/s, or N·m/s) at a closed valve, the leakage's included."""
         (aa, ab), (va, vb) = self.areas(P), self.volumes(x, P)
         la, lb = self.leakage_flows(p, P)
         return -xdot * self.spring_rate(x, P) - aa / va * la + ab / vb * lb
