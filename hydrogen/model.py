@@ -93,9 +93,11 @@ PLACEHOLDER_INERTIA = 1e-5
 #: Cylinder constants (each declared by the three-way kind): [hydraulics] gives defaults, each [[cylinders]] entry may
 #: override them.
 HYDRAULIC_KEYS = ("piston_area", "rod_area", "chamber_length", "supply_pressure", "underlap", "flow_gain",
-                  "bulk_modulus", "orifice_linear_below", "stroke")
+                  "bulk_modulus", "orifice_linear_below", "stroke", "leakage")
 #: The actuator kind of a cylinder that names none (``kind``, in [[cylinders]] or [hydraulics]).
 DEFAULT_KIND = _DEFAULT_KIND
+#: The three-way cylinder's constants that are no :class:`Cylinder` field: held in its ``params``.
+THREE_WAY_EXTRA_KEYS = ("leakage",)
 #: The constants every cylinder kind has, held as :class:`Cylinder` fields (the rest of a kind's
 #: parameters are in ``Cylinder.params``); ``stroke`` is the pair (stroke_min, stroke_max).
 SHARED_KEYS = ("supply_pressure", "underlap", "flow_gain", "bulk_modulus", "orifice_linear_below", "stroke")
@@ -194,7 +196,8 @@ class Cylinder:
     the control chamber (cap side, area A) has volume A (l − L); the rod side (area a) is at P_s;
     force f = p_c A − P_s a (positive extends). Another kind holds the constants it does not share
     with the three-way cylinder (:data:`SHARED_KEYS`) in ``params`` (by parameter name, SI), and
-    ``piston_area``, ``rod_area``, ``chamber_length`` are None. A kind with unlimited travel (its
+    ``piston_area``, ``rod_area``, ``chamber_length`` are None; a three-way cylinder's ``params`` holds
+    its constants that are no field (:data:`THREE_WAY_EXTRA_KEYS`: ``leakage``). A kind with unlimited travel (its
     TRAVEL not ``limited``) has ``stroke_min`` = −∞ and ``stroke_max`` = ∞."""
 
     name: str
@@ -235,8 +238,11 @@ class Cylinder:
     def table(self) -> dict:
         """Every parameter of its kind by name (SI), for ``actuator(kind).parameters(table)``."""
         from .actuators import actuator
-        names = [p.name for p in actuator(self.kind).PARAMETERS]
-        return {k: self.params[k] if k in self.params else getattr(self, k) for k in names}
+        pars = actuator(self.kind).PARAMETERS
+        # a parameter neither in params nor a field (a three-way cylinder built without its optional
+        # constants) takes its declared default
+        return {p.name: self.params[p.name] if p.name in self.params else getattr(self, p.name, p.default)
+                for p in pars}
 
 
 def _stack(name):
@@ -503,11 +509,16 @@ def _baked_cylinder(c: Cylinder) -> list:
         g = c.linkage
         out += [["linkage", c.linkage_joint, g.crank, g.crank_offset, g.coupler, g.rocker, list(g.rocker_pivot),
                  list(g.cylinder_base), g.branch]]
+    from .actuators import actuator
+    from .actuators.declarations import exact_zeros
+    pars = actuator(c.kind).PARAMETERS
+    # a parameter whose 0 is structure is left out at 0, so a description without leakage hashes as before
+    skip = exact_zeros(pars, c.table) | {p.name for p in pars if p.gamma}  # γ: runtime, not baked
+    params = {k: v for k, v in sorted(c.params.items()) if k not in skip}
     if c.kind != DEFAULT_KIND:  # appended only then, so a three-way robot's hash is what it always was
-        from .actuators import actuator
-        gamma = {p.name for p in actuator(c.kind).PARAMETERS if p.gamma}  # runtime γ, not baked
-        out += [c.kind, {k: v for k, v in sorted(c.params.items()) if k not in gamma},
-                [c.stroke_min, c.stroke_max]] + ([c.joint] if c.joint is not None else [])
+        out += [c.kind, params, [c.stroke_min, c.stroke_max]] + ([c.joint] if c.joint is not None else [])
+    elif params:  # a three-way cylinder's leakage, appended only when given
+        out += [params]
     return out
 
 
@@ -1166,9 +1177,10 @@ def _cylinders(r: _Reader, data: dict, link_names: set, root_note: str = "", joi
         if linkage:
             _check_linkage(r, w, linkage, smin, smax, linkage_joint)
         _check_order(r, w, {**vals, "stroke_min": smin, "stroke_max": smax}, kind)
-        if kind == DEFAULT_KIND:
+        if kind == DEFAULT_KIND:  # its optional constants (not Cylinder fields) in params
+            extra = {k: vals.pop(k) for k in THREE_WAY_EXTRA_KEYS}
             out.append(Cylinder(name, ends[0][0], ends[0][1], ends[1][0], ends[1][1], stroke_min=smin,
-                                stroke_max=smax, **linkage, **vals))
+                                stroke_max=smax, params=extra, **linkage, **vals))
             continue
         shared = {k: vals.pop(k) for k in SHARED_KEYS if k in vals}
         out.append(Cylinder(name, ends[0][0], ends[0][1], ends[1][0], ends[1][1], piston_area=None, rod_area=None,

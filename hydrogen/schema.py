@@ -48,6 +48,8 @@ _HYDRAULIC = (  # [hydraulics] gives them for every cylinder; a [[cylinders]] en
     ("bulk_modulus", "Pa", "β, oil bulk modulus"),
     ("orifice_linear_below", "Pa", "the simulated plant's orifice roots turn linear below this pressure drop"),
     ("stroke", "m", "[shortest, longest] pin-to-pin length"),
+    ("leakage", "m³/(s Pa)", "c_l of (56): laminar leakage into the control chamber from the rod side at "
+     "supply, Q = c_l (P_s − p_c); ≥ 0, 0: none (the paper's c_l ≈ 0)"),
 )
 
 def _three_way_default(key: str) -> str:

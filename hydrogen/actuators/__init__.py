@@ -42,7 +42,7 @@ import pkgutil
 
 from ..errors import ModelError
 
-__all__ = ["KINDS", "DEFAULT_KIND", "actuator"]
+__all__ = ["KINDS", "DEFAULT_KIND", "actuator", "baked_parameters"]
 
 #: The kind of a cylinder whose description names none: the paper's actuator.
 DEFAULT_KIND = "three_way_cylinder"
@@ -76,3 +76,14 @@ def actuator(kind: str):
         return _REGISTRY[kind]
     except (KeyError, TypeError):
         raise ModelError(f"unknown actuator kind {kind!r}; known kinds: {', '.join(KINDS)}") from None
+
+
+def baked_parameters(cylinder) -> dict:
+    """The parameters of ``cylinder`` (a model's, any kind) by name as the derivation holds them
+    (:func:`~hydrogen.symbolic.constants.baked_table`): numbers, or symbols of the numbers' table,
+    and an exact 0 where a parameter declared ``zero_is_structure`` is 0 (no leakage: its terms drop out)."""
+    from ..symbolic.constants import baked_table
+    from .declarations import exact_zeros
+    mod = actuator(cylinder.kind)
+    values = mod.parameters(cylinder.table)
+    return baked_table(values, cylinder.name, exact_zeros(mod.PARAMETERS, values))

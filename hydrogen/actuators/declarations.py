@@ -14,7 +14,7 @@ import numpy as np
 
 __all__ = ["State", "Range", "Parameter", "Sensor", "Travel", "LENGTH", "ANGLE", "UNDERLAP", "ORIFICE_LINEAR_BELOW",
            "ROTATION", "SUPPLY_PRESSURE", "TANK_PRESSURE", "BULK_MODULUS", "FLOW_GAIN", "AREA", "PIN_LENGTH", "CHAMBER_LENGTH",
-           "VOLUME", "DISPLACEMENT", "TURNS", "parameter_values", "stacked_parameters", "state_bounds", "sp"]
+           "VOLUME", "DISPLACEMENT", "TURNS", "LEAKAGE", "exact_zeros", "parameter_values", "stacked_parameters", "state_bounds", "sp"]
 
 
 @dataclass(frozen=True)
@@ -63,6 +63,9 @@ VOLUME = Range("positive", 1e-9, 100.0)
 DISPLACEMENT = Range("positive", 1e-9, 1.0)
 #: rad: an angle within two turns either way
 TURNS = Range(None, -4 * math.pi, 4 * math.pi)
+#: m^3/(s Pa): a laminar leakage coefficient, Q = C_l dp: 0 (none) .. 1e-6 (100 L/s per bar, an open
+#: line rather than a leak; worn seals leak ~1e-11)
+LEAKAGE = Range("nonnegative", 0.0, 1e-6)
 
 
 @dataclass(frozen=True)
@@ -73,7 +76,12 @@ class Parameter:
 
     ``gamma``: one of the paper's hydraulic parameters γ = [β, βc] (the bulk modulus β or the flow gain
     c): the model holds its true value, but the symbolic laws take β and c as arguments, since the
-    controllers adapt them."""
+    controllers adapt them.
+
+    ``zero_is_structure``: a value of exactly 0 is structure, not a number (as a zero coordinate of a
+    joint origin): the derivation holds it as an exact 0, so the terms it multiplies drop out and the
+    generated code and the description's hash are those of a kind without it; any other value is a
+    number like the rest (a leakage coefficient, default 0)."""
 
     name: str
     unit: str
@@ -81,6 +89,7 @@ class Parameter:
     doc: str
     gamma: bool = False
     range: Range | None = None
+    zero_is_structure: bool = False
 
 
 #: The valve constants every kind with an orifice valve takes, with one default each (the three-way
@@ -166,6 +175,12 @@ class _LazySympy:
 
 #: SymPy for the kind modules' symbolic laws (imported on first attribute access).
 sp = _LazySympy()
+
+
+def exact_zeros(parameters, values: Mapping) -> set:
+    """The names of ``parameters`` whose value in ``values`` is structure: an exact 0 of a parameter
+    declared ``zero_is_structure``."""
+    return {p.name for p in parameters if p.zero_is_structure and float(values[p.name]) == 0.0}
 
 
 def parameter_values(kind: str, parameters, source, convert=float) -> dict:

@@ -9,10 +9,16 @@ valve meters the control chamber from supply and to the tank at 0 Pa (gauge), eq
 
 Chamber volume convention (the paper's choice of q and l in (58)): V(l) = A (l − L), l the cylinder
 length pin to pin (m) and L the ``chamber_length``, smaller than the shortest length so V stays
-positive. Then (56) with c_l ≈ 0 gives
+positive. Then (56), V_t/β ṗ_c = q_l + c_l (P_s − p_c) − V̇_t, with c_l = ``leakage`` (m³/(s Pa), the
+total leakage into the control chamber from the rod side at supply; default 0, the paper's c_l ≈ 0)
+gives
 
-    ṗ_c = β (q_l − A l̇) / (A (l − L)),   ḟ = A ṗ_c = β f0 + βc g0,
-    f0 = −A l̇ / (l − L),   g0 = (q_l / c) / (l − L)   (59).
+    ṗ_c = β (q_l + c_l (P_s − p_c) − A l̇) / (A (l − L)),   ḟ = A ṗ_c = β f0 + βc g0,
+    f0 = (−A l̇ + c_l (P_s − p_c)) / (l − L),   g0 = (q_l / c) / (l − L)   (59).
+
+The leakage is a known function of the measured p_c times β, so it joins f0 (the controllers know it
+as they know A and L) and (59) stays linear in γ = [β, βc]; for c_l = 0, (58)-(59) as printed. A
+leakage of 0 is structure (an exact 0 in the derivation): the laws are then the expressions they were.
 
 Every law has the uniform signature of :mod:`hydrogen.actuators` (``x`` the length l, ``xdot`` l̇,
 ``p`` the tuple of chamber pressures ``(p_c,)``, ``P`` the parameters by name); :class:`Symbolic`
@@ -23,7 +29,8 @@ from __future__ import annotations
 import numpy as np
 
 from . import orifices as orf
-from .declarations import (AREA, BULK_MODULUS, CHAMBER_LENGTH, FLOW_GAIN, LENGTH, ORIFICE_LINEAR_BELOW, SUPPLY_PRESSURE, UNDERLAP,
+from .declarations import (AREA, BULK_MODULUS, CHAMBER_LENGTH, FLOW_GAIN, LEAKAGE, LENGTH, ORIFICE_LINEAR_BELOW, SUPPLY_PRESSURE,
+                           UNDERLAP,
                            Parameter, Sensor, State, parameter_values, sp, stacked_parameters)
 
 __all__ = ["NAME", "DOC", "MOTION", "TRAVEL", "COUPLING_GAIN", "STATES", "PARAMETERS", "SENSORS", "Symbolic", "Numeric",
@@ -48,6 +55,8 @@ PARAMETERS = (
     Parameter("flow_gain", "m^2/(s sqrt(Pa))", None, "c: q = c u sqrt(dp)", gamma=True, range=FLOW_GAIN),
     Parameter("bulk_modulus", "Pa", None, "beta, effective oil bulk modulus", gamma=True, range=BULK_MODULUS),
     ORIFICE_LINEAR_BELOW,
+    Parameter("leakage", "m^3/(s Pa)", 0.0, "c_l of (56): total laminar leakage into the control chamber, "
+              "Q = c_l (P_s - p_c)", range=LEAKAGE, zero_is_structure=True),
 )
 SENSORS = (Sensor("l", "m", "cylinder length, pin to pin"),
            Sensor("pc", "Pa", "control-chamber pressure"))
@@ -111,8 +120,18 @@ class Symbolic:
         return orf.branch_inverse(w, P["underlap"], up, down)
 
     @staticmethod
+    def leakage_flow(p, P):
+        """c_l (P_s − p_c) of (56), m³/s into the control chamber; an exact 0 (no term) where c_l is
+        an exact 0 or ``P`` gives none (the paper's c_l ≈ 0)."""
+        cl = P.get("leakage", sp.S.Zero)
+        if cl == 0:
+            return sp.S.Zero
+        return cl * (P["supply_pressure"] - p[0])
+
+    @staticmethod
     def chamber_pressure_rate(l, ldot, q_l, P, beta):
-        """ṗ_c = β (q_l − A l̇) / (A (l − L)), Pa/s (eq. (56) with V = A (l − L), c_l = 0); q_l in m³/s."""
+        """ṗ_c = β (q_l − A l̇) / (A (l − L)), Pa/s (eq. (56) with V = A (l − L)); q_l in m³/s, the
+        valve's flow plus the leakage's (:meth:`leakage_flow`)."""
         A, L = P["piston_area"], P["chamber_length"]
         return beta * (q_l - A * ldot) / (A * (l - L))
 
@@ -126,12 +145,14 @@ class Symbolic:
         """(ṗ_c,) of the plant, Pa/s: the flow q_l = c (q_l/c), with the plant's smooth orifice law
         (``smooth``) or the controllers' (57) with clipped drops."""
         flow = Symbolic.valve_flow_smooth(u, p, P) if smooth else Symbolic.valve_flow(u, p, P, clipped=True)
-        return (Symbolic.chamber_pressure_rate(x, xdot, c * flow, P, beta),)
+        return (Symbolic.chamber_pressure_rate(x, xdot, c * flow + Symbolic.leakage_flow(p, P), P, beta),)
 
     @staticmethod
     def f0(x, xdot, p, P):
-        """f0 = −A l̇ / (l − L) of (59) (m²/s), so that β f0 is in N/s. Independent of ``p``."""
-        return -P["piston_area"] * xdot / (x - P["chamber_length"])
+        """f0 = (−A l̇ + c_l (P_s − p_c)) / (l − L) of (59) (m²/s), so that β f0 is in N/s; without
+        leakage independent of ``p`` (which may then be None)."""
+        L = P["chamber_length"]
+        return -P["piston_area"] * xdot / (x - L) + Symbolic.leakage_flow(p, P) / (x - L)
 
     @staticmethod
     def g0(x, p, u, P):
@@ -198,14 +219,19 @@ class Numeric:
         return p[0] * P["piston_area"] - P["supply_pressure"] * P["rod_area"]
 
     @staticmethod
+    def leakage_flow(p, P):
+        return P["leakage"] * (P["supply_pressure"] - p[0])
+
+    @staticmethod
     def pressure_rates(x, xdot, p, u, beta, c, P, smooth=True):
         flow = Numeric.valve_flow_smooth(u, p, P) if smooth else Numeric.valve_flow(u, p, P)
         A, L = P["piston_area"], P["chamber_length"]
-        return (beta * (c * flow - A * xdot) / (A * (x - L)),)
+        return (beta * (c * flow + Numeric.leakage_flow(p, P) - A * xdot) / (A * (x - L)),)
 
     @staticmethod
     def f0(x, xdot, p, P):
-        return -P["piston_area"] * xdot / (x - P["chamber_length"])
+        L = P["chamber_length"]
+        return -P["piston_area"] * xdot / (x - L) + Numeric.leakage_flow(p, P) / (x - L)
 
     @staticmethod
     def g0(x, p, u, P):

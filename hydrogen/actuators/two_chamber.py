@@ -11,18 +11,25 @@ tank P_t. Per unit flow gain c, the flow into A and the flow out of B are
     q_A/c = (u + d) √(P_s − p_A) [u ≥ −d] + (u − d) √(p_A − P_t) [u ≤ d],
     q_B/c = (u + d) √(p_B − P_t) [u ≥ −d] + (u − d) √(P_s − p_B) [u ≤ d],
 
-and (56) for each chamber (no leakage):
+and (56) for each chamber, with laminar leakage across the piston (C_i, A to B) and from each
+chamber to tank (C_e), both in m³/(s Pa):
 
-    ṗ_A = β (q_A − a_A ẋ) / V_A,   ṗ_B = β (−q_B + a_B ẋ) / V_B.
+    ṗ_A = β (q_A − a_A ẋ − Q_A) / V_A,   ṗ_B = β (−q_B + a_B ẋ − Q_B) / V_B,
+    Q_A = C_i (p_A − p_B) + C_e (p_A − P_t),   Q_B = −C_i (p_A − p_B) + C_e (p_B − P_t),
 
-By the chain rule ḟ = a_A ṗ_A − a_B ṗ_B = β f0 + βc g0 with
+Q_A, Q_B the leakage out of each chamber. By the chain rule ḟ = a_A ṗ_A − a_B ṗ_B = β f0 + βc g0 with
 
-    f0 = −ẋ (a_A²/V_A + a_B²/V_B),   g0 = (a_A/V_A) q_A/c + (a_B/V_B) q_B/c,
+    f0 = −ẋ (a_A²/V_A + a_B²/V_B) − (a_A/V_A) Q_A + (a_B/V_B) Q_B,
+    g0 = (a_A/V_A) q_A/c + (a_B/V_B) q_B/c,
 
 g0 piecewise linear and increasing in u, (u + d) S_hi [u ≥ −d] + (u − d) S_lo [u ≤ d] with
 S_hi = (a_A/V_A) √(P_s − p_A) + (a_B/V_B) √(p_B − P_t), S_lo = (a_A/V_A) √(p_A − P_t) +
 (a_B/V_B) √(P_s − p_B): the three-way law's form, so the same three-branch inverse applies.
-f0 is the time derivative of Φ(x) = −a_A ln V_A + a_B ln V_B.
+The leakage is part of β f0: a known function of the measured pressures and x, times β, so the
+controllers know it as they know the areas, and (59)'s form ḟ = γ1 f0 + γ2 g0, linear in γ, holds.
+Without leakage f0 is the time derivative of Φ(x) = −a_A ln V_A + a_B ln V_B (with it, of Φ plus the
+leakage's integral, which Φ leaves out). A leakage coefficient of 0 is structure (an exact 0 in the
+derivation), so without leakage every law is the expression it was.
 
 Equilibrium pressures for a force f: at rest (ẋ = 0) with the valve held still, both flows vanish at
 the same spool; for |u| < d that gives ((u + d)/(d − u))² = (p_A − P_t)/(P_s − p_A) = (P_s − p_B)/(p_B − P_t),
@@ -34,7 +41,8 @@ critically centred valve holds any pair; the same pair is taken (the limit d →
 """
 from __future__ import annotations
 
-from .declarations import BULK_MODULUS, FLOW_GAIN, ORIFICE_LINEAR_BELOW, SUPPLY_PRESSURE, TANK_PRESSURE, UNDERLAP, Parameter
+from .declarations import (BULK_MODULUS, FLOW_GAIN, LEAKAGE, ORIFICE_LINEAR_BELOW, SUPPLY_PRESSURE, TANK_PRESSURE, UNDERLAP,
+                           Parameter)
 
 __all__ = ["Laws", "VALVE_PARAMETERS"]
 
@@ -67,15 +75,29 @@ class Laws:
         aa, ab = self.areas(P)
         return p[0] * aa - p[1] * ab
 
+    def leakage_flows(self, p, P):
+        """(Q_A, Q_B), m³/s: the laminar leakage out of each chamber, across the piston
+        (``leakage_internal`` C_i, from A to B) and to tank (``leakage_external`` C_e, each chamber):
+        Q_A = C_i (p_A − p_B) + C_e (p_A − P_t), Q_B = −C_i (p_A − p_B) + C_e (p_B − P_t)."""
+        (pa, pb), pt = p, P["tank_pressure"]
+        ci, ce = P["leakage_internal"], P["leakage_external"]
+        across = ci * (pa - pb)
+        return across + ce * (pa - pt), -across + ce * (pb - pt)
+
     def pressure_rates(self, x, xdot, p, u, beta, c, P, smooth=True):
-        """(ṗ_A, ṗ_B), Pa/s, with the plant's smooth orifice law (``smooth``) or the clipped one."""
+        """(ṗ_A, ṗ_B), Pa/s, with the plant's smooth orifice law (``smooth``) or the clipped one, and
+        the leakage (:meth:`leakage_flows`)."""
         (aa, ab), (va, vb) = self.areas(P), self.volumes(x, P)
         qa, qb = self.valve_flows(u, p, P, smooth)
-        return beta * (c * qa - aa * xdot) / va, beta * (-c * qb + ab * xdot) / vb
+        la, lb = self.leakage_flows(p, P)
+        return beta * (c * qa - aa * xdot - la) / va, beta * (-c * qb + ab * xdot - lb) / vb
 
     def f0(self, x, xdot, p, P):
-        """f0 = −ẋ (a_A²/V_A + a_B²/V_B): β f0 is the force rate at a closed valve."""
-        return -xdot * self.spring_rate(x, P)
+        """f0 = −ẋ (a_A²/V_A + a_B²/V_B) − (a_A/V_A) Q_A + (a_B/V_B) Q_B: β f0 is the force rate
+        (N/s, or N·m/s) at a closed valve, the leakage's included."""
+        (aa, ab), (va, vb) = self.areas(P), self.volumes(x, P)
+        la, lb = self.leakage_flows(p, P)
+        return -xdot * self.spring_rate(x, P) - aa / va * la + ab / vb * lb
 
     def g0(self, x, p, u, P):
         """g0 = (a_A/V_A) q_A/c + (a_B/V_B) q_B/c, drops clipped at 0."""
@@ -126,4 +148,8 @@ VALVE_PARAMETERS = (
               range=FLOW_GAIN),
     Parameter("bulk_modulus", "Pa", None, "beta, effective oil bulk modulus", gamma=True, range=BULK_MODULUS),
     ORIFICE_LINEAR_BELOW,
+    Parameter("leakage_internal", "m^3/(s Pa)", 0.0, "C_i, laminar leakage across the piston, A to B: "
+              "Q = C_i (p_A - p_B)", range=LEAKAGE, zero_is_structure=True),
+    Parameter("leakage_external", "m^3/(s Pa)", 0.0, "C_e, laminar leakage from each chamber to tank: "
+              "Q = C_e (p - P_t)", range=LEAKAGE, zero_is_structure=True),
 )

@@ -89,6 +89,7 @@ def baked(value, name: str | None = None) -> sp.Expr:
     return sp.Float(repr(float(value)))
 
 
-def baked_table(values: dict, prefix: str) -> dict:
-    """``{name: baked(value, "<prefix>.<name>")}``: a component's numbers (an actuator's parameters)."""
-    return {k: baked(v, f"{prefix}.{k}") for k, v in values.items()}
+def baked_table(values: dict, prefix: str, zeros=()) -> dict:
+    """``{name: baked(value, "<prefix>.<name>")}``: a component's numbers (an actuator's parameters);
+    the names in ``zeros`` are structure, an exact 0 (no number, in either mode)."""
+    return {k: sp.S.Zero if k in zeros else baked(v, f"{prefix}.{k}") for k, v in values.items()}

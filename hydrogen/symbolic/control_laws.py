@@ -18,10 +18,10 @@ from dataclasses import dataclass, field
 
 import sympy as sp
 
-from ..actuators import actuator
+from ..actuators import actuator, baked_parameters
 from ..pressures import blocks, n_pressures
 from .calculus import clip, projection
-from .constants import PRESSURE_EPS, baked, baked_table
+from .constants import PRESSURE_EPS, baked
 from .kinematics import leg_intermediates, matrix_symbols, pose_rates, pose_symbols, rate_symbols
 from .rigid_body import (coriolis_matrix, gravity, inverse_dynamics, mass_matrix, mass_matrix_inverse, regressor,
                          rigid_body_stages, theta_symbols)
@@ -89,7 +89,7 @@ class Common:
         #: each cylinder's actuator kind, its laws (SymPy) and its parameters (baked SymPy numbers), by name
         self.kinds = [x.kind for x in model.cylinders]
         self.laws = [actuator(x.kind).Symbolic for x in model.cylinders]
-        self.P = [baked_table(actuator(x.kind).parameters(x.table), x.name) for x in model.cylinders]
+        self.P = [baked_parameters(x) for x in model.cylinders]
         self.ps = [P["supply_pressure"] for P in self.P]
         # the three-way cylinder's A and L (None for another kind)
         self.A = [P.get("piston_area") for P in self.P]

@@ -11,12 +11,12 @@ from dataclasses import dataclass
 
 import sympy as sp
 
-from ..actuators import actuator
+from ..actuators import actuator, baked_parameters
 from ..names import NUMBERS
 from ..plant import plant_layout
 from ..pressures import blocks, n_pressures, uniform_three_way
 from .body_functions import SymbolicFunction, rigid_body_functions  # noqa: F401 (also their public path)
-from .constants import PRESSURE_EPS, baked_table
+from .constants import PRESSURE_EPS
 from .kinematics import leg_stages, pose_symbols, rate_symbols
 from .plant import plant_rhs
 
@@ -75,7 +75,7 @@ def hydraulic_functions(model) -> list:
     p = [tuple(pc[a:b]) for a, b in blocks(model)]
     g1, g2 = rate_symbols("gamma1", m), rate_symbols("gamma2", m)
     kinds = [actuator(c.kind) for c in model.cylinders]
-    P = [baked_table(k.parameters(c.table), c.name) for k, c in zip(kinds, model.cylinders)]
+    P = [baked_parameters(c) for c in model.cylinders]
     laws = [k.Symbolic for k in kinds]
     # Plant: ṗ with q = c · (unit flow), c = γ2/γ1, β = γ1, orifice linearised near Δp = 0.
     rate = sp.Matrix([r for i in range(m)

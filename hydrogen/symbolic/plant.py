@@ -12,10 +12,9 @@ from __future__ import annotations
 
 import sympy as sp
 
-from ..actuators import actuator
+from ..actuators import actuator, baked_parameters
 from ..plant import BLOCKS, block, chambers, friction, mechanics, valve
 from ..pressures import blocks
-from .constants import baked_table
 from .kinematics import leg_intermediates, rate_symbols
 from .rigid_body import theta_symbols
 
@@ -37,7 +36,7 @@ def plant_rhs(model):
     x = sp.Matrix([s for name in BLOCKS for st in block(name).STATES for s in states[st.name]])
     cyl = model.cylinders
     laws = [actuator(c.kind).Symbolic for c in cyl]
-    P = [baked_table(actuator(c.kind).parameters(c.table), c.name) for c in cyl]
+    P = [baked_parameters(c) for c in cyl]
     p = [tuple(pc[a:b]) for a, b in blocks(model)]  # each actuator's pressure block
 
     l, JL, _, kin = leg_intermediates(model, q, qd, rates=False)  # the plant needs no J̇L
