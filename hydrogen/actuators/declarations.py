@@ -14,7 +14,7 @@ import numpy as np
 
 __all__ = ["State", "Range", "Parameter", "Sensor", "Travel", "LENGTH", "ANGLE", "UNDERLAP", "ORIFICE_LINEAR_BELOW",
            "ROTATION", "SUPPLY_PRESSURE", "TANK_PRESSURE", "BULK_MODULUS", "FLOW_GAIN", "AREA", "PIN_LENGTH", "CHAMBER_LENGTH",
-           "VOLUME", "DISPLACEMENT", "TURNS", "LEAKAGE", "exact_zeros", "parameter_values", "stacked_parameters", "state_bounds", "sp"]
+           "VOLUME", "DISPLACEMENT", "TURNS", "LEAKAGE", "exact_zeros", "parameter_values", "readers", "stacked_parameters", "state_bounds", "sp"]
 
 
 @dataclass(frozen=True)
@@ -206,6 +206,25 @@ def parameter_values(kind: str, parameters, source, convert=float) -> dict:
                              f"({par.unit}), got {value!r}")
         out[par.name] = convert(value)
     return out
+
+
+def readers(module: str) -> tuple:
+    """``(parameters, stacked)`` of the actuator kind of ``module`` (its ``__name__``), read from its
+    ``NAME`` and ``PARAMETERS`` when called: ``parameters(source, convert=float)``, its parameters
+    from a cylinder or joint actuator (or a mapping), defaults filled in (:func:`parameter_values`);
+    ``stacked(sources)``, those of several actuators as arrays (m,), for the numeric laws
+    (:func:`stacked_parameters`)."""
+    import sys
+
+    def values(source, convert=float) -> dict:
+        kind = sys.modules[module]
+        return parameter_values(kind.NAME, kind.PARAMETERS, source, convert)
+
+    def stacked(sources) -> dict:
+        kind = sys.modules[module]
+        return stacked_parameters(kind.NAME, kind.PARAMETERS, sources)
+
+    return values, stacked
 
 
 def stacked_parameters(kind: str, parameters, sources) -> dict:

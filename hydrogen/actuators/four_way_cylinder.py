@@ -15,7 +15,7 @@ f0, g0 and the valve inverse are :class:`~hydrogen.actuators.two_chamber.Laws` o
 from __future__ import annotations
 
 from . import orifices as orf
-from .declarations import AREA, LENGTH, PIN_LENGTH, VOLUME, Parameter, Sensor, State, parameter_values, stacked_parameters
+from .declarations import AREA, LENGTH, PIN_LENGTH, VOLUME, Parameter, Sensor, State, readers
 from .two_chamber import VALVE_PARAMETERS, Laws
 
 __all__ = ["NAME", "DOC", "MOTION", "TRAVEL", "COUPLING_GAIN", "STATES", "PARAMETERS", "SENSORS", "Symbolic", "Numeric",
@@ -45,14 +45,9 @@ SENSORS = (Sensor("l", "m", "cylinder length, pin to pin"),
            Sensor("pB", "Pa", "rod-side chamber pressure"))
 
 
-def parameters(source, convert=float) -> dict:
-    """This kind's parameters from a cylinder (or mapping), defaults filled in."""
-    return parameter_values(NAME, PARAMETERS, source, convert)
-
-
-def stacked(sources) -> dict:
-    """The parameters of several cylinders as arrays (m,), for the numeric laws."""
-    return stacked_parameters(NAME, PARAMETERS, sources)
+#: Its parameters from a cylinder or joint actuator (or a mapping), defaults filled in; and those of
+#: several actuators as arrays (m,), for the numeric laws.
+parameters, stacked = readers(__name__)
 
 
 def areas(P):

@@ -12,8 +12,8 @@ volumes: f0 = −θ̇ D_m² (1/V_A + 1/V_B), a constant spring rate, whose poten
 from __future__ import annotations
 
 from . import orifices as orf
-from .declarations import DISPLACEMENT, ROTATION, VOLUME, Parameter, Sensor, State, parameter_values, stacked_parameters
-from .two_chamber import VALVE_PARAMETERS, Laws
+from .declarations import DISPLACEMENT, ROTATION, VOLUME, Parameter, Sensor, State, readers
+from .two_chamber import VALVE_PARAMETERS, Laws, displacement_areas
 
 __all__ = ["NAME", "DOC", "MOTION", "TRAVEL", "COUPLING_GAIN", "STATES", "PARAMETERS", "SENSORS", "Symbolic", "Numeric",
            "parameters", "stacked"]
@@ -40,19 +40,13 @@ SENSORS = (Sensor("q", "rad", "joint angle (encoder), unwrapped"),
            Sensor("pB", "Pa", "port B pressure"))
 
 
-def parameters(source, convert=float) -> dict:
-    """This kind's parameters from a joint's actuator table (or mapping), defaults filled in."""
-    return parameter_values(NAME, PARAMETERS, source, convert)
+#: Its parameters from a cylinder or joint actuator (or a mapping), defaults filled in; and those of
+#: several actuators as arrays (m,), for the numeric laws.
+parameters, stacked = readers(__name__)
 
 
-def stacked(sources) -> dict:
-    """The parameters of several motors as arrays (m,), for the numeric laws."""
-    return stacked_parameters(NAME, PARAMETERS, sources)
-
-
-def areas(P):
-    """(D_m, D_m), m³/rad: τ = D_m p_A − D_m p_B."""
-    return P["displacement"], P["displacement"]
+#: (D_m, D_m), m³/rad: τ = D_m p_A − D_m p_B.
+areas = displacement_areas
 
 
 def volumes(x, P):

@@ -30,8 +30,7 @@ import numpy as np
 
 from . import orifices as orf
 from .declarations import (AREA, BULK_MODULUS, CHAMBER_LENGTH, FLOW_GAIN, LEAKAGE, LENGTH, ORIFICE_LINEAR_BELOW, SUPPLY_PRESSURE,
-                           UNDERLAP,
-                           Parameter, Sensor, State, parameter_values, sp, stacked_parameters)
+                           UNDERLAP, Parameter, Sensor, State, readers, sp)
 
 __all__ = ["NAME", "DOC", "MOTION", "TRAVEL", "COUPLING_GAIN", "STATES", "PARAMETERS", "SENSORS", "Symbolic", "Numeric",
            "parameters", "stacked"]
@@ -62,15 +61,9 @@ SENSORS = (Sensor("l", "m", "cylinder length, pin to pin"),
            Sensor("pc", "Pa", "control-chamber pressure"))
 
 
-def parameters(source, convert=float) -> dict:
-    """This kind's parameters from a cylinder (or mapping), defaults filled in: see
-    :func:`~hydrogen.actuators.declarations.parameter_values`."""
-    return parameter_values(NAME, PARAMETERS, source, convert)
-
-
-def stacked(sources) -> dict:
-    """The parameters of several cylinders as arrays (m,), for the numeric laws."""
-    return stacked_parameters(NAME, PARAMETERS, sources)
+#: Its parameters from a cylinder or joint actuator (or a mapping), defaults filled in; and those of
+#: several actuators as arrays (m,), for the numeric laws.
+parameters, stacked = readers(__name__)
 
 
 class Symbolic:

@@ -44,7 +44,7 @@ from __future__ import annotations
 from .declarations import (BULK_MODULUS, FLOW_GAIN, LEAKAGE, ORIFICE_LINEAR_BELOW, SUPPLY_PRESSURE, TANK_PRESSURE, UNDERLAP,
                            Parameter)
 
-__all__ = ["Laws", "VALVE_PARAMETERS"]
+__all__ = ["Laws", "VALVE_PARAMETERS", "displacement_areas"]
 
 
 class Laws:
@@ -153,3 +153,9 @@ VALVE_PARAMETERS = (
     Parameter("leakage_external", "m^3/(s Pa)", 0.0, "C_e, laminar leakage from each chamber to tank: "
               "Q = C_e (p - P_t)", range=LEAKAGE, zero_is_structure=True),
 )
+
+
+def displacement_areas(P):
+    """(D_m, D_m), m³/rad: the effective areas of a rotary kind of displacement D_m (``displacement``),
+    whose torque is τ = D_m p_A − D_m p_B."""
+    return P["displacement"], P["displacement"]
