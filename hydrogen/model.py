@@ -1123,7 +1123,7 @@ def _cylinders(r: _Reader, data: dict, link_names: set, root_note: str = "", joi
     raw = data.get("cylinders")
     if not isinstance(raw, list) or not raw:
         raise r.error("[[cylinders]]", "expected one [[cylinders]] table per coordinate")
-    out, names, used = [], set(), {"kind"}
+    out, names, used = [], set(), {"kind", "valve"}
     for i, cy in enumerate(raw):
         w = f"[[cylinders]] #{i + 1}"
         if not isinstance(cy, dict):
@@ -1372,8 +1372,8 @@ def _datasheet_valve(r: _Reader, w: str, cy: dict, defaults: dict, kind: str):
     opening = float(ValveLaw.effective([travel], [travel], row)[0])
     root = np.sqrt(v["rated_drop"])
     per_gain = float(orifice_terms_np(opening, underlap, root, root))
-    flow_gain = r.number(f"{wv}.rated_flow", v["rated_flow"] / per_gain,
-                         declared_range(kind, "flow_gain"))  # message: the derived flow_gain's range
+    flow_gain = r.number(f"{wv}.rated_flow (the flow gain it gives)", v["rated_flow"] / per_gain,
+                         declared_range(kind, "flow_gain"))
     derived = {"flow_gain": flow_gain, "underlap": r.number(f"{wv}.overlap", underlap, declared_range(kind, "underlap"))}
     return spool, {k: val for k, val in derived.items() if k in names}
 
