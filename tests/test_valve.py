@@ -158,7 +158,9 @@ def test_a_datasheet_valve_loads_builds_and_runs_closed_loop(dyn):
     assert np.all(np.isfinite(c_run.q))
     np.testing.assert_allclose(c_run.q, py_run.q, rtol=0, atol=1e-9)
     today = hydrogen.simulate("paper-sim", "adaptive-robust", dyn=dyn, **kw)
-    assert not np.array_equal(c_run.pc, today.pc)  # another flow gain and a saturating spool: another run
+    assert not np.array_equal(c_run.pressures, today.pressures)  # another flow gain, a saturating spool
+    # the tracking stays as good as with the rig's ideal-orifice valve (the spool saturates at 1 mm)
+    assert np.abs(c_run.q - c_run.q_d).max() < 2 * np.abs(today.q - today.q_d).max() + 1e-3
 
 
 @pytest.mark.parametrize("table, where, text", [
