@@ -228,6 +228,14 @@ class Cylinder:
     valve: dict | None = None
 
     @property
+    def valve_limits(self) -> tuple:
+        """(saturation, dead band): the plant terms its datasheet valve needs, structure (baked): a
+        full opening > 0, an overlap > 0; (False, False) without a datasheet valve."""
+        if self.valve is None:
+            return (False, False)
+        return (self.valve["full_opening"] > 0, self.valve["overlap"] > 0)
+
+    @property
     def travel(self):
         """Its kind's TRAVEL (:class:`~hydrogen.actuators.declarations.Travel`): what its coordinate is
         (a length in m, an angle in rad) and what its range is called, for every message about it."""
@@ -511,6 +519,8 @@ def _baked_cylinder(c: Cylinder) -> list:
         gamma = {p.name for p in actuator(c.kind).PARAMETERS if p.gamma}  # runtime γ, not baked
         out += [c.kind, {k: v for k, v in sorted(c.params.items()) if k not in gamma},
                 [c.stroke_min, c.stroke_max]] + ([c.joint] if c.joint is not None else [])
+    if any(c.valve_limits):  # appended only then: the plant's valve terms differ, a robot without hashes as before
+        out += [["valve_limits", *c.valve_limits]]
     return out
 
 

@@ -98,10 +98,14 @@ def test_the_valves_sympy_and_numpy_laws_agree(par):
     rates_n = valve.Numeric.rates(s, r, u, par)
     for k in ("spool", "spool_rate"):
         assert np.allclose(np.array(rates_s[k].subs(subs), float).ravel(), rates_n[k], rtol=1e-12, atol=0)
-    eff = np.array(valve.Symbolic.effective(sy[0], sy[2], vs).subs(subs), float).ravel()
+    # with both terms (a datasheet valve's; o = 0 or S = 0 takes away exactly 0), as numpy always has them
+    eff = np.array(valve.Symbolic.effective(sy[0], sy[2], vs, [(True, True)] * m).subs(subs), float).ravel()
     assert np.array_equal(eff, valve.Numeric.effective(s, u, par))
+    plain = valve.Symbolic.effective(sy[0], sy[2], vs)  # no datasheet valve: no saturation, no dead band
+    assert not plain.atoms(sp.Min, sp.Max)
     if not par[3] and not par[4]:  # no dead band, no saturation: the spool state, or the command
         assert np.array_equal(eff, u if tuple(par[:2]) == (0.0, 0.0) else s)
+        assert np.array_equal(np.array(plain.subs(subs), float).ravel(), eff)
 
 
 def test_the_frictions_sympy_and_numpy_laws_agree():

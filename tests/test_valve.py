@@ -5,6 +5,7 @@ import tomllib
 
 import numpy as np
 import pytest
+import sympy as sp
 
 import hydrogen
 from hydrogen.actuators import actuator
@@ -139,6 +140,19 @@ def test_overlap_gives_no_flow_inside_the_dead_band():
         assert abs(_chamber_flow(c, valve.Numeric.effective([u], [u], row), 1e6)) > 0
 
 
+@pytest.mark.parametrize("overlap, limits", [(-0.0554, (True, False)), (0.0, (True, False)), (0.2, (True, True))])
+def test_only_a_datasheet_valve_puts_its_saturation_and_dead_band_in_the_plant(model, overlap, limits):
+    m = _stewart_with({**DATASHEET, "overlap": overlap}, where="leg2")
+    assert [c.valve_limits for c in m.cylinders] == [(False, False), limits] + [(False, False)] * 4
+    assert [c.valve_limits for c in model.cylinders] == [(False, False)] * 6
+    # structure: such a robot gets its own generated plant; one without keeps today's hash
+    assert m.structure() != model.structure() and "valve_limits" not in str(model.baked())
+    spool, u = (sp.Matrix(sp.symbols(f"{k}0:6", real=True)) for k in ("s", "u"))
+    eff = valve.Symbolic.effective(spool, u, valve.Symbolic.parameters(6), [c.valve_limits for c in m.cylinders])
+    terms = [len(e.atoms(sp.Min, sp.Max)) for e in eff]
+    assert terms == [0, 2 * sum(limits), 0, 0, 0, 0]  # a Min and a Max per term, on leg2 alone
+
+
 def test_an_actuators_valve_overrides_the_rigs_for_it_alone(model):
     m = _stewart_with({**DATASHEET, "damping": 0.5, "bandwidth_hz": 120.0}, where="leg2")
     rows = valve_parameters(scenario("paper-sim", m), m)
@@ -150,7 +164,7 @@ def test_an_actuators_valve_overrides_the_rigs_for_it_alone(model):
 
 def test_a_datasheet_valve_loads_builds_and_runs_closed_loop(dyn):
     m = _stewart_with(DATASHEET)
-    assert m.underlap.tolist() == [55.4e-6] * 6  # the same library (the flow gain is an input)
+    assert m.underlap.tolist() == [55.4e-6] * 6  # the flow gain is an input; the saturation is structure
     d = hydrogen.build(m)
     kw = dict(duration=0.3, noise_l=0.0, noise_p=0.0, noise_q=0.0)
     c_run = hydrogen.simulate("paper-sim", "adaptive-robust", dyn=d, **kw)

@@ -10,7 +10,8 @@ the rig's valve settings:
 
 The chambers see the effective spool: the spool state with either valve model, else the command;
 held to the full opening ±S where S > 0 (the spool's saturation; 0: none), less the overlap o ≥ 0
-(m of spool travel: no edge opens for |spool| ≤ o, the dead band; 0: none). A dead band of o on a
+(m of spool travel: no edge opens for |spool| ≤ o, the dead band; 0: none). Those two terms are in
+the generated plant only for an actuator whose datasheet valve needs them (structure, baked). A dead band of o on a
 critically centred edge pair is the orifice law with underlap −o (both give (|u| − o) sign(u) of
 opening), so the kinds' orifice laws stay as they are.
 """
@@ -61,20 +62,25 @@ class Symbolic:
                                      f"opening_valve_{i}", real=True)])
 
     @staticmethod
-    def effective(spool, u, valve):
+    def effective(spool, u, valve, limits=None):
         """The spool opening each chamber sees (m): the spool state with either valve model, else the
-        command; saturated at ±S where S > 0, less the dead band o. One selection per actuator: each
-        branch of a Piecewise costs CasADi two masked terms and a sum, so branches with the same value
-        share one condition. With o = 0 the dead band takes away exactly 0."""
+        command; saturated at ±S, less the dead band o, for the actuators whose ``limits[i]`` =
+        (saturation, dead band) asks for them (:attr:`hydrogen.model.Cylinder.valve_limits`, structure:
+        a robot without a datasheet valve keeps the plain selection; its S = o = 0 would take away
+        exactly 0, at some 11 % more plant instructions). One selection per actuator: each branch of a
+        Piecewise costs CasADi two masked terms and a sum, so branches with the same value share one
+        condition."""
         from ..actuators.declarations import sp
         out = []
         for i in range(len(u)):
             tau_v, w_v, _, o, s = valve[WIDTH * i:WIDTH * i + WIDTH]
+            saturates, dead_band = limits[i] if limits is not None else (False, False)
             second, lagged = sp.Gt(w_v, 0, evaluate=False), sp.Gt(tau_v, 0, evaluate=False)
             pos = sp.Piecewise((spool[i], sp.Or(second, lagged, evaluate=False)), (u[i], True), evaluate=False)
-            pos = sp.Piecewise((sp.Min(sp.Max(pos, -s), s), sp.Gt(s, 0, evaluate=False)), (pos, True),
-                               evaluate=False)
-            out.append(pos - sp.Min(sp.Max(pos, -o), o))
+            if saturates:
+                pos = sp.Piecewise((sp.Min(sp.Max(pos, -s), s), sp.Gt(s, 0, evaluate=False)), (pos, True),
+                                   evaluate=False)
+            out.append(pos - sp.Min(sp.Max(pos, -o), o) if dead_band else pos)
         return sp.Matrix(out)
 
     @staticmethod

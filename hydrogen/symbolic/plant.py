@@ -46,7 +46,7 @@ def plant_rhs(model):
     # The effective spool position is an intermediate symbol: nesting its Piecewise
     # inside the valve law's would make SymPy merge conditions (slow, and ITE nodes).
     spool_eff = rate_symbols("spool_eff", m)
-    spool_eff_value = valve.Symbolic.effective(spool, u, valve_par)
+    spool_eff_value = valve.Symbolic.effective(spool, u, valve_par, [c.valve_limits for c in model.cylinders])
     rates = valve.Symbolic.rates(spool, spool_rate, u, valve_par)
     f_leg = rate_symbols("plant_fleg", m)
     f_leg_value = sp.Matrix([laws[i].force(p[i], P[i]) - friction.Symbolic.force(ldot[i], *fric[3 * i:3 * i + 3])
