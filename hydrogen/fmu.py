@@ -364,7 +364,7 @@ def _plant_arrays(dyn, p):
     """One array per input of plant_rhs besides x and u: name, loop-config field, entries, values."""
     from .export import number_ranges
     from .simulation.scenarios import actuator_settings
-    from .simulation.simulator import valve_vector
+    from .simulation.scenarios import valve_parameters
     model, sc = dyn.model, p.sc
     cyls = [c.name for c in model.cylinders]
     fn = dyn.functions["plant_rhs"]
@@ -378,7 +378,9 @@ def _plant_arrays(dyn, p):
                                      f"gain) of cylinder {c}") for c in cyls]),
         "friction": (actuator_settings(sc, model)["friction"].ravel(),
                      [e for c in model.cylinders for e in _friction_entries(c)]),
-        "valve": (valve_vector(sc), [(_dotted("valve", par.name), par.unit, par.doc) for par in valve.PARAMETERS]),
+        "valve": (valve_parameters(sc, model).ravel(),
+                  [(_dotted("valve", c, par.name), par.unit, f"{par.doc} of actuator {c}")
+                   for c in cyls for par in valve.PARAMETERS]),
     }
     ranges = _plant_ranges(model, sc)
     out = []
@@ -419,7 +421,7 @@ def _plant_ranges(model, sc) -> dict:
         "gamma1": [(float(model.gamma1_min), float(model.gamma1_max))] * m,
         "gamma2": [(float(model.gamma2_min), float(model.gamma2_max))] * m,
         "friction": [(0.0, None), (0.0, None), (POSITIVE, None)] * m,
-        "valve": [(0.0, None), (0.0, omega_max), (POSITIVE, None)],
+        "valve": [(0.0, None), (0.0, omega_max), (POSITIVE, None), (0.0, None), (0.0, None)] * m,
     }
 
 

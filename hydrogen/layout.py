@@ -26,9 +26,10 @@ SLOTS = ("q", "qdot", "pc", "l", "qd0", "qd1", "qd2", "qd3", "xc", "adapt", "u_a
 MAX_DELAY = 8
 
 #: The controller's own model in the delay predictor: no friction ([F_c, b, v_s] of every actuator; the
-#: smoothing speed v_s only keeps tanh's argument finite) and the ideal valve (no lag: [0, 0, 0]).
+#: smoothing speed v_s only keeps tanh's argument finite) and the ideal valve of every actuator (no lag, no
+#: overlap, no saturation: [0, 0, 0, 0, 0], :data:`hydrogen.plant.valve.PARAMETERS`).
 #: The C loop's PRED_FRICTION and PRED_VALVE are rendered from it; the Python stages use it as is.
-PREDICTOR_MODEL = {"friction": (0.0, 0.0, 1.0), "valve": (0.0, 0.0, 0.0)}
+PREDICTOR_MODEL = {"friction": (0.0, 0.0, 1.0), "valve": (0.0, 0.0, 0.0, 0.0, 0.0)}
 
 
 def delay_split(delay: float, h: float) -> tuple:
@@ -63,7 +64,8 @@ LOOP_CONFIG = (
       ("delay_frac", "double", "P_DELAY_FRACTION", "run.delay_fraction"))),
     ("plant (SI): true theta ({p_theta}), gamma1 = beta and gamma2 = beta c per cylinder,\n"
      " * friction [Fc, b, v_s] per actuator in its own unit (N, N s/m, m/s; N m, N m s/rad, rad/s),\n"
-     " * valve [first-order lag s, second-order natural frequency rad/s, damping]",
+     " * valve per actuator [first-order lag s, second-order natural frequency rad/s, damping, overlap m,\n"
+     " * full opening m] (its datasheet valve, else the rig's)",
      (("theta", "const double*", "P_THETA", "run.theta"), ("gamma1", "const double*", "P_GAMMA1", "run.gamma1"),
       ("gamma2", "const double*", "P_GAMMA2", "run.gamma2"),
       ("friction", "const double*", "P_FRICTION", "run.friction"),
@@ -284,6 +286,7 @@ def loop_context(manifest: dict) -> dict:
         "state": struct_fields(LOOP_STATE, name, sizes, x_parts), "signals": struct_fields(LOOP_SIGNALS, name, sizes),
         "p_theta": ", ".join(s["theta_names"]),
         "pred_friction": ", ".join(map(c_double, PREDICTOR_MODEL["friction"] * m)),
-        "pred_valve": ", ".join(map(c_double, PREDICTOR_MODEL["valve"])),
+        "pred_valve": ", ".join(map(c_double, PREDICTOR_MODEL["valve"] * m)),
+        "valve_width": len(PREDICTOR_MODEL["valve"]),
     }
     return ctx

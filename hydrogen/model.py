@@ -226,6 +226,17 @@ class Cylinder:
     #: joint's plane (:class:`hydrogen.symbolic.linkage.FourBar`); its length is the linkage's l(q)
     linkage_joint: str | None = None
     linkage: object = None
+    #: its datasheet valve's spool response, SI (the description's ``valve``; None: the rig's valve
+    #: settings): ``{name: value}`` of each of :data:`hydrogen.plant.valve.PARAMETERS`
+    valve: dict | None = None
+
+    @property
+    def valve_limits(self) -> tuple:
+        """(saturation, dead band): the plant terms its datasheet valve needs, structure (baked): a
+        full opening > 0, an overlap > 0; (False, False) without a datasheet valve."""
+        if self.valve is None:
+            return (False, False)
+        return (self.valve["full_opening"] > 0, self.valve["overlap"] > 0)
 
     @property
     def travel(self):
@@ -519,6 +530,8 @@ def _baked_cylinder(c: Cylinder) -> list:
         out += [c.kind, params, [c.stroke_min, c.stroke_max]] + ([c.joint] if c.joint is not None else [])
     elif params:  # a three-way cylinder's leakage, appended only when given
         out += [params]
+    if any(c.valve_limits):  # appended only then: the plant's valve terms differ, a robot without hashes as before
+        out += [["valve_limits", *c.valve_limits]]
     return out
 
 
@@ -1126,12 +1139,12 @@ def _cylinders(r: _Reader, data: dict, link_names: set, root_note: str = "", joi
     lacks (where the root comes from, when a misspelt parent may have made it)."""
     defaults = r.table(data, "hydraulics", required=False)
     all_keys = {"kind"}.union(*(_kind_keys(k) for k in _cylinder_kinds()))
-    r.known(defaults, all_keys, "[hydraulics]")
+    r.known(defaults, all_keys | {"valve"}, "[hydraulics]")
     default_kind = _kind(r, "[hydraulics] kind", defaults["kind"]) if "kind" in defaults else DEFAULT_KIND
     raw = data.get("cylinders")
     if not isinstance(raw, list) or not raw:
         raise r.error("[[cylinders]]", "expected one [[cylinders]] table per coordinate")
-    out, names, used = [], set(), {"kind"}
+    out, names, used = [], set(), {"kind", "valve"}
     for i, cy in enumerate(raw):
         w = f"[[cylinders]] #{i + 1}"
         if not isinstance(cy, dict):
@@ -1147,7 +1160,7 @@ def _cylinders(r: _Reader, data: dict, link_names: set, root_note: str = "", joi
         if _motion(kind) == "revolute":
             out.append(_joint_actuator(r, w, cy, defaults, kind, keys, joints))
             continue
-        r.known(cy, {"name", "from", "to", "linkage", "kind", *keys}, w if kind == DEFAULT_KIND else f"{w} (kind {kind})")
+        r.known(cy, {"name", "from", "to", "linkage", "kind", "valve", *keys}, w if kind == DEFAULT_KIND else f"{w} (kind {kind})")
         if "linkage" in cy and "to" in cy:
             raise r.error(w, "give either 'to' (the rod end pinned on a link) or 'linkage' (the rod end on a "
                              "four-bar linkage), not both")
@@ -1177,15 +1190,16 @@ def _cylinders(r: _Reader, data: dict, link_names: set, root_note: str = "", joi
         if linkage:
             _check_linkage(r, w, linkage, smin, smax, linkage_joint)
         _check_order(r, w, {**vals, "stroke_min": smin, "stroke_max": smax}, kind)
+        valve = vals.pop("valve")
         if kind == DEFAULT_KIND:  # its optional constants (not Cylinder fields) in params
             extra = {k: vals.pop(k) for k in THREE_WAY_EXTRA_KEYS}
             out.append(Cylinder(name, ends[0][0], ends[0][1], ends[1][0], ends[1][1], stroke_min=smin,
-                                stroke_max=smax, params=extra, **linkage, **vals))
+                                stroke_max=smax, params=extra, valve=valve, **linkage, **vals))
             continue
         shared = {k: vals.pop(k) for k in SHARED_KEYS if k in vals}
         out.append(Cylinder(name, ends[0][0], ends[0][1], ends[1][0], ends[1][1], piston_area=None, rod_area=None,
                             chamber_length=None, stroke_min=smin, stroke_max=smax, kind=kind, params=vals,
-                            **linkage, **shared))
+                            valve=valve, **linkage, **shared))
     unused = sorted(set(defaults) - used)
     if unused:
         kinds = sorted({c.kind for c in out})
@@ -1272,10 +1286,11 @@ def _revolute_joint(r: _Reader, where: str, jname: str, joints, what: str):
 def _joint_actuator(r: _Reader, w: str, cy: dict, defaults: dict, kind: str, keys, joints) -> Cylinder:
     """A [[cylinders]] entry of a joint actuator (rotary, motor): ``joint`` names a revolute joint of the
     tree; its angle range is its travel's key, or none for unlimited travel (−∞, ∞)."""
-    r.known(cy, {"name", "joint", "kind", *keys}, f"{w} (kind {kind})")
+    r.known(cy, {"name", "joint", "kind", "valve", *keys}, f"{w} (kind {kind})")
     jname = r.name(f"{w} joint", r.require(cy, "joint", f"{w} (kind {kind})"))
     joint = _revolute_joint(r, f"{w} joint", jname, joints, f"a {kind} actuator")
     vals = _cylinder_values(r, w, cy, defaults, kind, keys)
+    valve = vals.pop("valve")
     key, *ends = _travel(kind)
     amin, amax, limits = -np.inf, np.inf, {}
     if key is not None:
@@ -1288,7 +1303,7 @@ def _joint_actuator(r: _Reader, w: str, cy: dict, defaults: dict, kind: str, key
     zero = np.zeros(3)
     return Cylinder(cy["name"], joint.parent, zero, joint.child, zero, piston_area=None, rod_area=None,
                     chamber_length=None, stroke_min=amin, stroke_max=amax, kind=kind,
-                    params={**vals, **limits}, joint=jname, **shared)
+                    params={**vals, **limits}, joint=jname, valve=valve, **shared)
 
 
 def _cylinder_values(r: _Reader, w: str, cy: dict, defaults: dict, kind: str, keys) -> dict:
@@ -1296,8 +1311,12 @@ def _cylinder_values(r: _Reader, w: str, cy: dict, defaults: dict, kind: str, ke
     kind's declared default; each checked against the range its kind declares for it."""
     from .actuators import actuator
     fallback = {p.name: p.default for p in actuator(kind).PARAMETERS if p.default is not None}
-    vals = {}
+    valve, derived = _datasheet_valve(r, w, cy, defaults, kind)
+    vals = {"valve": valve}
     for key in keys:
+        if key in derived:
+            vals[key] = derived[key]
+            continue
         if key in cy:
             value, wk = cy[key], f"{w} {key}"
         elif key in defaults:
@@ -1312,6 +1331,73 @@ def _cylinder_values(r: _Reader, w: str, cy: dict, defaults: dict, kind: str, ke
         else:
             vals[key] = r.number(wk, value, quantity)
     return vals
+
+
+#: A datasheet valve's keys (the description's ``valve`` table): (sign, low, high, unit) each, SI.
+VALVE_RANGES = {
+    # m^3/s through one edge: 0.01 L/min (a micro servo-valve) .. 600 m^3/min
+    "rated_flow": Quantity("positive", 1e-7, 10.0, "m^3/s", "hydrogen.model.VALVE_RANGES"),
+    # Pa per metering edge: 0.1 bar .. 1000 bar
+    "rated_drop": Quantity("positive", 1e4, 1e8, "Pa", "hydrogen.model.VALVE_RANGES"),
+    # m of spool travel at full opening: 1 um .. 10 cm
+    "spool_travel": Quantity("positive", 1e-6, 0.1, "m", "hydrogen.model.VALVE_RANGES"),
+    # Hz: a slow proportional valve (0.1 Hz) .. 10 kHz
+    "bandwidth_hz": Quantity("positive", 0.1, 1e4, "Hz", "hydrogen.model.VALVE_RANGES"),
+    "damping": Quantity("positive", 1e-3, 10.0, "", "hydrogen.model.VALVE_RANGES"),
+    # fraction of spool_travel: an edge must open before full opening (< 1); an underlap at most the travel
+    "overlap": Quantity(None, -1.0, 1.0, "", "hydrogen.model.VALVE_RANGES"),
+}
+
+
+def _datasheet_valve(r: _Reader, w: str, cy: dict, defaults: dict, kind: str):
+    """Actuator ``w``'s datasheet valve (its own ``valve`` table, else [hydraulics]'): (the spool
+    response for the plant, ``{name: value}`` of :data:`hydrogen.plant.valve.PARAMETERS`, and the
+    kind's constants it sets: ``flow_gain``, ``underlap``), or (None, {}) without one. The flow gain
+    follows from the kind's own orifice law: full opening with rated_drop across the edge passes
+    rated_flow. An overlap > 0 is the plant's dead band (the controllers keep the ideal valve); < 0 the
+    kind's underlap, which the controllers see as today."""
+    from .actuators import actuator
+    from .actuators.orifices import orifice_terms_np
+    from .plant.valve import Numeric as ValveLaw
+    if "valve" in cy:
+        table, wv, level = cy["valve"], f"{w} valve", cy
+    elif "valve" in defaults:
+        table, wv, level = defaults["valve"], "[hydraulics] valve", defaults
+    else:
+        return None, {}
+    names = {p.name for p in actuator(kind).PARAMETERS}
+    if "flow_gain" not in names:
+        raise r.error(wv, f"actuator kind {kind} has no orifice valve (no flow_gain) for a datasheet valve to rate")
+    for key in ("flow_gain", "underlap"):  # the valve sets them: one source each
+        for given, where in ((cy, w), (defaults, "[hydraulics]")):
+            if key in given and (given is level or given is cy):
+                raise r.error(wv, f"and {where} {key} both given: the valve's rating sets {key}; give one, not both")
+    if not isinstance(table, dict):
+        raise r.error(wv, "expected a table { rated_flow, rated_drop, spool_travel, bandwidth_hz, damping, overlap }, "
+                          f"got {_quote(table)}")
+    r.known(table, _keys("[[cylinders]] valve"), wv)
+    v = {k: r.number(f"{wv}.{k}", table[k], VALVE_RANGES[k]) for k in VALVE_RANGES if k in table}
+    for k in ("rated_flow", "rated_drop", "spool_travel", "bandwidth_hz"):
+        if k not in v:
+            raise r.error(wv, f"missing key '{k}' ({VALVE_RANGES[k].unit})")
+    overlap = v.get("overlap", 0.0)
+    if overlap >= 1.0 or overlap <= -1.0:
+        raise r.error(f"{wv}.overlap", f"must be in (-1, 1) (a fraction of spool_travel), got {overlap!r}")
+    travel, omega = v["spool_travel"], 2 * np.pi * v["bandwidth_hz"]
+    second = "damping" in v
+    spool = {"lag": 0.0 if second else 1.0 / omega, "omega": omega if second else 0.0,
+             "zeta": v.get("damping", 1.0),  # unused by the first order
+             "overlap": max(overlap, 0.0) * travel, "full_opening": travel}
+    underlap = max(-overlap, 0.0) * travel
+    # full opening as the chambers see it (the valve block: saturation, dead band), through the kind's law
+    row = [spool[k] for k in ("lag", "omega", "zeta", "overlap", "full_opening")]
+    opening = float(ValveLaw.effective([travel], [travel], row)[0])
+    root = np.sqrt(v["rated_drop"])
+    per_gain = float(orifice_terms_np(opening, underlap, root, root))
+    flow_gain = r.number(f"{wv}.rated_flow (the flow gain it gives)", v["rated_flow"] / per_gain,
+                         declared_range(kind, "flow_gain"))
+    derived = {"flow_gain": flow_gain, "underlap": r.number(f"{wv}.overlap", underlap, declared_range(kind, "underlap"))}
+    return spool, {k: val for k, val in derived.items() if k in names}
 
 
 def order_broken(values: dict):

@@ -135,6 +135,22 @@ DESCRIPTION_KEYS = (
         "its frame; all points in one plane normal to the joint axis"),
     Key("[[cylinders]] linkage", "branch", "", "1 or −1: the assembly, the rod-end pin to the left (1) or "
         "right of the line crank_pin → rocker_pivot, seen with the joint axis towards you"),
+    Key("[[cylinders]]", "valve", "", "the actuator's valve from its datasheet (table below; in [hydraulics]: "
+        "every actuator's without its own): its rating sets flow_gain (give one, not both) and its overlap "
+        "the underlap; its spool response replaces the rig's valve settings for this actuator",
+        default=None, default_text="none: flow_gain, underlap and the rig's valve settings"),
+    Key("[[cylinders]] valve", "rated_flow", "m³/s", "flow through one metering edge at full opening with "
+        "rated_drop across it (a servo-valve's rated flow)"),
+    Key("[[cylinders]] valve", "rated_drop", "Pa", "the pressure drop per metering edge of the rating (e.g. "
+        "3.5e6, 35 bar per edge)"),
+    Key("[[cylinders]] valve", "spool_travel", "m", "spool travel at full opening (the spool command's "
+        "unit); the spool saturates there"),
+    Key("[[cylinders]] valve", "bandwidth_hz", "Hz", "the spool's response: −90° at this frequency (second "
+        "order, natural frequency 2π f) with damping, else −45° (first order, time constant 1/(2π f))"),
+    Key("[[cylinders]] valve", "damping", "", "the spool's second-order damping ratio, > 0", default=None,
+        default_text="none: first order"),
+    Key("[[cylinders]] valve", "overlap", "", "spool overlap, a fraction of spool_travel in (−1, 1): > 0 a dead "
+        "band with no flow, < 0 an underlap", default=0.0),
     Key("[coordinates]", "names", "", "one distinct name per coordinate", default_text="the joints' names "
         "(a floating joint's as <joint>_x ... <joint>_phi)"),
     Key("[coordinates]", "neutral", "m, rad", "the neutral pose, about which scenario references are offsets"),

@@ -182,6 +182,6 @@ def test_the_plants_accelerations_are_the_forward_dynamics_of_the_cylinder_force
         pc = np.asarray(chain.supply_pressure, float) * rng.uniform(0.3, 0.7, n_pressures(chain))
         x = np.concatenate([q, qd, pc, np.zeros(2 * chain.n_cylinders)])
         xdot = np.asarray(f["plant_rhs"](x, np.zeros(chain.n_cylinders), chain.theta, *chain.gamma,
-                                         np.tile([0.0, 0.0, 1e-3], chain.n_cylinders), np.zeros(3))).ravel()
+                                         np.tile([0.0, 0.0, 1e-3], chain.n_cylinders), np.zeros(5 * chain.n_cylinders))).ravel()
         tau = np.asarray(f["leg_jacobian"](q)).T @ np.asarray(f["leg_force"](pc)).ravel()
         _close(xdot[n:2 * n], f["forward_dynamics"](q, qd, tau, chain.theta))

@@ -113,7 +113,7 @@ def test_the_loop_runtime_refuses_a_missing_or_misshapen_value(dyn):
     LoopRunner(dyn, ctrl, good)  # the values as derived are accepted
     with pytest.raises(ValueError, match=r"no value for \['quant_l'\]"):
         LoopRunner(dyn, ctrl, {k: v for k, v in good.items() if k != "quant_l"})
-    with pytest.raises(ValueError, match="valve must hold 3 numbers"):
+    with pytest.raises(ValueError, match=f"valve must hold {5 * dyn.model.n_cylinders} numbers"):
         LoopRunner(dyn, ctrl, {**good, "valve": good["valve"][:2]})
     with pytest.raises(ValueError, match="delay must be"):
         LoopRunner(dyn, ctrl, {**good, "delay": 9})

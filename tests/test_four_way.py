@@ -114,7 +114,7 @@ def test_the_plant_state_and_its_pressure_rates(arm, arm_dyn, rng):
     q, qd = arm.neutral_pose, rng.normal(size=n) * 0.1
     p, u = rng.uniform(2e6, 8e6, 4), rng.uniform(-1e-3, 1e-3, m)
     x = np.concatenate([q, qd, p, np.zeros(2 * m)])
-    xdot = arm_dyn.functions["plant_rhs"](x, u, arm.theta, arm.gamma[0], arm.gamma[1], np.zeros(3 * arm.n_cylinders), np.zeros(3))
+    xdot = arm_dyn.functions["plant_rhs"](x, u, arm.theta, arm.gamma[0], arm.gamma[1], np.zeros(3 * arm.n_cylinders), np.zeros(5 * arm.n_cylinders))
     assert xdot.size == 2 * n + 4 + 2 * m
     ldot = arm_dyn.leg_jacobian(q) @ qd
     np.testing.assert_allclose(xdot[2 * n:2 * n + 4],

@@ -127,7 +127,7 @@ def test_valve_laws_and_plant_pressure_and_spool_rates_match_numpy(robot_dyn, ro
         qdot, spool, rate = 0.05 * rng.normal(size=n), rng.uniform(-3, 3, m) * d, 0.01 * rng.normal(size=m)
         lag, w, z = [(0.0, 0.0, 0.7), (2e-3, 0.0, 0.7), (0.0, 300.0, 0.6), (2e-3, 300.0, 0.6)][k % 4]
         x = np.concatenate([q, qdot, pc, spool, rate])
-        xdot = dyn.functions["plant_rhs"](x, u, model.theta, g1, g2, fric, np.array([lag, w, z]))
+        xdot = dyn.functions["plant_rhs"](x, u, model.theta, g1, g2, fric, np.tile([lag, w, z, 0.0, 0.0], m))
         s_eff = spool if (w > 0 or lag > 0) else u
         l, ldot = dyn.leg_lengths(q), dyn.leg_jacobian(q) @ qdot
         pc_dot = g1 * (g2 / g1 * _orifice_flow(s_eff, pc, ps, d, p_lin) - A * ldot) / (A * (l - L))

@@ -84,21 +84,28 @@ def test_entries_are_named_by_their_part(model):
                     f"spool_rate[{model.cylinders[-1].name}]")
 
 
-@pytest.mark.parametrize("par", [(0.0, 0.0, 0.0), (0.02, 0.0, 0.0), (0.02, 300.0, 0.7), (0.0, 150.0, 1.1)])
+@pytest.mark.parametrize("par", [(0.0, 0.0, 0.0, 0.0, 0.0), (0.02, 0.0, 0.0, 0.0, 0.0), (0.02, 300.0, 0.7, 0.0, 0.0),
+                                 (0.0, 150.0, 1.1, 0.0, 0.0), (0.0, 150.0, 1.1, 4e-4, 1.5e-3), (0.0, 0.0, 0.0, 0.0, 5e-4)])
 def test_the_valves_sympy_and_numpy_laws_agree(par):
     rng = np.random.default_rng(3)
     m = 4
     s, r, u = (rng.normal(size=m) * 1e-3 for _ in range(3))
     sy = [sp.Matrix(sp.symbols(f"{k}0:{m}", real=True)) for k in ("s", "r", "u")]
-    vs = valve.Symbolic.parameters()
+    vs = valve.Symbolic.parameters(m)
+    par = np.tile(par, m)
     subs = {**dict(zip(sy[0], s)), **dict(zip(sy[1], r)), **dict(zip(sy[2], u)), **dict(zip(vs, par))}
     rates_s = valve.Symbolic.rates(*sy, vs)
     rates_n = valve.Numeric.rates(s, r, u, par)
     for k in ("spool", "spool_rate"):
         assert np.allclose(np.array(rates_s[k].subs(subs), float).ravel(), rates_n[k], rtol=1e-12, atol=0)
-    eff = np.array(valve.Symbolic.effective(sy[0], sy[2], vs).subs(subs), float).ravel()
+    # with both terms (a datasheet valve's; o = 0 or S = 0 takes away exactly 0), as numpy always has them
+    eff = np.array(valve.Symbolic.effective(sy[0], sy[2], vs, [(True, True)] * m).subs(subs), float).ravel()
     assert np.array_equal(eff, valve.Numeric.effective(s, u, par))
-    assert np.array_equal(eff, u if par[:2] == (0.0, 0.0) else s)
+    plain = valve.Symbolic.effective(sy[0], sy[2], vs)  # no datasheet valve: no saturation, no dead band
+    assert not plain.atoms(sp.Min, sp.Max)
+    if not par[3] and not par[4]:  # no dead band, no saturation: the spool state, or the command
+        assert np.array_equal(eff, u if tuple(par[:2]) == (0.0, 0.0) else s)
+        assert np.array_equal(np.array(plain.subs(subs), float).ravel(), eff)
 
 
 def test_the_frictions_sympy_and_numpy_laws_agree():

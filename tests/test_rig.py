@@ -49,7 +49,7 @@ def test_second_order_valve_step_response_is_the_analytic_one(dyn, model, zeta):
     q0 = model.neutral_pose
     x0 = np.concatenate([q0, np.zeros(model.n), equilibrium_pressures(dyn, q0, model.theta), np.zeros(2 * m)])
     u = np.full(m, 1e-5)
-    valve = np.array([0.0, w, zeta])
+    valve = np.tile([0.0, w, zeta, 0.0, 0.0], m)
     rhs = lambda x: dyn.functions["plant_rhs"](x, u, model.theta, *model.gamma, np.tile([0, 0, 1e-3], model.n_cylinders), valve)  # noqa
     h, x, t, spool = 2e-5, x0.copy(), [], []
     for k in range(1, 751):  # 15 ms

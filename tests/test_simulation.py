@@ -18,8 +18,8 @@ from reference import controller_rate_map
 from controller_inputs import PAPER_LAWS
 
 #: friction [Coulomb N, viscous N s/m, tanh speed m/s] of each of the six legs; valve [lag, natural
-#: frequency, damping]: ideal
-FRIC, NO_LAG = np.tile([100.0, 300.0, 1e-3], 6), np.zeros(3)
+#: frequency, damping, overlap, full opening] per leg: ideal
+FRIC, NO_LAG = np.tile([100.0, 300.0, 1e-3], 6), np.zeros(5 * 6)
 
 
 def test_rk4_matches_a_stiff_adaptive_reference(dyn, model, rng):

@@ -34,7 +34,8 @@ typedef struct {
     double delay_frac;
     /* plant (SI): true theta (boom.mcx, boom.mcz, boom.Iyy, boom.Izz, jib.mcx, jib.mcz, jib.Iyy, jib.Izz), gamma1 = beta and gamma2 = beta c per cylinder,
      * friction [Fc, b, v_s] per actuator in its own unit (N, N s/m, m/s; N m, N m s/rad, rad/s),
-     * valve [first-order lag s, second-order natural frequency rad/s, damping] */
+     * valve per actuator [first-order lag s, second-order natural frequency rad/s, damping, overlap m,
+     * full opening m] (its datasheet valve, else the rig's) */
     const double* theta;
     const double* gamma1;
     const double* gamma2;

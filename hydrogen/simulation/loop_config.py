@@ -35,8 +35,8 @@ class Run:
 
 
 def _valve(run):
-    from .scenarios import valve_vector
-    return valve_vector(run.sc)
+    from .scenarios import valve_parameters
+    return valve_parameters(run.sc, run.dyn.model).ravel()
 
 
 def _per_actuator(key):

@@ -17,7 +17,8 @@ from ..scenario_settings import (_FIELDS, RENAMED, VARIANT_SEPARATOR, ScenarioFi
 from .checks import check_fields
 from .reference import MultiSine, Step
 
-__all__ = ["Scenario", "setting", "settings", "PER_ACTUATOR", "actuator_settings", "per_actuator_unit", "scenario", "scenario_names", "variant_names", "variant_name", "split_variant", "current_name", "table_keys", "default_scenario_name", "RENAMED", "valve_vector"]
+__all__ = ["Scenario", "setting", "settings", "PER_ACTUATOR", "actuator_settings", "per_actuator_unit", "scenario", "scenario_names", "variant_names", "variant_name", "split_variant", "current_name", "table_keys", "default_scenario_name", "RENAMED", "valve_vector",
+           "valve_parameters"]
 
 
 @dataclass(frozen=True)
@@ -300,3 +301,27 @@ def scenario(name: str, model) -> Scenario:
     except TypeError as exc:
         raise ScenarioError(f"{where}: {exc}") from None
     return sc.validated()
+
+
+def valve_parameters(sc, model) -> np.ndarray:
+    """The plant's valve input of every actuator of ``model``, (m, 5): [first-order lag s, natural
+    frequency rad/s, damping, overlap m, full opening m] (:data:`hydrogen.plant.valve.PARAMETERS`).
+    An actuator's datasheet valve (``Cylinder.valve``, the description's ``valve`` table) overrides
+    the rig's valve settings for it; without one, the rig's apply as they are (no overlap, no
+    saturation). ScenarioError where a datasheet valve's natural frequency is too fast for the
+    plant's sub-steps (the scenario's own rule for valve_bandwidth_hz)."""
+    from ..plant.valve import PARAMETERS
+    rig = (*valve_vector(sc), 0.0, 0.0)
+    rows = []
+    for c in model.cylinders:
+        own = getattr(c, "valve", None)
+        if own is None:
+            rows.append(rig)
+            continue
+        row = tuple(float(own[p.name]) for p in PARAMETERS)
+        if row[1] / (sc.control_rate * sc.substeps) > 1.0:
+            raise ScenarioError(f"scenario '{sc.name}': actuator '{c.name}': its valve's bandwidth_hz "
+                                f"{row[1] / (2 * np.pi)!r} Hz must be <= control_rate * substeps / (2 pi) = "
+                                f"{sc.control_rate * sc.substeps / (2 * np.pi)!r} Hz (raise substeps)")
+        rows.append(row)
+    return np.array(rows, float).reshape(len(rows), len(PARAMETERS))

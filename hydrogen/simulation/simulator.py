@@ -19,7 +19,8 @@ from ..summary import SATURATED_AT, SATURATION, estimated_blocks  # saturation: 
 from .checks import _shown, check_against_model, check_run_size, checked_float, metric_window
 from .control import make_controller
 from .pool import _ENTRY_KEYS, _error, _outcome, check_workers, entry_problem, run_sweep
-from .scenarios import Scenario, actuator_settings, scenario as named_scenario, scenario_names, valve_vector
+from .scenarios import (Scenario, actuator_settings, scenario as named_scenario, scenario_names, valve_parameters,
+                        valve_vector)
 from .seeds import SeedResults
 
 __all__ = ["simulate", "SimulationResult", "SeedResults", "equilibrium_pressures", "Stepper", "prepare_run", "new_logs",
@@ -768,8 +769,10 @@ class PythonStages:
         self.dyn, self.sc, self.ctrl, self.h, self.kf_gain = dyn, sc, ctrl, h, kf_gain
         self._rhs_fn = dyn.functions["plant_rhs"]
         own = actuator_settings(sc, model)  # friction and resolution of each actuator, in its own unit
-        self._fric, self._quant, self._valve = own["friction"].ravel(), own["quantization_l"], valve_vector(sc)
+        self._fric, self._quant = own["friction"].ravel(), own["quantization_l"]
+        self._valve = valve_parameters(sc, model).ravel()  # each actuator's valve: its datasheet's, else the rig's
         self._pred_fric = np.tile(_PRED_FRICTION, model.n_cylinders)
+        self._pred_valve = np.tile(_PRED_VALVE, model.n_cylinders)
         self.layout = plant_layout(model)
         self._q, self._qdot, self._pc = (slot(self.layout, k).slice for k in ("q", "qdot", "pc"))
         pc = slot(self.layout, "pc")
@@ -848,7 +851,7 @@ class PythonStages:
 
         def hold(x, u, dt):
             n = self.sc.predictor_steps(dt / h)
-            rhs = lambda xx: self._rhs_fn(xx, u, th, g1, g2, self._pred_fric, _PRED_VALVE)  # noqa: E731
+            rhs = lambda xx: self._rhs_fn(xx, u, th, g1, g2, self._pred_fric, self._pred_valve)  # noqa: E731
             for _ in range(n):
                 x = _rk4(rhs, x, dt / n)
                 np.clip(x[pc], self._lo, self._hi, out=x[pc])

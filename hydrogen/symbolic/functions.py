@@ -117,7 +117,7 @@ def plant_functions(model) -> list:
     size = "2n + 3m" if uniform_three_way(model) else "2n + pressures + 2m"
     parts = ", ".join(s.label for s in plant_layout(model))
     return [SymbolicFunction("plant_rhs", inputs, [("xdot", xdot)],
-                             f"Plant state rate: x = [{parts}] ({size}), SI units; valve = [lag s, natural frequency rad/s, damping].", intermediates)]
+                             f"Plant state rate: x = [{parts}] ({size}), SI units; valve = [lag s, natural frequency rad/s, damping, overlap m, full opening m] per actuator.", intermediates)]
 
 
 def controller_functions(model, kinds=None) -> list:

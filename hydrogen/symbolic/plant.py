@@ -4,7 +4,7 @@ The plant's blocks (:mod:`hydrogen.plant`) composed into one right-hand side: x 
 the layout's order (:func:`hydrogen.plant.plant_layout`: [q (n), q̇ (n), pressures (one block per
 actuator, its kind's states: p_c of a three-way cylinder, p_A, p_B of a four-way one), spool (m),
 spool rate (m)]); input u = spool command (m, metres). The valve law (:mod:`hydrogen.plant.valve`,
-input ``valve`` = [τ_v, ω_v, ζ_v]) gives the spool the chambers see; the friction law
+input ``valve`` = [τ_v, ω_v, ζ_v, overlap, full opening] per actuator) gives the spool the chambers see; the friction law
 (:mod:`hydrogen.plant.friction`, input ``friction`` = [F_c, b, v_s] per actuator in its own unit)
 opposes each actuator's motion.
 """
@@ -32,7 +32,7 @@ def plant_rhs(model):
     th = theta_symbols(model)
     g1, g2 = rate_symbols("gamma1", m), rate_symbols("gamma2", m)
     fric = friction.Symbolic.parameters(m)
-    valve_par = valve.Symbolic.parameters()
+    valve_par = valve.Symbolic.parameters(m)
     x = sp.Matrix([s for name in BLOCKS for st in block(name).STATES for s in states[st.name]])
     cyl = model.cylinders
     laws = [actuator(c.kind).Symbolic for c in cyl]
@@ -45,7 +45,7 @@ def plant_rhs(model):
     # The effective spool position is an intermediate symbol: nesting its Piecewise
     # inside the valve law's would make SymPy merge conditions (slow, and ITE nodes).
     spool_eff = rate_symbols("spool_eff", m)
-    spool_eff_value = valve.Symbolic.effective(spool, u, valve_par)
+    spool_eff_value = valve.Symbolic.effective(spool, u, valve_par, [c.valve_limits for c in model.cylinders])
     rates = valve.Symbolic.rates(spool, spool_rate, u, valve_par)
     f_leg = rate_symbols("plant_fleg", m)
     f_leg_value = sp.Matrix([laws[i].force(p[i], P[i]) - friction.Symbolic.force(ldot[i], *fric[3 * i:3 * i + 3])
@@ -55,5 +55,5 @@ def plant_rhs(model):
     rates.update(chambers.Symbolic.rates(laws, l, ldot, p, spool_eff, g1, g2, P))
     xdot = sp.Matrix([r for name in BLOCKS for st in block(name).STATES for r in rates[st.name]])
     inputs = [("x", x), ("u", u), ("theta", th), ("gamma1", g1), ("gamma2", g2), ("friction", fric),
-              ("valve", sp.Matrix(valve_par))]
+              ("valve", valve_par)]
     return inputs, xdot, [*kin, (ldot, ldot_value), (f_leg, f_leg_value), (spool_eff, spool_eff_value), *solve]
