@@ -77,8 +77,11 @@ def _random_input(name, shape, model, rng, fname=""):
         x = rng.uniform(0.05, 0.2, size)
     elif name == "rate_friction":
         x = rng.uniform(0.1, 1.0, size)
-    elif name == "valve":  # [lag s, natural frequency rad/s, damping]: the second-order valve
-        x = np.array([0.0, 2 * np.pi * rng.uniform(30, 100), rng.uniform(0.5, 1.0)])
+    elif name == "valve":  # per actuator [lag s, natural frequency rad/s, damping, overlap m, full opening m]:
+        # second-order valves; a datasheet valve's overlap and opening read only where generated
+        from hydrogen.plant.valve import WIDTH
+        x = np.concatenate([[0.0, 2 * np.pi * rng.uniform(30, 100), rng.uniform(0.5, 1.0), 1e-5, 1e-3][:WIDTH]
+                            for _ in range(size // WIDTH)])
     elif name in ("sat_width", "u_max"):
         x = rng.uniform(1e-3, 1e-2, size)
     elif name in ("Lambda", "Kp", "Kd", "Ktau", "Gtau_inv", "Ko", "Lambda2", "Lp", "Kd_obs", "Gz_inv",
