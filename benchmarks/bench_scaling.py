@@ -115,6 +115,7 @@ t0 = time.perf_counter()
 import sympy as sp
 import hydrogen
 import hydrogen.symbolic.functions as F
+import hydrogen.symbolic.body_functions as B  # the rigid body's functions, by its stages
 from hydrogen.controllers import CONTROLLERS, controller
 from hydrogen.codegen.generate import DEFAULT_NUMBERS, derive, render
 from bench_scaling import chain_model, SCENARIO, LOOP_CONTROLLER
@@ -141,9 +142,9 @@ def timed(stage, f, size=None):
 
 for name, size in (("mass_matrix", "D"), ("coriolis_matrix", "C"), ("gravity", None), ("regressor", None),
                    ("regressor_offset", None)):
-    setattr(F, name, timed("rigid_body." + {{"mass_matrix": "D", "coriolis_matrix": "C", "gravity": "G",
+    setattr(B, name, timed("rigid_body." + {{"mass_matrix": "D", "coriolis_matrix": "C", "gravity": "G",
                                              "regressor": "Y", "regressor_offset": "y0"}}[name],
-                           getattr(F, name), size))
+                           getattr(B, name), size))
 for name, stage in (("kinematics_functions", "kinematics"), ("rigid_body_functions", "rigid_body"),
                     ("hydraulic_functions", "hydraulics"), ("plant_functions", "plant")):
     setattr(F, name, timed(stage, getattr(F, name)))
