@@ -252,17 +252,10 @@ def backstepping_ad_function(parts, name: str = "ctrl_backstepping_ad"):
     import casadi as ca
     import sympy as sp
 
-    from hydrogen.codegen.casadi_functions import shape_of
-    from hydrogen.codegen.sympy_to_casadi import SympyToCasadi
+    from hydrogen.codegen.sympy_to_casadi import SympyToCasadi, input_symbols
 
-    table, sx_in = {}, {}
-    for in_name, mat in parts.inputs:
-        rows, cols = shape_of(mat)
-        sym = ca.SX.sym(in_name, rows, cols)
-        for i in range(rows):
-            for j in range(cols):
-                table[mat[i, j]] = sym[i, j]
-        sx_in[in_name] = sym
+    table, named = input_symbols(parts.inputs)
+    sx_in = dict(named)
     conv = SympyToCasadi(table)
     bound, seen = {}, []
     for symbols, value in parts.intermediates:

@@ -265,10 +265,14 @@ def stale_controllers(manifest: dict) -> tuple:
     generated (or that are not registered any more), in the registry's order."""
     from ..controllers import CONTROLLERS
 
-    out = []
+    now, out = {}, []  # each controller's module hashed once (a build checks this on every load)
     for e in manifest.get("functions", []):
         owner = _owner(e["name"])
-        if owner is not None and owner not in out and e.get("block_hash") != block_hash("controller", owner):
+        if owner is None or owner in out:
+            continue
+        if owner not in now:
+            now[owner] = block_hash("controller", owner)
+        if e.get("block_hash") != now[owner]:
             out.append(owner)
     return tuple(k for k in CONTROLLERS if k in out)
 

@@ -168,6 +168,21 @@ def shape_of(mat) -> tuple:
     return tuple(mat.shape) if isinstance(mat, sp.MatrixBase) else (1, 1)
 
 
+def input_symbols(inputs) -> tuple:
+    """``(table, [(name, SX)])`` for SymPy ``inputs`` [(name, Matrix)]: one CasADi SX symbol matrix per
+    input, of its shape, and the table from each SymPy entry to its SX entry (what
+    :class:`SympyToCasadi` converts with)."""
+    table, named = {}, []
+    for name, mat in inputs:
+        rows, cols = shape_of(mat)
+        sym = ca.SX.sym(name, rows, cols)
+        for i in range(rows):
+            for j in range(cols):
+                table[mat[i, j]] = sym[i, j]
+        named.append((name, sym))
+    return table, named
+
+
 def to_casadi_function(sf, c_name: str | None = None, cse: bool = True) -> ca.Function:
     """Build the CasADi Function of a :class:`~hydrogen.symbolic.functions.SymbolicFunction`.
 
@@ -177,14 +192,8 @@ def to_casadi_function(sf, c_name: str | None = None, cse: bool = True) -> ca.Fu
     symbols; ``value`` may be ``("inverse", M)`` for a numeric matrix inverse or
     ``("solve", A, b)`` for the solution of A x = b.
     """
-    table, sx_in = {}, []
-    for name, mat in sf.inputs:
-        rows, cols = shape_of(mat)
-        sym = ca.SX.sym(name, rows, cols)
-        for i in range(rows):
-            for j in range(cols):
-                table[mat[i, j]] = sym[i, j]
-        sx_in.append(sym)
+    table, named = input_symbols(sf.inputs)
+    sx_in = [sym for _, sym in named]
     conv = SympyToCasadi(table)
     for symbols, value in getattr(sf, "intermediates", []):
         if isinstance(value, tuple) and value[0] == "inverse":
