@@ -202,7 +202,8 @@ def _xc_blocks(ctrl, model) -> list:
 
 def export_context(dyn, p, scenario_name, controller, prog, sources, headers, ctrl_header, sensor_gain):
     """Everything the templates need, numbers already formatted as C literals."""
-    from .layout import SLOTS, loop_context
+    from .diagram import SLOTS
+    from .layout import loop_context
     from .simulation.loop_config import Run, config_values
 
     model, sc, ctrl = dyn.model, p.sc, p.ctrl

@@ -9,16 +9,13 @@ from __future__ import annotations
 
 import math
 
+from .diagram import CONTROLLER_PORTS, SLOTS  # the controller's input slots: the loop's ports
 from .names import NUMBERS  # the numbers input's name, part of the loop's layout
 
-__all__ = ["NUMBERS", "SLOTS", "MAX_DELAY", "PREDICTOR_MODEL", "delay_split", "LOOP_CONFIG", "LOOP_STATE", "LOOP_SIGNALS",
+__all__ = ["NUMBERS", "MAX_DELAY", "PREDICTOR_MODEL", "delay_split", "LOOP_CONFIG", "LOOP_STATE", "LOOP_SIGNALS",
            "model_summary", "loop_context", "log_widths", "loop_functions", "C_SIZES", "plant_offsets", "plant_size",
            "c_double", "config_fields", "struct_fields"]
 
-
-#: Signals the loop writes into a controller's inputs, by input name, in this order (``u_applied``:
-#: the spool commands the valves held over the last period, after the clip and the computation delay).
-SLOTS = ("q", "qdot", "pc", "l", "qd0", "qd1", "qd2", "qd3", "xc", "adapt", "u_applied")
 
 #: Longest computation delay the loop's command ring buffer holds, control periods (a scenario's
 #: ``delay`` is refused above it). A real-time target applies a command one period after the
@@ -257,6 +254,15 @@ def log_widths(summary: dict) -> dict:
     return {"t": 1, "q": n, "q_d": n, "l": m, "f": m, "pc": n_pressures(summary), "u": m, "u_applied": m, "l_meas": m}
 
 
+def _port_writes() -> list:
+    """The control stage's writes of the controller's inputs: each port's slot, C value and count."""
+    from markupsafe import Markup  # hydrogen's own C expressions (hydrogen.templating)
+
+    def count(port):
+        return " * ".join("c->n_xc" if t == "NXC" else str(t) for t in port.size)
+    return [{"slot": p.name.upper(), "value": Markup(p.c_value), "count": Markup(count(p))} for p in CONTROLLER_PORTS]
+
+
 def loop_context(manifest: dict) -> dict:
     """Everything the loop templates and the ctypes structures need, from a manifest."""
     s = manifest["model"]
@@ -282,7 +288,7 @@ def loop_context(manifest: dict) -> dict:
         "x_plus": x_plus, "x_index": x_index, "x_parts": x_parts,
         "n_noise": m + n_p + (n if s["joint_encoders"] else 0), "n_pressures": n_p, "three_way": n_p == m,
         "parametric": NUMBERS in manifest,
-        "encoders": bool(s["joint_encoders"]), "slots": SLOTS, "logs": logs, "config": config_fields(name),
+        "encoders": bool(s["joint_encoders"]), "slots": SLOTS, "ports": _port_writes(), "logs": logs, "config": config_fields(name),
         "state": struct_fields(LOOP_STATE, name, sizes, x_parts), "signals": struct_fields(LOOP_SIGNALS, name, sizes),
         "p_theta": ", ".join(s["theta_names"]),
         "pred_friction": ", ".join(map(c_double, PREDICTOR_MODEL["friction"] * m)),

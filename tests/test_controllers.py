@@ -93,7 +93,8 @@ def test_a_gain_no_table_gives_is_an_error_naming_it_in_both_loops(monkeypatch, 
         return g
 
     monkeypatch.setattr(mod, "default_gains", without_gtau)
-    with pytest.raises(ScenarioError, match=r"controller 'backstepping': no value for its input\(s\) Gtau_inv"):
+    with pytest.raises(ScenarioError, match=r"controller 'backstepping': no value for its input\(s\) Gtau_inv: "
+                                            r"wired to no loop signal"):
         hydrogen.simulate("paper-sim", "backstepping", dyn=dyn, duration=0.01, engine=engine)
 
 

@@ -12,7 +12,8 @@ import numpy as np
 
 __all__ = ["LoopRunner", "SLOTS", "LOOP_OK", "LOOP_NONFINITE", "LOOP_FK_FAILED", "LOOP_CTRL_FAILED"]
 
-from ..layout import PREDICTOR_MODEL, SLOTS, log_widths, loop_context
+from ..diagram import SLOTS
+from ..layout import PREDICTOR_MODEL, log_widths, loop_context
 
 LOOP_OK, LOOP_NONFINITE, LOOP_FK_FAILED, LOOP_CTRL_FAILED = 0, 1, 2, 3
 _D = C.POINTER(C.c_double)

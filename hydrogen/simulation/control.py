@@ -18,8 +18,9 @@ from ..controllers import (COMMON_GAINS, CONTROLLERS, LEAN, controller as contro
                            gain_names, rates_function_name, step_function_name)
 from ..controllers.common import check_coupling_gains, normalised_adaptation, runs_lean
 from ..controllers.spec import Start
-from .. import pressures
+from .. import diagram, pressures
 from ..errors import ScenarioError
+from ..names import NUMBERS
 from .checks import check_gain_values
 
 __all__ = ["make_controller", "default_gains", "CONTROLLERS", "gain_scale", "COMMON_GAINS", "gain_names"]
@@ -125,13 +126,14 @@ class _Controller:
         for block in self.layout:
             lo[self.slices[block.name]], hi[self.slices[block.name]] = block.limit_values(m, self.values)
         self.bounds = (lo, hi)
-        # Every input the loop does not write must have a value: a gain no table gives would
-        # otherwise be a KeyError in the Python loop and a silent 0 in the C loop.
-        from ..layout import SLOTS
-        missing = [k for k in self.fn.in_names if k not in SLOTS and k not in self.values]
-        if missing:
-            raise ScenarioError(f"controller '{kind}': no value for its input(s) {', '.join(missing)}: give them "
-                                f"in the description's [gains.{kind}] (or its default_gains/static_inputs)")
+        # Every input is wired: to the loop's signal of its name, of the size the robot gives it, or to a
+        # value given once (a gain no table gives would otherwise be a KeyError in the Python loop and a
+        # silent 0 in the C loop). The slots index the C argument table (the description's numbers too).
+        sizes = {"NQ": m.n, "NL": m.n_cylinders, "NPC": pressures.n_pressures(m)}
+        shapes = dict(zip(self.fn.in_names, self.fn.in_shapes))
+        self.slots = diagram.wire(f"controller '{kind}'", [(k, int(np.prod(shapes[k])) if k in shapes else 0)
+                                                           for k in self.fn.arg_names],
+                                  set(self.values) | {NUMBERS}, sizes)
         self.tau_d = np.zeros(m.n)
         self.tau_d_dot = np.zeros(m.n)
         self.f_d = np.zeros(m.n_cylinders)
@@ -167,13 +169,13 @@ class _Controller:
                 self.xc[self.slices[block.name]] = block.initial_value(start)
         self.u_applied[:] = 0.0
 
-    def _signals(self, q, qdot, pc, l, ref, adapt):
+    def _signals(self, signals: dict):
+        """Write the loop's ``signals`` (by port name, :func:`hydrogen.diagram.signals`) into the inputs."""
         v = self.values
-        v.update(q=q, qdot=qdot, pc=pc, l=l, qd0=ref[0], qd1=ref[1], qd2=ref[2], qd3=ref[3])
-        if self.xc.size:
-            # a copy: the spool held over the period ending at this measurement, also for the forward
-            # Euler update after this period's command is applied (as the C loop's input slot)
-            v.update(xc=self.xc, adapt=np.array([1.0 if adapt else 0.0]), u_applied=self.u_applied.copy())
+        v.update(signals)
+        # a copy of u_applied: the spool held over the period ending at this measurement, also for the
+        # forward Euler update after this period's command is applied (as the C loop's input slot)
+        v.update(adapt=np.array([float(signals["adapt"])]), xc=self.xc, u_applied=self.u_applied.copy())
         return v
 
     def _rates(self):
@@ -183,7 +185,13 @@ class _Controller:
         return self.rates_fn(*[v[n] for n in self.rates_fn.in_names])
 
     def command(self, q, qdot, pc, l, ref, adapt):
-        v = self._signals(q, qdot, pc, l, ref, adapt)
+        """The spool commands (m) for the measured pose ``q``, velocities ``qdot``, pressures ``pc``, travel
+        ``l``, reference ``ref`` (4 rows) and the adaptation switch: :meth:`command_for` their ports."""
+        return self.command_for(diagram.signals(q, qdot, pc, l, ref, adapt))
+
+    def command_for(self, signals: dict):
+        """The spool commands (m) for the loop's signals by port name (:data:`hydrogen.diagram.SLOTS`)."""
+        v = self._signals(signals)
         out = self.fn(*[v[n] for n in self.fn.in_names])
         if not isinstance(out, tuple):
             return out
@@ -198,10 +206,14 @@ class _Controller:
         self.u_applied[:] = u_app
 
     def update(self, h, q, qdot, pc, l, ref, adapt):
+        """:meth:`update_for` the signals of a measured pose, velocities, … (as :meth:`command`)."""
+        self.update_for(h, diagram.signals(q, qdot, pc, l, ref, adapt))
+
+    def update_for(self, h, signals: dict):
         """Semi-implicit step: xc ← clip(xc + h F(measurement, xc, u_applied)) with the rates-only
-        function (the C loop's "controller state" block)."""
+        function (the C loop's "controller state" block), for the loop's ``signals`` by port name."""
         if self.xc.size:
-            self._signals(q, qdot, pc, l, ref, adapt)
+            self._signals(signals)
             np.clip(self.xc + h * self._rates(), *self.bounds, out=self.xc)
 
     def advance(self, h):

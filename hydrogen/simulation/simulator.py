@@ -9,7 +9,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .. import pressures
+from .. import diagram, pressures
 from ..actuators import actuator
 from ..controllers import spec as controller_spec
 from ..errors import KinematicsError, ScenarioError, SimulationError
@@ -824,13 +824,13 @@ class PythonStages:
         if self.predict:  # the plant as it will be when this command reaches the valves
             x = self.predicted(s)
             q = x[self._q]
-            args = (q, x[self._qdot], x[self._pc], np.asarray(self.dyn.leg_lengths(q), float),
-                    sc.reference(s.t + (delay + self.delay_frac) * self.h), s.t >= sc.t_adapt)
+            ports = diagram.signals(q, x[self._qdot], x[self._pc], np.asarray(self.dyn.leg_lengths(q), float),
+                                    sc.reference(s.t + (delay + self.delay_frac) * self.h), s.t >= sc.t_adapt)
         else:
-            args = (self.q_meas, s.qdot_meas, s.pc_meas, s.l_meas, s.ref, s.t >= sc.t_adapt)
+            ports = diagram.signals(self.q_meas, s.qdot_meas, s.pc_meas, s.l_meas, s.ref, s.t >= sc.t_adapt)
         if self.k and sc.estimator_update != "euler":  # semi-implicit: state from this measurement, then command
-            ctrl.update(self.h, *args)
-        s.u = ctrl.command(*args)
+            ctrl.update_for(self.h, ports)
+        s.u = ctrl.command_for(ports)
         if delay > 0:
             s.u_app = self.u_hist[(self.k - delay) % self._max_delay].copy()
             self.u_hist[self.k % self._max_delay] = s.u

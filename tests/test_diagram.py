@@ -1,0 +1,71 @@
+"""The loop's blocks and ports (hydrogen.diagram): wiring by name, refusals, and the drivers that read it."""
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pytest
+
+from hydrogen import diagram
+from hydrogen.errors import ScenarioError
+
+ROOT = Path(__file__).resolve().parent.parent
+SIZES = {"NQ": 6, "NL": 6, "NPC": 6}
+
+
+def test_wire_gives_each_slot_its_index_in_the_argument_table_and_minus_one_where_unread():
+    inputs = [("Kleg", 6), ("l", 6), ("qd0", 6), ("numbers", 89)]
+    slots = diagram.wire("controller 'p'", inputs, {"Kleg", "numbers"}, SIZES)
+    assert len(slots) == len(diagram.SLOTS)
+    assert slots[diagram.SLOTS.index("l")] == 1 and slots[diagram.SLOTS.index("qd0")] == 2
+    assert all(i == -1 for name, i in zip(diagram.SLOTS, slots) if name not in ("l", "qd0"))
+
+
+def test_an_input_wired_to_nothing_is_refused_naming_its_owner_and_the_input():
+    with pytest.raises(ScenarioError, match=r"controller 'x': no value for its input\(s\) p_supply: wired to no "
+                                            r"loop signal \(the loop's signals: q, qdot, "):
+        diagram.wire("controller 'x'", [("q", 6), ("p_supply", 1)], set(), SIZES)
+
+
+def test_a_signal_of_another_size_is_refused_naming_both_sizes():
+    with pytest.raises(ScenarioError, match=r"controller 'x': input 'pc' has 6 entries, but the loop's signal "
+                                            r"'pc' \(measured pressure states.*\) has 12 for this robot"):
+        diagram.wire("controller 'x'", [("pc", 6)], set(), {**SIZES, "NPC": 12})
+
+
+def test_the_controller_state_takes_its_size_from_the_controller_not_from_the_robot():
+    assert diagram.wire("controller 'x'", [("xc", 146)], set(), SIZES)[diagram.SLOTS.index("xc")] == 0
+
+
+def test_every_block_input_is_some_block_output_and_the_controller_reads_the_ports():
+    outputs = {p.name for b in diagram.LOOP_BLOCKS for p in b.outputs}
+    for block in diagram.LOOP_BLOCKS:
+        missing = [p.name for p in block.inputs if p.name not in outputs]
+        assert not missing, f"block {block.name}: inputs {missing} written by no block"
+    (ctrl,) = [b for b in diagram.LOOP_BLOCKS if b.name == "controller"]
+    assert tuple(p.name for p in ctrl.inputs) == diagram.SLOTS
+    assert [b.name for b in diagram.LOOP_BLOCKS if b.continuous] == ["plant"]
+
+
+def test_signals_name_every_port_the_loop_writes_but_the_controller_s_own():
+    ref = [[0.0] * 6 for _ in range(4)]
+    got = diagram.signals([0.0] * 6, [0.0] * 6, [0.0] * 6, [0.0] * 6, ref, True)
+    assert set(got) | {"xc", "u_applied"} == set(diagram.SLOTS)
+    assert got["adapt"] == 1.0
+
+
+@pytest.mark.parametrize("robot", ["ubc_stewart", "excavator_arm", "loader_crane"])
+def test_the_loop_driver_writes_every_port_once_and_every_shipped_controller_is_wired(robot):
+    folder = ROOT / "generated" / robot
+    source = (folder / f"{robot}_loop.c").read_text()
+    for name in diagram.SLOTS:
+        assert source.count(f"{robot.upper()}_SLOT_{name.upper()},") == 1 + (name == "xc")  # the update rewrites xc
+    manifest = json.loads((folder / "manifest.json").read_text())
+    s = manifest["model"]
+    sizes = {"NQ": s["n"], "NL": s["m"], "NPC": s["n_pressures"]}
+    for f in manifest["functions"]:
+        if f["name"].startswith("ctrl_"):
+            inputs = [(name, rows * cols) for name, rows, cols in f["inputs"]]
+            constants = {name for name, _ in inputs if name not in diagram.SLOTS}
+            slots = diagram.wire(f["name"], inputs, constants, sizes)
+            assert slots[diagram.SLOTS.index("qd0")] >= 0, f["name"]  # every controller tracks the reference
