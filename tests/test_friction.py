@@ -282,3 +282,22 @@ def test_seal_friction_builds_runs_closed_loop_and_the_two_loops_agree(dyn):
     assert np.all(np.isfinite(c.q)) and c.t[-1] >= 0.3 - 2 / c.scenario.control_rate
     np.testing.assert_allclose(c.q, py.q, atol=1e-10)
     assert not np.array_equal(c.q, plain.q)  # the seals act
+
+
+def test_the_description_reference_lists_the_tables_keys():
+    from hydrogen import schema
+    assert schema.keys("[[cylinders]] friction") == set(friction.KEYS)
+    assert "friction" in schema.keys("[[cylinders]]")
+
+
+def test_the_cli_names_a_scenarios_seal_term_the_plant_lacks_without_a_traceback(dyn, tmp_path, capsys):
+    from hydrogen import cli
+    from hydrogen.model import default_model_path
+    path = tmp_path / "seals.toml"
+    path.write_text(default_model_path().read_text() + "\n[variants.seals]\n"
+                    "actuators.leg2.friction = { breakaway = 160.0, stribeck_speed = 0.02 }\n")
+    assert cli.main(["simulate", "--model", str(path), "--scenario", "z-1hz.seals", "--controller", "p",
+                     "--duration", "0.05"]) == 2
+    err = capsys.readouterr().err
+    assert "actuators.leg2.friction.breakaway = 160.0 asks for the seal friction's Stribeck dip" in err
+    assert "Traceback" not in err

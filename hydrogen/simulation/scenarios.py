@@ -119,12 +119,12 @@ class Scenario(ScenarioFields):
 PER_ACTUATOR = ("friction", "quantization_l", "noise_l")
 
 
-def _refuse_table(sc, name: str, table, coulomb=None, complete=True, sources=None):
+def _refuse_table(sc, name: str, table, complete=True, sources=None):
     """A :class:`ScenarioError` naming ``actuators.<name>.friction.<key>`` for the first fault of seal friction
     table ``table`` (:func:`hydrogen.plant.friction.table_problem`); ``sources``: where each key's value came
     from, for the message (a key from the actuator's description, or the scenario's friction)."""
     from ..plant.friction import table_problem
-    problem = table_problem(table, coulomb, complete)
+    problem = table_problem(table, complete=complete)
     if problem is not None:
         key, what = problem
         where = f"scenario '{sc.name}': actuators.{name}.friction"
@@ -145,7 +145,7 @@ def friction_row(sc, c, seal: bool) -> tuple:
     from ..actuators.declarations import LENGTH
     from ..plant import friction
 
-    names = ("coulomb", "viscous", "smooth_speed")
+    names = [par.name for par in friction.parameters_of(False)]  # the list's [F_c, b, v_s]
     # a joint actuator's is none unless given (the smoothing speed only keeps tanh finite)
     base = sc.friction if actuator(c.kind).TRAVEL == LENGTH else (0.0, 0.0, sc.friction[2])
     own = sc.actuators.get(c.name, {}).get("friction")
@@ -155,9 +155,7 @@ def friction_row(sc, c, seal: bool) -> tuple:
     sources = {k: ("its description" if k in desc else "the scenario's friction") for k in table if k not in own}
     _refuse_table(sc, c.name, table, sources=sources)
     built = dict(zip(friction.TERMS, c.seal_terms))
-    asks = {"stribeck": table.get("breakaway", table["coulomb"]) > table["coulomb"],
-            "pressure": table.get("pressure_coefficient", 0.0) > 0.0}
-    for term, asked in asks.items():
+    for term, asked in zip(friction.TERMS, friction.terms_of(table)):
         if asked and not built[term]:
             key = friction.TERMS[term][0]
             raise ScenarioError(
