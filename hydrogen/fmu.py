@@ -67,13 +67,14 @@ UNITS = {
     "kg.m2": {"kg": 1, "m": 2}, "m2.Pa0.5/s": None,
 }
 #: Plant parameters (inputs of plant_rhs besides x and u): per-entry names, units and what they are.
-def _friction_entries(c) -> list:
+def _friction_entries(c, seal: bool) -> list:
     """The friction entries of actuator ``c`` in its own unit (its kind's TRAVEL): the friction block's
-    parameters (:mod:`hydrogen.plant.friction`)."""
+    parameters in the plant's input (:func:`hydrogen.plant.friction.parameters_of`, ``seal``: the robot
+    has seal friction)."""
     from .plant import friction
     t = c.travel
     return [(_dotted("friction", c.name, par.name), par.unit_of(t).replace(" ", "."), f"{par.doc} of actuator {c.name}")
-            for par in friction.PARAMETERS]
+            for par in friction.parameters_of(seal)]
 
 
 _REF_ORDERS = (("qd0", "q_d", "", "reference"), ("qd1", "q_d_dot", "/s", "reference velocity"),
@@ -377,7 +378,7 @@ def _plant_arrays(dyn, p):
         "gamma2": (model.gamma[1], [(_dotted("gamma2", c), "m2.Pa0.5/s", f"beta c (bulk modulus times valve flow "
                                      f"gain) of cylinder {c}") for c in cyls]),
         "friction": (actuator_settings(sc, model)["friction"].ravel(),
-                     [e for c in model.cylinders for e in _friction_entries(c)]),
+                     [e for c in model.cylinders for e in _friction_entries(c, model.seal_friction)]),
         "valve": (valve_parameters(sc, model).ravel(),
                   [(_dotted("valve", c, par.name), par.unit, f"{par.doc} of actuator {c}")
                    for c in cyls for par in valve.PARAMETERS]),
@@ -414,13 +415,15 @@ def _plant_ranges(model, sc) -> dict:
     the scenario's own rules: the true theta and gamma inside the model's projection bounds (the model
     requires it, Lemma 1), friction and valve as the scenario checks them (the natural frequency no
     higher than the RK4 sub-steps resolve)."""
+    from .plant import friction
     m = model.n_cylinders
     omega_max = float(sc.control_rate) * int(sc.substeps)  # 2 pi f / (rate * substeps) <= 1
+    lower = [friction.LOWER[par.name] for par in friction.parameters_of(model.seal_friction)]
     return {
         "theta": [(float(a), float(b)) for a, b in zip(model.theta_min, model.theta_max)],
         "gamma1": [(float(model.gamma1_min), float(model.gamma1_max))] * m,
         "gamma2": [(float(model.gamma2_min), float(model.gamma2_max))] * m,
-        "friction": [(0.0, None), (0.0, None), (POSITIVE, None)] * m,
+        "friction": [(POSITIVE if strict else lo, None) for lo, strict in lower] * m,
         "valve": [(0.0, None), (0.0, omega_max), (POSITIVE, None), (0.0, None), (0.0, None)] * m,
     }
 

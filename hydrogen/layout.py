@@ -13,8 +13,8 @@ from .diagram import CONTROLLER_PORTS, SLOTS  # the controller's input slots: th
 from .names import NUMBERS  # the numbers input's name, part of the loop's layout
 
 __all__ = ["NUMBERS", "MAX_DELAY", "PREDICTOR_MODEL", "delay_split", "LOOP_CONFIG", "LOOP_STATE", "LOOP_SIGNALS",
-           "model_summary", "loop_context", "log_widths", "loop_functions", "C_SIZES", "plant_offsets", "plant_size",
-           "c_double", "config_fields", "struct_fields"]
+           "model_summary", "friction_width", "loop_context", "log_widths", "loop_functions", "C_SIZES", "plant_offsets",
+           "plant_size", "c_double", "config_fields", "FRICTION_COMMENT", "struct_fields"]
 
 
 #: Longest computation delay the loop's command ring buffer holds, control periods (a scenario's
@@ -22,11 +22,12 @@ __all__ = ["NUMBERS", "MAX_DELAY", "PREDICTOR_MODEL", "delay_split", "LOOP_CONFI
 #: measurement it came from; 8 leaves room for slower targets and delay-margin studies.
 MAX_DELAY = 8
 
-#: The controller's own model in the delay predictor: no friction ([F_c, b, v_s] of every actuator; the
-#: smoothing speed v_s only keeps tanh's argument finite) and the ideal valve of every actuator (no lag, no
-#: overlap, no saturation: [0, 0, 0, 0, 0], :data:`hydrogen.plant.valve.PARAMETERS`).
+#: The controller's own model in the delay predictor: no friction ([F_c, b, v_s, F_brk, v_st, k_p] of
+#: every actuator, :data:`hydrogen.plant.friction.PARAMETERS`, the input's first :func:`friction_width`
+#: of them; the speeds only keep the arguments of tanh and exp finite) and the ideal valve of every
+#: actuator (no lag, no overlap, no saturation: [0, 0, 0, 0, 0], :data:`hydrogen.plant.valve.PARAMETERS`).
 #: The C loop's PRED_FRICTION and PRED_VALVE are rendered from it; the Python stages use it as is.
-PREDICTOR_MODEL = {"friction": (0.0, 0.0, 1.0), "valve": (0.0, 0.0, 0.0, 0.0, 0.0)}
+PREDICTOR_MODEL = {"friction": (0.0, 0.0, 1.0, 0.0, 1.0, 0.0), "valve": (0.0, 0.0, 0.0, 0.0, 0.0)}
 
 
 def delay_split(delay: float, h: float) -> tuple:
@@ -60,7 +61,7 @@ LOOP_CONFIG = (
       ("delay", "long long", "P_DELAY_PERIODS", "run.delay_periods"),
       ("delay_frac", "double", "P_DELAY_FRACTION", "run.delay_fraction"))),
     ("plant (SI): true theta ({p_theta}), gamma1 = beta and gamma2 = beta c per cylinder,\n"
-     " * friction [Fc, b, v_s] per actuator in its own unit (N, N s/m, m/s; N m, N m s/rad, rad/s),\n"
+     " * friction {p_friction} per actuator in its own unit (N, N s/m, m/s; N m, N m s/rad, rad/s),\n"
      " * valve per actuator [first-order lag s, second-order natural frequency rad/s, damping, overlap m,\n"
      " * full opening m] (its datasheet valve, else the rig's)",
      (("theta", "const double*", "P_THETA", "run.theta"), ("gamma1", "const double*", "P_GAMMA1", "run.gamma1"),
@@ -172,9 +173,14 @@ def struct_fields(description, p: str, sizes: dict, x_parts: str = "") -> list:
     return out
 
 
-def config_fields(p: str) -> list:
+#: The friction row's names in the configuration's comment, without and with seal friction.
+FRICTION_COMMENT = {False: "[Fc, b, v_s]", True: "[Fc, b, v_s, F_brk N or N m, v_st m/s or rad/s, k_p]"}
+
+
+def config_fields(p: str, seal: bool = False) -> list:
     """The configuration's groups for the templates: ``[{"comment": parts, "fields": [{"name", "type",
-    "decl", "value", "source", "array"}]}]``, with C declarations for model prefix ``p``."""
+    "decl", "value", "source", "array"}]}]``, with C declarations for model prefix ``p``; ``seal``: the
+    robot has seal friction (its friction row's comment)."""
     def decl(name, ctype):
         if ctype == "fn":
             return f"{p}_casadi_fn {name}"
@@ -187,7 +193,8 @@ def config_fields(p: str) -> list:
     from markupsafe import Markup  # hydrogen's own comment text: written as it is (hydrogen.templating)
 
     # the comment's parts around {p_theta}: the template writes the (escaped) parameter names between
-    return [{"comment": [Markup(part.replace("\n * ", "\n     * ")) for part in comment.split("{p_theta}")],
+    return [{"comment": [Markup(part.replace("\n * ", "\n     * ").replace("{p_friction}", FRICTION_COMMENT[seal]))
+                         for part in comment.split("{p_theta}")],
              "fields": [{"name": n, "type": t, "decl": Markup(decl(n, t)), "value": v, "source": src,
                          "array": t in ("double[2]", "slots")}
         for n, t, v, src in fields]} for comment, fields in LOOP_CONFIG]
@@ -215,6 +222,8 @@ def model_summary(model) -> dict:
         # the plant state's parts in order (hydrogen.plant): name, size (a robot size's name), offset, entries
         "plant": [{"name": s.name, "size": s.size_name, "start": s.start, "entries": s.size}
                   for s in plant_layout(model)],
+        # recorded only when on: the plant's input friction is wider, a robot without keeps its manifest
+        **({"seal_friction": True} if model.seal_friction else {}),
     }
 
 
@@ -236,6 +245,14 @@ def plant_offsets(summary: dict) -> dict:
 def plant_size(summary: dict) -> int:
     """Number of entries of the plant state x, from a manifest's model summary."""
     return sum(part["entries"] for part in summary["plant"])
+
+
+def friction_width(summary: dict) -> int:
+    """Numbers per actuator in the plant's input ``friction``, from a manifest's model summary: all of
+    :data:`PREDICTOR_MODEL`'s friction row with seal friction, else [F_c, b, v_s]
+    (:func:`hydrogen.plant.friction.parameters_of`)."""
+    from .plant.friction import parameters_of
+    return len(parameters_of(bool(summary.get("seal_friction"))))
 
 
 def n_pressures(summary: dict) -> int:
@@ -288,10 +305,12 @@ def loop_context(manifest: dict) -> dict:
         "x_plus": x_plus, "x_index": x_index, "x_parts": x_parts,
         "n_noise": m + n_p + (n if s["joint_encoders"] else 0), "n_pressures": n_p, "three_way": n_p == m,
         "parametric": NUMBERS in manifest,
-        "encoders": bool(s["joint_encoders"]), "slots": SLOTS, "ports": _port_writes(), "logs": logs, "config": config_fields(name),
+        "encoders": bool(s["joint_encoders"]), "slots": SLOTS, "ports": _port_writes(), "logs": logs,
+        "config": config_fields(name, bool(s.get("seal_friction"))),
         "state": struct_fields(LOOP_STATE, name, sizes, x_parts), "signals": struct_fields(LOOP_SIGNALS, name, sizes),
         "p_theta": ", ".join(s["theta_names"]),
-        "pred_friction": ", ".join(map(c_double, PREDICTOR_MODEL["friction"] * m)),
+        "pred_friction": ", ".join(map(c_double, PREDICTOR_MODEL["friction"][:friction_width(s)] * m)),
+        "friction_width": friction_width(s),
         "pred_valve": ", ".join(map(c_double, PREDICTOR_MODEL["valve"] * m)),
         "valve_width": len(PREDICTOR_MODEL["valve"]),
     }

@@ -229,6 +229,16 @@ class Cylinder:
     #: its datasheet valve's spool response, SI (the description's ``valve``; None: the rig's valve
     #: settings): ``{name: value}`` of each of :data:`hydrogen.plant.valve.PARAMETERS`
     valve: dict | None = None
+    #: its seal friction, in its own unit (the description's ``friction`` table, keys of
+    #: :data:`hydrogen.plant.friction.KEYS`, each only where given; None: the rig's friction alone)
+    friction: dict | None = None
+
+    @property
+    def seal_terms(self) -> tuple:
+        """(Stribeck dip, pressure load): the seal friction terms its description declares, structure
+        (baked, :func:`hydrogen.plant.friction.terms_of`); (False, False) without a friction table."""
+        from .plant.friction import terms_of
+        return terms_of(self.friction)
 
     @property
     def valve_limits(self) -> tuple:
@@ -392,6 +402,13 @@ class Model:
     leg_min = _stack("stroke_min")
     leg_max = _stack("stroke_max")
 
+    @property
+    def seal_friction(self) -> bool:
+        """Whether an actuator declares seal friction terms (:attr:`Cylinder.seal_terms`): the plant's
+        input ``friction`` then has every actuator's seal numbers too
+        (:func:`hydrogen.plant.friction.parameters_of`)."""
+        return any(any(c.seal_terms) for c in self.cylinders)
+
     def inertial_parameters(self) -> dict:
         """Every link's dynamic parameters: ``"link.param"`` -> value (see INERTIAL_PARAMETERS)."""
         return {f"{lk.name}.{k}": v for lk in self.links for k, v in lk.parameters().items()}
@@ -532,6 +549,8 @@ def _baked_cylinder(c: Cylinder) -> list:
         out += [params]
     if any(c.valve_limits):  # appended only then: the plant's valve terms differ, a robot without hashes as before
         out += [["valve_limits", *c.valve_limits]]
+    if any(c.seal_terms):  # appended only then: the plant's friction terms differ, a robot without hashes as before
+        out += [["seal_terms", *c.seal_terms]]
     return out
 
 
@@ -1160,7 +1179,8 @@ def _cylinders(r: _Reader, data: dict, link_names: set, root_note: str = "", joi
         if _motion(kind) == "revolute":
             out.append(_joint_actuator(r, w, cy, defaults, kind, keys, joints))
             continue
-        r.known(cy, {"name", "from", "to", "linkage", "kind", "valve", *keys}, w if kind == DEFAULT_KIND else f"{w} (kind {kind})")
+        r.known(cy, {"name", "from", "to", "linkage", "kind", "valve", "friction", *keys},
+                w if kind == DEFAULT_KIND else f"{w} (kind {kind})")
         if "linkage" in cy and "to" in cy:
             raise r.error(w, "give either 'to' (the rod end pinned on a link) or 'linkage' (the rod end on a "
                              "four-bar linkage), not both")
@@ -1190,16 +1210,16 @@ def _cylinders(r: _Reader, data: dict, link_names: set, root_note: str = "", joi
         if linkage:
             _check_linkage(r, w, linkage, smin, smax, linkage_joint)
         _check_order(r, w, {**vals, "stroke_min": smin, "stroke_max": smax}, kind)
-        valve = vals.pop("valve")
+        valve, seals = vals.pop("valve"), _seal_friction(r, w, cy)
         if kind == DEFAULT_KIND:  # its optional constants (not Cylinder fields) in params
             extra = {k: vals.pop(k) for k in THREE_WAY_EXTRA_KEYS}
             out.append(Cylinder(name, ends[0][0], ends[0][1], ends[1][0], ends[1][1], stroke_min=smin,
-                                stroke_max=smax, params=extra, valve=valve, **linkage, **vals))
+                                stroke_max=smax, params=extra, valve=valve, friction=seals, **linkage, **vals))
             continue
         shared = {k: vals.pop(k) for k in SHARED_KEYS if k in vals}
         out.append(Cylinder(name, ends[0][0], ends[0][1], ends[1][0], ends[1][1], piston_area=None, rod_area=None,
                             chamber_length=None, stroke_min=smin, stroke_max=smax, kind=kind, params=vals,
-                            valve=valve, **linkage, **shared))
+                            valve=valve, friction=seals, **linkage, **shared))
     unused = sorted(set(defaults) - used)
     if unused:
         kinds = sorted({c.kind for c in out})
@@ -1286,7 +1306,7 @@ def _revolute_joint(r: _Reader, where: str, jname: str, joints, what: str):
 def _joint_actuator(r: _Reader, w: str, cy: dict, defaults: dict, kind: str, keys, joints) -> Cylinder:
     """A [[cylinders]] entry of a joint actuator (rotary, motor): ``joint`` names a revolute joint of the
     tree; its angle range is its travel's key, or none for unlimited travel (−∞, ∞)."""
-    r.known(cy, {"name", "joint", "kind", "valve", *keys}, f"{w} (kind {kind})")
+    r.known(cy, {"name", "joint", "kind", "valve", "friction", *keys}, f"{w} (kind {kind})")
     jname = r.name(f"{w} joint", r.require(cy, "joint", f"{w} (kind {kind})"))
     joint = _revolute_joint(r, f"{w} joint", jname, joints, f"a {kind} actuator")
     vals = _cylinder_values(r, w, cy, defaults, kind, keys)
@@ -1303,7 +1323,8 @@ def _joint_actuator(r: _Reader, w: str, cy: dict, defaults: dict, kind: str, key
     zero = np.zeros(3)
     return Cylinder(cy["name"], joint.parent, zero, joint.child, zero, piston_area=None, rod_area=None,
                     chamber_length=None, stroke_min=amin, stroke_max=amax, kind=kind,
-                    params={**vals, **limits}, joint=jname, valve=valve, **shared)
+                    params={**vals, **limits}, joint=jname, valve=valve, friction=_seal_friction(r, w, cy),
+                    **shared)
 
 
 def _cylinder_values(r: _Reader, w: str, cy: dict, defaults: dict, kind: str, keys) -> dict:
@@ -1398,6 +1419,24 @@ def _datasheet_valve(r: _Reader, w: str, cy: dict, defaults: dict, kind: str):
                          declared_range(kind, "flow_gain"))
     derived = {"flow_gain": flow_gain, "underlap": r.number(f"{wv}.overlap", underlap, declared_range(kind, "underlap"))}
     return spool, {k: val for k, val in derived.items() if k in names}
+
+
+def _seal_friction(r: _Reader, w: str, cy: dict):
+    """Actuator ``w``'s seal friction table (its own ``friction``), in its own unit, checked as a rig's is
+    (:func:`hydrogen.plant.friction.table_problem`), or None without one. A stribeck_speed or
+    pressure_coefficient that declares no term (no breakaway above coulomb, a 0) is kept: a number."""
+    from .plant.friction import table_problem
+    if "friction" not in cy:
+        return None
+    table, wf = cy["friction"], f"{w} friction"
+    if not isinstance(table, dict) or not table:
+        raise r.error(wf, "expected a table { coulomb, breakaway, stribeck_speed, viscous, pressure_coefficient, "
+                          f"smooth_speed }} (the actuator's own unit), got {_quote(table)}")
+    problem = table_problem(table)
+    if problem is not None:
+        key, what = problem
+        raise r.error(wf if key is None else f"{wf}.{key}", what)
+    return {k: float(v) for k, v in table.items()}
 
 
 def order_broken(values: dict):

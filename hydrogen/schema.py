@@ -151,6 +151,24 @@ DESCRIPTION_KEYS = (
         default_text="none: first order"),
     Key("[[cylinders]] valve", "overlap", "", "spool overlap, a fraction of spool_travel in (−1, 1): > 0 a dead "
         "band with no flow, < 0 an underlap", default=0.0),
+    Key("[[cylinders]]", "friction", "the actuator's own: N or N m, m/s or rad/s", "the actuator's seal "
+        "friction (table below): a breakaway above coulomb puts the Stribeck dip in its generated plant, a "
+        "pressure_coefficient above 0 the seals' pressure load; its numbers replace the rig's friction for "
+        "this actuator (a scenario's actuators.<name>.friction still overrides them key by key)",
+        default=None, default_text="none: the rig's friction, no seal terms in the plant"),
+    Key("[[cylinders]] friction", "coulomb", "N or N m", "sliding (Coulomb) friction F_c, >= 0",
+        default=None, default_text="the rig's friction[0]"),
+    Key("[[cylinders]] friction", "breakaway", "N or N m", "static friction F_brk at the start of motion, "
+        ">= coulomb; above it: the Stribeck dip (structure)", default=None, default_text="coulomb: no dip"),
+    Key("[[cylinders]] friction", "stribeck_speed", "m/s or rad/s", "v_st > 0: width of the dip from "
+        "breakaway to Coulomb", default=None, default_text="required with breakaway above coulomb"),
+    Key("[[cylinders]] friction", "viscous", "N s/m or N m s/rad", "viscous coefficient b, >= 0",
+        default=None, default_text="the rig's friction[1]"),
+    Key("[[cylinders]] friction", "pressure_coefficient", "", "k_p >= 0: the Coulomb and breakaway levels "
+        "rise by k_p times the chamber forces' magnitude sum; above 0: the pressure load (structure)",
+        default=0.0),
+    Key("[[cylinders]] friction", "smooth_speed", "m/s or rad/s", "v_s > 0 of the tanh through zero speed",
+        default=None, default_text="the rig's friction[2]"),
     Key("[coordinates]", "names", "", "one distinct name per coordinate", default_text="the joints' names "
         "(a floating joint's as <joint>_x ... <joint>_phi)"),
     Key("[coordinates]", "neutral", "m, rad", "the neutral pose, about which scenario references are offsets"),
@@ -200,7 +218,10 @@ SCENARIO_TABLE_KEYS = (
         "those settings for one actuator, in its own unit (a cylinder's length in m and force in "
         "N, a rotary vane's angle in rad and torque in N m); merged per actuator over [rig]'s. A cylinder "
         "without them takes the scenario's; a rotary actuator's friction is none unless given, and it must give "
-        "its own quantization_l and noise_l where the scenario's are on",
+        "its own quantization_l and noise_l where the scenario's are on. friction is [Coulomb, viscous, tanh "
+        "speed] or a seal friction table { coulomb, breakaway, stribeck_speed, viscous, pressure_coefficient, "
+        "smooth_speed } (the description's [[cylinders]] friction keys), merged key by key over the "
+        "actuator's description's; it may not ask for a seal term the actuator's plant is built without",
         default=None, default_text="none"),
 )
 

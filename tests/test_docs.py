@@ -181,7 +181,7 @@ def test_description_table_lists_every_key_the_loader_accepts():
         assert (k.table, k.key) in rows
     for f in _FIELDS:
         assert ("[scenarios.<name>], [rig], [variants.<name>]", f) in rows
-    assert set(HYDRAULIC_KEYS) | {"name", "from", "to", "linkage", "valve"} == schema.keys("[[cylinders]]")
+    assert set(HYDRAULIC_KEYS) | {"name", "from", "to", "linkage", "valve", "friction"} == schema.keys("[[cylinders]]")
 
 
 def test_scenario_rows_come_from_the_fields_own_declarations(monkeypatch):

@@ -22,6 +22,8 @@ An actuator module declares
   the same laws, ``P`` the parameters by name, spool u in m, β and c the paper's γ = [β, βc]:
 
   - ``force(p, P)``: the force (N) or torque (N·m) from the pressures;
+  - ``chamber_forces(p, P)``: each chamber's signed force (torque), summing to ``force``: the seal
+    friction's pressure load (:mod:`hydrogen.plant.friction`);
   - ``pressure_rates(x, xdot, p, u, beta, c, P, smooth=True)``: the plant's ṗ (Pa/s), with the
     simulator's smooth orifice law (``smooth``) or the controllers' law with clipped drops;
   - ``f0(x, xdot, p, P)``, ``g0(x, p, u, P)``: ḟ = β f0 + βc g0, g0 increasing in u;

@@ -134,6 +134,11 @@ class Symbolic:
         return p[0] * P["piston_area"] - P["supply_pressure"] * P["rod_area"]
 
     @staticmethod
+    def chamber_forces(p, P):
+        """(p_c A, −P_s a), N: each chamber's push on the piston (the seals' load), summing to the force."""
+        return p[0] * P["piston_area"], -P["supply_pressure"] * P["rod_area"]
+
+    @staticmethod
     def pressure_rates(x, xdot, p, u, beta, c, P, smooth=True):
         """(ṗ_c,) of the plant, Pa/s: the flow q_l = c (q_l/c), with the plant's smooth orifice law
         (``smooth``) or the controllers' (57) with clipped drops."""
@@ -214,6 +219,10 @@ class Numeric:
     @staticmethod
     def leakage_flow(p, P):
         return P["leakage"] * (P["supply_pressure"] - p[0])
+
+    @staticmethod
+    def chamber_forces(p, P):
+        return p[0] * P["piston_area"], -P["supply_pressure"] * P["rod_area"]
 
     @staticmethod
     def pressure_rates(x, xdot, p, u, beta, c, P, smooth=True):

@@ -84,6 +84,11 @@ class Laws:
         across = ci * (pa - pb)
         return across + ce * (pa - pt), -across + ce * (pb - pt)
 
+    def chamber_forces(self, p, P):
+        """(p_A a_A, −p_B a_B), N or N·m: each chamber's push (the seals' load), summing to the force."""
+        aa, ab = self.areas(P)
+        return p[0] * aa, -p[1] * ab
+
     def pressure_rates(self, x, xdot, p, u, beta, c, P, smooth=True):
         """(ṗ_A, ṗ_B), Pa/s, with the plant's smooth orifice law (``smooth``) or the clipped one, and
         the leakage (:meth:`leakage_flows`)."""

@@ -1,6 +1,27 @@
-"""The plant's friction: each actuator's, in its own unit (N on a cylinder, N m on a rotary
-actuator), opposing its motion: f_fric = F_c tanh(l̇ / v_s) + b l̇. No state; its parameters are the
-plant's input ``friction``, [F_c, b, v_s] per actuator.
+"""The plant's friction: each actuator's seal friction, in its own unit (N on a cylinder, N m on a
+rotary actuator), opposing its motion. No state; its parameters are the plant's input ``friction``,
+:data:`PARAMETERS` per actuator in order.
+
+The law is the Stribeck curve of Armstrong-Hélouvry (Armstrong-Hélouvry, Dupont, Canudas de Wit,
+"A survey of models, analysis tools and compensation methods for the control of machines with
+friction", Automatica 30(7), 1994) in the smooth form Simscape's friction blocks use, with the
+pressure-dependent Coulomb level of Simscape Fluids' cylinder friction:
+
+    F_c,eff = F_c + k_p S,   S = Σ |chamber force| (N or N m, :func:`Symbolic.seal_load`),
+    f_fric  = (F_c,eff + (F_brk − F_c) exp(−(l̇ / v_st)²)) tanh(l̇ / v_s) + b l̇,
+
+F_c the Coulomb force, F_brk ≥ F_c the breakaway force (the static friction peak, reached as
+|l̇| ≫ v_s but ≪ v_st), v_st the Stribeck speed (the width of the dip from breakaway to Coulomb), b the
+viscous coefficient, v_s the speed of the tanh smoothing through zero speed, k_p the dimensionless
+pressure coefficient: the seals' squeeze rises with the chamber pressures, raising the Coulomb and
+breakaway levels alike (the Stribeck excess F_brk − F_c is the given one). With F_brk = F_c and
+k_p = 0 the law is f = F_c tanh(l̇ / v_s) + b l̇.
+
+The Stribeck dip (breakaway, stribeck_speed) and the pressure load (pressure_coefficient) are
+structure, like the valve's saturation: an actuator's plant has each only where its description
+declares it (its ``friction`` table, :attr:`hydrogen.model.Cylinder.seal_terms`); a robot without
+seal friction has today's plant, bit for bit, and its input ``friction`` is [F_c, b, v_s] per actuator
+(:func:`parameters_of`). The numbers, those three and the seal's, are runtime inputs.
 """
 from __future__ import annotations
 
@@ -8,41 +29,143 @@ import numpy as np
 
 from . import PlantParameter
 
-__all__ = ["STATES", "PARAMETERS", "Symbolic", "Numeric"]
+__all__ = ["STATES", "PARAMETERS", "SEAL", "TERMS", "LOWER", "KEYS", "parameters_of", "table_problem", "terms_of", "row",
+           "Symbolic", "Numeric"]
 
 STATES = ()
 
-#: Per actuator, in order, each in the actuator's own unit (its kind's TRAVEL).
+#: Per actuator, in order, each in the actuator's own unit (its kind's TRAVEL). The first three are
+#: the rig setting ``friction = [F_c, b, v_s]``, in its order; the rest (:data:`SEAL`) are inputs only
+#: of a robot with seal friction.
 PARAMETERS = (
     PlantParameter("coulomb", lambda t: t.force_unit, "Coulomb friction (F_c)", per_actuator=True),
     PlantParameter("viscous", lambda t: f"{t.force_unit} s/{t.unit}", "viscous friction coefficient (b)",
                    per_actuator=True),
     PlantParameter("smooth_speed", lambda t: f"{t.unit}/s", "speed of the tanh smoothing of the Coulomb "
                    "friction (v_s)", per_actuator=True),
+    PlantParameter("breakaway", lambda t: t.force_unit, "breakaway (static) friction, >= Coulomb (F_brk)",
+                   per_actuator=True),
+    PlantParameter("stribeck_speed", lambda t: f"{t.unit}/s", "Stribeck speed of the dip from breakaway to "
+                   "Coulomb friction (v_st)", per_actuator=True),
+    PlantParameter("pressure_coefficient", "", "pressure coefficient of the Coulomb friction on the chamber "
+                   "forces' magnitude sum (k_p, dimensionless)", per_actuator=True),
 )
+
+#: The parameters of the seal's structural terms: in the input ``friction`` only of a robot one of
+#: whose actuators declares seal friction.
+SEAL = ("breakaway", "stribeck_speed", "pressure_coefficient")
+
+#: The structural terms an actuator's description may declare, each with the keys that declare it
+#: (a value above the one that means none: breakaway above coulomb, pressure_coefficient above 0).
+TERMS = {"stribeck": ("breakaway", "stribeck_speed"), "pressure": ("pressure_coefficient",)}
+
+#: Each parameter's lowest value and whether it must exceed it (True) or may equal it, by name: the
+#: checks of a friction table and the FMU's ranges (breakaway >= coulomb is checked where both are known).
+LOWER = {"coulomb": (0.0, False), "viscous": (0.0, False), "smooth_speed": (0.0, True),
+         "breakaway": (0.0, False), "stribeck_speed": (0.0, True), "pressure_coefficient": (0.0, False)}
+
+#: The keys of a seal friction table (an actuator's description's ``friction``, a rig's
+#: ``actuators.<name>.friction``), in the actuator's own unit.
+KEYS = ("coulomb", "breakaway", "stribeck_speed", "viscous", "pressure_coefficient", "smooth_speed")
+
+
+def parameters_of(seal: bool) -> tuple:
+    """The input ``friction``'s parameters per actuator: all of :data:`PARAMETERS` for a robot with seal
+    friction (``seal``), else those outside :data:`SEAL` ([F_c, b, v_s], the input as it always was)."""
+    return tuple(p for p in PARAMETERS if seal or p.name not in SEAL)
+
+
+def table_problem(table, coulomb=None, complete=True):
+    """The first fault of a seal friction table (``{key: value}``, :data:`KEYS`) as (key or None, what is
+    wrong), or None. ``coulomb``: the Coulomb level the table's breakaway must reach when the table gives
+    none (None: unknown yet). ``complete``: the table is all there is (a breakaway above the Coulomb
+    level then needs its stribeck_speed); False: a part, merged later over another."""
+    import math
+    import numbers
+
+    unknown = sorted(set(table) - set(KEYS))
+    if unknown:
+        return None, f"unknown key(s) {unknown}; keys: {', '.join(KEYS)} (in the actuator's own unit)"
+    for key, v in table.items():
+        lo, strict = LOWER[key]
+        ok = isinstance(v, numbers.Real) and not isinstance(v, bool) and math.isfinite(v)
+        if not ok or v < lo or (strict and v <= lo):
+            return key, (f"must be a finite number {'>' if strict else '>='} {lo!r}, got {v!r} (in the "
+                         "actuator's own unit)")
+    coulomb = table.get("coulomb", coulomb)
+    if "breakaway" in table and coulomb is not None:
+        if table["breakaway"] < coulomb:
+            return "breakaway", (f"must be >= coulomb ({coulomb!r}), got {table['breakaway']!r} (static friction "
+                                 "is at least the sliding one)")
+    if complete and table.get("breakaway", 0.0) > (coulomb or 0.0) and "stribeck_speed" not in table:
+        return "stribeck_speed", ("must be given with a breakaway above coulomb (the width of the dip from "
+                                  "breakaway to Coulomb, in the actuator's own unit per second)")
+    return None
+
+
+def terms_of(table) -> tuple:
+    """(stribeck, pressure): the structural terms a description's seal friction table declares (None:
+    none): the Stribeck dip for a breakaway above its coulomb (0 if not given), the pressure load for a
+    pressure_coefficient above 0. A value that means none is structure, as leakage's 0."""
+    if not table:
+        return (False, False)
+    return (table.get("breakaway", 0.0) > table.get("coulomb", 0.0), table.get("pressure_coefficient", 0.0) > 0.0)
+
+
+def row(coulomb, viscous, smooth_speed, breakaway=None, stribeck_speed=1.0, pressure_coefficient=0.0) -> tuple:
+    """One actuator's parameters in :data:`PARAMETERS` order; breakaway None: the Coulomb force (no
+    Stribeck dip, whatever the Stribeck speed)."""
+    return (coulomb, viscous, smooth_speed, coulomb if breakaway is None else breakaway, stribeck_speed,
+            pressure_coefficient)
+
+
+def _excess(pressure_coefficient, seal_load, breakaway, coulomb, dip):
+    """The level above F_c: k_p S + (F_brk − F_c) exp(−(l̇/v_st)²) (``dip`` the exponential), either layer."""
+    return pressure_coefficient * seal_load + (breakaway - coulomb) * dip
 
 
 class Symbolic:
     """The friction law over SymPy."""
 
     @staticmethod
-    def parameters(m: int):
-        """The symbols of :data:`PARAMETERS` of ``m`` actuators, [F_c, b, v_s] per actuator."""
+    def parameters(m: int, seal: bool = False):
+        """The symbols of :func:`parameters_of` ``(seal)`` of ``m`` actuators, actuator after actuator."""
         from ..actuators.declarations import sp
-        return sp.Matrix([s for i in range(m) for s in sp.symbols(f"F_coulomb_{i} b_viscous_{i} v_smooth_{i}",
-                                                                  real=True)])
+        names = "F_coulomb_{i} b_viscous_{i} v_smooth_{i}" + (" F_breakaway_{i} v_stribeck_{i} k_pressure_{i}"
+                                                               if seal else "")
+        return sp.Matrix([s for i in range(m) for s in sp.symbols(names.format(i=i), real=True)])
 
     @staticmethod
-    def force(ldot, coulomb, viscous, smooth_speed):
-        """The friction force (torque) at rate ``ldot``, opposed to the motion by its user."""
+    def seal_load(chamber_forces):
+        """S = Σ |f_j| over an actuator's chamber forces (its kind's ``chamber_forces``), N or N m."""
         from ..actuators.declarations import sp
-        return coulomb * sp.tanh(ldot / smooth_speed) + viscous * ldot
+        return sp.Add(*[sp.Abs(f) for f in chamber_forces])
+
+    @staticmethod
+    def force(ldot, coulomb, viscous, smooth_speed, stribeck=None, pressure=None):
+        """The friction force (torque) at rate ``ldot``, opposed to the motion by its user (the module
+        docstring's law) with the structural terms given: ``stribeck`` = (F_brk, v_st), ``pressure`` =
+        (k_p, S); None: the term is not in the plant (F_c tanh(l̇/v_s) + b l̇, today's expression)."""
+        from ..actuators.declarations import sp
+        smooth = sp.tanh(ldot / smooth_speed)
+        if stribeck is None and pressure is None:
+            return coulomb * smooth + viscous * ldot
+        kp, load = pressure if pressure is not None else (0, 0)
+        brk, vst, dip = (*stribeck, sp.exp(-(ldot / stribeck[1]) ** 2)) if stribeck is not None else (coulomb, 1, 0)
+        # F_c tanh stays its own term, the excess level apart: the term-free sum's terms are untouched
+        return coulomb * smooth + _excess(kp, load, brk, coulomb, dip) * smooth + viscous * ldot
 
 
 class Numeric:
-    """The friction law over numpy (the same numbers as :class:`Symbolic`)."""
+    """The friction law over numpy (the same numbers as :class:`Symbolic`), every term present."""
 
     @staticmethod
-    def force(ldot, coulomb, viscous, smooth_speed):
+    def seal_load(chamber_forces):
+        return sum(np.abs(np.asarray(f, float)) for f in chamber_forces)
+
+    @staticmethod
+    def force(ldot, coulomb, viscous, smooth_speed, breakaway, stribeck_speed, pressure_coefficient, seal_load):
         ldot = np.asarray(ldot, float)
-        return coulomb * np.tanh(ldot / smooth_speed) + viscous * ldot
+        smooth = np.tanh(ldot / smooth_speed)
+        return (coulomb * smooth + _excess(pressure_coefficient, seal_load, breakaway, coulomb,
+                                           np.exp(-(ldot / stribeck_speed) ** 2)) * smooth + viscous * ldot)

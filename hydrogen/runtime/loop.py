@@ -67,7 +67,7 @@ def _check_values(values, ctx, ctrl, dyn) -> None:
     model = dyn.model
     n, m, n_xc = len(model.neutral_pose), ctx["m"], int(ctrl.xc.size)
     sizes = {"theta": len(model.theta), "gamma1": m, "gamma2": m,
-             "friction": 3 * m, "quant_l": m, "valve": len(PREDICTOR_MODEL["valve"]) * m, "bias": n, "terms": 3 * max(int(values["n_terms"]), 1),
+             "friction": ctx["friction_width"] * m, "quant_l": m, "valve": len(PREDICTOR_MODEL["valve"]) * m, "bias": n, "terms": 3 * max(int(values["n_terms"]), 1),
              "xc_lo": max(n_xc, 1), "xc_hi": max(n_xc, 1), "kf_gain": 2, "slot": len(ctx["slots"]),
              "pred_theta": len(model.theta), "pred_gamma1": m, "pred_gamma2": m,
              "p_low": ctx["n_pressures"], "p_high": ctx["n_pressures"], "numbers": max(len(numbers), 1)}

@@ -18,7 +18,7 @@ from .checks import check_fields
 from .reference import MultiSine, Step
 
 __all__ = ["Scenario", "setting", "settings", "PER_ACTUATOR", "actuator_settings", "per_actuator_unit", "scenario", "scenario_names", "variant_names", "variant_name", "split_variant", "current_name", "table_keys", "default_scenario_name", "RENAMED", "valve_vector",
-           "valve_parameters"]
+           "valve_parameters", "friction_row"]
 
 
 @dataclass(frozen=True)
@@ -97,6 +97,10 @@ class Scenario(ScenarioFields):
             if unknown:
                 raise ScenarioError(f"scenario '{self.name}': actuators.{name}: unknown setting(s) {unknown}; "
                                     f"settings given per actuator: {', '.join(PER_ACTUATOR)}")
+            table = values.get("friction")
+            if isinstance(table, Mapping):  # a seal friction table: its keys and ranges here, the rest per model
+                _refuse_table(self, name, table, complete=False)
+                values = {k: v for k, v in values.items() if k != "friction"}
             try:  # each value as the scenario's own field of that name checks it
                 replace(self, actuators={}, **{k: _tuple(v) for k, v in values.items()}).validated()
             except ScenarioError as exc:
@@ -115,6 +119,55 @@ class Scenario(ScenarioFields):
 PER_ACTUATOR = ("friction", "quantization_l", "noise_l")
 
 
+def _refuse_table(sc, name: str, table, complete=True, sources=None):
+    """A :class:`ScenarioError` naming ``actuators.<name>.friction.<key>`` for the first fault of seal friction
+    table ``table`` (:func:`hydrogen.plant.friction.table_problem`); ``sources``: where each key's value came
+    from, for the message (a key from the actuator's description, or the scenario's friction)."""
+    from ..plant.friction import table_problem
+    problem = table_problem(table, complete=complete)
+    if problem is not None:
+        key, what = problem
+        where = f"scenario '{sc.name}': actuators.{name}.friction"
+        text = f"{where}.{key} {what}" if key else f"{where}: {what}"
+        came = (sources or {}).get(key)
+        raise ScenarioError(text + (f" ({key} from {came})" if came else ""))
+
+
+def friction_row(sc, c, seal: bool) -> tuple:
+    """Actuator ``c``'s (a model's cylinder) friction numbers, its plant input's
+    (:func:`hydrogen.plant.friction.parameters_of`: all six for a robot with seal friction, ``seal``), in its own
+    unit: the scenario's ``actuators.<name>.friction`` (the list [F_c, b, v_s] or a seal friction table)
+    over its description's friction table (``Cylinder.friction``) over the scenario's ``friction`` (a
+    cylinder's; none on a joint actuator), key by key. A :class:`ScenarioError` naming the actuator and
+    the key for a value out of range, or one asking for a seal term its plant is generated without (a
+    breakaway above coulomb, a pressure_coefficient above 0: structure, declared in its description)."""
+    from ..actuators import actuator
+    from ..actuators.declarations import LENGTH
+    from ..plant import friction
+
+    names = [par.name for par in friction.parameters_of(False)]  # the list's [F_c, b, v_s]
+    # a joint actuator's is none unless given (the smoothing speed only keeps tanh finite)
+    base = sc.friction if actuator(c.kind).TRAVEL == LENGTH else (0.0, 0.0, sc.friction[2])
+    own = sc.actuators.get(c.name, {}).get("friction")
+    own = dict(zip(names, own)) if own is not None and not isinstance(own, Mapping) else dict(own or {})
+    desc = dict(c.friction or {})
+    table = {**dict(zip(names, base)), **desc, **own}
+    sources = {k: ("its description" if k in desc else "the scenario's friction") for k in table if k not in own}
+    _refuse_table(sc, c.name, table, sources=sources)
+    built = dict(zip(friction.TERMS, c.seal_terms))
+    for term, asked in zip(friction.TERMS, friction.terms_of(table)):
+        if asked and not built[term]:
+            key = friction.TERMS[term][0]
+            raise ScenarioError(
+                f"scenario '{sc.name}': actuators.{c.name}.friction.{key} = {table[key]!r} asks for the seal "
+                f"friction's {'Stribeck dip' if term == 'stribeck' else 'pressure load'}, which actuator "
+                f"'{c.name}''s plant is generated without: declare it in the actuator's description "
+                f"([[cylinders]] '{c.name}' friction = {{ {', '.join(friction.TERMS[term])} }}), which builds it in")
+    full = friction.row(table["coulomb"], table["viscous"], table["smooth_speed"], table.get("breakaway"),
+                        table.get("stribeck_speed", 1.0), table.get("pressure_coefficient", 0.0))
+    return tuple(float(v) for v in full[:len(friction.parameters_of(seal))])
+
+
 def _tuple(v):
     return tuple(v) if isinstance(v, list) else v
 
@@ -127,7 +180,7 @@ def per_actuator_unit(key: str, travel) -> str:
 
 def actuator_settings(sc: Scenario, model) -> dict:
     """Each setting of :data:`PER_ACTUATOR` per actuator of ``model``, in that actuator's own unit:
-    ``{"friction": (m, 3) array, "quantization_l": (m,), "noise_l": (m,)}``.
+    ``{"friction": (m, k) array (:func:`friction_row`), "quantization_l": (m,), "noise_l": (m,)}``.
     ScenarioError for an actuator the model lacks, or a joint actuator not given a sensor setting
     the scenario switches on (the scenario's is a cylinder's, in m)."""
     from ..actuators import actuator
@@ -142,16 +195,16 @@ def actuator_settings(sc: Scenario, model) -> dict:
     for c in model.cylinders:
         own, travel = sc.actuators.get(c.name, {}), actuator(c.kind).TRAVEL
         for key in PER_ACTUATOR:
+            if key == "friction":  # the actuator's description's over the scenario's, key by key
+                out[key].append(friction_row(sc, c, model.seal_friction))
+                continue
             value = _tuple(own.get(key, getattr(sc, key)))
-            if key not in own and travel != LENGTH:
-                if key == "friction":
-                    value = (0.0, 0.0, sc.friction[2])  # none unless given (the smoothing speed only keeps tanh finite)
-                elif getattr(sc, key):
-                    raise ScenarioError(
-                        f"scenario '{sc.name}': {key} = {getattr(sc, key)!r} is a cylinder's, in "
-                        f"{per_actuator_unit(key, LENGTH)}; actuator '{c.name}' (kind {c.kind}) moves an "
-                        f"{travel.quantity}: give its own as actuators.{c.name}.{key} in "
-                        f"{per_actuator_unit(key, travel)}")
+            if key not in own and travel != LENGTH and getattr(sc, key):
+                raise ScenarioError(
+                    f"scenario '{sc.name}': {key} = {getattr(sc, key)!r} is a cylinder's, in "
+                    f"{per_actuator_unit(key, LENGTH)}; actuator '{c.name}' (kind {c.kind}) moves an "
+                    f"{travel.quantity}: give its own as actuators.{c.name}.{key} in "
+                    f"{per_actuator_unit(key, travel)}")
             out[key].append(value)
     return {k: np.asarray(v, float) for k, v in out.items()}
 

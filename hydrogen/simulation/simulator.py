@@ -14,7 +14,7 @@ from ..actuators import actuator
 from ..controllers import spec as controller_spec
 from ..errors import KinematicsError, ScenarioError, SimulationError
 from ..layout import PREDICTOR_MODEL
-from ..plant import describe_entries, plant_layout, slot, state_vector
+from ..plant import describe_entries, friction, plant_layout, slot, state_vector
 from ..summary import SATURATED_AT, SATURATION, estimated_blocks  # saturation: defined with its line
 from .checks import _shown, check_against_model, check_run_size, checked_float, metric_window
 from .control import make_controller
@@ -771,7 +771,8 @@ class PythonStages:
         own = actuator_settings(sc, model)  # friction and resolution of each actuator, in its own unit
         self._fric, self._quant = own["friction"].ravel(), own["quantization_l"]
         self._valve = valve_parameters(sc, model).ravel()  # each actuator's valve: its datasheet's, else the rig's
-        self._pred_fric = np.tile(_PRED_FRICTION, model.n_cylinders)
+        width = len(friction.parameters_of(model.seal_friction))  # the input friction's numbers per actuator
+        self._pred_fric = np.tile(_PRED_FRICTION[:width], model.n_cylinders)
         self._pred_valve = np.tile(_PRED_VALVE, model.n_cylinders)
         self.layout = plant_layout(model)
         self._q, self._qdot, self._pc = (slot(self.layout, k).slice for k in ("q", "qdot", "pc"))

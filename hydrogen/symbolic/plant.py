@@ -5,8 +5,9 @@ the layout's order (:func:`hydrogen.plant.plant_layout`: [q (n), q̇ (n), pressu
 actuator, its kind's states: p_c of a three-way cylinder, p_A, p_B of a four-way one), spool (m),
 spool rate (m)]); input u = spool command (m, metres). The valve law (:mod:`hydrogen.plant.valve`,
 input ``valve`` = [τ_v, ω_v, ζ_v, overlap, full opening] per actuator) gives the spool the chambers see; the friction law
-(:mod:`hydrogen.plant.friction`, input ``friction`` = [F_c, b, v_s] per actuator in its own unit)
-opposes each actuator's motion.
+(:mod:`hydrogen.plant.friction`, input ``friction`` = [F_c, b, v_s] per actuator in its own unit, and
+[F_brk, v_st, k_p] after them for a robot with seal friction) opposes each actuator's motion; an
+actuator's Stribeck dip and pressure load only where its description declares them.
 """
 from __future__ import annotations
 
@@ -31,7 +32,8 @@ def plant_rhs(model):
     u = rate_symbols("u", m)
     th = theta_symbols(model)
     g1, g2 = rate_symbols("gamma1", m), rate_symbols("gamma2", m)
-    fric = friction.Symbolic.parameters(m)
+    names = [par.name for par in friction.parameters_of(model.seal_friction)]
+    fric = friction.Symbolic.parameters(m, model.seal_friction)
     valve_par = valve.Symbolic.parameters(m)
     x = sp.Matrix([s for name in BLOCKS for st in block(name).STATES for s in states[st.name]])
     cyl = model.cylinders
@@ -48,7 +50,7 @@ def plant_rhs(model):
     spool_eff_value = valve.Symbolic.effective(spool, u, valve_par, [c.valve_limits for c in model.cylinders])
     rates = valve.Symbolic.rates(spool, spool_rate, u, valve_par)
     f_leg = rate_symbols("plant_fleg", m)
-    f_leg_value = sp.Matrix([laws[i].force(p[i], P[i]) - friction.Symbolic.force(ldot[i], *fric[3 * i:3 * i + 3])
+    f_leg_value = sp.Matrix([laws[i].force(p[i], P[i]) - _friction(ldot[i], fric, i, names, cyl[i].seal_terms, laws[i], p[i], P[i])
                              for i in range(m)])
     mech, solve = mechanics.Symbolic.rates(model, q, qd, JL.T * f_leg, th)  # poses: in kin
     rates.update(mech)
@@ -57,3 +59,16 @@ def plant_rhs(model):
     inputs = [("x", x), ("u", u), ("theta", th), ("gamma1", g1), ("gamma2", g2), ("friction", fric),
               ("valve", valve_par)]
     return inputs, xdot, [*kin, (ldot, ldot_value), (f_leg, f_leg_value), (spool_eff, spool_eff_value), *solve]
+
+
+def _friction(ldot, fric, i: int, names: list, terms: tuple, law, p, P):
+    """Actuator ``i``'s friction at rate ``ldot`` with the structural terms it declares, ``terms`` =
+    (Stribeck dip, pressure load) (:attr:`hydrogen.model.Cylinder.seal_terms`); ``fric`` the input
+    ``friction``, ``names`` per actuator, actuator after actuator."""
+    k = len(names)
+    par = dict(zip(names, fric[k * i:k * i + k]))
+    stribeck, pressure = terms
+    return friction.Symbolic.force(
+        ldot, par["coulomb"], par["viscous"], par["smooth_speed"],
+        (par["breakaway"], par["stribeck_speed"]) if stribeck else None,
+        (par["pressure_coefficient"], friction.Symbolic.seal_load(law.chamber_forces(p, P))) if pressure else None)
