@@ -43,6 +43,8 @@ SUITE = (
                          "errors and cost per period"),
     ("bench_delay", "the rig's tracking error against the computation delay, 0 to 1 control period, every "
                     "controller over noise seeds; its figure"),
+    ("bench_sensitivity", "the rig's tracking error against its friction level and valve bandwidth, every controller "
+                          "over noise seeds; its figure"),
 )
 
 

@@ -566,6 +566,13 @@ def _integrator_field(b, key, field, what) -> list:
                         + [f"{what} {v}" for v in values], detail)
 
 
+def _spread_cell(p, coord) -> str:
+    """One point over seeds: ``median [min - max]`` of ``coord``, ``fail`` when no seed completed, `` !`` when one failed."""
+    text = f"{_f(p['median'][coord])} [{_f(p['min'][coord])} - {_f(p['max'][coord])}]" \
+        if p["median"][coord] is not None else "fail"
+    return text + (" !" if p["failed"] else "")
+
+
 def _delay(b) -> list:
     rows = b.get("scenarios", {})
     if not rows:
@@ -590,11 +597,35 @@ def _delay(b) -> list:
             for label, e in sets.items():
                 g = e["gains"]
                 table.append([row["scenario"], coord, c, f"{label}: {g['main_gain']} {g['value']:.4g}"]
-                             + [(f"{_f(p['median'][coord])} [{_f(p['min'][coord])} - {_f(p['max'][coord])}]"
-                                 if p["median"][coord] is not None else "fail") + (" !" if p["failed"] else "")
-                                for p in e["delays"]])
+                             + [_spread_cell(p, coord) for p in e["delays"]])
     return out + _table(["scenario", "coordinate", "controller", "gains"] + [f"delay {f:g} period" for f in fr],
                         table)
+
+
+def _sensitivity(b) -> list:
+    rows = b.get("scenarios", {})
+    if not rows:
+        return []
+    out = ["## Sensitivity: tracking error against the rig's friction and valve bandwidth", "",
+           f"`benchmarks/bench_sensitivity.py`: {b.get('model')}'s rig scenarios, every controller it lists with the "
+           "description's gains at the rig, one rig element varied at a time: the friction (Coulomb and viscous "
+           "of every cylinder) as a multiple of the rig's, and the servo-valve's natural frequency (Hz). No "
+           "controller models either. Noise seeds "
+           f"{', '.join(map(str, b.get('seeds', [])))} (not the seeds the gains were tuned on). Max tracking error, % "
+           "of the amplitude of the coordinate the reference moves: median [min - max] over the seeds; `!` marks a "
+           "point where a seed's run failed (diverged; the statistics are over the others).", ""]
+    if b.get("figure"):
+        out += [f"![max error against friction and valve bandwidth]({Path(b['figure']).name})", ""]
+    heads = {"friction": "friction x {:g}", "valve": "valve {:g} Hz"}
+    for element, head in heads.items():
+        table = []
+        for row in rows.values():
+            coord = row["coordinates"][0]
+            for c, e in row["controllers"].items():
+                table.append([row["scenario"], coord, c] + [_spread_cell(p, coord) for p in e.get(element, [])])
+        out += _table(["scenario", "coordinate", "controller"]
+                      + [head.format(v) for v in b.get("values", {}).get(element, [])], table)
+    return out
 
 
 def benchmarks_page(results: dict, repeats: dict | None = None, source: str = "docs/bench.json") -> str:
@@ -635,6 +666,8 @@ def benchmarks_page(results: dict, repeats: dict | None = None, source: str = "d
         out += _integrator(results["bench_integrator"])
     if "bench_delay" in results:
         out += _delay(results["bench_delay"])
+    if "bench_sensitivity" in results:
+        out += _sensitivity(results["bench_sensitivity"])
     return "\n".join(out).rstrip() + "\n"
 
 

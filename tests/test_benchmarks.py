@@ -586,3 +586,35 @@ def test_the_delay_benchmark_gives_every_controller_at_every_delay(capsys):
         assert f"\n{c:20} rig " in out
     page = benchmarks_page({"bench_delay": res})
     assert "## The computation delay" in page and "| z-1hz | z | adaptive-robust | low-latency: Lambda 20 |" in page
+
+
+def test_the_sensitivity_benchmark_varies_one_rig_element_at_a_time(capsys):
+    """bench_sensitivity's quick run: the default robot's first rig scenario, every controller it lists
+    at each friction scale and valve frequency; friction 0 tracks better than the rig's for the
+    model-based controllers (friction is unmodelled), a slower valve worse; the table and the page."""
+    import bench_sensitivity as bs
+    from hydrogen.pages import benchmarks_page
+    from hydrogen.simulation.tuning import rig_scenarios
+
+    model = hydrogen.load_model()
+    res = bs.run(quick=True)
+    assert res["seeds"] == list(bs.QUICK_SEEDS) and res["figure"] is None
+    assert res["values"] == {"friction": list(bs.QUICK_FRICTION_SCALES), "valve": list(bs.QUICK_BANDWIDTHS)}
+    (name,) = res["scenarios"]
+    row = res["scenarios"][name]
+    assert name == list(rig_scenarios(model))[0] and list(row["controllers"]) == list(model.controllers)
+    coord = row["coordinates"][0]
+    for c, e in row["controllers"].items():
+        for element in ("friction", "valve"):
+            assert [p["value"] for p in e[element]] == res["values"][element]
+            for p in e[element]:
+                assert p["completed"] + p["failed"] == len(bs.QUICK_SEEDS)
+                assert p["min"][coord] <= p["median"][coord] <= p["max"][coord]
+    for c in ("backstepping", "adaptive-robust"):
+        e = row["controllers"][c]
+        assert e["friction"][0]["median"][coord] < e["friction"][-1]["median"][coord]  # 0 x below 1 x the rig's
+        assert e["valve"][0]["median"][coord] > e["valve"][-1]["median"][coord]  # 40 Hz above 80 Hz
+    bs.print_table(res)
+    assert f"\n{'adaptive-robust':20} " in capsys.readouterr().out
+    page = benchmarks_page({"bench_sensitivity": res})
+    assert "## Sensitivity" in page and "| friction x 0 | friction x 1 |" in page and "| valve 40 Hz |" in page

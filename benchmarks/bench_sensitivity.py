@@ -1,0 +1,164 @@
+"""Tracking error against the rig's friction level and valve bandwidth: how much of each controller's
+error the plant's unmodelled parts cause.
+
+The default robot's rig scenarios with a periodic reference (``rig = true``; the Stewart platform's
+z-1hz, z-2hz, psi-1hz), every controller it lists with the description's gains at the rig, over
+noise seeds :data:`SEEDS` (not the seeds 0-9 the gains were tuned on), varying one rig element at a
+time from the rig as described:
+
+* ``friction``: the rig's friction (Coulomb F_c and viscous b of every cylinder; the smoothing speed
+  kept) times each of :data:`FRICTION_SCALES` (1: the rig's; 0: none);
+* ``valve``: the servo-valve's natural frequency (``valve_bandwidth_hz``, the spool lagging 90°
+  there; damping as the rig's) at each of :data:`BANDWIDTHS` Hz (the rig's among them).
+
+No controller models either (the paper's ideal valve, no friction), unless a description turns
+friction compensation on. Reported: the max tracking error (% of the reference amplitude) of the
+coordinate the reference moves, median, min and max over the seeds; a failed (diverged) run is
+counted in ``failed`` and left out of the statistics. Writes the figure :data:`FIGURE`.
+
+Run: ``python benchmarks/bench_sensitivity.py [--quick] [--json FILE]`` (a few minutes on 2 cores;
+``--quick``: the first scenario, two values of each element, two seeds, 3 s runs, no figure).
+"""
+from __future__ import annotations
+
+import os
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+import hydrogen
+from hydrogen.simulation.scenarios import scenario as named_scenario
+from hydrogen.simulation.tuning import rig_scenarios
+
+try:  # imported as benchmarks.bench_sensitivity
+    from . import common
+    from .bench_delay import _gains_used
+except ImportError:  # run as a script, or loaded from its path
+    sys.path.insert(0, str(Path(__file__).resolve().parent))
+    import common
+    from bench_delay import _gains_used
+
+#: Multiples of the rig's friction (Coulomb and viscous of every cylinder).
+FRICTION_SCALES, QUICK_FRICTION_SCALES = (0.0, 0.5, 1.0, 1.5, 2.0), (0.0, 1.0)
+#: Servo-valve natural frequencies, Hz.
+BANDWIDTHS, QUICK_BANDWIDTHS = (20.0, 40.0, 80.0, 160.0, 320.0), (40.0, 80.0)
+SEEDS, QUICK_SEEDS = (100, 101, 102, 103, 104), (100, 101)
+QUICK_DURATION = 3.0  # s: past the rig's metric_start (2 s)
+FIGURE = common.REPO / "docs" / "sensitivity.png"
+#: Each element: (its label, the axis title, the values, the scenario fields a value sets).
+ELEMENTS = {
+    "friction": ("friction (x the rig's Coulomb and viscous)",
+                 lambda sc, s: {"friction": [sc.friction[0] * s, sc.friction[1] * s, sc.friction[2]]}),
+    "valve": ("valve natural frequency (Hz)", lambda sc, f: {"valve_bandwidth_hz": f}),
+}
+
+
+def run(quick: bool = False) -> dict:
+    start = time.perf_counter()
+    model = hydrogen.load_model()
+    dyn = hydrogen.build(model)
+    names = list(rig_scenarios(model))[:1 if quick else None]
+    values = {"friction": QUICK_FRICTION_SCALES if quick else FRICTION_SCALES,
+              "valve": QUICK_BANDWIDTHS if quick else BANDWIDTHS}
+    seeds = QUICK_SEEDS if quick else SEEDS
+    cases, entries = [], []
+    for name in names:
+        sc = named_scenario(name, model)
+        for c in model.controllers:
+            for element, (_, fields) in ELEMENTS.items():
+                for v in values[element]:
+                    cases.append((name, c, element, v))
+                    entries.append(dict(scenario=name, controller=c, **fields(sc, v),
+                                        **({"duration": QUICK_DURATION} if quick else {})))
+    out = hydrogen.sweep(entries, seeds=list(seeds), max_workers=min(2, os.cpu_count() or 1), model=model)
+    res = {}
+    for (name, c, element, v), m in zip(cases, out):
+        sc = named_scenario(name, model)
+        moving = rig_scenarios(model)[name]
+        row = res.setdefault(name, {"scenario": name, "coordinates": list(moving), "controllers": {},
+                                    "rig": {"friction": list(sc.friction), "valve": sc.valve_bandwidth_hz}})
+        ctrl = row["controllers"].setdefault(c, {"gains": _gains_used(dyn, c, name, model)})
+        point = {"value": v, "failed": len(m.get("failed", [])), "completed": m.get("completed", 0)}
+        for stat in ("median", "min", "max"):
+            errs = (m.get(stat) or {}).get("max_error_pct") or {}
+            point[stat] = {k: errs.get(k) for k in moving}
+        ctrl.setdefault(element, []).append(point)
+    out = {"model": model.name, "seeds": list(seeds), "values": {k: list(v) for k, v in values.items()},
+           "quick": quick, "duration_s": QUICK_DURATION if quick else None, "scenarios": res,
+           "figure": None if quick else FIGURE.relative_to(common.REPO).as_posix(), "cores": os.cpu_count(),
+           "wall_s": time.perf_counter() - start}
+    if not quick:
+        figure(out)
+    return out
+
+
+def figure(res, path=FIGURE):
+    """Max error against each element, a row of panels per element and a column per scenario, one line
+    (median) and band (min-max) per controller; written atomically as PNG."""
+    import io
+
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from hydrogen.fileio import atomic_write
+
+    rows = list(res["scenarios"].values())
+    fig, axes = plt.subplots(len(ELEMENTS), len(rows), figsize=(5 * len(rows), 4.2 * len(ELEMENTS)), squeeze=False)
+    colour = {c: f"C{i}" for i, c in enumerate(rows[0]["controllers"])}
+    for r, (element, (title, _)) in enumerate(ELEMENTS.items()):
+        for ax, row in zip(axes[r], rows):
+            coord = row["coordinates"][0]
+            for c, e in row["controllers"].items():
+                x = [p["value"] for p in e[element]]
+                med, lo, hi = ([p[s][coord] if p[s][coord] is not None else np.nan for p in e[element]]
+                               for s in ("median", "min", "max"))
+                ax.plot(x, med, "o-", ms=3, color=colour[c], label=c)
+                ax.fill_between(x, lo, hi, color=colour[c], alpha=0.15, lw=0)
+            ax.axvline(1.0 if element == "friction" else row["rig"]["valve"], color="k", lw=0.6, ls=":")
+            ax.set_yscale("log")
+            if element == "valve":
+                ax.set_xscale("log")
+            ax.set_xlabel(title)
+            ax.set_ylabel(f"max error in {coord} (% of amplitude)")
+            ax.set_title(row["scenario"])
+            ax.grid(True, which="both", alpha=0.3)
+    handles, labels = axes[0][0].get_legend_handles_labels()
+    fig.legend(handles, labels, loc="lower center", ncol=5, fontsize=8)
+    fig.suptitle(f"{res['model']}: tracking error against the rig's friction and valve bandwidth, seeds "
+                 f"{', '.join(map(str, res['seeds']))} (median, min-max band; dotted: the rig's)")
+    fig.tight_layout(rect=(0, 0.05, 1, 1))
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png", dpi=100)
+    plt.close(fig)
+    atomic_write(Path(path), buf.getvalue())
+    return path
+
+
+def cell(p, coord) -> str:
+    """``median [min-max]`` of one point, ``fail`` when every seed failed, ``!`` when one did."""
+    text = f"{p['median'][coord]:.3g} [{p['min'][coord]:.3g}-{p['max'][coord]:.3g}]" \
+        if p["median"][coord] is not None else "fail"
+    return text + ("!" if p["failed"] else "")
+
+
+def print_table(res):
+    print(f"{res['model']}: max tracking error (% of amplitude), median [min - max] over seeds "
+          f"{', '.join(map(str, res['seeds']))}, one rig element varied at a time")
+    for row in res["scenarios"].values():
+        coord = row["coordinates"][0]
+        for element, (title, _) in ELEMENTS.items():
+            vals = res["values"][element]
+            print(f"\n{row['scenario']} ({coord}), {title}")
+            print(f"{'controller':20} " + " ".join(f"{v:>18g}" for v in vals))
+            for c, e in row["controllers"].items():
+                print(f"{c:20} " + " ".join(f"{cell(p, coord):>18}" for p in e[element]))
+    if res.get("figure"):
+        print(f"\nfigure: {res['figure']}")
+    print("\n'!': a seed's run failed (diverged) there; the statistics are over the others")
+
+
+if __name__ == "__main__":
+    sys.exit(common.script_main(__doc__, run, print_table))
