@@ -118,10 +118,15 @@ class Dynamics:
             raise KinematicsError(f"forward kinematics: q0 needs {n} coordinates, got shape {q.shape}")
         if not np.all(np.isfinite(q)):
             raise KinematicsError(f"forward kinematics: initial guess q0 is not finite: {q}")
-        if not (np.isfinite(tol) and tol > 0) or not max_cond > 0 or int(max_iter) != max_iter or max_iter < 0:
+        try:
+            settings = float(tol), int(max_iter), float(max_cond)
+            ok = 0 < settings[0] < np.inf and settings[1] == max_iter and settings[1] >= 0 and settings[2] > 0
+        except (TypeError, ValueError, OverflowError):
+            ok = False
+        if not ok:
             raise KinematicsError(f"forward kinematics: needs tol > 0 (m), max_iter >= 0 (an integer) and "
                                   f"max_cond > 0, got tol = {tol!r}, max_iter = {max_iter!r}, max_cond = {max_cond!r}")
-        return q, float(tol), int(max_iter), float(max_cond)
+        return (q, *settings)
 
     def forward_kinematics(self, l, q0=None, tol: float = FK_TOL, max_iter: int = FK_MAX_ITER,
                            max_cond: float = FK_MAX_COND) -> np.ndarray:

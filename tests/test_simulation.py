@@ -558,8 +558,9 @@ def test_forward_kinematics_bad_arguments(dyn, model):
     with pytest.raises(hydrogen.KinematicsError, match=r"did not converge in 0 iterations for leg lengths \[1\.\d+ .*\]: "
                        r"residual \S+ m at q = \["):
         dyn.forward_kinematics(l, q0=model.neutral_pose + 0.01, max_iter=0)
-    with pytest.raises(hydrogen.KinematicsError, match="max_iter >= 0"):
-        dyn.forward_kinematics(l, max_iter=-1)
+    for bad in ({"max_iter": -1}, {"max_iter": 2.5}, {"tol": "x"}, {"tol": 0.0}, {"max_cond": float("nan")}):
+        with pytest.raises(hydrogen.KinematicsError, match=f"max_iter >= 0.*got .*{list(bad)[0]} = "):
+            dyn.forward_kinematics(l, **bad)
 
 
 def _stewart_runner(dyn, scenario_name="z-1hz", n=20):
