@@ -138,8 +138,8 @@ static double inverse_norm_1(const double* LU, const int* piv) {
  * l(q) = l_meas (m), starting from q (updated in place; on failure its last iterate). Each iteration
  * evaluates l and JL at q; it stops when every |l_i - l_meas_i| < tol; else, after max_iter steps, it has
  * not converged; else a step needs JL's 1-norm condition number at most max_cond (JL singular otherwise).
- * Returns a <MODEL>_FK_ outcome; J holds JL at the returned q when solved (the converged iterate's own
- * evaluation: no extra call for the velocities), its LU factors otherwise. info (3, or NULL): residual
+ * Returns a <MODEL>_FK_ outcome; J holds JL at the returned q (when solved, the converged iterate's own
+ * evaluation: no extra call for the velocities; when singular, its LU factors). info (3, or NULL): residual
  * max_i |l_i - l_meas_i| (m) at q, JL's condition number there (NaN when not computed, inf when a pivot
  * vanishes), Newton steps taken. */
 static int fk_newton(const double* nb, const double* l_meas, double* q, double tol, long long max_iter,
