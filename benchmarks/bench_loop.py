@@ -121,14 +121,17 @@ _LOOP_FUNCTIONS = ("leg_lengths", "leg_jacobian", "mass_matrix", "coriolis", "gr
                    "regressor_offset", "plant_rhs")
 
 
-def proxy_dynamics(model, kind, functions=None):
+def proxy_dynamics(model, kind, functions=None, compiled=None):
     """A Dynamics whose functions are CasADi or lambdify routes instead of the compiled library
-    (``functions``: the model's derived functions, derived here when not given)."""
+    (``functions``: the model's derived functions, derived here when not given). Forward kinematics
+    has one implementation, the compiled loop driver's: it comes from the library ``compiled``
+    (a robot without joint encoders needs it)."""
     make = CasadiFn if kind == "casadi" else LambdifyFn
     wanted = {*_LOOP_FUNCTIONS, function_name(CONTROLLER), rates_function_name(CONTROLLER)}
     fns = {sf.name: make(sf) for sf in (functions or derive_functions(model)) if sf.name in wanted}
     fns.update({n: None for n in ("valve_flow", "valve_inverse", "pressure_rate", "leg_force")})
-    return Dynamics(model, SimpleNamespace(functions=fns))
+    driver = {} if compiled is None else {"symbol": compiled.symbol, "numbers": compiled.numbers}
+    return Dynamics(model, SimpleNamespace(functions=fns, **driver))
 
 
 def python_loop_per_period(dyn, scenario, n_periods):
@@ -196,7 +199,7 @@ def run_robot(name: str, quick: bool = False) -> dict:
     # correctness first: each route reproduces the compiled trajectory
     ref = hydrogen.simulate(scenario, CONTROLLER, dyn=dyn, duration=(n_a - 1) / rate)
     functions = derive_functions(model)
-    dyn_a, dyn_b = proxy_dynamics(model, "lambdify", functions), proxy_dynamics(model, "casadi", functions)
+    dyn_a, dyn_b = (proxy_dynamics(model, k, functions, dyn.library) for k in ("lambdify", "casadi"))
     worst = {}
     for key, d in (("a_lambdify_python_loop", dyn_a), ("b_casadi_python_loop", dyn_b)):
         _, q = python_loop_per_period(d, scenario, n_a)

@@ -11,8 +11,28 @@ import ctypes
 import numpy as np
 
 from .errors import KinematicsError
+from .layout import FK_MAX_COND, FK_MAX_ITER, FK_STATUS, FK_TOL
 
-__all__ = ["Dynamics"]
+__all__ = ["Dynamics", "fk_failure"]
+
+_D = ctypes.c_double
+_SOLVED, _SINGULAR, _NOT_CONVERGED = (FK_STATUS.index(s) for s in ("solved", "singular", "not_converged"))
+
+
+def fk_failure(status: int, info, q, l, max_iter: int, max_cond: float = FK_MAX_COND) -> str:
+    """Why forward kinematics failed, in words: the C outcome ``status`` (:data:`~hydrogen.layout.FK_STATUS`)
+    with its ``info`` (residual in m, JL's 1-norm condition number, Newton steps), the last iterate ``q``
+    and the cylinder lengths ``l`` (m) it was solved for. The one wording of the loop and of
+    :meth:`Dynamics.forward_kinematics`."""
+    err, cond, steps = (float(v) for v in info)
+    q, l = np.asarray(q, float), np.asarray(l, float)
+    if status == _SINGULAR:
+        return (f"forward kinematics: JL is singular (condition number {cond:.3g}, 1-norm; at most {max_cond:.3g}) "
+                f"at q = {q} (iteration {int(steps)}, leg lengths {l})")
+    if status == _NOT_CONVERGED:
+        return (f"forward kinematics did not converge in {max_iter} iterations for leg lengths {l}: "
+                f"residual {err:.3g} m at q = {q}")
+    return f"forward kinematics: the generated leg_kinematics function returned an error at q = {q}"
 
 
 class Dynamics:
@@ -46,6 +66,7 @@ class Dynamics:
         #: description's numbers as inputs), or None (numbers folded)
         self.numbers = getattr(library, "numbers", None)
         self._many = symbol(f"{model.name}_leg_lengths_many") if symbol is not None else None
+        self._fk = None  # the loop driver's forward kinematics, bound at first use (_fk_symbols)
         if self._many is not None:
             self._many.restype = ctypes.c_int
             self._many.argtypes = [ctypes.c_void_p, ctypes.c_void_p, ctypes.c_longlong, ctypes.c_void_p]
@@ -65,8 +86,7 @@ class Dynamics:
         if self._many is None:
             return np.array([self._leg_lengths(q) for q in qs]).reshape(-1, m)
         out = np.empty((qs.shape[0], m))
-        nb = None if self.numbers is None else self.numbers.ctypes.data
-        if self._many(nb, qs.ctypes.data, len(qs), out.ctypes.data):
+        if self._many(self._numbers_pointer(), qs.ctypes.data, len(qs), out.ctypes.data):
             raise KinematicsError("leg_lengths_many: the generated leg_lengths function returned an error")
         return out
 
@@ -74,42 +94,93 @@ class Dynamics:
         """(m, n) JL = ∂l/∂q."""
         return self._leg_jacobian(q) if out is None else self._leg_jacobian(q, out=out)
 
-    def forward_kinematics(self, l, q0=None, tol: float = 1e-12, max_iter: int = 50,
-                           max_cond: float = 1e8) -> np.ndarray:
-        """Coordinates q (n,) whose cylinder lengths are ``l`` (m), by Newton's method from ``q0``.
+    def _fk_symbols(self):
+        """The loop driver's forward kinematics (templates/loop.c.j2): the single sample's and the batch's."""
+        if self._fk is None:
+            symbol = getattr(self.library, "symbol", None)
+            if symbol is None:
+                raise KinematicsError(f"forward kinematics of model '{self.model.name}': these dynamics have no "
+                                      "compiled loop driver (it holds forward kinematics); build them with "
+                                      "hydrogen.build")
+            one, many = symbol(f"{self.model.name}_forward_kinematics"), \
+                symbol(f"{self.model.name}_forward_kinematics_many")
+            vp, ll = ctypes.c_void_p, ctypes.c_longlong
+            one.restype, one.argtypes = ctypes.c_int, [vp, vp, vp, _D, ll, _D, vp]
+            many.restype, many.argtypes = ll, [vp, vp, ll, vp, _D, ll, _D, vp, vp, vp]
+            self._fk = one, many
+        return self._fk
 
-        ``q0`` defaults to the model's neutral pose. Raises
-        :class:`~hydrogen.errors.KinematicsError` if JL becomes singular (condition
-        number above ``max_cond``) or the residual ‖l(q) − l‖ does not fall below
-        ``tol`` m within ``max_iter`` iterations.
-        """
-        n, m = self.model.n, self.model.n_cylinders
-        l = np.asarray(l, dtype=float)
-        if l.shape != (m,):
-            raise KinematicsError(f"forward kinematics: needs {m} cylinder lengths, got shape {l.shape}")
-        if not np.all(np.isfinite(l)):
-            raise KinematicsError(f"forward kinematics: leg lengths are not finite: {l}")
+    def _fk_arguments(self, q0, tol, max_iter, max_cond):
+        """The start pose (a fresh float64 copy; the neutral pose for None) and the solver settings, checked."""
+        n = self.model.n
         q = np.array(self.model.neutral_pose if q0 is None else q0, dtype=float)
         if q.shape != (n,):
             raise KinematicsError(f"forward kinematics: q0 needs {n} coordinates, got shape {q.shape}")
         if not np.all(np.isfinite(q)):
             raise KinematicsError(f"forward kinematics: initial guess q0 is not finite: {q}")
-        err = np.inf
-        for it in range(max(int(max_iter), 1)):
-            r = self._leg_lengths(q) - l
-            err = float(np.max(np.abs(r)))
-            if err < tol:
-                return q
-            J = self._leg_jacobian(q)
-            cond = np.linalg.cond(J)
-            if not np.isfinite(cond) or cond > max_cond:
-                raise KinematicsError(
-                    f"forward kinematics: JL is singular (cond {cond:.3g}) at q = {q} "
-                    f"(iteration {it}, leg lengths {l})")
-            q = q - np.linalg.solve(J, r)
-        raise KinematicsError(
-            f"forward kinematics did not converge in {max_iter} iterations for leg lengths {l}: "
-            f"residual {err:.3g} m at q = {q}")
+        try:
+            settings = float(tol), int(max_iter), float(max_cond)
+            ok = 0 < settings[0] < np.inf and settings[1] == max_iter and settings[1] >= 0 and settings[2] > 0
+        except (TypeError, ValueError, OverflowError):
+            ok = False
+        if not ok:
+            raise KinematicsError(f"forward kinematics: needs tol > 0 (m), max_iter >= 0 (an integer) and "
+                                  f"max_cond > 0, got tol = {tol!r}, max_iter = {max_iter!r}, max_cond = {max_cond!r}")
+        return (q, *settings)
+
+    def forward_kinematics(self, l, q0=None, tol: float = FK_TOL, max_iter: int = FK_MAX_ITER,
+                           max_cond: float = FK_MAX_COND) -> np.ndarray:
+        """Coordinates q (n,) whose cylinder lengths are ``l`` (m), by Newton's method from ``q0``.
+
+        The C loop's own forward kinematics (``<model>_forward_kinematics`` of the compiled loop
+        driver). ``q0`` defaults to the model's neutral pose. Raises
+        :class:`~hydrogen.errors.KinematicsError` if JL becomes singular (condition number, 1-norm,
+        above ``max_cond``) or the residual max |l(q) − l| does not fall below ``tol`` m within
+        ``max_iter`` Newton steps.
+        """
+        m = self.model.n_cylinders
+        l = np.asarray(l, dtype=float)
+        if l.shape != (m,):
+            raise KinematicsError(f"forward kinematics: needs {m} cylinder lengths, got shape {l.shape}")
+        if not np.all(np.isfinite(l)):
+            raise KinematicsError(f"forward kinematics: leg lengths are not finite: {l}")
+        q, tol, max_iter, max_cond = self._fk_arguments(q0, tol, max_iter, max_cond)
+        l = np.ascontiguousarray(l)
+        info = np.empty(3)
+        one = self._fk_symbols()[0]
+        status = one(self._numbers_pointer(), l.ctypes.data, q.ctypes.data, tol, max_iter, max_cond, info.ctypes.data)
+        if status != _SOLVED:
+            raise KinematicsError(fk_failure(status, info, q, l, max_iter, max_cond))
+        return q
+
+    def forward_kinematics_many(self, L, q0=None, tol: float = FK_TOL, max_iter: int = FK_MAX_ITER,
+                                max_cond: float = FK_MAX_COND) -> np.ndarray:
+        """(k, n) poses of the k rows of cylinder lengths ``L`` (k, m), in m: :meth:`forward_kinematics`
+        of each row started from the pose of the row before (the first from ``q0``), in one call into C.
+
+        Raises :class:`~hydrogen.errors.KinematicsError` naming the first row that fails; the error's
+        ``sample`` is that row and its ``reason`` the words :meth:`forward_kinematics` would raise."""
+        m = self.model.n_cylinders
+        L = np.ascontiguousarray(L, dtype=float)
+        if L.ndim != 2 or L.shape[1] != m:
+            raise KinematicsError(f"forward kinematics: needs rows of {m} cylinder lengths, shape (k, {m}); "
+                                  f"got shape {L.shape}")
+        bad = ~np.isfinite(L).all(axis=1)
+        if bad.any():
+            k = int(np.argmax(bad))
+            _raise_at(k, f"forward kinematics: leg lengths are not finite: {L[k]}")
+        q0, tol, max_iter, max_cond = self._fk_arguments(q0, tol, max_iter, max_cond)
+        Q = np.empty((len(L), self.model.n))
+        status, info = ctypes.c_int(0), np.empty(3)
+        many = self._fk_symbols()[1]
+        k = many(self._numbers_pointer(), L.ctypes.data, len(L), q0.ctypes.data, tol, max_iter, max_cond,
+                 Q.ctypes.data, ctypes.byref(status), info.ctypes.data)
+        if k != len(L):
+            _raise_at(k, fk_failure(status.value, info, Q[k], L[k], max_iter, max_cond))
+        return Q
+
+    def _numbers_pointer(self):
+        return None if self.numbers is None else self.numbers.ctypes.data
 
     # --- rigid body -------------------------------------------------------------------
     def mass_matrix(self, q, theta, out=None) -> np.ndarray:
@@ -183,3 +254,10 @@ class Dynamics:
     def leg_force(self, pc, out=None) -> np.ndarray:
         """(m,) cylinder forces from the pressure vector (f = p_c A − p_s a for a three-way cylinder), N."""
         return self.functions["leg_force"](pc) if out is None else self.functions["leg_force"](pc, out=out)
+
+
+def _raise_at(k: int, reason: str):
+    """A KinematicsError for row ``k`` of a batch: ``sample`` and ``reason`` (the single sample's words) kept."""
+    exc = KinematicsError(f"sample {k}: {reason}")
+    exc.sample, exc.reason = k, reason
+    raise exc

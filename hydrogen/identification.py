@@ -3,7 +3,8 @@
 Pipeline (the log's columns are described in :mod:`hydrogen.logs`):
 
 1. **Pose.** q_k by Newton forward kinematics from the measured leg lengths l_k, each sample warm
-   started from the previous one (the first from the model's neutral pose; :func:`_poses`).
+   started from the previous one (the first from the model's neutral pose; :func:`_poses`), by the C loop's
+   own solver (:meth:`hydrogen.dynamics.Dynamics.forward_kinematics_many`).
 2. **Zero-phase low-pass.** A Butterworth low-pass of order ``order`` (default 4) run forwards and
    backwards (``scipy.signal.sosfiltfilt``: no phase lag, magnitude 1/(1 + (f/f_c)^8) for order
    4). The cutoff f_c defaults to 4 × the frequency below which 99.9 % of the power of the
@@ -71,6 +72,7 @@ import numpy as np
 from . import pressures
 from .actuators import actuator
 from .errors import IdentificationError, KinematicsError
+from .layout import FK_TOL
 from .logcheck import fmt_number, check_log, noise_std
 from .logs import as_log
 
@@ -481,38 +483,17 @@ def identify(log, model=None, *, dyn=None, cutoff_hz: float | None = None, order
                           fc_g, timings)
 
 
-def _poses(dyn, L, t, source, tol: float = 1e-12, chord_steps: int = 4, refresh: int = 8) -> np.ndarray:
-    """q at every row of the leg lengths ``L`` by Newton's method, each sample warm started from the
-    previous one. Between samples the pose moves little, so an inverse Jacobian of a recent solution
-    (refreshed every ``refresh`` samples) is reused (chord iterations: one ``leg_lengths`` call and a
-    matrix product each); when
-    they do not reach ``tol`` (m) within ``chord_steps``, the sample is solved by
-    ``dyn.forward_kinematics`` (fresh Jacobians, singularity checks, its error messages)."""
-    model = dyn.model
-    Q = np.empty((len(L), len(model.neutral_pose)))
-    q = np.asarray(model.neutral_pose, float)
-    Jinv = None
-    for k in range(len(L)):
-        done = False
-        if Jinv is not None:
-            qk = q
-            for _ in range(chord_steps):
-                r = dyn.leg_lengths(qk) - L[k]
-                if np.max(np.abs(r)) < tol:
-                    done = True
-                    break
-                qk = qk - Jinv @ r
-        if done:
-            q = qk
-        else:
-            try:
-                q = dyn.forward_kinematics(L[k], q0=q, tol=tol)
-            except KinematicsError as exc:
-                raise IdentificationError(f"{source}: sample {k} (t = {fmt_number(t[k])} s): {exc}") from None
-        if not done or k % refresh == 0:
-            Jinv = np.linalg.inv(dyn.leg_jacobian(q))
-        Q[k] = q
-    return Q
+def _poses(dyn, L, t, source, tol: float = FK_TOL) -> np.ndarray:
+    """q at every row of the leg lengths ``L`` (m) by forward kinematics (``dyn.forward_kinematics_many``:
+    the C loop's Newton solver, each sample warm started from the previous one, the first from the
+    model's neutral pose) to ``tol`` (m); a sample that fails is named with its time ``t`` (s)."""
+    try:
+        return dyn.forward_kinematics_many(L, q0=dyn.model.neutral_pose, tol=tol)
+    except KinematicsError as exc:
+        k = getattr(exc, "sample", None)
+        if k is None:  # not a sample's failure (the lengths' shape): said as it is
+            raise IdentificationError(f"{source}: {exc}") from None
+        raise IdentificationError(f"{source}: sample {k} (t = {fmt_number(t[k])} s): {exc.reason}") from None
 
 
 def _true(meta, key, size):

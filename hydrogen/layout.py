@@ -12,15 +12,25 @@ import math
 from .diagram import CONTROLLER_PORTS, SLOTS  # the controller's input slots: the loop's ports
 from .names import NUMBERS  # the numbers input's name, part of the loop's layout
 
-__all__ = ["NUMBERS", "MAX_DELAY", "PREDICTOR_MODEL", "delay_split", "LOOP_CONFIG", "LOOP_STATE", "LOOP_SIGNALS",
-           "model_summary", "friction_width", "loop_context", "log_widths", "loop_functions", "C_SIZES", "plant_offsets",
-           "plant_size", "c_double", "config_fields", "FRICTION_COMMENT", "struct_fields"]
+__all__ = ["NUMBERS", "MAX_DELAY", "PREDICTOR_MODEL", "FK_TOL", "FK_MAX_ITER", "FK_MAX_COND", "FK_STATUS", "delay_split",
+           "LOOP_CONFIG", "LOOP_STATE", "LOOP_SIGNALS", "model_summary", "friction_width", "loop_context", "log_widths",
+           "loop_functions", "C_SIZES", "plant_offsets", "plant_size", "c_double", "config_fields", "FRICTION_COMMENT",
+           "struct_fields"]
 
 
 #: Longest computation delay the loop's command ring buffer holds, control periods (a scenario's
 #: ``delay`` is refused above it). A real-time target applies a command one period after the
 #: measurement it came from; 8 leaves room for slower targets and delay-margin studies.
 MAX_DELAY = 8
+
+#: Forward kinematics (Newton's method on the generated leg kinematics, templates/loop.c.j2; the loop's
+#: estimate and :meth:`hydrogen.dynamics.Dynamics.forward_kinematics` alike): tolerance on the cylinder
+#: lengths (m), Newton steps, and the largest condition number (1-norm) of JL a step is taken with.
+FK_TOL, FK_MAX_ITER, FK_MAX_COND = 1e-12, 50, 1e8
+
+#: Outcomes of the C forward kinematics, in the order of their codes (0, 1, ...): the loop header's
+#: ``<MODEL>_FK_<OUTCOME>`` enum is rendered from it.
+FK_STATUS = ("solved", "singular", "not_converged", "function_failed")
 
 #: The controller's own model in the delay predictor: no friction ([F_c, b, v_s, F_brk, v_st, k_p] of
 #: every actuator, :data:`hydrogen.plant.friction.PARAMETERS`, the input's first :func:`friction_width`
@@ -113,8 +123,9 @@ LOOP_CONFIG = (
      (("p_low", "const double*", "P_PRESSURE_LOW", "run.pressure_low"),
       ("p_high", "const double*", "P_PRESSURE_HIGH", "run.pressure_high"),
       ("numbers", "const double*", "P_NUMBERS", "run.numbers"))),
-    ("forward kinematics (Newton): tolerance (m), iterations",
-     (("fk_tol", "double", "P_FK_TOL", "run.fk_tol"), ("fk_max_iter", "long long", "P_FK_MAX_ITER", "run.fk_max_iter"))),
+    ("forward kinematics (Newton): tolerance (m), steps, largest condition number (1-norm) of JL",
+     (("fk_tol", "double", "P_FK_TOL", "run.fk_tol"), ("fk_max_iter", "long long", "P_FK_MAX_ITER", "run.fk_max_iter"),
+      ("fk_max_cond", "double", "P_FK_MAX_COND", "run.fk_max_cond"))),
 )
 
 
@@ -132,6 +143,9 @@ LOOP_STATE = (
     ("u_app", "double", ("NL",), "commands the valves held over the last period, m (0 at reset): the\n"
      " * controller's u_applied input in its state update"),
     ("xc", "double*", None, "controller state, n_xc entries"),
+    ("fk_info", "double", (4,), "the last failed forward kinematics (written when it fails): outcome\n"
+     " * (<MODEL>_FK_...), residual (m), JL's condition number (1-norm), Newton steps"),
+    ("fk_l", "double", ("NL",), "the cylinder lengths (m) forward kinematics failed for (q_meas: its last iterate)"),
 )
 
 #: One control period's signals as the loop's stages hand them on (measure → estimate → reference →
@@ -313,5 +327,6 @@ def loop_context(manifest: dict) -> dict:
         "friction_width": friction_width(s),
         "pred_valve": ", ".join(map(c_double, PREDICTOR_MODEL["valve"] * m)),
         "valve_width": len(PREDICTOR_MODEL["valve"]),
+        "fk_status": FK_STATUS,
     }
     return ctx

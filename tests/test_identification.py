@@ -138,7 +138,7 @@ def test_poses_equal_newton_forward_kinematics_sample_by_sample(dyn, paper_sim_l
     np.testing.assert_allclose(Q, ref, rtol=0, atol=1e-10)
     bad = L.copy()
     bad[700] = -1.0  # no pose has negative leg lengths
-    with pytest.raises(IdentificationError, match="sample 700"):
+    with pytest.raises(IdentificationError, match=r"^log: sample 700 \(t = 0\.7 s\): forward kinematics.*at q = \["):
         _poses(dyn, bad, paper_sim_log.t, "log")
 
 

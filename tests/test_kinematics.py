@@ -126,8 +126,66 @@ def test_leg_kinematics_is_leg_lengths_and_jacobian_in_one_call(dyn, model, rng)
 
 
 def test_forward_kinematics_reports_a_singular_jacobian(dyn, model):
-    """At θ = 90° (gimbal lock) T, and so JL, loses rank: Newton must stop with a clear error."""
+    """At θ = 90° (gimbal lock) T, and so JL, loses rank: Newton must stop with a clear error naming the
+    condition number and the pose."""
     q0 = model.neutral_pose.copy()
     q0[4] = np.pi / 2
-    with pytest.raises(hydrogen.KinematicsError, match="singular"):
+    with pytest.raises(hydrogen.KinematicsError, match=r"JL is singular \(condition number \S+, 1-norm; at most "
+                       r"1e\+08\) at q = \[.*1\.57"):
         dyn.forward_kinematics(dyn.leg_lengths(model.neutral_pose + 0.01), q0=q0)
+
+
+def _reference_newton(dyn, l, q, tol=1e-12, max_iter=50):
+    """Newton's method in numpy on the compiled l(q) and JL (forward kinematics as it was written in
+    Python before the C solver was the only one)."""
+    for _ in range(max_iter + 1):
+        r = dyn.leg_lengths(q) - l
+        if np.max(np.abs(r)) < tol:
+            return q
+        q = q - np.linalg.solve(dyn.leg_jacobian(q), r)
+    raise AssertionError("the reference Newton did not converge")
+
+
+def test_forward_kinematics_many_is_the_single_sample_solver_warm_started(dyn, model, rng):
+    """A batch gives, bit for bit, the single-sample solver run row by row from the previous row's pose,
+    and both agree with a plain numpy Newton to the tolerance."""
+    Q = model.neutral_pose + np.cumsum(rng.normal(size=(40, 6)) * 0.002, axis=0)  # a trajectory
+    L = dyn.leg_lengths_many(Q)
+    batch = dyn.forward_kinematics_many(L, q0=model.neutral_pose)
+    q, rows = model.neutral_pose, []
+    for l in L:
+        q = dyn.forward_kinematics(l, q0=q)
+        rows.append(q)
+    np.testing.assert_array_equal(batch, rows)
+    np.testing.assert_allclose(batch, Q, rtol=0, atol=1e-10)
+    q, ref = model.neutral_pose, []
+    for l in L:
+        q = _reference_newton(dyn, l, q)
+        ref.append(q)
+    np.testing.assert_allclose(batch, ref, rtol=0, atol=1e-11)
+
+
+def test_forward_kinematics_many_names_the_sample_that_fails(dyn, model):
+    L = dyn.leg_lengths_many(np.tile(model.neutral_pose, (5, 1)))
+    L[3] = 0.1  # legs far shorter than the joint circles allow
+    with pytest.raises(hydrogen.KinematicsError, match=r"^sample 3: forward kinematics") as err:
+        dyn.forward_kinematics_many(L, max_iter=30)
+    assert err.value.sample == 3
+    with pytest.raises(hydrogen.KinematicsError) as single:  # the single sample's words, from the same start
+        dyn.forward_kinematics(L[3], q0=model.neutral_pose, max_iter=30)
+    assert err.value.reason == str(single.value)
+    L[1] = np.nan
+    with pytest.raises(hydrogen.KinematicsError, match=r"^sample 1: forward kinematics: leg lengths are not finite"):
+        dyn.forward_kinematics_many(L)
+    with pytest.raises(hydrogen.KinematicsError, match=r"shape \(k, 6\); got shape \(6,\)"):
+        dyn.forward_kinematics_many(L[0])
+
+
+def test_forward_kinematics_needs_the_compiled_loop_driver(model, dyn):
+    """No second solver for dynamics without a compiled library: a clear error, not a silent fallback."""
+    from types import SimpleNamespace
+
+    from hydrogen.dynamics import Dynamics
+    bare = Dynamics(model, SimpleNamespace(functions=dyn.functions))
+    with pytest.raises(hydrogen.KinematicsError, match="no compiled loop driver.*hydrogen.build"):
+        bare.forward_kinematics(dyn.leg_lengths(model.neutral_pose))

@@ -555,8 +555,52 @@ def test_forward_kinematics_bad_arguments(dyn, model):
     l = dyn.leg_lengths(model.neutral_pose)
     with pytest.raises(hydrogen.KinematicsError, match="not finite"):
         dyn.forward_kinematics(l, q0=np.full(6, np.nan))
-    with pytest.raises(hydrogen.KinematicsError, match="did not converge"):
+    with pytest.raises(hydrogen.KinematicsError, match=r"did not converge in 0 iterations for leg lengths \[1\.\d+ .*\]: "
+                       r"residual \S+ m at q = \["):
         dyn.forward_kinematics(l, q0=model.neutral_pose + 0.01, max_iter=0)
+    for bad in ({"max_iter": -1}, {"max_iter": 2.5}, {"tol": "x"}, {"tol": 0.0}, {"max_cond": float("nan")}):
+        with pytest.raises(hydrogen.KinematicsError, match=f"max_iter >= 0.*got .*{list(bad)[0]} = "):
+            dyn.forward_kinematics(l, **bad)
+
+
+def _stewart_runner(dyn, scenario_name="z-1hz", n=20):
+    from hydrogen.simulation import simulator as S
+    p = S.prepare_run(dyn, scenario_name, "adaptive-robust", None, n / 512, False, {"seed": 1})
+    return S.make_runner(dyn, p.sc, p.ctrl, p.x0, p.q0, p.kf_gain, p.h), p
+
+
+def test_the_c_loop_estimates_the_pose_with_dynamics_forward_kinematics(dyn):
+    """The loop's estimate and Dynamics.forward_kinematics are one solver: the same pose, bit for bit,
+    from the same measured lengths and warm start, period after period of a run on the rig (noise)."""
+    runner, p = _stewart_runner(dyn)
+    st = runner.stages()
+    for k in range(20):
+        q_before = np.array(runner.state.q_meas[:])
+        assert st.measure(p.noise[k]) == 0 and st.estimate() == 0
+        expected = dyn.forward_kinematics(np.array(st.signals.l_meas[:]), q0=q_before)
+        np.testing.assert_array_equal(np.array(runner.state.q_meas[:]), expected)
+        st.reference()
+        assert st.control() == 0 and st.plant_step() == 0 and st.control_advance() == 0
+        runner.state.k += 1
+    assert np.abs(p.noise[:20, :6]).max() > 0  # the lengths were noisy: Newton had work to do
+
+
+def test_a_c_loop_forward_kinematics_failure_is_worded_as_dynamics_forward_kinematics(dyn, model):
+    """A failed forward kinematics stops the C loop with the words Dynamics.forward_kinematics raises for
+    the same lengths and start (JL's condition number, the pose), not a generic message."""
+    from hydrogen.runtime.loop import LOOP_FK_FAILED
+    from hydrogen.simulation.simulator import _loop_failure
+    runner, p = _stewart_runner(dyn)
+    q_lock = model.neutral_pose.copy()
+    q_lock[4] = np.pi / 2  # gimbal lock: JL loses rank at the warm start
+    runner.state.q_meas[:] = list(q_lock)
+    st = runner.stages()
+    assert st.measure(None) == 0
+    l_meas = np.array(st.signals.l_meas[:])
+    assert st.estimate() == LOOP_FK_FAILED
+    with pytest.raises(hydrogen.KinematicsError, match="JL is singular") as err:
+        dyn.forward_kinematics(l_meas, q0=q_lock)
+    assert _loop_failure(LOOP_FK_FAILED, runner, p.h) == f"stopped at t = 0.0000 s: {err.value}"
 
 
 def test_thread_sweep_equals_serial_sweep(dyn):

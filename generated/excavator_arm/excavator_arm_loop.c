@@ -58,32 +58,137 @@ static int leg_kinematics(const double* nb, const double* q, double* l, double* 
     return excavator_arm_leg_kinematics(arg, res, 0, 0, 0);
 }
 
-/* Solve A x = b (A column-major NQ x NQ, overwritten), partial pivoting; returns 0 if singular. */
-static int solve_n(double* A, double* b) {
-    int i, j, k, piv;
+/* LU factorisation of A (column-major NQ x NQ, overwritten by its factors: the multipliers below the
+ * diagonal) with partial pivoting, the row swaps in piv; returns 0 if a pivot is not above 1e-12. */
+static int lu_n(double* A, int* piv) {
+    int i, j, k, p;
     double m, tmp;
     for (k = 0; k < NQ; ++k) {
-        piv = k;
+        p = k;
         for (i = k + 1; i < NQ; ++i)
-            if (fabs(A[i + NQ * k]) > fabs(A[piv + NQ * k])) piv = i;
-        if (!(fabs(A[piv + NQ * k]) > 1e-12)) return 0;
-        if (piv != k) {
+            if (fabs(A[i + NQ * k]) > fabs(A[p + NQ * k])) p = i;
+        if (!(fabs(A[p + NQ * k]) > 1e-12)) return 0;
+        piv[k] = p;
+        if (p != k)
             for (j = 0; j < NQ; ++j) {
-                tmp = A[k + NQ * j]; A[k + NQ * j] = A[piv + NQ * j]; A[piv + NQ * j] = tmp;
+                tmp = A[k + NQ * j]; A[k + NQ * j] = A[p + NQ * j]; A[p + NQ * j] = tmp;
             }
-            tmp = b[k]; b[k] = b[piv]; b[piv] = tmp;
-        }
         for (i = k + 1; i < NQ; ++i) {
             m = A[i + NQ * k] / A[k + NQ * k];
-            for (j = k; j < NQ; ++j) A[i + NQ * j] -= m * A[k + NQ * j];
-            b[i] -= m * b[k];
+            for (j = k + 1; j < NQ; ++j) A[i + NQ * j] -= m * A[k + NQ * j];
+            A[i + NQ * k] = m;
         }
     }
+    return 1;
+}
+
+/* Solve A x = b in place (b becomes x) from lu_n's factors of A: every row swap first (the multipliers
+ * moved with their rows), then the triangular solves. */
+static void lu_solve(const double* A, const int* piv, double* b) {
+    int i, j, k;
+    double tmp;
+    for (k = 0; k < NQ; ++k)
+        if (piv[k] != k) {
+            tmp = b[k]; b[k] = b[piv[k]]; b[piv[k]] = tmp;
+        }
+    for (k = 0; k < NQ; ++k)
+        for (i = k + 1; i < NQ; ++i) b[i] -= A[i + NQ * k] * b[k];
     for (k = NQ - 1; k >= 0; --k) {
         for (j = k + 1; j < NQ; ++j) b[k] -= A[k + NQ * j] * b[j];
         b[k] /= A[k + NQ * k];
     }
+}
+
+/* Solve A x = b (A column-major NQ x NQ, overwritten), partial pivoting; returns 0 if singular. */
+static int solve_n(double* A, double* b) {
+    int piv[NQ];
+    if (!lu_n(A, piv)) return 0;
+    lu_solve(A, piv, b);
     return 1;
+}
+
+/* The largest column sum of |A| (A column-major NQ x NQ): its 1-norm. */
+static double norm_1(const double* A) {
+    double s, norm = 0;
+    int i, j;
+    for (j = 0; j < NQ; ++j) {
+        s = 0;
+        for (i = 0; i < NQ; ++i) s += fabs(A[i + NQ * j]);
+        if (!(s <= norm)) norm = s;  /* NaN propagates */
+    }
+    return norm;
+}
+
+/* ||A^-1||_1 from lu_n's factors of A: one solve per column of the inverse. */
+static double inverse_norm_1(const double* LU, const int* piv) {
+    double e[NQ], s, norm = 0;
+    int i, j;
+    for (j = 0; j < NQ; ++j) {
+        for (i = 0; i < NQ; ++i) e[i] = i == j ? 1.0 : 0.0;
+        lu_solve(LU, piv, e);
+        s = 0;
+        for (i = 0; i < NQ; ++i) s += fabs(e[i]);
+        if (!(s <= norm)) norm = s;
+    }
+    return norm;
+}
+
+/* Forward kinematics, the one implementation (the loop's estimate, <model>_forward_kinematics and its
+ * batch, and so hydrogen's Dynamics.forward_kinematics and identification): Newton's method for q with
+ * l(q) = l_meas (m), starting from q (updated in place; on failure its last iterate). Each iteration
+ * evaluates l and JL at q; it stops when every |l_i - l_meas_i| < tol; else, after max_iter steps, it has
+ * not converged; else a step needs JL's 1-norm condition number at most max_cond (JL singular otherwise).
+ * Returns a <MODEL>_FK_ outcome; J holds JL at the returned q (when solved, the converged iterate's own
+ * evaluation: no extra call for the velocities; when singular, its LU factors). info (3, or NULL): residual
+ * max_i |l_i - l_meas_i| (m) at q, JL's condition number there (NaN when not computed, inf when a pivot
+ * vanishes), Newton steps taken. */
+static int fk_newton(const double* nb, const double* l_meas, double* q, double tol, long long max_iter,
+                     double max_cond, double* J, double* info) {
+    double l[NL], r[NL], err = NAN, cond = NAN;
+    int piv[NQ], i, status;
+    long long it;
+    for (it = 0;; ++it) {
+        if (leg_kinematics(nb, q, l, J)) { status = EXCAVATOR_ARM_FK_FUNCTION_FAILED; break; }
+        err = 0;
+        for (i = 0; i < NL; ++i) {
+            r[i] = l[i] - l_meas[i];
+            if (!(fabs(r[i]) <= err)) err = fabs(r[i]);  /* NaN propagates: never "converged" */
+        }
+        if (err < tol) { status = EXCAVATOR_ARM_FK_SOLVED; break; }
+        if (it >= max_iter) { status = EXCAVATOR_ARM_FK_NOT_CONVERGED; break; }
+        cond = norm_1(J);
+        if (!lu_n(J, piv)) { cond = INFINITY; status = EXCAVATOR_ARM_FK_SINGULAR; break; }
+        cond *= inverse_norm_1(J, piv);
+        if (!(cond <= max_cond)) { status = EXCAVATOR_ARM_FK_SINGULAR; break; }
+        lu_solve(J, piv, r);
+        for (i = 0; i < NQ; ++i) q[i] -= r[i];
+    }
+    if (info) {
+        info[0] = err;
+        info[1] = cond;
+        info[2] = (double)it;
+    }
+    return status;
+}
+
+int excavator_arm_forward_kinematics(const double* numbers, const double* l_meas, double* q, double tol,
+                               long long max_iter, double max_cond, double* info) {
+    double J[NL * NQ];
+    return fk_newton(numbers, l_meas, q, tol, max_iter, max_cond, J, info);
+}
+
+long long excavator_arm_forward_kinematics_many(const double* numbers, const double* l_meas, long long n,
+                                          const double* q0, double tol, long long max_iter, double max_cond,
+                                          double* q, int* status, double* info) {
+    double J[NL * NQ];
+    long long k;
+    *status = EXCAVATOR_ARM_FK_SOLVED;
+    for (k = 0; k < n; ++k) {
+        memcpy(q + NQ * k, k ? q + NQ * (k - 1) : q0, NQ * sizeof(double));
+        *status = fk_newton(numbers, l_meas + NL * k, q + NQ * k, tol, max_iter, max_cond, J, info);
+        if (*status != EXCAVATOR_ARM_FK_SOLVED) return k;
+    }
+    return n;
 }
 
 /* The parameters the plant's model is evaluated at: the plant's own (c->theta, ...), or the
@@ -202,6 +307,15 @@ int excavator_arm_measure(const excavator_arm_loop_config* c, const excavator_ar
     return EXCAVATOR_ARM_OK;
 }
 
+/* A failed forward kinematics (outcome fk, fk_newton's info) recorded in st->fk_info and st->fk_l, for the
+ * runtime to word as Dynamics.forward_kinematics does; returns EXCAVATOR_ARM_FK_FAILED. */
+static int fk_failed(excavator_arm_loop_state* st, const excavator_arm_loop_signals* s, int fk, const double* info) {
+    st->fk_info[0] = (double)fk;
+    memcpy(st->fk_info + 1, info, 3 * sizeof(double));
+    memcpy(st->fk_l, s->l_meas, sizeof st->fk_l);
+    return EXCAVATOR_ARM_FK_FAILED;
+}
+
 int excavator_arm_estimate(const excavator_arm_loop_config* c, excavator_arm_loop_state* st, excavator_arm_loop_signals* s) {
     double J[NL * NQ];
     int i;
@@ -219,7 +333,10 @@ int excavator_arm_estimate(const excavator_arm_loop_config* c, excavator_arm_loo
         if (leg_kinematics(c->numbers, st->q_meas, l_tmp, J)) return EXCAVATOR_ARM_CTRL_FAILED;
     }
     memcpy(s->qdot_meas, s->ldot, sizeof s->ldot);
-    if (!solve_n(J, s->qdot_meas)) return EXCAVATOR_ARM_FK_FAILED;
+    if (!solve_n(J, s->qdot_meas)) {  /* JL singular at the measured pose: no velocities */
+        const double info[3] = {0, INFINITY, 0};
+        return fk_failed(st, s, EXCAVATOR_ARM_FK_SINGULAR, info);
+    }
     return EXCAVATOR_ARM_OK;
 }
 

@@ -23,6 +23,9 @@ enum { LOADER_CRANE_SLOT_Q, LOADER_CRANE_SLOT_QDOT, LOADER_CRANE_SLOT_PC, LOADER
 /* Return codes of loader_crane_loop_run. */
 enum { LOADER_CRANE_OK = 0, LOADER_CRANE_NONFINITE = 1, LOADER_CRANE_FK_FAILED = 2, LOADER_CRANE_CTRL_FAILED = 3 };
 
+/* Outcomes of loader_crane_forward_kinematics (hydrogen.layout.FK_STATUS). */
+enum { LOADER_CRANE_FK_SOLVED = 0, LOADER_CRANE_FK_SINGULAR = 1, LOADER_CRANE_FK_NOT_CONVERGED = 2, LOADER_CRANE_FK_FUNCTION_FAILED = 3 };
+
 typedef struct {
     /* timing: control period h (s), plant RK4 sub-steps per control period, adaptation on for t >= t_adapt;
      * the command computed at period k is applied from t_k + (delay + delay_frac) h (delay 0..MAX_DELAY,
@@ -95,9 +98,10 @@ typedef struct {
     const double* p_low;
     const double* p_high;
     const double* numbers;
-    /* forward kinematics (Newton): tolerance (m), iterations */
+    /* forward kinematics (Newton): tolerance (m), steps, largest condition number (1-norm) of JL */
     double fk_tol;
     long long fk_max_iter;
+    double fk_max_cond;
 } loader_crane_loop_config;
 
 typedef struct {
@@ -110,6 +114,9 @@ typedef struct {
     double u_app[LOADER_CRANE_NL];  /* commands the valves held over the last period, m (0 at reset): the
      * controller's u_applied input in its state update */
     double* xc;  /* controller state, n_xc entries */
+    double fk_info[4];  /* the last failed forward kinematics (written when it fails): outcome
+     * (<MODEL>_FK_...), residual (m), JL's condition number (1-norm), Newton steps */
+    double fk_l[LOADER_CRANE_NL];  /* the cylinder lengths (m) forward kinematics failed for (q_meas: its last iterate) */
 } loader_crane_loop_state;
 
 typedef struct {                 /* each may be NULL; rows per control period (widths below) */
@@ -186,6 +193,22 @@ int loader_crane_plant_step(const loader_crane_loop_config* cfg, loader_crane_lo
  * trajectory (workspace checks). numbers: the description's numbers (the generated functions' input).
  * Returns 0, or 1 if the generated function failed. */
 int loader_crane_leg_lengths_many(const double* numbers, const double* q, long long n, double* l);
+
+/* Forward kinematics, the loop's own: Newton's method for the pose q (NQ) whose cylinder lengths are
+ * l_meas (NL, m), from q (updated in place; on failure its last iterate). It stops when every length is
+ * within tol (m) or after max_iter steps (LOADER_CRANE_FK_NOT_CONVERGED); a step needs JL's condition number
+ * (1-norm) at most max_cond (LOADER_CRANE_FK_SINGULAR). Returns a LOADER_CRANE_FK_ outcome; info (3 numbers, or
+ * NULL): the residual max |l(q) - l_meas| (m) at q, JL's condition number there (NaN when not computed,
+ * inf when a pivot vanishes) and the steps taken. numbers: as for loader_crane_leg_lengths_many. */
+int loader_crane_forward_kinematics(const double* numbers, const double* l_meas, double* q, double tol,
+                               long long max_iter, double max_cond, double* info);
+
+/* Forward kinematics of n samples: row k of l_meas (NL) gives row k of q (NQ), each started from the
+ * pose of the row before (row 0 from q0). Returns n, or the first sample k that failed (LOADER_CRANE_FK_
+ * outcome in *status, its last iterate in row k of q, info as for loader_crane_forward_kinematics). */
+long long loader_crane_forward_kinematics_many(const double* numbers, const double* l_meas, long long n,
+                                          const double* q0, double tol, long long max_iter, double max_cond,
+                                          double* q, int* status, double* info);
 
 #ifdef __cplusplus
 }

@@ -58,54 +58,137 @@ static int leg_kinematics(const double* nb, const double* q, double* l, double* 
     return ubc_stewart_leg_kinematics(arg, res, 0, 0, 0);
 }
 
-/* Solve A x = b (A column-major NQ x NQ, overwritten), partial pivoting; returns 0 if singular. */
-static int solve_n(double* A, double* b) {
-    int i, j, k, piv;
+/* LU factorisation of A (column-major NQ x NQ, overwritten by its factors: the multipliers below the
+ * diagonal) with partial pivoting, the row swaps in piv; returns 0 if a pivot is not above 1e-12. */
+static int lu_n(double* A, int* piv) {
+    int i, j, k, p;
     double m, tmp;
     for (k = 0; k < NQ; ++k) {
-        piv = k;
+        p = k;
         for (i = k + 1; i < NQ; ++i)
-            if (fabs(A[i + NQ * k]) > fabs(A[piv + NQ * k])) piv = i;
-        if (!(fabs(A[piv + NQ * k]) > 1e-12)) return 0;
-        if (piv != k) {
+            if (fabs(A[i + NQ * k]) > fabs(A[p + NQ * k])) p = i;
+        if (!(fabs(A[p + NQ * k]) > 1e-12)) return 0;
+        piv[k] = p;
+        if (p != k)
             for (j = 0; j < NQ; ++j) {
-                tmp = A[k + NQ * j]; A[k + NQ * j] = A[piv + NQ * j]; A[piv + NQ * j] = tmp;
+                tmp = A[k + NQ * j]; A[k + NQ * j] = A[p + NQ * j]; A[p + NQ * j] = tmp;
             }
-            tmp = b[k]; b[k] = b[piv]; b[piv] = tmp;
-        }
         for (i = k + 1; i < NQ; ++i) {
             m = A[i + NQ * k] / A[k + NQ * k];
-            for (j = k; j < NQ; ++j) A[i + NQ * j] -= m * A[k + NQ * j];
-            b[i] -= m * b[k];
+            for (j = k + 1; j < NQ; ++j) A[i + NQ * j] -= m * A[k + NQ * j];
+            A[i + NQ * k] = m;
         }
-    }
-    for (k = NQ - 1; k >= 0; --k) {
-        for (j = k + 1; j < NQ; ++j) b[k] -= A[k + NQ * j] * b[j];
-        b[k] /= A[k + NQ * k];
     }
     return 1;
 }
 
-/* Newton's method for q with l(q) = l_meas, starting from q (updated in place). Returns 1 with J holding
- * JL at the returned q (the converged iterate's own evaluation: no extra call for the velocities),
- * 0 if it does not converge or JL is singular, -1 if the generated function failed. */
-static int forward_kinematics(const double* nb, const double* l_meas, double* q, double tol, long long max_iter,
-                              double* J) {
-    double l[NL], r[NL], err;
+/* Solve A x = b in place (b becomes x) from lu_n's factors of A: every row swap first (the multipliers
+ * moved with their rows), then the triangular solves. */
+static void lu_solve(const double* A, const int* piv, double* b) {
+    int i, j, k;
+    double tmp;
+    for (k = 0; k < NQ; ++k)
+        if (piv[k] != k) {
+            tmp = b[k]; b[k] = b[piv[k]]; b[piv[k]] = tmp;
+        }
+    for (k = 0; k < NQ; ++k)
+        for (i = k + 1; i < NQ; ++i) b[i] -= A[i + NQ * k] * b[k];
+    for (k = NQ - 1; k >= 0; --k) {
+        for (j = k + 1; j < NQ; ++j) b[k] -= A[k + NQ * j] * b[j];
+        b[k] /= A[k + NQ * k];
+    }
+}
+
+/* Solve A x = b (A column-major NQ x NQ, overwritten), partial pivoting; returns 0 if singular. */
+static int solve_n(double* A, double* b) {
+    int piv[NQ];
+    if (!lu_n(A, piv)) return 0;
+    lu_solve(A, piv, b);
+    return 1;
+}
+
+/* The largest column sum of |A| (A column-major NQ x NQ): its 1-norm. */
+static double norm_1(const double* A) {
+    double s, norm = 0;
+    int i, j;
+    for (j = 0; j < NQ; ++j) {
+        s = 0;
+        for (i = 0; i < NQ; ++i) s += fabs(A[i + NQ * j]);
+        if (!(s <= norm)) norm = s;  /* NaN propagates */
+    }
+    return norm;
+}
+
+/* ||A^-1||_1 from lu_n's factors of A: one solve per column of the inverse. */
+static double inverse_norm_1(const double* LU, const int* piv) {
+    double e[NQ], s, norm = 0;
+    int i, j;
+    for (j = 0; j < NQ; ++j) {
+        for (i = 0; i < NQ; ++i) e[i] = i == j ? 1.0 : 0.0;
+        lu_solve(LU, piv, e);
+        s = 0;
+        for (i = 0; i < NQ; ++i) s += fabs(e[i]);
+        if (!(s <= norm)) norm = s;
+    }
+    return norm;
+}
+
+/* Forward kinematics, the one implementation (the loop's estimate, <model>_forward_kinematics and its
+ * batch, and so hydrogen's Dynamics.forward_kinematics and identification): Newton's method for q with
+ * l(q) = l_meas (m), starting from q (updated in place; on failure its last iterate). Each iteration
+ * evaluates l and JL at q; it stops when every |l_i - l_meas_i| < tol; else, after max_iter steps, it has
+ * not converged; else a step needs JL's 1-norm condition number at most max_cond (JL singular otherwise).
+ * Returns a <MODEL>_FK_ outcome; J holds JL at the returned q (when solved, the converged iterate's own
+ * evaluation: no extra call for the velocities; when singular, its LU factors). info (3, or NULL): residual
+ * max_i |l_i - l_meas_i| (m) at q, JL's condition number there (NaN when not computed, inf when a pivot
+ * vanishes), Newton steps taken. */
+static int fk_newton(const double* nb, const double* l_meas, double* q, double tol, long long max_iter,
+                     double max_cond, double* J, double* info) {
+    double l[NL], r[NL], err = NAN, cond = NAN;
+    int piv[NQ], i, status;
     long long it;
-    int i;
-    for (it = 0; it <= max_iter; ++it) {
-        if (leg_kinematics(nb, q, l, J)) return -1;
+    for (it = 0;; ++it) {
+        if (leg_kinematics(nb, q, l, J)) { status = UBC_STEWART_FK_FUNCTION_FAILED; break; }
         err = 0;
         for (i = 0; i < NL; ++i) {
             r[i] = l[i] - l_meas[i];
-            if (fabs(r[i]) > err) err = fabs(r[i]);
+            if (!(fabs(r[i]) <= err)) err = fabs(r[i]);  /* NaN propagates: never "converged" */
         }
-        if (err < tol) return 1;
-        if (it == max_iter || !solve_n(J, r)) return 0;  /* J is evaluated again next iteration */
+        if (err < tol) { status = UBC_STEWART_FK_SOLVED; break; }
+        if (it >= max_iter) { status = UBC_STEWART_FK_NOT_CONVERGED; break; }
+        cond = norm_1(J);
+        if (!lu_n(J, piv)) { cond = INFINITY; status = UBC_STEWART_FK_SINGULAR; break; }
+        cond *= inverse_norm_1(J, piv);
+        if (!(cond <= max_cond)) { status = UBC_STEWART_FK_SINGULAR; break; }
+        lu_solve(J, piv, r);
         for (i = 0; i < NQ; ++i) q[i] -= r[i];
     }
-    return 0;
+    if (info) {
+        info[0] = err;
+        info[1] = cond;
+        info[2] = (double)it;
+    }
+    return status;
+}
+
+int ubc_stewart_forward_kinematics(const double* numbers, const double* l_meas, double* q, double tol,
+                               long long max_iter, double max_cond, double* info) {
+    double J[NL * NQ];
+    return fk_newton(numbers, l_meas, q, tol, max_iter, max_cond, J, info);
+}
+
+long long ubc_stewart_forward_kinematics_many(const double* numbers, const double* l_meas, long long n,
+                                          const double* q0, double tol, long long max_iter, double max_cond,
+                                          double* q, int* status, double* info) {
+    double J[NL * NQ];
+    long long k;
+    *status = UBC_STEWART_FK_SOLVED;
+    for (k = 0; k < n; ++k) {
+        memcpy(q + NQ * k, k ? q + NQ * (k - 1) : q0, NQ * sizeof(double));
+        *status = fk_newton(numbers, l_meas + NL * k, q + NQ * k, tol, max_iter, max_cond, J, info);
+        if (*status != UBC_STEWART_FK_SOLVED) return k;
+    }
+    return n;
 }
 
 /* The parameters the plant's model is evaluated at: the plant's own (c->theta, ...), or the
@@ -223,6 +306,15 @@ int ubc_stewart_measure(const ubc_stewart_loop_config* c, const ubc_stewart_loop
     return UBC_STEWART_OK;
 }
 
+/* A failed forward kinematics (outcome fk, fk_newton's info) recorded in st->fk_info and st->fk_l, for the
+ * runtime to word as Dynamics.forward_kinematics does; returns UBC_STEWART_FK_FAILED. */
+static int fk_failed(ubc_stewart_loop_state* st, const ubc_stewart_loop_signals* s, int fk, const double* info) {
+    st->fk_info[0] = (double)fk;
+    memcpy(st->fk_info + 1, info, 3 * sizeof(double));
+    memcpy(st->fk_l, s->l_meas, sizeof st->fk_l);
+    return UBC_STEWART_FK_FAILED;
+}
+
 int ubc_stewart_estimate(const ubc_stewart_loop_config* c, ubc_stewart_loop_state* st, ubc_stewart_loop_signals* s) {
     double J[NL * NQ];
     int i;
@@ -234,13 +326,17 @@ int ubc_stewart_estimate(const ubc_stewart_loop_config* c, ubc_stewart_loop_stat
             s->ldot[i] = st->kf[NL + i];
         }
     /* pose from cylinder lengths */
-    switch (forward_kinematics(c->numbers, s->l_meas, st->q_meas, c->fk_tol, c->fk_max_iter, J)) {
-        case 1: break;
-        case 0: return UBC_STEWART_FK_FAILED;
-        default: return UBC_STEWART_CTRL_FAILED;
+    {
+        double info[3];
+        int fk = fk_newton(c->numbers, s->l_meas, st->q_meas, c->fk_tol, c->fk_max_iter, c->fk_max_cond, J, info);
+        if (fk == UBC_STEWART_FK_FUNCTION_FAILED) return UBC_STEWART_CTRL_FAILED;
+        if (fk != UBC_STEWART_FK_SOLVED) return fk_failed(st, s, fk, info);
     }
     memcpy(s->qdot_meas, s->ldot, sizeof s->ldot);
-    if (!solve_n(J, s->qdot_meas)) return UBC_STEWART_FK_FAILED;
+    if (!solve_n(J, s->qdot_meas)) {  /* JL singular at the measured pose: no velocities */
+        const double info[3] = {0, INFINITY, 0};
+        return fk_failed(st, s, UBC_STEWART_FK_SINGULAR, info);
+    }
     return UBC_STEWART_OK;
 }
 

@@ -23,6 +23,9 @@ enum { UBC_STEWART_SLOT_Q, UBC_STEWART_SLOT_QDOT, UBC_STEWART_SLOT_PC, UBC_STEWA
 /* Return codes of ubc_stewart_loop_run. */
 enum { UBC_STEWART_OK = 0, UBC_STEWART_NONFINITE = 1, UBC_STEWART_FK_FAILED = 2, UBC_STEWART_CTRL_FAILED = 3 };
 
+/* Outcomes of ubc_stewart_forward_kinematics (hydrogen.layout.FK_STATUS). */
+enum { UBC_STEWART_FK_SOLVED = 0, UBC_STEWART_FK_SINGULAR = 1, UBC_STEWART_FK_NOT_CONVERGED = 2, UBC_STEWART_FK_FUNCTION_FAILED = 3 };
+
 typedef struct {
     /* timing: control period h (s), plant RK4 sub-steps per control period, adaptation on for t >= t_adapt;
      * the command computed at period k is applied from t_k + (delay + delay_frac) h (delay 0..MAX_DELAY,
@@ -95,9 +98,10 @@ typedef struct {
     const double* p_low;
     const double* p_high;
     const double* numbers;
-    /* forward kinematics (Newton): tolerance (m), iterations */
+    /* forward kinematics (Newton): tolerance (m), steps, largest condition number (1-norm) of JL */
     double fk_tol;
     long long fk_max_iter;
+    double fk_max_cond;
 } ubc_stewart_loop_config;
 
 typedef struct {
@@ -110,6 +114,9 @@ typedef struct {
     double u_app[UBC_STEWART_NL];  /* commands the valves held over the last period, m (0 at reset): the
      * controller's u_applied input in its state update */
     double* xc;  /* controller state, n_xc entries */
+    double fk_info[4];  /* the last failed forward kinematics (written when it fails): outcome
+     * (<MODEL>_FK_...), residual (m), JL's condition number (1-norm), Newton steps */
+    double fk_l[UBC_STEWART_NL];  /* the cylinder lengths (m) forward kinematics failed for (q_meas: its last iterate) */
 } ubc_stewart_loop_state;
 
 typedef struct {                 /* each may be NULL; rows per control period (widths below) */
@@ -186,6 +193,22 @@ int ubc_stewart_plant_step(const ubc_stewart_loop_config* cfg, ubc_stewart_loop_
  * trajectory (workspace checks). numbers: the description's numbers (the generated functions' input).
  * Returns 0, or 1 if the generated function failed. */
 int ubc_stewart_leg_lengths_many(const double* numbers, const double* q, long long n, double* l);
+
+/* Forward kinematics, the loop's own: Newton's method for the pose q (NQ) whose cylinder lengths are
+ * l_meas (NL, m), from q (updated in place; on failure its last iterate). It stops when every length is
+ * within tol (m) or after max_iter steps (UBC_STEWART_FK_NOT_CONVERGED); a step needs JL's condition number
+ * (1-norm) at most max_cond (UBC_STEWART_FK_SINGULAR). Returns a UBC_STEWART_FK_ outcome; info (3 numbers, or
+ * NULL): the residual max |l(q) - l_meas| (m) at q, JL's condition number there (NaN when not computed,
+ * inf when a pivot vanishes) and the steps taken. numbers: as for ubc_stewart_leg_lengths_many. */
+int ubc_stewart_forward_kinematics(const double* numbers, const double* l_meas, double* q, double tol,
+                               long long max_iter, double max_cond, double* info);
+
+/* Forward kinematics of n samples: row k of l_meas (NL) gives row k of q (NQ), each started from the
+ * pose of the row before (row 0 from q0). Returns n, or the first sample k that failed (UBC_STEWART_FK_
+ * outcome in *status, its last iterate in row k of q, info as for ubc_stewart_forward_kinematics). */
+long long ubc_stewart_forward_kinematics_many(const double* numbers, const double* l_meas, long long n,
+                                          const double* q0, double tol, long long max_iter, double max_cond,
+                                          double* q, int* status, double* info);
 
 #ifdef __cplusplus
 }

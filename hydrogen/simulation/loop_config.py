@@ -14,12 +14,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from .. import pressures
-from ..layout import LOOP_CONFIG, delay_split
+from ..layout import FK_MAX_COND, FK_MAX_ITER, FK_TOL, LOOP_CONFIG, delay_split
 
 __all__ = ["Run", "DERIVED", "config_values", "FK_TOL", "FK_MAX_ITER"]
-
-#: Forward kinematics (Newton) in the loop: tolerance on the cylinder lengths (m) and iterations.
-FK_TOL, FK_MAX_ITER = 1e-12, 50
 
 
 @dataclass(frozen=True)
@@ -102,6 +99,7 @@ DERIVED = {
     "numbers": lambda r: np.zeros(1) if r.dyn.numbers is None else np.asarray(r.dyn.numbers, float),
     "fk_tol": lambda r: FK_TOL,
     "fk_max_iter": lambda r: FK_MAX_ITER,
+    "fk_max_cond": lambda r: FK_MAX_COND,
 }
 
 

@@ -12,6 +12,7 @@ import numpy as np
 from .. import diagram, pressures
 from ..actuators import actuator
 from ..controllers import spec as controller_spec
+from ..dynamics import fk_failure
 from ..errors import KinematicsError, ScenarioError, SimulationError
 from ..layout import PREDICTOR_MODEL
 from ..plant import describe_entries, friction, plant_layout, slot, state_vector
@@ -728,9 +729,11 @@ def _loop_failure(code, runner, h):
     if code == LOOP_NONFINITE:
         return _describe(runner.plant_state, (k + 1) * h, runner.ctrl, runner.xc[: runner.ctrl.xc.size],
                          runner.fn.output(0))
-    if code == LOOP_FK_FAILED:
-        return (f"stopped at t = {k * h:.4f} s: forward kinematics did not converge (or JL is singular) "
-                f"for the measured leg lengths; state = {runner.plant_state.tolist()}")
+    if code == LOOP_FK_FAILED:  # worded as Dynamics.forward_kinematics, from what the loop recorded
+        st, cfg = runner.state, runner.cfg
+        why = fk_failure(int(st.fk_info[0]), st.fk_info[1:4], st.q_meas[:], st.fk_l[:], cfg.fk_max_iter,
+                         cfg.fk_max_cond)
+        return f"stopped at t = {k * h:.4f} s: {why}"
     return f"stopped at t = {k * h:.4f} s: a generated function returned an error"
 
 
