@@ -1,0 +1,146 @@
+"""The supply block (hydrogen/plant/supply.py): a pump's supply pressure against closed forms (its
+slope (pump flow − demand)/capacitance, the relief's cap, a compensated pump's held pressure, an
+accumulator discharging along its gas law p V^n = const), and SymPy against numpy."""
+import math
+
+import numpy as np
+import pytest
+import sympy as sp
+from scipy.optimize import brentq
+
+from hydrogen.actuators import actuator
+from hydrogen.plant import supply
+
+#: A small pump: 1 L/s, relief at 200 bar, 2 L of hose on oil of 1.4 GPa.
+PUMP = {"pump_flow": 1e-3, "relief_pressure": 20e6, "hose_volume": 2e-3, "bulk_modulus": 1.4e9,
+        "accumulator_volume": 0.0, "polytropic_index": 1.4}
+ACCUMULATOR = {**PUMP, "accumulator_volume": 4e-3, "precharge_pressure": 8e6}
+COMPENSATED = {**PUMP, "set_pressure": 16e6}
+
+
+def _rk4(f, y, h, steps):
+    for _ in range(steps):
+        k1 = f(y)
+        k2 = f(y + h / 2 * k1)
+        k3 = f(y + h / 2 * k2)
+        k4 = f(y + h * k3)
+        y = y + h / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
+    return y
+
+
+def _rate(kind, S, demand, accumulator=False):
+    return lambda ps: supply.Numeric.rate(kind, ps, demand, S, accumulator)
+
+
+def test_demand_above_the_pump_flow_lowers_the_pressure_at_the_net_flow_over_the_hoses_capacitance():
+    """Below the relief, ṗ_s = (Q_p − D)/(V_h/β): a straight line in time."""
+    demand = 1.6e-3  # m³/s, above the pump's 1 L/s
+    slope = (PUMP["pump_flow"] - demand) * PUMP["bulk_modulus"] / PUMP["hose_volume"]
+    p0 = 15e6
+    np.testing.assert_allclose(_rate("pump", PUMP, demand)(p0), slope, rtol=1e-12)
+    t = 0.5 * (p0 - 5e6) / -slope  # stays well below the relief
+    p = _rk4(_rate("pump", PUMP, demand), p0, t / 100, 100)
+    np.testing.assert_allclose(p, p0 + slope * t, rtol=1e-12)
+
+
+def test_a_demand_drawn_by_a_valve_is_its_orifice_flow():
+    """The demand of a three-way cylinder's open valve, c (u + d) √(p_s − p_c) − a l̇, lowers p_s at
+    (Q_p − demand)/C."""
+    mod = actuator("three_way_cylinder")
+    P = mod.parameters({"piston_area": 1.14e-3, "rod_area": 6.33e-4, "chamber_length": 1.37,
+                        "supply_pressure": 15e6, "underlap": 5e-5, "flow_gain": 1.5e-4, "bulk_modulus": 7e8})
+    pc, u, ldot = 6e6, 2e-3, 0.05
+    demand = float(mod.Numeric.supply_flow(1.8, ldot, (pc,), u, P["flow_gain"], P))
+    expected = P["flow_gain"] * (u + P["underlap"]) * math.sqrt(P["supply_pressure"] - pc) - P["rod_area"] * ldot
+    np.testing.assert_allclose(demand, expected, rtol=1e-12)
+    np.testing.assert_allclose(supply.Numeric.rate("pump", 15e6, demand, PUMP),
+                               (PUMP["pump_flow"] - expected) * PUMP["bulk_modulus"] / PUMP["hose_volume"],
+                               rtol=1e-12)
+
+
+def test_the_relief_caps_the_pressure_of_a_pump_with_no_demand():
+    """With no demand the pump's flow all goes through the relief: p_s rises to where Q_relief = Q_p,
+    p_r + w ln(e^{Q_p/(g_r w)} − 1), within the relief's 1 % override of relief_pressure, and never above."""
+    pr = PUMP["relief_pressure"]
+    over = supply.RELIEF_OVERRIDE * pr
+    width = supply.RELIEF_WIDTH * over
+    gain = PUMP["pump_flow"] / over
+    cap = pr + width * math.log(math.expm1(PUMP["pump_flow"] / (gain * width)))
+    assert pr < cap <= pr * (1 + supply.RELIEF_OVERRIDE)
+    np.testing.assert_allclose(supply.Numeric.relief_flow(cap, PUMP), PUMP["pump_flow"], rtol=1e-12)
+    f = _rate("pump", PUMP, 0.0)
+    p, top = 18e6, 0.0
+    for _ in range(400):  # 0.4 s: the hose fills in 0.03 s, the relief settles in ~1 ms
+        p = _rk4(f, p, 1e-5, 100)
+        top = max(top, p)
+    np.testing.assert_allclose(p, cap, rtol=1e-9)
+    assert top <= cap * (1 + 1e-12)
+    # below the relief it passes (almost) nothing: the pump's whole flow fills the hose
+    assert supply.Numeric.relief_flow(0.97 * pr, PUMP) < 1e-12 * PUMP["pump_flow"]
+
+
+def test_a_compensated_pump_holds_its_set_pressure_up_to_its_flow():
+    """A demand D < Q_p is held at p_set − Δ_c artanh(2D/Q_p − 1), within 2 % of p_set for 2 % ..
+    98 % of the pump's flow; a demand above it lowers the pressure."""
+    pset = COMPENSATED["set_pressure"]
+    droop = supply.COMPENSATOR_DROOP * pset
+    for fraction in (0.05, 0.5, 0.9):
+        demand = fraction * COMPENSATED["pump_flow"]
+        held = pset - droop * math.atanh(2 * fraction - 1)
+        assert abs(held - pset) < 2 * droop
+        p = _rk4(_rate("compensated_pump", COMPENSATED, demand), 12e6, 1e-5, 40000)
+        np.testing.assert_allclose(p, held, rtol=1e-9)
+    assert _rate("compensated_pump", COMPENSATED, 1.1 * COMPENSATED["pump_flow"])(pset - 5 * droop) < 0
+
+
+def _gas_oil(ps, S):
+    """Oil in the accumulator by Boyle-Poisson: the gas V_a at p̄_0 compressed to p̄_s along p V^n = const."""
+    p0, pa = S["precharge_pressure"] + supply.ATMOSPHERE, ps + supply.ATMOSPHERE
+    return S["accumulator_volume"] - S["accumulator_volume"] * (p0 / pa) ** (1 / S["polytropic_index"])
+
+
+@pytest.mark.parametrize("index", [1.0, 1.4])
+def test_an_accumulator_discharges_along_its_gas_law(index):
+    """No pump flow to speak of, a constant demand D: the oil delivered D t is what the accumulator's gas
+    (p V^n = const) and the hose's oil give up, V_oil(p(0)) − V_oil(p(t)) + V_h/β (p(0) − p(t));
+    p(t) solved from that closed form against the integrated rate."""
+    S = {**ACCUMULATOR, "pump_flow": 1e-9, "polytropic_index": index}
+    demand, p_start = 2e-3, 18e6
+
+    def delivered(ps):
+        return _gas_oil(p_start, S) - _gas_oil(ps, S) + S["hose_volume"] / S["bulk_modulus"] * (p_start - ps)
+
+    # the relief is far above: Q_p = 1e-9 m³/s besides the demand
+    net = demand - S["pump_flow"]
+    f = _rate("pump", S, demand, accumulator=True)
+    p = p_start
+    for t in (0.2, 0.4, 0.6):  # discharges to ~9 MPa, above the precharge
+        p = _rk4(f, p, 1e-4, 2000)
+        exact = brentq(lambda ps: delivered(ps) - net * t, S["precharge_pressure"] + 1.0, p_start)
+        np.testing.assert_allclose(p, exact, rtol=1e-9)
+    np.testing.assert_allclose(supply.Numeric.accumulator_oil(p, S), _gas_oil(p, S), rtol=1e-12)
+
+
+def test_an_accumulator_below_its_precharge_holds_no_oil():
+    """At or below the precharge the gas fills the accumulator: only the hose's capacitance is left."""
+    S = ACCUMULATOR
+    for ps in (S["precharge_pressure"], 0.5 * S["precharge_pressure"]):
+        assert supply.Numeric.accumulator_oil(ps, S) == 0.0
+        assert supply.Numeric.capacitance(ps, S, True) == S["hose_volume"] / S["bulk_modulus"]
+    # just above it, its capacitance is the slope of its oil
+    ps, h = 1.2 * S["precharge_pressure"], 10.0
+    slope = (_gas_oil(ps + h, S) - _gas_oil(ps - h, S)) / (2 * h)
+    np.testing.assert_allclose(supply.Numeric.capacitance(ps, S, True) - S["hose_volume"] / S["bulk_modulus"],
+                               slope, rtol=1e-7)
+
+
+@pytest.mark.parametrize("kind, S, accumulator", [("pump", PUMP, False), ("pump", ACCUMULATOR, True),
+                                                  ("compensated_pump", COMPENSATED, False)])
+def test_symbolic_and_numeric_laws_agree(kind, S, accumulator):
+    ps, demand = sp.symbols("ps demand", real=True)
+    expr = supply.Symbolic.rate(kind, ps, demand, {k: sp.Float(v) for k, v in S.items()}, accumulator)
+    f = sp.lambdify((ps, demand), expr, "mpmath")
+    for p in (1e6, 9e6, 15.9e6, 16.1e6, 19.9e6, 20.1e6, 21e6, 40e6):
+        for d in (0.0, 5e-4, 3e-3):
+            np.testing.assert_allclose(float(f(p, d)), supply.Numeric.rate(kind, p, d, S, accumulator),
+                                       rtol=1e-12)
