@@ -11,7 +11,7 @@ import math
 
 from .names import NUMBERS  # the numbers input's name, part of the loop's layout
 
-__all__ = ["NUMBERS", "SLOTS", "MAX_DELAY", "PREDICTOR_MODEL", "delay_split", "LOOP_CONFIG", "LOOP_STATE", "LOOP_SIGNALS",
+__all__ = ["NUMBERS", "SLOTS", "SUPPLY_LOG", "MAX_DELAY", "PREDICTOR_MODEL", "delay_split", "LOOP_CONFIG", "LOOP_STATE", "LOOP_SIGNALS",
            "model_summary", "loop_context", "log_widths", "loop_functions", "C_SIZES", "plant_offsets", "plant_size",
            "c_double", "config_fields", "struct_fields"]
 
@@ -19,6 +19,9 @@ __all__ = ["NUMBERS", "SLOTS", "MAX_DELAY", "PREDICTOR_MODEL", "delay_split", "L
 #: Signals the loop writes into a controller's inputs, by input name, in this order (``u_applied``:
 #: the spool commands the valves held over the last period, after the clip and the computation delay).
 SLOTS = ("q", "qdot", "pc", "l", "qd0", "qd1", "qd2", "qd3", "xc", "adapt", "u_applied")
+
+#: The plant part logged as it is, where the plant has it: the supply pressure (hydrogen.plant.supply).
+SUPPLY_LOG = "ps"
 
 #: Longest computation delay the loop's command ring buffer holds, control periods (a scenario's
 #: ``delay`` is refused above it). A real-time target applies a command one period after the
@@ -254,7 +257,10 @@ def loop_functions(summary: dict) -> tuple:
 def log_widths(summary: dict) -> dict:
     """Row width of each log of the loop (``xc``'s is the controller's state size)."""
     n, m = summary["n"], summary["m"]
-    return {"t": 1, "q": n, "q_d": n, "l": m, "f": m, "pc": n_pressures(summary), "u": m, "u_applied": m, "l_meas": m}
+    # the supply pressure's log only where the plant has it (a constant supply's loop is as it was)
+    supply = {p["name"]: p["entries"] for p in summary["plant"] if p["name"] == SUPPLY_LOG}
+    return {"t": 1, "q": n, "q_d": n, "l": m, "f": m, "pc": n_pressures(summary), "u": m, "u_applied": m, "l_meas": m,
+            **supply}
 
 
 def loop_context(manifest: dict) -> dict:
@@ -266,7 +272,7 @@ def loop_context(manifest: dict) -> dict:
     what = {"t": "time, s", "q": "true pose", "q_d": "reference", "l": "true cylinder lengths, m",
             "f": "cylinder forces, N", "pc": pressures, "u": "spool commands computed, m",
             "u_applied": "spool commands the valves held at the end of each period (delay later), m",
-            "l_meas": "measured cylinder lengths (noise, quantisation), m"}
+            "l_meas": "measured cylinder lengths (noise, quantisation), m", SUPPLY_LOG: "supply pressure, Pa"}
     logs = [(k, w, what[k]) for k, w in log_widths(s).items()] + [("xc", "n_xc", "controller state")]
     nx = plant_size(s)
     # each part of x as the C loop writes it: a pointer offset ("x + NQ") and an index prefix ("x[NQ + i]")

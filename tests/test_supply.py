@@ -144,3 +144,65 @@ def test_symbolic_and_numeric_laws_agree(kind, S, accumulator):
         for d in (0.0, 5e-4, 3e-3):
             np.testing.assert_allclose(float(f(p, d)), supply.Numeric.rate(kind, p, d, S, accumulator),
                                        rtol=1e-12)
+
+
+# --- a robot on a pump, built and run --------------------------------------------------------------
+
+PUMP_TABLE = """
+[supply]
+kind = "pump"
+pump_flow = 2.0e-4
+relief_pressure = 11.0e6
+hose_volume = 1.0e-3
+accumulator_volume = 5.0e-4
+precharge_pressure = 6.0e6
+"""
+
+
+@pytest.fixture(scope="module")
+def pump_dyn(cache, tmp_path_factory):
+    """The mixed arm (a three-way shoulder, a four-way elbow) on a small pump with an accumulator."""
+    import hydrogen
+    from test_model import mixed_arm_text
+    path = tmp_path_factory.mktemp("pump") / "pump_arm.toml"
+    path.write_text(mixed_arm_text("four_way") + PUMP_TABLE)
+    return hydrogen.build(hydrogen.load_model(path), cache=cache)
+
+
+def test_the_generated_plant_draws_every_valve_on_the_one_supply(pump_dyn, rng):
+    """The generated plant's ṗ_s is the supply law at the demand of every actuator's supply edges, and
+    each chamber's rate its kind's law at the supply state's pressure, not the constant's."""
+    from hydrogen.plant import plant_layout, slot, state_vector
+    from hydrogen.pressures import split
+    model = pump_dyn.model
+    layout = plant_layout(model)
+    q = model.neutral_pose + 0.05 * rng.normal(size=model.n)
+    qdot = 0.2 * rng.normal(size=model.n)
+    pc, ps, u = rng.uniform(2e6, 7e6, 3), 8.5e6, np.array([3e-4, -2e-4])
+    x = state_vector(layout, q=q, qdot=qdot, pc=pc, ps=[ps])
+    g1, g2 = model.gamma
+    ideal = np.zeros(5 * model.n_cylinders)  # the ideal valve: the chambers see the command
+    xdot = np.asarray(pump_dyn.functions["plant_rhs"](x, u, model.theta, g1, g2, np.zeros(3 * model.n_cylinders),
+                                                       ideal), float).ravel()
+    l, ldot = pump_dyn.leg_lengths(q), pump_dyn.leg_jacobian(q) @ qdot
+    demand, rates = 0.0, []
+    for i, (c, p) in enumerate(zip(model.cylinders, split(model, pc))):
+        mod, P = actuator(c.kind), {**c.table, "supply_pressure": ps}
+        demand += float(mod.Numeric.supply_flow(l[i], ldot[i], p, u[i], g2[i] / g1[i], P))
+        rates += [float(r) for r in mod.Numeric.pressure_rates(l[i], ldot[i], p, u[i], g1[i], g2[i] / g1[i], P)]
+    S = model.supply.values
+    np.testing.assert_allclose(xdot[slot(layout, "ps").slice], supply.Numeric.rate("pump", ps, demand, S, True),
+                               rtol=1e-9)
+    np.testing.assert_allclose(xdot[slot(layout, "pc").slice], rates, rtol=1e-9)
+
+
+def test_a_pump_run_is_the_same_in_both_loops_and_held_under_the_relief(pump_dyn):
+    """The supply pressure, logged by either loop: from the actuators' supply_pressure the pump charges
+    the accumulator up to the relief, which holds it within twice its override."""
+    import hydrogen
+    runs = [hydrogen.simulate("arm-sim", "backstepping", dyn=pump_dyn, duration=0.4, engine=e) for e in ("c", "python")]
+    c, py = (r.supply_pressure for r in runs)
+    assert c.shape == runs[0].t.shape and c[0] == 10.0e6  # it starts at the actuators' supply_pressure
+    np.testing.assert_allclose(c, py, rtol=1e-9)
+    relief = pump_dyn.model.supply.values["relief_pressure"]
+    assert relief < c.max() <= relief * (1 + 2 * supply.RELIEF_OVERRIDE)

@@ -47,7 +47,7 @@ import numpy as np
 from ..actuators.declarations import BULK_MODULUS, SUPPLY_PRESSURE, VOLUME, Parameter, Range, sp
 from . import PlantState
 
-__all__ = ["KINDS", "DEFAULT_KIND", "KEYS", "STATES", "PARAMETERS", "ATMOSPHERE", "RELIEF_OVERRIDE",
+__all__ = ["KINDS", "DEFAULT_KIND", "NEEDS", "STATES", "entries", "start", "ceiling", "PARAMETERS", "ATMOSPHERE", "RELIEF_OVERRIDE",
            "RELIEF_WIDTH", "COMPENSATOR_DROOP", "Supply", "Laws", "Symbolic", "Numeric"]
 
 #: The supply kinds a description may name; the default: a constant supply pressure.
@@ -132,6 +132,21 @@ def entries(model) -> list:
     return [] if supply is None or supply.constant else ["supply"]
 
 
+def start(model) -> dict:
+    """The supply part of the plant's starting state: ``{"ps": [P_s]}`` where the supply is a state
+    (it starts at the actuators' shared ``supply_pressure``, Pa), else none."""
+    return {"ps": [model.cylinders[0].supply_pressure]} if entries(model) else {}
+
+
+def ceiling(model) -> float | None:
+    """The highest supply pressure (Pa) a chamber is held to where the supply is a state: twice the
+    relief's override above relief_pressure (the relief passes twice the pump's flow there), or the
+    actuators' supply_pressure if higher; None for a constant supply."""
+    if not entries(model):
+        return None
+    return max(model.supply.values["relief_pressure"] * (1 + 2 * RELIEF_OVERRIDE), model.cylinders[0].supply_pressure)
+
+
 class _Ops:
     """The operations the supply law needs, in one layer: ``where(cond, a, b)``, ``gt``, ``tanh``,
     ``softplus``."""
@@ -160,6 +175,12 @@ class Laws:
 
     def __init__(self, ops):
         self.xp = ops
+
+    @staticmethod
+    def states(model) -> dict:
+        """``{"ps": column of symbols}``: one p_s where the supply is not constant, else none."""
+        from ..symbolic.kinematics import rate_symbols
+        return {"ps": rate_symbols("ps", len(entries(model)))}
 
     def pump_flow(self, kind, ps, S):
         """Q_pump (m³/s): a fixed displacement's Q_p, or the compensated pump's drooping flow."""

@@ -13,8 +13,9 @@ from .. import pressures
 from ..actuators import actuator
 from ..controllers import spec as controller_spec
 from ..errors import KinematicsError, ScenarioError, SimulationError
-from ..layout import PREDICTOR_MODEL
+from ..layout import PREDICTOR_MODEL, SUPPLY_LOG
 from ..plant import describe_entries, plant_layout, slot, state_vector
+from ..plant.supply import start as supply_start
 from ..summary import SATURATED_AT, SATURATION, estimated_blocks  # saturation: defined with its line
 from .checks import _shown, check_against_model, check_run_size, checked_float, metric_window
 from .control import make_controller
@@ -66,6 +67,9 @@ class SimulationResult:
     #: Every block of the controller's state as it declares it, by name: its rows (k, size) over the run,
     #: in the block's own unit (the estimates above too, where the controller holds them).
     states: dict = field(default_factory=dict)
+    #: The supply pressure p_s (k,), Pa, where the supply is a plant state (a pump); None for a
+    #: constant supply (each actuator's supply_pressure).
+    supply_pressure: np.ndarray = None
 
     @property
     def scenario_name(self) -> str:
@@ -494,9 +498,10 @@ def new_logs(model, n: int, n_xc: int) -> dict:
     """The logs of a run of ``n`` periods (NaN-filled rows), as both engines write them."""
     nq, m = model.n, model.n_cylinders
     n_p = pressures.n_pressures(model)
+    supply = [(SUPPLY_LOG, b.size) for b in plant_layout(model) if b.name == SUPPLY_LOG]  # a supply state's log
     return {k: np.full((n, w), np.nan) for k, w in (("q", nq), ("q_d", nq), ("l", m), ("f", m), ("pc", n_p),
                                                     ("u", m), ("u_applied", m), ("l_meas", m),
-                                                    ("xc", max(n_xc, 1)))}
+                                                    ("xc", max(n_xc, 1)), *supply)}
 
 
 @dataclass
@@ -568,7 +573,7 @@ def plan_run(dyn, scenario, controller, duration, check_workspace, overrides, *,
     table = f"{model.source}: [scenarios.{sc.name}]" if sc.name in scenario_names(model) else f"scenario {sc.name!r}:"
     q0 = sc.reference(0.0)[0] + np.asarray(sc.q0_offset, float)
     pc0 = equilibrium_pressures(dyn, q0, model.theta)
-    x0 = state_vector(plant_layout(model), q=q0, pc=pc0)  # at rest, the valves closed
+    x0 = state_vector(plant_layout(model), q=q0, pc=pc0, **supply_start(model))  # at rest, the valves closed
     own = actuator_settings(sc, model)  # each actuator's travel noise, resolution, friction in its own unit
     return RunPlan(dyn, controller, sc, n, h, theta0, gamma0, q0, pc0, x0, filter_gain(sc, h), own, pinned,
                    {k: f"{table} gains.{controller}" for k in pinned})
@@ -738,7 +743,7 @@ def _run_c(dyn, sc, ctrl, x0, q0, noise, kf_gain, log, n, h, runner=None):
     from ..runtime.loop import LOOP_NONFINITE, LOOP_OK
     runner = make_runner(dyn, sc, ctrl, x0, q0, kf_gain, h) if runner is None else runner
     xc_log = log["xc"] if ctrl.xc.size else None
-    logs = {k: log[k] for k in ("q", "q_d", "l", "f", "pc", "u", "u_applied", "l_meas")}
+    logs = {k: log[k] for k in ("q", "q_d", "l", "f", "pc", "u", "u_applied", "l_meas", SUPPLY_LOG) if k in log}
     if xc_log is not None:
         logs["xc"] = xc_log
     code = runner.run(n, noise, logs)
@@ -909,6 +914,8 @@ def run_python_loop(dyn, sc, ctrl, x, q0, noise, kf_gain, log, n, h):
         log["q"][k], log["q_d"][k], log["l"][k], log["pc"][k], log["u"][k] = x[loop._q], s.ref[0], s.l_true, pc, s.u
         log["u_applied"][k], log["l_meas"][k] = s.u_app, s.l_meas
         log["f"][k] = pressures.forces(model, pc)
+        if SUPPLY_LOG in log:
+            log[SUPPLY_LOG][k] = x[slot(loop.layout, SUPPLY_LOG).slice]
         if ctrl.xc.size:
             log["xc"][k] = ctrl.xc
         loop.plant_step(s.u_held, s.u_app)
@@ -936,7 +943,8 @@ def _result(sc, controller, ctrl, t, log, k, theta0, gamma0, theta_true, gamma_t
         theta_names=tuple(model.theta_names), estimated=estimated_blocks(ctrl), wall_time_s=wall, loop_wall_s=wall,
         u_max=float(ctrl.values["u_max"][0]) if "u_max" in ctrl.values else 0.0,
         actuators=tuple(c.name for c in model.cylinders),
-        states={b.name: log["xc"][:k, ctrl.slices[b.name]] for b in ctrl.layout})
+        states={b.name: log["xc"][:k, ctrl.slices[b.name]] for b in ctrl.layout},
+        supply_pressure=log[SUPPLY_LOG][:k, 0] if SUPPLY_LOG in log else None)
     if k:
         res.compute_metrics()
     return res

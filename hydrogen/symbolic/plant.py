@@ -13,8 +13,9 @@ from __future__ import annotations
 import sympy as sp
 
 from ..actuators import actuator, baked_parameters
-from ..plant import BLOCKS, block, chambers, friction, mechanics, valve
+from ..plant import BLOCKS, block, chambers, friction, mechanics, supply, valve
 from ..pressures import blocks
+from .constants import baked
 from .kinematics import leg_intermediates, rate_symbols
 from .rigid_body import theta_symbols
 
@@ -37,6 +38,9 @@ def plant_rhs(model):
     cyl = model.cylinders
     laws = [actuator(c.kind).Symbolic for c in cyl]
     P = [baked_parameters(c) for c in cyl]
+    ps = states["ps"]
+    if ps.rows:  # a pump: every actuator's laws see the supply state in place of its constant
+        P = [{**Pi, "supply_pressure": ps[0]} for Pi in P]
     p = [tuple(pc[a:b]) for a, b in blocks(model)]  # each actuator's pressure block
 
     l, JL, _, kin = leg_intermediates(model, q, qd, rates=False)  # the plant needs no J̇L
@@ -53,7 +57,20 @@ def plant_rhs(model):
     mech, solve = mechanics.Symbolic.rates(model, q, qd, JL.T * f_leg, th)  # poses: in kin
     rates.update(mech)
     rates.update(chambers.Symbolic.rates(laws, l, ldot, p, spool_eff, g1, g2, P))
+    demand = []
+    if ps.rows:
+        # the valves' draw on the supply: an intermediate, so the supply's law takes one symbol
+        demand = [(rate_symbols("plant_demand", 1),
+                   sp.Matrix([sum(laws[i].supply_flow(l[i], ldot[i], p[i], spool_eff[i], g2[i] / g1[i], P[i])
+                                  for i in range(m))]))]
+        values = model.supply.values
+        S = {k: baked(v, f"supply.{k}") for k, v in values.items()}
+        rates["ps"] = sp.Matrix([supply.Symbolic.rate(model.supply.kind, ps[0], demand[0][0][0], S,
+                                                      model.supply.accumulator)])
+    else:
+        rates["ps"] = ps
     xdot = sp.Matrix([r for name in BLOCKS for st in block(name).STATES for r in rates[st.name]])
     inputs = [("x", x), ("u", u), ("theta", th), ("gamma1", g1), ("gamma2", g2), ("friction", fric),
               ("valve", valve_par)]
-    return inputs, xdot, [*kin, (ldot, ldot_value), (f_leg, f_leg_value), (spool_eff, spool_eff_value), *solve]
+    return inputs, xdot, [*kin, (ldot, ldot_value), (f_leg, f_leg_value), (spool_eff, spool_eff_value), *demand,
+                          *solve]
