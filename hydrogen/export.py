@@ -492,7 +492,7 @@ def export(out_dir, scenario=None, controller="adaptive-robust", model=None, dur
                        f"P_KF_GAIN_SENSOR, designed for {p.sensor_noise_l:g} m leg-length noise, on the rig.")
     else:
         kalman_note = "Leg rates come from the plant's exact rates (this scenario has no Kalman filter)."
-    extra = "".join(f", {k}={v!r}" for k, v in sorted(overrides.items()) if k not in ("noise_l", "noise_p", "noise_q"))
+    extra = "".join(f", {k}={v!r}" for k, v in sorted(overrides.items()) if k not in ("noise_l", "noise_p", "noise_q", "noise_ps"))
     if duration is not None:
         extra = f", duration={float(duration)!r}" + extra
     if gains:

@@ -147,6 +147,7 @@ LOOP_SIGNALS = (
     ("l_true", "double", ("NL",), "true cylinder lengths, m"),
     ("l_meas", "double", ("NL",), "measured cylinder lengths (noise, resolution), m"),
     ("pc_meas", "double", ("NPC",), "measured pressures, Pa"),
+    ("ps_meas", "double", ("NPS",), "measured supply pressure, Pa (a [supply] state's only)"),
     ("q_enc", "double", ("NQ",), "joint encoders' reading, rad or m (joint encoders only)"),
     ("ldot", "double", ("NL",), "cylinder rates: the Kalman filter's, or the ideal rate sensor's, m/s"),
     ("qdot_meas", "double", ("NQ",), "measured velocities, JL^-1 ldot at the measured pose"),
@@ -173,6 +174,8 @@ def struct_fields(description, p: str, sizes: dict, x_parts: str = "") -> list:
             decl, length = f"{ctype} {name}[{c_size}]", 1
             for t in size:
                 length *= t if isinstance(t, int) else sizes[t]
+            if not length:  # a part the robot lacks (a constant supply's p_s): not declared
+                continue
         out.append({"name": name, "type": ctype, "decl": Markup(decl), "length": length,
                     "comment": Markup(comment.replace("{x_parts}", x_parts).replace("\n * ", "\n     * "))})
     return out
@@ -244,6 +247,12 @@ def plant_size(summary: dict) -> int:
     return sum(part["entries"] for part in summary["plant"])
 
 
+def supply_size(summary: dict) -> int:
+    """Entries of the supply state (1 where the supply is not constant, else 0): the measured supply
+    pressure's, last in a noise row."""
+    return sum(part["entries"] for part in summary["plant"] if part["name"] == SUPPLY_LOG)
+
+
 def n_pressures(summary: dict) -> int:
     """Size of the pressure vector."""
     return summary["n_pressures"]
@@ -281,12 +290,14 @@ def loop_context(manifest: dict) -> dict:
     x_plus = {k: Markup("" if v == "0" else f" + {v}") for k, v in offsets.items()}
     x_index = {k: Markup("" if v == "0" else f"{v} + ") for k, v in offsets.items()}
     x_parts = ", ".join(part["name"].replace("_", " ") for part in s["plant"])
-    sizes = {"NQ": n, "NL": m, "NX": nx, "NPC": n_p, "MAX_DELAY": MAX_DELAY}
+    nps = supply_size(s)
+    sizes = {"NQ": n, "NL": m, "NX": nx, "NPC": n_p, "NPS": nps, "MAX_DELAY": MAX_DELAY}
     ctx = {
         "model": name, "p": name, "P": name.upper(), "guard": f"{name.upper()}_LOOP_H",
         "n": n, "m": m, "nx": nx, "max_delay": MAX_DELAY,
         "x_plus": x_plus, "x_index": x_index, "x_parts": x_parts,
-        "n_noise": m + n_p + (n if s["joint_encoders"] else 0), "n_pressures": n_p, "three_way": n_p == m,
+        "n_noise": m + n_p + (n if s["joint_encoders"] else 0) + nps, "n_pressures": n_p, "three_way": n_p == m,
+        "nps": nps,
         "parametric": NUMBERS in manifest,
         "encoders": bool(s["joint_encoders"]), "slots": SLOTS, "logs": logs, "config": config_fields(name),
         "state": struct_fields(LOOP_STATE, name, sizes, x_parts), "signals": struct_fields(LOOP_SIGNALS, name, sizes),

@@ -206,3 +206,14 @@ def test_a_pump_run_is_the_same_in_both_loops_and_held_under_the_relief(pump_dyn
     np.testing.assert_allclose(c, py, rtol=1e-9)
     relief = pump_dyn.model.supply.values["relief_pressure"]
     assert relief < c.max() <= relief * (1 + 2 * supply.RELIEF_OVERRIDE)
+
+
+def test_the_measured_supply_pressure_feeds_the_predictor_alike_in_both_loops(pump_dyn):
+    """The supply pressure is measured (noise_ps, Pa): the delay predictor starts from the measurement,
+    so its noise changes the commands, the same in either loop."""
+    import hydrogen
+    kw = dict(dyn=pump_dyn, duration=0.2, delay=0.002, predictor=True)
+    noisy = [hydrogen.simulate("arm-sim", "backstepping", noise_ps=3e5, engine=e, **kw) for e in ("c", "python")]
+    np.testing.assert_allclose(noisy[0].u, noisy[1].u, rtol=1e-9, atol=1e-15)
+    quiet = hydrogen.simulate("arm-sim", "backstepping", noise_ps=0.0, **kw)
+    assert np.abs(quiet.u - noisy[0].u).max() > 1e-9

@@ -15,7 +15,7 @@ from ..controllers import spec as controller_spec
 from ..errors import KinematicsError, ScenarioError, SimulationError
 from ..layout import PREDICTOR_MODEL, SUPPLY_LOG
 from ..plant import describe_entries, plant_layout, slot, state_vector
-from ..plant.supply import start as supply_start
+from ..plant.supply import entries as supply_entries, start as supply_start
 from ..summary import SATURATED_AT, SATURATION, estimated_blocks  # saturation: defined with its line
 from .checks import _shown, check_against_model, check_run_size, checked_float, metric_window
 from .control import make_controller
@@ -540,13 +540,16 @@ class RunPlan:
         nq, m = model.n, model.n_cylinders
         rng = np.random.default_rng(seed)
         n_p = pressures.n_pressures(model)
-        noise = np.zeros((n, m + n_p + (nq if model.joint_encoders else 0)))
+        nps = len(supply_entries(model))  # the measured supply pressure's column, last
+        noise = np.zeros((n, m + n_p + (nq if model.joint_encoders else 0) + nps))
         if own["noise_l"].any():
             noise[:, :m] = own["noise_l"] * rng.standard_normal((n, m))
         if sc.noise_p:
             noise[:, m:m + n_p] = sc.noise_p * rng.standard_normal((n, n_p))
         if sc.noise_q and model.joint_encoders:
-            noise[:, m + n_p:] = sc.noise_q * rng.standard_normal((n, nq))
+            noise[:, m + n_p:m + n_p + nq] = sc.noise_q * rng.standard_normal((n, nq))
+        if sc.noise_ps and nps:  # drawn last: a constant supply's noise is what it was
+            noise[:, -nps:] = sc.noise_ps * rng.standard_normal((n, nps))
         return noise
 
 
@@ -759,7 +762,7 @@ _PRED_FRICTION, _PRED_VALVE = (np.array(PREDICTOR_MODEL[k], dtype=float) for k i
 
 class _Signals:
     """One period's signals as the stages hand them on (the C loop's ``<model>_loop_signals``)."""
-    __slots__ = ("t", "l_true", "l_meas", "pc_meas", "q_enc", "ldot", "qdot_meas", "ref", "u", "u_held", "u_app")
+    __slots__ = ("t", "l_true", "l_meas", "pc_meas", "ps_meas", "q_enc", "ldot", "qdot_meas", "ref", "u", "u_held", "u_app")
 
 
 class PythonStages:
@@ -780,6 +783,7 @@ class PythonStages:
         self._pred_valve = np.tile(_PRED_VALVE, model.n_cylinders)
         self.layout = plant_layout(model)
         self._q, self._qdot, self._pc = (slot(self.layout, k).slice for k in ("q", "qdot", "pc"))
+        self._ps = next((b.slice for b in self.layout if b.name == SUPPLY_LOG), None)  # a supply state
         pc = slot(self.layout, "pc")
         self._lo, self._hi = np.array(pc.lower), np.array(pc.upper)  # each pressure state's clip (0 and P_s for p_c)
         self.nq, self.m, self.n_p = model.n, model.n_cylinders, pc.size
@@ -803,7 +807,10 @@ class PythonStages:
         s.l_meas = np.where(self._quant > 0, step * np.floor(s.l_meas / step + 0.5), s.l_meas)
         s.pc_meas = np.clip(pc + nz[m:m + n_p], self._lo, self._hi) if sc.noise_p else pc
         s.ldot = None if self.kf is not None else self.dyn.leg_jacobian(q) @ qdot  # ideal rate sensor
-        s.q_enc = q + nz[m + n_p:] if self.model.joint_encoders else None
+        s.q_enc = q + nz[m + n_p:m + n_p + self.nq] if self.model.joint_encoders else None
+        if self._ps is not None:  # the supply pressure, last in the noise row, held at its lower bound 0
+            ps = x[self._ps]
+            s.ps_meas = np.maximum(ps + nz[-ps.size:], 0.0)
         return s
 
     def estimate(self, s: _Signals) -> None:
@@ -852,7 +859,8 @@ class PythonStages:
         commands of periods k − delay … k − 1 (the C loop's ``predict``)."""
         h, pc = self.h, self._pc
         th, g1, g2 = self.ctrl.own_parameters()
-        x = state_vector(self.layout, q=self.q_meas, qdot=s.qdot_meas, pc=s.pc_meas)  # spool states: unused
+        supply = {} if self._ps is None else {SUPPLY_LOG: s.ps_meas}
+        x = state_vector(self.layout, q=self.q_meas, qdot=s.qdot_meas, pc=s.pc_meas, **supply)  # spool: unused
 
         def hold(x, u, dt):
             n = self.sc.predictor_steps(dt / h)
