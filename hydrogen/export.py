@@ -202,7 +202,7 @@ def _xc_blocks(ctrl, model) -> list:
 
 def export_context(dyn, p, scenario_name, controller, prog, sources, headers, ctrl_header, sensor_gain):
     """Everything the templates need, numbers already formatted as C literals."""
-    from .layout import SLOTS, loop_context
+    from .layout import loop_context
     from .simulation.loop_config import Run, config_values
 
     model, sc, ctrl = dyn.model, p.sc, p.ctrl
@@ -215,7 +215,7 @@ def export_context(dyn, p, scenario_name, controller, prog, sources, headers, ct
             raise HydrogenError(f"export: controller input '{name}' is not a C identifier")
         shape = shapes.get(name, (len(dyn.library.numbers), 1) if name == NUMBERS else None)
         size = int(shape[0]) * int(shape[1])
-        dynamic = name in SLOTS
+        dynamic = name in loop["slots"]
         entry = {"index": i, "name": name, "rows": int(shape[0]), "cols": int(shape[1]), "size": size,
                  "dynamic": dynamic, "c_name": f"P_CTRL_{name}", "unread": name in getattr(fn, "unread_inputs", ()),
                  "shared": False}

@@ -278,6 +278,9 @@ def _variables(part, dyn, p, ctx, fn, encoders, kalman):
         for j, (nm, what) in enumerate(pstates):
             add(_dotted(nm, what[0]), "i", "continuous", f"measured {what[2]} of cylinder {what[0]}",
                 f"inst->pc_in[{j}]", unit="Pa", start=float(x0_pc[j]))
+        if _has_supply(layout):
+            add("ps", "i", "continuous", "measured supply pressure", "inst->ps_in", unit="Pa",
+                start=float(p.x0[plant_slot(layout, SUPPLY_LOG).slice][0]))
         if encoders:
             for i, c in enumerate(coords):
                 add(_dotted("q", c), "i", "continuous", f"joint encoder reading of {c}", f"inst->q_in[{i}]",

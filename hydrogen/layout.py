@@ -11,7 +11,7 @@ import math
 
 from .names import NUMBERS  # the numbers input's name, part of the loop's layout
 
-__all__ = ["NUMBERS", "SLOTS", "SUPPLY_LOG", "MAX_DELAY", "PREDICTOR_MODEL", "delay_split", "LOOP_CONFIG", "LOOP_STATE", "LOOP_SIGNALS",
+__all__ = ["NUMBERS", "SLOTS", "SUPPLY_SLOT", "SUPPLY_LOG", "slots", "supply_size", "MAX_DELAY", "PREDICTOR_MODEL", "delay_split", "LOOP_CONFIG", "LOOP_STATE", "LOOP_SIGNALS",
            "model_summary", "loop_context", "log_widths", "loop_functions", "C_SIZES", "plant_offsets", "plant_size",
            "c_double", "config_fields", "struct_fields"]
 
@@ -19,6 +19,9 @@ __all__ = ["NUMBERS", "SLOTS", "SUPPLY_LOG", "MAX_DELAY", "PREDICTOR_MODEL", "de
 #: Signals the loop writes into a controller's inputs, by input name, in this order (``u_applied``:
 #: the spool commands the valves held over the last period, after the clip and the computation delay).
 SLOTS = ("q", "qdot", "pc", "l", "qd0", "qd1", "qd2", "qd3", "xc", "adapt", "u_applied")
+#: The slot the loop writes only where the plant has a supply state, after :data:`SLOTS`: the
+#: measured supply pressure (Pa), the controllers' g0, valve inverse and normalisation read it.
+SUPPLY_SLOT = "ps"
 
 #: The plant part logged as it is, where the plant has it: the supply pressure (hydrogen.plant.supply).
 SUPPLY_LOG = "ps"
@@ -247,6 +250,12 @@ def plant_size(summary: dict) -> int:
     return sum(part["entries"] for part in summary["plant"])
 
 
+def slots(summary: dict) -> tuple:
+    """The loop's input slots of a model (a manifest's model summary): :data:`SLOTS`, and
+    :data:`SUPPLY_SLOT` where its plant has a supply state."""
+    return SLOTS + ((SUPPLY_SLOT,) if supply_size(summary) else ())
+
+
 def supply_size(summary: dict) -> int:
     """Entries of the supply state (1 where the supply is not constant, else 0): the measured supply
     pressure's, last in a noise row."""
@@ -299,7 +308,7 @@ def loop_context(manifest: dict) -> dict:
         "n_noise": m + n_p + (n if s["joint_encoders"] else 0) + nps, "n_pressures": n_p, "three_way": n_p == m,
         "nps": nps,
         "parametric": NUMBERS in manifest,
-        "encoders": bool(s["joint_encoders"]), "slots": SLOTS, "logs": logs, "config": config_fields(name),
+        "encoders": bool(s["joint_encoders"]), "slots": slots(s), "logs": logs, "config": config_fields(name),
         "state": struct_fields(LOOP_STATE, name, sizes, x_parts), "signals": struct_fields(LOOP_SIGNALS, name, sizes),
         "p_theta": ", ".join(s["theta_names"]),
         "pred_friction": ", ".join(map(c_double, PREDICTOR_MODEL["friction"] * m)),

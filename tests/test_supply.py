@@ -217,3 +217,56 @@ def test_the_measured_supply_pressure_feeds_the_predictor_alike_in_both_loops(pu
     np.testing.assert_allclose(noisy[0].u, noisy[1].u, rtol=1e-9, atol=1e-15)
     quiet = hydrogen.simulate("arm-sim", "backstepping", noise_ps=0.0, **kw)
     assert np.abs(quiet.u - noisy[0].u).max() > 1e-9
+
+
+# --- controllers that read the supply ------------------------------------------------------------
+
+def test_the_controllers_laws_take_the_measured_supply_pressure(pump_dyn):
+    """With a supply state every controller law reads p_s from its ``ps`` input (the loop's measured
+    supply pressure) in place of the constant supply_pressure; without one, the constant."""
+    import hydrogen
+    from hydrogen.symbolic.control_laws import Common
+    common = Common(pump_dyn.model)
+    assert common.supply is not None and ("ps", common.supply) in common.base_inputs()
+    assert all(P["supply_pressure"] == common.supply[0] for P in common.P)
+    for name in ("ctrl_backstepping", "ctrl_adaptive_robust"):
+        assert "ps" in pump_dyn.functions[name].in_names
+    from test_model import FOUR_WAY_ARM
+    constant = Common(hydrogen.load_model(FOUR_WAY_ARM))
+    assert constant.supply is None and all(P["supply_pressure"] == 10.0e6 for P in constant.P)
+
+
+@pytest.mark.parametrize("index", [0, 1])  # the three-way shoulder, the four-way elbow
+def test_f0_and_g0_at_the_measured_supply_give_the_plants_force_rate(pump_dyn, index):
+    """Finite differences of an actuator's force along the generated plant (on a pump, p_s below its
+    actuators' supply_pressure) against β f0 + βc g0 at that p_s, plus the force's own dependence on
+    p_s times ṗ_s (a three-way cylinder's rod side is at supply: −a ṗ_s; none on a four-way one)."""
+    from hydrogen.plant import plant_layout, slot, state_vector
+    from hydrogen.pressures import split
+    model = pump_dyn.model
+    layout = plant_layout(model)
+    q, qdot = model.neutral_pose + np.array([0.02, -0.03]), np.array([0.1, -0.15])
+    pc, ps, u = np.array([3e6, 6e6, 2.5e6]), 8.5e6, np.array([2e-4, -1.5e-4])
+    g1, g2 = model.gamma
+    args = (u, model.theta, g1, g2, np.zeros(3 * model.n_cylinders), np.zeros(5 * model.n_cylinders))
+    c = model.cylinders[index]
+    mod = actuator(c.kind)
+
+    def force(x):
+        p = split(model, x[slot(layout, "pc").slice])[index]
+        return float(mod.Numeric.force(p, {**c.table, "supply_pressure": x[slot(layout, "ps").slice][0]}))
+
+    x = state_vector(layout, q=q, qdot=qdot, pc=pc, ps=[ps])
+    xdot = np.asarray(pump_dyn.functions["plant_rhs"](x, *args), float).ravel()
+    eps = 1e-6
+    rate = (force(x + eps * xdot) - force(x - eps * xdot)) / (2 * eps)
+    l, ldot = pump_dyn.leg_lengths(q)[index], (pump_dyn.leg_jacobian(q) @ qdot)[index]
+    P = {**c.table, "supply_pressure": ps}
+    p = split(model, pc)[index]
+    beta, flow_gain = g1[index], g2[index] / g1[index]
+    dps = x.copy()
+    dps[slot(layout, "ps").slice] += 1.0
+    along_ps = (force(dps) - force(x)) * xdot[slot(layout, "ps").slice][0]
+    expected = beta * mod.Numeric.f0(l, ldot, p, P) + beta * flow_gain * mod.Numeric.g0(l, p, u[index], P) + along_ps
+    np.testing.assert_allclose(rate, expected, rtol=1e-6)
+    assert (along_ps != 0) == (c.kind == "three_way_cylinder")

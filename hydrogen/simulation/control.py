@@ -127,8 +127,9 @@ class _Controller:
         self.bounds = (lo, hi)
         # Every input the loop does not write must have a value: a gain no table gives would
         # otherwise be a KeyError in the Python loop and a silent 0 in the C loop.
-        from ..layout import SLOTS
-        missing = [k for k in self.fn.in_names if k not in SLOTS and k not in self.values]
+        from ..layout import model_summary, slots
+        written = slots(model_summary(model))  # what the loop writes
+        missing = [k for k in self.fn.in_names if k not in written and k not in self.values]
         if missing:
             raise ScenarioError(f"controller '{kind}': no value for its input(s) {', '.join(missing)}: give them "
                                 f"in the description's [gains.{kind}] (or its default_gains/static_inputs)")
@@ -181,6 +182,12 @@ class _Controller:
         v = self.values
         v.update(xc=self.xc)
         return self.rates_fn(*[v[n] for n in self.rates_fn.in_names])
+
+    def measured_supply(self, ps):
+        """The measured supply pressure (Pa, (1,)) of the next :meth:`command` and :meth:`update`, for a
+        controller that reads it (a model with a supply state): the loop's ``ps`` slot."""
+        if "ps" in self.fn.in_names:
+            self.values["ps"] = np.asarray(ps, float).reshape(1)
 
     def command(self, q, qdot, pc, l, ref, adapt):
         v = self._signals(q, qdot, pc, l, ref, adapt)

@@ -14,7 +14,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .. import pressures
-from ..layout import LOOP_CONFIG, SLOTS, delay_split
+from ..layout import LOOP_CONFIG, delay_split, model_summary, slots
 
 __all__ = ["Run", "DERIVED", "config_values", "FK_TOL", "FK_MAX_ITER"]
 
@@ -58,7 +58,7 @@ def _terms(run):
 
 def _slots(run):
     names = run.ctrl.fn.arg_names  # the C argument table's order (the loop indexes it)
-    return [names.index(s) if s in names else -1 for s in SLOTS]
+    return [names.index(s) if s in names else -1 for s in slots(model_summary(run.ctrl.model))]
 
 
 def _at(block):

@@ -836,10 +836,14 @@ class PythonStages:
         if self.predict:  # the plant as it will be when this command reaches the valves
             x = self.predicted(s)
             q = x[self._q]
+            if self._ps is not None:
+                ctrl.measured_supply(x[self._ps])
             args = (q, x[self._qdot], x[self._pc], np.asarray(self.dyn.leg_lengths(q), float),
                     sc.reference(s.t + (delay + self.delay_frac) * self.h), s.t >= sc.t_adapt)
         else:
             args = (self.q_meas, s.qdot_meas, s.pc_meas, s.l_meas, s.ref, s.t >= sc.t_adapt)
+            if self._ps is not None:
+                ctrl.measured_supply(s.ps_meas)
         if self.k and sc.estimator_update != "euler":  # semi-implicit: state from this measurement, then command
             ctrl.update(self.h, *args)
         s.u = ctrl.command(*args)
