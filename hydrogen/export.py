@@ -254,7 +254,7 @@ def export_context(dyn, p, scenario_name, controller, prog, sources, headers, ct
         "outputs": [{"index": i, "name": nm, "rows": int(s[0]), "cols": int(s[1]), "size": int(s[0]) * int(s[1])}
                     for i, (nm, s) in enumerate(zip(fn.out_names, fn.out_shapes))],
         "out_total": sum(int(r) * int(c) for r, c in fn.out_shapes),
-        "n_slots": len(SLOTS), "n_xc": n_xc, "xc_cap": max(n_xc, 1),
+        "n_slots": len(loop["slots"]), "n_xc": n_xc, "xc_cap": max(n_xc, 1),
         "xc0": c_doubles(ctrl.xc if n_xc else np.zeros(1)),
         "xc_blocks": _xc_blocks(ctrl, model),
         "x0": c_doubles(p.x0), "q_meas0": c_doubles(p.q0), "l0": c_doubles(dyn.leg_lengths(p.q0)),
