@@ -3,8 +3,10 @@
 The plant's blocks (:mod:`hydrogen.plant`) composed into one right-hand side: x is their states in
 the layout's order (:func:`hydrogen.plant.plant_layout`: [q (n), q̇ (n), pressures (one block per
 actuator, its kind's states: p_c of a three-way cylinder, p_A, p_B of a four-way one), spool (m),
-spool rate (m)]); input u = spool command (m, metres). The valve law (:mod:`hydrogen.plant.valve`,
-input ``valve`` = [τ_v, ω_v, ζ_v, overlap, full opening] per actuator) gives the spool the chambers see; the friction law
+spool rate (m), and the supply pressure p_s (Pa) where the supply is not constant]); input u = spool
+command (m, metres). With a supply state every actuator's laws take p_s for their supply_pressure,
+and p_s moves by :mod:`hydrogen.plant.supply`'s law under the demand of every valve's supply edges.
+The valve law (:mod:`hydrogen.plant.valve`, input ``valve`` = [τ_v, ω_v, ζ_v, overlap, full opening] per actuator) gives the spool the chambers see; the friction law
 (:mod:`hydrogen.plant.friction`, input ``friction`` = [F_c, b, v_s] per actuator in its own unit)
 opposes each actuator's motion.
 """
