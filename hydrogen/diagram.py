@@ -9,7 +9,10 @@ order of its input slots), the Python engine (:class:`hydrogen.simulation.simula
 hands the controller the same ports by name, and the exported programs and FMUs read the same table.
 
 Sizes are the loop header's names: ``NQ`` coordinates, ``NL`` actuators, ``NPC`` pressure states,
-``NXC`` the controller's own state, ``NX`` the plant state; an integer is a fixed count.
+``NPS`` the supply pressure states (1 where the supply is a plant state, else 0), ``NXC`` the
+controller's own state, ``NX`` the plant state; an integer is a fixed count. A port whose robot size is 0
+does not exist for that robot (the measured supply pressure of a constant supply): it is no slot and
+nothing writes it.
 """
 from __future__ import annotations
 
@@ -18,7 +21,7 @@ from dataclasses import dataclass
 from .errors import ScenarioError
 
 __all__ = ["Port", "Block", "CONTROLLER_PORTS", "SLOTS", "REFERENCE_PORTS", "LOOP_BLOCKS", "port_length",
-           "signals", "wire"]
+           "slots", "signals", "wire"]
 
 
 @dataclass(frozen=True)
@@ -66,14 +69,31 @@ _xc = Port("xc", ("NXC",), "per block", "the controller's own state (its estimat
 _adapt = Port("adapt", (1,), "1", "1 once adaptation is on (t >= t_adapt), else 0", "&adapt")
 _u_applied = Port("u_applied", ("NL",), "m", "spool commands the valves held over the last period (after the "
                   "computation delay)", "u_prev")
+_ps = Port("ps", ("NPS",), "Pa", "measured supply pressure (a [supply] state's; noise_ps)", "ps")
 
 #: Every loop signal a controller may take as an input, in the order of the loop's input slots
 #: (``<MODEL>_SLOT_<NAME>`` in the loop header, ``slot`` in its configuration, ``P_CTRL_SLOT`` in an
 #: exported params.h). A new signal for controllers is one row here and the stage that writes it.
-CONTROLLER_PORTS = (_q, _qdot, _pc, _l, *REFERENCE_PORTS, _xc, _adapt, _u_applied)
+CONTROLLER_PORTS = (_q, _qdot, _pc, _l, *REFERENCE_PORTS, _xc, _adapt, _u_applied, _ps)
 
-#: The input slots' names, in order.
+#: Every input slot's name, in order (a robot has those of :func:`slots`).
 SLOTS = tuple(p.name for p in CONTROLLER_PORTS)
+
+
+def _exists(port: Port, sizes: dict) -> bool:
+    """Whether a robot of ``sizes`` has ``port``: none of its robot sizes is 0 (the controller's own
+    state's size is the controller's, not the robot's)."""
+    return all(isinstance(t, int) or t == "NXC" or int(sizes[t]) > 0 for t in port.size)
+
+
+def ports(sizes: dict) -> tuple:
+    """The controller ports a robot of ``sizes`` has, in slot order."""
+    return tuple(p for p in CONTROLLER_PORTS if _exists(p, sizes))
+
+
+def slots(sizes: dict) -> tuple:
+    """The names of the input slots a robot of ``sizes`` has, in order (the loop header's enum)."""
+    return tuple(p.name for p in ports(sizes))
 
 _u = Port("u", ("NL",), "m", "spool commands computed this period")
 _x = Port("x", ("NX",), "per part", "the plant state (hydrogen.plant.plant_layout)")
@@ -98,8 +118,8 @@ class Block:
 #: :func:`wire`); a delay predictor, when a scenario asks for one, writes the same ports as the
 #: estimator and the reference at the time the command reaches the valves.
 LOOP_BLOCKS = (
-    Block("sensors", "actuator travel (noise, resolution), pressures (noise), joint encoders where fitted",
-          inputs=(_x,), outputs=(_l, _pc)),
+    Block("sensors", "actuator travel (noise, resolution), pressures (noise), the supply pressure where it is a "
+          "state, joint encoders where fitted", inputs=(_x,), outputs=(_l, _pc, _ps)),
     Block("estimator", "Kalman filter on the travel, pose by forward kinematics (or encoders), velocities",
           inputs=(_l,), outputs=(_q, _qdot)),
     Block("reference", "the scenario's reference and its derivatives", outputs=REFERENCE_PORTS),
@@ -113,18 +133,21 @@ LOOP_BLOCKS = (
 )
 
 
-def signals(q, qdot, pc, l, ref, adapt: bool) -> dict:
+def signals(q, qdot, pc, l, ref, adapt: bool, ps=None) -> dict:
     """The controller's loop inputs by port name from the measured (or predicted) pose ``q``, velocities
-    ``qdot``, pressures ``pc``, travel ``l``, reference ``ref`` (4 rows: value and three derivatives) and
-    whether adaptation is on (the controller adds its own ``xc`` and ``u_applied``)."""
+    ``qdot``, pressures ``pc``, travel ``l``, reference ``ref`` (4 rows: value and three derivatives),
+    whether adaptation is on and the supply pressure ``ps`` (Pa; None: the supply is constant). The
+    controller adds its own ``xc`` and ``u_applied``."""
     out = {"q": q, "qdot": qdot, "pc": pc, "l": l, "adapt": 1.0 if adapt else 0.0}
     out.update((p.name, ref[k]) for k, p in enumerate(REFERENCE_PORTS))
+    if ps is not None:
+        out["ps"] = ps
     return out
 
 
 def wire(owner: str, inputs, constants, sizes: dict) -> list:
-    """The slot of each of :data:`SLOTS` in the argument table ``inputs`` of a controller's generated
-    function (-1: it does not read that signal), after checking every input is wired.
+    """The slot of each of the robot's :func:`slots` in the argument table ``inputs`` of a controller's
+    generated function (-1: it does not read that signal), after checking every input is wired.
 
     ``inputs``: ``[(name, length), ...]`` in the function's argument order; ``constants``: the names of
     its inputs given once per run (gains, static inputs, the description's numbers); ``sizes``: the
@@ -132,17 +155,18 @@ def wire(owner: str, inputs, constants, sizes: dict) -> list:
     input is neither a loop signal nor a constant (unwired), or a loop signal of another size.
     """
     names = [name for name, _ in inputs]
-    unwired = [name for name in names if name not in SLOTS and name not in constants]
+    present = slots(sizes)
+    unwired = [name for name in names if name not in present and name not in constants]
     if unwired:
         raise ScenarioError(
             f"{owner}: no value for its input(s) {', '.join(unwired)}: wired to no loop signal (the loop's "
-            f"signals: {', '.join(SLOTS)}) and given no value (the description's gains, or the controller's "
+            f"signals: {', '.join(present)}) and given no value (the description's gains, or the controller's "
             "default_gains/static_inputs)")
-    by_name = {p.name: p for p in CONTROLLER_PORTS}
+    by_name = {p.name: p for p in ports(sizes)}
     for name, length in inputs:
         if name in by_name and name != "xc":  # xc is the controller's own: its size is its layout's
             want = port_length(by_name[name], sizes)
             if int(length) != want:
                 raise ScenarioError(f"{owner}: input '{name}' has {int(length)} entries, but the loop's signal "
                                     f"'{name}' ({by_name[name].doc}) has {want} for this robot")
-    return [names.index(s) if s in names else -1 for s in SLOTS]
+    return [names.index(s) if s in names else -1 for s in present]

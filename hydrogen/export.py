@@ -202,7 +202,6 @@ def _xc_blocks(ctrl, model) -> list:
 
 def export_context(dyn, p, scenario_name, controller, prog, sources, headers, ctrl_header, sensor_gain):
     """Everything the templates need, numbers already formatted as C literals."""
-    from .diagram import SLOTS
     from .layout import loop_context
     from .simulation.loop_config import Run, config_values
 
@@ -216,7 +215,7 @@ def export_context(dyn, p, scenario_name, controller, prog, sources, headers, ct
             raise HydrogenError(f"export: controller input '{name}' is not a C identifier")
         shape = shapes.get(name, (len(dyn.library.numbers), 1) if name == NUMBERS else None)
         size = int(shape[0]) * int(shape[1])
-        dynamic = name in SLOTS
+        dynamic = name in loop["slots"]
         entry = {"index": i, "name": name, "rows": int(shape[0]), "cols": int(shape[1]), "size": size,
                  "dynamic": dynamic, "c_name": f"P_CTRL_{name}", "unread": name in getattr(fn, "unread_inputs", ()),
                  "shared": False}
@@ -255,7 +254,7 @@ def export_context(dyn, p, scenario_name, controller, prog, sources, headers, ct
         "outputs": [{"index": i, "name": nm, "rows": int(s[0]), "cols": int(s[1]), "size": int(s[0]) * int(s[1])}
                     for i, (nm, s) in enumerate(zip(fn.out_names, fn.out_shapes))],
         "out_total": sum(int(r) * int(c) for r, c in fn.out_shapes),
-        "n_slots": len(SLOTS), "n_xc": n_xc, "xc_cap": max(n_xc, 1),
+        "n_slots": len(loop["slots"]), "n_xc": n_xc, "xc_cap": max(n_xc, 1),
         "xc0": c_doubles(ctrl.xc if n_xc else np.zeros(1)),
         "xc_blocks": _xc_blocks(ctrl, model),
         "x0": c_doubles(p.x0), "q_meas0": c_doubles(p.q0), "l0": c_doubles(dyn.leg_lengths(p.q0)),
@@ -493,7 +492,7 @@ def export(out_dir, scenario=None, controller="adaptive-robust", model=None, dur
                        f"P_KF_GAIN_SENSOR, designed for {p.sensor_noise_l:g} m leg-length noise, on the rig.")
     else:
         kalman_note = "Leg rates come from the plant's exact rates (this scenario has no Kalman filter)."
-    extra = "".join(f", {k}={v!r}" for k, v in sorted(overrides.items()) if k not in ("noise_l", "noise_p", "noise_q"))
+    extra = "".join(f", {k}={v!r}" for k, v in sorted(overrides.items()) if k not in ("noise_l", "noise_p", "noise_q", "noise_ps"))
     if duration is not None:
         extra = f", duration={float(duration)!r}" + extra
     if gains:

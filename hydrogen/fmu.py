@@ -41,7 +41,7 @@ import numpy as np
 from .controllers import ESTIMATE_BLOCKS
 from .controllers.common import estimate_layout, theta_units as _theta_units
 from .errors import CompilerError, FmuError, OutputPathError
-from .layout import NUMBERS
+from .layout import NUMBERS, SUPPLY_LOG
 from .model import POSITIVE  # FMI's min is inclusive: "> 0" is min = the smallest positive double
 from .plant import plant_layout, slot as plant_slot, valve
 
@@ -208,6 +208,11 @@ def _periods(step, h) -> int:
     return n
 
 
+def _has_supply(layout) -> bool:
+    """Whether the plant has a supply state (a pump: its pressure is an output)."""
+    return any(b.name == SUPPLY_LOG for b in layout)
+
+
 def _coord_units(model):
     return list(model.coordinate_units)
 
@@ -259,6 +264,8 @@ def _variables(part, dyn, p, ctx, fn, encoders, kalman):
             note = "; the rod side is at supply pressure" if nm == "pc" else ""
             add(_dotted(nm, what[0]), "o", "continuous", f"{what[1]} of cylinder {what[0]}{note}",
                 f"inst->y_pc[{j}]", unit="Pa")
+        if _has_supply(layout):
+            add("ps", "o", "continuous", f"supply pressure ({model.supply.kind} of [supply])", "inst->y_ps", unit="Pa")
         return out, []
 
     # offsets of the controller's C arguments in ctrl_in (the export's table: the numbers too)
@@ -272,6 +279,9 @@ def _variables(part, dyn, p, ctx, fn, encoders, kalman):
         for j, (nm, what) in enumerate(pstates):
             add(_dotted(nm, what[0]), "i", "continuous", f"measured {what[2]} of cylinder {what[0]}",
                 f"inst->pc_in[{j}]", unit="Pa", start=float(x0_pc[j]))
+        if _has_supply(layout):
+            add("ps", "i", "continuous", "measured supply pressure", "inst->ps_in", unit="Pa",
+                start=float(p.x0[plant_slot(layout, SUPPLY_LOG).slice][0]))
         if encoders:
             for i, c in enumerate(coords):
                 add(_dotted("q", c), "i", "continuous", f"joint encoder reading of {c}", f"inst->q_in[{i}]",
@@ -323,6 +333,9 @@ def _variables(part, dyn, p, ctx, fn, encoders, kalman):
         for i, c in enumerate(coords):
             add(_dotted("q_d", c), "o", "discrete", f"reference of {c}",
                 f"inst->ctrl_in[{offsets[at['qd0']] + i}]", unit=cunits[i])
+        if _has_supply(layout):
+            add("ps", "o", "discrete", f"supply pressure at the start of the period ({model.supply.kind} of "
+                "[supply])", "inst->ps_row", unit="Pa")
     if fn.out_names[0] != "u":
         raise FmuError(f"controller {fn.name}'s first output is {fn.out_names[0]!r}, not the command u")
     for i, c in enumerate(cyls):

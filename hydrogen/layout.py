@@ -9,13 +9,16 @@ from __future__ import annotations
 
 import math
 
-from .diagram import CONTROLLER_PORTS, SLOTS  # the controller's input slots: the loop's ports
+from . import diagram  # the controller's input slots: the loop's ports
 from .names import NUMBERS  # the numbers input's name, part of the loop's layout
 
-__all__ = ["NUMBERS", "MAX_DELAY", "PREDICTOR_MODEL", "FK_TOL", "FK_MAX_ITER", "FK_MAX_COND", "FK_STATUS", "delay_split",
-           "LOOP_CONFIG", "LOOP_STATE", "LOOP_SIGNALS", "model_summary", "friction_width", "loop_context", "log_widths",
-           "loop_functions", "C_SIZES", "plant_offsets", "plant_size", "c_double", "config_fields", "FRICTION_COMMENT",
-           "struct_fields"]
+__all__ = ["NUMBERS", "SUPPLY_LOG", "MAX_DELAY", "PREDICTOR_MODEL", "FK_TOL", "FK_MAX_ITER", "FK_MAX_COND", "FK_STATUS",
+           "delay_split", "LOOP_CONFIG", "LOOP_STATE", "LOOP_SIGNALS", "model_summary", "friction_width", "slots",
+           "robot_sizes", "supply_size", "loop_context", "log_widths", "loop_functions", "C_SIZES", "plant_offsets",
+           "plant_size", "c_double", "config_fields", "FRICTION_COMMENT", "struct_fields"]
+
+#: The plant part logged as it is, where the plant has it: the supply pressure (hydrogen.plant.supply).
+SUPPLY_LOG = "ps"
 
 
 #: Longest computation delay the loop's command ring buffer holds, control periods (a scenario's
@@ -156,6 +159,7 @@ LOOP_SIGNALS = (
     ("l_true", "double", ("NL",), "true cylinder lengths, m"),
     ("l_meas", "double", ("NL",), "measured cylinder lengths (noise, resolution), m"),
     ("pc_meas", "double", ("NPC",), "measured pressures, Pa"),
+    ("ps_meas", "double", ("NPS",), "measured supply pressure, Pa (a [supply] state's only)"),
     ("q_enc", "double", ("NQ",), "joint encoders' reading, rad or m (joint encoders only)"),
     ("ldot", "double", ("NL",), "cylinder rates: the Kalman filter's, or the ideal rate sensor's, m/s"),
     ("qdot_meas", "double", ("NQ",), "measured velocities, JL^-1 ldot at the measured pose"),
@@ -182,6 +186,8 @@ def struct_fields(description, p: str, sizes: dict, x_parts: str = "") -> list:
             decl, length = f"{ctype} {name}[{c_size}]", 1
             for t in size:
                 length *= t if isinstance(t, int) else sizes[t]
+            if not length:  # a part the robot lacks (a constant supply's p_s): not declared
+                continue
         out.append({"name": name, "type": ctype, "decl": Markup(decl), "length": length,
                     "comment": Markup(comment.replace("{x_parts}", x_parts).replace("\n * ", "\n     * "))})
     return out
@@ -269,6 +275,24 @@ def friction_width(summary: dict) -> int:
     return len(parameters_of(bool(summary.get("seal_friction"))))
 
 
+def robot_sizes(summary: dict) -> dict:
+    """The robot's sizes by the loop header's names (``NQ``, ``NL``, ``NPC``, ``NPS``), from a manifest's
+    model summary: what a port's size (:mod:`hydrogen.diagram`) is counted in."""
+    return {"NQ": summary["n"], "NL": summary["m"], "NPC": summary["n_pressures"], "NPS": supply_size(summary)}
+
+
+def slots(summary: dict) -> tuple:
+    """The loop's input slots of a model (a manifest's model summary): the controller ports it has
+    (:func:`hydrogen.diagram.slots`; the measured supply pressure where its plant has a supply state)."""
+    return diagram.slots(robot_sizes(summary))
+
+
+def supply_size(summary: dict) -> int:
+    """Entries of the supply state (1 where the supply is not constant, else 0): the measured supply
+    pressure's, last in a noise row."""
+    return sum(part["entries"] for part in summary["plant"] if part["name"] == SUPPLY_LOG)
+
+
 def n_pressures(summary: dict) -> int:
     """Size of the pressure vector."""
     return summary["n_pressures"]
@@ -282,16 +306,21 @@ def loop_functions(summary: dict) -> tuple:
 def log_widths(summary: dict) -> dict:
     """Row width of each log of the loop (``xc``'s is the controller's state size)."""
     n, m = summary["n"], summary["m"]
-    return {"t": 1, "q": n, "q_d": n, "l": m, "f": m, "pc": n_pressures(summary), "u": m, "u_applied": m, "l_meas": m}
+    # the supply pressure's log only where the plant has it (a constant supply's loop is as it was)
+    supply = {p["name"]: p["entries"] for p in summary["plant"] if p["name"] == SUPPLY_LOG}
+    return {"t": 1, "q": n, "q_d": n, "l": m, "f": m, "pc": n_pressures(summary), "u": m, "u_applied": m, "l_meas": m,
+            **supply}
 
 
-def _port_writes() -> list:
-    """The control stage's writes of the controller's inputs: each port's slot, C value and count."""
+def _port_writes(sizes: dict) -> list:
+    """The control stage's writes of the controller's inputs a robot of ``sizes`` has: each port's slot,
+    C value and count (the loop driver's size names; the controller state's, its configured size)."""
     from markupsafe import Markup  # hydrogen's own C expressions (hydrogen.templating)
 
     def count(port):
         return " * ".join("c->n_xc" if t == "NXC" else str(t) for t in port.size)
-    return [{"slot": p.name.upper(), "value": Markup(p.c_value), "count": Markup(count(p))} for p in CONTROLLER_PORTS]
+    return [{"slot": p.name.upper(), "value": Markup(p.c_value), "count": Markup(count(p))}
+            for p in diagram.ports(sizes)]
 
 
 def loop_context(manifest: dict) -> dict:
@@ -303,7 +332,7 @@ def loop_context(manifest: dict) -> dict:
     what = {"t": "time, s", "q": "true pose", "q_d": "reference", "l": "true cylinder lengths, m",
             "f": "cylinder forces, N", "pc": pressures, "u": "spool commands computed, m",
             "u_applied": "spool commands the valves held at the end of each period (delay later), m",
-            "l_meas": "measured cylinder lengths (noise, quantisation), m"}
+            "l_meas": "measured cylinder lengths (noise, quantisation), m", SUPPLY_LOG: "supply pressure, Pa"}
     logs = [(k, w, what[k]) for k, w in log_widths(s).items()] + [("xc", "n_xc", "controller state")]
     nx = plant_size(s)
     # each part of x as the C loop writes it: a pointer offset ("x + NQ") and an index prefix ("x[NQ + i]")
@@ -312,14 +341,16 @@ def loop_context(manifest: dict) -> dict:
     x_plus = {k: Markup("" if v == "0" else f" + {v}") for k, v in offsets.items()}
     x_index = {k: Markup("" if v == "0" else f"{v} + ") for k, v in offsets.items()}
     x_parts = ", ".join(part["name"].replace("_", " ") for part in s["plant"])
-    sizes = {"NQ": n, "NL": m, "NX": nx, "NPC": n_p, "MAX_DELAY": MAX_DELAY}
+    nps = supply_size(s)
+    sizes = {"NQ": n, "NL": m, "NX": nx, "NPC": n_p, "NPS": nps, "MAX_DELAY": MAX_DELAY}
     ctx = {
         "model": name, "p": name, "P": name.upper(), "guard": f"{name.upper()}_LOOP_H",
         "n": n, "m": m, "nx": nx, "max_delay": MAX_DELAY,
         "x_plus": x_plus, "x_index": x_index, "x_parts": x_parts,
-        "n_noise": m + n_p + (n if s["joint_encoders"] else 0), "n_pressures": n_p, "three_way": n_p == m,
+        "n_noise": m + n_p + (n if s["joint_encoders"] else 0) + nps, "n_pressures": n_p, "three_way": n_p == m,
+        "nps": nps,
         "parametric": NUMBERS in manifest,
-        "encoders": bool(s["joint_encoders"]), "slots": SLOTS, "ports": _port_writes(), "logs": logs,
+        "encoders": bool(s["joint_encoders"]), "slots": slots(s), "ports": _port_writes(robot_sizes(s)), "logs": logs,
         "config": config_fields(name, bool(s.get("seal_friction"))),
         "state": struct_fields(LOOP_STATE, name, sizes, x_parts), "signals": struct_fields(LOOP_SIGNALS, name, sizes),
         "p_theta": ", ".join(s["theta_names"]),

@@ -34,6 +34,7 @@ import numpy as np
 from .actuators import DEFAULT_KIND as _DEFAULT_KIND
 from .actuators.declarations import PIN_LENGTH as _PIN_LENGTH, TURNS as _TURNS
 from .errors import ModelError
+from .plant.supply import Supply
 from .schema import default as _default, keys as _keys
 
 __all__ = ["Model", "Link", "Joint", "Cylinder", "load_model", "default_model_path", "models",
@@ -315,6 +316,8 @@ class Model:
     # the controllers generated for this robot, in the registry's order (the description's
     # ``controllers``; default all): what a whole generation holds, what a run may ask for
     controllers: tuple = field(default=None, compare=False)
+    # [supply]: what feeds the valves (hydrogen.plant.supply); constant: each actuator's supply_pressure
+    supply: Supply = field(default_factory=Supply)
 
     def __post_init__(self):
         if self.controllers is None:  # a Model made in code: every controller
@@ -431,6 +434,9 @@ class Model:
             **({"rigid_body_form": self.rigid_body_form} if self.rigid_body_form != "auto" else {}),
             # recorded only when on: the generated controllers differ, and a model without it hashes as before
             **({"friction_compensation": True} if self.friction_compensation else {}),
+            # recorded only when not constant: a robot on a constant supply hashes as before
+            **({"supply": [self.supply.kind, dict(sorted(self.supply.values.items()))]}
+               if not self.supply.constant else {}),
         }
 
     def baked_hash(self) -> str:
@@ -527,6 +533,9 @@ class Model:
                 for k, v in c.linkage.numbers(c.name).items():
                     field = k[len(f"{c.name}.linkage."):]
                     out[k] = (v, linkage.get(field, (None, None)))
+        for k, v in self.supply.numbers().items():  # none for a constant supply
+            q = supply_range(k[len("supply."):])
+            out[k] = (v, (None, None) if q is None else span(q))
         return out
 
 
@@ -1114,6 +1123,70 @@ def declared_range(kind: str, key: str) -> Quantity | None:
     return None if rng is None else Quantity(rng.sign, rng.low, rng.high, unit, f"declared in {mod.__name__}")
 
 
+def supply_range(key: str) -> Quantity | None:
+    """The range of ``[supply]`` key ``key`` as the supply block declares it, with its unit."""
+    from .plant import supply as sup
+    par = next((p for p in sup.PARAMETERS if p.name == key), None)
+    if par is None or par.range is None:
+        return None
+    rng = par.range
+    return Quantity(rng.sign, rng.low, rng.high, par.unit, f"declared in {sup.__name__}")
+
+
+def _supply(r: _Reader, data: dict, cylinders) -> Supply:
+    """The [supply] table: its kind, and that kind's keys (each in its declared range; defaults
+    filled in; the oil's bulk_modulus the actuators' when they share one)."""
+    from .plant import supply as sup
+    table = r.table(data, "supply", required=False)
+    r.known(table, _keys("[supply]"), "[supply]")
+    kind = table.get("kind", sup.DEFAULT_KIND)
+    if not isinstance(kind, str) or kind not in sup.KINDS:
+        raise r.error("[supply] kind", f"unknown supply kind {_quote(kind)}; known kinds: {', '.join(sup.KINDS)}")
+    takes = sup.NEEDS[kind]
+    for key in table:
+        if key != "kind" and key not in takes:
+            raise r.error(f"[supply] {key}", f"a '{kind}' supply takes no {key}"
+                          + (f" (it takes {', '.join(takes)})" if takes else ""))
+    if kind == sup.DEFAULT_KIND:
+        return Supply()
+    values = {}
+    for par in sup.PARAMETERS:
+        name, where = par.name, f"[supply] {par.name}"
+        if name not in takes:
+            continue
+        if name in table:
+            value = table[name]
+        elif name == "bulk_modulus":
+            shared = sorted({c.bulk_modulus for c in cylinders})
+            if len(shared) != 1:
+                raise r.error("[supply]", f"missing key 'bulk_modulus' (Pa): the actuators' bulk_modulus differ "
+                              f"({', '.join(f'{b:g}' for b in shared)} Pa), so the supply's oil needs its own")
+            value = shared[0]
+        elif name == "precharge_pressure" and values["accumulator_volume"] == 0.0:
+            continue
+        elif par.default is not None:
+            value = par.default
+        else:
+            why = " (an accumulator needs its gas precharge)" if name == "precharge_pressure" else ""
+            raise r.error("[supply]", f"missing key '{name}' ({par.unit}: {par.doc}) of a '{kind}' supply{why}")
+        values[name] = r.number(where, value, supply_range(name))
+    if "precharge_pressure" in table and values["accumulator_volume"] == 0.0:
+        raise r.error("[supply] precharge_pressure", "given without an accumulator: set accumulator_volume > 0, "
+                      "or leave precharge_pressure out")
+    for low in ("set_pressure", "precharge_pressure"):
+        if low in values and values[low] >= values["relief_pressure"]:
+            raise r.error(f"[supply] {low}", f"{values[low]:g} Pa must be below relief_pressure "
+                          f"{values['relief_pressure']:g} Pa (else the relief valve opens first)")
+    nominal = {c.name: c.supply_pressure for c in cylinders}
+    if len(set(nominal.values())) != 1:
+        first = next(iter(nominal))
+        other = next(k for k, v in nominal.items() if v != nominal[first])
+        raise r.error(f"cylinder '{other}' supply_pressure", f"{nominal[other]:g} Pa differs from cylinder "
+                      f"'{first}''s {nominal[first]:g} Pa: every actuator draws on the one [supply] (kind '{kind}'), "
+                      "whose starting pressure is their shared supply_pressure")
+    return Supply(kind, values)
+
+
 def _travel(kind: str) -> tuple:
     """The travel key of ``kind`` (``stroke`` for a length, ``angle`` for a joint angle, as [min, max])
     and its ends' parameter names: the kind's own declaration (``TRAVEL``)."""
@@ -1586,11 +1659,12 @@ def model_from_dict(data: dict, source: str = "<memory>", base_dir: Path | None 
     for vname in variants:  # joined to a scenario's name with '.', so no '.' of its own
         r.label(f"[variants.{vname}]", vname)
     _check_formerly(r, variants)
+    supply = _supply(r, data, cylinders)
     model = Model(name=name, gravity=gravity, root=root, links=links, joints=joints, cylinders=cylinders,
                   coordinate_names=tuple(names), neutral_pose=neutral, theta_names=tuple(params),
                   theta_min=tmin, theta_max=tmax, joint_encoders=enc, scale=scale, friction_compensation=fcomp, figures_nonlinear=nonlinear, gains=gains,
                   scenarios={"rig": rig, **scen}, variants=variants, rigid_body_form=form, controllers=listed, source=source, urdf=urdf,
-                  raw=data, **gb)
+                  raw=data, supply=supply, **gb)
     _check_tables(r, model)
     _check_bounds(r, model)
     _check_neutral(r, model)

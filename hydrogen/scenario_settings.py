@@ -62,6 +62,8 @@ class ScenarioFields:
     noise_l: float = setting(0.0, "m", "std of white cylinder-length noise", ">=0")
     noise_q: float = setting(0.0, "rad or m", "std of white joint-encoder noise (robots with joint encoders)", ">=0")
     noise_p: float = setting(0.0, "Pa", "std of white pressure noise", ">=0")
+    noise_ps: float = setting(0.0, "Pa", "std of white noise on the measured supply pressure (a [supply] that is "
+                              "not constant)", ">=0")
     kalman: bool = setting(False, "", "cylinder rates from fixed-gain Kalman filters (else exact)")
     kalman_accel: float = setting(50.0, "m²/s³", "the filter's white-acceleration density", ">=0")
     theta0_factor: tuple = setting((), "", "initial θ̂ = θ × factor, one per parameter",

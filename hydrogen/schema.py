@@ -59,6 +59,24 @@ def _three_way_default(key: str) -> str:
     return "required here or in [hydraulics]" if default is None else repr(default)
 
 
+def _supply_keys() -> tuple:
+    """The [supply] keys: ``kind`` and the supply block's parameters, from its own declarations
+    (hydrogen/plant/supply.py)."""
+    from .plant import supply
+    takes = {name: [k for k in supply.KINDS if name in supply.NEEDS[k]] for name in
+             (p.name for p in supply.PARAMETERS)}
+    return (Key("[supply]", "kind", "", "\"constant\": each actuator's supply_pressure, fixed; \"pump\": a "
+                "fixed-displacement pump with a relief valve; \"compensated_pump\": a pressure-compensated pump "
+                "holding set_pressure, with a relief valve (Robot description page, Supply)",
+                default=supply.DEFAULT_KIND),
+            *(Key("[supply]", p.name, p.unit.replace("^3", "³"), f"{p.doc}; kind {' or '.join(takes[p.name])}",
+                  default=p.default if p.default is not None else REQUIRED,
+                  default_text="" if p.default is not None else
+                  ("the actuators' bulk_modulus" if p.name == "bulk_modulus" else
+                   "required with an accumulator" if p.name == "precharge_pressure" else "required"))
+              for p in supply.PARAMETERS))
+
+
 DESCRIPTION_KEYS = (
     Key("top level", "name", "", "the model's name: ASCII letters, digits and single underscores, "
         "starting with a letter (it names C symbols and files)"),
@@ -77,6 +95,8 @@ DESCRIPTION_KEYS = (
     Key("top level", "links", "", "the [[links]] tables (below)", default_text="required unless urdf"),
     Key("top level", "joints", "", "the [[joints]] tables (below)", default_text="required unless urdf"),
     Key("top level", "coordinates", "", "the [coordinates] table (below)"),
+    Key("top level", "supply", "", "the [supply] table: what feeds the valves (below)", default=None,
+        default_text="none: a constant supply pressure, each actuator's supply_pressure"),
     Key("top level", "hydraulics", "", "defaults for every cylinder's constants (the [[cylinders]] keys "
         "piston_area ... stroke)", default=None, default_text="none"),
     Key("top level", "cylinders", "", "the [[cylinders]] tables: one per coordinate"),
@@ -169,6 +189,7 @@ DESCRIPTION_KEYS = (
         default=0.0),
     Key("[[cylinders]] friction", "smooth_speed", "m/s or rad/s", "v_s > 0 of the tanh through zero speed",
         default=None, default_text="the rig's friction[2]"),
+    *_supply_keys(),
     Key("[coordinates]", "names", "", "one distinct name per coordinate", default_text="the joints' names "
         "(a floating joint's as <joint>_x ... <joint>_phi)"),
     Key("[coordinates]", "neutral", "m, rad", "the neutral pose, about which scenario references are offsets"),

@@ -150,6 +150,33 @@ def test_flow_into_a_chamber_raises_its_pressure(kind):
         assert np.all(rates[1] > 0)
 
 
+@pytest.mark.parametrize("kind", KINDS)
+def test_the_supply_flow_is_the_oil_the_supply_edges_pass(kind):
+    """The flow a valve draws from the supply, against the oil balance of its chambers: with the
+    valve open the positive way (u > d) only the supply edge into the first chamber passes oil from the
+    supply (c (u + d) √(P_s − p)); the negative way, a four-way valve's edge into chamber B, a
+    three-way valve's none. A three-way cylinder's rod side, at supply, takes a ẋ back."""
+    mod, P = _kind(kind)
+    rng = np.random.default_rng(4)
+    x, _, p = _random_state(mod, P, rng, 20)
+    _, c = _gamma(P)
+    d, ps = P["underlap"], P["supply_pressure"]
+    # drops above the plant's linear region: each edge's flow is its square root's
+    p = tuple(np.minimum(pi, ps - 2 * P["orifice_linear_below"]) for pi in p)
+    u = d + rng.uniform(1e-4, 1e-3, 20)
+    for smooth in (True, False):
+        np.testing.assert_allclose(mod.Numeric.supply_flow(x, 0 * x, p, u, c, P, smooth=smooth),
+                                   c * (u + d) * np.sqrt(ps - p[0]), rtol=1e-12)
+        below = mod.Numeric.supply_flow(x, 0 * x, p, -u, c, P, smooth=smooth)
+        if len(mod.STATES) == 2:
+            np.testing.assert_allclose(below, c * (u + d) * np.sqrt(ps - p[1]), rtol=1e-12)
+        else:
+            np.testing.assert_array_equal(below, 0.0)
+    if kind == "three_way_cylinder":
+        np.testing.assert_allclose(mod.Numeric.supply_flow(x, np.full_like(x, 0.1), p, -u, c, P),
+                                   -0.1 * P["rod_area"], rtol=1e-12)
+
+
 def _settle(mod, P, x, u, p0, t_end):
     beta, c = _gamma(P)
     rhs = lambda t, p: np.array(mod.Numeric.pressure_rates(x, 0.0, tuple(p), u, beta, c, P), float)  # noqa: E731
@@ -279,6 +306,9 @@ def _symbolic_numeric_pairs(mod, P):
         *[(f"rate{j}_{s}", e, (lambda a, j=j, s=s: N.pressure_rates(a["x"], a["xdot"], a["p"], a["u"], a["beta"],
                                                                      a["c"], P, smooth=s)[j]))
           for s in (True, False) for j, e in enumerate(S.pressure_rates(x, xd, p, u, beta, c, Ps, smooth=s))],
+        *[(f"supply_{s}", S.supply_flow(x, xd, p, u, c, Ps, smooth=s),
+           (lambda a, s=s: N.supply_flow(a["x"], a["xdot"], a["p"], a["u"], a["c"], P, smooth=s)))
+          for s in (True, False)],
     ]]
 
 

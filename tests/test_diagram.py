@@ -7,16 +7,17 @@ from pathlib import Path
 import pytest
 
 from hydrogen import diagram
+from hydrogen.layout import robot_sizes
 from hydrogen.errors import ScenarioError
 
 ROOT = Path(__file__).resolve().parent.parent
-SIZES = {"NQ": 6, "NL": 6, "NPC": 6}
+SIZES = {"NQ": 6, "NL": 6, "NPC": 6, "NPS": 0}
 
 
 def test_wire_gives_each_slot_its_index_in_the_argument_table_and_minus_one_where_unread():
     inputs = [("Kleg", 6), ("l", 6), ("qd0", 6), ("numbers", 89)]
     slots = diagram.wire("controller 'p'", inputs, {"Kleg", "numbers"}, SIZES)
-    assert len(slots) == len(diagram.SLOTS)
+    assert len(slots) == len(diagram.slots(SIZES))
     assert slots[diagram.SLOTS.index("l")] == 1 and slots[diagram.SLOTS.index("qd0")] == 2
     assert all(i == -1 for name, i in zip(diagram.SLOTS, slots) if name not in ("l", "qd0"))
 
@@ -49,20 +50,30 @@ def test_every_block_input_is_some_block_output_and_the_controller_reads_the_por
 
 def test_signals_name_every_port_the_loop_writes_but_the_controller_s_own():
     ref = [[0.0] * 6 for _ in range(4)]
-    got = diagram.signals([0.0] * 6, [0.0] * 6, [0.0] * 6, [0.0] * 6, ref, True)
+    got = diagram.signals([0.0] * 6, [0.0] * 6, [0.0] * 6, [0.0] * 6, ref, True, ps=[2.1e7])
     assert set(got) | {"xc", "u_applied"} == set(diagram.SLOTS)
     assert got["adapt"] == 1.0
+    assert "ps" not in diagram.signals([0.0] * 6, [0.0] * 6, [0.0] * 6, [0.0] * 6, ref, False)  # a constant supply
+
+
+def test_a_port_of_a_size_the_robot_lacks_is_no_slot_and_wires_nothing():
+    constant, pump = {**SIZES, "NPS": 0}, {**SIZES, "NPS": 1}
+    assert "ps" not in diagram.slots(constant) and diagram.slots(pump)[-1] == "ps"
+    assert diagram.slots(constant) == diagram.SLOTS[:-1]
+    with pytest.raises(ScenarioError, match=r"no value for its input\(s\) ps: wired to no loop signal"):
+        diagram.wire("controller 'x'", [("ps", 1)], set(), constant)
+    assert diagram.wire("controller 'x'", [("q", 6), ("ps", 1)], set(), pump)[-1] == 1
 
 
 @pytest.mark.parametrize("robot", ["ubc_stewart", "excavator_arm", "loader_crane"])
 def test_the_loop_driver_writes_every_port_once_and_every_shipped_controller_is_wired(robot):
     folder = ROOT / "generated" / robot
     source = (folder / f"{robot}_loop.c").read_text()
-    for name in diagram.SLOTS:
-        assert source.count(f"{robot.upper()}_SLOT_{name.upper()},") == 1 + (name == "xc")  # the update rewrites xc
     manifest = json.loads((folder / "manifest.json").read_text())
-    s = manifest["model"]
-    sizes = {"NQ": s["n"], "NL": s["m"], "NPC": s["n_pressures"]}
+    sizes = robot_sizes(manifest["model"])
+    assert "ps" not in diagram.slots(sizes)  # the shipped robots' supplies are constant
+    for name in diagram.slots(sizes):
+        assert source.count(f"{robot.upper()}_SLOT_{name.upper()},") == 1 + (name == "xc")  # the update rewrites xc
     for f in manifest["functions"]:
         if f["name"].startswith("ctrl_"):
             inputs = [(name, rows * cols) for name, rows, cols in f["inputs"]]

@@ -269,3 +269,24 @@ def test_an_export_of_a_new_robot_derives_its_controller_alone(tmp_path, monkeyp
     assert (folder / "params.h").is_file()
     (lib,) = runtime_build.DEFAULT_DYNAMICS.values()
     assert held_controllers(lib.manifest) == ("p",)
+
+
+def test_an_exported_program_on_a_pump_matches_the_simulation(tmp_path, cache):
+    """A robot on a pump (tests/test_supply.py's): the exported program integrates the supply state,
+    its numbers are named parameters in params.h, and its errors are the simulator's."""
+    import hydrogen
+    from test_model import mixed_arm_text
+    from test_supply import PUMP_TABLE
+    path = tmp_path / "pump_arm.toml"
+    path.write_text(mixed_arm_text("four_way") + PUMP_TABLE)
+    dyn = hydrogen.build(hydrogen.load_model(path), cache=cache, numbers="inputs")
+    folder = export(tmp_path / "export", "arm-sim", "adaptive-robust", duration=0.5, dyn=dyn, metric_start=0.25)
+    params = (folder / "params.h").read_text()
+    assert "supply.pump_flow */" in params and "supply.precharge_pressure */" in params
+    _build(folder)
+    out = _run(folder)
+    assert out["status"] == "0"
+    expected, n = _python_max_errors(dyn, "arm-sim", "adaptive-robust", 0.5, 0.25)
+    assert int(out["periods"]) == n
+    got = np.array([out["max_error"][c] for c in dyn.model.coordinate_names])
+    np.testing.assert_allclose(got, expected, rtol=1e-9, atol=1e-13)

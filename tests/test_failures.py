@@ -725,3 +725,10 @@ def test_a_urdf_that_is_not_a_regular_file_is_refused(tmp_path):
                 if not future.done():  # unblock the reader: open the FIFO's writing end
                     os.close(os.open(path, os.O_WRONLY | os.O_NONBLOCK))
         assert str(err.value).startswith(f"{model}: urdf: {path}: {why}"), str(err.value)
+
+
+def test_supply_noise_on_a_constant_supply_is_refused_not_ignored(dyn):
+    """noise_ps measures a [supply] state; a robot on a constant supply has none to measure."""
+    with pytest.raises(ScenarioError, match=r"scenario 'z-1hz': noise_ps adds noise to a measured supply pressure, "
+                                            r"but .* has a constant supply .*got 100000.0"):
+        simulate(dyn, "z-1hz", "p", duration=0.01, noise_ps=1e5)

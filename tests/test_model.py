@@ -4,6 +4,7 @@ import numpy as np
 import pytest
 
 import hydrogen
+from hydrogen.errors import ModelError
 from hydrogen.model import default_model_path
 
 
@@ -806,3 +807,84 @@ def test_a_shipped_robot_lists_its_controllers_so_a_new_one_is_not_generated_for
     assert hydrogen.load_model(name).controllers == ("backstepping", "adaptive-robust", "adaptive-observer", "p",
                                                      "p-task")
     assert "controllers" in hydrogen.load_model(name).raw
+
+
+# --- [supply] ------------------------------------------------------------------------------------
+
+PUMP_SUPPLY = """
+[supply]
+kind = "pump"
+pump_flow = 2.0e-4
+relief_pressure = 11.0e6
+hose_volume = 1.0e-3
+"""
+
+
+def _supplied_arm(tmp_path, table, text=None):
+    path = tmp_path / "supplied.toml"
+    path.write_text((text or FOUR_WAY_ARM.read_text()) + table)
+    return hydrogen.load_model(path)
+
+
+def test_a_constant_supply_is_the_robot_without_one(tmp_path):
+    """[supply] kind = "constant" (the default) is nothing new: the same hash, no supply state."""
+    from hydrogen.plant import plant_layout
+    plain = hydrogen.load_model(FOUR_WAY_ARM)
+    constant = _supplied_arm(tmp_path, '\n[supply]\nkind = "constant"\n')
+    assert constant.supply.constant and constant.baked_hash() == plain.baked_hash()
+    assert plant_layout(constant) == plant_layout(plain)
+    assert not any(k.startswith("supply.") for k in constant.numbers())
+
+
+def test_a_pump_supply_is_a_state_and_its_numbers(tmp_path):
+    from hydrogen.plant import plant_layout, slot
+    m = _supplied_arm(tmp_path, PUMP_SUPPLY)
+    assert m.supply.kind == "pump" and m.baked_hash() != hydrogen.load_model(FOUR_WAY_ARM).baked_hash()
+    ps = slot(plant_layout(m), "ps")
+    assert (ps.start, ps.size, ps.units, ps.entries) == (12, 1, ("Pa",), ("supply",))
+    # the supply's oil is the actuators' by default; its numbers with their declared ranges
+    assert m.supply.values["bulk_modulus"] == 1.0e9 and m.supply.values["accumulator_volume"] == 0.0
+    assert m.numbers()["supply.pump_flow"] == 2.0e-4
+    assert m.number_ranges()["supply.pump_flow"] == (1e-6, 10.0)
+
+
+@pytest.mark.parametrize("table, match", [
+    ('kind = "turbine"', r"\[supply\] kind: unknown supply kind 'turbine'; known kinds: constant, pump, "
+                         r"compensated_pump"),
+    ('kind = "constant"\npump_flow = 1e-3', r"\[supply\] pump_flow: a 'constant' supply takes no pump_flow"),
+    ('kind = "pump"\npump_flow = 1e-3\nrelief_pressure = 11e6\nhose_volume = 1e-3\nset_pressure = 9e6',
+     r"\[supply\] set_pressure: a 'pump' supply takes no set_pressure"),
+    ('kind = "pump"\nrelief_pressure = 11e6\nhose_volume = 1e-3', r"\[supply\]: missing key 'pump_flow'"),
+    ('kind = "compensated_pump"\npump_flow = 1e-3\nrelief_pressure = 11e6\nhose_volume = 1e-3',
+     r"\[supply\]: missing key 'set_pressure'"),
+    ('kind = "pump"\npump_flow = 100.0\nrelief_pressure = 11e6\nhose_volume = 1e-3',
+     r"\[supply\] pump_flow: 100 m\^3/s is outside the plausible range \[1e-06, 10\] m\^3/s.*hydrogen.plant.supply"),
+    ('kind = "pump"\npump_flow = -1e-3\nrelief_pressure = 11e6\nhose_volume = 1e-3',
+     r"\[supply\] pump_flow: must be > 0"),
+    ('kind = "pump"\npump_flow = 1e-3\nrelief_pressure = 11e6\nhose_volume = 1e-3\naccumulator_volume = 2e-3',
+     r"\[supply\]: missing key 'precharge_pressure'.*accumulator needs its gas precharge"),
+    ('kind = "pump"\npump_flow = 1e-3\nrelief_pressure = 11e6\nhose_volume = 1e-3\nprecharge_pressure = 5e6',
+     r"\[supply\] precharge_pressure: given without an accumulator"),
+    ('kind = "compensated_pump"\npump_flow = 1e-3\nrelief_pressure = 11e6\nhose_volume = 1e-3\nset_pressure = 12e6',
+     r"\[supply\] set_pressure: 1.2e\+07 Pa must be below relief_pressure 1.1e\+07 Pa"),
+    ('kind = "pump"\npump_flow = 1e-3\nrelief_pressure = 11e6\nhose_volume = 1e-3\nvolume = 1',
+     r"\[supply\]: unknown key 'volume'"),
+])
+def test_a_bad_supply_is_refused_naming_the_file_and_key(tmp_path, table, match):
+    with pytest.raises(ModelError, match=r"supplied.toml: " + match):
+        _supplied_arm(tmp_path, f"\n[supply]\n{table}\n")
+
+
+def test_a_supply_state_needs_one_supply_pressure_and_one_oil(tmp_path):
+    """Every actuator draws on the one supply: their supply_pressure (its start) must agree, and where
+    their bulk_modulus differ the supply's oil needs its own."""
+    text = FOUR_WAY_ARM.read_text()
+    head = 'name = "elbow_cylinder"\n'
+    with pytest.raises(ModelError, match=r"cylinder 'elbow_cylinder' supply_pressure: 1.2e\+07 Pa differs from "
+                                         r"cylinder 'shoulder_cylinder''s 1e\+07 Pa"):
+        _supplied_arm(tmp_path, PUMP_SUPPLY, text.replace(head, head + "supply_pressure = 12e6\n", 1))
+    stiff = text.replace(head, head + "bulk_modulus = 1.5e9\n", 1)
+    with pytest.raises(ModelError, match=r"\[supply\]: missing key 'bulk_modulus' \(Pa\): the actuators' "
+                                         r"bulk_modulus differ \(1e\+09, 1.5e\+09 Pa\)"):
+        _supplied_arm(tmp_path, PUMP_SUPPLY, stiff)
+    assert _supplied_arm(tmp_path, PUMP_SUPPLY + "bulk_modulus = 1.2e9\n", stiff).supply.values["bulk_modulus"] == 1.2e9

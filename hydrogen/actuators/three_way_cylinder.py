@@ -122,6 +122,17 @@ class Symbolic:
         return cl * (P["supply_pressure"] - p[0])
 
     @staticmethod
+    def supply_flow(x, xdot, p, u, c, P, smooth=True):
+        """The flow drawn from the supply (m³/s): (57)'s supply edge (open for u ≥ −d), the leakage
+        into the control chamber (:meth:`leakage_flow`) and the rod side's, held at supply, −a l̇
+        (extending returns oil to the supply)."""
+        (pc,), ps = p, P["supply_pressure"]
+        root = (orf.signed_sqrt_linearised(ps - pc, P["orifice_linear_below"]) if smooth
+                else orf.clipped_root(ps - pc))
+        edge = orf.orifice_terms(u, P["underlap"], root, sp.S.Zero)
+        return c * edge + Symbolic.leakage_flow(p, P) - P["rod_area"] * xdot
+
+    @staticmethod
     def chamber_pressure_rate(l, ldot, q_l, P, beta):
         """ṗ_c = β (q_l − A l̇) / (A (l − L)), Pa/s (eq. (56) with V = A (l − L)); q_l in m³/s, the
         valve's flow plus the leakage's (:meth:`leakage_flow`)."""
@@ -223,6 +234,14 @@ class Numeric:
     @staticmethod
     def chamber_forces(p, P):
         return p[0] * P["piston_area"], -P["supply_pressure"] * P["rod_area"]
+
+    @staticmethod
+    def supply_flow(x, xdot, p, u, c, P, smooth=True):
+        (pc,), ps = p, P["supply_pressure"]
+        root = (orf.signed_sqrt_linearised_np(ps - pc, P["orifice_linear_below"]) if smooth
+                else orf.clipped_root_np(ps - pc))
+        edge = orf.orifice_terms_np(u, P["underlap"], root, 0.0)
+        return c * edge + Numeric.leakage_flow(p, P) - P["rod_area"] * np.asarray(xdot, float)
 
     @staticmethod
     def pressure_rates(x, xdot, p, u, beta, c, P, smooth=True):

@@ -70,6 +70,16 @@ class Laws:
             r = xp.root
         return xp.terms(u, d, r(ps - pa), r(pa - pt)), xp.terms(u, d, r(pb - pt), r(ps - pb))
 
+    def supply_flow(self, x, xdot, p, u, c, P, smooth=True):
+        """The flow the valve draws from the supply (m³/s): its supply edges' terms of
+        :meth:`valve_flows` (P→A open for u ≥ −d, P→B for u ≤ d), c times
+        (u + d) r(P_s − p_A) [u ≥ −d] − (u − d) r(P_s − p_B) [u ≤ d]; ``x``, ``xdot``: unused (a
+        two-chamber actuator returns its oil to tank)."""
+        xp, (pa, pb) = self.xp, p
+        ps, d = P["supply_pressure"], P["underlap"]
+        r = (lambda drop: xp.smooth_root(drop, P["orifice_linear_below"])) if smooth else xp.root
+        return c * (xp.terms(u, d, r(ps - pa), 0 * pa) - xp.terms(u, d, 0 * pb, r(ps - pb)))
+
     def force(self, p, P):
         """f = p_A a_A − p_B a_B (N, or N·m)."""
         aa, ab = self.areas(P)

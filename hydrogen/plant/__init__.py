@@ -11,7 +11,8 @@ A block module declares
 
 x is the blocks' states in :data:`BLOCKS` order: [q, q̇ (:mod:`.mechanics`), the chamber pressures
 (:mod:`.chambers`: each actuator kind's ``STATES``, :mod:`hydrogen.pressures`), spool, spool rate
-(:mod:`.valve`)]. Every user of x's parts (the Python and C loops, the FMU, the exported programs,
+(:mod:`.valve`), and the supply pressure p_s (:mod:`.supply`) only where the supply is not constant].
+A part of size 0 (a constant supply's) has no slot: the layout is the one without it. Every user of x's parts (the Python and C loops, the FMU, the exported programs,
 the divergence message) reads :func:`plant_layout`. Plain data: importing this package imports
 neither SymPy nor a block's law.
 """
@@ -27,10 +28,11 @@ __all__ = ["BLOCKS", "SIZES", "PlantState", "PlantParameter", "Slot", "block", "
            "slot", "entry_names", "describe_entries", "state_vector"]
 
 #: The plant's blocks with a state, in the order of x.
-BLOCKS = ("mechanics", "chambers", "valve")
+BLOCKS = ("mechanics", "chambers", "valve", "supply")
 
 #: The robot sizes a plant state's size is given in: what each entry stands for.
-SIZES = {"n": "coordinates", "m": "actuators", "n_pressures": "pressure states"}
+SIZES = {"n": "coordinates", "m": "actuators", "n_pressures": "pressure states",
+         "supply": "supplies (1 where the supply is not constant, else 0)"}
 
 
 @dataclass(frozen=True)
@@ -120,7 +122,7 @@ def _sizes(model) -> dict:
     """The size of each :data:`SIZES` entry for ``model``, and the names of its entries."""
     from ..pressures import state_names
     coords, cyls, press = list(model.coordinate_names), [c.name for c in model.cylinders], state_names(model)
-    return {"n": coords, "m": cyls, "n_pressures": press}
+    return {"n": coords, "m": cyls, "n_pressures": press, "supply": block("supply").entries(model)}
 
 
 def _per_entry(value, model, size: int) -> tuple:
@@ -143,6 +145,8 @@ def plant_layout(model, blocks=None) -> tuple:
         for st in mod.STATES:
             entries = tuple(names[st.size])
             size = len(entries)
+            if not size:
+                continue
             lower = tuple(float(v) for v in _per_entry(st.lower, model, size))
             upper = tuple(float(v) for v in _per_entry(st.upper, model, size))
             out.append(Slot(st.name, mod.__name__.rsplit(".", 1)[-1], st.size, start, size,

@@ -17,7 +17,10 @@ def _units(model) -> list:
 def _bound(which: int):
     def rule(model):
         from ..pressures import bounds
-        return bounds(model)[which]
+        from .supply import ceiling
+        out, top = bounds(model)[which], ceiling(model)
+        # a supply state may rise above the actuators' supply_pressure, up to its relief: so may a chamber
+        return out if which == 0 or top is None else [max(float(v), top) for v in out]
     return rule
 
 

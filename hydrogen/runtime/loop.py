@@ -10,9 +10,8 @@ import ctypes as C
 
 import numpy as np
 
-__all__ = ["LoopRunner", "SLOTS", "LOOP_OK", "LOOP_NONFINITE", "LOOP_FK_FAILED", "LOOP_CTRL_FAILED"]
+__all__ = ["LoopRunner", "LOOP_OK", "LOOP_NONFINITE", "LOOP_FK_FAILED", "LOOP_CTRL_FAILED"]
 
-from ..diagram import SLOTS
 from ..layout import PREDICTOR_MODEL, log_widths, loop_context
 
 LOOP_OK, LOOP_NONFINITE, LOOP_FK_FAILED, LOOP_CTRL_FAILED = 0, 1, 2, 3

@@ -158,6 +158,9 @@ def check_against_model(sc, model, controller, dyn=None) -> None:
     check_reference(sc.reference, name, n)
     if len(sc.q0_offset) != n:
         _fail(name, "q0_offset", f"must hold {n} numbers (one per coordinate)", sc.q0_offset)
+    if sc.noise_ps and model.supply.constant:  # it would measure nothing: refused, not ignored
+        _fail(name, "noise_ps", f"adds noise to a measured supply pressure, but {model.source} has a constant "
+              "supply (no [supply] state): leave noise_ps 0, or give the robot a [supply] pump", sc.noise_ps)
     for f, size in (("theta0_factor", model.n_theta), ("gamma0_factor", len(model.gamma))):
         if len(getattr(sc, f)) != size:
             _fail(name, f, f"must hold {size} factors (one per parameter)", getattr(sc, f))

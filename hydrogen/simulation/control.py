@@ -20,6 +20,7 @@ from ..controllers.common import check_coupling_gains, normalised_adaptation, ru
 from ..controllers.spec import Start
 from .. import diagram, pressures
 from ..errors import ScenarioError
+from ..layout import model_summary, robot_sizes
 from ..names import NUMBERS
 from .checks import check_gain_values
 
@@ -129,11 +130,10 @@ class _Controller:
         # Every input is wired: to the loop's signal of its name, of the size the robot gives it, or to a
         # value given once (a gain no table gives would otherwise be a KeyError in the Python loop and a
         # silent 0 in the C loop). The slots index the C argument table (the description's numbers too).
-        sizes = {"NQ": m.n, "NL": m.n_cylinders, "NPC": pressures.n_pressures(m)}
         shapes = dict(zip(self.fn.in_names, self.fn.in_shapes))
         self.slots = diagram.wire(f"controller '{kind}'", [(k, int(np.prod(shapes[k])) if k in shapes else 0)
                                                            for k in self.fn.arg_names],
-                                  set(self.values) | {NUMBERS}, sizes)
+                                  set(self.values) | {NUMBERS}, robot_sizes(model_summary(m)))
         self.tau_d = np.zeros(m.n)
         self.tau_d_dot = np.zeros(m.n)
         self.f_d = np.zeros(m.n_cylinders)

@@ -39,7 +39,7 @@ class Scenario(ScenarioFields):
     def noise_free(self) -> dict:
         """The overrides that switch every sensor noise off, the per-actuator ones included."""
         quiet = {a: {**v, "noise_l": 0.0} for a, v in self.actuators.items() if isinstance(v, Mapping)}
-        return {"noise_l": 0.0, "noise_p": 0.0, "noise_q": 0.0, "actuators": quiet}
+        return {"noise_l": 0.0, "noise_p": 0.0, "noise_q": 0.0, "noise_ps": 0.0, "actuators": quiet}
 
     def delay_split(self) -> tuple:
         """The delay as (whole control periods, fraction of a period): :func:`hydrogen.layout.delay_split`."""

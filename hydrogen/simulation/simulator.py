@@ -14,8 +14,9 @@ from ..actuators import actuator
 from ..controllers import spec as controller_spec
 from ..dynamics import fk_failure
 from ..errors import KinematicsError, ScenarioError, SimulationError
-from ..layout import PREDICTOR_MODEL
+from ..layout import PREDICTOR_MODEL, SUPPLY_LOG
 from ..plant import describe_entries, friction, plant_layout, slot, state_vector
+from ..plant.supply import entries as supply_entries, start as supply_start
 from ..summary import SATURATED_AT, SATURATION, estimated_blocks  # saturation: defined with its line
 from .checks import _shown, check_against_model, check_run_size, checked_float, metric_window
 from .control import make_controller
@@ -67,6 +68,9 @@ class SimulationResult:
     #: Every block of the controller's state as it declares it, by name: its rows (k, size) over the run,
     #: in the block's own unit (the estimates above too, where the controller holds them).
     states: dict = field(default_factory=dict)
+    #: The supply pressure p_s (k,), Pa, where the supply is a plant state (a pump); None for a
+    #: constant supply (each actuator's supply_pressure).
+    supply_pressure: np.ndarray = None
 
     @property
     def scenario_name(self) -> str:
@@ -495,9 +499,10 @@ def new_logs(model, n: int, n_xc: int) -> dict:
     """The logs of a run of ``n`` periods (NaN-filled rows), as both engines write them."""
     nq, m = model.n, model.n_cylinders
     n_p = pressures.n_pressures(model)
+    supply = [(SUPPLY_LOG, b.size) for b in plant_layout(model) if b.name == SUPPLY_LOG]  # a supply state's log
     return {k: np.full((n, w), np.nan) for k, w in (("q", nq), ("q_d", nq), ("l", m), ("f", m), ("pc", n_p),
                                                     ("u", m), ("u_applied", m), ("l_meas", m),
-                                                    ("xc", max(n_xc, 1)))}
+                                                    ("xc", max(n_xc, 1)), *supply)}
 
 
 @dataclass
@@ -536,13 +541,16 @@ class RunPlan:
         nq, m = model.n, model.n_cylinders
         rng = np.random.default_rng(seed)
         n_p = pressures.n_pressures(model)
-        noise = np.zeros((n, m + n_p + (nq if model.joint_encoders else 0)))
+        nps = len(supply_entries(model))  # the measured supply pressure's column, last
+        noise = np.zeros((n, m + n_p + (nq if model.joint_encoders else 0) + nps))
         if own["noise_l"].any():
             noise[:, :m] = own["noise_l"] * rng.standard_normal((n, m))
         if sc.noise_p:
             noise[:, m:m + n_p] = sc.noise_p * rng.standard_normal((n, n_p))
         if sc.noise_q and model.joint_encoders:
-            noise[:, m + n_p:] = sc.noise_q * rng.standard_normal((n, nq))
+            noise[:, m + n_p:m + n_p + nq] = sc.noise_q * rng.standard_normal((n, nq))
+        if sc.noise_ps and nps:  # drawn last: a constant supply's noise is what it was
+            noise[:, -nps:] = sc.noise_ps * rng.standard_normal((n, nps))
         return noise
 
 
@@ -569,7 +577,7 @@ def plan_run(dyn, scenario, controller, duration, check_workspace, overrides, *,
     table = f"{model.source}: [scenarios.{sc.name}]" if sc.name in scenario_names(model) else f"scenario {sc.name!r}:"
     q0 = sc.reference(0.0)[0] + np.asarray(sc.q0_offset, float)
     pc0 = equilibrium_pressures(dyn, q0, model.theta)
-    x0 = state_vector(plant_layout(model), q=q0, pc=pc0)  # at rest, the valves closed
+    x0 = state_vector(plant_layout(model), q=q0, pc=pc0, **supply_start(model))  # at rest, the valves closed
     own = actuator_settings(sc, model)  # each actuator's travel noise, resolution, friction in its own unit
     return RunPlan(dyn, controller, sc, n, h, theta0, gamma0, q0, pc0, x0, filter_gain(sc, h), own, pinned,
                    {k: f"{table} gains.{controller}" for k in pinned})
@@ -741,7 +749,7 @@ def _run_c(dyn, sc, ctrl, x0, q0, noise, kf_gain, log, n, h, runner=None):
     from ..runtime.loop import LOOP_NONFINITE, LOOP_OK
     runner = make_runner(dyn, sc, ctrl, x0, q0, kf_gain, h) if runner is None else runner
     xc_log = log["xc"] if ctrl.xc.size else None
-    logs = {k: log[k] for k in ("q", "q_d", "l", "f", "pc", "u", "u_applied", "l_meas")}
+    logs = {k: log[k] for k in ("q", "q_d", "l", "f", "pc", "u", "u_applied", "l_meas", SUPPLY_LOG) if k in log}
     if xc_log is not None:
         logs["xc"] = xc_log
     code = runner.run(n, noise, logs)
@@ -757,7 +765,7 @@ _PRED_FRICTION, _PRED_VALVE = (np.array(PREDICTOR_MODEL[k], dtype=float) for k i
 
 class _Signals:
     """One period's signals as the stages hand them on (the C loop's ``<model>_loop_signals``)."""
-    __slots__ = ("t", "l_true", "l_meas", "pc_meas", "q_enc", "ldot", "qdot_meas", "ref", "u", "u_held", "u_app")
+    __slots__ = ("t", "l_true", "l_meas", "pc_meas", "ps_meas", "q_enc", "ldot", "qdot_meas", "ref", "u", "u_held", "u_app")
 
 
 class PythonStages:
@@ -779,6 +787,7 @@ class PythonStages:
         self._pred_valve = np.tile(_PRED_VALVE, model.n_cylinders)
         self.layout = plant_layout(model)
         self._q, self._qdot, self._pc = (slot(self.layout, k).slice for k in ("q", "qdot", "pc"))
+        self._ps = next((b.slice for b in self.layout if b.name == SUPPLY_LOG), None)  # a supply state
         pc = slot(self.layout, "pc")
         self._lo, self._hi = np.array(pc.lower), np.array(pc.upper)  # each pressure state's clip (0 and P_s for p_c)
         self.nq, self.m, self.n_p = model.n, model.n_cylinders, pc.size
@@ -802,7 +811,10 @@ class PythonStages:
         s.l_meas = np.where(self._quant > 0, step * np.floor(s.l_meas / step + 0.5), s.l_meas)
         s.pc_meas = np.clip(pc + nz[m:m + n_p], self._lo, self._hi) if sc.noise_p else pc
         s.ldot = None if self.kf is not None else self.dyn.leg_jacobian(q) @ qdot  # ideal rate sensor
-        s.q_enc = q + nz[m + n_p:] if self.model.joint_encoders else None
+        s.q_enc = q + nz[m + n_p:m + n_p + self.nq] if self.model.joint_encoders else None
+        if self._ps is not None:  # the supply pressure, last in the noise row, held at its lower bound 0
+            ps = x[self._ps]
+            s.ps_meas = np.maximum(ps + nz[-ps.size:], 0.0)
         return s
 
     def estimate(self, s: _Signals) -> None:
@@ -829,9 +841,11 @@ class PythonStages:
             x = self.predicted(s)
             q = x[self._q]
             ports = diagram.signals(q, x[self._qdot], x[self._pc], np.asarray(self.dyn.leg_lengths(q), float),
-                                    sc.reference(s.t + (delay + self.delay_frac) * self.h), s.t >= sc.t_adapt)
+                                    sc.reference(s.t + (delay + self.delay_frac) * self.h), s.t >= sc.t_adapt,
+                                    ps=None if self._ps is None else x[self._ps])
         else:
-            ports = diagram.signals(self.q_meas, s.qdot_meas, s.pc_meas, s.l_meas, s.ref, s.t >= sc.t_adapt)
+            ports = diagram.signals(self.q_meas, s.qdot_meas, s.pc_meas, s.l_meas, s.ref, s.t >= sc.t_adapt,
+                                    ps=None if self._ps is None else s.ps_meas)
         if self.k and sc.estimator_update != "euler":  # semi-implicit: state from this measurement, then command
             ctrl.update_for(self.h, ports)
         s.u = ctrl.command_for(ports)
@@ -851,7 +865,8 @@ class PythonStages:
         commands of periods k − delay … k − 1 (the C loop's ``predict``)."""
         h, pc = self.h, self._pc
         th, g1, g2 = self.ctrl.own_parameters()
-        x = state_vector(self.layout, q=self.q_meas, qdot=s.qdot_meas, pc=s.pc_meas)  # spool states: unused
+        supply = {} if self._ps is None else {SUPPLY_LOG: s.ps_meas}
+        x = state_vector(self.layout, q=self.q_meas, qdot=s.qdot_meas, pc=s.pc_meas, **supply)  # spool: unused
 
         def hold(x, u, dt):
             n = self.sc.predictor_steps(dt / h)
@@ -913,6 +928,8 @@ def run_python_loop(dyn, sc, ctrl, x, q0, noise, kf_gain, log, n, h):
         log["q"][k], log["q_d"][k], log["l"][k], log["pc"][k], log["u"][k] = x[loop._q], s.ref[0], s.l_true, pc, s.u
         log["u_applied"][k], log["l_meas"][k] = s.u_app, s.l_meas
         log["f"][k] = pressures.forces(model, pc)
+        if SUPPLY_LOG in log:
+            log[SUPPLY_LOG][k] = x[slot(loop.layout, SUPPLY_LOG).slice]
         if ctrl.xc.size:
             log["xc"][k] = ctrl.xc
         loop.plant_step(s.u_held, s.u_app)
@@ -940,7 +957,8 @@ def _result(sc, controller, ctrl, t, log, k, theta0, gamma0, theta_true, gamma_t
         theta_names=tuple(model.theta_names), estimated=estimated_blocks(ctrl), wall_time_s=wall, loop_wall_s=wall,
         u_max=float(ctrl.values["u_max"][0]) if "u_max" in ctrl.values else 0.0,
         actuators=tuple(c.name for c in model.cylinders),
-        states={b.name: log["xc"][:k, ctrl.slices[b.name]] for b in ctrl.layout})
+        states={b.name: log["xc"][:k, ctrl.slices[b.name]] for b in ctrl.layout},
+        supply_pressure=log[SUPPLY_LOG][:k, 0] if SUPPLY_LOG in log else None)
     if k:
         res.compute_metrics()
     return res

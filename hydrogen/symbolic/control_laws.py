@@ -90,6 +90,11 @@ class Common:
         self.kinds = [x.kind for x in model.cylinders]
         self.laws = [actuator(x.kind).Symbolic for x in model.cylinders]
         self.P = [baked_parameters(x) for x in model.cylinders]
+        #: the measured supply pressure (Pa), an input, where the supply is a plant state (a pump): every
+        #: law (force, f0, g0, valve inverse, normalisation) takes it in place of supply_pressure
+        self.supply = None if model.supply.constant else vector("ps", 1)
+        if self.supply is not None:
+            self.P = [{**P, "supply_pressure": self.supply[0]} for P in self.P]
         self.ps = [P["supply_pressure"] for P in self.P]
         # the three-way cylinder's A and L (None for another kind)
         self.A = [P.get("piston_area") for P in self.P]
@@ -304,7 +309,8 @@ class Common:
 
     def base_inputs(self):
         return [("q", self.q), ("qdot", self.qdot), ("pc", self.pc),
-                *[(f"qd{k}", self.qd[k]) for k in range(4)]]
+                *[(f"qd{k}", self.qd[k]) for k in range(4)],
+                *([("ps", self.supply)] if self.supply is not None else [])]
 
     def gain_inputs(self):
         return [("Lambda", self.Lam), ("Kp", self.Kp), ("Kd", self.Kd), ("Ktau", self.Ktau),

@@ -3,19 +3,23 @@
 The plant's blocks (:mod:`hydrogen.plant`) composed into one right-hand side: x is their states in
 the layout's order (:func:`hydrogen.plant.plant_layout`: [q (n), q̇ (n), pressures (one block per
 actuator, its kind's states: p_c of a three-way cylinder, p_A, p_B of a four-way one), spool (m),
-spool rate (m)]); input u = spool command (m, metres). The valve law (:mod:`hydrogen.plant.valve`,
-input ``valve`` = [τ_v, ω_v, ζ_v, overlap, full opening] per actuator) gives the spool the chambers see; the friction law
-(:mod:`hydrogen.plant.friction`, input ``friction`` = [F_c, b, v_s] per actuator in its own unit, and
-[F_brk, v_st, k_p] after them for a robot with seal friction) opposes each actuator's motion; an
-actuator's Stribeck dip and pressure load only where its description declares them.
+spool rate (m), and the supply pressure p_s (Pa) where the supply is not constant]); input u = spool
+command (m, metres). With a supply state every actuator's laws take p_s for their supply_pressure,
+and p_s moves by :mod:`hydrogen.plant.supply`'s law under the demand of every valve's supply edges.
+The valve law (:mod:`hydrogen.plant.valve`, input ``valve`` = [τ_v, ω_v, ζ_v, overlap, full opening] per
+actuator) gives the spool the chambers see; the friction law (:mod:`hydrogen.plant.friction`, input
+``friction`` = [F_c, b, v_s] per actuator in its own unit, and [F_brk, v_st, k_p] after them for a robot
+with seal friction) opposes each actuator's motion; an actuator's Stribeck dip and pressure load only
+where its description declares them.
 """
 from __future__ import annotations
 
 import sympy as sp
 
 from ..actuators import actuator, baked_parameters
-from ..plant import BLOCKS, block, chambers, friction, mechanics, valve
+from ..plant import BLOCKS, block, chambers, friction, mechanics, supply, valve
 from ..pressures import blocks
+from .constants import baked
 from .kinematics import leg_intermediates, rate_symbols
 from .rigid_body import theta_symbols
 
@@ -39,6 +43,9 @@ def plant_rhs(model):
     cyl = model.cylinders
     laws = [actuator(c.kind).Symbolic for c in cyl]
     P = [baked_parameters(c) for c in cyl]
+    ps = states["ps"]
+    if ps.rows:  # a pump: every actuator's laws see the supply state in place of its constant
+        P = [{**Pi, "supply_pressure": ps[0]} for Pi in P]
     p = [tuple(pc[a:b]) for a, b in blocks(model)]  # each actuator's pressure block
 
     l, JL, _, kin = leg_intermediates(model, q, qd, rates=False)  # the plant needs no J̇L
@@ -55,10 +62,23 @@ def plant_rhs(model):
     mech, solve = mechanics.Symbolic.rates(model, q, qd, JL.T * f_leg, th)  # poses: in kin
     rates.update(mech)
     rates.update(chambers.Symbolic.rates(laws, l, ldot, p, spool_eff, g1, g2, P))
+    demand = []
+    if ps.rows:
+        # the valves' draw on the supply: an intermediate, so the supply's law takes one symbol
+        demand = [(rate_symbols("plant_demand", 1),
+                   sp.Matrix([sum(laws[i].supply_flow(l[i], ldot[i], p[i], spool_eff[i], g2[i] / g1[i], P[i])
+                                  for i in range(m))]))]
+        values = model.supply.values
+        S = {k: baked(v, f"supply.{k}") for k, v in values.items()}
+        rates["ps"] = sp.Matrix([supply.Symbolic.rate(model.supply.kind, ps[0], demand[0][0][0], S,
+                                                      model.supply.accumulator)])
+    else:
+        rates["ps"] = ps
     xdot = sp.Matrix([r for name in BLOCKS for st in block(name).STATES for r in rates[st.name]])
     inputs = [("x", x), ("u", u), ("theta", th), ("gamma1", g1), ("gamma2", g2), ("friction", fric),
               ("valve", valve_par)]
-    return inputs, xdot, [*kin, (ldot, ldot_value), (f_leg, f_leg_value), (spool_eff, spool_eff_value), *solve]
+    return inputs, xdot, [*kin, (ldot, ldot_value), (f_leg, f_leg_value), (spool_eff, spool_eff_value), *demand,
+                          *solve]
 
 
 def _friction(ldot, fric, i: int, names: list, terms: tuple, law, p, P):
