@@ -6,7 +6,7 @@ the one difference is the numbers), ``earlier``, git commit ``--baseline`` (defa
 of this repository (its own default build, descriptions and gains; 6480770 has the numbers as
 inputs too), extracted with ``git archive`` as ``bench_release.py`` does, and ``described``, the
 current code on the earlier version's own descriptions (the keys renamed since migrated,
-:data:`RENAMED`): like for like with ``earlier`` by construction. For every shipped robot the
+:data:`RENAMED`, and the rig's settings now given per joint actuator, :func:`own_rig_settings`): like for like with ``earlier`` by construction. For every shipped robot the
 earlier version knows, in each route:
 
 * every scenario's C loop: ``hydrogen.simulate`` of ``CONTROLLER`` (the scenario's own gains,
@@ -127,9 +127,31 @@ def _measure(version: Version, robots: list, build_kw: dict, described: dict | N
 RENAMED = (("rig", "delay_periods", "delay", lambda v, table: v / table["control_rate"]),)
 
 
+def own_rig_settings(toml: Path) -> str:
+    """The tables a description written before the rig's travel settings were given per actuator
+    needs for the current code: each joint actuator (a travel not in m) with the rig's own friction
+    and sensor settings, the same numbers, as the earlier version applied them to every actuator in
+    its own coordinate ('' when none is needed)."""
+    import tomllib
+
+    import hydrogen
+    from hydrogen.actuators import actuator
+    from hydrogen.actuators.declarations import LENGTH
+    from hydrogen.simulation.scenarios import PER_ACTUATOR
+
+    rig = tomllib.loads(toml.read_text(encoding="utf-8")).get("rig", {})
+    given = {k: rig[k] for k in PER_ACTUATOR if k in rig}
+    if not given or "actuators" in rig:
+        return ""
+    joints = [c.name for c in hydrogen.load_model(toml).cylinders if actuator(c.kind).TRAVEL != LENGTH]
+    return "".join(f"\n[rig.actuators.{json.dumps(name)}]\n" + "".join(f"{k} = {v!r}\n" for k, v in given.items())
+                   for name in joints)
+
+
 def earlier_descriptions(data: Path, dest: Path) -> dict:
     """The descriptions shipped in ``data`` (the earlier version's ``hydrogen/data``) copied into
-    ``dest`` with the keys of :data:`RENAMED` migrated: {robot name: TOML path}."""
+    ``dest`` with the keys of :data:`RENAMED` migrated and the joint actuators' rig settings given
+    (:func:`own_rig_settings`): {robot name: TOML path}."""
     import re
     import shutil
     import tomllib
@@ -146,6 +168,9 @@ def earlier_descriptions(data: Path, dest: Path) -> dict:
             key = re.compile(rf"^{old}\s*=.*$", re.M).search(text, head.end())
             text = f"{text[:key.start()]}{new} = {value(parsed[table][old], parsed[table])!r}{text[key.end():]}"
         toml.write_text(text, encoding="utf-8")
+        extra = own_rig_settings(toml)  # read from the renamed file: the current code loads it
+        if extra:
+            toml.write_text(text + extra, encoding="utf-8")
         out[toml.stem] = toml
     return out
 

@@ -3,6 +3,7 @@ robot needs, and the comparisons of bench_release and the partial profiles of be
 right. The benchmarks themselves (minutes each) run with ``hydrogen bench``."""
 import importlib
 import json
+import shutil
 import sys
 from pathlib import Path
 
@@ -11,7 +12,7 @@ import pytest
 
 import hydrogen
 from hydrogen.bench import SUITE
-from hydrogen.simulation.scenarios import scenario, scenario_names
+from hydrogen.simulation.scenarios import actuator_settings, scenario, scenario_names
 
 BENCH = Path(__file__).resolve().parents[1] / "benchmarks"
 sys.path.insert(0, str(BENCH))
@@ -547,7 +548,35 @@ def test_the_period_benchmarks_earlier_descriptions_load_with_the_current_code(t
     files = bench_period.earlier_descriptions(tmp_path / "earlier" / "hydrogen" / "data", tmp_path / "described")
     assert files
     for name, path in files.items():
-        assert hydrogen.load_model(path).name == name
+        model = hydrogen.load_model(path)
+        assert model.name == name
+        for s in scenario_names(model):  # every scenario's rig settings, per actuator in its own unit
+            settings = actuator_settings(scenario(s, model), model)
+            sc = scenario(s, model)
+            # as the earlier version applied them: the scenario's own to every actuator
+            np.testing.assert_array_equal(settings["friction"], np.tile(sc.friction, (len(model.cylinders), 1)))
+            np.testing.assert_array_equal(settings["quantization_l"], sc.quantization_l)
+
+
+def test_the_period_benchmark_gives_joint_actuators_the_rigs_own_settings(tmp_path):
+    """A description written before the rig's travel settings were per actuator: its rotary actuator
+    gets the rig's numbers as its own, the cylinders keep the rig's; one given already is left alone."""
+    import tomllib
+
+    import bench_period
+
+    data = tmp_path / "data"
+    shutil.copytree(hydrogen.model.model_path("loader_crane").parent, data)
+    toml = data / "loader_crane.toml"
+    text = toml.read_text(encoding="utf-8")
+    head = text.index("\n[rig.actuators.slew_motor]\n")
+    toml.write_text(text[:head] + text[text.index("\n\n", head):], encoding="utf-8")
+    rig = tomllib.loads(toml.read_text(encoding="utf-8"))["rig"]
+    assert "actuators" not in rig
+    out = tomllib.loads(bench_period.earlier_descriptions(data, tmp_path / "out")["loader_crane"].read_text())
+    assert out["rig"]["actuators"] == {"slew_motor": {k: rig[k] for k in ("friction", "quantization_l", "noise_l")}}
+    shipped = hydrogen.model.model_path("loader_crane")
+    assert bench_period.own_rig_settings(shipped) == ""
 
 
 def test_the_urdf_leg_is_timed_by_both_routes_and_edited_like_the_robots(tmp_path, monkeypatch):
