@@ -6,8 +6,9 @@ the one difference is the numbers), ``earlier``, git commit ``--baseline`` (defa
 of this repository (its own default build, descriptions and gains; 6480770 has the numbers as
 inputs too), extracted with ``git archive`` as ``bench_release.py`` does, and ``described``, the
 current code on the earlier version's own descriptions (the keys renamed since migrated,
-:data:`RENAMED`, and the rig's settings now given per joint actuator, :func:`own_rig_settings`): like for like with ``earlier`` by construction. For every shipped robot the
-earlier version knows, in each route:
+:data:`RENAMED`, and the rig's settings now given per joint actuator, :func:`own_rig_settings`):
+like for like with ``earlier`` by construction. For every shipped robot the earlier version knows,
+in each route:
 
 * every scenario's C loop: ``hydrogen.simulate`` of ``CONTROLLER`` (the scenario's own gains,
   duration and rig), ``loop_wall_s`` over the periods, µs per control period, the fastest of
