@@ -17,8 +17,8 @@ in each route:
   Python (``dyn.functions[name](*inputs)``, the compiled extension), the best of ``CALL_REPEATS``
   timings of ``CALL_NUMBER`` calls.
 
-The routes rotate (which runs first changes each round) for ``ROUNDS`` rounds (2 with
-``--quick``); each figure is the median over the rounds. Reported with the ratios current / folded,
+The routes rotate (which runs first changes each round) for ``--rounds`` rounds (default
+``ROUNDS``, 2 with ``--quick``); each figure is the median over the rounds. Reported with the ratios current / folded,
 current / earlier and described / earlier, all bounded with the release checks where they are like
 for like (current / folded by :data:`FOLDED_BOUND`, the others by ``--bound``, default
 :data:`BOUND`): current / earlier only for the same robot in the description (links, joints,
@@ -26,7 +26,8 @@ hydraulics, cylinders, an included URDF; not its controllers list), and for a lo
 timing and scenario and the same controller variant (gains tuned since may run the lean one, or no
 longer); described / earlier unless the current code runs another controller variant.
 
-Run: ``python benchmarks/bench_period.py [--quick] [--json FILE] [--baseline COMMIT] [--bound RATIO]``
+Run: ``python benchmarks/bench_period.py [--quick] [--json FILE] [--baseline COMMIT] [--bound RATIO]
+[--rounds N]``
 (about 5-8 minutes on an idle machine). ``--json docs/bench.json`` (``hydrogen bench``'s results)
 replaces only this module's section there and renders the page beside it again.
 """
@@ -187,12 +188,13 @@ def _median_of(rounds: list, path) -> float | None:
     return common.median(values) if len(values) == len(rounds) else None
 
 
-def run(quick: bool = False, baseline: str = BASELINE, bound: float = BOUND) -> dict:
-    """The figures of every route against commit ``baseline``, each like-for-like ratio against it
-    checked against ``bound`` (``within_bound``; current / folded against :data:`FOLDED_BOUND`)."""
+def run(quick: bool = False, baseline: str = BASELINE, bound: float = BOUND, rounds: int | None = None) -> dict:
+    """The figures of every route against commit ``baseline`` over ``rounds`` rounds (default
+    :data:`ROUNDS`, :data:`QUICK_ROUNDS` with ``quick``), each like-for-like ratio against it checked
+    against ``bound`` (``within_bound``; current / folded against :data:`FOLDED_BOUND`)."""
     t0 = time.perf_counter()
     robots = common.robots()
-    rounds = QUICK_ROUNDS if quick else ROUNDS
+    rounds = rounds or (QUICK_ROUNDS if quick else ROUNDS)
     with tempfile.TemporaryDirectory(prefix="bench_period_") as tmp:
         tmp = Path(tmp)
         reason = _extract_previous(tmp / "earlier", baseline)
@@ -322,6 +324,15 @@ def _commit(text: str) -> str:
     return text
 
 
+def _rounds(text: str) -> int:
+    """``--rounds``: a whole number of rounds, at least 1."""
+    import argparse
+
+    if not text.isdigit() or int(text) < 1:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a number of rounds (a whole number, at least 1)")
+    return int(text)
+
+
 def _bound(text: str) -> float:
     """``--bound``: a ratio of at least 1 (1.05: within 5 %)."""
     import argparse
@@ -340,7 +351,10 @@ def _bound(text: str) -> float:
 OPTIONS = {"--baseline": {"type": _commit, "default": BASELINE, "metavar": "COMMIT",
                           "help": f"the earlier commit compared with (default {BASELINE})"},
            "--bound": {"type": _bound, "default": BOUND, "metavar": "RATIO",
-                       "help": f"the bound of every like-for-like ratio (default {BOUND}: within 5 %%)"}}
+                       "help": f"the bound of every like-for-like ratio (default {BOUND}: within 5 %%)"},
+           "--rounds": {"type": _rounds, "default": None, "metavar": "N",
+                        "help": f"rotating rounds, each figure their median (default {ROUNDS}; {QUICK_ROUNDS} "
+                                "with --quick): more where other work shares the cores"}}
 
 if __name__ == "__main__":
     sys.exit(common.script_main(__doc__, run, lambda r: print_table(r, checks=True), options=OPTIONS))

@@ -398,8 +398,10 @@ def test_the_period_benchmark_compares_with_the_baseline_and_bound_it_is_given(m
     assert set(extracted) == {"abc1234"} and loose["baseline"] == "abc1234" and loose["bound"] == 1.2
     assert all(r["ratio_earlier"] == pytest.approx(1.1) for r in loose["rows"]) and loose["within_bound"]
     assert not bench_period.run(quick=True, baseline="abc1234", bound=1.05)["within_bound"]
+    assert len(bench_period.run(quick=True, rounds=3)["rows"]) == 2 * len(common.robots())
     default = bench_period.run(quick=True)
-    assert extracted[-1] == bench_period.BASELINE == default["baseline"] and default["bound"] == bench_period.BOUND
+    assert default["rounds"] == bench_period.QUICK_ROUNDS and extracted[-1] == bench_period.BASELINE
+    assert default["baseline"] == bench_period.BASELINE and default["bound"] == bench_period.BOUND
     # current / folded at 1.08: within the folded bound (1.10), whatever the bound against the earlier commit
     row = {"ratio": 1.08, "ratio_earlier": 1.0, "like_for_like": True}
     assert bench_period.within_bound(row, 1.05) and not bench_period.within_bound(row, 1.05, folded_bound=1.05)
@@ -412,17 +414,17 @@ def test_the_period_benchmark_script_takes_a_baseline_and_a_bound(monkeypatch, c
 
     seen = []
 
-    def run(quick=False, baseline=bench_period.BASELINE, bound=bench_period.BOUND):
-        seen.append((quick, baseline, bound))
+    def run(quick=False, baseline=bench_period.BASELINE, bound=bench_period.BOUND, rounds=None):
+        seen.append((quick, baseline, bound, rounds))
         return {}
 
     monkeypatch.setattr(run, "__module__", "bench_period")
     args = (bench_period.__doc__, run, lambda r: None)
     assert common.script_main(*args, argv=["--quick", "--bound", "1.2"], options=bench_period.OPTIONS) == 0
-    assert common.script_main(*args, argv=[], options=bench_period.OPTIONS) == 0
-    assert seen == [(True, bench_period.BASELINE, 1.2), (False, bench_period.BASELINE, bench_period.BOUND)]
+    assert common.script_main(*args, argv=["--rounds", "9"], options=bench_period.OPTIONS) == 0
+    assert seen == [(True, bench_period.BASELINE, 1.2, None), (False, bench_period.BASELINE, bench_period.BOUND, 9)]
     for bad, what in ((["--bound", "0.95"], "not a ratio of at least 1"), (["--bound", "nan"], "not a ratio"),
-                      (["--baseline", "not-a-commit"], "not a commit")):
+                      (["--baseline", "not-a-commit"], "not a commit"), (["--rounds", "0"], "not a number of rounds")):
         with pytest.raises(SystemExit) as exc:
             common.script_main(*args, argv=bad, options=bench_period.OPTIONS)
         assert exc.value.code == 2 and what in capsys.readouterr().err
