@@ -244,6 +244,7 @@ def run(quick: bool = False, baseline: str = BASELINE, bound: float = BOUND, rou
     rows = [r for r in rows if "ratio" in r or "ratio_described" in r]
     for r in rows:
         r["unlike"] = unlike(r)  # why current / earlier is not like for like, '' when it is
+        r["above_bound"] = above_bound(r, bound, FOLDED_BOUND)
     return {"baseline": baseline, "controller": CONTROLLER, "rounds": rounds, "bound": bound,
             "bound_folded": FOLDED_BOUND, "rows": rows,
             "within_bound": bool(rows) and all(within_bound(r, bound, FOLDED_BOUND) for r in rows),
@@ -260,13 +261,18 @@ def _ratios(row: dict) -> dict:
     return row
 
 
+def above_bound(row: dict, bound: float, folded_bound: float = FOLDED_BOUND) -> list:
+    """The row's ratios above their bound: ``ratio`` (current / folded) above ``folded_bound``, and
+    ``ratio_earlier`` (shipped descriptions) and ``ratio_described`` (the earlier descriptions run by
+    both versions) above ``bound`` where that is like for like."""
+    return [key for key, like, b in (("ratio", None, folded_bound), ("ratio_earlier", "like_for_like", bound),
+                                     ("ratio_described", "described_like_for_like", bound))
+            if row.get(key, 0.0) > b and (like is None or row.get(like, True))]
+
+
 def within_bound(row: dict, bound: float, folded_bound: float = FOLDED_BOUND) -> bool:
-    """current / folded within ``folded_bound``, and current / earlier (shipped descriptions, and the
-    earlier descriptions run by both versions) within ``bound`` where that is like for like."""
-    return row.get("ratio", 0.0) <= folded_bound and all(
-        row.get(key, 0.0) <= bound for key, like in (("ratio_earlier", "like_for_like"),
-                                                     ("ratio_described", "described_like_for_like"))
-        if row.get(like, True))
+    """Every ratio of the row within its bound (:func:`above_bound`)."""
+    return not above_bound(row, bound, folded_bound)
 
 
 def unlike(row: dict) -> str:

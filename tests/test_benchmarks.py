@@ -458,14 +458,22 @@ def test_a_benchmark_script_writes_its_own_section_of_the_suites_results(tmp_pat
 
 
 def test_the_period_section_states_its_baseline_and_bound():
+    """The page states the bounds the run was held to and names each figure above one."""
+    import bench_period
     from hydrogen.pages import benchmarks_page
 
-    row = {"robot": "r", "what": "call", "name": "f", "earlier": 100.0, "current": 103.0, "ratio_earlier": 1.03}
+    row = {"robot": "r", "what": "call", "name": "f", "earlier": 100.0, "current": 103.0, "ratio_earlier": 1.03,
+           "like_for_like": True, "above_bound": []}
     res = {"baseline": "abc1234", "controller": "p", "rounds": 5, "rows": [row], "within_bound": True}
-    assert "bound" not in benchmarks_page({"bench_period": res})  # figures only: no bound to state
-    page = benchmarks_page({"bench_period": {**res, "bound": 1.05}})
-    assert "The bound of every like-for-like ratio: 1.05 (within 5 % of commit `abc1234`); this run keeps it." in page
-    assert "does not keep it" in benchmarks_page({"bench_period": {**res, "bound": 1.05, "within_bound": False}})
+    assert "Bounds where like for like" not in benchmarks_page({"bench_period": res})  # figures only
+    page = benchmarks_page({"bench_period": {**res, "bound": 1.05, "bound_folded": 1.1}})
+    assert ("Bounds where like for like: current / earlier and described / earlier 1.05 (within 5 % of commit "
+            "`abc1234`), current / folded 1.10. This run keeps them.") in page
+    slow = {**row, "name": "g", "ratio_earlier": 1.08, "ratio_described": 1.02, "described_like_for_like": True}
+    slow["above_bound"] = bench_period.above_bound(slow, 1.05, 1.1)
+    assert slow["above_bound"] == ["ratio_earlier"]
+    page = benchmarks_page({"bench_period": {**res, "rows": [row, slow], "bound": 1.05, "bound_folded": 1.1}})
+    assert "Above them in this run: r g (current / earlier 1.08)." in page
 
 
 def test_the_period_benchmark_bounds_the_earlier_version_only_like_for_like(capsys):
