@@ -18,8 +18,9 @@ in each route:
   timings of ``CALL_NUMBER`` calls.
 
 The routes rotate (which runs first changes each round) for ``--rounds`` rounds (default
-``ROUNDS``, 2 with ``--quick``); each figure is the median over the rounds. Reported with the ratios current / folded,
-current / earlier and described / earlier, all bounded with the release checks where they are like
+``ROUNDS``, 2 with ``--quick``; more where other work shares the cores); each figure is the median
+over the rounds. Reported with the ratios current / folded, current / earlier and described /
+earlier, all bounded with the release checks where they are like
 for like (current / folded by :data:`FOLDED_BOUND`, the others by ``--bound``, default
 :data:`BOUND`): current / earlier only for the same robot in the description (links, joints,
 hydraulics, cylinders, an included URDF; not its controllers list), and for a loop the same rig,
@@ -27,8 +28,7 @@ timing and scenario and the same controller variant (gains tuned since may run t
 longer); described / earlier unless the current code runs another controller variant.
 
 Run: ``python benchmarks/bench_period.py [--quick] [--json FILE] [--baseline COMMIT] [--bound RATIO]
-[--rounds N]``
-(about 5-8 minutes on an idle machine). ``--json docs/bench.json`` (``hydrogen bench``'s results)
+[--rounds N]`` (about 5-8 minutes on an idle machine, 9 minutes for 9 rounds at a load of 8). ``--json docs/bench.json`` (``hydrogen bench``'s results)
 replaces only this module's section there and renders the page beside it again.
 """
 from __future__ import annotations
