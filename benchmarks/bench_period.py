@@ -28,8 +28,9 @@ timing and scenario and the same controller variant (gains tuned since may run t
 longer); described / earlier unless the current code runs another controller variant.
 
 Run: ``python benchmarks/bench_period.py [--quick] [--json FILE] [--baseline COMMIT] [--bound RATIO]
-[--rounds N]`` (about 5-8 minutes on an idle machine, 9 minutes for 9 rounds at a load of 8). ``--json docs/bench.json`` (``hydrogen bench``'s results)
-replaces only this module's section there and renders the page beside it again.
+[--rounds N]`` (about 5-8 minutes on an idle machine, 9 minutes for 9 rounds at a load of 8).
+``--json docs/bench.json`` (``hydrogen bench``'s results) replaces only this module's section
+there and renders the page beside it again.
 """
 from __future__ import annotations
 
