@@ -273,22 +273,73 @@ def median(values) -> float:
     return float(statistics.median(values))
 
 
-def script_main(doc: str, run, print_table, argv=None) -> int:
-    """A benchmark module run as a script: ``--quick`` and ``--json FILE`` (written atomically)."""
+def script_main(doc: str, run, print_table, argv=None, options: dict | None = None) -> int:
+    """A benchmark module run as a script: ``--quick``, ``--json FILE`` (:func:`write_results`) and
+    the module's own ``options`` ({flag: argparse keywords}; each passed to ``run`` by its name)."""
     import argparse
-    import json
 
-    from hydrogen.fileio import atomic_write
+    from hydrogen.errors import HydrogenError
 
     ap = argparse.ArgumentParser(description=doc.splitlines()[0])
     ap.add_argument("--quick", action="store_true")
     ap.add_argument("--json", type=Path, metavar="FILE")
+    dests = [ap.add_argument(flag, **kw).dest for flag, kw in (options or {}).items()]
     a = ap.parse_args(argv)
-    r = run(quick=a.quick)
+    module = Path(sys.modules[run.__module__].__file__).stem
+    if a.json:
+        try:  # before minutes of benchmarks, not after
+            _results_kind(a.json)
+        except HydrogenError as exc:  # its one message, no traceback
+            print(exc, file=sys.stderr)
+            return 2
+    r = run(quick=a.quick, **{d: getattr(a, d) for d in dests})
     print_table(r)
     if a.json:
-        atomic_write(a.json, json.dumps(r, indent=2, default=str) + "\n")
+        print(write_results(a.json, module, r))
     return 0
+
+
+def _results_kind(path: Path) -> str:
+    """"suite" when ``path`` holds ``hydrogen bench`` results (a JSON object of modules' sections), else
+    "own" (no file there, or any other file: written whole, as a module's results always were). An
+    OutputPathError when ``path`` is not a regular file, or the suite's page beside it is not bench's."""
+    import json
+
+    from hydrogen.bench import SUITE, check_results_file
+
+    path = Path(path)
+    if path.is_symlink() or (path.exists() and not path.is_file()):
+        check_results_file(path)  # raises: not a regular file
+    try:
+        data = json.loads(path.read_text(encoding="utf-8")) if path.exists() else None
+    except (OSError, UnicodeDecodeError, ValueError):
+        data = None
+    if not (isinstance(data, dict) and data and set(data) <= {n for n, _ in SUITE}):
+        return "own"
+    from hydrogen.pages import check_benchmarks_page
+
+    check_benchmarks_page(path)
+    return "suite"
+
+
+def write_results(path: Path, module: str, results: dict) -> str:
+    """Write ``results`` of benchmark ``module`` to ``path`` atomically: into its section when
+    ``path`` holds ``hydrogen bench`` results (docs/bench.json: the other modules' sections kept,
+    the page beside it rendered again), else as the whole file. What was written, for the log."""
+    import json
+
+    from hydrogen.fileio import atomic_write
+
+    path = Path(path)
+    if _results_kind(path) == "suite":
+        from hydrogen.pages import write_benchmarks_page
+
+        suite = json.loads(path.read_text(encoding="utf-8"))
+        suite[module] = results
+        atomic_write(path, json.dumps(suite, indent=2, default=str) + "\n")
+        return f"results written to {path} (section {module}); page written to {write_benchmarks_page(path)}"
+    atomic_write(path, json.dumps(results, indent=2, default=str) + "\n")
+    return f"results written to {path}"
 
 
 _GRAVITY = re.compile(r"^(gravity\s*=\s*)([0-9.eE+-]+)", re.M)

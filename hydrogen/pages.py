@@ -463,15 +463,24 @@ def _period(b) -> list:
         return []
     out = ["## Per period and per call: numbers as inputs, folded, and an earlier version", "",
            f"`benchmarks/bench_period.py`: the current version (the numbers as inputs), the same code built with "
-           f"them folded (like for like) and commit `{b.get('baseline')}` (folded, before the recursive rigid body), "
-           "and the current code on that commit's own descriptions (\"described\"; renamed keys migrated), each in "
-           f"its own processes, rotating for {b.get('rounds')} rounds (medians): the C loop's µs per control period "
+           f"them folded (like for like) and commit `{b.get('baseline')}` (its own default build, descriptions "
+           "and gains), and the current code on that commit's own descriptions (\"described\"; renamed keys "
+           f"migrated), each in its own processes, rotating for {b.get('rounds')} rounds (medians): the C loop's µs per control period "
            f"of every scenario (`{b.get('controller')}`, the fastest of a few runs per round) and the ns per call "
            "from Python of every function all have with the same inputs (the extension). Against the earlier "
            "version, current / earlier is like for like only for the same robot (links, joints, hydraulics, "
            "cylinders) and, for a loop, the same rig, timing, scenario and controller variant (the last column "
            "says where it is not); described / earlier is like for like unless another controller variant runs "
            "(marked *).", ""]
+    if "bound" in b:  # the release checks' bounds (a run without them keeps the figures only)
+        names = {"ratio": "current / folded", "ratio_earlier": "current / earlier",
+                 "ratio_described": "described / earlier"}
+        above = [f"{r['robot']} {r['name']} ({', '.join(f'{names[k]} {r[k]:.2f}' for k in r['above_bound'])})"
+                 for r in rows if r.get("above_bound")]
+        out += [f"Bounds where like for like: current / earlier and described / earlier {b['bound']:.2f} (within "
+                f"{100 * (b['bound'] - 1):.0f} % of commit `{b.get('baseline')}`)"
+                + (f", current / folded {b['bound_folded']:.2f}" if "bound_folded" in b else "") + ". "
+                + (f"Above them in this run: {'; '.join(above)}." if above else "This run keeps them."), ""]
     ratio = lambda r, key: f"{r[key]:.2f}" if key in r else "–"  # noqa: E731
     table = [[r["robot"], r["what"], f"`{r['name']}`" if r["what"] == "call" else r["name"], _f(r.get("earlier")),
               _f(r.get("folded")), _f(r.get("current")), _f(r.get("described")), ratio(r, "ratio"),

@@ -3,6 +3,7 @@ robot needs, and the comparisons of bench_release and the partial profiles of be
 right. The benchmarks themselves (minutes each) run with ``hydrogen bench``."""
 import importlib
 import json
+import shutil
 import sys
 from pathlib import Path
 
@@ -11,7 +12,7 @@ import pytest
 
 import hydrogen
 from hydrogen.bench import SUITE
-from hydrogen.simulation.scenarios import scenario, scenario_names
+from hydrogen.simulation.scenarios import actuator_settings, scenario, scenario_names
 
 BENCH = Path(__file__).resolve().parents[1] / "benchmarks"
 sys.path.insert(0, str(BENCH))
@@ -376,6 +377,105 @@ def test_the_period_benchmark_measures_every_robot_in_every_route(monkeypatch):
     assert not bench_period.run(quick=True)["within_bound"]
 
 
+def test_the_period_benchmark_compares_with_the_baseline_and_bound_it_is_given(monkeypatch):
+    """run(baseline=, bound=) extracts and labels that commit and holds the ratios against it to that
+    bound; current / folded keeps its own bound."""
+    import bench_period
+
+    extracted = []
+
+    def measure(version, robots, build_kw, described=None):
+        # the earlier commit 10 % faster than every current route; folded as fast as current
+        ns = 100.0 if version.label.startswith("commit ") else 110.0
+        per = {"loops": {"s": ns / 50}, "variants": {"s": "full"}, "setups": {"s": "x"}, "robot": "d",
+               "calls": {"f": {"ns": ns, "inputs": ["q"]}}}
+        return {name: per for name in robots}
+
+    monkeypatch.setattr(bench_period, "_extract_previous", lambda dest, commit: extracted.append(commit))
+    monkeypatch.setattr(bench_period, "earlier_descriptions", lambda data, dest: {})
+    monkeypatch.setattr(bench_period, "_measure", measure)
+    loose = bench_period.run(quick=True, baseline="abc1234", bound=1.2)
+    assert set(extracted) == {"abc1234"} and loose["baseline"] == "abc1234" and loose["bound"] == 1.2
+    assert all(r["ratio_earlier"] == pytest.approx(1.1) for r in loose["rows"]) and loose["within_bound"]
+    assert not bench_period.run(quick=True, baseline="abc1234", bound=1.05)["within_bound"]
+    assert len(bench_period.run(quick=True, rounds=3)["rows"]) == 2 * len(common.robots())
+    default = bench_period.run(quick=True)
+    assert default["rounds"] == bench_period.QUICK_ROUNDS and extracted[-1] == bench_period.BASELINE
+    assert default["baseline"] == bench_period.BASELINE and default["bound"] == bench_period.BOUND
+    # current / folded at 1.08: within the folded bound (1.10), whatever the bound against the earlier commit
+    row = {"ratio": 1.08, "ratio_earlier": 1.0, "like_for_like": True}
+    assert bench_period.within_bound(row, 1.05) and not bench_period.within_bound(row, 1.05, folded_bound=1.05)
+
+
+def test_the_period_benchmark_script_takes_a_baseline_and_a_bound(monkeypatch, capsys):
+    """--baseline and --bound reach run(); a bound below 1 or a commit not in the repository stops the
+    script before any benchmark, exit 2 and one message."""
+    import bench_period
+
+    seen = []
+
+    def run(quick=False, baseline=bench_period.BASELINE, bound=bench_period.BOUND, rounds=None):
+        seen.append((quick, baseline, bound, rounds))
+        return {}
+
+    monkeypatch.setattr(run, "__module__", "bench_period")
+    args = (bench_period.__doc__, run, lambda r: None)
+    assert common.script_main(*args, argv=["--quick", "--bound", "1.2"], options=bench_period.OPTIONS) == 0
+    assert common.script_main(*args, argv=["--rounds", "9"], options=bench_period.OPTIONS) == 0
+    assert seen == [(True, bench_period.BASELINE, 1.2, None), (False, bench_period.BASELINE, bench_period.BOUND, 9)]
+    for bad, what in ((["--bound", "0.95"], "not a ratio of at least 1"), (["--bound", "nan"], "not a ratio"),
+                      (["--baseline", "not-a-commit"], "not a commit"), (["--rounds", "0"], "not a number of rounds")):
+        with pytest.raises(SystemExit) as exc:
+            common.script_main(*args, argv=bad, options=bench_period.OPTIONS)
+        assert exc.value.code == 2 and what in capsys.readouterr().err
+    assert len(seen) == 2
+
+
+def test_a_benchmark_script_writes_its_own_section_of_the_suites_results(tmp_path):
+    """--json docs/bench.json from one module's script replaces that module's section only and renders
+    the page beside it again; any other file is the module's results, whole; a page bench did not
+    write stops it before anything is written."""
+    from hydrogen.errors import OutputPathError
+
+    docs = Path(__file__).resolve().parents[1] / "docs"
+    suite = json.loads((docs / "bench.json").read_text(encoding="utf-8"))
+    path = tmp_path / "bench.json"
+    path.write_text(json.dumps(suite), encoding="utf-8")
+    new = {**suite["bench_period"], "baseline": "abc1234", "bound": 1.05}
+    common.write_results(path, "bench_period", new)
+    written = json.loads(path.read_text(encoding="utf-8"))
+    assert written == {**suite, "bench_period": new} and list(written) == list(suite)
+    page = (tmp_path / "benchmarks.md").read_text(encoding="utf-8")
+    assert "commit `abc1234`" in page and "## Side by side with the previous release" in page
+    own = tmp_path / "period.json"
+    own.write_text(json.dumps({"baseline": "old"}), encoding="utf-8")
+    common.write_results(own, "bench_period", new)
+    assert json.loads(own.read_text(encoding="utf-8")) == new and not (tmp_path / "period.md").exists()
+    (tmp_path / "benchmarks.md").write_text("my notes\n", encoding="utf-8")
+    with pytest.raises(OutputPathError, match="benchmarks.md"):
+        common.write_results(path, "bench_period", {"baseline": "other"})
+    assert json.loads(path.read_text(encoding="utf-8"))["bench_period"] == new
+
+
+def test_the_period_section_states_its_baseline_and_bound():
+    """The page states the bounds the run was held to and names each figure above one."""
+    import bench_period
+    from hydrogen.pages import benchmarks_page
+
+    row = {"robot": "r", "what": "call", "name": "f", "earlier": 100.0, "current": 103.0, "ratio_earlier": 1.03,
+           "like_for_like": True, "above_bound": []}
+    res = {"baseline": "abc1234", "controller": "p", "rounds": 5, "rows": [row], "within_bound": True}
+    assert "Bounds where like for like" not in benchmarks_page({"bench_period": res})  # figures only
+    page = benchmarks_page({"bench_period": {**res, "bound": 1.05, "bound_folded": 1.1}})
+    assert ("Bounds where like for like: current / earlier and described / earlier 1.05 (within 5 % of commit "
+            "`abc1234`), current / folded 1.10. This run keeps them.") in page
+    slow = {**row, "name": "g", "ratio_earlier": 1.08, "ratio_described": 1.02, "described_like_for_like": True}
+    slow["above_bound"] = bench_period.above_bound(slow, 1.05, 1.1)
+    assert slow["above_bound"] == ["ratio_earlier"]
+    page = benchmarks_page({"bench_period": {**res, "rows": [row, slow], "bound": 1.05, "bound_folded": 1.1}})
+    assert "Above them in this run: r g (current / earlier 1.08)." in page
+
+
 def test_the_period_benchmark_bounds_the_earlier_version_only_like_for_like(capsys):
     """current / earlier counts against the bound only with the same description and controller variant;
     the table says why a row is not like for like."""
@@ -458,7 +558,35 @@ def test_the_period_benchmarks_earlier_descriptions_load_with_the_current_code(t
     files = bench_period.earlier_descriptions(tmp_path / "earlier" / "hydrogen" / "data", tmp_path / "described")
     assert files
     for name, path in files.items():
-        assert hydrogen.load_model(path).name == name
+        model = hydrogen.load_model(path)
+        assert model.name == name
+        for s in scenario_names(model):  # every scenario's rig settings, per actuator in its own unit
+            settings = actuator_settings(scenario(s, model), model)
+            sc = scenario(s, model)
+            # as the earlier version applied them: the scenario's own to every actuator
+            np.testing.assert_array_equal(settings["friction"], np.tile(sc.friction, (len(model.cylinders), 1)))
+            np.testing.assert_array_equal(settings["quantization_l"], sc.quantization_l)
+
+
+def test_the_period_benchmark_gives_joint_actuators_the_rigs_own_settings(tmp_path):
+    """A description written before the rig's travel settings were per actuator: its rotary actuator
+    gets the rig's numbers as its own, the cylinders keep the rig's; one given already is left alone."""
+    import tomllib
+
+    import bench_period
+
+    data = tmp_path / "data"
+    shutil.copytree(hydrogen.model.model_path("loader_crane").parent, data)
+    toml = data / "loader_crane.toml"
+    text = toml.read_text(encoding="utf-8")
+    head = text.index("\n[rig.actuators.slew_motor]\n")
+    toml.write_text(text[:head] + text[text.index("\n\n", head):], encoding="utf-8")
+    rig = tomllib.loads(toml.read_text(encoding="utf-8"))["rig"]
+    assert "actuators" not in rig
+    out = tomllib.loads(bench_period.earlier_descriptions(data, tmp_path / "out")["loader_crane"].read_text())
+    assert out["rig"]["actuators"] == {"slew_motor": {k: rig[k] for k in ("friction", "quantization_l", "noise_l")}}
+    shipped = hydrogen.model.model_path("loader_crane")
+    assert bench_period.own_rig_settings(shipped) == ""
 
 
 def test_the_urdf_leg_is_timed_by_both_routes_and_edited_like_the_robots(tmp_path, monkeypatch):
