@@ -433,6 +433,41 @@ def test_rig_seeds_script_writes_the_distributions(monkeypatch, tmp_path, capsys
     assert (tmp_path / "rig.md").read_text() == rig_seeds.markdown(data)
 
 
+def test_margins_checking_script_checks_the_nonlinear_controllers_on_unseen_seeds(monkeypatch, tmp_path, capsys):
+    import importlib.util
+    import sys
+    from pathlib import Path
+    bench = Path(__file__).resolve().parents[1] / "benchmarks"
+    monkeypatch.syspath_prepend(str(bench))
+    spec = importlib.util.spec_from_file_location("margins_checking", bench / "margins_checking.py")
+    mc = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mc)
+    rig_seeds = sys.modules["rig_seeds"]
+    calls = []
+
+    def fake_margins(controllers=None, model=None, seeds=None, max_workers=None, variant=None):
+        calls.append((model, tuple(controllers), seeds, variant))
+        suffix = "" if variant is None else f".{variant}"
+        return {"model": model, "seeds": seed_list(seeds), "rows": [
+            {"controller": c, "scenario": "s1" + suffix, "main_gain": "Lambda", "gain": 10.0,
+             "margin": 1.35 if c == "adaptive-robust" else 2.5, "margin_capped": False,
+             "limit_reason": "burst: ... (seed 118; unstable on 1 of 20 seeds)", "errors": {}, "median_seed": 100,
+             "unstable_seeds": [118], "estimates": None} for c in controllers]}
+
+    monkeypatch.setattr(rig_seeds, "margins", fake_margins)
+    out = tmp_path / "m.json"
+    assert mc.main(["--models", "ubc_stewart", "--json", str(out)]) == 0
+    assert calls == [("ubc_stewart", ("backstepping", "adaptive-robust", "adaptive-observer"), mc.CHECKING_SEEDS,
+                      None)]  # the P controllers have no margin claimed
+    assert mc.CHECKING_SEEDS == list(range(100, 120))
+    assert "| ubc_stewart | adaptive-robust | s1 | 1.35 | **no** | burst: ... (seed 118; unstable on 1 of 20 " \
+           "seeds) | 118 |" in capsys.readouterr().out
+    assert mc.main(["--models", "ubc_stewart", "--variants", "predictor", "--update", "--json", str(out)]) == 0
+    rows = json.loads(out.read_text())["models"]["ubc_stewart"]["rows"]
+    assert sorted(r["scenario"] for r in rows) == ["s1"] * 3 + ["s1.predictor"] * 3  # the plain rows kept once
+    assert [p.name for p in tmp_path.iterdir()] == ["m.json"]
+
+
 DIVERGING = dict(duration=0.5, gains={"Ktau": 5e4, "u_max": 1.0}, control_rate=200.0, substeps=2)
 
 
