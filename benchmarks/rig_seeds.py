@@ -29,14 +29,18 @@ REPO = Path(__file__).resolve().parents[1]
 MARGIN_REQUIRED = 2.0
 
 
-def collect(seeds, workers=None, models=None) -> dict:
-    """{"seeds", "margin_required", "models": {model: {"rows": [...], "wall_s"}}} (see the module doc)."""
+def collect(seeds, workers=None, models=None, controllers=None, variants=None) -> dict:
+    """{"seeds", "margin_required", "models": {model: {"rows": [...], "wall_s"}}} (see the module doc);
+    ``controllers``: a function of the Model giving the controllers to run (default: all it lists);
+    ``variants``: the variants run besides the plain scenarios (default: every one of the model's)."""
     out = {"seeds": seed_list(seeds), "margin_required": MARGIN_REQUIRED, "models": {}}
     for name in models or hydrogen.models():
         start = time.perf_counter()
         rows = []
-        for variant in (None, *variant_names(hydrogen.load_model(name))):
-            res = margins(model=name, seeds=seeds, max_workers=workers, variant=variant)
+        model = hydrogen.load_model(name)
+        for variant in (None, *(variant_names(model) if variants is None else variants)):
+            pick = {} if controllers is None else {"controllers": controllers(model)}
+            res = margins(model=name, seeds=seeds, max_workers=workers, variant=variant, **pick)
             rows += [{"scenario": r["scenario"], "controller": r["controller"], "main_gain": r["main_gain"],
                       "gain": r["gain"], "max_error_pct": r["errors"], "median_seed": r["median_seed"],
                       "margin": r["margin"], "margin_capped": r["margin_capped"],

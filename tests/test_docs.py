@@ -247,6 +247,26 @@ def test_the_rig_seeds_page_is_its_data_rendered():
     assert (ROOT / "docs" / "rig_seeds.md").read_text(encoding="utf-8") == rig_seeds.markdown(data)
 
 
+def test_the_paper_shows_the_margins_checked_on_unseen_seeds_as_committed():
+    """docs/paper.md holds the table of docs/margins_checking.json as its script renders it, a row for
+    every nonlinear controller of every robot and rig scenario, over seeds none of the searches saw."""
+    import sys
+
+    sys.path.insert(0, str(ROOT / "benchmarks"))
+    import margins_checking
+
+    from hydrogen.simulation.tuning import rig_scenarios
+
+    data = json.loads((ROOT / "docs" / "margins_checking.json").read_text(encoding="utf-8"))
+    assert not set(data["seeds"]) & set(range(10)) and set(data["models"]) == set(hydrogen.models())
+    for m, v in data["models"].items():
+        model = hydrogen.load_model(m)
+        want = {(c, s) for c in margins_checking.nonlinear(model)
+                for s in rig_scenarios(model)}
+        assert want <= {(r["controller"], r["scenario"]) for r in v["rows"]}, m
+    assert margins_checking.markdown(data) in (ROOT / "docs" / "paper.md").read_text(encoding="utf-8")
+
+
 def test_every_nonlinear_controller_keeps_its_margin_in_the_committed_distributions():
     """What the README says of the committed 10-seed data: every model-based controller keeps a gain
     margin of 2 on every rig scenario and variant of every robot, judged over all seeds."""

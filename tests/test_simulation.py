@@ -667,6 +667,26 @@ def test_high_frequency_error_is_the_rms_of_the_high_passed_error(dyn, duration,
     np.testing.assert_allclose(res.high_frequency_error(), want, rtol=1e-12, atol=1e-300)
 
 
+def test_high_frequency_burst_is_the_worst_short_window_of_the_high_passed_error(dyn):
+    """A 0.4 s burst of 30 Hz ripple: the worst window of 2 cut-off periods (0.4 s at 1 Hz) holds it
+    whole, at its own RMS, where the 4 s average dilutes it ten times; a slow drift of the error
+    (a step where the transform's window wraps) does not ring into the worst window."""
+    res = simulate(dyn, "z-1hz", "p", duration=6.0, check_workspace=False)
+    t, z, a = res.t, res.coordinates.index("z"), 1e-4
+    burst = (t >= 3.3) & (t < 3.7)
+    e = np.zeros_like(res.q)
+    e[:, 0] = 1e-3 * (t - 2.0)  # x drifts: 4 mm from start to end of the window, no ripple
+    e[burst, z] = a * np.sin(2 * np.pi * 30 * t[burst])
+    res.q = res.q_d + e
+    rms, at = res.high_frequency_burst()
+    assert res.BURST_PERIODS / (res.HF_FACTOR * 1.0) == pytest.approx(0.4)
+    assert rms[z] == pytest.approx(a / np.sqrt(2), rel=0.05) and at[z] == pytest.approx(3.3, abs=0.02)
+    assert res.high_frequency_error()[z] == pytest.approx(a / np.sqrt(2) * np.sqrt(0.4 / 4.0), rel=0.05)
+    assert rms[0] < 0.01 * a  # the drift's wrap: no ringing at the ends
+    m = res.compute_metrics()
+    assert m["hf_error_burst"]["z"] == rms[z] and m["hf_error_burst_t"]["z"] == at[z]
+
+
 def test_a_batch_grid_gives_arrays_over_gain_sets_and_seeds(dyn):
     from hydrogen.simulation.simulator import Batch
     batch = Batch(dyn, "z-1hz", "p", duration=0.5)
