@@ -111,25 +111,28 @@ class Block:
     inputs: tuple = ()
     outputs: tuple = ()
     continuous: bool = False
+    #: the C loop's stage function that runs it (``<model>_<stage>``, templates/loop.c.j2; one stage
+    #: may run several blocks in a row)
+    c_stage: str = ""
 
 
 #: The loop's blocks in the order a control period runs them (measure, estimate, reference, control,
-#: hold, plant). The controller's inputs are those its generated function declares (wired by
+#: hold, plant): the Python engine interprets this order, the C loop's stages run it (tested). The controller's inputs are those its generated function declares (wired by
 #: :func:`wire`); a delay predictor, when a scenario asks for one, writes the same ports as the
 #: estimator and the reference at the time the command reaches the valves.
 LOOP_BLOCKS = (
     Block("sensors", "actuator travel (noise, resolution), pressures (noise), the supply pressure where it is a "
-          "state, joint encoders where fitted", inputs=(_x,), outputs=(_l, _pc, _ps)),
+          "state, joint encoders where fitted", inputs=(_x,), outputs=(_l, _pc, _ps), c_stage="measure"),
     Block("estimator", "Kalman filter on the travel, pose by forward kinematics (or encoders), velocities",
-          inputs=(_l,), outputs=(_q, _qdot)),
-    Block("reference", "the scenario's reference and its derivatives", outputs=REFERENCE_PORTS),
-    Block("schedule", "adaptation on from t_adapt", outputs=(_adapt,)),
+          inputs=(_l,), outputs=(_q, _qdot), c_stage="estimate"),
+    Block("reference", "the scenario's reference and its derivatives", outputs=REFERENCE_PORTS, c_stage="reference"),
+    Block("schedule", "adaptation on from t_adapt", outputs=(_adapt,), c_stage="control"),
     Block("controller", "the chosen controller's generated step (its inputs wired by name)",
-          inputs=CONTROLLER_PORTS, outputs=(_u, _xc)),
+          inputs=CONTROLLER_PORTS, outputs=(_u, _xc), c_stage="control"),
     Block("hold", "computation delay and zero-order hold of the spool commands", inputs=(_u,),
-          outputs=(_u_applied, _u_valve)),
+          outputs=(_u_applied, _u_valve), c_stage="control"),
     Block("plant", "the fused plant function, RK4 sub-steps over the period", inputs=(_u_valve,), outputs=(_x,),
-          continuous=True),
+          continuous=True, c_stage="plant_step"),
 )
 
 

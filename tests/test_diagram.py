@@ -80,3 +80,16 @@ def test_the_loop_driver_writes_every_port_once_and_every_shipped_controller_is_
             constants = {name for name, _ in inputs if name not in diagram.SLOTS}
             slots = diagram.wire(f["name"], inputs, constants, sizes)
             assert slots[diagram.SLOTS.index("qd0")] >= 0, f["name"]  # every controller tracks the reference
+
+
+def test_the_python_engine_has_a_step_per_block_and_the_c_loop_runs_the_blocks_in_the_diagrams_order():
+    import re
+
+    from hydrogen.simulation.simulator import PythonStages
+    for block in diagram.LOOP_BLOCKS:
+        assert callable(getattr(PythonStages, block.name, None)), f"no Python step for block {block.name}"
+    source = (ROOT / "generated" / "ubc_stewart" / "ubc_stewart_loop.c").read_text()
+    body = source[source.index("int ubc_stewart_loop_run("):]
+    calls = [m for m in re.findall(r"ubc_stewart_(measure|estimate|reference|control|plant_step)\(", body)]
+    stages = list(dict.fromkeys(b.c_stage for b in diagram.LOOP_BLOCKS))  # consecutive blocks share a stage
+    assert calls == stages, (calls, stages)

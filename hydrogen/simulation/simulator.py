@@ -798,13 +798,15 @@ _PRED_FRICTION, _PRED_VALVE = (np.array(PREDICTOR_MODEL[k], dtype=float) for k i
 
 class _Signals:
     """One period's signals as the stages hand them on (the C loop's ``<model>_loop_signals``)."""
-    __slots__ = ("t", "l_true", "l_meas", "pc_meas", "ps_meas", "q_enc", "ldot", "qdot_meas", "ref", "u", "u_held", "u_app")
+    __slots__ = ("nz", "t", "l_true", "l_meas", "pc_meas", "ps_meas", "q_enc", "ldot", "qdot_meas", "ref", "adapt", "u",
+                 "u_held", "u_app")
 
 
 class PythonStages:
-    """The reference closed loop's stages in Python, one method per stage of the C loop
-    (``templates/loop.c.j2``) and in its order: :meth:`measure`, :meth:`estimate`, :meth:`reference`,
-    :meth:`control`, :meth:`plant_step`, :meth:`control_advance`; the same numbers as the C stages to
+    """The reference closed loop in Python: an interpreter of the loop's diagram
+    (:data:`hydrogen.diagram.LOOP_BLOCKS`), one method per block, named as the block, run in the
+    diagram's order by :meth:`run_period` (the discrete blocks, the period's log, the continuous plant,
+    then :meth:`after_period`); the same numbers as the C loop's stages (``templates/loop.c.j2``) to
     rounding. ``x`` is the plant state, ``q_meas`` the last measured pose."""
 
     def __init__(self, dyn, sc, ctrl, x, q0, kf_gain, h):
@@ -832,11 +834,30 @@ class PythonStages:
         self.delay, self.delay_frac = sc.delay_split()
         self.u_app = np.zeros(self.m)  # the command the valves held at the end of the last period
         self.predict = sc.predicts()
+        #: each block's numeric step, by the diagram's block name (a block without one is a bug here)
+        self.stages = {b.name: getattr(self, b.name) for b in diagram.LOOP_BLOCKS}
 
-    def measure(self, nz) -> _Signals:
-        """The sensors' readings of the plant state with the noise row ``nz``."""
-        s, sc, m, n_p, x = _Signals(), self.sc, self.m, self.n_p, self.x
-        s.t = self.k * self.h
+    def run_period(self, nz, log=None) -> _Signals:
+        """One control period from the noise row ``nz``: every block of the diagram in order; ``log``
+        (a callable of the period's signals) runs after the discrete blocks, before the plant moves.
+        Raises :class:`KinematicsError` when the estimator's forward kinematics fails."""
+        s = self.signals(nz)
+        for block in diagram.LOOP_BLOCKS:
+            if block.continuous and log is not None:
+                log(s)
+            self.stages[block.name](s)
+        self.after_period()
+        return s
+
+    def signals(self, nz) -> _Signals:
+        """A new period's signals at t = k h, with the sensors' noise row ``nz``."""
+        s = _Signals()
+        s.nz, s.t = nz, self.k * self.h
+        return s
+
+    def sensors(self, s: _Signals) -> None:
+        """The sensors' readings of the plant state with the period's noise row."""
+        sc, m, n_p, x, nz = self.sc, self.m, self.n_p, self.x, s.nz
         q, qdot, pc = x[self._q], x[self._qdot], x[self._pc]
         s.l_true = self.dyn.leg_lengths(q)
         s.l_meas = s.l_true + nz[:m]
@@ -848,9 +869,8 @@ class PythonStages:
         if self._ps is not None:  # the supply pressure, last in the noise row, held at its lower bound 0
             ps = x[self._ps]
             s.ps_meas = np.maximum(ps + nz[-ps.size:], 0.0)
-        return s
 
-    def estimate(self, s: _Signals) -> None:
+    def estimator(self, s: _Signals) -> None:
         """Kalman filter, pose (encoders or forward kinematics, warm-started), velocities through JL.
         Raises :class:`KinematicsError` when forward kinematics fails."""
         if self.kf is not None:
@@ -867,21 +887,31 @@ class PythonStages:
         """The scenario's reference and its derivatives at the period's start."""
         s.ref = self.sc.reference(s.t)
 
-    def control(self, s: _Signals) -> None:
-        """The controller state's semi-implicit update, the command, the command applied (delay)."""
+    def schedule(self, s: _Signals) -> None:
+        """Adaptation on from the scenario's ``t_adapt``."""
+        s.adapt = s.t >= self.sc.t_adapt
+
+    def controller(self, s: _Signals) -> None:
+        """The controller's inputs by port name (measured, or predicted at the time the command reaches the
+        valves), its state's semi-implicit update, the command."""
         sc, ctrl, delay = self.sc, self.ctrl, self.delay
         if self.predict:  # the plant as it will be when this command reaches the valves
             x = self.predicted(s)
             q = x[self._q]
             ports = diagram.signals(q, x[self._qdot], x[self._pc], np.asarray(self.dyn.leg_lengths(q), float),
-                                    sc.reference(s.t + (delay + self.delay_frac) * self.h), s.t >= sc.t_adapt,
+                                    sc.reference(s.t + (delay + self.delay_frac) * self.h), s.adapt,
                                     ps=None if self._ps is None else x[self._ps])
         else:
-            ports = diagram.signals(self.q_meas, s.qdot_meas, s.pc_meas, s.l_meas, s.ref, s.t >= sc.t_adapt,
+            ports = diagram.signals(self.q_meas, s.qdot_meas, s.pc_meas, s.l_meas, s.ref, s.adapt,
                                     ps=None if self._ps is None else s.ps_meas)
         if self.k and sc.estimator_update != "euler":  # semi-implicit: state from this measurement, then command
             ctrl.update_for(self.h, ports)
         s.u = ctrl.command_for(ports)
+
+    def hold(self, s: _Signals) -> None:
+        """The computation delay and zero-order hold: the command the valves hold over the period's first
+        ``delay_frac`` h (the last one's) and over the rest (that of ``delay`` periods ago)."""
+        ctrl, delay = self.ctrl, self.delay
         if delay > 0:
             s.u_app = self.u_hist[(self.k - delay) % self._max_delay].copy()
             self.u_hist[self.k % self._max_delay] = s.u
@@ -915,9 +945,10 @@ class PythonStages:
             x = hold(x, self.u_hist[(self.k - self.delay - 1 + j) % self._max_delay], h)
         return x
 
-    def plant_step(self, u_held, u_app) -> None:
-        """RK4 sub-steps over one period holding ``u_held`` over its first ``delay_frac`` h and ``u_app``
+    def plant(self, s: _Signals) -> None:
+        """RK4 sub-steps over one period holding ``s.u_held`` over its first ``delay_frac`` h and ``s.u_app``
         over the rest (the sub-steps shared out as the C loop does), each pressure clipped to its bounds."""
+        u_held, u_app = s.u_held, s.u_app
         pc, lo, hi = self._pc, self._lo, self._hi
         th, g = self.model.theta, self.model.gamma
 
@@ -935,7 +966,7 @@ class PythonStages:
         else:
             self.x = hold(self.x, u_app, n, h / n)
 
-    def control_advance(self) -> None:
+    def after_period(self) -> None:
         """The controller state's forward-Euler update after the period (``estimator_update="euler"``)."""
         if self.sc.estimator_update == "euler":
             self.ctrl.advance(self.h)
@@ -943,20 +974,13 @@ class PythonStages:
 
 def run_python_loop(dyn, sc, ctrl, x, q0, noise, kf_gain, log, n, h):
     """The reference closed loop in Python: ``n`` control periods of ``h`` s from plant state ``x`` with
-    the sensor ``noise`` table, writing each period into ``log`` (:func:`new_logs`); the stages of
-    :class:`PythonStages` in the C loop's order, the same numbers as the C loop to rounding."""
+    the sensor ``noise`` table, writing each period into ``log`` (:func:`new_logs`); the diagram's blocks
+    interpreted by :class:`PythonStages`, the same numbers as the C loop to rounding."""
     model = dyn.model
     loop = PythonStages(dyn, sc, ctrl, x, q0, kf_gain, h)
-    for k in range(n):
-        loop.k = k
-        x = loop.x
-        s = loop.measure(noise[k])
-        try:
-            loop.estimate(s)
-        except KinematicsError as exc:
-            return k, f"stopped at t = {s.t:.4f} s: {exc}"
-        loop.reference(s)
-        loop.control(s)
+
+    def write(s):
+        x, k = loop.x, loop.k
         pc = x[loop._pc]
         log["q"][k], log["q_d"][k], log["l"][k], log["pc"][k], log["u"][k] = x[loop._q], s.ref[0], s.l_true, pc, s.u
         log["u_applied"][k], log["l_meas"][k] = s.u_app, s.l_meas
@@ -965,8 +989,13 @@ def run_python_loop(dyn, sc, ctrl, x, q0, noise, kf_gain, log, n, h):
             log[SUPPLY_LOG][k] = x[slot(loop.layout, SUPPLY_LOG).slice]
         if ctrl.xc.size:
             log["xc"][k] = ctrl.xc
-        loop.plant_step(s.u_held, s.u_app)
-        loop.control_advance()
+
+    for k in range(n):
+        loop.k = k
+        try:
+            s = loop.run_period(noise[k], write)
+        except KinematicsError as exc:
+            return k, f"stopped at t = {k * h:.4f} s: {exc}"
         if not np.all(np.isfinite(loop.x)) or not np.all(np.isfinite(ctrl.xc)):
             return k + 1, _describe(loop.x, s.t + h, ctrl, ctrl.xc, s.u)
     return n, None
