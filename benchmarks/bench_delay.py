@@ -79,16 +79,10 @@ def run(quick: bool = False) -> dict:
                                     "period_s": 1.0 / named_scenario(name, model).control_rate})
         ctrl = row["controllers"].setdefault(c, {})
         entry = ctrl.setdefault(label, {"gains": _gains_used(dyn, c, sname, model), "delays": []})
-        point = {"periods": f, "delay_s": f / named_scenario(sname, model).control_rate,
-                 "failed": len(m.get("failed", [])), "completed": m.get("completed", 0)}
-        for stat in ("median", "min", "max"):
-            errs = (m.get(stat) or {}).get("max_error_pct") or {}
-            point[stat] = {k: errs.get(k) for k in moving}
-        entry["delays"].append(point)
-    out = {"model": model.name, "variant": VARIANT, "seeds": list(seeds), "fractions": list(fractions),
-           "quick": quick, "duration_s": QUICK_DURATION if quick else None, "scenarios": res,
-           "figure": None if quick else FIGURE.relative_to(common.REPO).as_posix(), "cores": os.cpu_count(),
-           "wall_s": time.perf_counter() - start}
+        entry["delays"].append(common.spread_point(m, moving, periods=f,
+                                                   delay_s=f / named_scenario(sname, model).control_rate))
+    out = common.study_result(model, seeds, quick, QUICK_DURATION, res, FIGURE, start, variant=VARIANT,
+                              fractions=list(fractions))
     if not quick:
         figure(out)
     return out
@@ -97,13 +91,9 @@ def run(quick: bool = False) -> dict:
 def figure(res, path=FIGURE):
     """Max error against delay, one panel per scenario, one line (median) and band (min-max) per
     controller and gain set; written atomically as PNG."""
-    import io
-
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
-
-    from hydrogen.fileio import atomic_write
 
     rows = list(res["scenarios"].values())
     fig, axes = plt.subplots(1, len(rows), figsize=(5 * len(rows), 4.8), squeeze=False)
@@ -112,27 +102,12 @@ def figure(res, path=FIGURE):
         coord = row["coordinates"][0]
         for c, sets in row["controllers"].items():
             for label, e in sets.items():
-                x = [p["periods"] for p in e["delays"]]
-                med, lo, hi = ([p[s][coord] if p[s][coord] is not None else np.nan for p in e["delays"]]
-                               for s in ("median", "min", "max"))
-                ax.plot(x, med, "o-" if label == "rig" else "s--", ms=3, color=colour[c],
-                        label=c if label == "rig" else f"{c} ({label} gains)")
-                ax.fill_between(x, lo, hi, color=colour[c], alpha=0.15, lw=0)
-        ax.set_yscale("log")
-        ax.set_xlabel(f"computation delay (control periods, 1 = {row['period_s'] * 1e3:.3g} ms)")
-        ax.set_ylabel(f"max error in {coord} (% of amplitude)")
-        ax.set_title(row["scenario"])
-        ax.grid(True, which="both", alpha=0.3)
-    handles, labels = axes[0][0].get_legend_handles_labels()
-    fig.legend(handles, labels, loc="lower center", ncol=4, fontsize=8)
-    fig.suptitle(f"{res['model']}: tracking error against computation delay, seeds "
-                 f"{', '.join(map(str, res['seeds']))} (median, min-max band)")
-    fig.tight_layout(rect=(0, 0.12, 1, 1))
-    buf = io.BytesIO()
-    fig.savefig(buf, format="png", dpi=100)
-    plt.close(fig)
-    atomic_write(Path(path), buf.getvalue())
-    return path
+                common.spread_line(ax, [p["periods"] for p in e["delays"]], e["delays"], coord, colour[c],
+                                   c if label == "rig" else f"{c} ({label} gains)", "o-" if label == "rig" else "s--")
+        common.error_axes(ax, coord, row["scenario"],
+                          f"computation delay (control periods, 1 = {row['period_s'] * 1e3:.3g} ms)")
+    return common.save_figure(fig, axes, path, f"{res['model']}: tracking error against computation delay, seeds "
+                              f"{', '.join(map(str, res['seeds']))} (median, min-max band)", 4, 0.12)
 
 
 def print_table(res):

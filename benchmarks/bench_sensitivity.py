@@ -80,15 +80,9 @@ def run(quick: bool = False) -> dict:
         row = res.setdefault(name, {"scenario": name, "coordinates": list(moving), "controllers": {},
                                     "rig": {"friction": list(sc.friction), "valve": sc.valve_bandwidth_hz}})
         ctrl = row["controllers"].setdefault(c, {"gains": _gains_used(dyn, c, name, model)})
-        point = {"value": v, "failed": len(m.get("failed", [])), "completed": m.get("completed", 0)}
-        for stat in ("median", "min", "max"):
-            errs = (m.get(stat) or {}).get("max_error_pct") or {}
-            point[stat] = {k: errs.get(k) for k in moving}
-        ctrl.setdefault(element, []).append(point)
-    out = {"model": model.name, "seeds": list(seeds), "values": {k: list(v) for k, v in values.items()},
-           "quick": quick, "duration_s": QUICK_DURATION if quick else None, "scenarios": res,
-           "figure": None if quick else FIGURE.relative_to(common.REPO).as_posix(), "cores": os.cpu_count(),
-           "wall_s": time.perf_counter() - start}
+        ctrl.setdefault(element, []).append(common.spread_point(m, moving, value=v))
+    out = common.study_result(model, seeds, quick, QUICK_DURATION, res, FIGURE, start,
+                              values={k: list(v) for k, v in values.items()})
     if not quick:
         figure(out)
     return out
@@ -97,13 +91,9 @@ def run(quick: bool = False) -> dict:
 def figure(res, path=FIGURE):
     """Max error against each element, a row of panels per element and a column per scenario, one line
     (median) and band (min-max) per controller; written atomically as PNG."""
-    import io
-
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
-
-    from hydrogen.fileio import atomic_write
 
     rows = list(res["scenarios"].values())
     fig, axes = plt.subplots(len(ELEMENTS), len(rows), figsize=(5 * len(rows), 4.2 * len(ELEMENTS)), squeeze=False)
@@ -112,29 +102,14 @@ def figure(res, path=FIGURE):
         for ax, row in zip(axes[r], rows):
             coord = row["coordinates"][0]
             for c, e in row["controllers"].items():
-                x = [p["value"] for p in e[element]]
-                med, lo, hi = ([p[s][coord] if p[s][coord] is not None else np.nan for p in e[element]]
-                               for s in ("median", "min", "max"))
-                ax.plot(x, med, "o-", ms=3, color=colour[c], label=c)
-                ax.fill_between(x, lo, hi, color=colour[c], alpha=0.15, lw=0)
+                common.spread_line(ax, [p["value"] for p in e[element]], e[element], coord, colour[c], c)
             ax.axvline(1.0 if element == "friction" else row["rig"]["valve"], color="k", lw=0.6, ls=":")
-            ax.set_yscale("log")
             if element == "valve":
                 ax.set_xscale("log")
-            ax.set_xlabel(title)
-            ax.set_ylabel(f"max error in {coord} (% of amplitude)")
-            ax.set_title(row["scenario"])
-            ax.grid(True, which="both", alpha=0.3)
-    handles, labels = axes[0][0].get_legend_handles_labels()
-    fig.legend(handles, labels, loc="lower center", ncol=5, fontsize=8)
-    fig.suptitle(f"{res['model']}: tracking error against the rig's friction and valve bandwidth, seeds "
-                 f"{', '.join(map(str, res['seeds']))} (median, min-max band; dotted: the rig's)")
-    fig.tight_layout(rect=(0, 0.05, 1, 1))
-    buf = io.BytesIO()
-    fig.savefig(buf, format="png", dpi=100)
-    plt.close(fig)
-    atomic_write(Path(path), buf.getvalue())
-    return path
+            common.error_axes(ax, coord, row["scenario"], title)
+    return common.save_figure(fig, axes, path, f"{res['model']}: tracking error against the rig's friction and valve "
+                              f"bandwidth, seeds {', '.join(map(str, res['seeds']))} (median, min-max band; dotted: "
+                              "the rig's)", 5, 0.05)
 
 
 def cell(p, coord) -> str:

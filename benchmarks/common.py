@@ -13,6 +13,7 @@ import shutil
 import statistics
 import subprocess
 import sys
+import time
 from pathlib import Path
 
 import numpy as np
@@ -360,3 +361,60 @@ def copy_with_gravity(name: str, folder: Path, gravity) -> Path:
     (folder / toml.name).write_text(_GRAVITY.sub(lambda m: f"{m[1]}{float(gravity(float(m[2])))!r}", text, count=1))
     return folder / toml.name
 
+
+
+def spread_line(ax, x, points, coord, colour, label, style="o-"):
+    """One controller's median max error (line) and min-max band over seeds at the values ``x`` on
+    ``ax``: ``points`` each with "median", "min", "max" by coordinate (None: every seed failed)."""
+    med, lo, hi = ([p[s][coord] if p[s][coord] is not None else np.nan for p in points]
+                   for s in ("median", "min", "max"))
+    ax.plot(x, med, style, ms=3, color=colour, label=label)
+    ax.fill_between(x, lo, hi, color=colour, alpha=0.15, lw=0)
+
+
+def error_axes(ax, coord, title, xlabel):
+    """A max-error panel's log scale, labels and grid."""
+    ax.set_yscale("log")
+    ax.set_xlabel(xlabel)
+    ax.set_ylabel(f"max error in {coord} (% of amplitude)")
+    ax.set_title(title)
+    ax.grid(True, which="both", alpha=0.3)
+
+
+def save_figure(fig, axes, path, title, ncol, bottom):
+    """The figure's legend (from its first panel), ``title``, and the PNG written atomically at ``path``."""
+    import io
+
+    import matplotlib.pyplot as plt
+
+    from hydrogen.fileio import atomic_write
+
+    handles, labels = axes[0][0].get_legend_handles_labels()
+    fig.legend(handles, labels, loc="lower center", ncol=ncol, fontsize=8)
+    fig.suptitle(title)
+    fig.tight_layout(rect=(0, bottom, 1, 1))
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png", dpi=100)
+    plt.close(fig)
+    atomic_write(Path(path), buf.getvalue())
+    return path
+
+
+def spread_point(summary, coordinates, **fields) -> dict:
+    """One point of a study over seeds from a sweep entry's ``summary``: ``fields``, the failed and
+    completed counts, and the max error (% of amplitude) of each of ``coordinates`` as "median", "min"
+    and "max" over the seeds (None where no seed completed)."""
+    point = {**fields, "failed": len(summary.get("failed", [])), "completed": summary.get("completed", 0)}
+    for stat in ("median", "min", "max"):
+        errs = (summary.get(stat) or {}).get("max_error_pct") or {}
+        point[stat] = {k: errs.get(k) for k in coordinates}
+    return point
+
+
+def study_result(model, seeds, quick: bool, quick_duration: float, scenarios: dict, figure, start: float, **fields):
+    """A study over seeds as a benchmark returns it: the robot, ``fields``, the seeds, whether quick (and
+    its run duration), the rows by scenario, the figure's path (None when quick), cores and wall time."""
+    return {"model": model.name, **fields, "seeds": list(seeds), "quick": quick,
+            "duration_s": quick_duration if quick else None, "scenarios": scenarios,
+            "figure": None if quick else figure.relative_to(REPO).as_posix(), "cores": os.cpu_count(),
+            "wall_s": time.perf_counter() - start}

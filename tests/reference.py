@@ -82,3 +82,15 @@ def controller_rate_map(model, syms, X, idx):
             i = int(k)
             rate[idx[n]] = get(f"z_{i}") + get(f"Lambda2_{i}") * (get(f"q_{model.coordinate_names[i]}") - X[idx[n]])
     return rate
+
+
+def rk4(f, y, h, steps):
+    """``steps`` classical Runge-Kutta steps of ``h`` of y' = f(y) from ``y`` (an independent integrator for
+    the plant blocks' closed-form checks)."""
+    for _ in range(steps):
+        k1 = f(y)
+        k2 = f(y + h / 2 * k1)
+        k3 = f(y + h / 2 * k2)
+        k4 = f(y + h * k3)
+        y = y + h / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
+    return y

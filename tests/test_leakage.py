@@ -16,6 +16,7 @@ from hydrogen.actuators import actuator
 from hydrogen.errors import HydrogenError
 
 from test_model import FOUR_WAY_ARM, mixed_arm_text
+from reference import rk4
 
 KINDS = Path(__file__).parent / "data" / "actuators"
 TWO_CHAMBER = ("four_way_cylinder", "rotary", "motor")
@@ -26,16 +27,6 @@ def _example(kind, **extra):
     data = tomllib.loads((KINDS / f"{kind}.toml").read_text())
     mod = actuator(kind)
     return mod, mod.parameters({**data["parameters"], **extra}), data["range"]
-
-
-def _rk4(f, y, h, steps):
-    for _ in range(steps):
-        k1 = f(y)
-        k2 = f(y + h / 2 * k1)
-        k3 = f(y + h / 2 * k2)
-        k4 = f(y + h * k3)
-        y = y + h / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
-    return y
 
 
 # --- closed forms --------------------------------------------------------------------------------
@@ -58,7 +49,7 @@ def test_internal_leakage_equalises_a_blocked_actuators_chambers(kind):
         d0 = p0[0] - p0[1]
         np.testing.assert_allclose(rates(p0, smooth), [-beta * ci * d0 / va, beta * ci * d0 / vb], rtol=1e-12)
     t = 0.7 * tau
-    p = _rk4(rates, p0, t / 2000, 2000)
+    p = rk4(rates, p0, t / 2000, 2000)
     np.testing.assert_allclose(p[0] - p[1], (p0[0] - p0[1]) * math.exp(-t / tau), rtol=1e-9)
     np.testing.assert_allclose(va * p[0] + vb * p[1], va * p0[0] + vb * p0[1], rtol=1e-12)
 
@@ -76,7 +67,7 @@ def test_external_leakage_drains_each_chamber_to_tank(kind):
         return np.array(mod.Numeric.pressure_rates(x, 0.0, tuple(p), 0.0, beta, P["flow_gain"], P))
 
     t = 0.5 * va / (beta * ce)
-    p = _rk4(rates, p0, t / 2000, 2000)
+    p = rk4(rates, p0, t / 2000, 2000)
     np.testing.assert_allclose(p - pt, (p0 - pt) * np.exp(-t * beta * ce / np.array([va, vb])), rtol=1e-9)
 
 
@@ -101,7 +92,7 @@ def test_the_three_way_cylinders_leakage_is_56():
         return np.array(mod.Numeric.pressure_rates(l, 0.0, (p[0],), 0.0, beta, c, P0))
 
     t = 0.8 * Vt / (beta * cl)
-    p = _rk4(rates, p0, t / 2000, 2000)
+    p = rk4(rates, p0, t / 2000, 2000)
     np.testing.assert_allclose(ps - p[0], (ps - p0[0]) * math.exp(-t * beta * cl / Vt), rtol=1e-9)
 
 

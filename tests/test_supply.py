@@ -10,22 +10,13 @@ from scipy.optimize import brentq
 
 from hydrogen.actuators import actuator
 from hydrogen.plant import supply
+from reference import rk4
 
 #: A small pump: 1 L/s, relief at 200 bar, 2 L of hose on oil of 1.4 GPa.
 PUMP = {"pump_flow": 1e-3, "relief_pressure": 20e6, "hose_volume": 2e-3, "bulk_modulus": 1.4e9,
         "accumulator_volume": 0.0, "polytropic_index": 1.4}
 ACCUMULATOR = {**PUMP, "accumulator_volume": 4e-3, "precharge_pressure": 8e6}
 COMPENSATED = {**PUMP, "set_pressure": 16e6}
-
-
-def _rk4(f, y, h, steps):
-    for _ in range(steps):
-        k1 = f(y)
-        k2 = f(y + h / 2 * k1)
-        k3 = f(y + h / 2 * k2)
-        k4 = f(y + h * k3)
-        y = y + h / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
-    return y
 
 
 def _rate(kind, S, demand, accumulator=False):
@@ -39,7 +30,7 @@ def test_demand_above_the_pump_flow_lowers_the_pressure_at_the_net_flow_over_the
     p0 = 15e6
     np.testing.assert_allclose(_rate("pump", PUMP, demand)(p0), slope, rtol=1e-12)
     t = 0.5 * (p0 - 5e6) / -slope  # stays well below the relief
-    p = _rk4(_rate("pump", PUMP, demand), p0, t / 100, 100)
+    p = rk4(_rate("pump", PUMP, demand), p0, t / 100, 100)
     np.testing.assert_allclose(p, p0 + slope * t, rtol=1e-12)
 
 
@@ -71,7 +62,7 @@ def test_the_relief_caps_the_pressure_of_a_pump_with_no_demand():
     f = _rate("pump", PUMP, 0.0)
     p, top = 18e6, 0.0
     for _ in range(400):  # 0.4 s: the hose fills in 0.03 s, the relief settles in ~1 ms
-        p = _rk4(f, p, 1e-5, 100)
+        p = rk4(f, p, 1e-5, 100)
         top = max(top, p)
     np.testing.assert_allclose(p, cap, rtol=1e-9)
     assert top <= cap * (1 + 1e-12)
@@ -88,7 +79,7 @@ def test_a_compensated_pump_holds_its_set_pressure_up_to_its_flow():
         demand = fraction * COMPENSATED["pump_flow"]
         held = pset - droop * math.atanh(2 * fraction - 1)
         assert abs(held - pset) < 2 * droop
-        p = _rk4(_rate("compensated_pump", COMPENSATED, demand), 12e6, 1e-5, 40000)
+        p = rk4(_rate("compensated_pump", COMPENSATED, demand), 12e6, 1e-5, 40000)
         np.testing.assert_allclose(p, held, rtol=1e-9)
     assert _rate("compensated_pump", COMPENSATED, 1.1 * COMPENSATED["pump_flow"])(pset - 5 * droop) < 0
 
@@ -115,7 +106,7 @@ def test_an_accumulator_discharges_along_its_gas_law(index):
     f = _rate("pump", S, demand, accumulator=True)
     p = p_start
     for t in (0.2, 0.4, 0.6):  # discharges to ~9 MPa, above the precharge
-        p = _rk4(f, p, 1e-4, 2000)
+        p = rk4(f, p, 1e-4, 2000)
         exact = brentq(lambda ps: delivered(ps) - net * t, S["precharge_pressure"] + 1.0, p_start)
         np.testing.assert_allclose(p, exact, rtol=1e-9)
     np.testing.assert_allclose(supply.Numeric.accumulator_oil(p, S), _gas_oil(p, S), rtol=1e-12)
@@ -157,16 +148,6 @@ hose_volume = 1.0e-3
 accumulator_volume = 5.0e-4
 precharge_pressure = 6.0e6
 """
-
-
-@pytest.fixture(scope="module")
-def pump_dyn(cache, tmp_path_factory):
-    """The mixed arm (a three-way shoulder, a four-way elbow) on a small pump with an accumulator."""
-    import hydrogen
-    from test_model import mixed_arm_text
-    path = tmp_path_factory.mktemp("pump") / "pump_arm.toml"
-    path.write_text(mixed_arm_text("four_way") + PUMP_TABLE)
-    return hydrogen.build(hydrogen.load_model(path), cache=cache)
 
 
 def test_the_generated_plant_draws_every_valve_on_the_one_supply(pump_dyn, rng):
