@@ -411,3 +411,25 @@ def test_the_reference_check_finds_what_a_page_names_wrongly():
     assert _missing_references(fine) == []
     # a tool only the test suite installs is not one hydrogen uses
     assert _missing_references("Running a sweep needs pytest-xdist.") == ["uses pytest-xdist"]
+
+
+def test_the_paper_shows_the_tables_timing_over_fifty_unseen_seeds_as_committed():
+    """docs/paper.md holds docs/table_seeds.json's table as its script prints it: every controller the
+    default robot lists on every rig scenario, over 50 seeds none of the searches saw; the median lies
+    in its range and the worst seed holds the maximum."""
+    import sys
+
+    sys.path.insert(0, str(ROOT / "benchmarks"))
+    import table_seeds
+
+    from hydrogen.simulation.tuning import rig_scenarios
+
+    data = json.loads((ROOT / "docs" / "table_seeds.json").read_text(encoding="utf-8"))
+    model = hydrogen.load_model()
+    assert len(data["seeds"]) == 50 and not set(data["seeds"]) & set(range(10)) and data["model"] == model.name
+    assert {(r["controller"], r["scenario"]) for r in data["rows"]} == {
+        (c, s) for c in model.controllers for s in rig_scenarios(model)}
+    for r in data["rows"]:
+        assert r["min"] <= r["median"] <= r["max"] and r["worst_seed"] in data["seeds"]
+        assert all(s in data["seeds"] for s in r["tail_seeds"])
+    assert table_seeds.markdown(data) in (ROOT / "docs" / "paper.md").read_text(encoding="utf-8")
