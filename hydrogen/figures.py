@@ -269,11 +269,16 @@ def plot_step(nonlinear, p, path, title=None, coord=None) -> Path:
     z0 = float(nonlinear.q_d[0, i]) if len(nonlinear.t) else 0.0
     fig, ax = plt.subplots(figsize=(7.0, 4.0))
     ax.plot(nonlinear.t, _SCALE * (nonlinear.q_d[:, i] - z0), "k--", lw=1.0, label="reference")
+
+    def label(res, name):
+        m = step_metrics(res, i)
+        return (f"{name}: 90 % at {m['rise_s']:.2f} s, overshoot {m['overshoot_pct']:.0f} %" if m["rise_s"] is not None
+                else f"{name}: never reaches 90 %")
     _band(ax, nl_runs, i, "q", z0, "C0", "nonlinear")
     ax.plot(nonlinear.t, _SCALE * (nonlinear.q[:, i] - z0), color="C0", lw=1.0,
-            label=f"nonlinear ({nonlinear.controller})")
+            label=label(nonlinear, f"nonlinear ({nonlinear.controller})"))
     _band(ax, p_runs, i, "q", z0, "C3", "P")
-    ax.plot(p.t, _SCALE * (p.q[:, i] - z0), color="C3", lw=1.0, label="P")
+    ax.plot(p.t, _SCALE * (p.q[:, i] - z0), color="C3", lw=1.0, label=label(p, p.controller))
     ax.set_xlabel("time (s)")
     ax.set_ylabel(f"${sym} - {sym}_d(0)$ ({unit})")
     ax.grid(True, alpha=0.3)
@@ -281,6 +286,22 @@ def plot_step(nonlinear, p, path, title=None, coord=None) -> Path:
     ax.set_title(title if title is not None else f"{nonlinear.scenario_name}: {coord} step response")
     fig.tight_layout()
     return _save(fig, path)
+
+
+def step_metrics(res, i: int) -> dict:
+    """Rise time and overshoot of coordinate ``i``'s response to the step of ``res``'s reference (the
+    largest jump of q_d): "rise_s", s from the step to the first sample at 90 % of its height (None if
+    never), and "overshoot_pct", the largest excursion past the height after the step, % of the height
+    (0 if none)."""
+    qd, q, t = res.q_d[:, i], res.q[:, i], res.t
+    k = int(np.argmax(np.abs(np.diff(qd)))) + 1 if len(qd) > 1 else 0
+    height, start = float(qd[k] - qd[k - 1]) if k else 0.0, float(qd[k - 1]) if k else 0.0
+    if height == 0.0:
+        return {"rise_s": None, "overshoot_pct": 0.0}
+    progress = (q[k:] - start) / height
+    reached = np.nonzero(progress >= 0.9)[0]
+    return {"rise_s": float(t[k + reached[0]] - t[k]) if reached.size else None,
+            "overshoot_pct": float(max(progress.max() - 1.0, 0.0) * 100)}
 
 
 def comparison_table(rows) -> str:
@@ -417,8 +438,9 @@ def make_all(dyn, out_dir, quiet=True, *, durations=None, gains=None, nonlinear=
         bar.update()
         return res
 
-    paths, rows = {}, []
-    for sc in scenarios:
+    paths, rows, chosen = {}, [], []
+    # the steps last: their P is the one the tracking scenarios found better (the figures compare alike)
+    for sc in sorted(scenarios, key=lambda sc: isinstance(sc.reference, Step)):
         rig = sc.kalman or sc.friction[0] > 0 or sc.noise_l > 0
         if not rig and not isinstance(sc.reference, Step):
             sim = run(sc.name, nonlinear)
@@ -427,10 +449,14 @@ def make_all(dyn, out_dir, quiet=True, *, durations=None, gains=None, nonlinear=
             continue
         nl = run(sc.name, nonlinear, True)
         moving = [c for c, a in zip(model.coordinate_names, sc.reference.amplitude()) if a > 0]
-        # the better fixed-gain P on this scenario: the smallest worst median error over the moving axes
-        candidates = {c: run(sc.name, c, True) for c in ([base] if isinstance(sc.reference, Step) else compared)}
+        # the better fixed-gain P on this scenario: the smallest worst median error over the moving axes;
+        # on a step, the one the tracking scenarios chose most often (the baseline if none ran)
+        step_p = max(compared, key=chosen.count) if chosen else base
+        candidates = {c: run(sc.name, c, True) for c in ([step_p] if isinstance(sc.reference, Step) else compared)}
         p_name = min(candidates, key=lambda c: max((_max_pct(candidates[c], k) or (np.inf,))[0] for k in moving))
         pp = candidates[p_name]
+        if not isinstance(sc.reference, Step):
+            chosen.append(p_name)
         if isinstance(sc.reference, Step):
             paths[sc.name] = plot_step(nl, pp, out / f"{sc.name}.png", coord=moving[0],
                                        title=f"{sc.label}: step response, nonlinear vs P (simulation)")

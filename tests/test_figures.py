@@ -140,3 +140,20 @@ def test_make_all_names_the_nonlinear_controller(tmp_path, cache):
     assert f"| boom | {med:.1f} ({lo:.1f}-{hi:.1f}) |" in table
     with pytest.raises(hydrogen.ScenarioError, match="nonlinear"):
         figures.make_all(dyn, tmp_path / "c", durations=short, nonlinear="p")
+
+
+def test_step_metrics_give_the_rise_time_and_overshoot_of_a_known_response():
+    """A second-order response to a 0.02 m step at t = 1 s: its 90 % crossing and its overshoot
+    against the closed forms of the underdamped step (ζ = 0.3, ω = 20 rad/s)."""
+    res = _result("p", step=True, n=20001, err_scale=0.0)
+    t = res.t
+    zeta, w = 0.3, 20.0
+    wd, tau = w * np.sqrt(1 - zeta ** 2), np.clip(t - 1.0, 0.0, None)
+    y = 1 - np.exp(-zeta * w * tau) * (np.cos(wd * tau) + zeta / np.sqrt(1 - zeta ** 2) * np.sin(wd * tau))
+    res.q[:, 2] = res.q_d[0, 2] + 0.02 * np.where(t >= 1.0, y, 0.0)
+    m = figures.step_metrics(res, 2)
+    assert m["overshoot_pct"] == pytest.approx(100 * np.exp(-np.pi * zeta / np.sqrt(1 - zeta ** 2)), rel=1e-3)
+    first90 = t[np.nonzero((t >= 1.0) & (y >= 0.9))[0][0]] - 1.0
+    assert m["rise_s"] == pytest.approx(first90) and 0.05 < m["rise_s"] < 0.15
+    res.q[:, 2] = res.q_d[0, 2]  # never moves
+    assert figures.step_metrics(res, 2) == {"rise_s": None, "overshoot_pct": 0.0}
