@@ -603,6 +603,52 @@ def test_a_c_loop_forward_kinematics_failure_is_worded_as_dynamics_forward_kinem
     assert _loop_failure(LOOP_FK_FAILED, runner, p.h) == f"stopped at t = 0.0000 s: {err.value}"
 
 
+def _singular_pose(dyn) -> np.ndarray:
+    """A pose where JL loses rank: the neutral pose with its first coordinate whose sweep over
+    [-pi, pi] changes det(JL)'s sign moved to that root, by bisection (a pivot ~1e-16)."""
+    q0 = dyn.model.neutral_pose.copy()
+
+    def det(j, x):
+        q = q0.copy()
+        q[j] = x
+        return np.linalg.det(dyn.leg_jacobian(q)), q
+
+    for j in range(dyn.model.n):
+        xs = np.linspace(q0[j], q0[j] - np.pi, 181)
+        signs = [np.sign(det(j, x)[0]) for x in xs]
+        for a, b, sa, sb in zip(xs, xs[1:], signs, signs[1:]):
+            if sa and sb and sa != sb:
+                for _ in range(200):
+                    mid = 0.5 * (a + b)
+                    a, b = (mid, b) if np.sign(det(j, mid)[0]) == sa else (a, mid)
+                return det(j, a)[1]
+    raise AssertionError("no pose where JL is singular")
+
+
+def test_a_singular_jl_at_the_encoders_pose_is_worded_as_the_velocity_estimate(cache):
+    """With joint encoders no forward kinematics runs: JL singular at the measured pose stops the
+    velocity solve, and the C loop and the Python stages say so in the same words."""
+    from hydrogen.runtime.loop import LOOP_FK_FAILED
+    from hydrogen.simulation import simulator as S
+    arm = hydrogen.build(hydrogen.load_model("excavator_arm"), cache=cache)
+    assert arm.model.joint_encoders
+    q = _singular_pose(arm)
+    p = S.prepare_run(arm, "arm-sim", "p", None, 20 / 512, False, {"seed": 1})
+    x0 = p.x0.copy()
+    x0[S.slot(S.plant_layout(arm.model), "q").slice] = q
+    runner = S.make_runner(arm, p.sc, p.ctrl, x0, q, p.kf_gain, p.h)
+    st = runner.stages()
+    assert st.measure(None) == 0 and st.estimate() == LOOP_FK_FAILED
+    said = S._loop_failure(LOOP_FK_FAILED, runner, p.h)
+    assert said.startswith("stopped at t = 0.0000 s: velocity estimate: JL is singular at the measured pose q = [")
+    assert "forward kinematics" not in said
+    loop = S.PythonStages(arm, p.sc, p.ctrl, x0, q, p.kf_gain, p.h)
+    s = loop.measure(np.zeros_like(p.noise[0]))
+    with pytest.raises(hydrogen.KinematicsError) as err:
+        loop.estimate(s)
+    assert said == f"stopped at t = 0.0000 s: {err.value}"
+
+
 def test_thread_sweep_equals_serial_sweep(dyn):
     from concurrent.futures import ThreadPoolExecutor
     runs = [dict(scenario="z-1hz", controller="adaptive-robust", gains={"Lambda": lam}, duration=0.5)

@@ -12,9 +12,9 @@ import numpy as np
 from .. import diagram, pressures
 from ..actuators import actuator
 from ..controllers import spec as controller_spec
-from ..dynamics import fk_failure
+from ..dynamics import VELOCITY_SINGULAR, fk_failure
 from ..errors import KinematicsError, ScenarioError, SimulationError
-from ..layout import PREDICTOR_MODEL, SUPPLY_LOG
+from ..layout import LU_PIVOT_MIN, PREDICTOR_MODEL, SUPPLY_LOG
 from ..plant import describe_entries, friction, plant_layout, slot, state_vector
 from ..plant.supply import entries as supply_entries, start as supply_start
 from ..summary import SATURATED_AT, SATURATION, estimated_blocks  # saturation: defined with its line
@@ -861,7 +861,17 @@ class PythonStages:
             self.q_meas = s.q_enc
         else:
             self.q_meas = self.dyn.forward_kinematics(s.l_meas, q0=self.q_meas)
-        s.qdot_meas = np.linalg.solve(self.dyn.leg_jacobian(self.q_meas), s.ldot)
+        s.qdot_meas = self._velocities(s)
+
+    def _velocities(self, s: _Signals) -> np.ndarray:
+        """Joint velocities from the cylinder rates through JL at the measured pose: the C loop's LU and
+        its pivot test (:data:`~hydrogen.layout.LU_PIVOT_MIN`). A KinematicsError when JL is singular."""
+        from scipy.linalg import lu_factor, lu_solve
+
+        lu, piv = lu_factor(self.dyn.leg_jacobian(self.q_meas), check_finite=False)
+        if not np.all(np.abs(np.diag(lu)) > LU_PIVOT_MIN):
+            raise KinematicsError(fk_failure(VELOCITY_SINGULAR, (0.0, np.inf, 0.0), self.q_meas, s.l_meas, 0))
+        return lu_solve((lu, piv), s.ldot, check_finite=False)
 
     def reference(self, s: _Signals) -> None:
         """The scenario's reference and its derivatives at the period's start."""
