@@ -14,7 +14,7 @@ from hydrogen.simulation.reference import MultiSine
 from hydrogen.simulation.scenarios import scenario
 from hydrogen.simulation.simulator import _rk4, equilibrium_pressures, simulate
 from hydrogen.controllers import controller as controller_module
-from reference import controller_rate_map
+from reference import controller_rate_map, singular_pose
 from controller_inputs import PAPER_LAWS
 
 #: friction [Coulomb N, viscous N s/m, tanh speed m/s] of each of the six legs; valve [lag, natural
@@ -603,28 +603,6 @@ def test_a_c_loop_forward_kinematics_failure_is_worded_as_dynamics_forward_kinem
     assert _loop_failure(LOOP_FK_FAILED, runner, p.h) == f"stopped at t = 0.0000 s: {err.value}"
 
 
-def _singular_pose(dyn) -> np.ndarray:
-    """A pose where JL loses rank: the neutral pose with its first coordinate whose sweep over
-    [-pi, pi] changes det(JL)'s sign moved to that root, by bisection (a pivot ~1e-16)."""
-    q0 = dyn.model.neutral_pose.copy()
-
-    def det(j, x):
-        q = q0.copy()
-        q[j] = x
-        return np.linalg.det(dyn.leg_jacobian(q)), q
-
-    for j in range(dyn.model.n):
-        xs = np.linspace(q0[j], q0[j] - np.pi, 181)
-        signs = [np.sign(det(j, x)[0]) for x in xs]
-        for a, b, sa, sb in zip(xs, xs[1:], signs, signs[1:]):
-            if sa and sb and sa != sb:
-                for _ in range(200):
-                    mid = 0.5 * (a + b)
-                    a, b = (mid, b) if np.sign(det(j, mid)[0]) == sa else (a, mid)
-                return det(j, a)[1]
-    raise AssertionError("no pose where JL is singular")
-
-
 def test_a_singular_jl_at_the_encoders_pose_is_worded_as_the_velocity_estimate(cache):
     """With joint encoders no forward kinematics runs: JL singular at the measured pose stops the
     velocity solve, and the C loop and the Python stages say so in the same words."""
@@ -632,7 +610,7 @@ def test_a_singular_jl_at_the_encoders_pose_is_worded_as_the_velocity_estimate(c
     from hydrogen.simulation import simulator as S
     arm = hydrogen.build(hydrogen.load_model("excavator_arm"), cache=cache)
     assert arm.model.joint_encoders
-    q = _singular_pose(arm)
+    q = singular_pose(arm)
     p = S.prepare_run(arm, "arm-sim", "p", None, 20 / 512, False, {"seed": 1})
     x0 = p.x0.copy()
     x0[S.slot(S.plant_layout(arm.model), "q").slice] = q
