@@ -751,3 +751,33 @@ def test_the_fmus_output_a_pumps_supply_pressure(pump_dyn, shared_fmu):
     plant = {v.name: v for v in read_model_description(
         str(shared_fmu(pump_dyn, "plant", "arm-sim", "backstepping", duration=DURATION))).modelVariables}
     assert (plant["ps"].causality, plant["ps"].unit) == ("output", "Pa")
+
+
+def test_the_plant_fmu_starts_from_ps_start_within_its_range(pump_dyn, shared_fmu):
+    """A pump's supply pressure is a plant state: ``ps_start`` (Pa) sets where it starts, declared from
+    the state's lower bound 0 to the highest the plant holds it to, the actuators' supply_pressure by
+    default; a value outside is refused."""
+    from hydrogen.plant.supply import ceiling
+
+    path = shared_fmu(pump_dyn, "plant", "arm-sim", "backstepping", duration=DURATION)
+    nominal = pump_dyn.model.cylinders[0].supply_pressure
+    default = Slave(path, "default")
+    var = default.var["ps_start"]
+    assert (var.causality, var.variability, var.unit, float(var.start)) == ("parameter", "fixed", "Pa", nominal)
+    assert (float(var.min), float(var.max)) == (0.0, ceiling(pump_dyn.model))
+    plant = Slave(path, "plant")
+    plant.set(["ps_start"], [8.0e6])
+    for s in (default, plant):
+        s.fmu.exitInitializationMode()
+    assert default.get(["ps"])[0] == nominal and plant.get(["ps"])[0] == 8.0e6
+    for s in (default, plant):
+        s.fmu.doStep(0.0, s.h)
+    assert abs(plant.get(["ps"])[0] - 8.0e6) < abs(plant.get(["ps"])[0] - default.get(["ps"])[0])
+    for s in (default, plant):
+        s.close()
+    high = Slave(path, "high")
+    with pytest.raises(FMICallException):
+        high.set(["ps_start"], [2 * ceiling(pump_dyn.model)])
+    assert any("ps_start" in m and "out of range" in m for m in high.messages), high.messages
+    high.fmu.freeInstance()
+
