@@ -729,17 +729,6 @@ def test_the_cranes_slew_angle_is_exported_in_rad(cache, tmp_path):
     assert var[f"l.{boom.name}"].unit == "m" and var[f"l.{boom.name}"].description == f"length of cylinder {boom.name}"
 
 
-@pytest.fixture(scope="module")
-def pump_dyn(cache, tmp_path_factory):
-    """The mixed arm on a pump with an accumulator (tests/test_supply.py's robot)."""
-    import hydrogen
-    from test_model import mixed_arm_text
-    from test_supply import PUMP_TABLE
-    path = tmp_path_factory.mktemp("pump") / "pump_arm.toml"
-    path.write_text(mixed_arm_text("four_way") + PUMP_TABLE)
-    return hydrogen.build(hydrogen.load_model(path), cache=cache)
-
-
 def test_the_fmus_output_a_pumps_supply_pressure(pump_dyn, shared_fmu):
     """The supply pressure, a plant state with a pump, is an output of the plant and closed-loop FMUs:
     the closed loop's is the simulator's, period by period."""

@@ -148,6 +148,7 @@ def test_symbolic_and_numeric_laws_agree(kind, S, accumulator):
 
 # --- a robot on a pump, built and run --------------------------------------------------------------
 
+#: A small pump with an accumulator (the session fixture ``pump_dyn`` puts it under the mixed arm).
 PUMP_TABLE = """
 [supply]
 kind = "pump"
@@ -157,16 +158,6 @@ hose_volume = 1.0e-3
 accumulator_volume = 5.0e-4
 precharge_pressure = 6.0e6
 """
-
-
-@pytest.fixture(scope="module")
-def pump_dyn(cache, tmp_path_factory):
-    """The mixed arm (a three-way shoulder, a four-way elbow) on a small pump with an accumulator."""
-    import hydrogen
-    from test_model import mixed_arm_text
-    path = tmp_path_factory.mktemp("pump") / "pump_arm.toml"
-    path.write_text(mixed_arm_text("four_way") + PUMP_TABLE)
-    return hydrogen.build(hydrogen.load_model(path), cache=cache)
 
 
 def test_the_generated_plant_draws_every_valve_on_the_one_supply(pump_dyn, rng):

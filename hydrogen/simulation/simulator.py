@@ -88,7 +88,8 @@ class SimulationResult:
         periods with a saturated valve (|u| ≥ SATURATED_AT × u_max): ``u_saturation_frac`` over every
         valve and period, ``u_saturation_frac_by_actuator`` per actuator; with a periodic reference,
         the high-frequency error's RMS ``hf_error_rms`` and its worst short window ``hf_error_burst``
-        (m or rad), which starts at ``hf_error_burst_t`` (s)."""
+        (m or rad), which starts at ``hf_error_burst_t`` (s); where the supply is a state (a pump),
+        ``supply_pressure``: its ``min``, ``max`` and ``final`` value over the whole run (Pa)."""
         sel, start, note = metric_window(self.t, self.metric_start)  # clamped to the run, and said so
         e = self.error[sel]
         n = self.q.shape[1]
@@ -128,6 +129,9 @@ class SimulationResult:
             burst, at = self.high_frequency_burst()
             self.metrics["hf_error_burst"] = dict(zip(coords, map(float, burst)))
             self.metrics["hf_error_burst_t"] = dict(zip(coords, map(float, at)))
+        if self.supply_pressure is not None and len(self.supply_pressure):
+            ps = np.asarray(self.supply_pressure, float)
+            self.metrics["supply_pressure"] = {"min": float(ps.min()), "max": float(ps.max()), "final": float(ps[-1])}
         if note:
             self.metrics["metric_note"] = note
         return self.metrics
@@ -188,7 +192,8 @@ class SimulationResult:
         return json.dumps(self.metrics or self.compute_metrics(), indent=2, sort_keys=True)
 
     def save_log(self, path, noise_l: float = 0.0, noise_p: float = 0.0, seed: int = 0):
-        """Write the run as a rig log CSV for :func:`hydrogen.identify` (columns t, l*, pc*, u*, q*),
+        """Write the run as a rig log CSV for :func:`hydrogen.identify` (columns t, l*, pc*, ps0 where the
+        supply is a state, u*, q*),
         with white sensor noise of std ``noise_l`` m and ``noise_p`` Pa added: see :mod:`hydrogen.logs`."""
         from ..logs import log_from_result, write_log
         return write_log(log_from_result(self, noise_l, noise_p, seed), path)
