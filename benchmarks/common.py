@@ -333,11 +333,10 @@ def write_results(path: Path, module: str, results: dict) -> str:
 
     path = Path(path)
     if _results_kind(path) == "suite":
+        from hydrogen.bench import merge_results
         from hydrogen.pages import write_benchmarks_page
 
-        suite = json.loads(path.read_text(encoding="utf-8"))
-        suite[module] = results
-        atomic_write(path, json.dumps(suite, indent=2, default=str) + "\n")
+        merge_results(path, {module: results})
         return f"results written to {path} (section {module}); page written to {write_benchmarks_page(path)}"
     atomic_write(path, json.dumps(results, indent=2, default=str) + "\n")
     return f"results written to {path}"

@@ -17,7 +17,7 @@ from pathlib import Path
 from .errors import HydrogenError
 from .fileio import atomic_write
 
-__all__ = ["run_suite", "SUITE"]
+__all__ = ["run_suite", "SUITE", "merge_results"]
 
 #: (module, what it measures)
 SUITE = (
@@ -86,11 +86,25 @@ def check_results_file(path: Path) -> None:
                               "file, or give --json another name")
 
 
+def merge_results(path, sections: dict) -> None:
+    """Write ``sections`` ({module: results}) into the results file ``path`` atomically: those
+    modules' sections of the results bench wrote there are replaced, the others kept in their
+    order; no file there, the sections alone. An OutputPathError when ``path`` holds anything
+    else (:func:`check_results_file`)."""
+    path = Path(path)
+    check_results_file(path)
+    merged = json.loads(path.read_text(encoding="utf-8")) if path.exists() else {}
+    merged.update(sections)
+    atomic_write(path, json.dumps(merged, indent=2, default=str) + "\n")
+
+
 def run_suite(quick: bool = False, json_path: str | None = None, only=None, progress: bool = True,
               release_checks: bool = False) -> dict:
     """Run the suite's modules (all, or those named in ``only``) in this process, print each one's
-    table, and return {module: results}. With ``json_path`` the results are written there as JSON and
-    rendered to ``benchmarks.md`` beside it (:func:`hydrogen.pages.write_benchmarks_page`); with
+    table, and return {module: results}. With ``json_path`` the results are written there as JSON
+    (with ``only``, into the results already there: :func:`merge_results`, the other modules'
+    sections kept) and rendered to ``benchmarks.md`` beside it
+    (:func:`hydrogen.pages.write_benchmarks_page`); with
     ``release_checks`` (developers) each module's checks against the release targets are printed and kept."""
     unknown = sorted(set(only or ()) - {n for n, _ in SUITE})
     if unknown:
@@ -136,7 +150,10 @@ def run_suite(quick: bool = False, json_path: str | None = None, only=None, prog
                             + kept)
     if json_path:
         written = results if release_checks else _figures_only(results)
-        atomic_write(Path(json_path), json.dumps(written, indent=2, default=str) + "\n")
+        if only:  # a few modules run again: the sections of the others stay
+            merge_results(json_path, written)
+        else:
+            atomic_write(Path(json_path), json.dumps(written, indent=2, default=str) + "\n")
         print(f"\nresults written to {json_path}")
         from .pages import write_benchmarks_page  # the benchmarks page, from the JSON just written
         print(f"page written to {write_benchmarks_page(json_path)}")

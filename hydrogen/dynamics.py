@@ -11,21 +11,26 @@ import ctypes
 import numpy as np
 
 from .errors import KinematicsError
-from .layout import FK_MAX_COND, FK_MAX_ITER, FK_STATUS, FK_TOL
+from .layout import FK_MAX_COND, FK_MAX_ITER, FK_STATUS, FK_TOL, LU_PIVOT_MIN
 
 __all__ = ["Dynamics", "fk_failure"]
 
 _D = ctypes.c_double
-_SOLVED, _SINGULAR, _NOT_CONVERGED = (FK_STATUS.index(s) for s in ("solved", "singular", "not_converged"))
+_SOLVED, _SINGULAR, _NOT_CONVERGED, VELOCITY_SINGULAR = (
+    FK_STATUS.index(s) for s in ("solved", "singular", "not_converged", "velocity_singular"))
 
 
 def fk_failure(status: int, info, q, l, max_iter: int, max_cond: float = FK_MAX_COND) -> str:
     """Why forward kinematics failed, in words: the C outcome ``status`` (:data:`~hydrogen.layout.FK_STATUS`)
     with its ``info`` (residual in m, JL's 1-norm condition number, Newton steps), the last iterate ``q``
     and the cylinder lengths ``l`` (m) it was solved for. The one wording of the loop and of
-    :meth:`Dynamics.forward_kinematics`."""
+    :meth:`Dynamics.forward_kinematics`. ``VELOCITY_SINGULAR`` is the loop's velocity solve at the
+    measured pose ``q`` (encoders' or solved), not forward kinematics."""
     err, cond, steps = (float(v) for v in info)
     q, l = np.asarray(q, float), np.asarray(l, float)
+    if status == VELOCITY_SINGULAR:
+        return (f"velocity estimate: JL is singular at the measured pose q = {q} (a pivot not above "
+                f"{LU_PIVOT_MIN:g}): no joint velocities from the cylinder rates (leg lengths {l})")
     if status == _SINGULAR:
         return (f"forward kinematics: JL is singular (condition number {cond:.3g}, 1-norm; at most {max_cond:.3g}) "
                 f"at q = {q} (iteration {int(steps)}, leg lengths {l})")

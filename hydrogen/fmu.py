@@ -44,6 +44,7 @@ from .errors import CompilerError, FmuError, OutputPathError
 from .layout import NUMBERS, SUPPLY_LOG
 from .model import POSITIVE  # FMI's min is inclusive: "> 0" is min = the smallest positive double
 from .plant import plant_layout, slot as plant_slot, valve
+from .plant.supply import ceiling as supply_ceiling
 
 __all__ = ["export_fmu", "PARTS", "fmi_headers_dir", "FMI_HEADERS"]
 
@@ -250,6 +251,11 @@ def _variables(part, dyn, p, ctx, fn, encoders, kalman):
             add(_dotted(f"{nm}_start", what[0]), "p", "fixed", f"initial {what[2]} of cylinder {what[0]} (holding "
                 "the robot still at the start pose)", f"inst->pc_start[{j}]", unit="Pa", start=float(x0_pc[j]),
                 lo=float(p_lo[j]), hi=float(p_hi[j]))
+        if _has_supply(layout):  # from its lower bound to the highest the plant holds it to (the relief's)
+            ps = plant_slot(layout, SUPPLY_LOG)
+            add("ps_start", "p", "fixed", f"initial supply pressure ({model.supply.kind} of [supply]; the "
+                "actuators' supply_pressure)", "inst->ps_start", unit="Pa", start=float(p.x0[ps.slice][0]),
+                lo=float(ps.lower[0]), hi=float(supply_ceiling(model)))
         for i, c in enumerate(coords):
             add(_dotted("q", c), "o", "continuous", f"coordinate {c}", f"inst->y_q[{i}]", unit=cunits[i])
         for i, c in enumerate(coords):

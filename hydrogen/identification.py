@@ -72,9 +72,10 @@ import numpy as np
 from . import pressures
 from .actuators import actuator
 from .errors import IdentificationError, KinematicsError
-from .layout import FK_TOL
+from .layout import FK_TOL, SUPPLY_LOG
 from .logcheck import fmt_number, check_log, noise_std
 from .logs import as_log
+from .plant.supply import entries as supply_entries
 
 __all__ = ["identify", "Identification", "ParameterFit", "auto_cutoff", "hydraulic_mode_hz"]
 
@@ -385,7 +386,9 @@ def identify(log, model=None, *, dyn=None, cutoff_hz: float | None = None, order
     L = log.group("l", m)
     PC = log.group("pc", pressures.n_pressures(model))  # the pressure vector: one block per actuator
     U = log.group("u", m, required=False) if gamma else None
-    for name, arr in (("t", t[:, None]), ("l", L), ("pc", PC), ("u", U)):
+    # where the supply is a state the forces and flows are at its measured pressure, not the nominal one
+    PS = log.group(SUPPLY_LOG, 1) if supply_entries(model) else None
+    for name, arr in (("t", t[:, None]), ("l", L), ("pc", PC), ("u", U), (SUPPLY_LOG, PS)):
         if arr is None:
             continue
         bad = ~np.isfinite(arr)
@@ -431,7 +434,7 @@ def identify(log, model=None, *, dyn=None, cutoff_hz: float | None = None, order
     V = np.gradient(Qf, h, axis=0)
     Acc = np.gradient(V, h, axis=0)
     # 4. generalised forces at every sample, low-passed alike
-    F = pressures.forces(model, PC)
+    F = pressures.forces(model, PC, None if PS is None else PS[:, 0])
     JL = _per_sample(dyn.leg_jacobian, Q)
     F_theta = F
     if zoh_correction:
@@ -469,7 +472,7 @@ def identify(log, model=None, *, dyn=None, cutoff_hz: float | None = None, order
         step_g = max(1, int(fs / (2.0 * fc_g))) if decimate is None else step
         idx_g = np.arange(edge, len(t) - edge - 1, step_g)
         gamma_fit, per_leg = _identify_gamma(dyn, L, PC, U, F, h, butter(order, fc_g, fs=fs, output="sos"),
-                                             idx_g, max_cond, _true(log.meta, "gamma_true", len(GAMMA_NAMES)))
+                                             idx_g, max_cond, _true(log.meta, "gamma_true", len(GAMMA_NAMES)), PS)
         _check_physical(gamma_fit, [True, True], [model.gamma1_min, model.gamma2_min],
                         [model.gamma1_max, model.gamma2_max], "[adaptation] gamma1_min..gamma2_max")
         note = (f"low-pass at {fc_g:.3g} Hz: twice the highest oil-column mode, {mode:.3g} Hz at the mean pose, "
@@ -527,19 +530,24 @@ def hydraulic_mode_hz(dyn, q) -> float:
     return float(np.sqrt(max(w2.max(), 0.0)) / (2 * np.pi))
 
 
-def _identify_gamma(dyn, L, PC, U, F, h, sos, idx, max_cond, true):
+def _identify_gamma(dyn, L, PC, U, F, h, sos, idx, max_cond, true, PS=None):
     """Pooled (and per-leg) least squares of Δf = γ1 h f0 + γ2 h g0 over each hold interval, compensated
-    for the leg-length noise inside h f0 (= −A Δl/(l − L) for the paper's cylinder)."""
+    for the leg-length noise inside h f0 (= −A Δl/(l − L) for the paper's cylinder); the flows at the
+    measured supply pressure ``PS`` (Pa, (N, 1)) where the supply is a state."""
     model = dyn.model
     p_lo, p_hi = pressures.bounds(model)
     Lf, PCf = _lowpass(L, sos), np.clip(_lowpass(PC, sos), p_lo, p_hi)
     l_mid = 0.5 * (Lf[1:] + Lf[:-1])
     pc_mid = pressures.split(model, 0.5 * (PCf[1:] + PCf[:-1]))
+    supply = {}
+    if PS is not None:  # (N, 1)
+        PSf = _lowpass(PS, sos)[:, 0]
+        supply = {"supply_pressure": 0.5 * (PSf[1:] + PSf[:-1])}
     dF = np.diff(F, axis=0)
     dL = np.diff(L, axis=0)
     X1, X2 = np.empty_like(dL), np.empty_like(dL)
     for i, c in enumerate(model.cylinders):
-        law, P = actuator(c.kind).Numeric, actuator(c.kind).parameters(c.table)
+        law, P = actuator(c.kind).Numeric, {**actuator(c.kind).parameters(c.table), **supply}
         X1[:, i] = law.f0(l_mid[:, i], dL[:, i], pc_mid[i], P)  # h f0 (f0 is linear in l̇: l̇ h = Δl)
         X2[:, i] = h * law.g0(l_mid[:, i], pc_mid[i], U[:-1, i], P)
     dF, X1, X2 = (_lowpass(x, sos) for x in (dF, X1, X2))

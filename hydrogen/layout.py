@@ -12,7 +12,7 @@ import math
 from . import diagram  # the controller's input slots: the loop's ports
 from .names import NUMBERS  # the numbers input's name, part of the loop's layout
 
-__all__ = ["NUMBERS", "SUPPLY_LOG", "MAX_DELAY", "PREDICTOR_MODEL", "FK_TOL", "FK_MAX_ITER", "FK_MAX_COND", "FK_STATUS",
+__all__ = ["NUMBERS", "SUPPLY_LOG", "MAX_DELAY", "PREDICTOR_MODEL", "FK_TOL", "FK_MAX_ITER", "FK_MAX_COND", "FK_STATUS", "LU_PIVOT_MIN",
            "delay_split", "LOOP_CONFIG", "LOOP_STATE", "LOOP_SIGNALS", "model_summary", "friction_width", "slots",
            "robot_sizes", "supply_size", "loop_context", "log_widths", "loop_functions", "C_SIZES", "plant_offsets",
            "plant_size", "c_double", "config_fields", "FRICTION_COMMENT", "struct_fields"]
@@ -32,8 +32,14 @@ MAX_DELAY = 8
 FK_TOL, FK_MAX_ITER, FK_MAX_COND = 1e-12, 50, 1e8
 
 #: Outcomes of the C forward kinematics, in the order of their codes (0, 1, ...): the loop header's
-#: ``<MODEL>_FK_<OUTCOME>`` enum is rendered from it.
-FK_STATUS = ("solved", "singular", "not_converged", "function_failed")
+#: ``<MODEL>_FK_<OUTCOME>`` enum is rendered from it. The last is the loop's estimate only (forward
+#: kinematics never returns it): JL singular at the measured pose in the velocity solve, where the pose
+#: was measured (joint encoders) or solved.
+FK_STATUS = ("solved", "singular", "not_converged", "function_failed", "velocity_singular")
+
+#: The loop's LU factorisation of JL (templates/loop.c.j2 ``lu_n``; the Python stages alike): a pivot not
+#: above this in magnitude makes JL singular.
+LU_PIVOT_MIN = 1e-12
 
 #: The controller's own model in the delay predictor: no friction ([F_c, b, v_s, F_brk, v_st, k_p] of
 #: every actuator, :data:`hydrogen.plant.friction.PARAMETERS`, the input's first :func:`friction_width`
@@ -146,7 +152,7 @@ LOOP_STATE = (
     ("u_app", "double", ("NL",), "commands the valves held over the last period, m (0 at reset): the\n"
      " * controller's u_applied input in its state update"),
     ("xc", "double*", None, "controller state, n_xc entries"),
-    ("fk_info", "double", (4,), "the last failed forward kinematics (written when it fails): outcome\n"
+    ("fk_info", "double", (4,), "the last failed forward kinematics or velocity solve (written when it fails): outcome\n"
      " * (<MODEL>_FK_...), residual (m), JL's condition number (1-norm), Newton steps"),
     ("fk_l", "double", ("NL",), "the cylinder lengths (m) forward kinematics failed for (q_meas: its last iterate)"),
 )
@@ -358,6 +364,6 @@ def loop_context(manifest: dict) -> dict:
         "friction_width": friction_width(s),
         "pred_valve": ", ".join(map(c_double, PREDICTOR_MODEL["valve"] * m)),
         "valve_width": len(PREDICTOR_MODEL["valve"]),
-        "fk_status": FK_STATUS,
+        "fk_status": FK_STATUS, "lu_pivot_min": c_double(LU_PIVOT_MIN),
     }
     return ctx

@@ -8,7 +8,9 @@ A log holds, per sample k (one row), at a uniform sample rate:
 * ``pc0`` … ``pc{N-1}`` (Pa): the measured pressure vector (:mod:`hydrogen.pressures`): the control-chamber
   (cap side) pressure of each three-way cylinder (N = m), p_A and p_B of each four-way one or rotary actuator;
 * ``u0`` … ``u{m-1}`` (m): spool commands, each held from t_k to t_{k+1} (zero-order hold);
-  optional: without them only θ is estimated, not γ.
+  optional: without them only θ is estimated, not γ;
+* ``ps0`` (Pa): the measured supply pressure, on a robot whose ``[supply]`` is a state (a pump); a
+  constant supply has no such column.
 
 m is the number of cylinders of the model. Other columns are ignored (a simulated log also carries
 the true pose ``q0`` … ``q{n-1}``). Lines starting with ``#`` are comments; a log written by
@@ -18,8 +20,8 @@ Columns are separated by commas; a file separated by tabs (header and rows alike
 
 A :class:`~hydrogen.simulation.simulator.SimulationResult` records the *true* leg lengths and
 pressures of the plant. :func:`log_from_result` makes a log from it and adds white sensor noise of
-the given standard deviations (``noise_l`` m, ``noise_p`` Pa, seeded), i.e. what a rig's sensors
-would have measured; the noise added is recorded in the metadata.
+the given standard deviations (``noise_l`` m, ``noise_p`` Pa on every pressure, the supply's too,
+seeded), i.e. what a rig's sensors would have measured; the noise added is recorded in the metadata.
 """
 from __future__ import annotations
 
@@ -31,6 +33,7 @@ import numpy as np
 
 from .errors import IdentificationError
 from .fileio import atomic_write
+from .layout import SUPPLY_LOG
 
 __all__ = ["Log", "log_from_result", "write_log", "read_log", "as_log"]
 
@@ -77,15 +80,21 @@ def log_from_result(res, noise_l: float = 0.0, noise_p: float = 0.0, seed: int =
     pc = np.asarray(res.pressures, float)
     l_meas = l + noise_l * rng.standard_normal(l.shape) if noise_l else l.copy()
     pc_meas = pc + noise_p * rng.standard_normal(pc.shape) if noise_p else pc.copy()
+    ps = getattr(res, "supply_pressure", None)  # None: a constant supply, no column
+    supply = []
+    if ps is not None:  # a pressure sensor like the others, its noise drawn after theirs
+        ps = np.asarray(ps, float).reshape(len(pc), -1)
+        supply = [(SUPPLY_LOG, ps + noise_p * rng.standard_normal(ps.shape) if noise_p else ps.copy())]
     cols = {}
-    for prefix, arr in (("l", l_meas), ("pc", pc_meas), ("u", np.asarray(getattr(res, "u_applied", res.u), float)),
-                        ("q", np.asarray(res.q, float))):
+    for prefix, arr in (("l", l_meas), ("pc", pc_meas), *supply,
+                        ("u", np.asarray(getattr(res, "u_applied", res.u), float)), ("q", np.asarray(res.q, float))):
         for i in range(arr.shape[1]):
             cols[f"{prefix}{i}"] = arr[:, i]
+    measured = "l, pc and ps are" if supply else "l and pc are"
     meta = {"scenario": res.scenario_name, "controller": res.controller, "noise_l": float(noise_l),
             "noise_p": float(noise_p), "seed": int(seed), "theta_true": np.asarray(res.theta_true).tolist(),
             "gamma_true": np.asarray(res.gamma_true).tolist(),
-            "note": "l and pc are the simulated true values plus the sensor noise above; q is the true pose"}
+            "note": f"{measured} the simulated true values plus the sensor noise above; q is the true pose"}
     return Log(np.asarray(res.t, float).copy(), cols, meta, source=f"simulation {res.scenario_name}/{res.controller}")
 
 

@@ -56,10 +56,13 @@ def split(model, p) -> list:
     return [tuple(p[..., j] for j in range(a, b)) for a, b in blocks(model)]
 
 
-def forces(model, p) -> np.ndarray:
-    """Actuator forces (..., m), N (N·m), from pressure vector(s) ``p`` (the numeric laws)."""
+def forces(model, p, ps=None) -> np.ndarray:
+    """Actuator forces (..., m), N (N·m), from pressure vector(s) ``p`` (the numeric laws), at the
+    supply pressure ``ps`` (Pa, one per row of ``p``: a supply state's) or, when None, each actuator's
+    own ``supply_pressure`` (a three-way cylinder's rod side is at the supply pressure)."""
     parts = split(model, p)
-    return np.stack([actuator(c.kind).Numeric.force(parts[i], actuator(c.kind).parameters(c.table))
+    supply = {} if ps is None else {"supply_pressure": np.asarray(ps, float)}
+    return np.stack([actuator(c.kind).Numeric.force(parts[i], {**actuator(c.kind).parameters(c.table), **supply})
                      for i, c in enumerate(model.cylinders)], axis=-1)
 
 

@@ -76,6 +76,17 @@ def shared_fmu(cache):
 
 
 @pytest.fixture(scope="session")
+def pump_dyn(cache, tmp_path_factory):
+    """The mixed arm (a three-way shoulder, a four-way elbow) on a small pump with an accumulator
+    (tests/test_supply.py's PUMP_TABLE): a robot whose supply pressure is a plant state."""
+    from test_model import mixed_arm_text
+    from test_supply import PUMP_TABLE
+    path = tmp_path_factory.mktemp("pump") / "pump_arm.toml"
+    path.write_text(mixed_arm_text("four_way") + PUMP_TABLE)
+    return hydrogen.build(hydrogen.load_model(path), cache=cache)
+
+
+@pytest.fixture(scope="session")
 def dyn(model, cache):
     return hydrogen.build(model, cache=cache)
 
@@ -129,15 +140,3 @@ def package_copy(tmp_path, monkeypatch):
         shutil.copytree(pkg / sub, copy / sub)
     monkeypatch.setattr(gen, "_PACKAGE", copy)
     return copy
-
-
-@pytest.fixture(scope="module")
-def pump_dyn(cache, tmp_path_factory):
-    """The mixed arm (a three-way shoulder, a four-way elbow) on a small pump with an accumulator
-    (tests/test_supply.py's robot), built."""
-    import hydrogen
-    from test_model import mixed_arm_text
-    from test_supply import PUMP_TABLE
-    path = tmp_path_factory.mktemp("pump") / "pump_arm.toml"
-    path.write_text(mixed_arm_text("four_way") + PUMP_TABLE)
-    return hydrogen.build(hydrogen.load_model(path), cache=cache)

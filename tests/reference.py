@@ -94,3 +94,25 @@ def rk4(f, y, h, steps):
         k4 = f(y + h * k3)
         y = y + h / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
     return y
+
+
+def singular_pose(dyn) -> np.ndarray:
+    """A pose of ``dyn``'s robot where JL loses rank: the neutral pose with the first coordinate whose
+    sweep down by up to pi changes det(JL)'s sign moved to that root, by bisection (a pivot ~1e-16)."""
+    q0 = dyn.model.neutral_pose.copy()
+
+    def det(j, x):
+        q = q0.copy()
+        q[j] = x
+        return np.linalg.det(dyn.leg_jacobian(q)), q
+
+    for j in range(dyn.model.n):
+        xs = np.linspace(q0[j], q0[j] - np.pi, 181)
+        signs = [np.sign(det(j, x)[0]) for x in xs]
+        for a, b, sa, sb in zip(xs, xs[1:], signs, signs[1:]):
+            if sa and sb and sa != sb:
+                for _ in range(200):
+                    mid = 0.5 * (a + b)
+                    a, b = (mid, b) if np.sign(det(j, mid)[0]) == sa else (a, mid)
+                return det(j, a)[1]
+    raise AssertionError("no pose where JL is singular")

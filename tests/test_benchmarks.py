@@ -193,6 +193,30 @@ def test_a_users_bench_reports_figures_not_the_projects_release_targets(capsys, 
     assert "all bounds hold: False" in capsys.readouterr().out
 
 
+def test_bench_only_replaces_its_modules_sections_and_keeps_the_others(capsys, tmp_path, monkeypatch):
+    """``bench --only M --json FILE`` on results bench wrote (a copy of docs/bench.json) replaces M's
+    section only, in its place, and renders the page from the whole file."""
+    from hydrogen.cli import main as cli
+
+    docs = Path(__file__).resolve().parents[1] / "docs"
+    suite = json.loads((docs / "bench.json").read_text(encoding="utf-8"))
+    assert "bench_release" in suite and len(suite) > 2
+    path = tmp_path / "bench.json"
+    path.write_text(json.dumps(suite), encoding="utf-8")
+    monkeypatch.setattr(bench_release, "run", lambda quick: _release_result())
+    assert cli(["bench", "--quiet", "--only", "bench_release", "--json", str(path)]) == 0
+    written = json.loads(path.read_text(encoding="utf-8"))
+    assert list(written) == list(suite)
+    assert {k: v for k, v in written.items() if k != "bench_release"} == {
+        k: v for k, v in suite.items() if k != "bench_release"}
+    assert written["bench_release"]["instructions"]["regressor"]["current"] == 120
+    assert written["bench_release"] != suite["bench_release"]
+    page = (tmp_path / "benchmarks.md").read_text(encoding="utf-8")
+    assert "## Side by side with the previous release" in page and "bench_loop" not in capsys.readouterr().out
+    for heading in ("## The closed loop", "## Build", "## Sensitivity: "):  # the other modules' sections
+        assert heading in page
+
+
 def test_a_failing_module_is_named_and_the_others_results_are_kept(capsys, tmp_path, monkeypatch):
     import hydrogen.bench as hb
     from hydrogen.cli import main as cli

@@ -2,6 +2,7 @@
 import ctypes
 import hashlib
 import os
+import re
 import shutil
 import subprocess
 import sys
@@ -22,7 +23,9 @@ from hydrogen.fmu import FMI_HEADERS, PARTS, _number_variable, export_fmu, fmi_h
 from hydrogen.simulation.simulator import simulate  # noqa: E402
 from hydrogen.actuators import actuator  # noqa: E402
 from hydrogen.pressures import bounds as pressure_bounds  # noqa: E402
+from hydrogen.simulation.scenarios import actuator_settings  # noqa: E402
 from controller_inputs import PAPER_LAWS  # noqa: E402
+from reference import singular_pose  # noqa: E402
 
 
 def _pressure_variables(model, suffix=""):
@@ -468,6 +471,81 @@ def test_a_start_pose_outside_the_strokes_is_refused_at_initialisation(fmus):
     plant.fmu.freeInstance()
 
 
+_VECTOR = re.compile(r"\[([^\]]*)\]")
+
+
+def _same_failure(fmu_words, python_words):
+    """The FMU's failure words are hydrogen's: the same text around the vectors, which hold the same
+    numbers (C prints them to 8 digits, numpy its own way)."""
+    assert _VECTOR.sub("[]", fmu_words) == _VECTOR.sub("[]", python_words)
+    for got, want in zip(_VECTOR.findall(fmu_words), _VECTOR.findall(python_words), strict=True):
+        want = np.array(want.split(), float)
+        np.testing.assert_allclose(np.array(got.split(), float), want, rtol=1e-7, atol=1e-7 * np.abs(want).max())
+
+
+def _failed_step(path, inputs):
+    """The log message of the first step of a controller FMU given ``inputs`` ({name: value}): it must fail."""
+    ctl = Slave(path, "controller")
+    ctl.fmu.exitInitializationMode()
+    ctl.set(list(inputs), list(inputs.values()))
+    with pytest.raises(FMICallException):
+        ctl.fmu.doStep(0.0, ctl.h)
+    ctl.fmu.freeInstance()
+    prefix = "fmi2DoStep: control period 0 (t = 0 s): "
+    assert len(ctl.messages) == 1 and ctl.messages[0].startswith(prefix), ctl.messages
+    return ctl.messages[0][len(prefix):]
+
+
+def test_a_forward_kinematics_failure_names_its_outcome_and_time(dyn, shared_fmu):
+    """Cylinder lengths no pose fits stop the controller FMU (the closed loop's glue alike) with
+    hydrogen's words for the outcome, the control period and its time: JL singular with its condition
+    number, or not converged with its residual; the pose and lengths of Dynamics.forward_kinematics
+    from the same start."""
+    from hydrogen.errors import KinematicsError
+    from hydrogen.simulation.simulator import prepare_run
+
+    scenario, controller = CASES["ubc_stewart"]
+    path = shared_fmu(dyn, "controller", scenario, controller, duration=DURATION)
+    p = prepare_run(dyn, scenario, controller, None, DURATION, True, {})
+    q0, l0 = p.q0, dyn.leg_lengths(p.q0)  # the FMU's warm start
+    step = actuator_settings(p.sc, dyn.model)["quantization_l"]  # lengths on the encoders' grid: read as given
+    rng = np.random.default_rng(0)
+    found = {}
+    for _ in range(2000):  # lengths far enough off the start to make both outcomes
+        l = l0 + 0.3 * rng.standard_normal(len(l0))
+        l = np.where(step > 0, np.round(l / np.where(step > 0, step, 1.0)) * step, l)
+        try:
+            dyn.forward_kinematics(l, q0=q0)
+        except KinematicsError as exc:
+            found.setdefault("did not converge" in str(exc), (l, str(exc)))
+        if len(found) == 2:
+            break
+    assert set(found) == {True, False}
+    cyls = [f"l.{c.name}" for c in dyn.model.cylinders]
+    for l, said in found.values():
+        words = _failed_step(path, dict(zip(cyls, l)))
+        assert ("residual " in words) == ("did not converge" in said)
+        assert ("condition number " in words) == ("JL is singular" in said)
+        _same_failure(words, said)
+
+
+def test_a_singular_jl_at_the_encoders_pose_stops_the_fmu_as_the_velocity_estimate(arm_dyn, shared_fmu):
+    """With joint encoders a singular JL at the measured pose is the velocity estimate's failure, in
+    hydrogen's words (the loop's), not forward kinematics'."""
+    from hydrogen.dynamics import VELOCITY_SINGULAR, fk_failure
+
+    scenario, controller = CASES["excavator_arm"]
+    path = shared_fmu(arm_dyn, "controller", scenario, controller, duration=DURATION)
+    q = singular_pose(arm_dyn)
+    l = arm_dyn.leg_lengths(q)
+    model = arm_dyn.model
+    inputs = {**{f"q.{c}": v for c, v in zip(model.coordinate_names, q)},
+              **{f"l.{c.name}": v for c, v in zip(model.cylinders, l)}}
+    words = _failed_step(path, inputs)
+    assert words.startswith("velocity estimate: JL is singular at the measured pose q = [")
+    _same_failure(words, fk_failure(VELOCITY_SINGULAR, (0.0, np.inf, 0.0), q, l, 0))
+
+
 def test_a_step_past_the_stop_time_is_refused(fmus):
     dyn, scenario, controller, paths = fmus
     for part in ("plant", "controller"):
@@ -662,3 +740,33 @@ def test_the_fmus_output_a_pumps_supply_pressure(pump_dyn, shared_fmu):
     plant = {v.name: v for v in read_model_description(
         str(shared_fmu(pump_dyn, "plant", "arm-sim", "backstepping", duration=DURATION))).modelVariables}
     assert (plant["ps"].causality, plant["ps"].unit) == ("output", "Pa")
+
+
+def test_the_plant_fmu_starts_from_ps_start_within_its_range(pump_dyn, shared_fmu):
+    """A pump's supply pressure is a plant state: ``ps_start`` (Pa) sets where it starts, declared from
+    the state's lower bound 0 to the highest the plant holds it to, the actuators' supply_pressure by
+    default; a value outside is refused."""
+    from hydrogen.plant.supply import ceiling
+
+    path = shared_fmu(pump_dyn, "plant", "arm-sim", "backstepping", duration=DURATION)
+    nominal = pump_dyn.model.cylinders[0].supply_pressure
+    default = Slave(path, "default")
+    var = default.var["ps_start"]
+    assert (var.causality, var.variability, var.unit, float(var.start)) == ("parameter", "fixed", "Pa", nominal)
+    assert (float(var.min), float(var.max)) == (0.0, ceiling(pump_dyn.model))
+    plant = Slave(path, "plant")
+    plant.set(["ps_start"], [8.0e6])
+    for s in (default, plant):
+        s.fmu.exitInitializationMode()
+    assert default.get(["ps"])[0] == nominal and plant.get(["ps"])[0] == 8.0e6
+    for s in (default, plant):
+        s.fmu.doStep(0.0, s.h)
+    assert abs(plant.get(["ps"])[0] - 8.0e6) < abs(plant.get(["ps"])[0] - default.get(["ps"])[0])
+    for s in (default, plant):
+        s.close()
+    high = Slave(path, "high")
+    with pytest.raises(FMICallException):
+        high.set(["ps_start"], [2 * ceiling(pump_dyn.model)])
+    assert any("ps_start" in m and "out of range" in m for m in high.messages), high.messages
+    high.fmu.freeInstance()
+

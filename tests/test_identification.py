@@ -313,6 +313,52 @@ def test_a_time_column_in_ms_is_refused_against_the_control_rate(dyn, model, pap
              rf"{rates} Hz")
 
 
+def test_a_pump_robots_log_carries_its_supply_pressure(pump_dyn, tmp_path):
+    """Where the supply is a plant state its pressure is a log column, ps0 (Pa), after the pressures
+    and measured like them (noise_p, drawn after theirs: l and pc are what they were), read back
+    exactly; the simulate CLI's --log writes it and its --json gives its range."""
+    import json
+
+    from hydrogen.cli import main as cli
+
+    res = hydrogen.simulate("arm-sim", "backstepping", dyn=pump_dyn, duration=0.1)
+    ps = res.supply_pressure
+    log = read_log(res.save_log(tmp_path / "pump.csv"))
+    np.testing.assert_array_equal(log.columns["ps0"], ps)
+    names = list(log.columns)
+    at = names.index("ps0")
+    assert names[at - 1] == f"pc{res.pressures.shape[1] - 1}" and names[at + 1] == "u0"
+    noisy = log_from_result(res, noise_l=1e-5, noise_p=2e4, seed=3)
+    without = log_from_result(dataclasses.replace(res, supply_pressure=None), noise_l=1e-5, noise_p=2e4, seed=3)
+    assert "ps0" not in without.columns and "l, pc and ps are" in noisy.meta["note"]
+    for name, col in without.columns.items():
+        np.testing.assert_array_equal(noisy.columns[name], col)
+    assert 1e4 < np.std(noisy.columns["ps0"] - ps) < 4e4
+    back = read_log(write_log(noisy, tmp_path / "noisy.csv"))
+    np.testing.assert_array_equal(back.columns["ps0"], noisy.columns["ps0"])
+    # the CLI, on the pump robot's description
+    out = tmp_path / "cli.csv"
+    metrics = tmp_path / "metrics.json"
+    assert cli(["simulate", "--scenario", "arm-sim", "--controller", "backstepping", "--model", str(pump_dyn.model.source), "--duration", "0.1",
+                "--log", str(out), "--log-noise-l", "0", "--log-noise-p", "0", "--json", str(metrics)]) == 0
+    np.testing.assert_array_equal(read_log(out).columns["ps0"], ps)
+    assert json.loads(metrics.read_text())["supply_pressure"] == {"min": ps.min(), "max": ps.max(), "final": ps[-1]}
+
+
+def test_a_pump_robots_parameters_are_identified_at_its_logged_supply_pressure(pump_dyn):
+    """A three-way cylinder's rod side is at the supply pressure: on a pump robot the forces (and the
+    flows of γ) are at the log's ps0, not the nominal supply_pressure (θ off by ~95 % then); a log
+    without ps0 is refused naming the column."""
+    res = hydrogen.simulate("arm-sim", "backstepping", dyn=pump_dyn, duration=4.0)
+    assert np.ptp(res.supply_pressure) > 5e5  # the supply moves
+    est = hydrogen.identify(res, dyn=pump_dyn)
+    np.testing.assert_allclose(est.theta.estimate, res.theta_true, rtol=0.01)
+    log = log_from_result(res)
+    del log.columns["ps0"]
+    with pytest.raises(IdentificationError, match=r"missing column\(s\) ps0"):
+        hydrogen.identify(log, dyn=pump_dyn)
+
+
 def test_a_log_saved_with_a_utf8_byte_order_mark_is_read(tmp_path):
     """Spreadsheets save CSV as "UTF-8 with BOM": the mark before the header is no part of column t."""
     t = np.arange(5) * 1e-3

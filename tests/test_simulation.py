@@ -14,7 +14,7 @@ from hydrogen.simulation.reference import MultiSine
 from hydrogen.simulation.scenarios import scenario
 from hydrogen.simulation.simulator import _rk4, equilibrium_pressures, simulate
 from hydrogen.controllers import controller as controller_module
-from reference import controller_rate_map
+from reference import controller_rate_map, singular_pose
 from controller_inputs import PAPER_LAWS
 
 #: friction [Coulomb N, viscous N s/m, tanh speed m/s] of each of the six legs; valve [lag, natural
@@ -601,6 +601,30 @@ def test_a_c_loop_forward_kinematics_failure_is_worded_as_dynamics_forward_kinem
     with pytest.raises(hydrogen.KinematicsError, match="JL is singular") as err:
         dyn.forward_kinematics(l_meas, q0=q_lock)
     assert _loop_failure(LOOP_FK_FAILED, runner, p.h) == f"stopped at t = 0.0000 s: {err.value}"
+
+
+def test_a_singular_jl_at_the_encoders_pose_is_worded_as_the_velocity_estimate(cache):
+    """With joint encoders no forward kinematics runs: JL singular at the measured pose stops the
+    velocity solve, and the C loop and the Python stages say so in the same words."""
+    from hydrogen.runtime.loop import LOOP_FK_FAILED
+    from hydrogen.simulation import simulator as S
+    arm = hydrogen.build(hydrogen.load_model("excavator_arm"), cache=cache)
+    assert arm.model.joint_encoders
+    q = singular_pose(arm)
+    p = S.prepare_run(arm, "arm-sim", "p", None, 20 / 512, False, {"seed": 1})
+    x0 = p.x0.copy()
+    x0[S.slot(S.plant_layout(arm.model), "q").slice] = q
+    runner = S.make_runner(arm, p.sc, p.ctrl, x0, q, p.kf_gain, p.h)
+    st = runner.stages()
+    assert st.measure(None) == 0 and st.estimate() == LOOP_FK_FAILED
+    said = S._loop_failure(LOOP_FK_FAILED, runner, p.h)
+    assert said.startswith("stopped at t = 0.0000 s: velocity estimate: JL is singular at the measured pose q = [")
+    assert "forward kinematics" not in said
+    loop = S.PythonStages(arm, p.sc, p.ctrl, x0, q, p.kf_gain, p.h)
+    s = loop.measure(np.zeros_like(p.noise[0]))
+    with pytest.raises(hydrogen.KinematicsError) as err:
+        loop.estimate(s)
+    assert said == f"stopped at t = 0.0000 s: {err.value}"
 
 
 def test_thread_sweep_equals_serial_sweep(dyn):

@@ -139,6 +139,7 @@ def test_symbolic_and_numeric_laws_agree(kind, S, accumulator):
 
 # --- a robot on a pump, built and run --------------------------------------------------------------
 
+#: A small pump with an accumulator (the session fixture ``pump_dyn`` puts it under the mixed arm).
 PUMP_TABLE = """
 [supply]
 kind = "pump"

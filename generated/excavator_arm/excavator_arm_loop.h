@@ -24,7 +24,7 @@ enum { EXCAVATOR_ARM_SLOT_Q, EXCAVATOR_ARM_SLOT_QDOT, EXCAVATOR_ARM_SLOT_PC, EXC
 enum { EXCAVATOR_ARM_OK = 0, EXCAVATOR_ARM_NONFINITE = 1, EXCAVATOR_ARM_FK_FAILED = 2, EXCAVATOR_ARM_CTRL_FAILED = 3 };
 
 /* Outcomes of excavator_arm_forward_kinematics (hydrogen.layout.FK_STATUS). */
-enum { EXCAVATOR_ARM_FK_SOLVED = 0, EXCAVATOR_ARM_FK_SINGULAR = 1, EXCAVATOR_ARM_FK_NOT_CONVERGED = 2, EXCAVATOR_ARM_FK_FUNCTION_FAILED = 3 };
+enum { EXCAVATOR_ARM_FK_SOLVED = 0, EXCAVATOR_ARM_FK_SINGULAR = 1, EXCAVATOR_ARM_FK_NOT_CONVERGED = 2, EXCAVATOR_ARM_FK_FUNCTION_FAILED = 3, EXCAVATOR_ARM_FK_VELOCITY_SINGULAR = 4 };
 
 typedef struct {
     /* timing: control period h (s), plant RK4 sub-steps per control period, adaptation on for t >= t_adapt;
@@ -114,7 +114,7 @@ typedef struct {
     double u_app[EXCAVATOR_ARM_NL];  /* commands the valves held over the last period, m (0 at reset): the
      * controller's u_applied input in its state update */
     double* xc;  /* controller state, n_xc entries */
-    double fk_info[4];  /* the last failed forward kinematics (written when it fails): outcome
+    double fk_info[4];  /* the last failed forward kinematics or velocity solve (written when it fails): outcome
      * (<MODEL>_FK_...), residual (m), JL's condition number (1-norm), Newton steps */
     double fk_l[EXCAVATOR_ARM_NL];  /* the cylinder lengths (m) forward kinematics failed for (q_meas: its last iterate) */
 } excavator_arm_loop_state;

@@ -59,7 +59,8 @@ static int leg_kinematics(const double* nb, const double* q, double* l, double* 
 }
 
 /* LU factorisation of A (column-major NQ x NQ, overwritten by its factors: the multipliers below the
- * diagonal) with partial pivoting, the row swaps in piv; returns 0 if a pivot is not above 1e-12. */
+ * diagonal) with partial pivoting, the row swaps in piv; returns 0 if a pivot is not above
+ * 1e-12 (hydrogen.layout.LU_PIVOT_MIN). */
 static int lu_n(double* A, int* piv) {
     int i, j, k, p;
     double m, tmp;
@@ -307,8 +308,8 @@ int loader_crane_measure(const loader_crane_loop_config* c, const loader_crane_l
     return LOADER_CRANE_OK;
 }
 
-/* A failed forward kinematics (outcome fk, fk_newton's info) recorded in st->fk_info and st->fk_l, for the
- * runtime to word as Dynamics.forward_kinematics does; returns LOADER_CRANE_FK_FAILED. */
+/* A failed forward kinematics or velocity solve (outcome fk, fk_newton's info) recorded in st->fk_info and
+ * st->fk_l, for the runtime to word as hydrogen.dynamics.fk_failure does; returns LOADER_CRANE_FK_FAILED. */
 static int fk_failed(loader_crane_loop_state* st, const loader_crane_loop_signals* s, int fk, const double* info) {
     st->fk_info[0] = (double)fk;
     memcpy(st->fk_info + 1, info, 3 * sizeof(double));
@@ -335,7 +336,7 @@ int loader_crane_estimate(const loader_crane_loop_config* c, loader_crane_loop_s
     memcpy(s->qdot_meas, s->ldot, sizeof s->ldot);
     if (!solve_n(J, s->qdot_meas)) {  /* JL singular at the measured pose: no velocities */
         const double info[3] = {0, INFINITY, 0};
-        return fk_failed(st, s, LOADER_CRANE_FK_SINGULAR, info);
+        return fk_failed(st, s, LOADER_CRANE_FK_VELOCITY_SINGULAR, info);
     }
     return LOADER_CRANE_OK;
 }

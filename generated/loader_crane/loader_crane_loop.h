@@ -24,7 +24,7 @@ enum { LOADER_CRANE_SLOT_Q, LOADER_CRANE_SLOT_QDOT, LOADER_CRANE_SLOT_PC, LOADER
 enum { LOADER_CRANE_OK = 0, LOADER_CRANE_NONFINITE = 1, LOADER_CRANE_FK_FAILED = 2, LOADER_CRANE_CTRL_FAILED = 3 };
 
 /* Outcomes of loader_crane_forward_kinematics (hydrogen.layout.FK_STATUS). */
-enum { LOADER_CRANE_FK_SOLVED = 0, LOADER_CRANE_FK_SINGULAR = 1, LOADER_CRANE_FK_NOT_CONVERGED = 2, LOADER_CRANE_FK_FUNCTION_FAILED = 3 };
+enum { LOADER_CRANE_FK_SOLVED = 0, LOADER_CRANE_FK_SINGULAR = 1, LOADER_CRANE_FK_NOT_CONVERGED = 2, LOADER_CRANE_FK_FUNCTION_FAILED = 3, LOADER_CRANE_FK_VELOCITY_SINGULAR = 4 };
 
 typedef struct {
     /* timing: control period h (s), plant RK4 sub-steps per control period, adaptation on for t >= t_adapt;
@@ -114,7 +114,7 @@ typedef struct {
     double u_app[LOADER_CRANE_NL];  /* commands the valves held over the last period, m (0 at reset): the
      * controller's u_applied input in its state update */
     double* xc;  /* controller state, n_xc entries */
-    double fk_info[4];  /* the last failed forward kinematics (written when it fails): outcome
+    double fk_info[4];  /* the last failed forward kinematics or velocity solve (written when it fails): outcome
      * (<MODEL>_FK_...), residual (m), JL's condition number (1-norm), Newton steps */
     double fk_l[LOADER_CRANE_NL];  /* the cylinder lengths (m) forward kinematics failed for (q_meas: its last iterate) */
 } loader_crane_loop_state;

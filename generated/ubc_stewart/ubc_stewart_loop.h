@@ -24,7 +24,7 @@ enum { UBC_STEWART_SLOT_Q, UBC_STEWART_SLOT_QDOT, UBC_STEWART_SLOT_PC, UBC_STEWA
 enum { UBC_STEWART_OK = 0, UBC_STEWART_NONFINITE = 1, UBC_STEWART_FK_FAILED = 2, UBC_STEWART_CTRL_FAILED = 3 };
 
 /* Outcomes of ubc_stewart_forward_kinematics (hydrogen.layout.FK_STATUS). */
-enum { UBC_STEWART_FK_SOLVED = 0, UBC_STEWART_FK_SINGULAR = 1, UBC_STEWART_FK_NOT_CONVERGED = 2, UBC_STEWART_FK_FUNCTION_FAILED = 3 };
+enum { UBC_STEWART_FK_SOLVED = 0, UBC_STEWART_FK_SINGULAR = 1, UBC_STEWART_FK_NOT_CONVERGED = 2, UBC_STEWART_FK_FUNCTION_FAILED = 3, UBC_STEWART_FK_VELOCITY_SINGULAR = 4 };
 
 typedef struct {
     /* timing: control period h (s), plant RK4 sub-steps per control period, adaptation on for t >= t_adapt;
@@ -114,7 +114,7 @@ typedef struct {
     double u_app[UBC_STEWART_NL];  /* commands the valves held over the last period, m (0 at reset): the
      * controller's u_applied input in its state update */
     double* xc;  /* controller state, n_xc entries */
-    double fk_info[4];  /* the last failed forward kinematics (written when it fails): outcome
+    double fk_info[4];  /* the last failed forward kinematics or velocity solve (written when it fails): outcome
      * (<MODEL>_FK_...), residual (m), JL's condition number (1-norm), Newton steps */
     double fk_l[UBC_STEWART_NL];  /* the cylinder lengths (m) forward kinematics failed for (q_meas: its last iterate) */
 } ubc_stewart_loop_state;

@@ -450,8 +450,10 @@ def check_output(model, folder: Path, numbers: str | None = None) -> list:
 
     When only the derivation code's hash differs (an edit that may not change what is generated,
     such as a comment), the code is generated again into a temporary folder and compared byte for
-    byte, the manifest without its derivation hash: identical output is current. ``numbers``: the
-    mode the folder must be in (None: its own), as for :func:`check`.
+    byte, the manifest without its derivation hash: the files that differ are named, and identical
+    output is still stale by its recorded hash alone (a build uses a folder only at the current
+    hash), which the one reason then says. ``numbers``: the mode the folder must be in (None: its
+    own), as for :func:`check`.
     """
     reasons = check(model, folder, numbers)
     if not reasons:  # current, but a folder grown for some controllers only is not a whole generation
@@ -480,6 +482,10 @@ def check_output(model, folder: Path, numbers: str | None = None) -> list:
                 out.append(f"{folder / name}: differs from a fresh generation")
         elif (folder / name).read_bytes() != fresh[name]:
             out.append(f"{folder / name}: differs from a fresh generation")
+    if not out:  # the same output under an old hash: a build would not use the folder (it checks the hash)
+        out.append(f"{folder}: its output is what a fresh generation writes, but it records the derivation "
+                   f"code's old hash, so every build would generate it again: run 'hydrogen generate --model "
+                   f"{model.name}' to record the current one")
     return out
 
 

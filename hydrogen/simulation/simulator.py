@@ -12,9 +12,9 @@ import numpy as np
 from .. import diagram, pressures
 from ..actuators import actuator
 from ..controllers import spec as controller_spec
-from ..dynamics import fk_failure
+from ..dynamics import VELOCITY_SINGULAR, fk_failure
 from ..errors import KinematicsError, ScenarioError, SimulationError
-from ..layout import PREDICTOR_MODEL, SUPPLY_LOG
+from ..layout import LU_PIVOT_MIN, PREDICTOR_MODEL, SUPPLY_LOG
 from ..plant import describe_entries, friction, plant_layout, slot, state_vector
 from ..plant.supply import entries as supply_entries, start as supply_start
 from ..summary import SATURATED_AT, SATURATION, estimated_blocks  # saturation: defined with its line
@@ -88,7 +88,8 @@ class SimulationResult:
         periods with a saturated valve (|u| ≥ SATURATED_AT × u_max): ``u_saturation_frac`` over every
         valve and period, ``u_saturation_frac_by_actuator`` per actuator; with a periodic reference,
         the high-frequency error's RMS ``hf_error_rms`` and its worst short window ``hf_error_burst``
-        (m or rad), which starts at ``hf_error_burst_t`` (s)."""
+        (m or rad), which starts at ``hf_error_burst_t`` (s); where the supply is a state (a pump),
+        ``supply_pressure``: its ``min``, ``max`` and ``final`` value over the whole run (Pa)."""
         sel, start, note = metric_window(self.t, self.metric_start)  # clamped to the run, and said so
         e = self.error[sel]
         n = self.q.shape[1]
@@ -128,6 +129,9 @@ class SimulationResult:
             burst, at = self.high_frequency_burst()
             self.metrics["hf_error_burst"] = dict(zip(coords, map(float, burst)))
             self.metrics["hf_error_burst_t"] = dict(zip(coords, map(float, at)))
+        if self.supply_pressure is not None and len(self.supply_pressure):
+            ps = np.asarray(self.supply_pressure, float)
+            self.metrics["supply_pressure"] = {"min": float(ps.min()), "max": float(ps.max()), "final": float(ps[-1])}
         if note:
             self.metrics["metric_note"] = note
         return self.metrics
@@ -188,7 +192,8 @@ class SimulationResult:
         return json.dumps(self.metrics or self.compute_metrics(), indent=2, sort_keys=True)
 
     def save_log(self, path, noise_l: float = 0.0, noise_p: float = 0.0, seed: int = 0):
-        """Write the run as a rig log CSV for :func:`hydrogen.identify` (columns t, l*, pc*, u*, q*),
+        """Write the run as a rig log CSV for :func:`hydrogen.identify` (columns t, l*, pc*, ps0 where the
+        supply is a state, u*, q*),
         with white sensor noise of std ``noise_l`` m and ``noise_p`` Pa added: see :mod:`hydrogen.logs`."""
         from ..logs import log_from_result, write_log
         return write_log(log_from_result(self, noise_l, noise_p, seed), path)
@@ -881,7 +886,17 @@ class PythonStages:
             self.q_meas = s.q_enc
         else:
             self.q_meas = self.dyn.forward_kinematics(s.l_meas, q0=self.q_meas)
-        s.qdot_meas = np.linalg.solve(self.dyn.leg_jacobian(self.q_meas), s.ldot)
+        s.qdot_meas = self._velocities(s)
+
+    def _velocities(self, s: _Signals) -> np.ndarray:
+        """Joint velocities from the cylinder rates through JL at the measured pose: the C loop's LU and
+        its pivot test (:data:`~hydrogen.layout.LU_PIVOT_MIN`). A KinematicsError when JL is singular."""
+        from scipy.linalg import lu_factor, lu_solve
+
+        lu, piv = lu_factor(self.dyn.leg_jacobian(self.q_meas), check_finite=False)
+        if not np.all(np.abs(np.diag(lu)) > LU_PIVOT_MIN):
+            raise KinematicsError(fk_failure(VELOCITY_SINGULAR, (0.0, np.inf, 0.0), self.q_meas, s.l_meas, 0))
+        return lu_solve((lu, piv), s.ldot, check_finite=False)
 
     def reference(self, s: _Signals) -> None:
         """The scenario's reference and its derivatives at the period's start."""
