@@ -10,7 +10,7 @@ import ctypes
 
 import numpy as np
 
-from .errors import KinematicsError
+from .errors import KinematicsError, ScenarioError
 from .layout import FK_MAX_COND, FK_MAX_ITER, FK_STATUS, FK_TOL, LU_PIVOT_MIN
 
 __all__ = ["Dynamics", "fk_failure"]
@@ -256,9 +256,18 @@ class Dynamics:
         f = self.functions["pressure_rate"]
         return f(l, ldot, pc, u, g[0], g[1]) if out is None else f(l, ldot, pc, u, g[0], g[1], out=out)
 
-    def leg_force(self, pc, out=None) -> np.ndarray:
-        """(m,) cylinder forces from the pressure vector (f = p_c A − p_s a for a three-way cylinder), N."""
-        return self.functions["leg_force"](pc) if out is None else self.functions["leg_force"](pc, out=out)
+    def leg_force(self, pc, ps=None, out=None) -> np.ndarray:
+        """(m,) cylinder forces from the pressure vector (f = p_c A − p_s a for a three-way cylinder), N;
+        ``ps`` (Pa, (1,)): the supply pressure of a robot whose supply is a plant state (required there,
+        refused otherwise)."""
+        fn = self.functions["leg_force"]
+        takes = "ps" in fn.in_names
+        if takes != (ps is not None):
+            raise ScenarioError(f"leg_force of '{self.model.name}': " + (
+                "needs the supply pressure ps (its supply is a plant state)" if takes else
+                "takes no supply pressure (its supply is constant)"))
+        args = (pc, np.atleast_1d(np.asarray(ps, float))) if takes else (pc,)
+        return fn(*args) if out is None else fn(*args, out=out)
 
 
 def _raise_at(k: int, reason: str):

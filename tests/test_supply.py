@@ -252,3 +252,22 @@ def test_f0_and_g0_at_the_measured_supply_give_the_plants_force_rate(pump_dyn, i
     expected = beta * mod.Numeric.f0(l, ldot, p, P) + beta * flow_gain * mod.Numeric.g0(l, p, u[index], P) + along_ps
     np.testing.assert_allclose(rate, expected, rtol=1e-6)
     assert (along_ps != 0) == (c.kind == "three_way_cylinder")
+
+
+def test_recorded_forces_take_the_supply_state_in_both_loops(pump_dyn):
+    """A three-way cylinder's rod side is at the supply's pressure: the forces both loops record, and
+    Dynamics.leg_force given ps, are the kinds' laws at the logged p_s, not at the nominal one (which
+    would be off by (p_s - P_s) a as the pump charges)."""
+    import hydrogen
+    from hydrogen import pressures
+    runs = [hydrogen.simulate("arm-sim", "backstepping", dyn=pump_dyn, duration=0.4, engine=e) for e in ("c", "python")]
+    for r in runs:
+        at_state = pressures.forces(pump_dyn.model, r.pressures, np.reshape(r.supply_pressure, len(r.t)))
+        np.testing.assert_allclose(r.leg_forces, at_state, rtol=1e-9, atol=1e-6)
+        nominal = pressures.forces(pump_dyn.model, r.pressures)
+        assert np.max(np.abs(r.leg_forces - nominal)) > 1.0  # N: the supply moved away from its nominal value
+    k = len(runs[0].t) // 2
+    f = pump_dyn.leg_force(runs[0].pressures[k], runs[0].supply_pressure[k])
+    np.testing.assert_allclose(f, runs[0].leg_forces[k], rtol=1e-12, atol=1e-9)
+    with pytest.raises(hydrogen.errors.ScenarioError, match="needs the supply pressure ps"):
+        pump_dyn.leg_force(runs[0].pressures[k])

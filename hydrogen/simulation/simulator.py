@@ -999,9 +999,10 @@ def run_python_loop(dyn, sc, ctrl, x, q0, noise, kf_gain, log, n, h):
         pc = x[loop._pc]
         log["q"][k], log["q_d"][k], log["l"][k], log["pc"][k], log["u"][k] = x[loop._q], s.ref[0], s.l_true, pc, s.u
         log["u_applied"][k], log["l_meas"][k] = s.u_app, s.l_meas
-        log["f"][k] = pressures.forces(model, pc)
-        if SUPPLY_LOG in log:
-            log[SUPPLY_LOG][k] = x[slot(loop.layout, SUPPLY_LOG).slice]
+        ps = x[loop._ps] if loop._ps is not None else None  # a supply state's pressure, else the nominal
+        log["f"][k] = pressures.forces(model, pc, None if ps is None else ps[0])
+        if ps is not None:
+            log[SUPPLY_LOG][k] = ps
         if ctrl.xc.size:
             log["xc"][k] = ctrl.xc
 

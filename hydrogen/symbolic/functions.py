@@ -80,7 +80,11 @@ def hydraulic_functions(model) -> list:
     # Plant: ṗ with q = c · (unit flow), c = γ2/γ1, β = γ1, orifice linearised near Δp = 0.
     rate = sp.Matrix([r for i in range(m)
                       for r in laws[i].pressure_rates(l[i], ld[i], p[i], u[i], g1[i], g2[i] / g1[i], P[i], smooth=True)])
-    force = sp.Matrix([laws[i].force(p[i], P[i]) for i in range(m)])
+    # With a supply state the forces take its pressure as an input: a three-way cylinder's rod side is
+    # at the supply's pressure, not at the nominal one (a constant supply keeps today's function).
+    ps_in = [] if model.supply.constant else [("ps", rate_symbols("ps", 1))]
+    PF = [{**Pi, "supply_pressure": ps_in[0][1][0]} for Pi in P] if ps_in else P
+    force = sp.Matrix([laws[i].force(p[i], PF[i]) for i in range(m)])
     if uniform_three_way(model):
         flow = sp.Matrix([laws[i].valve_flow(u[i], p[i], P[i]) for i in range(m)])
         inv = sp.Matrix([laws[i].flow_inverse(wq[i], p[i], P[i], PRESSURE_EPS) for i in range(m)])
@@ -108,7 +112,8 @@ def hydraulic_functions(model) -> list:
                                            ("gamma2", g2)], [("pc_dot", rate)],
                          f"{rate_doc} of the simulated plant, Pa/s "
                          "(orifice law linear below orifice_linear_below)."),
-        SymbolicFunction("leg_force", [("pc", pc)], [("f", force)], force_doc),
+        SymbolicFunction("leg_force", [("pc", pc), *ps_in], [("f", force)],
+                         force_doc + (" ps: the supply pressure state, Pa." if ps_in else "")),
     ]
 
 
