@@ -777,4 +777,4 @@ def test_the_supply_limits_benchmark_runs_the_pump_out_of_flow(capsys):
     sl.print_table(res)
     assert f"\n{'backstepping':20} {'assumed':10} " in capsys.readouterr().out
     page = benchmarks_page({"supply_limits": res})
-    assert "## Supply limits" in page and f"| backstepping | assumed | " in page
+    assert "## Supply limits" in page and "| backstepping | assumed | " in page
