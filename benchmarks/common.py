@@ -345,20 +345,27 @@ def write_results(path: Path, module: str, results: dict) -> str:
 _GRAVITY = re.compile(r"^(gravity\s*=\s*)([0-9.eE+-]+)", re.M)
 
 
-def copy_with_gravity(name: str, folder: Path, gravity) -> Path:
-    """A copy of robot ``name``'s description folder in ``folder`` with its gravity replaced by
-    ``gravity(old)`` (m/s²); the copy's TOML path. Every description has a gravity: the edit is generic."""
+def copy_description(name: str, folder: Path, edit) -> Path:
+    """A copy of robot ``name``'s description folder (its TOML and the files beside it, the URDF) in
+    ``folder`` with its TOML text replaced by ``edit(text)``; the copy's TOML path."""
     import hydrogen
 
     toml = hydrogen.model.model_path(name)
     for p in toml.parent.iterdir():
         if p.is_file():
             shutil.copy(p, folder / p.name)
-    text = toml.read_text()
-    if _GRAVITY.search(text) is None:
-        raise RuntimeError(f"{toml}: no 'gravity =' line to edit")
-    (folder / toml.name).write_text(_GRAVITY.sub(lambda m: f"{m[1]}{float(gravity(float(m[2])))!r}", text, count=1))
+    (folder / toml.name).write_text(edit(toml.read_text()))
     return folder / toml.name
+
+
+def copy_with_gravity(name: str, folder: Path, gravity) -> Path:
+    """A copy of robot ``name``'s description folder in ``folder`` with its gravity replaced by
+    ``gravity(old)`` (m/s²); the copy's TOML path. Every description has a gravity: the edit is generic."""
+    def edit(text):
+        if _GRAVITY.search(text) is None:
+            raise RuntimeError(f"{name}: no 'gravity =' line to edit")
+        return _GRAVITY.sub(lambda m: f"{m[1]}{float(gravity(float(m[2])))!r}", text, count=1)
+    return copy_description(name, folder, edit)
 
 
 

@@ -132,6 +132,11 @@ LOOP_CONFIG = (
      (("p_low", "const double*", "P_PRESSURE_LOW", "run.pressure_low"),
       ("p_high", "const double*", "P_PRESSURE_HIGH", "run.pressure_high"),
       ("numbers", "const double*", "P_NUMBERS", "run.numbers"))),
+    ("supply (a robot with a supply state): supply_feedback != 0: the controller's ps input is the measured\n"
+     " * (or predicted) supply pressure; 0: ps_nominal (Pa), the description's supply_pressure (a controller\n"
+     " * assuming a constant supply)",
+     (("supply_feedback", "long long", "P_SUPPLY_FEEDBACK", "run.supply_feedback"),
+      ("ps_nominal", "double", "P_PS_NOMINAL", "run.ps_nominal"))),
     ("forward kinematics (Newton): tolerance (m), steps, largest condition number (1-norm) of JL",
      (("fk_tol", "double", "P_FK_TOL", "run.fk_tol"), ("fk_max_iter", "long long", "P_FK_MAX_ITER", "run.fk_max_iter"),
       ("fk_max_cond", "double", "P_FK_MAX_COND", "run.fk_max_cond"))),

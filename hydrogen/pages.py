@@ -637,6 +637,38 @@ def _sensitivity(b) -> list:
     return out
 
 
+def _supply_limits(b) -> list:
+    rows = b.get("scenarios", {})
+    if not rows:
+        return []
+    out = ["## Supply limits: tracking error when the pump's flow runs out", "",
+           "`benchmarks/supply_limits.py`: each robot's description copied with a pump of its class (`[supply]`) and a "
+           "rig scenario whose motion asks for more oil than the pump gives; every controller it lists on the "
+           "constant supply (`constant`: the shipped one, unlimited flow), on the pump reading the measured supply "
+           "pressure (`measured`), and on the pump assuming the description's constant supply pressure "
+           "(`assumed`: `supply_feedback = false`). Noise seeds "
+           f"{', '.join(map(str, b.get('seeds', [])))}. Max tracking error, % of the amplitude of each coordinate "
+           "the reference moves: median [min - max] over the seeds (`!`: a seed's run failed); the lowest supply "
+           f"pressure (MPa, median [min - max]) and the median fraction of the run below {b.get('low', 0.9):g} of "
+           "its nominal value.", ""]
+    for name, row in rows.items():
+        out += [f"**{name}**, {row['scenario']} ({row['label']}): `{row['supply']}` of {_f(row['pump_l_min'])} L/min "
+                f"at {_f(row['nominal_mpa'])} MPa ({row['sources']}); the reference asks up to "
+                f"{_f(row['demand_peak_l_min'])} L/min, more than the pump {_f(100 * row['demand_over_frac'])} % of "
+                "the time.", ""]
+        coords = row["coordinates"]
+        table = []
+        for c, points in row["controllers"].items():
+            for p in points:
+                s, f = p["ps_min_mpa"], p["ps_low_frac"]
+                low = "–" if s["median"] is None else (f"{_f(s['median'])} [{_f(s['min'])} - {_f(s['max'])}], "
+                                                       f"{_f(100 * f['median'])} %")
+                table.append([c, p["supply"]] + [_spread_cell(p, k) for k in coords] + [low])
+        out += _table(["controller", "supply"] + [f"{k} max error %" for k in coords]
+                      + ["lowest p_s MPa, time below"], table)
+    return out
+
+
 def benchmarks_page(results: dict, repeats: dict | None = None, source: str = "docs/bench.json") -> str:
     """Markdown of a ``hydrogen bench`` run (the dict it writes as JSON), optionally with the whole-run
     spread of the release comparison (``bench_release_repeats.json``); sections of modules not run
@@ -677,6 +709,8 @@ def benchmarks_page(results: dict, repeats: dict | None = None, source: str = "d
         out += _delay(results["bench_delay"])
     if "bench_sensitivity" in results:
         out += _sensitivity(results["bench_sensitivity"])
+    if "supply_limits" in results:
+        out += _supply_limits(results["supply_limits"])
     return "\n".join(out).rstrip() + "\n"
 
 

@@ -64,6 +64,9 @@ class ScenarioFields:
     noise_p: float = setting(0.0, "Pa", "std of white pressure noise", ">=0")
     noise_ps: float = setting(0.0, "Pa", "std of white noise on the measured supply pressure (a [supply] that is "
                               "not constant)", ">=0")
+    supply_feedback: bool = setting(True, "", "the controllers read the measured supply pressure in their ps "
+                                    "input; false: the description's supply_pressure, a controller assuming a "
+                                    "constant supply (a [supply] that is not constant)")
     kalman: bool = setting(False, "", "cylinder rates from fixed-gain Kalman filters (else exact)")
     kalman_accel: float = setting(50.0, "m²/s³", "the filter's white-acceleration density", ">=0")
     theta0_factor: tuple = setting((), "", "initial θ̂ = θ × factor, one per parameter",

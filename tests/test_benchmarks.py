@@ -770,3 +770,35 @@ def test_the_sensitivity_benchmark_varies_one_rig_element_at_a_time(capsys):
     assert f"\n{'adaptive-robust':20} " in capsys.readouterr().out
     page = benchmarks_page({"bench_sensitivity": res})
     assert "## Sensitivity" in page and "| friction x 0 | friction x 1 |" in page and "| valve 40 Hz |" in page
+
+
+def test_the_supply_limits_benchmark_runs_the_pump_out_of_flow(capsys):
+    """supply_limits' quick run: the crane on its pump in a scenario that asks more oil than the pump
+    gives; the supply pressure falls below nominal on the pump and is not there on the constant supply;
+    the controller fed the constant commands otherwise than the one reading the measurement; the table
+    and the page."""
+    import supply_limits as sl
+    from hydrogen.pages import benchmarks_page
+
+    res = sl.run(quick=True)
+    assert res["seeds"] == list(sl.QUICK_SEEDS) and res["supplies"] == list(sl.SUPPLIES)
+    (name,) = res["scenarios"]
+    row = res["scenarios"][name]
+    assert row["scenario"] == sl.ROBOTS[name]["scenario"] and row["supply"] == "compensated_pump"
+    assert row["demand_peak_l_min"] > row["pump_l_min"] and 0 < row["demand_over_frac"] < 1
+    for c, points in row["controllers"].items():
+        by = {p["supply"]: p for p in points}
+        assert list(by) == list(sl.SUPPLIES)
+        for p in points:
+            assert p["completed"] + p["failed"] == len(sl.QUICK_SEEDS) and p["completed"] > 0
+        assert by["constant"]["ps_min_mpa"]["median"] is None  # no supply state
+        for label in ("measured", "assumed"):
+            assert by[label]["ps_min_mpa"]["median"] < sl.LOW * row["nominal_mpa"]  # the flow ran out
+            assert by[label]["ps_low_frac"]["median"] > 0
+        coord = row["coordinates"][0]
+        assert by["measured"]["median"][coord] != by["assumed"]["median"][coord]
+        assert by["constant"]["median"][coord] < by["measured"]["median"][coord]
+    sl.print_table(res)
+    assert f"\n{'backstepping':20} {'assumed':10} " in capsys.readouterr().out
+    page = benchmarks_page({"supply_limits": res})
+    assert "## Supply limits" in page and "| backstepping | assumed | " in page

@@ -40,10 +40,10 @@ def _run(folder):
     return out
 
 
-def _python_max_errors(dyn, scenario, controller, duration, metric_start):
+def _python_max_errors(dyn, scenario, controller, duration, metric_start, **overrides):
     # every noise off, each actuator's own too (the crane's slew reads its angle with its own noise)
     quiet = named_scenario(scenario, dyn.model).noise_free()
-    res = simulate(dyn, scenario, controller, duration=duration, metric_start=metric_start, **quiet)
+    res = simulate(dyn, scenario, controller, duration=duration, metric_start=metric_start, **quiet, **overrides)
     sel = res.t >= metric_start - 1e-12
     assert sel.any() and (~sel).any()  # the window starts inside the run
     return np.abs(res.error[sel]).max(axis=0), len(res.t)
@@ -277,16 +277,25 @@ def test_an_exported_program_on_a_pump_matches_the_simulation(tmp_path, cache):
     folder = export(tmp_path / "export", "arm-sim", "adaptive-robust", duration=0.5, dyn=dyn, metric_start=0.25)
     params = (folder / "params.h").read_text()
     assert "supply.pump_flow */" in params and "supply.precharge_pressure */" in params
-    reproduces_the_simulation(folder, dyn, "arm-sim", "adaptive-robust", 0.5, 0.25)
+    with_feedback, _, _ = reproduces_the_simulation(folder, dyn, "arm-sim", "adaptive-robust", 0.5, 0.25)
+    # the controller assuming a constant supply: the program's configuration says so, and runs as the simulator
+    folder = export(tmp_path / "constant", "arm-sim", "adaptive-robust", duration=0.5, dyn=dyn, metric_start=0.25,
+                    supply_feedback=False)
+    params = (folder / "params.h").read_text()
+    assert "#define P_SUPPLY_FEEDBACK 0LL" in params and "P_PS_NOMINAL = 10000000.0;" in params
+    assumed, _, _ = reproduces_the_simulation(folder, dyn, "arm-sim", "adaptive-robust", 0.5, 0.25,
+                                              supply_feedback=False)
+    assert np.abs(assumed - with_feedback).max() > 1e-9
 
 
-def reproduces_the_simulation(folder, dyn, scenario, controller, duration, metric_start) -> tuple:
+def reproduces_the_simulation(folder, dyn, scenario, controller, duration, metric_start, **overrides) -> tuple:
     """Build and run the exported program in ``folder``: it completes, over the periods of the Python
-    loop's run, with its max errors to 1e-9; returns them, the program's output and its build."""
+    loop's run (with the scenario ``overrides`` the export was given), with its max errors to 1e-9;
+    returns them, the program's output and its build."""
     build = _build(folder)
     out = _run(folder)
     assert out["status"] == "0"
-    expected, n = _python_max_errors(dyn, scenario, controller, duration, metric_start)
+    expected, n = _python_max_errors(dyn, scenario, controller, duration, metric_start, **overrides)
     assert int(out["periods"]) == n
     got = np.array([out["max_error"][c] for c in dyn.model.coordinate_names])
     np.testing.assert_allclose(got, expected, rtol=1e-9, atol=1e-13)

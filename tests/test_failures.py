@@ -732,3 +732,13 @@ def test_supply_noise_on_a_constant_supply_is_refused_not_ignored(dyn):
     with pytest.raises(ScenarioError, match=r"scenario 'z-1hz': noise_ps adds noise to a measured supply pressure, "
                                             r"but .* has a constant supply .*got 100000.0"):
         simulate(dyn, "z-1hz", "p", duration=0.01, noise_ps=1e5)
+
+
+def test_supply_feedback_off_on_a_constant_supply_is_refused_not_ignored(dyn):
+    """supply_feedback false holds the controllers' supply pressure at the nominal one; a robot on a
+    constant supply reads nothing else, so turning it off would change nothing silently."""
+    with pytest.raises(ScenarioError, match=r"scenario 'z-1hz': supply_feedback feeds the controllers the nominal "
+                                            r"supply pressure .* but .* has a constant supply .*got False"):
+        simulate(dyn, "z-1hz", "p", duration=0.01, supply_feedback=False)
+    with pytest.raises(ScenarioError, match=r"supply_feedback must be True or False, got 'no'"):
+        simulate(dyn, "z-1hz", "p", duration=0.01, supply_feedback="no")

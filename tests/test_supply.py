@@ -271,3 +271,38 @@ def test_recorded_forces_take_the_supply_state_in_both_loops(pump_dyn):
     np.testing.assert_allclose(f, runs[0].leg_forces[k], rtol=1e-12, atol=1e-9)
     with pytest.raises(hydrogen.errors.ScenarioError, match="needs the supply pressure ps"):
         pump_dyn.leg_force(runs[0].pressures[k])
+
+
+# --- the same controllers assuming a constant supply ------------------------------------------------
+
+@pytest.mark.parametrize("predictor", [False, True])
+def test_without_supply_feedback_both_loops_feed_the_controller_the_nominal_supply(pump_dyn, predictor):
+    """supply_feedback false: the controller's ps input is the description's supply_pressure (the
+    measured or predicted p_s is not read), the same commands in either loop, not those with feedback
+    (the pump charges the accumulator above supply_pressure)."""
+    import hydrogen
+    kw = dict(dyn=pump_dyn, duration=0.2, noise_ps=2e5, **(dict(delay=0.002, predictor=True) if predictor else {}))
+    off = [hydrogen.simulate("arm-sim", "backstepping", supply_feedback=False, engine=e, **kw) for e in ("c", "python")]
+    np.testing.assert_allclose(off[0].u, off[1].u, rtol=1e-9, atol=1e-15)
+    np.testing.assert_allclose(off[0].supply_pressure, off[1].supply_pressure, rtol=1e-9)
+    on = hydrogen.simulate("arm-sim", "backstepping", **kw)
+    assert np.abs(on.supply_pressure - supply.nominal(pump_dyn.model)).max() > 5e5  # p_s left the nominal
+    assert np.abs(on.u - off[0].u).max() > 1e-7
+
+
+def test_without_supply_feedback_the_commands_are_those_of_a_controller_fed_the_constant(pump_dyn, monkeypatch):
+    """With feedback off the commands equal those of the loop with feedback whose supply sensor reads the
+    constant supply_pressure (no predictor: the sensor's reading is the controller's ps input)."""
+    import hydrogen
+    from hydrogen.simulation.simulator import PythonStages
+    kw = dict(dyn=pump_dyn, duration=0.2, engine="python")
+    off = hydrogen.simulate("arm-sim", "adaptive-robust", supply_feedback=False, **kw)
+    sensors = PythonStages.sensors
+
+    def constant_sensor(self, s):
+        sensors(self, s)
+        s.ps_meas = np.full(1, pump_dyn.model.cylinders[0].supply_pressure)
+    monkeypatch.setattr(PythonStages, "sensors", constant_sensor)
+    fed = hydrogen.simulate("arm-sim", "adaptive-robust", **kw)
+    np.testing.assert_array_equal(off.u, fed.u)
+    np.testing.assert_array_equal(off.supply_pressure, fed.supply_pressure)

@@ -98,6 +98,11 @@ typedef struct {
     const double* p_low;
     const double* p_high;
     const double* numbers;
+    /* supply (a robot with a supply state): supply_feedback != 0: the controller's ps input is the measured
+     * (or predicted) supply pressure; 0: ps_nominal (Pa), the description's supply_pressure (a controller
+     * assuming a constant supply) */
+    long long supply_feedback;
+    double ps_nominal;
     /* forward kinematics (Newton): tolerance (m), steps, largest condition number (1-norm) of JL */
     double fk_tol;
     long long fk_max_iter;

@@ -47,7 +47,7 @@ import numpy as np
 from ..actuators.declarations import BULK_MODULUS, SUPPLY_PRESSURE, VOLUME, Parameter, Range, sp
 from . import PlantState
 
-__all__ = ["KINDS", "DEFAULT_KIND", "NEEDS", "STATES", "entries", "start", "ceiling", "PARAMETERS", "ATMOSPHERE", "RELIEF_OVERRIDE",
+__all__ = ["KINDS", "DEFAULT_KIND", "NEEDS", "STATES", "entries", "nominal", "start", "ceiling", "PARAMETERS", "ATMOSPHERE", "RELIEF_OVERRIDE",
            "RELIEF_WIDTH", "COMPENSATOR_DROOP", "Supply", "Laws", "Symbolic", "Numeric"]
 
 #: The supply kinds a description may name; the default: a constant supply pressure.
@@ -132,10 +132,17 @@ def entries(model) -> list:
     return [] if supply is None or supply.constant else ["supply"]
 
 
+def nominal(model) -> float:
+    """The description's supply pressure (Pa): the actuators' shared ``supply_pressure``, where a
+    supply state starts and what a controller assuming a constant supply takes (``supply_feedback``
+    false)."""
+    return float(model.cylinders[0].supply_pressure)
+
+
 def start(model) -> dict:
     """The supply part of the plant's starting state: ``{"ps": [P_s]}`` where the supply is a state
-    (it starts at the actuators' shared ``supply_pressure``, Pa), else none."""
-    return {"ps": [model.cylinders[0].supply_pressure]} if entries(model) else {}
+    (it starts at :func:`nominal`), else none."""
+    return {"ps": [nominal(model)]} if entries(model) else {}
 
 
 def ceiling(model) -> float | None:
@@ -144,7 +151,7 @@ def ceiling(model) -> float | None:
     actuators' supply_pressure if higher; None for a constant supply."""
     if not entries(model):
         return None
-    return max(model.supply.values["relief_pressure"] * (1 + 2 * RELIEF_OVERRIDE), model.cylinders[0].supply_pressure)
+    return max(model.supply.values["relief_pressure"] * (1 + 2 * RELIEF_OVERRIDE), nominal(model))
 
 
 class _Ops:

@@ -121,7 +121,7 @@ def check_fields(sc) -> None:
         v = getattr(sc, f)
         if isinstance(v, (bool, np.bool_)) or not isinstance(v, numbers.Integral):
             _fail(name, f, "must be an integer >= 1", v)
-    for f in ("kalman", "predictor"):
+    for f in ("kalman", "predictor", "supply_feedback"):
         if not isinstance(getattr(sc, f), (bool, np.bool_)):
             _fail(name, f, "must be True or False", getattr(sc, f))
     if not seed_ok(sc.seed):
@@ -161,6 +161,10 @@ def check_against_model(sc, model, controller, dyn=None) -> None:
     if sc.noise_ps and model.supply.constant:  # it would measure nothing: refused, not ignored
         _fail(name, "noise_ps", f"adds noise to a measured supply pressure, but {model.source} has a constant "
               "supply (no [supply] state): leave noise_ps 0, or give the robot a [supply] pump", sc.noise_ps)
+    if not sc.supply_feedback and model.supply.constant:  # nothing to hold constant: refused, not ignored
+        _fail(name, "supply_feedback", f"feeds the controllers the nominal supply pressure in place of the measured "
+              f"one, but {model.source} has a constant supply (no [supply] state): leave supply_feedback true, or "
+              "give the robot a [supply] pump", sc.supply_feedback)
     for f, size in (("theta0_factor", model.n_theta), ("gamma0_factor", len(model.gamma))):
         if len(getattr(sc, f)) != size:
             _fail(name, f, f"must hold {size} factors (one per parameter)", getattr(sc, f))

@@ -14,6 +14,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .. import pressures
+from ..plant import supply
 from ..layout import FK_MAX_COND, FK_MAX_ITER, FK_TOL, LOOP_CONFIG, delay_split
 
 __all__ = ["Run", "DERIVED", "config_values", "FK_TOL", "FK_MAX_ITER"]
@@ -97,6 +98,8 @@ DERIVED = {
     "pressure_low": lambda r: pressures.bounds(r.dyn.model)[0],
     "pressure_high": lambda r: pressures.bounds(r.dyn.model)[1],
     "numbers": lambda r: np.zeros(1) if r.dyn.numbers is None else np.asarray(r.dyn.numbers, float),
+    "supply_feedback": lambda r: int(bool(r.sc.supply_feedback)),
+    "ps_nominal": lambda r: supply.nominal(r.dyn.model),
     "fk_tol": lambda r: FK_TOL,
     "fk_max_iter": lambda r: FK_MAX_ITER,
     "fk_max_cond": lambda r: FK_MAX_COND,

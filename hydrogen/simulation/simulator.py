@@ -16,7 +16,7 @@ from ..dynamics import VELOCITY_SINGULAR, fk_failure
 from ..errors import KinematicsError, ScenarioError, SimulationError
 from ..layout import LU_PIVOT_MIN, PREDICTOR_MODEL, SUPPLY_LOG
 from ..plant import describe_entries, friction, plant_layout, slot, state_vector
-from ..plant.supply import entries as supply_entries, start as supply_start
+from ..plant.supply import entries as supply_entries, nominal as supply_nominal, start as supply_start
 from ..summary import SATURATED_AT, SATURATION, estimated_blocks  # saturation: defined with its line
 from .checks import _shown, check_against_model, check_run_size, checked_float, metric_window
 from .control import make_controller
@@ -915,13 +915,20 @@ class PythonStages:
             q = x[self._q]
             ports = diagram.signals(q, x[self._qdot], x[self._pc], np.asarray(self.dyn.leg_lengths(q), float),
                                     sc.reference(s.t + (delay + self.delay_frac) * self.h), s.adapt,
-                                    ps=None if self._ps is None else x[self._ps])
+                                    ps=self._ps_input(x[self._ps] if self._ps is not None else None))
         else:
             ports = diagram.signals(self.q_meas, s.qdot_meas, s.pc_meas, s.l_meas, s.ref, s.adapt,
-                                    ps=None if self._ps is None else s.ps_meas)
+                                    ps=self._ps_input(s.ps_meas if self._ps is not None else None))
         if self.k and sc.estimator_update != "euler":  # semi-implicit: state from this measurement, then command
             ctrl.update_for(self.h, ports)
         s.u = ctrl.command_for(ports)
+
+    def _ps_input(self, ps):
+        """The controller's ``ps`` input from the measured (or predicted) supply pressure ``ps`` (Pa; None:
+        a constant supply): the description's supply pressure instead without ``supply_feedback``."""
+        if ps is None or self.sc.supply_feedback:
+            return ps
+        return np.full(np.shape(ps), supply_nominal(self.model))
 
     def hold(self, s: _Signals) -> None:
         """The computation delay and zero-order hold: the command the valves hold over the period's first
