@@ -175,7 +175,8 @@ def _cmd_identify(args) -> int:
     if args.json:
         check_output_file(args.json, "--json")
     res = hydrogen.identify(Path(args.log), model=args.model, cutoff_hz=args.cutoff,
-                            zoh_correction=args.zoh_correction, **_build_options(args))
+                            zoh_correction=args.zoh_correction, friction=args.friction,
+                            friction_speed=args.friction_speed, **_build_options(args))
     print(res.summary())
     if args.json:
         atomic_write(Path(args.json), json.dumps(res.to_dict(), indent=2, sort_keys=True) + "\n")
@@ -419,6 +420,10 @@ def build_parser() -> argparse.ArgumentParser:
     ident.add_argument("--zoh-correction", action="store_true",
                        help="pressures sampled where the held spool command changes, ideal valve (hydrogen's "
                             "paper-sim): correct for the pressure's curve within the period")
+    ident.add_argument("--friction", action="store_true",
+                       help="also fit each actuator's Coulomb and viscous friction with theta (F_c tanh(v/v_s) + b v)")
+    ident.add_argument("--friction-speed", type=_number(float, 0), default=1e-3, metavar="V_S",
+                       help="the friction's smoothing speed v_s, m/s or rad/s (default 1e-3, the rig's)")
     _add_build_options(ident)
     ident.set_defaults(func=_cmd_identify)
     fig = sub.add_parser("figures", help="run every scenario and write the paper's figures and table",

@@ -180,16 +180,20 @@ class Identification:
     gamma_note: str = ""
     gamma_cutoff_hz: float | None = None
     timings_s: dict = field(default_factory=dict)
+    #: each actuator's Coulomb and viscous friction, fitted with θ (``identify(friction=True)``), or None
+    friction: ParameterFit | None = None
 
     @property
     def identifiable(self) -> bool:
         """True when θ (and γ, if estimated) are both identifiable from the log."""
-        return self.theta.identifiable and (self.gamma is None or self.gamma.identifiable)
+        return (self.theta.identifiable and (self.gamma is None or self.gamma.identifiable)
+                and (self.friction is None or self.friction.identifiable))
 
     def to_dict(self) -> dict:
         """Plain JSON data of the whole identification (estimates, fits, cutoffs, timings)."""
-        d = {k: v for k, v in asdict(self).items() if k not in ("theta", "gamma", "gamma_per_leg")}
+        d = {k: v for k, v in asdict(self).items() if k not in ("theta", "gamma", "gamma_per_leg", "friction")}
         d["theta"] = self.theta.to_dict()
+        d["friction"] = None if self.friction is None else self.friction.to_dict()
         d["gamma"] = None if self.gamma is None else self.gamma.to_dict()
         d["gamma_per_leg"] = None if self.gamma_per_leg is None else self.gamma_per_leg.tolist()
         return d
@@ -200,6 +204,8 @@ class Identification:
                  f"at {self.cutoff_hz:.3g} Hz; {self.edge_samples} samples dropped at each end; 1 in every "
                  f"{self.decimate} used ({self.samples_used})"]
         lines += self.theta.describe("theta")
+        if self.friction is not None:
+            lines += self.friction.describe("friction")
         if self.gamma is not None:
             lines += self.gamma.describe("gamma")
         if self.gamma_note:
@@ -341,7 +347,8 @@ def _check_samples(log, t, fs, edge, step, what):
 def identify(log, model=None, *, dyn=None, cutoff_hz: float | None = None, order: int = 4,
              decimate: int | None = None, edge_cycles: float = 3.0, max_cond: float = 1e3,
              gamma: bool = True, gamma_cutoff_hz: float | None = None,
-             zoh_correction: bool = False, numbers: str | None = None) -> Identification:
+             zoh_correction: bool = False, numbers: str | None = None, friction: bool = False,
+             friction_speed: float = 1e-3) -> Identification:
     """Estimate θ (and γ = [β, βc] when the log has spool commands) by least squares from a log.
 
     ``log``: a :class:`~hydrogen.simulation.simulator.SimulationResult` (its true leg lengths and
@@ -358,7 +365,10 @@ def identify(log, model=None, *, dyn=None, cutoff_hz: float | None = None, order
     hydrogen's paper-sim): add β h² l̈/(12 (l − L)) to each pressure, the offset between such a
     sample and the pressure the differenced positions see (see below); uses the model's β.
     ``numbers``: how ``model`` is built when ``dyn`` is not given (:func:`hydrogen.build`'s; None: its
-    default).
+    default). ``friction``: also fit each actuator's Coulomb F_c (N or N m) and viscous b (N s/m or
+    N m s/rad) friction with θ, the friction of the plant's law F_c tanh(l̇/v_s) + b l̇ at the smoothing
+    speed ``friction_speed`` v_s (m/s or rad/s): its columns JLᵀ tanh(l̇/v_s) and JLᵀ l̇ per actuator join
+    the regressor (the result's ``friction``; θ's fit then holds the friction's share apart).
 
     Returns an :class:`Identification`: ``.theta.estimate``, ``.theta.std_error``, ``.theta.cond``,
     ``.theta.identifiable``, ``.theta.direction``, the same for ``.gamma`` (or None), and
@@ -451,8 +461,12 @@ def identify(log, model=None, *, dyn=None, cutoff_hz: float | None = None, order
     Y = _per_sample(dyn.regressor, Qf[idx], V[idx], V[idx], Acc[idx])
     # the parameters that are not adapted are known: their share y0 moves to the left-hand side
     y0 = _per_sample(dyn.regressor_offset, Qf[idx], V[idx], V[idx], Acc[idx])
-    theta = _fit(Y.reshape(-1, p), (tau[idx] - y0).reshape(-1), _theta_names(model, p), max_cond, model.theta,
-                 _true(log.meta, "theta_true", p))
+    rhs = (tau[idx] - y0).reshape(-1)
+    if friction:
+        theta, fric = _fit_with_friction(dyn, log, Y, rhs, Qf, L, h, sos, idx, friction_speed, max_cond)
+    else:
+        theta, fric = _fit(Y.reshape(-1, p), rhs, _theta_names(model, p), max_cond, model.theta,
+                           _true(log.meta, "theta_true", p)), None
     _check_physical(theta, [n.rpartition(".")[2] in POSITIVE_PARAMETERS for n in theta.names], model.theta_min,
                     model.theta_max, "[adaptation] theta_min/theta_max")
     timings["regression"] = time.perf_counter() - t0
@@ -483,7 +497,42 @@ def identify(log, model=None, *, dyn=None, cutoff_hz: float | None = None, order
         timings["gamma"] = time.perf_counter() - t0
     timings["total"] = time.perf_counter() - t_start
     return Identification(theta, gamma_fit, per_leg, fs, fc, edge, step, len(t), len(idx), log.source, note,
-                          fc_g, timings)
+                          fc_g, timings, fric)
+
+
+def _fit_with_friction(dyn, log, Y, rhs, Qf, L, h, sos, idx, v_s, max_cond) -> tuple:
+    """θ and each actuator's friction [F_c, b] in one least-squares fit: the actuator forces pay the
+    friction f_i = F_c,i tanh(l̇_i/v_s) + b_i l̇_i, so JLᵀ f joins the regressor as two columns per
+    actuator (l̇ from the low-passed lengths, JL at the low-passed pose). Returns the fit split in two
+    (:class:`ParameterFit` each: θ's and the friction's, with the joint fit's conditioning)."""
+    model = dyn.model
+    if not (np.isfinite(v_s) and v_s > 0):
+        raise IdentificationError(f"friction_speed must be a positive speed (m/s or rad/s), got {v_s!r}")
+    p, m = len(model.theta), model.n_cylinders
+    ldot = np.gradient(_lowpass(L, sos), h, axis=0)
+    JL = _per_sample(dyn.leg_jacobian, Qf)  # (k, m, n)
+    cols = np.concatenate([JL * np.tanh(ldot / v_s)[:, :, None], JL * ldot[:, :, None]], axis=1)  # (k, 2m, n)
+    # low-passed as the forces are: the friction's share of τ is the filtered JLᵀ f, not f of filtered rates
+    cols = _lowpass(cols.reshape(len(cols), -1), sos).reshape(cols.shape)[idx]
+    X = np.concatenate([Y, np.transpose(cols, (0, 2, 1))], axis=2)  # JLᵀ f_hyd = Y θ + y0 + JLᵀ f_friction
+    # a friction column's scale: the size of the force it explains against the data's (no nominal value)
+    force = np.sqrt(np.mean(rhs ** 2))
+    scale = [force / max(np.sqrt(np.mean(np.square(X[:, :, p + j]))), 1e-300) for j in range(2 * m)]
+    names = [*_theta_names(model, p), *(f"{c.name}.{k}" for k in ("coulomb", "viscous") for c in model.cylinders)]
+    true_theta = _true(log.meta, "theta_true", p)
+    fit = _fit(X.reshape(-1, p + 2 * m), rhs, names, max_cond, [*model.theta, *scale],
+               None if true_theta is None else [*true_theta, *np.full(2 * m, np.nan)])
+    return _part(fit, range(p)), _part(fit, range(p, p + 2 * m))
+
+
+def _part(fit: ParameterFit, keep) -> ParameterFit:
+    """The entries ``keep`` of a joint fit (its conditioning, residual and directions kept whole)."""
+    keep = list(keep)
+    true = None if fit.true is None else np.asarray(fit.true, float)[keep]
+    return ParameterFit([fit.names[i] for i in keep], fit.estimate[keep], fit.std_error[keep], fit.cond,
+                        fit.identifiable, fit.direction, fit.residual_rms, fit.rows,
+                        None if true is None or np.isnan(true).all() else true, fit.unexcited, fit.reason,
+                        fit.determined[keep])
 
 
 def _poses(dyn, L, t, source, tol: float = FK_TOL) -> np.ndarray:
