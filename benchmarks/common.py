@@ -424,3 +424,22 @@ def study_result(model, seeds, quick: bool, quick_duration: float, scenarios: di
             "duration_s": quick_duration if quick else None, "scenarios": scenarios,
             "figure": None if quick else figure.relative_to(REPO).as_posix(), "cores": os.cpu_count(),
             "wall_s": time.perf_counter() - start}
+
+
+def json_study_main(doc: str, collect, markdown, default_json: Path, argv=None) -> int:
+    """A study script's command line: ``--workers`` (default 2) and ``--json`` (default ``default_json``);
+    runs ``collect(workers=...)``, writes its data as sorted JSON atomically and prints ``markdown`` of it."""
+    import argparse
+    import json
+
+    from hydrogen.fileio import atomic_write
+
+    ap = argparse.ArgumentParser(description=doc.splitlines()[0])
+    ap.add_argument("--workers", type=int, default=2, help="processes (default 2)")
+    ap.add_argument("--json", default=str(default_json), help=f"output (default {default_json.relative_to(REPO)})")
+    args = ap.parse_args(argv)
+    text = json.dumps(collect(workers=args.workers), indent=2, sort_keys=True) + "\n"
+    atomic_write(Path(args.json), text)
+    print(markdown(json.loads(text)))
+    print(f"written to {args.json}")
+    return 0

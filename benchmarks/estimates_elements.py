@@ -16,8 +16,6 @@ Run: ``python benchmarks/estimates_elements.py [--workers W]`` (a minute or two 
 """
 from __future__ import annotations
 
-import argparse
-import json
 import sys
 import time
 from pathlib import Path
@@ -25,11 +23,16 @@ from pathlib import Path
 import numpy as np
 
 import hydrogen
-from hydrogen.fileio import atomic_write
 from hydrogen.simulation.checks import adapts
 from hydrogen.simulation.tuning import AT_BOUND, rig_scenarios
 
-REPO = Path(__file__).resolve().parents[1]
+try:  # imported as benchmarks.<name>
+    from . import common
+except ImportError:  # run as a script, or loaded from its path
+    sys.path.insert(0, str(Path(__file__).resolve().parent))
+    import common
+
+REPO = common.REPO
 SEEDS = list(range(100, 110))
 #: Each configuration: its label and the scenario fields it changes from the rig.
 ELEMENTS = {
@@ -91,15 +94,7 @@ def markdown(data) -> str:
 
 
 def main(argv=None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--workers", type=int, default=2, help="processes (default 2)")
-    ap.add_argument("--json", default=str(REPO / "docs" / "estimates_elements.json"), help="output")
-    args = ap.parse_args(argv)
-    text = json.dumps(collect(SEEDS, args.workers), indent=2, sort_keys=True) + "\n"
-    atomic_write(Path(args.json), text)
-    print(markdown(json.loads(text)))
-    print(f"written to {args.json}")
-    return 0
+    return common.json_study_main(__doc__, collect, markdown, REPO / "docs" / "estimates_elements.json", argv)
 
 
 if __name__ == "__main__":

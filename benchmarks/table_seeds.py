@@ -12,8 +12,6 @@ Run: ``python benchmarks/table_seeds.py [--workers W]`` (about a minute on 2 cor
 """
 from __future__ import annotations
 
-import argparse
-import json
 import sys
 import time
 from pathlib import Path
@@ -21,10 +19,15 @@ from pathlib import Path
 import numpy as np
 
 import hydrogen
-from hydrogen.fileio import atomic_write
 from hydrogen.simulation.tuning import rig_scenarios
 
-REPO = Path(__file__).resolve().parents[1]
+try:  # imported as benchmarks.<name>
+    from . import common
+except ImportError:  # run as a script, or loaded from its path
+    sys.path.insert(0, str(Path(__file__).resolve().parent))
+    import common
+
+REPO = common.REPO
 #: The seeds the table's distributions are taken over: none of the tuning seeds 0..9.
 SEEDS = list(range(100, 150))
 #: A seed is in the tail when its max error exceeds the median by this factor.
@@ -70,16 +73,7 @@ def markdown(data) -> str:
 
 
 def main(argv=None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--workers", type=int, default=2, help="processes (default 2)")
-    ap.add_argument("--json", default=str(REPO / "docs" / "table_seeds.json"), help="output")
-    args = ap.parse_args(argv)
-    data = collect(SEEDS, args.workers)
-    text = json.dumps(data, indent=2, sort_keys=True) + "\n"
-    atomic_write(Path(args.json), text)
-    print(markdown(json.loads(text)))
-    print(f"written to {args.json}")
-    return 0
+    return common.json_study_main(__doc__, collect, markdown, REPO / "docs" / "table_seeds.json", argv)
 
 
 if __name__ == "__main__":
