@@ -802,3 +802,21 @@ def test_the_supply_limits_benchmark_runs_the_pump_out_of_flow(capsys):
     assert f"\n{'backstepping':20} {'assumed':10} " in capsys.readouterr().out
     page = benchmarks_page({"supply_limits": res})
     assert "## Supply limits" in page and "| backstepping | assumed | " in page
+
+
+def test_a_study_script_writes_its_json_atomically_and_prints_its_table(tmp_path, capsys):
+    """common.json_study_main: --workers reaches collect, the data is written sorted to --json, the
+    Markdown of what was written is printed."""
+    import common
+    seen = {}
+
+    def collect(workers):
+        seen["workers"] = workers
+        return {"rows": [{"b": 2, "a": 1}]}
+
+    out = tmp_path / "study.json"
+    assert common.json_study_main("A study.\n", collect, lambda d: f"| rows {len(d['rows'])} |",
+                                  common.REPO / "docs" / "x.json", ["--workers", "3", "--json", str(out)]) == 0
+    assert seen == {"workers": 3} and json.loads(out.read_text()) == {"rows": [{"a": 1, "b": 2}]}
+    assert out.read_text().index('"a"') < out.read_text().index('"b"')  # sorted keys
+    assert "| rows 1 |" in capsys.readouterr().out and not list(tmp_path.glob("*.tmp"))
