@@ -621,9 +621,10 @@ def test_a_singular_jl_at_the_encoders_pose_is_worded_as_the_velocity_estimate(c
     assert said.startswith("stopped at t = 0.0000 s: velocity estimate: JL is singular at the measured pose q = [")
     assert "forward kinematics" not in said
     loop = S.PythonStages(arm, p.sc, p.ctrl, x0, q, p.kf_gain, p.h)
-    s = loop.measure(np.zeros_like(p.noise[0]))
+    s = loop.signals(np.zeros_like(p.noise[0]))
+    loop.sensors(s)
     with pytest.raises(hydrogen.KinematicsError) as err:
-        loop.estimate(s)
+        loop.estimator(s)
     assert said == f"stopped at t = 0.0000 s: {err.value}"
 
 
