@@ -463,7 +463,7 @@ def identify(log, model=None, *, dyn=None, cutoff_hz: float | None = None, order
     y0 = _per_sample(dyn.regressor_offset, Qf[idx], V[idx], V[idx], Acc[idx])
     rhs = (tau[idx] - y0).reshape(-1)
     if friction:
-        theta, fric = _fit_with_friction(dyn, log, Y, rhs, Qf, L, h, sos, idx, friction_speed, max_cond)
+        theta, fric = _fit_with_friction(dyn, log, Y, rhs, JL, L, h, sos, idx, friction_speed, max_cond)
     else:
         theta, fric = _fit(Y.reshape(-1, p), rhs, _theta_names(model, p), max_cond, model.theta,
                            _true(log.meta, "theta_true", p)), None
@@ -500,17 +500,16 @@ def identify(log, model=None, *, dyn=None, cutoff_hz: float | None = None, order
                           fc_g, timings, fric)
 
 
-def _fit_with_friction(dyn, log, Y, rhs, Qf, L, h, sos, idx, v_s, max_cond) -> tuple:
+def _fit_with_friction(dyn, log, Y, rhs, JL, L, h, sos, idx, v_s, max_cond) -> tuple:
     """θ and each actuator's friction [F_c, b] in one least-squares fit: the actuator forces pay the
     friction f_i = F_c,i tanh(l̇_i/v_s) + b_i l̇_i, so JLᵀ f joins the regressor as two columns per
-    actuator (l̇ from the low-passed lengths, JL at the low-passed pose). Returns the fit split in two
-    (:class:`ParameterFit` each: θ's and the friction's, with the joint fit's conditioning)."""
+    actuator (l̇ from the low-passed lengths, ``JL`` the forces' own Jacobians, one per sample). Returns
+    the fit split in two (:class:`ParameterFit` each: θ's and the friction's, the joint conditioning)."""
     model = dyn.model
     if not (np.isfinite(v_s) and v_s > 0):
         raise IdentificationError(f"friction_speed must be a positive speed (m/s or rad/s), got {v_s!r}")
     p, m = len(model.theta), model.n_cylinders
     ldot = np.gradient(_lowpass(L, sos), h, axis=0)
-    JL = _per_sample(dyn.leg_jacobian, Qf)  # (k, m, n)
     cols = np.concatenate([JL * np.tanh(ldot / v_s)[:, :, None], JL * ldot[:, :, None]], axis=1)  # (k, 2m, n)
     # low-passed as the forces are: the friction's share of τ is the filtered JLᵀ f, not f of filtered rates
     cols = _lowpass(cols.reshape(len(cols), -1), sos).reshape(cols.shape)[idx]

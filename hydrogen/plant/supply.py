@@ -142,7 +142,7 @@ def nominal(model) -> float:
 def start(model) -> dict:
     """The supply part of the plant's starting state: ``{"ps": [P_s]}`` where the supply is a state
     (it starts at :func:`nominal`), else none."""
-    return {"ps": [nominal(model)]} if entries(model) else {}
+    return {STATES[0].name: [nominal(model)]} if entries(model) else {}
 
 
 def ceiling(model) -> float | None:
