@@ -136,7 +136,7 @@ def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--seeds", default="100-119", help="noise seeds (default 100-119, never tuned on)")
     ap.add_argument("--workers", type=int, default=1)
-    ap.add_argument("--robot", action="append", help="only this robot (repeatable)")
+    ap.add_argument("--robot", action="append", help="only this robot (repeatable; --json keeps the others' rows)")
     ap.add_argument("--json", type=Path, help="also write the numbers here")
     ap.add_argument("--tune", action="store_true", help="print the tuning grid on seeds 0-9 instead")
     args = ap.parse_args(argv)
@@ -147,6 +147,10 @@ def main(argv=None) -> int:
     rows = measure(seeds, args.workers, args.robot)
     print(markdown(rows, seeds))
     if args.json:
+        if args.robot and args.json.exists():  # the file's rows of the other robots (same seeds) are kept
+            old = json.loads(args.json.read_text())
+            if old.get("seeds") == seed_list(seeds):
+                rows = [r for r in old["rows"] if r["robot"] not in args.robot] + rows
         atomic_write(args.json, json.dumps({"seeds": seed_list(seeds), "rows": rows}, indent=1) + "\n")
     return 0
 

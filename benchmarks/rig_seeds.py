@@ -7,7 +7,7 @@ projection bound named).
 
 Writes ``docs/rig_seeds.json`` (atomically) and prints the table as Markdown.
 
-Run: ``python benchmarks/rig_seeds.py [--seeds N] [--workers W] [--json FILE]`` (about 10 minutes
+Run: ``python benchmarks/rig_seeds.py [--seeds N] [--workers W] [--models M ...] [--json FILE]`` (about 10 minutes
 on 2 cores with the default 10 seeds).
 """
 from __future__ import annotations
@@ -84,10 +84,17 @@ def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--seeds", type=parse_seeds, default=DEFAULT_SEEDS, help=f"N or a list (default {DEFAULT_SEEDS})")
     ap.add_argument("--workers", type=int, help="processes (default: the core count)")
+    ap.add_argument("--models", nargs="+", help="only these robots; the file's other robots (same seeds) are kept")
     ap.add_argument("--json", default=str(REPO / "docs" / "rig_seeds.json"),
                     help="output (default docs/rig_seeds.json)")
     args = ap.parse_args(argv)
-    text = json.dumps(collect(args.seeds, args.workers), indent=2, sort_keys=True) + "\n"
+    data = collect(args.seeds, args.workers, models=args.models)
+    path = Path(args.json)
+    if args.models and path.exists():
+        old = json.loads(path.read_text())
+        if old.get("seeds") == data["seeds"]:
+            data = {**old, "models": {**old["models"], **data["models"]}}
+    text = json.dumps(data, indent=2, sort_keys=True) + "\n"
     data = json.loads(text)  # the page from the data as written (sorted keys), as its test renders it
     atomic_write(Path(args.json), text)
     page = Path(args.json).with_suffix(".md")

@@ -1,18 +1,15 @@
-"""Tracking error when the pump's flow runs out: the excavator arm and the loader crane on a pump of
-their class instead of the shipped constant supply, each in a scenario whose motion asks for more oil
-than the pump gives, every controller the robot lists, with the measured supply pressure and with the
-same controller assuming a constant supply.
+"""Tracking error when the pump's flow runs out: the excavator arm and the loader crane on their
+shipped pumps (each description's ``[supply]``), in each robot's scenario whose motion asks for more
+oil than the pump gives (``arm-flow``, ``crane-flow``: rig scenarios no gain is chosen for), every
+controller the robot lists, with the measured supply pressure, the same controller assuming a constant
+supply, and the robot on a constant supply of unlimited flow. Three supplies:
 
-Each robot's description is copied to a temporary folder with a ``[supply]`` table (:data:`ROBOTS`:
-its figures and their sources; what was chosen is said so) and one rig scenario (``rig = true``: the
-robot's rig, sensors and delay) appended; the shipped descriptions are not changed. Three supplies:
-
-* ``constant``: the copy without ``[supply]``: the shipped constant supply pressure, unlimited flow
-  (the reference);
-* ``measured``: the pump; the controllers read the measured supply pressure (``supply_feedback``
-  true, the default);
-* ``assumed``: the pump; the same controllers fed the description's ``supply_pressure`` instead
-  (``supply_feedback`` false): a controller that assumes a constant supply.
+* ``constant``: a copy of the description without its ``[supply]`` table: the description's
+  ``supply_pressure``, unlimited flow (the reference);
+* ``measured``: the shipped pump; the controllers read the measured supply pressure
+  (``supply_feedback`` true, the default);
+* ``assumed``: the shipped pump; the same controllers fed the description's ``supply_pressure``
+  instead (``supply_feedback`` false): a controller that assumes a constant supply.
 
 Over noise seeds :data:`SEEDS` (not the seeds 0-9 the gains were tuned on). Reported per controller
 and supply: the max tracking error (% of the reference amplitude) of each coordinate the reference
@@ -50,63 +47,40 @@ LOW = 0.9
 #: The supplies compared: label -> (the copy has the pump, supply_feedback).
 SUPPLIES = {"constant": (False, True), "measured": (True, True), "assumed": (True, False)}
 
-#: Each robot: its pump (a ``[supply]`` table), the scenario in which the pump's flow runs out (a
-#: ``[scenarios.<name>]`` table on the rig), and where the pump's figures come from.
+#: Each robot: its scenario in which the pump's flow runs out, and where its pump's figures come from
+#: (the description's ``[supply]`` table says the same).
 ROBOTS = {
     "excavator_arm": {
         "scenario": "arm-flow",
-        "supply": """
-[supply]
-# Caterpillar 320: main system maximum flow (implement) 429 L/min, two pumps of 214.5 L/min, taken as
-# one pump-limited supply; main relief valve 35 000 kPa (= the maximum equipment pressure, normal mode).
-# hose_volume chosen: two pump-to-valve lines of about 3 m of 1 1/4" hose and the valve's passages.
-kind = "pump"
-pump_flow = 7.15e-3                 # m^3/s (429 L/min)
-relief_pressure = 35.0e6            # Pa
-hose_volume = 5.0e-3                # m^3, chosen
-""",
-        "table": """
-[scenarios.arm-flow]
-rig = true
-label = "arm-flow: boom and stick together, fast"
-duration = 6.0
-reference.sines = [["boom", -0.20, 0.25], ["stick", -0.35, 0.25]]
-""",
         "sources": "Caterpillar 320 technical specifications (main system maximum flow, implement, 429 L/min = "
                    "2 x 214.5; maximum equipment pressure 35 000 kPa) and Cat service data for the 320 GC/320/323 "
                    "(main relief valve 35 000 kPa); hose volume chosen",
     },
     "loader_crane": {
         "scenario": "crane-flow",
-        "supply": """
-[supply]
-# Chosen, not published (docs/loader_crane.md lists what was searched): a pressure-compensated
-# piston pump of a 5 t m forestry / trailer crane's class, 80 L/min (a tractor-driven pump's upper
-# end), holding the crane's working pressure of 24 MPa, its relief 2 MPa above; hose_volume chosen.
-kind = "compensated_pump"
-pump_flow = 1.3333e-3               # m^3/s (80 L/min), chosen
-set_pressure = 24.0e6               # Pa: the description's supply_pressure
-relief_pressure = 26.0e6            # Pa, chosen
-hose_volume = 2.0e-3                # m^3, chosen
-""",
-        "table": """
-[scenarios.crane-flow]
-rig = true
-label = "crane-flow: slew and lift together"
-duration = 6.0
-reference.sines = [["slew", 0.30, 0.25], ["slew", -0.15, 0.50], ["boom", 0.30, 0.25]]
-""",
         "sources": "chosen: no published pump data of a crane of its class was found (docs/loader_crane.md); "
-                   "an 80 L/min pressure-compensated pump at the crane's 24 MPa, relief 26 MPa, 2 L of hose",
+                   "a 160 L/min pressure-compensated pump at the crane's 24 MPa, relief 26 MPa, 2 L of hose",
     },
 }
 
 
+def without_supply(text: str) -> str:
+    """A description's TOML text without its ``[supply]`` table (the table's header to the next
+    table's): the same robot on a constant supply."""
+    lines = text.splitlines(keepends=True)
+    out, skipping = [], False
+    for line in lines:
+        head = line.strip()
+        if head.startswith("["):
+            skipping = head == "[supply]"
+        if not skipping:
+            out.append(line)
+    return "".join(out)
+
+
 def _copy(name: str, folder: Path, pump: bool) -> Path:
-    """Robot ``name``'s description copied into ``folder`` with its study scenario and, with ``pump``,
-    its ``[supply]`` appended."""
-    r = ROBOTS[name]
-    return common.copy_description(name, folder, lambda text: text + r["table"] + (r["supply"] if pump else ""))
+    """Robot ``name``'s description copied into ``folder``, without its ``[supply]`` unless ``pump``."""
+    return common.copy_description(name, folder, lambda text: text if pump else without_supply(text))
 
 
 def reference_flow(dyn, scenario, t) -> np.ndarray:
@@ -153,7 +127,7 @@ def run(quick: bool = False) -> dict:
                 hydrogen.build(models[pump])  # once here, before the workers load it
             pumped = models[True]
             sname = r["scenario"]
-            moving = rig_scenarios(pumped)[sname]
+            moving = rig_scenarios(pumped, untuned=True)[sname]
             sc = named_scenario(sname, pumped)
             duration = QUICK_DURATION if quick else sc.duration
             controllers = list(pumped.controllers)[:2 if quick else None]

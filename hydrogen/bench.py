@@ -45,7 +45,7 @@ SUITE = (
                     "controller over noise seeds; its figure"),
     ("bench_sensitivity", "the rig's tracking error against its friction level and valve bandwidth, every controller "
                           "over noise seeds; its figure"),
-    ("supply_limits", "the excavator arm and the loader crane on a pump of their class whose flow runs out: every "
+    ("supply_limits", "the excavator arm and the loader crane on their pumps, in a scenario whose flow runs out: every "
                       "controller with the measured supply pressure against the same assuming a constant supply"),
 )
 

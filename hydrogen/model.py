@@ -1686,6 +1686,9 @@ def _check_tables(r: _Reader, m: Model):
         if not isinstance(table, dict):
             raise r.error(w, f"expected a table, got {_quote(table)}")
         r.known(table, table_keys(), w, RENAMED)
+        for flag in ("rig", "tuned"):
+            if flag in table and not isinstance(table[flag], bool):
+                raise r.error(f"{w} {flag}", f"expected true or false, got {_quote(table[flag])}")
         gains = table.get("gains", {})
         if not isinstance(gains, dict):
             raise r.error(f"{w} gains", f"expected a table of controllers, got {_quote(gains)}")

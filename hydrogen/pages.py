@@ -642,10 +642,10 @@ def _supply_limits(b) -> list:
     if not rows:
         return []
     out = ["## Supply limits: tracking error when the pump's flow runs out", "",
-           "`benchmarks/supply_limits.py`: each robot's description copied with a pump of its class (`[supply]`) and a "
-           "rig scenario whose motion asks for more oil than the pump gives; every controller it lists on the "
-           "constant supply (`constant`: the shipped one, unlimited flow), on the pump reading the measured supply "
-           "pressure (`measured`), and on the pump assuming the description's constant supply pressure "
+           "`benchmarks/supply_limits.py`: each robot on its shipped pump (its description's `[supply]`) in its rig "
+           "scenario whose motion asks for more oil than the pump gives; every controller it lists on a constant "
+           "supply (`constant`: the description without its `[supply]`, unlimited flow), on the pump reading the "
+           "measured supply pressure (`measured`), and on the pump assuming the description's constant supply pressure "
            "(`assumed`: `supply_feedback = false`). Noise seeds "
            f"{', '.join(map(str, b.get('seeds', [])))}. Max tracking error, % of the amplitude of each coordinate "
            "the reference moves: median [min - max] over the seeds (`!`: a seed's run failed); the lowest supply "

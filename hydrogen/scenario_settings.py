@@ -90,8 +90,8 @@ def _field_names() -> tuple:
 
 _FIELDS = _field_names()
 #: Keys of a ``[scenarios.<name>]`` table besides the fields: the rig it starts from, its gains per
-#: controller, its reference, caption and published errors.
-_TABLE_KEYS = ("rig", "gains", "reference", "label", "paper")
+#: controller, its reference, caption, published errors and whether the gain searches judge it.
+_TABLE_KEYS = ("rig", "gains", "reference", "label", "paper", "tuned")
 #: Keys of a ``[rig]`` table besides the fields: its per-actuator settings.
 _RIG_KEYS = ("actuators",)
 

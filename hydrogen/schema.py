@@ -174,7 +174,8 @@ DESCRIPTION_KEYS = (
     Key("[[cylinders]]", "friction", "the actuator's own: N or N m, m/s or rad/s", "the actuator's seal "
         "friction (table below): a breakaway above coulomb puts the Stribeck dip in its generated plant, a "
         "pressure_coefficient above 0 the seals' pressure load; its numbers replace the rig's friction for "
-        "this actuator (a scenario's actuators.<name>.friction still overrides them key by key)",
+        "this actuator wherever a scenario has friction on (an ideal plant, friction zero, stays frictionless; "
+        "a scenario's actuators.<name>.friction still overrides them key by key)",
         default=None, default_text="none: the rig's friction, no seal terms in the plant"),
     Key("[[cylinders]] friction", "coulomb", "N or N m", "sliding (Coulomb) friction F_c, >= 0",
         default=None, default_text="the rig's friction[0]"),
@@ -234,6 +235,9 @@ SCENARIO_TABLE_KEYS = (
     Key("[scenarios.<name>]", "label", "", "caption in figures and tables", default_text="the scenario's name"),
     Key("[scenarios.<name>]", "paper", "%", "published max errors {coordinate: [nonlinear, P]}", default=None,
         default_text="none"),
+    Key("[scenarios.<name>]", "tuned", "", "false: a rig scenario the gain searches, margins and rig "
+        "distributions leave out (one no gain is chosen for, e.g. a motion that asks more oil than the pump "
+        "gives); it runs as any other", default=True),
     Key("[scenarios.<name>], [rig], [variants.<name>]", "actuators",
         "the actuator's own: N or N m, m or rad", "actuators.<actuator> = { friction, quantization_l, noise_l }: "
         "those settings for one actuator, in its own unit (a cylinder's length in m and force in "

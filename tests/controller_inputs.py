@@ -50,15 +50,18 @@ def random_controller_inputs(ctrl, model, rng):
     return q, rng.uniform(-0.05, 0.05, n), pc, ref, xc
 
 
-def kind_laws(model, l, ldot, p, u):
+def kind_laws(model, l, ldot, p, u, ps=None):
     """(f, f0, g0) per cylinder (m,) from each cylinder's actuator kind's numpy laws
     (hydrogen/actuators/<kind>.py): force, f0 = the force rate at a closed valve over β, g0 the valve
-    term over βc, at lengths ``l``, rates ``ldot``, the pressure vector ``p`` and spools ``u``."""
+    term over βc, at lengths ``l``, rates ``ldot``, the pressure vector ``p`` and spools ``u``; at the
+    supply pressure ``ps`` (Pa, a measured one) instead of each actuator's own where given."""
     from hydrogen.actuators import actuator
     from hydrogen.pressures import blocks
     out = []
     for c, (a, b), li, vi, ui in zip(model.cylinders, blocks(model), l, ldot, u):
         mod = actuator(c.kind)
         P, pi = mod.parameters(c.table), tuple(p[a:b])
+        if ps is not None:
+            P = {**P, "supply_pressure": float(np.ravel(ps)[0])}
         out.append((mod.Numeric.force(pi, P), mod.Numeric.f0(li, vi, pi, P), mod.Numeric.g0(li, pi, ui, P)))
     return tuple(np.array(v, float) for v in zip(*out))

@@ -44,10 +44,16 @@ def _random_input(name, shape, model, rng, fname=""):
         x = rng.uniform(-4, 4, m) * d
     elif name == "l":
         x = rng.uniform(model.leg_min, model.leg_max)
-    elif name == "x":  # plant state [q, qdot, pc, spool, spool rate]
-        x = np.concatenate([workspace_poses(model, 1, rng)[0], rng.normal(size=n) * 0.1,
-                            p_lo + (p_hi - p_lo) * rng.uniform(0.02, 0.98, p_lo.size), rng.uniform(-4, 4, m) * d,
-                            rng.normal(size=m) * 0.01])
+    elif name == "x":  # plant state, from the plant's layout ([q, qdot, pc, spool, spool rate] and a supply's p_s)
+        from hydrogen.plant import plant_layout
+        parts = {"q": lambda k: workspace_poses(model, 1, rng)[0], "qdot": lambda k: rng.normal(size=k) * 0.1,
+                 "pc": lambda k: p_lo + (p_hi - p_lo) * rng.uniform(0.02, 0.98, k),
+                 "spool": lambda k: rng.uniform(-4, 4, k) * np.resize(d, k),
+                 "spool_rate": lambda k: rng.normal(size=k) * 0.01,
+                 "ps": lambda k: np.resize(ps, k) * rng.uniform(0.7, 1.0, k)}
+        x = np.concatenate([parts[sl.name](sl.size) for sl in plant_layout(model)])
+    elif name == "ps":  # a measured supply pressure, below and near its nominal value
+        x = np.resize(ps, size) * rng.uniform(0.7, 1.0, size)
     elif name == "xc":  # controller state, from the controller's layout
         kind = next(k for k in CONTROLLERS if fname in (function_name(k), rates_function_name(k)))
         parts = {"z": lambda k: rng.normal(size=k) * 0.1,
@@ -69,8 +75,12 @@ def _random_input(name, shape, model, rng, fname=""):
         for b in ("momentum_filter", "momentum_offset_filter", "bias_filter", "bias_offset_filter", "torque_filter"):
             parts[b] = lambda k: rng.normal(size=k) * 1e3
         x = np.concatenate([parts[b](k) for b, k in controller(kind).state_layout(model)])
-    elif name in ("friction",):
-        x = np.tile([100.0, 300.0, 1e-3], size // 3)  # per actuator
+    elif name in ("friction",):  # per actuator: [F_c, b, v_s] and, with seal friction, its three terms
+        from hydrogen.plant.friction import parameters_of
+        row = {"coulomb": 100.0, "viscous": 300.0, "smooth_speed": 1e-3, "breakaway": 130.0, "stribeck_speed": 0.01,
+               "pressure_coefficient": 2e-3}
+        width = len(parameters_of(model.seal_friction))
+        x = np.tile([row[q.name] for q in parameters_of(model.seal_friction)], size // width)
     elif name in ("friction_coulomb", "friction_viscous", "friction_coulomb_max", "friction_viscous_max"):
         x = rng.uniform(100.0, 1000.0, size)
     elif name == "friction_speed":  # the smooth sign's slope, not only its saturation, at q̇ ~ 0.1
@@ -405,7 +415,7 @@ def test_gamma2_law_uses_the_applied_spool(mname, kind, cache, rng):
         v["xc"][blocks["gamma_gain"]] = initial_gain_matrix(2, model.n_cylinders, float(v["P0_gamma"][0]))
         out = dict(zip(ctrl.out_names, ctrl(*[v[n] for n in names])))
         l = np.asarray(dyn.leg_lengths(v["q"])).ravel()
-        f, _, g0 = kind_laws(model, l, np.zeros_like(l), v["pc"], v["u_applied"])
+        f, _, g0 = kind_laws(model, l, np.zeros_like(l), v["pc"], v["u_applied"], v.get("ps"))
         want = v["adapt"][0] * v["Ggamma2_inv"] / v["Gtau_inv"] * (f - out["f_d"]) * g0
         got = out["xc_dot"][blocks["gamma2_hat"]]
         np.testing.assert_allclose(got, want, rtol=1e-9, atol=1e-12 * np.abs(want).max())

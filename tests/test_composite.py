@@ -162,6 +162,13 @@ def _ideal_scenario(model) -> str:
     return next(name for name in scenario_names(model) if not model.scenarios[name].get("rig"))
 
 
+def _supply_state(model, x):
+    """The supply pressure (Pa) in plant state ``x``, None where the supply is constant."""
+    from hydrogen.plant import plant_layout
+    part = {s.name: s for s in plant_layout(model)}.get("ps")
+    return None if part is None else x[part.start:part.start + part.size]
+
+
 def test_theta_prediction_error_vanishes_with_the_true_parameters(robot_dyn):
     """The momentum form: τ_f = λ_f (Y_p − ξ) θ + ζ θ + offsets, from the controller's filter states
     along each robot's ideal-plant run with the true parameters, against D(q, θ) q̇ (the compiled mass
@@ -181,7 +188,7 @@ def test_theta_prediction_error_vanishes_with_the_true_parameters(robot_dyn):
         st.step()
         xc = st.xc
         q, qdot = x[:n], x[n:2 * n]
-        f = np.asarray(dyn.leg_force(x[2 * n:2 * n + n_pressures(model)])).ravel()
+        f = np.asarray(dyn.leg_force(x[2 * n:2 * n + n_pressures(model)], ps=_supply_state(model, x))).ravel()
         xi = xc[sl["momentum_filter"]].reshape(n, p) @ th + xc[sl["momentum_offset_filter"]]
         ze = xc[sl["bias_filter"]].reshape(n, p) @ th + xc[sl["bias_offset_filter"]]
         mom = np.asarray(dyn.mass_matrix(q, th)).reshape(n, n) @ qdot

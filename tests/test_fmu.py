@@ -381,11 +381,16 @@ def test_parameters_declare_their_range_from_the_model(fmus):
     for c in cyls:
         assert (float(plant[f"gamma1.{c}"].min), float(plant[f"gamma1.{c}"].max)) == (model.gamma1_min,
                                                                                       model.gamma1_max)
-    # each chamber pressure's initial value within its kind's bounds ([0, P_s] for p_c, [P_t, P_s] for p_A, p_B)
-    lo, hi = pressure_bounds(model)
+    # each chamber pressure's initial value within its kind's bounds ([0, P_s] for p_c, [P_t, P_s] for p_A, p_B;
+    # up to the supply's ceiling, the relief's, where the supply is a state)
+    from hydrogen.plant import plant_layout, supply
+    pc = {sl.name: sl for sl in plant_layout(model)}["pc"]  # the plant's bounds: the kind's, to the supply's ceiling
+    lo, hi = np.array(pc.lower), np.array(pc.upper)
+    assert np.array_equal(lo, pressure_bounds(model)[0])
     for j, name in enumerate(_pressure_variables(model, "_start")):
         assert (float(plant[name].min), float(plant[name].max)) == (lo[j], hi[j])
-        assert hi[j] == model.cylinders[[c.name for c in model.cylinders].index(name.split(".", 1)[1])].supply_pressure
+        own = model.cylinders[[c.name for c in model.cylinders].index(name.split(".", 1)[1])].supply_pressure
+        assert hi[j] == (supply.ceiling(model) or own) and hi[j] >= own
     for c in cyls:  # one friction triple per actuator, in its own unit
         assert float(plant[f"friction.{c}.smooth_speed"].min) > 0 and float(plant[f"friction.{c}.coulomb"].min) == 0
     ctl = {v.name: v for v in read_model_description(str(paths["controller"])).modelVariables}

@@ -215,8 +215,13 @@ def test_the_description_gives_the_actuators_friction_and_the_rig_overrides_it_k
     assert rows.shape == (m.n_cylinders, len(NAMES))
     assert dict(zip(NAMES, rows[0])) == {**SEALS, "smooth_speed": sc.friction[2]}
     np.testing.assert_array_equal(rows[1], friction.row(*sc.friction))  # the rig's, no seal numbers used
-    plain = actuator_settings(scenario("paper-sim", m), m)["friction"]
-    assert dict(zip(NAMES, plain[0])) == {**SEALS, "smooth_speed": 1e-3}  # the description's in every scenario
+    ideal = scenario("paper-sim", m)  # friction off: the ideal plant stays frictionless, seals and all
+    plain = actuator_settings(ideal, m)["friction"]
+    np.testing.assert_array_equal(plain[0], friction.row(0.0, 0.0, ideal.friction[2], None, 1.0, 0.0))
+    on = actuator_settings(ideal.with_overrides(friction=(1.0, 0.0, 1e-3)), m)["friction"]
+    assert dict(zip(NAMES, on[0])) == {**SEALS, "smooth_speed": 1e-3}  # friction on: the description's numbers
+    given = actuator_settings(ideal.with_overrides(actuators={"leg1": {"friction": {"viscous": 7.0}}}), m)
+    assert dict(zip(NAMES, given["friction"][0])) == {**SEALS, "smooth_speed": 1e-3, "viscous": 7.0}
     over = sc.with_overrides(actuators={"leg1": {"friction": {"breakaway": 200.0, "pressure_coefficient": 0.0}}})
     row = dict(zip(NAMES, actuator_settings(over, m)["friction"][0]))
     assert row == {**SEALS, "smooth_speed": 1e-3, "breakaway": 200.0, "pressure_coefficient": 0.0}

@@ -9,6 +9,7 @@ import hydrogen.simulation.control as control
 from hydrogen.controllers import LEAN, controller, function_name, rates_function_name, step_function_name
 from hydrogen.controllers.common import COMPOSITE_BLOCKS, lean_variant
 from hydrogen.simulation.control import make_controller
+from hydrogen.plant import supply
 
 from controller_inputs import PAPER_LAWS, random_controller_inputs
 
@@ -40,7 +41,8 @@ def test_lean_functions_equal_the_full_ones_at_composite_rates_zero(robot_dyn, k
         l = np.asarray(dyn.leg_lengths(q)).ravel()
         values = dict(ctrl.values, q=q, qdot=qdot, pc=pc, l=l, qd0=ref[0], qd1=ref[1], qd2=ref[2], qd3=ref[3],
                       xc=xc, adapt=np.array([1.0]), u_applied=rng.uniform(-1, 1, model.n_cylinders) * 1e-3,
-                      h=np.array([1e-3]), xc_lo=lo, xc_hi=hi)
+                      h=np.array([1e-3]), xc_lo=lo, xc_hi=hi,
+                      ps=np.array([supply.nominal(model) * rng.uniform(0.8, 1.0)]))  # read where the supply is a state
         full, lean = ({}, {})
         for v, out in ((None, full), (LEAN, lean)):
             c, r, s = fns[v]

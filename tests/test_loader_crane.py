@@ -10,6 +10,7 @@ import pytest
 import hydrogen
 from hydrogen import pressures
 from hydrogen.actuators import actuator
+from hydrogen.plant import supply
 from hydrogen.simulation.scenarios import scenario_names
 from hydrogen.simulation.simulator import equilibrium_pressures, simulate
 from hydrogen.simulation.tuning import rig_scenarios
@@ -48,7 +49,8 @@ def test_the_slew_is_a_rotary_actuator_and_the_booms_four_way_cylinders(crane):
     for dq in np.linspace(-1, 1, 5):
         assert crane.gravity(q + dq * np.eye(m.n)[slew], m.theta)[slew] == pytest.approx(0.0, abs=1e-9)
     p = equilibrium_pressures(crane, q, m.theta)
-    np.testing.assert_allclose(JL.T @ crane.leg_force(p), crane.gravity(q, m.theta), rtol=1e-9, atol=1e-6)
+    ps = [supply.nominal(m)]  # the pump's pressure: a four-way cylinder's force does not depend on it
+    np.testing.assert_allclose(JL.T @ crane.leg_force(p, ps=ps), crane.gravity(q, m.theta), rtol=1e-9, atol=1e-6)
 
 
 def test_each_actuator_keeps_its_kinds_laws(crane, rng):
@@ -62,7 +64,7 @@ def test_each_actuator_keeps_its_kinds_laws(crane, rng):
         p = lo + (hi - lo) * rng.uniform(0.1, 0.9, lo.size)
         u = rng.uniform(-1, 1, m.n_cylinders) * 1e-3
         l, ldot = crane.leg_lengths(q), crane.leg_jacobian(q) @ qd
-        rates, forces = crane.pressure_rate(l, ldot, p, u, m.gamma), crane.leg_force(p)
+        rates, forces = crane.pressure_rate(l, ldot, p, u, m.gamma), crane.leg_force(p, ps=[supply.nominal(m)])
         y = rng.normal(size=m.n_cylinders) * 1e3
         spool = crane.valve_inverse(y, p, l=l)
         for i, ((a, b), c) in enumerate(zip(pressures.blocks(m), m.cylinders)):
@@ -122,21 +124,25 @@ def _crane_load_with(model, **fields):
     return scenario(_rig(model), model).with_overrides(**fields)
 
 
-def test_the_rigs_friction_is_a_cylinders_and_the_slew_takes_its_own():
-    """[rig] friction (N, N s/m) acts on the cylinders only; the slew vane's friction is its own
-    actuators.slew_motor.friction (N m, N m s/rad), none unless given."""
-    from hydrogen.simulation.scenarios import actuator_settings
+def test_the_rigs_friction_switches_each_actuators_own_table_on_in_its_own_unit():
+    """The rig's friction switches friction on; each actuator's numbers are its description's table,
+    in its own unit (the slew vane's N m, N m s/rad); a scenario's own per-actuator friction overrides
+    them key by key; a scenario with friction off (the ideal crane-sim) runs every actuator without."""
+    from hydrogen.plant import friction
+    from hydrogen.simulation.scenarios import actuator_settings, scenario
     model = hydrogen.load_model(MODEL)
+    names = [q.name for q in friction.parameters_of(model.seal_friction)]
     slew = [c.kind for c in model.cylinders].index("rotary")
-    cyl = [i for i in range(model.n_cylinders) if i != slew]
-    sc = _crane_load_with(model, friction=(300.0, 900.0, 1e-3), actuators={"slew_motor": {
-        "quantization_l": 1e-5, "noise_l": 5e-6}})
+    sc = _crane_load_with(model, friction=(300.0, 900.0, 1e-3))
     fr = actuator_settings(sc, model)["friction"]
-    assert fr[slew, :2].tolist() == [0.0, 0.0]
-    assert (fr[cyl] == [300.0, 900.0, 1e-3]).all()
-    sc = sc.with_overrides(actuators={"slew_motor": {**sc.actuators["slew_motor"], "friction": [40.0, 80.0, 1e-3]}})
-    fr = actuator_settings(sc, model)["friction"]
-    assert fr[slew].tolist() == [40.0, 80.0, 1e-3] and (fr[cyl] == [300.0, 900.0, 1e-3]).all()
+    for i, c in enumerate(model.cylinders):
+        assert {k: v for k, v in zip(names, fr[i]) if k in c.friction} == c.friction, c.name
+    assert model.cylinders[slew].friction["coulomb"] == fr[slew, 0] == 500.0  # N m, its own
+    sc = sc.with_overrides(actuators={"slew_motor": {**sc.actuators["slew_motor"], "friction": {"viscous": 80.0}}})
+    row = dict(zip(names, actuator_settings(sc, model)["friction"][slew]))
+    assert row["viscous"] == 80.0 and row["coulomb"] == 500.0
+    ideal = actuator_settings(scenario("crane-sim", model), model)["friction"]
+    assert np.all(ideal[:, [names.index("coulomb"), names.index("viscous"), names.index("pressure_coefficient")]] == 0)
 
 
 @pytest.mark.parametrize("key", ["quantization_l", "noise_l"])
@@ -172,7 +178,8 @@ def test_the_slews_friction_reaches_the_plant_in_both_loops(crane):
                           kalman=False, actuators={})
     slew = [c.kind for c in crane.model.cylinders].index("rotary")
     base = simulate(crane, sc, "backstepping")
-    own = sc.with_overrides(actuators={"slew_motor": {"friction": [5000.0, 20000.0, 1e-3]}})
+    own = sc.with_overrides(actuators={"slew_motor": {"friction": {"coulomb": 5000.0, "breakaway": 6000.0,
+                                                                   "viscous": 20000.0}}})
     slowed = simulate(crane, own, "backstepping")
     py = simulate(crane, own, "backstepping", engine="python")
     err = lambda r: np.abs(r.q - r.q_d)[:, slew].max()  # noqa: E731

@@ -12,7 +12,7 @@ import sympy as sp
 import hydrogen
 from hydrogen.plant import (BLOCKS, PlantState, block, describe_entries, entry_names, plant_layout, slot,
                             state_size)
-from hydrogen.plant import friction, valve
+from hydrogen.plant import friction, supply, valve
 from hydrogen.pressures import bounds, n_pressures
 from test_motor import motor_arm_text
 
@@ -33,16 +33,19 @@ def test_the_layout_is_the_generated_plants_x_in_order_and_size(tmp_path):
         layout = plant_layout(model)
         inputs, xdot, _ = plant_rhs(model)
         x = dict(inputs)["x"]
-        assert state_size(layout) == x.shape[0] == xdot.shape[0] == 2 * model.n + n_pressures(model) + 2 * model.n_cylinders
-        assert [s.name for s in layout] == ["q", "qdot", "pc", "spool", "spool_rate"]
+        pumped = bool(supply.entries(model))  # a supply that is not constant: one more state, p_s, last
+        assert state_size(layout) == x.shape[0] == xdot.shape[0] == (2 * model.n + n_pressures(model)
+                                                                     + 2 * model.n_cylinders + pumped)
+        assert [s.name for s in layout] == ["q", "qdot", "pc", "spool", "spool_rate"] + ["ps"] * pumped
         for s in layout:  # each part's symbols sit at its slice: the generated function's x input
             prefix = "q_" if s.name == "q" else f"{s.name}_"
             got = [str(v) for v in x[s.start:s.stop]]
             assert all(g.startswith(prefix) and not g[len(prefix):].startswith("rate") for g in got), (model.name, s, got)
             assert len(got) == s.size
         assert list(slot(layout, "q").entries) == list(model.coordinate_names)
-        lo, hi = bounds(model)
-        assert np.array_equal(slot(layout, "pc").lower, lo) and np.array_equal(slot(layout, "pc").upper, hi)
+        lo, hi = bounds(model)  # the kind's; a supply state lifts the top to its ceiling
+        assert np.array_equal(slot(layout, "pc").lower, lo)
+        assert np.array_equal(slot(layout, "pc").upper, np.maximum(hi, supply.ceiling(model)) if pumped else hi)
 
 
 def test_the_layout_matches_each_shipped_manifests_plant_input():

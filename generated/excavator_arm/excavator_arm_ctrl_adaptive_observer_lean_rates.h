@@ -31,7 +31,7 @@ const casadi_int* excavator_arm_ctrl_adaptive_observer_lean_rates_sparsity_in(ca
 const casadi_int* excavator_arm_ctrl_adaptive_observer_lean_rates_sparsity_out(casadi_int i);
 int excavator_arm_ctrl_adaptive_observer_lean_rates_work(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w);
 int excavator_arm_ctrl_adaptive_observer_lean_rates_work_bytes(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w);
-#define excavator_arm_ctrl_adaptive_observer_lean_rates_SZ_ARG 42
+#define excavator_arm_ctrl_adaptive_observer_lean_rates_SZ_ARG 43
 #define excavator_arm_ctrl_adaptive_observer_lean_rates_SZ_RES 1
 #define excavator_arm_ctrl_adaptive_observer_lean_rates_SZ_IW 0
 #define excavator_arm_ctrl_adaptive_observer_lean_rates_SZ_W 0

@@ -31,7 +31,7 @@ const casadi_int* excavator_arm_ctrl_adaptive_robust_step_sparsity_in(casadi_int
 const casadi_int* excavator_arm_ctrl_adaptive_robust_step_sparsity_out(casadi_int i);
 int excavator_arm_ctrl_adaptive_robust_step_work(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w);
 int excavator_arm_ctrl_adaptive_robust_step_work_bytes(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w);
-#define excavator_arm_ctrl_adaptive_robust_step_SZ_ARG 46
+#define excavator_arm_ctrl_adaptive_robust_step_SZ_ARG 47
 #define excavator_arm_ctrl_adaptive_robust_step_SZ_RES 2
 #define excavator_arm_ctrl_adaptive_robust_step_SZ_IW 0
 #define excavator_arm_ctrl_adaptive_robust_step_SZ_W 0

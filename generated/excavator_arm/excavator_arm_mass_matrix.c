@@ -64,12 +64,12 @@ CASADI_SYMBOL_EXPORT int excavator_arm_mass_matrix_casadi_real_size(void) { retu
 
 static const casadi_int casadi_s0[3] = {3, 1, 1};
 static const casadi_int casadi_s1[3] = {9, 1, 1};
-static const casadi_int casadi_s2[3] = {81, 1, 1};
+static const casadi_int casadi_s2[3] = {87, 1, 1};
 static const casadi_int casadi_s3[3] = {3, 3, 1};
 
 static const casadi_real hg_zeros[28] = {0};
 
-/* excavator_arm_mass_matrix:(q[3],theta[9],numbers[81])->(D[3x3]) */
+/* excavator_arm_mass_matrix:(q[3],theta[9],numbers[87])->(D[3x3]) */
 static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   (void)arg; (void)res; (void)iw; (void)w; (void)mem;
   const casadi_real* hg_in0 = arg[0] ? arg[0] : hg_zeros;

@@ -73,11 +73,11 @@ CASADI_SYMBOL_EXPORT int excavator_arm_pressure_rate_casadi_real_size(void) { re
 
 static const casadi_int casadi_s0[3] = {3, 1, 1};
 static const casadi_int casadi_s1[3] = {6, 1, 1};
-static const casadi_int casadi_s2[3] = {81, 1, 1};
+static const casadi_int casadi_s2[3] = {87, 1, 1};
 
 static const casadi_real hg_zeros[81] = {0};
 
-/* excavator_arm_pressure_rate:(l[3],ldot[3],pc[6],u[3],gamma1[3],gamma2[3],numbers[81])->(pc_dot[6]) */
+/* excavator_arm_pressure_rate:(l[3],ldot[3],pc[6],u[3],gamma1[3],gamma2[3],numbers[87])->(pc_dot[6]) */
 static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   (void)arg; (void)res; (void)iw; (void)w; (void)mem;
   const casadi_real* hg_in0 = arg[0] ? arg[0] : hg_zeros;

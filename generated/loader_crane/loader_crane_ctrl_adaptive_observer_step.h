@@ -31,7 +31,7 @@ const casadi_int* loader_crane_ctrl_adaptive_observer_step_sparsity_in(casadi_in
 const casadi_int* loader_crane_ctrl_adaptive_observer_step_sparsity_out(casadi_int i);
 int loader_crane_ctrl_adaptive_observer_step_work(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w);
 int loader_crane_ctrl_adaptive_observer_step_work_bytes(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w);
-#define loader_crane_ctrl_adaptive_observer_step_SZ_ARG 45
+#define loader_crane_ctrl_adaptive_observer_step_SZ_ARG 46
 #define loader_crane_ctrl_adaptive_observer_step_SZ_RES 2
 #define loader_crane_ctrl_adaptive_observer_step_SZ_IW 0
 #define loader_crane_ctrl_adaptive_observer_step_SZ_W 0

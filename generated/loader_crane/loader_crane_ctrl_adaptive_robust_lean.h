@@ -31,7 +31,7 @@ const casadi_int* loader_crane_ctrl_adaptive_robust_lean_sparsity_in(casadi_int 
 const casadi_int* loader_crane_ctrl_adaptive_robust_lean_sparsity_out(casadi_int i);
 int loader_crane_ctrl_adaptive_robust_lean_work(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w);
 int loader_crane_ctrl_adaptive_robust_lean_work_bytes(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w);
-#define loader_crane_ctrl_adaptive_robust_lean_SZ_ARG 43
+#define loader_crane_ctrl_adaptive_robust_lean_SZ_ARG 44
 #define loader_crane_ctrl_adaptive_robust_lean_SZ_RES 5
 #define loader_crane_ctrl_adaptive_robust_lean_SZ_IW 0
 #define loader_crane_ctrl_adaptive_robust_lean_SZ_W 0

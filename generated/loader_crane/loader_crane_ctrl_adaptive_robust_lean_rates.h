@@ -31,7 +31,7 @@ const casadi_int* loader_crane_ctrl_adaptive_robust_lean_rates_sparsity_in(casad
 const casadi_int* loader_crane_ctrl_adaptive_robust_lean_rates_sparsity_out(casadi_int i);
 int loader_crane_ctrl_adaptive_robust_lean_rates_work(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w);
 int loader_crane_ctrl_adaptive_robust_lean_rates_work_bytes(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w);
-#define loader_crane_ctrl_adaptive_robust_lean_rates_SZ_ARG 43
+#define loader_crane_ctrl_adaptive_robust_lean_rates_SZ_ARG 44
 #define loader_crane_ctrl_adaptive_robust_lean_rates_SZ_RES 1
 #define loader_crane_ctrl_adaptive_robust_lean_rates_SZ_IW 0
 #define loader_crane_ctrl_adaptive_robust_lean_rates_SZ_W 0

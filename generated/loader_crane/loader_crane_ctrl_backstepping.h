@@ -31,7 +31,7 @@ const casadi_int* loader_crane_ctrl_backstepping_sparsity_in(casadi_int i);
 const casadi_int* loader_crane_ctrl_backstepping_sparsity_out(casadi_int i);
 int loader_crane_ctrl_backstepping_work(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w);
 int loader_crane_ctrl_backstepping_work_bytes(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w);
-#define loader_crane_ctrl_backstepping_SZ_ARG 17
+#define loader_crane_ctrl_backstepping_SZ_ARG 18
 #define loader_crane_ctrl_backstepping_SZ_RES 4
 #define loader_crane_ctrl_backstepping_SZ_IW 0
 #define loader_crane_ctrl_backstepping_SZ_W 0

@@ -63,11 +63,11 @@ CASADI_SYMBOL_EXPORT int loader_crane_forward_dynamics_casadi_real_size(void) { 
 
 static const casadi_int casadi_s0[3] = {3, 1, 1};
 static const casadi_int casadi_s1[3] = {8, 1, 1};
-static const casadi_int casadi_s2[3] = {71, 1, 1};
+static const casadi_int casadi_s2[3] = {78, 1, 1};
 
 static const casadi_real hg_zeros[36] = {0};
 
-/* loader_crane_forward_dynamics:(q[3],qdot[3],tau[3],theta[8],numbers[71])->(qddot[3]) */
+/* loader_crane_forward_dynamics:(q[3],qdot[3],tau[3],theta[8],numbers[78])->(qddot[3]) */
 static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   (void)arg; (void)res; (void)iw; (void)w; (void)mem;
   const casadi_real* hg_in0 = arg[0] ? arg[0] : hg_zeros;

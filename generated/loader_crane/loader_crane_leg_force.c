@@ -33,6 +33,7 @@ extern "C" {
 #define casadi_s0 CASADI_PREFIX(s0)
 #define casadi_s1 CASADI_PREFIX(s1)
 #define casadi_s2 CASADI_PREFIX(s2)
+#define casadi_s3 CASADI_PREFIX(s3)
 
 /* Symbol visibility in DLLs */
 #ifndef CASADI_SYMBOL_EXPORT
@@ -59,36 +60,37 @@ CASADI_SYMBOL_EXPORT int loader_crane_leg_force_casadi_int_size(void) { return (
 CASADI_SYMBOL_EXPORT int loader_crane_leg_force_casadi_real_size(void) { return (int) sizeof(casadi_real); }
 
 static const casadi_int casadi_s0[3] = {6, 1, 1};
-static const casadi_int casadi_s1[3] = {71, 1, 1};
-static const casadi_int casadi_s2[3] = {3, 1, 1};
+static const casadi_int casadi_s1[3] = {1, 1, 1};
+static const casadi_int casadi_s2[3] = {78, 1, 1};
+static const casadi_int casadi_s3[3] = {3, 1, 1};
 
 static const casadi_real hg_zeros[61] = {0};
 
-/* loader_crane_leg_force:(pc[6],numbers[71])->(f[3]) */
+/* loader_crane_leg_force:(pc[6],ps,numbers[78])->(f[3]) */
 static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   (void)arg; (void)res; (void)iw; (void)w; (void)mem;
   const casadi_real* hg_in0 = arg[0] ? arg[0] : hg_zeros;
-  const casadi_real* hg_in1 = arg[1] ? arg[1] : hg_zeros;
+  const casadi_real* hg_in2 = arg[2] ? arg[2] : hg_zeros;
   casadi_real a0, a1, a2;
-  a0=hg_in1[36];
+  a0=hg_in2[36];
   a1=hg_in0[0];
   a1=(a0*a1);
   a2=hg_in0[1];
   a0=(a0*a2);
   a1=(a1-a0);
   if (res[0]!=0) res[0][0]=a1;
-  a1=hg_in1[47];
+  a1=hg_in2[47];
   a0=hg_in0[2];
   a1=(a1*a0);
-  a0=hg_in1[48];
+  a0=hg_in2[48];
   a2=hg_in0[3];
   a0=(a0*a2);
   a1=(a1-a0);
   if (res[0]!=0) res[0][1]=a1;
-  a1=hg_in1[59];
+  a1=hg_in2[59];
   a0=hg_in0[4];
   a1=(a1*a0);
-  a0=hg_in1[60];
+  a0=hg_in2[60];
   a2=hg_in0[5];
   a0=(a0*a2);
   a1=(a1-a0);
@@ -114,7 +116,7 @@ CASADI_SYMBOL_EXPORT void loader_crane_leg_force_incref(void) {
 CASADI_SYMBOL_EXPORT void loader_crane_leg_force_decref(void) {
 }
 
-CASADI_SYMBOL_EXPORT casadi_int loader_crane_leg_force_n_in(void) { return 2;}
+CASADI_SYMBOL_EXPORT casadi_int loader_crane_leg_force_n_in(void) { return 3;}
 
 CASADI_SYMBOL_EXPORT casadi_int loader_crane_leg_force_n_out(void) { return 1;}
 
@@ -127,7 +129,8 @@ CASADI_SYMBOL_EXPORT casadi_real loader_crane_leg_force_default_in(casadi_int i)
 CASADI_SYMBOL_EXPORT const char* loader_crane_leg_force_name_in(casadi_int i) {
   switch (i) {
     case 0: return "pc";
-    case 1: return "numbers";
+    case 1: return "ps";
+    case 2: return "numbers";
     default: return 0;
   }
 }
@@ -143,19 +146,20 @@ CASADI_SYMBOL_EXPORT const casadi_int* loader_crane_leg_force_sparsity_in(casadi
   switch (i) {
     case 0: return casadi_s0;
     case 1: return casadi_s1;
+    case 2: return casadi_s2;
     default: return 0;
   }
 }
 
 CASADI_SYMBOL_EXPORT const casadi_int* loader_crane_leg_force_sparsity_out(casadi_int i) {
   switch (i) {
-    case 0: return casadi_s2;
+    case 0: return casadi_s3;
     default: return 0;
   }
 }
 
 CASADI_SYMBOL_EXPORT int loader_crane_leg_force_work(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w) {
-  if (sz_arg) *sz_arg = 2;
+  if (sz_arg) *sz_arg = 3;
   if (sz_res) *sz_res = 1;
   if (sz_iw) *sz_iw = 0;
   if (sz_w) *sz_w = 0;
@@ -163,7 +167,7 @@ CASADI_SYMBOL_EXPORT int loader_crane_leg_force_work(casadi_int *sz_arg, casadi_
 }
 
 CASADI_SYMBOL_EXPORT int loader_crane_leg_force_work_bytes(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w) {
-  if (sz_arg) *sz_arg = 2*sizeof(const casadi_real*);
+  if (sz_arg) *sz_arg = 3*sizeof(const casadi_real*);
   if (sz_res) *sz_res = 1*sizeof(casadi_real*);
   if (sz_iw) *sz_iw = 0*sizeof(casadi_int);
   if (sz_w) *sz_w = 0*sizeof(casadi_real);

@@ -62,12 +62,12 @@ CASADI_SYMBOL_EXPORT int loader_crane_leg_kinematics_casadi_int_size(void) { ret
 CASADI_SYMBOL_EXPORT int loader_crane_leg_kinematics_casadi_real_size(void) { return (int) sizeof(casadi_real); }
 
 static const casadi_int casadi_s0[3] = {3, 1, 1};
-static const casadi_int casadi_s1[3] = {71, 1, 1};
+static const casadi_int casadi_s1[3] = {78, 1, 1};
 static const casadi_int casadi_s2[3] = {3, 3, 1};
 
 static const casadi_real hg_zeros[35] = {0};
 
-/* loader_crane_leg_kinematics:(q[3],numbers[71])->(l[3],JL[3x3]) */
+/* loader_crane_leg_kinematics:(q[3],numbers[78])->(l[3],JL[3x3]) */
 static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   (void)arg; (void)res; (void)iw; (void)w; (void)mem;
   const casadi_real* hg_in0 = arg[0] ? arg[0] : hg_zeros;

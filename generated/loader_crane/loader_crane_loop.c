@@ -20,13 +20,15 @@
 #define MAX_DELAY LOADER_CRANE_MAX_DELAY
 static const double TWO_PI = 6.283185307179586;
 #define NPC LOADER_CRANE_NPC
+#define NPS LOADER_CRANE_NPS
 
-/* actuator forces (N, N m) from the pressure vector: the actuators' own laws */
-static int leg_force(const double* nb, const double* p, double* f) {
-    const double* arg[2];
+/* actuator forces (N, N m) from the pressure vector and the supply pressure: the actuators' own laws */
+static int leg_force(const double* nb, const double* p, const double* ps, double* f) {
+    const double* arg[3];
     double* res[1];
     arg[0] = p;
-    arg[1] = nb;  /* the description's numbers (their last input), unless folded */
+    arg[1] = ps;
+    arg[2] = nb;  /* the description's numbers (their last input), unless folded */
     res[0] = f;
     return loader_crane_leg_force(arg, res, 0, 0, 0);
 }
@@ -238,7 +240,7 @@ static int hold(const rhs_params* m, double* x, const double* u, long long n, do
 
 /* The controller's own model has an ideal valve (spool = command) and no friction (the smoothing
  * speed only keeps tanh's argument finite). */
-static const double PRED_FRICTION[3 * NL] = { 0.0, 0.0, 1.0, 0.0, 0.0, 1.0, 0.0, 0.0, 1.0 };
+static const double PRED_FRICTION[6 * NL] = { 0.0, 0.0, 1.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 1.0, 0.0 };
 static const double PRED_VALVE[5 * NL] = { 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0 };
 
 /* The model held at u over dt (s) in steps no longer than h / pred_substeps. */
@@ -266,6 +268,7 @@ static int predict(const loader_crane_loop_config* c, const loader_crane_loop_st
     memcpy(x, st->q_meas, NQ * sizeof(double));
     memcpy(x + NQ, s->qdot_meas, NQ * sizeof(double));
     memcpy(x + 2 * NQ, s->pc_meas, NPC * sizeof(double));
+    x[2 * NQ + NPC + 2 * NL + 0] = s->ps_meas[0];
     if (c->delay_frac > 0 && !pred_hold(c, &m, x, st->u_app, c->delay_frac * c->h)) return 0;
     for (j = 1; j <= c->delay; ++j) {
         long long r = (st->k - c->delay - 1 + j) % MAX_DELAY;
@@ -305,6 +308,8 @@ int loader_crane_measure(const loader_crane_loop_config* c, const loader_crane_l
             for (j = 0; j < NQ; ++j) s->ldot[i] += J[i + NL * j] * x[NQ + j];
         }
     for (i = 0; i < NQ; ++i) s->q_enc[i] = x[i] + (nz ? nz[NL + NPC + i] : 0);
+    /* the supply pressure: last in the noise row, held at its lower bound 0 */
+    s->ps_meas[0] = nz ? clip(x[2 * NQ + NPC + 2 * NL + 0] + nz[NNOISE - 1], 0.0, HUGE_VAL) : x[2 * NQ + NPC + 2 * NL + 0];
     return LOADER_CRANE_OK;
 }
 
@@ -369,6 +374,8 @@ int loader_crane_control(const loader_crane_loop_config* c, loader_crane_loop_st
     double adapt = s->t >= c->t_adapt ? 1.0 : 0.0;
     double xp[NX], lp[NL], qdp[4 * NQ];
     const double *q = st->q_meas, *qdot = s->qdot_meas, *pc = s->pc_meas, *l = s->l_meas, *qd = s->qd;
+    /* without supply feedback the controller assumes the description's constant supply pressure */
+    const double* ps = c->supply_feedback ? s->ps_meas : &c->ps_nominal;
     const double* u_prev = st->u_app;
     int i;
     if (c->n_xc && !c->xc_euler && !c->step) return LOADER_CRANE_CTRL_FAILED;  /* a state needs its update */
@@ -381,6 +388,7 @@ int loader_crane_control(const loader_crane_loop_config* c, loader_crane_loop_st
         if (leg_lengths(c->numbers, xp, lp)) return LOADER_CRANE_CTRL_FAILED;
         loader_crane_reference(c, s->t + ((double)c->delay + c->delay_frac) * c->h, qdp);
         q = xp; qdot = xp + NQ; pc = xp + 2 * NQ; l = lp; qd = qdp;
+        if (c->supply_feedback) ps = xp + 2 * NQ + NPC + 2 * NL;
         if (c->delay > 0) {
             long long r = (st->k - 1) % MAX_DELAY;
             if (r < 0) r += MAX_DELAY;
@@ -398,6 +406,7 @@ int loader_crane_control(const loader_crane_loop_config* c, loader_crane_loop_st
     set_slot(c, LOADER_CRANE_SLOT_XC, st->xc, c->n_xc);
     set_slot(c, LOADER_CRANE_SLOT_ADAPT, &adapt, 1);
     set_slot(c, LOADER_CRANE_SLOT_U_APPLIED, u_prev, NL);
+    set_slot(c, LOADER_CRANE_SLOT_PS, ps, NPS);
     /* controller state: semi-implicit update. The estimates and observer states of period k are
      * xc_k = clip(xc_{k-1} + h F(measurement_k, xc_{k-1}, u_app_{k-1})), and the command of period k
      * uses xc_k: the adaptation feedback then has no one-period delay (symplectic Euler on the coupled
@@ -480,7 +489,8 @@ static int write_log(const loader_crane_loop_state* st, const loader_crane_loop_
     if (log->u) memcpy(log->u + NL * k, s->u, NL * sizeof(double));
     if (log->u_applied) memcpy(log->u_applied + NL * k, s->u_app, NL * sizeof(double));
     if (log->l_meas) memcpy(log->l_meas + NL * k, s->l_meas, NL * sizeof(double));
-    if (log->f && leg_force(c->numbers, x + 2 * NQ, log->f + NL * k)) return LOADER_CRANE_CTRL_FAILED;
+    if (log->ps) log->ps[k] = x[2 * NQ + NPC + 2 * NL + 0];
+    if (log->f && leg_force(c->numbers, x + 2 * NQ, x + 2 * NQ + NPC + 2 * NL, log->f + NL * k)) return LOADER_CRANE_CTRL_FAILED;
     if (log->xc && c->n_xc) memcpy(log->xc + c->n_xc * k, st->xc, (size_t)c->n_xc * sizeof(double));
     return LOADER_CRANE_OK;
 }

@@ -1,6 +1,6 @@
 /* Closed-loop driver for model loader_crane: plant, sensors, joint encoders, controller.
  * Rendered by hydrogen from templates/loop.h.j2; plain C99, no dependency but libm.
- * Sizes: 3 coordinates, 3 cylinders; plant state x = [q, qdot, pc, spool, spool rate] (18). */
+ * Sizes: 3 coordinates, 3 cylinders; plant state x = [q, qdot, pc, spool, spool rate, ps] (19). */
 #ifndef LOADER_CRANE_LOOP_H
 #define LOADER_CRANE_LOOP_H
 
@@ -10,15 +10,16 @@ extern "C" {
 
 #define LOADER_CRANE_NQ 3   /* generalized coordinates */
 #define LOADER_CRANE_NL 3   /* cylinders */
-#define LOADER_CRANE_NX 18  /* plant state */
+#define LOADER_CRANE_NX 19  /* plant state */
 #define LOADER_CRANE_NPC 6  /* pressure states (one block per actuator) */
 #define LOADER_CRANE_MAX_DELAY 8  /* longest computation delay, control periods */
-#define LOADER_CRANE_NNOISE 12  /* noise row: cylinder lengths (m), pressures (Pa), joint angles */
+#define LOADER_CRANE_NPS 1  /* supply pressure states */
+#define LOADER_CRANE_NNOISE 13  /* noise row: cylinder lengths (m), pressures (Pa), joint angles, supply pressure (Pa) */
 
 typedef int (*loader_crane_casadi_fn)(const double** arg, double** res, long long int* iw, double* w, int mem);
 
 /* Input slots of a controller, in this order, in hg_loop_config.slot (-1: not an input). */
-enum { LOADER_CRANE_SLOT_Q, LOADER_CRANE_SLOT_QDOT, LOADER_CRANE_SLOT_PC, LOADER_CRANE_SLOT_L, LOADER_CRANE_SLOT_QD0, LOADER_CRANE_SLOT_QD1, LOADER_CRANE_SLOT_QD2, LOADER_CRANE_SLOT_QD3, LOADER_CRANE_SLOT_XC, LOADER_CRANE_SLOT_ADAPT, LOADER_CRANE_SLOT_U_APPLIED, LOADER_CRANE_N_SLOTS };
+enum { LOADER_CRANE_SLOT_Q, LOADER_CRANE_SLOT_QDOT, LOADER_CRANE_SLOT_PC, LOADER_CRANE_SLOT_L, LOADER_CRANE_SLOT_QD0, LOADER_CRANE_SLOT_QD1, LOADER_CRANE_SLOT_QD2, LOADER_CRANE_SLOT_QD3, LOADER_CRANE_SLOT_XC, LOADER_CRANE_SLOT_ADAPT, LOADER_CRANE_SLOT_U_APPLIED, LOADER_CRANE_SLOT_PS, LOADER_CRANE_N_SLOTS };
 
 /* Return codes of loader_crane_loop_run. */
 enum { LOADER_CRANE_OK = 0, LOADER_CRANE_NONFINITE = 1, LOADER_CRANE_FK_FAILED = 2, LOADER_CRANE_CTRL_FAILED = 3 };
@@ -36,7 +37,7 @@ typedef struct {
     long long delay;
     double delay_frac;
     /* plant (SI): true theta (boom.mcx, boom.mcz, boom.Iyy, boom.Izz, jib.mcx, jib.mcz, jib.Iyy, jib.Izz), gamma1 = beta and gamma2 = beta c per cylinder,
-     * friction [Fc, b, v_s] per actuator in its own unit (N, N s/m, m/s; N m, N m s/rad, rad/s),
+     * friction [Fc, b, v_s, F_brk N or N m, v_st m/s or rad/s, k_p] per actuator in its own unit (N, N s/m, m/s; N m, N m s/rad, rad/s),
      * valve per actuator [first-order lag s, second-order natural frequency rad/s, damping, overlap m,
      * full opening m] (its datasheet valve, else the rig's) */
     const double* theta;
@@ -112,7 +113,7 @@ typedef struct {
 typedef struct {
     double t;  /* s */
     long long k;  /* control periods done */
-    double x[LOADER_CRANE_NX];  /* plant: q, qdot, pc, spool, spool rate */
+    double x[LOADER_CRANE_NX];  /* plant: q, qdot, pc, spool, spool rate, ps */
     double q_meas[LOADER_CRANE_NQ];  /* last measured pose (Newton's warm start) */
     double kf[2 * LOADER_CRANE_NL];  /* Kalman state: cylinder lengths, cylinder rates */
     double u_hist[LOADER_CRANE_MAX_DELAY * LOADER_CRANE_NL];  /* commands of past periods: ring, slot k % MAX_DELAY (0 at reset) */
@@ -134,6 +135,7 @@ typedef struct {                 /* each may be NULL; rows per control period (w
     double* u;  /* 3: spool commands computed, m */
     double* u_applied;  /* 3: spool commands the valves held at the end of each period (delay later), m */
     double* l_meas;  /* 3: measured cylinder lengths (noise, quantisation), m */
+    double* ps;  /* 1: supply pressure, Pa */
     double* xc;  /* n_xc: controller state */
 } loader_crane_loop_log;
 
@@ -143,6 +145,7 @@ typedef struct {
     double l_true[LOADER_CRANE_NL];  /* true cylinder lengths, m */
     double l_meas[LOADER_CRANE_NL];  /* measured cylinder lengths (noise, resolution), m */
     double pc_meas[LOADER_CRANE_NPC];  /* measured pressures, Pa */
+    double ps_meas[LOADER_CRANE_NPS];  /* measured supply pressure, Pa (a [supply] state's only) */
     double q_enc[LOADER_CRANE_NQ];  /* joint encoders' reading, rad or m (joint encoders only) */
     double ldot[LOADER_CRANE_NL];  /* cylinder rates: the Kalman filter's, or the ideal rate sensor's, m/s */
     double qdot_meas[LOADER_CRANE_NQ];  /* measured velocities, JL^-1 ldot at the measured pose */

@@ -62,12 +62,12 @@ CASADI_SYMBOL_EXPORT int loader_crane_regressor_casadi_int_size(void) { return (
 CASADI_SYMBOL_EXPORT int loader_crane_regressor_casadi_real_size(void) { return (int) sizeof(casadi_real); }
 
 static const casadi_int casadi_s0[3] = {3, 1, 1};
-static const casadi_int casadi_s1[3] = {71, 1, 1};
+static const casadi_int casadi_s1[3] = {78, 1, 1};
 static const casadi_int casadi_s2[3] = {3, 8, 1};
 
 static const casadi_real hg_zeros[36] = {0};
 
-/* loader_crane_regressor:(q[3],v[3],w[3],a[3],numbers[71])->(Y[3x8]) */
+/* loader_crane_regressor:(q[3],v[3],w[3],a[3],numbers[78])->(Y[3x8]) */
 static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   (void)arg; (void)res; (void)iw; (void)w; (void)mem;
   const casadi_real* hg_in0 = arg[0] ? arg[0] : hg_zeros;

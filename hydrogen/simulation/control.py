@@ -19,6 +19,7 @@ from ..controllers import (COMMON_GAINS, CONTROLLERS, LEAN, controller as contro
 from ..controllers.common import check_coupling_gains, normalised_adaptation, runs_lean
 from ..controllers.spec import Start
 from .. import diagram, pressures
+from ..plant import supply
 from ..errors import ScenarioError
 from ..layout import model_summary, robot_sizes
 from ..names import NUMBERS
@@ -184,10 +185,18 @@ class _Controller:
         v.update(xc=self.xc)
         return self.rates_fn(*[v[n] for n in self.rates_fn.in_names])
 
-    def command(self, q, qdot, pc, l, ref, adapt):
+    def _supply(self, ps):
+        """The ``ps`` signal of the wrappers: the given supply pressure (Pa), else the description's
+        nominal one where the controller reads a supply (a robot whose supply is a state), else None."""
+        if ps is not None or "ps" not in self.fn.in_names:
+            return ps
+        return np.array([supply.nominal(self.model)], float)
+
+    def command(self, q, qdot, pc, l, ref, adapt, ps=None):
         """The spool commands (m) for the measured pose ``q``, velocities ``qdot``, pressures ``pc``, travel
-        ``l``, reference ``ref`` (4 rows) and the adaptation switch: :meth:`command_for` their ports."""
-        return self.command_for(diagram.signals(q, qdot, pc, l, ref, adapt))
+        ``l``, reference ``ref`` (4 rows), the adaptation switch and the supply pressure ``ps`` (Pa; default
+        the description's nominal one): :meth:`command_for` their ports."""
+        return self.command_for(diagram.signals(q, qdot, pc, l, ref, adapt, self._supply(ps)))
 
     def command_for(self, signals: dict):
         """The spool commands (m) for the loop's signals by port name (:data:`hydrogen.diagram.SLOTS`)."""
@@ -205,9 +214,9 @@ class _Controller:
         """Record the spool commands (m) the valves get this period: the next state update's u_applied."""
         self.u_applied[:] = u_app
 
-    def update(self, h, q, qdot, pc, l, ref, adapt):
+    def update(self, h, q, qdot, pc, l, ref, adapt, ps=None):
         """:meth:`update_for` the signals of a measured pose, velocities, … (as :meth:`command`)."""
-        self.update_for(h, diagram.signals(q, qdot, pc, l, ref, adapt))
+        self.update_for(h, diagram.signals(q, qdot, pc, l, ref, adapt, self._supply(ps)))
 
     def update_for(self, h, signals: dict):
         """Semi-implicit step: xc ← clip(xc + h F(measurement, xc, u_applied)) with the rates-only

@@ -13,9 +13,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .. import pressures
-from ..plant import supply
+from ..plant import plant_layout, supply
 from ..layout import FK_MAX_COND, FK_MAX_ITER, FK_TOL, LOOP_CONFIG, delay_split
+
+
+def _chambers(model):
+    """The chamber pressures' part of ``model``'s plant state (its bounds)."""
+    return {part.name: part for part in plant_layout(model)}["pc"]
 
 __all__ = ["Run", "DERIVED", "config_values", "FK_TOL", "FK_MAX_ITER"]
 
@@ -95,8 +99,10 @@ DERIVED = {
     "pred_theta_at": _at("theta_hat"),
     "pred_gamma1_at": _at("gamma1_hat"),
     "pred_gamma2_at": _at("gamma2_hat"),
-    "pressure_low": lambda r: pressures.bounds(r.dyn.model)[0],
-    "pressure_high": lambda r: pressures.bounds(r.dyn.model)[1],
+    # the plant's own bounds (its layout's: a kind's [0, P_s], up to the supply's ceiling where the
+    # supply is a state), the Python stages' clip too
+    "pressure_low": lambda r: np.array(_chambers(r.dyn.model).lower, float),
+    "pressure_high": lambda r: np.array(_chambers(r.dyn.model).upper, float),
     "numbers": lambda r: np.zeros(1) if r.dyn.numbers is None else np.asarray(r.dyn.numbers, float),
     "supply_feedback": lambda r: int(bool(r.sc.supply_feedback)),
     "ps_nominal": lambda r: supply.nominal(r.dyn.model),

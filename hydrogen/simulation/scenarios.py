@@ -138,7 +138,9 @@ def friction_row(sc, c, seal: bool) -> tuple:
     (:func:`hydrogen.plant.friction.parameters_of`: all six for a robot with seal friction, ``seal``), in its own
     unit: the scenario's ``actuators.<name>.friction`` (the list [F_c, b, v_s] or a seal friction table)
     over its description's friction table (``Cylinder.friction``) over the scenario's ``friction`` (a
-    cylinder's; none on a joint actuator), key by key. A :class:`ScenarioError` naming the actuator and
+    cylinder's; none on a joint actuator), key by key. The description's table applies where the
+    scenario has friction on (its ``friction`` not zero, or the actuator's own given): an ideal plant
+    stays frictionless. A :class:`ScenarioError` naming the actuator and
     the key for a value out of range, or one asking for a seal term its plant is generated without (a
     breakaway above coulomb, a pressure_coefficient above 0: structure, declared in its description)."""
     from ..actuators import actuator
@@ -149,8 +151,12 @@ def friction_row(sc, c, seal: bool) -> tuple:
     # a joint actuator's is none unless given (the smoothing speed only keeps tanh finite)
     base = sc.friction if actuator(c.kind).TRAVEL == LENGTH else (0.0, 0.0, sc.friction[2])
     own = sc.actuators.get(c.name, {}).get("friction")
+    given = own is not None
     own = dict(zip(names, own)) if own is not None and not isinstance(own, Mapping) else dict(own or {})
-    desc = dict(c.friction or {})
+    # the description's numbers are the seal's where the scenario has friction on (the rig's); a
+    # scenario with none (an ideal plant) runs the actuator frictionless
+    on = given or any(float(v) != 0.0 for v in sc.friction[:2])
+    desc = dict(c.friction or {}) if on else {}
     table = {**dict(zip(names, base)), **desc, **own}
     sources = {k: ("its description" if k in desc else "the scenario's friction") for k in table if k not in own}
     _refuse_table(sc, c.name, table, sources=sources)
@@ -327,6 +333,7 @@ def scenario(name: str, model) -> Scenario:
     ref = spec.pop("reference", None)
     label = spec.pop("label", base)
     paper = spec.pop("paper", {})
+    spec.pop("tuned", None)  # read by the searches (tuning.rig_scenarios), not a field of the run
     take(spec)
     if var is not None:
         vspec = dict(model.variants[var])
@@ -360,11 +367,13 @@ def valve_parameters(sc, model) -> np.ndarray:
     """The plant's valve input of every actuator of ``model``, (m, 5): [first-order lag s, natural
     frequency rad/s, damping, overlap m, full opening m] (:data:`hydrogen.plant.valve.PARAMETERS`).
     An actuator's datasheet valve (``Cylinder.valve``, the description's ``valve`` table) overrides
-    the rig's valve settings for it; without one, the rig's apply as they are (no overlap, no
-    saturation). ScenarioError where a datasheet valve's natural frequency is too fast for the
+    the rig's valve settings for it where the scenario's valve is not ideal (a lag or a natural
+    frequency set; in an ideal valve's scenario only its overlap and saturation stay); without one,
+    the rig's apply as they are (no overlap, no saturation). ScenarioError where a datasheet valve's natural frequency is too fast for the
     plant's sub-steps (the scenario's own rule for valve_bandwidth_hz)."""
     from ..plant.valve import PARAMETERS
     rig = (*valve_vector(sc), 0.0, 0.0)
+    dynamic = rig[0] > 0.0 or rig[1] > 0.0
     rows = []
     for c in model.cylinders:
         own = getattr(c, "valve", None)
@@ -372,6 +381,8 @@ def valve_parameters(sc, model) -> np.ndarray:
             rows.append(rig)
             continue
         row = tuple(float(own[p.name]) for p in PARAMETERS)
+        if not dynamic:  # an ideal valve's scenario: the spool follows at once, its geometry stays
+            row = (0.0, 0.0, *row[2:])
         if row[1] / (sc.control_rate * sc.substeps) > 1.0:
             raise ScenarioError(f"scenario '{sc.name}': actuator '{c.name}': its valve's bandwidth_hz "
                                 f"{row[1] / (2 * np.pi)!r} Hz must be <= control_rate * substeps / (2 pi) = "

@@ -91,9 +91,11 @@ def _load(model):
     return as_model(model)
 
 
-def rig_scenarios(model=None, variant: str | None = None) -> dict:
+def rig_scenarios(model=None, variant: str | None = None, untuned: bool = False) -> dict:
     """{scenario name: (moving coordinate names)} for the rig scenarios with a periodic reference;
-    with ``variant`` (a ``[variants.<name>]`` of the description), each as ``<scenario>.<variant>``."""
+    with ``variant`` (a ``[variants.<name>]`` of the description), each as ``<scenario>.<variant>``.
+    A scenario whose table says ``tuned = false`` (no gain is chosen for it) is left out unless
+    ``untuned``."""
     from ..errors import ScenarioError
     from .reference import MultiSine
     from .scenarios import scenario, scenario_names, variant_name, variant_names
@@ -105,7 +107,8 @@ def rig_scenarios(model=None, variant: str | None = None) -> dict:
     variant = None if variant is None else variant_name(variant, model)  # a former name: the current one
     out = {}
     for name in scenario_names(model):
-        if not (model.scenarios[name] or {}).get("rig"):
+        table = model.scenarios[name] or {}
+        if not table.get("rig") or (table.get("tuned") is False and not untuned):
             continue
         sc = scenario(name, model)
         if isinstance(sc.reference, MultiSine):
