@@ -19,6 +19,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from .errors import ScenarioError
+from .plant.supply import PRESSURE as SUPPLY_PRESSURE
 
 __all__ = ["Port", "Block", "CONTROLLER_PORTS", "SLOTS", "REFERENCE_PORTS", "LOOP_BLOCKS", "port_length",
            "slots", "signals", "wire"]
@@ -69,7 +70,7 @@ _xc = Port("xc", ("NXC",), "per block", "the controller's own state (its estimat
 _adapt = Port("adapt", (1,), "1", "1 once adaptation is on (t >= t_adapt), else 0", "&adapt")
 _u_applied = Port("u_applied", ("NL",), "m", "spool commands the valves held over the last period (after the "
                   "computation delay)", "u_prev")
-_ps = Port("ps", ("NPS",), "Pa", "measured supply pressure (a [supply] state's; noise_ps)", "ps")
+_ps = Port(SUPPLY_PRESSURE, ("NPS",), "Pa", "measured supply pressure (a [supply] state's; noise_ps)", "ps")
 
 #: Every loop signal a controller may take as an input, in the order of the loop's input slots
 #: (``<MODEL>_SLOT_<NAME>`` in the loop header, ``slot`` in its configuration, ``P_CTRL_SLOT`` in an
@@ -144,7 +145,7 @@ def signals(q, qdot, pc, l, ref, adapt: bool, ps=None) -> dict:
     out = {"q": q, "qdot": qdot, "pc": pc, "l": l, "adapt": 1.0 if adapt else 0.0}
     out.update((p.name, ref[k]) for k, p in enumerate(REFERENCE_PORTS))
     if ps is not None:
-        out["ps"] = ps
+        out[SUPPLY_PRESSURE] = ps
     return out
 
 

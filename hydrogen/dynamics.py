@@ -12,6 +12,7 @@ import numpy as np
 
 from .errors import KinematicsError, ScenarioError
 from .layout import FK_MAX_COND, FK_MAX_ITER, FK_STATUS, FK_TOL, LU_PIVOT_MIN
+from .layout import SUPPLY_LOG as SUPPLY_PRESSURE
 
 __all__ = ["Dynamics", "fk_failure"]
 
@@ -261,7 +262,7 @@ class Dynamics:
         ``ps`` (Pa, (1,)): the supply pressure of a robot whose supply is a plant state (required there,
         refused otherwise)."""
         fn = self.functions["leg_force"]
-        takes = "ps" in fn.in_names
+        takes = SUPPLY_PRESSURE in fn.in_names
         if takes != (ps is not None):
             raise ScenarioError(f"leg_force of '{self.model.name}': " + (
                 "needs the supply pressure ps (its supply is a plant state)" if takes else

@@ -44,7 +44,7 @@ from .errors import CompilerError, FmuError, OutputPathError
 from .layout import NUMBERS, SUPPLY_LOG
 from .model import POSITIVE  # FMI's min is inclusive: "> 0" is min = the smallest positive double
 from .plant import plant_layout, slot as plant_slot, valve
-from .plant.supply import ceiling as supply_ceiling
+from .plant.supply import PRESSURE as SUPPLY_PRESSURE, ceiling as supply_ceiling
 
 __all__ = ["export_fmu", "PARTS", "fmi_headers_dir", "FMI_HEADERS"]
 
@@ -271,7 +271,7 @@ def _variables(part, dyn, p, ctx, fn, encoders, kalman):
             add(_dotted(nm, what[0]), "o", "continuous", f"{what[1]} of cylinder {what[0]}{note}",
                 f"inst->y_pc[{j}]", unit="Pa")
         if _has_supply(layout):
-            add("ps", "o", "continuous", f"supply pressure ({model.supply.kind} of [supply])", "inst->y_ps", unit="Pa")
+            add(SUPPLY_PRESSURE, "o", "continuous", f"supply pressure ({model.supply.kind} of [supply])", "inst->y_ps", unit="Pa")
         return out, []
 
     # offsets of the controller's C arguments in ctrl_in (the export's table: the numbers too)
@@ -286,7 +286,7 @@ def _variables(part, dyn, p, ctx, fn, encoders, kalman):
             add(_dotted(nm, what[0]), "i", "continuous", f"measured {what[2]} of cylinder {what[0]}",
                 f"inst->pc_in[{j}]", unit="Pa", start=float(x0_pc[j]))
         if _has_supply(layout):
-            add("ps", "i", "continuous", "measured supply pressure", "inst->ps_in", unit="Pa",
+            add(SUPPLY_PRESSURE, "i", "continuous", "measured supply pressure", "inst->ps_in", unit="Pa",
                 start=float(p.x0[plant_slot(layout, SUPPLY_LOG).slice][0]))
         if encoders:
             for i, c in enumerate(coords):
@@ -340,7 +340,7 @@ def _variables(part, dyn, p, ctx, fn, encoders, kalman):
             add(_dotted("q_d", c), "o", "discrete", f"reference of {c}",
                 f"inst->ctrl_in[{offsets[at['qd0']] + i}]", unit=cunits[i])
         if _has_supply(layout):
-            add("ps", "o", "discrete", f"supply pressure at the start of the period ({model.supply.kind} of "
+            add(SUPPLY_PRESSURE, "o", "discrete", f"supply pressure at the start of the period ({model.supply.kind} of "
                 "[supply])", "inst->ps_row", unit="Pa")
     if fn.out_names[0] != "u":
         raise FmuError(f"controller {fn.name}'s first output is {fn.out_names[0]!r}, not the command u")

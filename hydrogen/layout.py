@@ -11,14 +11,16 @@ import math
 
 from . import diagram  # the controller's input slots: the loop's ports
 from .names import NUMBERS  # the numbers input's name, part of the loop's layout
+from .plant.supply import PRESSURE as SUPPLY_PRESSURE  # the supply pressure's one name
 
 __all__ = ["NUMBERS", "SUPPLY_LOG", "MAX_DELAY", "PREDICTOR_MODEL", "FK_TOL", "FK_MAX_ITER", "FK_MAX_COND", "FK_STATUS", "LU_PIVOT_MIN",
            "delay_split", "LOOP_CONFIG", "LOOP_STATE", "LOOP_SIGNALS", "model_summary", "friction_width", "slots",
            "robot_sizes", "supply_size", "loop_context", "log_widths", "loop_functions", "C_SIZES", "plant_offsets",
            "plant_size", "c_double", "config_fields", "FRICTION_COMMENT", "struct_fields"]
 
-#: The plant part logged as it is, where the plant has it: the supply pressure (hydrogen.plant.supply).
-SUPPLY_LOG = "ps"
+#: The plant part logged as it is, where the plant has it: the supply pressure (its one name,
+#: hydrogen.plant.supply.PRESSURE).
+SUPPLY_LOG = SUPPLY_PRESSURE
 
 
 #: Longest computation delay the loop's command ring buffer holds, control periods (a scenario's

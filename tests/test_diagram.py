@@ -96,3 +96,15 @@ def test_the_python_engine_has_a_step_per_block_and_the_c_loop_runs_the_blocks_i
     calls = [m for m in re.findall(r"ubc_stewart_(measure|estimate|reference|control|plant_step)\(", body)]
     stages = list(dict.fromkeys(b.c_stage for b in diagram.LOOP_BLOCKS))  # consecutive blocks share a stage
     assert calls == stages, (calls, stages)
+
+
+def test_the_supply_pressure_has_one_name_for_state_port_log_and_inputs():
+    """The plant state, the controllers' input port, the log column and a controller's generated input
+    all take the supply pressure's name from its one declaration (hydrogen.plant.supply.PRESSURE)."""
+    from hydrogen.layout import SUPPLY_LOG
+    from hydrogen.plant import supply
+    assert [s.name for s in supply.STATES] == [supply.PRESSURE] == [SUPPLY_LOG]
+    assert supply.PRESSURE in diagram.SLOTS
+    manifest = json.loads((ROOT / "generated" / "excavator_arm" / "manifest.json").read_text())  # on a pump
+    ctrl = {f["name"]: f for f in manifest["functions"]}["ctrl_backstepping"]
+    assert supply.PRESSURE in [name for name, _, _ in ctrl["inputs"]]

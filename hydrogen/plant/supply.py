@@ -47,7 +47,7 @@ import numpy as np
 from ..actuators.declarations import BULK_MODULUS, SUPPLY_PRESSURE, VOLUME, Parameter, Range, sp
 from . import PlantState
 
-__all__ = ["KINDS", "DEFAULT_KIND", "NEEDS", "STATES", "entries", "nominal", "start", "ceiling", "PARAMETERS", "ATMOSPHERE", "RELIEF_OVERRIDE",
+__all__ = ["KINDS", "DEFAULT_KIND", "NEEDS", "PRESSURE", "STATES", "entries", "nominal", "start", "ceiling", "PARAMETERS", "ATMOSPHERE", "RELIEF_OVERRIDE",
            "RELIEF_WIDTH", "COMPENSATOR_DROOP", "Supply", "Laws", "Symbolic", "Numeric"]
 
 #: The supply kinds a description may name; the default: a constant supply pressure.
@@ -65,8 +65,12 @@ RELIEF_WIDTH = 0.1
 #: over p_set ± 2Δ_c.
 COMPENSATOR_DROOP = 0.01
 
+#: The supply pressure's one name: the plant state's, its log column's and the controllers' input
+#: port's (:mod:`hydrogen.diagram`), the FMU's output.
+PRESSURE = "ps"
+
 STATES = (
-    PlantState("ps", "supply", "Pa", "supply pressure (a state only where the supply is not constant), Pa",
+    PlantState(PRESSURE, "supply", "Pa", "supply pressure (a state only where the supply is not constant), Pa",
                lower=0.0),
 )
 
@@ -187,7 +191,7 @@ class Laws:
     def states(model) -> dict:
         """``{"ps": column of symbols}``: one p_s where the supply is not constant, else none."""
         from ..symbolic.kinematics import rate_symbols
-        return {"ps": rate_symbols("ps", len(entries(model)))}
+        return {PRESSURE: rate_symbols(PRESSURE, len(entries(model)))}
 
     def pump_flow(self, kind, ps, S):
         """Q_pump (m³/s): a fixed displacement's Q_p, or the compensated pump's drooping flow."""

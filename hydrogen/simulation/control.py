@@ -188,7 +188,7 @@ class _Controller:
     def _supply(self, ps):
         """The ``ps`` signal of the wrappers: the given supply pressure (Pa), else the description's
         nominal one where the controller reads a supply (a robot whose supply is a state), else None."""
-        if ps is not None or "ps" not in self.fn.in_names:
+        if ps is not None or supply.PRESSURE not in self.fn.in_names:
             return ps
         return np.array([supply.nominal(self.model)], float)
 

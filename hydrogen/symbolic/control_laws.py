@@ -19,6 +19,7 @@ from dataclasses import dataclass, field
 import sympy as sp
 
 from ..actuators import actuator, baked_parameters
+from ..plant.supply import PRESSURE
 from ..pressures import blocks, n_pressures
 from .calculus import clip, projection
 from .constants import PRESSURE_EPS, baked
@@ -92,7 +93,7 @@ class Common:
         self.P = [baked_parameters(x) for x in model.cylinders]
         #: the measured supply pressure (Pa), an input, where the supply is a plant state (a pump): every
         #: law (force, f0, g0, valve inverse, normalisation) takes it in place of supply_pressure
-        self.supply = None if model.supply.constant else vector("ps", 1)
+        self.supply = None if model.supply.constant else vector(PRESSURE, 1)
         if self.supply is not None:
             self.P = [{**P, "supply_pressure": self.supply[0]} for P in self.P]
         self.ps = [P["supply_pressure"] for P in self.P]
@@ -310,7 +311,7 @@ class Common:
     def base_inputs(self):
         return [("q", self.q), ("qdot", self.qdot), ("pc", self.pc),
                 *[(f"qd{k}", self.qd[k]) for k in range(4)],
-                *([("ps", self.supply)] if self.supply is not None else [])]
+                *([(PRESSURE, self.supply)] if self.supply is not None else [])]
 
     def gain_inputs(self):
         return [("Lambda", self.Lam), ("Kp", self.Kp), ("Kd", self.Kd), ("Ktau", self.Ktau),

@@ -14,6 +14,7 @@ import sympy as sp
 from ..actuators import actuator, baked_parameters
 from ..names import NUMBERS
 from ..plant import plant_layout
+from ..plant.supply import PRESSURE
 from ..pressures import blocks, n_pressures, uniform_three_way
 from .body_functions import SymbolicFunction, rigid_body_functions  # noqa: F401 (also their public path)
 from .constants import PRESSURE_EPS
@@ -82,7 +83,7 @@ def hydraulic_functions(model) -> list:
                       for r in laws[i].pressure_rates(l[i], ld[i], p[i], u[i], g1[i], g2[i] / g1[i], P[i], smooth=True)])
     # With a supply state the forces take its pressure as an input: a three-way cylinder's rod side is
     # at the supply's pressure, not at the nominal one (a constant supply keeps today's function).
-    ps_in = [] if model.supply.constant else [("ps", rate_symbols("ps", 1))]
+    ps_in = [] if model.supply.constant else [(PRESSURE, rate_symbols(PRESSURE, 1))]
     PF = [{**Pi, "supply_pressure": ps_in[0][1][0]} for Pi in P] if ps_in else P
     force = sp.Matrix([laws[i].force(p[i], PF[i]) for i in range(m)])
     if uniform_three_way(model):

@@ -43,7 +43,7 @@ def plant_rhs(model):
     cyl = model.cylinders
     laws = [actuator(c.kind).Symbolic for c in cyl]
     P = [baked_parameters(c) for c in cyl]
-    ps = states["ps"]
+    ps = states[supply.PRESSURE]
     if ps.rows:  # a pump: every actuator's laws see the supply state in place of its constant
         P = [{**Pi, "supply_pressure": ps[0]} for Pi in P]
     p = [tuple(pc[a:b]) for a, b in blocks(model)]  # each actuator's pressure block
@@ -70,10 +70,10 @@ def plant_rhs(model):
                                   for i in range(m))]))]
         values = model.supply.values
         S = {k: baked(v, f"supply.{k}") for k, v in values.items()}
-        rates["ps"] = sp.Matrix([supply.Symbolic.rate(model.supply.kind, ps[0], demand[0][0][0], S,
+        rates[supply.PRESSURE] = sp.Matrix([supply.Symbolic.rate(model.supply.kind, ps[0], demand[0][0][0], S,
                                                       model.supply.accumulator)])
     else:
-        rates["ps"] = ps
+        rates[supply.PRESSURE] = ps
     xdot = sp.Matrix([r for name in BLOCKS for st in block(name).STATES for r in rates[st.name]])
     inputs = [("x", x), ("u", u), ("theta", th), ("gamma1", g1), ("gamma2", g2), ("friction", fric),
               ("valve", valve_par)]
