@@ -1,3 +1,5 @@
+import re
+
 import numpy as np
 import pytest
 import sympy as sp
@@ -133,6 +135,21 @@ def test_forward_kinematics_reports_a_singular_jacobian(dyn, model):
     with pytest.raises(hydrogen.KinematicsError, match=r"JL is singular \(condition number \S+, 1-norm; at most "
                        r"1e\+08\) at q = \[.*1\.57"):
         dyn.forward_kinematics(dyn.leg_lengths(model.neutral_pose + 0.01), q0=q0)
+
+
+def test_forward_kinematics_refuses_exactly_where_the_condition_number_passes_its_bound(dyn, model, rng):
+    """The Newton steps' check of JL's 1-norm condition number (a cheap upper bound first, the exact
+    number where the bound does not settle it) decides as the exact number does: a bound just above
+    it solves, one just below it refuses and reports it (numpy's np.linalg.cond, 1-norm)."""
+    for qa in workspace_poses(model, 3, rng):
+        target = dyn.leg_lengths(qa + 1e-6)  # a few Newton steps from qa, whose JL barely changes
+        kappa = np.linalg.cond(np.asarray(dyn.leg_jacobian(qa)).reshape(model.n, model.n), 1)
+        q = dyn.forward_kinematics(target, q0=qa, max_cond=kappa * 1.001)
+        np.testing.assert_allclose(dyn.leg_lengths(q), target, atol=1e-9)
+        with pytest.raises(hydrogen.KinematicsError, match=r"JL is singular \(condition number (\S+), 1-norm") as err:
+            dyn.forward_kinematics(target, q0=qa, max_cond=kappa * 0.999)
+        reported = float(re.search(r"condition number (\S+),", str(err.value)).group(1))
+        assert reported == pytest.approx(kappa, rel=5e-3)  # 3 significant digits in the message
 
 
 def _reference_newton(dyn, l, q, tol=1e-12, max_iter=50):

@@ -134,11 +134,34 @@ static double inverse_norm_1(const double* LU, const int* piv) {
     return norm;
 }
 
+/* An upper bound of ||A^-1||_1 from lu_n's factors of A = P^T L U: ||A^-1||_1 <= ||U^-1||_1 ||L^-1||_1,
+ * and for a triangular T, |T^-1| <= M(T)^-1 entrywise (M(T), its comparison matrix: |t_ii| on the
+ * diagonal, -|t_ij| off it, has a non-negative inverse), so ||T^-1||_1 <= the largest entry of
+ * M(T)^-T e: one triangular solve each instead of the NQ solves of the exact norm. */
+static double inverse_norm_1_bound(const double* LU) {
+    double x[NQ], y[NQ], s, nl = 0, nu = 0;
+    int i, j;
+    for (i = NQ - 1; i >= 0; --i) {  /* M(L)^T x = e: L unit lower, its multipliers below the diagonal */
+        s = 1.0;
+        for (j = i + 1; j < NQ; ++j) s += fabs(LU[j + NQ * i]) * x[j];
+        x[i] = s;
+        if (!(s <= nl)) nl = s;
+    }
+    for (i = 0; i < NQ; ++i) {  /* M(U)^T y = e: U upper, on and above the diagonal */
+        s = 1.0;
+        for (j = 0; j < i; ++j) s += fabs(LU[j + NQ * i]) * y[j];
+        y[i] = s / fabs(LU[i + NQ * i]);
+        if (!(y[i] <= nu)) nu = y[i];
+    }
+    return nl * nu;
+}
+
 /* Forward kinematics, the one implementation (the loop's estimate, <model>_forward_kinematics and its
  * batch, and so hydrogen's Dynamics.forward_kinematics and identification): Newton's method for q with
  * l(q) = l_meas (m), starting from q (updated in place; on failure its last iterate). Each iteration
  * evaluates l and JL at q; it stops when every |l_i - l_meas_i| < tol; else, after max_iter steps, it has
- * not converged; else a step needs JL's 1-norm condition number at most max_cond (JL singular otherwise).
+ * not converged; else a step needs JL's 1-norm condition number at most max_cond (JL singular otherwise;
+ * a cheap upper bound of it settles most steps, the exact number the rest).
  * Returns a <MODEL>_FK_ outcome; J holds JL at the returned q (when solved, the converged iterate's own
  * evaluation: no extra call for the velocities; when singular, its LU factors). info (3, or NULL): residual
  * max_i |l_i - l_meas_i| (m) at q, JL's condition number there (NaN when not computed, inf when a pivot
@@ -159,8 +182,12 @@ static int fk_newton(const double* nb, const double* l_meas, double* q, double t
         if (it >= max_iter) { status = UBC_STEWART_FK_NOT_CONVERGED; break; }
         cond = norm_1(J);
         if (!lu_n(J, piv)) { cond = INFINITY; status = UBC_STEWART_FK_SINGULAR; break; }
-        cond *= inverse_norm_1(J, piv);
-        if (!(cond <= max_cond)) { status = UBC_STEWART_FK_SINGULAR; break; }
+        if (cond * inverse_norm_1_bound(J) <= max_cond) {
+            cond = NAN;  /* the bound decides: the exact number is not computed */
+        } else {  /* the exact number, only where the bound does not settle it */
+            cond *= inverse_norm_1(J, piv);
+            if (!(cond <= max_cond)) { status = UBC_STEWART_FK_SINGULAR; break; }
+        }
         lu_solve(J, piv, r);
         for (i = 0; i < NQ; ++i) q[i] -= r[i];
     }
