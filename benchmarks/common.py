@@ -426,9 +426,10 @@ def study_result(model, seeds, quick: bool, quick_duration: float, scenarios: di
             "wall_s": time.perf_counter() - start}
 
 
-def json_study_main(doc: str, collect, markdown, default_json: Path, argv=None) -> int:
-    """A study script's command line: ``--workers`` (default 2) and ``--json`` (default ``default_json``);
-    runs ``collect(workers=...)``, writes its data as sorted JSON atomically and prints ``markdown`` of it."""
+def json_study_main(doc: str, collect, markdown, default_json: Path, argv=None, options=None) -> int:
+    """A study script's command line: ``--workers`` (default 2), ``--json`` (default ``default_json``) and
+    ``options`` ({flag: argparse keywords}, passed to ``collect`` by their dest); runs
+    ``collect(workers=..., ...)``, writes its data as sorted JSON atomically and prints ``markdown`` of it."""
     import argparse
     import json
 
@@ -437,8 +438,10 @@ def json_study_main(doc: str, collect, markdown, default_json: Path, argv=None) 
     ap = argparse.ArgumentParser(description=doc.splitlines()[0])
     ap.add_argument("--workers", type=int, default=2, help="processes (default 2)")
     ap.add_argument("--json", default=str(default_json), help=f"output (default {default_json.relative_to(REPO)})")
+    dests = [ap.add_argument(flag, **kw).dest for flag, kw in (options or {}).items()]
     args = ap.parse_args(argv)
-    text = json.dumps(collect(workers=args.workers), indent=2, sort_keys=True) + "\n"
+    data = collect(workers=args.workers, **{d: getattr(args, d) for d in dests})
+    text = json.dumps(data, indent=2, sort_keys=True) + "\n"
     atomic_write(Path(args.json), text)
     print(markdown(json.loads(text)))
     print(f"written to {args.json}")

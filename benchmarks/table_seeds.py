@@ -8,7 +8,8 @@ median, range, the worst seed and the number of seeds above 1.5 times the median
 Writes ``docs/table_seeds.json`` (atomically) and prints the table as Markdown (docs/paper.md holds
 it as printed).
 
-Run: ``python benchmarks/table_seeds.py [--workers W]`` (about a minute on 2 cores).
+Run: ``python benchmarks/table_seeds.py [--workers W] [--variants low-latency predictor]`` (about a
+minute on 2 cores, three with both variants): ``--variants`` adds the other timings' rows.
 """
 from __future__ import annotations
 
@@ -34,12 +35,15 @@ SEEDS = list(range(100, 150))
 TAIL = 1.5
 
 
-def collect(seeds=SEEDS, workers: int = 2) -> dict:
-    """{"model", "seeds", "tail", "rows": [{scenario, coordinate, controller, median, min, max, worst_seed,
-    tail_seeds, failed}], "wall_s"} (module doc)."""
+def collect(seeds=SEEDS, workers: int = 2, variants=()) -> dict:
+    """{"model", "seeds", "tail", "variants", "rows": [{scenario, coordinate, controller, median, min, max,
+    worst_seed, tail_seeds, failed}], "wall_s"} (module doc); ``variants``: the description's variants
+    (other timings) run too, each scenario as ``<scenario>.<variant>``."""
     start = time.perf_counter()
     model = hydrogen.load_model()
-    cases = [(name, moving[0], c) for name, moving in rig_scenarios(model).items() for c in model.controllers]
+    variants = list(variants or ())
+    cases = [(name, moving[0], c) for v in (None, *variants) for name, moving in rig_scenarios(model, v).items()
+             for c in model.controllers]
     out = hydrogen.sweep([dict(scenario=s, controller=c) for s, _, c in cases], seeds=list(seeds),
                          max_workers=workers, model=model)
     rows = []
@@ -52,7 +56,7 @@ def collect(seeds=SEEDS, workers: int = 2) -> dict:
                      "worst_seed": int(done[int(np.argmax(errs))][0]) if done else None,
                      "tail_seeds": [int(s) for s, e in done if e > TAIL * med] if done else [],
                      "failed": [int(s) for s in m.get("failed", [])]})
-    return {"model": model.name, "seeds": list(seeds), "tail": TAIL, "rows": rows,
+    return {"model": model.name, "seeds": list(seeds), "tail": TAIL, "variants": variants, "rows": rows,
             "wall_s": time.perf_counter() - start}
 
 
@@ -73,7 +77,8 @@ def markdown(data) -> str:
 
 
 def main(argv=None) -> int:
-    return common.json_study_main(__doc__, collect, markdown, REPO / "docs" / "table_seeds.json", argv)
+    return common.json_study_main(__doc__, collect, markdown, REPO / "docs" / "table_seeds.json", argv,
+                                  {"--variants": dict(nargs="*", default=[], help="variants (timings) run too")})
 
 
 if __name__ == "__main__":
