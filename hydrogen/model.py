@@ -19,7 +19,7 @@ import hashlib
 import json
 import os
 import stat
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields
 from importlib import resources
 from pathlib import Path
 from types import SimpleNamespace
@@ -97,8 +97,6 @@ HYDRAULIC_KEYS = ("piston_area", "rod_area", "chamber_length", "supply_pressure"
                   "bulk_modulus", "orifice_linear_below", "stroke", "leakage")
 #: The actuator kind of a cylinder that names none (``kind``, in [[cylinders]] or [hydraulics]).
 DEFAULT_KIND = _DEFAULT_KIND
-#: The three-way cylinder's constants that are no :class:`Cylinder` field: held in its ``params``.
-THREE_WAY_EXTRA_KEYS = ("leakage",)
 #: The constants every cylinder kind has, held as :class:`Cylinder` fields (the rest of a kind's
 #: parameters are in ``Cylinder.params``); ``stroke`` is the pair (stroke_min, stroke_max).
 SHARED_KEYS = ("supply_pressure", "underlap", "flow_gain", "bulk_modulus", "orifice_linear_below", "stroke")
@@ -193,22 +191,19 @@ class Cylinder:
     """A cylinder pinned at ``point_from`` on ``link_from`` and ``point_to`` on ``link_to`` (each in
     its link's frame, m); its length l is pin to pin, within [stroke_min, stroke_max].
 
-    ``kind``: its actuator kind (:mod:`hydrogen.actuators`). The default, a three-way-valve cylinder:
-    the control chamber (cap side, area A) has volume A (l − L); the rod side (area a) is at P_s;
-    force f = p_c A − P_s a (positive extends). Another kind holds the constants it does not share
-    with the three-way cylinder (:data:`SHARED_KEYS`) in ``params`` (by parameter name, SI), and
-    ``piston_area``, ``rod_area``, ``chamber_length`` are None; a three-way cylinder's ``params`` holds
-    its constants that are no field (:data:`THREE_WAY_EXTRA_KEYS`: ``leakage``). A kind with unlimited travel (its
-    TRAVEL not ``limited``) has ``stroke_min`` = −∞ and ``stroke_max`` = ∞."""
+    ``kind``: its actuator kind (:mod:`hydrogen.actuators`), e.g. the default three-way-valve cylinder
+    (the control chamber, cap side of area A, has volume A (l − L); the rod side, area a, is at P_s;
+    force f = p_c A − P_s a). The fields hold what every kind shares (:data:`SHARED_KEYS`: supply, valve
+    and oil constants, the travel's range); ``params`` holds the kind's own constants by parameter name,
+    SI (a three-way cylinder's piston_area, rod_area, chamber_length, leakage; a four-way cylinder's
+    areas and dead volumes; a vane's displacement), as every kind alike. A kind with unlimited travel
+    (its TRAVEL not ``limited``) has ``stroke_min`` = −∞ and ``stroke_max`` = ∞."""
 
     name: str
     link_from: str
     point_from: np.ndarray
     link_to: str
     point_to: np.ndarray
-    piston_area: float
-    rod_area: float
-    chamber_length: float
     supply_pressure: float
     underlap: float
     flow_gain: float
@@ -267,9 +262,13 @@ class Cylinder:
                 for p in pars}
 
 
+#: The Cylinder fields (what every kind shares); a kind's own constants are in its ``params``.
+_CYLINDER_FIELDS = frozenset(f.name for f in fields(Cylinder))
+
+
 def _stack(name):
     def get(self):
-        values = [getattr(c, name) for c in self.cylinders]
+        values = [getattr(c, name) if name in _CYLINDER_FIELDS else c.params.get(name) for c in self.cylinders]
         missing = [c for c, v in zip(self.cylinders, values) if v is None]
         if missing:  # a key of another actuator kind (e.g. piston_area on a four-way cylinder)
             c = missing[0]
@@ -539,9 +538,16 @@ class Model:
         return out
 
 
+#: The three-way cylinder's constants the baked list names in place (None for other kinds), where
+#: they stood as Cylinder fields: a three-way robot hashes as it always did.
+_THREE_WAY_LISTED = ("piston_area", "rod_area", "chamber_length")
+
+
 def _baked_cylinder(c: Cylinder) -> list:
     out = [c.name, c.link_from, np.asarray(c.point_from).tolist(), c.link_to, np.asarray(c.point_to).tolist(),
-           c.piston_area, c.rod_area, c.chamber_length, c.supply_pressure, c.underlap, c.orifice_linear_below]
+           # the three-way cylinder's constants here (None for other kinds), so its hash is what it always was
+           *(c.params.get(k) for k in _THREE_WAY_LISTED), c.supply_pressure, c.underlap,
+           c.orifice_linear_below]
     if c.linkage is not None:  # appended only then, so a pinned cylinder's hash is what it always was
         g = c.linkage
         out += [["linkage", c.linkage_joint, g.crank, g.crank_offset, g.coupler, g.rocker, list(g.rocker_pivot),
@@ -554,8 +560,10 @@ def _baked_cylinder(c: Cylinder) -> list:
     params = {k: v for k, v in sorted(c.params.items()) if k not in skip}
     if c.kind != DEFAULT_KIND:  # appended only then, so a three-way robot's hash is what it always was
         out += [c.kind, params, [c.stroke_min, c.stroke_max]] + ([c.joint] if c.joint is not None else [])
-    elif params:  # a three-way cylinder's leakage, appended only when given
-        out += [params]
+    else:  # a three-way cylinder's leakage, appended only when given (its other constants are above)
+        params = {k: v for k, v in params.items() if k not in _THREE_WAY_LISTED}
+        if params:
+            out += [params]
     if any(c.valve_limits):  # appended only then: the plant's valve terms differ, a robot without hashes as before
         out += [["valve_limits", *c.valve_limits]]
     if any(c.seal_terms):  # appended only then: the plant's friction terms differ, a robot without hashes as before
@@ -1284,15 +1292,9 @@ def _cylinders(r: _Reader, data: dict, link_names: set, root_note: str = "", joi
             _check_linkage(r, w, linkage, smin, smax, linkage_joint)
         _check_order(r, w, {**vals, "stroke_min": smin, "stroke_max": smax}, kind)
         valve, seals = vals.pop("valve"), _seal_friction(r, w, cy)
-        if kind == DEFAULT_KIND:  # its optional constants (not Cylinder fields) in params
-            extra = {k: vals.pop(k) for k in THREE_WAY_EXTRA_KEYS}
-            out.append(Cylinder(name, ends[0][0], ends[0][1], ends[1][0], ends[1][1], stroke_min=smin,
-                                stroke_max=smax, params=extra, valve=valve, friction=seals, **linkage, **vals))
-            continue
         shared = {k: vals.pop(k) for k in SHARED_KEYS if k in vals}
-        out.append(Cylinder(name, ends[0][0], ends[0][1], ends[1][0], ends[1][1], piston_area=None, rod_area=None,
-                            chamber_length=None, stroke_min=smin, stroke_max=smax, kind=kind, params=vals,
-                            valve=valve, friction=seals, **linkage, **shared))
+        out.append(Cylinder(name, ends[0][0], ends[0][1], ends[1][0], ends[1][1], stroke_min=smin, stroke_max=smax,
+                            kind=kind, params=vals, valve=valve, friction=seals, **linkage, **shared))
     unused = sorted(set(defaults) - used)
     if unused:
         kinds = sorted({c.kind for c in out})
@@ -1394,8 +1396,7 @@ def _joint_actuator(r: _Reader, w: str, cy: dict, defaults: dict, kind: str, key
     _check_order(r, w, vals, kind)
     shared = {k: vals.pop(k) for k in SHARED_KEYS if k in vals}
     zero = np.zeros(3)
-    return Cylinder(cy["name"], joint.parent, zero, joint.child, zero, piston_area=None, rod_area=None,
-                    chamber_length=None, stroke_min=amin, stroke_max=amax, kind=kind,
+    return Cylinder(cy["name"], joint.parent, zero, joint.child, zero, stroke_min=amin, stroke_max=amax, kind=kind,
                     params={**vals, **limits}, joint=jname, valve=valve, friction=_seal_friction(r, w, cy),
                     **shared)
 

@@ -40,7 +40,7 @@ def random_controller_inputs(ctrl, model, rng):
             xc[sl] = random_pressures(model, rng, size=size)
         elif name == "legl_prev":
             if uniform_three_way(model):
-                xc[sl] = np.array([c.chamber_length for c in model.cylinders]) + rng.uniform(0.3, 0.5, size)
+                xc[sl] = model.chamber_length + rng.uniform(0.3, 0.5, size)
             else:  # inside the stroke
                 xc[sl] = model.leg_min + (model.leg_max - model.leg_min) * rng.uniform(0.2, 0.8, size)
         else:

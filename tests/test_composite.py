@@ -115,7 +115,7 @@ def _prediction_error(dyn, model, update, lam=100.0, periods=2500):
     st = hydrogen.stepper("paper-sim", "adaptive-robust", dyn=dyn, gains={"lambda_f_gamma": lam}, duration=3.0,
                           theta0_factor=[1.0] * model.n_theta, gamma0_factor=[1.0, 1.0], estimator_update=update)
     sl, n, m, h = st.controller.slices, model.n, model.n_cylinders, st.h
-    A, L = model.piston_area, np.array([c.chamber_length for c in model.cylinders])
+    A, L = model.piston_area, model.chamber_length
     g1, g2 = model.gamma
     E, Y = [], []
     for _ in range(periods):

@@ -114,7 +114,7 @@ def test_valve_laws_and_plant_pressure_and_spool_rates_match_numpy(robot_dyn, ro
     dyn, model = robot_dyn, robot_model
     n, m = model.n, model.n_cylinders
     ps, d = model.supply_pressure, model.underlap
-    A, L = model.piston_area, np.array([c.chamber_length for c in model.cylinders])
+    A, L = model.piston_area, model.chamber_length
     p_lin = np.array([c.orifice_linear_below for c in model.cylinders])
     g1, g2 = model.gamma
     fric = np.tile([0.0, 0.0, 1e-3], m)

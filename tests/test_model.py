@@ -513,13 +513,15 @@ def test_a_four_way_robot_loads_its_kind_and_parameters():
     assert c.params == {"cap_area": 1.2566e-3, "annulus_area": 7.6576e-4, "dead_volume_A": 5e-5,
                         "dead_volume_B": 5e-5, "tank_pressure": 0.0, "leakage_internal": 0.0,
                         "leakage_external": 0.0}
-    assert (c.piston_area, c.rod_area, c.chamber_length) == (None, None, None)
+    assert not {"piston_area", "rod_area", "chamber_length"} & set(c.table)  # no three-way constants anywhere
     from hydrogen.actuators import actuator
     P = actuator(c.kind).parameters(c.table)
     assert P["stroke_min"] == 0.22 and P["stroke_max"] == 0.62 and P["supply_pressure"] == 10e6
-    # shipped robots: the Stewart platform on the default kind, an empty params; the excavator on
-    # four-way cylinders, its bucket through a linkage
-    assert all(c.kind == "three_way_cylinder" and c.params == {"leakage": 0.0} for c in hydrogen.load_model("ubc_stewart").cylinders)
+    # shipped robots: the Stewart platform on the default kind, its own constants in params as every
+    # kind's; the excavator on four-way cylinders, its bucket through a linkage
+    assert all(c.kind == "three_way_cylinder" and c.params == {"piston_area": 1.14e-3, "rod_area": 6.33e-4,
+                                                               "chamber_length": 1.37, "leakage": 0.0}
+               for c in hydrogen.load_model("ubc_stewart").cylinders)
     arm = hydrogen.load_model("excavator_arm")
     assert all(c.kind == "four_way_cylinder" for c in arm.cylinders)
     assert [c.linkage_joint for c in arm.cylinders] == [None, None, "bucket_joint"]
