@@ -12,7 +12,7 @@ import numpy as np
 
 from .errors import KinematicsError, ScenarioError
 from .layout import FK_MAX_COND, FK_MAX_ITER, FK_STATUS, FK_TOL, LU_PIVOT_MIN
-from .layout import SUPPLY_LOG as SUPPLY_PRESSURE
+from .plant.supply import PRESSURE as SUPPLY_PRESSURE
 
 __all__ = ["Dynamics", "fk_failure"]
 

@@ -763,6 +763,26 @@ def test_a_scenario_name_holding_the_variant_separator_is_refused_at_load(tmp_pa
     assert "z-1hz-low-latency" in hydrogen.load_model(path).scenarios
 
 
+@pytest.mark.parametrize("flag", ["rig", "tuned"])
+def test_a_scenario_flag_that_is_no_boolean_is_refused_by_name(tmp_path, flag):
+    """``tuned = "no"`` (or ``rig = 1``) is no true/false: the load names the file, the table and the key
+    instead of reading a string as true."""
+    path = tmp_path / "my.toml"
+    other = "tuned = false" if flag == "rig" else "rig = true"
+    path.write_text(default_model_path().read_text() + f'\n[scenarios.fast]\n{other}\n{flag} = "no"\n'
+                    'reference.sines = [["z", 0.01, 1.0]]\n')
+    with pytest.raises(hydrogen.ModelError, match=rf"my\.toml: \[scenarios\.fast\] {flag}: expected true or false"):
+        hydrogen.load_model(path)
+
+
+def test_an_untuned_rig_scenario_runs_but_the_searches_leave_it_out():
+    from hydrogen.simulation.tuning import rig_scenarios
+    arm = hydrogen.load_model("excavator_arm")
+    assert arm.scenarios["arm-flow"]["tuned"] is False
+    assert "arm-flow" not in rig_scenarios(arm) and "arm-flow" in rig_scenarios(arm, untuned=True)
+    assert "arm-flow.predictor" in rig_scenarios(arm, "predictor", untuned=True)
+
+
 @pytest.mark.parametrize("name", hydrogen.models())
 def test_every_number_has_the_range_the_loader_holds_it_to(name):
     """Model.number_ranges names the numbers Model.numbers does, each inside its range; the ranges are
