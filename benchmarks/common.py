@@ -426,6 +426,31 @@ def study_result(model, seeds, quick: bool, quick_duration: float, scenarios: di
             "wall_s": time.perf_counter() - start}
 
 
+def merge_rows(old: list, new: list, key) -> list:
+    """``new`` after the rows of ``old`` it does not redo (``key(row)`` not among ``new``'s keys), in
+    ``old``'s order: a study run for some robots or controllers updates its file, keeping the rest."""
+    ran = {key(r) for r in new}
+    return [r for r in old if key(r) not in ran] + list(new)
+
+
+def merge_study(old: dict | None, new: dict) -> dict:
+    """A study file by robot (``{"seeds", "models": {robot: {"rows", "wall_s"}}}``, rows keyed by scenario
+    and controller) updated by ``new``: the rows of ``old`` that ``new`` did not redo are kept, when
+    both ran on the same seeds (else ``new`` alone). A robot's wall time sums the runs its rows came from."""
+    import json
+
+    if not old or old.get("seeds") != new["seeds"]:
+        return new
+    out = json.loads(json.dumps(old))
+    for model, d in new["models"].items():
+        before = out["models"].get(model, {"rows": [], "wall_s": 0.0})
+        rows = merge_rows(before["rows"], d["rows"], lambda r: (r["scenario"], r["controller"]))
+        kept = len(rows) > len(d["rows"])
+        out["models"][model] = {**before, **d, "rows": rows,
+                                "wall_s": d["wall_s"] + (before.get("wall_s", 0.0) if kept else 0.0)}
+    return {**out, **{k: v for k, v in new.items() if k != "models"}}
+
+
 def json_study_main(doc: str, collect, markdown, default_json: Path, argv=None, options=None) -> int:
     """A study script's command line: ``--workers`` (default 2), ``--json`` (default ``default_json``) and
     ``options`` ({flag: argparse keywords}, passed to ``collect`` by their dest); runs

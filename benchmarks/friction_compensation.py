@@ -23,6 +23,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # this checkout's hydrogen, run from anywhere
 
+from benchmarks.common import merge_rows  # noqa: E402
 from hydrogen.fileio import atomic_write  # noqa: E402
 import hydrogen  # noqa: E402
 from hydrogen.runtime.build import default_dynamics  # noqa: E402
@@ -150,7 +151,7 @@ def main(argv=None) -> int:
         if args.robot and args.json.exists():  # the file's rows of the other robots (same seeds) are kept
             old = json.loads(args.json.read_text())
             if old.get("seeds") == seed_list(seeds):
-                rows = [r for r in old["rows"] if r["robot"] not in args.robot] + rows
+                rows = merge_rows(old["rows"], rows, lambda r: (r["robot"], r["scenario"], r["controller"]))
         atomic_write(args.json, json.dumps({"seeds": seed_list(seeds), "rows": rows}, indent=1) + "\n")
     return 0
 

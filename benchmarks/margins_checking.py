@@ -23,6 +23,7 @@ from hydrogen.fileio import atomic_write
 from hydrogen.simulation.seeds import parse_seeds
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
+from common import merge_study  # noqa: E402
 from rig_seeds import collect  # noqa: E402  (a sibling script: the same rows)
 
 REPO = Path(__file__).resolve().parents[1]
@@ -33,19 +34,6 @@ CHECKING_SEEDS = list(range(100, 120))
 def nonlinear(model) -> tuple:
     """The controllers of ``model`` a margin is claimed for: all it lists but the compared P ones."""
     return tuple(c for c in model.controllers if not spec(c).compared)
-
-
-def merge(old, new) -> dict:
-    """``new`` with the rows of ``old`` (same seeds) whose robot, scenario and controller it did not run."""
-    if not old or old.get("seeds") != new["seeds"]:
-        return new
-    out = json.loads(json.dumps(old))
-    for model, d in new["models"].items():
-        keep = out["models"].setdefault(model, {"rows": [], "wall_s": 0.0})
-        ran = {(r["scenario"], r["controller"]) for r in d["rows"]}
-        keep["rows"] = [r for r in keep["rows"] if (r["scenario"], r["controller"]) not in ran] + d["rows"]
-        keep["wall_s"] = keep.get("wall_s", 0.0) + d["wall_s"]
-    return out
 
 
 def markdown(data) -> str:
@@ -68,14 +56,16 @@ def main(argv=None) -> int:
     ap.add_argument("--models", nargs="+", help="robots (default: every shipped one)")
     ap.add_argument("--variants", nargs="*", default=[], help="variants run besides the plain scenarios (default none)")
     ap.add_argument("--workers", type=int, default=2, help="processes (default 2)")
+    ap.add_argument("--controllers", nargs="+", help="only these of the nonlinear controllers")
     ap.add_argument("--update", action="store_true", help="keep the rows of the file this run does not redo")
     ap.add_argument("--json", default=str(REPO / "docs" / "margins_checking.json"),
                     help="output (default docs/margins_checking.json)")
     args = ap.parse_args(argv)
-    data = collect(args.seeds, args.workers, args.models or hydrogen.models(), nonlinear, args.variants)
+    pick = nonlinear if not args.controllers else (lambda m: tuple(c for c in nonlinear(m) if c in args.controllers))
+    data = collect(args.seeds, args.workers, args.models or hydrogen.models(), pick, args.variants)
     path = Path(args.json)
     if args.update and path.exists():
-        data = merge(json.loads(path.read_text()), data)
+        data = merge_study(json.loads(path.read_text()), data)
     text = json.dumps(data, indent=2, sort_keys=True) + "\n"
     atomic_write(path, text)
     print(markdown(json.loads(text)))

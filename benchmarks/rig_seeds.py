@@ -7,8 +7,9 @@ projection bound named).
 
 Writes ``docs/rig_seeds.json`` (atomically) and prints the table as Markdown.
 
-Run: ``python benchmarks/rig_seeds.py [--seeds N] [--workers W] [--models M ...] [--json FILE]`` (about 10 minutes
-on 2 cores with the default 10 seeds).
+Run: ``python benchmarks/rig_seeds.py [--seeds N] [--workers W] [--models M ...] [--controllers C ...]
+[--json FILE]`` (about 10 minutes on 2 cores with the default 10 seeds); with ``--models`` or ``--controllers``
+the file's rows this run does not redo (same seeds) are kept.
 """
 from __future__ import annotations
 
@@ -23,6 +24,9 @@ from hydrogen.fileio import atomic_write
 from hydrogen.simulation.scenarios import variant_names
 from hydrogen.simulation.seeds import DEFAULT_SEEDS, parse_seeds, seed_list
 from hydrogen.simulation.tuning import margins
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from common import merge_study  # noqa: E402  (run as a script from the repository root)
 
 REPO = Path(__file__).resolve().parents[1]
 #: The gain margin a controller should keep (6 dB), judged over every seed.
@@ -84,16 +88,17 @@ def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--seeds", type=parse_seeds, default=DEFAULT_SEEDS, help=f"N or a list (default {DEFAULT_SEEDS})")
     ap.add_argument("--workers", type=int, help="processes (default: the core count)")
-    ap.add_argument("--models", nargs="+", help="only these robots; the file's other robots (same seeds) are kept")
+    ap.add_argument("--models", nargs="+", help="only these robots; the file's other rows (same seeds) are kept")
+    ap.add_argument("--controllers", nargs="+", help="only these controllers (of those each robot lists); the "
+                    "file's other rows (same seeds) are kept")
     ap.add_argument("--json", default=str(REPO / "docs" / "rig_seeds.json"),
                     help="output (default docs/rig_seeds.json)")
     args = ap.parse_args(argv)
-    data = collect(args.seeds, args.workers, models=args.models)
+    pick = None if not args.controllers else (lambda m: tuple(c for c in m.controllers if c in args.controllers))
+    data = collect(args.seeds, args.workers, models=args.models, controllers=pick)
     path = Path(args.json)
-    if args.models and path.exists():
-        old = json.loads(path.read_text())
-        if old.get("seeds") == data["seeds"]:
-            data = {**old, "models": {**old["models"], **data["models"]}}
+    if (args.models or args.controllers) and path.exists():
+        data = merge_study(json.loads(path.read_text()), data)
     text = json.dumps(data, indent=2, sort_keys=True) + "\n"
     data = json.loads(text)  # the page from the data as written (sorted keys), as its test renders it
     atomic_write(Path(args.json), text)

@@ -443,14 +443,14 @@ def test_margins_checking_script_checks_the_nonlinear_controllers_on_unseen_seed
     mc = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(mc)
     rig_seeds = sys.modules["rig_seeds"]
-    calls = []
+    calls, robust = [], {"margin": 1.35}
 
     def fake_margins(controllers=None, model=None, seeds=None, max_workers=None, variant=None):
         calls.append((model, tuple(controllers), seeds, variant))
         suffix = "" if variant is None else f".{variant}"
         return {"model": model, "seeds": seed_list(seeds), "rows": [
             {"controller": c, "scenario": "s1" + suffix, "main_gain": "Lambda", "gain": 10.0,
-             "margin": 1.35 if c == "adaptive-robust" else 2.5, "margin_capped": False,
+             "margin": robust["margin"] if c == "adaptive-robust" else 2.5, "margin_capped": False,
              "limit_reason": "burst: ... (seed 118; unstable on 1 of 20 seeds)", "errors": {}, "median_seed": 100,
              "unstable_seeds": [118], "estimates": None} for c in controllers]}
 
@@ -466,6 +466,38 @@ def test_margins_checking_script_checks_the_nonlinear_controllers_on_unseen_seed
     rows = json.loads(out.read_text())["models"]["ubc_stewart"]["rows"]
     assert sorted(r["scenario"] for r in rows) == ["s1"] * 3 + ["s1.predictor"] * 3  # the plain rows kept once
     assert [p.name for p in tmp_path.iterdir()] == ["m.json"]
+    # one controller again (its gains searched anew): its plain row replaced, every other row kept
+    calls.clear()
+    robust["margin"] = 2.2
+    assert mc.main(["--models", "ubc_stewart", "--controllers", "adaptive-robust", "--update", "--json", str(out)]) == 0
+    assert calls == [("ubc_stewart", ("adaptive-robust",), mc.CHECKING_SEEDS, None)]
+    rows = json.loads(out.read_text())["models"]["ubc_stewart"]["rows"]
+    assert sorted((r["scenario"], r["controller"], r["margin"]) for r in rows) == [
+        ("s1", "adaptive-observer", 2.5), ("s1", "adaptive-robust", 2.2), ("s1", "backstepping", 2.5),
+        ("s1.predictor", "adaptive-observer", 2.5), ("s1.predictor", "adaptive-robust", 1.35),
+        ("s1.predictor", "backstepping", 2.5)]
+
+
+def test_a_study_file_keeps_the_rows_a_run_does_not_redo_only_on_the_same_seeds():
+    import sys
+    from pathlib import Path
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
+    from common import merge_rows, merge_study
+
+    def row(s, c, v):
+        return {"scenario": s, "controller": c, "v": v}
+
+    old = {"seeds": [0, 1], "models": {"a": {"rows": [row("x", "p", 1), row("y", "p", 1)], "wall_s": 2.0},
+                                       "b": {"rows": [row("x", "p", 1)], "wall_s": 3.0}}}
+    new = {"seeds": [0, 1], "models": {"a": {"rows": [row("y", "p", 2)], "wall_s": 1.0}}}
+    got = merge_study(old, new)
+    assert got["models"]["a"] == {"rows": [row("x", "p", 1), row("y", "p", 2)], "wall_s": 3.0}
+    assert got["models"]["b"] == old["models"]["b"] and old["models"]["a"]["rows"][1]["v"] == 1  # old untouched
+    assert merge_study({**old, "seeds": [5]}, new) == new  # other seeds: nothing of the old file
+    whole = {"seeds": [0, 1], "models": {"b": {"rows": [row("x", "p", 9)], "wall_s": 0.5}}}
+    assert merge_study(old, whole)["models"]["b"] == {"rows": [row("x", "p", 9)], "wall_s": 0.5}
+    assert merge_rows([1, 2, 3], [4, 2], key=lambda r: r % 2) == [1, 3, 4, 2]
+    assert merge_rows([1, 2, 3], [4], key=lambda r: r) == [1, 2, 3, 4]
 
 
 DIVERGING = dict(duration=0.5, gains={"Ktau": 5e4, "u_max": 1.0}, control_rate=200.0, substeps=2)
