@@ -65,17 +65,25 @@ ROBOTS = {
 
 
 def without_supply(text: str) -> str:
-    """A description's TOML text without its ``[supply]`` table (the table's header to the next
-    table's): the same robot on a constant supply."""
-    lines = text.splitlines(keepends=True)
+    """A description's TOML text without its ``[supply]`` table (the table's header, a comment after it
+    allowed, to the next table's): the same robot on a constant supply. The result is checked to parse
+    to the description's data less ``supply`` (a ValueError otherwise: never a silently wrong robot)."""
+    import tomllib
+
     out, skipping = [], False
-    for line in lines:
-        head = line.strip()
+    for line in text.splitlines(keepends=True):
+        head = line.split("#", 1)[0].strip()
         if head.startswith("["):
-            skipping = head == "[supply]"
+            name = head.strip("[]").strip()
+            skipping = name == "supply" or name.startswith("supply.")
         if not skipping:
             out.append(line)
-    return "".join(out)
+    result = "".join(out)
+    want = {k: v for k, v in tomllib.loads(text).items() if k != "supply"}
+    if tomllib.loads(result) != want:
+        raise ValueError("the description's [supply] table is not one block of lines this edit can remove "
+                         "(written inline or as dotted keys?)")
+    return result
 
 
 def _copy(name: str, folder: Path, pump: bool) -> Path:

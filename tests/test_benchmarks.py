@@ -804,6 +804,20 @@ def test_the_supply_limits_benchmark_runs_the_pump_out_of_flow(capsys):
     assert "## Supply limits" in page and "| backstepping | assumed | " in page
 
 
+def test_the_constant_supply_copy_drops_exactly_the_supply_table():
+    import tomllib
+
+    import supply_limits as sl
+    from hydrogen.model import model_path
+    text = model_path("excavator_arm").read_text()
+    data = tomllib.loads(text)
+    assert "supply" in data and {k: v for k, v in data.items() if k != "supply"} == tomllib.loads(sl.without_supply(text))
+    body = 'name = "r"\n[supply]   # the pump\nkind = "pump"\n[supply.extra]\nx = 1\n[rig]\ndelay = 0.0\n'
+    assert tomllib.loads(sl.without_supply(body)) == {"name": "r", "rig": {"delay": 0.0}}
+    with pytest.raises(ValueError, match=r"\[supply\] table is not one block"):
+        sl.without_supply('name = "r"\nsupply = { kind = "pump" }\n')
+
+
 def test_a_study_script_writes_its_json_atomically_and_prints_its_table(tmp_path, capsys):
     """common.json_study_main: --workers reaches collect, the data is written sorted to --json, the
     Markdown of what was written is printed."""
