@@ -239,14 +239,18 @@ SCENARIO_TABLE_KEYS = (
         "distributions leave out (one no gain is chosen for, e.g. a motion that asks more oil than the pump "
         "gives); it runs as any other", default=True),
     Key("[scenarios.<name>], [rig], [variants.<name>]", "actuators",
-        "the actuator's own: N or N m, m or rad", "actuators.<actuator> = { friction, quantization_l, noise_l }: "
+        "the actuator's own: N or N m, m or rad", "actuators.<actuator> = { friction, quantization_l, noise_l, "
+        "valve }: "
         "those settings for one actuator, in its own unit (a cylinder's length in m and force in "
         "N, a rotary vane's angle in rad and torque in N m); merged per actuator over [rig]'s. A cylinder "
         "without them takes the scenario's; a rotary actuator's friction is none unless given, and it must give "
         "its own quantization_l and noise_l where the scenario's are on. friction is [Coulomb, viscous, tanh "
         "speed] or a seal friction table { coulomb, breakaway, stribeck_speed, viscous, pressure_coefficient, "
         "smooth_speed } (the description's [[cylinders]] friction keys), merged key by key over the "
-        "actuator's description's; it may not ask for a seal term the actuator's plant is built without",
+        "actuator's description's; it may not ask for a seal term the actuator's plant is built without. "
+        "valve = { bandwidth_hz, damping } is the spool's response for that actuator (Hz, second order with "
+        "damping or where the response it replaces is one, else first order), over its datasheet valve's or "
+        "the rig's, in any scenario (the rating stays the description's)",
         default=None, default_text="none"),
 )
 

@@ -167,6 +167,53 @@ def test_an_actuators_valve_overrides_the_rigs_for_it_alone(model):
     assert valve_parameters(ideal, m)[1].tolist() == pytest.approx([0.0, 0.0, 0.5, 0.0, 1e-3])
 
 
+def test_a_scenario_sets_one_actuators_spool_response_over_its_datasheets_or_the_rigs(model):
+    m = _stewart_with({**DATASHEET, "damping": 0.5, "bandwidth_hz": 120.0}, where="leg2")
+    rig = scenario("z-1hz", m)
+    rows = valve_parameters(rig.with_overrides(actuators={"leg2": {"valve": {"bandwidth_hz": 40.0}},
+                                                          "leg3": {"valve": {"damping": 0.3}}}), m)
+    base = valve_parameters(rig, m)
+    assert rows[1].tolist() == pytest.approx([0.0, 2 * np.pi * 40.0, 0.5, 0.0, 1e-3])  # its damping, geometry kept
+    assert rows[2].tolist() == pytest.approx([*base[2, :2], 0.3, *base[2, 3:]])  # the rig's 80 Hz, damping 0.3
+    assert np.array_equal(rows[[0, 3, 4, 5]], base[[0, 3, 4, 5]])  # the others as they were
+    # in an ideal valve's scenario the given response acts: second order where the datasheet's is
+    ideal = scenario("paper-sim", m).with_overrides(actuators={"leg2": {"valve": {"bandwidth_hz": 40.0}},
+                                                               "leg1": {"valve": {"bandwidth_hz": 40.0}}})
+    rows = valve_parameters(ideal, m)
+    assert rows[1].tolist() == pytest.approx([0.0, 2 * np.pi * 40.0, 0.5, 0.0, 1e-3])
+    assert rows[0].tolist() == pytest.approx([1 / (2 * np.pi * 40.0), 0.0, *rows[0, 2:]])  # none to replace: a lag
+    assert np.array_equal(valve_parameters(ideal, m)[2:], valve_parameters(scenario("paper-sim", m), m)[2:])
+    with pytest.raises(hydrogen.ScenarioError, match=r"'paper-sim': actuators\.leg1\.valve\.damping = 0\.3 needs a "
+                       r"second-order spool"):
+        valve_parameters(scenario("paper-sim", m).with_overrides(actuators={"leg1": {"valve": {"damping": 0.3}}}), m)
+    with pytest.raises(hydrogen.ScenarioError, match=r"actuator 'leg2': its valve's bandwidth_hz 4000 Hz must be "
+                       r"<= control_rate \* substeps"):
+        valve_parameters(rig.with_overrides(actuators={"leg2": {"valve": {"bandwidth_hz": 4000.0}}}), m)
+
+
+@pytest.mark.parametrize("table, text", [
+    ({"rated_flow": 1e-3}, r"actuators\.leg2\.valve: unknown key\(s\) \['rated_flow'\]; a scenario sets the spool's "
+                           r"response"),
+    ({"bandwidth_hz": -40.0}, r"actuators\.leg2\.valve\.bandwidth_hz must be a finite number > 0, got -40\.0"),
+    ({"damping": float("nan")}, r"actuators\.leg2\.valve\.damping must be a finite number > 0"),
+    ({"damping": True}, r"actuators\.leg2\.valve\.damping must be a finite number > 0"),
+    ({}, r"actuators\.leg2\.valve: expected a table \{ bandwidth_hz, damping \}"),
+    (40.0, r"actuators\.leg2\.valve: expected a table"),
+])
+def test_a_bad_scenario_valve_response_is_refused_by_name(model, table, text):
+    with pytest.raises(hydrogen.ScenarioError, match=r"scenario 'z-1hz': " + text):
+        scenario("z-1hz", model).with_overrides(actuators={"leg2": {"valve": table}})
+
+
+def test_a_scenario_valve_response_runs_in_both_loops_alike(dyn):
+    kw = dict(duration=0.2, actuators={"leg1": {"valve": {"bandwidth_hz": 30.0, "damping": 0.9}}})
+    c_run = hydrogen.simulate("z-1hz", "backstepping", dyn=dyn, **kw)
+    py_run = hydrogen.simulate("z-1hz", "backstepping", dyn=dyn, engine="python", **kw)
+    np.testing.assert_allclose(c_run.q, py_run.q, rtol=0, atol=1e-10)
+    plain = hydrogen.simulate("z-1hz", "backstepping", dyn=dyn, duration=0.2)
+    assert not np.array_equal(c_run.q, plain.q)
+
+
 def test_a_datasheet_valve_loads_builds_and_runs_closed_loop(dyn):
     m = _stewart_with(DATASHEET)
     assert m.underlap.tolist() == [55.4e-6] * 6  # the flow gain is an input; the saturation is structure

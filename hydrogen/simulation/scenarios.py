@@ -93,14 +93,17 @@ class Scenario(ScenarioFields):
         need(isinstance(self.actuators, Mapping) and all(isinstance(v, Mapping) for v in self.actuators.values()),
              "actuators", "must be a table {actuator name: {setting: value}}")
         for name, values in self.actuators.items():
-            unknown = sorted(set(values) - set(PER_ACTUATOR))
+            unknown = sorted(set(values) - set(PER_ACTUATOR) - {"valve"})
             if unknown:
                 raise ScenarioError(f"scenario '{self.name}': actuators.{name}: unknown setting(s) {unknown}; "
-                                    f"settings given per actuator: {', '.join(PER_ACTUATOR)}")
+                                    f"settings given per actuator: {', '.join(PER_ACTUATOR)}, valve")
             table = values.get("friction")
             if isinstance(table, Mapping):  # a seal friction table: its keys and ranges here, the rest per model
                 _refuse_table(self, name, table, complete=False)
                 values = {k: v for k, v in values.items() if k != "friction"}
+            if "valve" in values:
+                _check_valve_response(self, name, values["valve"])
+                values = {k: v for k, v in values.items() if k != "valve"}
             try:  # each value as the scenario's own field of that name checks it
                 replace(self, actuators={}, **{k: _tuple(v) for k, v in values.items()}).validated()
             except ScenarioError as exc:
@@ -117,6 +120,48 @@ class Scenario(ScenarioFields):
 #: applied to an angle). The Kalman filter's gain is one for all, dimensionless and 1/s (kalman_accel
 #: designs it with the scenario's noise_l and quantization_l).
 PER_ACTUATOR = ("friction", "quantization_l", "noise_l")
+
+
+#: The keys of a scenario's ``actuators.<name>.valve``: the spool's response, over the actuator's
+#: datasheet valve's (or the rig's valve settings), key by key; its rating stays the description's.
+VALVE_RESPONSE = ("bandwidth_hz", "damping")
+
+
+def _check_valve_response(sc, name: str, table):
+    """A :class:`ScenarioError` naming ``actuators.<name>.valve[.<key>]`` unless ``table`` is a table of
+    :data:`VALVE_RESPONSE` keys, each a finite number > 0."""
+    where = f"scenario '{sc.name}': actuators.{name}.valve"
+    if not isinstance(table, Mapping) or not table:
+        raise ScenarioError(f"{where}: expected a table {{ {', '.join(VALVE_RESPONSE)} }} (the spool's response), "
+                            f"got {table!r}")
+    unknown = sorted(set(table) - set(VALVE_RESPONSE))
+    if unknown:
+        raise ScenarioError(f"{where}: unknown key(s) {unknown}; a scenario sets the spool's response "
+                            f"({', '.join(VALVE_RESPONSE)}): the rating (flow, drop, travel, overlap) is the "
+                            "actuator's description's")
+    for key, v in table.items():
+        if isinstance(v, bool) or not isinstance(v, (int, float)) or not np.isfinite(v) or v <= 0:
+            raise ScenarioError(f"{where}.{key} must be a finite number > 0, got {v!r}")
+
+
+def _valve_response(sc, c, row: tuple) -> tuple:
+    """Actuator ``c``'s valve row ``row`` ([lag s, ω rad/s, ζ, overlap m, full opening m]: its datasheet
+    valve's, else the rig's) with the
+    scenario's ``actuators.<name>.valve`` over its spool response: bandwidth_hz sets ω (second order:
+    damping given, or the response it replaces is one) or else the lag 1/(2π f) (first order); damping
+    alone changes a second-order spool's damping (ScenarioError where there is none)."""
+    own = sc.actuators[c.name]["valve"]
+    lag, omega, zeta, *geometry = row
+    if "bandwidth_hz" not in own:
+        if omega <= 0.0:
+            raise ScenarioError(f"scenario '{sc.name}': actuators.{c.name}.valve.damping = {own['damping']!r} needs "
+                                "a second-order spool to apply to (the actuator's valve has none here): give "
+                                "bandwidth_hz too")
+        return (0.0, omega, float(own["damping"]), *geometry)
+    w = 2 * np.pi * float(own["bandwidth_hz"])
+    if "damping" in own or omega > 0.0:  # second order: its damping given, or the response it replaces is one
+        return (0.0, w, float(own.get("damping", zeta)), *geometry)
+    return (1.0 / w, 0.0, zeta, *geometry)  # first order, as a datasheet valve without damping
 
 
 def _refuse_table(sc, name: str, table, complete=True, sources=None):
@@ -369,23 +414,24 @@ def valve_parameters(sc, model) -> np.ndarray:
     An actuator's datasheet valve (``Cylinder.valve``, the description's ``valve`` table) overrides
     the rig's valve settings for it where the scenario's valve is not ideal (a lag or a natural
     frequency set; in an ideal valve's scenario only its overlap and saturation stay); without one,
-    the rig's apply as they are (no overlap, no saturation). ScenarioError where a datasheet valve's natural frequency is too fast for the
-    plant's sub-steps (the scenario's own rule for valve_bandwidth_hz)."""
+    the rig's apply as they are (no overlap, no saturation). A scenario's ``actuators.<name>.valve``
+    (bandwidth_hz, damping) replaces the spool response so chosen for that actuator, in any scenario.
+    ScenarioError where an actuator's natural frequency is too fast for the plant's sub-steps (the
+    scenario's own rule for valve_bandwidth_hz)."""
     from ..plant.valve import PARAMETERS
     rig = (*valve_vector(sc), 0.0, 0.0)
     dynamic = rig[0] > 0.0 or rig[1] > 0.0
     rows = []
     for c in model.cylinders:
         own = getattr(c, "valve", None)
-        if own is None:
-            rows.append(rig)
-            continue
-        row = tuple(float(own[p.name]) for p in PARAMETERS)
-        if not dynamic:  # an ideal valve's scenario: the spool follows at once, its geometry stays
+        row = rig if own is None else tuple(float(own[p.name]) for p in PARAMETERS)
+        if sc.actuators.get(c.name, {}).get("valve"):  # the scenario's spool response for it, in any scenario
+            row = _valve_response(sc, c, row)
+        elif own is not None and not dynamic:  # an ideal valve's scenario: the spool follows at once, its geometry stays
             row = (0.0, 0.0, *row[2:])
         if row[1] / (sc.control_rate * sc.substeps) > 1.0:
             raise ScenarioError(f"scenario '{sc.name}': actuator '{c.name}': its valve's bandwidth_hz "
-                                f"{row[1] / (2 * np.pi)!r} Hz must be <= control_rate * substeps / (2 pi) = "
-                                f"{sc.control_rate * sc.substeps / (2 * np.pi)!r} Hz (raise substeps)")
+                                f"{row[1] / (2 * np.pi):.6g} Hz must be <= control_rate * substeps / (2 pi) = "
+                                f"{sc.control_rate * sc.substeps / (2 * np.pi):.6g} Hz (raise substeps)")
         rows.append(row)
     return np.array(rows, float).reshape(len(rows), len(PARAMETERS))
