@@ -6,10 +6,12 @@ z-1hz, z-2hz, psi-1hz), every controller it lists with the description's gains a
 noise seeds :data:`SEEDS` (not the seeds 0-9 the gains were tuned on), varying one rig element at a
 time from the rig as described:
 
-* ``friction``: the rig's friction (Coulomb F_c and viscous b of every cylinder; the smoothing speed
+* ``friction``: each actuator's friction as the rig applies it (its description's seal table, else the
+  rig's setting) with its force levels (Coulomb, breakaway, viscous, pressure coefficient; the speeds
   kept) times each of :data:`FRICTION_SCALES` (1: the rig's; 0: none);
-* ``valve``: the servo-valve's natural frequency (``valve_bandwidth_hz``, the spool lagging 90°
-  there; damping as the rig's) at each of :data:`BANDWIDTHS` Hz (the rig's among them).
+* ``valve``: the servo-valve's natural frequency (``valve_bandwidth_hz``, and each datasheet valve's
+  ``actuators.<name>.valve.bandwidth_hz``: the spool lagging 90° there; damping as described) at
+  each of :data:`BANDWIDTHS` Hz (the rig's among them).
 
 No controller models either (the paper's ideal valve, no friction), unless a description turns
 friction compensation on. Reported: the max tracking error (% of the reference amplitude) of the
@@ -40,7 +42,7 @@ except ImportError:  # run as a script, or loaded from its path
     import common
     from bench_delay import _gains_used
 
-#: Multiples of the rig's friction (Coulomb and viscous of every cylinder).
+#: Multiples of the rig's friction (the force levels of every actuator's).
 FRICTION_SCALES, QUICK_FRICTION_SCALES = (0.0, 0.5, 1.0, 1.5, 2.0), (0.0, 1.0)
 #: Servo-valve natural frequencies, Hz.
 BANDWIDTHS, QUICK_BANDWIDTHS = (20.0, 40.0, 80.0, 160.0, 320.0), (40.0, 80.0)
@@ -49,10 +51,34 @@ QUICK_DURATION = 3.0  # s: past the rig's metric_start (2 s)
 FIGURE = common.REPO / "docs" / "sensitivity.png"
 #: Each element: (its label, the axis title, the values, the scenario fields a value sets).
 ELEMENTS = {
-    "friction": ("friction (x the rig's Coulomb and viscous)",
-                 lambda sc, s: {"friction": [sc.friction[0] * s, sc.friction[1] * s, sc.friction[2]]}),
-    "valve": ("valve natural frequency (Hz)", lambda sc, f: {"valve_bandwidth_hz": f}),
+    "friction": ("friction (x the rig's)", lambda sc, s, model: scaled_friction(sc, model, s)),
+    "valve": ("valve natural frequency (Hz)", lambda sc, f, model: {
+        "valve_bandwidth_hz": f,  # the rig's; an actuator's datasheet valve is set by its own response
+        "actuators": {c.name: {"valve": {"bandwidth_hz": f}} for c in model.cylinders if c.valve is not None}}),
 }
+#: The friction row's force levels (hydrogen.plant.friction.PARAMETERS), scaled by a friction multiple.
+LEVELS = ("coulomb", "breakaway", "viscous", "pressure_coefficient")
+
+
+def scaled_friction(sc, model, scale: float) -> dict:
+    """The scenario fields giving every actuator of ``model`` ``scale`` times the friction force levels
+    it has in scenario ``sc`` (its description's seal table, else the rig's setting, key by key): each
+    actuator's own table, with only the keys of the terms its plant is built with; 0: no friction."""
+    from hydrogen.plant import friction
+    from hydrogen.simulation.scenarios import actuator_settings
+
+    if scale == 0.0:
+        return {"friction": [0.0, 0.0, sc.friction[2]]}
+    names = [p.name for p in friction.PARAMETERS]
+    rows = actuator_settings(sc, model)["friction"]
+    out = {}
+    for c, row in zip(model.cylinders, rows):
+        values = dict(zip(names, (float(v) for v in row)))
+        stribeck, pressure = c.seal_terms
+        keys = [k for k in LEVELS if k in ("coulomb", "viscous") or (k == "breakaway" and stribeck)
+                or (k == "pressure_coefficient" and pressure)]
+        out[c.name] = {"friction": {k: values[k] * scale for k in keys}}
+    return {"actuators": out}
 
 
 def run(quick: bool = False) -> dict:
@@ -70,7 +96,7 @@ def run(quick: bool = False) -> dict:
             for element, (_, fields) in ELEMENTS.items():
                 for v in values[element]:
                     cases.append((name, c, element, v))
-                    entries.append(dict(scenario=name, controller=c, **fields(sc, v),
+                    entries.append(dict(scenario=name, controller=c, **fields(sc, v, model),
                                         **({"duration": QUICK_DURATION} if quick else {})))
     out = hydrogen.sweep(entries, seeds=list(seeds), max_workers=min(2, os.cpu_count() or 1), model=model)
     res = {}
