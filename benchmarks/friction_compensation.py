@@ -41,7 +41,8 @@ CASES = (("ubc_stewart", ("z-1hz", "z-2hz", "psi-1hz", "z-1hz.low-latency", "z-2
 #: (m/s or rad/s), chosen on seeds 0-9 with ``--tune``. The estimates start at 0 (no prior friction
 #: knowledge) and are bounded by the defaults (5 % of each actuator's force range; 10 % per unit/s).
 COMPENSATION = {
-    # tune: worst median over z-1hz / z-2hz / psi-1hz 5.16 %, worst seed 5.45 % (0.3 and 0.01: 4.61 %, but 14.0 %)
+    # tune: worst median over z-1hz / z-2hz / psi-1hz 3.25 % (0.74 / 3.25 / 1.46), worst seed 3.90 %; the
+    # next best 0.3 and 0.03: 3.86 %
     "ubc_stewart": {"rate_friction": 1.0, "friction_speed": 0.01},
     "excavator_arm": {"rate_friction": 0.003, "friction_speed": 0.03},   # 0.54 / 0.80 % (robust / observer)
     "loader_crane": {"rate_friction": 0.03, "friction_speed": 0.003},    # 0.16 / 0.80 %; 0.1 rings

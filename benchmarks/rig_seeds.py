@@ -84,6 +84,31 @@ def markdown(data) -> str:
     return "\n".join(lines) + "\n"
 
 
+def timing_markdown(data, model: str = "ubc_stewart", variants=("low-latency", "predictor")) -> str:
+    """docs/paper.md's table of one robot's rig scenarios at each timing: per controller, the median
+    [range] max error of each scenario's moving coordinate over the seeds and the margins, one column
+    pair per variant, then the rig's own timing (the comparison table's)."""
+    rows = {(r["scenario"], r["controller"]): r for r in data["models"][model]["rows"]}
+    plain = list(dict.fromkeys(s for s, _ in rows if "." not in s))
+    controllers = list(dict.fromkeys(c for _, c in rows))
+    timings = [*(f".{v}" for v in variants), ""]
+
+    def cells(c, t):
+        got = [rows.get((s + t, c)) for s in plain]
+        if any(r is None for r in got):
+            return "-", "-"
+        err = " / ".join(", ".join(f"{e['median']:.1f} [{e['min']:.1f}-{e['max']:.1f}]" for e in r["max_error_pct"].values())
+                         for r in got)
+        mar = " / ".join((f"≥ {r['margin']:.3g}" if r["margin_capped"] else f"{r['margin']:.3g}") for r in got)
+        return err, mar
+
+    head = " | ".join(f"`{t}` | margins" if t else "the table | margins" for t in timings)
+    lines = [f"| controller | {head} |", "|---|" + "---|" * (2 * len(timings))]
+    for c in controllers:
+        lines.append(f"| {c} | " + " | ".join(" | ".join(cells(c, t)) for t in timings) + " |")
+    return "\n".join(lines) + "\n"
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--seeds", type=parse_seeds, default=DEFAULT_SEEDS, help=f"N or a list (default {DEFAULT_SEEDS})")

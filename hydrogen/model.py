@@ -1239,12 +1239,12 @@ def _cylinders(r: _Reader, data: dict, link_names: set, root_note: str = "", joi
     lacks (where the root comes from, when a misspelt parent may have made it)."""
     defaults = r.table(data, "hydraulics", required=False)
     all_keys = {"kind"}.union(*(_kind_keys(k) for k in _cylinder_kinds()))
-    r.known(defaults, all_keys | {"valve"}, "[hydraulics]")
+    r.known(defaults, all_keys | {"valve", "friction"}, "[hydraulics]")
     default_kind = _kind(r, "[hydraulics] kind", defaults["kind"]) if "kind" in defaults else DEFAULT_KIND
     raw = data.get("cylinders")
     if not isinstance(raw, list) or not raw:
         raise r.error("[[cylinders]]", "expected one [[cylinders]] table per coordinate")
-    out, names, used = [], set(), {"kind", "valve"}
+    out, names, used = [], set(), {"kind", "valve", "friction"}
     for i, cy in enumerate(raw):
         w = f"[[cylinders]] #{i + 1}"
         if not isinstance(cy, dict):
@@ -1291,7 +1291,7 @@ def _cylinders(r: _Reader, data: dict, link_names: set, root_note: str = "", joi
         if linkage:
             _check_linkage(r, w, linkage, smin, smax, linkage_joint)
         _check_order(r, w, {**vals, "stroke_min": smin, "stroke_max": smax}, kind)
-        valve, seals = vals.pop("valve"), _seal_friction(r, w, cy)
+        valve, seals = vals.pop("valve"), _seal_friction(r, w, cy, defaults)
         shared = {k: vals.pop(k) for k in SHARED_KEYS if k in vals}
         out.append(Cylinder(name, ends[0][0], ends[0][1], ends[1][0], ends[1][1], stroke_min=smin, stroke_max=smax,
                             kind=kind, params=vals, valve=valve, friction=seals, **linkage, **shared))
@@ -1397,7 +1397,7 @@ def _joint_actuator(r: _Reader, w: str, cy: dict, defaults: dict, kind: str, key
     shared = {k: vals.pop(k) for k in SHARED_KEYS if k in vals}
     zero = np.zeros(3)
     return Cylinder(cy["name"], joint.parent, zero, joint.child, zero, stroke_min=amin, stroke_max=amax, kind=kind,
-                    params={**vals, **limits}, joint=jname, valve=valve, friction=_seal_friction(r, w, cy),
+                    params={**vals, **limits}, joint=jname, valve=valve, friction=_seal_friction(r, w, cy, defaults),
                     **shared)
 
 
@@ -1495,14 +1495,18 @@ def _datasheet_valve(r: _Reader, w: str, cy: dict, defaults: dict, kind: str):
     return spool, {k: val for k, val in derived.items() if k in names}
 
 
-def _seal_friction(r: _Reader, w: str, cy: dict):
-    """Actuator ``w``'s seal friction table (its own ``friction``), in its own unit, checked as a rig's is
+def _seal_friction(r: _Reader, w: str, cy: dict, defaults: dict):
+    """Actuator ``w``'s seal friction table (its own ``friction``, else [hydraulics]': every actuator's
+    without its own, in each one's own unit), checked as a rig's is
     (:func:`hydrogen.plant.friction.table_problem`), or None without one. A stribeck_speed or
     pressure_coefficient that declares no term (no breakaway above coulomb, a 0) is kept: a number."""
     from .plant.friction import table_problem
-    if "friction" not in cy:
+    if "friction" in cy:
+        table, wf = cy["friction"], f"{w} friction"
+    elif "friction" in defaults:
+        table, wf = defaults["friction"], "[hydraulics] friction"
+    else:
         return None
-    table, wf = cy["friction"], f"{w} friction"
     if not isinstance(table, dict) or not table:
         raise r.error(wf, "expected a table { coulomb, breakaway, stribeck_speed, viscous, pressure_coefficient, "
                           f"smooth_speed }} (the actuator's own unit), got {_quote(table)}")

@@ -172,7 +172,8 @@ DESCRIPTION_KEYS = (
     Key("[[cylinders]] valve", "overlap", "", "spool overlap, a fraction of spool_travel in (−1, 1): > 0 a dead "
         "band with no flow, < 0 an underlap", default=0.0),
     Key("[[cylinders]]", "friction", "the actuator's own: N or N m, m/s or rad/s", "the actuator's seal "
-        "friction (table below): a breakaway above coulomb puts the Stribeck dip in its generated plant, a "
+        "friction (table below; in [hydraulics]: every actuator's without its own, in each one's own unit): a "
+        "breakaway above coulomb puts the Stribeck dip in its generated plant, a "
         "pressure_coefficient above 0 the seals' pressure load; its numbers replace the rig's friction for "
         "this actuator wherever a scenario has friction on (an ideal plant, friction zero, stays frictionless; "
         "a scenario's actuators.<name>.friction still overrides them key by key)",

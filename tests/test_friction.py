@@ -4,6 +4,7 @@ actuator whose description declares them); the description's and the rig's table
 from __future__ import annotations
 
 import math
+import re
 import tomllib
 
 import numpy as np
@@ -16,6 +17,8 @@ from hydrogen.model import model_from_dict, model_path
 from hydrogen.plant import friction
 from hydrogen.simulation.scenarios import actuator_settings, scenario
 from hydrogen.simulation.simulator import simulate
+
+from conftest import plain_stewart_data
 
 NAMES = [p.name for p in friction.PARAMETERS]
 
@@ -133,12 +136,39 @@ SEALS = {"coulomb": 100.0, "breakaway": 160.0, "stribeck_speed": 0.02, "viscous"
 
 
 def _stewart(**tables):
-    """ubc_stewart with each ``leg=table`` as that leg's description's seal friction table."""
-    data = tomllib.loads(model_path("ubc_stewart").read_text())
+    """ubc_stewart without its datasheet valve and seal friction (conftest.plain_stewart_data), with
+    each ``leg=table`` as that leg's own seal friction table."""
+    data = plain_stewart_data()
     for cy in data["cylinders"]:
         if cy["name"] in tables:
             cy["friction"] = tables[cy["name"]]
     return model_from_dict(data, "seals.toml")
+
+
+@pytest.fixture(scope="module")
+def model(plain_stewart):
+    """The Stewart platform without seal friction: the plant whose structure the terms change."""
+    return plain_stewart
+
+
+@pytest.fixture(scope="module")
+def dyn(plain_stewart_dyn):
+    return plain_stewart_dyn
+
+
+def test_the_hydraulics_table_gives_every_actuator_without_its_own_table_its_seal_friction():
+    shipped = hydrogen.load_model("ubc_stewart")
+    assert all(c.friction == shipped.cylinders[0].friction and c.seal_terms == (True, True) for c in shipped.cylinders)
+    m = _stewart(leg2={"coulomb": 50.0})
+    assert m.cylinders[1].friction == {"coulomb": 50.0} and all(c.friction is None for c in m.cylinders if c.name != "leg2")
+    data = tomllib.loads(model_path("ubc_stewart").read_text())  # as shipped
+    data["cylinders"][2]["friction"] = {"pressure_coefficient": 2e-3}
+    own = model_from_dict(data, "seals.toml")
+    assert own.cylinders[2].friction == {"pressure_coefficient": 2e-3}  # its own replaces the shared one whole
+    assert [c.friction for i, c in enumerate(own.cylinders) if i != 2] == [shipped.cylinders[0].friction] * 5
+    data["hydraulics"]["friction"] = {"breakaway": 1.0, "coulomb": 2.0}
+    with pytest.raises(hydrogen.ModelError, match=r"seals\.toml: \[hydraulics\] friction\.breakaway: must be >= coulomb"):
+        model_from_dict(data, "seals.toml")
 
 
 @pytest.mark.parametrize("table, terms", [
@@ -299,7 +329,9 @@ def test_the_cli_names_a_scenarios_seal_term_the_plant_lacks_without_a_traceback
     from hydrogen import cli
     from hydrogen.model import default_model_path
     path = tmp_path / "seals.toml"
-    path.write_text(default_model_path().read_text() + "\n[variants.seals]\n"
+    text = re.sub(r"(?m)^friction = \{[^\n]*\}\n", "", default_model_path().read_text())  # [hydraulics]' table
+    assert "stribeck_speed" not in text
+    path.write_text(text + "\n[variants.seals]\n"
                     "actuators.leg2.friction = { breakaway = 160.0, stribeck_speed = 0.02 }\n")
     assert cli.main(["simulate", "--model", str(path), "--scenario", "z-1hz.seals", "--controller", "p",
                      "--duration", "0.05"]) == 2

@@ -7,6 +7,8 @@ from scipy.integrate import solve_ivp
 
 from hydrogen.pressures import uniform_three_way
 
+from conftest import plant_inputs
+
 
 @pytest.fixture(autouse=True)
 def _three_way_robots_only(request):
@@ -117,7 +119,7 @@ def test_valve_laws_and_plant_pressure_and_spool_rates_match_numpy(robot_dyn, ro
     A, L = model.piston_area, model.chamber_length
     p_lin = np.array([c.orifice_linear_below for c in model.cylinders])
     g1, g2 = model.gamma
-    fric = np.tile([0.0, 0.0, 1e-3], m)
+    fric, _ = plant_inputs(model)
     for k in range(60):
         u = np.where(rng.random(m) < 0.3, rng.choice([-1.0, 1.0], m), rng.uniform(-3, 3, m)) * d
         inside = rng.uniform(0.01, 0.99, m) * ps
@@ -127,7 +129,7 @@ def test_valve_laws_and_plant_pressure_and_spool_rates_match_numpy(robot_dyn, ro
         qdot, spool, rate = 0.05 * rng.normal(size=n), rng.uniform(-3, 3, m) * d, 0.01 * rng.normal(size=m)
         lag, w, z = [(0.0, 0.0, 0.7), (2e-3, 0.0, 0.7), (0.0, 300.0, 0.6), (2e-3, 300.0, 0.6)][k % 4]
         x = np.concatenate([q, qdot, pc, spool, rate])
-        xdot = dyn.functions["plant_rhs"](x, u, model.theta, g1, g2, fric, np.tile([lag, w, z, 0.0, 0.0], m))
+        xdot = dyn.functions["plant_rhs"](x, u, model.theta, g1, g2, fric, plant_inputs(model, valve=(lag, w, z))[1])
         s_eff = spool if (w > 0 or lag > 0) else u
         l, ldot = dyn.leg_lengths(q), dyn.leg_jacobian(q) @ qdot
         pc_dot = g1 * (g2 / g1 * _orifice_flow(s_eff, pc, ps, d, p_lin) - A * ldot) / (A * (l - L))

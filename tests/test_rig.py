@@ -9,6 +9,8 @@ import hydrogen
 from hydrogen.simulation.scenarios import Scenario, scenario
 from hydrogen.simulation.simulator import _rk4, equilibrium_pressures, kalman_gain, length_noise_variance, simulate
 
+from conftest import plant_inputs
+
 MODELS = hydrogen.models()
 
 
@@ -49,8 +51,8 @@ def test_second_order_valve_step_response_is_the_analytic_one(dyn, model, zeta):
     q0 = model.neutral_pose
     x0 = np.concatenate([q0, np.zeros(model.n), equilibrium_pressures(dyn, q0, model.theta), np.zeros(2 * m)])
     u = np.full(m, 1e-5)
-    valve = np.tile([0.0, w, zeta, 0.0, 0.0], m)
-    rhs = lambda x: dyn.functions["plant_rhs"](x, u, model.theta, *model.gamma, np.tile([0, 0, 1e-3], model.n_cylinders), valve)  # noqa
+    fric, valve = plant_inputs(model, valve=(0.0, w, zeta))
+    rhs = lambda x: dyn.functions["plant_rhs"](x, u, model.theta, *model.gamma, fric, valve)  # noqa: E731
     h, x, t, spool = 2e-5, x0.copy(), [], []
     for k in range(1, 751):  # 15 ms
         x = _rk4(rhs, x, h)

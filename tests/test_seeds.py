@@ -187,17 +187,20 @@ def test_the_burst_rule_has_a_floor_and_a_cap():
 
 
 def test_the_judge_flags_the_rig_seed_that_bursts(dyn):
-    """Adaptive-robust on z-2hz, seeds the tuning never saw: seed 118 bursts (a 25 Hz ripple at t ~ 3.3 s,
-    max error twice the others'); the 4 s average passes it, the worst window does not."""
-    res = simulate(dyn, "z-2hz", "adaptive-robust", seeds=[107, 109, 118, 121, 146], max_workers=2)
+    """Adaptive-observer on z-2hz at twice its Lambda, seeds the tuning never saw: seeds 100 and 103
+    burst (a ripple of a fraction of a second, about twice the stored gains' worst window); the 4 s
+    average passes every seed, the worst window does not (the judge of the margins)."""
+    seeds = [100, 101, 102, 103, 104]
+    own = simulate(dyn, "z-2hz", "adaptive-observer", seeds=seeds, max_workers=2)
+    lam = 2 * float(np.mean(dyn.model.gains["adaptive-observer"]["Lambda"]))
+    res = simulate(dyn, "z-2hz", "adaptive-observer", seeds=seeds, max_workers=2, gains={"Lambda": lam})
     per = [r.metrics for r in res.results]
-    err = [m["max_error_pct"]["z"] for m in per]
-    assert err[2] > 1.5 * max(err[:2] + err[3:])  # the burst shows in the max error
-    hf = [m["hf_error_rms"]["z"] / m["amplitude"]["z"] for m in per]
+    hf = [r.metrics["hf_error_rms"]["z"] / r.metrics["amplitude"]["z"] for r in own.results]
     old = [{k: v for k, v in m.items() if not k.startswith("hf_error_burst")} for m in per]
     assert judge_seeds({"seeds": res.seeds, "per_seed": old}, hf) == (True, "", [])
-    stable, reason, bad = judge_seeds({"seeds": res.seeds, "per_seed": per}, hf, burst_reference(per))
-    assert not stable and bad == [118] and reason.startswith("burst:")
+    reference = burst_reference([r.metrics for r in own.results])
+    stable, reason, bad = judge_seeds({"seeds": res.seeds, "per_seed": per}, hf, reference)
+    assert not stable and bad == [100, 103] and reason.startswith("burst:")
 
 
 class FailingSeed(ThreadPoolExecutor):
@@ -500,11 +503,13 @@ def test_a_study_file_keeps_the_rows_a_run_does_not_redo_only_on_the_same_seeds(
     assert merge_rows([1, 2, 3], [4], key=lambda r: r) == [1, 2, 3, 4]
 
 
+#: A run that diverges on the Stewart platform without its datasheet valve (a 1 m spool command; the
+#: shipped valve saturates at 5 mm).
 DIVERGING = dict(duration=0.5, gains={"Ktau": 5e4, "u_max": 1.0}, control_rate=200.0, substeps=2)
 
 
-def test_a_seed_that_fails_is_listed_and_the_cli_exits_2(dyn, monkeypatch, capsys, tmp_path):
-    res = simulate(dyn, "paper-sim", "backstepping", seeds=2, max_workers=2, **DIVERGING)
+def test_a_seed_that_fails_is_listed_and_the_cli_exits_2(plain_stewart_dyn, monkeypatch, capsys, tmp_path):
+    res = simulate(plain_stewart_dyn, "paper-sim", "backstepping", seeds=2, max_workers=2, **DIVERGING)
     assert set(res.failures) == {0, 1} and res.results == [None, None] and res.median_run is None
     assert "every seed failed" in res.metrics["error"] and "t = " in res.failures[0]
     monkeypatch.setattr(hydrogen, "simulate", lambda *a, **k: res)

@@ -14,14 +14,28 @@ from hydrogen.model import model_from_dict, model_path
 from hydrogen.plant import valve
 from hydrogen.simulation.scenarios import scenario, valve_parameters
 
-#: ubc_stewart's valve as a datasheet gives it: 17 L/min at 35 bar per edge, 1 mm spool travel, an
+from conftest import plain_stewart_data
+
+#: The Stewart platform's valve (Table I's) as a datasheet gives it: 17 L/min at 35 bar per edge, 1 mm spool travel, an
 #: underlap of 5.54 % of the travel (the description's 55.4 um exactly), 80 Hz, damping 0.7.
 DATASHEET = {"rated_flow": 2.8e-4, "rated_drop": 3.5e6, "spool_travel": 1e-3, "bandwidth_hz": 80.0,
              "damping": 0.7, "overlap": -0.0554}
 
 
 def _description(name="ubc_stewart"):
-    return tomllib.loads(model_path(name).read_text())
+    """A robot's description data; the Stewart platform's with Table I's valve and no seal friction."""
+    return plain_stewart_data() if name == "ubc_stewart" else tomllib.loads(model_path(name).read_text())
+
+
+@pytest.fixture(scope="module")
+def model(plain_stewart):
+    """The Stewart platform with Table I's valve (no datasheet valve), without seal friction."""
+    return plain_stewart
+
+
+@pytest.fixture(scope="module")
+def dyn(plain_stewart_dyn):
+    return plain_stewart_dyn
 
 
 def _stewart_with(table, where="hydraulics"):
@@ -66,6 +80,17 @@ def test_full_opening_at_the_rated_drop_passes_the_rated_flow(overlap):
         q = _chamber_flow(c, _full_open(c), DATASHEET["rated_drop"])
         assert q == pytest.approx(DATASHEET["rated_flow"], rel=0.01)
     assert m.cylinders[0].underlap == pytest.approx(max(-overlap, 0.0) * 1e-3, rel=1e-12, abs=0)
+
+
+def test_the_shipped_stewart_valves_rating_gives_back_table_is_constants():
+    from conftest import TABLE_I_VALVE
+    shipped = hydrogen.load_model("ubc_stewart")
+    for c in shipped.cylinders:
+        assert c.flow_gain == pytest.approx(TABLE_I_VALVE["flow_gain"], rel=1e-6)
+        assert c.underlap == pytest.approx(TABLE_I_VALVE["underlap"], rel=1e-12)
+        assert c.valve["full_opening"] == 5e-3 and c.valve["omega"] == pytest.approx(2 * np.pi * 80.0)
+    # the controllers' spool command saturates where the spool does
+    assert hydrogen.simulate("z-1hz", "backstepping", model=shipped, duration=0.01).u_max == 5e-3
 
 
 @pytest.mark.parametrize("name", ["excavator_arm", "loader_crane"])

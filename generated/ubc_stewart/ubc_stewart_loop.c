@@ -265,7 +265,7 @@ static int hold(const rhs_params* m, double* x, const double* u, long long n, do
 
 /* The controller's own model has an ideal valve (spool = command) and no friction (the smoothing
  * speed only keeps tanh's argument finite). */
-static const double PRED_FRICTION[3 * NL] = { 0.0, 0.0, 1.0, 0.0, 0.0, 1.0, 0.0, 0.0, 1.0, 0.0, 0.0, 1.0, 0.0, 0.0, 1.0, 0.0, 0.0, 1.0 };
+static const double PRED_FRICTION[6 * NL] = { 0.0, 0.0, 1.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 1.0, 0.0 };
 static const double PRED_VALVE[5 * NL] = { 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0 };
 
 /* The model held at u over dt (s) in steps no longer than h / pred_substeps. */
