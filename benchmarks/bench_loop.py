@@ -56,6 +56,8 @@ class _Fn:
     def __init__(self, sf):
         self.name = sf.name
         self.in_names = [n for n, _ in sf.inputs]
+        self.arg_names = list(self.in_names)  # the argument order, as a compiled function's (no hidden input)
+        self.in_shapes = [m.shape for _, m in sf.inputs]
         self._vec = [m.shape[1] == 1 for _, m in sf.outputs]
         self._single = len(sf.outputs) == 1
 
@@ -86,7 +88,6 @@ class LambdifyFn(_Fn):
     def __init__(self, sf):
         super().__init__(sf)
         self.in_syms = [list(m) for _, m in sf.inputs]  # row-major entries per input
-        self.in_shapes = [m.shape for _, m in sf.inputs]
         known = [s for syms in self.in_syms for s in syms]
         self.stages = []
         for symbols, expr in sf.intermediates:

@@ -58,6 +58,19 @@ def test_input_values_fit_every_generated_function(robot_dyn):
     np.testing.assert_array_equal(got["numbers"], robot_dyn.numbers)  # the description's, not random
 
 
+def test_the_loop_benchmarks_slower_routes_run_the_python_loop(model, dyn):
+    """bench_loop's CasADi and lambdify routes stand in for the compiled functions in the Python
+    loop (the controller runtime takes their argument names and shapes); both follow the compiled
+    functions' run."""
+    import bench_loop
+    functions = bench_loop.derive_functions(model)
+    _, ref = bench_loop.python_loop_per_period(dyn, "z-1hz", 3)
+    for kind in ("casadi", "lambdify"):
+        proxy = bench_loop.proxy_dynamics(model, kind, functions, compiled=dyn.library)
+        _, q = bench_loop.python_loop_per_period(proxy, "z-1hz", 3)
+        np.testing.assert_allclose(q, ref, rtol=0, atol=1e-9, err_msg=kind)
+
+
 def test_the_calls_benchmark_agrees_with_the_c_and_times_every_route():
     import bench_calls
 
