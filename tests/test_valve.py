@@ -274,3 +274,15 @@ def test_bad_valve_values_are_refused_by_name(table, where, text):
         else:
             _stewart_with(table, where)
     assert "valve.toml" in str(err.value) and text in str(err.value)
+
+
+def test_the_cli_names_a_bad_scenario_valve_response_without_a_traceback(tmp_path, capsys):
+    from hydrogen import cli
+    from hydrogen.model import default_model_path
+    path = tmp_path / "valves.toml"
+    path.write_text(default_model_path().read_text() + "\n[variants.bad]\nactuators.leg1.valve = { lag = 0.01 }\n")
+    assert cli.main(["simulate", "--model", str(path), "--scenario", "z-1hz.bad", "--controller", "p",
+                     "--duration", "0.05"]) == 2
+    err = capsys.readouterr().err
+    assert "scenario 'z-1hz.bad': actuators.leg1.valve: unknown key(s) ['lag']" in err and "Traceback" not in err
+    assert path.exists()
