@@ -246,7 +246,7 @@ def _cmd_tune(args, controller=None) -> int:
             raise HydrogenError(f"--min ({lo:g}) must be below --max ({hi:g})")
         grid = np.geomspace(lo, hi, args.n or 25)
     res = tune(controller, grid, model=args.model, max_workers=args.workers, progress=not args.quiet,
-               seeds=args.seeds, variant=args.variant, **_build_options(args))
+               seeds=args.seeds, variant=args.variant, margin=args.margin, **_build_options(args))
     name = res["main_gain"]
     print(f"{controller} on model {res['model']}: main gain {name}; every point over {len(res['seeds'])} noise "
           f"seeds (stable: on every seed; max err: median [min - max] over the seeds)")
@@ -268,9 +268,10 @@ def _cmd_tune(args, controller=None) -> int:
         print("no point of the grid completes every scenario without saturating")
         return 0
     if not res["margin_ok"]:
-        print("NO gain of the grid has a gain margin of 2 on every scenario (the loop rings at every gain); "
-              "the least bad point (smallest worst-case error without saturation) follows")
-    what = "smallest worst-case error with a gain margin >= 2" if res["margin_ok"] else "least bad, margin < 2"
+        print(f"NO gain of the grid has a gain margin of {res['margin']:.3g} on every scenario (the loop rings at "
+              "every gain); the least bad point (smallest worst-case error without saturation) follows")
+    what = (f"smallest worst-case error with a gain margin >= {res['margin']:.3g}" if res["margin_ok"]
+            else f"least bad, margin < {res['margin']:.3g}")
     print(f"tuned ({what}): {name} = {res['best']:.6g} "
           + "".join(f", {k} = {v:.6g}" for k, v in res["best_secondary"].items()) + "; errors (median [range]) "
           + ", ".join(f"{s} {v:.2f} % [{res['best_error_ranges'][s][0]:.2f} - {res['best_error_ranges'][s][1]:.2f}]"
@@ -385,6 +386,7 @@ def build_parser() -> argparse.ArgumentParser:
     g.set_defaults(func=_cmd_generate)
     from .controllers import CONTROLLERS
     from .simulation.seeds import DEFAULT_SEEDS, parse_seeds
+    from .simulation.tuning import HEADROOM, MARGIN
     sim = sub.add_parser("simulate", help="run a scenario in closed loop and print its metrics",
                          description="Simulate a scenario of the paper with one controller.")
     sim.add_argument("--scenario", help="a scenario of the model, or <scenario>.<variant> for one of its [variants] "
@@ -463,6 +465,9 @@ def build_parser() -> argparse.ArgumentParser:
         sp.add_argument("--max", type=_number(float, 0), help="largest gain of the grid (> --min)")
         sp.add_argument("--n", type=_number(int, 0, strict=False), default=0,
                         help="grid size (default: the documented grid, 4 points per octave)")
+        sp.add_argument("--margin", type=_number(float, 1, strict=False), default=MARGIN,
+                        help=f"gain margin a tuned point holds on the grid (default {MARGIN:g}; {HEADROOM:.3g}, the "
+                             "next grid point, gives room for seeds the search never saw)")
         sp.add_argument("--workers", type=_number(int, 1, strict=False), help="processes (default: the core count)")
         sp.add_argument("--quiet", action="store_true", help="no progress bar")
         seeds_arg(sp)

@@ -10,6 +10,7 @@ import pytest
 
 import hydrogen
 from hydrogen.cli import main as cli
+from hydrogen.errors import HydrogenError
 from hydrogen.simulation.seeds import DEFAULT_SEEDS, MAX_SEED, MAX_SEED_COUNT, SeedResults, parse_seeds, seed_list, summarize
 from hydrogen.simulation.simulator import simulate
 from hydrogen.simulation.tuning import (BURST_CAP, BURST_FLOOR, SEEDS, _judge, burst_reference, judge_seeds, margins,
@@ -235,6 +236,22 @@ def test_tune_calls_a_gain_unstable_when_one_seed_fails(short_model):
     with ThreadPoolExecutor(2) as ex:  # without the failing seed both gains are stable
         clean = tune("p", [0.02, 0.04], model=short_model, scenarios=scen, seeds=3, executor=ex)
     assert all(r["stable"] for r in clean["table"]) and clean["largest_stable"] == 0.04
+
+
+def test_tune_with_headroom_needs_the_grid_point_past_the_double(short_model):
+    """On a grid of 4 points per octave, a gain whose double is stable but whose next point is not
+    is tuned at margin 2 and refused at HEADROOM (2^(5/4)); the next lower gain is taken then."""
+    from hydrogen.simulation.tuning import HEADROOM, MARGIN
+    grid = list(0.01 * 2.0 ** (np.arange(8) / 4))  # 0.01 ... 0.0336
+    edge = grid[6]  # the first unstable gain: 0.01 holds exactly 2 (grid[4]), grid[1] does not
+    scen = {"z-1hz": ("z",)}
+    with FailingSeed(seed=0, when=lambda g: g["Kleg"] >= edge * (1 - 1e-9)) as ex:
+        two = tune("p", grid, model=short_model, scenarios=scen, seeds=1, executor=ex)
+        more = tune("p", grid, model=short_model, scenarios=scen, seeds=1, executor=ex, margin=HEADROOM)
+    assert two["margin"] == MARGIN and two["margin_ok"] and two["best"] == pytest.approx(grid[1])
+    assert more["margin"] == HEADROOM and more["margin_ok"] and more["best"] == pytest.approx(grid[0])
+    with pytest.raises(HydrogenError, match="margin must be at least 1"):
+        tune("p", grid, model=short_model, scenarios=scen, seeds=1, margin=0.5)
 
 
 def test_tune_second_stage_keeps_the_adaptation_gain_that_tracks(short_model):
