@@ -110,6 +110,33 @@ def figure(res, path=FIGURE):
                               f"{', '.join(map(str, res['seeds']))} (median, min-max band)", 4, 0.12)
 
 
+#: The delays (periods) docs/paper.md's table shows.
+PAPER_FRACTIONS = (0.0, 0.25, 0.5, 1.0)
+
+
+def paper_markdown(res, fractions=PAPER_FRACTIONS) -> str:
+    """The table of docs/paper.md: per controller and gain set, the median max error (%) at each of
+    ``fractions`` of a period, one column per rig scenario."""
+    rows = list(res["scenarios"].values())
+    head = " / ".join(common.fraction_text(f) for f in fractions)
+    out = [f"Median max error, %, at {head} period:", "",
+           "| controller (gains) | " + " | ".join(r["scenario"] for r in rows) + " |",
+           "|---|" + "---|" * len(rows)]
+    first = rows[0]["controllers"]
+    for c, sets in first.items():
+        for label in sets:
+            g = sets[label]["gains"]
+            cells = []
+            for r in rows:
+                coord = r["coordinates"][0]
+                at = {p["periods"]: p for p in r["controllers"][c][label]["delays"]}
+                cells.append(" / ".join("fail" if at[f]["median"][coord] is None else f"{at[f]['median'][coord]:.1f}"
+                                        for f in fractions))
+            name = common.GAIN_SYMBOL.get(g["main_gain"], g["main_gain"])
+            out.append(f"| {c} ({label}, {name} = {g['value']:.3g}) | " + " | ".join(cells) + " |")
+    return "\n".join(out) + "\n"
+
+
 def print_table(res):
     fr = res["fractions"]
     print(f"{res['model']}: max tracking error (% of amplitude), median [min - max] over seeds "
@@ -129,6 +156,7 @@ def print_table(res):
     if res.get("figure"):
         print(f"\nfigure: {res['figure']}")
     print("\n'!': a seed's run failed (diverged) at that delay; the statistics are over the others")
+    print("\n" + paper_markdown(res))
 
 
 if __name__ == "__main__":

@@ -145,6 +145,35 @@ def cell(p, coord) -> str:
     return text + ("!" if p["failed"] else "")
 
 
+#: The columns of docs/paper.md's table: (element, value; None: the rig's own).
+PAPER_COLUMNS = (("friction", 0.0), ("friction", 1.0), ("friction", 2.0), ("valve", 40.0), ("valve", None),
+                 ("valve", 320.0))
+
+
+def column_title(element, value, rig) -> str:
+    if element == "friction":
+        return {0.0: "no friction", 1.0: "the rig's", 2.0: "twice the rig's"}.get(value, f"{value:g} x the rig's")
+    return f"the rig's {rig:g} Hz" if value == rig else f"valve {value:g} Hz"
+
+
+def paper_markdown(res, columns=PAPER_COLUMNS) -> str:
+    """The table of docs/paper.md: per controller, the median max error (%) of every rig scenario at
+    each column's friction multiple or valve natural frequency."""
+    rows = list(res["scenarios"].values())
+    rig = rows[0]["rig"]["valve"]
+    cols = [(e, rig if v is None and e == "valve" else v) for e, v in columns]
+    out = ["Median max error, %, " + " / ".join(r["scenario"] for r in rows) + ":", "",
+           "| controller | " + " | ".join(column_title(e, v, rig) for e, v in cols) + " |",
+           "|---|" + "---|" * len(cols)]
+    for c in rows[0]["controllers"]:
+        cells = []
+        for e, v in cols:
+            points = {r["scenario"]: next(p for p in r["controllers"][c][e] if p["value"] == v) for r in rows}
+            cells.append(common.medians_cell(points, [(r["scenario"], r["coordinates"][0]) for r in rows]))
+        out.append(f"| {c} | " + " | ".join(cells) + " |")
+    return "\n".join(out) + "\n"
+
+
 def print_table(res):
     print(f"{res['model']}: max tracking error (% of amplitude), median [min - max] over seeds "
           f"{', '.join(map(str, res['seeds']))}, one rig element varied at a time")
@@ -159,6 +188,7 @@ def print_table(res):
     if res.get("figure"):
         print(f"\nfigure: {res['figure']}")
     print("\n'!': a seed's run failed (diverged) there; the statistics are over the others")
+    print("\n" + paper_markdown(res))
 
 
 if __name__ == "__main__":

@@ -417,6 +417,29 @@ def spread_point(summary, coordinates, **fields) -> dict:
     return point
 
 
+def medians_cell(points, scenarios) -> str:
+    """One cell of a study's table in docs/paper.md: the median max error (%) of each scenario's moving
+    coordinate, ``a / b / c`` in the order of ``scenarios`` ({name: (point, coordinate)} of ``points``
+    keyed by name), ``fail`` where no seed completed, and how many runs diverged where some did."""
+    out, failed, runs = [], 0, 0
+    for name, coord in scenarios:
+        p = points[name]
+        med = p["median"][coord]
+        out.append("fail" if med is None else f"{med:.1f}")
+        failed, runs = failed + p["failed"], runs + p["failed"] + p["completed"]
+    return " / ".join(out) + (f" ({failed} of {runs} runs diverge)" if failed else "")
+
+
+def fraction_text(x: float) -> str:
+    """A fraction of a period as a table writes it: 0, 1/4, 1/2, 1."""
+    from fractions import Fraction
+    return str(Fraction(x).limit_denominator(64))
+
+
+#: How a study's table names each controller family's main gain.
+GAIN_SYMBOL = {"Lambda": "Λ"}
+
+
 def study_result(model, seeds, quick: bool, quick_duration: float, scenarios: dict, figure, start: float, **fields):
     """A study over seeds as a benchmark returns it: the robot, ``fields``, the seeds, whether quick (and
     its run duration), the rows by scenario, the figure's path (None when quick), cores and wall time."""

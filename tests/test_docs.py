@@ -460,3 +460,33 @@ def test_the_paper_shows_where_the_estimates_end_one_element_at_a_time_as_commit
         assert rows[(c, "z-1hz", "ideal valve")]["gamma_error_pct"] < 0.25 * rows[(c, "z-1hz", "rig")]["gamma_error_pct"]
     assert rows[("adaptive-observer", "z-1hz", "rig")]["at_bound"].get(mass)
     assert estimates_elements.markdown(data) in (ROOT / "docs" / "paper.md").read_text(encoding="utf-8")
+
+
+@pytest.mark.parametrize("study", ["bench_delay", "bench_sensitivity"])
+def test_the_paper_shows_the_delay_and_sensitivity_tables_as_committed(study):
+    """docs/paper.md's tables of error against delay and against the rig's friction and valve are the
+    committed docs/bench.json rendered by the study's own script, not numbers pasted by hand."""
+    import sys
+
+    sys.path.insert(0, str(ROOT / "benchmarks"))
+    module = importlib.import_module(study)
+    data = json.loads((ROOT / "docs" / "bench.json").read_text(encoding="utf-8"))[study]
+    table = module.paper_markdown(data)
+    controllers = next(iter(data["scenarios"].values()))["controllers"]
+    rows = sum(len(sets) for sets in controllers.values()) if study == "bench_delay" else len(controllers)
+    assert table.count("\n| ") == 1 + rows  # the header and a row per controller (and gain set)
+    assert table in (ROOT / "docs" / "paper.md").read_text(encoding="utf-8")
+
+
+def test_the_study_tables_say_where_runs_diverged():
+    import sys
+
+    sys.path.insert(0, str(ROOT / "benchmarks"))
+    import common
+
+    points = {"a": {"median": {"z": 4.04}, "failed": 0, "completed": 5},
+              "b": {"median": {"z": None}, "failed": 5, "completed": 0},
+              "c": {"median": {"psi": 12.0}, "failed": 1, "completed": 4}}
+    assert common.medians_cell(points, [("a", "z"), ("b", "z"), ("c", "psi")]) == "4.0 / fail / 12.0 (6 of 15 runs diverge)"
+    assert common.medians_cell(points, [("a", "z")]) == "4.0"
+    assert [common.fraction_text(f) for f in (0.0, 0.25, 0.5, 1.0)] == ["0", "1/4", "1/2", "1"]
