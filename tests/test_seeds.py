@@ -250,6 +250,9 @@ def test_tune_with_headroom_needs_the_grid_point_past_the_double(short_model):
         more = tune("p", grid, model=short_model, scenarios=scen, seeds=1, executor=ex, margin=HEADROOM)
     assert two["margin"] == MARGIN and two["margin_ok"] and two["best"] == pytest.approx(grid[1])
     assert more["margin"] == HEADROOM and more["margin_ok"] and more["best"] == pytest.approx(grid[0])
+    with FailingSeed(seed=0, when=lambda g: g["Kleg"] >= edge * (1 - 1e-9)) as ex:  # as a user writes it
+        typed = tune("p", grid, model=short_model, scenarios=scen, seeds=1, executor=ex, margin=2.378)
+    assert typed["best"] == more["best"]
     with pytest.raises(HydrogenError, match="margin must be at least 1"):
         tune("p", grid, model=short_model, scenarios=scen, seeds=1, margin=0.5)
 

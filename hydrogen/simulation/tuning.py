@@ -93,6 +93,7 @@ MARGIN_STEPS = 5
 PER_OCTAVE = 4
 MARGIN = 2.0          # gain margin a tuned point holds on the grid (6 dB)
 HEADROOM = 2.0 ** (1 + 1 / PER_OCTAVE)  # the next grid point past 2: room for seeds the search never saw
+GRID_TOLERANCE = 1e-3  # relative: a grid gain within it of margin x g counts as reached (2.378: 2^(5/4))
 SEEDS = DEFAULT_SEEDS  # noise seeds (0 .. SEEDS-1) every gain is judged over
 
 
@@ -358,8 +359,9 @@ def tune(controller, grid=None, *, model=None, scenarios=None, secondary=None, a
         picks = []
         for x in points:
             ok, worst, bounded = _judge_point(out, scen, gs, seeds, name, x, table)
-            admissible = [(worst[g], -g, g) for g in gs if margin * g <= gs[-1] * (1 + 1e-9)
-                          and all(ok[h] for h in gs if g <= h <= margin * g * (1 + 1e-9))]
+            reach = margin * (1 + GRID_TOLERANCE)  # a margin written to 4 digits reaches its grid point
+            admissible = [(worst[g], -g, g) for g in gs if margin * g <= gs[-1] * (1 + GRID_TOLERANCE)
+                          and all(ok[h] for h in gs if g <= h <= reach * g)]
             fallback = [(worst[g], -g, g) for g in gs if bounded[g]]
             largest = max((g for g in gs if ok[g]), default=None)
             # A point with the margin beats every point without one; then the smaller error.
