@@ -53,7 +53,10 @@ def gain_sets(model, name: str) -> dict:
 def _gains_used(dyn, controller, name, model) -> dict:
     from hydrogen.simulation.tuning import _own_gains
     g = main_gain(controller)
-    return {"scenario": name, "main_gain": g, "value": float(np.mean(_own_gains(dyn, controller, name, model)[g]))}
+    values = np.atleast_1d(np.asarray(_own_gains(dyn, controller, name, model)[g], float))
+    # per_axis: the main gain differs between coordinates (p-task's Kq), so "value" is their mean
+    return {"scenario": name, "main_gain": g, "value": float(np.mean(values)),
+            "per_axis": bool(np.ptp(values) > 0)}
 
 
 def run(quick: bool = False) -> dict:
@@ -116,23 +119,27 @@ PAPER_FRACTIONS = (0.0, 0.25, 0.5, 1.0)
 
 def paper_markdown(res, fractions=PAPER_FRACTIONS) -> str:
     """The table of docs/paper.md: per controller and gain set, the median max error (%) at each of
-    ``fractions`` of a period, one column per rig scenario."""
+    ``fractions`` of a period (each among the run's), one column per rig scenario; a cell where seeds
+    diverged says how many runs did."""
     rows = list(res["scenarios"].values())
     head = " / ".join(common.fraction_text(f) for f in fractions)
     out = [f"Median max error, %, at {head} period:", "",
            "| controller (gains) | " + " | ".join(r["scenario"] for r in rows) + " |",
            "|---|" + "---|" * len(rows)]
+    missing = sorted(set(fractions) - set(res["fractions"]))
+    if missing:
+        raise ValueError(f"the study ran no delay of {', '.join(map(common.fraction_text, missing))} period")
     first = rows[0]["controllers"]
     for c, sets in first.items():
         for label in sets:
             g = sets[label]["gains"]
             cells = []
             for r in rows:
-                coord = r["coordinates"][0]
                 at = {p["periods"]: p for p in r["controllers"][c][label]["delays"]}
-                cells.append(" / ".join("fail" if at[f]["median"][coord] is None else f"{at[f]['median'][coord]:.1f}"
-                                        for f in fractions))
+                cells.append(common.medians_cell({f: at[f] for f in fractions},
+                                                 [(f, r["coordinates"][0]) for f in fractions]))
             name = common.GAIN_SYMBOL.get(g["main_gain"], g["main_gain"])
+            name = f"mean {name}" if g.get("per_axis") else name
             out.append(f"| {c} ({label}, {name} = {g['value']:.3g}) | " + " | ".join(cells) + " |")
     return "\n".join(out) + "\n"
 
@@ -156,7 +163,8 @@ def print_table(res):
     if res.get("figure"):
         print(f"\nfigure: {res['figure']}")
     print("\n'!': a seed's run failed (diverged) at that delay; the statistics are over the others")
-    print("\n" + paper_markdown(res))
+    if not res["quick"]:  # a quick run has not the paper's delays
+        print("\n" + paper_markdown(res))
 
 
 if __name__ == "__main__":

@@ -165,6 +165,9 @@ def paper_markdown(res, columns=PAPER_COLUMNS) -> str:
     out = ["Median max error, %, " + " / ".join(r["scenario"] for r in rows) + ":", "",
            "| controller | " + " | ".join(column_title(e, v, rig) for e, v in cols) + " |",
            "|---|" + "---|" * len(cols)]
+    missing = [f"{e} {v:g}" for e, v in cols if v not in res["values"][e]]
+    if missing:
+        raise ValueError(f"the study ran no {', '.join(missing)}")
     for c in rows[0]["controllers"]:
         cells = []
         for e, v in cols:
@@ -188,7 +191,8 @@ def print_table(res):
     if res.get("figure"):
         print(f"\nfigure: {res['figure']}")
     print("\n'!': a seed's run failed (diverged) there; the statistics are over the others")
-    print("\n" + paper_markdown(res))
+    if not res["quick"]:  # a quick run has not the paper's columns
+        print("\n" + paper_markdown(res))
 
 
 if __name__ == "__main__":

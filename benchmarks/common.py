@@ -417,13 +417,13 @@ def spread_point(summary, coordinates, **fields) -> dict:
     return point
 
 
-def medians_cell(points, scenarios) -> str:
-    """One cell of a study's table in docs/paper.md: the median max error (%) of each scenario's moving
-    coordinate, ``a / b / c`` in the order of ``scenarios`` ({name: (point, coordinate)} of ``points``
-    keyed by name), ``fail`` where no seed completed, and how many runs diverged where some did."""
+def medians_cell(points, keys) -> str:
+    """One cell of a study's table in docs/paper.md: ``a / b / c``, the median max error (%) of each
+    ``(key, coordinate)`` of ``keys`` in ``points[key]`` (a :func:`spread_point`), ``fail`` where no seed
+    completed, and how many runs diverged where some did."""
     out, failed, runs = [], 0, 0
-    for name, coord in scenarios:
-        p = points[name]
+    for key, coord in keys:
+        p = points[key]
         med = p["median"][coord]
         out.append("fail" if med is None else f"{med:.1f}")
         failed, runs = failed + p["failed"], runs + p["failed"] + p["completed"]

@@ -267,7 +267,10 @@ def _cmd_tune(args, controller=None) -> int:
     if res["best"] is None:
         print("no point of the grid completes every scenario without saturating")
         return 0
-    if not res["margin_ok"]:
+    if not res["grid_spans_margin"]:
+        print(f"NO gain of the grid can show a gain margin of {res['margin']:.3g}: it spans a factor of "
+              f"{res['grid'][-1] / res['grid'][0]:.3g} (widen --min / --max); the least bad point follows")
+    elif not res["margin_ok"]:
         print(f"NO gain of the grid has a gain margin of {res['margin']:.3g} on every scenario (the loop rings at "
               "every gain); the least bad point (smallest worst-case error without saturation) follows")
     what = (f"smallest worst-case error with a gain margin >= {res['margin']:.3g}" if res["margin_ok"]
@@ -475,7 +478,7 @@ def build_parser() -> argparse.ArgumentParser:
 
     tn = sub.add_parser("tune", help="the documented gain search for a controller on the model's rig (parallel sweep)",
                         description="Sweep a controller's main gain on the model's rig scenarios; pick the gain with "
-                                    "the smallest error whose double is still stable (hydrogen/simulation/tuning.py).")
+                                    "the smallest error whose double (--margin) is still stable (hydrogen/simulation/tuning.py).")
     tn.add_argument("--controller", required=True, choices=CONTROLLERS)
     tune_args(tn)
     tn.set_defaults(func=_cmd_tune)

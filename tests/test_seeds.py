@@ -240,21 +240,46 @@ def test_tune_calls_a_gain_unstable_when_one_seed_fails(short_model):
 
 def test_tune_with_headroom_needs_the_grid_point_past_the_double(short_model):
     """On a grid of 4 points per octave, a gain whose double is stable but whose next point is not
-    is tuned at margin 2 and refused at HEADROOM (2^(5/4)); the next lower gain is taken then."""
+    is tuned at margin 2 and refused at HEADROOM (2^(5/4)); the next lower gain is taken then. A
+    margin as a user types it (2.378) or between grid points (2.2) reaches the next point."""
     from hydrogen.simulation.tuning import HEADROOM, MARGIN
     grid = list(0.01 * 2.0 ** (np.arange(8) / 4))  # 0.01 ... 0.0336
-    edge = grid[6]  # the first unstable gain: 0.01 holds exactly 2 (grid[4]), grid[1] does not
+    # the first unstable gain: grid[1] keeps 2 (grid[5] = 2 grid[1]) but not 2^(5/4) (grid[6]);
+    # grid[0] keeps 2^(5/4) (grid[5])
+    edge = grid[6]
     scen = {"z-1hz": ("z",)}
-    with FailingSeed(seed=0, when=lambda g: g["Kleg"] >= edge * (1 - 1e-9)) as ex:
-        two = tune("p", grid, model=short_model, scenarios=scen, seeds=1, executor=ex)
-        more = tune("p", grid, model=short_model, scenarios=scen, seeds=1, executor=ex, margin=HEADROOM)
-    assert two["margin"] == MARGIN and two["margin_ok"] and two["best"] == pytest.approx(grid[1])
-    assert more["margin"] == HEADROOM and more["margin_ok"] and more["best"] == pytest.approx(grid[0])
-    with FailingSeed(seed=0, when=lambda g: g["Kleg"] >= edge * (1 - 1e-9)) as ex:  # as a user writes it
-        typed = tune("p", grid, model=short_model, scenarios=scen, seeds=1, executor=ex, margin=2.378)
-    assert typed["best"] == more["best"]
-    with pytest.raises(HydrogenError, match="margin must be at least 1"):
-        tune("p", grid, model=short_model, scenarios=scen, seeds=1, margin=0.5)
+    res = {}
+    for m in (MARGIN, HEADROOM, 2.378, 2.2):
+        with FailingSeed(seed=0, when=lambda g: g["Kleg"] >= edge * (1 - 1e-9)) as ex:
+            res[m] = tune("p", grid, model=short_model, scenarios=scen, seeds=1, executor=ex, margin=m)
+    assert res[MARGIN]["margin"] == MARGIN and res[MARGIN]["margin_ok"] and res[MARGIN]["best"] == pytest.approx(grid[1])
+    for m in (HEADROOM, 2.378, 2.2):
+        assert res[m]["margin"] == m and res[m]["margin_ok"] and res[m]["best"] == pytest.approx(grid[0])
+
+
+@pytest.mark.parametrize("margin, text", [
+    (0.5, "the required gain margin must be a finite number >= 1, not 0.5"),
+    (float("nan"), "the required gain margin must be a finite number >= 1, not nan"),
+])
+def test_tune_refuses_a_margin_it_cannot_judge_before_building(margin, text):
+    grid = list(0.01 * 2.0 ** (np.arange(8) / 4))
+    with pytest.raises(HydrogenError, match=text):
+        tune("p", grid, model="no-such-robot", margin=margin)  # refused before the model is read
+
+
+def test_a_grid_narrower_than_the_margin_is_said_to_be(short_model):
+    with FailingSeed(seed=None, when=lambda g: False) as ex:
+        res = tune("p", [0.02, 0.03], model=short_model, scenarios={"z-1hz": ("z",)}, seeds=1, executor=ex)
+    assert not res["grid_spans_margin"] and not res["margin_ok"] and res["best"] is not None  # the least bad
+    with FailingSeed(seed=None, when=lambda g: False) as ex:
+        res = tune("p", [0.02, 0.04], model=short_model, scenarios={"z-1hz": ("z",)}, seeds=1, executor=ex)
+    assert res["grid_spans_margin"] and res["margin_ok"]
+
+
+def test_cli_tune_refuses_a_margin_below_one(capsys):
+    with pytest.raises(SystemExit) as exc:
+        cli(["tune", "--controller", "p", "--margin", "0.5"])
+    assert exc.value.code == 2 and "--margin: '0.5' must be >= 1" in capsys.readouterr().err
 
 
 def test_tune_second_stage_keeps_the_adaptation_gain_that_tracks(short_model):

@@ -129,8 +129,8 @@ VALVE_RESPONSE = ("bandwidth_hz", "damping")
 
 def _check_valve_response(sc, name: str, table):
     """A :class:`ScenarioError` naming ``actuators.<name>.valve[.<key>]`` unless ``table`` is a table of
-    :data:`VALVE_RESPONSE` keys, each a finite number > 0 within the range a description's valve holds
-    it to (:data:`hydrogen.model.VALVE_RANGES`)."""
+    :data:`VALVE_RESPONSE` keys, each a finite number within the range a description's valve holds it
+    to (:data:`hydrogen.model.VALVE_RANGES`, all > 0)."""
     from ..model import VALVE_RANGES  # the loader imports this module: read its ranges at call time
     where = f"scenario '{sc.name}': actuators.{name}.valve"
     if not isinstance(table, Mapping) or not table:
@@ -142,13 +142,11 @@ def _check_valve_response(sc, name: str, table):
                             f"({', '.join(VALVE_RESPONSE)}): the rating (flow, drop, travel, overlap) is the "
                             "actuator's description's")
     for key, v in table.items():
-        if isinstance(v, bool) or not isinstance(v, (int, float)) or not np.isfinite(v) or v <= 0:
-            raise ScenarioError(f"{where}.{key} must be a finite number > 0, got {v!r}")
         q = VALVE_RANGES[key]
         unit = f" {q.unit}" if q.unit else ""
-        if not q.low <= v <= q.high:
-            raise ScenarioError(f"{where}.{key}: {v:.6g}{unit} is outside the plausible range [{q.low:.6g}, "
-                                f"{q.high:.6g}]{unit} of any valve ({q.source})")
+        if isinstance(v, bool) or not isinstance(v, (int, float)) or not np.isfinite(v) or not q.low <= v <= q.high:
+            raise ScenarioError(f"{where}.{key} must be a finite number in [{q.low:.6g}, {q.high:.6g}]{unit} "
+                                f"({q.source}), got {v!r}")
 
 
 def _valve_response(sc, c, row: tuple) -> tuple:

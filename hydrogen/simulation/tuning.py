@@ -51,8 +51,9 @@ the run is stable for **every** seed. A row reports the median over the seeds of
 its range (min, max); the tuned gain is chosen on the median.
 
 **Tuned** (:func:`tune`). The grid is geometric with 4 points per octave, so 2 g is on it. A gain is
-*admissible* when every grid gain in [g, 2 g] is stable on every scenario: a gain margin of at least 2
-(6 dB, the classical requirement) on the grid. The tuned gain is the admissible gain with the
+*admissible* when every grid gain from g up to the first at or past m g is stable on every scenario,
+m the required margin (``margin``, default :data:`MARGIN` = 2): a gain margin of at least 2 (6 dB,
+the classical requirement) on the grid; a margin between grid points is rounded up to the next one. The tuned gain is the admissible gain with the
 smallest worst-case max error (% of amplitude, over the scenarios' moving coordinates), over every
 K_τ tried; the P error only falls with K, so for P it is the largest admissible gain. When no gain
 is admissible (the loop rings at every gain of the grid), the search says so (``margin_ok`` False)
@@ -298,6 +299,20 @@ def secondary_grid(dyn, controller) -> dict:
     return {"Kd_scale": [0.125, 0.25, 0.5, 1.0, 2.0], "Ktau": [k0 * f for f in (0.25, 0.5, 1.0)]}
 
 
+def _margin_points(gs, g, margin) -> list:
+    """The grid gains a margin of ``margin`` at ``g`` needs stable: from g up to the first grid gain at
+    or past margin x g (within GRID_TOLERANCE: 2.378 reaches 2^(5/4) g); none when the grid ends below."""
+    top = next((h for h in gs if h >= margin * g * (1 - GRID_TOLERANCE)), None)
+    return [] if top is None else [h for h in gs if g <= h <= top]
+
+
+def _check_margin(margin) -> None:
+    """A :class:`HydrogenError` unless ``margin`` is a finite number >= 1."""
+    if isinstance(margin, bool) or not isinstance(margin, (int, float, np.floating)) or not np.isfinite(margin) \
+            or margin < 1.0:
+        raise HydrogenError(f"the required gain margin must be a finite number >= 1, not {margin!r}")
+
+
 def tune(controller, grid=None, *, model=None, scenarios=None, secondary=None, adaptation=None,
          executor=None, max_workers=None, progress: bool = False, seeds=None,
          variant: str | None = None, numbers: str | None = None, margin: float = MARGIN) -> dict:
@@ -319,20 +334,21 @@ def tune(controller, grid=None, *, model=None, scenarios=None, secondary=None, a
     "best_errors": {scenario: median worst max error %}, "best_error_ranges": {scenario: [min, max]},
     "largest_stable": the largest main gain stable on every scenario and seed (at the tuned secondary
     value), "margin_ok": whether "best" has a gain margin of ``margin`` (else it is the fallback of the
-    module doc)}.
+    module doc), "grid_spans_margin": whether the grid is wide enough for any gain to show it}.
     """
     import itertools
 
     from ..runtime.build import build
     from .sweep import check_workers, sweep
 
+    grid = np.sort(np.asarray(default_grid(controller) if grid is None else grid, float))
+    _check_margin(margin)
     model = _load(model)
     if executor is None:
         check_workers(max_workers)
     scen = dict(scenarios) if scenarios else require_rig_scenarios(model, f"tune --controller {controller}", variant)
     seeds = seed_list(DEFAULT_SEEDS if seeds is None else seeds)
     dyn = build(model, controllers=(controller,), **({} if numbers is None else {"numbers": numbers}))
-    grid = np.sort(np.asarray(default_grid(controller) if grid is None else grid, float))
     sec = secondary_grid(dyn, controller) if secondary is None else dict(secondary)
     sec_points = [dict(zip(sec, v)) for v in itertools.product(*sec.values())] or [{}]
     own = _own_gains(dyn, controller, next(iter(scen)), model)
@@ -340,8 +356,6 @@ def tune(controller, grid=None, *, model=None, scenarios=None, secondary=None, a
         [(k, [float(v) for v in vs]) for k, vs in dict(adaptation).items()]
     name = main_gain(controller)
     gs = list(map(float, grid))
-    if not margin >= 1.0:
-        raise HydrogenError(f"the required gain margin must be at least 1, not {margin:g}")
 
     def gains(g, extra):
         out = family(dyn, controller, g)
@@ -359,9 +373,8 @@ def tune(controller, grid=None, *, model=None, scenarios=None, secondary=None, a
         picks = []
         for x in points:
             ok, worst, bounded = _judge_point(out, scen, gs, seeds, name, x, table)
-            reach = margin * (1 + GRID_TOLERANCE)  # a margin written to 4 digits reaches its grid point
-            admissible = [(worst[g], -g, g) for g in gs if margin * g <= gs[-1] * (1 + GRID_TOLERANCE)
-                          and all(ok[h] for h in gs if g <= h <= reach * g)]
+            admissible = [(worst[g], -g, g) for g in gs
+                          if (need := _margin_points(gs, g, margin)) and all(ok[h] for h in need)]
             fallback = [(worst[g], -g, g) for g in gs if bounded[g]]
             largest = max((g for g in gs if ok[g]), default=None)
             # A point with the margin beats every point without one; then the smaller error.
@@ -386,6 +399,8 @@ def tune(controller, grid=None, *, model=None, scenarios=None, secondary=None, a
     return {
         "controller": controller, "model": model.name, "main_gain": name, "grid": gs, "secondary": sec,
         "adaptation": searched, "seeds": seeds, "margin": float(margin),
+        # no gain of a grid spanning less than the margin can show it: not a ringing loop
+        "grid_spans_margin": bool(_margin_points(gs, gs[0], margin)),
         "table": table, "best": best, "best_secondary": x, "margin_ok": margin_ok,
         "best_gains": gains(best, x) if best is not None else None,
         "best_errors": {r["scenario"]: r.get("max_error_pct") for r in here},
