@@ -414,3 +414,15 @@ def test_kalman_gain_is_solved_once_per_setting(monkeypatch):
     assert len(calls) == 1 and b[0] != -1.0
     kalman_gain(1 / 512, 3e-11, 1e-3)
     assert len(calls) == 2
+
+
+@pytest.mark.parametrize("name", hydrogen.models())
+def test_a_variants_searched_gains_name_every_gain_the_rig_names(name):
+    """A variant's gains for a controller are merged over the robot's: where they left out a gain the
+    robot's table names (an adaptation rate), a new search of the robot's gains would silently change
+    the variant's controller, which was searched with the old value. Each names them all."""
+    m = hydrogen.load_model(name)
+    for variant, table in m.variants.items():
+        for c, gains in (table.get("gains") or {}).items():
+            missing = sorted(set(m.gains.get(c, {})) - set(gains))
+            assert not missing, f"{name} [variants.{variant}] gains.{c} inherits {missing} from [gains.{c}]"
