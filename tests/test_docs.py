@@ -525,3 +525,27 @@ def test_the_controllers_guide_shows_the_friction_compensation_study_as_committe
     rendered = friction_compensation.markdown(data["rows"], data["seeds"])
     table = "\n".join(line for line in rendered.splitlines() if line.startswith("|"))  # without its caption
     assert table.count("\n") > 2 and table in (ROOT / "docs" / "guide" / "controllers.md").read_text(encoding="utf-8")
+
+
+def _render_pages():
+    spec = importlib.util.spec_from_file_location("render_pages", ROOT / "tools" / "render_pages.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def test_the_page_renderer_replaces_a_stale_study_table_and_only_it():
+    splice = _render_pages().splice
+    page = "intro\n\nCaption:\n\n| a | b |\n|---|---|\n| 1 | 2 |\n\nafter\n"
+    new = "Caption:\n\n| a | b |\n|---|---|\n| 3 | 4 |\n| 5 | 6 |\n"
+    assert splice(page, new) == "intro\n\nCaption:\n\n| a | b |\n|---|---|\n| 3 | 4 |\n| 5 | 6 |\n\nafter\n"
+    with pytest.raises(ValueError, match="0 blocks start with"):
+        splice(page, "Other:\n\n| x |\n")
+    with pytest.raises(ValueError, match="2 blocks start with"):
+        splice(page + page, new)
+
+
+def test_every_study_table_the_renderer_writes_is_on_its_page_as_committed():
+    for page, tables in _render_pages().study_tables().items():
+        text = (ROOT / page).read_text(encoding="utf-8")
+        assert tables and all(t.rstrip("\n") in text for t in tables), page

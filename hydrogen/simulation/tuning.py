@@ -52,17 +52,17 @@ its range (min, max); the tuned gain is chosen on the median.
 
 **Tuned** (:func:`tune`). The grid is geometric with 4 points per octave, so 2 g is on it. A gain is
 *admissible* when every grid gain from g up to the first at or past m g is stable on every scenario,
-m the required margin (``margin``, default :data:`MARGIN` = 2): a gain margin of at least 2 (6 dB,
-the classical requirement) on the grid; a margin between grid points is rounded up to the next one. The tuned gain is the admissible gain with the
-smallest worst-case max error (% of amplitude, over the scenarios' moving coordinates), over every
-K_τ tried; the P error only falls with K, so for P it is the largest admissible gain. When no gain
+m the required margin (``margin``, default :data:`MARGIN` = 2: 6 dB, the classical requirement) on
+the grid; a margin between grid points is rounded up to the next one. The tuned gain is the
+admissible gain with the smallest worst-case max error (% of amplitude, over the scenarios' moving
+coordinates), over every K_τ tried; the P error only falls with K, so for P it is the largest admissible gain. When no gain
 is admissible (the loop rings at every gain of the grid), the search says so (``margin_ok`` False)
 and falls back to the smallest worst-case error among the points that complete every scenario
 with at most 1 % saturation: the least bad, not a tuned, controller.
 
 **Headroom.** Bisection on other seeds finds a margin a little off the grid's 2 (1.8-2.0 where the
 tuning seeds' own margin is 2.0-2.2): the grid cannot tell 2.0 from 2.37. Where the checking seeds
-(:mod:`benchmarks/margins_checking.py`, seeds 100-119) find a margin below 2, the controller is
+(``benchmarks/margins_checking.py``, seeds 100-119) find a margin below 2, the controller is
 searched again on the same tuning seeds with ``margin`` = :data:`HEADROOM`, every grid gain up to
 the next grid point past 2 g (2^(5/4) g = 2.38 g) stable, and checked again on the checking seeds.
 
