@@ -83,11 +83,11 @@ CASADI_SYMBOL_EXPORT int excavator_arm_ctrl_p_casadi_real_size(void) { return (i
 
 static const casadi_int casadi_s0[3] = {3, 1, 1};
 static const casadi_int casadi_s1[3] = {1, 1, 1};
-static const casadi_int casadi_s2[3] = {87, 1, 1};
+static const casadi_int casadi_s2[3] = {84, 1, 1};
 
-static const casadi_real hg_zeros[44] = {0};
+static const casadi_real hg_zeros[41] = {0};
 
-/* excavator_arm_ctrl_p:(l[3],qd0[3],Kleg[3],u_max,numbers[87])->(u[3]) */
+/* excavator_arm_ctrl_p:(l[3],qd0[3],Kleg[3],u_max,numbers[84])->(u[3]) */
 static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   (void)arg; (void)res; (void)iw; (void)w; (void)mem;
   const casadi_real* hg_in0 = arg[0] ? arg[0] : hg_zeros;
@@ -101,20 +101,20 @@ static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw,
   a01=(-a00);
   a02=hg_in2[0];
   a03=hg_in4[21];
-  a04=hg_in4[30];
+  a04=hg_in4[27];
   a03=(a03-a04);
   a04=hg_in1[0];
   a05=cos(a04);
-  a06=hg_in4[28];
+  a06=hg_in4[25];
   a07=(a05*a06);
   a03=(a03+a07);
   a04=sin(a04);
-  a07=hg_in4[29];
+  a07=hg_in4[26];
   a08=(a04*a07);
   a03=(a03-a08);
   a03=casadi_sq(a03);
   a08=hg_in4[22];
-  a09=hg_in4[31];
+  a09=hg_in4[28];
   a08=(a08-a09);
   a06=(a04*a06);
   a08=(a08+a06);
@@ -130,7 +130,7 @@ static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw,
   a02=casadi_fmin(a00,a02);
   if (res[0]!=0) res[0][0]=a02;
   a02=hg_in2[1];
-  a03=hg_in4[24];
+  a03=hg_in4[23];
   a08=(a05*a03);
   a07=hg_in1[1];
   a06=cos(a07);
@@ -138,19 +138,19 @@ static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw,
   a07=sin(a07);
   a10=(a04*a07);
   a09=(a09-a10);
-  a10=hg_in4[32];
+  a10=hg_in4[29];
   a11=(a09*a10);
   a08=(a08+a11);
   a06=(a04*a06);
   a07=(a05*a07);
   a06=(a06+a07);
-  a07=hg_in4[33];
+  a07=hg_in4[30];
   a11=(a06*a07);
   a08=(a08-a11);
-  a11=hg_in4[34];
+  a11=hg_in4[31];
   a12=(a05*a11);
   a08=(a08-a12);
-  a12=hg_in4[35];
+  a12=hg_in4[32];
   a13=(a04*a12);
   a08=(a08+a13);
   a08=casadi_sq(a08);
@@ -173,19 +173,19 @@ static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw,
   a02=casadi_fmin(a00,a02);
   if (res[0]!=0) res[0][1]=a02;
   a02=hg_in2[2];
-  a08=hg_in4[36];
-  a03=hg_in4[37];
+  a08=hg_in4[33];
+  a03=hg_in4[34];
   a05=hg_in1[2];
   a03=(a03+a05);
   a05=cos(a03);
   a05=(a08*a05);
-  a12=hg_in4[42];
+  a12=hg_in4[39];
   a12=(a05-a12);
   a04=5.0000000000000000e-01;
-  a11=hg_in4[40];
+  a11=hg_in4[37];
   a11=(a11-a05);
   a05=casadi_sq(a11);
-  a09=hg_in4[41];
+  a09=hg_in4[38];
   a03=sin(a03);
   a08=(a08*a03);
   a03=(a09-a08);
@@ -193,11 +193,11 @@ static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw,
   a06=(a05+a07);
   a04=(a04/a06);
   a10=(a04*a11);
-  a13=hg_in4[38];
+  a13=hg_in4[35];
   a13=casadi_sq(a13);
   a05=(a13+a05);
   a05=(a05+a07);
-  a07=hg_in4[39];
+  a07=hg_in4[36];
   a07=casadi_sq(a07);
   a05=(a05-a07);
   a10=(a10*a05);
@@ -214,7 +214,7 @@ static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw,
   a09=(a13*a09);
   a12=(a12-a09);
   a12=casadi_sq(a12);
-  a09=hg_in4[43];
+  a09=hg_in4[40];
   a08=(a08-a09);
   a04=(a04*a03);
   a04=(a04*a05);

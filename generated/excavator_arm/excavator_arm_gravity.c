@@ -60,11 +60,11 @@ CASADI_SYMBOL_EXPORT int excavator_arm_gravity_casadi_real_size(void) { return (
 
 static const casadi_int casadi_s0[3] = {3, 1, 1};
 static const casadi_int casadi_s1[3] = {9, 1, 1};
-static const casadi_int casadi_s2[3] = {87, 1, 1};
+static const casadi_int casadi_s2[3] = {84, 1, 1};
 
-static const casadi_real hg_zeros[45] = {0};
+static const casadi_real hg_zeros[42] = {0};
 
-/* excavator_arm_gravity:(q[3],theta[9],numbers[87])->(G[3]) */
+/* excavator_arm_gravity:(q[3],theta[9],numbers[84])->(G[3]) */
 static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   (void)arg; (void)res; (void)iw; (void)w; (void)mem;
   const casadi_real* hg_in0 = arg[0] ? arg[0] : hg_zeros;
@@ -72,13 +72,13 @@ static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw,
   const casadi_real* hg_in2 = arg[2] ? arg[2] : hg_zeros;
   casadi_real a00, a01, a02, a03, a04, a05, a06, a07, a08, a09, a10, a11;
   casadi_real a12, a13, a14, a15;
-  a00=hg_in2[44];
+  a00=hg_in2[41];
   a01=hg_in2[14];
-  a02=hg_in2[24];
+  a02=hg_in2[23];
   a03=hg_in0[0];
   a04=cos(a03);
   a05=(a02*a04);
-  a06=hg_in2[26];
+  a06=hg_in2[24];
   a07=hg_in0[1];
   a08=cos(a07);
   a09=(a04*a08);

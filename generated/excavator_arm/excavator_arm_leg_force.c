@@ -61,37 +61,37 @@ CASADI_SYMBOL_EXPORT int excavator_arm_leg_force_casadi_real_size(void) { return
 
 static const casadi_int casadi_s0[3] = {6, 1, 1};
 static const casadi_int casadi_s1[3] = {1, 1, 1};
-static const casadi_int casadi_s2[3] = {87, 1, 1};
+static const casadi_int casadi_s2[3] = {84, 1, 1};
 static const casadi_int casadi_s3[3] = {3, 1, 1};
 
-static const casadi_real hg_zeros[71] = {0};
+static const casadi_real hg_zeros[68] = {0};
 
-/* excavator_arm_leg_force:(pc[6],ps,numbers[87])->(f[3]) */
+/* excavator_arm_leg_force:(pc[6],ps,numbers[84])->(f[3]) */
 static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   (void)arg; (void)res; (void)iw; (void)w; (void)mem;
   const casadi_real* hg_in0 = arg[0] ? arg[0] : hg_zeros;
   const casadi_real* hg_in2 = arg[2] ? arg[2] : hg_zeros;
   casadi_real a0, a1, a2;
-  a0=hg_in2[45];
+  a0=hg_in2[42];
   a1=hg_in0[0];
   a0=(a0*a1);
-  a1=hg_in2[46];
+  a1=hg_in2[43];
   a2=hg_in0[1];
   a1=(a1*a2);
   a0=(a0-a1);
   if (res[0]!=0) res[0][0]=a0;
-  a0=hg_in2[57];
+  a0=hg_in2[54];
   a1=hg_in0[2];
   a0=(a0*a1);
-  a1=hg_in2[58];
+  a1=hg_in2[55];
   a2=hg_in0[3];
   a1=(a1*a2);
   a0=(a0-a1);
   if (res[0]!=0) res[0][1]=a0;
-  a0=hg_in2[69];
+  a0=hg_in2[66];
   a1=hg_in0[4];
   a0=(a0*a1);
-  a1=hg_in2[70];
+  a1=hg_in2[67];
   a2=hg_in0[5];
   a1=(a1*a2);
   a0=(a0-a1);

@@ -61,31 +61,31 @@ CASADI_SYMBOL_EXPORT int excavator_arm_leg_lengths_casadi_int_size(void) { retur
 CASADI_SYMBOL_EXPORT int excavator_arm_leg_lengths_casadi_real_size(void) { return (int) sizeof(casadi_real); }
 
 static const casadi_int casadi_s0[3] = {3, 1, 1};
-static const casadi_int casadi_s1[3] = {87, 1, 1};
+static const casadi_int casadi_s1[3] = {84, 1, 1};
 
-static const casadi_real hg_zeros[44] = {0};
+static const casadi_real hg_zeros[41] = {0};
 
-/* excavator_arm_leg_lengths:(q[3],numbers[87])->(l[3]) */
+/* excavator_arm_leg_lengths:(q[3],numbers[84])->(l[3]) */
 static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   (void)arg; (void)res; (void)iw; (void)w; (void)mem;
   const casadi_real* hg_in0 = arg[0] ? arg[0] : hg_zeros;
   const casadi_real* hg_in1 = arg[1] ? arg[1] : hg_zeros;
   casadi_real a00, a01, a02, a03, a04, a05, a06, a07, a08, a09, a10;
   a00=hg_in1[21];
-  a01=hg_in1[30];
+  a01=hg_in1[27];
   a00=(a00-a01);
   a01=hg_in0[0];
   a02=cos(a01);
-  a03=hg_in1[28];
+  a03=hg_in1[25];
   a04=(a02*a03);
   a00=(a00+a04);
   a01=sin(a01);
-  a04=hg_in1[29];
+  a04=hg_in1[26];
   a05=(a01*a04);
   a00=(a00-a05);
   a00=casadi_sq(a00);
   a05=hg_in1[22];
-  a06=hg_in1[31];
+  a06=hg_in1[28];
   a05=(a05-a06);
   a03=(a01*a03);
   a05=(a05+a03);
@@ -95,7 +95,7 @@ static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw,
   a00=(a00+a05);
   a00=sqrt(a00);
   if (res[0]!=0) res[0][0]=a00;
-  a00=hg_in1[24];
+  a00=hg_in1[23];
   a05=(a02*a00);
   a04=hg_in0[1];
   a03=cos(a04);
@@ -103,19 +103,19 @@ static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw,
   a04=sin(a04);
   a07=(a01*a04);
   a06=(a06-a07);
-  a07=hg_in1[32];
+  a07=hg_in1[29];
   a08=(a06*a07);
   a05=(a05+a08);
   a03=(a01*a03);
   a04=(a02*a04);
   a03=(a03+a04);
-  a04=hg_in1[33];
+  a04=hg_in1[30];
   a08=(a03*a04);
   a05=(a05-a08);
-  a08=hg_in1[34];
+  a08=hg_in1[31];
   a09=(a02*a08);
   a05=(a05-a09);
-  a09=hg_in1[35];
+  a09=hg_in1[32];
   a10=(a01*a09);
   a05=(a05+a10);
   a05=casadi_sq(a05);
@@ -132,19 +132,19 @@ static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw,
   a05=(a05+a00);
   a05=sqrt(a05);
   if (res[0]!=0) res[0][1]=a05;
-  a05=hg_in1[36];
-  a00=hg_in1[37];
+  a05=hg_in1[33];
+  a00=hg_in1[34];
   a02=hg_in0[2];
   a00=(a00+a02);
   a02=cos(a00);
   a02=(a05*a02);
-  a09=hg_in1[42];
+  a09=hg_in1[39];
   a09=(a02-a09);
   a01=5.0000000000000000e-01;
-  a08=hg_in1[40];
+  a08=hg_in1[37];
   a08=(a08-a02);
   a02=casadi_sq(a08);
-  a06=hg_in1[41];
+  a06=hg_in1[38];
   a00=sin(a00);
   a05=(a05*a00);
   a00=(a06-a05);
@@ -152,11 +152,11 @@ static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw,
   a03=(a02+a04);
   a01=(a01/a03);
   a07=(a01*a08);
-  a10=hg_in1[38];
+  a10=hg_in1[35];
   a10=casadi_sq(a10);
   a02=(a10+a02);
   a02=(a02+a04);
-  a04=hg_in1[39];
+  a04=hg_in1[36];
   a04=casadi_sq(a04);
   a02=(a02-a04);
   a07=(a07*a02);
@@ -173,7 +173,7 @@ static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw,
   a06=(a10*a06);
   a09=(a09-a06);
   a09=casadi_sq(a09);
-  a06=hg_in1[43];
+  a06=hg_in1[40];
   a05=(a05-a06);
   a01=(a01*a00);
   a01=(a01*a02);

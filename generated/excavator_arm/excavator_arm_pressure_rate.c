@@ -73,11 +73,11 @@ CASADI_SYMBOL_EXPORT int excavator_arm_pressure_rate_casadi_real_size(void) { re
 
 static const casadi_int casadi_s0[3] = {3, 1, 1};
 static const casadi_int casadi_s1[3] = {6, 1, 1};
-static const casadi_int casadi_s2[3] = {87, 1, 1};
+static const casadi_int casadi_s2[3] = {84, 1, 1};
 
-static const casadi_real hg_zeros[81] = {0};
+static const casadi_real hg_zeros[78] = {0};
 
-/* excavator_arm_pressure_rate:(l[3],ldot[3],pc[6],u[3],gamma1[3],gamma2[3],numbers[87])->(pc_dot[6]) */
+/* excavator_arm_pressure_rate:(l[3],ldot[3],pc[6],u[3],gamma1[3],gamma2[3],numbers[84])->(pc_dot[6]) */
 static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   (void)arg; (void)res; (void)iw; (void)w; (void)mem;
   const casadi_real* hg_in0 = arg[0] ? arg[0] : hg_zeros;
@@ -90,10 +90,10 @@ static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw,
   casadi_real a00, a01, a02, a03, a04, a05, a06, a07, a08, a09, a10, a11;
   casadi_real a12, a13, a14, a15, a16, a17;
   a00=hg_in4[0];
-  a01=hg_in6[49];
-  a02=hg_in6[45];
+  a01=hg_in6[46];
+  a02=hg_in6[42];
   a03=hg_in0[0];
-  a04=hg_in6[47];
+  a04=hg_in6[44];
   a04=(a03-a04);
   a04=(a02*a04);
   a01=(a01+a04);
@@ -101,16 +101,16 @@ static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw,
   a04=hg_in5[0];
   a04=(a04/a00);
   a05=hg_in3[0];
-  a06=hg_in6[53];
+  a06=hg_in6[50];
   a07=(-a06);
   a07=(a05<a07);
   a07=(!a07);
   a08=(a06+a05);
-  a09=hg_in6[51];
+  a09=hg_in6[48];
   a10=hg_in2[0];
   a11=(a09-a10);
   a12=casadi_fabs(a11);
-  a13=hg_in6[56];
+  a13=hg_in6[53];
   a14=(a12<a13);
   a15=sqrt(a13);
   a16=(a11/a15);
@@ -125,7 +125,7 @@ static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw,
   a16=(a07?a16:0);
   a14=(a05<=a06);
   a05=(a05-a06);
-  a06=hg_in6[52];
+  a06=hg_in6[49];
   a12=(a06-a10);
   a12=casadi_fabs(a12);
   a11=(a12<a13);
@@ -147,9 +147,9 @@ static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw,
   a16=(a16-a02);
   a01=(a01*a16);
   if (res[0]!=0) res[0][0]=a01;
-  a01=hg_in6[50];
-  a16=hg_in6[46];
-  a02=hg_in6[48];
+  a01=hg_in6[47];
+  a16=hg_in6[43];
+  a02=hg_in6[45];
   a02=(a02-a03);
   a02=(a16*a02);
   a01=(a01+a02);
@@ -189,10 +189,10 @@ static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw,
   a00=(a00*a17);
   if (res[0]!=0) res[0][1]=a00;
   a00=hg_in4[1];
-  a17=hg_in6[61];
-  a04=hg_in6[57];
+  a17=hg_in6[58];
+  a04=hg_in6[54];
   a07=hg_in0[1];
-  a14=hg_in6[59];
+  a14=hg_in6[56];
   a14=(a07-a14);
   a14=(a04*a14);
   a17=(a17+a14);
@@ -200,16 +200,16 @@ static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw,
   a14=hg_in5[1];
   a14=(a14/a00);
   a05=hg_in3[1];
-  a15=hg_in6[65];
+  a15=hg_in6[62];
   a13=(-a15);
   a13=(a05<a13);
   a13=(!a13);
   a16=(a15+a05);
-  a09=hg_in6[63];
+  a09=hg_in6[60];
   a08=hg_in2[2];
   a03=(a09-a08);
   a02=casadi_fabs(a03);
-  a01=hg_in6[68];
+  a01=hg_in6[65];
   a06=(a02<a01);
   a11=sqrt(a01);
   a12=(a03/a11);
@@ -224,7 +224,7 @@ static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw,
   a12=(a13?a12:0);
   a06=(a05<=a15);
   a05=(a05-a15);
-  a15=hg_in6[64];
+  a15=hg_in6[61];
   a02=(a15-a08);
   a02=casadi_fabs(a02);
   a03=(a02<a01);
@@ -246,9 +246,9 @@ static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw,
   a12=(a12-a04);
   a17=(a17*a12);
   if (res[0]!=0) res[0][2]=a17;
-  a17=hg_in6[62];
-  a12=hg_in6[58];
-  a04=hg_in6[60];
+  a17=hg_in6[59];
+  a12=hg_in6[55];
+  a04=hg_in6[57];
   a04=(a04-a07);
   a04=(a12*a04);
   a17=(a17+a04);
@@ -288,10 +288,10 @@ static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw,
   a00=(a00*a10);
   if (res[0]!=0) res[0][3]=a00;
   a00=hg_in4[2];
-  a10=hg_in6[73];
-  a14=hg_in6[69];
+  a10=hg_in6[70];
+  a14=hg_in6[66];
   a13=hg_in0[2];
-  a06=hg_in6[71];
+  a06=hg_in6[68];
   a06=(a13-a06);
   a06=(a14*a06);
   a10=(a10+a06);
@@ -299,16 +299,16 @@ static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw,
   a06=hg_in5[2];
   a06=(a06/a00);
   a05=hg_in3[2];
-  a11=hg_in6[77];
+  a11=hg_in6[74];
   a01=(-a11);
   a01=(a05<a01);
   a01=(!a01);
   a12=(a11+a05);
-  a09=hg_in6[75];
+  a09=hg_in6[72];
   a16=hg_in2[4];
   a07=(a09-a16);
   a04=casadi_fabs(a07);
-  a17=hg_in6[80];
+  a17=hg_in6[77];
   a15=(a04<a17);
   a03=sqrt(a17);
   a02=(a07/a03);
@@ -323,7 +323,7 @@ static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw,
   a02=(a01?a02:0);
   a15=(a05<=a11);
   a05=(a05-a11);
-  a11=hg_in6[76];
+  a11=hg_in6[73];
   a04=(a11-a16);
   a04=casadi_fabs(a04);
   a07=(a04<a17);
@@ -345,9 +345,9 @@ static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw,
   a02=(a02-a14);
   a10=(a10*a02);
   if (res[0]!=0) res[0][4]=a10;
-  a10=hg_in6[74];
-  a02=hg_in6[70];
-  a14=hg_in6[72];
+  a10=hg_in6[71];
+  a02=hg_in6[67];
+  a14=hg_in6[69];
   a14=(a14-a13);
   a14=(a02*a14);
   a10=(a10+a14);

@@ -70,11 +70,11 @@ CASADI_SYMBOL_EXPORT int excavator_arm_valve_flow_casadi_real_size(void) { retur
 
 static const casadi_int casadi_s0[3] = {3, 1, 1};
 static const casadi_int casadi_s1[3] = {6, 1, 1};
-static const casadi_int casadi_s2[3] = {87, 1, 1};
+static const casadi_int casadi_s2[3] = {84, 1, 1};
 
-static const casadi_real hg_zeros[78] = {0};
+static const casadi_real hg_zeros[75] = {0};
 
-/* excavator_arm_valve_flow:(u[3],pc[6],numbers[87])->(q_per_c[6]) */
+/* excavator_arm_valve_flow:(u[3],pc[6],numbers[84])->(q_per_c[6]) */
 static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   (void)arg; (void)res; (void)iw; (void)w; (void)mem;
   const casadi_real* hg_in0 = arg[0] ? arg[0] : hg_zeros;
@@ -82,12 +82,12 @@ static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw,
   const casadi_real* hg_in2 = arg[2] ? arg[2] : hg_zeros;
   casadi_real a0, a1, a2, a3, a4, a5, a6, a7, a8, a9;
   a0=hg_in0[0];
-  a1=hg_in2[53];
+  a1=hg_in2[50];
   a2=(-a1);
   a2=(a0<a2);
   a2=(!a2);
   a3=0.;
-  a4=hg_in2[51];
+  a4=hg_in2[48];
   a5=hg_in1[0];
   a6=(a4-a5);
   a6=casadi_fmax(a3,a6);
@@ -96,7 +96,7 @@ static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw,
   a6=(a6*a7);
   a6=(a2?a6:0);
   a8=(a0<=a1);
-  a9=hg_in2[52];
+  a9=hg_in2[49];
   a5=(a5-a9);
   a5=casadi_fmax(a3,a5);
   a5=sqrt(a5);
@@ -119,11 +119,11 @@ static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw,
   a8=(a8+a2);
   if (res[0]!=0) res[0][1]=a8;
   a8=hg_in0[1];
-  a2=hg_in2[65];
+  a2=hg_in2[62];
   a6=(-a2);
   a6=(a8<a6);
   a6=(!a6);
-  a7=hg_in2[63];
+  a7=hg_in2[60];
   a9=hg_in1[2];
   a4=(a7-a9);
   a4=casadi_fmax(a3,a4);
@@ -132,7 +132,7 @@ static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw,
   a4=(a4*a0);
   a4=(a6?a4:0);
   a5=(a8<=a2);
-  a1=hg_in2[64];
+  a1=hg_in2[61];
   a9=(a9-a1);
   a9=casadi_fmax(a3,a9);
   a9=sqrt(a9);
@@ -155,11 +155,11 @@ static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw,
   a5=(a5+a6);
   if (res[0]!=0) res[0][3]=a5;
   a5=hg_in0[2];
-  a6=hg_in2[77];
+  a6=hg_in2[74];
   a4=(-a6);
   a4=(a5<a4);
   a4=(!a4);
-  a0=hg_in2[75];
+  a0=hg_in2[72];
   a1=hg_in1[4];
   a7=(a0-a1);
   a7=casadi_fmax(a3,a7);
@@ -168,7 +168,7 @@ static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw,
   a7=(a7*a8);
   a7=(a4?a7:0);
   a9=(a5<=a6);
-  a2=hg_in2[76];
+  a2=hg_in2[73];
   a1=(a1-a2);
   a1=casadi_fmax(a3,a1);
   a1=sqrt(a1);

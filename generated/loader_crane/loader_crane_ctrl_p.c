@@ -83,11 +83,11 @@ CASADI_SYMBOL_EXPORT int loader_crane_ctrl_p_casadi_real_size(void) { return (in
 
 static const casadi_int casadi_s0[3] = {3, 1, 1};
 static const casadi_int casadi_s1[3] = {1, 1, 1};
-static const casadi_int casadi_s2[3] = {78, 1, 1};
+static const casadi_int casadi_s2[3] = {75, 1, 1};
 
-static const casadi_real hg_zeros[35] = {0};
+static const casadi_real hg_zeros[32] = {0};
 
-/* loader_crane_ctrl_p:(l[3],qd0[3],Kleg[3],u_max,numbers[78])->(u[3]) */
+/* loader_crane_ctrl_p:(l[3],qd0[3],Kleg[3],u_max,numbers[75])->(u[3]) */
 static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   (void)arg; (void)res; (void)iw; (void)w; (void)mem;
   const casadi_real* hg_in0 = arg[0] ? arg[0] : hg_zeros;
@@ -109,20 +109,20 @@ static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw,
   if (res[0]!=0) res[0][0]=a02;
   a02=hg_in2[1];
   a04=cos(a03);
-  a05=hg_in4[22];
+  a05=hg_in4[21];
   a06=(a04*a05);
   a07=hg_in1[1];
   a08=cos(a07);
   a09=(a04*a08);
-  a10=hg_in4[27];
+  a10=hg_in4[24];
   a11=(a09*a10);
   a06=(a06+a11);
   a07=sin(a07);
   a11=(a04*a07);
-  a12=hg_in4[28];
+  a12=hg_in4[25];
   a13=(a11*a12);
   a06=(a06-a13);
-  a13=hg_in4[29];
+  a13=hg_in4[26];
   a04=(a04*a13);
   a06=(a06-a04);
   a06=casadi_sq(a06);
@@ -138,12 +138,12 @@ static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw,
   a05=(a05-a03);
   a05=casadi_sq(a05);
   a06=(a06+a05);
-  a05=hg_in4[23];
+  a05=hg_in4[22];
   a10=(a07*a10);
   a05=(a05+a10);
   a12=(a08*a12);
   a05=(a05+a12);
-  a12=hg_in4[30];
+  a12=hg_in4[27];
   a05=(a05-a12);
   a05=casadi_sq(a05);
   a06=(a06+a05);
@@ -155,7 +155,7 @@ static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw,
   a02=casadi_fmin(a00,a02);
   if (res[0]!=0) res[0][1]=a02;
   a02=hg_in2[2];
-  a06=hg_in4[25];
+  a06=hg_in4[23];
   a05=(a09*a06);
   a12=hg_in1[2];
   a10=cos(a12);
@@ -163,19 +163,19 @@ static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw,
   a12=sin(a12);
   a13=(a11*a12);
   a03=(a03-a13);
-  a13=hg_in4[31];
+  a13=hg_in4[28];
   a03=(a03*a13);
   a05=(a05+a03);
   a03=(a11*a10);
   a15=(a09*a12);
   a03=(a03+a15);
-  a15=hg_in4[32];
+  a15=hg_in4[29];
   a03=(a03*a15);
   a05=(a05-a03);
-  a03=hg_in4[33];
+  a03=hg_in4[30];
   a09=(a09*a03);
   a05=(a05-a09);
-  a09=hg_in4[34];
+  a09=hg_in4[31];
   a11=(a11*a09);
   a05=(a05+a11);
   a05=casadi_sq(a05);

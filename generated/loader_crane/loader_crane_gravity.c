@@ -60,11 +60,11 @@ CASADI_SYMBOL_EXPORT int loader_crane_gravity_casadi_real_size(void) { return (i
 
 static const casadi_int casadi_s0[3] = {3, 1, 1};
 static const casadi_int casadi_s1[3] = {8, 1, 1};
-static const casadi_int casadi_s2[3] = {78, 1, 1};
+static const casadi_int casadi_s2[3] = {75, 1, 1};
 
-static const casadi_real hg_zeros[36] = {0};
+static const casadi_real hg_zeros[33] = {0};
 
-/* loader_crane_gravity:(q[3],theta[8],numbers[78])->(G[3]) */
+/* loader_crane_gravity:(q[3],theta[8],numbers[75])->(G[3]) */
 static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   (void)arg; (void)res; (void)iw; (void)w; (void)mem;
   const casadi_real* hg_in0 = arg[0] ? arg[0] : hg_zeros;
@@ -73,7 +73,7 @@ static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw,
   casadi_real a0, a1, a2, a3, a4, a5, a6, a7, a8;
   a0=0.;
   if (res[0]!=0) res[0][0]=a0;
-  a0=hg_in2[35];
+  a0=hg_in2[32];
   a1=hg_in1[0];
   a2=hg_in0[1];
   a3=cos(a2);
@@ -98,7 +98,7 @@ static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw,
   a5=(a5*a2);
   a1=(a1-a5);
   a5=hg_in2[14];
-  a2=hg_in2[25];
+  a2=hg_in2[23];
   a5=(a5*a2);
   a5=(a5*a3);
   a1=(a1+a5);

@@ -61,36 +61,36 @@ CASADI_SYMBOL_EXPORT int loader_crane_leg_force_casadi_real_size(void) { return 
 
 static const casadi_int casadi_s0[3] = {6, 1, 1};
 static const casadi_int casadi_s1[3] = {1, 1, 1};
-static const casadi_int casadi_s2[3] = {78, 1, 1};
+static const casadi_int casadi_s2[3] = {75, 1, 1};
 static const casadi_int casadi_s3[3] = {3, 1, 1};
 
-static const casadi_real hg_zeros[61] = {0};
+static const casadi_real hg_zeros[58] = {0};
 
-/* loader_crane_leg_force:(pc[6],ps,numbers[78])->(f[3]) */
+/* loader_crane_leg_force:(pc[6],ps,numbers[75])->(f[3]) */
 static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   (void)arg; (void)res; (void)iw; (void)w; (void)mem;
   const casadi_real* hg_in0 = arg[0] ? arg[0] : hg_zeros;
   const casadi_real* hg_in2 = arg[2] ? arg[2] : hg_zeros;
   casadi_real a0, a1, a2;
-  a0=hg_in2[36];
+  a0=hg_in2[33];
   a1=hg_in0[0];
   a1=(a0*a1);
   a2=hg_in0[1];
   a0=(a0*a2);
   a1=(a1-a0);
   if (res[0]!=0) res[0][0]=a1;
-  a1=hg_in2[47];
+  a1=hg_in2[44];
   a0=hg_in0[2];
   a1=(a1*a0);
-  a0=hg_in2[48];
+  a0=hg_in2[45];
   a2=hg_in0[3];
   a0=(a0*a2);
   a1=(a1-a0);
   if (res[0]!=0) res[0][1]=a1;
-  a1=hg_in2[59];
+  a1=hg_in2[56];
   a0=hg_in0[4];
   a1=(a1*a0);
-  a0=hg_in2[60];
+  a0=hg_in2[57];
   a2=hg_in0[5];
   a0=(a0*a2);
   a1=(a1-a0);

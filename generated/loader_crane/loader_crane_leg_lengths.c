@@ -61,11 +61,11 @@ CASADI_SYMBOL_EXPORT int loader_crane_leg_lengths_casadi_int_size(void) { return
 CASADI_SYMBOL_EXPORT int loader_crane_leg_lengths_casadi_real_size(void) { return (int) sizeof(casadi_real); }
 
 static const casadi_int casadi_s0[3] = {3, 1, 1};
-static const casadi_int casadi_s1[3] = {78, 1, 1};
+static const casadi_int casadi_s1[3] = {75, 1, 1};
 
-static const casadi_real hg_zeros[35] = {0};
+static const casadi_real hg_zeros[32] = {0};
 
-/* loader_crane_leg_lengths:(q[3],numbers[78])->(l[3]) */
+/* loader_crane_leg_lengths:(q[3],numbers[75])->(l[3]) */
 static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   (void)arg; (void)res; (void)iw; (void)w; (void)mem;
   const casadi_real* hg_in0 = arg[0] ? arg[0] : hg_zeros;
@@ -75,20 +75,20 @@ static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw,
   a00=hg_in0[0];
   if (res[0]!=0) res[0][0]=a00;
   a01=cos(a00);
-  a02=hg_in1[22];
+  a02=hg_in1[21];
   a03=(a01*a02);
   a04=hg_in0[1];
   a05=cos(a04);
   a06=(a01*a05);
-  a07=hg_in1[27];
+  a07=hg_in1[24];
   a08=(a06*a07);
   a03=(a03+a08);
   a04=sin(a04);
   a08=(a01*a04);
-  a09=hg_in1[28];
+  a09=hg_in1[25];
   a10=(a08*a09);
   a03=(a03-a10);
-  a10=hg_in1[29];
+  a10=hg_in1[26];
   a01=(a01*a10);
   a03=(a03-a01);
   a03=casadi_sq(a03);
@@ -104,18 +104,18 @@ static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw,
   a02=(a02-a00);
   a02=casadi_sq(a02);
   a03=(a03+a02);
-  a02=hg_in1[23];
+  a02=hg_in1[22];
   a07=(a04*a07);
   a02=(a02+a07);
   a09=(a05*a09);
   a02=(a02+a09);
-  a09=hg_in1[30];
+  a09=hg_in1[27];
   a02=(a02-a09);
   a02=casadi_sq(a02);
   a03=(a03+a02);
   a03=sqrt(a03);
   if (res[0]!=0) res[0][1]=a03;
-  a03=hg_in1[25];
+  a03=hg_in1[23];
   a02=(a06*a03);
   a09=hg_in0[2];
   a07=cos(a09);
@@ -123,19 +123,19 @@ static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw,
   a09=sin(a09);
   a10=(a08*a09);
   a00=(a00-a10);
-  a10=hg_in1[31];
+  a10=hg_in1[28];
   a00=(a00*a10);
   a02=(a02+a00);
   a00=(a08*a07);
   a12=(a06*a09);
   a00=(a00+a12);
-  a12=hg_in1[32];
+  a12=hg_in1[29];
   a00=(a00*a12);
   a02=(a02-a00);
-  a00=hg_in1[33];
+  a00=hg_in1[30];
   a06=(a06*a00);
   a02=(a02-a06);
-  a06=hg_in1[34];
+  a06=hg_in1[31];
   a08=(a08*a06);
   a02=(a02+a08);
   a02=casadi_sq(a02);

@@ -73,11 +73,11 @@ CASADI_SYMBOL_EXPORT int loader_crane_pressure_rate_casadi_real_size(void) { ret
 
 static const casadi_int casadi_s0[3] = {3, 1, 1};
 static const casadi_int casadi_s1[3] = {6, 1, 1};
-static const casadi_int casadi_s2[3] = {78, 1, 1};
+static const casadi_int casadi_s2[3] = {75, 1, 1};
 
-static const casadi_real hg_zeros[71] = {0};
+static const casadi_real hg_zeros[68] = {0};
 
-/* loader_crane_pressure_rate:(l[3],ldot[3],pc[6],u[3],gamma1[3],gamma2[3],numbers[78])->(pc_dot[6]) */
+/* loader_crane_pressure_rate:(l[3],ldot[3],pc[6],u[3],gamma1[3],gamma2[3],numbers[75])->(pc_dot[6]) */
 static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   (void)arg; (void)res; (void)iw; (void)w; (void)mem;
   const casadi_real* hg_in0 = arg[0] ? arg[0] : hg_zeros;
@@ -90,10 +90,10 @@ static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw,
   casadi_real a00, a01, a02, a03, a04, a05, a06, a07, a08, a09, a10, a11;
   casadi_real a12, a13, a14, a15, a16, a17;
   a00=hg_in4[0];
-  a01=hg_in6[39];
-  a02=hg_in6[36];
+  a01=hg_in6[36];
+  a02=hg_in6[33];
   a03=hg_in0[0];
-  a04=hg_in6[37];
+  a04=hg_in6[34];
   a04=(a03-a04);
   a04=(a02*a04);
   a01=(a01+a04);
@@ -101,16 +101,16 @@ static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw,
   a04=hg_in5[0];
   a04=(a04/a00);
   a05=hg_in3[0];
-  a06=hg_in6[43];
+  a06=hg_in6[40];
   a07=(-a06);
   a07=(a05<a07);
   a07=(!a07);
   a08=(a06+a05);
-  a09=hg_in6[41];
+  a09=hg_in6[38];
   a10=hg_in2[0];
   a11=(a09-a10);
   a12=casadi_fabs(a11);
-  a13=hg_in6[46];
+  a13=hg_in6[43];
   a14=(a12<a13);
   a15=sqrt(a13);
   a16=(a11/a15);
@@ -125,7 +125,7 @@ static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw,
   a16=(a07?a16:0);
   a14=(a05<=a06);
   a05=(a05-a06);
-  a06=hg_in6[42];
+  a06=hg_in6[39];
   a12=(a06-a10);
   a12=casadi_fabs(a12);
   a11=(a12<a13);
@@ -147,8 +147,8 @@ static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw,
   a16=(a16-a17);
   a01=(a01*a16);
   if (res[0]!=0) res[0][0]=a01;
-  a01=hg_in6[40];
-  a16=hg_in6[38];
+  a01=hg_in6[37];
+  a16=hg_in6[35];
   a16=(a16-a03);
   a02=(a02*a16);
   a01=(a01+a02);
@@ -187,10 +187,10 @@ static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw,
   a00=(a00*a17);
   if (res[0]!=0) res[0][1]=a00;
   a00=hg_in4[1];
-  a17=hg_in6[51];
-  a04=hg_in6[47];
+  a17=hg_in6[48];
+  a04=hg_in6[44];
   a07=hg_in0[1];
-  a14=hg_in6[49];
+  a14=hg_in6[46];
   a14=(a07-a14);
   a14=(a04*a14);
   a17=(a17+a14);
@@ -198,16 +198,16 @@ static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw,
   a14=hg_in5[1];
   a14=(a14/a00);
   a05=hg_in3[1];
-  a15=hg_in6[55];
+  a15=hg_in6[52];
   a13=(-a15);
   a13=(a05<a13);
   a13=(!a13);
   a01=(a15+a05);
-  a09=hg_in6[53];
+  a09=hg_in6[50];
   a08=hg_in2[2];
   a03=(a09-a08);
   a16=casadi_fabs(a03);
-  a02=hg_in6[58];
+  a02=hg_in6[55];
   a06=(a16<a02);
   a11=sqrt(a02);
   a12=(a03/a11);
@@ -222,7 +222,7 @@ static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw,
   a12=(a13?a12:0);
   a06=(a05<=a15);
   a05=(a05-a15);
-  a15=hg_in6[54];
+  a15=hg_in6[51];
   a16=(a15-a08);
   a16=casadi_fabs(a16);
   a03=(a16<a02);
@@ -244,9 +244,9 @@ static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw,
   a12=(a12-a04);
   a17=(a17*a12);
   if (res[0]!=0) res[0][2]=a17;
-  a17=hg_in6[52];
-  a12=hg_in6[48];
-  a04=hg_in6[50];
+  a17=hg_in6[49];
+  a12=hg_in6[45];
+  a04=hg_in6[47];
   a04=(a04-a07);
   a04=(a12*a04);
   a17=(a17+a04);
@@ -286,10 +286,10 @@ static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw,
   a00=(a00*a10);
   if (res[0]!=0) res[0][3]=a00;
   a00=hg_in4[2];
-  a10=hg_in6[63];
-  a14=hg_in6[59];
+  a10=hg_in6[60];
+  a14=hg_in6[56];
   a13=hg_in0[2];
-  a06=hg_in6[61];
+  a06=hg_in6[58];
   a06=(a13-a06);
   a06=(a14*a06);
   a10=(a10+a06);
@@ -297,16 +297,16 @@ static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw,
   a06=hg_in5[2];
   a06=(a06/a00);
   a05=hg_in3[2];
-  a11=hg_in6[67];
+  a11=hg_in6[64];
   a02=(-a11);
   a02=(a05<a02);
   a02=(!a02);
   a12=(a11+a05);
-  a09=hg_in6[65];
+  a09=hg_in6[62];
   a01=hg_in2[4];
   a07=(a09-a01);
   a04=casadi_fabs(a07);
-  a17=hg_in6[70];
+  a17=hg_in6[67];
   a15=(a04<a17);
   a03=sqrt(a17);
   a16=(a07/a03);
@@ -321,7 +321,7 @@ static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw,
   a16=(a02?a16:0);
   a15=(a05<=a11);
   a05=(a05-a11);
-  a11=hg_in6[66];
+  a11=hg_in6[63];
   a04=(a11-a01);
   a04=casadi_fabs(a04);
   a07=(a04<a17);
@@ -343,9 +343,9 @@ static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw,
   a16=(a16-a14);
   a10=(a10*a16);
   if (res[0]!=0) res[0][4]=a10;
-  a10=hg_in6[64];
-  a16=hg_in6[60];
-  a14=hg_in6[62];
+  a10=hg_in6[61];
+  a16=hg_in6[57];
+  a14=hg_in6[59];
   a14=(a14-a13);
   a14=(a16*a14);
   a10=(a10+a14);

@@ -20,8 +20,8 @@ from __future__ import annotations
 
 import sympy as sp
 
-from .tree import (_apply_inertia, _axis_rotation, _cross, _cross_force, _cross_motion, _dot, _mm, _mul, _rot_xyz,
-                   _vec)
+from .tree import (_apply_inertia, _axis_rotation, _axis_vec, _cross, _cross_force, _cross_motion, _dot, _mm, _mul,
+                   _rot_xyz, _vec)
 
 __all__ = ["articulated_body_stages", "newton_euler_stages", "composite_body_stages"]
 
@@ -197,7 +197,7 @@ def _bind(name, values, stages):
 
 def _motion_axis(j):
     """S (6×1, link frame): [a; 0] for a revolute joint, [0; a] for a prismatic one, none fixed."""
-    a = _vec(j.axis, f"{j.name}.axis")
+    a = _axis_vec(j.axis, f"{j.name}.axis")
     if j.type == "revolute":
         return sp.Matrix([*a, 0, 0, 0])
     if j.type == "prismatic":
@@ -212,7 +212,7 @@ def _joint_transform(tree, j):
     if j.type == "revolute":
         R, r = _mm(R_o, _axis_rotation(j.axis, tree.q[tree.columns[j.name]], f"{j.name}.axis")), xyz
     elif j.type == "prismatic":
-        R, r = R_o, xyz + _mm(R_o, _vec(j.axis, f"{j.name}.axis")) * tree.q[tree.columns[j.name]]
+        R, r = R_o, xyz + _mm(R_o, _axis_vec(j.axis, f"{j.name}.axis")) * tree.q[tree.columns[j.name]]
     elif j.type == "fixed":
         R, r = R_o, xyz
     else:

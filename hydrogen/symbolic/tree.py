@@ -46,11 +46,17 @@ def _rot_xyz(rpy, name: str | None = None) -> sp.Matrix:
     return rotation([0, 0, 0, *(baked(v, name and f"{name}[{k}]") for k, v in enumerate(rpy))])
 
 
+def _axis_vec(axis, name: str | None = None) -> sp.Matrix:
+    """A joint's unit axis (numbers): its entries 0, 1 and -1 exact in either mode, as the
+    description's structure holds them (:meth:`hydrogen.model.Model.structure`): a coordinate axis is
+    the joint's kind, as Pinocchio's RX/RY/RZ joints; any other entry a number."""
+    return sp.Matrix([baked(a, name and f"{name}[{i}]") if float(a) not in (0.0, 1.0, -1.0) else sp.Integer(int(a))
+                      for i, a in enumerate(axis)])
+
+
 def _axis_rotation(axis, angle, name: str | None = None) -> sp.Matrix:
     """Rotation by ``angle`` about the unit ``axis`` (numbers); exact for coordinate axes."""
-    k = [baked(a, name and f"{name}[{i}]") if float(a) not in (0.0, 1.0, -1.0) else sp.Integer(int(a))
-         for i, a in enumerate(axis)]
-    K = skew(k)
+    K = skew(_axis_vec(axis, name))
     return sp.eye(3) + sp.sin(angle) * K + (1 - sp.cos(angle)) * K * K
 
 
@@ -139,7 +145,7 @@ class SymbolicTree:
             # displacement moves it too (the lever of the ancestors' angular velocity)
             arm = lever
             if j.type == "prismatic":
-                arm = lever + _mm(R_p, R_o, _vec(j.axis, f"{j.name}.axis")) * q[i]
+                arm = lever + _mm(R_p, R_o, _axis_vec(j.axis, f"{j.name}.axis")) * q[i]
             elif j.type == "floating":
                 arm = lever + _mm(R_p, q[i:i + 3, 0])
             Jv = Jv_p - skew(arm) * Jww_p if any(x != 0 for x in arm) and any(x != 0 for x in Jww_p) else Jv_p
@@ -147,13 +153,13 @@ class SymbolicTree:
             if j.type == "revolute":
                 R_rel = _mm(R_o, _axis_rotation(j.axis, q[i], f"{j.name}.axis"))
                 R, p = _mm(R_p, R_rel), p_p + lever
-                a_w = _mm(R_p, R_o, _vec(j.axis, f"{j.name}.axis"))
+                a_w = _mm(R_p, R_o, _axis_vec(j.axis, f"{j.name}.axis"))
                 Jww[:, i] = Jww[:, i] + a_w
                 Jw = _mm(R_rel.T, Jw_p)
-                Jw[:, i] = Jw[:, i] + _vec(j.axis, f"{j.name}.axis")
+                Jw[:, i] = Jw[:, i] + _axis_vec(j.axis, f"{j.name}.axis")
             elif j.type == "prismatic":
-                R, p = _mm(R_p, R_o), p_p + lever + _mm(R_p, R_o, _vec(j.axis, f"{j.name}.axis")) * q[i]
-                Jv[:, i] = Jv[:, i] + _mm(R_p, R_o, _vec(j.axis, f"{j.name}.axis"))
+                R, p = _mm(R_p, R_o), p_p + lever + _mm(R_p, R_o, _axis_vec(j.axis, f"{j.name}.axis")) * q[i]
+                Jv[:, i] = Jv[:, i] + _mm(R_p, R_o, _axis_vec(j.axis, f"{j.name}.axis"))
                 Jw = _mm(R_o.T, Jw_p)
             elif j.type == "floating":
                 eta = q[i + 3:i + 6, 0]
@@ -296,10 +302,10 @@ class SymbolicTree:
             if j.type == "revolute":
                 R_val = _mm(R_p, R_o, _axis_rotation(j.axis, q[i], f"{j.name}.axis"))
                 p_val = p_p + lever
-                w = w_p + _mm(R_p, R_o, _vec(j.axis, f"{j.name}.axis")) * self._rate(i)
+                w = w_p + _mm(R_p, R_o, _axis_vec(j.axis, f"{j.name}.axis")) * self._rate(i)
             elif j.type == "prismatic":
                 R_val = _mm(R_p, R_o)
-                p_val = p_p + lever + _mm(R_p, R_o, _vec(j.axis, f"{j.name}.axis")) * q[i]
+                p_val = p_p + lever + _mm(R_p, R_o, _axis_vec(j.axis, f"{j.name}.axis")) * q[i]
                 w = w_p
             elif j.type == "floating":
                 eta = q[i + 3:i + 6, 0]
@@ -337,10 +343,10 @@ class SymbolicTree:
         part = sp.zeros(1, self.n)
         R_o = _rot_xyz(j.origin_rpy, f"{j.name}.origin_rpy")
         if j.type == "revolute":
-            a = _mm(R_c, _vec(j.axis, f"{j.name}.axis"))  # the axis is fixed by the rotation about it
+            a = _mm(R_c, _axis_vec(j.axis, f"{j.name}.axis"))  # the axis is fixed by the rotation about it
             part[0, i] = a.dot(r.cross(nvec))
         elif j.type == "prismatic":
-            part[0, i] = _mm(R_p, R_o, _vec(j.axis, f"{j.name}.axis")).dot(nvec)
+            part[0, i] = _mm(R_p, R_o, _axis_vec(j.axis, f"{j.name}.axis")).dot(nvec)
         elif j.type == "floating":
             eta = self.q[i + 3:i + 6, 0]
             T = angular_velocity_map([0, 0, 0, *eta])
@@ -397,7 +403,7 @@ class SymbolicTree:
             if not j.dof:
                 continue
             R, p = poses[j.child]
-            a = _mm(R, _vec(j.axis, f"{j.name}.axis"))  # the child's rotation about its axis leaves the axis fixed
+            a = _mm(R, _axis_vec(j.axis, f"{j.name}.axis"))  # the child's rotation about its axis leaves the axis fixed
             out[j.name] = sp.Matrix([*a, *p.cross(a)]) if j.type == "revolute" else sp.Matrix([0, 0, 0, *a])
         self._axes = out
         return out
