@@ -1,6 +1,6 @@
 """Hydrogen's rigid body against the recursive algorithms Pinocchio implements, in CasADi instructions.
 
-For the planar chain of ``bench_scaling.py`` (:func:`bench_scaling.chain_model`), n = 2 ... 12 (2 ... 4
+For the planar chain of ``bench_scaling.py`` (:func:`bench_scaling.chain_model`), n = 2 ... 16 (2 ... 4
 with ``--quick``): hydrogen's ``forward_dynamics``, ``inverse_dynamics`` and ``mass_matrix`` (the
 derivation's own path: ``rigid_body_functions``, then ``casadi_function`` with CSE) against
 Featherstone's articulated-body algorithm (ABA), recursive Newton-Euler (RNEA) and composite rigid
@@ -14,6 +14,11 @@ Optionally (``--pinocchio-python PYTHON``: an interpreter of a separate environm
 ``cmeel-casadi-kin-dyn`` package, which traces Pinocchio itself on SX with its own CasADi), the
 counts of Pinocchio's traced ABA, RNEA and CRBA are reported beside this reference's at the same
 inputs (there the inertial parameters are all numbers: the package reads them from a URDF).
+
+Both folded (the description's numbers constants) and with the numbers as inputs (the default
+build): there hydrogen's functions take every number the derivation meets as one more input,
+``numbers``, and the reference the same numbers as SX symbols (a joint axis's 0 and ±1 entries are
+structure in both, as a Pinocchio joint's axis is its type); the two are checked to agree.
 
 Per n: instruction counts, the ratio hydrogen / reference, and the seconds to derive and convert
 hydrogen's rigid-body functions (``rigid_body_functions`` derives all of them: D, C, G, Y, y0, q̈, τ)
@@ -45,7 +50,7 @@ except ImportError:  # run as a script, or loaded from its path
     import common
     from bench_scaling import chain_model
 
-NS, QUICK_NS = tuple(range(2, 13)), (2, 3, 4)
+NS, QUICK_NS = tuple(range(2, 17)), (2, 3, 4)
 #: hydrogen function -> the recursive algorithm it is compared with
 PAIRS = (("forward_dynamics", "aba"), ("inverse_dynamics", "rnea"), ("mass_matrix", "crba"))
 #: The functions also counted as the form derives them (its own D and D a + C q̇ + G: what C, G, Y and
@@ -72,9 +77,9 @@ def _symmetric(M):
 
 
 def _axis_rotation(axis, angle):
-    """Rotation by ``angle`` about the unit ``axis`` (numbers): Rodrigues, zeros fold."""
-    K = ca.DM(_skew(ca.DM(axis)))
-    return ca.DM.eye(3) + ca.sin(angle) * K + (1 - ca.cos(angle)) * ca.mtimes(K, K)
+    """Rotation by ``angle`` about the unit ``axis`` (numbers or SX entries): Rodrigues, zeros fold."""
+    K = _skew(ca.vertcat(*axis))
+    return ca.SX.eye(3) + ca.sin(angle) * K + (1 - ca.cos(angle)) * ca.mtimes(K, K)
 
 
 def _rpy(rpy):
@@ -85,6 +90,17 @@ def _rpy(rpy):
     Ry = np.array([[cp, 0, sp_], [0, 1, 0], [-sp_, 0, cp]])
     Rz = np.array([[cy, -sy, 0], [sy, cy, 0], [0, 0, 1]])
     return Rz @ Ry @ Rx
+
+
+def _rpy_sx(rpy):
+    """Rz(yaw) Ry(pitch) Rx(roll) of numbers or SX entries (an angle that is a number 0 folds)."""
+    def cs(a):
+        return (1.0, 0.0) if isinstance(a, float) and a == 0.0 else (ca.cos(a), ca.sin(a))
+    (cr, sr), (cp, sp_), (cy, sy) = (cs(a) for a in rpy)
+    Rx = ca.vertcat(ca.horzcat(1, 0, 0), ca.horzcat(0, cr, -sr), ca.horzcat(0, sr, cr))
+    Ry = ca.vertcat(ca.horzcat(cp, 0, sp_), ca.horzcat(0, 1, 0), ca.horzcat(-sp_, 0, cp))
+    Rz = ca.vertcat(ca.horzcat(cy, -sy, 0), ca.horzcat(sy, cy, 0), ca.horzcat(0, 0, 1))
+    return ca.mtimes(Rz, ca.mtimes(Ry, Rx))
 
 
 class Transform:
@@ -136,11 +152,19 @@ class Chain:
     """A tree of revolute and prismatic joints (fixed joints merged into the parent's body as
     Pinocchio does) from a hydrogen model, inertial parameters θ (SX or numbers) in the model's
     ``theta_names`` order, the others the description's numbers (mass, first moment h = m c in the
-    link frame, inertia I_o about the link origin: Pinocchio's)."""
+    link frame, inertia I_o about the link origin: Pinocchio's). ``numbers``: description numbers
+    by name (``model.numbers()``'s) given as SX symbols instead (the numbers as inputs); any other
+    stays a number."""
 
-    def __init__(self, model, theta):
-        subst = dict(zip(model.theta_names, [theta[k] for k in range(len(model.theta_names))]))
-        self.parent, self.kind, self.axis, self.origin, self.inertia, self.gravity = [], [], [], [], [], model.gravity
+    def __init__(self, model, theta, numbers=None):
+        numbers = numbers or {}
+        subst = {**numbers, **dict(zip(model.theta_names, [theta[k] for k in range(len(model.theta_names))]))}
+        self.parent, self.kind, self.axis, self.origin, self.inertia = [], [], [], [], []
+        self.gravity = numbers.get("gravity", model.gravity)
+
+        def entries(joint, key, values):
+            return [numbers.get(f"{joint}.{key}[{k}]", float(v)) for k, v in enumerate(values)]
+
         index = {model.root: -1}
         for j in model.joints:
             if j.type not in ("revolute", "prismatic"):
@@ -148,8 +172,9 @@ class Chain:
             index[j.child] = len(self.parent)
             self.parent.append(index[j.parent])
             self.kind.append(j.type)
-            self.axis.append(np.asarray(j.axis, float))
-            self.origin.append((_rpy(j.origin_rpy), np.asarray(j.origin_xyz, float)))
+            self.axis.append(entries(j.name, "axis", j.axis))
+            self.origin.append((_rpy_sx(entries(j.name, "origin_rpy", j.origin_rpy)),
+                                ca.vertcat(*entries(j.name, "origin_xyz", j.origin_xyz))))
             p = {k: subst.get(f"{j.child}.{k}", v) for k, v in model.link(j.child).parameters().items()}
             h = ca.vertcat(p["mcx"], p["mcy"], p["mcz"])
             Io = ca.vertcat(ca.horzcat(p["Ixx"], p["Ixy"], p["Ixz"]), ca.horzcat(p["Ixy"], p["Iyy"], p["Iyz"]),
@@ -161,19 +186,19 @@ class Chain:
         """X_i (parent → link i) at the joint's coordinate ``qi``: origin, then the joint's motion."""
         R_o, xyz = self.origin[i]
         if self.kind[i] == "revolute":
-            R, p = ca.mtimes(ca.DM(R_o), _axis_rotation(self.axis[i], qi)), ca.DM(xyz)
+            R, p = ca.mtimes(R_o, _axis_rotation(self.axis[i], qi)), xyz
         else:
-            R, p = ca.DM(R_o), ca.DM(xyz) + ca.DM(R_o @ self.axis[i]) * qi
+            R, p = R_o, xyz + ca.mtimes(R_o, ca.vertcat(*self.axis[i])) * qi
         return Transform(R.T, p)
 
     def motion_axis(self, i):
         """S_i (6×1, link frame)."""
-        a = ca.DM(self.axis[i])
-        return ca.vertcat(a, ca.DM.zeros(3)) if self.kind[i] == "revolute" else ca.vertcat(ca.DM.zeros(3), a)
+        a = ca.vertcat(*self.axis[i])
+        return ca.vertcat(a, ca.SX.zeros(3)) if self.kind[i] == "revolute" else ca.vertcat(ca.SX.zeros(3), a)
 
     def base_acceleration(self):
         """The base accelerating up at g: gravity along −z of the base frame."""
-        return ca.DM([0, 0, 0, 0, 0, self.gravity])
+        return ca.vertcat(0, 0, 0, 0, 0, self.gravity)
 
 
 def aba(chain, q, v, tau):
@@ -249,14 +274,20 @@ def crba(chain, q):
     return H
 
 
-def reference_functions(model, theta_numeric: bool = False) -> dict:
+def reference_functions(model, theta_numeric: bool = False, numbers=()) -> dict:
     """ABA, RNEA and CRBA of ``model`` as CasADi Functions with CSE, inputs as hydrogen's
-    (q, qdot, tau | qddot, theta); with ``theta_numeric`` θ is the description's values (no input)."""
+    (q, qdot, tau | qddot, theta); with ``theta_numeric`` θ is the description's values (no input).
+    ``numbers``: names of description numbers (``model.numbers()``'s) taken as one more input,
+    ``numbers``, in that order (hydrogen's numbers as inputs; θ's own entries are θ's)."""
     n, p = model.n, len(model.theta_names)
     q, v, tau, a = (ca.SX.sym(k, n) for k in ("q", "qdot", "tau", "qddot"))
     theta = ca.SX.sym("theta", p)
-    chain = Chain(model, list(model.theta) if theta_numeric else theta)
+    nb = ca.SX.sym("numbers", len(numbers))
+    chain = Chain(model, list(model.theta) if theta_numeric else theta,
+                  {name: nb[k] for k, name in enumerate(numbers)})
     extra, names = ([], []) if theta_numeric else ([theta], ["theta"])
+    if numbers:
+        extra, names = [*extra, nb], [*names, "numbers"]
     opts = {"cse": True}
     return {
         "aba": ca.Function("aba", [q, v, tau, *extra], [aba(chain, q, v, tau)], ["q", "qdot", "tau", *names],
@@ -381,25 +412,70 @@ def pinocchio_traced(model, python: str) -> dict | None:
 # ---------------------------------------------------------------------------------------------
 # hydrogen and the run
 # ---------------------------------------------------------------------------------------------
-def hydrogen_counts(model) -> dict:
+def hydrogen_counts(model, inputs: bool = False) -> dict:
     """Hydrogen's counts of :data:`PAIRS`'s functions, its form, and the seconds to derive the rigid
-    body (``rigid_body_functions``) and to convert those functions to CasADi."""
+    body (``rigid_body_functions``) and to convert those functions to CasADi; with ``inputs`` the
+    description's numbers are symbols taken as one more input (the default build's functions), and
+    ``numbers`` names them (those the derivation met, in its order)."""
+    import sympy as sp
+
     from hydrogen.codegen.casadi_functions import casadi_function
+    from hydrogen.symbolic.constants import folded, numbers_as_symbols
     from hydrogen.symbolic.forms import rigid_body_form
-    from hydrogen.symbolic.functions import rigid_body_functions
+    from hydrogen.symbolic.functions import NUMBERS, SymbolicFunction, rigid_body_functions
 
     t0 = time.perf_counter()
     form = rigid_body_form(model)
-    funcs = rigid_body_functions(model)
+    with (numbers_as_symbols("name") if inputs else folded()) as table:
+        funcs = rigid_body_functions(model)
+        own_funcs = rigid_body_functions(model, form_dynamics=True)
+    if inputs:
+        vector = sp.Matrix(table.symbols)
+        funcs, own_funcs = ([SymbolicFunction(f.name, [*f.inputs, (NUMBERS, vector)], f.outputs, f.doc, f.intermediates)
+                             for f in fs] for fs in (funcs, own_funcs))
     t1 = time.perf_counter()
-    cache, counts = {}, {}
+    cache, counts, converted = {}, {}, {}
     for sf in funcs:
         if sf.name in dict(PAIRS):
-            counts[sf.name] = int(casadi_function(sf, cache=cache).n_instructions())
+            converted[sf.name] = casadi_function(sf, cache=cache)
+            counts[sf.name] = int(converted[sf.name].n_instructions())
     convert_s = time.perf_counter() - t1
-    own = {sf.name: int(casadi_function(sf, cache={}).n_instructions())
-           for sf in rigid_body_functions(model, form_dynamics=True) if sf.name in FORM_OWN}
-    return {"form": form, "counts": counts, "form_own": own, "derive_s": t1 - t0, "convert_s": convert_s}
+    own = {sf.name: int(casadi_function(sf, cache={}).n_instructions()) for sf in own_funcs if sf.name in FORM_OWN}
+    return {"form": form, "counts": counts, "form_own": own, "derive_s": t1 - t0, "convert_s": convert_s,
+            "numbers": list(table.names) if inputs else [], "functions": converted}
+
+
+def theta_numeric_count(f, theta) -> int:
+    """Instructions of the CasADi Function ``f`` with its input ``theta`` the numbers ``theta`` (CSE):
+    SX folds every operation on constants, so this is ``f`` with all its numbers constants, as
+    Pinocchio traced from a URDF has them."""
+    names = [f.name_in(i) for i in range(f.n_in())]
+    args = {k: ca.SX.sym(k, f.sparsity_in(i)) for i, k in enumerate(names) if k != "theta"}
+    out = f.call({**args, "theta": ca.DM(np.asarray(theta, float))})
+    g = ca.Function("g", list(args.values()), [ca.densify(out[k]) for k in f.name_out()], {"cse": True})
+    return int(g.n_instructions())
+
+
+def agreement(model, hyd: dict, ref: dict, numbers: list, seed: int = 0, count: int = CHECK_STATES) -> float:
+    """The largest relative difference of hydrogen's functions with the numbers as inputs from the
+    reference's with the same inputs, at ``count`` random states, θ and the numbers the description's."""
+    values = model.numbers()
+    every = np.array([values[k] for k in hyd["numbers"]])
+    mine = np.array([values[k] for k in numbers])
+    th = np.asarray(model.theta, float)
+    rng = np.random.default_rng(seed)
+    worst = 0.0
+    for _ in range(count):
+        q = np.asarray(model.neutral_pose, float) + rng.uniform(-1, 1, model.n)
+        v, tau, a = rng.normal(size=model.n), rng.normal(size=model.n) * 100, rng.normal(size=model.n)
+        args = {"forward_dynamics": (q, v, tau), "inverse_dynamics": (q, v, a), "mass_matrix": (q,)}
+        for h, r in PAIRS:
+            x = np.asarray(hyd["functions"][h](*args[h], th, every), float)
+            y = np.asarray(ref[r](*args[h], th, mine), float)
+            if h == "mass_matrix":
+                x = np.triu(x) + np.triu(x, 1).T
+            worst = max(worst, float(np.abs(x - y).max() / max(1.0, np.abs(y).max())))
+    return worst
 
 
 def run_one(n: int, pinocchio_python: str | None = None) -> dict:
@@ -409,13 +485,23 @@ def run_one(n: int, pinocchio_python: str | None = None) -> dict:
     ref = reference_functions(model)
     ref_counts = {k: int(f.n_instructions()) for k, f in ref.items()}
     build_s = time.perf_counter() - t0
+    # the numbers as inputs, like for like: the reference takes the numbers hydrogen's functions take
+    hyd_in = hydrogen_counts(model, inputs=True)
+    numbers = [k for k in hyd_in["numbers"] if k not in model.theta_names]
+    ref_in = reference_functions(model, numbers=numbers)
+    ref_in_counts = {k: int(f.n_instructions()) for k, f in ref_in.items()}
     row = {"n": n, "form": hyd["form"], "hydrogen": hyd["counts"], "form_own": hyd["form_own"], "reference": ref_counts,
            "ratio": {h: hyd["counts"][h] / ref_counts[r] for h, r in PAIRS},
+           "inputs": {"numbers": len(numbers), "hydrogen": hyd_in["counts"], "reference": ref_in_counts,
+                      "ratio": {h: hyd_in["counts"][h] / ref_in_counts[r] for h, r in PAIRS},
+                      "over_folded": {h: hyd_in["counts"][h] / hyd["counts"][h] for h, _ in PAIRS},
+                      "agree": agreement(model, hyd_in, ref_in, numbers)},
            "hydrogen_derive_s": hyd["derive_s"], "hydrogen_convert_s": hyd["convert_s"], "reference_s": build_s,
            "check_max_rel": check_reference(model, ref) if _pin_version() != NO_PIN else None}
     if pinocchio_python:
         numeric = {k: int(f.n_instructions()) for k, f in reference_functions(model, theta_numeric=True).items()}
         row["reference_theta_numeric"] = numeric
+        row["hydrogen_theta_numeric"] = {h: theta_numeric_count(hyd["functions"][h], model.theta) for h, _ in PAIRS}
         row["pinocchio_traced"] = pinocchio_traced(model, pinocchio_python)
     return row
 
@@ -477,6 +563,11 @@ def print_table(res: dict) -> None:
         print("growth exponent k (count ~ n^k): " + ", ".join(f"{k} {v:.2f}" for k, v in res["growth"].items()))
     print("the form's own D and D a + C q̇ + G: " + ", ".join(
         f"n={x['n']} {x['form_own']['mass_matrix']}/{x['form_own']['inverse_dynamics']}" for x in rows))
+    print("numbers as inputs, hydrogen/reference (ratio) and hydrogen's as inputs / folded:")
+    for x in rows:
+        i = x["inputs"]
+        print(f"{x['n']:>2} " + " ".join(f"{i['hydrogen'][h]}/{i['reference'][r]} ({i['ratio'][h]:.2f})" for h, r in PAIRS)
+              + "  " + " ".join(f"{i['over_folded'][h]:.2f}" for h, _ in PAIRS) + f"  agree {i['agree']:.0e}")
     traced = [x for x in rows if x.get("pinocchio_traced")]
     if traced:
         print(f"Pinocchio traced on SX (casadi {traced[0]['pinocchio_traced'].get('casadi')}) against this "

@@ -447,8 +447,40 @@ def _recursive(b) -> list:
     if g:
         out += ["Growth, count ∝ nᵏ fitted over the table: " + ", ".join(
             f"`{h}` k = {_f(g[h])} ({a} {_f(g[k])})" for h, a, k in _RECURSIVE) + ".", ""]
+    inputs = [r for r in rows if r.get("inputs")]
+    if inputs:  # the default build: the description's numbers one more input, in both
+        out += ["With the description's numbers as inputs (the default build): hydrogen's functions take every "
+                "number they meet as one more input (a joint axis's 0 and ±1 entries are structure, as a "
+                "Pinocchio joint's axis is its type), the reference the same numbers as SX symbols; the two "
+                "agree at random states. Instructions, hydrogen / reference (ratio), and hydrogen's as inputs "
+                "/ folded:", ""]
+        out += _table(["n", "numbers", *(f"`{h}` / {a}" for h, a, _ in _RECURSIVE),
+                       *(f"`{h}` inputs / folded" for h, _, _ in _RECURSIVE), "agreement"],
+                      [[r["n"], r["inputs"]["numbers"],
+                        *(f"{_f(r['inputs']['hydrogen'][h])} / {_f(r['inputs']['reference'][k])} "
+                          f"({_f(r['inputs']['ratio'][h])})" for h, _, k in _RECURSIVE),
+                        *(_f(r["inputs"]["over_folded"][h]) for h, _, _ in _RECURSIVE),
+                        f"{r['inputs']['agree']:.0e}"] for r in inputs])
+        worst = {h: max(r["inputs"]["ratio"][h] for r in inputs) for h, _, _ in _RECURSIVE}
+        over = {h: max(r["inputs"]["over_folded"][h] for r in inputs) for h, _, _ in _RECURSIVE}
+        folded = {h: max(r["ratio"][h] for r in rows) for h, _, _ in _RECURSIVE}
+        out += [f"Largest over n = {rows[0]['n']} … {rows[-1]['n']}: hydrogen / reference folded "
+                + ", ".join(f"`{h}` {_f(folded[h])}" for h, _, _ in _RECURSIVE) + "; as inputs "
+                + ", ".join(f"`{h}` {_f(worst[h])}" for h, _, _ in _RECURSIVE) + "; as inputs / folded "
+                + ", ".join(f"`{h}` {_f(over[h])}" for h, _, _ in _RECURSIVE) + ".", ""]
     traced = [r for r in rows if r.get("pinocchio_traced")]
-    if traced:  # the reference's fairness: Pinocchio itself on SX, both with θ as numbers
+    if traced and all(r.get("hydrogen_theta_numeric") for r in traced):  # Pinocchio itself, every number a constant
+        r0 = traced[0]
+        out += [f"Pinocchio itself traced on SX (`cmeel-casadi-kin-dyn`, CasADi {r0['pinocchio_traced'].get('casadi')}, "
+                "from a URDF of the same chain: its numbers, θ too, are constants) against hydrogen's and the "
+                "reference's functions with θ given as numbers (SX folds them), instructions and hydrogen / "
+                "Pinocchio:", ""]
+        out += _table(["n", *(f"`{h}` / {a} / reference" for h, a, _ in _RECURSIVE)],
+                      [[r["n"], *(f"{_f(r['hydrogen_theta_numeric'][h])} / {_f(r['pinocchio_traced'][k])} / "
+                                  f"{_f(r['reference_theta_numeric'][k])} "
+                                  f"({_f(r['hydrogen_theta_numeric'][h] / r['pinocchio_traced'][k])})"
+                                  for h, _, k in _RECURSIVE)] for r in traced])
+    elif traced:  # the reference's fairness: Pinocchio itself on SX, both with θ as numbers
         r = traced[-1]
         out += [f"Pinocchio itself traced on SX (`cmeel-casadi-kin-dyn`, CasADi {r['pinocchio_traced'].get('casadi')}, "
                 f"θ numbers) at n = {r['n']}: " + ", ".join(

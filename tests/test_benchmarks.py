@@ -354,9 +354,27 @@ def test_recursive_reference_equals_pinocchio_in_quick_mode():
         for h, k in bench_recursive.PAIRS:
             assert r["hydrogen"][h] > 0 and r["reference"][k] > 0
             assert r["ratio"][h] == pytest.approx(r["hydrogen"][h] / r["reference"][k])
+        # with the numbers as inputs: the same numbers in both, the functions agree
+        i = r["inputs"]
+        assert i["numbers"] > 0 and i["agree"] < 1e-12, i
+        for h, k in bench_recursive.PAIRS:
+            assert i["ratio"][h] == pytest.approx(i["hydrogen"][h] / i["reference"][k])
     from hydrogen.pages import benchmarks_page
 
-    assert "## Against the recursive algorithms" in benchmarks_page({"bench_recursive": res})
+    page = benchmarks_page({"bench_recursive": res})
+    assert "## Against the recursive algorithms" in page and "With the description's numbers as inputs" in page
+
+
+def test_a_joint_axis_is_structure_with_the_numbers_as_inputs():
+    """With the numbers as inputs a coordinate axis's 0 and ±1 entries stay exact (the description's
+    structure holds them, as a Pinocchio joint's axis is its type): no axis entry is an input, and the
+    mass matrix as inputs costs no more than folded (the chain's axes are all unit)."""
+    import bench_recursive
+
+    model = bench_scaling.chain_model(3)
+    folded, inputs = (bench_recursive.hydrogen_counts(model, inputs=k) for k in (False, True))
+    assert inputs["numbers"] and not [k for k in inputs["numbers"] if ".axis[" in k]
+    assert inputs["counts"]["mass_matrix"] <= folded["counts"]["mass_matrix"]
 
 
 def test_recursive_urdf_gives_pinocchio_the_same_chain():
