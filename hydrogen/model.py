@@ -538,35 +538,27 @@ class Model:
         return out
 
 
-#: The three-way cylinder's constants the baked list names in place (None for other kinds), where
-#: they stood as Cylinder fields: a three-way robot hashes as it always did.
-_THREE_WAY_LISTED = ("piston_area", "rod_area", "chamber_length")
-
-
 def _baked_cylinder(c: Cylinder) -> list:
-    out = [c.name, c.link_from, np.asarray(c.point_from).tolist(), c.link_to, np.asarray(c.point_to).tolist(),
-           # the three-way cylinder's constants here (None for other kinds), so its hash is what it always was
-           *(c.params.get(k) for k in _THREE_WAY_LISTED), c.supply_pressure, c.underlap,
-           c.orifice_linear_below]
-    if c.linkage is not None:  # appended only then, so a pinned cylinder's hash is what it always was
-        g = c.linkage
-        out += [["linkage", c.linkage_joint, g.crank, g.crank_offset, g.coupler, g.rocker, list(g.rocker_pivot),
-                 list(g.cylinder_base), g.branch]]
+    """What a cylinder bakes into the derivation, the same list for every kind: its pins, the hydraulic
+    constants, its kind with its parameters and travel, then what only some have (a linkage, a joint,
+    a datasheet valve's limits, seal terms), each appended only when present."""
     from .actuators import actuator
     from .actuators.declarations import exact_zeros
     pars = actuator(c.kind).PARAMETERS
-    # a parameter whose 0 is structure is left out at 0, so a description without leakage hashes as before
+    # a parameter whose 0 is structure is left out at 0, so a description without leakage hashes as one with 0
     skip = exact_zeros(pars, c.table) | {p.name for p in pars if p.gamma}  # γ: runtime, not baked
     params = {k: v for k, v in sorted(c.params.items()) if k not in skip}
-    if c.kind != DEFAULT_KIND:  # appended only then, so a three-way robot's hash is what it always was
-        out += [c.kind, params, [c.stroke_min, c.stroke_max]] + ([c.joint] if c.joint is not None else [])
-    else:  # a three-way cylinder's leakage, appended only when given (its other constants are above)
-        params = {k: v for k, v in params.items() if k not in _THREE_WAY_LISTED}
-        if params:
-            out += [params]
-    if any(c.valve_limits):  # appended only then: the plant's valve terms differ, a robot without hashes as before
+    out = [c.name, c.link_from, np.asarray(c.point_from).tolist(), c.link_to, np.asarray(c.point_to).tolist(),
+           c.supply_pressure, c.underlap, c.orifice_linear_below, c.kind, params, [c.stroke_min, c.stroke_max]]
+    if c.joint is not None:
+        out += [["joint", c.joint]]
+    if c.linkage is not None:
+        g = c.linkage
+        out += [["linkage", c.linkage_joint, g.crank, g.crank_offset, g.coupler, g.rocker, list(g.rocker_pivot),
+                 list(g.cylinder_base), g.branch]]
+    if any(c.valve_limits):  # the plant's valve terms differ
         out += [["valve_limits", *c.valve_limits]]
-    if any(c.seal_terms):  # appended only then: the plant's friction terms differ, a robot without hashes as before
+    if any(c.seal_terms):  # the plant's friction terms differ
         out += [["seal_terms", *c.seal_terms]]
     return out
 
