@@ -34,7 +34,7 @@ FIXED = {"friction": np.array([100.0, 300.0, 1e-3]), "valve": np.zeros(3), "adap
 #: Scale of the small random values of the remaining (state-like) inputs.
 RANDOM_SCALE = {
     "qdot": 0.1, "qd1": 0.1, "qd2": 0.5, "qd3": 2.0, "v": 0.1, "w": 0.1, "a": 1.0,
-    "u": 1e-3, "u_applied": 1e-3, "ldot": 0.05, "ql_per_c": 1.0, "z": 0.01,
+    "u": 1e-3, "u_applied": 1e-3, "ldot": 0.05, "g0": 1.0, "z": 0.01,
 }
 
 

@@ -229,26 +229,22 @@ class Dynamics:
 
     # --- hydraulics -------------------------------------------------------------------
     def valve_flow(self, u, pc, out=None) -> np.ndarray:
-        """(m,) load flow per unit flow gain, q_l / c (eq. 57), for spool u (m) and p_c (Pa).
-
-        This is (57) as printed: its roots need 0 ≤ p_c ≤ P_s, and a pressure outside
-        that range gives NaN (the simulated plant uses its linearised, signed law instead).
-        """
+        """Valve flow per unit flow gain c into each pressure state's chamber (m·√Pa), for spool u (m,
+        per actuator) and the pressure vector ``pc`` (Pa): each kind's law with its drops clipped at 0
+        (a three-way cylinder's is q_l / c of (57), one per actuator)."""
         f = self.functions["valve_flow"]
         return f(u, pc) if out is None else f(u, pc, out=out)
 
-    def valve_inverse(self, ql_per_c, pc, out=None, l=None) -> np.ndarray:
-        """(m,) spool positions u (m) giving q_l / c = ``ql_per_c`` at control pressures p_c (a robot
-        of three-way cylinders). Any other robot: the first argument is g0 per actuator, ``pc`` the
-        pressure vector and ``l`` (m,) the actuator coordinates, required (g0 depends on them)."""
+    def valve_inverse(self, g0, pc, l=None, out=None) -> np.ndarray:
+        """(m,) spool positions u (m) whose g0(l, p, u) is ``g0`` per actuator (the force loop's valve
+        term, ḟ = β f0 + βc g0) at the pressure vector ``pc`` (Pa) and actuator coordinates ``l`` (m,
+        m or rad), every branch in closed form; for a three-way cylinder (57) inverted at
+        q_l / c = g0 (l − L)."""
+        if l is None:
+            raise ValueError(f"model '{self.model.name}': valve_inverse(g0, pc, l=...) needs the actuator "
+                             "coordinates l (g0 depends on them)")
         f = self.functions["valve_inverse"]
-        args = (ql_per_c, pc)
-        if "l" in f.in_names:
-            if l is None:
-                raise ValueError(f"model '{self.model.name}': valve_inverse(g0, pc, l=...) needs the actuator "
-                                 "coordinates l (its actuators are not all three-way cylinders)")
-            args = (ql_per_c, l, pc)
-        return f(*args) if out is None else f(*args, out=out)
+        return f(g0, l, pc) if out is None else f(g0, l, pc, out=out)
 
     def pressure_rate(self, l, ldot, pc, u, gamma, out=None) -> np.ndarray:
         """ṗ (Pa/s) of the pressure vector (ṗ_c of (56)-(57) per three-way cylinder) with γ = [β, βc] per

@@ -114,7 +114,7 @@ def _random_input(name, shape, model, rng, fname=""):
         x = np.array([g * (0.5 if name.endswith("min") else 2.0)])
     elif name == "adapt":
         x = np.array([1.0])
-    elif name == "ql_per_c":
+    elif name == "g0":  # the valve inverse's target: every branch of the orifice law (q_l/c = g0 (l - L) ~ ±4 d √ps)
         x = rng.uniform(-4, 4, m) * d * np.sqrt(ps)
     else:
         x = rng.normal(size=size)

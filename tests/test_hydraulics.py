@@ -85,10 +85,13 @@ def test_valve_inverse_round_trip(robot_dyn, robot_model, rng, branch):
     dyn, model = robot_dyn, robot_model
     m, d, ps = model.n_cylinders, model.underlap, model.supply_pressure
     lo, hi = {"below": (-40, -1.01), "underlap": (-0.99, 0.99), "above": (1.01, 40)}[branch]
+    l = _mid(model)
     for _ in range(20):
         u = rng.uniform(lo, hi, m) * d
         pc = rng.uniform(0.01, 0.99, m) * ps
-        np.testing.assert_allclose(dyn.valve_inverse(dyn.valve_flow(u, pc), pc), u, rtol=1e-9, atol=1e-15)
+        # g0 = (q_l / c) / (l - L) of (59): the inverse gives the spool back at any length
+        g0 = dyn.valve_flow(u, pc) / (l - model.chamber_length)
+        np.testing.assert_allclose(dyn.valve_inverse(g0, pc, l=l), u, rtol=1e-9, atol=1e-15)
 
 
 def test_valve_inverse_never_takes_root_of_negative(robot_dyn, robot_model):
@@ -96,7 +99,7 @@ def test_valve_inverse_never_takes_root_of_negative(robot_dyn, robot_model):
     cases = [np.zeros(m), ps, np.full(m, -1e3), ps + 1e3, 0.5 * ps, np.ones(m)]
     for pc in cases:
         for w in (1.0, -1.0, 0.1, 0.0):
-            assert np.all(np.isfinite(robot_dyn.valve_inverse(np.full(m, w), pc)))
+            assert np.all(np.isfinite(robot_dyn.valve_inverse(np.full(m, w), pc, l=_mid(robot_model))))
 
 
 def _orifice_flow(u, pc, ps, d, p_lin=None):

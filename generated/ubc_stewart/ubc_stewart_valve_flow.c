@@ -30,6 +30,7 @@ extern "C" {
 
 /* Add prefix to internal symbols */
 #define casadi_f0 CASADI_PREFIX(f0)
+#define casadi_fmax CASADI_PREFIX(fmax)
 #define casadi_s0 CASADI_PREFIX(s0)
 #define casadi_s1 CASADI_PREFIX(s1)
 
@@ -48,6 +49,15 @@ extern "C" {
   #endif
 #endif
 
+casadi_real casadi_fmax(casadi_real x, casadi_real y) {
+/* Pre-c99 compatibility */
+#if __STDC_VERSION__ < 199901L
+  return x>y ? x : y;
+#else
+  return fmax(x, y);
+#endif
+}
+
 /* Configuration this file was compiled with */
 CASADI_SYMBOL_EXPORT void ubc_stewart_valve_flow_casadi_version(int* major, int* minor, int* patch) {
   *major = 3;
@@ -62,125 +72,138 @@ static const casadi_int casadi_s1[3] = {89, 1, 1};
 
 static const casadi_real hg_zeros[86] = {0};
 
-/* ubc_stewart_valve_flow:(u[6],pc[6],numbers[89])->(ql_per_c[6]) */
+/* ubc_stewart_valve_flow:(u[6],pc[6],numbers[89])->(q_per_c[6]) */
 static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   (void)arg; (void)res; (void)iw; (void)w; (void)mem;
   const casadi_real* hg_in0 = arg[0] ? arg[0] : hg_zeros;
   const casadi_real* hg_in1 = arg[1] ? arg[1] : hg_zeros;
   const casadi_real* hg_in2 = arg[2] ? arg[2] : hg_zeros;
-  casadi_real a0, a1, a2, a3, a4, a5;
+  casadi_real a0, a1, a2, a3, a4, a5, a6;
   a0=hg_in0[0];
   a1=hg_in2[45];
   a2=(a0<=a1);
-  a3=hg_in1[0];
-  a4=sqrt(a3);
-  a5=(a0-a1);
-  a4=(a4*a5);
-  a2=(a2?a4:0);
-  a4=(-a1);
-  a4=(a0<a4);
-  a4=(!a4);
-  a5=hg_in2[44];
-  a5=(a5-a3);
+  a3=0.;
+  a4=hg_in1[0];
+  a5=casadi_fmax(a3,a4);
   a5=sqrt(a5);
+  a6=(a0-a1);
+  a5=(a5*a6);
+  a2=(a2?a5:0);
+  a5=(-a1);
+  a5=(a0<a5);
+  a5=(!a5);
+  a6=hg_in2[44];
+  a6=(a6-a4);
+  a6=casadi_fmax(a3,a6);
+  a6=sqrt(a6);
   a1=(a1+a0);
-  a5=(a5*a1);
-  a4=(a4?a5:0);
-  a2=(a2+a4);
+  a6=(a6*a1);
+  a5=(a5?a6:0);
+  a2=(a2+a5);
   if (res[0]!=0) res[0][0]=a2;
   a2=hg_in0[1];
-  a4=hg_in2[53];
-  a5=(a2<=a4);
+  a5=hg_in2[53];
+  a6=(a2<=a5);
   a1=hg_in1[1];
-  a0=sqrt(a1);
-  a3=(a2-a4);
-  a0=(a0*a3);
-  a5=(a5?a0:0);
-  a0=(-a4);
+  a0=casadi_fmax(a3,a1);
+  a0=sqrt(a0);
+  a4=(a2-a5);
+  a0=(a0*a4);
+  a6=(a6?a0:0);
+  a0=(-a5);
   a0=(a2<a0);
   a0=(!a0);
-  a3=hg_in2[52];
-  a3=(a3-a1);
-  a3=sqrt(a3);
-  a4=(a4+a2);
-  a3=(a3*a4);
-  a0=(a0?a3:0);
-  a5=(a5+a0);
-  if (res[0]!=0) res[0][1]=a5;
-  a5=hg_in0[2];
+  a4=hg_in2[52];
+  a4=(a4-a1);
+  a4=casadi_fmax(a3,a4);
+  a4=sqrt(a4);
+  a5=(a5+a2);
+  a4=(a4*a5);
+  a0=(a0?a4:0);
+  a6=(a6+a0);
+  if (res[0]!=0) res[0][1]=a6;
+  a6=hg_in0[2];
   a0=hg_in2[61];
-  a3=(a5<=a0);
-  a4=hg_in1[2];
-  a2=sqrt(a4);
-  a1=(a5-a0);
+  a4=(a6<=a0);
+  a5=hg_in1[2];
+  a2=casadi_fmax(a3,a5);
+  a2=sqrt(a2);
+  a1=(a6-a0);
   a2=(a2*a1);
-  a3=(a3?a2:0);
+  a4=(a4?a2:0);
   a2=(-a0);
-  a2=(a5<a2);
+  a2=(a6<a2);
   a2=(!a2);
   a1=hg_in2[60];
-  a1=(a1-a4);
+  a1=(a1-a5);
+  a1=casadi_fmax(a3,a1);
   a1=sqrt(a1);
-  a0=(a0+a5);
+  a0=(a0+a6);
   a1=(a1*a0);
   a2=(a2?a1:0);
-  a3=(a3+a2);
-  if (res[0]!=0) res[0][2]=a3;
-  a3=hg_in0[3];
+  a4=(a4+a2);
+  if (res[0]!=0) res[0][2]=a4;
+  a4=hg_in0[3];
   a2=hg_in2[69];
-  a1=(a3<=a2);
+  a1=(a4<=a2);
   a0=hg_in1[3];
-  a5=sqrt(a0);
-  a4=(a3-a2);
-  a5=(a5*a4);
-  a1=(a1?a5:0);
-  a5=(-a2);
-  a5=(a3<a5);
-  a5=(!a5);
-  a4=hg_in2[68];
-  a4=(a4-a0);
-  a4=sqrt(a4);
-  a2=(a2+a3);
-  a4=(a4*a2);
-  a5=(a5?a4:0);
-  a1=(a1+a5);
+  a6=casadi_fmax(a3,a0);
+  a6=sqrt(a6);
+  a5=(a4-a2);
+  a6=(a6*a5);
+  a1=(a1?a6:0);
+  a6=(-a2);
+  a6=(a4<a6);
+  a6=(!a6);
+  a5=hg_in2[68];
+  a5=(a5-a0);
+  a5=casadi_fmax(a3,a5);
+  a5=sqrt(a5);
+  a2=(a2+a4);
+  a5=(a5*a2);
+  a6=(a6?a5:0);
+  a1=(a1+a6);
   if (res[0]!=0) res[0][3]=a1;
   a1=hg_in0[4];
-  a5=hg_in2[77];
-  a4=(a1<=a5);
+  a6=hg_in2[77];
+  a5=(a1<=a6);
   a2=hg_in1[4];
-  a3=sqrt(a2);
-  a0=(a1-a5);
-  a3=(a3*a0);
-  a4=(a4?a3:0);
-  a3=(-a5);
-  a3=(a1<a3);
-  a3=(!a3);
+  a4=casadi_fmax(a3,a2);
+  a4=sqrt(a4);
+  a0=(a1-a6);
+  a4=(a4*a0);
+  a5=(a5?a4:0);
+  a4=(-a6);
+  a4=(a1<a4);
+  a4=(!a4);
   a0=hg_in2[76];
   a0=(a0-a2);
+  a0=casadi_fmax(a3,a0);
   a0=sqrt(a0);
-  a5=(a5+a1);
-  a0=(a0*a5);
-  a3=(a3?a0:0);
-  a4=(a4+a3);
-  if (res[0]!=0) res[0][4]=a4;
-  a4=hg_in0[5];
-  a3=hg_in2[85];
-  a0=(a4<=a3);
-  a5=hg_in1[5];
-  a1=sqrt(a5);
-  a2=(a4-a3);
+  a6=(a6+a1);
+  a0=(a0*a6);
+  a4=(a4?a0:0);
+  a5=(a5+a4);
+  if (res[0]!=0) res[0][4]=a5;
+  a5=hg_in0[5];
+  a4=hg_in2[85];
+  a0=(a5<=a4);
+  a6=hg_in1[5];
+  a1=casadi_fmax(a3,a6);
+  a1=sqrt(a1);
+  a2=(a5-a4);
   a1=(a1*a2);
   a0=(a0?a1:0);
-  a1=(-a3);
-  a1=(a4<a1);
+  a1=(-a4);
+  a1=(a5<a1);
   a1=(!a1);
   a2=hg_in2[84];
-  a2=(a2-a5);
-  a2=sqrt(a2);
-  a3=(a3+a4);
-  a2=(a2*a3);
-  a1=(a1?a2:0);
+  a2=(a2-a6);
+  a3=casadi_fmax(a3,a2);
+  a3=sqrt(a3);
+  a4=(a4+a5);
+  a3=(a3*a4);
+  a1=(a1?a3:0);
   a0=(a0+a1);
   if (res[0]!=0) res[0][5]=a0;
   return 0;
@@ -225,7 +248,7 @@ CASADI_SYMBOL_EXPORT const char* ubc_stewart_valve_flow_name_in(casadi_int i) {
 
 CASADI_SYMBOL_EXPORT const char* ubc_stewart_valve_flow_name_out(casadi_int i) {
   switch (i) {
-    case 0: return "ql_per_c";
+    case 0: return "q_per_c";
     default: return 0;
   }
 }

@@ -31,7 +31,7 @@ const casadi_int* ubc_stewart_valve_inverse_sparsity_in(casadi_int i);
 const casadi_int* ubc_stewart_valve_inverse_sparsity_out(casadi_int i);
 int ubc_stewart_valve_inverse_work(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w);
 int ubc_stewart_valve_inverse_work_bytes(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w);
-#define ubc_stewart_valve_inverse_SZ_ARG 3
+#define ubc_stewart_valve_inverse_SZ_ARG 4
 #define ubc_stewart_valve_inverse_SZ_RES 1
 #define ubc_stewart_valve_inverse_SZ_IW 0
 #define ubc_stewart_valve_inverse_SZ_W 0

@@ -86,26 +86,20 @@ def hydraulic_functions(model) -> list:
     ps_in = [] if model.supply.constant else [(PRESSURE, rate_symbols(PRESSURE, 1))]
     PF = [{**Pi, "supply_pressure": ps_in[0][1][0]} for Pi in P] if ps_in else P
     force = sp.Matrix([laws[i].force(p[i], PF[i]) for i in range(m)])
+    # one valve pair for every kind: flow per pressure state, and the spool that gives the force loop's g0
+    flow = sp.Matrix([q for i in range(m) for q in laws[i].valve_flows(u[i], p[i], P[i])])
+    inv = sp.Matrix([laws[i].valve_inverse(wq[i], l[i], p[i], P[i], PRESSURE_EPS) for i in range(m)])
+    valve = [
+        SymbolicFunction("valve_flow", [("u", u), ("pc", pc)], [("q_per_c", flow)],
+                         "Valve flow per unit flow gain into each pressure state's chamber, m sqrt(Pa) "
+                         "(the kind's law, drops clipped at 0; q_l / c of (57) for a three-way cylinder)."),
+        SymbolicFunction("valve_inverse", [("g0", wq), ("l", l), ("pc", pc)], [("u", inv)],
+                         "Spool position u (m) with g0(l, p, u) = g0 per actuator (the kind's valve inverse; "
+                         "(57) inverted at q_l / c = g0 (l - L) for a three-way cylinder)."),
+    ]
     if uniform_three_way(model):
-        flow = sp.Matrix([laws[i].valve_flow(u[i], p[i], P[i]) for i in range(m)])
-        inv = sp.Matrix([laws[i].flow_inverse(wq[i], p[i], P[i], PRESSURE_EPS) for i in range(m)])
-        valve = [
-            SymbolicFunction("valve_flow", [("u", u), ("pc", pc)], [("ql_per_c", flow)],
-                             "q_l / c of eq. (57) per cylinder, m sqrt(Pa)."),
-            SymbolicFunction("valve_inverse", [("ql_per_c", wq), ("pc", pc)], [("u", inv)],
-                             "Spool position u (m) with q_l / c = ql_per_c: inverse of (57)."),
-        ]
         rate_doc, force_doc = "Control-chamber pressure rate (56)-(57)", "f = pc A - ps a, N."
     else:
-        flow = sp.Matrix([q for i in range(m) for q in laws[i].valve_flows(u[i], p[i], P[i])])
-        inv = sp.Matrix([laws[i].valve_inverse(wq[i], l[i], p[i], P[i], PRESSURE_EPS) for i in range(m)])
-        valve = [
-            SymbolicFunction("valve_flow", [("u", u), ("pc", pc)], [("q_per_c", flow)],
-                             "Valve flow per unit flow gain into each pressure state's chamber, m sqrt(Pa) "
-                             "(the kind's law, drops clipped at 0)."),
-            SymbolicFunction("valve_inverse", [("g0", wq), ("l", l), ("pc", pc)], [("u", inv)],
-                             "Spool position u (m) with g0(l, p, u) = g0 per actuator (the kind's valve inverse)."),
-        ]
         rate_doc, force_doc = "Chamber pressure rates", "Actuator forces from the pressures (the kinds' laws), N."
     return [
         *valve,
