@@ -25,6 +25,7 @@ from pathlib import Path
 import numpy as np
 
 import hydrogen
+from hydrogen.controllers import spec as controller_spec
 from hydrogen.simulation.scenarios import scenario as named_scenario
 from hydrogen.simulation.tuning import main_gain, rig_scenarios
 
@@ -138,7 +139,8 @@ def paper_markdown(res, fractions=PAPER_FRACTIONS) -> str:
                 at = {p["periods"]: p for p in r["controllers"][c][label]["delays"]}
                 cells.append(common.medians_cell({f: at[f] for f in fractions},
                                                  [(f, r["coordinates"][0]) for f in fractions]))
-            name = common.GAIN_SYMBOL.get(g["main_gain"], g["main_gain"])
+            spec = controller_spec(c)  # the controller's own symbol for its main gain
+            name = spec.main_gain_label if g["main_gain"] == spec.main_gain else g["main_gain"]
             name = f"mean {name}" if g.get("per_axis") else name
             out.append(f"| {c} ({label}, {name} = {g['value']:.3g}) | " + " | ".join(cells) + " |")
     return "\n".join(out) + "\n"

@@ -436,8 +436,6 @@ def fraction_text(x: float) -> str:
     return str(Fraction(x).limit_denominator(64))
 
 
-#: How a study's table names each controller family's main gain.
-GAIN_SYMBOL = {"Lambda": "Λ"}
 
 
 def study_result(model, seeds, quick: bool, quick_duration: float, scenarios: dict, figure, start: float, **fields):

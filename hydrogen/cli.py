@@ -283,6 +283,11 @@ def _cmd_tune(args, controller=None) -> int:
     print(f"[gains.{controller}]")
     for k, v in g.items():
         print(f"{k} = {_toml_number(v)}")
+    rest = {k: v for k, v in res["gains_used"].items() if k not in g}
+    if rest:  # pinning these too keeps the point when the robot's own gains change later
+        print(f"# the rest of the set the search ran with ({'the variant' if args.variant else 'the robot'}'s gains):")
+        for k, v in rest.items():
+            print(f"# {k} = {_toml_number(v)}")
     return 0
 
 

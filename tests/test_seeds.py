@@ -447,6 +447,25 @@ def test_cli_tune_prints_median_and_range(monkeypatch, capsys, short_model):
     row = res["table"][0]
     lo, hi = row["max_error_range"]
     assert "over 2 noise seeds" in out and f"{row['max_error_pct']:10.2f}" in out and f"[{lo:.2f} - {hi:.2f}]" in out
+    # the searched gains as a table to paste, then the rest of the set its runs used, commented
+    lines = out.splitlines()
+    for k in res["gains_used"]:
+        want = f"{k} = " if k in res["best_gains"] else f"# {k} = "
+        assert any(line.startswith(want) for line in lines), (k, out)
+
+
+def test_tune_gives_the_whole_gain_set_its_runs_used(short_model):
+    """Besides the gains the search set, the result holds the set its runs used: the robot's gains
+    under them, every gain the controller takes."""
+    from hydrogen.controllers import gain_names
+    scen, grid = {"z-1hz": ("z",)}, [5.0, 10.0, 20.0]
+    with FailingSeed(seed=0, when=lambda g: g.get("Ko") != 300.0) as ex:
+        res = tune("adaptive-robust", grid, model=short_model, scenarios=scen, seeds=2, secondary={},
+                   adaptation={"Ko": [300.0]}, executor=ex)
+    used = res["gains_used"]
+    assert set(res["best_gains"]) < set(used) and float(np.mean(used["Ko"])) == 300.0
+    assert used["Lambda"] == pytest.approx(res["best_gains"]["Lambda"])
+    assert gain_names("adaptive-robust", short_model) <= set(used) | {"h"}, set(used)
 
 
 def test_rig_seeds_script_writes_the_distributions(monkeypatch, tmp_path, capsys):

@@ -9,7 +9,7 @@ from .common import (ADAPTATION_SEARCH, FRICTION_BLOCKS, adaptation_gains, check
 from .spec import POSITION_BOUND, VELOCITY_BOUND, ControllerSpec, StateBlock
 
 SPEC = ControllerSpec(name="adaptive-observer", doc="Theorem 2: adaptive controller, adaptive observer.",
-                      main_gain="Lambda", grid_low=5.0, adaptation_search=ADAPTATION_SEARCH, rank=2)
+                      main_gain="Lambda", main_gain_symbol="Λ", grid_low=5.0, adaptation_search=ADAPTATION_SEARCH, rank=2)
 NAME, DOC = SPEC.name, SPEC.doc
 
 

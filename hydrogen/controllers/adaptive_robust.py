@@ -22,7 +22,7 @@ from .common import (ADAPTATION_SEARCH, FRICTION_BLOCKS, adaptation_gains, check
 from .spec import VELOCITY_BOUND, ControllerSpec, StateBlock
 
 SPEC = ControllerSpec(name="adaptive-robust", doc="Theorem 3: adaptive controller, robust sliding observer.",
-                      main_gain="Lambda", grid_low=5.0,
+                      main_gain="Lambda", main_gain_symbol="Λ", grid_low=5.0,
                       # K_o first: it caps Λ (NaN: from Λ and K_d, complete_gains)
                       adaptation_search=(("Ko", "=", (float("nan"), 30.0, 100.0, 300.0, 1000.0)),
                                          *ADAPTATION_SEARCH), rank=1)

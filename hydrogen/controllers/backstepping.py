@@ -10,7 +10,7 @@ from .common import friction_gains, model_gains
 from .spec import ControllerSpec
 
 SPEC = ControllerSpec(name="backstepping", doc="Theorem 1 (known parameters): spool command u, m.",
-                      main_gain="Lambda", grid_low=5.0, knows_true_parameters=True, rank=0)
+                      main_gain="Lambda", main_gain_symbol="Λ", grid_low=5.0, knows_true_parameters=True, rank=0)
 NAME, DOC = SPEC.name, SPEC.doc
 
 

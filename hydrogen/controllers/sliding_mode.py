@@ -19,7 +19,7 @@ from .common import model_gains
 from .spec import ControllerSpec, StateBlock
 
 SPEC = ControllerSpec(name="sliding-mode", doc="Sliding mode with a bounded disturbance estimate (known parameters).",
-                      main_gain="Lambda", grid_low=5.0, knows_true_parameters=True)
+                      main_gain="Lambda", main_gain_symbol="Λ", grid_low=5.0, knows_true_parameters=True)
 NAME, DOC = SPEC.name, SPEC.doc
 
 __all__ = ["SPEC", "NAME", "DOC", "state_layout", "default_gains", "static_inputs", "derive"]

@@ -29,6 +29,8 @@ class ControllerSpec:
     main_gain : str
         The gain the documented search scales (``hydrogen tune``) and the stability margin is
         measured on.
+    main_gain_symbol : str
+        How tables and figures write the main gain (the paper's symbol, e.g. "Λ"); empty: its name.
     grid_low : float
         The documented search's first main-gain value (in the gain's own unit); the grid runs
         six octaves up from it.
@@ -62,6 +64,7 @@ class ControllerSpec:
     doc: str
     main_gain: str
     grid_low: float
+    main_gain_symbol: str = ""
     main_gain_shared: bool = False
     secondary_search: bool = True
     knows_true_parameters: bool = False
@@ -70,6 +73,11 @@ class ControllerSpec:
     search_description_proportions: bool = False
     adaptation_search: tuple = ()
     rank: float = math.inf
+
+    @property
+    def main_gain_label(self) -> str:
+        """The main gain as tables write it: :attr:`main_gain_symbol`, else its name."""
+        return self.main_gain_symbol or self.main_gain
 
     @property
     def command_gains(self) -> tuple:

@@ -331,6 +331,7 @@ def tune(controller, grid=None, *, model=None, scenarios=None, secondary=None, a
     per scenario, secondary value and gain: "max_error_pct" the median over the seeds of the worst
     moving coordinate's max error %, "max_error_range" [min, max], "errors" {coordinate: {median, min,
     max}}, "unstable_seeds"], "best": g or None, "best_gains": the gains dict at the tuned point,
+    "gains_used": those over the rest of the set its runs used (the robot's gains, under a variant's),
     "best_errors": {scenario: median worst max error %}, "best_error_ranges": {scenario: [min, max]},
     "largest_stable": the largest main gain stable on every scenario and seed (at the tuned secondary
     value), "margin_ok": whether "best" has a gain margin of ``margin`` (else it is the fallback of the
@@ -403,6 +404,8 @@ def tune(controller, grid=None, *, model=None, scenarios=None, secondary=None, a
         "grid_spans_margin": bool(_margin_points(gs, gs[0], margin)),
         "table": table, "best": best, "best_secondary": x, "margin_ok": margin_ok,
         "best_gains": gains(best, x) if best is not None else None,
+        # the whole set the runs at the tuned point used: the search's, over the robot's (under a variant's)
+        "gains_used": {**own, **gains(best, x)} if best is not None else None,
         "best_errors": {r["scenario"]: r.get("max_error_pct") for r in here},
         "best_error_ranges": {r["scenario"]: r.get("max_error_range") for r in here},
         "largest_stable": largest,
