@@ -74,10 +74,12 @@ def delay_split(delay: float, h: float) -> tuple:
 #: on :class:`hydrogen.simulation.scenarios.Scenario`, a row here and its use in loop.c and
 #: :class:`hydrogen.simulation.simulator.PythonStages`.
 LOOP_CONFIG = (
-    ("timing: control period h (s), plant RK4 sub-steps per control period, adaptation on for t >= t_adapt;\n"
+    ("timing: control period h (s), plant RK4 sub-steps per control period (bound_stages != 0: the pressures\n"
+     " * held within their bounds at every stage, else after each step), adaptation on for t >= t_adapt;\n"
      " * the command computed at period k is applied from t_k + (delay + delay_frac) h (delay 0..MAX_DELAY,\n"
      " * 0 <= delay_frac < 1, delay + delay_frac <= MAX_DELAY)",
      (("h", "double", "P_H", "run.h"), ("substeps", "long long", "P_SUBSTEPS", "scenario.substeps"),
+      ("bound_stages", "long long", "P_BOUND_STAGES", "run.bound_stages"),
       ("t_adapt", "double", "P_T_ADAPT", "scenario.t_adapt"),
       ("delay", "long long", "P_DELAY_PERIODS", "run.delay_periods"),
       ("delay_frac", "double", "P_DELAY_FRACTION", "run.delay_fraction"))),

@@ -28,11 +28,13 @@ enum { EXCAVATOR_ARM_OK = 0, EXCAVATOR_ARM_NONFINITE = 1, EXCAVATOR_ARM_FK_FAILE
 enum { EXCAVATOR_ARM_FK_SOLVED = 0, EXCAVATOR_ARM_FK_SINGULAR = 1, EXCAVATOR_ARM_FK_NOT_CONVERGED = 2, EXCAVATOR_ARM_FK_FUNCTION_FAILED = 3, EXCAVATOR_ARM_FK_VELOCITY_SINGULAR = 4 };
 
 typedef struct {
-    /* timing: control period h (s), plant RK4 sub-steps per control period, adaptation on for t >= t_adapt;
+    /* timing: control period h (s), plant RK4 sub-steps per control period (bound_stages != 0: the pressures
+     * held within their bounds at every stage, else after each step), adaptation on for t >= t_adapt;
      * the command computed at period k is applied from t_k + (delay + delay_frac) h (delay 0..MAX_DELAY,
      * 0 <= delay_frac < 1, delay + delay_frac <= MAX_DELAY) */
     double h;
     long long substeps;
+    long long bound_stages;
     double t_adapt;
     long long delay;
     double delay_frac;

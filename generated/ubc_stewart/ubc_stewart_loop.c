@@ -223,6 +223,7 @@ long long ubc_stewart_forward_kinematics_many(const double* numbers, const doubl
  * controller's own model's (the predictor); the description's numbers and the pressure bounds */
 typedef struct {
     const double *theta, *gamma1, *gamma2, *friction, *valve, *numbers, *p_low, *p_high;
+    int bound_stages;  /* the pressures held within their bounds at every stage (stage_rate), else after each step */
 } rhs_params;
 
 static int plant_rhs(const rhs_params* m, const double* x, const double* u, double* xdot) {
@@ -235,21 +236,39 @@ static int plant_rhs(const rhs_params* m, const double* x, const double* u, doub
     return ubc_stewart_plant_rhs(arg, res, 0, 0, 0);
 }
 
+static double clip(double v, double lo, double hi) { return v < lo ? lo : (v > hi ? hi : v); }
+
+/* The plant's rate at a stage y of a step. With bound_stages its pressures are held within their
+ * bounds as each step's clip holds the state (0 <= p_c <= p_s for a three-way cylinder; a chamber that
+ * would cavitate stays at 0): y's pressures are clipped, and a pressure at a bound does not rate past
+ * it. The clip after the step alone lets the stages see pressures past their bounds: an error of first
+ * order in the step wherever a pressure rests on one. y may be changed. */
+static int stage_rate(const rhs_params* m, double* y, const double* u, double* k) {
+    int i;
+    if (!m->bound_stages) return plant_rhs(m, y, u, k);
+    for (i = 0; i < NPC; ++i) y[2 * NQ + i] = clip(y[2 * NQ + i], m->p_low[i], m->p_high[i]);
+    if (plant_rhs(m, y, u, k)) return 1;
+    for (i = 0; i < NPC; ++i) {
+        const double p = y[2 * NQ + i], r = k[2 * NQ + i];
+        if ((p <= m->p_low[i] && r < 0) || (p >= m->p_high[i] && r > 0)) k[2 * NQ + i] = 0;
+    }
+    return 0;
+}
+
 static int rk4(const rhs_params* m, double* x, const double* u, double h) {
     double k1[NX], k2[NX], k3[NX], k4[NX], y[NX];
     int i;
-    if (plant_rhs(m, x, u, k1)) return 0;
+    for (i = 0; i < NX; ++i) y[i] = x[i];
+    if (stage_rate(m, y, u, k1)) return 0;
     for (i = 0; i < NX; ++i) y[i] = x[i] + 0.5 * h * k1[i];
-    if (plant_rhs(m, y, u, k2)) return 0;
+    if (stage_rate(m, y, u, k2)) return 0;
     for (i = 0; i < NX; ++i) y[i] = x[i] + 0.5 * h * k2[i];
-    if (plant_rhs(m, y, u, k3)) return 0;
+    if (stage_rate(m, y, u, k3)) return 0;
     for (i = 0; i < NX; ++i) y[i] = x[i] + h * k3[i];
-    if (plant_rhs(m, y, u, k4)) return 0;
+    if (stage_rate(m, y, u, k4)) return 0;
     for (i = 0; i < NX; ++i) x[i] += h / 6.0 * (k1[i] + 2 * k2[i] + 2 * k3[i] + k4[i]);
     return 1;
 }
-
-static double clip(double v, double lo, double hi) { return v < lo ? lo : (v > hi ? hi : v); }
 
 /* n RK4 steps of hs holding u, each pressure within its bounds (0 <= p_c <= p_s for a three-way
  * cylinder) */
@@ -289,6 +308,7 @@ static int predict(const ubc_stewart_loop_config* c, const ubc_stewart_loop_stat
     m.friction = PRED_FRICTION;
     m.valve = PRED_VALVE;
     m.numbers = c->numbers; m.p_low = c->p_low; m.p_high = c->p_high;
+    m.bound_stages = c->bound_stages != 0;
     memset(x, 0, NX * sizeof(double));  /* spool states: unused by the ideal valve */
     memcpy(x, st->q_meas, NQ * sizeof(double));
     memcpy(x + NQ, s->qdot_meas, NQ * sizeof(double));
@@ -477,6 +497,7 @@ int ubc_stewart_plant_step(const ubc_stewart_loop_config* c, ubc_stewart_loop_st
     int i;
     m.theta = c->theta; m.gamma1 = c->gamma1; m.gamma2 = c->gamma2; m.friction = c->friction; m.valve = c->valve;
     m.numbers = c->numbers; m.p_low = c->p_low; m.p_high = c->p_high;
+    m.bound_stages = c->bound_stages != 0;
     if (n < 1) return UBC_STEWART_CTRL_FAILED;
     if (c->delay_frac > 0) {
         /* the command switches at delay_frac h: each part takes enough sub-steps that none is longer

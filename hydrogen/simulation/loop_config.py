@@ -92,6 +92,7 @@ DERIVED = {
     "xc_lo": lambda r: _bounds(r, 0),
     "xc_hi": lambda r: _bounds(r, 1),
     "xc_euler": lambda r: int(r.sc.estimator_update == "euler"),
+    "bound_stages": lambda r: int(r.sc.pressure_bounds == "stage"),
     "predict": lambda r: int(r.sc.predicts()),
     "pred_theta": lambda r: np.asarray(r.ctrl.theta0, float),
     "pred_gamma1": lambda r: np.asarray(r.ctrl.gamma0[0], float),

@@ -90,6 +90,7 @@ class Scenario(ScenarioFields):
         need(finite(self.q0_offset), "q0_offset", "must be finite numbers (one per coordinate)")
         need(self.estimator_update in ("semi-implicit", "euler"), "estimator_update",
              "must be 'semi-implicit' or 'euler'")
+        need(self.pressure_bounds in ("step", "stage"), "pressure_bounds", "must be 'step' or 'stage'")
         need(isinstance(self.actuators, Mapping) and all(isinstance(v, Mapping) for v in self.actuators.values()),
              "actuators", "must be a table {actuator name: {setting: value}}")
         for name, values in self.actuators.items():

@@ -214,6 +214,27 @@ def _rk4(rhs, x, h):
     return x + (h / 6.0) * (k1 + 2 * k2 + 2 * k3 + k4)
 
 
+def _bounded_steps(rhs, x, n, h, pc, lo, hi, stages: bool):
+    """``n`` RK4 steps of ``h`` (s) of the plant rate ``rhs``, its pressures ``x[pc]`` held within [lo, hi]
+    as the C loop's ``hold`` holds them: each step's result clipped and, with ``stages`` (the scenario's
+    ``pressure_bounds = "stage"``), at every stage the pressures clipped and one at a bound not rating
+    past it (``stage_rate``)."""
+    def rate(y):
+        y = y.copy()
+        p = np.clip(y[pc], lo, hi)
+        y[pc] = p
+        r = np.array(rhs(y), float).ravel()
+        rp = r[pc]
+        rp[((p <= lo) & (rp < 0)) | ((p >= hi) & (rp > 0))] = 0.0
+        r[pc] = rp
+        return r
+
+    for _ in range(n):
+        x = _rk4(rate if stages else rhs, x, h)
+        np.clip(x[pc], lo, hi, out=x[pc])  # e.g. 0 ≤ p_c ≤ p_s
+    return x
+
+
 def simulate(dyn, scenario, controller: str, *, gains=None, duration=None, check_workspace=True,
              engine: str = "c", seeds=None, executor=None, max_workers=None, **overrides):
     """Run ``controller`` on ``scenario`` (a name or a :class:`Scenario`) with compiled dynamics ``dyn``.
@@ -830,6 +851,7 @@ class PythonStages:
         self._ps = next((b.slice for b in self.layout if b.name == SUPPLY_LOG), None)  # a supply state
         pc = slot(self.layout, "pc")
         self._lo, self._hi = np.array(pc.lower), np.array(pc.upper)  # each pressure state's clip (0 and P_s for p_c)
+        self._stages = sc.pressure_bounds == "stage"  # the bounds held at every RK4 stage too
         self.nq, self.m, self.n_p = model.n, model.n_cylinders, pc.size
         self._max_delay = MAX_DELAY
         self.u_hist = np.zeros((MAX_DELAY, self.m))  # the C loop's ring: command of period k in slot k % MAX_DELAY
@@ -956,10 +978,7 @@ class PythonStages:
         def hold(x, u, dt):
             n = self.sc.predictor_steps(dt / h)
             rhs = lambda xx: self._rhs_fn(xx, u, th, g1, g2, self._pred_fric, self._pred_valve)  # noqa: E731
-            for _ in range(n):
-                x = _rk4(rhs, x, dt / n)
-                np.clip(x[pc], self._lo, self._hi, out=x[pc])
-            return x
+            return _bounded_steps(rhs, x, n, dt / n, pc, self._lo, self._hi, self._stages)
 
         if self.delay_frac > 0:
             x = hold(x, self.u_app, self.delay_frac * h)
@@ -968,25 +987,26 @@ class PythonStages:
         return x
 
     def plant(self, s: _Signals) -> None:
-        """RK4 sub-steps over one period holding ``s.u_held`` over its first ``delay_frac`` h and ``s.u_app``
-        over the rest (the sub-steps shared out as the C loop does), each pressure clipped to its bounds."""
-        u_held, u_app = s.u_held, s.u_app
+        """The plant over one period (:meth:`integrate` at the scenario's ``substeps``)."""
+        self.x = self.integrate(self.x, s.u_held, s.u_app, self.sc.substeps)
+
+    def integrate(self, x, u_held, u_app, substeps: int) -> np.ndarray:
+        """The plant state one period after ``x``: ``substeps`` RK4 sub-steps holding ``u_held`` over the
+        period's first ``delay_frac`` h and ``u_app`` over the rest (the sub-steps shared out as the C
+        loop does), each pressure held within its bounds (:func:`_bounded_steps`); ``x`` itself is not
+        changed."""
         pc, lo, hi = self._pc, self._lo, self._hi
         th, g = self.model.theta, self.model.gamma
 
         def hold(x, u, n, hs):
             rhs = lambda xx: self._rhs_fn(xx, u, th, g[0], g[1], self._fric, self._valve)  # noqa: E731
-            for _ in range(n):
-                x = _rk4(rhs, x, hs)
-                np.clip(x[pc], lo, hi, out=x[pc])  # e.g. 0 ≤ p_c ≤ p_s
-            return x
+            return _bounded_steps(rhs, x, n, hs, pc, lo, hi, self._stages)
 
-        n, frac, h = self.sc.substeps, self.delay_frac, self.h
+        n, frac, h = substeps, self.delay_frac, self.h
         if frac > 0:
             n1, n2 = max(int(np.ceil(frac * n)), 1), max(int(np.ceil((1.0 - frac) * n)), 1)  # no step > h/n
-            self.x = hold(hold(self.x, u_held, n1, frac * h / n1), u_app, n2, (1.0 - frac) * h / n2)
-        else:
-            self.x = hold(self.x, u_app, n, h / n)
+            return hold(hold(x, u_held, n1, frac * h / n1), u_app, n2, (1.0 - frac) * h / n2)
+        return hold(x, u_app, n, h / n)
 
     def after_period(self) -> None:
         """The controller state's forward-Euler update after the period (``estimator_update="euler"``)."""
