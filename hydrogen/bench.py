@@ -41,6 +41,8 @@ SUITE = (
                           "per period, compile"),
     ("bench_integrator", "the rig's plant sub-steps (and the predictor's) against a reference over noise seeds: "
                          "errors and cost per period"),
+    ("bench_local_error", "the rig's runs replayed open loop at each plant sub-step count against a reference: "
+                          "the integration's own error"),
     ("bench_delay", "the rig's tracking error against the computation delay, 0 to 1 control period, every "
                     "controller over noise seeds; its figure"),
     ("bench_sensitivity", "the rig's tracking error against its friction level and valve bandwidth, every controller "

@@ -575,6 +575,41 @@ def _integrator(b) -> list:
     return out
 
 
+def _local_error(b) -> list:
+    robots = b.get("robots", [])
+    if not robots:
+        return []
+    counts = b.get("counts", [])
+    out = ["## The plant integration alone: each run replayed open loop", "",
+           "`benchmarks/bench_local_error.py`: the runs of the rig scenarios above amplify any difference (the "
+           "adaptive ones are chaotic; every loop reads quantised, noisy sensors and drives Stribeck friction), "
+           "so their reported errors tell how sensitive each loop is as much as how accurate the integration. "
+           f"Here the trajectory of each of {', '.join(b.get('controllers', []))} on each rig scenario and "
+           "variant (the scenario's own sub-steps and noise seed) is replayed open loop under its recorded "
+           f"commands at each count of RK4 sub-steps and at {b.get('reference')}: the largest difference over "
+           "the run, of the coordinates in points of their reference amplitude (the reported errors' unit) and "
+           "of the pressure states in Pa. The commands being equal, it is the integration's error as the "
+           f"plant's own dynamics carry it. A count keeps the errors within {_f(b.get('points'))} point and "
+           f"{_f(100 * b.get('noise_share', 0))} % of the pressure sensors' noise; cheapest: the smallest "
+           "count from which every tested count keeps them (none: not even the largest). *Pressure bounds*: the "
+           "scenario's `pressure_bounds`, how the plant holds each pressure within its bounds (a chamber that "
+           "would cavitate stays at 0): `step` clips after each RK4 step (the default), `stage` also at every "
+           "stage, where a pressure at a bound does not rate past it.", ""]
+
+    def at(d, n):  # a count's entry, keyed by the number or, read back from JSON, by its text
+        return d.get(n, d.get(str(n)))
+
+    table = []
+    for rob in robots:
+        for r in rob["rows"]:
+            table.append([rob["model"], r["scenario"], r["controller"], r.get("pressure_bounds", "step"),
+                          r["substeps"], r["cheapest"] or "none",
+                          *("fail" if at(r["failed"], n) is not None else
+                            f"{_f(at(r['q_pts'], n))} / {_f(at(r['p_pa'], n))}" for n in counts)])
+    return out + _table(["robot", "scenario", "controller", "pressure bounds", "now", "cheapest",
+                         *(f"{n} sub-steps: points / Pa" for n in counts)], table)
+
+
 def _integrator_field(b, key, field, what) -> list:
     dev = lambda x: ("fail" if x["dev"] is None else _f(x["dev"]) + ("" if x["keeps"] else " !"))  # noqa: E731
     summary, detail, values = [], [], set()
@@ -737,6 +772,8 @@ def benchmarks_page(results: dict, repeats: dict | None = None, source: str = "d
         out += _shared_step(results["bench_shared_step"])
     if "bench_integrator" in results:
         out += _integrator(results["bench_integrator"])
+    if "bench_local_error" in results:
+        out += _local_error(results["bench_local_error"])
     if "bench_delay" in results:
         out += _delay(results["bench_delay"])
     if "bench_sensitivity" in results:

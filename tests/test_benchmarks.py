@@ -732,6 +732,70 @@ def test_the_integrator_benchmark_counts_steps_and_picks_the_cheapest_count_that
     assert not bi._keeps(None, 1.0) and bi._keeps(0.3, 0.4) and not bi._keeps(0.3, 0.01)
 
 
+def test_the_replay_benchmark_measures_the_integration_alone(capsys):
+    """bench_local_error's quick run: the first rig scenario of the first robot replayed open loop at
+    each count against the reference, with either way of holding the pressures; more sub-steps come
+    closer to it, the cheapest count follows the rule, the table and the page."""
+    import bench_integrator
+    import bench_local_error as ble
+    from hydrogen.pages import benchmarks_page
+
+    res = ble.run(quick=True)
+    (rob,) = res["robots"]
+    (scen,) = bench_integrator.rig_scenarios(hydrogen.load_model(rob["model"]), quick=True)
+    assert [(r["scenario"], r["pressure_bounds"]) for r in rob["rows"]] == [(scen, b) for b in ble.SCHEMES]
+    for r in rob["rows"]:
+        assert r["controller"] == ble.CONTROLLERS[0] and not r["failed"]
+        lo, hi = ble.QUICK_COUNTS
+        assert 0 < r["q_pts"][hi] < r["q_pts"][lo] and 0 < r["p_pa"][hi] < r["p_pa"][lo]
+        assert r["cheapest"] == ble.cheapest(ble.QUICK_COUNTS, r)
+    ble.print_table(res)
+    assert scen in capsys.readouterr().out
+    # read back from JSON (counts as text) the page renders the same cells
+    page = benchmarks_page({"bench_local_error": json.loads(json.dumps(res))})
+    assert "## The plant integration alone" in page and "fail" not in page.split("## The plant integration alone")[1]
+
+
+def test_holding_the_pressures_at_every_stage_converges_where_a_chamber_cavitates():
+    """On the crane's flow-limited cycle under P a chamber cavitates (its pressure rests on 0): clipping
+    only after each RK4 step is a first-order error there (4 sub-steps 0.1 point of amplitude and more
+    off 64 in the replay), clipping at every stage too keeps RK4 within 0.001 point at 4 sub-steps."""
+    import bench_local_error as ble
+
+    dyn = hydrogen.build(hydrogen.load_model("loader_crane"), controllers=("p",))
+    kw = dict(counts=(4,), reference=64, duration=3.0)
+    step = ble.replay_errors(dyn, "crane-flow", "p", pressure_bounds="step", **kw)
+    stage = ble.replay_errors(dyn, "crane-flow", "p", pressure_bounds="stage", **kw)
+    assert step["q_pts"][4] > 0.1 and stage["q_pts"][4] < 1e-3, (step, stage)
+
+
+def test_the_replay_rule_keeps_a_count_only_within_both_bounds():
+    import bench_local_error as ble
+
+    e = {"failed": {}, "noise_p": 1e4, "q_pts": {1: 0.5, 2: 5e-3, 4: 1e-5}, "p_pa": {1: 1e3, 2: 2e3, 4: 50.0}}
+    assert [ble.keeps(e, n) for n in (1, 2, 4)] == [False, False, True]  # 2: 2 kPa is 20 % of the noise
+    assert ble.cheapest((1, 2, 4), e) == 4
+    assert ble.cheapest((1, 2, 4), {**e, "failed": {4: 10}}) is None
+
+
+def test_the_python_stages_integrate_one_period_without_touching_the_state():
+    """PythonStages.integrate is the plant stage's step: at the scenario's count it gives the state the
+    loop moves to, and it leaves its argument alone."""
+    from hydrogen.simulation.simulator import PythonStages, prepare_run
+
+    dyn = hydrogen.build(hydrogen.load_model("excavator_arm"), controllers=("backstepping",))
+    p = prepare_run(dyn, "arm-dig", "backstepping", None, 0.05, True, {}, keep_logs=False)
+    loop = PythonStages(dyn, p.sc, p.ctrl, p.x0.copy(), p.q0, p.kf_gain, p.h)
+    seen = {}
+    for k in range(5):
+        loop.k = k
+        loop.run_period(p.noise[k], lambda s: seen.update(x=loop.x.copy(), s=s))
+    x0, s = seen["x"], seen["s"]
+    before = x0.copy()
+    np.testing.assert_array_equal(loop.integrate(x0, s.u_held, s.u_app, p.sc.substeps), loop.x)
+    np.testing.assert_array_equal(x0, before)
+
+
 def test_the_delay_benchmark_gives_every_controller_at_every_delay(capsys):
     """bench_delay's quick run: the default robot's first rig scenario, every controller it lists at
     each delay (in periods, in s), with the rig's gains and the low-latency variant's where it gives

@@ -1,0 +1,174 @@
+"""The plant integration's own error on the rig's trajectories, without the loop's amplification.
+
+``bench_integrator.py`` judges a sub-step count by the reported errors of whole runs against a
+reference; on the rig those runs amplify any difference (the adaptive ones are chaotic; every loop
+reads quantised, noisy sensors and drives Stribeck friction), so a whole run tells how sensitive the
+loop is as much as how accurate the integration. This measures the integration alone: a run at the
+scenario's own count (the Python engine, the same numbers as the C loop) records each period's
+commands (the one the valves hold over the delay's fraction, then the applied one); the plant is then
+replayed open loop from the same start under those commands at each count of :data:`COUNTS` and at
+:data:`REFERENCE` sub-steps. A count's **replay error** is its largest difference from the
+reference's replay over the run: of the coordinates, in percentage points of each coordinate's
+reference amplitude (the unit of the reported max errors), and of the pressure states, in Pa and as a
+share of the pressure sensors' noise (``noise_p``). The commands being the same, the difference is the
+integration's error carried by the plant's own dynamics, with no sensor, estimator or controller to
+amplify it.
+
+Per rig scenario and variant of each shipped robot, the trajectories of :data:`CONTROLLERS`, the
+scenario's own noise seed, with the pressures held within their bounds by each of :data:`SCHEMES`
+(the scenario field ``pressure_bounds``: where a chamber would cavitate, clipping only after each
+step converges at first order, clipping at every stage too at RK4's). A count **keeps** the
+errors when its coordinates stay within :data:`POINTS` points of the reference's and its pressures
+within :data:`NOISE_SHARE` of the pressure noise; cheapest: the smallest count from which every
+tested count keeps them.
+
+Run: ``python benchmarks/bench_local_error.py [--quick] [--json FILE]`` (about 10 minutes on one
+core; ``--quick``: the first rig scenario of the first robot, 0.3 s of it, two counts).
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+import hydrogen
+from hydrogen.plant import plant_layout, slot
+from hydrogen.simulation.scenarios import scenario as named_scenario
+from hydrogen.simulation.simulator import PythonStages, prepare_run
+
+try:  # imported as benchmarks.bench_local_error
+    from . import common
+    from .bench_integrator import rig_scenarios
+except ImportError:  # run as a script, or loaded from its path
+    sys.path.insert(0, str(Path(__file__).resolve().parent))
+    import common
+    from bench_integrator import rig_scenarios
+
+#: Sub-step counts tested, and the reference.
+COUNTS, REFERENCE = (2, 3, 4, 6, 8), 64
+QUICK_COUNTS, QUICK_REFERENCE, QUICK_DURATION = (2, 4), 16, 0.3
+#: The controllers whose trajectories are replayed: the paper's Theorem 1 (known parameters: not
+#: chaotic) and the baseline P, which drives the valves hardest.
+CONTROLLERS = ("backstepping", "p")
+#: How the pressures are held within their bounds (the scenario field ``pressure_bounds``): after each
+#: RK4 step (the default), and also at every stage.
+SCHEMES = ("step", "stage")
+#: A count keeps the errors within this many points of amplitude (a tenth of the 0.1 point
+#: bench_integrator holds the reported errors to) and this share of the pressure sensors' noise.
+POINTS, NOISE_SHARE = 1e-2, 1e-1
+
+
+def replay_errors(dyn, scenario: str, controller: str, counts, reference: int, duration=None, **overrides) -> dict:
+    """The run of ``controller`` on ``scenario`` (its own count) replayed open loop under its commands at
+    each count and at ``reference`` sub-steps: {"periods", "q_pts": {count: largest difference from the
+    reference's replay, points of amplitude}, "p_pa": {count: Pa}, "noise_p": Pa, "failed": {count:
+    period}} (a count whose replay is not finite). ``overrides``: scenario fields (``pressure_bounds``)."""
+    p = prepare_run(dyn, scenario, controller, None, duration, True, overrides, keep_logs=False)
+    loop = PythonStages(dyn, p.sc, p.ctrl, p.x0.copy(), p.q0, p.kf_gain, p.h)
+    start = loop.x.copy()
+    commands = []
+
+    def before_plant(s):  # the period's commands, before the plant moves
+        commands.append((np.array(s.u_held, float), np.array(s.u_app, float)))
+
+    for k in range(p.n):
+        loop.k = k
+        loop.run_period(p.noise[k], before_plant)
+    layout = plant_layout(dyn.model)
+    q, pc = slot(layout, "q").slice, slot(layout, "pc").slice
+    amplitude = np.asarray(p.sc.reference.amplitude(), float)
+    moving = amplitude > 0
+
+    def replay(n):
+        x, out = start, np.empty((len(commands), start.size))
+        for k, (u_held, u_app) in enumerate(commands):
+            x = loop.integrate(x, u_held, u_app, n)
+            out[k] = x
+            if not np.all(np.isfinite(x)):
+                return out[:k + 1], k
+        return out, None
+
+    ref, _ = replay(reference)
+    q_pts, p_pa, failed = {}, {}, {}
+    for n in counts:
+        xs, bad = replay(n)
+        if bad is not None:
+            failed[n] = bad
+            continue
+        dq = np.abs(xs[:, q] - ref[:, q])[:, moving] / amplitude[moving] * 100.0
+        q_pts[n] = float(dq.max(initial=0.0))
+        p_pa[n] = float(np.abs(xs[:, pc] - ref[:, pc]).max())
+    return {"periods": p.n, "q_pts": q_pts, "p_pa": p_pa, "noise_p": float(p.sc.noise_p), "failed": failed}
+
+
+def keeps(e: dict, n: int) -> bool:
+    """Whether count ``n`` keeps the errors on the replay ``e``."""
+    return n not in e["failed"] and e["q_pts"][n] < POINTS and e["p_pa"][n] < NOISE_SHARE * e["noise_p"]
+
+
+def cheapest(counts, e: dict) -> int | None:
+    """The smallest count from which every larger tested count keeps the errors."""
+    ok = [keeps(e, n) for n in counts]
+    return next((n for i, n in enumerate(counts) if all(ok[i:])), None)
+
+
+def run_robot(name: str, quick: bool = False) -> dict:
+    model = hydrogen.load_model(name)
+    controllers = CONTROLLERS[:1] if quick else CONTROLLERS
+    dyn = hydrogen.build(model, controllers=controllers)
+    counts, reference = (QUICK_COUNTS, QUICK_REFERENCE) if quick else (COUNTS, REFERENCE)
+    rows = []
+    for scen in rig_scenarios(model, quick):
+        for c in controllers:
+            for bounds in SCHEMES:
+                e = replay_errors(dyn, scen, c, counts, reference, QUICK_DURATION if quick else None,
+                                  pressure_bounds=bounds)
+                rows.append({"scenario": scen, "controller": c, "pressure_bounds": bounds,
+                             "substeps": named_scenario(scen, model).substeps, **e, "cheapest": cheapest(counts, e)})
+    return {"model": name, "rows": rows}
+
+
+def run(quick: bool = False) -> dict:
+    t0 = time.perf_counter()
+    names = hydrogen.models()[:1] if quick else hydrogen.models()
+    return {"robots": [run_robot(n, quick) for n in names], "counts": list(QUICK_COUNTS if quick else COUNTS),
+            "schemes": list(SCHEMES),
+            "reference": QUICK_REFERENCE if quick else REFERENCE, "points": POINTS, "noise_share": NOISE_SHARE,
+            "quick": quick, "controllers": list(CONTROLLERS), "machine": common.machine_info(), "cores": os.cpu_count(),
+            "wall_s": time.perf_counter() - t0}
+
+
+def print_table(res: dict) -> None:
+    counts = res["counts"]
+    print(f"each controller's trajectory replayed open loop at each sub-step count against {res['reference']}: "
+          f"largest difference over the run, coordinates in points of amplitude, pressures in Pa; keeps: "
+          f"< {res['points']:g} point and < {res['noise_share']:g} of the pressure noise")
+    for rob in res["robots"]:
+        for r in rob["rows"]:
+            cells = " ".join(f"{n}: {r['q_pts'][n]:.1e} / {r['p_pa'][n]:.1e}" if n not in r["failed"]
+                             else f"{n}: fails" for n in counts)
+            print(f"{rob['model']:14} {r['scenario']:22} {r['controller']:13} {r['pressure_bounds']:5} "
+                  f"now {r['substeps']:2} cheapest {r['cheapest']}  {cells}")
+
+
+def main(argv=None) -> int:
+    from hydrogen.fileio import atomic_write
+
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--quick", action="store_true")
+    ap.add_argument("--json", type=Path, metavar="FILE")
+    a = ap.parse_args(argv)
+    r = run(quick=a.quick)
+    print_table(r)
+    if a.json:
+        atomic_write(a.json, json.dumps(r, indent=2, default=str) + "\n")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
