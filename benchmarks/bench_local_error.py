@@ -93,8 +93,11 @@ def replay_errors(dyn, scenario: str, controller: str, counts, reference: int, d
                 return out[:k + 1], k
         return out, None
 
-    ref, _ = replay(reference)
+    ref, ref_bad = replay(reference)
     q_pts, p_pa, failed = {}, {}, {}
+    if ref_bad is not None:  # no reference to compare with: every count fails where it stopped
+        return {"periods": p.n, "q_pts": {}, "p_pa": {}, "noise_p": float(p.sc.noise_p),
+                "failed": {n: ref_bad for n in counts}}
     for n in counts:
         xs, bad = replay(n)
         if bad is not None:

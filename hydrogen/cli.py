@@ -287,7 +287,10 @@ def _cmd_tune(args, controller=None) -> int:
     if rest:  # pinning these too keeps the point when the robot's own gains change later
         print(f"# the rest of the set the search ran with ({'the variant' if args.variant else 'the robot'}'s gains):")
         for k, v in rest.items():
-            print(f"# {k} = {_toml_number(v)}")
+            if np.isnan(np.asarray(v, float)).any():  # a default the run derives from the others (e.g. K_o)
+                print(f"# {k}: derived from the other gains at each run (leave it out)")
+            else:
+                print(f"# {k} = {_toml_number(v)}")
     return 0
 
 

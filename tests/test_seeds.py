@@ -449,9 +449,11 @@ def test_cli_tune_prints_median_and_range(monkeypatch, capsys, short_model):
     assert "over 2 noise seeds" in out and f"{row['max_error_pct']:10.2f}" in out and f"[{lo:.2f} - {hi:.2f}]" in out
     # the searched gains as a table to paste, then the rest of the set its runs used, commented
     lines = out.splitlines()
-    for k in res["gains_used"]:
-        want = f"{k} = " if k in res["best_gains"] else f"# {k} = "
+    for k, v in res["gains_used"].items():
+        derived = np.isnan(np.asarray(v, float)).any()  # a default the run makes from the others: not pinned
+        want = f"{k} = " if k in res["best_gains"] else (f"# {k}: derived" if derived else f"# {k} = ")
         assert any(line.startswith(want) for line in lines), (k, out)
+    assert "nan" not in out.split(f"[gains.{res['controller']}]")[1]
 
 
 def test_tune_gives_the_whole_gain_set_its_runs_used(short_model):
@@ -588,3 +590,18 @@ def test_a_seed_that_fails_is_listed_and_the_cli_exits_2(plain_stewart_dyn, monk
     assert cli(["simulate", "--scenario", "paper-sim", "--seeds", "2", "--json", str(out)]) == 2
     assert "2 of 2 seeds diverged: seed 0: " in capsys.readouterr().err
     assert json.loads(out.read_text())["failed"][1]["seed"] == 1  # what there is, still written
+
+
+def test_cli_tune_leaves_a_derived_gain_out_of_the_set_it_prints(monkeypatch, capsys):
+    """A default the run derives from the other gains (the robust observer's K_o: NaN) is not printed
+    as a number to pin: the loader would refuse it."""
+    from hydrogen.simulation import tuning
+    res = {"main_gain": "Lambda", "model": "m", "seeds": [0], "secondary": {}, "adaptation": {}, "table": [],
+           "largest_stable": 10.0, "best": 10.0, "grid_spans_margin": True, "margin_ok": True, "margin": 2.0,
+           "best_secondary": {}, "best_errors": {}, "best_error_ranges": {}, "grid": [5.0, 20.0],
+           "best_gains": {"Lambda": np.array([10.0, 10.0])},
+           "gains_used": {"Lambda": np.array([10.0, 10.0]), "Ko": np.array([np.nan, np.nan]), "Kd": np.array([1.0, 2.0])}}
+    monkeypatch.setattr(tuning, "tune", lambda *a, **k: res)
+    assert cli(["tune", "--controller", "adaptive-robust", "--quiet"]) == 0
+    out = capsys.readouterr().out
+    assert "# Ko: derived from the other gains" in out and "# Kd = [1.0, 2.0]" in out and "nan" not in out
