@@ -422,7 +422,7 @@ def hydrogen_counts(model, inputs: bool = False) -> dict:
     from hydrogen.codegen.casadi_functions import casadi_function
     from hydrogen.symbolic.constants import folded, numbers_as_symbols
     from hydrogen.symbolic.forms import rigid_body_form
-    from hydrogen.symbolic.functions import NUMBERS, SymbolicFunction, rigid_body_functions
+    from hydrogen.symbolic.functions import rigid_body_functions, with_numbers_input
 
     t0 = time.perf_counter()
     form = rigid_body_form(model)
@@ -431,8 +431,7 @@ def hydrogen_counts(model, inputs: bool = False) -> dict:
         own_funcs = rigid_body_functions(model, form_dynamics=True)
     if inputs:
         vector = sp.Matrix(table.symbols)
-        funcs, own_funcs = ([SymbolicFunction(f.name, [*f.inputs, (NUMBERS, vector)], f.outputs, f.doc, f.intermediates)
-                             for f in fs] for fs in (funcs, own_funcs))
+        funcs, own_funcs = ([with_numbers_input(f, vector) for f in fs] for fs in (funcs, own_funcs))
     t1 = time.perf_counter()
     cache, counts, converted = {}, {}, {}
     for sf in funcs:

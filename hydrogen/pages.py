@@ -469,7 +469,7 @@ def _recursive(b) -> list:
                 + ", ".join(f"`{h}` {_f(worst[h])}" for h, _, _ in _RECURSIVE) + "; as inputs / folded "
                 + ", ".join(f"`{h}` {_f(over[h])}" for h, _, _ in _RECURSIVE) + ".", ""]
     traced = [r for r in rows if r.get("pinocchio_traced")]
-    if traced and all(r.get("hydrogen_theta_numeric") for r in traced):  # Pinocchio itself, every number a constant
+    if traced:  # Pinocchio itself, every number a constant
         r0 = traced[0]
         out += [f"Pinocchio itself traced on SX (`cmeel-casadi-kin-dyn`, CasADi {r0['pinocchio_traced'].get('casadi')}, "
                 "from a URDF of the same chain: its numbers, θ too, are constants) against hydrogen's and the "
@@ -480,12 +480,6 @@ def _recursive(b) -> list:
                                   f"{_f(r['reference_theta_numeric'][k])} "
                                   f"({_f(r['hydrogen_theta_numeric'][h] / r['pinocchio_traced'][k])})"
                                   for h, _, k in _RECURSIVE)] for r in traced])
-    elif traced:  # the reference's fairness: Pinocchio itself on SX, both with θ as numbers
-        r = traced[-1]
-        out += [f"Pinocchio itself traced on SX (`cmeel-casadi-kin-dyn`, CasADi {r['pinocchio_traced'].get('casadi')}, "
-                f"θ numbers) at n = {r['n']}: " + ", ".join(
-                    f"{a} {_f(r['pinocchio_traced'][k])} against the reference's {_f(r['reference_theta_numeric'][k])}"
-                    for _, a, k in _RECURSIVE) + " at the same inputs.", ""]
     return out
 
 

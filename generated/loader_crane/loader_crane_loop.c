@@ -260,8 +260,12 @@ static int stage_rate(const rhs_params* m, double* y, const double* u, double* k
 static int rk4(const rhs_params* m, double* x, const double* u, double h) {
     double k1[NX], k2[NX], k3[NX], k4[NX], y[NX];
     int i;
-    for (i = 0; i < NX; ++i) y[i] = x[i];
-    if (stage_rate(m, y, u, k1)) return 0;
+    if (m->bound_stages) {  /* x is within its bounds; its copy only spares x the stage's clip */
+        for (i = 0; i < NX; ++i) y[i] = x[i];
+        if (stage_rate(m, y, u, k1)) return 0;
+    } else if (plant_rhs(m, x, u, k1)) {
+        return 0;
+    }
     for (i = 0; i < NX; ++i) y[i] = x[i] + 0.5 * h * k1[i];
     if (stage_rate(m, y, u, k2)) return 0;
     for (i = 0; i < NX; ++i) y[i] = x[i] + 0.5 * h * k2[i];

@@ -397,15 +397,16 @@ def tune(controller, grid=None, *, model=None, scenarios=None, secondary=None, a
     margin_ok = pick is not None and pick[0][0] == 0
     best, x, largest = (pick[1], pick[2], pick[3]) if pick is not None else (None, {}, None)
     here = [r for r in table if best is not None and r["gain"] == best and _at(r, x)]
+    tuned = gains(best, x) if best is not None else None
     return {
         "controller": controller, "model": model.name, "main_gain": name, "grid": gs, "secondary": sec,
         "adaptation": searched, "seeds": seeds, "margin": float(margin),
         # no gain of a grid spanning less than the margin can show it: not a ringing loop
         "grid_spans_margin": bool(_margin_points(gs, gs[0], margin)),
         "table": table, "best": best, "best_secondary": x, "margin_ok": margin_ok,
-        "best_gains": gains(best, x) if best is not None else None,
+        "best_gains": tuned,
         # the whole set the runs at the tuned point used: the search's, over the robot's (under a variant's)
-        "gains_used": {**own, **gains(best, x)} if best is not None else None,
+        "gains_used": {**own, **tuned} if tuned is not None else None,
         "best_errors": {r["scenario"]: r.get("max_error_pct") for r in here},
         "best_error_ranges": {r["scenario"]: r.get("max_error_range") for r in here},
         "largest_stable": largest,

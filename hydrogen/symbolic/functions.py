@@ -21,7 +21,7 @@ from .constants import PRESSURE_EPS
 from .kinematics import leg_stages, pose_symbols, rate_symbols
 from .plant import plant_rhs
 
-__all__ = ["SymbolicFunction", "SemiImplicitStep", "Specialisation", "derive_functions", "derive_parametric", "NUMBERS",
+__all__ = ["SymbolicFunction", "SemiImplicitStep", "Specialisation", "derive_functions", "derive_parametric", "with_numbers_input", "NUMBERS",
            "PRESSURE_EPS"]
 
 
@@ -168,6 +168,12 @@ def derive_functions(model, controllers=True, core: bool = True) -> list:
 
 
 
+def with_numbers_input(f, vector) -> SymbolicFunction:
+    """``f`` taking the description's numbers (the column ``vector`` of their symbols, a
+    :class:`~hydrogen.symbolic.constants.NumberTable`'s) as one more input, :data:`NUMBERS`."""
+    return SymbolicFunction(f.name, [*f.inputs, (NUMBERS, vector)], f.outputs, f.doc, f.intermediates)
+
+
 def derive_parametric(model, controllers=True, key: str = "name", core: bool = True, seed=None) -> tuple:
     """(functions, names, values): :func:`derive_functions` with the description's numbers left as
     symbols (:func:`~hydrogen.symbolic.constants.numbers_as_symbols`), each :class:`SymbolicFunction`
@@ -193,7 +199,7 @@ def derive_parametric(model, controllers=True, key: str = "name", core: bool = T
         if f.name in made:
             return made[f.name]
         if isinstance(f, SymbolicFunction):
-            g = SymbolicFunction(f.name, [*f.inputs, (NUMBERS, vector)], f.outputs, f.doc, f.intermediates)
+            g = with_numbers_input(f, vector)
         elif isinstance(f, Specialisation):
             g = Specialisation(f.name, parametric(f.base), f.fixed, f.zero, f.doc)
         else:
