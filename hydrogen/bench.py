@@ -43,6 +43,8 @@ SUITE = (
                          "errors and cost per period"),
     ("bench_local_error", "the rig's runs replayed open loop at each plant sub-step count against a reference: "
                           "the integration's own error"),
+    ("bench_rig_period", "the rig's control period at the shipped plant integration against the former one: cost "
+                         "and reported errors against a reference, side by side"),
     ("bench_delay", "the rig's tracking error against the computation delay, 0 to 1 control period, every "
                     "controller over noise seeds; its figure"),
     ("bench_sensitivity", "the rig's tracking error against its friction level and valve bandwidth, every controller "

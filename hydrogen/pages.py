@@ -587,7 +587,7 @@ def _local_error(b) -> list:
            f"{_f(100 * b.get('noise_share', 0))} % of the pressure sensors' noise; cheapest: the smallest "
            "count from which every tested count keeps them (none: not even the largest). *Pressure bounds*: the "
            "scenario's `pressure_bounds`, how the plant holds each pressure within its bounds (a chamber that "
-           "would cavitate stays at 0): `step` clips after each RK4 step (the default), `stage` also at every "
+           "would cavitate stays at 0): `step` clips after each RK4 step, `stage` (the default) also at every "
            "stage, where a pressure at a bound does not rate past it.", ""]
 
     def at(d, n):  # a count's entry, keyed by the number or, read back from JSON, by its text
@@ -602,6 +602,32 @@ def _local_error(b) -> list:
                             f"{_f(at(r['q_pts'], n))} / {_f(at(r['p_pa'], n))}" for n in counts)])
     return out + _table(["robot", "scenario", "controller", "pressure bounds", "now", "cheapest",
                          *(f"{n} sub-steps: points / Pa" for n in counts)], table)
+
+
+def _rig_period(b) -> list:
+    rows = b.get("rows", [])
+    if not rows:
+        return []
+    f = b.get("former", {})
+    out = ["## The rig period: the shipped plant integration against the former one", "",
+           "`benchmarks/bench_rig_period.py`: every rig scenario and variant, every controller the robot lists, noise "
+           f"seeds {', '.join(map(str, b.get('seeds', [])))}; per seed three runs in a row in one process: at the "
+           f"former integration ({f.get('substeps')} sub-steps, pressures clipped after each step), at the "
+           f"scenario's own (shipped) and at {b.get('reference')} sub-steps (the reference). Cost: the C loop's µs "
+           "per control period, median over seeds and controllers. Deviation: the largest difference of a reported "
+           "error's median or worst over the seeds (max tracking error, % of amplitude, each moving coordinate) "
+           "from the reference's, over the controllers, in points; the adaptive runs are chaotic on the rig, so "
+           "the former's deviation is the floor the seeds resolve. Keeps: every controller's shipped deviation "
+           f"within {_f(b.get('tolerance'))} point or within the former's.", ""]
+    table = [[r["model"], r["scenario"], f"{r['substeps']}, {r['pressure_bounds']}",
+              f"{_f(r['us_former'], 1)} → {_f(r['us_shipped'], 1)}", f"{r['ratio']:.2f}×",
+              _f(r["dev_former"]), _f(r["dev_shipped"]), _f(bool(r["keeps"]))] for r in rows]
+    out += _table(["robot", "scenario", "shipped: sub-steps, bounds", "µs per period, former → shipped",
+                   "cheaper", "deviation, former", "deviation, shipped", "keeps"], table)
+    ratios = [r["ratio"] for r in rows]
+    out += [f"The period is {min(ratios):.2f}-{max(ratios):.2f}× cheaper than the former integration's "
+            f"({sum(1 for r in rows if r['keeps'])} of {len(rows)} scenarios keep every controller's errors).", ""]
+    return out
 
 
 def _integrator_field(b, key, field, what) -> list:
@@ -768,6 +794,8 @@ def benchmarks_page(results: dict, repeats: dict | None = None, source: str = "d
         out += _integrator(results["bench_integrator"])
     if "bench_local_error" in results:
         out += _local_error(results["bench_local_error"])
+    if "bench_rig_period" in results:
+        out += _rig_period(results["bench_rig_period"])
     if "bench_delay" in results:
         out += _delay(results["bench_delay"])
     if "bench_sensitivity" in results:

@@ -77,10 +77,10 @@ class ScenarioFields:
                                default_text="0 for every coordinate")
     seed: int = setting(0, "", "noise seed")
     estimator_update: str = setting("semi-implicit", "", 'controller state update: "semi-implicit" or "euler"')
-    pressure_bounds: str = setting("step", "", 'how the plant holds each pressure within its bounds (a chamber that '
-                                   'would cavitate stays at 0): "step" clips after each RK4 step; "stage" also at '
-                                   'every stage, where a pressure at a bound does not rate past it (converges at '
-                                   'RK4\'s order where a pressure rests on a bound, the step clip at first order)')
+    pressure_bounds: str = setting("stage", "", 'how the plant holds each pressure within its bounds (a chamber '
+                                   'that would cavitate stays at 0): "stage" clips at every RK4 stage, where a '
+                                   'pressure at a bound does not rate past it (RK4 keeps its order); "step" only '
+                                   'after each step (first order where a pressure rests on a bound)')
     #: actuator name -> {setting of PER_ACTUATOR: value in that actuator's own unit}
     actuators: dict = field(default_factory=dict)
     gains: dict = field(default_factory=dict)  # controller name -> gain overrides for this scenario

@@ -769,6 +769,46 @@ def test_holding_the_pressures_at_every_stage_converges_where_a_chamber_cavitate
     assert step["q_pts"][4] > 0.1 and stage["q_pts"][4] < 1e-3, (step, stage)
 
 
+def test_the_rig_period_benchmark_runs_former_shipped_and_reference_side_by_side(capsys):
+    """bench_rig_period's quick run: the first rig scenario of the first robot at the former
+    integration, the shipped one and the reference, per seed in a row; the summary follows its rule,
+    the table and the page render it."""
+    import bench_integrator
+    import bench_rig_period as brp
+    from hydrogen.pages import benchmarks_page
+
+    res = brp.run(quick=True, workers=1)
+    (row,) = res["rows"]
+    model = hydrogen.load_model(row["model"])
+    (scen,) = bench_integrator.rig_scenarios(model, quick=True)
+    sc = scenario(scen, model)
+    assert row["scenario"] == scen and (row["substeps"], row["pressure_bounds"]) == (sc.substeps, sc.pressure_bounds)
+    assert row["us_former"] > 0 and row["us_shipped"] > 0
+    assert row["ratio"] == pytest.approx(row["us_former"] / row["us_shipped"])
+    for c in row["controllers"].values():
+        assert not c["failed"]
+        assert c["keeps"] == (c["dev_shipped"] <= max(brp.TOLERANCE, c["dev_former"]))
+    brp.print_table(res)
+    assert scen in capsys.readouterr().out
+    page = benchmarks_page({"bench_rig_period": json.loads(json.dumps(res))})
+    assert "## The rig period" in page and f"{row['ratio']:.2f}×" in page
+
+
+def test_the_rig_period_summary_judges_every_controller():
+    import bench_rig_period as brp
+
+    def runs(us, former, shipped):
+        ref = {"errors": {"z": [1.0, 2.0]}, "failed": {}, "us": [1.0]}
+        return {"former": {"errors": {"z": former}, "failed": {}, "us": [us]},
+                "shipped": {"errors": {"z": shipped}, "failed": {}, "us": [us / 2]}, "reference": ref}
+
+    s = brp.summarise({"a": runs(10.0, [1.0, 2.0], [1.05, 2.0]), "b": runs(12.0, [1.5, 2.0], [1.0, 2.2])})
+    assert s["ratio"] == pytest.approx(2.0)
+    assert s["controllers"]["a"]["keeps"] and s["controllers"]["b"]["keeps"]  # b: 0.2, within the former's 0.25
+    s = brp.summarise({"b": runs(12.0, [1.0, 2.0], [1.0, 2.4])})
+    assert not s["keeps"] and s["dev_shipped"] == pytest.approx(0.4)
+
+
 def test_the_replay_rule_keeps_a_count_only_within_both_bounds():
     import bench_local_error as ble
 

@@ -282,10 +282,11 @@ def test_arm_sim_excitation_is_reported_and_weaker_than_paper_sims(arm_runs, pap
 
 def test_divergence_stops_with_time_state_and_partial_result(plain_stewart_dyn):
     """A command of 1 m of spool (the Stewart platform without its datasheet valve, which saturates
-    at 5 mm) diverges."""
+    at 5 mm) diverges, with the pressures clipped after each RK4 step only (held within their bounds at
+    every stage too, the default, they bound the forces and this run stays finite)."""
     with pytest.raises(hydrogen.SimulationError) as err:
         simulate(plain_stewart_dyn, "paper-sim", "backstepping", duration=2.0,
-                 gains={"Ktau": 5e4, "u_max": 1.0}, control_rate=200.0, substeps=2)
+                 gains={"Ktau": 5e4, "u_max": 1.0}, control_rate=200.0, substeps=2, pressure_bounds="step")
     msg = str(err.value)
     assert "t = " in msg and "paper-sim" in msg
     res = err.value.result
@@ -536,7 +537,8 @@ def test_sweep_any_executor_and_errors_in_place(plain_stewart):
     from concurrent.futures import ThreadPoolExecutor
     runs = [dict(scenario="z-1hz", controller="p", gains={"Kleg": k}, duration=1.0) for k in (0.02, 0.04)]
     runs.append(dict(scenario="paper-sim", controller="backstepping", duration=1.0,
-                     gains={"Ktau": 5e4, "u_max": 1.0}, control_rate=200.0, substeps=2))
+                     gains={"Ktau": 5e4, "u_max": 1.0}, control_rate=200.0, substeps=2,
+                     pressure_bounds="step"))
     with ThreadPoolExecutor(2) as ex:
         out = hydrogen.sweep(runs, executor=ex, model=plain_stewart)  # the unsaturated spool: run 2 diverges
     assert out[0]["max_error_pct"]["z"] > out[1]["max_error_pct"]["z"]  # more gain, less error
@@ -561,7 +563,7 @@ def test_two_steppers_on_one_library_keep_their_own_gains(dyn):
 def test_c_loop_divergence_keeps_only_finite_rows(plain_stewart_dyn):
     with pytest.raises(hydrogen.SimulationError) as err:
         simulate(plain_stewart_dyn, "paper-sim", "backstepping", duration=2.0,
-                 gains={"Ktau": 5e4, "u_max": 1.0}, control_rate=200.0, substeps=2)
+                 gains={"Ktau": 5e4, "u_max": 1.0}, control_rate=200.0, substeps=2, pressure_bounds="step")
     res = err.value.result
     assert np.all(np.isfinite(res.q)) and np.all(np.isfinite(res.u))
     assert f"t = {res.t[-1] + 1 / 200.0:.4f} s" in str(err.value)
@@ -691,7 +693,7 @@ def test_a_batched_chunk_equals_its_runs_one_at_a_time(plain_stewart_dyn, monkey
              dict(scenario="z-1hz", controller="p", duration=-1.0, seed=1),  # a bad scenario field: no Batch
              dict(scenario="z-1hz", controller="p", duration=0.5),  # the scenario's own seed
              dict(scenario="paper-sim", controller="backstepping", duration=1.0, seed=0,  # diverges
-                  gains={"Ktau": 5e4, "u_max": 1.0}, control_rate=200.0, substeps=2)]
+                  gains={"Ktau": 5e4, "u_max": 1.0}, control_rate=200.0, substeps=2, pressure_bounds="step")]
     plans = []
     real_plan = S.plan_run
     monkeypatch.setattr(S, "plan_run", lambda *a, **k: plans.append(a[1]) or real_plan(*a, **k))
