@@ -22,8 +22,10 @@ time and its joined workers', so a worker's start-up counts), the routes interle
 
 * ``c_loop``: the bare C loop (``LoopRunner.run``) of the same 100 runs, timed alone in one process:
   the most any route can reach;
-* ``per_run``: one run per task in a new 2-process pool, each run prepared alone (``_run_one``, the
-  sweep's route before batching);
+* ``per_run_former``: one run per task in a new 2-process pool, each run prepared alone (``_run_one``,
+  the sweep's route before batching) at the rig's former plant integration (``bench_rig_period.FORMER``:
+  8 sub-steps, the pressures clipped after each step): the sweep as it was before both;
+* ``per_run``: the same at the scenario's own integration;
 * ``batched``: ``hydrogen.sweep(runs, seeds=10, max_workers=2)``, the default: chunks of runs per task,
   one Batch per scenario in each;
 * ``batched_threads``: the same on a ``ThreadPoolExecutor(2)`` (the C loop releases the GIL: no
@@ -42,9 +44,11 @@ import hydrogen
 
 try:  # imported as benchmarks.bench_sweep
     from . import common
+    from .bench_rig_period import FORMER
 except ImportError:  # run as a script, or loaded from its path
     sys.path.insert(0, str(Path(__file__).resolve().parent))
     import common
+    from bench_rig_period import FORMER
 
 WORKERS = 2
 
@@ -103,7 +107,7 @@ from hydrogen.runtime.build import as_model, default_dynamics
 from hydrogen.simulation import simulator as S
 from hydrogen.simulation.sweep import _run_one
 
-DURATION, SEEDS, WORKERS = {duration}, 10, {workers}
+DURATION, SEEDS, WORKERS, FORMER = {duration}, 10, {workers}, {former!r}
 runs = [dict(scenario="z-1hz", controller="p", gains={{"Kleg": float(k)}}, duration=DURATION)
         for k in np.geomspace(0.02, 0.3, 10)]
 flat = [dict(r, seed=s) for r in runs for s in range(SEEDS)]
@@ -126,10 +130,13 @@ def c_loop():
         spent += time.process_time() - t0
     return spent
 
-def per_run():
+def per_run(runs=flat):
     with ProcessPoolExecutor(WORKERS) as pool:
-        out = list(pool.map(_run_one, [(model, r, False, None) for r in flat]))
+        out = list(pool.map(_run_one, [(model, r, False, None) for r in runs]))
     assert not any("error" in m for m in out)
+
+def per_run_former():
+    per_run([dict(r, **FORMER) for r in flat])
 
 def batched():
     out = hydrogen.sweep(runs, seeds=SEEDS, max_workers=WORKERS)
@@ -141,7 +148,8 @@ def batched_threads():
     assert all(o["completed"] == SEEDS for o in out)
 
 if __name__ == "__main__":
-    routes = {{"per_run": per_run, "batched": batched, "batched_threads": batched_threads}}
+    routes = {{"per_run_former": per_run_former, "per_run": per_run, "batched": batched,
+              "batched_threads": batched_threads}}
     rates = {{k: [] for k in ("c_loop", *routes)}}
     walls = {{k: [] for k in routes}}
     for _ in range({repeats}):  # interleaved, so a change in the machine's load reaches every route alike
@@ -164,15 +172,18 @@ def batch_throughput(quick: bool = False) -> dict:
     repeats = 1 if quick else 3
     duration = 2.0 if quick else 6.0
     load_before = os.getloadavg()[0]
-    stdout, _ = common.run_python(_BATCH.format(duration=duration, repeats=repeats, workers=WORKERS), timeout=1800)
+    stdout, _ = common.run_python(_BATCH.format(duration=duration, repeats=repeats, workers=WORKERS, former=FORMER),
+                                  timeout=1800)
     k = common.parse_keyed(stdout)
-    routes = ("c_loop", "per_run", "batched", "batched_threads")
+    routes = ("c_loop", "per_run_former", "per_run", "batched", "batched_threads")
     out = {"runs": 100, "gain_sets": 10, "seeds": 10, "sim_duration_s": duration, "workers": WORKERS,
            "repeats": repeats, "runs_per_cpu_s": {r: k.get(f"runs_per_cpu_s_{r}") for r in routes},
            "runs_per_wall_s": {r: k.get(f"runs_per_wall_s_{r}") for r in routes[1:]}}
     c = out["runs_per_cpu_s"]
     out["of_c_loop"] = {r: c[r] / c["c_loop"] for r in routes[1:]}
     out["batched_over_per_run"] = c["batched"] / c["per_run"]
+    out["batched_over_former"] = c["batched"] / c["per_run_former"]
+    out["former"] = FORMER
     out["load_avg_1min"] = [load_before, os.getloadavg()[0]]
     return out
 
@@ -181,14 +192,17 @@ def print_batch(res) -> None:
     print(f"batched sweep: {res['runs']} z-1hz P runs ({res['gain_sets']} gain sets x {res['seeds']} seeds, "
           f"{res['sim_duration_s']:.0f} s each), {res['workers']} workers, median of {res['repeats']} "
           f"(1-min load average {res['load_avg_1min'][0]:.1f} before, {res['load_avg_1min'][1]:.1f} after):")
-    names = {"c_loop": "bare C loop (LoopRunner.run alone)", "per_run": "one run per task (before batching)",
+    names = {"c_loop": "bare C loop (LoopRunner.run alone)",
+             "per_run_former": "one run per task, former integration",
+             "per_run": "one run per task (before batching)",
              "batched": "batched, process pool (default)", "batched_threads": "batched, thread pool"}
     for key, label in names.items():
         cpu = res["runs_per_cpu_s"][key]
         wall = res["runs_per_wall_s"].get(key)
         of = f"{res['of_c_loop'][key]:5.2f} of the C loop" if key in res["of_c_loop"] else ""
         print(f"  {label:38} {cpu:7.1f} runs/CPU-s {'' if wall is None else f'{wall:7.1f} runs/wall-s'}  {of}")
-    print(f"  batched / one run per task: {res['batched_over_per_run']:.2f}x runs per CPU-second")
+    print(f"  batched / one run per task: {res['batched_over_per_run']:.2f}x runs per CPU-second; against one run "
+          f"per task at the former integration: {res['batched_over_former']:.2f}x")
 
 
 def identification_time(repeats: int) -> dict:

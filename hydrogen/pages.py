@@ -156,8 +156,12 @@ def _sweep(b) -> list:
             out += [f"The Dask cluster took {_f(b['dask_cluster_start_s'])} s to start.", ""]
     batch = b.get("batch")
     if batch:
-        names = {"c_loop": "bare C loop (`LoopRunner.run` alone)", "per_run": "one run per task",
-                 "batched": "batched, process pool (default)", "batched_threads": "batched, thread pool"}
+        former = batch.get("former") or {}
+        names = {"c_loop": "bare C loop (`LoopRunner.run` alone)",
+                 "per_run_former": f"one run per task, the former plant integration ({former.get('substeps')} "
+                                   f"sub-steps, pressure bounds `{former.get('pressure_bounds')}`)",
+                 "per_run": "one run per task", "batched": "batched, process pool (default)",
+                 "batched_threads": "batched, thread pool"}
         out.append(f"{batch.get('runs')} runs of z-1hz with P ({batch.get('gain_sets')} gain sets x "
                    f"{batch.get('seeds')} seeds, {_f(batch.get('sim_duration_s'))} s each) on "
                    f"{batch.get('workers')} workers, per CPU-second of the parent and its workers:")
@@ -165,6 +169,9 @@ def _sweep(b) -> list:
         of = batch.get("of_c_loop", {})
         out += _table(["route", "runs/CPU-s", "of the C loop"],
                       [[names.get(k, k), _f(v, 1), _f(of.get(k))] for k, v in batch.get("runs_per_cpu_s", {}).items()])
+        if batch.get("batched_over_former"):
+            out += [f"The batched sweep does {batch['batched_over_former']:.2f}× the runs per CPU-second of one run "
+                    "per task at the former plant integration (the sweep before both).", ""]
     ident = b.get("identify_paper_sim")
     if ident:
         st = ident.get("stages_s", {})

@@ -280,6 +280,15 @@ def test_arm_sim_excitation_is_reported_and_weaker_than_paper_sims(arm_runs, pap
     assert 0 < arm < stewart / 3, (arm, stewart)
 
 
+def test_excitation_is_reported_for_what_a_controller_estimates_only(dyn, paper_runs):
+    """A controller that adapts nothing (P, backstepping) has no estimate to excite: no metric, and no
+    cost per run (a sweep runs thousands); an adaptive one gets it."""
+    assert "excitation" in paper_runs["adaptive-robust"].metrics
+    for kind in ("p", "backstepping"):
+        res = simulate(dyn, "paper-sim", kind, duration=0.5)
+        assert not res.estimated and "excitation" not in res.metrics and "max_error_pct" in res.metrics
+
+
 def test_divergence_stops_with_time_state_and_partial_result(plain_stewart_dyn):
     """A command of 1 m of spool (the Stewart platform without its datasheet valve, which saturates
     at 5 mm) diverges, with the pressures clipped after each RK4 step only (held within their bounds at
