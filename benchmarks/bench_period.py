@@ -6,7 +6,8 @@ the one difference is the numbers), ``earlier``, git commit ``--baseline`` (defa
 of this repository (its own default build, descriptions and gains; 6480770 has the numbers as
 inputs too), extracted with ``git archive`` as ``bench_release.py`` does, and ``described``, the
 current code on the earlier version's own descriptions (the keys renamed since migrated,
-:data:`RENAMED`, and the rig's settings now given per joint actuator, :func:`own_rig_settings`):
+:data:`RENAMED`, the defaults changed since stated as they were, :data:`FORMER_DEFAULTS`, and the rig's
+settings now given per joint actuator, :func:`own_rig_settings`):
 like for like with ``earlier`` by construction. For every shipped robot the earlier version knows,
 in each route:
 
@@ -128,6 +129,9 @@ def _measure(version: Version, robots: list, build_kw: dict, described: dict | N
 #: Description keys renamed since ``BASELINE``: (table, old key, new key, new value from the old one
 #: and the table), so the current code loads the earlier version's descriptions.
 RENAMED = (("rig", "delay_periods", "delay", lambda v, table: v / table["control_rate"]),)
+#: Scenario fields whose default changed since ``BASELINE``, with the value that computes what it did:
+#: set in the earlier descriptions' [rig] and [scenarios.*] tables (like for like: the same integration).
+FORMER_DEFAULTS = {"pressure_bounds": "step"}
 
 
 def own_rig_settings(toml: Path) -> str:
@@ -170,6 +174,9 @@ def earlier_descriptions(data: Path, dest: Path) -> dict:
             head = re.search(rf"^\[{table}\]\s*$", text, re.M)
             key = re.compile(rf"^{old}\s*=.*$", re.M).search(text, head.end())
             text = f"{text[:key.start()]}{new} = {value(parsed[table][old], parsed[table])!r}{text[key.end():]}"
+        for field, value in FORMER_DEFAULTS.items():  # each table that runs a scenario states the old default
+            text = re.sub(r"^(\[(?:rig|scenarios\.[A-Za-z0-9_-]+)\][ \t]*)$", rf"\1\n{field} = {json.dumps(value)}",
+                          text, flags=re.M)
         toml.write_text(text, encoding="utf-8")
         extra = own_rig_settings(toml)  # read from the renamed file: the current code loads it
         if extra:

@@ -31,6 +31,10 @@ time and its joined workers', so a worker's start-up counts), the routes interle
 * ``batched_threads``: the same on a ``ThreadPoolExecutor(2)`` (the C loop releases the GIL: no
   worker start-up, no pickling).
 
+Then the same 100 runs through ``hydrogen.sweep(runs, seeds=10, max_workers=2)`` of commit
+:data:`RELEASE` (extracted with ``git archive``, its own description and cache, in its own process
+right after): the release the targets were set against, as its users ran it.
+
 Run: ``python benchmarks/bench_sweep.py [--quick] [--batch] [--json FILE]``
 """
 from __future__ import annotations
@@ -51,6 +55,8 @@ except ImportError:  # run as a script, or loaded from its path
     from bench_rig_period import FORMER
 
 WORKERS = 2
+#: The release the batched sweep is compared with: the commit the throughput targets were set against.
+RELEASE = "6480770"
 
 _SWEEP = """
 import statistics, time
@@ -167,6 +173,52 @@ if __name__ == "__main__":
 """
 
 
+_RELEASE = """
+import resource, statistics
+import numpy as np
+import hydrogen
+print("hydrogen_file", 0, hydrogen.__file__)
+runs = [dict(scenario="z-1hz", controller="p", gains={{"Kleg": float(k)}}, duration={duration})
+        for k in np.geomspace(0.02, 0.3, 10)]
+
+def cpu():
+    s, c = resource.getrusage(resource.RUSAGE_SELF), resource.getrusage(resource.RUSAGE_CHILDREN)
+    return s.ru_utime + s.ru_stime + c.ru_utime + c.ru_stime
+
+if __name__ == "__main__":
+    hydrogen.simulate(**runs[0])  # its library built and loaded once, as any first call does
+    rates = []
+    for _ in range({repeats}):
+        c0 = cpu()
+        out = hydrogen.sweep(runs, seeds={seeds}, max_workers={workers})
+        rates.append(len(runs) * {seeds} / (cpu() - c0))
+        assert all(o.get("completed") == {seeds} for o in out), out
+    print("runs_per_cpu_s_release", statistics.median(rates))
+"""
+
+
+def release_throughput(duration: float, repeats: int, commit: str = RELEASE) -> dict:
+    """The same sweep (100 z-1hz P runs: 10 gain sets x 10 seeds) in commit ``commit`` of this
+    repository, its own code, description and plant integration: the sweep as that release ran it,
+    runs per CPU-second of its parent and its joined workers; {"skipped": why} when the commit cannot
+    be extracted."""
+    import tempfile
+
+    try:
+        from .bench_release import Version, _extract_previous
+    except ImportError:
+        from bench_release import Version, _extract_previous
+
+    with tempfile.TemporaryDirectory() as tmp:
+        src = Path(tmp) / "release"
+        why = _extract_previous(src, commit)
+        if why:
+            return {"skipped": why}
+        version = Version(f"commit {commit}", src, Path(tmp) / "cache")
+        stdout, _ = version.run(_RELEASE.format(duration=duration, repeats=repeats, seeds=10, workers=WORKERS))
+    return {"commit": commit, "runs_per_cpu_s": common.parse_keyed(stdout).get("runs_per_cpu_s_release")}
+
+
 def batch_throughput(quick: bool = False) -> dict:
     """The batched sweep against the per-run route and the bare C loop (module doc)."""
     repeats = 1 if quick else 3
@@ -184,6 +236,9 @@ def batch_throughput(quick: bool = False) -> dict:
     out["batched_over_per_run"] = c["batched"] / c["per_run"]
     out["batched_over_former"] = c["batched"] / c["per_run_former"]
     out["former"] = FORMER
+    out["release"] = release_throughput(duration, repeats)
+    rel = out["release"].get("runs_per_cpu_s")
+    out["batched_over_release"] = c["batched"] / rel if rel else None
     out["load_avg_1min"] = [load_before, os.getloadavg()[0]]
     return out
 
@@ -203,6 +258,12 @@ def print_batch(res) -> None:
         print(f"  {label:38} {cpu:7.1f} runs/CPU-s {'' if wall is None else f'{wall:7.1f} runs/wall-s'}  {of}")
     print(f"  batched / one run per task: {res['batched_over_per_run']:.2f}x runs per CPU-second; against one run "
           f"per task at the former integration: {res['batched_over_former']:.2f}x")
+    rel = res.get("release") or {}
+    if rel.get("runs_per_cpu_s"):
+        print(f"  the same sweep in commit {rel['commit']} (its own code and description): {rel['runs_per_cpu_s']:.1f} "
+              f"runs/CPU-s; batched / that: {res['batched_over_release']:.2f}x")
+    elif rel:
+        print(f"  commit {RELEASE} not measured: {rel.get('skipped')}")
 
 
 def identification_time(repeats: int) -> dict:

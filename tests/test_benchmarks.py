@@ -787,7 +787,8 @@ def test_the_rig_period_benchmark_runs_former_shipped_and_reference_side_by_side
     assert row["ratio"] == pytest.approx(row["us_former"] / row["us_shipped"])
     for c in row["controllers"].values():
         assert not c["failed"]
-        assert c["keeps"] == (c["dev_shipped"] <= max(brp.TOLERANCE, c["dev_former"]))
+        assert c["chaotic"] == (c["paired_former"] > brp.TOLERANCE)
+        assert c["keeps"] == (c["dev_shipped"] <= max(brp.TOLERANCE, c["dev_former"] if c["chaotic"] else 0.0))
     brp.print_table(res)
     assert scen in capsys.readouterr().out
     page = benchmarks_page({"bench_rig_period": json.loads(json.dumps(res))})
@@ -802,11 +803,15 @@ def test_the_rig_period_summary_judges_every_controller():
         return {"former": {"errors": {"z": former}, "failed": {}, "us": [us]},
                 "shipped": {"errors": {"z": shipped}, "failed": {}, "us": [us / 2]}, "reference": ref}
 
+    # a: not chaotic (the former within 0.1 on every seed); b: chaotic (0.5 off on seed 0)
     s = brp.summarise({"a": runs(10.0, [1.0, 2.0], [1.05, 2.0]), "b": runs(12.0, [1.5, 2.0], [1.0, 2.2])})
     assert s["ratio"] == pytest.approx(2.0)
+    assert s["chaotic"] == ["b"] and s["dev_shipped"] == pytest.approx(0.025)  # the median 1.525
     assert s["controllers"]["a"]["keeps"] and s["controllers"]["b"]["keeps"]  # b: 0.2, within the former's 0.25
-    s = brp.summarise({"b": runs(12.0, [1.0, 2.0], [1.0, 2.4])})
-    assert not s["keeps"] and s["dev_shipped"] == pytest.approx(0.4)
+    s = brp.summarise({"a": runs(12.0, [1.0, 2.05], [1.0, 2.2])})  # not chaotic: 0.2 is beyond 0.1
+    assert not s["keeps"] and s["not_kept"] == ["a"] and s["dev_shipped"] == pytest.approx(0.2)
+    s = brp.summarise({"b": runs(12.0, [1.5, 2.0], [1.0, 2.4])})  # chaotic, beyond the former's 0.25
+    assert not s["keeps"] and s["dev_shipped_chaotic"] == pytest.approx(0.4)
 
 
 def test_the_replay_rule_keeps_a_count_only_within_both_bounds():

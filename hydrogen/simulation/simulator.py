@@ -276,7 +276,7 @@ def run_prepared(dyn, p, controller: str, engine: str = "c", call_start=None, ru
     start (:meth:`Batch.run` keeps one per gain set), else one is made."""
     call_start = time.perf_counter() if call_start is None else call_start
     sc, ctrl, n, h = p.sc, p.ctrl, p.n, p.h
-    log = new_logs(dyn.model, n, ctrl.xc.size)
+    log = new_logs(dyn.model, n, ctrl.xc.size, p.log_widths)
     t_log = np.arange(n) * h
     start = time.perf_counter()
     if engine == "c":
@@ -478,7 +478,7 @@ class Batch:
         self.plan = plan_run(dyn, scenario, controller, duration, check_workspace, overrides)
         self._truth = (dyn.model.theta, dyn.model.gamma)
         self._l0 = dyn.leg_lengths(self.plan.q0)
-        self._gains_key, self._ctrl, self._runner = None, None, None
+        self._gains_key, self._ctrl, self._runner, self._widths = None, None, None, None
 
     def prepare(self, gains=None, seed=SCENARIO_SEED) -> tuple:
         """(prepared run, its reset runner) of ``gains`` and noise ``seed``; raises as :func:`simulate`
@@ -500,11 +500,12 @@ class Batch:
             self._gains_key, self._runner = None, None
             self._ctrl = plan.controller_runtime(gains)
             self._runner = make_runner(self.dyn, plan.sc, self._ctrl, plan.x0, plan.q0, plan.kf_gain, plan.h)
+            self._widths = log_widths(self.dyn.model, self._ctrl.xc.size)
             self._gains_key = key
         else:  # every buffer the loop reads but does not write each period is static: only its state restarts
             self._runner.reset(plan.x0, plan.q0, self._l0, self._ctrl.xc)
         p = _Prepared(sc, self._ctrl, plan.n, plan.h, plan.x0, plan.q0, plan.noise(sc.seed), plan.kf_gain,
-                      plan.theta0, plan.gamma0, self._truth)
+                      plan.theta0, plan.gamma0, self._truth, self._widths)
         return p, self._runner
 
     def run(self, gains=None, seed=SCENARIO_SEED):
@@ -552,16 +553,23 @@ class _Prepared:
     theta0: np.ndarray
     gamma0: np.ndarray
     truth: tuple = None  # (θ, γ) of the model, computed once for a batch (None: read from the model)
+    log_widths: tuple = None  # log_widths of the model and controller, once for a batch (None: worked out)
 
 
-def new_logs(model, n: int, n_xc: int) -> dict:
-    """The logs of a run of ``n`` periods (NaN-filled rows), as both engines write them."""
+def log_widths(model, n_xc: int) -> tuple:
+    """((log name, columns), ...) of a run's logs: :func:`new_logs`'s layout, the same for every run of
+    one model and controller state size (a batch works it out once)."""
     nq, m = model.n, model.n_cylinders
     n_p = pressures.n_pressures(model)
     supply = [(SUPPLY_LOG, b.size) for b in plant_layout(model) if b.name == SUPPLY_LOG]  # a supply state's log
-    return {k: np.full((n, w), np.nan) for k, w in (("q", nq), ("q_d", nq), ("l", m), ("f", m), ("pc", n_p),
-                                                    ("u", m), ("u_applied", m), ("l_meas", m),
-                                                    ("xc", max(n_xc, 1)), *supply)}
+    return (("q", nq), ("q_d", nq), ("l", m), ("f", m), ("pc", n_p), ("u", m), ("u_applied", m), ("l_meas", m),
+            ("xc", max(n_xc, 1)), *supply)
+
+
+def new_logs(model, n: int, n_xc: int, widths=None) -> dict:
+    """The logs of a run of ``n`` periods (NaN-filled rows), as both engines write them (``widths``:
+    :func:`log_widths` of the same model and ``n_xc``, when the caller has it)."""
+    return {k: np.full((n, w), np.nan) for k, w in (widths or log_widths(model, n_xc))}
 
 
 @dataclass
