@@ -11,7 +11,8 @@ time from the rig as described:
   kept) times each of :data:`FRICTION_SCALES` (1: the rig's; 0: none);
 * ``valve``: the servo-valve's natural frequency (``valve_bandwidth_hz``, and each datasheet valve's
   ``actuators.<name>.valve.bandwidth_hz``: the spool lagging 90° there; damping as described) at
-  each of :data:`BANDWIDTHS` Hz (the rig's among them).
+  each of :data:`BANDWIDTHS` Hz (the rig's among them), with the plant's sub-steps raised where a valve
+  faster than the rig's needs more than the scenario's to be resolved (:func:`resolving_substeps`).
 
 No controller models either (the paper's ideal valve, no friction), unless a description turns
 friction compensation on. Reported: the max tracking error (% of the reference amplitude) of the
@@ -23,6 +24,7 @@ Run: ``python benchmarks/bench_sensitivity.py [--quick] [--json FILE]`` (a few m
 """
 from __future__ import annotations
 
+import math
 import os
 import sys
 import time
@@ -54,8 +56,16 @@ ELEMENTS = {
     "friction": ("friction (x the rig's)", lambda sc, s, model: scaled_friction(sc, model, s)),
     "valve": ("valve natural frequency (Hz)", lambda sc, f, model: {
         "valve_bandwidth_hz": f,  # the rig's; an actuator's datasheet valve is set by its own response
-        "actuators": {c.name: {"valve": {"bandwidth_hz": f}} for c in model.cylinders if c.valve is not None}}),
+        "actuators": {c.name: {"valve": {"bandwidth_hz": f}} for c in model.cylinders if c.valve is not None},
+        "substeps": resolving_substeps(sc, f)}),
 }
+
+
+def resolving_substeps(sc, f: float) -> int:
+    """The scenario's sub-steps, or the fewest that resolve a valve of natural frequency ``f`` Hz where it
+    asks more (the scenario check's bound: 2 pi f h / substeps <= 1): a faster valve than the rig's must
+    not be refused for the rig's cheaper integration."""
+    return max(sc.substeps, math.ceil(2 * math.pi * f / sc.control_rate))
 #: The friction row's force levels (hydrogen.plant.friction.PARAMETERS), scaled by a friction multiple.
 LEVELS = ("coulomb", "breakaway", "viscous", "pressure_coefficient")
 

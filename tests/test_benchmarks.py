@@ -814,6 +814,21 @@ def test_the_rig_period_summary_judges_every_controller():
     assert not s["keeps"] and s["dev_shipped_chaotic"] == pytest.approx(0.4)
 
 
+def test_the_sensitivity_study_resolves_a_faster_valve_with_more_sub_steps():
+    """A valve faster than the rig's sub-steps resolve is run with the fewest that do, never refused; the
+    rig's own valve keeps the scenario's count."""
+    import bench_sensitivity as bs
+
+    model = hydrogen.load_model()
+    sc = scenario("z-1hz", model)
+    for f in bs.BANDWIDTHS:
+        n = bs.resolving_substeps(sc, f)
+        assert n >= sc.substeps and 2 * np.pi * f / (sc.control_rate * n) <= 1
+        assert n == sc.substeps or 2 * np.pi * f / (sc.control_rate * (n - 1)) > 1
+        sc.with_overrides(**bs.ELEMENTS["valve"][1](sc, f, model))  # accepted by the scenario's checks
+    assert bs.resolving_substeps(sc, sc.valve_bandwidth_hz) == sc.substeps
+
+
 def test_the_replay_rule_keeps_a_count_only_within_both_bounds():
     import bench_local_error as ble
 
