@@ -165,13 +165,15 @@ def cheapest(values, keeps) -> int | None:
 def sweep_field(dyn, scenario: str, field: str, values, reference: int, check: int, seeds, controllers) -> dict:
     """Each of ``controllers`` on ``scenario`` at each of ``values`` of ``field``, the
     reference and the check: per controller the reference's median and worst, the floor, each
-    value's deviations and whether it keeps the errors, and the cheapest value that keeps them."""
-    rows = {}
+    value's deviations and whether it keeps the errors, and the cheapest value that keeps them. A
+    controller whose reference run fails (diverges on a seed) is left out and named in
+    ``no_reference`` with the failure: nothing to judge its counts against."""
+    rows, no_reference = {}, {}
     for c in controllers:
         ref = measure(dyn, scenario, c, field, reference, seeds)
-        if "refused" in ref or ref["failed"]:
-            raise RuntimeError(f"{dyn.model.name} {scenario} {c}: the reference ({field} = {reference}) did not "
-                               f"complete: {ref.get('refused') or ref['failed']}")
+        if "refused" in ref or ref["failed"]:  # nothing to judge its counts against: said, not judged
+            no_reference[c] = ref.get("refused") or ref["failed"]
+            continue
         floor = deviation(measure(dyn, scenario, c, field, check, seeds), ref)
         counts = []
         for v in values:
@@ -194,11 +196,11 @@ def sweep_field(dyn, scenario: str, field: str, values, reference: int, check: i
         us = [x["us_per_period"] for x in at if x["us_per_period"] is not None]
         calm = [r["counts"][i] for r in rows.values() if not r["chaotic"]]
         per_value.append({field: v, "us_per_period": statistics.median(us) if us else None,
-                          "keeps": all(x["keeps"] for x in at), "dev": _largest(x["dev"] for x in at),
+                          "keeps": bool(at) and all(x["keeps"] for x in at), "dev": _largest(x["dev"] for x in at),
                           # the controllers whose reference does not move: their deviation is the integration's
                           "dev_not_chaotic": _largest(x["dev"] for x in calm),
                           "paired_not_chaotic": _largest(x["paired"] for x in calm)})
-    return {"controllers": rows, "per_value": per_value,
+    return {"controllers": rows, "per_value": per_value, "no_reference": no_reference,
             "cheapest": cheapest(values, {r[field]: r["keeps"] for r in per_value})}
 
 

@@ -660,6 +660,8 @@ def _integrator_field(b, key, field, what) -> list:
             now, best = at[s["current"]], at.get(s["cheapest"])
             pair = lambda k: f"{_f(now[k], 1)} → {_f(best[k], 1)}" if best else _f(now[k], 1)  # noqa: E731
             chaotic = [c for c, r in s["controllers"].items() if r["chaotic"]]
+            # a controller whose reference run diverged: nothing to judge against, named with the chaotic
+            chaotic += [f"{c} (its reference diverged)" for c in s.get("no_reference", {})]
             summary.append([rob["model"], s["scenario"], s["current"], s["cheapest"] or "none",
                             pair("us_per_period"), pair("rhs_instructions"),
                             _f(best["dev"]) if best else "–", _f(best["paired_not_chaotic"]) if best else "–",

@@ -192,6 +192,18 @@ def test_pressures_held_at_every_stage_run_alike_in_c_and_python():
     assert np.abs(step.q - c.q).max() > 1e-9
 
 
+def test_an_adaptive_run_that_diverges_says_so_with_its_cause():
+    """The arm's flow-limited cycle with the predictor at 32 steps diverges on seed 1 (the robust
+    observer's velocity estimate); the run's last logged row holds the non-finite state it stopped at.
+    It raises the SimulationError naming the cause with the partial result, not an error of a metric
+    computed over that row (the excitation of the estimates is not reported for a diverged run)."""
+    dyn = hydrogen.build(hydrogen.load_model("excavator_arm"), controllers=("adaptive-robust",))
+    with pytest.raises(hydrogen.SimulationError, match="velocity estimate .* diverged at t = ") as err:
+        simulate(dyn, "arm-flow.predictor", "adaptive-robust", predictor_substeps=32, seed=1)
+    res = err.value.result
+    assert 0 < len(res.t) < 5120 and "excitation" not in res.metrics
+
+
 @pytest.mark.parametrize("kind", ["adaptive-robust", "adaptive-observer"])
 def test_c_and_python_loops_on_the_rig_agree_until_chaos_parts_them(robot, kind):
     dyn, name = robot

@@ -286,7 +286,9 @@ def run_prepared(dyn, p, controller: str, engine: str = "c", call_start=None, ru
     wall = time.perf_counter() - start
     theta_true, gamma_true = (dyn.model.theta, dyn.model.gamma) if p.truth is None else (a.copy() for a in p.truth)
     res = _result(sc, controller, ctrl, t_log, log, k_done, p.theta0, p.gamma0, theta_true, gamma_true, wall)
-    if res.metrics and res.estimated:  # how well the run excites what the controller estimates: none, no metric
+    # how well the run excites what the controller estimates (none: no metric); not of a run that
+    # diverged, whose last row may hold the non-finite state it stopped at
+    if res.metrics and res.estimated and not failure:
         res.metrics["excitation"] = excitation(dyn, res, ctrl)
     res.wall_time_s = time.perf_counter() - call_start
     if res.metrics:
