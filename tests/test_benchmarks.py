@@ -596,10 +596,13 @@ def test_the_period_benchmark_migrates_renamed_keys_of_earlier_descriptions(tmp_
     data = tmp_path / "data"
     data.mkdir()
     (data / "r.toml").write_text("name = 'r'\n[rig]\ncontrol_rate = 512.0\ndelay_periods = 2\nnoise = 1\n"
-                                 "[other]\ndelay_periods = 7\n")
+                                 "[other]\ndelay_periods = 7\n[scenarios.s-1]\nduration = 1.0\n")
     files = bench_period.earlier_descriptions(data, tmp_path / "out")
     parsed = tomllib.loads(files["r"].read_text())
-    assert parsed["rig"] == {"control_rate": 512.0, "delay": 2 / 512.0, "noise": 1}
+    # the defaults changed since stated as they were, in every table that runs a scenario
+    former = bench_period.FORMER_DEFAULTS
+    assert parsed["rig"] == {"control_rate": 512.0, "delay": 2 / 512.0, "noise": 1, **former}
+    assert parsed["scenarios"]["s-1"] == {"duration": 1.0, **former}
     assert parsed["other"] == {"delay_periods": 7}  # only the table the key was renamed in
     assert (data / "r.toml").read_text().count("delay_periods") == 2  # the source is left as it was
 

@@ -136,12 +136,16 @@ def test_benchmarks_page_renders_what_the_run_holds(tmp_path):
 
 def test_benchmarks_page_renders_the_batched_sweep(tmp_path):
     batch = {"runs": 100, "gain_sets": 10, "seeds": 10, "sim_duration_s": 6.0, "workers": 2,
-             "runs_per_cpu_s": {"c_loop": 31.25, "per_run": 25.4, "batched": 27.75},
-             "of_c_loop": {"per_run": 0.81, "batched": 0.888}}
+             "runs_per_cpu_s": {"c_loop": 31.25, "per_run_former": 12.0, "per_run": 25.4, "batched": 27.75},
+             "of_c_loop": {"per_run_former": 0.384, "per_run": 0.81, "batched": 0.888},
+             "former": {"substeps": 8, "pressure_bounds": "step"}, "batched_over_former": 2.3125,
+             "release": {"commit": "abc1234", "runs_per_cpu_s": 9.25}, "batched_over_release": 3.0}
     (tmp_path / "bench.json").write_text(json.dumps({"bench_sweep": {"batch": batch}}), encoding="utf-8")
     text = pages.write_benchmarks_page(tmp_path / "bench.json").read_text(encoding="utf-8")
     assert "| batched, process pool (default) | 27.8 | 0.89 |" in text and "| bare C loop" in text
-    assert "10 gain sets x 10 seeds" in text
+    assert "| one run per task, the former plant integration (8 sub-steps, pressure bounds `step`) | 12.0 | 0.38 |" in text
+    assert "10 gain sets x 10 seeds" in text and "2.31× the runs per CPU-second" in text
+    assert "commit abc1234" in text and "9.2 runs/CPU-s" in text and "3.00× that" in text
 
 
 def test_figures_run_ends_by_writing_its_results_page(tmp_path, cache):
@@ -268,7 +272,18 @@ def test_the_paper_shows_the_margins_checked_on_unseen_seeds_as_committed():
         want = {(c, s) for c in margins_checking.nonlinear(model)
                 for s in rig_scenarios(model)}
         assert want <= {(r["controller"], r["scenario"]) for r in v["rows"]}, m
-    assert margins_checking.markdown(data) in (ROOT / "docs" / "paper.md").read_text(encoding="utf-8")
+    text = (ROOT / "docs" / "paper.md").read_text(encoding="utf-8")
+    assert margins_checking.markdown(data) in text
+    # the paragraph after the table names every row that falls short, with its margin and seeds
+    rows = [r for v in data["models"].values() for r in v["rows"]]
+    span = f"seeds {data['seeds'][0]}-{data['seeds'][-1]}"
+    (paragraph,) = [p for p in text.split("\n\n") if p.startswith("**") and span in p and "margin of 2" in p]
+    ok = sum(r["margin_ok"] for r in rows)
+    assert f"{ok} of {len(rows)} rows" in paragraph or (ok == len(rows) and f"({ok} of {ok})" in paragraph)
+    for r in rows:
+        if not r["margin_ok"]:
+            assert r["controller"] in paragraph and f"{r['margin']:.3g}" in paragraph
+            assert all(f"seed {s}" in paragraph for s in r["unstable_seeds_at_limit"])
 
 
 def test_every_nonlinear_controller_keeps_its_margin_in_the_committed_distributions():
