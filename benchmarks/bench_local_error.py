@@ -27,8 +27,6 @@ core; ``--quick``: the first rig scenario of the first robot, 0.3 s of it, two c
 """
 from __future__ import annotations
 
-import argparse
-import json
 import os
 import sys
 import time
@@ -160,17 +158,7 @@ def print_table(res: dict) -> None:
 
 
 def main(argv=None) -> int:
-    from hydrogen.fileio import atomic_write
-
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--quick", action="store_true")
-    ap.add_argument("--json", type=Path, metavar="FILE")
-    a = ap.parse_args(argv)
-    r = run(quick=a.quick)
-    print_table(r)
-    if a.json:
-        atomic_write(a.json, json.dumps(r, indent=2, default=str) + "\n")
-    return 0
+    return common.script_main(__doc__, run, print_table, argv)
 
 
 if __name__ == "__main__":

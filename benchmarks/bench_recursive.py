@@ -29,7 +29,6 @@ Run: ``python benchmarks/bench_recursive.py [--quick] [--json FILE] [--pinocchio
 """
 from __future__ import annotations
 
-import argparse
 import json
 import math
 import os
@@ -577,19 +576,8 @@ def print_table(res: dict) -> None:
 
 
 def main(argv=None) -> int:
-    from hydrogen.fileio import atomic_write
-
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--quick", action="store_true")
-    ap.add_argument("--json", type=Path, metavar="FILE")
-    ap.add_argument("--pinocchio-python", metavar="PYTHON",
-                    help="an interpreter with cmeel-casadi-kin-dyn (another environment): Pinocchio traced on SX")
-    a = ap.parse_args(argv)
-    r = run(quick=a.quick, pinocchio_python=a.pinocchio_python)
-    print_table(r)
-    if a.json:
-        atomic_write(a.json, json.dumps(r, indent=2, default=str) + "\n")
-    return 0
+    return common.script_main(__doc__, run, print_table, argv, {"--pinocchio-python": dict(
+        metavar="PYTHON", help="an interpreter with cmeel-casadi-kin-dyn (another environment): Pinocchio traced on SX")})
 
 
 if __name__ == "__main__":

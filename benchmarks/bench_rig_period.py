@@ -61,11 +61,10 @@ def _errors(res) -> dict:
     return {c: v for c, v in res.metrics["max_error_pct"].items() if v is not None}
 
 
-def measure(model_name: str, scenario: str, controller: str, seeds, reference: int, duration=None) -> dict:
+def measure(dyn, scenario: str, controller: str, seeds, reference: int, duration=None) -> dict:
     """The runs of one scenario and controller at each route over ``seeds``, in a row per seed: for
     each route {"errors": {coordinate: [% per seed]}, "failed": {seed: message}, "us": [µs per period
     per completed seed]}."""
-    dyn = hydrogen.build(hydrogen.load_model(model_name))
     batches = {"former": Batch(dyn, scenario, controller, duration=duration, **FORMER),
                "shipped": Batch(dyn, scenario, controller, duration=duration),
                "reference": Batch(dyn, scenario, controller, duration=duration, substeps=reference)}
@@ -85,8 +84,10 @@ def measure(model_name: str, scenario: str, controller: str, seeds, reference: i
 
 def _task(args):
     model_name, scenario, controllers, seeds, reference, duration = args
-    sc = named_scenario(scenario, hydrogen.load_model(model_name))
-    per = {c: measure(model_name, scenario, c, seeds, reference, duration) for c in controllers}
+    model = hydrogen.load_model(model_name)
+    dyn = hydrogen.build(model)  # once per task: its controllers share the library
+    sc = named_scenario(scenario, model)
+    per = {c: measure(dyn, scenario, c, seeds, reference, duration) for c in controllers}
     return model_name, scenario, sc.substeps, sc.pressure_bounds, per
 
 

@@ -237,10 +237,26 @@ def test_result_holds_the_scenario_actually_run(dyn):
 @pytest.mark.parametrize("bad", [dict(delay=-1e-3), dict(delay=99 / 512), dict(delay=8.5 / 512), dict(delay="1"),
                                  dict(delay=float("nan")),
                                  dict(valve_lag=0.002, valve_bandwidth_hz=80.0), dict(valve_damping=0.0),
-                                 dict(quantization_l=-1e-5), dict(valve_bandwidth_hz=5000.0)])
+                                 dict(quantization_l=-1e-5), dict(valve_bandwidth_hz=5000.0),
+                                 dict(pressure_bounds="stages"), dict(pressure_bounds=1)])
 def test_bad_rig_settings_are_named(dyn, bad):
     with pytest.raises(hydrogen.ScenarioError, match=next(iter(bad))):
         simulate(dyn, "z-1hz", "p", duration=0.1, **bad)
+
+
+def test_a_bad_pressure_bounds_in_a_description_is_named_on_the_command_line(tmp_path, capsys):
+    """A description whose [rig] asks for a way of holding the pressures that does not exist: the run
+    stops before its loop with one line naming the scenario, the field and the value; exit 2."""
+    from hydrogen.cli import main as cli
+    from hydrogen.model import model_path
+
+    text = model_path("ubc_stewart").read_text(encoding="utf-8")
+    bad = tmp_path / "bad.toml"
+    bad.write_text(text.replace("[rig]\n", '[rig]\npressure_bounds = "stages"\n', 1), encoding="utf-8")
+    assert cli(["simulate", "--model", str(bad), "--scenario", "z-1hz", "--controller", "p", "--duration", "0.1"]) == 2
+    err = capsys.readouterr().err
+    assert "scenario 'z-1hz'" in err and "pressure_bounds must be 'step' or 'stage', got 'stages'" in err
+    assert "Traceback" not in err
 
 
 def test_rig_scenarios_and_moving_coordinates():

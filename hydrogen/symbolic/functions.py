@@ -21,8 +21,8 @@ from .constants import PRESSURE_EPS
 from .kinematics import leg_stages, pose_symbols, rate_symbols
 from .plant import plant_rhs
 
-__all__ = ["SymbolicFunction", "SemiImplicitStep", "Specialisation", "derive_functions", "derive_parametric", "with_numbers_input", "NUMBERS",
-           "PRESSURE_EPS"]
+__all__ = ["SymbolicFunction", "SemiImplicitStep", "Specialisation", "derive_functions", "derive_parametric",
+           "with_numbers_input", "NUMBERS", "PRESSURE_EPS"]
 
 
 @dataclass
