@@ -760,6 +760,35 @@ def test_high_frequency_burst_is_the_worst_short_window_of_the_high_passed_error
     assert m["hf_error_burst"]["z"] == rms[z] and m["hf_error_burst_t"]["z"] == at[z]
 
 
+@pytest.mark.parametrize("projection", [True, False])
+def test_the_high_pass_is_zeroing_the_low_bins_of_the_transform(dyn, monkeypatch, projection):
+    """Both routes of the high-pass (the projection on the low bins, the FFT where the basis would be
+    large) give what zeroing the bins at or below the cut-off of the rfft gives, with and without the
+    line through the window's ends taken out first."""
+    from hydrogen.simulation import simulator as S
+    if not projection:
+        monkeypatch.setattr(S, "_LOW_BINS_MAX", 0)
+        S._low_bins.cache_clear()
+    res = simulate(dyn, "z-1hz", "p", duration=6.0, check_workspace=False)
+    S._low_bins.cache_clear()
+    rng = np.random.default_rng(3)
+    res.q = res.q_d + np.cumsum(rng.standard_normal(res.q.shape), axis=0) * 1e-5  # every frequency, a drift
+    e = res.error[res.t >= res.metric_start - 1e-12]
+    k, h = len(e), res.t[1] - res.t[0]
+    assert k == 2049  # an odd window: the FFT's slow size
+    for ends in (False, True):
+        x = e - e[0] - np.outer(np.arange(k) / (k - 1), e[-1] - e[0]) if ends else e
+        spec = np.fft.rfft(x - x.mean(axis=0), axis=0)
+        spec[np.fft.rfftfreq(k, h) <= res.HF_FACTOR * 1.0] = 0
+        want = np.fft.irfft(spec, n=k, axis=0)
+        got, h_got, f_cut = res._high_passed(ends=ends)
+        assert (h_got, f_cut) == (h, res.HF_FACTOR * 1.0)
+        np.testing.assert_allclose(got, want, rtol=0, atol=1e-12 * np.abs(want).max())
+    kept = int(np.count_nonzero(np.fft.rfftfreq(k, h) <= res.HF_FACTOR * 1.0))
+    assert (S._low_bins(k, kept) is not None) == projection  # the route this case meant to take
+    S._low_bins.cache_clear()  # no basis refused under the patched limit is left for later tests
+
+
 def test_a_batch_grid_gives_arrays_over_gain_sets_and_seeds(dyn):
     from hydrogen.simulation.simulator import Batch
     batch = Batch(dyn, "z-1hz", "p", duration=0.5)
@@ -814,6 +843,11 @@ def test_sweep_cuts_its_runs_into_chunks_per_worker():
     assert len(parts) >= CHUNKS_PER_WORKER * 2 and max(map(len, parts)) <= MAX_CHUNK
     assert chunks(3, 8) == [range(0, 1), range(1, 2), range(2, 3)] and chunks(0, 2) == []
     assert max(map(len, chunks(10_000, 1))) == MAX_CHUNK
+    # runs in groups of 10 (a sweep's seeds): whole groups or whole parts of one, never larger chunks
+    assert [len(p) for p in chunks(100, 2, 10)] == [10] * 10
+    assert [len(p) for p in chunks(10, 2, 10)] == [2] * 5 and [len(p) for p in chunks(100, 2, 7)] == [7] * 14 + [2]
+    assert max(map(len, chunks(1000, 3, 10))) <= max(map(len, chunks(1000, 3)))
+    assert [i for p in chunks(1000, 3, 10) for i in p] == list(range(1000))
 
 
 def test_a_parameter_whose_true_value_is_zero_has_an_absolute_error_not_nan(dyn):

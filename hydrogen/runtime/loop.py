@@ -7,6 +7,7 @@ C code advances any number of control periods per call.
 from __future__ import annotations
 
 import ctypes as C
+import weakref
 
 import numpy as np
 
@@ -18,6 +19,18 @@ LOOP_OK, LOOP_NONFINITE, LOOP_FK_FAILED, LOOP_CTRL_FAILED = 0, 1, 2, 3
 _D = C.POINTER(C.c_double)
 _LL = C.c_longlong
 _STRUCTS = {}
+#: The loop context of each loaded library (its manifest does not change): a runner per gain set of a
+#: sweep would otherwise render it again.
+_CONTEXTS = weakref.WeakKeyDictionary()
+
+
+def _context(library) -> dict:
+    """:func:`hydrogen.layout.loop_context` of ``library``'s manifest, worked out once per library
+    (shared by its runners: read only)."""
+    ctx = _CONTEXTS.get(library)
+    if ctx is None:
+        ctx = _CONTEXTS[library] = loop_context(library.manifest)
+    return ctx
 
 
 def _structs(ctx: dict):
@@ -107,7 +120,7 @@ class LoopRunner:
 
     def __init__(self, dyn, ctrl, values: dict):
         manifest = dyn.library.manifest
-        self.context = ctx = loop_context(manifest)
+        self.context = ctx = _context(dyn.library)
         self._log_width = log_widths(manifest["model"])
         self.n_noise = ctx["n_noise"]
         Config, State, self._Log, self._Signals = _structs(ctx)

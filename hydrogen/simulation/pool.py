@@ -62,15 +62,22 @@ CHUNKS_PER_WORKER = 4
 MAX_CHUNK = 32
 
 
-def chunks(n_runs: int, workers: int) -> list:
-    """Consecutive index ranges cutting ``n_runs`` runs into chunks for ``workers`` workers."""
+def chunks(n_runs: int, workers: int, group: int = 1) -> list:
+    """Consecutive index ranges cutting ``n_runs`` runs into chunks for ``workers`` workers. ``group``:
+    the runs come in groups of that many that share a controller (the seeds of one sweep entry): a
+    chunk then holds whole groups, or a whole part of one (its size a multiple or a divisor of
+    ``group``), never more runs than it would otherwise, so that a worker makes one controller per
+    group, not one more for each group a chunk's edge cuts."""
     size = max(1, min(MAX_CHUNK, -(-n_runs // (CHUNKS_PER_WORKER * max(workers, 1)))))
+    if group > 1:
+        fits = [d for d in range(1, group + 1) if group % d == 0] + list(range(group, MAX_CHUNK + 1, group))
+        size = max(d for d in fits if d <= size)
     return [range(i, min(i + size, n_runs)) for i in range(0, n_runs, size)]
 
 
 def run_sweep(runs, chunk_worker, filters_of, *, executor: Executor | None = None, max_workers: int | None = None,
               model=None, progress: bool = False, seeds=None, results: bool = False,
-              numbers: str | None = None) -> list:
+              numbers: str | None = None, _group: int = 1) -> list:
     """:func:`hydrogen.simulation.sweep.sweep` (its arguments and results), the work given by its
     caller: ``chunk_worker`` (a module-level function, for the worker processes) runs one chunk's job
     ``(model, runs, keep, numbers, filters)`` and gives one result per run; ``filters_of(model, runs)``
@@ -95,7 +102,7 @@ def run_sweep(runs, chunk_worker, filters_of, *, executor: Executor | None = Non
         mine = [i for i, r in enumerate(runs) if not (isinstance(r, Mapping) and "seed" in r)]
         flat = [dict(runs[i], seed=s) if isinstance(runs[i], Mapping) else runs[i] for i in mine for s in seeds]
         done = iter(run_sweep(flat, chunk_worker, filters_of, executor=executor, max_workers=max_workers, model=model,
-                              progress=progress, numbers=numbers))
+                              progress=progress, numbers=numbers, _group=len(seeds)))
         per = {i: [next(done) for _ in seeds] for i in mine}
         return [summarize(seeds, per.get(i) or [{"error": clash}] * len(seeds)) for i in range(len(runs))]
     # The Model itself goes to the workers (not its file name): in-memory edits are kept.
@@ -110,7 +117,7 @@ def run_sweep(runs, chunk_worker, filters_of, *, executor: Executor | None = Non
     runs = [dict(r, scenario=current_name(r["scenario"], model)) if isinstance(r, Mapping)
             and isinstance(r.get("scenario"), str) else r for r in runs]
     keep = bool(results)
-    parts = chunks(len(runs), max_workers or os.cpu_count() or 1)
+    parts = chunks(len(runs), max_workers or os.cpu_count() or 1, _group)
     filters = filters_of(model, runs)
 
     def submit(ex, part):

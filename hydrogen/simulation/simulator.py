@@ -108,8 +108,8 @@ class SimulationResult:
             "theta_true": self.theta_true.tolist(),
             # a parameter whose true value is 0 (a sideways first moment) has an absolute error only
             "theta_error_final": (self.theta_hat[-1] - self.theta_true).tolist(),
-            "theta_error_pct_final": [float(100 * (e - t) / t) if t != 0 else None
-                                      for e, t in zip(self.theta_hat[-1], self.theta_true)],
+            "theta_error_pct_final": [100 * (e - t) / t if t != 0 else None
+                                      for e, t in zip(self.theta_hat[-1].tolist(), self.theta_true.tolist())],
             "gamma_hat_final": [self.gamma1_hat[-1].tolist(), self.gamma2_hat[-1].tolist()],
             "gamma_true": self.gamma_true.tolist(),
             "sim_time_s": float(self.t[-1] - self.t[0]) if len(self.t) else 0.0,
@@ -123,10 +123,11 @@ class SimulationResult:
         self.metrics["u_saturation_frac"] = float(sat.mean()) if sat.size else 0.0
         self.metrics["u_saturation_frac_by_actuator"] = {
             c: float(v) for c, v in zip(names, sat.mean(axis=0) if len(sat) else np.zeros(len(names)))}
-        hf = self.high_frequency_error()
-        if hf is not None:
-            self.metrics["hf_error_rms"] = dict(zip(coords, map(float, hf)))
-            burst, at = self.high_frequency_burst()
+        pair = self._high_passed_pair()  # both high-passed errors at once: one filter of the window
+        if pair is not None:
+            hp, hp_ends, h, f_cut = pair
+            self.metrics["hf_error_rms"] = dict(zip(coords, map(float, np.sqrt((hp ** 2).mean(axis=0)))))
+            burst, at = self._burst(hp_ends, h, f_cut)  # a window at an end of the run: no ringing of the wrap
             self.metrics["hf_error_burst"] = dict(zip(coords, map(float, burst)))
             self.metrics["hf_error_burst_t"] = dict(zip(coords, map(float, at)))
         if self.supply_pressure is not None and len(self.supply_pressure):
@@ -145,12 +146,13 @@ class SimulationResult:
     #: enough to hold whole cycles of the ripple, so that its RMS is a level, not one noise peak.
     BURST_PERIODS = 2.0
 
-    def _high_passed(self, ends: bool = False):
-        """(e_hp (k, n), h, f_cut): the error over t ≥ metric_start less its content at or below f_cut =
-        HF_FACTOR × the reference's highest frequency (m or rad; h the period, s); None for a reference
-        without frequencies (a step) or a window shorter than 8 periods. ``ends``: first subtract the
-        line through the first and last samples, so that the transform's periodic extension has no step
-        where the window wraps: a step's content above f_cut would ring at the ends of e_hp."""
+    def _high_passed_pair(self):
+        """(e_hp, e_hp_ends, h, f_cut): the error over t ≥ metric_start less its content at or below
+        f_cut = HF_FACTOR × the reference's highest frequency (m or rad; h the period, s), and the same
+        of the error less the line through its first and last samples (``ends``: so that the
+        transform's periodic extension has no step where the window wraps, a step's content above
+        f_cut would ring at the ends); None for a reference without frequencies (a step) or a window
+        shorter than 8 periods. The filter is linear: the second is the first less the filtered line."""
         terms = getattr(getattr(self.scenario, "reference", None), "terms", ())
         f_max = max((abs(f) for _, a, f in terms if a), default=0.0)
         sel, _, _ = metric_window(self.t, self.metric_start)
@@ -158,11 +160,24 @@ class SimulationResult:
         if f_max <= 0 or len(e) < 8:
             return None
         h, k = float(self.t[1] - self.t[0]), len(e)
-        if ends:
-            e = e - e[0] - np.outer(np.arange(k) / (k - 1), e[-1] - e[0])
-        spec = np.fft.rfft(e - e.mean(axis=0), axis=0)
-        spec[np.fft.rfftfreq(k, h) <= self.HF_FACTOR * f_max] = 0
-        return np.fft.irfft(spec, n=k, axis=0), h, self.HF_FACTOR * f_max
+        f_cut = self.HF_FACTOR * f_max
+        kept = int(np.count_nonzero(np.fft.rfftfreq(k, h) <= f_cut))  # bins 0..kept-1 removed
+        low = _low_bins(k, kept)
+        if low is None:
+            spec = np.fft.rfft(np.column_stack([e, np.arange(k) / (k - 1)]), axis=0)
+            spec[:kept] = 0
+            hp = np.fft.irfft(spec, n=k, axis=0)
+            hp, ramp = hp[:, :-1], hp[:, -1]
+        else:
+            basis, ramp = low
+            e = e - e.mean(axis=0)
+            hp = e - basis @ (basis.T @ e)
+        return hp, hp - np.outer(ramp, e[-1] - e[0]), h, f_cut
+
+    def _high_passed(self, ends: bool = False):
+        """(e_hp (k, n), h, f_cut) of :meth:`_high_passed_pair` (``ends``: its second), or None."""
+        pair = self._high_passed_pair()
+        return None if pair is None else (pair[1] if ends else pair[0], pair[2], pair[3])
 
     def high_frequency_error(self):
         """RMS (n,) over t ≥ metric_start of the error's content above HF_FACTOR × the reference's highest
@@ -177,9 +192,9 @@ class SimulationResult:
         rad), and the time its window starts (s): a burst of oscillation that a 4 s average dilutes.
         None where :meth:`high_frequency_error` is."""
         hp = self._high_passed(ends=True)  # a window at an end of the run: no ringing of the wrap
-        if hp is None:
-            return None
-        e, h, f_cut = hp
+        return None if hp is None else self._burst(*hp)
+
+    def _burst(self, e, h, f_cut):
         w = int(min(len(e), max(1, round(self.BURST_PERIODS / (f_cut * h)))))
         c = np.concatenate([np.zeros((1, e.shape[1])), np.cumsum(e ** 2, axis=0)])
         ms = np.maximum(c[w:] - c[:-w], 0.0) / w  # the running sum's differences: a mean square per window
@@ -197,6 +212,31 @@ class SimulationResult:
         with white sensor noise of std ``noise_l`` m and ``noise_p`` Pa added: see :mod:`hydrogen.logs`."""
         from ..logs import log_from_result, write_log
         return write_log(log_from_result(self, noise_l, noise_p, seed), path)
+
+
+#: The most doubles :func:`_low_bins` keeps in one basis; a larger one is left to the FFT.
+_LOW_BINS_MAX = 1 << 21
+
+
+@functools.lru_cache(maxsize=8)
+def _low_bins(k: int, kept: int):
+    """(basis, ramp): an orthonormal basis (k, 2 kept - 1) of the first ``kept`` DFT bins of a real signal
+    of ``k`` samples (the constant, then a cosine and a sine per bin) and the line 0..1 over the ``k``
+    samples less its projection on them; None where the projection would cost
+    more than the transform (many bins, a Nyquist bin, a basis over :data:`_LOW_BINS_MAX` doubles).
+    Removing the projection on it is zeroing those bins of the rfft and transforming back, to rounding,
+    at a fraction of the cost: the metric window's usual length (2^m + 1 samples) is a slow FFT size,
+    and the sweeps compute the high-passed error of every run."""
+    cols = 2 * kept - 1
+    if kept < 1 or 2 * kept > k // 4 or k * cols > _LOW_BINS_MAX:
+        return None
+    phase = 2.0 * np.pi * np.outer(np.arange(k), np.arange(1, kept)) / k
+    basis = np.hstack([np.ones((k, 1)), np.sqrt(2.0) * np.cos(phase), np.sqrt(2.0) * np.sin(phase)]) / np.sqrt(k)
+    ramp = np.arange(k) / (k - 1)
+    ramp = ramp - basis @ (basis.T @ ramp)  # the line 0..1 over the window, filtered
+    for a in (basis, ramp):
+        a.setflags(write=False)  # shared by every run of that window: read only
+    return basis, ramp
 
 
 def equilibrium_pressures(dyn, q, theta) -> np.ndarray:
@@ -1058,7 +1098,8 @@ def _result(sc, controller, ctrl, t, log, k, theta0, gamma0, theta_true, gamma_t
     def est(name, default):
         s = ctrl.slices.get(name)
         default = np.atleast_1d(np.asarray(default, float))
-        return log["xc"][:k, s] if s is not None else np.tile(default, (k, 1))
+        # a value the controller does not estimate is constant: a read-only view of it, not k copies
+        return log["xc"][:k, s] if s is not None else np.broadcast_to(default, (k, default.size))
 
     model = ctrl.model
     res = SimulationResult(
