@@ -55,7 +55,7 @@ SUBSTEPS, REFERENCE, CHECK = (1, 2, 3, 4, 6, 8, 12, 16), 64, 128
 QUICK_SUBSTEPS, QUICK_REFERENCE, QUICK_CHECK = (1, 2), 16, 32
 #: The predictor's step counts per control period, its reference and check.
 PRED_SUBSTEPS, PRED_REFERENCE, PRED_CHECK = (1, 2, 4, 8), 32, 64
-QUICK_PRED_SUBSTEPS, QUICK_PRED_REFERENCE, QUICK_PRED_CHECK = (1,), 8, 16
+QUICK_PRED_SUBSTEPS, QUICK_PRED_REFERENCE, QUICK_PRED_CHECK = (1, 2), 8, 16
 SEEDS, QUICK_SEEDS = (0, 1, 2, 3, 4), (0, 1)
 #: A count keeps an error when it is within this many percentage points of the reference's.
 TOLERANCE = 0.1

@@ -22,14 +22,24 @@ errors when its coordinates stay within :data:`POINTS` points of the reference's
 within :data:`NOISE_SHARE` of the pressure noise; cheapest: the smallest count from which every
 tested count keeps them.
 
-Run: ``python benchmarks/bench_local_error.py [--quick] [--json FILE]`` (about 10 minutes on one
-core; ``--quick``: the first rig scenario of the first robot, 0.3 s of it, two counts).
+The delay predictor's own integration the same way (``predictor`` in the results): on every rig
+scenario and variant whose loop predicts, each period's prediction (the plant state when the command
+lands, by the controller's model from the measured state over the commands in flight) is computed at
+each count of :data:`PREDICTOR_COUNTS` RK4 steps per period (the scenario field
+``predictor_substeps``) and at :data:`REFERENCE`, from the same measured state and commands, along the
+run at the scenario's own count; a count's error is the largest difference of its predicted pose
+(points of amplitude) and pressures (Pa) from the reference's, kept by the same rule.
+
+Run: ``python benchmarks/bench_local_error.py [--quick] [--json FILE] [--part plant|predictor]``
+(about 15 minutes on one core; ``--quick``: the first rig scenario of the first robot, 0.3 s of it,
+two counts, and the first predicting one; ``--part``: that part alone).
 """
 from __future__ import annotations
 
 import os
 import sys
 import time
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -41,15 +51,18 @@ from hydrogen.simulation.simulator import PythonStages, prepare_run
 
 try:  # imported as benchmarks.bench_local_error
     from . import common
-    from .bench_integrator import rig_scenarios
+    from .bench_integrator import predicting_scenarios, rig_scenarios
 except ImportError:  # run as a script, or loaded from its path
     sys.path.insert(0, str(Path(__file__).resolve().parent))
     import common
-    from bench_integrator import rig_scenarios
+    from bench_integrator import predicting_scenarios, rig_scenarios
 
 #: Sub-step counts tested, and the reference.
 COUNTS, REFERENCE = (2, 3, 4, 6, 8), 64
 QUICK_COUNTS, QUICK_REFERENCE, QUICK_DURATION = (2, 4), 16, 0.3
+#: The predictor's RK4 steps per control period tested (``predictor_substeps``), against REFERENCE.
+PREDICTOR_COUNTS = (1, 2, 3, 4, 8)
+QUICK_PREDICTOR_COUNTS = (1, 4)
 #: The controllers whose trajectories are replayed: the paper's Theorem 1 (known parameters: not
 #: chaotic) and the baseline P, which drives the valves hardest.
 CONTROLLERS = ("backstepping", "p")
@@ -107,6 +120,49 @@ def replay_errors(dyn, scenario: str, controller: str, counts, reference: int, d
     return {"periods": p.n, "q_pts": q_pts, "p_pa": p_pa, "noise_p": float(p.sc.noise_p), "failed": failed}
 
 
+def predictor_errors(dyn, scenario: str, controller: str, counts, reference: int, duration=None) -> dict:
+    """The run of ``controller`` on the predicting ``scenario`` (its own counts), each period's prediction
+    made again from the same measured state and commands at each count of predictor steps per period
+    and at ``reference``: {"periods", "q_pts": {count: largest difference of the predicted pose from the
+    reference's, points of amplitude}, "p_pa": {count: of the predicted pressures, Pa}, "noise_p": Pa,
+    "failed": {count: period}} (a count whose prediction is not finite)."""
+    p = prepare_run(dyn, scenario, controller, None, duration, True, {}, keep_logs=False)
+    loop = PythonStages(dyn, p.sc, p.ctrl, p.x0.copy(), p.q0, p.kf_gain, p.h)
+    own, sc = loop.predicted, loop.sc
+    tried = (*counts, reference)
+    preds = {n: [] for n in tried}
+
+    def predicted(s):  # every count from the one measured state and commands; the loop goes on with its own
+        for n in tried:
+            loop.sc = replace(sc, predictor_substeps=n)
+            try:
+                preds[n].append(own(s))
+            finally:
+                loop.sc = sc
+        return own(s)
+
+    loop.predicted = predicted
+    for k in range(p.n):
+        loop.k = k
+        loop.run_period(p.noise[k])
+    layout = plant_layout(dyn.model)
+    q, pc = slot(layout, "q").slice, slot(layout, "pc").slice
+    amplitude = np.asarray(p.sc.reference.amplitude(), float)
+    moving = amplitude > 0
+    ref = np.array(preds[reference])
+    q_pts, p_pa, failed = {}, {}, {}
+    for n in counts:
+        xs = np.array(preds[n])
+        bad = np.flatnonzero(~np.all(np.isfinite(xs), axis=1))
+        if bad.size:
+            failed[n] = int(bad[0])
+            continue
+        q_pts[n] = float((np.abs(xs[:, q] - ref[:, q])[:, moving] / amplitude[moving] * 100.0).max(initial=0.0))
+        p_pa[n] = float(np.abs(xs[:, pc] - ref[:, pc]).max(initial=0.0))
+    return {"periods": p.n, "predictor_substeps": int(p.sc.predictor_substeps), "q_pts": q_pts, "p_pa": p_pa,
+            "noise_p": float(p.sc.noise_p), "failed": failed}
+
+
 def keeps(e: dict, n: int) -> bool:
     """Whether count ``n`` keeps the errors on the replay ``e``."""
     return n not in e["failed"] and e["q_pts"][n] < POINTS and e["p_pa"][n] < NOISE_SHARE * e["noise_p"]
@@ -134,31 +190,67 @@ def run_robot(name: str, quick: bool = False) -> dict:
     return {"model": name, "rows": rows}
 
 
-def run(quick: bool = False) -> dict:
+def predictor_robot(name: str, quick: bool = False) -> dict:
+    """The predictor's replay errors (:func:`predictor_errors`) of ``name``'s predicting rig scenarios."""
+    model = hydrogen.load_model(name)
+    controllers = CONTROLLERS[:1] if quick else CONTROLLERS
+    dyn = hydrogen.build(model, controllers=controllers)
+    counts, reference = (QUICK_PREDICTOR_COUNTS, QUICK_REFERENCE) if quick else (PREDICTOR_COUNTS, REFERENCE)
+    rows = []
+    for scen in predicting_scenarios(model, quick):
+        for c in controllers:
+            e = predictor_errors(dyn, scen, c, counts, reference, QUICK_DURATION if quick else None)
+            rows.append({"scenario": scen, "controller": c, **e, "cheapest": cheapest(counts, e)})
+    return {"model": name, "rows": rows}
+
+
+#: The parts of the benchmark (``--part``): the plant's replay, the predictor's.
+PARTS = ("plant", "predictor")
+
+
+def run(quick: bool = False, part: str | None = None) -> dict:
     t0 = time.perf_counter()
     names = hydrogen.models()[:1] if quick else hydrogen.models()
-    return {"robots": [run_robot(n, quick) for n in names], "counts": list(QUICK_COUNTS if quick else COUNTS),
-            "schemes": list(SCHEMES),
-            "reference": QUICK_REFERENCE if quick else REFERENCE, "points": POINTS, "noise_share": NOISE_SHARE,
-            "quick": quick, "controllers": list(CONTROLLERS), "machine": common.machine_info(), "cores": os.cpu_count(),
-            "wall_s": time.perf_counter() - t0}
+    out = {"counts": list(QUICK_COUNTS if quick else COUNTS), "schemes": list(SCHEMES),
+           "reference": QUICK_REFERENCE if quick else REFERENCE, "points": POINTS, "noise_share": NOISE_SHARE,
+           "quick": quick, "controllers": list(CONTROLLERS), "machine": common.machine_info(), "cores": os.cpu_count()}
+    if part in (None, "plant"):
+        out["robots"] = [run_robot(n, quick) for n in names]
+    if part in (None, "predictor"):
+        out["predictor"] = {"counts": list(QUICK_PREDICTOR_COUNTS if quick else PREDICTOR_COUNTS),
+                            "robots": [predictor_robot(n, quick) for n in names]}
+    out["wall_s"] = time.perf_counter() - t0
+    return out
+
+
+def _cells(r, counts) -> str:
+    return " ".join(f"{n}: {r['q_pts'][n]:.1e} / {r['p_pa'][n]:.1e}" if n not in r["failed"]
+                    else f"{n}: fails" for n in counts)
 
 
 def print_table(res: dict) -> None:
-    counts = res["counts"]
-    print(f"each controller's trajectory replayed open loop at each sub-step count against {res['reference']}: "
-          f"largest difference over the run, coordinates in points of amplitude, pressures in Pa; keeps: "
-          f"< {res['points']:g} point and < {res['noise_share']:g} of the pressure noise")
-    for rob in res["robots"]:
-        for r in rob["rows"]:
-            cells = " ".join(f"{n}: {r['q_pts'][n]:.1e} / {r['p_pa'][n]:.1e}" if n not in r["failed"]
-                             else f"{n}: fails" for n in counts)
-            print(f"{rob['model']:14} {r['scenario']:22} {r['controller']:13} {r['pressure_bounds']:5} "
-                  f"now {r['substeps']:2} cheapest {r['cheapest']}  {cells}")
+    keep = f"keeps: < {res['points']:g} point and < {res['noise_share']:g} of the pressure noise"
+    if "robots" in res:
+        print(f"each controller's trajectory replayed open loop at each sub-step count against {res['reference']}: "
+              f"largest difference over the run, coordinates in points of amplitude, pressures in Pa; {keep}")
+        for rob in res["robots"]:
+            for r in rob["rows"]:
+                print(f"{rob['model']:14} {r['scenario']:22} {r['controller']:13} {r['pressure_bounds']:5} "
+                      f"now {r['substeps']:2} cheapest {r['cheapest']}  {_cells(r, res['counts'])}")
+    pred = res.get("predictor")
+    if pred:
+        print(f"each period's delay prediction made again at each count of predictor steps against "
+              f"{res['reference']}: largest difference over the run of the predicted pose (points of amplitude) "
+              f"and pressures (Pa); {keep}")
+        for rob in pred["robots"]:
+            for r in rob["rows"]:
+                print(f"{rob['model']:14} {r['scenario']:22} {r['controller']:13} now {r['predictor_substeps']:2} "
+                      f"cheapest {r['cheapest']}  {_cells(r, pred['counts'])}")
 
 
 def main(argv=None) -> int:
-    return common.script_main(__doc__, run, print_table, argv)
+    return common.script_main(__doc__, run, print_table, argv,
+                              {"--part": dict(choices=PARTS, default=None, help="run this part alone")})
 
 
 if __name__ == "__main__":

@@ -2,11 +2,12 @@
 
 The rig scenarios integrate the plant with the sub-step count the open-loop replay found enough
 (``bench_local_error.py``) and hold each pressure within its bounds at every RK4 stage
-(``pressure_bounds = "stage"``); they formerly ran :data:`FORMER` (8 sub-steps, the pressures clipped
-after each step only). For each shipped robot's rig scenario and variant (``<scenario>.<variant>``)
+(``pressure_bounds = "stage"``), and the delay predictor with the RK4 step count its own replay found
+enough (``predictor_substeps``); they formerly ran :data:`FORMER` (8 sub-steps, the pressures
+clipped after each step only, 4 predictor steps per period). For each shipped robot's rig scenario and variant (``<scenario>.<variant>``)
 and every controller the robot lists, over noise seeds :data:`SEEDS`, three runs per seed in a row in
 one process: at the former settings, at the scenario's own (shipped) and at a reference of
-:data:`REFERENCE` sub-steps (the shipped bounds).
+:data:`REFERENCE` sub-steps and predictor steps (the shipped bounds).
 
 Reported per scenario: the C loop's µs per control period (``loop_wall_s`` over its periods; median
 over seeds and controllers), former and shipped, and their ratio; each reported error (the max
@@ -46,8 +47,8 @@ except ImportError:  # run as a script, or loaded from its path
     import common
     from bench_integrator import deviation, rig_scenarios
 
-#: The plant integration the rig scenarios ran before (scenario fields).
-FORMER = {"substeps": 8, "pressure_bounds": "step"}
+#: The plant's and the predictor's integration the rig scenarios ran before (scenario fields).
+FORMER = {"substeps": 8, "pressure_bounds": "step", "predictor_substeps": 4}
 #: The reference's sub-steps, and the seeds.
 REFERENCE, SEEDS = 64, (0, 1, 2, 3, 4)
 QUICK_REFERENCE, QUICK_SEEDS, QUICK_DURATION = 16, (0,), 1.0
@@ -67,7 +68,8 @@ def measure(dyn, scenario: str, controller: str, seeds, reference: int, duration
     per completed seed]}."""
     batches = {"former": Batch(dyn, scenario, controller, duration=duration, **FORMER),
                "shipped": Batch(dyn, scenario, controller, duration=duration),
-               "reference": Batch(dyn, scenario, controller, duration=duration, substeps=reference)}
+               "reference": Batch(dyn, scenario, controller, duration=duration, substeps=reference,
+                                  predictor_substeps=reference)}
     out = {r: {"errors": {}, "failed": {}, "us": []} for r in ROUTES}
     for seed in seeds:
         for route, batch in batches.items():
@@ -88,7 +90,7 @@ def _task(args):
     dyn = hydrogen.build(model)  # once per task: its controllers share the library
     sc = named_scenario(scenario, model)
     per = {c: measure(dyn, scenario, c, seeds, reference, duration) for c in controllers}
-    return model_name, scenario, sc.substeps, sc.pressure_bounds, per
+    return model_name, scenario, sc.substeps, sc.pressure_bounds, sc.predictor_substeps if sc.predicts() else None, per
 
 
 def summarise(per: dict) -> dict:
@@ -137,8 +139,8 @@ def run(quick: bool = False, workers: int = 2) -> dict:
             results = list(pool.map(_task, tasks))
     else:
         results = [_task(t) for t in tasks]
-    rows = [{"model": m, "scenario": s, "substeps": n, "pressure_bounds": b, **summarise(per)}
-            for m, s, n, b, per in results]
+    rows = [{"model": m, "scenario": s, "substeps": n, "pressure_bounds": b, "predictor_substeps": k, **summarise(per)}
+            for m, s, n, b, k, per in results]
     return {"rows": rows, "former": FORMER, "reference": reference, "seeds": list(seeds), "tolerance": TOLERANCE,
             "quick": quick, "workers": workers, "cores": os.cpu_count(), "machine": common.machine_info(),
             "wall_s": time.perf_counter() - start}
@@ -153,7 +155,8 @@ def print_table(res: dict) -> None:
     print(f"µs per rig period: former ({f['substeps']} sub-steps, bounds {f['pressure_bounds']}) -> shipped; "
           f"largest deviation of a reported error from {res['reference']} sub-steps (points)")
     for r in res["rows"]:
-        print(f"{r['model']:14} {r['scenario']:22} {r['substeps']:2} {r['pressure_bounds']:5} "
+        pred = f" pred {r['predictor_substeps']}" if r.get("predictor_substeps") else ""
+        print(f"{r['model']:14} {r['scenario']:22} {r['substeps']:2} {r['pressure_bounds']:5}{pred} "
               f"{r['us_former']:6.2f} -> {r['us_shipped']:6.2f} us  x{r['ratio']:.2f}  "
               f"dev {_g(r['dev_former'])} -> {_g(r['dev_shipped'])}, chaotic {_g(r['dev_former_chaotic'])} -> "
               f"{_g(r['dev_shipped_chaotic'])}  {'keeps' if r['keeps'] else 'not: ' + ', '.join(r['not_kept'])}")

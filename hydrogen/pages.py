@@ -612,8 +612,24 @@ def _local_error(b) -> list:
                           r["substeps"], r["cheapest"] or "none",
                           *("fail" if at(r["failed"], n) is not None else
                             f"{_f(at(r['q_pts'], n))} / {_f(at(r['p_pa'], n))}" for n in counts)])
-    return out + _table(["robot", "scenario", "controller", "pressure bounds", "now", "cheapest",
-                         *(f"{n} sub-steps: points / Pa" for n in counts)], table)
+    out += _table(["robot", "scenario", "controller", "pressure bounds", "now", "cheapest",
+                   *(f"{n} sub-steps: points / Pa" for n in counts)], table)
+    pred = b.get("predictor") or {}
+    if not pred.get("robots"):
+        return out
+    pcounts = pred.get("counts", [])
+    out += ["", "The delay predictor's own integration the same way: on each rig scenario and variant whose loop "
+            "predicts, each period's prediction (the plant state when the command lands, by the controller's model "
+            "from the measured state over the commands in flight) made again at each count of RK4 steps per period "
+            f"(`predictor_substeps`) and at {b.get('reference')} from the same measured state and commands, along "
+            "the run at the scenario's own counts: the largest difference over the run of the predicted pose "
+            "(points of amplitude) and pressures (Pa), kept by the same rule.", ""]
+    table = [[rob["model"], r["scenario"], r["controller"], r["predictor_substeps"], r["cheapest"] or "none",
+              *("fail" if at(r["failed"], n) is not None else
+                f"{_f(at(r['q_pts'], n))} / {_f(at(r['p_pa'], n))}" for n in pcounts)]
+             for rob in pred["robots"] for r in rob["rows"]]
+    return out + _table(["robot", "scenario", "controller", "now", "cheapest",
+                         *(f"{n} steps: points / Pa" for n in pcounts)], table)
 
 
 def _rig_period(b) -> list:
@@ -624,8 +640,11 @@ def _rig_period(b) -> list:
     out = ["## The rig period: the shipped plant integration against the former one", "",
            "`benchmarks/bench_rig_period.py`: every rig scenario and variant, every controller the robot lists, noise "
            f"seeds {', '.join(map(str, b.get('seeds', [])))}; per seed three runs in a row in one process: at the "
-           f"former integration ({f.get('substeps')} sub-steps, pressures clipped after each step), at the "
-           f"scenario's own (shipped) and at {b.get('reference')} sub-steps (the reference). Cost: the C loop's µs "
+           f"former integration ({f.get('substeps')} sub-steps, pressures clipped after each step"
+           + (f", {f['predictor_substeps']} predictor steps per period" if f.get("predictor_substeps") else "")
+           + f"), at the scenario's own (shipped) and at {b.get('reference')} sub-steps"
+           + (" and predictor steps" if f.get("predictor_substeps") else "")
+           + f" (the reference). Cost: the C loop's µs "
            "per control period, median over seeds and controllers. Deviation: the largest difference of a reported "
            "error's median or worst over the seeds (max tracking error, % of amplitude, each moving coordinate) "
            "from the reference's, over the controllers, in points, former → shipped. A controller is chaotic "
@@ -634,7 +653,8 @@ def _rig_period(b) -> list:
            "share there. Keeps: each controller's shipped deviation within "
            f"{_f(b.get('tolerance'))} point, or a chaotic one's within the former's; else the controllers named.",
            ""]
-    table = [[r["model"], r["scenario"], f"{r['substeps']}, {r['pressure_bounds']}",
+    table = [[r["model"], r["scenario"], f"{r['substeps']}, {r['pressure_bounds']}"
+              + (f", {r['predictor_substeps']} predictor" if r.get("predictor_substeps") else ""),
               f"{_f(r['us_former'], 1)} → {_f(r['us_shipped'], 1)}", f"{r['ratio']:.2f}×",
               f"{_f(r['dev_former'])} → {_f(r['dev_shipped'])}",
               f"{_f(r.get('dev_former_chaotic'))} → {_f(r.get('dev_shipped_chaotic'))}",

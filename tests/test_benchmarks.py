@@ -757,6 +757,16 @@ def test_the_replay_benchmark_measures_the_integration_alone(capsys):
     # read back from JSON (counts as text) the page renders the same cells
     page = benchmarks_page({"bench_local_error": json.loads(json.dumps(res))})
     assert "## The plant integration alone" in page and "fail" not in page.split("## The plant integration alone")[1]
+    # the predictor's own integration: its first predicting scenario, more steps closer to the reference
+    (prob,) = res["predictor"]["robots"]
+    (r,) = prob["rows"]
+    model = hydrogen.load_model(prob["model"])
+    assert r["scenario"] == bench_integrator.predicting_scenarios(model, quick=True)[0] and not r["failed"]
+    lo, hi = ble.QUICK_PREDICTOR_COUNTS
+    assert 0 < r["q_pts"][hi] < r["q_pts"][lo] and 0 < r["p_pa"][hi] < r["p_pa"][lo]
+    assert r["cheapest"] == ble.cheapest(ble.QUICK_PREDICTOR_COUNTS, r)
+    assert r["predictor_substeps"] == scenario(r["scenario"], model).predictor_substeps
+    assert "delay predictor's own integration" in page and r["scenario"] in page.split("delay predictor's own")[1]
 
 
 def test_holding_the_pressures_at_every_stage_converges_where_a_chamber_cavitates():
