@@ -391,7 +391,6 @@ def make_all(dyn, out_dir, quiet=True, *, durations=None, gains=None, nonlinear=
         (:func:`hydrogen.pages.write_results_page`).
     """
     from .errors import ScenarioError
-    from .simulation.reference import Step
     from .simulation.scenarios import scenario as named_scenario, scenario_names
     from .simulation.simulator import simulate
 
@@ -413,8 +412,8 @@ def make_all(dyn, out_dir, quiet=True, *, durations=None, gains=None, nonlinear=
     if base not in listed:
         raise ScenarioError(model.not_listed(base) + " (the figures compare with it)")
     scenarios = [named_scenario(nm, model) for nm in scenario_names(model)]
-    total = sum(1 if sc.friction[0] == 0 and not sc.kalman and not isinstance(sc.reference, Step)
-                else (2 if isinstance(sc.reference, Step) else 2 + len(compared)) for sc in scenarios)
+    total = sum(1 if sc.friction[0] == 0 and not sc.kalman and not sc.reference.STEP_RESPONSE
+                else (2 if sc.reference.STEP_RESPONSE else 2 + len(compared)) for sc in scenarios)
     # A bar on a terminal only (disable=None), never with quiet.
     bar = tqdm(total=total, desc="figures", unit="run", disable=True if quiet else None)
 
@@ -440,9 +439,9 @@ def make_all(dyn, out_dir, quiet=True, *, durations=None, gains=None, nonlinear=
 
     paths, rows, chosen = {}, [], []
     # the steps last: their P is the one the tracking scenarios found better (the figures compare alike)
-    for sc in sorted(scenarios, key=lambda sc: isinstance(sc.reference, Step)):
+    for sc in sorted(scenarios, key=lambda sc: sc.reference.STEP_RESPONSE):
         rig = sc.kalman or sc.friction[0] > 0 or sc.noise_l > 0
-        if not rig and not isinstance(sc.reference, Step):
+        if not rig and not sc.reference.STEP_RESPONSE:
             sim = run(sc.name, nonlinear)
             paths[sc.name] = plot_tracking_errors(sim, out / f"{sc.name}_errors.png", t_adapt=sc.t_adapt)
             paths[f"{sc.name}_parameters"] = plot_parameter_errors(sim, out / f"{sc.name}_parameters.png")
@@ -452,12 +451,12 @@ def make_all(dyn, out_dir, quiet=True, *, durations=None, gains=None, nonlinear=
         # the better fixed-gain P on this scenario: the smallest worst median error over the moving axes;
         # on a step, the one the tracking scenarios chose most often (the baseline if none ran)
         step_p = max(compared, key=chosen.count) if chosen else base
-        candidates = {c: run(sc.name, c, True) for c in ([step_p] if isinstance(sc.reference, Step) else compared)}
+        candidates = {c: run(sc.name, c, True) for c in ([step_p] if sc.reference.STEP_RESPONSE else compared)}
         p_name = min(candidates, key=lambda c: max((_max_pct(candidates[c], k) or (np.inf,))[0] for k in moving))
         pp = candidates[p_name]
-        if not isinstance(sc.reference, Step):
+        if not sc.reference.STEP_RESPONSE:
             chosen.append(p_name)
-        if isinstance(sc.reference, Step):
+        if sc.reference.STEP_RESPONSE:
             paths[sc.name] = plot_step(nl, pp, out / f"{sc.name}.png", coord=moving[0],
                                        title=f"{sc.label}: step response, nonlinear vs P (simulation)")
             continue

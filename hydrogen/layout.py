@@ -10,6 +10,7 @@ from __future__ import annotations
 import math
 
 from . import diagram  # the controller's input slots: the loop's ports
+from . import references  # the reference kinds' part of the configuration and their C
 from .names import NUMBERS  # the numbers input's name, part of the loop's layout
 from .plant.supply import PRESSURE as SUPPLY_PRESSURE  # the supply pressure's one name
 
@@ -73,6 +74,8 @@ def delay_split(delay: float, h: float) -> tuple:
 #: program sets it: the controller's tables). A rig setting that is a scenario field is its declaration
 #: on :class:`hydrogen.simulation.scenarios.Scenario`, a row here and its use in loop.c and
 #: :class:`hydrogen.simulation.simulator.PythonStages`.
+_REFERENCE = references.config_fields()
+
 LOOP_CONFIG = (
     ("timing: control period h (s), plant RK4 sub-steps per control period (bound_stages != 0: the pressures\n"
      " * held within their bounds at every stage, else after each step), adaptation on for t >= t_adapt;\n"
@@ -96,14 +99,8 @@ LOOP_CONFIG = (
      (("quant_l", "const double*", "P_QUANTIZATION_L", "run.quantization_l"),
       ("use_kalman", "long long", "P_USE_KALMAN", "run.use_kalman"),
       ("kf_gain", "double[2]", "P_KF_GAIN", "run.kf_gain"))),
-    ("reference: bias + sum of amplitude sin(2 pi f t) over terms (coordinate, amplitude, frequency),\n"
-     " * plus a raw step of step_height on coordinate step_axis (>= 0) at t_step; a coordinate outside\n"
-     " * 0..NQ-1 is ignored (the runtime refuses it before a run)",
-     (("bias", "const double*", "P_REF_BIAS", "run.bias"), ("n_terms", "long long", "P_REF_N_TERMS", "run.n_terms"),
-      ("terms", "const double*", "P_REF_TERMS", "run.terms"),
-      ("step_axis", "long long", "P_REF_STEP_AXIS", "run.step_axis"),
-      ("step_height", "double", "P_REF_STEP_HEIGHT", "run.step_height"),
-      ("t_step", "double", "P_REF_T_STEP", "run.t_step"))),
+    # the reference kinds' fields (hydrogen.references), each read from the run
+    (_REFERENCE[0], tuple((name, ctype, macro, f"run.{name}") for name, ctype, macro in _REFERENCE[1])),
     ("controller: generated function, its argument/result tables, work vectors",
      (("ctrl", "fn", None, None), ("ctrl_arg", "double**", None, None), ("ctrl_res", "double**", None, None),
       ("ctrl_iw", "long long int*", None, None), ("ctrl_w", "double*", None, None))),
@@ -374,5 +371,7 @@ def loop_context(manifest: dict) -> dict:
         "pred_valve": ", ".join(map(c_double, PREDICTOR_MODEL["valve"] * m)),
         "valve_width": len(PREDICTOR_MODEL["valve"]),
         "fk_status": FK_STATUS, "lu_pivot_min": c_double(LU_PIVOT_MIN),
+        # each reference kind's statements of the loop's reference function (hydrogen's own C)
+        "reference_bodies": [Markup(body) for body in references.c_bodies()],
     }
     return ctx

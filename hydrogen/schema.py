@@ -11,6 +11,8 @@ from __future__ import annotations
 import dataclasses
 from dataclasses import dataclass
 
+from . import references
+
 __all__ = ["Key", "REQUIRED", "DESCRIPTION_KEYS", "SCENARIO_TABLE_KEYS", "VARIANT_KEYS", "keys",
            "default", "description_table"]
 
@@ -228,8 +230,8 @@ VARIANT_KEYS = (
 
 #: Keys of a [scenarios.<name>] table besides the scenario fields.
 SCENARIO_TABLE_KEYS = (
-    Key("[scenarios.<name>]", "reference", "m, rad, Hz, s", "sines = [[coordinate, amplitude, Hz], ...] or "
-        "step = { coordinate, height, time }; coordinates by name or index, offsets from neutral"),
+    Key("[scenarios.<name>]", "reference", "m, rad, Hz, s", f"{references.syntax()}; coordinates by name or index, "
+        "offsets from neutral"),
     Key("[scenarios.<name>]", "rig", "", "start from the model's [rig] table", default=False),
     Key("[scenarios.<name>]", "gains", "", "gains.<controller> tables: this scenario's tuning", default=None,
         default_text="none"),

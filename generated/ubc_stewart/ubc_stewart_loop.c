@@ -392,26 +392,30 @@ int ubc_stewart_estimate(const ubc_stewart_loop_config* c, ubc_stewart_loop_stat
     return UBC_STEWART_OK;
 }
 
+/* q_d and its first three derivatives at t: the bias, then what each reference kind adds
+ * (hydrogen.references; an idle kind adds nothing) */
 void ubc_stewart_reference(const ubc_stewart_loop_config* c, double t, double* qd /* 4 x NQ */) {
-    long long j;
     int i;
     for (i = 0; i < NQ; ++i) {
         qd[i] = c->bias[i];
         qd[NQ + i] = qd[2 * NQ + i] = qd[3 * NQ + i] = 0;
     }
-    for (j = 0; j < c->n_terms; ++j) {
-        double axis = c->terms[3 * j];
-        double a = c->terms[3 * j + 1], w = TWO_PI * c->terms[3 * j + 2];
-        double sn, co;
-        int ax;
-        if (!(axis >= 0 && axis < NQ)) continue;  /* never index with an unchecked value */
-        ax = (int)axis;
-        sn = sin(w * t);
-        co = cos(w * t);
-        qd[ax] += a * sn;
-        qd[NQ + ax] += a * w * co;
-        qd[2 * NQ + ax] -= a * w * w * sn;
-        qd[3 * NQ + ax] -= a * w * w * w * co;
+    {
+        long long j;
+        for (j = 0; j < c->n_terms; ++j) {
+            double axis = c->terms[3 * j];
+            double a = c->terms[3 * j + 1], w = TWO_PI * c->terms[3 * j + 2];
+            double sn, co;
+            int ax;
+            if (!(axis >= 0 && axis < NQ)) continue;  /* never index with an unchecked value */
+            ax = (int)axis;
+            sn = sin(w * t);
+            co = cos(w * t);
+            qd[ax] += a * sn;
+            qd[NQ + ax] += a * w * co;
+            qd[2 * NQ + ax] -= a * w * w * sn;
+            qd[3 * NQ + ax] -= a * w * w * w * co;
+        }
     }
     if (c->step_axis >= 0 && c->step_axis < NQ && t >= c->t_step) qd[c->step_axis] += c->step_height;
 }

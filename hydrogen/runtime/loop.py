@@ -13,6 +13,7 @@ import numpy as np
 
 __all__ = ["LoopRunner", "LOOP_OK", "LOOP_NONFINITE", "LOOP_FK_FAILED", "LOOP_CTRL_FAILED"]
 
+from .. import references
 from ..layout import PREDICTOR_MODEL, log_widths, loop_context
 
 LOOP_OK, LOOP_NONFINITE, LOOP_FK_FAILED, LOOP_CTRL_FAILED = 0, 1, 2, 3
@@ -79,7 +80,7 @@ def _check_values(values, ctx, ctrl, dyn) -> None:
     model = dyn.model
     n, m, n_xc = len(model.neutral_pose), ctx["m"], int(ctrl.xc.size)
     sizes = {"theta": len(model.theta), "gamma1": m, "gamma2": m,
-             "friction": ctx["friction_width"] * m, "quant_l": m, "valve": len(PREDICTOR_MODEL["valve"]) * m, "bias": n, "terms": 3 * max(int(values["n_terms"]), 1),
+             "friction": ctx["friction_width"] * m, "quant_l": m, "valve": len(PREDICTOR_MODEL["valve"]) * m, "bias": n, **references.config_sizes(values),
              "xc_lo": max(n_xc, 1), "xc_hi": max(n_xc, 1), "kf_gain": 2, "slot": len(ctx["slots"]),
              "pred_theta": len(model.theta), "pred_gamma1": m, "pred_gamma2": m,
              "p_low": ctx["n_pressures"], "p_high": ctx["n_pressures"], "numbers": max(len(numbers), 1)}
@@ -92,9 +93,7 @@ def _check_values(values, ctx, ctrl, dyn) -> None:
             raise ValueError(f"loop configuration: {name} = {at} is outside the controller's state ({n_xc})")
     if int(values["n_xc"]) != n_xc:
         raise ValueError(f"loop configuration: n_xc is {values['n_xc']}, the controller's state holds {n_xc}")
-    terms = np.reshape(values["terms"], (-1, 3))[: int(values["n_terms"])]
-    axes = [t[0] for t in terms] + ([values["step_axis"]] if values["step_axis"] >= 0 else [])
-    for a in axes:
+    for a in references.config_axes(values):
         if not float(a).is_integer() or not 0 <= int(a) < n:
             raise ValueError(f"reference axis {a!r} is outside 0..{n - 1}; the C loop would index out of range")
     delay, frac = values["delay"], values["delay_frac"]

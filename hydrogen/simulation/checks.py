@@ -67,34 +67,25 @@ def _finite_ints_axis(name, field, axis, n):
 
 
 def check_reference(ref, name: str, n: int | None = None) -> None:
-    """A MultiSine or Step whose every field the C loop may use is valid: bias of ``n`` finite numbers,
-    axes in 0..n-1 (integers), amplitudes, frequencies, heights and step times finite."""
-    from .reference import MultiSine, Step
+    """A reference of one of :data:`hydrogen.references.KINDS` whose every field the C loop may use is
+    valid: bias of ``n`` finite numbers, then its kind's own fields (axes in 0..n-1, integers; its
+    numbers finite)."""
+    from ..references import KINDS, kind, reference_kind
 
-    if not isinstance(ref, (MultiSine, Step)):
-        _fail(name, "reference", "must be a hydrogen.simulation.reference.MultiSine or Step", ref)
+    if reference_kind(ref) is None:
+        names = " or ".join(f"hydrogen.references.{kind(k).__name__.rsplit('.', 1)[1]}.Reference" for k in KINDS)
+        _fail(name, "reference", f"must be a {names}", ref)
     bias = _vector(name, "reference.bias", ref.bias)
     n = len(bias) if n is None else n
     if len(bias) != n:
         _fail(name, "reference.bias", f"must hold {n} numbers (one per coordinate of the model)", ref.bias)
-    if isinstance(ref, MultiSine):
-        terms = ref.terms
-        if isinstance(terms, (str, bytes)) or not hasattr(terms, "__iter__"):
-            _fail(name, "reference.terms", "must be a sequence of (axis, amplitude, frequency Hz)", terms)
-        for j, term in enumerate(terms):
-            if isinstance(term, (str, bytes)) or not hasattr(term, "__len__") or len(term) != 3:
-                _fail(name, f"reference.terms[{j}]", "must be (axis, amplitude, frequency Hz)", term)
-            axis, amp, freq = term
-            _finite_ints_axis(name, f"reference.terms[{j}] axis", axis, n)
-            for what, v in (("amplitude", amp), ("frequency", freq)):
-                if not _is_real(v) or not np.isfinite(v):
-                    _fail(name, f"reference.terms[{j}] {what}", "must be a finite number", v)
-    else:
-        _finite_ints_axis(name, "reference.axis", ref.axis, n)
-        for what in ("height", "t_step"):
-            v = getattr(ref, what)
-            if not _is_real(v) or not np.isfinite(v):
-                _fail(name, f"reference.{what}", "must be a finite number", v)
+
+    def finite(field, v):
+        if not _is_real(v) or not np.isfinite(v):
+            _fail(name, field, "must be a finite number", v)
+
+    ref.check(lambda field, what, v: _fail(name, field, what, v),
+              lambda field, v: _finite_ints_axis(name, field, v, n), finite)
 
 
 def seed_ok(seed) -> bool:

@@ -13,6 +13,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .. import references
 from ..plant import plant_layout, supply
 from ..layout import FK_MAX_COND, FK_MAX_ITER, FK_TOL, LOOP_CONFIG, delay_split
 
@@ -53,11 +54,6 @@ def _bounds(run, i):
     return b if b.size else np.zeros(1)
 
 
-def _terms(run):
-    terms = tuple(getattr(run.sc.reference, "terms", ()))
-    return np.array(terms, float).reshape(-1) if terms else np.zeros(3)
-
-
 def _slots(run):
     return list(run.ctrl.slots)  # wired by the controller runtime (hydrogen.diagram.wire)
 
@@ -81,12 +77,9 @@ DERIVED = {
     "valve": _valve,
     "use_kalman": lambda r: int(r.kf_gain is not None),
     "kf_gain": lambda r: np.zeros(2) if r.kf_gain is None else np.asarray(r.kf_gain, float),
-    "bias": lambda r: np.asarray(r.sc.reference.bias, float),
-    "n_terms": lambda r: len(tuple(getattr(r.sc.reference, "terms", ()))),
-    "terms": _terms,
-    "step_axis": lambda r: int(getattr(r.sc.reference, "axis", -1)),
-    "step_height": lambda r: float(getattr(r.sc.reference, "height", 0.0)),
-    "t_step": lambda r: float(getattr(r.sc.reference, "t_step", 0.0)),
+    # the reference's fields, each kind's (hydrogen.references): its own values, the others' idle ones
+    **{name: (lambda r, k=name: references.config_values(r.sc.reference)[k])
+       for name, _, _ in references.config_fields()[1]},
     "slot": _slots,
     "n_xc": lambda r: int(r.ctrl.xc.size),
     "xc_lo": lambda r: _bounds(r, 0),

@@ -10,12 +10,12 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from .. import references
 from ..errors import ScenarioError
 from ..layout import MAX_DELAY, delay_split
 from ..scenario_settings import (_FIELDS, RENAMED, VARIANT_SEPARATOR, ScenarioFields, setting, settings,  # noqa: F401
                                  table_keys)
 from .checks import check_fields
-from .reference import MultiSine, Step
 
 __all__ = ["Scenario", "setting", "settings", "PER_ACTUATOR", "actuator_settings", "per_actuator_unit", "scenario", "scenario_names", "variant_names", "variant_name", "split_variant", "current_name", "table_keys", "default_scenario_name", "RENAMED", "valve_vector",
            "valve_parameters", "friction_row"]
@@ -281,15 +281,12 @@ def _reference(model, where, spec, neutral):
             return c
         raise ScenarioError(f"{where}: coordinate {c!r} is not one of {list(model.coordinate_names)}")
 
-    if not isinstance(spec, dict) or len(spec) != 1 or next(iter(spec)) not in ("sines", "step"):
-        raise ScenarioError(f"{where}: expected reference.sines = [[coordinate, amplitude, Hz], ...] or "
-                            f"reference.step = {{ coordinate, height, time }}, got {spec!r}")
+    if not isinstance(spec, dict) or len(spec) != 1 or next(iter(spec)) not in references.KINDS:
+        forms = " or ".join(f"reference.{k} = {references.kind(k).SYNTAX}" for k in references.KINDS)
+        raise ScenarioError(f"{where}: expected {forms}, got {spec!r}")
     kind, value = next(iter(spec.items()))
     try:
-        if kind == "sines":
-            terms = tuple((axis(c), float(a), float(f)) for c, a, f in value)
-            return MultiSine(neutral, terms)
-        return Step(neutral, axis(value["coordinate"]), float(value["height"]), float(value["time"]))
+        return references.kind(kind).Reference.parse(value, axis, neutral)
     except (TypeError, ValueError, KeyError) as exc:
         raise ScenarioError(f"{where}: malformed reference.{kind} ({exc})") from None
 

@@ -153,8 +153,8 @@ class SimulationResult:
         transform's periodic extension has no step where the window wraps, a step's content above
         f_cut would ring at the ends); None for a reference without frequencies (a step) or a window
         shorter than 8 periods. The filter is linear: the second is the first less the filtered line."""
-        terms = getattr(getattr(self.scenario, "reference", None), "terms", ())
-        f_max = max((abs(f) for _, a, f in terms if a), default=0.0)
+        ref = getattr(self.scenario, "reference", None)
+        f_max = max((abs(f) for f in ref.frequencies()), default=0.0) if ref is not None else 0.0
         sel, _, _ = metric_window(self.t, self.metric_start)
         e = self.error[sel]
         if f_max <= 0 or len(e) < 8:
