@@ -174,10 +174,15 @@ def cheapest(counts, e: dict) -> int | None:
     return next((n for i, n in enumerate(counts) if all(ok[i:])), None)
 
 
-def run_robot(name: str, quick: bool = False) -> dict:
+def _robot(name: str, quick: bool) -> tuple:
+    """(model, the controllers replayed, their dynamics) of robot ``name``."""
     model = hydrogen.load_model(name)
     controllers = CONTROLLERS[:1] if quick else CONTROLLERS
-    dyn = hydrogen.build(model, controllers=controllers)
+    return model, controllers, hydrogen.build(model, controllers=controllers)
+
+
+def run_robot(name: str, quick: bool = False) -> dict:
+    model, controllers, dyn = _robot(name, quick)
     counts, reference = (QUICK_COUNTS, QUICK_REFERENCE) if quick else (COUNTS, REFERENCE)
     rows = []
     for scen in rig_scenarios(model, quick):
@@ -192,9 +197,7 @@ def run_robot(name: str, quick: bool = False) -> dict:
 
 def predictor_robot(name: str, quick: bool = False) -> dict:
     """The predictor's replay errors (:func:`predictor_errors`) of ``name``'s predicting rig scenarios."""
-    model = hydrogen.load_model(name)
-    controllers = CONTROLLERS[:1] if quick else CONTROLLERS
-    dyn = hydrogen.build(model, controllers=controllers)
+    model, controllers, dyn = _robot(name, quick)
     counts, reference = (QUICK_PREDICTOR_COUNTS, QUICK_REFERENCE) if quick else (PREDICTOR_COUNTS, REFERENCE)
     rows = []
     for scen in predicting_scenarios(model, quick):

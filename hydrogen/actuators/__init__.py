@@ -39,10 +39,8 @@ from its example in tests/data/actuators/. Importing this package does not impor
 """
 from __future__ import annotations
 
-import importlib
-import pkgutil
-
 from ..errors import ModelError
+from ..registry import discover
 
 __all__ = ["KINDS", "DEFAULT_KIND", "actuator", "baked_parameters"]
 
@@ -54,14 +52,7 @@ def _discover(path=__path__, package=__name__) -> dict:
     """``{NAME: module}`` of every module of this package that declares a kind (``NAME`` and
     ``Symbolic``): the default kind first, then by name, so lists of kinds read the same on every
     machine whatever order the file system gives. ``path``, ``package``: where to look (this package)."""
-    found = {}
-    for info in pkgutil.iter_modules(path):
-        mod = importlib.import_module(f"{package}.{info.name}")
-        if hasattr(mod, "NAME") and hasattr(mod, "Symbolic"):
-            if mod.NAME in found:
-                raise ImportError(f"actuator kind {mod.NAME!r} is declared twice ({found[mod.NAME].__name__}, "
-                                  f"{mod.__name__})")
-            found[mod.NAME] = mod
+    found = discover(package, path, ("NAME", "Symbolic"), lambda m: m.NAME, "actuator kind")
     return {k: found[k] for k in sorted(found, key=lambda k: (k != DEFAULT_KIND, k))}
 
 

@@ -24,10 +24,9 @@ configuration and the exported params.h take it from there.
 """
 from __future__ import annotations
 
-import importlib
-import pkgutil
-
 import numpy as np
+
+from ..registry import discover
 
 __all__ = ["KINDS", "kind", "reference_kind", "BIAS_FIELD", "config_fields", "config_values", "config_sizes",
            "config_axes", "c_bodies", "syntax"]
@@ -39,15 +38,7 @@ BIAS_FIELD = ("bias", "const double*", "P_REF_BIAS")
 def _discover(path=__path__, package=__name__) -> dict:
     """``{KEY: module}`` of every module of this package declaring a kind, by key (a stable order:
     the loop's configuration lists the kinds' fields in it). ``path``, ``package``: where to look."""
-    found = {}
-    for info in pkgutil.iter_modules(path):
-        mod = importlib.import_module(f"{package}.{info.name}")
-        if hasattr(mod, "KEY") and hasattr(mod, "Reference"):
-            if mod.KEY in found:
-                raise ImportError(f"reference kind {mod.KEY!r} is declared twice ({found[mod.KEY].__name__}, "
-                                  f"{mod.__name__})")
-            found[mod.KEY] = mod
-    return dict(sorted(found.items()))
+    return dict(sorted(discover(package, path, ("KEY", "Reference"), lambda m: m.KEY, "reference kind").items()))
 
 
 _REGISTRY = _discover()
