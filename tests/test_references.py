@@ -102,3 +102,25 @@ def test_the_c_reference_function_equals_its_numpy_twin(dyn, name):
         stages.reference()
         got = np.ctypeslib.as_array(C.cast(stages.signals.qd, C.POINTER(C.c_double)), (4 * n,)).reshape(4, n)
         np.testing.assert_allclose(got, np.array(p.sc.reference(t)), rtol=1e-14, atol=1e-15)
+
+
+def test_an_edited_reference_kind_makes_the_generated_code_stale(tmp_path, monkeypatch):
+    """The reference kinds shape every robot's loop (its configuration, its C reference function): an
+    edit of any of their modules changes the derivation hash the generated folders record."""
+    import shutil
+    from pathlib import Path
+
+    from hydrogen.codegen import generate as G
+
+    copy = tmp_path / "hydrogen"
+    shutil.copytree(Path(G.__file__).resolve().parent.parent, copy,
+                    ignore=shutil.ignore_patterns("__pycache__", "_templates", "_generated"))
+    monkeypatch.setattr(G, "_PACKAGE", copy)
+    before = G.derivation_hash()
+    for key in references.KINDS:
+        path = copy / "references" / Path(references.kind(key).__file__).name
+        text = path.read_text()
+        path.write_text(text + "\n# edited\n")
+        assert G.derivation_hash() != before, key
+        path.write_text(text)
+    assert G.derivation_hash() == before

@@ -49,8 +49,9 @@ DRIVERS = (("loop.h.j2", "_loop.h"), ("loop.c.j2", "_loop.c"))
 #: (the numbers input's).
 DERIVATION_FILES = ("layout.py", "diagram.py", "templating.py", "pressures.py", "names.py")
 #: The package's folders of derivation code; in the blocks' folders, a block's own module is hashed
-#: apart (:func:`block_hash`) and shapes only the functions that use it.
-DERIVATION_DIRS = ("symbolic", "codegen", "controllers", "actuators", "plant")
+#: apart (:func:`block_hash`) and shapes only the functions that use it. The reference kinds shape
+#: every robot's loop (its configuration and its C reference function).
+DERIVATION_DIRS = ("symbolic", "codegen", "controllers", "actuators", "plant", "references")
 
 
 def _block_files() -> dict:
