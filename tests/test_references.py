@@ -19,7 +19,7 @@ def dyn():
 
 
 def test_each_kind_declares_the_contract():
-    assert references.KINDS == ("sines", "step")
+    assert references.KINDS == ("moves", "sines", "step")
     seen = set()
     for key in references.KINDS:
         mod = references.kind(key)
@@ -124,3 +124,100 @@ def test_an_edited_reference_kind_makes_the_generated_code_stale(tmp_path, monke
         assert G.derivation_hash() != before, key
         path.write_text(text)
     assert G.derivation_hash() == before
+
+
+def _moves():
+    return references.kind("moves").Reference(np.array([0.1, -0.2, 0.0]),
+                                              ((0, 0.3, 0.5, 2.0), (1, -0.1, 1.0, 0.5), (0, 0.05, 1.5, 1.0)))
+
+
+def test_a_move_is_minimum_jerk_its_derivatives_those_of_its_positions():
+    ref = _moves()
+    d = 1e-5
+    for t in (0.7, 1.2, 1.9, 2.4):  # inside the moves, two of them overlapping
+        for order in range(3):
+            fd = (ref(t + d)[order] - ref(t - d)[order]) / (2 * d)
+            np.testing.assert_allclose(ref(t)[order + 1], fd, rtol=1e-6, atol=1e-8)
+    q0, q1 = ref(0.0), ref(10.0)
+    np.testing.assert_array_equal(q0[0], ref.bias)  # before: the bias
+    np.testing.assert_allclose(q1[0], ref.bias + [0.35, -0.1, 0.0], rtol=0, atol=1e-15)  # after: held
+    for k in (1, 2, 3):
+        assert not np.any(q0[k]) and not np.any(q1[k])
+    # velocity and acceleration zero at both ends of a move, its midpoint half the distance
+    np.testing.assert_allclose(ref(1.25)[0][1] - ref.bias[1], -0.05, atol=1e-15)
+    for t in (1.0, 1.5):
+        assert abs(ref(t)[1][1]) < 1e-12 and abs(ref(t)[2][1]) < 1e-12
+    ts = np.linspace(0, 3, 13)
+    np.testing.assert_allclose(ref.positions(ts), [ref(x)[0] for x in ts], rtol=0, atol=1e-15)
+    np.testing.assert_allclose(ref.velocities(ts), [ref(x)[1] for x in ts], rtol=0, atol=1e-15)
+    assert ref.amplitude().tolist() == [0.35, 0.1, 0.0] and ref.frequencies() == ()
+
+
+def test_a_bad_move_is_refused_naming_it():
+    from hydrogen.errors import ScenarioError
+    from hydrogen.simulation.checks import check_reference
+
+    ok = _moves()
+    check_reference(ok, "s", 3)
+    for moves, field in ((((0, 0.3, 0.5, 0.0),), "reference.moves[0] duration"),
+                         (((5, 0.3, 0.5, 1.0),), "reference.moves[0] axis"),
+                         (((0, float("nan"), 0.5, 1.0),), "reference.moves[0] distance"),
+                         (((0, 0.3),), "reference.moves[0]")):
+        with pytest.raises(ScenarioError, match=field.replace("[", r"\[").replace("]", r"\]")):
+            check_reference(type(ok)(ok.bias, moves), "s", 3)
+
+
+def test_the_c_reference_function_runs_a_move_as_its_numpy_twin(dyn, model):
+    from hydrogen.simulation.simulator import make_runner, prepare_run
+
+    n = model.n
+    ref = references.kind("moves").Reference(np.asarray(scenario("z-1hz", model).reference.bias),
+                                             ((2, 0.02, 0.2, 1.0), (5, 0.05, 0.4, 0.6)))
+    p = prepare_run(dyn, "z-1hz", "p", None, 0.1, True, {"reference": ref})
+    runner = make_runner(dyn, p.sc, p.ctrl, p.x0, p.q0, p.kf_gain, p.h)
+    stages = runner.stages()
+    for t in (0.0, 0.2, 0.35, 0.7, 0.95, 1.2, 2.0):
+        stages.signals.t = t
+        stages.reference()
+        got = np.ctypeslib.as_array(C.cast(stages.signals.qd, C.POINTER(C.c_double)), (4 * n,)).reshape(4, n)
+        np.testing.assert_allclose(got, np.array(ref(t)), rtol=1e-13, atol=1e-15)
+
+
+def test_a_described_work_cycle_of_moves_runs_on_the_excavator(tmp_path):
+    """reference.moves in a description: the boom raised, then the stick and the bucket curled, on the
+    arm's rig; backstepping tracks it (its max error under a fifth of each move, under half of P's) and
+    the two loops agree."""
+    import shutil
+    from pathlib import Path
+
+    from hydrogen.simulation.simulator import simulate
+
+    src = Path(hydrogen.__file__).parent / "data"
+    for f in ("excavator_arm.toml", "excavator_arm.urdf"):
+        shutil.copy(src / f, tmp_path / f)
+    toml = tmp_path / "excavator_arm.toml"
+    toml.write_text(toml.read_text() + """
+[scenarios.cycle]
+rig = true
+duration = 4.0
+metric_start = 0.5
+reference.moves = [["boom", 0.1, 0.5, 1.5], ["stick", -0.1, 1.0, 1.5], ["bucket", 0.2, 1.5, 1.0]]
+""")
+    model = hydrogen.load_model(toml)
+    dyn = hydrogen.build(model, controllers=("backstepping", "p"))
+    res, p = simulate(dyn, "cycle", "backstepping"), simulate(dyn, "cycle", "p")
+    err, err_p = res.metrics["max_error_pct"], p.metrics["max_error_pct"]
+    assert set(err) == {"boom", "stick", "bucket"}
+    assert all(err[c] < 20.0 and err[c] < 0.5 * err_p[c] for c in err), (err, err_p)
+    assert "hf_error_rms" not in res.metrics  # not periodic: no high-frequency metric
+    py = simulate(dyn, "cycle", "backstepping", engine="python", duration=0.6)
+    c = simulate(dyn, "cycle", "backstepping", duration=0.6)
+    np.testing.assert_allclose(py.q, c.q, rtol=0, atol=1e-9)
+    # the exported program runs the same cycle from its params.h (the moves read off the kind's fields)
+    from test_export import reproduces_the_simulation
+
+    from hydrogen.export import export
+    folder = export(tmp_path / "export", "cycle", "backstepping", duration=2.0, dyn=dyn, metric_start=0.5)
+    assert "P_REF_MOVES" in (folder / "params.h").read_text()
+    got, _, _ = reproduces_the_simulation(folder, dyn, "cycle", "backstepping", 2.0, 0.5)
+    assert got.min() > 1e-6  # every coordinate moved and tracked with an error

@@ -407,6 +407,28 @@ void loader_crane_reference(const loader_crane_loop_config* c, double t, double*
     }
     {
         long long j;
+        for (j = 0; j < c->n_moves; ++j) {
+            double axis = c->moves[4 * j], d = c->moves[4 * j + 1];
+            double t0 = c->moves[4 * j + 2], dur = c->moves[4 * j + 3];
+            double tau, t2;
+            int ax;
+            if (!(axis >= 0 && axis < NQ) || !(dur > 0)) continue;  /* never index with an unchecked value */
+            ax = (int)axis;
+            if (t >= t0 + dur) {
+                qd[ax] += d;
+                continue;
+            }
+            if (t <= t0) continue;
+            tau = (t - t0) / dur;
+            t2 = tau * tau;
+            qd[ax] += d * t2 * tau * (10.0 + tau * (-15.0 + 6.0 * tau));
+            qd[NQ + ax] += d / dur * 30.0 * t2 * (1.0 + tau * (-2.0 + tau));
+            qd[2 * NQ + ax] += d / (dur * dur) * 60.0 * tau * (1.0 + tau * (-3.0 + 2.0 * tau));
+            qd[3 * NQ + ax] += d / (dur * dur * dur) * 60.0 * (1.0 + tau * (-6.0 + 6.0 * tau));
+        }
+    }
+    {
+        long long j;
         for (j = 0; j < c->n_terms; ++j) {
             double axis = c->terms[3 * j];
             double a = c->terms[3 * j + 1], w = TWO_PI * c->terms[3 * j + 2];

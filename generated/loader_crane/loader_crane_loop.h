@@ -52,10 +52,13 @@ typedef struct {
     const double* quant_l;
     long long use_kalman;
     double kf_gain[2];
-    /* reference: bias + sum of amplitude sin(2 pi f t) over terms (coordinate, amplitude, frequency),
+    /* reference: bias + minimum-jerk moves over moves (coordinate, distance, start, duration > 0),
+     * plus sum of amplitude sin(2 pi f t) over terms (coordinate, amplitude, frequency),
      * plus a raw step of step_height on coordinate step_axis (>= 0) at t_step
      * (a coordinate outside 0..NQ-1 is ignored: the runtime refuses it before a run) */
     const double* bias;
+    long long n_moves;
+    const double* moves;
     long long n_terms;
     const double* terms;
     long long step_axis;
