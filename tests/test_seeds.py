@@ -608,3 +608,30 @@ def test_cli_tune_leaves_a_derived_gain_out_of_the_set_it_prints(monkeypatch, ca
     assert cli(["tune", "--controller", "adaptive-robust", "--quiet"]) == 0
     out = capsys.readouterr().out
     assert "# Ko: derived from the other gains" in out and "# Kd = [1.0, 2.0]" in out and "nan" not in out
+
+
+def test_tune_builds_every_variant_its_runs_use_first_and_says_so(short_model, monkeypatch, capsys):
+    """The search compiles the variants its runs will use (the lean one of the first stage, the full
+    one a composite rate of the second stage runs) before any worker needs them, reporting each build's
+    stages with progress on; without progress it prints none."""
+    from hydrogen.controllers.common import runs_lean
+    from hydrogen.progress import print_event
+    from hydrogen.runtime import build as B
+
+    calls, real = [], B.build
+
+    def spy(model, **kw):
+        calls.append(kw)
+        return real(model, **kw)
+
+    monkeypatch.setattr(B, "build", spy)
+    scen, grid = {"z-1hz": ("z",)}, [5.0, 10.0]
+    kw = dict(model=short_model, scenarios=scen, seeds=1, secondary={}, max_workers=1)
+    tune("adaptive-robust", grid, adaptation={"rate_ls_gamma": [0.0, 30.0]}, progress=True, **kw)
+    variants = [runs_lean(c["gains"]["adaptive-robust"]) for c in calls if c.get("gains")]
+    assert sorted(variants) == [False, True] and all(c["progress"] is print_event for c in calls)
+    calls.clear()
+    res = tune("adaptive-robust", grid, adaptation={}, **kw)  # the first stage alone: the robot's variant
+    own = {**{r: 0.0 for r in ("rate_ls_gamma", "rate_ls_theta")}, **res["gains_used"]}
+    assert [runs_lean(c["gains"]["adaptive-robust"]) for c in calls if c.get("gains")] == [runs_lean(own)]
+    assert all(c["progress"] is None for c in calls)

@@ -348,12 +348,18 @@ def tune(controller, grid=None, *, model=None, scenarios=None, secondary=None, a
         check_workers(max_workers)
     scen = dict(scenarios) if scenarios else require_rig_scenarios(model, f"tune --controller {controller}", variant)
     seeds = seed_list(DEFAULT_SEEDS if seeds is None else seeds)
-    dyn = build(model, controllers=(controller,), **({} if numbers is None else {"numbers": numbers}))
+    report = _build_report(progress)
+    options = {} if numbers is None else {"numbers": numbers}
+    dyn = build(model, controllers=(controller,), progress=report, **options)
     sec = secondary_grid(dyn, controller) if secondary is None else dict(secondary)
     sec_points = [dict(zip(sec, v)) for v in itertools.product(*sec.values())] or [{}]
     own = _own_gains(dyn, controller, next(iter(scen)), model)
     stages = adaptation_grid(dyn, controller, own) if adaptation is None else \
         [(k, [float(v) for v in vs]) for k, vs in dict(adaptation).items()]
+    # every variant the runs will use (lean or full), compiled here with its progress shown, not by
+    # one worker on its first run while the others wait on the build lock, saying nothing
+    for g in _variant_gains(own, sec_points, stages):
+        build(model, controllers=(controller,), gains={controller: g}, progress=report, **options)
     name = main_gain(controller)
     gs = list(map(float, grid))
 
@@ -410,6 +416,26 @@ def tune(controller, grid=None, *, model=None, scenarios=None, secondary=None, a
         "best_error_ranges": {r["scenario"]: r.get("max_error_range") for r in here},
         "largest_stable": largest,
     }
+
+
+def _build_report(progress: bool):
+    """The build's progress callback of a search run with ``progress``: one line on stderr per stage of
+    a generation or compile (:func:`hydrogen.progress.print_event`); None without."""
+    from ..progress import print_event
+    return print_event if progress else None
+
+
+def _variant_gains(own: dict, points: list, stages: list) -> list:
+    """One set of gains per controller variant (lean, full) the search's runs use: its first stage at
+    each of ``points`` over the run's own gains ``own``, its second stage with each value of each of
+    ``stages`` ([(gain, values)]) over those (a composite rate set non-zero runs the full variant)."""
+    from ..controllers.common import runs_lean
+    sets = [{**own, **x} for x in points]
+    sets += [{**s, k: v} for s in sets[:1] for k, values in stages for v in values]
+    out = {}
+    for g in sets:
+        out.setdefault(runs_lean(g), g)
+    return list(out.values())
 
 
 def _same(a, b) -> bool:
@@ -502,7 +528,7 @@ def margins(controllers=None, *, model=None, scenarios=None, executor=None, max_
     scen = list(scenarios) if scenarios else list(require_rig_scenarios(model, "margins", variant))
     seeds = seed_list(DEFAULT_SEEDS if seeds is None else seeds)
     cases = [(c, s) for c in (controllers or model.controllers) for s in scen]
-    dyn = build(model, controllers=tuple(dict.fromkeys(c for c, _ in cases)),
+    dyn = build(model, controllers=tuple(dict.fromkeys(c for c, _ in cases)), progress=_build_report(progress),
                 **({} if numbers is None else {"numbers": numbers}))
     # The gains each case runs with: the robot's, under the scenario's own (a variant's gains).
     base = [_own_gains(dyn, c, s, model) for c, s in cases]
