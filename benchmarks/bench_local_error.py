@@ -151,6 +151,10 @@ def predictor_errors(dyn, scenario: str, controller: str, counts, reference: int
     moving = amplitude > 0
     ref = np.array(preds[reference])
     q_pts, p_pa, failed = {}, {}, {}
+    ref_bad = np.flatnonzero(~np.all(np.isfinite(ref), axis=1))
+    if ref_bad.size:  # no reference to compare with: every count fails where it stopped
+        return {"periods": p.n, "predictor_substeps": int(p.sc.predictor_substeps), "q_pts": {}, "p_pa": {},
+                "noise_p": float(p.sc.noise_p), "failed": {n: int(ref_bad[0]) for n in counts}}
     for n in counts:
         xs = np.array(preds[n])
         bad = np.flatnonzero(~np.all(np.isfinite(xs), axis=1))

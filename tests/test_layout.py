@@ -6,6 +6,7 @@ import subprocess
 
 import ctypes as C
 
+from hydrogen import references
 from hydrogen.layout import LOOP_CONFIG, loop_context, plant_offsets
 from hydrogen.pressures import n_pressures
 from hydrogen.runtime.build import generated_dir_for
@@ -83,7 +84,10 @@ def test_the_runtime_and_the_exported_params_fill_the_same_configuration(dyn, tm
         if ctype in ("double", "long long"):
             values = [v]
         elif ctype == "const double*":
-            size = {"theta": len(dyn.model.theta), "pred_theta": len(dyn.model.theta), "bias": dyn.model.n, "terms": 3 * max(cfg.n_terms, 1),
+            # the reference kinds' arrays sized by their own declarations (hydrogen.references)
+            size = {**references.config_sizes({f2["name"]: getattr(cfg, f2["name"]) for f2 in fields
+                                              if f2["type"] == "long long"}),
+                    "theta": len(dyn.model.theta), "pred_theta": len(dyn.model.theta), "bias": dyn.model.n,
                     "xc_lo": max(cfg.n_xc, 1), "xc_hi": max(cfg.n_xc, 1), "friction": 3 * dyn.model.n_cylinders, "valve": 5 * dyn.model.n_cylinders,
                     "p_low": n_pressures(dyn.model), "p_high": n_pressures(dyn.model),
                     "numbers": 1 if dyn.numbers is None else len(dyn.numbers)}.get(name, dyn.model.n_cylinders)

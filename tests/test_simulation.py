@@ -843,9 +843,10 @@ def test_sweep_cuts_its_runs_into_chunks_per_worker():
     assert len(parts) >= CHUNKS_PER_WORKER * 2 and max(map(len, parts)) <= MAX_CHUNK
     assert chunks(3, 8) == [range(0, 1), range(1, 2), range(2, 3)] and chunks(0, 2) == []
     assert max(map(len, chunks(10_000, 1))) == MAX_CHUNK
-    # runs in groups of 10 (a sweep's seeds): whole groups or whole parts of one, never larger chunks
+    # runs in groups of 10 (a sweep's seeds): chunks of whole groups where a group fits, never larger
     assert [len(p) for p in chunks(100, 2, 10)] == [10] * 10
-    assert [len(p) for p in chunks(10, 2, 10)] == [2] * 5 and [len(p) for p in chunks(100, 2, 7)] == [7] * 14 + [2]
+    assert [len(p) for p in chunks(100, 2, 7)] == [7] * 14 + [2]
+    assert chunks(10, 2, 10) == chunks(10, 2) and chunks(30, 2, 10) == chunks(30, 2)  # smaller: kept as they were
     assert max(map(len, chunks(1000, 3, 10))) <= max(map(len, chunks(1000, 3)))
     assert [i for p in chunks(1000, 3, 10) for i in p] == list(range(1000))
 

@@ -64,14 +64,14 @@ MAX_CHUNK = 32
 
 def chunks(n_runs: int, workers: int, group: int = 1) -> list:
     """Consecutive index ranges cutting ``n_runs`` runs into chunks for ``workers`` workers. ``group``:
-    the runs come in groups of that many that share a controller (the seeds of one sweep entry): a
-    chunk then holds whole groups, or a whole part of one (its size a multiple or a divisor of
-    ``group``), never more runs than it would otherwise, so that a worker makes one controller per
-    group, not one more for each group a chunk's edge cuts."""
+    the runs come in groups of that many that share a controller (the seeds of one sweep entry):
+    where a chunk holds a group or more, it holds whole groups (the largest multiple of ``group`` not
+    above the size it would otherwise have), so that a worker makes one controller per group, not one
+    more for each group a chunk's edge cuts; smaller chunks keep their size (cut to parts of a group
+    they would only be more chunks, each a controller)."""
     size = max(1, min(MAX_CHUNK, -(-n_runs // (CHUNKS_PER_WORKER * max(workers, 1)))))
-    if group > 1:
-        fits = [d for d in range(1, group + 1) if group % d == 0] + list(range(group, MAX_CHUNK + 1, group))
-        size = max(d for d in fits if d <= size)
+    if 1 < group <= size:
+        size -= size % group
     return [range(i, min(i + size, n_runs)) for i in range(0, n_runs, size)]
 
 

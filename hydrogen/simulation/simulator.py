@@ -1097,7 +1097,7 @@ def run_python_loop(dyn, sc, ctrl, x, q0, noise, kf_gain, log, n, h):
 def _result(sc, controller, ctrl, t, log, k, theta0, gamma0, theta_true, gamma_true, wall):
     def est(name, default):
         s = ctrl.slices.get(name)
-        default = np.atleast_1d(np.asarray(default, float))
+        default = np.atleast_1d(np.array(default, float))  # a copy: the view below must not share the model's
         # a value the controller does not estimate is constant: a read-only view of it, not k copies
         return log["xc"][:k, s] if s is not None else np.broadcast_to(default, (k, default.size))
 
