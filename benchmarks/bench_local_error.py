@@ -90,10 +90,6 @@ def replay_errors(dyn, scenario: str, controller: str, counts, reference: int, d
     for k in range(p.n):
         loop.k = k
         loop.run_period(p.noise[k], before_plant)
-    layout = plant_layout(dyn.model)
-    q, pc = slot(layout, "q").slice, slot(layout, "pc").slice
-    amplitude = np.asarray(p.sc.reference.amplitude(), float)
-    moving = amplitude > 0
 
     def replay(n):
         x, out = start, np.empty((len(commands), start.size))
@@ -101,23 +97,40 @@ def replay_errors(dyn, scenario: str, controller: str, counts, reference: int, d
             x = loop.integrate(x, u_held, u_app, n)
             out[k] = x
             if not np.all(np.isfinite(x)):
-                return out[:k + 1], k
-        return out, None
+                return out[:k + 1]
+        return out
 
-    ref, ref_bad = replay(reference)
+    return {"periods": p.n, **_differences(dyn, p.sc, replay(reference), replay, counts)}
+
+
+def _differences(dyn, sc, ref: np.ndarray, rows, counts) -> dict:
+    """{"q_pts", "p_pa", "noise_p", "failed"} of the states ``rows(n)`` (one row per period; a row not
+    finite ends them) of each count against the reference's ``ref``: the largest difference of the
+    coordinates in points of ``sc``'s reference amplitude and of the pressures in Pa; a count whose
+    rows are not finite fails at the first such period, every count where the reference's are not."""
+    layout = plant_layout(dyn.model)
+    q, pc = slot(layout, "q").slice, slot(layout, "pc").slice
+    amplitude = np.asarray(sc.reference.amplitude(), float)
+    moving = amplitude > 0
+
+    def first_bad(xs):
+        bad = np.flatnonzero(~np.all(np.isfinite(xs), axis=1))
+        return int(bad[0]) if bad.size else None
+
     q_pts, p_pa, failed = {}, {}, {}
-    if ref_bad is not None:  # no reference to compare with: every count fails where it stopped
-        return {"periods": p.n, "q_pts": {}, "p_pa": {}, "noise_p": float(p.sc.noise_p),
-                "failed": {n: ref_bad for n in counts}}
+    ref_bad = first_bad(ref)
     for n in counts:
-        xs, bad = replay(n)
+        if ref_bad is not None:  # no reference to compare with: every count fails where it stopped
+            failed[n] = ref_bad
+            continue
+        xs = rows(n)
+        bad = first_bad(xs)
         if bad is not None:
             failed[n] = bad
             continue
-        dq = np.abs(xs[:, q] - ref[:, q])[:, moving] / amplitude[moving] * 100.0
-        q_pts[n] = float(dq.max(initial=0.0))
-        p_pa[n] = float(np.abs(xs[:, pc] - ref[:, pc]).max())
-    return {"periods": p.n, "q_pts": q_pts, "p_pa": p_pa, "noise_p": float(p.sc.noise_p), "failed": failed}
+        q_pts[n] = float((np.abs(xs[:, q] - ref[:, q])[:, moving] / amplitude[moving] * 100.0).max(initial=0.0))
+        p_pa[n] = float(np.abs(xs[:, pc] - ref[:, pc]).max(initial=0.0))
+    return {"q_pts": q_pts, "p_pa": p_pa, "noise_p": float(sc.noise_p), "failed": failed}
 
 
 def predictor_errors(dyn, scenario: str, controller: str, counts, reference: int, duration=None) -> dict:
@@ -139,32 +152,16 @@ def predictor_errors(dyn, scenario: str, controller: str, counts, reference: int
                 preds[n].append(own(s))
             finally:
                 loop.sc = sc
-        return own(s)
+        mine = preds.get(sc.predictor_substeps)
+        return mine[-1].copy() if mine is not None else own(s)
 
     loop.predicted = predicted
     for k in range(p.n):
         loop.k = k
         loop.run_period(p.noise[k])
-    layout = plant_layout(dyn.model)
-    q, pc = slot(layout, "q").slice, slot(layout, "pc").slice
-    amplitude = np.asarray(p.sc.reference.amplitude(), float)
-    moving = amplitude > 0
-    ref = np.array(preds[reference])
-    q_pts, p_pa, failed = {}, {}, {}
-    ref_bad = np.flatnonzero(~np.all(np.isfinite(ref), axis=1))
-    if ref_bad.size:  # no reference to compare with: every count fails where it stopped
-        return {"periods": p.n, "predictor_substeps": int(p.sc.predictor_substeps), "q_pts": {}, "p_pa": {},
-                "noise_p": float(p.sc.noise_p), "failed": {n: int(ref_bad[0]) for n in counts}}
-    for n in counts:
-        xs = np.array(preds[n])
-        bad = np.flatnonzero(~np.all(np.isfinite(xs), axis=1))
-        if bad.size:
-            failed[n] = int(bad[0])
-            continue
-        q_pts[n] = float((np.abs(xs[:, q] - ref[:, q])[:, moving] / amplitude[moving] * 100.0).max(initial=0.0))
-        p_pa[n] = float(np.abs(xs[:, pc] - ref[:, pc]).max(initial=0.0))
-    return {"periods": p.n, "predictor_substeps": int(p.sc.predictor_substeps), "q_pts": q_pts, "p_pa": p_pa,
-            "noise_p": float(p.sc.noise_p), "failed": failed}
+    rows = {n: np.array(v) for n, v in preds.items()}
+    return {"periods": p.n, "predictor_substeps": int(sc.predictor_substeps),
+            **_differences(dyn, sc, rows[reference], rows.get, counts)}
 
 
 def keeps(e: dict, n: int) -> bool:
