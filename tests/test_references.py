@@ -221,3 +221,22 @@ reference.moves = [["boom", 0.1, 0.5, 1.5], ["stick", -0.1, 1.0, 1.5], ["bucket"
     assert "P_REF_MOVES" in (folder / "params.h").read_text()
     got, _, _ = reproduces_the_simulation(folder, dyn, "cycle", "backstepping", 2.0, 0.5)
     assert got.min() > 1e-6  # every coordinate moved and tracked with an error
+
+
+@pytest.mark.parametrize("entry,words", [('[["tail", 0.1, 0.5, 1.0]]', "coordinate 'tail' is not one of"),
+                                         ('[["boom", 0.1, 0.5]]', "malformed reference.moves"),
+                                         ('[["boom", 0.1, 0.5, 0.0]]', "reference.moves[0] duration must be > 0 s")])
+def test_a_bad_move_in_a_description_is_one_message_naming_the_file_once(tmp_path, entry, words):
+    import shutil
+    from pathlib import Path
+
+    from hydrogen.errors import HydrogenError
+
+    src = Path(hydrogen.__file__).parent / "data"
+    for f in ("excavator_arm.toml", "excavator_arm.urdf"):
+        shutil.copy(src / f, tmp_path / f)
+    toml = tmp_path / "excavator_arm.toml"
+    toml.write_text(toml.read_text() + f"\n[scenarios.cycle]\nrig = true\nreference.moves = {entry}\n")
+    with pytest.raises(HydrogenError) as exc:
+        hydrogen.simulate("cycle", "p", model=hydrogen.load_model(toml))
+    assert words in str(exc.value) and str(exc.value).count("excavator_arm.toml") <= 1

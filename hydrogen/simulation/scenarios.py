@@ -287,6 +287,8 @@ def _reference(model, where, spec, neutral):
     kind, value = next(iter(spec.items()))
     try:
         return references.kind(kind).Reference.parse(value, axis, neutral)
+    except ScenarioError:  # a coordinate the robot lacks: its own message, naming the file once
+        raise
     except (TypeError, ValueError, KeyError) as exc:
         raise ScenarioError(f"{where}: malformed reference.{kind} ({exc})") from None
 
