@@ -4,7 +4,7 @@ import pytest
 import sympy as sp
 
 import hydrogen
-from hydrogen.symbolic.calculus import clip, projection, time_derivative
+from hydrogen.symbolic.calculus import clip, matmul, projection, time_derivative
 
 
 def test_time_derivative_matches_the_chain_rule(rng):
@@ -68,3 +68,29 @@ def test_projection_equals_its_direct_construction():
     f = sp.lambdify([a, x, y, z], projection(a, rho, 0.5, 1.5))
     assert f(0.4, 1.0, -2.0, 0.0) == 0.0 and f(0.4, 1.0, 2.0, 0.0) == 2.0
     assert f(1.6, 1.0, 2.0, 0.0) == 0.0 and f(1.6, 1.0, -2.0, 0.0) == -2.0 and f(1.0, 1.0, -2.0, 0.0) == -2.0
+
+
+def test_matmul_equals_sympys_product():
+    x, y, z = sp.symbols("x y z", real=True)
+    a = sp.Matrix([[x, 0, sp.sin(y)], [sp.Float(0.0), x * y + 1, 0]])
+    b = sp.Matrix([[1, y], [0, 0], [z, sp.Float(0.0)]])
+    c = sp.Matrix([[sp.cos(x)], [2]])
+    assert matmul(a, b) == a * b
+    assert matmul(a, b, c) == a * b * c
+    assert matmul(-a, b.T.T) == (-a) * b
+    with pytest.raises(sp.ShapeError):
+        matmul(a, a)
+
+
+def test_matmul_asks_no_entry_whether_it_is_finite():
+    """SymPy's product asks whether 0 times each entry is 0 (for infinities): an assumption query
+    over the whole expression, which is what made large controllers slow to derive."""
+    class Wary(sp.Symbol):
+        def _eval_is_finite(self):
+            raise AssertionError("asked whether it is finite")
+
+    w, x = Wary("w"), sp.Symbol("x", real=True)
+    a, b = sp.Matrix([[w * x + x, w]]), sp.Matrix([[x], [1]])
+    with pytest.raises(AssertionError, match="finite"):
+        a * b
+    assert matmul(a, b) == sp.Matrix([[(w * x + x) * x + w]])

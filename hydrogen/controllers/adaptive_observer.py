@@ -43,7 +43,7 @@ def derive(model):
     import sympy as sp
 
     from .composite import HydraulicComposite, RigidBodyComposite
-    from ..symbolic.calculus import time_derivative
+    from ..symbolic.calculus import matmul, time_derivative
     from ..symbolic.control_laws import Common, ControllerParts, diag, solve_or_inverse, state_and_rates, vector
 
     c = Common(model)
@@ -69,7 +69,7 @@ def derive(model):
     z_dot_value, solve_stages = solve_or_inverse(model, c.q, th_hat, rhs, "zdot_solve")
     Y1 = c.Y(qr_dot, qr_dot, qr_ddot, th_hat)
     Y2 = c.Y(c.qdot, z, z_dot, th_hat)
-    rho = -diag(vecs["Gtheta_inv"]) * (Y1.T * s1 + Y2.T * s2)
+    rho = matmul(-diag(vecs["Gtheta_inv"]), matmul(Y1.T, s1) + matmul(Y2.T, s2))
     rc = RigidBodyComposite(c, th_hat)  # composite θ law; rate_ls_theta = 0 gives the paper's law
     th_dot_value = c.theta_rate(rc.combine(rho), th_hat, vecs, scal["adapt"])
     # friction compensation (off by default): the estimates F̂_c, b̂ at the reference velocity

@@ -77,7 +77,7 @@ def derive(model):
     import sympy as sp
 
     from .composite import HydraulicComposite, RigidBodyComposite
-    from ..symbolic.calculus import clip, time_derivative
+    from ..symbolic.calculus import clip, matmul, time_derivative
     from ..symbolic.control_laws import Common, ControllerParts, diag, solve_or_inverse, state_and_rates, vector
 
     c = Common(model)
@@ -101,15 +101,15 @@ def derive(model):
     qn2 = sum((x ** 2 for x in c.qdot), sp.S.Zero)
     Lam_o = lam_o[0] + lam_o[1] * qn2 + lam_o[2] * sp.sqrt(sum((x ** 2 for x in tau), sp.S.Zero)) \
         + lam_o[3] * sp.sqrt(qn2)
-    W = -D_hat * Lam + c.C(th_hat, qr_dot) - Kd
+    W = matmul(-D_hat, Lam) + c.C(th_hat, qr_dot) - Kd
     # q̈̄ = D̄⁻¹ (τ − C̄ q̇ − Ḡ) with D̄ = D(q, θ̂), Ḡ = G(q, θ̂), C̄ = 0
     qdd_value, solve_stages = solve_or_inverse(model, c.q, th_hat, tau - c.G(th_hat), "qdd_bar")
     qdd_bar = vector("qddbar", n)
-    WTs = W.T * s
+    WTs = matmul(W.T, s)
     z_dot_value = sp.Matrix([Ko[i] * ztil[i] + Lam_o * clip(ztil[i] / eps[i], -1, 1) - Gz_inv[i] * WTs[i]
                              + qdd_bar[i] for i in range(n)])
     # (45): θ̂̇ = −κ Γ_θ⁻¹ Yᵀ(q, q̇, q̇_r, q̈_r) s
-    rho = -diag(vecs["Gtheta_inv"]) * c.Y(c.qdot, qr_dot, qr_ddot, th_hat).T * s
+    rho = matmul(-diag(vecs["Gtheta_inv"]), c.Y(c.qdot, qr_dot, qr_ddot, th_hat).T, s)
     rc = RigidBodyComposite(c, th_hat)  # composite θ law; rate_ls_theta = 0 gives the paper's law
     th_dot_value = c.theta_rate(rc.combine(rho), th_hat, vecs, scal["adapt"])
     # friction compensation (off by default): the estimates F̂_c, b̂ at the reference velocity

@@ -365,8 +365,10 @@ class RigidBodyComposite:
 
     def prediction_error(self) -> sp.Matrix:
         """ε (n) in N or N m: W θ̂ + w0 − τ_f."""
+        from ..symbolic.calculus import matmul
+
         W, w0, tf = self._filtered()
-        return W * self.th_hat + w0 - tf
+        return matmul(W, self.th_hat) + w0 - tf
 
     def combine(self, rho):
         """θ̂'s rate before the projection from the paper's tracking term ``rho`` (p):

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
+from .calculus import matmul
 from .kinematics import pose_symbols, rate_symbols
 from .rigid_body import (bias_forces, coriolis_matrix, forward_dynamics, gravity, mass_matrix,
                          recursive_inverse_dynamics, recursive_mass_matrix, regressor, regressor_offset,
@@ -60,7 +61,7 @@ def rigid_body_functions(model, form_dynamics: bool = False) -> list:
     # τ by recursive Newton-Euler where the tree allows it; "auto" weighs the forms by their own
     # D a + C q̇ + G instead (form_dynamics), the kind of expression the controllers evaluate
     recursive = None if form_dynamics else recursive_inverse_dynamics(model, q, qd, a, th)
-    tau_out, id_stages = (D * a + bias_forces(model, q, qd, th), poses) if recursive is None else recursive
+    tau_out, id_stages = (matmul(D, a) + bias_forces(model, q, qd, th), poses) if recursive is None else recursive
     funcs.append(SymbolicFunction("inverse_dynamics", [("q", q), ("qdot", qd), ("qddot", a), ("theta", th)],
                                   [("tau", tau_out)],
                                   "Inverse dynamics tau = D(q) qddot + C(q, qdot) qdot + G, N or N m.", id_stages))

@@ -1,11 +1,12 @@
-"""Small symbolic helpers: time derivatives by the chain rule, the projection of Lemma 1."""
+"""Small symbolic helpers: time derivatives by the chain rule, the projection of Lemma 1, the
+product of matrices of large entries."""
 from __future__ import annotations
 
 import sympy as sp
 
 from ..errors import UnsupportedExpressionError
 
-__all__ = ["time_derivative", "projection", "clip"]
+__all__ = ["time_derivative", "projection", "clip", "matmul"]
 
 
 def time_derivative(expr, rates: list) -> sp.Matrix:
@@ -32,6 +33,27 @@ def time_derivative(expr, rates: list) -> sp.Matrix:
 
 
 _ZERO = sp.S.Zero
+
+
+def matmul(a, b, *more) -> sp.Matrix:
+    """The product ``a b`` of two SymPy matrices (or more: ``matmul(a, b, c)`` is ``(a b) c``), the
+    same expressions as SymPy's ``a * b`` for entries that are finite (every expression a derivation
+    here makes): each entry one ``Add`` of the products of its non-zero pairs.
+
+    Why: SymPy's product first multiplies every non-zero entry of ``a`` by 0 to see whether it is
+    infinite (0 times infinity is nan), an assumption query over the whole expression tree; on a
+    controller's large entries (Wᵀ s, Yᵀ s) that query was most of the derivation."""
+    return _matmul(a, b, *more)
+
+
+def _matmul(a, b, *more):
+    if a.cols != b.rows:
+        raise sp.ShapeError(f"matmul: {a.rows}x{a.cols} times {b.rows}x{b.cols}")
+    # non-zero entries only, by truthiness as SymPy's sparse form keeps them (0 and 0.0 drop)
+    rows = [[(k, x) for k in range(a.cols) if (x := a[i, k])] for i in range(a.rows)]
+    cols = [{k: x for k in range(b.rows) if (x := b[k, j])} for j in range(b.cols)]
+    out = sp.Matrix(a.rows, b.cols, lambda i, j: sp.Add(*[x * cols[j][k] for k, x in rows[i] if k in cols[j]]))
+    return _matmul(out, *more) if more else out
 
 
 def _add(*terms):

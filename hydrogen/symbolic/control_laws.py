@@ -21,7 +21,7 @@ import sympy as sp
 from ..actuators import actuator, baked_parameters
 from ..plant.supply import PRESSURE
 from ..pressures import blocks, n_pressures
-from .calculus import clip, projection
+from .calculus import clip, matmul, projection
 from .constants import PRESSURE_EPS, baked
 from .kinematics import leg_intermediates, matrix_symbols, pose_rates, pose_symbols, rate_symbols
 from .rigid_body import (coriolis_matrix, gravity, inverse_dynamics, mass_matrix, mass_matrix_inverse, regressor,
@@ -138,8 +138,8 @@ class Common:
         pass on a staged tree, where the products of the n×n D and C with vectors cost SymPy most of
         a controller's derivation; the same expression as the products on the closed form."""
         if not self.staged:
-            out = self.C(theta, v) * w + self.G(theta)
-            return out if a is None else self.D(theta) * a + out
+            out = matmul(self.C(theta, v), w) + self.G(theta)
+            return out if a is None else matmul(self.D(theta), a) + out
         return inverse_dynamics(self.model, self.q, v, w, sp.zeros(self.n, 1) if a is None else a, theta)
 
     def Y(self, v, w, a, theta):

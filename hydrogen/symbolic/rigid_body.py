@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import sympy as sp
 
+from .calculus import matmul
 from .constants import baked, mode_key
 from .coordinates import angular_velocity_map, rate_symbols, rotation
 from .tree import SymbolicTree
@@ -102,14 +103,14 @@ def bias_forces(model, q, qdot, theta) -> sp.Matrix:
     tree = symbolic_tree(model, q, theta)
     if tree.staged():
         return tree.staged_inverse_dynamics(qdot, qdot, sp.zeros(len(qdot), 1), baked(model.gravity, "gravity"))
-    return coriolis(mass_matrix(model, q, theta), q, qdot) * sp.Matrix(qdot) + gravity(model, q, theta)
+    return matmul(coriolis(mass_matrix(model, q, theta), q, qdot), sp.Matrix(qdot)) + gravity(model, q, theta)
 
 
 def _dynamics_of(tree, q, v, w, a, g):
     if tree.staged():
         return tree.staged_inverse_dynamics(sp.Matrix(v), sp.Matrix(w), sp.Matrix(a), g)
     D = tree.mass_matrix()
-    return D * sp.Matrix(a) + coriolis(D, q, v) * sp.Matrix(w) + tree.gravity(g)
+    return matmul(D, sp.Matrix(a)) + matmul(coriolis(D, q, v), sp.Matrix(w)) + tree.gravity(g)
 
 
 def recursive_forward_dynamics(model, q, qdot, tau, theta, prefix: str = "aba"):

@@ -27,6 +27,7 @@ from __future__ import annotations
 
 import sympy as sp
 
+from .calculus import matmul
 from .constants import baked
 from .coordinates import angular_velocity_map, body_angular_velocity_map, matrix_symbols, rotation
 
@@ -70,7 +71,7 @@ def _mm(*factors):
     for f in factors:
         if isinstance(f, sp.MatrixBase) and f.shape == (3, 3) and f == _EYE:
             continue
-        out = f if out is None else out * f
+        out = f if out is None else matmul(out, f)
     return _EYE if out is None else out
 
 
@@ -189,9 +190,9 @@ class SymbolicTree:
         for lk in self.model.links:
             R, _, Jv, Jw, _ = cf[lk.name]
             m, h, I = self._inertia(lk.name)
-            D += m * (Jv.T * Jv) + Jw.T * I * Jw
+            D += m * matmul(Jv.T, Jv) + matmul(Jw.T, I, Jw)
             if any(x != 0 for x in h):
-                X = Jv.T * R * skew(h) * Jw
+                X = matmul(Jv.T, R, skew(h), Jw)
                 D -= X + X.T
         return D
 
