@@ -35,6 +35,8 @@ SUITE = (
     ("bench_edit", "a numeric edit of the description to the next run: numbers as inputs against folded"),
     ("bench_cold", "a structural edit to the first run, empty cache: shipped robots, a spatial leg, a 7-link chain, "
                    "a URDF-born leg by both routes"),
+    ("bench_structural", "a structural edit of each shipped robot (a fixed link added, a joint axis reversed) to "
+                         "its first run, on a cache holding the shipped build"),
     ("bench_recursive", "the rigid body against Featherstone's ABA, RNEA and CRBA on SX: instructions, n = 2 ... 16, folded and numbers as inputs"),
     ("bench_period", "per-period cost of every scenario's C loop and per-call cost from Python against an earlier commit"),
     ("bench_shared_step", "the semi-implicit step with the controller inlined against calling it: per call, "

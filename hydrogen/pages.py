@@ -429,6 +429,24 @@ def _cold(b) -> list:
                         table)
 
 
+def _structural(b) -> list:
+    rows = b.get("rows", [])
+    if not rows:
+        return []
+    out = ["## A structural edit of a shipped robot, as a user meets it", "",
+           "`benchmarks/bench_structural.py`: each shipped robot edited in structure on a cache that holds its "
+           f"shipped build (the user built and ran it before): a fixed link added (a {_f(b.get('payload_kg'))} kg "
+           "payload with a full inertia tensor, 0.3 m out from the last link on a tilted mount) and, where the robot "
+           "has a moving joint, the first one's axis reversed. A fresh process builds the edited robot for the "
+           f"controller named and runs {_f(b.get('duration_s'))} s of its first scenario. The core's sources start "
+           "compiling as soon as they are written, while the controller is derived; objects whose source did not "
+           "change come from the object store. Seconds, median of "
+           f"{b.get('runs')} run{'s' if b.get('runs') != 1 else ''}:", ""]
+    table = [[r["robot"], r["edit"], r["controller"], _f(r["process_wall_s"]), _f(r["cpu_s"]), _f(r["generate_s"]),
+              _f(r["compile_s"])] for r in rows]
+    return out + _table(["robot", "edit", "controller", "process wall", "CPU", "generation", "compile"], table)
+
+
 #: hydrogen's function and the recursive algorithm of benchmarks/bench_recursive.py it is compared with.
 _RECURSIVE = (("forward_dynamics", "ABA", "aba"), ("inverse_dynamics", "RNEA", "rnea"), ("mass_matrix", "CRBA", "crba"))
 
@@ -823,6 +841,8 @@ def benchmarks_page(results: dict, repeats: dict | None = None, source: str = "d
         out += _edit(results["bench_edit"])
     if "bench_cold" in results:
         out += _cold(results["bench_cold"])
+    if "bench_structural" in results:
+        out += _structural(results["bench_structural"])
     if "bench_recursive" in results:
         out += _recursive(results["bench_recursive"])
     if "bench_period" in results:

@@ -329,6 +329,33 @@ def test_the_cold_benchmark_edits_the_structure(name, tmp_path):
     assert edited.gravity == 0.0 and structure_hash(edited) != structure_hash(model)
 
 
+@pytest.mark.parametrize("name", list(hydrogen.models()))
+def test_the_structural_benchmark_adds_a_fixed_link_and_reverses_an_axis(name, tmp_path):
+    """bench_structural's edits load, keep the coordinates, and change the structure (so the first
+    run generates): a payload fixed to the last link; the first moving joint turned the other way."""
+    import bench_structural
+
+    from hydrogen.codegen.generate import structure_hash
+
+    model = hydrogen.load_model(name)
+    (tmp_path / "link").mkdir()
+    linked = hydrogen.load_model(bench_structural.with_fixed_link(name, tmp_path / "link"))
+    assert linked.coordinate_names == model.coordinate_names and structure_hash(linked) != structure_hash(model)
+    mount = next(j for j in linked.joints if j.name == "payload_mount")
+    assert mount.type == "fixed" and mount.parent == model.links[-1].name
+    assert sum(lk.mass for lk in linked.links) == pytest.approx(sum(lk.mass for lk in model.links)
+                                                               + bench_structural.PAYLOAD_KG)
+    (tmp_path / "axis").mkdir()
+    toml = bench_structural.with_axis_reversed(name, tmp_path / "axis")
+    moving = [j for j in model.joints if j.type in ("revolute", "prismatic")]
+    assert (toml is None) == (not moving)
+    if toml is not None:
+        turned = hydrogen.load_model(toml)
+        first = next(j for j in turned.joints if j.name == moving[0].name)
+        np.testing.assert_array_equal(first.axis, -np.asarray(moving[0].axis))
+        assert structure_hash(turned) != structure_hash(model)
+
+
 def test_the_cold_benchmark_states_targets_only_for_developers(capsys):
     import bench_cold
 

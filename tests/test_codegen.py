@@ -321,7 +321,8 @@ def test_interrupted_generation_keeps_previous_files(tmp_path, model, monkeypatc
     gen.generate(model, out)
     before = {p.name: p.read_bytes() for p in out.iterdir()}
 
-    def broken_render(model, folder, functions=None, progress=False, numbers="constants", controllers=None):
+    def broken_render(model, folder, functions=None, progress=False, numbers="constants", controllers=None,
+                      written=None):
         (Path(folder) / "half_written.c").write_text("int x")
         raise KeyboardInterrupt
 

@@ -108,3 +108,58 @@ def test_a_bad_job_count_is_named(tmp_path, jobs):
 
 def test_usable_cores_is_at_least_one():
     assert usable_cores() >= 1
+
+
+def _compiled(log) -> list:
+    return [line.split()[1] for line in log.read_text().splitlines() if line.startswith("start")] if log.exists() else []
+
+
+def test_a_library_whose_sources_changed_in_part_compiles_only_the_changed_ones(tmp_path):
+    cc, log = _logging_cc(tmp_path)
+    srcs = _sources(tmp_path / "src", [("a", 10), ("b", 20), ("c", 30)])
+    compile_library(srcs, "first", Toolchain(cc=cc), cache=tmp_path / "cache", jobs=1)
+    assert sorted(_compiled(log)) == ["a.c", "b.c", "c.c"]
+    log.unlink()
+    srcs[1].write_text("int b(void) { return 20; }\n")
+    lib = compile_library(srcs, "second", Toolchain(cc=cc), cache=tmp_path / "cache", jobs=1)
+    assert _compiled(log) == ["b.c"]  # a and c from the object store
+    dll = ctypes.CDLL(str(lib))
+    assert (dll.a(), dll.b(), dll.c()) == (1, 20, 3)
+
+
+def test_a_precompiled_source_is_not_compiled_again_even_after_its_folder_is_gone(tmp_path):
+    from hydrogen.runtime.compiler import precompile
+
+    cc, log = _logging_cc(tmp_path)
+    staging = _sources(tmp_path / "staging", [("a", 10), ("b", 20)])
+    precompile(staging, Toolchain(cc=cc), cache=tmp_path / "cache")  # read now, compiled from a copy
+    shutil.copytree(tmp_path / "staging", tmp_path / "final")
+    shutil.rmtree(tmp_path / "staging")  # as a generated folder's staging folder is renamed
+    final = [tmp_path / "final" / s.name for s in staging]
+    lib = compile_library(final, "pre", Toolchain(cc=cc), cache=tmp_path / "cache", jobs=2)
+    assert sorted(_compiled(log)) == ["a.c", "b.c"]  # once each: by the background compiles
+    assert (ctypes.CDLL(str(lib)).a(), ctypes.CDLL(str(lib)).b()) == (1, 2)
+
+
+def test_a_damaged_object_in_the_store_is_compiled_again(tmp_path):
+    srcs = _sources(tmp_path / "src", [("a", 10), ("b", 20)])
+    cache = tmp_path / "cache"
+    compile_library(srcs, "first", Toolchain(), cache=cache)
+    for obj in (cache / "objects").glob("*.o"):
+        obj.write_bytes(b"not an object")
+    more = _sources(tmp_path / "more", [("c", 5)])  # a new library of the same objects and one more
+    lib = compile_library([*srcs, *more], "second", Toolchain(), cache=cache)
+    assert ctypes.CDLL(str(lib)).b() == 2
+
+
+def test_an_included_header_is_part_of_an_objects_key(tmp_path):
+    cc, log = _logging_cc(tmp_path)
+    src = tmp_path / "src"
+    src.mkdir()
+    (src / "k.h").write_text("#define K 1\n")
+    (src / "k.c").write_text('#include "k.h"\nint k(void) { return K; }\n')
+    compile_library([src / "k.c"], "one", Toolchain(cc=cc), cache=tmp_path / "cache")
+    (src / "k.h").write_text("#define K 2\n")
+    more = _sources(tmp_path / "more", [("m", 5)])  # a new library (its key covers its sources alone)
+    lib = compile_library([src / "k.c", *more], "two", Toolchain(cc=cc), cache=tmp_path / "cache")
+    assert sorted(_compiled(log)) == ["k.c", "k.c", "m.c"] and ctypes.CDLL(str(lib)).k() == 2

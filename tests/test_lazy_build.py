@@ -293,3 +293,33 @@ def test_a_build_for_no_controller_holds_the_core_alone(tmp_path):
     assert held_controllers(grown.library.manifest) == ("p",)
     every = hydrogen.build(model, cache=cache, cflags=FAST, backend="ctypes")  # None: all it lists
     assert held_controllers(every.library.manifest) == tuple(CONTROLLERS)
+
+
+def test_a_new_structure_compiles_its_core_while_the_controller_derives(tmp_path, monkeypatch):
+    """Each source of the libraries a build compiles starts compiling as soon as it is written: the
+    core's before the controller is derived, the variant the run uses, never the other one."""
+    import hydrogen.runtime.build as build_module
+    from hydrogen.controllers import controller
+    from hydrogen.runtime.library import group_of
+
+    model = hydrogen.load_model(Path(__file__).parent / "data" / "four_way_arm.toml")
+    timeline = []
+    real_precompile, ctrl = build_module.precompile, controller("adaptive-robust")
+    real_derive = ctrl.derive
+    monkeypatch.setattr(build_module, "precompile",
+                        lambda sources, *a: (timeline.extend(Path(s).name for s in sources), real_precompile(sources, *a)))
+    monkeypatch.setattr(ctrl, "derive", lambda m: (timeline.append("derive"), real_derive(m))[1])
+    dyn = hydrogen.build(model, cache=tmp_path / "cache", cflags=FAST, backend="ctypes",
+                         controllers=("adaptive-robust",))
+    manifest = dyn.library.manifest
+    lean = f"adaptive-robust-{LEAN}"  # the description sets no composite rate
+    assert timeline.index("derive") == len(group_sources(manifest, CORE)) - 1  # every core function, not the driver
+    assert sorted(timeline[:timeline.index("derive")] + timeline[-1:]) == sorted(group_sources(manifest, CORE))
+    own = timeline[timeline.index("derive") + 1:-1]
+    assert sorted(own) == sorted(group_sources(manifest, lean))
+    assert own[0] == f"four_way_arm_{step_function_name('adaptive-robust', LEAN)}.c"  # the longest compile first
+    assert all(group_of(e["name"]) != "adaptive-robust" or e["source"] not in timeline for e in manifest["functions"])
+    # the library's own compile found every object made: nothing compiled twice
+    objects = list((tmp_path / "cache" / "objects").glob("*.o"))
+    assert len(objects) == len(group_sources(manifest, CORE)) + len(group_sources(manifest, lean))
+    assert np.isfinite(hydrogen.simulate("arm-sim", "adaptive-robust", dyn=dyn, duration=0.01).q).all()

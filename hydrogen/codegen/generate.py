@@ -306,34 +306,66 @@ def _file_hashes(folder: Path) -> dict:
 
 
 def render(model, folder: Path, functions=None, progress: bool = False, numbers: str = DEFAULT_NUMBERS,
-           names=None, controllers=None) -> dict:
+           names=None, controllers=None, written=None) -> dict:
     """Write every function's C and the manifest into an existing empty ``folder``.
 
     ``progress`` shows a bar on a terminal (nothing when stderr is not one). ``numbers``
     (:data:`NUMBERS_MODES`): "inputs" gives every function the description's numbers as its input
     ``numbers`` (names in the manifest's ``numbers``); the loop driver then passes them on from its
     configuration. ``functions`` and ``names``: what :func:`derive` gives for ``numbers``, when
-    derived already (else derived here, the core and ``controllers``: None for all).
+    derived already (else derived here, the core and ``controllers``: None for all; the core's C is
+    written before the controllers are derived). ``written``: called as ``written(name, path)`` with
+    each C source as soon as it is written (``name`` the function's, None for a loop driver), e.g.
+    to start its compile while the rest is derived.
     """
     import casadi as ca
     import sympy as sp
     from tqdm import tqdm
 
     folder = Path(folder)
-    if functions is None:
-        with tqdm(total=1, desc="deriving (SymPy)", disable=None if progress else True) as bar:
-            functions, names = derive(model, numbers, controllers)
-            bar.update()
-    elif (names is None) != (check_numbers_mode(numbers) == "constants"):
+    if functions is not None and (names is None) != (check_numbers_mode(numbers) == "constants"):
         raise ValueError(f"render: functions derived for numbers={numbers!r} come with "
                          f"{'the names of their numbers (derive)' if names is None else 'no names'}")
+    bar = tqdm(desc="generating C", unit="fn", disable=None if progress else True)
+    cache = {}  # CasADi conversions by function name: the composed functions reuse them
+    entries = {}
+
+    def write(fs):
+        from ..symbolic.functions import SemiImplicitStep
+        from .casadi_functions import casadi_function
+
+        # converted in order (a step is composed of the conversions of its parts: the same C
+        # whatever the order of writing), then written the semi-implicit steps first: the largest
+        # sources, the longest compiles, which a caller of ``written`` starts first
+        for sf in fs:
+            casadi_function(sf, c_name(model.name, sf.name), cache)
+        for sf in sorted(fs, key=lambda f: not isinstance(f, SemiImplicitStep)):
+            entries[sf.name] = write_function(sf, model.name, folder, cache)
+            if written is not None:
+                written(sf.name, folder / entries[sf.name]["source"])
+            bar.update()
+
+    if functions is None:
+        core, names = derive(model, numbers, controllers=())
+        write(core)
+        own, grown = derive(model, numbers, controllers, core=False, seed=names)
+        if grown != names:  # a controller met a number the core did not: every function takes the whole vector
+            core, names = derive(model, numbers, controllers=(), seed=grown)
+            cache.clear()
+            write(core)
+        write(own)
+        functions = [*core, *own]
+    else:
+        write(functions)
+    bar.close()
     from ..layout import model_summary
 
-    cache = {}  # CasADi conversions by function name: the composed functions reuse them
-    entries = [write_function(sf, model.name, folder, cache)
-               for sf in tqdm(functions, desc="generating C", unit="fn", disable=None if progress else True)]
     summary = model_summary(model)
     drivers = render_drivers({"model": summary, **({} if names is None else {"numbers": names})}, folder)
+    if written is not None:
+        for d in drivers:
+            if d.endswith(".c"):
+                written(None, folder / d)
     manifest = {
         **expected_manifest_inputs(model, numbers),
         **({} if names is None else {"numbers": names, "numbers_hash": numbers_hash(names)}),
@@ -343,7 +375,7 @@ def render(model, folder: Path, functions=None, progress: bool = False, numbers:
         "sympy_version": sp.__version__,
         "casadi_int": CODEGEN_OPTIONS["casadi_int"],
         "casadi_real": CODEGEN_OPTIONS["casadi_real"],
-        "functions": _canonical(entries),
+        "functions": _canonical([entries[f.name] for f in functions]),
         "drivers": [d for d in drivers if d.endswith(".c")],
         "files": _file_hashes(folder),
     }
@@ -352,18 +384,18 @@ def render(model, folder: Path, functions=None, progress: bool = False, numbers:
 
 
 def generate(model, out_dir: Path, force: bool = False, progress: bool = False, numbers: str = DEFAULT_NUMBERS,
-             controllers=None) -> bool:
+             controllers=None, written=None) -> bool:
     """Generate C for ``model`` into ``out_dir`` unless it is already current.
 
     ``controllers``: the controllers the folder must hold (None: all); a current folder that lacks
     some gets theirs added (:func:`extend`), nothing else derived again. Returns True when files
     were (re)written. The folder is swapped in whole under a lock; concurrent callers wait, then
-    find it current.
+    find it current. ``written``: as :func:`render` takes it, for each C source written.
     """
     out_dir = Path(out_dir)
     check_replaceable_dir(out_dir, MANIFEST, GENERATED_KEYS, "a hydrogen generated folder")  # before the lock file
     with locked(out_dir):
-        return generate_locked(model, out_dir, force, progress, numbers, controllers)
+        return generate_locked(model, out_dir, force, progress, numbers, controllers, written)
 
 
 def _staged(out_dir: Path, write) -> None:
@@ -380,7 +412,7 @@ def _staged(out_dir: Path, write) -> None:
 
 
 def generate_locked(model, out_dir: Path, force: bool = False, progress: bool = False,
-                    numbers: str = DEFAULT_NUMBERS, controllers=None) -> bool:
+                    numbers: str = DEFAULT_NUMBERS, controllers=None, written=None) -> bool:
     """:func:`generate` for a caller that already holds ``locked(out_dir)``."""
     out_dir = Path(out_dir)
     check_identifier(model.name, "model name")  # it becomes C symbols, file names and build-file text
@@ -391,23 +423,23 @@ def generate_locked(model, out_dir: Path, force: bool = False, progress: bool = 
     if not force and len(reasons) == len(stale):  # current, but for controllers changed or missing
         missing = missing_controllers(manifest, model.controllers if controllers is None else controllers)
         redo = (*stale, *(k for k in missing if k not in stale))
-        if not redo or extend(model, out_dir, redo, progress, replacing=stale):
+        if not redo or extend(model, out_dir, redo, progress, replacing=stale, written=written):
             return bool(redo)
         controllers = (*held_controllers(manifest), *(k for k in missing if k not in stale))  # whole again
     check_replaceable_dir(out_dir, MANIFEST, GENERATED_KEYS, "a hydrogen generated folder", probe=False)  # even forced
     _staged(out_dir, lambda staging: render(model, staging, progress=progress, numbers=numbers,
-                                            controllers=controllers))
+                                            controllers=controllers, written=written))
     return True
 
 
-def extend(model, folder: Path, controllers, progress: bool = False, replacing=()) -> bool:
+def extend(model, folder: Path, controllers, progress: bool = False, replacing=(), written=None) -> bool:
     """Add the functions of ``controllers`` to the current generated ``folder`` (the caller holds its
     lock): they alone are derived and written, the folder swapped in whole with its manifest. The
     result is byte for byte what a whole generation of the same controllers writes. ``replacing``:
     controllers among them the folder holds already (their module changed): their functions' files
     and entries give way to the new ones. False (nothing written) when they read a description
     number the folder's functions do not take: then only a whole generation can give every function
-    the same numbers input."""
+    the same numbers input. ``written``: as :func:`render` takes it, for each C source written."""
     from tqdm import tqdm
 
     folder = Path(folder)
@@ -428,8 +460,11 @@ def extend(model, folder: Path, controllers, progress: bool = False, replacing=(
             if not p.name.startswith(".") and p.name not in dropped:
                 shutil.copy2(p, staging / p.name)
         cache = {}
-        added = [write_function(sf, model.name, staging, cache)
-                 for sf in tqdm(functions, desc="generating C", unit="fn", disable=None if progress else True)]
+        added = []
+        for sf in tqdm(functions, desc="generating C", unit="fn", disable=None if progress else True):
+            added.append(write_function(sf, model.name, staging, cache))
+            if written is not None:
+                written(sf.name, staging / added[-1]["source"])
         grown = {**manifest, "functions": _canonical([*kept, *added]),
                  "files": _file_hashes(staging)}
         write_file(staging / MANIFEST, json.dumps(grown, indent=2, sort_keys=True) + "\n")

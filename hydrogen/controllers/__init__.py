@@ -35,7 +35,7 @@ import numpy as np
 from ..errors import HydrogenError
 from .spec import ControllerSpec, StateBlock
 
-__all__ = ["CONTROLLERS", "controller", "spec", "baseline", "adapts", "function_name", "rates_function_name",
+__all__ = ["CONTROLLERS", "controller", "spec", "baseline", "adapts", "has_lean", "function_name", "rates_function_name",
            "step_function_name", "function_owner", "gain_names", "COMMON_GAINS", "LEAN", "ControllerSpec", "StateBlock",
            "ESTIMATE_BLOCKS"]
 
@@ -94,6 +94,14 @@ def baseline() -> str:
 def adapts(name: str, model) -> bool:
     """Whether controller ``name`` estimates parameters on ``model`` (its state holds θ̂ or γ̂)."""
     return any(block in ESTIMATE_BLOCKS for block, _ in _REGISTRY[name].state_layout(model))
+
+
+def has_lean(name: str, model) -> bool:
+    """Whether controller ``name`` has a lean variant on ``model``: its state holds the composite
+    adaptation's blocks (:func:`hydrogen.controllers.common.lean_variant`)."""
+    from .common import lean_variant
+
+    return lean_variant(_REGISTRY[name].state_layout(model)) is not None
 
 
 def function_name(name: str, variant: str | None = None) -> str:

@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import hashlib
+import threading
 from contextlib import contextmanager
 from pathlib import Path
 
@@ -10,9 +11,9 @@ from ..codegen.generate import (DEFAULT_NUMBERS, check, check_numbers_mode, deri
 from ..errors import BuildCacheError
 from ..model import Model, load_model
 from .cachedir import build_lock_path, cache_errors, check_cache_root, folder_lock, warm_library
-from .compiler import Toolchain, build_key_of, cache_root, cached_library, compile_libraries
-from .extension import attach_extension
-from .library import CORE, GeneratedLibrary, controller_groups, group_sources
+from .compiler import Toolchain, build_key_of, cache_root, cached_library, cancel_precompiles, compile_libraries, precompile
+from .extension import attach_extension, build_extension, unavailable_reason
+from .library import CORE, GeneratedLibrary, group_name, group_of, group_sources
 
 __all__ = ["build", "default_dynamics", "DEFAULT_DYNAMICS", "as_model", "repo_generated_dir", "generated_dir_for", "library_name",
            "generation_reported"]
@@ -253,11 +254,12 @@ def build(model: Model | str | Path | None = None, *, cc: str | None = None,
         made.append(_Loader(model, folder, manifest, toolchain, root, cache, committed, report))
         return made[-1]
 
+    groups = _own_variants(model, controllers, gains)
+    extension = None  # the extension's compile, started beside the libraries' where they compile
     lib = warm_library(model, folder, toolchain, root, loader, numbers)  # no lock, no write: a read-only cache works
     if lib is not None and missing_controllers(lib.manifest, need):
         lib = None  # the folder holds other controllers: theirs are added under the lock
     if lib is not None:
-        groups = _own_variants(model, made[-1].manifest, controllers, gains)
         missing = [g for g in groups if _cached_or_none(made[-1], g) is None]
         if missing:
             with cache_errors(root), folder_lock(made[-1].lock, current=committed):
@@ -272,22 +274,34 @@ def build(model: Model | str | Path | None = None, *, cc: str | None = None,
             if committed:  # whole (generate --check): it holds every controller
                 _still_current(model, folder, numbers)
             else:
-                with generation_reported(report, model, folder, controllers=need):
-                    # no-op when current; a build for some controllers derives only theirs
-                    generate_locked(model, folder, numbers=numbers, controllers=need)
+                # each source of a library this build compiles starts compiling as soon as it is
+                # written, on the cores the derivation leaves (the core while controllers derive)
+                early = _Precompile({CORE, *groups}, toolchain, cache)
+                try:
+                    with generation_reported(report, model, folder, controllers=need):
+                        # no-op when current; a build for some controllers derives only theirs
+                        generate_locked(model, folder, numbers=numbers, controllers=need, written=early)
+                except BaseException:
+                    cancel_precompiles()
+                    raise
             manifest = read_manifest(folder)
             if manifest is None:
                 raise BuildCacheError(f"{folder}: generated folder has no readable manifest after generation")
             load = loader(manifest)
+            extension = _extension_started(manifest, toolchain, cache, backend)
             # Progress around the compile call, not inside it: a build another process finished is no step.
-            groups = _own_variants(model, manifest, controllers, gains)
-            core = load.compile([CORE, *groups])[0]
+            try:
+                core = load.compile([CORE, *groups])[0]
+            finally:
+                cancel_precompiles()
             try:
                 lib = GeneratedLibrary(core, manifest, folder, load, numbers=model.numbers)
             except BuildCacheError:
                 # A cached build that does not match this runtime (other CasADi, other ABI): rebuild once.
                 lib = GeneratedLibrary(load.compile([CORE], force=True)[0], manifest, folder, load,
                                        numbers=model.numbers)
+    if extension is not None:
+        extension.join()  # built (or failed: attach_extension meets the failure again and reports it)
     attach_extension(lib, toolchain, cache=cache, backend=backend)
     for g in groups:
         lib.load(g)
@@ -305,19 +319,53 @@ def _still_current(model, folder: Path, numbers: str) -> None:
         raise BuildCacheError(f"{folder}: changed since this build chose it ({reasons[0]}); build again")
 
 
-def _own_variants(model: Model, manifest: dict, controllers: tuple, gains=None) -> list:
+def _own_variants(model: Model, controllers: tuple, gains=None) -> list:
     """The library each controller runs with the description's own gains (and ``gains[c]`` over
     them, a scenario's): its lean variant where it has one and no composite rate is set (the
     default, the paper's laws), else its full one. A run with other gains compiles the other
     variant on its first use."""
+    from ..controllers import LEAN, has_lean
     from ..controllers.common import COMPOSITE_RATES, runs_lean
 
     out = []
     for c in controllers:
-        groups = controller_groups(manifest, c)
         g = {**{r: 0.0 for r in COMPOSITE_RATES}, **((model.gains or {}).get(c) or {}), **((gains or {}).get(c) or {})}
-        out += groups[1:2] if len(groups) > 1 and runs_lean(g) else groups[:1]
+        out.append(group_name(c, LEAN if has_lean(c, model) and runs_lean(g) else None))
     return out
+
+
+class _Precompile:
+    """What a generation calls with each C source it writes (``written(name, path)``): the sources
+    of ``groups`` (libraries) start compiling into the object store at once
+    (:func:`~hydrogen.runtime.compiler.precompile`). An optimisation only: a failure to start
+    (no compiler) stops it quietly, and the library's compile meets the failure and reports it."""
+
+    def __init__(self, groups, toolchain, cache):
+        self.groups, self.toolchain, self.cache, self.on = set(groups), toolchain, cache, True
+
+    def __call__(self, name, path) -> None:
+        if self.on and (CORE if name is None else group_of(name)) in self.groups:
+            try:
+                precompile([path], self.toolchain, self.cache)
+            except Exception:  # noqa: BLE001 - see the class docstring
+                self.on = False
+
+
+def _extension_started(manifest, toolchain, cache, backend):
+    """The Python extension's compile started on a thread of its own (it needs no library), or None
+    where it will not be built; its failure is left to attach_extension, which reports it."""
+    if backend == "ctypes" or unavailable_reason() is not None:
+        return None
+
+    def build():
+        try:
+            build_extension(manifest, toolchain, cache)
+        except Exception:  # noqa: BLE001 - see the docstring
+            pass
+
+    thread = threading.Thread(target=build, name="hydrogen-extension", daemon=True)
+    thread.start()
+    return thread
 
 
 def _cached_or_none(load, group):

@@ -6,12 +6,19 @@ name new, so a rebuild inside a running process never gets the already
 loaded (possibly stale) library back from the dynamic loader. ``build.json``
 records the library's SHA-256, so a truncated or corrupt file is detected
 and rebuilt instead of crashing the loader.
+
+``<cache>/objects/<key>.o`` holds each translation unit's object, keyed by its bytes, the local
+headers it includes, the compiler and the flags: a library whose sources changed in part compiles
+only the changed ones (an edit of a robot's mechanics leaves its valve functions' objects as they
+were), and :func:`precompile` can start a source's compile in the background as soon as it is
+written (a build compiles the core while the controllers are still being derived).
 """
 from __future__ import annotations
 
 import hashlib
 import json
 import os
+import re
 import secrets
 import shlex
 import shutil
@@ -27,8 +34,8 @@ from pathlib import Path
 from ..errors import CompilerError
 from ..fileio import atomic_write, locked, write_file
 
-__all__ = ["Toolchain", "cache_root", "compile_library", "compile_libraries", "compile_extension", "run_compiler", "DEFAULT_CFLAGS",
-           "WARNING_FLAGS"]
+__all__ = ["Toolchain", "cache_root", "compile_library", "compile_libraries", "compile_extension", "run_compiler",
+           "precompile", "cancel_precompiles", "DEFAULT_CFLAGS", "WARNING_FLAGS", "OBJECTS"]
 
 #: Chosen by benchmarks/bench_flags.py (README "Benchmarks"). -fno-semantic-interposition lets gcc
 #: and clang inline CasADi's exported one-line helpers (casadi_sq, casadi_fmin, ...) inside the shared
@@ -36,6 +43,9 @@ __all__ = ["Toolchain", "cache_root", "compile_library", "compile_libraries", "c
 #: -march=native ties the cache to one CPU, so it is left to the user (cflags=...).
 DEFAULT_CFLAGS = ("-O2", "-fPIC", "-std=c99", "-fno-semantic-interposition")
 WARNING_FLAGS = ("-Wall", "-Wextra", "-Werror")
+#: The object store's folder under the cache root.
+OBJECTS = "objects"
+_IDENTITIES: dict = {}  # (compiler path, mtime, size, timeout) -> its --version text
 
 
 def cache_root() -> Path:
@@ -110,8 +120,22 @@ class Toolchain:
         return path
 
     def identity(self) -> str:
-        """The compiler's own version text, part of the cache key."""
+        """The compiler's own version text, part of the cache key (asked once per process and
+        compiler file: a compiler replaced on disk is asked again)."""
         exe = self.executable()
+        try:
+            st = os.stat(exe)
+            stamp = (exe, st.st_mtime_ns, st.st_size, min(30.0, self.timeout))
+        except OSError:
+            stamp = None
+        if stamp is not None and stamp in _IDENTITIES:
+            return _IDENTITIES[stamp]
+        text = self._ask_identity(exe)
+        if stamp is not None:
+            _IDENTITIES[stamp] = text
+        return text
+
+    def _ask_identity(self, exe: str) -> str:
         try:
             out = subprocess.run([exe, "--version"], capture_output=True, text=True,
                                  timeout=min(30.0, self.timeout))
@@ -183,21 +207,32 @@ def usable_cores() -> int:
     return os.cpu_count() or 1
 
 
-def compile_objects(sources: list, out_dir: Path, argv: list, timeout: float, jobs: int | None = None) -> list:
-    """Compile each source to an object file in ``out_dir``, ``jobs`` compilers at a time; the objects.
+def compile_objects(sources: list, out_dir: Path, argv: list, timeout: float, jobs: int | None = None,
+                    store: Path | None = None, force: bool = False) -> list:
+    """Compile each source to an object file, ``jobs`` compilers at a time; the objects.
 
     ``jobs`` defaults to :func:`usable_cores`. The largest sources start first, so that one long
     compile (a controller's semi-implicit step) does not begin last and run alone. Each compiler
     call has its own ``timeout``. The first failure stops the compiles not yet started and is
-    raised (the compiles already running end within their timeout).
+    raised (the compiles already running end within their timeout). ``argv``: the compiler and
+    its flags, its identity text first when ``store`` is given (:meth:`Toolchain.identity`).
+
+    Objects go to ``out_dir``, or with ``store`` (an object store, :data:`OBJECTS`) to the store
+    under their content key: an object found there (or being compiled there by :func:`precompile`
+    in this process) is used as it is, unless ``force``.
     """
     if jobs is None:
         jobs = usable_cores()
     if isinstance(jobs, bool) or not isinstance(jobs, int) or jobs < 1:
         raise CompilerError(f"jobs must be a whole number of compilers >= 1, got {jobs!r}")
     sources = [Path(s) for s in sources]
-    # A numbered object per source: two sources of one name (in two folders) never share an object.
-    objects = [Path(out_dir) / f"{i:03d}_{s.stem}.o" for i, s in enumerate(sources)]
+    if store is None:
+        # A numbered object per source: two sources of one name (in two folders) never share an object.
+        objects = [Path(out_dir) / f"{i:03d}_{s.stem}.o" for i, s in enumerate(sources)]
+    else:
+        identity, argv = argv[0], argv[1:]
+        objects = [Path(store) / f"{_object_key(_with_includes(s, s.read_bytes()), argv, identity)}.o"
+                   for s in sources]
     order = sorted(range(len(sources)), key=lambda i: -sources[i].stat().st_size)
     failed = threading.Event()  # set by the failing compile itself: no queued compile starts after it
 
@@ -205,7 +240,9 @@ def compile_objects(sources: list, out_dir: Path, argv: list, timeout: float, jo
         if failed.is_set():
             return
         try:
-            run_compiler([*argv, "-c", str(sources[i]), "-o", str(objects[i])], sources[i].name, timeout)
+            if store is not None and not force and _ready(objects[i]):
+                return
+            _compile_to(sources[i], objects[i], argv, timeout)
         except BaseException:
             failed.set()
             raise
@@ -221,6 +258,116 @@ def compile_objects(sources: list, out_dir: Path, argv: list, timeout: float, jo
                 f.cancel()
             raise
     return objects
+
+
+def _compile_to(source: Path, obj: Path, argv: list, timeout: float, what: str | None = None) -> None:
+    """Compile ``source`` into ``obj``, written whole (a new name, then renamed): a process reading
+    the store never sees half an object."""
+    obj.parent.mkdir(parents=True, exist_ok=True)
+    tmp = obj.with_name(f".{obj.stem}-{secrets.token_hex(4)}.o")
+    try:
+        run_compiler([*argv, "-c", str(source), "-o", str(tmp)], what or source.name, timeout)
+        os.replace(tmp, obj)
+    finally:
+        tmp.unlink(missing_ok=True)
+
+
+_LOCAL_INCLUDE = re.compile(rb'^[ \t]*#[ \t]*include[ \t]*"([^"]+)"', re.MULTILINE)
+
+
+def _with_includes(source: Path, data: bytes) -> list:
+    """``[(name, bytes)]``: the source, then the headers beside it that it includes (and they include),
+    read now; a header that cannot be read is left to the compiler to name."""
+    out, todo, seen = [(source.name, data)], [data], {source.name}
+    while todo:
+        for raw in _LOCAL_INCLUDE.findall(todo.pop()):
+            name = raw.decode(errors="replace")
+            if name in seen:
+                continue
+            seen.add(name)
+            try:
+                header = (source.parent / name).read_bytes()
+            except OSError:
+                continue
+            out.append((name, header))
+            todo.append(header)
+    return out
+
+
+def _object_key(files: list, argv: list, identity: str) -> str:
+    """SHA-256 of an object's inputs: the source and its local headers (names and bytes), the
+    compiler's identity and its flags."""
+    h = hashlib.sha256(b"object\0" + identity.encode() + b"\0" + json.dumps(list(argv)).encode())
+    for name, data in files:
+        h.update(b"\0" + name.encode() + b"\0" + data)
+    return h.hexdigest()
+
+
+# Compiles started by precompile() in this process, by object path; and the one worker pool they run in.
+_STARTED: dict = {}
+_STARTED_LOCK = threading.Lock()
+_BACKGROUND: list = []
+_POOL_LOCK = threading.Lock()
+
+
+def _in_background(fn, *args):
+    """Run ``fn(*args)`` on this process's background pool (as many workers as usable cores less one,
+    at least one: the derivation keeps a core); its future."""
+    with _POOL_LOCK:
+        if not _BACKGROUND:
+            _BACKGROUND.append(ThreadPoolExecutor(max_workers=max(1, usable_cores() - 1),
+                                                  thread_name_prefix="hydrogen-cc"))
+        return _BACKGROUND[0].submit(fn, *args)
+
+
+def _ready(obj: Path) -> bool:
+    """Whether ``obj`` is in the store, after waiting for a background compile of it if one runs
+    (a failed one leaves it absent: the caller compiles it and reports the error itself). One still
+    queued is taken back: the caller's own pool compiles it now."""
+    with _STARTED_LOCK:
+        started = _STARTED.get(obj)
+    if started is not None and not started.cancel():
+        try:
+            started.result()
+        except Exception:  # noqa: BLE001 - compiled again in the foreground, which names the error
+            pass
+    return obj.is_file()
+
+
+def precompile(sources: list, toolchain: Toolchain | None = None, cache: Path | None = None) -> None:
+    """Start compiling ``sources`` into the object store of ``cache`` in the background and return at
+    once; a later :func:`compile_libraries` of the same bytes uses the objects (waiting for those still
+    compiling). The bytes are read now and compiled from a copy, so the source's folder may be renamed
+    or removed meanwhile (a generated folder is written in a staging folder, then swapped in).
+    Failures are not raised here: the library's own compile meets them again and names them."""
+    toolchain = toolchain or Toolchain()
+    store = Path(cache or cache_root()) / OBJECTS
+    argv, identity = toolchain.argv(), toolchain.identity()
+    for source in map(Path, sources):
+        files = _with_includes(source, source.read_bytes())
+        if any(Path(name).name != name for name, _ in files):
+            continue  # a header in another folder: left to the library's compile
+        obj = store / f"{_object_key(files, argv, identity)}.o"
+        with _STARTED_LOCK:
+            if obj not in _STARTED and not obj.is_file():
+                _STARTED[obj] = _in_background(_compile_copy, files, obj, argv, toolchain.timeout)
+
+
+def cancel_precompiles() -> None:
+    """Take back the background compiles not started yet (a build that failed, or whose library
+    compiled them itself) and forget the finished ones."""
+    with _STARTED_LOCK:
+        for obj, started in list(_STARTED.items()):
+            if started.cancel() or started.done():
+                del _STARTED[obj]
+
+
+def _compile_copy(files: list, obj: Path, argv: list, timeout: float) -> None:
+    obj.parent.mkdir(parents=True, exist_ok=True)
+    with tempfile.TemporaryDirectory(dir=obj.parent, prefix=".tmp-") as tmp:
+        for name, data in files:
+            Path(tmp, name).write_bytes(data)
+        _compile_to(Path(tmp, files[0][0]), obj, argv, timeout)
 
 
 def compile_library(sources: list, name: str, toolchain: Toolchain | None = None,
@@ -274,14 +421,22 @@ def compile_libraries(libraries: list, toolchain: Toolchain | None = None, cache
         argv = toolchain.argv()
         with tempfile.TemporaryDirectory(dir=missing[0][3]) as tmp:
             every = [s for m in missing for s in m[0]]
-            objects = compile_objects(every, Path(tmp), argv, toolchain.timeout, jobs)
+            store, identity = root / OBJECTS, toolchain.identity()
+            objects = compile_objects(every, Path(tmp), [identity, *argv], toolchain.timeout, jobs, store, force)
             start = 0
             for sources, name, key, build_dir in missing:
                 mine, start = objects[start:start + len(sources)], start + len(sources)
                 lib_name = f"lib{name}_{key[:16]}_{secrets.token_hex(4)}.so"
                 tmp_lib = Path(tmp) / lib_name
-                run_compiler([*argv, "-shared", *map(str, mine), "-o", str(tmp_lib), "-lm"],
-                             f"linking {lib_name}", toolchain.timeout)
+                link = [*argv, "-shared", "-o", str(tmp_lib), "-lm"]
+                try:
+                    run_compiler([*link[:-3], *map(str, mine), *link[-3:]], f"linking {lib_name}", toolchain.timeout)
+                except CompilerError:
+                    if force:
+                        raise
+                    # an object of the store that does not link (damaged): compile this library's again
+                    mine = compile_objects(sources, Path(tmp), [identity, *argv], toolchain.timeout, jobs, store, True)
+                    run_compiler([*link[:-3], *map(str, mine), *link[-3:]], f"linking {lib_name}", toolchain.timeout)
                 os.replace(tmp_lib, build_dir / lib_name)
                 atomic_write(build_dir / "build.json", json.dumps(
                     {"library": lib_name, "sha256": _sha256(build_dir / lib_name),

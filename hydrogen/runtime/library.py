@@ -20,7 +20,7 @@ from ..errors import BuildCacheError
 from ..layout import NUMBERS
 
 __all__ = ["GeneratedLibrary", "CompiledFunction", "LazyFunctions", "load_failure", "function_groups", "group_sources",
-           "group_name", "controller_groups", "CORE"]
+           "group_name", "group_of", "controller_groups", "CORE"]
 
 _c_int = ctypes.c_longlong  # casadi_int, fixed by the code generator options
 _DOUBLE_P = ctypes.POINTER(ctypes.c_double)
@@ -304,20 +304,29 @@ def group_name(kind: str, variant: str | None = None) -> str:
     return kind if variant is None else f"{kind}-{variant}"
 
 
+def group_of(fname: str) -> str:
+    """The library that holds generated function ``fname`` (:func:`function_groups`): :data:`CORE`,
+    or its controller's variant's."""
+    from ..controllers import function_owner
+
+    owner = function_owner(fname)
+    return CORE if owner is None else group_name(*owner)
+
+
 def function_groups(manifest: dict) -> dict:
     """The manifest's function names by the library that holds them: :data:`CORE` first, then per
     controller (in the order the controllers are registered) one group per variant that a run calls
     on its own, the full one (:func:`group_name` ``kind``: the controller, its rates and its
     semi-implicit step) and the lean one (``kind-lean``, run when every composite rate is 0), so a
     run compiles only the variant it runs."""
-    from ..controllers import CONTROLLERS, LEAN, function_owner
+    from ..controllers import CONTROLLERS, LEAN
 
     names = [e["name"] for e in manifest["functions"]]
-    owner = {n: group_name(*o) for n in names if (o := function_owner(n)) is not None}
-    groups = {CORE: [n for n in names if n not in owner]}
+    owner = {n: group_of(n) for n in names}
+    groups = {CORE: [n for n in names if owner[n] == CORE]}
     for kind in CONTROLLERS:
         for variant in (None, LEAN):
-            mine = [n for n in names if owner.get(n) == group_name(kind, variant)]
+            mine = [n for n in names if owner[n] == group_name(kind, variant)]
             if mine:
                 groups[group_name(kind, variant)] = mine
     return groups

@@ -1,0 +1,180 @@
+"""From a structural edit of a shipped robot to the end of its first run, as a user meets it.
+
+A user edits a robot they have built and run before: the cache holds the shipped description's
+build (made beforehand for the controller run, not timed). Each shipped robot (``hydrogen.models()``)
+gets two edits of structure, where the robot has what they change:
+
+* a fixed link added: a ``PAYLOAD_KG`` kg payload (a full inertia tensor) on a fixed joint, 0.3 m out
+  from the last link of the tree (a ``[[links]]``/``[[joints]]`` pair in the TOML, or a ``<link>`` and
+  ``<joint type="fixed">`` in the URDF the description loads);
+* a joint axis changed: the first moving joint's axis reversed (its ±1 entries are structure).
+
+Each edited copy then runs in a fresh Python process on a copy of that cache, timed from the
+process start to the end of ``DURATION`` s of the robot's first scenario with the controller named,
+building for it as ``hydrogen simulate`` does (``hydrogen.build(..., controllers=[c])``: the derivation
+of the core and of that controller, the compile of the core and of the controller's variant the
+scenario runs). Reported: process wall and CPU seconds (the process and its compilers), the
+generation and the compile (from the build's progress events; 0 when the build only loaded), and
+whether the build generated at all. Median of ``RUNS`` runs (1 with ``--quick``).
+
+Run: ``python benchmarks/bench_structural.py [--quick] [--json FILE]`` (about 2-3 minutes).
+"""
+from __future__ import annotations
+
+import re
+import shutil
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+try:  # imported as benchmarks.bench_structural
+    from . import common
+except ImportError:  # run as a script, or loaded from its path
+    sys.path.insert(0, str(Path(__file__).resolve().parent))
+    import common
+
+CONTROLLERS = ("backstepping", "adaptive-robust")
+DURATION = 0.05
+RUNS = 2
+PAYLOAD_KG = 20.0
+#: The wall-time target of a structural edit of a shipped robot to its first run, s (2 cores).
+TARGET_S = 5.0
+
+_RUN = """
+import resource, time
+t0 = time.perf_counter()
+import hydrogen
+from hydrogen.simulation.scenarios import scenario as named_scenario, scenario_names
+model = hydrogen.load_model({toml!r})
+sc = scenario_names(model)[0]
+events = []
+dyn = hydrogen.build(model, cache={cache!r}, progress=events.append, controllers=({controller!r},),
+                     gains={{{controller!r}: named_scenario(sc, model).gains.get({controller!r})}})
+hydrogen.simulate(sc, {controller!r}, dyn=dyn, duration={duration!r})
+t1 = time.perf_counter()
+stages = {{}}
+for e in events:
+    if e.stage in ("generated", "compiled"):
+        stages.setdefault(e.stage, e.elapsed_s)
+own, kids = resource.getrusage(resource.RUSAGE_SELF), resource.getrusage(resource.RUSAGE_CHILDREN)
+print("wall_in_s", t1 - t0)
+print("generate_s", stages.get("generated", 0.0))
+print("compile_s", stages.get("compiled", 0.0))
+print("generated", int("generated" in stages))
+print("cpu_s", own.ru_utime + own.ru_stime + kids.ru_utime + kids.ru_stime)
+"""
+
+_URDF_KEY = re.compile(r'^urdf\s*=\s*"([^"]+)"', re.MULTILINE)
+
+
+def _urdf_of(toml: Path) -> Path | None:
+    m = _URDF_KEY.search(toml.read_text())
+    return None if m is None else toml.parent / m[1]
+
+
+def with_fixed_link(name: str, folder: Path) -> Path:
+    """A copy of robot ``name``'s description in ``folder`` with a payload on a fixed joint at its
+    last link; the TOML."""
+    import hydrogen
+
+    last = hydrogen.load_model(name).links[-1].name
+    toml = common.copy_description(name, folder, lambda text: text)
+    urdf = _urdf_of(toml)
+    m, ixx, iyy, izz, ixz = PAYLOAD_KG, 0.4, 0.5, 0.3, 0.05
+    if urdf is not None:
+        link = (f'  <link name="payload"><inertial><origin xyz="0.05 0 0.02" rpy="0 0 0"/><mass value="{m}"/>'
+                f'<inertia ixx="{ixx}" ixy="0" ixz="{ixz}" iyy="{iyy}" iyz="0" izz="{izz}"/></inertial></link>\n'
+                f'  <joint name="payload_mount" type="fixed"><parent link="{last}"/><child link="payload"/>'
+                f'<origin xyz="0.3 0 0.1" rpy="0 0.2 0"/></joint>\n</robot>')
+        text = urdf.read_text()
+        if "</robot>" not in text:
+            raise RuntimeError(f"{urdf}: no </robot> to add a link before")
+        urdf.write_text(text.replace("</robot>", link, 1))
+    else:
+        toml.write_text(toml.read_text() + (
+            f'\n[[links]]\nname = "payload"\nmass = {m}\ncom = [0.05, 0.0, 0.02]\n'
+            f'inertia = [{ixx}, {iyy}, {izz}]\n\n[[joints]]\nname = "payload_mount"\ntype = "fixed"\n'
+            f'parent = "{last}"\nchild = "payload"\norigin_xyz = [0.3, 0.0, 0.1]\n'))
+    return toml
+
+
+def with_axis_reversed(name: str, folder: Path) -> Path | None:
+    """A copy of robot ``name``'s description in ``folder`` with its first moving joint's axis
+    reversed; the TOML, or None for a robot without a revolute or prismatic joint."""
+    toml = common.copy_description(name, folder, lambda text: text)
+    urdf = _urdf_of(toml)
+    if urdf is None:
+        return None  # the shipped TOML trees here are floating bodies
+    text = urdf.read_text()
+    joint = re.search(r'<joint[^>]*type="(revolute|prismatic)".*?<axis xyz="([^"]+)"', text, re.DOTALL)
+    if joint is None:
+        return None
+    axis = " ".join(repr(-float(v) + 0.0) for v in joint[2].split())
+    start, stop = joint.span(2)
+    urdf.write_text(text[:start] + axis + text[stop:])
+    return toml
+
+
+EDITS = (("a fixed link added", with_fixed_link), ("a joint axis reversed", with_axis_reversed))
+
+
+def run(quick: bool = False) -> dict:
+    import hydrogen
+
+    t0 = time.perf_counter()
+    runs = 1 if quick else RUNS
+    rows = []
+    with tempfile.TemporaryDirectory(prefix="bench_structural_") as root:
+        root = Path(root)
+        for name in common.robots():
+            warm = root / f"warm-{name}"
+            shipped = hydrogen.load_model(name)
+            for c in CONTROLLERS:  # the user's earlier runs of the shipped robot (untimed)
+                hydrogen.build(shipped, cache=warm, controllers=[c])
+            for label, edit in EDITS:
+                folder = root / f"desc-{name}-{len(rows)}"
+                folder.mkdir()
+                toml = edit(name, folder)
+                if toml is None:
+                    continue
+                for c in CONTROLLERS:
+                    rs = []
+                    for i in range(runs):
+                        cache = root / f"cache-{len(rows)}-{i}"
+                        shutil.copytree(warm, cache)
+                        stdout, wall = common.run_python(_RUN.format(toml=str(toml), cache=str(cache),
+                                                                     controller=c, duration=DURATION))
+                        r = common.parse_keyed(stdout)
+                        r["process_wall_s"] = wall
+                        rs.append(r)
+                        shutil.rmtree(cache, ignore_errors=True)
+                    row = {k: common.median(r[k] for r in rs)
+                           for k in ("process_wall_s", "cpu_s", "generate_s", "compile_s")}
+                    row.update(robot=name, edit=label, controller=c, generated=bool(rs[0]["generated"]), runs=rs,
+                               target_s=TARGET_S, within_target=row["process_wall_s"] < TARGET_S)
+                    rows.append(row)
+    return {"rows": rows, "duration_s": DURATION, "runs": runs, "quick": quick, "payload_kg": PAYLOAD_KG,
+            "wall_s": time.perf_counter() - t0, "machine": common.machine_info()}
+
+
+def print_table(res: dict, checks: bool = False) -> None:
+    """The table; with ``checks`` (the project's release checks) the target and whether it holds."""
+    print(f"A structural edit of a shipped robot to its first run, warm cache; seconds (median of {res['runs']}):")
+    header = (f"{'robot':<14} {'edit':<22} {'controller':<16} {'wall':>6} {'CPU':>6} {'generate':>9} "
+              f"{'compile':>8} {'generated':>10}")
+    header += f" {'target':>7} {'met':>4}" if checks else ""
+    print(header)
+    print("-" * len(header))
+    for r in res["rows"]:
+        line = (f"{r['robot']:<14} {r['edit']:<22} {r['controller']:<16} {r['process_wall_s']:>6.2f} "
+                f"{r['cpu_s']:>6.2f} {r['generate_s']:>9.2f} {r['compile_s']:>8.2f} "
+                f"{'yes' if r['generated'] else 'no':>10}")
+        if checks:
+            line += f" {r['target_s']:>7.0f} {'yes' if r['within_target'] else 'NO':>4}"
+        print(line)
+    print(f"whole benchmark {res['wall_s']:.1f} s")
+
+
+if __name__ == "__main__":
+    sys.exit(common.script_main(__doc__, run, print_table))
