@@ -7,7 +7,7 @@ fresh Python process with a fresh cache, timed from the process start:
 * every shipped robot (``hydrogen.models()``) with its gravity set to 0: a number becomes zero, which
   the derivation holds exact, so its structure changes and nothing committed or cached serves it;
 * the spatial 3-DOF leg of ``bench_forms.py`` (``leg_description``), the class of a quadruped's leg;
-* the planar chain of ``bench_scaling.py`` (``chain_description``) of ``CHAIN_N`` links;
+* the planar chain of ``bench_scaling.py`` (``chain_description``) of each of ``CHAIN_NS`` links;
 * the URDF-born leg (``common.URDF_LEG``: rpy joint origins, full inertias, nine adapted
   parameters, as users load a robot) to its first ``LEG_CONTROLLER`` run, by both routes side by side:
   the numbers as inputs (the default) and folded (``numbers="constants"``).
@@ -21,7 +21,7 @@ Reported: process wall and CPU seconds (the process and its compilers), the gene
 compile (from the build's progress events) and the first use; with the release checks, the target
 wall time of each class. Median of ``RUNS`` runs (1 with ``--quick``).
 
-Run: ``python benchmarks/bench_cold.py [--quick] [--json FILE]`` (about 2-3 minutes).
+Run: ``python benchmarks/bench_cold.py [--quick] [--json FILE]`` (about 4-5 minutes).
 """
 from __future__ import annotations
 
@@ -42,10 +42,11 @@ CONTROLLER = "adaptive-robust"
 LEG_CONTROLLER = "backstepping"
 DURATION = 0.05
 RUNS = 2
-CHAIN_N = 7
+CHAIN_NS = (7, 12)
 #: The wall-time target of each case's class, s (2 cores): a platform like the Stewart one, a spatial
-#: 3-DOF leg, a 7-link chain, a leg from a URDF (numbers as inputs; the folded route has none).
-TARGETS = {"robot": 15.0, "leg": 30.0, "chain": 60.0, "urdf": 60.0}
+#: 3-DOF leg, a 7-link chain, a 12-link chain, a leg from a URDF (numbers as inputs; the folded route
+#: has none).
+TARGETS = {"robot": 15.0, "leg": 30.0, "chain": 60.0, "long chain": 40.0, "urdf": 60.0}
 
 _RUN = """
 import json, resource, sys, time
@@ -105,7 +106,9 @@ def cases(root: Path) -> list:
         folder.mkdir()
         out.append((f"{name}, gravity 0", "robot", "robot", str(structural_copy(name, folder)), CONTROLLER, "inputs"))
     out.append(("spatial 3-DOF leg", "leg", "leg", "", CONTROLLER, "inputs"))
-    out.append((f"planar chain, n = {CHAIN_N}", "chain", "chain", str(CHAIN_N), CONTROLLER, "inputs"))
+    for n in CHAIN_NS:
+        out.append((f"planar chain, n = {n}", "chain" if n < 10 else "long chain", "chain", str(n), CONTROLLER,
+                    "inputs"))
     for numbers in ("inputs", "constants"):  # side by side: the default route and the folded one
         out.append((f"URDF leg, numbers as {numbers}", "urdf", "robot", str(common.URDF_LEG), LEG_CONTROLLER, numbers))
     return out

@@ -95,7 +95,7 @@ def with_fixed_link(name: str, folder: Path) -> Path:
         toml.write_text(toml.read_text() + (
             f'\n[[links]]\nname = "payload"\nmass = {m}\ncom = [0.05, 0.0, 0.02]\n'
             f'inertia = [{ixx}, {iyy}, {izz}]\n\n[[joints]]\nname = "payload_mount"\ntype = "fixed"\n'
-            f'parent = "{last}"\nchild = "payload"\norigin_xyz = [0.3, 0.0, 0.1]\n'))
+            f'parent = "{last}"\nchild = "payload"\norigin_xyz = [0.3, 0.0, 0.1]\norigin_rpy = [0.0, 0.2, 0.0]\n'))
     return toml
 
 

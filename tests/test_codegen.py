@@ -322,7 +322,7 @@ def test_interrupted_generation_keeps_previous_files(tmp_path, model, monkeypatc
     before = {p.name: p.read_bytes() for p in out.iterdir()}
 
     def broken_render(model, folder, functions=None, progress=False, numbers="constants", controllers=None,
-                      written=None):
+                      written=None, first=None):
         (Path(folder) / "half_written.c").write_text("int x")
         raise KeyboardInterrupt
 
@@ -549,3 +549,26 @@ def test_an_edited_controller_is_derived_again_alone(tmp_path, monkeypatch, fres
     for name, mtime in untouched.items():
         if name != gen.MANIFEST:
             assert (folder / name).stat().st_mtime_ns == mtime, name
+
+
+def test_the_functions_needed_first_are_written_first_and_every_byte_is_the_same(tmp_path):
+    """``render(first=...)`` writes the functions a build compiles first (steps leading), and the
+    folder reads byte for byte as without it: the order of writing changes no C."""
+    from hydrogen.controllers import LEAN, step_function_name
+
+    model = hydrogen.load_model(Path(__file__).parent / "data" / "four_way_arm.toml")
+    folders, orders = [], []
+    for first in (None, lambda name: name.endswith(LEAN) or LEAN + "_" in name):
+        folder = tmp_path / f"gen{len(folders)}"
+        folder.mkdir()
+        order = []
+        gen.render(model, folder, controllers=("adaptive-robust",), written=lambda n, p: order.append(n),
+                   first=first)
+        folders.append({p.name: p.read_bytes() for p in folder.iterdir()})
+        orders.append(order)
+    assert folders[0] == folders[1]
+    lean_step = step_function_name("adaptive-robust", LEAN)
+    own = [n for n in orders[1] if n is not None and "adaptive_robust" in n]
+    assert own[0] == lean_step and all(LEAN in n for n in own[:3]) and not any(LEAN in n for n in own[3:])
+    assert own[3] == step_function_name("adaptive-robust")  # then the others, their step first
+    assert orders[0].index(step_function_name("adaptive-robust")) < orders[0].index(lean_step)

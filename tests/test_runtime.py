@@ -105,7 +105,7 @@ def test_a_corrupt_manifest_in_hydrogens_own_cache_is_generated_again(model, cac
         (entry / "manifest.json").write_text('{"model_hash": ')  # cut short, as by a crash or a full disk
         rendered = []
 
-        def render_by_copy(model, folder, progress=False, numbers="constants", controllers=None, written=None):  # the same files, without SymPy's minutes
+        def render_by_copy(model, folder, progress=False, numbers="constants", controllers=None, written=None, first=None):  # the same files, without SymPy's minutes
             rendered.append(folder)
             for p in committed.iterdir():
                 shutil.copy(p, folder / p.name)
@@ -271,7 +271,7 @@ def test_a_cached_manifest_whose_numbers_list_was_swapped_is_generated_again(mod
 
     rendered = []
 
-    def render_by_copy(model, folder, progress=False, numbers="inputs", controllers=None, written=None):  # the same files, without the derivation
+    def render_by_copy(model, folder, progress=False, numbers="inputs", controllers=None, written=None, first=None):  # the same files, without the derivation
         rendered.append(folder)
         for p in committed.iterdir():
             shutil.copy(p, folder / p.name)

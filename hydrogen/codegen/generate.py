@@ -249,6 +249,47 @@ def derive(model, numbers: str = DEFAULT_NUMBERS, controllers=None, core: bool =
     return derive_functions(model, kinds, core), None
 
 
+def _write_functions(functions: list, model_name: str, folder: Path, cache: dict, written=None, first=None,
+                     tick=None) -> dict:
+    """Write ``functions``' C into ``folder``; their manifest entries by name. Those ``first`` (of a
+    name) holds before the others; each batch converted in the functions' order, the first with the
+    functions its own are composed of (a composed function reuses its parts' conversions: the same C
+    whatever the order of writing), then written the semi-implicit steps first: the largest sources,
+    the longest compiles, which ``written(name, path)`` (called with each) may start first."""
+    from ..symbolic.functions import SemiImplicitStep
+    from .casadi_functions import casadi_function
+
+    wanted = [f for f in functions if first is None or first(f.name)]
+    parts = _with_parts(wanted)
+    entries = {}
+    for convert, batch in (([f for f in functions if f.name in parts], wanted),
+                           (functions, [f for f in functions if f not in wanted])):
+        for sf in convert:
+            casadi_function(sf, c_name(model_name, sf.name), cache)
+        for sf in sorted(batch, key=lambda f: not isinstance(f, SemiImplicitStep)):
+            entries[sf.name] = write_function(sf, model_name, folder, cache)
+            if written is not None:
+                written(sf.name, folder / entries[sf.name]["source"])
+            if tick is not None:
+                tick()
+    return entries
+
+
+def _with_parts(functions: list) -> set:
+    """Names of ``functions`` and of the functions they are composed of (a specialisation's base, a
+    step's controller and rates), recursively."""
+    from ..symbolic.functions import SemiImplicitStep, Specialisation
+
+    out, todo = set(), list(functions)
+    while todo:
+        f = todo.pop()
+        if f.name not in out:
+            out.add(f.name)
+            todo += [f.base] if isinstance(f, Specialisation) else \
+                [f.controller, f.rates] if isinstance(f, SemiImplicitStep) else []
+    return out
+
+
 def _owner(name: str) -> str | None:
     """The controller a generated function belongs to (by the registry's names), None for the core."""
     from ..controllers import function_owner
@@ -306,7 +347,7 @@ def _file_hashes(folder: Path) -> dict:
 
 
 def render(model, folder: Path, functions=None, progress: bool = False, numbers: str = DEFAULT_NUMBERS,
-           names=None, controllers=None, written=None) -> dict:
+           names=None, controllers=None, written=None, first=None) -> dict:
     """Write every function's C and the manifest into an existing empty ``folder``.
 
     ``progress`` shows a bar on a terminal (nothing when stderr is not one). ``numbers``
@@ -316,8 +357,11 @@ def render(model, folder: Path, functions=None, progress: bool = False, numbers:
     derived already (else derived here, the core and ``controllers``: None for all; the core's C is
     written before the controllers are derived). ``written``: called as ``written(name, path)`` with
     each C source as soon as it is written (``name`` the function's, None for a loop driver), e.g.
-    to start its compile while the rest is derived.
+    to start its compile while the rest is derived; ``first``: of a function's name, whether the
+    caller needs it (its library) first: those are written before the others of their derivation
+    (the manifest lists every function in the same order whatever ``first`` says).
     """
+
     import casadi as ca
     import sympy as sp
     from tqdm import tqdm
@@ -331,19 +375,7 @@ def render(model, folder: Path, functions=None, progress: bool = False, numbers:
     entries = {}
 
     def write(fs):
-        from ..symbolic.functions import SemiImplicitStep
-        from .casadi_functions import casadi_function
-
-        # converted in order (a step is composed of the conversions of its parts: the same C
-        # whatever the order of writing), then written the semi-implicit steps first: the largest
-        # sources, the longest compiles, which a caller of ``written`` starts first
-        for sf in fs:
-            casadi_function(sf, c_name(model.name, sf.name), cache)
-        for sf in sorted(fs, key=lambda f: not isinstance(f, SemiImplicitStep)):
-            entries[sf.name] = write_function(sf, model.name, folder, cache)
-            if written is not None:
-                written(sf.name, folder / entries[sf.name]["source"])
-            bar.update()
+        entries.update(_write_functions(fs, model.name, folder, cache, written, first, bar.update))
 
     if functions is None:
         core, names = derive(model, numbers, controllers=())
@@ -384,18 +416,18 @@ def render(model, folder: Path, functions=None, progress: bool = False, numbers:
 
 
 def generate(model, out_dir: Path, force: bool = False, progress: bool = False, numbers: str = DEFAULT_NUMBERS,
-             controllers=None, written=None) -> bool:
+             controllers=None, written=None, first=None) -> bool:
     """Generate C for ``model`` into ``out_dir`` unless it is already current.
 
     ``controllers``: the controllers the folder must hold (None: all); a current folder that lacks
     some gets theirs added (:func:`extend`), nothing else derived again. Returns True when files
     were (re)written. The folder is swapped in whole under a lock; concurrent callers wait, then
-    find it current. ``written``: as :func:`render` takes it, for each C source written.
+    find it current. ``written`` and ``first``: as :func:`render` takes them.
     """
     out_dir = Path(out_dir)
     check_replaceable_dir(out_dir, MANIFEST, GENERATED_KEYS, "a hydrogen generated folder")  # before the lock file
     with locked(out_dir):
-        return generate_locked(model, out_dir, force, progress, numbers, controllers, written)
+        return generate_locked(model, out_dir, force, progress, numbers, controllers, written, first)
 
 
 def _staged(out_dir: Path, write) -> None:
@@ -412,7 +444,7 @@ def _staged(out_dir: Path, write) -> None:
 
 
 def generate_locked(model, out_dir: Path, force: bool = False, progress: bool = False,
-                    numbers: str = DEFAULT_NUMBERS, controllers=None, written=None) -> bool:
+                    numbers: str = DEFAULT_NUMBERS, controllers=None, written=None, first=None) -> bool:
     """:func:`generate` for a caller that already holds ``locked(out_dir)``."""
     out_dir = Path(out_dir)
     check_identifier(model.name, "model name")  # it becomes C symbols, file names and build-file text
@@ -423,23 +455,24 @@ def generate_locked(model, out_dir: Path, force: bool = False, progress: bool = 
     if not force and len(reasons) == len(stale):  # current, but for controllers changed or missing
         missing = missing_controllers(manifest, model.controllers if controllers is None else controllers)
         redo = (*stale, *(k for k in missing if k not in stale))
-        if not redo or extend(model, out_dir, redo, progress, replacing=stale, written=written):
+        if not redo or extend(model, out_dir, redo, progress, replacing=stale, written=written, first=first):
             return bool(redo)
         controllers = (*held_controllers(manifest), *(k for k in missing if k not in stale))  # whole again
     check_replaceable_dir(out_dir, MANIFEST, GENERATED_KEYS, "a hydrogen generated folder", probe=False)  # even forced
     _staged(out_dir, lambda staging: render(model, staging, progress=progress, numbers=numbers,
-                                            controllers=controllers, written=written))
+                                            controllers=controllers, written=written, first=first))
     return True
 
 
-def extend(model, folder: Path, controllers, progress: bool = False, replacing=(), written=None) -> bool:
+def extend(model, folder: Path, controllers, progress: bool = False, replacing=(), written=None,
+           first=None) -> bool:
     """Add the functions of ``controllers`` to the current generated ``folder`` (the caller holds its
     lock): they alone are derived and written, the folder swapped in whole with its manifest. The
     result is byte for byte what a whole generation of the same controllers writes. ``replacing``:
     controllers among them the folder holds already (their module changed): their functions' files
     and entries give way to the new ones. False (nothing written) when they read a description
     number the folder's functions do not take: then only a whole generation can give every function
-    the same numbers input. ``written``: as :func:`render` takes it, for each C source written."""
+    the same numbers input. ``written`` and ``first``: as :func:`render` takes them."""
     from tqdm import tqdm
 
     folder = Path(folder)
@@ -459,12 +492,9 @@ def extend(model, folder: Path, controllers, progress: bool = False, replacing=(
         for p in folder.iterdir():
             if not p.name.startswith(".") and p.name not in dropped:
                 shutil.copy2(p, staging / p.name)
-        cache = {}
-        added = []
-        for sf in tqdm(functions, desc="generating C", unit="fn", disable=None if progress else True):
-            added.append(write_function(sf, model.name, staging, cache))
-            if written is not None:
-                written(sf.name, staging / added[-1]["source"])
+        with tqdm(total=len(functions), desc="generating C", unit="fn", disable=None if progress else True) as bar:
+            made = _write_functions(functions, model.name, staging, {}, written, first, bar.update)
+        added = [made[f.name] for f in functions]
         grown = {**manifest, "functions": _canonical([*kept, *added]),
                  "files": _file_hashes(staging)}
         write_file(staging / MANIFEST, json.dumps(grown, indent=2, sort_keys=True) + "\n")

@@ -280,7 +280,8 @@ def build(model: Model | str | Path | None = None, *, cc: str | None = None,
                 try:
                     with generation_reported(report, model, folder, controllers=need):
                         # no-op when current; a build for some controllers derives only theirs
-                        generate_locked(model, folder, numbers=numbers, controllers=need, written=early)
+                        generate_locked(model, folder, numbers=numbers, controllers=need, written=early,
+                                        first=early.wanted)
                 except BaseException:
                     cancel_precompiles()
                     raise
@@ -335,16 +336,21 @@ def _own_variants(model: Model, controllers: tuple, gains=None) -> list:
 
 
 class _Precompile:
-    """What a generation calls with each C source it writes (``written(name, path)``): the sources
-    of ``groups`` (libraries) start compiling into the object store at once
+    """What a generation calls with each C source it writes (``written(name, path)``; ``wanted``, its
+    ``first``: these are written first): the sources of ``groups`` (libraries) start compiling into
+    the object store at once
     (:func:`~hydrogen.runtime.compiler.precompile`). An optimisation only: a failure to start
     (no compiler) stops it quietly, and the library's compile meets the failure and reports it."""
 
     def __init__(self, groups, toolchain, cache):
         self.groups, self.toolchain, self.cache, self.on = set(groups), toolchain, cache, True
 
+    def wanted(self, name) -> bool:
+        """Whether function ``name`` (None: a loop driver) is in one of the libraries compiled."""
+        return (CORE if name is None else group_of(name)) in self.groups
+
     def __call__(self, name, path) -> None:
-        if self.on and (CORE if name is None else group_of(name)) in self.groups:
+        if self.on and self.wanted(name):
             try:
                 precompile([path], self.toolchain, self.cache)
             except Exception:  # noqa: BLE001 - see the class docstring

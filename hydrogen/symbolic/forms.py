@@ -11,8 +11,8 @@ totals rank the forms as the controllers' own counts do on the shipped robots an
 Three cases are decided without counting: a tree the staged form cannot represent (a floating joint)
 takes the closed form; a tree at least :data:`STAGED_DEPTH` moving joints deep the staged one,
 whose closed form grows about 3.5× per link (its derivation alone would cost minutes by 5 links);
-and so does a tree with an oblique moving joint (:func:`oblique_joints`: a rotated origin or a
-tilted axis, as a URDF from CAD has), whose closed form is a product of full rotations.
+and so does a tree with an oblique joint (:func:`oblique_joints`: a rotated origin or a tilted
+axis, as a URDF from CAD has), whose closed form is a product of full rotations.
 """
 from __future__ import annotations
 
@@ -69,17 +69,19 @@ def rigid_body_form(model) -> str:
 
 
 def oblique_joints(model) -> list:
-    """Names of the moving joints whose frame is turned off the parent's axes: an origin rotation
-    (rpy) that is not zero, or an axis that is not a coordinate axis (entries other than 0 and ±1).
+    """Names of the joints whose frame is turned off the parent's axes: a moving joint with an origin
+    rotation (rpy) that is not zero or an axis that is not a coordinate axis (entries other than 0
+    and ±1), and a fixed joint with an origin rotation (a payload or a sensor mounted at an angle).
     A URDF exported from CAD is made of them. In the closed form each is a full 3×3 of sines and
     cosines (of symbols, with the numbers as inputs) multiplied along the chain and differentiated
     for C: a 3-DOF leg of such joints derived its closed form's composite law for more than 5 minutes
-    against 6 s staged (benchmarks/bench_cold.py)."""
+    against 6 s staged (benchmarks/bench_cold.py); a payload fixed at an angle to the loader crane's
+    last link took its adaptive controller from 1 s to 14 s (benchmarks/bench_structural.py)."""
     def oblique(j):
         axis = np.asarray(j.axis, dtype=float)
-        return bool(np.any(np.asarray(j.origin_rpy, dtype=float) != 0.0)) \
-            or bool(np.any((axis != 0.0) & (np.abs(axis) != 1.0)))
-    return [j.name for j in model.joints if j.type in ("revolute", "prismatic") and oblique(j)]
+        turned = bool(np.any(np.asarray(j.origin_rpy, dtype=float) != 0.0))
+        return turned if j.type == "fixed" else turned or bool(np.any((axis != 0.0) & (np.abs(axis) != 1.0)))
+    return [j.name for j in model.joints if j.type in ("revolute", "prismatic", "fixed") and oblique(j)]
 
 
 def _cheaper(model) -> str:

@@ -70,13 +70,14 @@ def coriolis_matrix(model, q, qdot, theta) -> sp.Matrix:
     tree = symbolic_tree(model, q, theta)
     if tree.staged():
         return tree.staged_coriolis(sp.Matrix(qdot))
-    return coriolis(mass_matrix(model, q, theta), q, qdot)
+    return coriolis(tree.mass_matrix(), q, qdot, tree.mass_matrix_partials())
 
 
-def coriolis(D: sp.Matrix, q, qdot) -> sp.Matrix:
-    """Christoffel-form C(q, q̇) of an explicit D(q): C_ij = Σ_k ½(∂D_ij/∂q_k + ∂D_ik/∂q_j − ∂D_jk/∂q_i) q̇_k."""
+def coriolis(D: sp.Matrix, q, qdot, partials=None) -> sp.Matrix:
+    """Christoffel-form C(q, q̇) of an explicit D(q): C_ij = Σ_k ½(∂D_ij/∂q_k + ∂D_ik/∂q_j − ∂D_jk/∂q_i) q̇_k.
+    ``partials``: ∂D/∂q_k for each k when made already (:meth:`SymbolicTree.mass_matrix_partials`)."""
     n = D.shape[0]
-    dD = [D.diff(q[k]) for k in range(n)]  # dD[k][i, j] = ∂D_ij/∂q_k
+    dD = [D.diff(q[k]) for k in range(n)] if partials is None else partials  # dD[k][i, j] = ∂D_ij/∂q_k
     C = sp.zeros(n, n)
     for i in range(n):
         for j in range(n):
@@ -103,14 +104,16 @@ def bias_forces(model, q, qdot, theta) -> sp.Matrix:
     tree = symbolic_tree(model, q, theta)
     if tree.staged():
         return tree.staged_inverse_dynamics(qdot, qdot, sp.zeros(len(qdot), 1), baked(model.gravity, "gravity"))
-    return matmul(coriolis(mass_matrix(model, q, theta), q, qdot), sp.Matrix(qdot)) + gravity(model, q, theta)
+    return matmul(coriolis(tree.mass_matrix(), q, qdot, tree.mass_matrix_partials()), sp.Matrix(qdot)) \
+        + gravity(model, q, theta)
 
 
 def _dynamics_of(tree, q, v, w, a, g):
     if tree.staged():
         return tree.staged_inverse_dynamics(sp.Matrix(v), sp.Matrix(w), sp.Matrix(a), g)
     D = tree.mass_matrix()
-    return matmul(D, sp.Matrix(a)) + matmul(coriolis(D, q, v), sp.Matrix(w)) + tree.gravity(g)
+    return matmul(D, sp.Matrix(a)) + matmul(coriolis(D, q, v, tree.mass_matrix_partials()), sp.Matrix(w)) \
+        + tree.gravity(g)
 
 
 def recursive_forward_dynamics(model, q, qdot, tau, theta, prefix: str = "aba"):

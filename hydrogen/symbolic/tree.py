@@ -184,7 +184,20 @@ class SymbolicTree:
         return p["mass"], h, I
 
     def mass_matrix(self) -> sp.Matrix:
-        """D(q) (n×n), linear in the inertial parameters."""
+        """D(q) (n×n), linear in the inertial parameters (made once; a copy each call)."""
+        if getattr(self, "_closed_D", None) is None:
+            self._closed_D = self._mass_matrix()
+        return self._closed_D.copy()
+
+    def mass_matrix_partials(self) -> list:
+        """∂D/∂q_k (n×n each) for every coordinate k, made once: the Christoffel C of every pair of
+        velocities (C(q, q̇), C(q, v) for v ≠ q̇) differentiates the same D."""
+        if getattr(self, "_closed_dD", None) is None:
+            D = self.mass_matrix()
+            self._closed_dD = [D.diff(self.q[k]) for k in range(self.n)]
+        return [d.copy() for d in self._closed_dD]
+
+    def _mass_matrix(self) -> sp.Matrix:
         cf = self.closed_form()
         D = sp.zeros(self.n, self.n)
         for lk in self.model.links:
