@@ -163,3 +163,31 @@ def test_an_included_header_is_part_of_an_objects_key(tmp_path):
     more = _sources(tmp_path / "more", [("m", 5)])  # a new library (its key covers its sources alone)
     lib = compile_library([src / "k.c", *more], "two", Toolchain(cc=cc), cache=tmp_path / "cache")
     assert sorted(_compiled(log)) == ["k.c", "k.c", "m.c"] and ctypes.CDLL(str(lib)).k() == 2
+
+
+@pytest.mark.skipif(not hasattr(__import__("os"), "fork"), reason="no fork here")
+def test_a_forked_child_compiles_what_its_parent_had_started(tmp_path):
+    """A child forked while its parent's background compile runs never waits for it (that thread is
+    not in the child): it compiles the source itself."""
+    import os
+
+    from hydrogen.runtime.compiler import precompile
+
+    slow = tmp_path / "slowcc"
+    slow.write_text(f'#!/bin/sh\nif [ "$1" = --version ]; then exec cc --version; fi\nsleep 2\nexec cc "$@"\n')
+    slow.chmod(0o755)
+    srcs = _sources(tmp_path / "src", [("a", 10)])
+    precompile(srcs, Toolchain(cc=str(slow)), cache=tmp_path / "cache")
+    pid = os.fork()
+    if pid == 0:  # the child: the same object, its own compile, then exit with the library's answer
+        import signal
+
+        signal.signal(signal.SIGALRM, lambda *_: os._exit(98))  # waiting on the parent's compile
+        signal.alarm(30)
+        try:
+            lib = compile_library(srcs, "child", Toolchain(cc=str(slow)), cache=tmp_path / "cache")
+            os._exit(ctypes.CDLL(str(lib)).a())
+        except BaseException:
+            os._exit(99)
+    _, status = os.waitpid(pid, 0)
+    assert os.waitstatus_to_exitcode(status) == 1

@@ -310,6 +310,19 @@ _BACKGROUND: list = []
 _POOL_LOCK = threading.Lock()
 
 
+def _forget_after_fork() -> None:
+    """In a forked child: none of the parent's compiles or threads exist there (a future that never
+    ends, a lock held by a thread that is gone), so it starts with none."""
+    global _STARTED_LOCK, _POOL_LOCK
+    _STARTED.clear()
+    _BACKGROUND.clear()
+    _STARTED_LOCK, _POOL_LOCK = threading.Lock(), threading.Lock()
+
+
+if hasattr(os, "register_at_fork"):
+    os.register_at_fork(after_in_child=_forget_after_fork)
+
+
 def _in_background(fn, *args):
     """Run ``fn(*args)`` on this process's background pool (as many workers as usable cores less one,
     at least one: the derivation keeps a core); its future."""
