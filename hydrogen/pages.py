@@ -435,7 +435,7 @@ def _structural(b) -> list:
         return []
     out = ["## A structural edit of a shipped robot, as a user meets it", "",
            "`benchmarks/bench_structural.py`: each shipped robot edited in structure on a cache that holds its "
-           f"shipped build (the user built and ran it before): a fixed link added (a {_f(b.get('payload_kg'))} kg "
+           f"shipped build (the user built and ran it before): a fixed link added (a {b.get('payload_kg', 0):g} kg "
            "payload with a full inertia tensor, 0.3 m out from the last link on a tilted mount) and, where the robot "
            "has a moving joint, the first one's axis reversed. A fresh process builds the edited robot for the "
            f"controller named and runs {_f(b.get('duration_s'))} s of its first scenario. The core's sources start "
