@@ -121,18 +121,16 @@ def run(quick: bool = False) -> dict:
     with tempfile.TemporaryDirectory(prefix="bench_cold_") as root:
         root = Path(root)
         for label, cls, kind, arg, controller, numbers in cases(root):
-            rs = []
-            for i in range(runs):
+            def one(i):
                 cache = root / f"cache-{len(rows)}-{i}"
                 stdout, wall = common.run_python(_RUN.format(
                     bench=str(Path(__file__).resolve().parent), kind=kind, arg=arg, cache=str(cache),
                     controller=controller, duration=DURATION, numbers=numbers))
-                r = common.parse_keyed(stdout)
-                r["process_wall_s"] = wall
-                rs.append(r)
                 shutil.rmtree(cache, ignore_errors=True)
-            row = {k: common.median(r[k] for r in rs) for k in
-                   ("process_wall_s", "cpu_s", "generate_s", "core_compile_s", "first_use_s")}
+                return {**common.parse_keyed(stdout), "process_wall_s": wall}
+
+            row, rs = common.median_of_runs(runs, one, ("process_wall_s", "cpu_s", "generate_s", "core_compile_s",
+                                                        "first_use_s"))
             target = TARGETS[cls] if numbers == "inputs" else None  # the folded route is shown beside it
             row.update(case=label, cls=cls, controller=controller, numbers=numbers, target_s=target,
                        ran=bool(rs[0]["ran"]), runs=rs,
@@ -144,20 +142,13 @@ def run(quick: bool = False) -> dict:
 
 def print_table(res: dict, checks: bool = False) -> None:
     """The table; with ``checks`` (the project's release checks) each class's target and whether it holds."""
-    print(f"A structural edit to the first run, fresh process and cache; seconds (median of {res['runs']}):")
-    header = (f"{'case':<32} {'controller':<16} {'wall':>7} {'CPU':>7} {'generate':>9} {'core cc':>8} "
-              f"{'first use':>10}")
-    header += f" {'target':>7} {'met':>4}" if checks else ""
-    print(header)
-    print("-" * len(header))
-    for r in res["rows"]:
-        line = (f"{r['case']:<32} {r.get('controller', res['controller']):<16} {r['process_wall_s']:>7.2f} "
-                f"{r['cpu_s']:>7.2f} {r['generate_s']:>9.2f} {r['core_compile_s']:>8.2f} {r['first_use_s']:>10.2f}")
-        if checks:
-            met = {True: "yes", False: "NO", None: "-"}[r["within_target"]]
-            line += f" {'-' if r['target_s'] is None else format(r['target_s'], '.0f'):>7} {met:>4}"
-        print(line)
-    print(f"whole benchmark {res['wall_s']:.1f} s")
+    f = common.seconds
+    common.print_rows(
+        f"A structural edit to the first run, fresh process and cache; seconds (median of {res['runs']}):",
+        [("case", -32, lambda r: r["case"]), ("controller", -16, lambda r: r.get("controller", res["controller"])),
+         ("wall", 7, f("process_wall_s")), ("CPU", 7, f("cpu_s")), ("generate", 9, f("generate_s")),
+         ("core cc", 8, f("core_compile_s")), ("first use", 10, f("first_use_s"))],
+        res["rows"], res["wall_s"], checks)
 
 
 if __name__ == "__main__":

@@ -139,18 +139,15 @@ def run(quick: bool = False) -> dict:
                 if toml is None:
                     continue
                 for c in CONTROLLERS:
-                    rs = []
-                    for i in range(runs):
+                    def one(i):
                         cache = root / f"cache-{len(rows)}-{i}"
                         shutil.copytree(warm, cache)
                         stdout, wall = common.run_python(_RUN.format(toml=str(toml), cache=str(cache),
                                                                      controller=c, duration=DURATION))
-                        r = common.parse_keyed(stdout)
-                        r["process_wall_s"] = wall
-                        rs.append(r)
                         shutil.rmtree(cache, ignore_errors=True)
-                    row = {k: common.median(r[k] for r in rs)
-                           for k in ("process_wall_s", "cpu_s", "generate_s", "compile_s")}
+                        return {**common.parse_keyed(stdout), "process_wall_s": wall}
+
+                    row, rs = common.median_of_runs(runs, one, ("process_wall_s", "cpu_s", "generate_s", "compile_s"))
                     row.update(robot=name, edit=label, controller=c, generated=bool(rs[0]["generated"]), runs=rs,
                                target_s=TARGET_S, within_target=row["process_wall_s"] < TARGET_S)
                     rows.append(row)
@@ -160,20 +157,14 @@ def run(quick: bool = False) -> dict:
 
 def print_table(res: dict, checks: bool = False) -> None:
     """The table; with ``checks`` (the project's release checks) the target and whether it holds."""
-    print(f"A structural edit of a shipped robot to its first run, warm cache; seconds (median of {res['runs']}):")
-    header = (f"{'robot':<14} {'edit':<22} {'controller':<16} {'wall':>6} {'CPU':>6} {'generate':>9} "
-              f"{'compile':>8} {'generated':>10}")
-    header += f" {'target':>7} {'met':>4}" if checks else ""
-    print(header)
-    print("-" * len(header))
-    for r in res["rows"]:
-        line = (f"{r['robot']:<14} {r['edit']:<22} {r['controller']:<16} {r['process_wall_s']:>6.2f} "
-                f"{r['cpu_s']:>6.2f} {r['generate_s']:>9.2f} {r['compile_s']:>8.2f} "
-                f"{'yes' if r['generated'] else 'no':>10}")
-        if checks:
-            line += f" {r['target_s']:>7.0f} {'yes' if r['within_target'] else 'NO':>4}"
-        print(line)
-    print(f"whole benchmark {res['wall_s']:.1f} s")
+    f = common.seconds
+    common.print_rows(
+        f"A structural edit of a shipped robot to its first run, warm cache; seconds (median of {res['runs']}):",
+        [("robot", -14, lambda r: r["robot"]), ("edit", -22, lambda r: r["edit"]),
+         ("controller", -16, lambda r: r["controller"]), ("wall", 6, f("process_wall_s")), ("CPU", 6, f("cpu_s")),
+         ("generate", 9, f("generate_s")), ("compile", 8, f("compile_s")),
+         ("generated", 10, lambda r: "yes" if r["generated"] else "no")],
+        res["rows"], res["wall_s"], checks)
 
 
 if __name__ == "__main__":

@@ -274,6 +274,35 @@ def median(values) -> float:
     return float(statistics.median(values))
 
 
+def median_of_runs(runs: int, one, keys) -> tuple:
+    """``(medians, results)``: ``one(i)`` for each of ``runs`` runs (a dict each), and the median of
+    each of ``keys`` over them."""
+    results = [one(i) for i in range(runs)]
+    return {k: median(r[k] for r in results) for k in keys}, results
+
+
+def seconds(key: str):
+    """A :func:`print_rows` cell: the row's ``key`` in seconds, two decimals."""
+    return lambda row: f"{row[key]:.2f}"
+
+
+def print_rows(title: str, columns: list, rows: list, wall_s: float, checks: bool = False) -> None:
+    """A benchmark's table: ``columns`` as ``(header, width, cell)`` with ``cell(row)`` the text
+    (left-aligned where the header is, i.e. the label columns, when ``width`` is negative); with
+    ``checks`` (the project's release checks) each row's ``target_s`` and whether ``within_target``."""
+    if checks:
+        columns = [*columns, ("target", 7, lambda r: "-" if r["target_s"] is None else f"{r['target_s']:.0f}"),
+                   ("met", 4, lambda r: {True: "yes", False: "NO", None: "-"}[r["within_target"]])]
+    align = lambda text, w: f"{text:<{-w}}" if w < 0 else f"{text:>{w}}"  # noqa: E731
+    header = " ".join(align(h, w) for h, w, _ in columns)
+    print(title)
+    print(header)
+    print("-" * len(header))
+    for r in rows:
+        print(" ".join(align(cell(r), w) for _, w, cell in columns))
+    print(f"whole benchmark {wall_s:.1f} s")
+
+
 def script_main(doc: str, run, print_table, argv=None, options: dict | None = None) -> int:
     """A benchmark module run as a script: ``--quick``, ``--json FILE`` (:func:`write_results`) and
     the module's own ``options`` ({flag: argparse keywords}; each passed to ``run`` by its name)."""
