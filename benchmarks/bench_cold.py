@@ -44,8 +44,8 @@ DURATION = 0.05
 RUNS = 2
 CHAIN_NS = (7, 12)
 #: The wall-time target of each case's class, s (2 cores): a platform like the Stewart one, a spatial
-#: 3-DOF leg, a 7-link chain, a 12-link chain, a leg from a URDF (numbers as inputs; the folded route
-#: has none).
+#: 3-DOF leg, a 7-link chain, a 12-link chain (its first adaptive run: the project's own target, set
+#: after the 7-link one's), a leg from a URDF (numbers as inputs; the folded route has none).
 TARGETS = {"robot": 15.0, "leg": 30.0, "chain": 60.0, "long chain": 40.0, "urdf": 60.0}
 
 _RUN = """

@@ -94,7 +94,7 @@ def with_fixed_link(name: str, folder: Path) -> Path:
     else:
         toml.write_text(toml.read_text() + (
             f'\n[[links]]\nname = "payload"\nmass = {m}\ncom = [0.05, 0.0, 0.02]\n'
-            f'inertia = [{ixx}, {iyy}, {izz}]\n\n[[joints]]\nname = "payload_mount"\ntype = "fixed"\n'
+            f'inertia = [{ixx}, {iyy}, {izz}, 0.0, {ixz}, 0.0]\n\n[[joints]]\nname = "payload_mount"\ntype = "fixed"\n'
             f'parent = "{last}"\nchild = "payload"\norigin_xyz = [0.3, 0.0, 0.1]\norigin_rpy = [0.0, 0.2, 0.0]\n'))
     return toml
 
@@ -107,12 +107,18 @@ def with_axis_reversed(name: str, folder: Path) -> Path | None:
     if urdf is None:
         return None  # the shipped TOML trees here are floating bodies
     text = urdf.read_text()
-    joint = re.search(r'<joint[^>]*type="(revolute|prismatic)".*?<axis xyz="([^"]+)"', text, re.DOTALL)
+    # the first moving joint's own element (its axis, or URDF's default x when it names none)
+    joint = re.search(r'<joint[^>]*type="(revolute|prismatic|continuous)"[^>]*>(.*?)</joint>', text, re.DOTALL)
     if joint is None:
         return None
-    axis = " ".join(repr(-float(v) + 0.0) for v in joint[2].split())
-    start, stop = joint.span(2)
-    urdf.write_text(text[:start] + axis + text[stop:])
+    axis = re.search(r'<axis xyz="([^"]+)"', joint[2])
+    if axis is None:
+        start = stop = joint.start(2)
+        new = '<axis xyz="-1 0 0"/>'
+    else:
+        start, stop = joint.start(2) + axis.start(1), joint.start(2) + axis.end(1)
+        new = " ".join(repr(-float(v) + 0.0) for v in axis[1].split())
+    urdf.write_text(text[:start] + new + text[stop:])
     return toml
 
 

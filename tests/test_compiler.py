@@ -76,6 +76,7 @@ def test_a_failed_compile_stops_the_compiles_not_yet_started(tmp_path):
         compile_library([*srcs, broken], "stop", Toolchain(cc=cc), cache=tmp_path / "cache", jobs=1)
     assert "C compiler failed on broken.c" in str(err.value) and "undefined_name" in str(err.value)
     assert f"$ {cc}" in str(err.value)  # the command is quoted
+    assert str(broken) in str(err.value) and ".tmp-" not in str(err.value)  # the source's own path
     starts = [line.split()[1] for line in log.read_text().splitlines() if line.startswith("start")]
     assert starts == ["broken.c"]  # the largest first; the others were never started
     assert not list((tmp_path / "cache").rglob("*.so"))
@@ -191,3 +192,40 @@ def test_a_forked_child_compiles_what_its_parent_had_started(tmp_path):
             os._exit(99)
     _, status = os.waitpid(pid, 0)
     assert os.waitstatus_to_exitcode(status) == 1
+
+
+def test_headers_found_through_search_flags_keep_objects_out_of_the_store(tmp_path):
+    """With -I the compiler finds headers the store's key cannot see: those objects stay the build's own,
+    so a header changed there is compiled in."""
+    inc, src = tmp_path / "inc", tmp_path / "src"
+    inc.mkdir()
+    src.mkdir()
+    (inc / "k.h").write_text("#define K 1\n")
+    (src / "a.c").write_text('#include "k.h"\nint a(void) { return K; }\n')
+    (src / "b.c").write_text("int b(void) { return 1; }\n")
+    tc = Toolchain(cflags=("-O0", "-fPIC", f"-I{inc}"))
+    compile_library([src / "a.c", src / "b.c"], "one", tc, cache=tmp_path / "cache")
+    assert not list((tmp_path / "cache" / "objects").glob("*.o"))
+    (inc / "k.h").write_text("#define K 2\n")
+    (src / "b.c").write_text("int b(void) { return 2; }\n")  # a new library key
+    lib = compile_library([src / "a.c", src / "b.c"], "two", tc, cache=tmp_path / "cache")
+    assert ctypes.CDLL(str(lib)).a() == 2
+
+
+def test_a_source_rewritten_while_it_compiles_stores_the_bytes_its_key_names(tmp_path):
+    """The stored object is compiled from a copy of the bytes its key was made from, so a source
+    rewritten meanwhile (a folder generated again) never puts other code under that key."""
+    srcs = _sources(tmp_path / "src", [("a", 10), ("b", 20)])
+    original = srcs[0].read_text()
+    rewriting = tmp_path / "rewritingcc"
+    rewriting.write_text(f"""#!/bin/sh
+if [ "$1" = --version ]; then exec cc --version; fi
+sed -i 's/return 1;/return 9;/' {srcs[0]}
+exec cc "$@"
+""")
+    rewriting.chmod(0o755)
+    lib = compile_library(srcs[:1], "one", Toolchain(cc=str(rewriting)), cache=tmp_path / "cache")
+    assert ctypes.CDLL(str(lib)).a() == 1 and "return 9" in srcs[0].read_text()
+    srcs[0].write_text(original)
+    lib = compile_library(srcs, "two", Toolchain(cc=str(rewriting)), cache=tmp_path / "cache")
+    assert ctypes.CDLL(str(lib)).a() == 1

@@ -265,42 +265,11 @@ def build(model: Model | str | Path | None = None, *, cc: str | None = None,
             with cache_errors(root), folder_lock(made[-1].lock, current=committed):
                 made[-1].compile(missing)
     else:
-        # One lock from generation through compilation: the manifest read and the sources compiled
-        # are the same generation even if another process regenerates the folder meanwhile. The
-        # committed folder is only read (under this cache's lock, not the folder's: no generation).
-        with cache_errors(root), folder_lock(build_lock_path(folder, root, committed), current=committed):
-            if generated is None and not committed:
-                _drop_broken_entry(model, folder)
-            if committed:  # whole (generate --check): it holds every controller
-                _still_current(model, folder, numbers)
-            else:
-                # each source of a library this build compiles starts compiling as soon as it is
-                # written, on the cores the derivation leaves (the core while controllers derive)
-                early = _Precompile({CORE, *groups}, toolchain, cache)
-                try:
-                    with generation_reported(report, model, folder, controllers=need):
-                        # no-op when current; a build for some controllers derives only theirs
-                        generate_locked(model, folder, numbers=numbers, controllers=need, written=early,
-                                        first=early.wanted)
-                except BaseException:
-                    cancel_precompiles()
-                    raise
-            manifest = read_manifest(folder)
-            if manifest is None:
-                raise BuildCacheError(f"{folder}: generated folder has no readable manifest after generation")
-            load = loader(manifest)
-            extension = _extension_started(manifest, toolchain, cache, backend)
-            # Progress around the compile call, not inside it: a build another process finished is no step.
-            try:
-                core = load.compile([CORE, *groups])[0]
-            finally:
-                cancel_precompiles()
-            try:
-                lib = GeneratedLibrary(core, manifest, folder, load, numbers=model.numbers)
-            except BuildCacheError:
-                # A cached build that does not match this runtime (other CasADi, other ABI): rebuild once.
-                lib = GeneratedLibrary(load.compile([CORE], force=True)[0], manifest, folder, load,
-                                       numbers=model.numbers)
+        try:
+            lib, extension = _generate_and_compile(model, folder, root, committed, generated, need, numbers, groups,
+                                                   toolchain, cache, backend, report, loader)
+        finally:
+            cancel_precompiles()  # whatever this build started and did not use (it failed): not run at exit
     if extension is not None:
         extension.join()  # built (or failed: attach_extension meets the failure again and reports it)
     attach_extension(lib, toolchain, cache=cache, backend=backend)
@@ -310,6 +279,46 @@ def build(model: Model | str | Path | None = None, *, cc: str | None = None,
     report("built" if steps else "loaded", " + ".join(steps) if steps else f"already built: {lib.path}",
            report.total())
     return Dynamics(model, lib)
+
+
+def _generate_and_compile(model, folder, root, committed, generated, need, numbers, groups, toolchain, cache, backend,
+                          report, loader):
+    """:func:`build`'s generation and compile where no warm library serves: ``(library, the extension's
+    compile thread or None)``."""
+    # One lock from generation through compilation: the manifest read and the sources compiled
+    # are the same generation even if another process regenerates the folder meanwhile. The
+    # committed folder is only read (under this cache's lock, not the folder's: no generation).
+    with cache_errors(root), folder_lock(build_lock_path(folder, root, committed), current=committed):
+        if generated is None and not committed:
+            _drop_broken_entry(model, folder)
+        if committed:  # whole (generate --check): it holds every controller
+            _still_current(model, folder, numbers)
+        else:
+            # each source of a library this build compiles starts compiling as soon as it is
+            # written, on the cores the derivation leaves (the core while controllers derive)
+            early = _Precompile({CORE, *groups}, toolchain, cache)
+            with generation_reported(report, model, folder, controllers=need):
+                # no-op when current; a build for some controllers derives only theirs
+                generate_locked(model, folder, numbers=numbers, controllers=need, written=early, first=early.wanted)
+        manifest = read_manifest(folder)
+        if manifest is None:
+            raise BuildCacheError(f"{folder}: generated folder has no readable manifest after generation")
+        load = loader(manifest)
+        extension = _extension_started(manifest, toolchain, cache, backend)
+        try:
+            # Progress around the compile call, not inside it: a build another process finished is no step.
+            core = load.compile([CORE, *groups])[0]
+            try:
+                lib = GeneratedLibrary(core, manifest, folder, load, numbers=model.numbers)
+            except BuildCacheError:
+                # A cached build that does not match this runtime (other CasADi, other ABI): rebuild once.
+                lib = GeneratedLibrary(load.compile([CORE], force=True)[0], manifest, folder, load,
+                                       numbers=model.numbers)
+        except BaseException:
+            if extension is not None:
+                extension.join()  # not left to be killed mid-compile at exit
+            raise
+    return lib, extension
 
 
 def _still_current(model, folder: Path, numbers: str) -> None:

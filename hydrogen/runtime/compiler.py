@@ -226,13 +226,15 @@ def compile_objects(sources: list, out_dir: Path, argv: list, timeout: float, jo
     if isinstance(jobs, bool) or not isinstance(jobs, int) or jobs < 1:
         raise CompilerError(f"jobs must be a whole number of compilers >= 1, got {jobs!r}")
     sources = [Path(s) for s in sources]
-    if store is None:
-        # A numbered object per source: two sources of one name (in two folders) never share an object.
-        objects = [Path(out_dir) / f"{i:03d}_{s.stem}.o" for i, s in enumerate(sources)]
-    else:
+    # A numbered object per source: two sources of one name (in two folders) never share an object.
+    objects = [Path(out_dir) / f"{i:03d}_{s.stem}.o" for i, s in enumerate(sources)]
+    inputs = [None] * len(sources)  # what a stored object is compiled from: the bytes its key covers
+    if store is not None:
         identity, argv = argv[0], argv[1:]
-        objects = [Path(store) / f"{_object_key(_with_includes(s, s.read_bytes()), argv, identity)}.o"
-                   for s in sources]
+        for i, s in enumerate(sources):
+            files = _with_includes(s, s.read_bytes()) if _storable_flags(argv) else None
+            if files is not None:
+                inputs[i], objects[i] = files, Path(store) / f"{_object_key(files, argv, identity)}.o"
     order = sorted(range(len(sources)), key=lambda i: -sources[i].stat().st_size)
     failed = threading.Event()  # set by the failing compile itself: no queued compile starts after it
 
@@ -240,9 +242,10 @@ def compile_objects(sources: list, out_dir: Path, argv: list, timeout: float, jo
         if failed.is_set():
             return
         try:
-            if store is not None and not force and _ready(objects[i]):
-                return
-            _compile_to(sources[i], objects[i], argv, timeout)
+            if inputs[i] is None:
+                _compile_to(sources[i], objects[i], argv, timeout)
+            elif force or not _ready(objects[i]):
+                _compile_copy(inputs[i], objects[i], argv, timeout, shown=sources[i].parent)
         except BaseException:
             failed.set()
             raise
@@ -272,25 +275,60 @@ def _compile_to(source: Path, obj: Path, argv: list, timeout: float, what: str |
         tmp.unlink(missing_ok=True)
 
 
+def _compile_copy(files: list, obj: Path, argv: list, timeout: float, shown: Path | None = None) -> None:
+    """Compile the bytes ``files`` (the source first, then the headers it includes, by their names
+    relative to it) from a private copy into ``obj``: the object is of exactly the bytes its key
+    covers, even if the source is rewritten meanwhile. A compiler's message names ``shown`` (the
+    source's own folder) where the copy was."""
+    obj.parent.mkdir(parents=True, exist_ok=True)
+    with tempfile.TemporaryDirectory(dir=obj.parent, prefix=".tmp-") as tmp:
+        for name, data in files:
+            Path(tmp, name).parent.mkdir(parents=True, exist_ok=True)
+            Path(tmp, name).write_bytes(data)
+        try:
+            _compile_to(Path(tmp, files[0][0]), obj, argv, timeout)
+        except CompilerError as exc:
+            if shown is None:
+                raise
+            raise CompilerError(str(exc).replace(tmp, str(shown))) from None
+
+
+#: Flags that let the compiler find a header elsewhere than beside the file that includes it: with
+#: them the store's key cannot cover every header an object depends on, so objects stay the build's.
+_SEARCH_FLAGS = ("-I", "-iquote", "-isystem", "-idirafter", "-include", "-imacros", "--include")
+
+
+def _storable_flags(argv: list) -> bool:
+    return not any(str(a).startswith(_SEARCH_FLAGS) for a in argv)
+
+
 _LOCAL_INCLUDE = re.compile(rb'^[ \t]*#[ \t]*include[ \t]*"([^"]+)"', re.MULTILINE)
 
 
-def _with_includes(source: Path, data: bytes) -> list:
-    """``[(name, bytes)]``: the source, then the headers beside it that it includes (and they include),
-    read now; a header that cannot be read is left to the compiler to name."""
-    out, todo, seen = [(source.name, data)], [data], {source.name}
+def _with_includes(source: Path, data: bytes) -> list | None:
+    """``[(name, bytes)]``: the source, then the headers it includes (and they include) with ``"..."``,
+    each found beside the file that includes it, named relative to the source's folder, read now.
+    None when one is not there, or lies outside that folder: the compiler finds it by its own search,
+    which a key cannot follow."""
+    root = source.parent.resolve()
+    out, todo, seen = [(source.name, data)], [(root, data)], {source.name}
     while todo:
-        for raw in _LOCAL_INCLUDE.findall(todo.pop()):
-            name = raw.decode(errors="replace")
+        folder, text = todo.pop()
+        for raw in _LOCAL_INCLUDE.findall(text):
+            path = (folder / raw.decode(errors="replace")).resolve()
+            try:
+                name = path.relative_to(root).as_posix()
+            except ValueError:
+                return None
             if name in seen:
                 continue
             seen.add(name)
             try:
-                header = (source.parent / name).read_bytes()
+                header = path.read_bytes()
             except OSError:
-                continue
+                return None
             out.append((name, header))
-            todo.append(header)
+            todo.append((path.parent, header))
     return out
 
 
@@ -321,6 +359,39 @@ def _forget_after_fork() -> None:
 
 if hasattr(os, "register_at_fork"):
     os.register_at_fork(after_in_child=_forget_after_fork)
+
+
+#: The first bytes of an object file: ELF, Mach-O (32 and 64 bit, either byte order), COFF (x86-64,
+#: arm64), LLVM bitcode (clang -flto) bare and wrapped.
+_OBJECT_MAGIC = (b"\x7fELF", b"\xfe\xed\xfa\xce", b"\xfe\xed\xfa\xcf", b"\xce\xfa\xed\xfe", b"\xcf\xfa\xed\xfe",
+                 b"\x64\x86", b"\x64\xaa", b"BC\xc0\xde", b"\xde\xc0\x17\x0b")
+
+
+def _looks_like_an_object(path: Path) -> bool:
+    """Whether ``path`` starts as an object file does (a damaged store entry does not)."""
+    try:
+        with open(path, "rb") as f:
+            head = f.read(4)
+    except OSError:
+        return False
+    return head.startswith(_OBJECT_MAGIC)
+
+
+def _sweep(store: Path, older_than: float) -> None:
+    """Remove what compiles that were stopped left in the object store (their private copies and
+    half-written objects), once older than any compile still running can be."""
+    import time
+
+    try:
+        entries = list(Path(store).glob(".*"))
+    except OSError:
+        return
+    for p in entries:
+        try:
+            if time.time() - p.stat().st_mtime > older_than:
+                shutil.rmtree(p, ignore_errors=True) if p.is_dir() else p.unlink(missing_ok=True)
+        except OSError:
+            pass
 
 
 def _in_background(fn, *args):
@@ -356,10 +427,12 @@ def precompile(sources: list, toolchain: Toolchain | None = None, cache: Path | 
     toolchain = toolchain or Toolchain()
     store = Path(cache or cache_root()) / OBJECTS
     argv, identity = toolchain.argv(), toolchain.identity()
+    if not _storable_flags(argv):
+        return
     for source in map(Path, sources):
         files = _with_includes(source, source.read_bytes())
-        if any(Path(name).name != name for name, _ in files):
-            continue  # a header in another folder: left to the library's compile
+        if files is None:
+            continue  # a header the key cannot follow: left to the library's compile
         obj = store / f"{_object_key(files, argv, identity)}.o"
         with _STARTED_LOCK:
             if obj not in _STARTED and not obj.is_file():
@@ -373,14 +446,6 @@ def cancel_precompiles() -> None:
         for obj, started in list(_STARTED.items()):
             if started.cancel() or started.done():
                 del _STARTED[obj]
-
-
-def _compile_copy(files: list, obj: Path, argv: list, timeout: float) -> None:
-    obj.parent.mkdir(parents=True, exist_ok=True)
-    with tempfile.TemporaryDirectory(dir=obj.parent, prefix=".tmp-") as tmp:
-        for name, data in files:
-            Path(tmp, name).write_bytes(data)
-        _compile_to(Path(tmp, files[0][0]), obj, argv, timeout)
 
 
 def compile_library(sources: list, name: str, toolchain: Toolchain | None = None,
@@ -432,24 +497,26 @@ def compile_libraries(libraries: list, toolchain: Toolchain | None = None, cache
                 if old.is_dir():
                     shutil.rmtree(old, ignore_errors=True)
         argv = toolchain.argv()
+        store, identity = root / OBJECTS, toolchain.identity()
+        _sweep(store, older_than=max(toolchain.timeout, 3600.0))
         with tempfile.TemporaryDirectory(dir=missing[0][3]) as tmp:
             every = [s for m in missing for s in m[0]]
-            store, identity = root / OBJECTS, toolchain.identity()
             objects = compile_objects(every, Path(tmp), [identity, *argv], toolchain.timeout, jobs, store, force)
             start = 0
             for sources, name, key, build_dir in missing:
                 mine, start = objects[start:start + len(sources)], start + len(sources)
                 lib_name = f"lib{name}_{key[:16]}_{secrets.token_hex(4)}.so"
                 tmp_lib = Path(tmp) / lib_name
-                link = [*argv, "-shared", "-o", str(tmp_lib), "-lm"]
-                try:
-                    run_compiler([*link[:-3], *map(str, mine), *link[-3:]], f"linking {lib_name}", toolchain.timeout)
-                except CompilerError:
-                    if force:
-                        raise
-                    # an object of the store that does not link (damaged): compile this library's again
+                if not all(map(_looks_like_an_object, mine)):  # damaged in the store: compiled again
                     mine = compile_objects(sources, Path(tmp), [identity, *argv], toolchain.timeout, jobs, store, True)
-                    run_compiler([*link[:-3], *map(str, mine), *link[-3:]], f"linking {lib_name}", toolchain.timeout)
+                try:
+                    run_compiler([*argv, "-shared", *map(str, mine), "-o", str(tmp_lib), "-lm"],
+                                 f"linking {lib_name}", toolchain.timeout)
+                except CompilerError as exc:  # name each stored object by its source
+                    text = str(exc)
+                    for src, obj in zip(sources, mine):
+                        text = text.replace(str(obj), f"{obj} (of {src.name})")
+                    raise CompilerError(text) from None
                 os.replace(tmp_lib, build_dir / lib_name)
                 atomic_write(build_dir / "build.json", json.dumps(
                     {"library": lib_name, "sha256": _sha256(build_dir / lib_name),
