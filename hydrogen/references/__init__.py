@@ -20,7 +20,9 @@ plus what one kind adds to it. A reference module declares
 
 Adding a kind: write the module and its tests; the registry finds it (every module of this package
 that declares ``KEY`` and ``Reference``), and the description reader, the checks, the C loop, its
-configuration and the exported params.h take it from there.
+configuration and the exported params.h take it from there. A kind given as a table of rows (a
+coordinate, then numbers: the sines' terms, the moves) takes its ``FIELDS``, ``IDLE``, ``sizes``,
+``axes``, ``config`` and row checks from one :class:`~hydrogen.references._table.RowTable`.
 """
 from __future__ import annotations
 

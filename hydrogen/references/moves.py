@@ -9,15 +9,17 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ._table import RowTable
+
 __all__ = ["KEY", "SYNTAX", "Reference"]
 
 KEY = "moves"
 SYNTAX = "[[coordinate, distance, start s, duration s], ...]"
 
-FIELDS = (("n_moves", "long long", "P_REF_N_MOVES"), ("moves", "const double*", "P_REF_MOVES"))
+#: The moves as rows (coordinate, distance, start, duration) of the loop's configuration.
+TABLE = RowTable("n_moves", "moves", ("distance", "start s", "duration s"))
+FIELDS, IDLE, sizes, axes = TABLE.fields, TABLE.idle, TABLE.sizes, TABLE.axes
 COMMENT = "minimum-jerk moves over moves (coordinate, distance, start, duration > 0)"
-#: No move (C has no zero-length array: one row of zeros, its count 0).
-IDLE = {"n_moves": 0, "moves": np.zeros(4)}
 C_BODY = """\
     {
         long long j;
@@ -42,16 +44,6 @@ C_BODY = """\
         }
     }
 """
-
-
-def sizes(values: dict) -> dict:
-    """The number of entries each of its configuration arrays must hold, from the values."""
-    return {"moves": 4 * max(int(values["n_moves"]), 1)}
-
-
-def axes(values: dict) -> list:
-    """The coordinate indices the C loop reads from the values (each move's)."""
-    return [m[0] for m in np.reshape(values["moves"], (-1, 4))[: int(values["n_moves"])]]
 
 
 def _profile(tau):
@@ -116,20 +108,11 @@ class Reference:
     def check(self, fail, axis, finite) -> None:
         """Each move (axis, distance, start, duration) the C loop reads valid, else ``fail(field, what,
         value)``; ``axis(field, value)`` and ``finite(field, value)`` check one value."""
-        moves = self.moves
-        if isinstance(moves, (str, bytes)) or not hasattr(moves, "__iter__"):
-            fail("reference.moves", "must be a sequence of (axis, distance, start s, duration s)", moves)
-        for j, move in enumerate(moves):
-            if isinstance(move, (str, bytes)) or not hasattr(move, "__len__") or len(move) != 4:
-                fail(f"reference.moves[{j}]", "must be (axis, distance, start s, duration s)", move)
-            ax, d, t0, dur = move
-            axis(f"reference.moves[{j}] axis", ax)
-            for what, v in (("distance", d), ("start", t0), ("duration", dur)):
-                finite(f"reference.moves[{j}] {what}", v)
+        TABLE.check(self.moves, fail, axis, finite)
+        for j, (_, _, _, dur) in enumerate(self.moves):
             if not dur > 0:
                 fail(f"reference.moves[{j}] duration", "must be > 0 s", dur)
 
     def config(self) -> dict:
         """Its values of FIELDS."""
-        moves = tuple(self.moves)
-        return {"n_moves": len(moves), "moves": np.array(moves, float).reshape(-1) if moves else np.zeros(4)}
+        return TABLE.config(self.moves)

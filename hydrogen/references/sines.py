@@ -6,15 +6,17 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ._table import RowTable
+
 __all__ = ["KEY", "SYNTAX", "Reference", "MultiSine"]
 
 KEY = "sines"
 SYNTAX = "[[coordinate, amplitude, Hz], ...]"
 
-FIELDS = (("n_terms", "long long", "P_REF_N_TERMS"), ("terms", "const double*", "P_REF_TERMS"))
+#: The terms as rows (coordinate, amplitude, frequency) of the loop's configuration.
+TABLE = RowTable("n_terms", "terms", ("amplitude", "frequency Hz"))
+FIELDS, IDLE, sizes, axes = TABLE.fields, TABLE.idle, TABLE.sizes, TABLE.axes
 COMMENT = "sum of amplitude sin(2 pi f t) over terms (coordinate, amplitude, frequency)"
-#: No term (C has no zero-length array: one row of zeros, its count 0).
-IDLE = {"n_terms": 0, "terms": np.zeros(3)}
 C_BODY = """\
     {
         long long j;
@@ -34,16 +36,6 @@ C_BODY = """\
         }
     }
 """
-
-
-def sizes(values: dict) -> dict:
-    """The number of entries each of its configuration arrays must hold, from the values."""
-    return {"terms": 3 * max(int(values["n_terms"]), 1)}
-
-
-def axes(values: dict) -> list:
-    """The coordinate indices the C loop reads from the values (each term's)."""
-    return [t[0] for t in np.reshape(values["terms"], (-1, 3))[: int(values["n_terms"])]]
 
 
 @dataclass(frozen=True)
@@ -107,21 +99,11 @@ class Reference:
     def check(self, fail, axis, finite) -> None:
         """Each term (axis, amplitude, frequency) the C loop reads valid, else ``fail(field, what,
         value)``; ``axis(field, value)`` and ``finite(field, value)`` check one value."""
-        terms = self.terms
-        if isinstance(terms, (str, bytes)) or not hasattr(terms, "__iter__"):
-            fail("reference.terms", "must be a sequence of (axis, amplitude, frequency Hz)", terms)
-        for j, term in enumerate(terms):
-            if isinstance(term, (str, bytes)) or not hasattr(term, "__len__") or len(term) != 3:
-                fail(f"reference.terms[{j}]", "must be (axis, amplitude, frequency Hz)", term)
-            ax, amp, freq = term
-            axis(f"reference.terms[{j}] axis", ax)
-            finite(f"reference.terms[{j}] amplitude", amp)
-            finite(f"reference.terms[{j}] frequency", freq)
+        TABLE.check(self.terms, fail, axis, finite)
 
     def config(self) -> dict:
         """Its values of FIELDS."""
-        terms = tuple(self.terms)
-        return {"n_terms": len(terms), "terms": np.array(terms, float).reshape(-1) if terms else np.zeros(3)}
+        return TABLE.config(self.terms)
 
 
 #: Its former name (hydrogen.simulation.reference.MultiSine).
