@@ -572,3 +572,23 @@ def test_the_functions_needed_first_are_written_first_and_every_byte_is_the_same
     assert own[0] == lean_step and all(LEAN in n for n in own[:3]) and not any(LEAN in n for n in own[3:])
     assert own[3] == step_function_name("adaptive-robust")  # then the others, their step first
     assert orders[0].index(step_function_name("adaptive-robust")) < orders[0].index(lean_step)
+
+
+@pytest.mark.parametrize("numbers", ["inputs", "constants"])
+def test_a_rates_function_selected_from_its_controllers_graph_is_the_same_c(tmp_path, numbers):
+    """A controller's rates function (its ``xc_dot`` alone) is taken from the controller's CasADi graph
+    when that is converted already: the same C, byte for byte, as converting it from SymPy."""
+    model = hydrogen.load_model(Path(__file__).parent / "data" / "four_way_arm.toml")
+    functions, _ = gen.derive(model, numbers, ("adaptive-robust",), core=False)
+    full = next(f for f in functions if f.name == "ctrl_adaptive_robust")
+    rates = next(f for f in functions if f.name == "ctrl_adaptive_robust_rates")
+    assert rates.selects == full.name
+    texts = []
+    for cache in ({}, None):  # the controller converted first (selected), then rates alone (from SymPy)
+        folder = tmp_path / f"c{len(texts)}"
+        folder.mkdir()
+        if cache is not None:
+            gen.write_function(full, model.name, folder, cache)
+        gen.write_function(rates, model.name, folder, {} if cache is None else cache)
+        texts.append((folder / f"{model.name}_ctrl_adaptive_robust_rates.c").read_bytes())
+    assert texts[0] == texts[1]

@@ -6,7 +6,7 @@ import casadi as ca
 from ..layout import NUMBERS
 from .sympy_to_casadi import SympyToCasadi, shape_of, to_casadi_function  # noqa: F401 (also its public path)
 
-__all__ = ["to_casadi_function", "semi_implicit_step", "specialisation", "casadi_function", "shape_of"]
+__all__ = ["to_casadi_function", "semi_implicit_step", "specialisation", "selection", "casadi_function", "shape_of"]
 
 
 def casadi_function(sf, c_name: str | None = None, cache: dict | None = None) -> ca.Function:
@@ -18,7 +18,9 @@ def casadi_function(sf, c_name: str | None = None, cache: dict | None = None) ->
 
     cache = {} if cache is None else cache
     if sf.name not in cache:
-        if isinstance(sf, SymbolicFunction):
+        if isinstance(sf, SymbolicFunction) and getattr(sf, "selects", None) in cache:
+            cache[sf.name] = selection(sf, cache[sf.selects], c_name)
+        elif isinstance(sf, SymbolicFunction):
             cache[sf.name] = to_casadi_function(sf, c_name)
         elif isinstance(sf, Specialisation):
             cache[sf.name] = specialisation(sf, casadi_function(sf.base, cache=cache), c_name)
@@ -32,6 +34,18 @@ def casadi_function(sf, c_name: str | None = None, cache: dict | None = None) ->
     # the same graph under the C name (a call of an SX function with SX arguments inlines it)
     args = [ca.SX.sym(fun.name_in(i), fun.sparsity_in(i)) for i in range(fun.n_in())]
     return ca.Function(c_name, args, fun(*args), list(fun.name_in()), list(fun.name_out()), {"cse": True})
+
+
+def selection(sf, base: ca.Function, c_name: str | None = None) -> ca.Function:
+    """The CasADi Function of ``sf``, whose outputs are some of ``base``'s (``sf.selects``: the same
+    inputs and intermediates): ``base`` called with its inputs, those outputs kept, CSE again. The
+    same C as converting ``sf`` from SymPy (the committed code is generated both ways alike), without
+    converting the shared graph a second time."""
+    names = list(base.name_in())
+    args = [ca.SX.sym(n, base.sparsity_in(i)) for i, n in enumerate(names)]
+    outs = dict(zip(base.name_out(), base.call(args)))
+    kept = [k for k, _ in sf.outputs]
+    return ca.Function(c_name or sf.name, args, [ca.densify(outs[k]) for k in kept], names, kept, {"cse": True})
 
 
 def specialisation(spec, base: ca.Function, c_name: str | None = None) -> ca.Function:

@@ -23,6 +23,9 @@ class SymbolicFunction:
     outputs: list
     doc: str
     intermediates: list = field(default_factory=list)
+    #: The function of the same inputs and intermediates whose outputs hold these (a controller's rates
+    #: function: its ``xc_dot``), or None: code generation may select them from that one's graph.
+    selects: str | None = None
 
 
 def rigid_body_functions(model, form_dynamics: bool = False, names=None) -> list:

@@ -7,6 +7,7 @@ Sizes come from the model: n coordinates, m cylinders (m = n), p adapted paramet
 """
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 
 import sympy as sp
@@ -143,7 +144,8 @@ def controller_functions(model, kinds=None) -> list:
         if not rates:
             continue
         rates = SymbolicFunction(rates_function_name(name), parts.inputs, rates,
-                                 f"{mod.DOC} State rates xc_dot only (same inputs).", parts.intermediates)
+                                 f"{mod.DOC} State rates xc_dot only (same inputs).", parts.intermediates,
+                                 selects=full.name)
         step_doc = "Semi-implicit period: state xc+ = clip(xc + h xc_dot), command u at xc+."
         out += [rates, SemiImplicitStep(step_function_name(name), full, rates, f"{mod.DOC} {step_doc}")]
         lean = lean_variant(mod.state_layout(model))
@@ -171,7 +173,7 @@ def derive_functions(model, controllers=True, core: bool = True) -> list:
 def with_numbers_input(f, vector) -> SymbolicFunction:
     """``f`` taking the description's numbers (the column ``vector`` of their symbols, a
     :class:`~hydrogen.symbolic.constants.NumberTable`'s) as one more input, :data:`NUMBERS`."""
-    return SymbolicFunction(f.name, [*f.inputs, (NUMBERS, vector)], f.outputs, f.doc, f.intermediates)
+    return dataclasses.replace(f, inputs=[*f.inputs, (NUMBERS, vector)])
 
 
 def derive_parametric(model, controllers=True, key: str = "name", core: bool = True, seed=None) -> tuple:
