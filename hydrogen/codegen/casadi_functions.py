@@ -18,7 +18,7 @@ def casadi_function(sf, c_name: str | None = None, cache: dict | None = None) ->
 
     cache = {} if cache is None else cache
     if sf.name not in cache:
-        if isinstance(sf, SymbolicFunction) and getattr(sf, "selects", None) in cache:
+        if isinstance(sf, SymbolicFunction) and sf.selects in cache:
             cache[sf.name] = selection(sf, cache[sf.selects], c_name)
         elif isinstance(sf, SymbolicFunction):
             cache[sf.name] = to_casadi_function(sf, c_name)

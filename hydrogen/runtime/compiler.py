@@ -26,6 +26,7 @@ import subprocess
 import sys
 import tempfile
 import threading
+import time
 from concurrent.futures import ThreadPoolExecutor, as_completed
 from contextlib import ExitStack
 from dataclasses import dataclass, field
@@ -45,7 +46,7 @@ DEFAULT_CFLAGS = ("-O2", "-fPIC", "-std=c99", "-fno-semantic-interposition")
 WARNING_FLAGS = ("-Wall", "-Wextra", "-Werror")
 #: The object store's folder under the cache root.
 OBJECTS = "objects"
-_IDENTITIES: dict = {}  # (compiler path, mtime, size, timeout) -> its --version text
+_IDENTITIES: dict = {}  # (compiler path, mtime, size) -> its --version text
 
 
 def cache_root() -> Path:
@@ -125,7 +126,7 @@ class Toolchain:
         exe = self.executable()
         try:
             st = os.stat(exe)
-            stamp = (exe, st.st_mtime_ns, st.st_size, min(30.0, self.timeout))
+            stamp = (exe, st.st_mtime_ns, st.st_size)
         except OSError:
             stamp = None
         if stamp is not None and stamp in _IDENTITIES:
@@ -208,14 +209,14 @@ def usable_cores() -> int:
 
 
 def compile_objects(sources: list, out_dir: Path, argv: list, timeout: float, jobs: int | None = None,
-                    store: Path | None = None, force: bool = False) -> list:
+                    store: Path | None = None, force: bool = False, identity: str = "") -> list:
     """Compile each source to an object file, ``jobs`` compilers at a time; the objects.
 
     ``jobs`` defaults to :func:`usable_cores`. The largest sources start first, so that one long
     compile (a controller's semi-implicit step) does not begin last and run alone. Each compiler
     call has its own ``timeout``. The first failure stops the compiles not yet started and is
     raised (the compiles already running end within their timeout). ``argv``: the compiler and
-    its flags, its identity text first when ``store`` is given (:meth:`Toolchain.identity`).
+    its flags; ``identity``: its identity text (:meth:`Toolchain.identity`), part of a stored object's key.
 
     Objects go to ``out_dir``, or with ``store`` (an object store, :data:`OBJECTS`) to the store
     under their content key: an object found there (or being compiled there by :func:`precompile`
@@ -230,7 +231,6 @@ def compile_objects(sources: list, out_dir: Path, argv: list, timeout: float, jo
     objects = [Path(out_dir) / f"{i:03d}_{s.stem}.o" for i, s in enumerate(sources)]
     inputs = [None] * len(sources)  # what a stored object is compiled from: the bytes its key covers
     if store is not None:
-        identity, argv = argv[0], argv[1:]
         for i, s in enumerate(sources):
             files = _with_includes(s, s.read_bytes()) if _storable_flags(argv) else None
             if files is not None:
@@ -263,13 +263,13 @@ def compile_objects(sources: list, out_dir: Path, argv: list, timeout: float, jo
     return objects
 
 
-def _compile_to(source: Path, obj: Path, argv: list, timeout: float, what: str | None = None) -> None:
+def _compile_to(source: Path, obj: Path, argv: list, timeout: float) -> None:
     """Compile ``source`` into ``obj``, written whole (a new name, then renamed): a process reading
     the store never sees half an object."""
     obj.parent.mkdir(parents=True, exist_ok=True)
     tmp = obj.with_name(f".{obj.stem}-{secrets.token_hex(4)}.o")
     try:
-        run_compiler([*argv, "-c", str(source), "-o", str(tmp)], what or source.name, timeout)
+        run_compiler([*argv, "-c", str(source), "-o", str(tmp)], source.name, timeout)
         os.replace(tmp, obj)
     finally:
         tmp.unlink(missing_ok=True)
@@ -380,8 +380,6 @@ def _looks_like_an_object(path: Path) -> bool:
 def _sweep(store: Path, older_than: float) -> None:
     """Remove what compiles that were stopped left in the object store (their private copies and
     half-written objects), once older than any compile still running can be."""
-    import time
-
     try:
         entries = list(Path(store).glob(".*"))
     except OSError:
@@ -501,14 +499,14 @@ def compile_libraries(libraries: list, toolchain: Toolchain | None = None, cache
         _sweep(store, older_than=max(toolchain.timeout, 3600.0))
         with tempfile.TemporaryDirectory(dir=missing[0][3]) as tmp:
             every = [s for m in missing for s in m[0]]
-            objects = compile_objects(every, Path(tmp), [identity, *argv], toolchain.timeout, jobs, store, force)
+            objects = compile_objects(every, Path(tmp), argv, toolchain.timeout, jobs, store, force, identity)
             start = 0
             for sources, name, key, build_dir in missing:
                 mine, start = objects[start:start + len(sources)], start + len(sources)
                 lib_name = f"lib{name}_{key[:16]}_{secrets.token_hex(4)}.so"
                 tmp_lib = Path(tmp) / lib_name
                 if not all(map(_looks_like_an_object, mine)):  # damaged in the store: compiled again
-                    mine = compile_objects(sources, Path(tmp), [identity, *argv], toolchain.timeout, jobs, store, True)
+                    mine = compile_objects(sources, Path(tmp), argv, toolchain.timeout, jobs, store, True, identity)
                 try:
                     run_compiler([*argv, "-shared", *map(str, mine), "-o", str(tmp_lib), "-lm"],
                                  f"linking {lib_name}", toolchain.timeout)
