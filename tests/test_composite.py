@@ -232,6 +232,8 @@ def test_theta_signals_of_a_staged_tree_equal_the_closed_forms(rng, tilted):
     from hydrogen.controllers.composite import RigidBodyComposite
     from hydrogen.symbolic.control_laws import Common
     from hydrogen.symbolic.forms import oblique_joints, with_form
+    from hydrogen.codegen.sympy_to_casadi import to_casadi
+    import casadi as ca
 
     arm = _tilted_arm() if tilted else hydrogen.load_model("excavator_arm")
     assert bool(oblique_joints(arm)) == tilted
@@ -241,13 +243,19 @@ def test_theta_signals_of_a_staged_tree_equal_the_closed_forms(rng, tilted):
         c = Common(model)
         out = RigidBodyComposite(c, c.theta()).signals()
         staged = len(rigid_body.rigid_body_stages(model, c.q))
-        # innermost last: substitute the kinematics' stages (poses and their rates) into the signals
-        for syms, expr in reversed(c.kin):
+        # the kinematics' stages (poses and their rates) composed in order, each from q, q̇ and the
+        # stages before it, then the signals from all of them, as a CasADi graph: the composition the
+        # generated code computes, without expanding the stages into SymPy expressions or printing
+        # them for lambdify (what made this test slow)
+        q, qd = ca.SX.sym("q", arm.n), ca.SX.sym("qd", arm.n)
+        table = {**dict(zip(c.q, ca.vertsplit(q))), **dict(zip(c.qdot, ca.vertsplit(qd)))}
+        for syms, expr in c.kin:
             if isinstance(expr, sp.MatrixBase):
-                rep = dict(zip(list(syms), list(expr)))
-                out = [sp.Matrix(o).xreplace(rep) for o in out]
-        assert all(sp.Matrix(o).free_symbols <= set(c.q) | set(c.qdot) for o in out)
-        return staged, sp.lambdify([list(c.q), list(c.qdot)], out, "numpy")
+                value = to_casadi(sp.Matrix(list(expr)), table)
+                table.update(zip(list(syms), ca.vertsplit(value)))
+        assert all(sp.Matrix(o).free_symbols <= set(table) for o in out)
+        f = ca.Function("signals", [q, qd], [to_casadi(sp.Matrix(o), table) for o in out])
+        return staged, lambda qv, qdv: [np.array(v) for v in f(qv, qdv)]
 
     n_closed, closed = signals("closed")
     n_staged, staged = signals("staged")
