@@ -31,7 +31,6 @@ import shutil
 import sys
 import tempfile
 import zipfile
-from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
 from xml.etree import ElementTree as ET
@@ -539,25 +538,27 @@ def _guid(payload: dict) -> str:
 
 def _compile(sources: dict, c_files, ident, toolchain) -> bytes:
     """Compile ``c_files`` of ``sources`` (name -> bytes) into ``<ident>.so`` with hydrogen's toolchain
-    (warnings as errors); relative names in a scratch folder, so the binary does not depend on where."""
+    (warnings as errors), in a scratch folder (the binary does not depend on where). The objects of
+    sources that every export of the robot shares (the generated functions, the loop driver) are kept
+    in the cache's object store, keyed by their bytes, headers and flags: exporting again (another
+    part, scenario or gain) compiles only what changed."""
     from .fileio import write_file
-    from .runtime.compiler import Toolchain, run_compiler
+    from .runtime.compiler import Toolchain, compile_objects, link_shared, object_store
 
     tc = toolchain or Toolchain()
-    argv = [*tc.argv(), "-fvisibility=hidden", "-I."]
-
-    def run(args, what, cwd):
-        run_compiler(args, what, tc.timeout, cwd=cwd)
-
+    # every header is included with "..." from the scratch folder: no search path needed, so the
+    # objects can be stored (a -I flag would keep them out of the store)
+    argv = [*tc.argv(), "-fvisibility=hidden"]
+    store = object_store()
     with tempfile.TemporaryDirectory(prefix="hydrogen-fmu-") as tmp:
         for name, data in sources.items():
             write_file(Path(tmp) / name, data)
-        objs = [Path(c).stem + ".o" for c in c_files]
-        with ThreadPoolExecutor(max_workers=min(len(c_files), os.cpu_count() or 1)) as pool:
-            list(pool.map(lambda co: run([*argv, "-c", co[0], "-o", co[1]], co[0], tmp), zip(c_files, objs)))
-        lib = f"{ident}.so"
-        run([*argv, "-shared", *objs, "-o", lib, "-Wl,-Bsymbolic", "-lm"], f"linking {lib}", tmp)
-        return (Path(tmp) / lib).read_bytes()
+        paths = [Path(tmp) / c for c in c_files]
+        objs = compile_objects(paths, Path(tmp), argv, tc.timeout, store=store, identity=tc.identity())
+        lib = Path(tmp) / f"{ident}.so"
+        link_shared(paths, objs, lib, argv, tc.timeout, store=store, identity=tc.identity(),
+                    link_flags=("-Wl,-Bsymbolic",), cwd=tmp)
+        return lib.read_bytes()
 
 
 _DOC = """<!DOCTYPE html>

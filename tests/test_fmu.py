@@ -301,6 +301,33 @@ def test_export_is_deterministic(dyn, tmp_path, shared_fmu):
     assert a != b and a.read_bytes() == b.read_bytes()
 
 
+def test_a_second_export_compiles_only_its_own_glue(dyn, tmp_path, monkeypatch):
+    """The generated sources an export shares with the robot's other exports are compiled once into
+    the cache's object store: another part of the same robot compiles its glue (and the controller
+    it adds) only, and is the same FMU as one compiled whole."""
+    from test_compiler import _compiled, _logging_cc
+
+    from hydrogen.runtime.compiler import Toolchain
+
+    monkeypatch.setenv("HYDROGEN_CACHE_DIR", str(tmp_path / "cache"))
+    cc, log = _logging_cc(tmp_path)
+    tc = Toolchain(cc=cc)
+    export_fmu(tmp_path / "plant.fmu", "plant", "z-1hz", "p", dyn=dyn, duration=DURATION, toolchain=tc)
+    first = _compiled(log)
+    assert "fmu.c" in first and f"{dyn.model.name}_plant_rhs.c" in first
+    log.unlink()
+    again = export_fmu(tmp_path / "again.fmu", "plant", "z-2hz", "p", dyn=dyn, duration=DURATION, toolchain=tc)
+    assert _compiled(log) == ["fmu.c"]
+    log.unlink()
+    loop = export_fmu(tmp_path / "loop.fmu", "closed-loop", "z-1hz", "p", dyn=dyn, duration=DURATION, toolchain=tc)
+    assert sorted(_compiled(log)) == sorted(["fmu.c", f"{dyn.model.name}_ctrl_p.c"])
+    # the same bytes as an export that compiles everything (no store: a read-only cache)
+    monkeypatch.setattr("hydrogen.runtime.compiler.object_store", lambda root=None: None)
+    whole = export_fmu(tmp_path / "whole.fmu", "plant", "z-2hz", "p", dyn=dyn, duration=DURATION)
+    assert again.read_bytes() == whole.read_bytes()
+    assert loop.exists()
+
+
 def test_bad_input_is_refused_before_any_work(dyn, tmp_path):
     with pytest.raises(FmuError, match="unknown FMU part 'sensor'"):
         export_fmu(tmp_path / "x.fmu", "sensor", "z-1hz", dyn=dyn)

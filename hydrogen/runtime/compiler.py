@@ -36,7 +36,8 @@ from ..errors import CompilerError
 from ..fileio import atomic_write, locked, write_file
 
 __all__ = ["Toolchain", "cache_root", "compile_library", "compile_libraries", "compile_extension", "run_compiler",
-           "precompile", "cancel_precompiles", "DEFAULT_CFLAGS", "WARNING_FLAGS", "OBJECTS"]
+           "precompile", "cancel_precompiles", "link_shared", "object_store", "DEFAULT_CFLAGS", "WARNING_FLAGS",
+           "OBJECTS"]
 
 #: Chosen by benchmarks/bench_flags.py (README "Benchmarks"). -fno-semantic-interposition lets gcc
 #: and clang inline CasADi's exported one-line helpers (casadi_sq, casadi_fmin, ...) inside the shared
@@ -505,22 +506,41 @@ def compile_libraries(libraries: list, toolchain: Toolchain | None = None, cache
                 mine, start = objects[start:start + len(sources)], start + len(sources)
                 lib_name = f"lib{name}_{key[:16]}_{secrets.token_hex(4)}.so"
                 tmp_lib = Path(tmp) / lib_name
-                if not all(map(_looks_like_an_object, mine)):  # damaged in the store: compiled again
-                    mine = compile_objects(sources, Path(tmp), argv, toolchain.timeout, jobs, store, True, identity)
-                try:
-                    run_compiler([*argv, "-shared", *map(str, mine), "-o", str(tmp_lib), "-lm"],
-                                 f"linking {lib_name}", toolchain.timeout)
-                except CompilerError as exc:  # name each stored object by its source
-                    text = str(exc)
-                    for src, obj in zip(sources, mine):
-                        text = text.replace(str(obj), f"{obj} (of {src.name})")
-                    raise CompilerError(text) from None
+                link_shared(sources, mine, tmp_lib, argv, toolchain.timeout, jobs, store, identity)
                 os.replace(tmp_lib, build_dir / lib_name)
                 atomic_write(build_dir / "build.json", json.dumps(
                     {"library": lib_name, "sha256": _sha256(build_dir / lib_name),
                      "sources": [s.name for s in sources], "argv": argv}, indent=2, sort_keys=True))
                 paths[build_dir] = build_dir / lib_name
     return [paths[t[3]] for t in todo]
+
+
+def link_shared(sources: list, objects: list, out: Path, argv: list, timeout: float, jobs: int | None = None,
+                store: Path | None = None, identity: str = "", link_flags: tuple = (), cwd=None) -> None:
+    """Link ``objects`` (:func:`compile_objects`' of ``sources``, in order) into the shared library
+    ``out``. A stored object that does not start as an object file (damaged in the store) is compiled
+    again first; a link error names each stored object by its source."""
+    if not all(map(_looks_like_an_object, objects)):
+        objects = compile_objects(sources, Path(out).parent, argv, timeout, jobs, store, True, identity)
+    try:
+        run_compiler([*argv, "-shared", *map(str, objects), "-o", str(out), *link_flags, "-lm"],
+                     f"linking {Path(out).name}", timeout, cwd=cwd)
+    except CompilerError as exc:
+        text = str(exc)
+        for src, obj in zip(sources, objects):
+            text = text.replace(str(obj), f"{obj} (of {Path(src).name})")
+        raise CompilerError(text) from None
+
+
+def object_store(root: Path | None = None) -> Path | None:
+    """The object store of the cache ``root`` (default :func:`cache_root`), made if need be; None where
+    it cannot be (a read-only cache): objects are then compiled for the one build."""
+    store = Path(root or cache_root()) / OBJECTS
+    try:
+        store.mkdir(parents=True, exist_ok=True)
+    except OSError:
+        return None
+    return store if os.access(store, os.W_OK) else None
 
 
 def compile_extension(render, key_material: str, module: str, toolchain: Toolchain | None = None,
