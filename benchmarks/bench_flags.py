@@ -16,6 +16,7 @@ from pathlib import Path
 
 import hydrogen
 from hydrogen.codegen.generate import generate
+from hydrogen.runtime.compiler import DEFAULT_CFLAGS, GCC_CFLAGS, Toolchain, run_compiler
 from hydrogen.simulation import simulator as S
 
 try:  # imported as benchmarks.bench_flags
@@ -27,13 +28,19 @@ except ImportError:  # run as a script, or loaded from its path
 CONTROLLER = "adaptive-robust"
 #: -fno-semantic-interposition (nsi) lets the compiler inline CasADi's exported one-line helpers
 #: (casadi_sq, casadi_fmin, ...) inside a shared library; without it each is a call through the PLT.
+#: -fno-tree-fre (GCC_CFLAGS, added to the defaults with gcc) turns off a pass that finds next to
+#: nothing in CasADi's code, whose cost grows faster than a function: the chain's row shows it.
 FLAG_SETS = {
     "-O1": ("-O1", "-fPIC", "-std=c99"),
     "-O2": ("-O2", "-fPIC", "-std=c99"),
-    "-O2 nsi (default)": ("-O2", "-fPIC", "-std=c99", "-fno-semantic-interposition"),
+    "-O2 nsi": DEFAULT_CFLAGS,
+    "-O2 nsi no-fre (default, gcc)": (*DEFAULT_CFLAGS, *GCC_CFLAGS),
     "-O3 nsi": ("-O3", "-fPIC", "-std=c99", "-fno-semantic-interposition"),
     "-O3 nsi -march=native": ("-O3", "-march=native", "-fPIC", "-std=c99", "-fno-semantic-interposition"),
 }
+#: The planar chain (bench_scaling.chain_description) whose largest source is compiled with each flag
+#: set: its adaptive-robust controller's lean semi-implicit step, what its first adaptive run waits for.
+CHAIN_N, CHAIN_N_QUICK = 12, 7
 
 
 def _loop_us(dyn, scenario, repeats):
@@ -66,17 +73,52 @@ def run_robot(name: str, quick: bool = False) -> dict:
     return out
 
 
+def run_chain(quick: bool = False) -> dict:
+    """Seconds to compile the chain's largest source to an object with each flag set (one compiler
+    alone, the fastest of two)."""
+    try:
+        from .bench_scaling import chain_description
+    except ImportError:
+        from bench_scaling import chain_description
+    from hydrogen.controllers import step_function_name
+    from hydrogen.model import model_from_dict
+
+    n = CHAIN_N_QUICK if quick else CHAIN_N
+    model = model_from_dict(chain_description(n))
+    out = {"n": n, "source": None, "source_kb": None, "compile_s": {}}
+    with tempfile.TemporaryDirectory(prefix="bench_flags_chain_") as tmp:
+        folder = Path(tmp) / model.name
+        generate(model, folder, controllers=(CONTROLLER,))
+        source = folder / f"{model.name}_{step_function_name(CONTROLLER, 'lean')}.c"
+        out["source"], out["source_kb"] = source.name, source.stat().st_size / 1024
+        cc = Toolchain().executable()
+        for label, flags in FLAG_SETS.items():
+            times = []
+            for _ in range(1 if quick else 2):
+                t0 = time.perf_counter()
+                run_compiler([cc, *flags, "-c", str(source), "-o", str(Path(tmp) / "step.o")], source.name, 600.0)
+                times.append(time.perf_counter() - t0)
+            out["compile_s"][label] = min(times)
+    return out
+
+
 def run(quick: bool = False) -> dict:
-    return {"robots": {name: run_robot(name, quick) for name in common.robots()}, "quick": quick}
+    return {"robots": {name: run_robot(name, quick) for name in common.robots()}, "chain": run_chain(quick),
+            "quick": quick}
 
 
 def print_table(res):
     for r in res["robots"].values():
         print(f"{r['model']}: {r['scenario']} with {CONTROLLER}")
-        print(f"{'flags':24} {'compile s':>10} {'loop us/period':>15}")
+        print(f"{'flags':30} {'compile s':>10} {'loop us/period':>15}")
         for k, v in r["flags"].items():
-            print(f"{k:24} {v['compile_s']:10.2f} {v['loop_us_per_period']:15.2f}")
+            print(f"{k:30} {v['compile_s']:10.2f} {v['loop_us_per_period']:15.2f}")
         print()
+    c = res.get("chain")
+    if c:
+        print(f"planar chain, n = {c['n']}: {c['source']} ({c['source_kb']:.0f} kB) compiled alone")
+        for k, v in c["compile_s"].items():
+            print(f"{k:30} {v:10.2f} s")
 
 
 if __name__ == "__main__":

@@ -246,11 +246,19 @@ def _flags(b) -> list:
     if not robots:
         return []
     flags = list(next(iter(robots.values()))["flags"])
-    out = ["## Compiler flags", "", "C loop µs per period of each robot's simulation scenario "
-           "(`benchmarks/bench_flags.py`):", ""]
-    out += _table(["flags"] + [r["model"] for r in robots.values()],
-                  [[f"`{' '.join(robots[next(iter(robots))]['flags'][fl]['cflags'])}`"]
-                   + [_f(r["flags"].get(fl, {}).get("loop_us_per_period")) for r in robots.values()] for fl in flags])
+    first = robots[next(iter(robots))]["flags"]
+    chain = b.get("chain") or {}
+    out = ["## Compiler flags", "", "C loop µs per period of each robot's simulation scenario with adaptive-robust, "
+           "and in brackets the seconds of `hydrogen.build` from a clean cache (`benchmarks/bench_flags.py`)"
+           + (f"; the last column: seconds to compile the largest source of the {chain['n']}-link planar chain "
+              f"(`{chain['source']}`, {chain['source_kb']:.0f} kB, what its first adaptive run waits for), "
+              "one compiler alone" if chain else "") + ":", ""]
+    out += _table(["flags"] + [f"{r['model']} µs (compile s)" for r in robots.values()]
+                  + ([f"chain n = {chain['n']}, s"] if chain else []),
+                  [[f"`{' '.join(first[fl]['cflags'])}`"]
+                   + [f"{_f(r['flags'].get(fl, {}).get('loop_us_per_period'))} "
+                      f"({_f(r['flags'].get(fl, {}).get('compile_s'))})" for r in robots.values()]
+                   + ([_f(chain["compile_s"].get(fl))] if chain else []) for fl in flags])
     return out
 
 

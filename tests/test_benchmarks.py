@@ -1030,3 +1030,22 @@ def test_a_study_script_writes_its_json_atomically_and_prints_its_table(tmp_path
     assert seen == {"workers": 3} and json.loads(out.read_text()) == {"rows": [{"a": 1, "b": 2}]}
     assert out.read_text().index('"a"') < out.read_text().index('"b"')  # sorted keys
     assert "| rows 1 |" in capsys.readouterr().out and not list(tmp_path.glob("*.tmp"))
+
+
+def test_the_flags_benchmark_compiles_the_chains_largest_source_with_every_flag_set(monkeypatch, capsys):
+    """bench_flags' chain part (a 2-link chain here): the adaptive-robust lean step compiled alone with
+    each flag set, printed and on the page beside the robots' loops."""
+    import bench_flags
+    from hydrogen.pages import benchmarks_page
+
+    monkeypatch.setattr(bench_flags, "CHAIN_N_QUICK", 2)
+    chain = bench_flags.run_chain(quick=True)
+    assert chain["n"] == 2 and chain["source"].endswith("_ctrl_adaptive_robust_lean_step.c") and chain["source_kb"] > 0
+    assert list(chain["compile_s"]) == list(bench_flags.FLAG_SETS)
+    assert all(v > 0 for v in chain["compile_s"].values())
+    robots = {"r": {"model": "r", "scenario": "s", "flags": {
+        k: {"cflags": list(f), "compile_s": 1.5, "loop_us_per_period": 2.5} for k, f in bench_flags.FLAG_SETS.items()}}}
+    bench_flags.print_table({"robots": robots, "chain": chain})
+    assert "planar chain, n = 2" in capsys.readouterr().out
+    page = benchmarks_page({"bench_flags": {"robots": robots, "chain": chain}})
+    assert "chain n = 2, s" in page and "| `-O2 -fPIC -std=c99 -fno-semantic-interposition -fno-tree-fre` | 2.50 (1.50) |" in page

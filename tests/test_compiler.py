@@ -229,3 +229,35 @@ exec cc "$@"
     srcs[0].write_text(original)
     lib = compile_library(srcs, "two", Toolchain(cc=str(rewriting)), cache=tmp_path / "cache")
     assert ctypes.CDLL(str(lib)).a() == 1
+
+
+def _fake_compiler(tmp_path, version: str):
+    """A compiler that answers --version with ``version`` and compiles with cc."""
+    cc = shutil.which("cc")
+    if cc is None:
+        pytest.skip("no C compiler")
+    wrapper = tmp_path / "fakecc"
+    wrapper.write_text(f'#!/bin/sh\nif [ "$1" = --version ]; then echo "{version}"; exit 0; fi\nexec {cc} "$@"\n')
+    wrapper.chmod(0o755)
+    return str(wrapper)
+
+
+def test_the_default_flags_add_gccs_own_only_for_gcc(tmp_path):
+    """GCC gets GCC_CFLAGS with the default flags; clang (even installed as gcc) the defaults alone;
+    flags a user chose (even the defaults) are exactly those. The flags used are in the library's key and in its build.json."""
+    from hydrogen.runtime.compiler import DEFAULT_CFLAGS, GCC_CFLAGS, build_key
+
+    gcc = _fake_compiler(tmp_path, "gcc (GCC) 12.2.0\\nCopyright (C) 2022 Free Software Foundation, Inc.")
+    (tmp_path / "clang").mkdir()
+    clang = _fake_compiler(tmp_path / "clang", "Apple clang version 15.0.0\\nTarget: arm64-apple-darwin23")
+    assert Toolchain(cc=gcc).flags() == (*DEFAULT_CFLAGS, *GCC_CFLAGS)
+    assert set(GCC_CFLAGS) <= set(Toolchain(cc=gcc).argv())
+    assert Toolchain(cc=clang).flags() == DEFAULT_CFLAGS
+    assert Toolchain(cc=gcc, cflags=("-O1", "-fPIC")).flags() == ("-O1", "-fPIC")
+    assert Toolchain(cc=gcc, cflags=DEFAULT_CFLAGS).flags() == DEFAULT_CFLAGS  # chosen: exactly those
+    src = tmp_path / "a.c"
+    src.write_text("int a(void) { return 1; }\n")
+    lib = compile_library([src], "a", Toolchain(cc=gcc), cache=tmp_path / "cache")
+    import json
+    assert set(GCC_CFLAGS) <= set(json.loads((lib.parent / "build.json").read_text())["argv"])
+    assert build_key([src], Toolchain(cc=gcc)) != build_key([src], Toolchain(cc=gcc, cflags=DEFAULT_CFLAGS[:-1]))

@@ -36,14 +36,21 @@ from ..errors import CompilerError
 from ..fileio import atomic_write, locked, write_file
 
 __all__ = ["Toolchain", "cache_root", "compile_library", "compile_libraries", "compile_extension", "run_compiler",
-           "precompile", "cancel_precompiles", "link_shared", "object_store", "DEFAULT_CFLAGS", "WARNING_FLAGS",
-           "OBJECTS"]
+           "precompile", "cancel_precompiles", "link_shared", "object_store", "DEFAULT_CFLAGS", "GCC_CFLAGS",
+           "WARNING_FLAGS", "OBJECTS"]
 
 #: Chosen by benchmarks/bench_flags.py (README "Benchmarks"). -fno-semantic-interposition lets gcc
 #: and clang inline CasADi's exported one-line helpers (casadi_sq, casadi_fmin, ...) inside the shared
 #: library, where each was a call through the PLT: the paper-sim loop 12 % faster. -O3 adds little;
 #: -march=native ties the cache to one CPU, so it is left to the user (cflags=...).
 DEFAULT_CFLAGS = ("-O2", "-fPIC", "-std=c99", "-fno-semantic-interposition")
+#: Added to the default flags where the compiler is GCC (:meth:`Toolchain.flags`). GCC's
+#: full-redundancy elimination (tree FRE) finds next to nothing in CasADi's code, whose common
+#: subexpressions are shared already, and its cost grows faster than a function's size: most of the
+#: compile of a long chain's semi-implicit step. Without it that compile takes about half the time
+#: and the loops of the shipped robots cost the same (benchmarks/bench_flags.py). Clang has neither
+#: the pass nor the flag.
+GCC_CFLAGS = ("-fno-tree-fre",)
 WARNING_FLAGS = ("-Wall", "-Wextra", "-Werror")
 #: The object store's folder under the cache root.
 OBJECTS = "objects"
@@ -94,19 +101,20 @@ class Toolchain:
     """A C compiler and its flags. ``cc`` defaults to ``$CC`` or ``cc``.
 
     ``cflags`` and ``warnings`` may be sequences of strings or one string (split like a shell
-    would: ``"-O2 -fPIC"``). ``timeout`` bounds each compiler call (default 600 s, or
+    would: ``"-O2 -fPIC"``); ``cflags`` None (the default) is :meth:`flags`' defaults. ``timeout`` bounds each compiler call (default 600 s, or
     ``$HYDROGEN_CC_TIMEOUT``); a compiler that takes longer is stopped with a :class:`CompilerError`.
     """
 
     cc: str = field(default_factory=lambda: os.environ.get("CC", "cc"))
-    cflags: tuple = DEFAULT_CFLAGS
+    cflags: tuple | None = None
     warnings: tuple = WARNING_FLAGS
     timeout: float = field(default_factory=_default_timeout, compare=False)
 
     def __post_init__(self):
         if not isinstance(self.cc, str) or not self.cc.strip():
             raise CompilerError(f"cc must be the compiler's name or path (a string), got {self.cc!r}")
-        object.__setattr__(self, "cflags", _flags(self.cflags, "cflags"))
+        if self.cflags is not None:
+            object.__setattr__(self, "cflags", _flags(self.cflags, "cflags"))
         object.__setattr__(self, "warnings", _flags(self.warnings, "warnings"))
         t = self.timeout
         if isinstance(t, bool) or not isinstance(t, (int, float)) or not (0 < t < float("inf")):
@@ -148,8 +156,21 @@ class Toolchain:
                                 f"{min(30.0, self.timeout):g} s") from None
         return f"{exe}\n{out.stdout}"
 
+    def is_gcc(self) -> bool:
+        """Whether the compiler is GCC (its version text names the Free Software Foundation, and not
+        clang, which some systems install as gcc)."""
+        text = self.identity()
+        return "Free Software Foundation" in text and "clang" not in text.lower()
+
+    def flags(self) -> tuple:
+        """The flags the code compiles with: ``cflags`` where given (exactly those), else
+        :data:`DEFAULT_CFLAGS`, and with GCC also :data:`GCC_CFLAGS`."""
+        if self.cflags is not None:
+            return self.cflags
+        return (*DEFAULT_CFLAGS, *GCC_CFLAGS) if self.is_gcc() else DEFAULT_CFLAGS
+
     def argv(self) -> list:
-        return [self.executable(), *shlex.split(self.cc)[1:], *self.cflags, *self.warnings]
+        return [self.executable(), *shlex.split(self.cc)[1:], *self.flags(), *self.warnings]
 
 
 def build_key(sources: list, toolchain: Toolchain) -> str:
@@ -164,7 +185,7 @@ def build_key_of(contents: list, toolchain: Toolchain) -> str:
     for src, data in sorted(((Path(s), d) for s, d in contents), key=lambda t: t[0]):
         h.update(src.name.encode() + b"\0" + data + b"\0")
     h.update(toolchain.identity().encode())
-    h.update(json.dumps([toolchain.cc, list(toolchain.cflags), list(toolchain.warnings)]).encode())
+    h.update(json.dumps([toolchain.cc, list(toolchain.flags()), list(toolchain.warnings)]).encode())
     return h.hexdigest()
 
 
@@ -559,7 +580,7 @@ def compile_extension(render, key_material: str, module: str, toolchain: Toolcha
     toolchain = toolchain or Toolchain()
     h = hashlib.sha256(b"extension\0" + key_material.encode())
     h.update(toolchain.identity().encode())
-    h.update(json.dumps([toolchain.cc, list(toolchain.cflags), list(toolchain.warnings),
+    h.update(json.dumps([toolchain.cc, list(toolchain.flags()), list(toolchain.warnings),
                          [str(d) for d in include_dirs]]).encode())
     key = h.hexdigest()
     build_dir = Path(cache or cache_root()) / "extension" / key
@@ -575,7 +596,7 @@ def compile_extension(render, key_material: str, module: str, toolchain: Toolcha
         build_dir.mkdir(parents=True, exist_ok=True)
         for old in build_dir.glob("*.so"):
             old.unlink(missing_ok=True)
-        argv = [toolchain.executable(), *shlex.split(toolchain.cc)[1:], *toolchain.cflags,
+        argv = [toolchain.executable(), *shlex.split(toolchain.cc)[1:], *toolchain.flags(),
                 *(w for w in toolchain.warnings if w != "-Werror")]
         for d in include_dirs:
             argv += ["-isystem", str(d)]
