@@ -8,6 +8,7 @@ Run: ``python benchmarks/bench_flags.py [--quick] [--json FILE]``
 """
 from __future__ import annotations
 
+import shlex
 import statistics
 import sys
 import tempfile
@@ -28,16 +29,26 @@ except ImportError:  # run as a script, or loaded from its path
 CONTROLLER = "adaptive-robust"
 #: -fno-semantic-interposition (nsi) lets the compiler inline CasADi's exported one-line helpers
 #: (casadi_sq, casadi_fmin, ...) inside a shared library; without it each is a call through the PLT.
-#: -fno-tree-fre (GCC_CFLAGS, added to the defaults with gcc) turns off a pass that finds next to
-#: nothing in CasADi's code, whose cost grows faster than a function: the chain's row shows it.
 FLAG_SETS = {
     "-O1": ("-O1", "-fPIC", "-std=c99"),
     "-O2": ("-O2", "-fPIC", "-std=c99"),
     "-O2 nsi": DEFAULT_CFLAGS,
-    "-O2 nsi no-fre (default, gcc)": (*DEFAULT_CFLAGS, *GCC_CFLAGS),
     "-O3 nsi": ("-O3", "-fPIC", "-std=c99", "-fno-semantic-interposition"),
     "-O3 nsi -march=native": ("-O3", "-march=native", "-fPIC", "-std=c99", "-fno-semantic-interposition"),
 }
+#: With GCC, also its default (GCC_CFLAGS added): -fno-tree-fre turns off a pass that finds next to
+#: nothing in CasADi's code and whose cost grows faster than a function (the chain's column shows it).
+GCC_DEFAULT = "-O2 nsi no-fre (default with gcc)"
+
+
+def flag_sets(toolchain=None) -> dict:
+    """The flag sets compared: :data:`FLAG_SETS`, and with GCC its default flags after -O2 nsi."""
+    sets = dict(FLAG_SETS)
+    if (toolchain or Toolchain()).is_gcc():
+        items = list(sets.items())
+        at = list(sets).index("-O2 nsi") + 1
+        sets = dict([*items[:at], (GCC_DEFAULT, (*DEFAULT_CFLAGS, *GCC_CFLAGS)), *items[at:]])
+    return sets
 #: The planar chain (bench_scaling.chain_description) whose largest source is compiled with each flag
 #: set: its adaptive-robust controller's lean semi-implicit step, what its first adaptive run waits for.
 CHAIN_N, CHAIN_N_QUICK = 12, 7
@@ -63,7 +74,7 @@ def run_robot(name: str, quick: bool = False) -> dict:
     with tempfile.TemporaryDirectory(prefix="bench_flags_") as tmp:
         folder = Path(tmp) / "generated" / name
         generate(model, folder)
-        for label, flags in FLAG_SETS.items():
+        for label, flags in flag_sets().items():
             cache = Path(tmp) / f"cache{len(out['flags'])}"
             t0 = time.perf_counter()
             dyn = hydrogen.build(model, cflags=flags, cache=cache, generated=folder)
@@ -91,12 +102,14 @@ def run_chain(quick: bool = False) -> dict:
         generate(model, folder, controllers=(CONTROLLER,))
         source = folder / f"{model.name}_{step_function_name(CONTROLLER, 'lean')}.c"
         out["source"], out["source_kb"] = source.name, source.stat().st_size / 1024
-        cc = Toolchain().executable()
-        for label, flags in FLAG_SETS.items():
+        tc = Toolchain()
+        cc = [tc.executable(), *shlex.split(tc.cc)[1:]]  # $CC with its own words (e.g. "gcc -m32")
+        for label, flags in flag_sets(tc).items():
             times = []
             for _ in range(1 if quick else 2):
                 t0 = time.perf_counter()
-                run_compiler([cc, *flags, "-c", str(source), "-o", str(Path(tmp) / "step.o")], source.name, 600.0)
+                run_compiler([*cc, *flags, "-c", str(source), "-o", str(Path(tmp) / "step.o")], source.name,
+                             tc.timeout)
                 times.append(time.perf_counter() - t0)
             out["compile_s"][label] = min(times)
     return out

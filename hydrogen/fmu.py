@@ -536,12 +536,14 @@ def _guid(payload: dict) -> str:
     return "{" + f"{h[:8]}-{h[8:12]}-{h[12:16]}-{h[16:20]}-{h[20:32]}" + "}"
 
 
-def _compile(sources: dict, c_files, ident, toolchain) -> bytes:
+def _compile(sources: dict, c_files, ident, toolchain, cache=None) -> bytes:
     """Compile ``c_files`` of ``sources`` (name -> bytes) into ``<ident>.so`` with hydrogen's toolchain
-    (warnings as errors), in a scratch folder (the binary does not depend on where). The objects of
-    sources that every export of the robot shares (the generated functions, the loop driver) are kept
-    in the cache's object store, keyed by their bytes, headers and flags: exporting again (another
-    part, scenario or gain) compiles only what changed."""
+    (warnings as errors), in a scratch folder (the binary does not depend on where). The generated
+    sources every export of the robot shares (its functions, the loop driver) are compiled once into
+    the object store of the build cache ``cache`` (default :func:`~hydrogen.runtime.compiler.cache_root`),
+    keyed by their bytes, headers and flags: exporting again (another part, scenario or gain) compiles
+    only the glue and what changed. The glue (``c_files[0]``, its GUID and params.h new with every
+    export's settings) is compiled for this export alone."""
     from .fileio import write_file
     from .runtime.compiler import Toolchain, compile_objects, link_shared, object_store
 
@@ -549,14 +551,16 @@ def _compile(sources: dict, c_files, ident, toolchain) -> bytes:
     # every header is included with "..." from the scratch folder: no search path needed, so the
     # objects can be stored (a -I flag would keep them out of the store)
     argv = [*tc.argv(), "-fvisibility=hidden"]
-    store = object_store()
+    store = object_store(cache)
     with tempfile.TemporaryDirectory(prefix="hydrogen-fmu-") as tmp:
         for name, data in sources.items():
             write_file(Path(tmp) / name, data)
         paths = [Path(tmp) / c for c in c_files]
-        objs = compile_objects(paths, Path(tmp), argv, tc.timeout, store=store, identity=tc.identity())
+        glue = compile_objects(paths[:1], Path(tmp), argv, tc.timeout, identity=tc.identity())
+        shared = compile_objects(paths[1:], Path(tmp) / "shared", argv, tc.timeout, store=store,
+                                 identity=tc.identity())
         lib = Path(tmp) / f"{ident}.so"
-        link_shared(paths, objs, lib, argv, tc.timeout, store=store, identity=tc.identity(),
+        link_shared(paths, [*glue, *shared], lib, argv, tc.timeout, store=store, identity=tc.identity(),
                     link_flags=("-Wl,-Bsymbolic",), cwd=tmp)
         return lib.read_bytes()
 
@@ -707,7 +711,7 @@ def export_fmu(out, part, scenario=None, controller="adaptive-robust", model=Non
 
     src = {**{n: files[n] for n in gen_sources + gen_headers}, "params.h": params_h, "fmu.c": glue, **header_bytes}
     c_files = ["fmu.c", *gen_sources]
-    binary = _compile(src, c_files, ident, toolchain)
+    binary = _compile(src, c_files, ident, toolchain, dyn.library.cache_root)
 
     stop = (p.n - 1) * h
     doc_line = {"plant": f"plant of {mname} (scenario {sc_name})",

@@ -249,13 +249,14 @@ def _flags(b) -> list:
     first = robots[next(iter(robots))]["flags"]
     chain = b.get("chain") or {}
     out = ["## Compiler flags", "", "C loop µs per period of each robot's simulation scenario with adaptive-robust, "
-           "and in brackets the seconds of `hydrogen.build` from a clean cache (`benchmarks/bench_flags.py`)"
+           "and in brackets the seconds of `hydrogen.build` from a clean cache (the core library: the "
+           "controller's compiles at its first use) (`benchmarks/bench_flags.py`)"
            + (f"; the last column: seconds to compile the largest source of the {chain['n']}-link planar chain "
               f"(`{chain['source']}`, {chain['source_kb']:.0f} kB, what its first adaptive run waits for), "
               "one compiler alone" if chain else "") + ":", ""]
     out += _table(["flags"] + [f"{r['model']} µs (compile s)" for r in robots.values()]
                   + ([f"chain n = {chain['n']}, s"] if chain else []),
-                  [[f"`{' '.join(first[fl]['cflags'])}`"]
+                  [[f"`{' '.join(first[fl]['cflags'])}`" + (" (default)" if "default" in fl else "")]
                    + [f"{_f(r['flags'].get(fl, {}).get('loop_us_per_period'))} "
                       f"({_f(r['flags'].get(fl, {}).get('compile_s'))})" for r in robots.values()]
                    + ([_f(chain["compile_s"].get(fl))] if chain else []) for fl in flags])

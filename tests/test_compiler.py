@@ -247,9 +247,13 @@ def test_the_default_flags_add_gccs_own_only_for_gcc(tmp_path):
     flags a user chose (even the defaults) are exactly those. The flags used are in the library's key and in its build.json."""
     from hydrogen.runtime.compiler import DEFAULT_CFLAGS, GCC_CFLAGS, build_key
 
-    gcc = _fake_compiler(tmp_path, "gcc (GCC) 12.2.0\\nCopyright (C) 2022 Free Software Foundation, Inc.")
-    (tmp_path / "clang").mkdir()
-    clang = _fake_compiler(tmp_path / "clang", "Apple clang version 15.0.0\\nTarget: arm64-apple-darwin23")
+    (tmp_path / "clang-tools").mkdir()  # a path naming clang does not make GCC clang
+    gcc = _fake_compiler(tmp_path / "clang-tools", "gcc (GCC) 12.2.0\\nCopyright (C) 2022 Free Software Foundation, Inc.")
+    (tmp_path / "other").mkdir()
+    clang = _fake_compiler(tmp_path / "other", "Apple clang version 15.0.0\\nTarget: arm64-apple-darwin23")
+    (tmp_path / "gcc-named").mkdir()  # clang installed as gcc: its text names both
+    clang_as_gcc = _fake_compiler(tmp_path / "gcc-named", "gcc: clang version 14.0 (Free Software Foundation headers)")
+    assert Toolchain(cc=clang_as_gcc).flags() == DEFAULT_CFLAGS
     assert Toolchain(cc=gcc).flags() == (*DEFAULT_CFLAGS, *GCC_CFLAGS)
     assert set(GCC_CFLAGS) <= set(Toolchain(cc=gcc).argv())
     assert Toolchain(cc=clang).flags() == DEFAULT_CFLAGS

@@ -303,21 +303,25 @@ def test_export_is_deterministic(dyn, tmp_path, shared_fmu):
 
 def test_a_second_export_compiles_only_its_own_glue(dyn, tmp_path, monkeypatch):
     """The generated sources an export shares with the robot's other exports are compiled once into
-    the cache's object store: another part of the same robot compiles its glue (and the controller
-    it adds) only, and is the same FMU as one compiled whole."""
+    the object store of the cache the dynamics were built in: another export of the same robot
+    compiles its glue (and the controller it adds) only, the glue is never stored, and the FMU is the
+    same as one compiled whole."""
     from test_compiler import _compiled, _logging_cc
 
     from hydrogen.runtime.compiler import Toolchain
 
-    monkeypatch.setenv("HYDROGEN_CACHE_DIR", str(tmp_path / "cache"))
+    store = tmp_path / "cache" / "objects"
+    monkeypatch.setattr(dyn.library, "cache_root", tmp_path / "cache")  # the store of the build's cache
     cc, log = _logging_cc(tmp_path)
     tc = Toolchain(cc=cc)
     export_fmu(tmp_path / "plant.fmu", "plant", "z-1hz", "p", dyn=dyn, duration=DURATION, toolchain=tc)
     first = _compiled(log)
     assert "fmu.c" in first and f"{dyn.model.name}_plant_rhs.c" in first
+    stored = sorted(store.glob("*.o"))
+    assert len(stored) == len(first) - 1  # every source but the glue (new with every export's settings)
     log.unlink()
     again = export_fmu(tmp_path / "again.fmu", "plant", "z-2hz", "p", dyn=dyn, duration=DURATION, toolchain=tc)
-    assert _compiled(log) == ["fmu.c"]
+    assert _compiled(log) == ["fmu.c"] and sorted(store.glob("*.o")) == stored
     log.unlink()
     loop = export_fmu(tmp_path / "loop.fmu", "closed-loop", "z-1hz", "p", dyn=dyn, duration=DURATION, toolchain=tc)
     assert sorted(_compiled(log)) == sorted(["fmu.c", f"{dyn.model.name}_ctrl_p.c"])

@@ -198,7 +198,8 @@ def build(model: Model | str | Path | None = None, *, cc: str | None = None,
     model : Model, path or None
         The model (default: the packaged one).
     cc, cflags : str, tuple of str
-        C compiler and optimisation flags (default ``$CC`` or ``cc``; ``-O2 -fPIC -std=c99``).
+        C compiler and flags (default ``$CC`` or ``cc``; the flags of
+        :meth:`~hydrogen.runtime.compiler.Toolchain.flags`); ``cflags`` replaces them.
     cache : path
         Cache root (default ``$HYDROGEN_CACHE_DIR`` or ``~/.cache/hydrogen``).
     generated : path
@@ -309,11 +310,11 @@ def _generate_and_compile(model, folder, root, committed, generated, need, numbe
             # Progress around the compile call, not inside it: a build another process finished is no step.
             core = load.compile([CORE, *groups])[0]
             try:
-                lib = GeneratedLibrary(core, manifest, folder, load, numbers=model.numbers)
+                lib = GeneratedLibrary(core, manifest, folder, load, numbers=model.numbers, cache_root=root)
             except BuildCacheError:
                 # A cached build that does not match this runtime (other CasADi, other ABI): rebuild once.
                 lib = GeneratedLibrary(load.compile([CORE], force=True)[0], manifest, folder, load,
-                                       numbers=model.numbers)
+                                       numbers=model.numbers, cache_root=root)
         except BaseException:
             if extension is not None:
                 extension.join()  # not left to be killed mid-compile at exit

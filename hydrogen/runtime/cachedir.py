@@ -88,7 +88,8 @@ def warm_library(model, folder: Path, toolchain, cache_root: Path, loader, numbe
         lib_path = cached_library(Path(cache_root) / "build" / build_key(sources, toolchain))
         if lib_path is None:
             return None
-        return GeneratedLibrary(lib_path, manifest, folder, loader(manifest), numbers=model.numbers)
+        return GeneratedLibrary(lib_path, manifest, folder, loader(manifest), numbers=model.numbers,
+                                cache_root=cache_root)
     except (OSError, KeyError, TypeError, BuildCacheError):
         return None  # anything odd: the locked path decides (and reports)
 

@@ -157,9 +157,10 @@ class Toolchain:
         return f"{exe}\n{out.stdout}"
 
     def is_gcc(self) -> bool:
-        """Whether the compiler is GCC (its version text names the Free Software Foundation, and not
-        clang, which some systems install as gcc)."""
-        text = self.identity()
+        """Whether the compiler is GCC: its ``--version`` text (not its path) names the Free Software
+        Foundation and not clang (which some systems install as gcc). A wrapper that answers with its
+        own text (ccache) counts as not GCC: the build is then only without :data:`GCC_CFLAGS`."""
+        text = self.identity().partition("\n")[2]  # the identity's first line is the compiler's path
         return "Free Software Foundation" in text and "clang" not in text.lower()
 
     def flags(self) -> tuple:

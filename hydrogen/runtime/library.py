@@ -389,8 +389,11 @@ class GeneratedLibrary:
     """
 
     def __init__(self, path: Path, manifest: dict, generated_dir: Path | None = None, loader=None,
-                 numbers=None):
+                 numbers=None, cache_root: Path | None = None):
         self.path = Path(path)
+        #: the build cache root the libraries were compiled in (None: not known), whose object store
+        #: other compiles of the same sources (an FMU's) share
+        self.cache_root = None if cache_root is None else Path(cache_root)
         #: the values of the manifest's ``numbers`` (a folder generated with the description's numbers as
         #: inputs), from ``numbers`` (a dict by name, or what returns one: ``Model.numbers``, called only
         #: for such a folder); None for a folder with the numbers folded
