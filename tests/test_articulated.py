@@ -21,7 +21,7 @@ from hydrogen.symbolic.tree import SymbolicTree
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "benchmarks"))
 from bench_scaling import chain_model  # noqa: E402
-from test_staged_rigid_body import _branching_tree, _close, _pinocchio  # noqa: E402
+from test_staged_rigid_body import _branching_tree, _christoffel, _close, _pinocchio  # noqa: E402
 
 pin = pytest.importorskip("pinocchio")
 
@@ -112,22 +112,6 @@ def test_branched_tree_forward_dynamics_equals_pinocchio_and_D_C_G(rng):
         _close(rnea(q0, v0, a0, theta), pin.rnea(pm, data, q0, v0, a0))
         _close(crba(q0, v0, tau0, th0), D0)
         _close(crba(q0, v0, tau0, theta), _crba(pm, data, q0))
-
-
-def _christoffel(dg):
-    """(D, C, G) from ``dg`` (q, v, τ, θ) -> (D, G): C(q, v) of the Christoffel form by CasADi's own
-    differentiation of D (SymPy's of the closed-form D of a branched tree took most of a test)."""
-    import casadi as ca
-
-    q, v, tau, th = (ca.SX.sym(name, *dg.size_in(i)) for i, name in enumerate(("q", "v", "tau", "th")))
-    D, G = dg(q, v, tau, th)
-    n = D.shape[0]
-    dD = [ca.reshape(ca.jacobian(ca.vec(D), q[k]), n, n) for k in range(n)]  # dD[k][i, j] = ∂D_ij/∂q_k
-    C = ca.SX(n, n)
-    for i in range(n):
-        for j in range(n):
-            C[i, j] = sum(0.5 * (dD[k][i, j] + dD[j][i, k] - dD[i][j, k]) * v[k] for k in range(n))
-    return ca.Function("dcg", [q, v, tau, th], [D, C, G])
 
 
 def _instructions(n, stages_of):
