@@ -18,7 +18,7 @@ URDF_MODELS = [m for m in MODELS if hydrogen.load_model(m).urdf is not None] \
 @pytest.fixture(scope="module", params=URDF_MODELS)
 def robot(request, cache):
     model = hydrogen.load_model(request.param)
-    dyn = hydrogen.build(model, cache=cache)
+    dyn = hydrogen.build(model, cache=cache, controllers=())  # the rigid body's functions: the core alone
     pm = pin.buildModelFromUrdf(str(model.urdf))
     assert pm.nq == model.n and pm.nv == model.n  # same coordinates: revolute/prismatic joints in tree order
     return model, dyn, pm, pm.createData()
