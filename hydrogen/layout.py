@@ -11,6 +11,7 @@ import math
 
 from . import diagram  # the controller's input slots: the loop's ports
 from . import references  # the reference kinds' part of the configuration and their C
+from .estimators import kalman  # the Kalman filter's C statements
 from .names import NUMBERS  # the numbers input's name, part of the loop's layout
 from .plant.supply import PRESSURE as SUPPLY_PRESSURE  # the supply pressure's one name
 
@@ -373,5 +374,6 @@ def loop_context(manifest: dict) -> dict:
         "fk_status": FK_STATUS, "lu_pivot_min": c_double(LU_PIVOT_MIN),
         # each reference kind's statements of the loop's reference function (hydrogen's own C)
         "reference_bodies": [Markup(body) for body in references.c_bodies()],
+        "kalman_update": Markup(kalman.C_UPDATE),  # the Kalman filter's statements (hydrogen's own C)
     }
     return ctx

@@ -444,12 +444,12 @@ def test_kalman_gain_is_solved_once_per_setting(monkeypatch):
     per (period, noise, acceleration) in a process, and each caller gets its own array."""
     import scipy.linalg
 
-    from hydrogen.simulation import simulator
+    from hydrogen.estimators import kalman
 
     calls = []
     real = scipy.linalg.solve_discrete_are
     monkeypatch.setattr(scipy.linalg, "solve_discrete_are", lambda *a: (calls.append(a), real(*a))[1])
-    simulator._kalman_gain.cache_clear()
+    kalman._kalman_gain.cache_clear()
     a = kalman_gain(1 / 512, 2e-11, 1e-3)
     a[0] = -1.0  # the caller's own copy
     b = kalman_gain(1 / 512, 2e-11, 1e-3)

@@ -808,7 +808,7 @@ def test_a_sweeps_workers_take_the_kalman_gains_its_parent_solved(dyn, monkeypat
     worker neither imports SciPy for it nor solves the Riccati equation again."""
     import scipy.linalg
 
-    from hydrogen.simulation import simulator as S
+    from hydrogen.estimators import kalman as S
     from hydrogen.simulation import sweep as W
     runs = [dict(scenario="z-1hz", controller="p", duration=0.2, seed=s, gains={"Kleg": 0.05}) for s in (0, 1)]
     runs.append({"bogus": 1})

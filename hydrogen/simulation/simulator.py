@@ -14,6 +14,9 @@ from ..actuators import actuator
 from ..controllers import spec as controller_spec
 from ..dynamics import VELOCITY_SINGULAR, fk_failure
 from ..errors import KinematicsError, ScenarioError, SimulationError
+from ..estimators import kalman
+from ..estimators.kalman import (filter_gain, filter_gains, filter_setting, kalman_gain,  # noqa: F401
+                                 length_noise_variance, remember_filter_gains)
 from ..layout import LU_PIVOT_MIN, PREDICTOR_MODEL, SUPPLY_LOG
 from ..plant import describe_entries, friction, plant_layout, slot, state_vector
 from ..plant.supply import entries as supply_entries, nominal as supply_nominal, start as supply_start
@@ -703,66 +706,6 @@ def prepare_run(dyn, scenario, controller, gains, duration, check_workspace, ove
                      plan.theta0, plan.gamma0)
 
 
-def length_noise_variance(noise_l, quantization_l) -> float:
-    """Variance of a measured cylinder length, m²: white noise plus the encoder's quantisation
-    (uniform over one step Δ: Δ²/12); a floor of (1 nm)² keeps the filter defined without either."""
-    return max(float(noise_l) ** 2 + float(quantization_l) ** 2 / 12.0, 1e-18)
-
-
-def filter_gain(sc, h):
-    """The loop's one Kalman gain [K, K̇] (dimensionless, 1/s: the same on a length as on an angle) for
-    ``sc`` at period ``h``, designed for the scenario's (a cylinder's) noise_l, quantization_l and
-    kalman_accel; None without ``kalman``."""
-    return kalman_gain(*filter_setting(sc, h)) if sc.kalman else None
-
-
-def filter_setting(sc, h) -> tuple:
-    """(h, r, accel) of :func:`kalman_gain` for ``sc``'s filter at period ``h`` (s)."""
-    return float(h), length_noise_variance(sc.noise_l, sc.quantization_l), float(sc.kalman_accel)
-
-
-def filter_gains(settings) -> dict:
-    """{(h, r, accel): gain} of the filter ``settings`` (:func:`filter_setting`), solved (or remembered)
-    here: a sweep's parent hands them to its workers (:func:`remember_filter_gains`), which then
-    neither import SciPy nor solve the Riccati equation again."""
-    return {s: _kalman_gain(*s) for s in set(settings)}
-
-
-def remember_filter_gains(gains: dict) -> None:
-    """Take the gains :func:`filter_gains` solved in another process as this process's own."""
-    _KNOWN_GAINS.update(gains)
-
-
-#: Kalman gains by (h, r, accel) that a sweep's parent solved (:func:`remember_filter_gains`).
-_KNOWN_GAINS = {}
-
-
-def kalman_gain(h, r, accel):
-    """Steady-state gain [K_l, K_l̇] of the fixed-gain Kalman filter on one cylinder length.
-
-    Process model: constant velocity driven by white acceleration of spectral density ``accel``
-    (m²/s³), exactly discretised over the control period h: F = [1 h; 0 1],
-    Q = accel [h³/3 h²/2; h²/2 h]. Measurement: the length, variance ``r`` (m²). The predicted
-    covariance P solves the filter's DARE (scipy's solver, in its control form with Fᵀ, Hᵀ);
-    K = P Hᵀ (H P Hᵀ + r)⁻¹, applied after each prediction.
-    """
-    return np.array(_kalman_gain(float(h), float(r), float(accel)))
-
-
-@functools.lru_cache(maxsize=256)
-def _kalman_gain(h: float, r: float, accel: float) -> tuple:
-    # once per process and (period, noise, acceleration): a sweep's runs of one scenario share it
-    known = _KNOWN_GAINS.get((h, r, accel))
-    if known is not None:
-        return known
-    from scipy.linalg import solve_discrete_are
-    F = np.array([[1.0, h], [0.0, 1.0]])
-    Q = accel * np.array([[h ** 3 / 3, h ** 2 / 2], [h ** 2 / 2, h]])
-    H = np.array([[1.0, 0.0]])
-    P = solve_discrete_are(F.T, H.T, Q, np.array([[r]]))
-    return tuple(P[:, 0] / (P[0, 0] + r))
-
-
 def _describe(x, t, ctrl=None, xc=None, u=None):
     """Which signal went non-finite (the command, the controller state, the plant state), where, and
     the values: the first of them named is where the divergence shows first."""
@@ -905,8 +848,7 @@ class PythonStages:
         self.nq, self.m, self.n_p = model.n, model.n_cylinders, pc.size
         self._max_delay = MAX_DELAY
         self.u_hist = np.zeros((MAX_DELAY, self.m))  # the C loop's ring: command of period k in slot k % MAX_DELAY
-        self.kf = np.vstack([dyn.leg_lengths(q0), np.zeros(self.m)]) if kf_gain is not None else None
-        self._F = np.array([[1.0, h], [0.0, 1.0]])
+        self.kf = kalman.start(dyn.leg_lengths(q0)) if kf_gain is not None else None
         self.x, self.q_meas, self.k = x, q0.copy(), 0
         self.delay, self.delay_frac = sc.delay_split()
         self.u_app = np.zeros(self.m)  # the command the valves held at the end of the last period
@@ -951,8 +893,7 @@ class PythonStages:
         """Kalman filter, pose (encoders or forward kinematics, warm-started), velocities through JL.
         Raises :class:`KinematicsError` when forward kinematics fails."""
         if self.kf is not None:
-            self.kf = self._F @ self.kf
-            self.kf += np.outer(self.kf_gain, s.l_meas - self.kf[0])
+            self.kf = kalman.update(self.kf, s.l_meas, self.kf_gain, self.h)
             s.ldot = self.kf[1].copy()
         if s.q_enc is not None:
             self.q_meas = s.q_enc

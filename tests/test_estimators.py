@@ -1,0 +1,38 @@
+"""hydrogen/estimators: the Kalman filter written once, its numpy update and its C statements."""
+import numpy as np
+import pytest
+
+from hydrogen.estimators import kalman
+from hydrogen.runtime.build import repo_generated_dir
+
+
+def test_the_update_is_the_filters_predict_then_correct(rng):
+    """[l, l̇] predicted with F = [1 h; 0 1], then corrected with the gain against the measurement:
+    the matrix form of the filter, for each actuator."""
+    h, gain = 1 / 512, kalman.kalman_gain(1 / 512, 2e-11, 50.0)
+    kf = np.vstack([rng.uniform(0.5, 1.5, 4), rng.normal(size=4)])
+    meas = kf[0] + 0.01 * rng.normal(size=4)
+    F = np.array([[1.0, h], [0.0, 1.0]])
+    pred = F @ kf
+    expect = pred + np.outer(gain, meas - pred[0])
+    np.testing.assert_allclose(kalman.update(kf, meas, gain, h), expect, rtol=1e-15, atol=1e-15)
+    # a measurement on the prediction changes nothing but the prediction
+    np.testing.assert_array_equal(kalman.update(kf, kf[0] + h * kf[1], gain, h), np.vstack([kf[0] + h * kf[1], kf[1]]))
+
+
+def test_the_filter_starts_at_rest_at_the_lengths():
+    np.testing.assert_array_equal(kalman.start([0.5, 0.7]), [[0.5, 0.7], [0.0, 0.0]])
+
+
+@pytest.mark.parametrize("robot", ["ubc_stewart", "excavator_arm", "loader_crane"])
+def test_the_loop_driver_runs_the_modules_c_statements(robot):
+    """The committed loop driver of each robot holds C_UPDATE as the module writes it: one
+    definition, rendered (generate --check keeps the committed drivers current)."""
+    text = (repo_generated_dir() / robot / f"{robot}_loop.c").read_text()
+    assert text.count(kalman.C_UPDATE) == 1
+
+
+def test_the_gain_corrects_towards_the_measurement():
+    """A steady-state gain filters: 0 < K_l < 1 and K_l̇ > 0 (a rate pulled towards the residual)."""
+    K = kalman.kalman_gain(1 / 512, kalman.length_noise_variance(2e-6, 1e-5), 50.0)
+    assert 0 < K[0] < 1 and K[1] > 0
