@@ -36,3 +36,26 @@ def test_the_gain_corrects_towards_the_measurement():
     """A steady-state gain filters: 0 < K_l < 1 and K_l̇ > 0 (a rate pulled towards the residual)."""
     K = kalman.kalman_gain(1 / 512, kalman.length_noise_variance(2e-6, 1e-5), 50.0)
     assert 0 < K[0] < 1 and K[1] > 0
+
+
+def test_an_edit_of_the_filters_c_is_an_edit_of_the_derivation(tmp_path, monkeypatch):
+    """The filter's C reaches every loop driver: the derivation hash covers its module, so an edit
+    makes the committed and cached folders stale instead of running the old statements."""
+    import shutil
+    from pathlib import Path
+
+    from hydrogen.codegen import generate as gen
+
+    pkg = Path(gen.__file__).resolve().parent.parent
+    before = gen.derivation_hash()
+    copy = tmp_path / "package"
+    copy.mkdir()
+    for name in gen.DERIVATION_FILES:
+        shutil.copy(pkg / name, copy / name)
+    for sub in gen.DERIVATION_DIRS:
+        shutil.copytree(pkg / sub, copy / sub)
+    monkeypatch.setattr(gen, "_PACKAGE", copy)
+    assert gen.derivation_hash() == before
+    f = copy / "estimators" / "kalman.py"
+    f.write_text(f.read_text().replace("st->kf[i] = lp + c->kf_gain[0] * r;", "st->kf[i] = lp + c->kf_gain[0] * r * 1.0;"))
+    assert gen.derivation_hash() != before

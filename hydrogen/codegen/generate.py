@@ -49,9 +49,10 @@ DRIVERS = (("loop.h.j2", "_loop.h"), ("loop.c.j2", "_loop.c"))
 #: (the numbers input's), the registries' discovery (which blocks are found, in which order).
 DERIVATION_FILES = ("layout.py", "diagram.py", "templating.py", "pressures.py", "names.py", "registry.py")
 #: The package's folders of derivation code; in the blocks' folders, a block's own module is hashed
-#: apart (:func:`block_hash`) and shapes only the functions that use it. The reference kinds shape
-#: every robot's loop (its configuration and its C reference function).
-DERIVATION_DIRS = ("symbolic", "codegen", "controllers", "actuators", "plant", "references")
+#: apart (:func:`block_hash`) and shapes only the functions that use it. The reference kinds and the
+#: estimators shape every robot's loop (its configuration, its C reference function, the Kalman
+#: filter's statements).
+DERIVATION_DIRS = ("symbolic", "codegen", "controllers", "actuators", "plant", "references", "estimators")
 
 
 def _block_files() -> dict:
