@@ -544,6 +544,7 @@ def _compile(sources: dict, c_files, ident, toolchain, cache=None) -> bytes:
     keyed by their bytes, headers and flags: exporting again (another part, scenario or gain) compiles
     only the glue and what changed. The glue (``c_files[0]``, its GUID and params.h new with every
     export's settings) is compiled for this export alone."""
+    from .errors import CompilerError
     from .fileio import write_file
     from .runtime.compiler import Toolchain, compile_objects, link_shared, object_store
 
@@ -556,12 +557,15 @@ def _compile(sources: dict, c_files, ident, toolchain, cache=None) -> bytes:
         for name, data in sources.items():
             write_file(Path(tmp) / name, data)
         paths = [Path(tmp) / c for c in c_files]
-        glue = compile_objects(paths[:1], Path(tmp), argv, tc.timeout, identity=tc.identity())
-        shared = compile_objects(paths[1:], Path(tmp) / "shared", argv, tc.timeout, store=store,
-                                 identity=tc.identity())
-        lib = Path(tmp) / f"{ident}.so"
-        link_shared(paths, [*glue, *shared], lib, argv, tc.timeout, store=store, identity=tc.identity(),
-                    link_flags=("-Wl,-Bsymbolic",), cwd=tmp)
+        try:
+            glue = compile_objects(paths[:1], Path(tmp), argv, tc.timeout, identity=tc.identity())
+            shared = compile_objects(paths[1:], Path(tmp) / "shared", argv, tc.timeout, store=store,
+                                     identity=tc.identity())
+            lib = Path(tmp) / f"{ident}.so"
+            link_shared(paths, [*glue, *shared], lib, argv, tc.timeout, store=store, identity=tc.identity(),
+                        link_flags=("-Wl,-Bsymbolic",), cwd=tmp)
+        except CompilerError as exc:  # name each source as the FMU holds it, not by the scratch folder
+            raise CompilerError(str(exc).replace(f"{tmp}/", "sources/")) from None
         return lib.read_bytes()
 
 

@@ -332,6 +332,20 @@ def test_a_second_export_compiles_only_its_own_glue(dyn, tmp_path, monkeypatch):
     assert loop.exists()
 
 
+def test_a_compile_error_names_the_source_as_the_fmu_holds_it(dyn, tmp_path):
+    """A source that does not compile is named sources/<file> (where the FMU keeps it), never by the
+    scratch folder the export compiled in and removed."""
+    from hydrogen.errors import CompilerError
+    from hydrogen.runtime.compiler import DEFAULT_CFLAGS, Toolchain
+
+    bad = Toolchain(cflags=(*DEFAULT_CFLAGS, "-Dfmi2Instantiate=@"))  # breaks the glue's definition
+    with pytest.raises(CompilerError) as err:
+        export_fmu(tmp_path / "bad.fmu", "plant", "z-1hz", "p", dyn=dyn, duration=DURATION, toolchain=bad)
+    text = str(err.value)
+    assert "sources/fmu.c" in text and "hydrogen-fmu-" not in text
+    assert not (tmp_path / "bad.fmu").exists()
+
+
 def test_bad_input_is_refused_before_any_work(dyn, tmp_path):
     with pytest.raises(FmuError, match="unknown FMU part 'sensor'"):
         export_fmu(tmp_path / "x.fmu", "sensor", "z-1hz", dyn=dyn)
