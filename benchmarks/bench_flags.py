@@ -77,7 +77,8 @@ def run_robot(name: str, quick: bool = False) -> dict:
         for label, flags in flag_sets().items():
             cache = Path(tmp) / f"cache{len(out['flags'])}"
             t0 = time.perf_counter()
-            dyn = hydrogen.build(model, cflags=flags, cache=cache, generated=folder)
+            # the core and the controller the loop runs (the variant its gains run), as a first run compiles
+            dyn = hydrogen.build(model, cflags=flags, cache=cache, generated=folder, controllers=(CONTROLLER,))
             compile_s = time.perf_counter() - t0
             out["flags"][label] = {"cflags": list(flags), "compile_s": compile_s,
                                    "loop_us_per_period": _loop_us(dyn, scenario, 3 if quick else 7)}
@@ -123,15 +124,15 @@ def run(quick: bool = False) -> dict:
 def print_table(res):
     for r in res["robots"].values():
         print(f"{r['model']}: {r['scenario']} with {CONTROLLER}")
-        print(f"{'flags':30} {'compile s':>10} {'loop us/period':>15}")
+        print(f"{'flags':34} {'compile s':>10} {'loop us/period':>15}")
         for k, v in r["flags"].items():
-            print(f"{k:30} {v['compile_s']:10.2f} {v['loop_us_per_period']:15.2f}")
+            print(f"{k:34} {v['compile_s']:10.2f} {v['loop_us_per_period']:15.2f}")
         print()
     c = res.get("chain")
     if c:
         print(f"planar chain, n = {c['n']}: {c['source']} ({c['source_kb']:.0f} kB) compiled alone")
         for k, v in c["compile_s"].items():
-            print(f"{k:30} {v:10.2f} s")
+            print(f"{k:34} {v:10.2f} s")
 
 
 if __name__ == "__main__":

@@ -249,8 +249,8 @@ def _flags(b) -> list:
     first = robots[next(iter(robots))]["flags"]
     chain = b.get("chain") or {}
     out = ["## Compiler flags", "", "C loop µs per period of each robot's simulation scenario with adaptive-robust, "
-           "and in brackets the seconds of `hydrogen.build` from a clean cache (the core library: the "
-           "controller's compiles at its first use) (`benchmarks/bench_flags.py`)"
+           "and in brackets the seconds of `hydrogen.build` from a clean cache (the core library and "
+           "adaptive-robust's, the variant the scenario's gains run) (`benchmarks/bench_flags.py`)"
            + (f"; the last column: seconds to compile the largest source of the {chain['n']}-link planar chain "
               f"(`{chain['source']}`, {chain['source_kb']:.0f} kB, what its first adaptive run waits for), "
               "one compiler alone" if chain else "") + ":", ""]
