@@ -255,9 +255,9 @@ def compile_objects(sources: list, out_dir: Path, argv: list, timeout: float, jo
     inputs = [None] * len(sources)  # what a stored object is compiled from: the bytes its key covers
     if store is not None:
         for i, s in enumerate(sources):
-            files = _with_includes(s, s.read_bytes()) if _storable_flags(argv) else None
-            if files is not None:
-                inputs[i], objects[i] = files, Path(store) / f"{_object_key(files, argv, identity)}.o"
+            entry = _store_entry(store, s, argv, identity)
+            if entry is not None:
+                inputs[i], objects[i] = entry
     order = sorted(range(len(sources)), key=lambda i: -sources[i].stat().st_size)
     failed = threading.Event()  # set by the failing compile itself: no queued compile starts after it
 
@@ -355,6 +355,15 @@ def _with_includes(source: Path, data: bytes) -> list | None:
     return out
 
 
+def _store_entry(store: Path, source: Path, argv: list, identity: str):
+    """``(files, object path)`` of ``source`` in the object ``store``: the bytes its key covers (read
+    now) and where its object is kept; None where the key cannot cover every header it includes."""
+    files = _with_includes(source, source.read_bytes()) if _storable_flags(argv) else None
+    if files is None:
+        return None
+    return files, Path(store) / f"{_object_key(files, argv, identity)}.o"
+
+
 def _object_key(files: list, argv: list, identity: str) -> str:
     """SHA-256 of an object's inputs: the source and its local headers (names and bytes), the
     compiler's identity and its flags."""
@@ -446,15 +455,15 @@ def precompile(sources: list, toolchain: Toolchain | None = None, cache: Path | 
     or removed meanwhile (a generated folder is written in a staging folder, then swapped in).
     Failures are not raised here: the library's own compile meets them again and names them."""
     toolchain = toolchain or Toolchain()
-    store = Path(cache or cache_root()) / OBJECTS
+    store = object_store(cache)
     argv, identity = toolchain.argv(), toolchain.identity()
-    if not _storable_flags(argv):
+    if store is None or not _storable_flags(argv):
         return
     for source in map(Path, sources):
-        files = _with_includes(source, source.read_bytes())
-        if files is None:
+        entry = _store_entry(store, source, argv, identity)
+        if entry is None:
             continue  # a header the key cannot follow: left to the library's compile
-        obj = store / f"{_object_key(files, argv, identity)}.o"
+        files, obj = entry
         with _STARTED_LOCK:
             if obj not in _STARTED and not obj.is_file():
                 _STARTED[obj] = _in_background(_compile_copy, files, obj, argv, toolchain.timeout)
@@ -518,8 +527,9 @@ def compile_libraries(libraries: list, toolchain: Toolchain | None = None, cache
                 if old.is_dir():
                     shutil.rmtree(old, ignore_errors=True)
         argv = toolchain.argv()
-        store, identity = root / OBJECTS, toolchain.identity()
-        _sweep(store, older_than=max(toolchain.timeout, 3600.0))
+        store, identity = object_store(root), toolchain.identity()
+        if store is not None:
+            _sweep(store, older_than=max(toolchain.timeout, 3600.0))
         with tempfile.TemporaryDirectory(dir=missing[0][3]) as tmp:
             every = [s for m in missing for s in m[0]]
             objects = compile_objects(every, Path(tmp), argv, toolchain.timeout, jobs, store, force, identity)

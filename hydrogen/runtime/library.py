@@ -20,7 +20,7 @@ from ..errors import BuildCacheError
 from ..layout import NUMBERS
 
 __all__ = ["GeneratedLibrary", "CompiledFunction", "LazyFunctions", "load_failure", "function_groups", "group_sources",
-           "group_name", "group_of", "controller_groups", "CORE"]
+           "group_name", "group_of", "CORE"]
 
 _c_int = ctypes.c_longlong  # casadi_int, fixed by the code generator options
 _DOUBLE_P = ctypes.POINTER(ctypes.c_double)
@@ -330,14 +330,6 @@ def function_groups(manifest: dict) -> dict:
             if mine:
                 groups[group_name(kind, variant)] = mine
     return groups
-
-
-def controller_groups(manifest: dict, kind: str) -> list:
-    """The libraries of controller ``kind`` (:func:`function_groups`): its full and lean variants'."""
-    from ..controllers import LEAN
-
-    groups = function_groups(manifest)
-    return [g for g in (group_name(kind), group_name(kind, LEAN)) if g in groups]
 
 
 def group_sources(manifest: dict, group: str) -> list:
