@@ -40,6 +40,7 @@ import numpy as np
 
 import hydrogen
 from hydrogen.errors import HydrogenError
+from hydrogen.plant import integrator
 from hydrogen.simulation.scenarios import scenario as named_scenario, scenario_names, variant_names
 from hydrogen.simulation.simulator import Batch
 
@@ -80,11 +81,8 @@ def predicting_scenarios(model, quick: bool = False) -> list:
 def plant_steps(sc) -> int:
     """RK4 steps of the plant per control period: ``substeps``, or, when the command switches inside the
     period (a fraction of a period of delay), each part's share rounded up (the C loop's plant_step)."""
-    n = sc.substeps
     _, frac = sc.delay_split()
-    if frac > 0:
-        return max(math.ceil(frac * n), 1) + max(math.ceil((1.0 - frac) * n), 1)
-    return n
+    return sum(n for n, _ in integrator.period_pieces(sc.substeps, frac, 1.0))
 
 
 def predictor_steps(sc) -> int:

@@ -13,6 +13,7 @@ from . import diagram  # the controller's input slots: the loop's ports
 from . import references  # the reference kinds' part of the configuration and their C
 from .estimators import kalman  # the Kalman filter's C statements
 from .names import NUMBERS  # the numbers input's name, part of the loop's layout
+from .plant import integrator  # the plant's integration: its C functions
 from .plant.supply import PRESSURE as SUPPLY_PRESSURE  # the supply pressure's one name
 
 __all__ = ["NUMBERS", "SUPPLY_LOG", "MAX_DELAY", "PREDICTOR_MODEL", "FK_TOL", "FK_MAX_ITER", "FK_MAX_COND", "FK_STATUS", "LU_PIVOT_MIN",
@@ -375,5 +376,10 @@ def loop_context(manifest: dict) -> dict:
         # each reference kind's statements of the loop's reference function (hydrogen's own C)
         "reference_bodies": [Markup(body) for body in references.c_bodies()],
         "kalman_update": Markup(kalman.C_UPDATE),  # the Kalman filter's statements (hydrogen's own C)
+        # the plant's integration (hydrogen's own C): RK4 holding each command, the pressures held within
+        # their bounds, the sub-steps shared out around a command switch, the predictor's step count
+        "integrator_functions": Markup(integrator.c_functions(x_index["pc"])),
+        "integrator_period": Markup(integrator.C_PERIOD.substitute(failed=f"{name.upper()}_CTRL_FAILED")),
+        "predictor_steps": Markup(integrator.C_PREDICTOR_STEPS),
     }
     return ctx

@@ -7,7 +7,8 @@ import pytest
 
 import hydrogen
 from hydrogen.simulation.scenarios import Scenario, scenario
-from hydrogen.simulation.simulator import _rk4, equilibrium_pressures, kalman_gain, length_noise_variance, simulate
+from hydrogen.plant.integrator import rk4 as _rk4
+from hydrogen.simulation.simulator import equilibrium_pressures, kalman_gain, length_noise_variance, simulate
 
 from conftest import plant_inputs
 

@@ -12,7 +12,8 @@ from hydrogen.codegen.sympy_to_casadi import SympyToCasadi
 from hydrogen.simulation.control import make_controller
 from hydrogen.simulation.reference import MultiSine
 from hydrogen.simulation.scenarios import scenario
-from hydrogen.simulation.simulator import _rk4, equilibrium_pressures, simulate
+from hydrogen.plant.integrator import rk4 as _rk4
+from hydrogen.simulation.simulator import equilibrium_pressures, simulate
 from hydrogen.controllers import controller as controller_module
 
 from conftest import plant_inputs

@@ -3,8 +3,6 @@ in its description (``[scenarios.<name>]``, over the shared ``[rig]`` table); fo
 they are section V's simulation and section VI's experiments, in simulation."""
 from __future__ import annotations
 
-import math
-
 from collections.abc import Mapping
 from dataclasses import dataclass, replace
 
@@ -13,6 +11,7 @@ import numpy as np
 from .. import references
 from ..errors import ScenarioError
 from ..layout import MAX_DELAY, delay_split
+from ..plant import integrator
 from ..scenario_settings import (_FIELDS, RENAMED, VARIANT_SEPARATOR, ScenarioFields, setting, settings,  # noqa: F401
                                  table_keys)
 from .checks import check_fields
@@ -52,7 +51,7 @@ class Scenario(ScenarioFields):
     def predictor_steps(self, periods: float) -> int:
         """RK4 steps the delay predictor takes over ``periods`` control periods of one held command:
         no step longer than a period / ``predictor_substeps``, at least one (the C loop's ``pred_hold``)."""
-        return max(math.ceil(periods * self.predictor_substeps - 1e-9), 1)
+        return integrator.predictor_steps(periods, self.predictor_substeps)
 
     def with_overrides(self, **kw):
         """A copy with the given fields replaced and validated; an unknown field raises ScenarioError."""

@@ -18,7 +18,7 @@ from ..estimators import kalman
 from ..estimators.kalman import (filter_gain, filter_gains, filter_setting, kalman_gain,  # noqa: F401
                                  length_noise_variance, remember_filter_gains)
 from ..layout import LU_PIVOT_MIN, PREDICTOR_MODEL, SUPPLY_LOG
-from ..plant import describe_entries, friction, plant_layout, slot, state_vector
+from ..plant import describe_entries, friction, integrator, plant_layout, slot, state_vector
 from ..plant.supply import entries as supply_entries, nominal as supply_nominal, start as supply_start
 from ..summary import SATURATED_AT, SATURATION, estimated_blocks  # saturation: defined with its line
 from .checks import _shown, check_against_model, check_run_size, checked_float, metric_window
@@ -247,35 +247,6 @@ def equilibrium_pressures(dyn, q, theta) -> np.ndarray:
     (JL)ᵀ f = G, each actuator's pressures its kind's ``equilibrium_pressures``."""
     f = np.linalg.solve(dyn.leg_jacobian(q).T, dyn.gravity(q, theta))
     return pressures.equilibrium(dyn.model, f)
-
-
-def _rk4(rhs, x, h):
-    k1 = rhs(x)
-    k2 = rhs(x + 0.5 * h * k1)
-    k3 = rhs(x + 0.5 * h * k2)
-    k4 = rhs(x + h * k3)
-    return x + (h / 6.0) * (k1 + 2 * k2 + 2 * k3 + k4)
-
-
-def _bounded_steps(rhs, x, n, h, pc, lo, hi, stages: bool):
-    """``n`` RK4 steps of ``h`` (s) of the plant rate ``rhs``, its pressures ``x[pc]`` held within [lo, hi]
-    as the C loop's ``hold`` holds them: each step's result clipped and, with ``stages`` (the scenario's
-    ``pressure_bounds = "stage"``), at every stage the pressures clipped and one at a bound not rating
-    past it (``stage_rate``)."""
-    def rate(y):
-        y = y.copy()
-        p = np.clip(y[pc], lo, hi)
-        y[pc] = p
-        r = np.array(rhs(y), float).ravel()
-        rp = r[pc]
-        rp[((p <= lo) & (rp < 0)) | ((p >= hi) & (rp > 0))] = 0.0
-        r[pc] = rp
-        return r
-
-    for _ in range(n):
-        x = _rk4(rate if stages else rhs, x, h)
-        np.clip(x[pc], lo, hi, out=x[pc])  # e.g. 0 ≤ p_c ≤ p_s
-    return x
 
 
 def simulate(dyn, scenario, controller: str, *, gains=None, duration=None, check_workspace=True,
@@ -969,7 +940,7 @@ class PythonStages:
         def hold(x, u, dt):
             n = self.sc.predictor_steps(dt / h)
             rhs = lambda xx: self._rhs_fn(xx, u, th, g1, g2, self._pred_fric, self._pred_valve)  # noqa: E731
-            return _bounded_steps(rhs, x, n, dt / n, pc, self._lo, self._hi, self._stages)
+            return integrator.bounded_steps(rhs, x, n, dt / n, pc, self._lo, self._hi, self._stages)
 
         if self.delay_frac > 0:
             x = hold(x, self.u_app, self.delay_frac * h)
@@ -984,20 +955,20 @@ class PythonStages:
     def integrate(self, x, u_held, u_app, substeps: int) -> np.ndarray:
         """The plant state one period after ``x``: ``substeps`` RK4 sub-steps holding ``u_held`` over the
         period's first ``delay_frac`` h and ``u_app`` over the rest (the sub-steps shared out as the C
-        loop does), each pressure held within its bounds (:func:`_bounded_steps`); ``x`` itself is not
-        changed."""
+        loop does: :func:`hydrogen.plant.integrator.period_pieces`), each pressure held within its bounds
+        (:func:`hydrogen.plant.integrator.bounded_steps`); ``x`` itself is not changed."""
         pc, lo, hi = self._pc, self._lo, self._hi
         th, g = self.model.theta, self.model.gamma
 
         def hold(x, u, n, hs):
             rhs = lambda xx: self._rhs_fn(xx, u, th, g[0], g[1], self._fric, self._valve)  # noqa: E731
-            return _bounded_steps(rhs, x, n, hs, pc, lo, hi, self._stages)
+            return integrator.bounded_steps(rhs, x, n, hs, pc, lo, hi, self._stages)
 
-        n, frac, h = substeps, self.delay_frac, self.h
-        if frac > 0:
-            n1, n2 = max(int(np.ceil(frac * n)), 1), max(int(np.ceil((1.0 - frac) * n)), 1)  # no step > h/n
-            return hold(hold(x, u_held, n1, frac * h / n1), u_app, n2, (1.0 - frac) * h / n2)
-        return hold(x, u_app, n, h / n)
+        pieces = integrator.period_pieces(substeps, self.delay_frac, self.h)
+        held = (u_held, u_app) if len(pieces) == 2 else (u_app,)  # the piece before a switch first
+        for (n, hs), u in zip(pieces, held):
+            x = hold(x, u, n, hs)
+        return x
 
     def after_period(self) -> None:
         """The controller state's forward-Euler update after the period (``estimator_update="euler"``)."""
