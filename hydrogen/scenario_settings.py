@@ -1,6 +1,13 @@
-"""What a scenario table of a description may hold, declared once: the fields of a scenario (each
-with its default, unit, meaning and check), the keys of ``[scenarios.<name>]``, ``[rig]`` and
-``[variants.<name>]`` tables, the renamed fields and the separator of ``<scenario>.<variant>``.
+"""What a scenario table of a description may hold: the fields of a scenario (each setting with its
+default, unit, meaning and check, declared by the part of the loop that reads it), the keys of
+``[scenarios.<name>]``, ``[rig]`` and ``[variants.<name>]`` tables, the renamed fields and the separator
+of ``<scenario>.<variant>``.
+
+A part that is a module of its own declares its settings there (``SCENARIO_SETTINGS``: the plant's
+integration :mod:`hydrogen.plant.integrator`, its valve :mod:`hydrogen.plant.valve` and friction
+:mod:`hydrogen.plant.friction`, the Kalman filter :mod:`hydrogen.estimators.kalman`); the loop's other
+parts (the run, the sensors, the computation delay, the delay predictor, the adaptation's schedule, the
+controller's start) declare theirs below. :data:`PARTS` gathers them in the description table's order.
 
 Plain data: the description's loader (:mod:`hydrogen.model`, :mod:`hydrogen.schema`) checks a
 table's keys against it without the simulation, and :class:`hydrogen.simulation.scenarios.Scenario`
@@ -8,84 +15,119 @@ is these fields with a run's behaviour (checks, overrides, the delay's split).
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field, fields
+from dataclasses import dataclass, field, fields, make_dataclass
 
-__all__ = ["ScenarioFields", "setting", "settings", "table_keys", "RENAMED", "VARIANT_SEPARATOR"]
+from .estimators import kalman
+from .plant import friction, integrator, valve
+from .setting import setting
+
+__all__ = ["ScenarioFields", "PARTS", "Part", "setting", "settings", "part_of", "table_keys", "RENAMED",
+           "VARIANT_SEPARATOR"]
 
 #: Scenario fields that were renamed: the old name and what to write instead (named in the error).
 RENAMED = {"delay_periods": "delay (the computation delay in s; one period is 1/control_rate)"}
 
 
-def setting(default, unit: str, meaning: str, check: str | None = None, default_text: str | None = None):
-    """A scenario field that a description's ``[scenarios.<name>]`` or ``[rig]`` table may set, declared
-    once: its default (None: required), unit and meaning (the description table's row, rendered by
-    :func:`hydrogen.schema.description_table`) and its check: ``"number"`` a finite number, ``">=0"``
-    also not negative (None: checked by
-    :meth:`hydrogen.simulation.scenarios.Scenario.validated` itself)."""
-    meta = {"unit": unit, "meaning": meaning, "check": check, "default_text": default_text}
-    return field(metadata=meta) if default is None else field(default=default, metadata=meta)
+@dataclass(frozen=True)
+class Part:
+    """A part of the loop and the scenario settings it reads: ``name`` (the description table's label),
+    ``settings`` ({field name: :func:`setting`}, in order)."""
+
+    name: str
+    settings: dict
+
+
+_RUN = {
+    "duration": setting(None, "s", "length of the run", "number"),
+    "control_rate": setting(None, "Hz", "control rate, zero-order hold", "number"),
+    "metric_start": setting(0.0, "s", "metrics over t ≥ this (clamped to the run)", "number"),
+    "q0_offset": setting((), "m, rad", "start pose offset from q_d(0), one per coordinate",
+                         default_text="0 for every coordinate"),
+    "seed": setting(0, "", "noise seed"),
+}
+_SENSORS = {
+    "quantization_l": setting(0.0, "m", "cylinder-length encoder resolution (0: none)", ">=0"),
+    "noise_l": setting(0.0, "m", "std of white cylinder-length noise", ">=0"),
+    "noise_q": setting(0.0, "rad or m", "std of white joint-encoder noise (robots with joint encoders)", ">=0"),
+    "noise_p": setting(0.0, "Pa", "std of white pressure noise", ">=0"),
+    "noise_ps": setting(0.0, "Pa", "std of white noise on the measured supply pressure (a [supply] that is "
+                        "not constant)", ">=0"),
+}
+_HOLD = {
+    "delay": setting(0.0, "s", "computation delay: the command computed at t_k is applied from t_k + this (0 to "
+                     "8 control periods; a fraction of a period switches the command inside the plant's "
+                     "sub-steps)", "number"),
+}
+_PREDICTOR = {
+    "predictor": setting(False, "", "delay compensation: the command is computed at the state predicted for "
+                         "t_k + delay by the controller's own model (its estimates where it adapts them, "
+                         "ideal valve, no friction) over the commands still in flight, and at the reference "
+                         "of that time"),
+    "predictor_substeps": setting(4, "", "the predictor's RK4 steps per control period (a fraction of a period "
+                                  "takes its share, at least one)"),
+}
+_SCHEDULE = {
+    "t_adapt": setting(None, "s", "adaptation switched on from this time", "number"),
+}
+_CONTROLLER = {
+    "theta0_factor": setting((), "", "initial θ̂ = θ × factor, one per parameter",
+                             default_text="1 for every parameter"),
+    "gamma0_factor": setting((1.0, 1.0), "", "initial [γ̂1, γ̂2] = γ × factor"),
+    "estimator_update": setting("semi-implicit", "", 'controller state update: "semi-implicit" or "euler"'),
+    "supply_feedback": setting(True, "", "the controllers read the measured supply pressure in their ps "
+                               "input; false: the description's supply_pressure, a controller assuming a "
+                               "constant supply (a [supply] that is not constant)"),
+}
+
+#: The parts of the loop whose settings a scenario holds, in the description table's order.
+PARTS = (
+    Part("run", _RUN),
+    Part("plant integration", integrator.SCENARIO_SETTINGS),
+    Part("valve", valve.SCENARIO_SETTINGS),
+    Part("friction", friction.SCENARIO_SETTINGS),
+    Part("sensors", _SENSORS),
+    Part("estimator", kalman.SCENARIO_SETTINGS),
+    Part("computation delay", _HOLD),
+    Part("delay predictor", _PREDICTOR),
+    Part("adaptation schedule", _SCHEDULE),
+    Part("controller", _CONTROLLER),
+)
+
+
+def _assemble():
+    seen = {}
+    for part in PARTS:
+        for name in part.settings:
+            if name in seen:
+                raise RuntimeError(f"scenario setting '{name}' is declared by both {seen[name]} and {part.name}")
+            seen[name] = part.name
+    own = [("name", str), ("reference", object)]
+    declared = [(name, object, decl) for part in PARTS for name, decl in part.settings.items()]
+    rest = [("actuators", dict, field(default_factory=dict)),  # actuator name -> {PER_ACTUATOR setting: value}
+            ("gains", dict, field(default_factory=dict)),  # controller name -> gain overrides for this scenario
+            ("label", str, field(default="")),  # caption in figures and tables
+            ("paper", dict, field(default_factory=dict))]  # published max errors (%): {coordinate: [nonlinear, P]}
+    return make_dataclass("ScenarioFields", own + declared + rest, frozen=True, kw_only=True,
+                          namespace={"__doc__": _FIELDS_DOC, "__module__": __name__})
+
+
+_FIELDS_DOC = """The fields of a scenario (:class:`hydrogen.simulation.scenarios.Scenario`), SI units, keywords
+only: ``name``, ``reference``, every setting of :data:`PARTS` (the description table in the
+documentation lists them), ``actuators`` (actuator name -> its own settings), ``gains`` (controller
+name -> gain overrides), ``label`` (the caption in figures and tables) and ``paper`` (the published max
+errors, %: {coordinate: [nonlinear, P]})."""
+
+ScenarioFields = _assemble()
 
 
 def settings() -> tuple:
-    """The :class:`ScenarioFields` a description table may set, in declaration order (dataclass fields)."""
+    """The :class:`ScenarioFields` a description table may set (dataclass fields), part by part."""
     return tuple(f for f in fields(ScenarioFields) if "unit" in f.metadata)
 
 
-@dataclass(frozen=True)
-class ScenarioFields:
-    """The fields of a scenario (:class:`hydrogen.simulation.scenarios.Scenario`). Units SI.
-
-    Each field a description may set is declared below with its default, unit, meaning and check
-    (:func:`setting`; the description table in the documentation lists them)."""
-
-    name: str
-    reference: object
-    duration: float = setting(None, "s", "length of the run", "number")
-    control_rate: float = setting(None, "Hz", "control rate, zero-order hold", "number")
-    substeps: int = setting(None, "", "RK4 plant steps per control period")
-    t_adapt: float = setting(None, "s", "adaptation switched on from this time", "number")
-    friction: tuple = setting((0.0, 0.0, 1e-3), "N, N s/m, m/s", "per cylinder: Coulomb, viscous, tanh smoothing speed")
-    valve_lag: float = setting(0.0, "s", "first-order valve lag (0: none); exclusive with valve_bandwidth_hz", ">=0")
-    valve_bandwidth_hz: float = setting(0.0, "Hz", "second-order servo-valve natural frequency (the spool lags 90° "
-                                        "there); 0: none", ">=0")
-    valve_damping: float = setting(0.7, "", "second-order valve damping ratio", "number")
-    delay: float = setting(0.0, "s", "computation delay: the command computed at t_k is applied from t_k + this (0 to "
-                           "8 control periods; a fraction of a period switches the command inside the plant's "
-                           "sub-steps)", "number")
-    predictor: bool = setting(False, "", "delay compensation: the command is computed at the state predicted for "
-                              "t_k + delay by the controller's own model (its estimates where it adapts them, "
-                              "ideal valve, no friction) over the commands still in flight, and at the reference "
-                              "of that time")
-    predictor_substeps: int = setting(4, "", "the predictor's RK4 steps per control period (a fraction of a period "
-                                      "takes its share, at least one)")
-    quantization_l: float = setting(0.0, "m", "cylinder-length encoder resolution (0: none)", ">=0")
-    noise_l: float = setting(0.0, "m", "std of white cylinder-length noise", ">=0")
-    noise_q: float = setting(0.0, "rad or m", "std of white joint-encoder noise (robots with joint encoders)", ">=0")
-    noise_p: float = setting(0.0, "Pa", "std of white pressure noise", ">=0")
-    noise_ps: float = setting(0.0, "Pa", "std of white noise on the measured supply pressure (a [supply] that is "
-                              "not constant)", ">=0")
-    supply_feedback: bool = setting(True, "", "the controllers read the measured supply pressure in their ps "
-                                    "input; false: the description's supply_pressure, a controller assuming a "
-                                    "constant supply (a [supply] that is not constant)")
-    kalman: bool = setting(False, "", "cylinder rates from fixed-gain Kalman filters (else exact)")
-    kalman_accel: float = setting(50.0, "m²/s³", "the filter's white-acceleration density", ">=0")
-    theta0_factor: tuple = setting((), "", "initial θ̂ = θ × factor, one per parameter",
-                                   default_text="1 for every parameter")
-    gamma0_factor: tuple = setting((1.0, 1.0), "", "initial [γ̂1, γ̂2] = γ × factor")
-    metric_start: float = setting(0.0, "s", "metrics over t ≥ this (clamped to the run)", "number")
-    q0_offset: tuple = setting((), "m, rad", "start pose offset from q_d(0), one per coordinate",
-                               default_text="0 for every coordinate")
-    seed: int = setting(0, "", "noise seed")
-    estimator_update: str = setting("semi-implicit", "", 'controller state update: "semi-implicit" or "euler"')
-    pressure_bounds: str = setting("stage", "", 'how the plant holds each pressure within its bounds (a chamber '
-                                   'that would cavitate stays at 0): "stage" clips at every RK4 stage, where a '
-                                   'pressure at a bound does not rate past it (RK4 keeps its order); "step" only '
-                                   'after each step (first order where a pressure rests on a bound)')
-    #: actuator name -> {setting of PER_ACTUATOR: value in that actuator's own unit}
-    actuators: dict = field(default_factory=dict)
-    gains: dict = field(default_factory=dict)  # controller name -> gain overrides for this scenario
-    label: str = ""        # caption in figures and tables (e.g. the paper's figure it reproduces)
-    paper: dict = field(default_factory=dict)  # published max errors (%): {coordinate: [nonlinear, P]}
+def part_of(name: str) -> str:
+    """The name of the part of the loop that declares scenario setting ``name`` (KeyError: none)."""
+    return next(part.name for part in PARTS if name in part.settings)
 
 
 def _field_names() -> tuple:

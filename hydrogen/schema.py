@@ -315,7 +315,7 @@ def _actuator_rows() -> list:
 
 def description_table() -> str:
     """Markdown: every description key and scenario field with its unit, default and meaning."""
-    from .scenario_settings import settings
+    from .scenario_settings import part_of, settings
     lines = ["| table | key | unit | default | meaning |", "|---|---|---|---|---|"]
     for k in DESCRIPTION_KEYS + SCENARIO_TABLE_KEYS + VARIANT_KEYS:
         shown = k.default_text or ("none" if k.default is None else _toml(k.default))
@@ -326,5 +326,5 @@ def description_table() -> str:
         shown = meta["default_text"] or ("required (here or in [rig])" if f.default is dataclasses.MISSING
                                          else _toml(f.default))
         lines.append(_row("[scenarios.<name>], [rig], [variants.<name>]", f.name, meta["unit"], shown,
-                          meta["meaning"]))
+                          f"*{part_of(f.name)}*: {meta['meaning']}"))  # grouped by the part that reads it
     return "\n".join(lines) + "\n"

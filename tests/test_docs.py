@@ -204,7 +204,33 @@ def test_scenario_rows_come_from_the_fields_own_declarations(monkeypatch):
     monkeypatch.setattr(scenarios, "settings", lambda: tuple(patched if f.name == "seed" else f
                                                              for f in dataclasses.fields(scenarios.ScenarioFields)
                                                              if "unit" in f.metadata))
-    assert "| `seed` | – | 7 | a changed meaning |" in schema.description_table()
+    assert "| `seed` | – | 7 | *run*: a changed meaning |" in schema.description_table()
+
+
+def test_each_scenario_setting_is_declared_once_by_the_part_that_reads_it():
+    """The plant's integration, valve and friction and the Kalman filter declare their own settings in
+    their modules; the scenario's fields are those declarations (the same objects), each setting in one
+    part only, and the description table labels each row with its part."""
+    import dataclasses
+
+    from hydrogen import scenario_settings as scenarios
+    from hydrogen.estimators import kalman
+    from hydrogen.plant import friction, integrator, valve
+
+    owners = {"plant integration": integrator, "valve": valve, "friction": friction, "estimator": kalman}
+    parts = {part.name: part for part in scenarios.PARTS}
+    for name, module in owners.items():
+        assert parts[name].settings is module.SCENARIO_SETTINGS
+    declared = [n for part in scenarios.PARTS for n in part.settings]
+    assert len(declared) == len(set(declared)) == len(scenarios.settings())
+    by_name = {f.name: f for f in dataclasses.fields(scenarios.ScenarioFields)}
+    for part in scenarios.PARTS:
+        for name, decl in part.settings.items():
+            assert by_name[name].metadata == decl.metadata and scenarios.part_of(name) == part.name
+    rows = {line.split("|")[2].strip(" `"): line for line in schema.description_table().splitlines()[2:]
+            if "[rig]" in line}
+    assert "*valve*: second-order servo-valve natural frequency" in rows["valve_bandwidth_hz"]
+    assert "*plant integration*: RK4 plant steps" in rows["substeps"]
 
 
 def test_the_loader_checks_keys_against_the_schema(monkeypatch):

@@ -18,8 +18,16 @@ import functools
 
 import numpy as np
 
-__all__ = ["length_noise_variance", "filter_gain", "filter_setting", "filter_gains", "remember_filter_gains",
+from ..setting import setting
+
+__all__ = ["SCENARIO_SETTINGS", "length_noise_variance", "filter_gain", "filter_setting", "filter_gains", "remember_filter_gains",
            "kalman_gain", "start", "update", "C_UPDATE"]
+
+#: Whether a scenario filters the travel, and the filter's model (:mod:`hydrogen.scenario_settings`).
+SCENARIO_SETTINGS = {
+    "kalman": setting(False, "", "cylinder rates from fixed-gain Kalman filters (else exact)"),
+    "kalman_accel": setting(50.0, "m²/s³", "the filter's white-acceleration density", ">=0"),
+}
 
 #: The loop driver's statements of :func:`update` for actuator ``i`` (``st->kf``: [l (NL), l̇ (NL)];
 #: ``c->kf_gain``, ``c->h``: the configuration's gain and period; ``s->l_meas``: the measured lengths),

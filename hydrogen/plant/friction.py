@@ -27,12 +27,19 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..setting import setting
 from . import PlantParameter
 
-__all__ = ["STATES", "PARAMETERS", "SEAL", "TERMS", "LOWER", "KEYS", "parameters_of", "table_problem", "terms_of", "row",
+__all__ = ["STATES", "PARAMETERS", "SCENARIO_SETTINGS", "SEAL", "TERMS", "LOWER", "KEYS", "parameters_of", "table_problem", "terms_of", "row",
            "Symbolic", "Numeric"]
 
 STATES = ()
+
+#: The rig's friction, a scenario's setting (:mod:`hydrogen.scenario_settings`): every cylinder's,
+#: under its description's friction table and the scenario's own per actuator.
+SCENARIO_SETTINGS = {
+    "friction": setting((0.0, 0.0, 1e-3), "N, N s/m, m/s", "per cylinder: Coulomb, viscous, tanh smoothing speed"),
+}
 
 #: Per actuator, in order, each in the actuator's own unit (its kind's TRAVEL). The first three are
 #: the rig setting ``friction = [F_c, b, v_s]``, in its order; the rest (:data:`SEAL`) are inputs only

@@ -20,8 +20,20 @@ from string import Template
 
 import numpy as np
 
-__all__ = ["rk4", "bounded_steps", "period_pieces", "predictor_steps", "c_functions", "C_FUNCTIONS", "C_PERIOD",
+from ..setting import setting
+
+__all__ = ["SCENARIO_SETTINGS", "rk4", "bounded_steps", "period_pieces", "predictor_steps", "c_functions", "C_FUNCTIONS", "C_PERIOD",
            "C_PREDICTOR_STEPS"]
+
+
+#: How a scenario integrates its plant (:mod:`hydrogen.scenario_settings`).
+SCENARIO_SETTINGS = {
+    "substeps": setting(None, "", "RK4 plant steps per control period"),
+    "pressure_bounds": setting("stage", "", 'how the plant holds each pressure within its bounds (a chamber '
+                               'that would cavitate stays at 0): "stage" clips at every RK4 stage, where a '
+                               'pressure at a bound does not rate past it (RK4 keeps its order); "step" only '
+                               'after each step (first order where a pressure rests on a bound)'),
+}
 
 
 def rk4(rhs, x, h):

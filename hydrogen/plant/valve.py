@@ -19,9 +19,10 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..setting import setting
 from . import PlantParameter, PlantState
 
-__all__ = ["STATES", "PARAMETERS", "Symbolic", "Numeric", "WIDTH"]
+__all__ = ["STATES", "PARAMETERS", "SCENARIO_SETTINGS", "Symbolic", "Numeric", "WIDTH"]
 
 STATES = (
     PlantState("spool", "m", "m", "spool positions (0 with the ideal valve), m"),
@@ -39,6 +40,15 @@ PARAMETERS = (
     PlantParameter("full_opening", "m", "spool travel at full opening, where the spool saturates (0: none)",
                    per_actuator=True),
 )
+
+#: The rig's valve, a scenario's settings (:mod:`hydrogen.scenario_settings`): the spool response of
+#: every actuator without a datasheet valve, and of those with one where the scenario's valve is not ideal.
+SCENARIO_SETTINGS = {
+    "valve_lag": setting(0.0, "s", "first-order valve lag (0: none); exclusive with valve_bandwidth_hz", ">=0"),
+    "valve_bandwidth_hz": setting(0.0, "Hz", "second-order servo-valve natural frequency (the spool lags 90° "
+                                  "there); 0: none", ">=0"),
+    "valve_damping": setting(0.7, "", "second-order valve damping ratio", "number"),
+}
 
 #: Numbers per actuator in the input ``valve``.
 WIDTH = len(PARAMETERS)
