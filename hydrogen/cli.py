@@ -40,11 +40,17 @@ def _cmd_generate(args) -> int:
     return 0
 
 
+def _model_files(model) -> list:
+    """The files a loaded description was read from, as ``(what, path)`` inputs of a command (its TOML and
+    the URDF it names, if any): no output may replace them."""
+    return [("robot description", getattr(model, "source", None)), ("URDF", getattr(model, "urdf", None))]
+
+
 def _cmd_simulate(args) -> int:
     import hydrogen
 
     from .errors import SimulationError
-    from .outputs import check_output_file, check_plot_path
+    from .outputs import check_distinct, check_output_file, check_plot_path
     from .simulation.checks import check_run_size
     from .simulation.scenarios import default_scenario_name, scenario as named_scenario
     from .progress import print_event
@@ -58,6 +64,7 @@ def _cmd_simulate(args) -> int:
     if args.log:
         check_output_file(args.log, "--log")
     model = hydrogen.load_model(args.model)
+    check_distinct([("--json", args.json), ("--plot", args.plot), ("--log", args.log)], _model_files(model))
     args.scenario = args.scenario or default_scenario_name(model)
     sc = named_scenario(args.scenario, model)
     if args.duration is not None:
@@ -170,10 +177,12 @@ def _cmd_identify(args) -> int:
 
     import hydrogen
     from .fileio import atomic_write
-    from .outputs import check_output_file
+    from .outputs import check_distinct, check_output_file
 
     if args.json:
         check_output_file(args.json, "--json")
+        inputs = [("log", args.log)] + (_model_files(hydrogen.load_model(args.model)) if args.model else [])
+        check_distinct([("--json", args.json)], inputs)
     res = hydrogen.identify(Path(args.log), model=args.model, cutoff_hz=args.cutoff,
                             zoh_correction=args.zoh_correction, friction=args.friction,
                             friction_speed=args.friction_speed, **_build_options(args))

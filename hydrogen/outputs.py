@@ -11,7 +11,7 @@ from pathlib import Path
 
 from .errors import OutputPathError
 
-__all__ = ["check_output_file", "check_output_dir", "check_replaceable_dir", "plot_formats", "check_plot_path",
+__all__ = ["check_output_file", "check_distinct", "check_output_dir", "check_replaceable_dir", "plot_formats", "check_plot_path",
            "require_matplotlib"]
 
 
@@ -46,6 +46,32 @@ def check_output_file(path, what: str = "output file") -> Path:
         raise OutputPathError(f"{what} {path}: exists and is not a regular file")
     _check_parent(path, what)
     return path
+
+
+def _same_file(a: Path, b: Path) -> bool:
+    try:
+        if a.exists() and b.exists():
+            return os.path.samefile(a, b)
+    except OSError:
+        pass
+    return Path(os.path.abspath(a)) == Path(os.path.abspath(b))
+
+
+def check_distinct(outputs, inputs=()) -> None:
+    """No output file is a file the command reads, nor another output's: ``outputs`` and ``inputs`` are
+    ``(what, path)`` pairs (a path of None: not given). An output that would replace an input (the
+    robot's description, its URDF, a log) or that two options name raises :class:`OutputPathError`
+    naming both, before anything is written."""
+    seen = [(what, Path(path), True) for what, path in inputs if path is not None]
+    for what, path in outputs:
+        if path is None:
+            continue
+        path = Path(path)
+        for other, known, is_input in seen:
+            if _same_file(path, known):
+                whose = f"the {other} this command reads" if is_input else f"also {other}'s file"
+                raise OutputPathError(f"{what} {path}: is {whose}; give another file name")
+        seen.append((what, path, False))
 
 
 def check_output_dir(path, what: str = "output folder") -> Path:

@@ -211,6 +211,38 @@ def test_output_paths_are_checked_before_the_run(tmp_path, monkeypatch, capsys):
     assert not ran and a_file.read_text() == "x"
 
 
+def test_no_output_replaces_what_the_command_reads(tmp_path, monkeypatch, capsys):
+    """--json, --log or --plot naming the robot's description, its URDF or the log being identified, or
+    two outputs naming one file: refused before the run, naming both, and every file kept as it was."""
+    import shutil
+
+    from hydrogen.model import model_path
+
+    ran = []
+    monkeypatch.setattr(hydrogen, "simulate", lambda *a, **k: ran.append(1))
+    monkeypatch.setattr(hydrogen, "identify", lambda *a, **k: ran.append(1))
+    for name in ("ubc_stewart", "excavator_arm"):
+        shutil.copy(model_path(name), tmp_path / f"{name}.toml")
+    shutil.copy(model_path("excavator_arm").with_suffix(".urdf"), tmp_path / "excavator_arm.urdf")
+    toml, arm, urdf = tmp_path / "ubc_stewart.toml", tmp_path / "excavator_arm.toml", tmp_path / "excavator_arm.urdf"
+    log = tmp_path / "rig.csv"
+    log.write_text("t,l0\n0,1\n")
+    before = {f: f.read_bytes() for f in (toml, arm, urdf, log)}
+    for argv, says in (
+            (["simulate", "--model", str(toml), "--json", str(toml)], "robot description this command reads"),
+            (["simulate", "--model", str(arm), "--log", str(urdf)], "URDF this command reads"),
+            (["simulate", "--model", str(toml), "--json", str(tmp_path / ".." / tmp_path.name / "ubc_stewart.toml")],
+             "robot description"),
+            (["simulate", "--log", str(tmp_path / "x.csv"), "--json", str(tmp_path / "x.csv")], "also --json's file"),
+            (["identify", str(log), "--json", str(log)], "log this command reads"),
+            (["identify", str(log), "--model", str(toml), "--json", str(toml)], "robot description")):
+        assert cli.main(argv) == 2, argv
+        err = capsys.readouterr().err
+        assert says in err and "Traceback" not in err, (argv, err)
+    assert not ran
+    assert {f: f.read_bytes() for f in before} == before and not (tmp_path / "x.csv").exists()
+
+
 def test_plot_writes_the_format_its_extension_names(tmp_path, dyn):
     from hydrogen.figures import plot_tracking_errors
 
