@@ -106,6 +106,9 @@ class ParameterFit:
     reason: str = ""  # why the family is not identifiable ("" when it is)
     determined: np.ndarray | None = None  # (p,) bool: the data determines this parameter
     warnings: list = field(default_factory=list)  # estimates outside the model's [adaptation] bounds
+    #: the share of the data's sum of squares the fit explains, 1 − |r|² / |b|² (no intercept: the
+    #: regressors go through 0), None where the data is all 0
+    explained: float | None = None
 
     def __post_init__(self):
         if self.determined is None:
@@ -136,6 +139,7 @@ class ParameterFit:
              "least_squares": self.estimate.tolist(), "determined": known, "reason": self.reason,
              "warnings": list(self.warnings),
              "cond": _finite(self.cond), "identifiable": self.identifiable, "direction": self.direction,
+             "explained": self.explained,
              "unexcited": self.unexcited, "residual_rms": self.residual_rms, "rows": self.rows}
         if self.true is not None:
             d["true"] = self.true.tolist()
@@ -145,8 +149,9 @@ class ParameterFit:
 
     def describe(self, label: str) -> list:
         """Lines of text: the condition number, then each estimate ± its standard error (SI units)."""
+        explains = "" if self.explained is None else f", explains {100 * self.explained:.3g} % of the data"
         lines = [f"{label}: cond {self.cond:.3g} (columns scaled by the model's values), {self.rows} rows, "
-                 f"residual rms {self.residual_rms:.4g}"]
+                 f"residual rms {self.residual_rms:.4g}{explains}"]
         if not self.identifiable:
             lines.append(f"  {label} not identifiable from this log: {self.reason}")
         for i, name in enumerate(self.names):
@@ -182,6 +187,9 @@ class Identification:
     timings_s: dict = field(default_factory=dict)
     #: each actuator's Coulomb and viscous friction, fitted with θ (``identify(friction=True)``), or None
     friction: ParameterFit | None = None
+    #: each cylinder's own γ fit: its name, and the share of its force increments it explains
+    gamma_per_leg_names: tuple = ()
+    gamma_per_leg_explained: list | None = None
 
     @property
     def identifiable(self) -> bool:
@@ -196,6 +204,7 @@ class Identification:
         d["friction"] = None if self.friction is None else self.friction.to_dict()
         d["gamma"] = None if self.gamma is None else self.gamma.to_dict()
         d["gamma_per_leg"] = None if self.gamma_per_leg is None else self.gamma_per_leg.tolist()
+        d["gamma_per_leg_names"] = list(self.gamma_per_leg_names)
         return d
 
     def summary(self) -> str:
@@ -208,6 +217,13 @@ class Identification:
             lines += self.friction.describe("friction")
         if self.gamma is not None:
             lines += self.gamma.describe("gamma")
+            if self.gamma_per_leg is not None and self.gamma_per_leg_names:
+                shares = self.gamma_per_leg_explained or [None] * len(self.gamma_per_leg)
+                lines.append("  each cylinder's own fit (" + ", ".join(self.gamma.names) + "; the share of its "
+                             "force increments it explains):")
+                lines += [f"    {name}: " + ", ".join(f"{v:.6g}" for v in est)
+                          + ("" if e is None else f" ({100 * e:.3g} %)")
+                          for name, est, e in zip(self.gamma_per_leg_names, self.gamma_per_leg, shares)]
         if self.gamma_note:
             lines.append(f"  (gamma {self.gamma_note})")
         return "\n".join(lines)
@@ -310,9 +326,37 @@ def _fit(Y, b, names, max_cond, nominal, true=None, noise_gram=None) -> Paramete
         # a parameter is determined when the unexcited directions barely involve it
         involved = np.sqrt(np.sum(np.square(vecs[weak]), axis=0))
         determined = involved < UNDETERMINED_SHARE
+    total = float(b @ b)
     return ParameterFit(list(names), x, se, cond, not weak, directions[0] if directions else None,
                         float(np.sqrt(r @ r / rows)), rows, None if true is None else np.asarray(true, float),
-                        directions, reason, determined)
+                        directions, reason, determined, explained=1.0 - float(r @ r) / total if total > 0 else None)
+
+
+#: The least share of the data a fit of γ must explain to be reported: below it the pressure sensors'
+#: noise, not the oil's compliance, drives the force increments it fits, and least squares shrinks the
+#: estimates towards 0 by an amount its standard errors do not show (the noise is in the regressors too).
+MIN_EXPLAINED = 0.5
+
+
+def _check_explained(fit: ParameterFit, per_leg, cylinders_differ: bool) -> ParameterFit:
+    """Mark a pooled γ fit that explains less than :data:`MIN_EXPLAINED` of its force increments as not
+    identifiable, saying why: the cylinders' own γ differ (``cylinders_differ``: the model's valves do,
+    and each cylinder's own fit, ``per_leg`` its shares, explains its data) or the noise drives them."""
+    if fit.explained is None or fit.explained >= MIN_EXPLAINED:
+        return fit
+    fit.identifiable = False
+    fit.determined = np.zeros(len(fit.names), bool)
+    legs = ", ".join(f"{100 * e:.0f} %" if e is not None else "-" for e in per_leg)
+    own = f"each cylinder's own fit: {legs}; at least {100 * MIN_EXPLAINED:.0f} % needed"
+    if cylinders_differ and all(e is not None and e >= MIN_EXPLAINED for e in per_leg):
+        why = (f"one value for every cylinder explains {100 * fit.explained:.0f} % of the force increments "
+               f"({own}): the cylinders' own values differ (the model's valves do); read each cylinder's fit")
+    else:
+        why = (f"the fit explains {100 * fit.explained:.0f} % of the force increments over a sample ({own}): "
+               "the pressure sensors' noise drives them, and the estimates would be biased towards 0; a log "
+               "with larger or faster pressure changes, or quieter pressure sensors, may determine them")
+    fit.reason = f"{fit.reason}; {why}" if fit.reason else why
+    return fit
 
 
 def _check_physical(fit: ParameterFit, positive, lo, hi, bounds_key: str) -> ParameterFit:
@@ -471,7 +515,7 @@ def identify(log, model=None, *, dyn=None, cutoff_hz: float | None = None, order
                     model.theta_max, "[adaptation] theta_min/theta_max")
     timings["regression"] = time.perf_counter() - t0
 
-    gamma_fit, per_leg, note, fc_g, step_g = None, None, "", None, None
+    gamma_fit, per_leg, per_leg_explained, note, fc_g, step_g = None, None, None, "", None, None
     if not gamma:
         note = "not estimated (gamma=False)"
     elif U is None:
@@ -485,8 +529,10 @@ def identify(log, model=None, *, dyn=None, cutoff_hz: float | None = None, order
                                       f"rate), got {gamma_cutoff_hz!r}")
         step_g = max(1, int(fs / (2.0 * fc_g))) if decimate is None else step
         idx_g = np.arange(edge, len(t) - edge - 1, step_g)
-        gamma_fit, per_leg = _identify_gamma(dyn, L, PC, U, F, h, butter(order, fc_g, fs=fs, output="sos"),
-                                             idx_g, max_cond, _true(log.meta, "gamma_true", len(GAMMA_NAMES)), PS)
+        gamma_fit, per_leg, per_leg_explained = _identify_gamma(
+            dyn, L, PC, U, F, h, butter(order, fc_g, fs=fs, output="sos"), idx_g, max_cond,
+            _true(log.meta, "gamma_true", len(GAMMA_NAMES)), PS)
+        _check_explained(gamma_fit, per_leg_explained, not np.allclose(model.gamma, model.gamma[:, :1]))
         _check_physical(gamma_fit, [True, True], [model.gamma1_min, model.gamma2_min],
                         [model.gamma1_max, model.gamma2_max], "[adaptation] gamma1_min..gamma2_max")
         note = (f"low-pass at {fc_g:.3g} Hz: twice the highest oil-column mode, {mode:.3g} Hz at the mean pose, "
@@ -497,7 +543,8 @@ def identify(log, model=None, *, dyn=None, cutoff_hz: float | None = None, order
         timings["gamma"] = time.perf_counter() - t0
     timings["total"] = time.perf_counter() - t_start
     return Identification(theta, gamma_fit, per_leg, fs, fc, edge, step, len(t), len(idx), log.source, note,
-                          fc_g, timings, fric)
+                          fc_g, timings, fric, tuple(c.name for c in model.cylinders) if per_leg is not None else (),
+                          per_leg_explained if per_leg is not None else None)
 
 
 def _fit_with_friction(dyn, log, Y, rhs, JL, L, h, sos, idx, v_s, max_cond) -> tuple:
@@ -605,16 +652,17 @@ def _identify_gamma(dyn, L, PC, U, F, h, sos, idx, max_cond, true, PS=None):
     impulse[len(impulse) // 2] = 1.0
     gain = float(np.sum(_lowpass(np.diff(impulse), sos) ** 2))
     e1 = _spring_rates(model, l_mid[idx]) ** 2 * noise_std(L) ** 2 * gain  # (k, m)
-    per_leg = []
+    per_leg, explained = [], []
     for i in range(L.shape[1]):
         G = np.zeros((2, 2))
         G[0, 0] = e1[:, i].sum()
         fit_i = _fit(np.column_stack([X1[idx, i], X2[idx, i]]), dF[idx, i], GAMMA_NAMES, max_cond,
                      model.gamma[:, i], noise_gram=G)
         per_leg.append(fit_i.estimate)
+        explained.append(fit_i.explained)
     G = np.zeros((2, 2))
     G[0, 0] = e1.sum()
     # pooled: one [β, βc] for every cylinder (their mean where the cylinders' valves differ)
     fit = _fit(np.column_stack([X1[idx].reshape(-1), X2[idx].reshape(-1)]), dF[idx].reshape(-1), GAMMA_NAMES,
                max_cond, model.gamma.mean(axis=1), true, noise_gram=G)
-    return fit, np.array(per_leg)
+    return fit, np.array(per_leg), explained

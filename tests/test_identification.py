@@ -465,3 +465,37 @@ def test_friction_is_estimated_with_theta_from_a_log_made_with_a_known_friction(
     assert np.max(np.abs(frictionless.friction.estimate[:dyn.model.n_cylinders])) < 5.0  # N: none where there is none
     with pytest.raises(IdentificationError, match="friction_speed must be a positive speed"):
         hydrogen.identify(res, dyn=dyn, gamma=False, friction=True, friction_speed=0.0)
+
+
+@pytest.fixture(scope="module")
+def excavator(cache):
+    arm = hydrogen.build(hydrogen.load_model("excavator_arm"), cache=cache, controllers=("backstepping",))
+    return arm, hydrogen.simulate("arm-sim", "backstepping", dyn=arm, duration=10.0)
+
+
+def test_gamma_pooled_over_cylinders_whose_values_differ_is_refused_and_each_cylinder_is_reported(excavator):
+    """The excavator's bucket valve has half the others' βc: one [β, βc] for all three cylinders
+    explains little of the force increments (least squares gave β 99 % low with a small standard
+    error), so it is not reported; each cylinder's own fit, which explains its data, is, by name."""
+    arm, res = excavator
+    fit = hydrogen.identify(res, dyn=arm)  # noise-free
+    assert not fit.gamma.identifiable and not fit.gamma.determined.any() and fit.gamma.explained < 0.5
+    assert "the cylinders' own values differ" in fit.gamma.reason
+    np.testing.assert_allclose(fit.gamma_per_leg, arm.model.gamma.T, rtol=0.01)
+    assert min(fit.gamma_per_leg_explained) > 0.99
+    text = fit.summary()
+    assert "beta = not identifiable" in text and "explains" in text
+    for c, (beta, beta_c) in zip(arm.model.cylinders, fit.gamma_per_leg):
+        assert f"    {c.name}: {beta:.6g}, {beta_c:.6g} (" in text
+    assert fit.to_dict()["gamma"]["estimate"] == [None, None]
+    assert fit.to_dict()["gamma_per_leg_names"] == [c.name for c in arm.model.cylinders]
+
+
+def test_gamma_that_the_pressure_noise_drives_is_not_reported(excavator):
+    """The same run logged with the rig's sensor noise: the pressure noise dominates the arm's force
+    increments over a sample (each cylinder's fit explains under half of them), and the estimate is
+    refused with that reason instead of a value biased towards 0."""
+    arm, res = excavator
+    fit = hydrogen.identify(log_from_result(res, *RIG_NOISE, seed=0), dyn=arm)
+    assert not fit.gamma.identifiable and "the pressure sensors' noise drives them" in fit.gamma.reason
+    assert fit.theta.identifiable and fit.theta.explained > 0.99  # θ is still determined
