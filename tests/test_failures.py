@@ -73,12 +73,12 @@ def test_generate_refuses_a_generated_folder_holding_a_file_it_did_not_write(tmp
 
 # 2, 15 ---------------------------------------------------------------------------------------------
 @pytest.mark.parametrize("make_ref, field", [
-    (lambda b: MultiSine(b, ((-1, 0.01, 1),)), "terms[0] axis"),
-    (lambda b: MultiSine(b, ((len(b), 0.01, 1),)), "terms[0] axis"),
-    (lambda b: MultiSine(b, ((2.5, 0.01, 1),)), "terms[0] axis"),
+    (lambda b: MultiSine(b, ((-1, 0.01, 1),)), "sines[0] axis"),
+    (lambda b: MultiSine(b, ((len(b), 0.01, 1),)), "sines[0] axis"),
+    (lambda b: MultiSine(b, ((2.5, 0.01, 1),)), "sines[0] axis"),
     (lambda b: Step(b, -1, 0.02, 1.0), "reference.axis"),
-    (lambda b: MultiSine(b, ((2, float("nan"), 1),)), "terms[0] amplitude"),
-    (lambda b: MultiSine(b, ((2, 0.01, float("inf")),)), "terms[0] frequency"),
+    (lambda b: MultiSine(b, ((2, float("nan"), 1),)), "sines[0] amplitude"),
+    (lambda b: MultiSine(b, ((2, 0.01, float("inf")),)), "sines[0] frequency"),
     (lambda b: Step(b, 2, float("nan"), 1.0), "reference.height"),
     (lambda b: MultiSine(b[:-1], ()), "reference.bias"),
 ])

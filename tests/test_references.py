@@ -240,3 +240,43 @@ def test_a_bad_move_in_a_description_is_one_message_naming_the_file_once(tmp_pat
     with pytest.raises(HydrogenError) as exc:
         hydrogen.simulate("cycle", "p", model=hydrogen.load_model(toml))
     assert words in str(exc.value) and str(exc.value).count("excavator_arm.toml") <= 1
+
+
+@pytest.mark.parametrize("key,entry,words", [
+    ("sines", '[["z", "0.05", 1.0]]', "malformed reference.sines ('0.05' is not a number)"),
+    ("sines", '[["z", true, 1.0]]', "malformed reference.sines (True is not a number)"),
+    ("sines", '[["z", 0.05, -1.0]]', "reference.sines[0] frequency must be >= 0 Hz"),
+    ("sines", '[["z", 0.05, 300.0]]', "reference frequency 300 Hz must be below half the control rate (256 Hz"),
+    ("step", '{ coordinate = "z", height = "0.02", time = 1.0 }', "malformed reference.step ('0.02' is not"),
+    ("step", '{ coordinate = "z", height = 0.02, time = false }', "malformed reference.step (False is not"),
+    ("moves", '[["z", 0.02, "1", 1.0]]', "malformed reference.moves ('1' is not a number)")])
+def test_a_reference_number_of_the_wrong_type_or_range_is_refused_naming_the_table(tmp_path, key, entry, words):
+    """A quoted number or a boolean where a reference takes a number, a negative frequency, and a
+    frequency the loop cannot sample (at or above half the control rate): each one message naming the
+    file and the scenario's tables, before anything runs."""
+    from hydrogen.model import default_model_path
+    from hydrogen.errors import HydrogenError
+
+    toml = tmp_path / "stewart.toml"
+    toml.write_text(default_model_path().read_text() + f"\n[scenarios.mine]\nrig = true\nreference.{key} = {entry}\n")
+    with pytest.raises(HydrogenError) as exc:
+        scenario("mine", hydrogen.load_model(toml))
+    text = str(exc.value)
+    assert words in text and text.startswith(f"{toml}: [scenarios.mine]"), text
+
+
+def test_metrics_need_two_samples_and_say_when_the_reference_never_moves(dyn):
+    """A metric window holding only the run's last sample (duration = metric_start) is the whole run,
+    with a note; a step after the run's end leaves its coordinate still: the note says its % is of an
+    amplitude the run never reaches."""
+    from hydrogen.simulation.checks import metric_window
+
+    t = np.arange(5) * 0.5
+    sel, start, note = metric_window(t, 2.0)
+    assert sel.all() and start == 0.0 and "starts at the last simulated period" in note
+    sel, start, note = metric_window(t, 1.5)
+    assert sel.sum() == 2 and start == 1.5 and note is None
+    res = hydrogen.simulate("z-step", "p", dyn=dyn, duration=0.5)  # its step is at 1 s
+    assert "the reference of z does not move within the run" in res.metrics["metric_note"]
+    moving = hydrogen.simulate("z-1hz", "p", dyn=dyn, duration=0.5)
+    assert "metric_note" in moving.metrics and "does not move" not in moving.metrics["metric_note"]

@@ -256,7 +256,7 @@ def test_a_bad_pressure_bounds_in_a_description_is_named_on_the_command_line(tmp
     bad.write_text(text.replace("[rig]\n", '[rig]\npressure_bounds = "stages"\n', 1), encoding="utf-8")
     assert cli(["simulate", "--model", str(bad), "--scenario", "z-1hz", "--controller", "p", "--duration", "0.1"]) == 2
     err = capsys.readouterr().err
-    assert "scenario 'z-1hz'" in err and "pressure_bounds must be 'step' or 'stage', got 'stages'" in err
+    assert "[scenarios.z-1hz] over [rig]: " in err and "pressure_bounds must be 'step' or 'stage', got 'stages'" in err
     assert "Traceback" not in err
 
 

@@ -289,5 +289,5 @@ def test_the_cli_names_a_bad_scenario_valve_response_without_a_traceback(tmp_pat
     assert cli.main(["simulate", "--model", str(path), "--scenario", "z-1hz.bad", "--controller", "p",
                      "--duration", "0.05"]) == 2
     err = capsys.readouterr().err
-    assert "scenario 'z-1hz.bad': actuators.leg1.valve: unknown key(s) ['lag']" in err and "Traceback" not in err
+    assert "[scenarios.z-1hz] over [rig] with [variants.bad]: actuators.leg1.valve: unknown key(s) ['lag']" in err and "Traceback" not in err
     assert path.exists()

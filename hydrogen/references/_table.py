@@ -5,7 +5,15 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["RowTable"]
+__all__ = ["RowTable", "number"]
+
+
+def number(value) -> float:
+    """``value`` as a float where the description gives a number (an int or a float, not a bool or a
+    string: a quoted "0.05" or a true is a typo there, not a value); TypeError otherwise."""
+    if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
+        raise TypeError(f"{value!r} is not a number")
+    return float(value)
 
 
 class RowTable:
@@ -13,8 +21,10 @@ class RowTable:
     order the description writes them), under the configuration fields ``count`` and ``rows``; each
     field's params.h macro is ``P_REF_`` and its name in capitals."""
 
-    def __init__(self, count: str, rows: str, columns: tuple):
+    def __init__(self, count: str, rows: str, columns: tuple, key: str | None = None):
         self.count, self.rows, self.columns, self.width = count, rows, tuple(columns), 1 + len(columns)
+        #: the description's key of the rows (``reference.<key>``), which messages name (default ``rows``)
+        self.key = key or rows
         #: The kind's FIELDS (name, C type, params.h macro).
         self.fields = ((count, "long long", f"P_REF_{count.upper()}"), (rows, "const double*", f"P_REF_{rows.upper()}"))
         #: The kind's IDLE values: no row.
@@ -38,10 +48,10 @@ class RowTable:
         value)``; ``axis(field, value)`` and ``finite(field, value)`` check one value."""
         shape = f"(axis, {', '.join(self.columns)})"
         if isinstance(rows, (str, bytes)) or not hasattr(rows, "__iter__"):
-            fail(f"reference.{self.rows}", f"must be a sequence of {shape}", rows)
+            fail(f"reference.{self.key}", f"must be a sequence of {shape}", rows)
         for j, row in enumerate(rows):
             if isinstance(row, (str, bytes)) or not hasattr(row, "__len__") or len(row) != self.width:
-                fail(f"reference.{self.rows}[{j}]", f"must be {shape}", row)
-            axis(f"reference.{self.rows}[{j}] axis", row[0])
+                fail(f"reference.{self.key}[{j}]", f"must be {shape}", row)
+            axis(f"reference.{self.key}[{j}] axis", row[0])
             for name, v in zip(self.columns, row[1:]):
-                finite(f"reference.{self.rows}[{j}] {name.split()[0]}", v)
+                finite(f"reference.{self.key}[{j}] {name.split()[0]}", v)

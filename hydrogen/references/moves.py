@@ -9,7 +9,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ._table import RowTable
+from ._table import RowTable, number
 
 __all__ = ["KEY", "SYNTAX", "Reference"]
 
@@ -68,7 +68,7 @@ class Reference:
     @classmethod
     def parse(cls, value, axis, bias):
         """From the description's ``[[coordinate, distance, start s, duration s], ...]``."""
-        return cls(bias, tuple((axis(c), float(d), float(t0), float(dur)) for c, d, t0, dur in value))
+        return cls(bias, tuple((axis(c), number(d), number(t0), number(dur)) for c, d, t0, dur in value))
 
     def _rows(self, t) -> list:
         """(q_d, q̇_d, q̈_d, q⃛_d) at the times of the array ``t``, each (k, n)."""

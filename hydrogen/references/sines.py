@@ -6,7 +6,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ._table import RowTable
+from ._table import RowTable, number
 
 __all__ = ["KEY", "SYNTAX", "Reference", "MultiSine"]
 
@@ -14,7 +14,7 @@ KEY = "sines"
 SYNTAX = "[[coordinate, amplitude, Hz], ...]"
 
 #: The terms as rows (coordinate, amplitude, frequency) of the loop's configuration.
-TABLE = RowTable("n_terms", "terms", ("amplitude", "frequency Hz"))
+TABLE = RowTable("n_terms", "terms", ("amplitude", "frequency Hz"), key=KEY)
 FIELDS, IDLE, sizes, axes = TABLE.fields, TABLE.idle, TABLE.sizes, TABLE.axes
 COMMENT = "sum of amplitude sin(2 pi f t) over terms (coordinate, amplitude, frequency)"
 C_BODY = """\
@@ -53,7 +53,7 @@ class Reference:
     @classmethod
     def parse(cls, value, axis, bias):
         """From the description's ``[[coordinate, amplitude, Hz], ...]``."""
-        return cls(bias, tuple((axis(c), float(a), float(f)) for c, a, f in value))
+        return cls(bias, tuple((axis(c), number(a), number(f)) for c, a, f in value))
 
     def __call__(self, t: float):
         """(q_d, q̇_d, q̈_d, q⃛_d) at time t (s), each (n,)."""
@@ -100,6 +100,9 @@ class Reference:
         """Each term (axis, amplitude, frequency) the C loop reads valid, else ``fail(field, what,
         value)``; ``axis(field, value)`` and ``finite(field, value)`` check one value."""
         TABLE.check(self.terms, fail, axis, finite)
+        for j, (_, _, f) in enumerate(self.terms):
+            if f < 0:  # sin(−ωt) is a negative amplitude: a sign in the wrong column
+                fail(f"reference.{KEY}[{j}] frequency", "must be >= 0 Hz (a negative amplitude reverses a term)", f)
 
     def config(self) -> dict:
         """Its values of FIELDS."""

@@ -6,6 +6,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ._table import number
+
 __all__ = ["KEY", "SYNTAX", "Reference", "Step"]
 
 KEY = "step"
@@ -45,7 +47,7 @@ class Reference:
     @classmethod
     def parse(cls, value, axis, bias):
         """From the description's ``{ coordinate, height, time }``."""
-        return cls(bias, axis(value["coordinate"]), float(value["height"]), float(value["time"]))
+        return cls(bias, axis(value["coordinate"]), number(value["height"]), number(value["time"]))
 
     def __call__(self, t: float):
         q = np.array(self.bias, float)

@@ -248,13 +248,16 @@ def check_run_size(sc, model, controller, keep_logs: bool = True) -> int:
 
 
 def metric_window(t, metric_start: float):
-    """(selection, start, note) for metrics over t >= metric_start. A window that starts after the
-    last simulated period is clamped to the whole run, and ``note`` says so (else None)."""
+    """(selection, start, note) for metrics over t >= metric_start. A window that holds fewer than two
+    samples (it starts at or after the last simulated period: a max or RMS of one sample is no
+    statistic) is clamped to the whole run, and ``note`` says so (else None)."""
     t = np.asarray(t)
     sel = t >= metric_start - 1e-12
-    if sel.any() or not len(t):
+    kept = np.count_nonzero(sel)
+    if kept >= 2 or kept == len(t):  # a window of samples, or the whole run already
         return sel, float(metric_start), None
     end = float(t[-1])
-    note = (f"metric window t >= {metric_start:g} s starts after the last simulated period ({end:g} s); "
+    where = "at" if sel.any() else "after"
+    note = (f"metric window t >= {metric_start:g} s starts {where} the last simulated period ({end:g} s); "
             f"metrics are over the whole run, t >= {float(t[0]):g} s")
     return np.ones_like(sel), float(t[0]), note

@@ -73,6 +73,11 @@ class Scenario(ScenarioFields):
         need(finite(self.duration) and self.duration > 0, "duration", "must be a finite number > 0 s")
         need(finite(self.control_rate) and self.control_rate > 0, "control_rate", "must be > 0 Hz")
         need(isinstance(self.substeps, int) and self.substeps >= 1, "substeps", "must be an integer >= 1")
+        for f in self.reference.frequencies():  # a periodic reference the loop samples: below Nyquist
+            if f >= 0.5 * self.control_rate:
+                raise ScenarioError(f"scenario '{self.name}': reference frequency {f:g} Hz must be below half the "
+                                    f"control rate ({0.5 * self.control_rate:g} Hz at control_rate "
+                                    f"{self.control_rate:g} Hz): sampled there, the reference aliases")
         need(finite(self.t_adapt), "t_adapt", "must be finite (use a large value to never adapt)")
         fr = np.asarray(self.friction, float)
         need(fr.shape == (3,) and finite(fr) and fr[0] >= 0 and fr[1] >= 0 and fr[2] > 0, "friction",
@@ -378,6 +383,7 @@ def scenario(name: str, model) -> Scenario:
 
     if spec.pop("rig", False):
         take(tables.get("rig") or {})
+        where += " over [rig]"
     gains = {c: dict(g) for c, g in spec.pop("gains", {}).items()}
     ref = spec.pop("reference", None)
     label = spec.pop("label", base)
@@ -391,7 +397,7 @@ def scenario(name: str, model) -> Scenario:
         label = f"{label}, {vspec.pop('label', var)}"
         vspec.pop("formerly", None)
         take(vspec)
-        where = f"{model.source}: [scenarios.{base}] with [variants.{var}]"
+        where = f"{where} with [variants.{var}]"
     unknown = set(fields) - table_keys(rig=True)
     if unknown:
         raise ScenarioError(f"{where}: unknown field(s) {sorted(unknown)}; fields: {sorted(_FIELDS)}")
@@ -409,7 +415,10 @@ def scenario(name: str, model) -> Scenario:
                       label=str(label), paper=dict(paper), actuators=actuators, **fields)
     except TypeError as exc:
         raise ScenarioError(f"{where}: {exc}") from None
-    return sc.validated()
+    try:
+        return sc.validated()
+    except ScenarioError as exc:  # the tables the value came from, for a description's own scenario
+        raise ScenarioError(f"{where}: {str(exc).removeprefix(f'scenario {name!r}: ')}") from None
 
 
 def valve_parameters(sc, model) -> np.ndarray:

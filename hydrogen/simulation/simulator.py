@@ -136,6 +136,15 @@ class SimulationResult:
         if self.supply_pressure is not None and len(self.supply_pressure):
             ps = np.asarray(self.supply_pressure, float)
             self.metrics["supply_pressure"] = {"min": float(ps.min()), "max": float(ps.max()), "final": float(ps[-1])}
+        # a coordinate whose reference has an amplitude but does not move in the run (a step after its
+        # end): its error is a share of an amplitude the run never asked for
+        still = [c for c, a, col in zip(coords, self.amplitude, np.asarray(self.q_d).T)
+                 if a > 0 and len(col) and np.ptp(col) == 0]
+        if still:
+            end = float(self.t[-1]) if len(self.t) else 0.0
+            note = "; ".join(filter(None, [note, (
+                f"the reference of {', '.join(still)} does not move within the run (t <= {end:g} s): its max error "
+                "in % is of an amplitude the run never reaches")]))
         if note:
             self.metrics["metric_note"] = note
         return self.metrics
