@@ -248,12 +248,12 @@ def _cmd_tune(args, controller=None) -> int:
     if args.min is not None and args.max is not None and args.min >= args.max:
         raise HydrogenError(f"--min ({args.min:g}) must be below --max ({args.max:g})")
     grid = None
-    if args.n or args.min is not None or args.max is not None:
+    if args.n is not None or args.min is not None or args.max is not None:
         d = default_grid(controller)
         lo, hi = args.min if args.min is not None else d[0], args.max if args.max is not None else d[-1]
         if lo >= hi:
             raise HydrogenError(f"--min ({lo:g}) must be below --max ({hi:g})")
-        grid = np.geomspace(lo, hi, args.n or 25)
+        grid = np.geomspace(lo, hi, 25 if args.n is None else args.n)
     res = tune(controller, grid, model=args.model, max_workers=args.workers, progress=not args.quiet,
                seeds=args.seeds, variant=args.variant, margin=args.margin, **_build_options(args))
     name = res["main_gain"]
@@ -483,8 +483,9 @@ def build_parser() -> argparse.ArgumentParser:
         sp.add_argument("--model", help="built-in model name (hydrogen.models()) or TOML file (default: ubc_stewart)")
         sp.add_argument("--min", type=_number(float, 0), help="smallest gain of the grid (> 0; default: documented)")
         sp.add_argument("--max", type=_number(float, 0), help="largest gain of the grid (> --min)")
-        sp.add_argument("--n", type=_number(int, 0, strict=False), default=0,
-                        help="grid size (default: the documented grid, 4 points per octave)")
+        sp.add_argument("--n", type=_number(int, 2, strict=False), default=None,
+                        help="grid size, at least 2: --min to --max (default: the documented grid, 4 points per "
+                             "octave)")
         sp.add_argument("--margin", type=_number(float, 1, strict=False), default=MARGIN,
                         help=f"gain margin a tuned point holds on the grid (default {MARGIN:g}; {HEADROOM:.3g}, the "
                              "next grid point, gives room for seeds the search never saw)")

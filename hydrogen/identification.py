@@ -437,11 +437,13 @@ def identify(log, model=None, *, dyn=None, cutoff_hz: float | None = None, order
     p = len(model.theta)
     m = len(dyn.leg_lengths(np.asarray(model.neutral_pose, float)))
     t = np.asarray(log.t, float)
-    L = log.group("l", m)
-    PC = log.group("pc", pressures.n_pressures(model))  # the pressure vector: one block per actuator
-    U = log.group("u", m, required=False) if gamma else None
+    L = log.group("l", m, what=f"the travel of the model's {m} actuators", model=model.name)
+    PC = log.group("pc", pressures.n_pressures(model),  # the pressure vector: one block per actuator
+                   what=f"the model's {pressures.n_pressures(model)} chamber pressure states", model=model.name)
+    U = log.group("u", m, required=False, what=f"the {m} spool commands", model=model.name) if gamma else None
     # where the supply is a state the forces and flows are at its measured pressure, not the nominal one
-    PS = log.group(SUPPLY_LOG, 1) if supply_entries(model) else None
+    PS = (log.group(SUPPLY_LOG, 1, what="the measured supply pressure, the model's supply being a state",
+                    model=model.name) if supply_entries(model) else None)
     for name, arr in (("t", t[:, None]), ("l", L), ("pc", PC), ("u", U), (SUPPLY_LOG, PS)):
         if arr is None:
             continue

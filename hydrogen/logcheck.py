@@ -110,7 +110,7 @@ def check_lengths(source, t, L, model) -> None:
         hint = f"; its {tr.quantity}s look like {fits[0]}: write them in {tr.unit}" if fits else ""
         raise IdentificationError(
             f"{source}: column l{i} leaves actuator '{c.name}''s {tr.range_word}: at t = {_num(t[k])} s it is "
-            f"{tr.quantity} {_num(L[k, i])} {tr.unit}, {tr.span(lo[i], hi[i], '.6g')} ({int(out.sum())} sample(s) "
+            f"{tr.quantity} {_num(L[k, i])} {tr.unit}, {tr.span(lo[i], hi[i], '.6g')} ({_outside(out)} "
             f"outside){hint}")
     span = np.ptp(L, axis=0)
     floor = np.maximum(NOISE_RANGES * sigma, 1e-6 * width)
@@ -123,6 +123,11 @@ def check_lengths(source, t, L, model) -> None:
             f"{source}: no excitation: no actuator moves (the most, for its range: '{c.name}', column l{i}, range "
             f"{_num(span[i])} {unit}; sensor noise {_num(sigma[i])} {unit}): identification needs a log of the "
             f"robot moving")
+
+
+def _outside(out) -> str:
+    """"k of N samples" of a (samples, columns) mask of values out of range: a sample counts once."""
+    return f"{int(np.count_nonzero(out.any(axis=1)))} of {len(out)} samples"
 
 
 def check_pressures(source, t, PC, model) -> None:
@@ -157,7 +162,7 @@ def check_pressures(source, t, PC, model) -> None:
         raise IdentificationError(
             f"{source}: pressure column {cols[i]} at t = {_num(t[k])} s is {_num(PC[k, i])} Pa, {side} (the model's "
             f"range [{_num(p_lo[i]) if p_lo[i] else 0}, P_s] = [{_num(p_lo[i]) if p_lo[i] else 0}, {_num(ps[i])}] Pa; "
-            f"{int(out.sum())} sample(s) outside): pressures must be absolute chamber pressures in Pa")
+            f"{_outside(out)} outside): pressures must be absolute chamber pressures in Pa")
 
 
 def check_log(source, t, fs: float, h: float, L, PC, model) -> None:

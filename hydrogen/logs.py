@@ -49,15 +49,21 @@ class Log:
     meta: dict = field(default_factory=dict)
     source: str = "<memory>"
 
-    def group(self, prefix: str, m: int, required: bool = True):
+    def group(self, prefix: str, m: int, required: bool = True, what: str = "cylinders", model: str = ""):
         """The (N, m) array of columns ``{prefix}0`` … ``{prefix}{m-1}``; None when the whole group is
-        absent and not ``required``; an :class:`IdentificationError` naming the missing columns otherwise."""
+        absent and not ``required``; an :class:`IdentificationError` naming the missing columns otherwise,
+        ``what`` the m columns stand for ("cylinders", "pressure states"), and, where the log's header
+        names another model than ``model`` (the one it is read for), that one."""
         names = [f"{prefix}{i}" for i in range(m)]
         missing = [c for c in names if c not in self.columns]
         if missing and (required or len(missing) < m):
+            needs = names[0] if m == 1 else f"{names[0]}..{names[-1]}"
+            written = self.meta.get("model") if isinstance(self.meta, dict) else None
+            hint = (f"; the log's header says it is of model '{written}', read here for model '{model}': pass "
+                    f"that model (--model {written})" if written and model and written != model else "")
             raise IdentificationError(
-                f"{self.source}: log is missing column(s) {', '.join(missing)} (needs {names[0]}..{names[-1]}"
-                f" for {m} cylinders; columns present: {', '.join(['t', *self.columns]) or 'none'})")
+                f"{self.source}: log is missing column(s) {', '.join(missing)} (needs {needs}: {what}; columns "
+                f"present: {', '.join(['t', *self.columns]) or 'none'}){hint}")
         if missing:
             return None
         return np.column_stack([self.columns[c] for c in names])
@@ -91,7 +97,8 @@ def log_from_result(res, noise_l: float = 0.0, noise_p: float = 0.0, seed: int =
         for i in range(arr.shape[1]):
             cols[f"{prefix}{i}"] = arr[:, i]
     measured = "l, pc and ps are" if supply else "l and pc are"
-    meta = {"scenario": res.scenario_name, "controller": res.controller, "noise_l": float(noise_l),
+    meta = {"model": getattr(res, "model_name", ""), "scenario": res.scenario_name, "controller": res.controller,
+            "noise_l": float(noise_l),
             "noise_p": float(noise_p), "seed": int(seed), "theta_true": np.asarray(res.theta_true).tolist(),
             "gamma_true": np.asarray(res.gamma_true).tolist(),
             "note": f"{measured} the simulated true values plus the sensor noise above; q is the true pose"}

@@ -1839,5 +1839,9 @@ def load_model(path: str | Path | None = None) -> Model:
     try:
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
+        if Path(path).suffix.lower() in (".urdf", ".xml") or text.lstrip().startswith(("<?xml", "<robot")):
+            raise ModelError(f"{path}: a URDF, not a robot description: write a description TOML that loads it "
+                             f"(urdf = \"{Path(path).name}\") and adds its actuators and hydraulics, and pass "
+                             "that (docs/guide/robot.md)") from None
         raise ModelError(f"{path}: malformed TOML: {exc}") from None
     return model_from_dict(data, source=str(path), base_dir=path.parent)

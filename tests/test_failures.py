@@ -378,6 +378,14 @@ def test_a_cache_removed_during_the_build_is_named(tmp_path, model, monkeypatch)
     assert str(cache) in str(err.value)
 
 
+@pytest.mark.skipif(not Path("/proc/self").is_dir(), reason="needs Linux's /proc, where no folder can be made")
+def test_a_cache_folder_that_cannot_be_made_is_named_as_such(model, monkeypatch):
+    """A cache folder under /proc was reported as removed during the build, advising to run again."""
+    with pytest.raises(BuildCacheError, match=r"cache folder /proc/hydrogen-cache cannot be created") as err:
+        hydrogen.build(model, cache=Path("/proc/hydrogen-cache"))
+    assert "removed during the build" not in str(err.value) and "HYDROGEN_CACHE_DIR" in str(err.value)
+
+
 # 13, 20 --------------------------------------------------------------------------------------------
 @pytest.mark.parametrize("controller, kw, field", [
     ("p", dict(friction="abc"), "friction"),
@@ -568,6 +576,8 @@ _BAD = [
     ["export", "--out", "{tmp}/e", "--duration", "-1"],
     ["tune-p", "--workers", "-1"],
     ["tune-p", "--n", "-3"],
+    ["tune-p", "--n", "0"],  # was the documented grid, silently
+    ["tune-p", "--n", "1", "--min", "0.01", "--max", "0.02"],  # was the grid's first point alone
     ["tune-p", "--min", "nan"],
     ["tune-p", "--min", "0"],
     ["tune-p", "--min", "0.2", "--max", "0.1"],

@@ -250,10 +250,11 @@ def test_lengths_outside_the_strokes_name_the_cylinder_time_and_stroke(dyn, mode
     bad["l0"][300] = 10.0
     c = model.cylinders[0]
     _refused(bad, dyn, rf"column l0 leaves actuator '{c.name}''s stroke: at t = 0.3 s it is length 10 m, "
-                       rf"stroke \[{c.stroke_min:g}, {c.stroke_max:g}\] m \(1 sample\(s\) outside\)$")
+                       rf"stroke \[{c.stroke_min:g}, {c.stroke_max:g}\] m \(1 of 4001 samples outside\)$")
     m = paper_sim.leg_lengths.shape[1]
+    # every column in mm: each sample counts once, not once per column
     _refused(dict(cols, **{f"l{i}": 1000 * cols[f"l{i}"] for i in range(m)}), dyn,
-             "its lengths look like mm: write them in m")
+             r"4001 of 4001 samples outside\); its lengths look like mm: write them in m")
 
 
 def test_a_vanes_angle_column_is_checked_in_its_angle_range_and_rad():
@@ -499,3 +500,17 @@ def test_gamma_that_the_pressure_noise_drives_is_not_reported(excavator):
     fit = hydrogen.identify(log_from_result(res, *RIG_NOISE, seed=0), dyn=arm)
     assert not fit.gamma.identifiable and "the pressure sensors' noise drives them" in fit.gamma.reason
     assert fit.theta.identifiable and fit.theta.explained > 0.99  # θ is still determined
+
+
+def test_a_log_of_another_robot_names_the_model_its_header_records(excavator, dyn):
+    """The excavator's log read for the Stewart platform (identify's default model): the missing columns
+    say what they stand for, and the log's header names the model to pass."""
+    _, res = excavator
+    log = log_from_result(res)
+    assert log.meta["model"] == "excavator_arm"
+    with pytest.raises(IdentificationError) as err:
+        hydrogen.identify(log, dyn=dyn)
+    text = str(err.value)
+    assert "needs l0..l5: the travel of the model's 6 actuators" in text
+    assert "header says it is of model 'excavator_arm', read here for model 'ubc_stewart'" in text
+    assert "--model excavator_arm" in text

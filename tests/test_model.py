@@ -166,6 +166,14 @@ def test_big_values_are_not_quoted_whole(tmp_path):
     assert len(str(err.value)) < 1000
 
 
+def test_a_urdf_given_as_the_model_says_a_description_must_load_it():
+    from hydrogen.model import model_path
+    urdf = model_path("excavator_arm").with_suffix(".urdf")
+    with pytest.raises(hydrogen.ModelError, match=r"a URDF, not a robot description: write a description TOML "
+                                                  r'that loads it \(urdf = "excavator_arm.urdf"\)'):
+        hydrogen.load_model(urdf)
+
+
 def test_malformed_toml(tmp_path):
     path = _write_variant(tmp_path, "mass = 250.0", "mass = = 250.0")
     with pytest.raises(hydrogen.ModelError, match="malformed TOML"):

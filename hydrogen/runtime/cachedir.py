@@ -58,17 +58,25 @@ def cache_errors(root: Path):
             raise BuildCacheError(f"cache folder {root}: the disk is full{where} ({exc.strerror}); free some space "
                                   "there or set HYDROGEN_CACHE_DIR to a folder on another disk") from None
         if not root.exists():
-            raise BuildCacheError(f"cache folder {root} was removed during the build{where}; "
-                                  "run again (it is recreated)") from None
+            raise _missing(root, where) from None
         if exc.errno in _READ_ONLY:
             raise BuildCacheError(f"cache folder {root} cannot be written{where}: {exc.strerror}; {_HINT} "
                                   "(a cache that already holds this build is used read-only)") from None
         raise BuildCacheError(f"cache folder {root}: {exc.strerror or exc}{where}; {_HINT}") from None
     except CompilerError:
         if not root.exists():
-            raise BuildCacheError(f"cache folder {root} was removed during the build; "
-                                  "run again (it is recreated)") from None
+            raise _missing(root, "") from None
         raise
+
+
+def _missing(root: Path, where: str) -> BuildCacheError:
+    """The error for a cache folder that is not there after a failure: one that cannot be made at all
+    (under /proc, say: making it again fails) is named as such, else it was removed during the build."""
+    try:
+        root.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        return BuildCacheError(f"cache folder {root} cannot be created ({exc.strerror or exc}); {_HINT}")
+    return BuildCacheError(f"cache folder {root} was removed during the build{where}; run again (it is recreated)")
 
 
 def warm_library(model, folder: Path, toolchain, cache_root: Path, loader, numbers: str = DEFAULT_NUMBERS):

@@ -74,6 +74,8 @@ class SimulationResult:
     #: The supply pressure p_s (k,), Pa, where the supply is a plant state (a pump); None for a
     #: constant supply (each actuator's supply_pressure).
     supply_pressure: np.ndarray = None
+    #: The name of the robot's model the run simulated ("" where not known).
+    model_name: str = ""
 
     @property
     def scenario_name(self) -> str:
@@ -1035,7 +1037,7 @@ def _result(sc, controller, ctrl, t, log, k, theta0, gamma0, theta_true, gamma_t
         u_max=float(ctrl.values["u_max"][0]) if "u_max" in ctrl.values else 0.0,
         actuators=tuple(c.name for c in model.cylinders),
         states={b.name: log["xc"][:k, ctrl.slices[b.name]] for b in ctrl.layout},
-        supply_pressure=log[SUPPLY_LOG][:k, 0] if SUPPLY_LOG in log else None)
+        supply_pressure=log[SUPPLY_LOG][:k, 0] if SUPPLY_LOG in log else None, model_name=model.name)
     if k:
         res.compute_metrics()
     return res
