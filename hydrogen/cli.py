@@ -16,13 +16,24 @@ from .errors import DescriptionNote, HydrogenError
 __all__ = ["main"]
 
 
+def _default_generated(model, shipped: Path) -> Path:
+    """Where ``generate`` writes without --out: a shipped robot's committed folder (``shipped``/<name>),
+    else ``generated/<name>`` beside the user's description (never inside the installed package)."""
+    from .model import model_path, models
+
+    source = Path(model.source).resolve()
+    if model.name in models() and source == model_path(model.name).resolve():
+        return shipped / model.name
+    return source.parent / "generated" / model.name
+
+
 def _cmd_generate(args) -> int:
     from .codegen.generate import check_output, generate
     from .model import load_model
     from .runtime.build import repo_generated_dir
 
     model = load_model(args.model)
-    out = Path(args.out) if args.out else repo_generated_dir() / model.name
+    out = Path(args.out) if args.out else _default_generated(model, repo_generated_dir())
     if args.check:
         reasons = check_output(model, out, args.numbers)
         if reasons:
@@ -388,6 +399,34 @@ def _build_options(args) -> dict:
     return {"numbers": args.numbers}
 
 
+def reference_markdown() -> str:
+    """Markdown: every subcommand with each of its arguments (name, default, meaning), read off
+    :func:`build_parser` (the documentation's command-line reference is this, so it cannot go stale)."""
+    parser = build_parser()
+    subs = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction))  # noqa: SLF001
+    helps = {c.dest: c.help for c in subs._choices_actions}  # noqa: SLF001 - argparse keeps them only there
+    out = []
+    for name, sp in subs.choices.items():
+        out += [f"### hydrogen {name}", "", (sp.description or helps.get(name) or "").strip(), "",
+                "| argument | default | meaning |", "|---|---|---|"]
+        for a in sp._actions:  # noqa: SLF001 - argparse's own list of the parser's arguments
+            if isinstance(a, argparse._HelpAction):  # noqa: SLF001
+                continue
+            arg = ", ".join(a.option_strings) or a.dest
+            if a.choices and not isinstance(a.choices, dict):
+                arg += " {" + ",".join(map(str, a.choices)) + "}"
+            if a.required and a.option_strings:
+                default = "required"
+            elif a.default is None or a.default is False or a.default == argparse.SUPPRESS:
+                default = "–"
+            else:
+                default = f"`{a.default}`"
+            meaning = (a.help or "").replace("|", "\\|").replace("\n", " ")
+            out.append(f"| `{arg}` | {default} | {meaning} |")
+        out.append("")
+    return "\n".join(out)
+
+
 def build_parser() -> argparse.ArgumentParser:
     from .codegen.generate import DEFAULT_NUMBERS, NUMBERS_MODES
     parser = argparse.ArgumentParser(prog="hydrogen", description=__doc__.splitlines()[0])
@@ -395,7 +434,8 @@ def build_parser() -> argparse.ArgumentParser:
     g = sub.add_parser("generate", help="derive the model and write its C into generated/",
                        description="Derive the model symbolically and write C, headers and a manifest.")
     g.add_argument("--model", help="built-in model name (hydrogen.models()) or TOML file (default: ubc_stewart)")
-    g.add_argument("--out", help="output folder (default: generated/<model name> of the checkout)")
+    g.add_argument("--out", help="output folder (default: a shipped robot's generated/<model name> of the package; "
+                                 "for your own description, generated/<model name> beside it)")
     g.add_argument("--check", action="store_true", help="exit 1 if the folder is stale; write nothing")
     g.add_argument("--force", action="store_true", help="regenerate even when up to date")
     g.add_argument("--numbers", choices=NUMBERS_MODES, default=None,
@@ -408,10 +448,11 @@ def build_parser() -> argparse.ArgumentParser:
     from .simulation.seeds import DEFAULT_SEEDS, parse_seeds
     from .simulation.tuning import HEADROOM, MARGIN
     sim = sub.add_parser("simulate", help="run a scenario in closed loop and print its metrics",
-                         description="Simulate a scenario of the paper with one controller.")
+                         description="Simulate a scenario of the model's description with one controller.")
     sim.add_argument("--scenario", help="a scenario of the model, or <scenario>.<variant> for one of its [variants] "
                      "(default: the model's first)")
-    sim.add_argument("--controller", default="adaptive-robust", choices=CONTROLLERS)
+    sim.add_argument("--controller", default="adaptive-robust", choices=CONTROLLERS,
+                     help="the controller run (one the model's description lists)")
     sim.add_argument("--duration", type=_number(float, 0), help="simulated time, s (default: the scenario's)")
     sim.add_argument("--model", help="built-in model name (hydrogen.models()) or TOML file (default: ubc_stewart)")
     sim.add_argument("--json", help="write the metrics as JSON to this file")
@@ -434,7 +475,7 @@ def build_parser() -> argparse.ArgumentParser:
     ident = sub.add_parser("identify", help="estimate theta (and gamma) by least squares from a rig log CSV",
                            description="Least-squares identification of the rigid-body parameters theta and the "
                                        "hydraulic parameters gamma from measured leg lengths, pressures and spool "
-                                       "commands (columns t, l0.., pc0.., u0..; see README 'Identification').")
+                                       "commands (columns t, l0.., pc0.., u0..; see docs/guide/identification.md).")
     ident.add_argument("log", help="log CSV file")
     ident.add_argument("--json", help="write the estimates, standard errors and conditioning as JSON to this file")
     ident.add_argument("--model", help="built-in model name (hydrogen.models()) or TOML file (default: ubc_stewart)")

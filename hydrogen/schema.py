@@ -88,7 +88,7 @@ DESCRIPTION_KEYS = (
         "fixed joints only) or \"auto\", the one of fewer CasADi instructions, staged without counting for a "
         "tree with a rotated joint origin or a tilted axis (Code generation page); all give the same D, C, G, Y", default="auto"),
     Key("top level", "controllers", "", "the controllers generated for this robot (names of "
-        "hydrogen.CONTROLLERS); a run, export or FMU of another is refused naming this key",
+        "hydrogen.controllers.CONTROLLERS); a run, export or FMU of another is refused naming this key",
         default=None, default_text="all of hydrogen's controllers"),
     Key("top level", "urdf", "", "a URDF file for the tree, relative to the TOML file, instead of "
         "[[links]] and [[joints]]", default=None, default_text="none: the tree is [[links]]/[[joints]]"),

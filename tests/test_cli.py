@@ -65,3 +65,20 @@ def test_simulate_numbers_constants_builds_a_folded_library(tmp_path, monkeypatc
         res = hydrogen.simulate("z-1hz", "p", dyn=dyn, duration=0.1, seeds=2, executor=pool)
     assert not res.failures and set(DEFAULT_DYNAMICS) == {(model.baked_hash(), "constants")}
     assert DEFAULT_DYNAMICS[(model.baked_hash(), "constants")].numbers is None
+
+
+def test_generate_writes_your_own_description_beside_it_not_into_the_package(tmp_path, capsys):
+    """Without --out, a shipped robot's folder is the package's generated/<name>; your own description's
+    is generated/<name> beside it (on an installed package the former default wrote into site-packages)."""
+    import shutil
+
+    from hydrogen.cli import main
+    from hydrogen.model import model_path
+    from hydrogen.runtime.build import repo_generated_dir
+
+    mine = tmp_path / "mine.toml"
+    shutil.copy(model_path("ubc_stewart"), mine)
+    assert main(["generate", "--model", str(mine), "--check"]) == 1  # nothing generated there yet
+    assert f"generated code in {tmp_path / 'generated' / 'ubc_stewart'} is stale" in capsys.readouterr().err
+    assert main(["generate", "--model", "ubc_stewart", "--check"]) == 0
+    assert f"{repo_generated_dir() / 'ubc_stewart'}: up to date" in capsys.readouterr().out

@@ -255,16 +255,20 @@ def test_documented_defaults_are_the_defaults_the_loader_applies(tmp_path):
     assert m.figures_nonlinear == schema.default("[figures]", "nonlinear")
 
 
-def test_the_site_page_holds_the_table_marker_the_hook_replaces():
-    import sys
-    sys.path.insert(0, str(ROOT / "tools"))
-    try:
-        hooks = importlib.import_module("mkdocs_hooks")
-    finally:
-        sys.path.pop(0)
-    text = (ROOT / "docs/guide/description.md").read_text(encoding="utf-8")
-    out = hooks.on_page_markdown(text, None, None, None)
-    assert "<!-- hydrogen:description-table -->" in text and "`orifice_linear_below`" in out
+def test_the_pages_hold_their_rendered_tables_current():
+    """The description reference and the command-line reference are rendered from the code's own
+    definitions into the committed pages (``python tools/render_pages.py``): each page's block equals
+    a fresh rendering, and the site's hook renders the same."""
+    pages = _render_pages().block_pages()
+    assert {p.name for p in pages} >= {"description.md", "cli.md"}
+    hooks = _render_pages().render_blocks
+    for path in pages:
+        text = path.read_text(encoding="utf-8")
+        assert hooks(text) == text, f"{path} is stale: run python tools/render_pages.py"
+    description = (ROOT / "docs/guide/description.md").read_text(encoding="utf-8")
+    assert "`orifice_linear_below`" in description and "*valve*: " in description
+    cli_page = (ROOT / "docs/guide/cli.md").read_text(encoding="utf-8")
+    assert "### hydrogen identify" in cli_page and "`--friction-speed`" in cli_page and "`--seeds`" in cli_page
 
 
 def test_the_rig_seeds_page_is_its_data_rendered():

@@ -16,6 +16,9 @@ import hydrogen
 from hydrogen.fileio import atomic_write
 from hydrogen.pages import figures_folder, write_benchmarks_page, write_results_page
 
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from mkdocs_hooks import BLOCKS, render_blocks  # noqa: E402 - the hook beside this script
+
 ROOT = Path(__file__).resolve().parents[1]
 #: model -> the folder its `hydrogen figures --out` writes (each built-in model that has one)
 FIGURES = {m: figures_folder(m) for m in hydrogen.models() if (ROOT / figures_folder(m) / "table.md").is_file()}
@@ -74,6 +77,16 @@ def main() -> None:
             text = splice(text, table)
         atomic_write(path, text)
         print(path)
+    for path in block_pages():  # the tables rendered from the code's definitions (mkdocs_hooks.BLOCKS)
+        text = path.read_text(encoding="utf-8")
+        atomic_write(path, render_blocks(text))
+        print(path)
+
+
+def block_pages() -> list:
+    """The documentation pages that hold a block of :data:`mkdocs_hooks.BLOCKS`."""
+    marks = tuple(f"<!-- hydrogen:{name} -->" for name in BLOCKS)
+    return [p for p in sorted((ROOT / "docs").rglob("*.md")) if any(m in p.read_text(encoding="utf-8") for m in marks)]
 
 
 if __name__ == "__main__":

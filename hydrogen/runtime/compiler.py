@@ -39,7 +39,7 @@ __all__ = ["Toolchain", "cache_root", "compile_library", "compile_libraries", "c
            "precompile", "cancel_precompiles", "link_shared", "object_store", "DEFAULT_CFLAGS", "GCC_CFLAGS",
            "WARNING_FLAGS", "OBJECTS"]
 
-#: Chosen by benchmarks/bench_flags.py (README "Benchmarks"). -fno-semantic-interposition lets gcc
+#: Chosen by benchmarks/bench_flags.py (docs/benchmarks.md "Compiler flags"). -fno-semantic-interposition lets gcc
 #: and clang inline CasADi's exported one-line helpers (casadi_sq, casadi_fmin, ...) inside the shared
 #: library, where each was a call through the PLT: the paper-sim loop 12 % faster. -O3 adds little;
 #: -march=native ties the cache to one CPU, so it is left to the user (cflags=...).

@@ -276,7 +276,7 @@ class Common:
         the period the state update integrates (the input ``u_applied``: clipped to ±u_max, and
         delayed by the loop's computation delay), which is the regressor of γ̃2 in the force-error
         equation ḟ̃ = … + f0 γ̃1 + g0(u_applied) γ̃2 also when the valve saturates or the command
-        arrives late (README "Deviations"). ``u`` (this call's command) is not used.
+        arrives late (docs/paper.md "Deviations from the paper, declared"). ``u`` (this call's command) is not used.
 
         ``combine(t1, t2) -> (r1, r2)`` turns the tracking terms (lists per cylinder) into the
         rates that go through the projection (the composite adaptation,
