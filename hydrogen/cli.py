@@ -253,7 +253,7 @@ def _cmd_export_fmu(args) -> int:
 
 
 def _cmd_tune(args, controller=None) -> int:
-    from .simulation.tuning import default_grid, tune
+    from .simulation.tuning import PER_OCTAVE, default_grid, tune
 
     controller = controller or args.controller
     if args.min is not None and args.max is not None and args.min >= args.max:
@@ -264,7 +264,9 @@ def _cmd_tune(args, controller=None) -> int:
         lo, hi = args.min if args.min is not None else d[0], args.max if args.max is not None else d[-1]
         if lo >= hi:
             raise HydrogenError(f"--min ({lo:g}) must be below --max ({hi:g})")
-        grid = np.geomspace(lo, hi, 25 if args.n is None else args.n)
+        # without --n, the documented density (PER_OCTAVE points per octave) over --min .. --max
+        n = args.n if args.n is not None else max(int(round(PER_OCTAVE * np.log2(hi / lo))) + 1, 2)
+        grid = np.geomspace(lo, hi, n)
     res = tune(controller, grid, model=args.model, max_workers=args.workers, progress=not args.quiet,
                seeds=args.seeds, variant=args.variant, margin=args.margin, **_build_options(args))
     name = res["main_gain"]
@@ -399,6 +401,13 @@ def _build_options(args) -> dict:
     return {"numbers": args.numbers}
 
 
+def _md_text(text: str) -> str:
+    """Help text as Markdown table-cell text: <...> and & as entities (a browser would take <scenario>
+    for a tag and hide it), | escaped, one line."""
+    return (text.replace("&", "&amp;").replace("<", "&lt;").replace(">", "&gt;").replace("|", "\\|")
+            .replace("\n", " "))
+
+
 def reference_markdown() -> str:
     """Markdown: every subcommand with each of its arguments (name, default, meaning), read off
     :func:`build_parser` (the documentation's command-line reference is this, so it cannot go stale)."""
@@ -407,7 +416,7 @@ def reference_markdown() -> str:
     helps = {c.dest: c.help for c in subs._choices_actions}  # noqa: SLF001 - argparse keeps them only there
     out = []
     for name, sp in subs.choices.items():
-        out += [f"### hydrogen {name}", "", (sp.description or helps.get(name) or "").strip(), "",
+        out += [f"### hydrogen {name}", "", _md_text((sp.description or helps.get(name) or "").strip()), "",
                 "| argument | default | meaning |", "|---|---|---|"]
         for a in sp._actions:  # noqa: SLF001 - argparse's own list of the parser's arguments
             if isinstance(a, argparse._HelpAction):  # noqa: SLF001
@@ -421,7 +430,7 @@ def reference_markdown() -> str:
                 default = "–"
             else:
                 default = f"`{a.default}`"
-            meaning = (a.help or "").replace("|", "\\|").replace("\n", " ")
+            meaning = _md_text(a.help or "")
             out.append(f"| `{arg}` | {default} | {meaning} |")
         out.append("")
     return "\n".join(out)

@@ -35,6 +35,7 @@ import numpy as np
 
 from .errors import HydrogenError
 from .layout import NUMBERS, loop_functions
+from .simulation.checks import MIN_WINDOW_SAMPLES  # the metric window's rule, which the program repeats
 
 __all__ = ["export", "EXPORT_MANIFEST", "TEMPLATE_NAMES", "export_context", "render_template", "read_sources", "resolve_dyn",
            "sensor_kalman_gain", "c_double", "c_doubles", "prepare_export", "controller_entries",
@@ -241,7 +242,7 @@ def export_context(dyn, p, scenario_name, controller, prog, sources, headers, ct
         "step_c_name": step["c_name"] if step else None, "step_header": step["header"] if step else None,
         "step_args": step_args,
         "n_periods": int(p.n), "duration": c_double(sc.duration), "control_rate": c_double(sc.control_rate),
-        "metric_start": c_double(sc.metric_start),
+        "metric_start": c_double(sc.metric_start), "min_window_samples": MIN_WINDOW_SAMPLES,
         "n": loop["n"], "m": loop["m"], "nx": loop["nx"], "three_way": loop["three_way"],
         "x_plus": loop["x_plus"], "x_index": loop["x_index"], "x_parts": loop["x_parts"],  # the plant state's parts
         "parametric": loop["parametric"], "lu_pivot_min": loop["lu_pivot_min"],  # the FMU's failure words

@@ -338,23 +338,30 @@ def _fit(Y, b, names, max_cond, nominal, true=None, noise_gram=None) -> Paramete
 MIN_EXPLAINED = 0.5
 
 
-def _check_explained(fit: ParameterFit, per_leg, cylinders_differ: bool) -> ParameterFit:
+def _check_explained(fit: ParameterFit, per_leg, cylinders_differ: bool, noise_share: float) -> ParameterFit:
     """Mark a pooled γ fit that explains less than :data:`MIN_EXPLAINED` of its force increments as not
     identifiable, saying why: the cylinders' own γ differ (``cylinders_differ``: the model's valves do,
-    and each cylinder's own fit, ``per_leg`` its shares, explains its data) or the noise drives them."""
+    and each cylinder's own fit, ``per_leg`` its shares, explains its data); or the pressure sensors'
+    noise, whose expected share of the increments (``noise_share``) accounts for at least half of what
+    the fit leaves; else the γ model itself (ideal valve, no friction) does not describe the log."""
     if fit.explained is None or fit.explained >= MIN_EXPLAINED:
         return fit
     fit.identifiable = False
     fit.determined = np.zeros(len(fit.names), bool)
     legs = ", ".join(f"{100 * e:.0f} %" if e is not None else "-" for e in per_leg)
     own = f"each cylinder's own fit: {legs}; at least {100 * MIN_EXPLAINED:.0f} % needed"
+    share = f"the fit explains {100 * fit.explained:.0f} % of the force increments over a sample ({own})"
     if cylinders_differ and all(e is not None and e >= MIN_EXPLAINED for e in per_leg):
         why = (f"one value for every cylinder explains {100 * fit.explained:.0f} % of the force increments "
                f"({own}): the cylinders' own values differ (the model's valves do); read each cylinder's fit")
+    elif noise_share >= 0.5 * (1.0 - fit.explained):
+        why = (f"{share}; the pressure sensors' noise is {100 * noise_share:.0f} % of them and drives the rest, "
+               "and the estimates would be biased towards 0; a log with larger or faster pressure changes, or "
+               "quieter pressure sensors, may determine them")
     else:
-        why = (f"the fit explains {100 * fit.explained:.0f} % of the force increments over a sample ({own}): "
-               "the pressure sensors' noise drives them, and the estimates would be biased towards 0; a log "
-               "with larger or faster pressure changes, or quieter pressure sensors, may determine them")
+        why = (f"{share}, and the pressure sensors' noise only {100 * noise_share:.2g} % of them: the model the "
+               "fit assumes (the spool where commanded, no friction) does not describe this log (valve dynamics, "
+               "friction, a varying supply?); identify gamma from a log where those are small")
     fit.reason = f"{fit.reason}; {why}" if fit.reason else why
     return fit
 
@@ -430,20 +437,27 @@ def identify(log, model=None, *, dyn=None, cutoff_hz: float | None = None, order
     t_start = time.perf_counter()
     timings = {}
     log = as_log(log)
+    from .runtime.build import as_model, build
+    model = dyn.model if dyn is not None else as_model(model)
+    written = log.meta.get("model") if isinstance(log.meta, dict) else None
+    if written and written != model.name:  # before any build: a log of another robot is a wrong --model
+        raise IdentificationError(
+            f"{log.source}: the log's header says it is a log of model '{written}', not of '{model.name}': pass "
+            f"that model (--model {written}, or its description file); a log of another description of the "
+            f"same robot: remove the header's \"model\" entry")
     if dyn is None:  # the core alone: identification calls no controller
-        from .runtime.build import as_model, build
-        dyn = build(as_model(model), controllers=(), **({} if numbers is None else {"numbers": numbers}))
+        dyn = build(model, controllers=(), **({} if numbers is None else {"numbers": numbers}))
     model = dyn.model
     p = len(model.theta)
     m = len(dyn.leg_lengths(np.asarray(model.neutral_pose, float)))
     t = np.asarray(log.t, float)
-    L = log.group("l", m, what=f"the travel of the model's {m} actuators", model=model.name)
+    L = log.group("l", m, what=f"the travel of the model's {m} actuators")
     PC = log.group("pc", pressures.n_pressures(model),  # the pressure vector: one block per actuator
-                   what=f"the model's {pressures.n_pressures(model)} chamber pressure states", model=model.name)
-    U = log.group("u", m, required=False, what=f"the {m} spool commands", model=model.name) if gamma else None
+                   what=f"the model's {pressures.n_pressures(model)} chamber pressure states")
+    U = log.group("u", m, required=False, what=f"the {m} spool commands") if gamma else None
     # where the supply is a state the forces and flows are at its measured pressure, not the nominal one
-    PS = (log.group(SUPPLY_LOG, 1, what="the measured supply pressure, the model's supply being a state",
-                    model=model.name) if supply_entries(model) else None)
+    PS = (log.group(SUPPLY_LOG, 1, what="the measured supply pressure, the model's supply being a state")
+          if supply_entries(model) else None)
     for name, arr in (("t", t[:, None]), ("l", L), ("pc", PC), ("u", U), (SUPPLY_LOG, PS)):
         if arr is None:
             continue
@@ -531,10 +545,10 @@ def identify(log, model=None, *, dyn=None, cutoff_hz: float | None = None, order
                                       f"rate), got {gamma_cutoff_hz!r}")
         step_g = max(1, int(fs / (2.0 * fc_g))) if decimate is None else step
         idx_g = np.arange(edge, len(t) - edge - 1, step_g)
-        gamma_fit, per_leg, per_leg_explained = _identify_gamma(
+        gamma_fit, per_leg, per_leg_explained, noise_share = _identify_gamma(
             dyn, L, PC, U, F, h, butter(order, fc_g, fs=fs, output="sos"), idx_g, max_cond,
             _true(log.meta, "gamma_true", len(GAMMA_NAMES)), PS)
-        _check_explained(gamma_fit, per_leg_explained, not np.allclose(model.gamma, model.gamma[:, :1]))
+        _check_explained(gamma_fit, per_leg_explained, not np.allclose(model.gamma, model.gamma[:, :1]), noise_share)
         _check_physical(gamma_fit, [True, True], [model.gamma1_min, model.gamma2_min],
                         [model.gamma1_max, model.gamma2_max], "[adaptation] gamma1_min..gamma2_max")
         note = (f"low-pass at {fc_g:.3g} Hz: twice the highest oil-column mode, {mode:.3g} Hz at the mean pose, "
@@ -580,7 +594,7 @@ def _part(fit: ParameterFit, keep) -> ParameterFit:
     return ParameterFit([fit.names[i] for i in keep], fit.estimate[keep], fit.std_error[keep], fit.cond,
                         fit.identifiable, fit.direction, fit.residual_rms, fit.rows,
                         None if true is None or np.isnan(true).all() else true, fit.unexcited, fit.reason,
-                        fit.determined[keep])
+                        fit.determined[keep], explained=fit.explained)
 
 
 def _poses(dyn, L, t, source, tol: float = FK_TOL) -> np.ndarray:
@@ -667,4 +681,10 @@ def _identify_gamma(dyn, L, PC, U, F, h, sos, idx, max_cond, true, PS=None):
     # pooled: one [β, βc] for every cylinder (their mean where the cylinders' valves differ)
     fit = _fit(np.column_stack([X1[idx].reshape(-1), X2[idx].reshape(-1)]), dF[idx].reshape(-1), GAMMA_NAMES,
                max_cond, model.gamma.mean(axis=1), true, noise_gram=G)
-    return fit, np.array(per_leg), explained
+    # The pressure sensors' share of the increments fitted: white noise at the log's own level (its 4th
+    # differences) through the forces, the difference and the filter, at the rows used (one seeded draw).
+    draw = np.random.default_rng(0).standard_normal(PC.shape) * noise_std(PC)
+    noise_f = pressures.forces(model, PC + draw, None if PS is None else PS[:, 0]) - F
+    noise = _lowpass(np.diff(noise_f, axis=0), sos)[idx]
+    total = float(np.sum(dF[idx] ** 2))
+    return fit, np.array(per_leg), explained, (float(np.sum(noise ** 2)) / total if total > 0 else 0.0)

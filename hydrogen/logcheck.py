@@ -110,7 +110,7 @@ def check_lengths(source, t, L, model) -> None:
         hint = f"; its {tr.quantity}s look like {fits[0]}: write them in {tr.unit}" if fits else ""
         raise IdentificationError(
             f"{source}: column l{i} leaves actuator '{c.name}''s {tr.range_word}: at t = {_num(t[k])} s it is "
-            f"{tr.quantity} {_num(L[k, i])} {tr.unit}, {tr.span(lo[i], hi[i], '.6g')} ({_outside(out)} "
+            f"{tr.quantity} {_num(L[k, i])} {tr.unit}, {tr.span(lo[i], hi[i], '.6g')} ({_outside(out[:, i])} "
             f"outside){hint}")
     span = np.ptp(L, axis=0)
     floor = np.maximum(NOISE_RANGES * sigma, 1e-6 * width)
@@ -126,15 +126,18 @@ def check_lengths(source, t, L, model) -> None:
 
 
 def _outside(out) -> str:
-    """"k of N samples" of a (samples, columns) mask of values out of range: a sample counts once."""
-    return f"{int(np.count_nonzero(out.any(axis=1)))} of {len(out)} samples"
+    """"k of N samples" of one column's mask of values out of range."""
+    return f"{int(np.count_nonzero(out))} of {len(out)} samples"
 
 
 def check_pressures(source, t, PC, model) -> None:
     """Refuse chamber pressures that are all 0, not in Pa, or outside their bounds ([0, P_s] for a
-    three-way cylinder's p_c); one column per state of the pressure vector."""
+    three-way cylinder's p_c, up to the supply's ceiling where the supply is a state: the bounds the
+    plant holds each chamber state to); one column per state of the pressure vector."""
+    from .plant import plant_layout, slot
     from .pressures import bounds
     p_lo, ps = bounds(model)
+    top = np.array(slot(plant_layout(model), "pc").upper, float)  # the plant's own clip (a pump's relief)
     cols = [f"pc{i}" for i in range(PC.shape[1])]
     peak = np.max(np.abs(PC), axis=0)
     zero = [c for c, v in zip(cols, peak) if v == 0.0]
@@ -155,14 +158,15 @@ def check_pressures(source, t, PC, model) -> None:
             f"{source}: {which} {guess}: the largest magnitude in {cols[i]} is {_num(peak[i])}, "
             f"{_num(peak[i] / ps[i])} of the supply pressure P_s = {_num(ps[i])} Pa: write them in Pa")
     tol = PRESSURE_TOL * ps + 6.0 * _noise(PC)
-    out = (PC < p_lo - tol) | (PC > ps + tol)
+    out = (PC < p_lo - tol) | (PC > top + tol)
     if out.any():
         k, i = (int(v[0]) for v in np.nonzero(out))
         side = f"below {_num(p_lo[i])}" if PC[k, i] < p_lo[i] else "above the supply pressure"
         raise IdentificationError(
             f"{source}: pressure column {cols[i]} at t = {_num(t[k])} s is {_num(PC[k, i])} Pa, {side} (the model's "
-            f"range [{_num(p_lo[i]) if p_lo[i] else 0}, P_s] = [{_num(p_lo[i]) if p_lo[i] else 0}, {_num(ps[i])}] Pa; "
-            f"{_outside(out)} outside): pressures must be absolute chamber pressures in Pa")
+            f"range [{_num(p_lo[i]) if p_lo[i] else 0}, {'P_s' if top[i] == ps[i] else 'the supply ceiling'}] = "
+            f"[{_num(p_lo[i]) if p_lo[i] else 0}, {_num(top[i])}] Pa; "
+            f"{_outside(out[:, i])} outside): pressures must be absolute chamber pressures in Pa")
 
 
 def check_log(source, t, fs: float, h: float, L, PC, model) -> None:

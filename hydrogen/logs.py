@@ -49,21 +49,17 @@ class Log:
     meta: dict = field(default_factory=dict)
     source: str = "<memory>"
 
-    def group(self, prefix: str, m: int, required: bool = True, what: str = "cylinders", model: str = ""):
+    def group(self, prefix: str, m: int, required: bool = True, what: str = "cylinders"):
         """The (N, m) array of columns ``{prefix}0`` … ``{prefix}{m-1}``; None when the whole group is
         absent and not ``required``; an :class:`IdentificationError` naming the missing columns otherwise,
-        ``what`` the m columns stand for ("cylinders", "pressure states"), and, where the log's header
-        names another model than ``model`` (the one it is read for), that one."""
+        and ``what`` the m columns stand for ("cylinders", "pressure states")."""
         names = [f"{prefix}{i}" for i in range(m)]
         missing = [c for c in names if c not in self.columns]
         if missing and (required or len(missing) < m):
             needs = names[0] if m == 1 else f"{names[0]}..{names[-1]}"
-            written = self.meta.get("model") if isinstance(self.meta, dict) else None
-            hint = (f"; the log's header says it is of model '{written}', read here for model '{model}': pass "
-                    f"that model (--model {written})" if written and model and written != model else "")
             raise IdentificationError(
                 f"{self.source}: log is missing column(s) {', '.join(missing)} (needs {needs}: {what}; columns "
-                f"present: {', '.join(['t', *self.columns]) or 'none'}){hint}")
+                f"present: {', '.join(['t', *self.columns]) or 'none'})")
         if missing:
             return None
         return np.column_stack([self.columns[c] for c in names])

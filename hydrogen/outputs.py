@@ -54,7 +54,7 @@ def _same_file(a: Path, b: Path) -> bool:
             return os.path.samefile(a, b)
     except OSError:
         pass
-    return Path(os.path.abspath(a)) == Path(os.path.abspath(b))
+    return Path(os.path.realpath(a)) == Path(os.path.realpath(b))  # through symlinked folders too
 
 
 def check_distinct(outputs, inputs=()) -> None:

@@ -300,3 +300,23 @@ def reproduces_the_simulation(folder, dyn, scenario, controller, duration, metri
     got = np.array([out["max_error"][c] for c in dyn.model.coordinate_names])
     np.testing.assert_allclose(got, expected, rtol=1e-9, atol=1e-13)
     return got, out, build
+
+
+@pytest.mark.parametrize("window", ["last sample", "last two samples", "after the run"])
+def test_the_program_takes_the_metric_window_as_the_simulation_does(tmp_path, cache, window):
+    """A window holding the run's last period alone, its last two, or none: the exported program's max
+    errors are the metrics simulate reports (a window of fewer than two samples is the whole run in
+    both, and simulate says so)."""
+    import hydrogen
+    dyn = hydrogen.build(hydrogen.load_model("ubc_stewart"), cache=cache, controllers=("p",))
+    duration, quiet = 0.25, named_scenario("z-1hz", dyn.model).noise_free()
+    t = simulate(dyn, "z-1hz", "p", duration=duration, **quiet).t
+    metric_start = {"last sample": t[-1], "last two samples": t[-2], "after the run": 10.0}[window]
+    res = simulate(dyn, "z-1hz", "p", duration=duration, metric_start=metric_start, **quiet)
+    folder = export(tmp_path / "export", "z-1hz", "p", duration=duration, dyn=dyn, metric_start=metric_start)
+    _build(folder)
+    out = _run(folder)
+    assert int(out["periods"]) == len(res.t)
+    for c in dyn.model.coordinate_names:
+        assert out["max_error"][c] == pytest.approx(res.metrics["max_error"][c], rel=1e-9, abs=1e-13), c
+    assert ("metric_note" in res.metrics) == (window != "last two samples")

@@ -227,6 +227,7 @@ def test_no_output_replaces_what_the_command_reads(tmp_path, monkeypatch, capsys
     toml, arm, urdf = tmp_path / "ubc_stewart.toml", tmp_path / "excavator_arm.toml", tmp_path / "excavator_arm.urdf"
     log = tmp_path / "rig.csv"
     log.write_text("t,l0\n0,1\n")
+    (tmp_path / "link").symlink_to(tmp_path, target_is_directory=True)
     before = {f: f.read_bytes() for f in (toml, arm, urdf, log)}
     for argv, says in (
             (["simulate", "--model", str(toml), "--json", str(toml)], "robot description this command reads"),
@@ -234,13 +235,16 @@ def test_no_output_replaces_what_the_command_reads(tmp_path, monkeypatch, capsys
             (["simulate", "--model", str(toml), "--json", str(tmp_path / ".." / tmp_path.name / "ubc_stewart.toml")],
              "robot description"),
             (["simulate", "--log", str(tmp_path / "x.csv"), "--json", str(tmp_path / "x.csv")], "also --json's file"),
+            (["simulate", "--json", str(tmp_path / "link" / "y.json"), "--log", str(tmp_path / "y.json")],
+             "also --json's file"),  # one file through a symlinked folder
             (["identify", str(log), "--json", str(log)], "log this command reads"),
             (["identify", str(log), "--model", str(toml), "--json", str(toml)], "robot description")):
         assert cli.main(argv) == 2, argv
         err = capsys.readouterr().err
         assert says in err and "Traceback" not in err, (argv, err)
     assert not ran
-    assert {f: f.read_bytes() for f in before} == before and not (tmp_path / "x.csv").exists()
+    assert {f: f.read_bytes() for f in before} == before
+    assert not (tmp_path / "x.csv").exists() and not (tmp_path / "y.json").exists()
 
 
 def test_plot_writes_the_format_its_extension_names(tmp_path, dyn):

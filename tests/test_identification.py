@@ -457,6 +457,7 @@ def test_friction_is_estimated_with_theta_from_a_log_made_with_a_known_friction(
         assert est[f"{c.name}.coulomb"] == pytest.approx(100.0, rel=0.10), est
         assert est[f"{c.name}.viscous"] == pytest.approx(300.0, rel=0.15), est
     assert fit.theta.names == plain.theta.names and fit.identifiable
+    assert fit.theta.explained == fit.friction.explained > 0.9  # the joint fit's share, on both parts
     assert np.max(np.abs(fit.theta.error_pct)) < 0.6 * np.max(np.abs(plain.theta.error_pct))
     text = fit.summary()
     assert "friction: cond" in text and "leg1.coulomb" in text
@@ -498,19 +499,44 @@ def test_gamma_that_the_pressure_noise_drives_is_not_reported(excavator):
     refused with that reason instead of a value biased towards 0."""
     arm, res = excavator
     fit = hydrogen.identify(log_from_result(res, *RIG_NOISE, seed=0), dyn=arm)
-    assert not fit.gamma.identifiable and "the pressure sensors' noise drives them" in fit.gamma.reason
+    assert not fit.gamma.identifiable and "the pressure sensors' noise is" in fit.gamma.reason
+    assert "and drives the rest" in fit.gamma.reason
     assert fit.theta.identifiable and fit.theta.explained > 0.99  # θ is still determined
 
 
-def test_a_log_of_another_robot_names_the_model_its_header_records(excavator, dyn):
-    """The excavator's log read for the Stewart platform (identify's default model): the missing columns
-    say what they stand for, and the log's header names the model to pass."""
+def test_gamma_from_a_log_its_model_does_not_describe_is_refused_as_such(dyn):
+    """The rig's z-1hz (second-order valves, seal friction) logged without sensor noise: the γ model (the
+    spool where commanded, no friction) explains a third of the force increments, and the noise none of
+    the rest: refused naming the model, not the noise."""
+    res = hydrogen.simulate("z-1hz", "backstepping", dyn=dyn, duration=3.0)
+    fit = hydrogen.identify(res, dyn=dyn)
+    assert not fit.gamma.identifiable and fit.gamma.explained < 0.5
+    assert "does not describe this log" in fit.gamma.reason and "drives the rest" not in fit.gamma.reason
+
+
+def test_a_log_of_another_robot_names_the_model_its_header_records(excavator, dyn, cache):
+    """The excavator's log read for the Stewart platform (identify's default model), or for the crane
+    (as many travel and pressure columns): refused before anything is built, naming the model its
+    header records; a log without that header entry (a rig's) says what missing columns stand for."""
     _, res = excavator
     log = log_from_result(res)
     assert log.meta["model"] == "excavator_arm"
-    with pytest.raises(IdentificationError) as err:
-        hydrogen.identify(log, dyn=dyn)
-    text = str(err.value)
-    assert "needs l0..l5: the travel of the model's 6 actuators" in text
-    assert "header says it is of model 'excavator_arm', read here for model 'ubc_stewart'" in text
-    assert "--model excavator_arm" in text
+    for model in (None, "loader_crane"):
+        with pytest.raises(IdentificationError) as err:
+            hydrogen.identify(log, model=model)
+        text = str(err.value)
+        assert "header says it is a log of model 'excavator_arm', not of '" in text and "--model excavator_arm" in text
+    rig = dataclasses.replace(log, meta={k: v for k, v in log.meta.items() if k != "model"})
+    with pytest.raises(IdentificationError, match=r"needs l0..l5: the travel of the model's 6 actuators"):
+        hydrogen.identify(rig, dyn=dyn)
+
+
+def test_a_pump_robots_chambers_may_pass_the_nominal_supply_pressure_up_to_its_ceiling(cache):
+    """On the crane's crane-flow the pump and a loaded chamber rise above the nominal 24 MPa (within the
+    relief's ceiling, the plant's own bound): the log is identified, not refused as 'above the supply
+    pressure'."""
+    crane = hydrogen.build(hydrogen.load_model("loader_crane"), cache=cache, controllers=("backstepping",))
+    res = hydrogen.simulate("crane-flow", "backstepping", dyn=crane)
+    from hydrogen.pressures import bounds
+    assert res.pressures.max() > bounds(crane.model)[1].max()  # above every chamber's nominal P_s
+    assert hydrogen.identify(res, dyn=crane).theta.identifiable

@@ -58,7 +58,7 @@ def c_integrator(tmp_path_factory):
     folder = tmp_path_factory.mktemp("integrator")
     (folder / "integrator.c").write_text(source)
     lib = folder / "libintegrator.so"
-    proc = subprocess.run([Toolchain().executable(), "-std=c99", "-O2", "-fPIC", "-shared", "-Wall", "-Wextra",
+    proc = subprocess.run([Toolchain().executable(), *Toolchain().flags(), "-shared", "-Wall", "-Wextra",
                            "-Werror", "-o", str(lib), str(folder / "integrator.c"), "-lm"],
                           capture_output=True, text=True)
     assert proc.returncode == 0, proc.stderr
@@ -101,12 +101,13 @@ def test_the_c_integration_is_the_numpy_one_to_the_bit(c_integrator, stages, fra
 
 def test_the_c_predictor_step_count_is_the_numpy_one(c_integrator):
     h = 1.0 / 512
-    for pred in (1, 3, 4):
+    for pred in (1, 3, 4, 100):
         cfg = _Config(h, 0.0, pred)
-        for periods in (1e-6, 0.00256, 0.25, 1.0 / 3, 0.5, 1.0, 2.0):
+        for periods in (1e-6, 0.00256, 0.25, 1.0 / 3, 0.5, 0.07, 0.7, 1.0, 2.0):
             assert c_integrator.predictor_steps(ctypes.byref(cfg), ctypes.c_double(periods * h)) == \
                 integrator.predictor_steps(periods, pred), (pred, periods)
     assert integrator.predictor_steps(1.0, 4) == 4  # a whole period: exactly predictor_substeps
+    assert 0.07 * 100 > 7 and integrator.predictor_steps(0.07, 100) == 7  # 7.000000000000001: not 8 steps
 
 
 def test_rk4_is_fourth_order():

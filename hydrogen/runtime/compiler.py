@@ -42,8 +42,10 @@ __all__ = ["Toolchain", "cache_root", "compile_library", "compile_libraries", "c
 #: Chosen by benchmarks/bench_flags.py (docs/benchmarks.md "Compiler flags"). -fno-semantic-interposition lets gcc
 #: and clang inline CasADi's exported one-line helpers (casadi_sq, casadi_fmin, ...) inside the shared
 #: library, where each was a call through the PLT: the paper-sim loop 12 % faster. -O3 adds little;
-#: -march=native ties the cache to one CPU, so it is left to the user (cflags=...).
-DEFAULT_CFLAGS = ("-O2", "-fPIC", "-std=c99", "-fno-semantic-interposition")
+#: -march=native ties the cache to one CPU, so it is left to the user (cflags=...). -ffp-contract=off:
+#: no fused multiply-adds the source does not write (GCC in C99 mode contracts none already; clang's
+#: default does), so the C loop, the Python engine and the exported programs round alike everywhere.
+DEFAULT_CFLAGS = ("-O2", "-fPIC", "-std=c99", "-fno-semantic-interposition", "-ffp-contract=off")
 #: Added to the default flags where the compiler is GCC (:meth:`Toolchain.flags`). GCC's
 #: full-redundancy elimination (tree FRE) finds next to nothing in CasADi's code, whose common
 #: subexpressions are shared already, and its cost grows faster than a function's size: most of the

@@ -247,6 +247,12 @@ def check_run_size(sc, model, controller, keep_logs: bool = True) -> int:
     return int(round(periods)) + 1
 
 
+#: The fewest samples a metric window holds; a shorter one (it starts at or after the run's last period)
+#: is clamped to the whole run (a max or RMS of one sample is no statistic). The exported program's C
+#: applies the same rule (templates/export_main.c.j2, from this number).
+MIN_WINDOW_SAMPLES = 2
+
+
 def metric_window(t, metric_start: float):
     """(selection, start, note) for metrics over t >= metric_start. A window that holds fewer than two
     samples (it starts at or after the last simulated period: a max or RMS of one sample is no
@@ -254,7 +260,7 @@ def metric_window(t, metric_start: float):
     t = np.asarray(t)
     sel = t >= metric_start - 1e-12
     kept = np.count_nonzero(sel)
-    if kept >= 2 or kept == len(t):  # a window of samples, or the whole run already
+    if kept >= MIN_WINDOW_SAMPLES or kept == len(t):  # a window of samples, or the whole run already
         return sel, float(metric_start), None
     end = float(t[-1])
     where = "at" if sel.any() else "after"
