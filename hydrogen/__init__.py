@@ -27,8 +27,8 @@ def simulate(scenario="paper-sim", controller="adaptive-robust", *, model=None, 
     """Run a scenario in closed loop and return a :class:`~hydrogen.simulation.simulator.SimulationResult`
     (with ``seeds=``, one run per noise seed: a :class:`~hydrogen.simulation.seeds.SeedResults`).
 
-    ``scenario``: one of the model's scenarios (the Stewart platform's: paper-sim, z-1hz, z-2hz,
-    psi-1hz, z-step). ``controller``: backstepping, adaptive-robust, adaptive-observer or p.
+    ``scenario``: one of the model's scenarios, or ``<scenario>.<variant>`` (an unknown name lists them).
+    ``controller``: one of ``hydrogen.controllers.CONTROLLERS`` that the model's description lists.
     ``model``: a built-in name (``hydrogen.models()``), a path or a Model (default: ubc_stewart). ``overrides`` may set
     ``duration`` (s), ``gains`` (dict), or any scenario field; ``seeds`` (a count N: seeds 0..N-1, or a
     list), ``max_workers`` and ``executor`` run the scenario over noise seeds in parallel (see

@@ -349,6 +349,7 @@ Files
   main.c          sets up the controller's argument tables and the loop, runs the scenario
                   ({n} control periods of {h_ms} ms, {substeps} RK4 plant sub-steps each) and prints the
                   maximum absolute tracking error per coordinate over t >= {metric_start} s
+                  (over the whole run when fewer than {min_window} periods are that late)
   params.h        every number of the run as C99 static const arrays (SI units, matrices
                   column-major): the controller's static inputs in its input order, plant
                   parameters, reference, timing, Kalman gain, initial states and bounds
@@ -377,9 +378,9 @@ Before it runs, the program checks the description's numbers in params.h (P_NUMB
 edited) against their ranges (P_NUMBER_MIN, P_NUMBER_MAX) and the order between a cylinder's
 constants (P_NUMBER_ORDER); a number that breaks one is named on stderr, and the exit status is 2.
 
-The program runs without sensor noise (leg-length and pressure noise are a simulator
-feature; the loop gets a NULL noise table). Its errors therefore equal those of
-  hydrogen.simulate("{scenario}", "{controller}", noise_l=0, noise_p=0{extra})
+The program runs without sensor noise (every sensor's noise is a simulator feature; the
+loop gets a NULL noise table). Its errors therefore equal those of
+  hydrogen.simulate("{scenario}", "{controller}", {quiet}{extra})
 to rounding.
 {kalman_note}
 
@@ -506,7 +507,9 @@ def export(out_dir, scenario=None, controller="adaptive-robust", model=None, dur
         h_ms=f"{1e3 * p.h:.9g}", substeps=sc.substeps, metric_start=f"{p.sc.metric_start:g}",
         loop_c=drivers[0], loop_h=f"{mname}_loop.h", ctrl_files=ctrl_files,
         ctrl_name=ctrl_entry["c_name"], rates_note=_STEP_NOTE.format(step=ctrl_entries[1]["c_name"])
-        if len(ctrl_entries) > 1 else "", other=other, prog=prog, extra=extra, kalman_note=kalman_note)
+        if len(ctrl_entries) > 1 else "", other=other, prog=prog, extra=extra, kalman_note=kalman_note,
+        quiet=", ".join(f"{k}={v!r}" for k, v in p.sc.noise_free().items() if v != {}),
+        min_window=MIN_WINDOW_SAMPLES)
     contents = {**{n: files[n] for n in sources + headers}, **{n: t.encode() for n, t in rendered.items()}}
     meta = {
         "format": 1, "hydrogen_version": __version__, "model": mname, "model_hash": dyn.model.baked_hash(),

@@ -326,7 +326,9 @@ class Model:
     def not_listed(self, controller: str) -> str:
         """The message for a controller this description does not list (its ``controllers``)."""
         return (f"{self.source}: controllers: controller '{controller}' is not generated for '{self.name}' (its "
-                f"description lists {', '.join(self.controllers)}); add it to controllers to run it")
+                f"description lists {', '.join(self.controllers)}); add it to controllers to run it (a shipped "
+                "robot's: in a copy of its description, or in code dataclasses.replace(model, "
+                f"controllers=(*model.controllers, '{controller}')))")
     source: str = "<memory>"
     urdf: Path | None = None
     raw: dict = field(default=None, repr=False, compare=False)

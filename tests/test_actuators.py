@@ -94,14 +94,22 @@ def test_the_registry_finds_a_kind_module_by_itself(tmp_path, monkeypatch):
     pkg = tmp_path / "fake_kinds"
     pkg.mkdir()
     (pkg / "__init__.py").write_text("")
+    rest = "".join(f"{a} = None\n" for a in actuators.DECLARES)  # a whole kind declares each
     for mod, name in (("zeta", "zeta_kind"), ("alpha", "three_way_cylinder"), ("beta", "beta_kind")):
-        (pkg / f"{mod}.py").write_text(f"NAME = {name!r}\nSymbolic = object()\n")
+        (pkg / f"{mod}.py").write_text(f"NAME = {name!r}\nSymbolic = object()\n{rest}")
     (pkg / "helpers.py").write_text("NAME = 'not a kind: no laws'\n")
     monkeypatch.syspath_prepend(str(tmp_path))
     import fake_kinds
     found = actuators._discover(fake_kinds.__path__, "fake_kinds")
     assert list(found) == ["three_way_cylinder", "beta_kind", "zeta_kind"]
-    (pkg / "gamma.py").write_text("NAME = 'zeta_kind'\nSymbolic = object()\n")
+    # a kind without MOTION and COUPLING_GAIN: refused naming them (a run met an AttributeError)
+    (pkg / "half.py").write_text("NAME = 'half_kind'\nSymbolic = object()\n"
+                                 + rest.replace("MOTION = None\n", "").replace("COUPLING_GAIN = None\n", ""))
+    with pytest.raises(ImportError, match=r"actuator kind 'half_kind' \(fake_kinds.half\) does not declare "
+                                          r"MOTION, COUPLING_GAIN"):
+        actuators._discover(fake_kinds.__path__, "fake_kinds")
+    (pkg / "half.py").unlink()
+    (pkg / "gamma.py").write_text(f"NAME = 'zeta_kind'\nSymbolic = object()\n{rest}")
     with pytest.raises(ImportError, match=r"'zeta_kind' is declared twice"):
         actuators._discover(fake_kinds.__path__, "fake_kinds")
 

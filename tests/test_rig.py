@@ -469,3 +469,13 @@ def test_a_variants_searched_gains_name_every_gain_the_rig_names(name):
         for c, gains in (table.get("gains") or {}).items():
             missing = sorted(set(m.gains.get(c, {})) - set(gains))
             assert not missing, f"{name} [variants.{variant}] gains.{c} inherits {missing} from [gains.{c}]"
+
+
+def test_a_main_gain_the_secondary_search_also_sets_is_refused(monkeypatch):
+    """A controller whose main gain is K_p: the secondary search's Kd_scale sets K_p at every point, so
+    every grid column would be the same run under the main gain's name; refused before any run."""
+    from hydrogen.simulation import tuning
+
+    monkeypatch.setattr(tuning, "main_gain", lambda controller: "Kp")
+    with pytest.raises(hydrogen.ScenarioError, match=r"main gain 'Kp' is also set by the secondary search"):
+        tuning.tune("backstepping", [1.0, 2.0], seeds=[0], progress=False)

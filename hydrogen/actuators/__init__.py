@@ -48,11 +48,24 @@ __all__ = ["KINDS", "DEFAULT_KIND", "actuator", "baked_parameters"]
 DEFAULT_KIND = "three_way_cylinder"
 
 
+#: What a kind's module declares besides ``NAME`` and ``Symbolic`` (the module doc above): a module
+#: that lacks one is refused when the package is imported, naming it, instead of failing later where
+#: a run first reads it.
+DECLARES = ("DOC", "MOTION", "TRAVEL", "STATES", "PARAMETERS", "COUPLING_GAIN", "SENSORS", "Numeric", "parameters",
+            "stacked")
+
+
 def _discover(path=__path__, package=__name__) -> dict:
     """``{NAME: module}`` of every module of this package that declares a kind (``NAME`` and
     ``Symbolic``): the default kind first, then by name, so lists of kinds read the same on every
-    machine whatever order the file system gives. ``path``, ``package``: where to look (this package)."""
+    machine whatever order the file system gives. ``path``, ``package``: where to look (this package).
+    An ImportError names a kind's module that lacks one of :data:`DECLARES`."""
     found = discover(package, path, ("NAME", "Symbolic"), lambda m: m.NAME, "actuator kind")
+    for name, mod in found.items():
+        missing = [a for a in DECLARES if not hasattr(mod, a)]
+        if missing:
+            raise ImportError(f"actuator kind {name!r} ({mod.__name__}) does not declare {', '.join(missing)}: "
+                              "every kind declares them (hydrogen/actuators/__init__.py says what each is)")
     return {k: found[k] for k in sorted(found, key=lambda k: (k != DEFAULT_KIND, k))}
 
 

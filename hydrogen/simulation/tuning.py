@@ -75,7 +75,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..errors import HydrogenError
+from ..errors import HydrogenError, ScenarioError
 from .seeds import DEFAULT_SEEDS, seed_list
 from .simulator import SATURATION  # largest fraction of periods with a saturated valve
 
@@ -362,6 +362,11 @@ def tune(controller, grid=None, *, model=None, scenarios=None, secondary=None, a
         build(model, controllers=(controller,), gains={controller: g}, progress=report, **options)
     name = main_gain(controller)
     gs = list(map(float, grid))
+    clash = sorted({name} & set(_secondary(dyn, controller, sec_points[0])))
+    if clash:  # the secondary point would overwrite the main gain: every grid column the same run
+        raise ScenarioError(f"tune: controller '{controller}''s main gain '{name}' is also set by the secondary "
+                            f"search ({', '.join(sec)}: Kd_scale sets Kd and Kp); choose another main gain in its "
+                            "spec, or pass secondary={} (or one without it)")
 
     def gains(g, extra):
         out = family(dyn, controller, g)
