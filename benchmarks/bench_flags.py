@@ -32,7 +32,7 @@ CONTROLLER = "adaptive-robust"
 FLAG_SETS = {
     "-O1": ("-O1", "-fPIC", "-std=c99"),
     "-O2": ("-O2", "-fPIC", "-std=c99"),
-    "-O2 nsi": DEFAULT_CFLAGS,
+    "-O2 nsi": ("-O2", "-fPIC", "-std=c99", "-fno-semantic-interposition"),
     "-O3 nsi": ("-O3", "-fPIC", "-std=c99", "-fno-semantic-interposition"),
     "-O3 nsi -march=native": ("-O3", "-march=native", "-fPIC", "-std=c99", "-fno-semantic-interposition"),
 }
