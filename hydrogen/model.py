@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import hashlib
 import json
+import math
 import os
 import stat
 from dataclasses import dataclass, field, fields
@@ -1678,6 +1679,7 @@ def _check_tables(r: _Reader, m: Model):
     names = {c: gain_names(c, m) for c in CONTROLLERS}
     _check_gains(r, m.gains, "[gains]", {**names, COMMON_GAINS: frozenset().union(*names.values())})
     r.known(m.scenarios["rig"], table_keys(rig=True), "[rig]", RENAMED)
+    _check_setting_values(r, m.scenarios["rig"], "[rig]")
     for name, table in m.scenarios.items():
         if name == "rig":
             continue
@@ -1685,6 +1687,7 @@ def _check_tables(r: _Reader, m: Model):
         if not isinstance(table, dict):
             raise r.error(w, f"expected a table, got {_quote(table)}")
         r.known(table, table_keys(), w, RENAMED)
+        _check_setting_values(r, table, w)
         for flag in ("rig", "tuned"):
             if flag in table and not isinstance(table[flag], bool):
                 raise r.error(f"{w} {flag}", f"expected true or false, got {_quote(table[flag])}")
@@ -1697,10 +1700,28 @@ def _check_tables(r: _Reader, m: Model):
         if not isinstance(table, dict):
             raise r.error(w, f"expected a table, got {_quote(table)}")
         r.known(table, table_keys(rig=True) | _keys("[variants.<name>]"), w, RENAMED)
+        _check_setting_values(r, table, w)
         gains = table.get("gains", {})
         if not isinstance(gains, dict):
             raise r.error(f"{w} gains", f"expected a table of controllers, got {_quote(gains)}")
         _check_gains(r, gains, f"{w} gains", names)
+
+
+def _check_setting_values(r: _Reader, table: dict, where: str) -> None:
+    """Each scenario setting of ``table`` that declares a check (hydrogen.setting: ``"number"``, a
+    finite number; ``">=0"``, one not negative) holds it, at load time; the checks across settings
+    (a valve's bandwidth against the sub-steps, a reference below Nyquist) wait for the scenario."""
+    from .scenario_settings import settings
+    for f in settings():
+        check = f.metadata.get("check")
+        if check is None or f.name not in table:
+            continue
+        v = table[f.name]
+        if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
+            raise r.error(f"{where} {f.name}", f"must be a finite number ({f.metadata['unit'] or 'no unit'}), "
+                                               f"got {_quote(v)}")
+        if check == ">=0" and v < 0:
+            raise r.error(f"{where} {f.name}", f"must be >= 0 ({f.metadata['unit'] or 'no unit'}), got {_quote(v)}")
 
 
 def _check_formerly(r: _Reader, variants: dict):

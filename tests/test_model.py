@@ -919,3 +919,23 @@ def test_a_supply_state_needs_one_supply_pressure_and_one_oil(tmp_path):
                                          r"bulk_modulus differ \(1e\+09, 1.5e\+09 Pa\)"):
         _supplied_arm(tmp_path, PUMP_SUPPLY, stiff)
     assert _supplied_arm(tmp_path, PUMP_SUPPLY + "bulk_modulus = 1.2e9\n", stiff).supply.values["bulk_modulus"] == 1.2e9
+
+
+@pytest.mark.parametrize("table, line, words", [
+    ("[rig]", "noise_ps = -3.0", "[rig] noise_ps: must be >= 0 (Pa), got -3.0"),
+    ("[rig]", 'noise_q = "abc"', "[rig] noise_q: must be a finite number (rad or m), got 'abc'"),
+    ("[scenarios.z-1hz]", 'duration = "2"', "[scenarios.z-1hz] duration: must be a finite number (s), got '2'"),
+    ("[variants.low-latency]", "metric_start = true",
+     "[variants.low-latency] metric_start: must be a finite number (s), got True"),
+])
+def test_a_scenario_setting_of_the_wrong_type_or_sign_stops_the_load(tmp_path, table, line, words):
+    """The checks a setting declares (a finite number, not negative) hold at load time, naming the file,
+    the table and the key; before, a bad value loaded and stopped only the run that used it."""
+    from hydrogen.model import default_model_path
+    text = default_model_path().read_text()
+    assert table + "\n" in text
+    path = tmp_path / "bad.toml"
+    path.write_text(text.replace(table + "\n", f"{table}\n{line}\n", 1))
+    with pytest.raises(hydrogen.ModelError) as err:
+        hydrogen.load_model(path)
+    assert str(err.value) == f"{path}: {words}"
