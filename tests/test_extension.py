@@ -215,7 +215,7 @@ def test_bad_out_is_rejected(either, model, rng):
     faults = [(np.empty(good.shape, dtype=np.float32), "must be float64, got float32"),
               (np.empty(good.shape, dtype=np.int64), "must be float64, got int64"),
               (np.empty(good.shape, dtype=np.float64).astype(">f8"), "must be float64 in native byte order, got >f8"),
-              (fortran, r"must be C-contiguous \(row-major, as np.empty gives\), got a non-contiguous array"),
+              (fortran, r"must be C-contiguous \(row-major, as np.empty gives\), got a Fortran-order \(column-major\) array"),
               (strided, "must be C-contiguous .*non-contiguous array"),
               (unaligned, "must be aligned, got an unaligned array"),
               (read_only, "must be writeable, got a read-only array")]

@@ -51,6 +51,14 @@ def test_seeds_run_once_per_seed_with_distinct_noise(dyn, over_seeds):
     np.testing.assert_array_equal(alone.q, res.results[1].q)
 
 
+def test_the_repr_is_one_line_naming_the_run_and_its_median(over_seeds):
+    """Printing the runs over seeds shows what they are, not every array of every run."""
+    text = repr(over_seeds)
+    assert "\n" not in text and len(text) < 400, text
+    assert text.startswith(f"SeedResults({over_seeds.scenario_name!r}, {over_seeds.controller!r}, seeds=")
+    assert "median max error" in text and str(list(over_seeds.seeds)) in text
+
+
 def test_distribution_matches_the_per_seed_metrics(over_seeds):
     m, runs = over_seeds.metrics, over_seeds.results
     for key in ("max_error_pct", "rms_error", "max_error"):

@@ -39,7 +39,8 @@ def _out_fault(o, shape) -> str | None:
     if o.shape != shape:
         return "shape"
     if not o.flags.c_contiguous:
-        return "must be C-contiguous (row-major, as np.empty gives), got a non-contiguous array"
+        got = "a Fortran-order (column-major) array" if o.flags.f_contiguous else "a non-contiguous array"
+        return f"must be C-contiguous (row-major, as np.empty gives), got {got}"
     if not o.flags.aligned:
         return "must be aligned, got an unaligned array"
     if not o.flags.writeable:

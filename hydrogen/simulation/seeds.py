@@ -177,6 +177,16 @@ class SeedResults:
     failures: dict = field(default_factory=dict)  # {seed: message} of the runs that failed
     metrics: dict = field(default_factory=dict)
 
+    def __repr__(self) -> str:
+        """One line: the run, the seeds, the failures and each coordinate's median max error (%),
+        not every array of every run."""
+        done = self.completed
+        what = f"{done[0].scenario_name!r}, {done[0].controller!r}, " if done else ""
+        pct = (self.metrics.get("median") or {}).get("max_error_pct") or {}
+        shown = ", ".join(f"{c} {v:.3g} %" for c, v in pct.items() if v is not None)
+        return (f"SeedResults({what}seeds={list(self.seeds)}, completed {len(done)}, failed "
+                f"{sorted(self.failures) or 'none'}{f'; median max error {shown}' if shown else ''})")
+
     @property
     def completed(self) -> list:
         """The results of the runs that completed, in seed order."""
