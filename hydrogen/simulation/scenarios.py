@@ -24,8 +24,9 @@ __all__ = ["Scenario", "setting", "settings", "PER_ACTUATOR", "actuator_settings
 class Scenario(ScenarioFields):
     """Everything a run needs besides the controller. Units SI.
 
-    Each field a description may set is declared with its default, unit, meaning and check in
-    :class:`~hydrogen.scenario_settings.ScenarioFields` (the description table in the documentation
+    Each field a description may set is declared with its default, unit, meaning and check by the part
+    of the loop that reads it (:data:`hydrogen.scenario_settings.PARTS`, gathered into
+    :class:`~hydrogen.scenario_settings.ScenarioFields`; the description table in the documentation
     lists them). Two behaviours need more words than a table cell: the command computed from the measurement at t_k is applied from
     t_k + ``delay`` (a fraction of a period switches the valves' command inside the plant's
     sub-steps); with ``kalman`` the leg rates come from fixed-gain Kalman filters on the measured leg
