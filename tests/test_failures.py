@@ -409,8 +409,9 @@ def test_a_cache_folder_that_cannot_be_made_is_named_as_such(model, monkeypatch)
     ("p", dict(q0_offset="far"), "q0_offset"),
 ])
 def test_the_python_api_names_the_field(dyn, controller, kw, field):
-    with pytest.raises(ScenarioError, match=field):
+    with pytest.raises(ScenarioError, match=field) as err:
         hydrogen.simulate("z-step", controller, dyn=dyn, **{"duration": 0.05, **kw})
+    assert "(run)" not in str(err.value)  # the scenario is named, not a placeholder
 
 
 def test_a_start_far_off_and_api_arguments_of_the_wrong_type(dyn, model):

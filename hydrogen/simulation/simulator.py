@@ -336,7 +336,7 @@ def check_call(scenario, controller, gains, duration, check_workspace) -> None:
     if gains is not None and (not isinstance(gains, Mapping) or not all(isinstance(k, str) for k in gains)):
         raise ScenarioError(f"gains must be a dict {{gain name: value}}, got {_shown(gains)}")
     if duration is not None:
-        checked_float(duration, "duration")
+        checked_float(duration, "duration", scenario if isinstance(scenario, str) else scenario.name)
     if not isinstance(check_workspace, (bool, np.bool_)):
         raise ScenarioError(f"check_workspace must be True or False, got {_shown(check_workspace)}")
 
