@@ -41,14 +41,19 @@ FLAG_SETS = {
 GCC_DEFAULT = "-O2 nsi no-fre (default with gcc)"
 
 
+#: The default flags' row with another compiler than GCC (DEFAULT_CFLAGS alone).
+OTHER_DEFAULT = "-O2 nsi no-contract (default)"
+
+
 def flag_sets(toolchain=None) -> dict:
-    """The flag sets compared: :data:`FLAG_SETS`, and with GCC its default flags after -O2 nsi."""
+    """The flag sets compared: :data:`FLAG_SETS`, and after -O2 nsi the compiler's default flags
+    (:meth:`Toolchain.flags`: with GCC, :data:`GCC_DEFAULT`; else :data:`OTHER_DEFAULT`)."""
     sets = dict(FLAG_SETS)
-    if (toolchain or Toolchain()).is_gcc():
-        items = list(sets.items())
-        at = list(sets).index("-O2 nsi") + 1
-        sets = dict([*items[:at], (GCC_DEFAULT, (*DEFAULT_CFLAGS, *GCC_CFLAGS)), *items[at:]])
-    return sets
+    gcc = (toolchain or Toolchain()).is_gcc()
+    items = list(sets.items())
+    at = list(sets).index("-O2 nsi") + 1
+    row = (GCC_DEFAULT, (*DEFAULT_CFLAGS, *GCC_CFLAGS)) if gcc else (OTHER_DEFAULT, DEFAULT_CFLAGS)
+    return dict([*items[:at], row, *items[at:]])
 #: The planar chain (bench_scaling.chain_description) whose largest source is compiled with each flag
 #: set: its adaptive-robust controller's lean semi-implicit step, what its first adaptive run waits for.
 CHAIN_N, CHAIN_N_QUICK = 12, 7

@@ -363,7 +363,7 @@ Files
   Makefile, CMakeLists.txt   build files; export.json   what was exported, with SHA-256 of each file
 
 Build and run
-  make && make run            (cc -O2 -std=c99 -Wall -Wextra -Werror, links -lm)
+  make && make run            (cc -O2 -std=c99 -ffp-contract=off -Wall -Wextra -Werror, links -lm)
   or: cmake -S . -B build && cmake --build build && ./build/{prog}
 
 Output, one item per line:
@@ -380,7 +380,7 @@ constants (P_NUMBER_ORDER); a number that breaks one is named on stderr, and the
 
 The program runs without sensor noise (every sensor's noise is a simulator feature; the
 loop gets a NULL noise table). Its errors therefore equal those of
-  hydrogen.simulate("{scenario}", "{controller}", {quiet}{extra})
+  hydrogen.simulate("{scenario}", "{controller}", model={model_arg}, {quiet}{extra})
 to rounding.
 {kalman_note}
 
@@ -429,6 +429,17 @@ def sensor_kalman_gain(p):
     """The steady-state Kalman gain [position, rate /s] of the prepared export ``p``'s scenario, or None
     when it has no Kalman filter."""
     return p.sensor_kf_gain
+
+
+def _model_arg(model) -> str:
+    """The ``model=`` argument that loads ``model`` again: a built-in's name, else its description's path."""
+    from .model import model_path, models
+    try:
+        if model.name in models() and Path(model.source).resolve() == model_path(model.name).resolve():
+            return repr(model.name)
+    except (OSError, TypeError, ValueError):
+        pass
+    return repr(str(model.source))
 
 
 def export(out_dir, scenario=None, controller="adaptive-robust", model=None, duration=None, *,
@@ -494,7 +505,8 @@ def export(out_dir, scenario=None, controller="adaptive-robust", model=None, dur
                        f"P_KF_GAIN_SENSOR, designed for {p.sensor_noise_l:g} m leg-length noise, on the rig.")
     else:
         kalman_note = "Leg rates come from the plant's exact rates (this scenario has no Kalman filter)."
-    extra = "".join(f", {k}={v!r}" for k, v in sorted(overrides.items()) if k not in ("noise_l", "noise_p", "noise_q", "noise_ps"))
+    quiet = p.sc.noise_free()  # every noise off, the actuators' own settings merged in
+    extra = "".join(f", {k}={v!r}" for k, v in sorted(overrides.items()) if k not in quiet)
     if duration is not None:
         extra = f", duration={float(duration)!r}" + extra
     if gains:
@@ -508,7 +520,7 @@ def export(out_dir, scenario=None, controller="adaptive-robust", model=None, dur
         loop_c=drivers[0], loop_h=f"{mname}_loop.h", ctrl_files=ctrl_files,
         ctrl_name=ctrl_entry["c_name"], rates_note=_STEP_NOTE.format(step=ctrl_entries[1]["c_name"])
         if len(ctrl_entries) > 1 else "", other=other, prog=prog, extra=extra, kalman_note=kalman_note,
-        quiet=", ".join(f"{k}={v!r}" for k, v in p.sc.noise_free().items() if v != {}),
+        quiet=", ".join(f"{k}={v!r}" for k, v in quiet.items() if v != {}), model_arg=_model_arg(dyn.model),
         min_window=MIN_WINDOW_SAMPLES)
     contents = {**{n: files[n] for n in sources + headers}, **{n: t.encode() for n, t in rendered.items()}}
     meta = {

@@ -66,6 +66,7 @@ from __future__ import annotations
 import math
 import time
 from dataclasses import asdict, dataclass, field
+from pathlib import Path
 
 import numpy as np
 
@@ -436,10 +437,11 @@ def identify(log, model=None, *, dyn=None, cutoff_hz: float | None = None, order
 
     t_start = time.perf_counter()
     timings = {}
+    from_file = isinstance(log, (str, Path))  # a CSV, whose header hydrogen wrote, or a rig's (none)
     log = as_log(log)
     from .runtime.build import as_model, build
     model = dyn.model if dyn is not None else as_model(model)
-    written = log.meta.get("model") if isinstance(log.meta, dict) else None
+    written = log.meta.get("model") if from_file and isinstance(log.meta, dict) else None
     if written and written != model.name:  # before any build: a log of another robot is a wrong --model
         raise IdentificationError(
             f"{log.source}: the log's header says it is a log of model '{written}', not of '{model.name}': pass "

@@ -161,7 +161,8 @@ def check_pressures(source, t, PC, model) -> None:
     out = (PC < p_lo - tol) | (PC > top + tol)
     if out.any():
         k, i = (int(v[0]) for v in np.nonzero(out))
-        side = f"below {_num(p_lo[i])}" if PC[k, i] < p_lo[i] else "above the supply pressure"
+        side = f"below {_num(p_lo[i])}" if PC[k, i] < p_lo[i] else (
+            "above the supply pressure" if top[i] == ps[i] else "above the supply's ceiling")
         raise IdentificationError(
             f"{source}: pressure column {cols[i]} at t = {_num(t[k])} s is {_num(PC[k, i])} Pa, {side} (the model's "
             f"range [{_num(p_lo[i]) if p_lo[i] else 0}, {'P_s' if top[i] == ps[i] else 'the supply ceiling'}] = "

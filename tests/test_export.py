@@ -320,3 +320,23 @@ def test_the_program_takes_the_metric_window_as_the_simulation_does(tmp_path, ca
     for c in dyn.model.coordinate_names:
         assert out["max_error"][c] == pytest.approx(res.metrics["max_error"][c], rel=1e-9, abs=1e-13), c
     assert ("metric_note" in res.metrics) == (window != "last two samples")
+
+
+def test_the_readmes_simulate_call_reproduces_the_program_on_another_robot(tmp_path, cache):
+    """The README.txt of an export names the call whose errors the program's equal: evaluated as
+    written (the crane, an actuator's own setting given too), it runs the same periods and gives the
+    program's max errors."""
+    import re
+
+    import hydrogen
+    dyn = hydrogen.build(hydrogen.load_model("loader_crane"), cache=cache, controllers=("backstepping",))
+    folder = export(tmp_path / "export", "crane-load", "backstepping", duration=0.3, dyn=dyn, metric_start=0.1,
+                    actuators={"slew_motor": {"quantization_l": 2e-5}})
+    call = re.search(r"^  (hydrogen\.simulate\(.*\))$", (folder / "README.txt").read_text(), re.MULTILINE)[1]
+    assert "model='loader_crane'" in call and call.count("actuators=") == 1
+    res = eval(call, {"hydrogen": hydrogen})  # noqa: S307 - the README's own text, written by this test
+    _build(folder)
+    out = _run(folder)
+    assert int(out["periods"]) == len(res.t)
+    for c in dyn.model.coordinate_names:
+        assert out["max_error"][c] == pytest.approx(res.metrics["max_error"][c], rel=1e-9, abs=1e-13), c

@@ -477,5 +477,12 @@ def test_a_main_gain_the_secondary_search_also_sets_is_refused(monkeypatch):
     from hydrogen.simulation import tuning
 
     monkeypatch.setattr(tuning, "main_gain", lambda controller: "Kp")
-    with pytest.raises(hydrogen.ScenarioError, match=r"main gain 'Kp' is also set by the secondary search"):
+    built = []
+    monkeypatch.setattr(tuning, "_variant_gains", lambda *a: built.append(1) or [])
+    with pytest.raises(hydrogen.ScenarioError, match=r"main gain 'Kp' is also set by the secondary search: "
+                                                     r"Kd_scale sets Kd, Kp; .* without Kd_scale"):
         tuning.tune("backstepping", [1.0, 2.0], seeds=[0], progress=False)
+    assert not built  # refused before the variants' libraries are compiled
+    with pytest.raises(hydrogen.ScenarioError, match=r"Ktau sets Ktau"):
+        monkeypatch.setattr(tuning, "main_gain", lambda controller: "Ktau")
+        tuning.tune("backstepping", [1.0, 2.0], seeds=[0], progress=False, secondary={"Ktau": [1.0]})

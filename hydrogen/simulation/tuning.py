@@ -353,6 +353,14 @@ def tune(controller, grid=None, *, model=None, scenarios=None, secondary=None, a
     dyn = build(model, controllers=(controller,), progress=report, **options)
     sec = secondary_grid(dyn, controller) if secondary is None else dict(secondary)
     sec_points = [dict(zip(sec, v)) for v in itertools.product(*sec.values())] or [{}]
+    setters = [k for k in sec if main_gain(controller) in _secondary(dyn, controller, {k: sec[k][0]})]
+    if setters:  # every secondary point would overwrite the main gain: each grid column the same run
+        sets = "; ".join(f"{k} sets " + ", ".join(sorted(_secondary(dyn, controller, {k: sec[k][0]})))
+                         for k in setters)
+        raise ScenarioError(
+            f"tune: controller '{controller}''s main gain '{main_gain(controller)}' is also set by the secondary "
+            f"search: {sets}; choose another main gain in its spec, or pass secondary= without "
+            + ", ".join(setters))
     own = _own_gains(dyn, controller, next(iter(scen)), model)
     stages = adaptation_grid(dyn, controller, own) if adaptation is None else \
         [(k, [float(v) for v in vs]) for k, vs in dict(adaptation).items()]
@@ -362,11 +370,6 @@ def tune(controller, grid=None, *, model=None, scenarios=None, secondary=None, a
         build(model, controllers=(controller,), gains={controller: g}, progress=report, **options)
     name = main_gain(controller)
     gs = list(map(float, grid))
-    clash = sorted({name} & set(_secondary(dyn, controller, sec_points[0])))
-    if clash:  # the secondary point would overwrite the main gain: every grid column the same run
-        raise ScenarioError(f"tune: controller '{controller}''s main gain '{name}' is also set by the secondary "
-                            f"search ({', '.join(sec)}: Kd_scale sets Kd and Kp); choose another main gain in its "
-                            "spec, or pass secondary={} (or one without it)")
 
     def gains(g, extra):
         out = family(dyn, controller, g)
