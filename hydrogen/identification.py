@@ -333,36 +333,47 @@ def _fit(Y, b, names, max_cond, nominal, true=None, noise_gram=None) -> Paramete
                         directions, reason, determined, explained=1.0 - float(r @ r) / total if total > 0 else None)
 
 
-#: The least share of the data a fit of γ must explain to be reported: below it the pressure sensors'
-#: noise, not the oil's compliance, drives the force increments it fits, and least squares shrinks the
-#: estimates towards 0 by an amount its standard errors do not show (the noise is in the regressors too).
+#: A pooled γ fit is reported when it explains at least MIN_EXPLAINED of the force increments it fits,
+#: and what it leaves beyond the pressure sensors' expected share (dynamics the fit does not model:
+#: valve dynamics, friction, a varying supply) is at most MAX_UNMODELLED of them. Over the shipped
+#: robots' scenarios (P, backstepping, adaptive-robust; pressure noise 0, 20 and 100 kPa) the fits so
+#: kept were within 5.4 % of the true β (most within 3 %), and every fit left out by the second rule
+#: was 17-80 % off, while its standard errors showed a few % (docs/guide/identification.md).
 MIN_EXPLAINED = 0.5
+MAX_UNMODELLED = 0.03
 
 
 def _check_explained(fit: ParameterFit, per_leg, cylinders_differ: bool, noise_share: float) -> ParameterFit:
-    """Mark a pooled γ fit that explains less than :data:`MIN_EXPLAINED` of its force increments as not
-    identifiable, saying why: the cylinders' own γ differ (``cylinders_differ``: the model's valves do,
-    and each cylinder's own fit, ``per_leg`` its shares, explains its data); or the pressure sensors'
-    noise, whose expected share of the increments (``noise_share``) accounts for at least half of what
-    the fit leaves; else the γ model itself (ideal valve, no friction) does not describe the log."""
-    if fit.explained is None or fit.explained >= MIN_EXPLAINED:
+    """Mark a pooled γ fit as not identifiable, saying why: where the model's cylinders have different γ
+    (``cylinders_differ``: their valves differ) one value for all is none of theirs, whatever it explains
+    (each cylinder's own fit, ``per_leg`` its shares, is reported); where it explains less than
+    :data:`MIN_EXPLAINED` of its force increments, the pressure sensors' noise when its expected share
+    (``noise_share``) accounts for at least half of what the fit leaves, else the model the fit assumes;
+    and where what it leaves beyond the noise's share is more than :data:`MAX_UNMODELLED`, the model."""
+    unexplained = None if fit.explained is None else 1.0 - fit.explained
+    short = unexplained is not None and fit.explained < MIN_EXPLAINED
+    unmodelled = 0.0 if unexplained is None else unexplained - noise_share
+    if not (cylinders_differ or short or unmodelled > MAX_UNMODELLED):
         return fit
     fit.identifiable = False
     fit.determined = np.zeros(len(fit.names), bool)
     legs = ", ".join(f"{100 * e:.0f} %" if e is not None else "-" for e in per_leg)
-    own = f"each cylinder's own fit: {legs}; at least {100 * MIN_EXPLAINED:.0f} % needed"
+    own = f"each cylinder's own fit: {legs}"
     share = f"the fit explains {100 * fit.explained:.0f} % of the force increments over a sample ({own})"
-    if cylinders_differ and all(e is not None and e >= MIN_EXPLAINED for e in per_leg):
-        why = (f"one value for every cylinder explains {100 * fit.explained:.0f} % of the force increments "
-               f"({own}): the cylinders' own values differ (the model's valves do); read each cylinder's fit")
-    elif noise_share >= 0.5 * (1.0 - fit.explained):
-        why = (f"{share}; the pressure sensors' noise is {100 * noise_share:.0f} % of them and drives the rest, "
-               "and the estimates would be biased towards 0; a log with larger or faster pressure changes, or "
-               "quieter pressure sensors, may determine them")
+    model = ("the model the fit assumes (the spool where commanded, no friction) does not describe this log "
+             "(valve dynamics, friction, a varying supply?), and its estimates would be off by more than their "
+             "standard errors show; identify gamma from a log where those are small")
+    if cylinders_differ:
+        why = (f"the model's cylinders have different values (their valves differ): one value for every "
+               f"cylinder is none of theirs; read each cylinder's own fit ({own})")
+    elif short and noise_share >= 0.5 * unexplained:
+        why = (f"{share}, at least {100 * MIN_EXPLAINED:.0f} % needed; the pressure sensors' noise is "
+               f"{100 * noise_share:.0f} % of them and drives the rest, and the estimates would be biased towards "
+               "0; a log with larger or faster pressure changes, or quieter pressure sensors, may determine them")
     else:
-        why = (f"{share}, and the pressure sensors' noise only {100 * noise_share:.2g} % of them: the model the "
-               "fit assumes (the spool where commanded, no friction) does not describe this log (valve dynamics, "
-               "friction, a varying supply?); identify gamma from a log where those are small")
+        why = (f"{share}; the pressure sensors' noise accounts for {100 * noise_share:.2g} % of them, so "
+               f"{100 * unmodelled:.2g} % are left unexplained (at most {100 * MAX_UNMODELLED:.0f} % allowed): "
+               + model)
     fit.reason = f"{fit.reason}; {why}" if fit.reason else why
     return fit
 
@@ -555,9 +566,6 @@ def identify(log, model=None, *, dyn=None, cutoff_hz: float | None = None, order
                         [model.gamma1_max, model.gamma2_max], "[adaptation] gamma1_min..gamma2_max")
         note = (f"low-pass at {fc_g:.3g} Hz: twice the highest oil-column mode, {mode:.3g} Hz at the mean pose, "
                 f"within [cutoff, f_s/10]; 1 in every {step_g} samples")
-        if not np.allclose(model.gamma, model.gamma[:, :1]):
-            note += ("; POOLED over cylinders whose valves differ in the model, so the pooled value is not "
-                     "any cylinder's: read gamma_per_leg, one [beta, beta*c] per cylinder")
         timings["gamma"] = time.perf_counter() - t0
     timings["total"] = time.perf_counter() - t_start
     return Identification(theta, gamma_fit, per_leg, fs, fc, edge, step, len(t), len(idx), log.source, note,

@@ -482,7 +482,7 @@ def test_gamma_pooled_over_cylinders_whose_values_differ_is_refused_and_each_cyl
     arm, res = excavator
     fit = hydrogen.identify(res, dyn=arm)  # noise-free
     assert not fit.gamma.identifiable and not fit.gamma.determined.any() and fit.gamma.explained < 0.5
-    assert "the cylinders' own values differ" in fit.gamma.reason
+    assert "the model's cylinders have different values" in fit.gamma.reason
     np.testing.assert_allclose(fit.gamma_per_leg, arm.model.gamma.T, rtol=0.01)
     assert min(fit.gamma_per_leg_explained) > 0.99
     text = fit.summary()
@@ -493,15 +493,29 @@ def test_gamma_pooled_over_cylinders_whose_values_differ_is_refused_and_each_cyl
     assert fit.to_dict()["gamma_per_leg_names"] == [c.name for c in arm.model.cylinders]
 
 
-def test_gamma_that_the_pressure_noise_drives_is_not_reported(excavator):
-    """The same run logged with the rig's sensor noise: the pressure noise dominates the arm's force
-    increments over a sample (each cylinder's fit explains under half of them), and the estimate is
-    refused with that reason instead of a value biased towards 0."""
-    arm, res = excavator
-    fit = hydrogen.identify(log_from_result(res, *RIG_NOISE, seed=0), dyn=arm)
+def test_gamma_that_the_pressure_noise_drives_is_not_reported(dyn, model):
+    """paper-sim logged with 200 kPa of pressure noise: the noise is most of the force increments over a
+    sample and the fit explains a fifth of them; the estimate is refused with that reason instead of a
+    value biased towards 0. With 20 kPa (the rig's) the fit explains 96 %, the rest the noise's share:
+    reported, within 1 %."""
+    res = hydrogen.simulate("paper-sim", "p", dyn=dyn)
+    fit = hydrogen.identify(log_from_result(res, 5e-6, 2e5, seed=0), dyn=dyn)
     assert not fit.gamma.identifiable and "the pressure sensors' noise is" in fit.gamma.reason
     assert "and drives the rest" in fit.gamma.reason
-    assert fit.theta.identifiable and fit.theta.explained > 0.99  # θ is still determined
+    assert fit.theta.identifiable  # θ is still determined
+    rig = hydrogen.identify(log_from_result(res, *RIG_NOISE, seed=0), dyn=dyn)
+    assert rig.gamma.identifiable and np.all(np.abs(rig.gamma.error_pct) < 1.0)
+
+
+def test_gamma_leaving_more_than_the_noise_explains_is_not_reported(dyn):
+    """z-1hz on the rig under P (second-order valves, seal friction), logged without noise: the fit
+    explains 89 % of the force increments, and the noise none of the other 11 %; least squares gave β
+    17 % low there with a few % of standard error. Refused naming the unexplained share."""
+    res = hydrogen.simulate("z-1hz", "p", dyn=dyn)
+    fit = hydrogen.identify(res, dyn=dyn)
+    assert fit.gamma.explained > 0.8 and not fit.gamma.identifiable
+    assert "left unexplained (at most 3 % allowed)" in fit.gamma.reason
+    assert "does not describe this log" in fit.gamma.reason
 
 
 def test_gamma_from_a_log_its_model_does_not_describe_is_refused_as_such(dyn):
