@@ -2,7 +2,7 @@
 
 __all__ = ["HydrogenError", "ModelError", "UnsupportedExpressionError", "CompilerError", "BuildCacheError",
            "StaleGeneratedCodeError", "KinematicsError", "ScenarioError", "IdentificationError",
-           "SimulationError", "OutputPathError", "FmuError", "MAX_MESSAGE_CHARS"]
+           "SimulationError", "RunEndedError", "OutputPathError", "FmuError", "MAX_MESSAGE_CHARS"]
 
 
 #: Longest message an error keeps (characters): a message quoting a huge value (a model array of
@@ -79,6 +79,10 @@ class OutputPathError(HydrogenError, FileExistsError):
 
 class DiskFullError(HydrogenError, OSError):
     """A file could not be written because its disk (or the user's quota on it) is full; names the file."""
+
+
+class RunEndedError(HydrogenError, IndexError):
+    """A stepper asked for a control period past the end of its run (an IndexError too: past the end)."""
 
 
 class FmuError(HydrogenError, ValueError):

@@ -543,6 +543,16 @@ def test_stepper_reproduces_simulate(dyn):
     np.testing.assert_allclose(st.xc[6:10], res.theta_hat[100], rtol=1e-12)
 
 
+def test_a_stepper_past_its_run_says_so_as_a_hydrogen_error(dyn):
+    from hydrogen.errors import HydrogenError, RunEndedError
+    st = hydrogen.stepper("z-1hz", "p", dyn=dyn, duration=0.02)
+    for _ in range(st.n_max):
+        st.step()
+    with pytest.raises(RunEndedError, match=r"scenario 'z-1hz' has 11 periods; pass a longer duration") as err:
+        st.step()
+    assert isinstance(err.value, HydrogenError) and isinstance(err.value, IndexError)
+
+
 def test_sweep_any_executor_and_errors_in_place(plain_stewart):
     from concurrent.futures import ThreadPoolExecutor
     runs = [dict(scenario="z-1hz", controller="p", gains={"Kleg": k}, duration=1.0) for k in (0.02, 0.04)]

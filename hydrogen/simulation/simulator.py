@@ -13,7 +13,7 @@ from .. import diagram, pressures
 from ..actuators import actuator
 from ..controllers import spec as controller_spec
 from ..dynamics import VELOCITY_SINGULAR, fk_failure
-from ..errors import KinematicsError, ScenarioError, SimulationError
+from ..errors import KinematicsError, RunEndedError, ScenarioError, SimulationError
 from ..estimators import kalman
 from ..estimators.kalman import (filter_gain, filter_gains, filter_setting, kalman_gain,  # noqa: F401
                                  length_noise_variance, remember_filter_gains)
@@ -1167,7 +1167,8 @@ class Stepper:
         """Advance one control period (raises SimulationError on divergence)."""
         k = self._state.k
         if k >= self.n_max:
-            raise IndexError(f"scenario '{self.scenario.name}' has {self.n_max} periods; pass a longer duration")
+            raise RunEndedError(f"scenario '{self.scenario.name}' has {self.n_max} periods; pass a longer "
+                                "duration")
         code = self._step(k)
         if code:
             ctrl = self.controller
