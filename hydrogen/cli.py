@@ -19,12 +19,11 @@ __all__ = ["main"]
 def _default_generated(model, shipped: Path) -> Path:
     """Where ``generate`` writes without --out: a shipped robot's committed folder (``shipped``/<name>),
     else ``generated/<name>`` beside the user's description (never inside the installed package)."""
-    from .model import model_path, models
+    from .model import is_shipped
 
-    source = Path(model.source).resolve()
-    if model.name in models() and source == model_path(model.name).resolve():
+    if is_shipped(model):
         return shipped / model.name
-    return source.parent / "generated" / model.name
+    return Path(model.source).resolve().parent / "generated" / model.name
 
 
 def _cmd_generate(args) -> int:

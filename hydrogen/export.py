@@ -433,13 +433,8 @@ def sensor_kalman_gain(p):
 
 def _model_arg(model) -> str:
     """The ``model=`` argument that loads ``model`` again: a built-in's name, else its description's path."""
-    from .model import model_path, models
-    try:
-        if model.name in models() and Path(model.source).resolve() == model_path(model.name).resolve():
-            return repr(model.name)
-    except (OSError, TypeError, ValueError):
-        pass
-    return repr(str(model.source))
+    from .model import is_shipped
+    return repr(model.name if is_shipped(model) else str(model.source))
 
 
 def export(out_dir, scenario=None, controller="adaptive-robust", model=None, duration=None, *,

@@ -17,7 +17,6 @@ from __future__ import annotations
 
 import hashlib
 import json
-import math
 import os
 import stat
 from dataclasses import dataclass, field, fields
@@ -38,7 +37,7 @@ from .errors import ModelError
 from .plant.supply import Supply
 from .schema import default as _default, keys as _keys
 
-__all__ = ["Model", "Link", "Joint", "Cylinder", "load_model", "default_model_path", "models",
+__all__ = ["Model", "Link", "Joint", "Cylinder", "load_model", "is_shipped", "default_model_path", "models",
            "model_path", "INERTIAL_PARAMETERS", "JOINT_TYPES"]
 
 DEFAULT_MODEL = "ubc_stewart"
@@ -1712,16 +1711,13 @@ def _check_setting_values(r: _Reader, table: dict, where: str) -> None:
     finite number; ``">=0"``, one not negative) holds it, at load time; the checks across settings
     (a valve's bandwidth against the sub-steps, a reference below Nyquist) wait for the scenario."""
     from .scenario_settings import settings
+    from .setting import failed_check
     for f in settings():
-        check = f.metadata.get("check")
-        if check is None or f.name not in table:
-            continue
-        v = table[f.name]
-        if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
-            raise r.error(f"{where} {f.name}", f"must be a finite number ({f.metadata['unit'] or 'no unit'}), "
-                                               f"got {_quote(v)}")
-        if check == ">=0" and v < 0:
-            raise r.error(f"{where} {f.name}", f"must be >= 0 ({f.metadata['unit'] or 'no unit'}), got {_quote(v)}")
+        failed = failed_check(f, table[f.name]) if f.name in table else None
+        if failed:
+            what = "a finite number" if failed == "number" else ">= 0"
+            raise r.error(f"{where} {f.name}", f"must be {what} ({f.metadata['unit'] or 'no unit'}), "
+                                               f"got {_quote(table[f.name])}")
 
 
 def _check_formerly(r: _Reader, variants: dict):
@@ -1834,6 +1830,15 @@ def _file_kind(mode) -> str:
         if test(mode):
             return kind
     return "not a plain file"
+
+
+def is_shipped(model) -> bool:
+    """Whether ``model`` was loaded from one of the shipped descriptions (:func:`models`), not a user's
+    file of the same name: its ``source`` is that description's path."""
+    try:
+        return model.name in models() and Path(model.source).resolve() == model_path(model.name).resolve()
+    except (OSError, TypeError, ValueError):
+        return False
 
 
 def load_model(path: str | Path | None = None) -> Model:

@@ -6,9 +6,11 @@ fields.
 """
 from __future__ import annotations
 
+import math
+import numbers
 from dataclasses import field
 
-__all__ = ["setting"]
+__all__ = ["setting", "failed_check"]
 
 
 def setting(default, unit: str, meaning: str, check: str | None = None, default_text: str | None = None):
@@ -19,3 +21,16 @@ def setting(default, unit: str, meaning: str, check: str | None = None, default_
     scenario's fields (mutable defaults as given: the settings hold numbers, strings and tuples)."""
     meta = {"unit": unit, "meaning": meaning, "check": check, "default_text": default_text}
     return field(metadata=meta) if default is None else field(default=default, metadata=meta)
+
+
+def failed_check(decl, value) -> str | None:
+    """The declared check of setting ``decl`` (a field made by :func:`setting`) that ``value`` fails:
+    ``"number"`` (not a finite real number; a bool is not one), ``">=0"`` (a finite number below 0), or
+    None (it passes, or the setting declares no check). Each caller words the failure its own way."""
+    check = decl.metadata.get("check")
+    if check is None:
+        return None
+    # numpy's bools are not numbers.Real; Python's are, and are refused by name
+    if isinstance(value, bool) or not isinstance(value, numbers.Real) or not math.isfinite(value):
+        return "number"
+    return ">=0" if check == ">=0" and value < 0 else None

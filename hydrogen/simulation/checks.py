@@ -100,12 +100,12 @@ def check_fields(sc) -> None:
     if not isinstance(name, str) or not name:
         raise ScenarioError(f"scenario name must be a non-empty string, got {_shown(name)}")
     from ..scenario_settings import settings
+    from ..setting import failed_check
     for f in settings():  # each number's check as its field declares it
         v = getattr(sc, f.name)
-        if f.metadata["check"] in ("number", ">=0") and (not _is_real(v) or not np.isfinite(v)):
-            _fail(name, f.name, "must be a finite number", v)
-        if f.metadata["check"] == ">=0" and v < 0:
-            _fail(name, f.name, "must be finite and >= 0", v)
+        failed = failed_check(f, v)
+        if failed:
+            _fail(name, f.name, "must be a finite number" if failed == "number" else "must be finite and >= 0", v)
     if sc.metric_start < 0:
         _fail(name, "metric_start", "must be >= 0 s", sc.metric_start)
     for f in ("substeps", "predictor_substeps"):
