@@ -42,7 +42,7 @@ from .controllers.common import estimate_layout, theta_units as _theta_units
 from .errors import CompilerError, FmuError, OutputPathError
 from .layout import NUMBERS, SUPPLY_LOG
 from .model import POSITIVE  # FMI's min is inclusive: "> 0" is min = the smallest positive double
-from .plant import plant_layout, slot as plant_slot, valve
+from .plant import input_values, plant_inputs, plant_layout, slot as plant_slot
 from .plant.supply import PRESSURE as SUPPLY_PRESSURE, ceiling as supply_ceiling
 
 __all__ = ["export_fmu", "PARTS", "fmi_headers_dir", "FMI_HEADERS"]
@@ -67,14 +67,11 @@ UNITS = {
     "kg.m2": {"kg": 1, "m": 2}, "m2.Pa0.5/s": None,
 }
 #: Plant parameters (inputs of plant_rhs besides x and u): per-entry names, units and what they are.
-def _friction_entries(c, seal: bool) -> list:
-    """The friction entries of actuator ``c`` in its own unit (its kind's TRAVEL): the friction block's
-    parameters in the plant's input (:func:`hydrogen.plant.friction.parameters_of`, ``seal``: the robot
-    has seal friction)."""
-    from .plant import friction
-    t = c.travel
-    return [(_dotted("friction", c.name, par.name), par.unit_of(t).replace(" ", "."), f"{par.doc} of actuator {c.name}")
-            for par in friction.parameters_of(seal)]
+def _input_entries(inp, model) -> list:
+    """The entries of plant input ``inp`` (:class:`hydrogen.plant.PlantInput`) of ``model``, actuator after
+    actuator, each parameter in that actuator's own unit (its kind's TRAVEL)."""
+    return [(_dotted(inp.name, c.name, par.name), par.unit_of(c.travel).replace(" ", "."),
+             f"{par.doc} of actuator {c.name}") for c in model.cylinders for par in inp.parameters]
 
 
 _REF_ORDERS = (("qd0", "q_d", "", "reference"), ("qd1", "q_d_dot", "/s", "reference velocity"),
@@ -382,8 +379,6 @@ def _number_variable(name: str) -> str:
 def _plant_arrays(dyn, p):
     """One array per input of plant_rhs besides x and u: name, loop-config field, entries, values."""
     from .export import number_ranges
-    from .simulation.scenarios import actuator_settings
-    from .simulation.scenarios import valve_parameters
     model, sc = dyn.model, p.sc
     cyls = [c.name for c in model.cylinders]
     fn = dyn.functions["plant_rhs"]
@@ -395,12 +390,9 @@ def _plant_arrays(dyn, p):
                                     for c in cyls]),
         "gamma2": (model.gamma[1], [(_dotted("gamma2", c), "m2.Pa0.5/s", f"beta c (bulk modulus times valve flow "
                                      f"gain) of cylinder {c}") for c in cyls]),
-        "friction": (actuator_settings(sc, model)["friction"].ravel(),
-                     [e for c in model.cylinders for e in _friction_entries(c, model.seal_friction)]),
-        "valve": (valve_parameters(sc, model).ravel(),
-                  [(_dotted("valve", c, par.name), par.unit, f"{par.doc} of actuator {c}")
-                   for c in cyls for par in valve.PARAMETERS]),
     }
+    values = input_values(sc, model)  # each block's input of numbers (friction, valve): its own rule
+    known.update({i.name: (values[i.name].ravel(), _input_entries(i, model)) for i in plant_inputs(model)})
     ranges = _plant_ranges(model, sc)
     out = []
     for name, shape in zip(fn.in_names, fn.in_shapes):
@@ -433,16 +425,15 @@ def _plant_ranges(model, sc) -> dict:
     the scenario's own rules: the true theta and gamma inside the model's projection bounds (the model
     requires it, Lemma 1), friction and valve as the scenario checks them (the natural frequency no
     higher than the RK4 sub-steps resolve)."""
-    from .plant import friction
     m = model.n_cylinders
-    omega_max = float(sc.control_rate) * int(sc.substeps)  # 2 pi f / (rate * substeps) <= 1
-    lower = [friction.LOWER[par.name] for par in friction.parameters_of(model.seal_friction)]
     return {
         "theta": [(float(a), float(b)) for a, b in zip(model.theta_min, model.theta_max)],
         "gamma1": [(float(model.gamma1_min), float(model.gamma1_max))] * m,
         "gamma2": [(float(model.gamma2_min), float(model.gamma2_max))] * m,
-        "friction": [(POSITIVE if strict else lo, None) for lo, strict in lower] * m,
-        "valve": [(0.0, None), (0.0, omega_max), (POSITIVE, None), (0.0, None), (0.0, None)] * m,
+        # each plant input's parameters as their block declares them (the valve's natural frequency no
+        # higher than the RK4 sub-steps resolve)
+        **{i.name: [(POSITIVE if par.strict else par.lower, par.upper_of(sc)) for par in i.parameters] * m
+           for i in plant_inputs(model)},
     }
 
 

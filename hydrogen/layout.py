@@ -13,13 +13,13 @@ from . import diagram  # the controller's input slots: the loop's ports
 from . import references  # the reference kinds' part of the configuration and their C
 from .estimators import kalman  # the Kalman filter's C statements
 from .names import NUMBERS  # the numbers input's name, part of the loop's layout
-from .plant import integrator  # the plant's integration: its C functions
+from .plant import BLOCKS as PLANT_BLOCKS, block as plant_block, integrator, plant_inputs  # the plant's blocks
 from .plant.supply import PRESSURE as SUPPLY_PRESSURE  # the supply pressure's one name
 
-__all__ = ["NUMBERS", "SUPPLY_LOG", "MAX_DELAY", "PREDICTOR_MODEL", "FK_TOL", "FK_MAX_ITER", "FK_MAX_COND", "FK_STATUS", "LU_PIVOT_MIN",
-           "delay_split", "LOOP_CONFIG", "LOOP_STATE", "LOOP_SIGNALS", "model_summary", "friction_width", "slots",
+__all__ = ["NUMBERS", "SUPPLY_LOG", "MAX_DELAY", "PLANT_INPUTS", "predictor_model", "FK_TOL", "FK_MAX_ITER", "FK_MAX_COND", "FK_STATUS", "LU_PIVOT_MIN",
+           "delay_split", "LOOP_CONFIG", "LOOP_STATE", "LOOP_SIGNALS", "model_summary", "slots",
            "robot_sizes", "supply_size", "loop_context", "log_widths", "loop_functions", "C_SIZES", "plant_offsets",
-           "plant_size", "c_double", "config_fields", "FRICTION_COMMENT", "struct_fields"]
+           "plant_size", "c_double", "config_fields", "struct_fields"]
 
 #: The plant part logged as it is, where the plant has it: the supply pressure (its one name,
 #: hydrogen.plant.supply.PRESSURE).
@@ -46,12 +46,17 @@ FK_STATUS = ("solved", "singular", "not_converged", "function_failed", "velocity
 #: above this in magnitude makes JL singular.
 LU_PIVOT_MIN = 1e-12
 
-#: The controller's own model in the delay predictor: no friction ([F_c, b, v_s, F_brk, v_st, k_p] of
-#: every actuator, :data:`hydrogen.plant.friction.PARAMETERS`, the input's first :func:`friction_width`
-#: of them; the speeds only keep the arguments of tanh and exp finite) and the ideal valve of every
-#: actuator (no lag, no overlap, no saturation: [0, 0, 0, 0, 0], :data:`hydrogen.plant.valve.PARAMETERS`).
-#: The C loop's PRED_FRICTION and PRED_VALVE are rendered from it; the Python stages use it as is.
-PREDICTOR_MODEL = {"friction": (0.0, 0.0, 1.0, 0.0, 1.0, 0.0), "valve": (0.0, 0.0, 0.0, 0.0, 0.0)}
+#: The plant's inputs of numbers its blocks declare (``INPUT``: friction, valve), in the plant's order:
+#: each a field of the loop's configuration and of its model of the plant (``rhs_params``).
+PLANT_INPUTS = tuple(plant_block(b).INPUT for b in PLANT_BLOCKS if getattr(plant_block(b), "INPUT", None))
+
+
+def predictor_model(summary: dict) -> dict:
+    """The controller's own model in the delay predictor, from a manifest's model summary: each plant
+    input's ideal numbers of one actuator (:attr:`hydrogen.plant.PlantInput.ideal`: no friction, the
+    ideal valve: no lag, no overlap, no saturation). The C loop's ``PRED_<INPUT>`` arrays are rendered
+    from it; the Python stages use it as is."""
+    return {i.name: i.ideal for i in plant_inputs(summary)}
 
 
 def delay_split(delay: float, h: float) -> tuple:
@@ -89,13 +94,11 @@ LOOP_CONFIG = (
       ("delay", "long long", "P_DELAY_PERIODS", "run.delay_periods"),
       ("delay_frac", "double", "P_DELAY_FRACTION", "run.delay_fraction"))),
     ("plant (SI): true theta ({p_theta}), gamma1 = beta and gamma2 = beta c per cylinder,\n"
-     " * friction {p_friction} per actuator in its own unit (N, N s/m, m/s; N m, N m s/rad, rad/s),\n"
-     " * valve per actuator [first-order lag s, second-order natural frequency rad/s, damping, overlap m,\n"
-     " * full opening m] (its datasheet valve, else the rig's)",
+     " * {plant_inputs}",
      (("theta", "const double*", "P_THETA", "run.theta"), ("gamma1", "const double*", "P_GAMMA1", "run.gamma1"),
       ("gamma2", "const double*", "P_GAMMA2", "run.gamma2"),
-      ("friction", "const double*", "P_FRICTION", "run.friction"),
-      ("valve", "const double*", "P_VALVE", "run.valve"))),
+      # each block's input of numbers (hydrogen.plant.plant_inputs), from the run's scenario and model
+      *((name, "const double*", f"P_{name.upper()}", f"run.{name}") for name in PLANT_INPUTS))),
     ("sensors: each actuator's travel resolution quant_l (m or rad, its own unit; 0: none; rounded to its grid\n"
      " * after the noise); fixed-gain Kalman filter on the actuators' travel (use_kalman != 0), gain [K_l, K_ldot]",
      (("quant_l", "const double*", "P_QUANTIZATION_L", "run.quantization_l"),
@@ -207,14 +210,23 @@ def struct_fields(description, p: str, sizes: dict, x_parts: str = "") -> list:
     return out
 
 
-#: The friction row's names in the configuration's comment, without and with seal friction.
-FRICTION_COMMENT = {False: "[Fc, b, v_s]", True: "[Fc, b, v_s, F_brk N or N m, v_st m/s or rad/s, k_p]"}
+def _inputs_comment(summary: dict) -> str:
+    """The plant inputs' part of the configuration's comment: each input's numbers per actuator with
+    their units (a cylinder's, or a joint actuator's), from the blocks' declarations."""
+    from .actuators.declarations import ANGLE, LENGTH
+
+    def unit(par):
+        a, b = par.unit_of(LENGTH), par.unit_of(ANGLE)
+        return a if a == b else f"{a} or {b}"
+
+    return ",\n * ".join(f"{i.name} per actuator [" + ", ".join(f"{par.name} {unit(par)}".rstrip() for par in
+                                                               i.parameters) + "]" for i in plant_inputs(summary))
 
 
-def config_fields(p: str, seal: bool = False) -> list:
+def config_fields(p: str, summary: dict) -> list:
     """The configuration's groups for the templates: ``[{"comment": parts, "fields": [{"name", "type",
-    "decl", "value", "source", "array"}]}]``, with C declarations for model prefix ``p``; ``seal``: the
-    robot has seal friction (its friction row's comment)."""
+    "decl", "value", "source", "array"}]}]``, with C declarations for model prefix ``p``; ``summary``: the
+    manifest's model summary (the plant inputs' numbers in the comment)."""
     def decl(name, ctype):
         if ctype == "fn":
             return f"{p}_casadi_fn {name}"
@@ -227,7 +239,8 @@ def config_fields(p: str, seal: bool = False) -> list:
     from markupsafe import Markup  # hydrogen's own comment text: written as it is (hydrogen.templating)
 
     # the comment's parts around {p_theta}: the template writes the (escaped) parameter names between
-    return [{"comment": [Markup(part.replace("\n * ", "\n     * ").replace("{p_friction}", FRICTION_COMMENT[seal]))
+    inputs = _inputs_comment(summary)
+    return [{"comment": [Markup(part.replace("{plant_inputs}", inputs).replace("\n * ", "\n     * "))
                          for part in comment.split("{p_theta}")],
              "fields": [{"name": n, "type": t, "decl": Markup(decl(n, t)), "value": v, "source": src,
                          "array": t in ("double[2]", "slots")}
@@ -279,14 +292,6 @@ def plant_offsets(summary: dict) -> dict:
 def plant_size(summary: dict) -> int:
     """Number of entries of the plant state x, from a manifest's model summary."""
     return sum(part["entries"] for part in summary["plant"])
-
-
-def friction_width(summary: dict) -> int:
-    """Numbers per actuator in the plant's input ``friction``, from a manifest's model summary: all of
-    :data:`PREDICTOR_MODEL`'s friction row with seal friction, else [F_c, b, v_s]
-    (:func:`hydrogen.plant.friction.parameters_of`)."""
-    from .plant.friction import parameters_of
-    return len(parameters_of(bool(summary.get("seal_friction"))))
 
 
 def robot_sizes(summary: dict) -> dict:
@@ -365,13 +370,12 @@ def loop_context(manifest: dict) -> dict:
         "nps": nps,
         "parametric": NUMBERS in manifest,
         "encoders": bool(s["joint_encoders"]), "slots": slots(s), "ports": _port_writes(robot_sizes(s)), "logs": logs,
-        "config": config_fields(name, bool(s.get("seal_friction"))),
+        "config": config_fields(name, s),
         "state": struct_fields(LOOP_STATE, name, sizes, x_parts), "signals": struct_fields(LOOP_SIGNALS, name, sizes),
         "p_theta": ", ".join(s["theta_names"]),
-        "pred_friction": ", ".join(map(c_double, PREDICTOR_MODEL["friction"][:friction_width(s)] * m)),
-        "friction_width": friction_width(s),
-        "pred_valve": ", ".join(map(c_double, PREDICTOR_MODEL["valve"] * m)),
-        "valve_width": len(PREDICTOR_MODEL["valve"]),
+        # each plant input (hydrogen.plant.plant_inputs): its numbers per actuator and the predictor's
+        "plant_inputs": [{"name": i.name, "width": i.width, "pred": ", ".join(map(c_double, i.ideal * m))}
+                         for i in plant_inputs(s)],
         "fk_status": FK_STATUS, "lu_pivot_min": c_double(LU_PIVOT_MIN),
         # each reference kind's statements of the loop's reference function (hydrogen's own C)
         "reference_bodies": [Markup(body) for body in references.c_bodies()],

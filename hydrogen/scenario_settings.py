@@ -4,8 +4,9 @@ default, unit, meaning and check, declared by the part of the loop that reads it
 of ``<scenario>.<variant>``.
 
 A part that is a module of its own declares its settings there (``SCENARIO_SETTINGS``: the plant's
-integration :mod:`hydrogen.plant.integrator`, its valve :mod:`hydrogen.plant.valve` and friction
-:mod:`hydrogen.plant.friction`, the Kalman filter :mod:`hydrogen.estimators.kalman`); the loop's other
+integration :mod:`hydrogen.plant.integrator`, each block of the plant that has any (its friction
+:mod:`hydrogen.plant.friction` and valve :mod:`hydrogen.plant.valve`, found by
+:data:`hydrogen.plant.BLOCKS`), the Kalman filter :mod:`hydrogen.estimators.kalman`); the loop's other
 parts (the run, the sensors, the computation delay, the delay predictor, the adaptation's schedule, the
 controller's start) declare theirs below. :data:`PARTS` gathers them in the description table's order.
 
@@ -18,7 +19,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field, fields, make_dataclass
 
 from .estimators import kalman
-from .plant import friction, integrator, valve
+from .plant import BLOCKS as PLANT_BLOCKS, block as plant_block, integrator
 from .setting import setting
 
 __all__ = ["ScenarioFields", "PARTS", "Part", "setting", "settings", "part_of", "table_keys", "RENAMED",
@@ -83,8 +84,9 @@ _CONTROLLER = {
 PARTS = (
     Part("run", _RUN),
     Part("plant integration", integrator.SCENARIO_SETTINGS),
-    Part("valve", valve.SCENARIO_SETTINGS),
-    Part("friction", friction.SCENARIO_SETTINGS),
+    # each plant block's own (hydrogen.plant.BLOCKS: friction, valve), under its name
+    *(Part(name, plant_block(name).SCENARIO_SETTINGS) for name in PLANT_BLOCKS
+      if getattr(plant_block(name), "SCENARIO_SETTINGS", None)),
     Part("sensors", _SENSORS),
     Part("estimator", kalman.SCENARIO_SETTINGS),
     Part("computation delay", _HOLD),

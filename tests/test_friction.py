@@ -117,16 +117,18 @@ def test_each_kinds_chamber_forces_sum_to_its_force_and_load_the_seals(kind):
 
 def test_the_plant_input_declares_each_parameter_per_actuator():
     from hydrogen.actuators.declarations import ANGLE, LENGTH
-    from hydrogen.layout import PREDICTOR_MODEL
+    from hydrogen.layout import predictor_model
+    pred = predictor_model({"seal_friction": True})
     assert NAMES == ["coulomb", "viscous", "smooth_speed", "breakaway", "stribeck_speed", "pressure_coefficient"]
     assert [p.unit_of(LENGTH) for p in friction.PARAMETERS] == ["N", "N s/m", "m/s", "N", "m/s", ""]
     assert [p.unit_of(ANGLE) for p in friction.PARAMETERS] == ["N m", "N m s/rad", "rad/s", "N m", "rad/s", ""]
     # without seal friction the input is [F_c, b, v_s] per actuator, as it always was
     assert [p.name for p in friction.parameters_of(False)] == NAMES[:3]
     assert len(friction.Symbolic.parameters(3)) == 9 and len(friction.Symbolic.parameters(3, True)) == 18
-    assert len(PREDICTOR_MODEL["friction"]) == len(NAMES) and set(friction.LOWER) == set(NAMES)
+    assert len(pred["friction"]) == len(NAMES) and set(friction.LOWER) == set(NAMES)
+    assert len(predictor_model({})["friction"]) == 3  # without seal friction: [F_c, b, v_s]
     # the predictor's row is no friction at all, whatever terms a plant has
-    assert _law(0.37, *PREDICTOR_MODEL["friction"], seal_load=1e5) == 0.0
+    assert _law(0.37, *pred["friction"], seal_load=1e5) == 0.0
 
 
 # --- structure: the terms an actuator's description declares ------------------------------------

@@ -232,7 +232,8 @@ static int plant_rhs(const rhs_params* m, const double* x, const double* u, doub
     const double* arg[8];
     double* res[1];
     arg[0] = x; arg[1] = u; arg[2] = m->theta; arg[3] = m->gamma1; arg[4] = m->gamma2;
-    arg[5] = m->friction; arg[6] = m->valve;
+    arg[5] = m->friction;
+    arg[6] = m->valve;
     arg[7] = m->numbers;
     res[0] = xdot;
     return loader_crane_plant_rhs(arg, res, 0, 0, 0);
@@ -534,7 +535,9 @@ int loader_crane_plant_step(const loader_crane_loop_config* c, loader_crane_loop
     const long long n = c->substeps;
     rhs_params m;
     int i;
-    m.theta = c->theta; m.gamma1 = c->gamma1; m.gamma2 = c->gamma2; m.friction = c->friction; m.valve = c->valve;
+    m.theta = c->theta; m.gamma1 = c->gamma1; m.gamma2 = c->gamma2;
+    m.friction = c->friction;
+    m.valve = c->valve;
     m.numbers = c->numbers; m.p_low = c->p_low; m.p_high = c->p_high;
     m.bound_stages = c->bound_stages != 0;
     if (n < 1) return LOADER_CRANE_CTRL_FAILED;

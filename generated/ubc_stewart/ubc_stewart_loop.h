@@ -38,9 +38,8 @@ typedef struct {
     long long delay;
     double delay_frac;
     /* plant (SI): true theta (platform.mass, platform.Ixx, platform.Iyy, platform.Izz), gamma1 = beta and gamma2 = beta c per cylinder,
-     * friction [Fc, b, v_s, F_brk N or N m, v_st m/s or rad/s, k_p] per actuator in its own unit (N, N s/m, m/s; N m, N m s/rad, rad/s),
-     * valve per actuator [first-order lag s, second-order natural frequency rad/s, damping, overlap m,
-     * full opening m] (its datasheet valve, else the rig's) */
+     * friction per actuator [coulomb N or N m, viscous N s/m or N m s/rad, smooth_speed m/s or rad/s, breakaway N or N m, stribeck_speed m/s or rad/s, pressure_coefficient],
+     * valve per actuator [lag s, omega rad/s, zeta, overlap m, full_opening m] */
     const double* theta;
     const double* gamma1;
     const double* gamma2;

@@ -1,20 +1,28 @@
 """The simulated plant's blocks: one module each, and the plant state's layout read off them.
 
-A block module declares
+A block is a module of this package that declares (:data:`BLOCKS` finds it; nothing lists it)
 
+* ``POSITION``: its place among the blocks (the order of x and of the plant's inputs);
 * ``STATES``: its parts of the plant state x (:class:`PlantState`: name, size in terms of the robot,
   unit, bounds, meaning), in order; a block with no state (friction) declares none;
-* ``PARAMETERS``: the numbers its law takes besides the state (:class:`PlantParameter`);
-* ``Symbolic``: its law over SymPy, once (:mod:`hydrogen.symbolic.plant` composes the blocks into
-  the one fused ``plant_rhs``); and ``Numeric``, its numpy twin where the numeric layer needs one
-  (tested equal).
+* ``PARAMETERS``: the numbers its law takes besides the state (:class:`PlantParameter`); a block
+  whose numbers are a plant input of their own also declares ``INPUT`` (the input's name: the
+  argument of ``plant_rhs``, the loop configuration's field, the FMU's variables' prefix),
+  ``input_parameters(structure)`` (those of :data:`PARAMETERS` a robot's plant takes, when some are
+  structure) and ``values(scenario, model)`` (the run's numbers, from the settings the block declares
+  in ``SCENARIO_SETTINGS`` and the description): :func:`plant_inputs` and :func:`input_values` read
+  them for the loop, the Python engine, the exported programs and the FMU;
+* ``Symbolic``: its law over SymPy, once, with the signals it reads, writes and adds to
+  (``READS``, ``WRITES``, ``ADDS``; ``SUMS``), its ``outputs`` and ``derivatives``:
+  :mod:`hydrogen.symbolic.plant` composes the blocks by those names into the one fused
+  ``plant_rhs``; and ``Numeric``, its numpy twin where the numeric layer needs one (tested equal).
 
 x is the blocks' states in :data:`BLOCKS` order: [q, q̇ (:mod:`.mechanics`), the chamber pressures
 (:mod:`.chambers`: each actuator kind's ``STATES``, :mod:`hydrogen.pressures`), spool, spool rate
 (:mod:`.valve`), and the supply pressure p_s (:mod:`.supply`) only where the supply is not constant].
-A part of size 0 (a constant supply's) has no slot: the layout is the one without it. Every user of x's parts (the Python and C loops, the FMU, the exported programs,
-the divergence message) reads :func:`plant_layout`. Plain data: importing this package imports
-neither SymPy nor a block's law.
+A part of size 0 (a constant supply's) has no slot: the layout is the one without it. Every user of
+x's parts (the Python and C loops, the FMU, the exported programs, the divergence message) reads
+:func:`plant_layout`. Plain data: importing this package imports the blocks' declarations, not SymPy.
 """
 from __future__ import annotations
 
@@ -24,11 +32,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["BLOCKS", "SIZES", "PlantState", "PlantParameter", "Slot", "block", "plant_layout", "state_size",
-           "slot", "entry_names", "describe_entries", "state_vector"]
+__all__ = ["BLOCKS", "SIZES", "PlantState", "PlantParameter", "PlantInput", "Slot", "block", "plant_layout",
+           "state_size", "slot", "entry_names", "describe_entries", "state_vector", "plant_inputs", "input_values",
+           "structure_flag"]
 
-#: The plant's blocks with a state, in the order of x.
-BLOCKS = ("mechanics", "chambers", "valve", "supply")
 
 #: The robot sizes a plant state's size is given in: what each entry stands for.
 SIZES = {"n": "coordinates", "m": "actuators", "n_pressures": "pressure states",
@@ -70,16 +77,49 @@ class PlantState:
 class PlantParameter:
     """A number a block's law takes: ``name``, ``unit`` (a string, or a rule taking an actuator's
     :class:`~hydrogen.actuators.declarations.Travel` for a per-actuator parameter in that actuator's own
-    unit), ``doc``; ``per_actuator``: one per actuator (else one for the rig)."""
+    unit), ``doc``; ``per_actuator``: one per actuator (else one for the rig).
+
+    ``ideal``: its value in the controller's own model (the delay predictor's: the block doing nothing,
+    or keeping its law finite). ``lower`` (``strict``: it must exceed it) and ``upper`` (a number, a
+    rule taking the scenario, or None: none): the range a run's value keeps, which the FMU declares."""
 
     name: str
     unit: object
     doc: str
     per_actuator: bool = False
+    ideal: float = 0.0
+    lower: float = 0.0
+    strict: bool = False
+    upper: object = None
 
     def unit_of(self, travel=None) -> str:
         """Its unit (for a per-actuator parameter, on an actuator of ``travel``)."""
         return self.unit(travel) if callable(self.unit) else self.unit
+
+    def upper_of(self, scenario):
+        """Its upper bound in ``scenario`` (None: none)."""
+        return self.upper(scenario) if callable(self.upper) else self.upper
+
+
+@dataclass(frozen=True)
+class PlantInput:
+    """A plant input a block declares: ``name`` (``plant_rhs``'s argument, the loop configuration's
+    field), ``block`` (its module's name) and the ``parameters`` a robot's plant takes, per actuator,
+    actuator after actuator."""
+
+    name: str
+    block: str
+    parameters: tuple
+
+    @property
+    def width(self) -> int:
+        """Numbers per actuator."""
+        return len(self.parameters)
+
+    @property
+    def ideal(self) -> tuple:
+        """One actuator's numbers in the controller's own model (the delay predictor's)."""
+        return tuple(p.ideal for p in self.parameters)
 
 
 @dataclass(frozen=True)
@@ -116,6 +156,31 @@ class Slot:
 def block(name: str):
     """The module of plant block ``name``."""
     return importlib.import_module(f"{__name__}.{name}")
+
+
+def structure_flag(structure, key: str) -> bool:
+    """Whether ``structure`` (a model, or a manifest's model summary) has the structure ``key`` (an
+    attribute of the model, a key of the summary: ``seal_friction``)."""
+    return bool(structure.get(key) if isinstance(structure, dict) else getattr(structure, key))
+
+
+def plant_inputs(structure) -> tuple:
+    """The plant's inputs the blocks declare (:class:`PlantInput`), in :data:`BLOCKS` order, for a
+    robot's ``structure`` (its model, or its manifest's model summary). They follow ``plant_rhs``'s
+    x, u, theta, gamma1 and gamma2."""
+    out = []
+    for name in BLOCKS:
+        mod = block(name)
+        if getattr(mod, "INPUT", None):
+            out.append(PlantInput(mod.INPUT, name, tuple(mod.input_parameters(structure))))
+    return tuple(out)
+
+
+def input_values(scenario, model) -> dict:
+    """Each plant input's numbers for a run of ``scenario`` on ``model``: ``{name: (m, width) array}``,
+    each block's own rule (its ``values``), in the actuators' own units."""
+    return {i.name: np.asarray(block(i.block).values(scenario, model), float).reshape(model.n_cylinders, i.width)
+            for i in plant_inputs(model)}
 
 
 def _sizes(model) -> dict:
@@ -185,3 +250,20 @@ def state_vector(layout, **parts) -> np.ndarray:
     for name, values in parts.items():
         x[slot(layout, name).slice] = values
     return x
+
+
+def _discover() -> tuple:
+    from ..registry import discover
+    found = discover(__name__, __path__, ("POSITION", "STATES", "Symbolic"), lambda mod: mod.__name__.rsplit(".", 1)[-1],
+                     "plant block")
+    order = sorted(found, key=lambda name: found[name].POSITION)
+    for a, b in zip(order, order[1:]):
+        if found[a].POSITION == found[b].POSITION:
+            raise ImportError(f"plant blocks {a!r} and {b!r} declare the same POSITION {found[a].POSITION}")
+    return tuple(order)
+
+
+#: The plant's blocks: every module of this package that declares its ``POSITION``, ``STATES`` and
+#: ``Symbolic``, in ``POSITION`` order: the order of x (their states) and of the plant's inputs (their
+#: numbers). A new block is a module here; nothing lists it.
+BLOCKS = _discover()

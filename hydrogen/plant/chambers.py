@@ -6,7 +6,7 @@ from __future__ import annotations
 
 from . import PlantState
 
-__all__ = ["STATES", "PARAMETERS", "Symbolic"]
+__all__ = ["POSITION", "STATES", "PARAMETERS", "Symbolic"]
 
 
 def _units(model) -> list:
@@ -24,6 +24,9 @@ def _bound(which: int):
     return rule
 
 
+#: Its place among the plant's blocks (:data:`hydrogen.plant.BLOCKS`): the pressures after the pose.
+POSITION = 20
+
 STATES = (
     PlantState("pc", "n_pressures", _units, "chamber pressures: each actuator's kind's states, Pa",
                lower=_bound(0), upper=_bound(1)),
@@ -34,7 +37,35 @@ PARAMETERS = ()
 
 
 class Symbolic:
-    """The chambers over SymPy."""
+    """The chambers over SymPy. In the plant (:mod:`hydrogen.symbolic.plant`) it gives each actuator's
+    kind's law (``laws``), constants (``P``, its supply pressure the supply's where that is a state)
+    and pressure block (``pressures``), adds each actuator's force along its travel to ``leg_force``,
+    and moves the pressures by the flows through the effective spool ``spool_eff``."""
+
+    READS = ("pc", "supply_pressure")
+    WRITES = ("laws", "P", "pressures")
+    ADDS = ("leg_force",)
+
+    @staticmethod
+    def outputs(c) -> None:
+        from ..actuators import actuator, baked_parameters
+        from ..pressures import blocks
+        cyl = c.model.cylinders
+        laws = [actuator(a.kind).Symbolic for a in cyl]
+        P = [baked_parameters(a) for a in cyl]
+        ps = c["supply_pressure"]
+        if ps is not None:  # a pump: every actuator's laws see the supply state in place of its constant
+            P = [{**Pi, "supply_pressure": ps} for Pi in P]
+        p = [tuple(c["pc"][a:b]) for a, b in blocks(c.model)]  # each actuator's pressure block
+        c.provide("laws", laws)
+        c.provide("P", P)
+        c.provide("pressures", p)
+        c.add("leg_force", [law.force(pi, Pi) for law, pi, Pi in zip(laws, p, P)])
+
+    @staticmethod
+    def derivatives(c) -> None:
+        c.rate("pc", Symbolic.rates(c["laws"], c["l"], c["ldot"], c["pressures"], c["spool_eff"], c["gamma1"],
+                                    c["gamma2"], c["P"])["pc"])
 
     @staticmethod
     def states(model) -> dict:

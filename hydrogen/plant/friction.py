@@ -25,13 +25,21 @@ seal friction has today's plant, bit for bit, and its input ``friction`` is [F_c
 """
 from __future__ import annotations
 
+from collections.abc import Mapping
+
 import numpy as np
 
+from ..errors import ScenarioError
 from ..setting import setting
-from . import PlantParameter
+from . import PlantParameter, structure_flag
 
-__all__ = ["STATES", "PARAMETERS", "SCENARIO_SETTINGS", "SEAL", "TERMS", "LOWER", "KEYS", "parameters_of", "table_problem", "terms_of", "row",
-           "Symbolic", "Numeric"]
+__all__ = ["POSITION", "STATES", "INPUT", "PARAMETERS", "SCENARIO_SETTINGS", "SEAL", "TERMS", "LOWER", "KEYS", "parameters_of",
+           "input_parameters", "table_problem", "check_table", "terms_of", "row", "actuator_row", "values", "Symbolic",
+           "Numeric"]
+
+#: Its place among the plant's blocks (:data:`hydrogen.plant.BLOCKS`): no state; its input is the first of the
+#: blocks' inputs.
+POSITION = 30
 
 STATES = ()
 
@@ -41,19 +49,23 @@ SCENARIO_SETTINGS = {
     "friction": setting((0.0, 0.0, 1e-3), "N, N s/m, m/s", "per cylinder: Coulomb, viscous, tanh smoothing speed"),
 }
 
+#: The plant's input these numbers are (``plant_rhs``'s argument, the loop configuration's field).
+INPUT = "friction"
+
 #: Per actuator, in order, each in the actuator's own unit (its kind's TRAVEL). The first three are
 #: the rig setting ``friction = [F_c, b, v_s]``, in its order; the rest (:data:`SEAL`) are inputs only
-#: of a robot with seal friction.
+#: of a robot with seal friction. Their ideal values are the controller's own model's: no friction
+#: (the speeds only keep the arguments of tanh and exp finite).
 PARAMETERS = (
     PlantParameter("coulomb", lambda t: t.force_unit, "Coulomb friction (F_c)", per_actuator=True),
     PlantParameter("viscous", lambda t: f"{t.force_unit} s/{t.unit}", "viscous friction coefficient (b)",
                    per_actuator=True),
     PlantParameter("smooth_speed", lambda t: f"{t.unit}/s", "speed of the tanh smoothing of the Coulomb "
-                   "friction (v_s)", per_actuator=True),
+                   "friction (v_s)", per_actuator=True, ideal=1.0, strict=True),
     PlantParameter("breakaway", lambda t: t.force_unit, "breakaway (static) friction, >= Coulomb (F_brk)",
                    per_actuator=True),
     PlantParameter("stribeck_speed", lambda t: f"{t.unit}/s", "Stribeck speed of the dip from breakaway to "
-                   "Coulomb friction (v_st)", per_actuator=True),
+                   "Coulomb friction (v_st)", per_actuator=True, ideal=1.0, strict=True),
     PlantParameter("pressure_coefficient", "", "pressure coefficient of the Coulomb friction on the chamber "
                    "forces' magnitude sum (k_p, dimensionless)", per_actuator=True),
 )
@@ -68,8 +80,7 @@ TERMS = {"stribeck": ("breakaway", "stribeck_speed"), "pressure": ("pressure_coe
 
 #: Each parameter's lowest value and whether it must exceed it (True) or may equal it, by name: the
 #: checks of a friction table and the FMU's ranges (breakaway >= coulomb is checked where both are known).
-LOWER = {"coulomb": (0.0, False), "viscous": (0.0, False), "smooth_speed": (0.0, True),
-         "breakaway": (0.0, False), "stribeck_speed": (0.0, True), "pressure_coefficient": (0.0, False)}
+LOWER = {p.name: (p.lower, p.strict) for p in PARAMETERS}
 
 #: The keys of a seal friction table (an actuator's description's ``friction``, a rig's
 #: ``actuators.<name>.friction``), in the actuator's own unit.
@@ -80,6 +91,12 @@ def parameters_of(seal: bool) -> tuple:
     """The input ``friction``'s parameters per actuator: all of :data:`PARAMETERS` for a robot with seal
     friction (``seal``), else those outside :data:`SEAL` ([F_c, b, v_s], the input as it always was)."""
     return tuple(p for p in PARAMETERS if seal or p.name not in SEAL)
+
+
+def input_parameters(structure) -> tuple:
+    """The input ``friction``'s parameters per actuator for a robot's ``structure`` (its model or its
+    manifest's model summary): :func:`parameters_of` its seal friction."""
+    return parameters_of(structure_flag(structure, "seal_friction"))
 
 
 def table_problem(table, coulomb=None, complete=True):
@@ -110,6 +127,19 @@ def table_problem(table, coulomb=None, complete=True):
     return None
 
 
+def check_table(sc, name: str, table, complete=True, sources=None):
+    """A :class:`ScenarioError` naming ``actuators.<name>.friction.<key>`` of scenario ``sc`` for the first
+    fault of seal friction table ``table`` (:func:`table_problem`); ``sources``: where each key's value
+    came from, for the message (a key from the actuator's description, or the scenario's friction)."""
+    problem = table_problem(table, complete=complete)
+    if problem is not None:
+        key, what = problem
+        where = f"scenario '{sc.name}': actuators.{name}.friction"
+        text = f"{where}.{key} {what}" if key else f"{where}: {what}"
+        came = (sources or {}).get(key)
+        raise ScenarioError(text + (f" ({key} from {came})" if came else ""))
+
+
 def terms_of(table) -> tuple:
     """(stribeck, pressure): the structural terms a description's seal friction table declares (None:
     none): the Stribeck dip for a breakaway above its coulomb (0 if not given), the pressure load for a
@@ -126,13 +156,91 @@ def row(coulomb, viscous, smooth_speed, breakaway=None, stribeck_speed=1.0, pres
             pressure_coefficient)
 
 
+def actuator_row(sc, c, seal: bool) -> tuple:
+    """Actuator ``c``'s (a model's cylinder) friction numbers, its plant input's
+    (:func:`parameters_of`: all six for a robot with seal friction, ``seal``), in its own
+    unit: the scenario's ``actuators.<name>.friction`` (the list [F_c, b, v_s] or a seal friction table)
+    over its description's friction table (``Cylinder.friction``) over the scenario's ``friction`` (a
+    cylinder's; none on a joint actuator), key by key. The description's table applies where the
+    scenario has friction on (its ``friction`` not zero, or the actuator's own given): an ideal plant
+    stays frictionless. A :class:`ScenarioError` naming the actuator and
+    the key for a value out of range, or one asking for a seal term its plant is generated without (a
+    breakaway above coulomb, a pressure_coefficient above 0: structure, declared in its description)."""
+    from ..actuators import actuator
+    from ..actuators.declarations import LENGTH
+
+    names = [par.name for par in parameters_of(False)]  # the list's [F_c, b, v_s]
+    # a joint actuator's is none unless given (the smoothing speed only keeps tanh finite)
+    base = sc.friction if actuator(c.kind).TRAVEL == LENGTH else (0.0, 0.0, sc.friction[2])
+    own = sc.actuators.get(c.name, {}).get("friction")
+    given = own is not None
+    own = dict(zip(names, own)) if own is not None and not isinstance(own, Mapping) else dict(own or {})
+    # the description's numbers are the seal's where the scenario has friction on (the rig's); a
+    # scenario with none (an ideal plant) runs the actuator frictionless
+    on = given or any(float(v) != 0.0 for v in sc.friction[:2])
+    desc = dict(c.friction or {}) if on else {}
+    table = {**dict(zip(names, base)), **desc, **own}
+    sources = {k: ("its description" if k in desc else "the scenario's friction") for k in table if k not in own}
+    check_table(sc, c.name, table, sources=sources)
+    built = dict(zip(TERMS, c.seal_terms))
+    for term, asked in zip(TERMS, terms_of(table)):
+        if asked and not built[term]:
+            key = TERMS[term][0]
+            raise ScenarioError(
+                f"scenario '{sc.name}': actuators.{c.name}.friction.{key} = {table[key]!r} asks for the seal "
+                f"friction's {'Stribeck dip' if term == 'stribeck' else 'pressure load'}, which actuator "
+                f"'{c.name}''s plant is generated without: declare it in the actuator's description "
+                f"([[cylinders]] '{c.name}' friction = {{ {', '.join(TERMS[term])} }}), which builds it in")
+    full = row(table["coulomb"], table["viscous"], table["smooth_speed"], table.get("breakaway"),
+                        table.get("stribeck_speed", 1.0), table.get("pressure_coefficient", 0.0))
+    return tuple(float(v) for v in full[:len(parameters_of(seal))])
+
+
+def values(sc, model) -> np.ndarray:
+    """The plant's friction input of every actuator of ``model`` in scenario ``sc``, (m, width):
+    :func:`actuator_row` of each, in its own unit."""
+    return np.array([actuator_row(sc, c, model.seal_friction) for c in model.cylinders], float).reshape(
+        model.n_cylinders, len(input_parameters(model)))
+
+
 def _excess(pressure_coefficient, seal_load, breakaway, coulomb, dip):
     """The level above F_c: k_p S + (F_brk − F_c) exp(−(l̇/v_st)²) (``dip`` the exponential), either layer."""
     return pressure_coefficient * seal_load + (breakaway - coulomb) * dip
 
 
 class Symbolic:
-    """The friction law over SymPy."""
+    """The friction law over SymPy. In the plant (:mod:`hydrogen.symbolic.plant`) it adds each
+    actuator's friction, opposed to its rate ``ldot``, to ``leg_force``, from its input ``friction``
+    and, with a pressure load, the chamber forces of the actuator's kind's law."""
+
+    READS = ("ldot", "laws", "pressures", "P", INPUT)
+    ADDS = ("leg_force",)
+
+    @staticmethod
+    def outputs(c) -> None:
+        model = c.model
+        names = [par.name for par in parameters_of(model.seal_friction)]
+        k, fric, ldot = len(names), c[INPUT], c["ldot"]
+        laws, p, P = c["laws"], c["pressures"], c["P"]
+        out = []
+        for i, a in enumerate(model.cylinders):
+            par = dict(zip(names, fric[k * i:k * i + k]))
+            stribeck, pressure = a.seal_terms  # the structural terms its description declares
+            out.append(-Symbolic.force(
+                ldot[i], par["coulomb"], par["viscous"], par["smooth_speed"],
+                (par["breakaway"], par["stribeck_speed"]) if stribeck else None,
+                (par["pressure_coefficient"], Symbolic.seal_load(laws[i].chamber_forces(p[i], P[i])))
+                if pressure else None))
+        c.add("leg_force", out)
+
+    @staticmethod
+    def derivatives(c) -> None:
+        """No state."""
+
+    @staticmethod
+    def input(model):
+        """The symbols of the plant's input ``friction`` of ``model``: :meth:`parameters` of its actuators."""
+        return Symbolic.parameters(model.n_cylinders, model.seal_friction)
 
     @staticmethod
     def parameters(m: int, seal: bool = False):

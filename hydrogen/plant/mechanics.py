@@ -6,7 +6,10 @@ from __future__ import annotations
 
 from . import PlantState
 
-__all__ = ["STATES", "PARAMETERS", "Symbolic"]
+__all__ = ["POSITION", "STATES", "PARAMETERS", "Symbolic"]
+
+#: Its place among the plant's blocks (:data:`hydrogen.plant.BLOCKS`): the pose and its rate first.
+POSITION = 10
 
 STATES = (
     PlantState("q", "n", lambda model: list(model.coordinate_units),
@@ -19,7 +22,31 @@ PARAMETERS = ()
 
 
 class Symbolic:
-    """The mechanics over SymPy."""
+    """The mechanics over SymPy. In the plant (:mod:`hydrogen.symbolic.plant`) it gives the actuators'
+    travel ``l`` (m or rad), its Jacobian ``JL`` and rate ``ldot`` at the pose, and moves the pose
+    under the sum of every block's force along each actuator's travel, ``leg_force`` (N or N m)."""
+
+    READS = ("q", "qdot")
+    WRITES = ("l", "JL", "ldot")
+    #: The forces along each actuator's travel (N or N m), the sum of what each block adds (its
+    #: chambers' force, less its friction): one intermediate.
+    SUMS = {"leg_force": "plant_fleg"}
+
+    @staticmethod
+    def outputs(c) -> None:
+        from ..symbolic.kinematics import leg_intermediates
+        l, JL, _, kin = leg_intermediates(c.model, c["q"], c["qdot"], rates=False)  # the plant needs no J̇L
+        c.stage(kin)
+        c.provide("l", l)
+        c.provide("JL", JL)
+        c.provide("ldot", JL * c["qdot"], prefix="plant_ldot")
+
+    @staticmethod
+    def derivatives(c) -> None:
+        rates, stages = Symbolic.rates(c.model, c["q"], c["qdot"], c["JL"].T * c["leg_force"], c["theta"])
+        c.stage(stages)
+        for name, value in rates.items():
+            c.rate(name, value)
 
     @staticmethod
     def states(model) -> dict:

@@ -47,7 +47,7 @@ import numpy as np
 from ..actuators.declarations import BULK_MODULUS, SUPPLY_PRESSURE, VOLUME, Parameter, Range, sp
 from . import PlantState
 
-__all__ = ["KINDS", "DEFAULT_KIND", "NEEDS", "PRESSURE", "STATES", "entries", "nominal", "start", "ceiling", "PARAMETERS", "ATMOSPHERE", "RELIEF_OVERRIDE",
+__all__ = ["KINDS", "DEFAULT_KIND", "NEEDS", "PRESSURE", "POSITION", "STATES", "entries", "nominal", "start", "ceiling", "PARAMETERS", "ATMOSPHERE", "RELIEF_OVERRIDE",
            "RELIEF_WIDTH", "COMPENSATOR_DROOP", "Supply", "Laws", "Symbolic", "Numeric"]
 
 #: The supply kinds a description may name; the default: a constant supply pressure.
@@ -68,6 +68,10 @@ COMPENSATOR_DROOP = 0.01
 #: The supply pressure's one name: the plant state's, its log column's and the controllers' input
 #: port's (:mod:`hydrogen.diagram`), the FMU's output.
 PRESSURE = "ps"
+
+#: Its place among the plant's blocks (:data:`hydrogen.plant.BLOCKS`): the supply pressure last (a state only where
+#: the supply is not constant).
+POSITION = 50
 
 STATES = (
     PlantState(PRESSURE, "supply", "Pa", "supply pressure (a state only where the supply is not constant), Pa",
@@ -184,8 +188,34 @@ class Laws:
     """The supply's law in one layer; ``kind`` a :data:`KINDS` entry but "constant", ``S`` its
     values by name (numbers, or SymPy numbers or symbols), ``ps`` the supply pressure (Pa)."""
 
+    #: In the plant (:mod:`hydrogen.symbolic.plant`): the supply pressure every actuator's laws see,
+    #: ``supply_pressure`` (the state p_s, or None: each actuator's constant), moved by the demand of
+    #: every actuator's valve (its kind's ``supply_flow``).
+    READS = (PRESSURE,)
+    WRITES = ("supply_pressure",)
+
     def __init__(self, ops):
         self.xp = ops
+
+    def outputs(self, c) -> None:
+        ps = c[PRESSURE]
+        c.provide("supply_pressure", ps[0] if ps.rows else None)
+
+    def derivatives(self, c) -> None:
+        from ..symbolic.constants import baked
+        from ..symbolic.kinematics import rate_symbols
+        ps, model = c[PRESSURE], c.model
+        if not ps.rows:
+            c.rate(PRESSURE, ps)
+            return
+        laws, l, ldot, p, spool, g1, g2, P = (c[k] for k in ("laws", "l", "ldot", "pressures", "spool_eff", "gamma1",
+                                                              "gamma2", "P"))
+        # the valves' draw on the supply: an intermediate, so the supply's law takes one symbol
+        c.provide("demand", sp.Matrix([sum(laws[i].supply_flow(l[i], ldot[i], p[i], spool[i], g2[i] / g1[i], P[i])
+                                           for i in range(model.n_cylinders))]), prefix="plant_demand")
+        S = {k: baked(v, f"supply.{k}") for k, v in model.supply.values.items()}
+        c.rate(PRESSURE, sp.Matrix([self.rate(model.supply.kind, ps[0], c["demand"][0], S,
+                                              model.supply.accumulator)]))
 
     @staticmethod
     def states(model) -> dict:

@@ -19,22 +19,34 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..errors import ScenarioError
 from ..setting import setting
 from . import PlantParameter, PlantState
 
-__all__ = ["STATES", "PARAMETERS", "SCENARIO_SETTINGS", "Symbolic", "Numeric", "WIDTH"]
+__all__ = ["POSITION", "STATES", "INPUT", "PARAMETERS", "SCENARIO_SETTINGS", "VALVE_RESPONSE", "input_parameters", "values",
+           "rig_response", "Symbolic", "Numeric", "WIDTH"]
+
+#: Its place among the plant's blocks (:data:`hydrogen.plant.BLOCKS`): the spool states after the pressures; its
+#: input after friction's.
+POSITION = 40
 
 STATES = (
     PlantState("spool", "m", "m", "spool positions (0 with the ideal valve), m"),
     PlantState("spool_rate", "m", "m/s", "spool rates (0 unless the valve is second-order), m/s"),
 )
 
-#: The plant's input ``valve``, per actuator, in order.
+#: The plant's input these numbers are (``plant_rhs``'s argument, the loop configuration's field).
+INPUT = "valve"
+
+#: The plant's input ``valve``, per actuator, in order. Their ideal values are the controller's own
+#: model's valve: no lag, no overlap, no saturation (the spool is the command).
 PARAMETERS = (
     PlantParameter("lag", "s", "valve first-order lag (used when the natural frequency is 0; 0: none)",
                    per_actuator=True),
-    PlantParameter("omega", "rad/s", "second-order servo-valve natural frequency (0: none)", per_actuator=True),
-    PlantParameter("zeta", "", "second-order servo-valve damping (dimensionless)", per_actuator=True),
+    # the sub-steps resolve the spool up to omega h / substeps = 1 (the scenario's check)
+    PlantParameter("omega", "rad/s", "second-order servo-valve natural frequency (0: none)", per_actuator=True,
+                   upper=lambda sc: float(sc.control_rate) * int(sc.substeps)),
+    PlantParameter("zeta", "", "second-order servo-valve damping (dimensionless)", per_actuator=True, strict=True),
     PlantParameter("overlap", "m", "spool overlap: the dead band |spool| <= overlap passes no flow (0: none)",
                    per_actuator=True),
     PlantParameter("full_opening", "m", "spool travel at full opening, where the spool saturates (0: none)",
@@ -53,15 +65,100 @@ SCENARIO_SETTINGS = {
 #: Numbers per actuator in the input ``valve``.
 WIDTH = len(PARAMETERS)
 
+#: The keys of a scenario's ``actuators.<name>.valve``: the spool's response, over the actuator's
+#: datasheet valve's (or the rig's valve settings), key by key; its rating stays the description's.
+VALVE_RESPONSE = ("bandwidth_hz", "damping")
+
+
+def input_parameters(structure) -> tuple:
+    """The input ``valve``'s parameters per actuator: all of :data:`PARAMETERS`, on every robot."""
+    return PARAMETERS
+
+
+def rig_response(sc) -> np.ndarray:
+    """The rig's spool response [first-order lag s, natural frequency rad/s, damping] of a scenario."""
+    return np.array([sc.valve_lag, 2 * np.pi * sc.valve_bandwidth_hz, sc.valve_damping], float)
+
+
+def _own_response(sc, c, row: tuple) -> tuple:
+    """Actuator ``c``'s valve row ``row`` ([lag s, ω rad/s, ζ, overlap m, full opening m]: its datasheet
+    valve's, else the rig's) with the scenario's ``actuators.<name>.valve`` over its spool response:
+    bandwidth_hz sets ω (second order: damping given, or the response it replaces is one) or else the
+    lag 1/(2π f) (first order); damping alone changes a second-order spool's damping (ScenarioError
+    where there is none)."""
+    own = sc.actuators[c.name]["valve"]
+    lag, omega, zeta, *geometry = row
+    if "bandwidth_hz" not in own:
+        if omega <= 0.0:
+            raise ScenarioError(f"scenario '{sc.name}': actuators.{c.name}.valve.damping = {own['damping']!r} needs "
+                                "a second-order spool to apply to (the actuator's valve has none here): give "
+                                "bandwidth_hz too")
+        return (0.0, omega, float(own["damping"]), *geometry)
+    w = 2 * np.pi * float(own["bandwidth_hz"])
+    if "damping" in own or omega > 0.0:  # second order: its damping given, or the response it replaces is one
+        return (0.0, w, float(own.get("damping", zeta)), *geometry)
+    return (1.0 / w, 0.0, zeta, *geometry)  # first order, as a datasheet valve without damping
+
+
+def values(sc, model) -> np.ndarray:
+    """The plant's valve input of every actuator of ``model`` in scenario ``sc``, (m, 5): [first-order
+    lag s, natural frequency rad/s, damping, overlap m, full opening m] (:data:`PARAMETERS`). An
+    actuator's datasheet valve (``Cylinder.valve``, the description's ``valve`` table) overrides the
+    rig's valve settings for it where the scenario's valve is not ideal (a lag or a natural frequency
+    set; in an ideal valve's scenario only its overlap and saturation stay); without one, the rig's
+    apply as they are (no overlap, no saturation). A scenario's ``actuators.<name>.valve``
+    (bandwidth_hz, damping) replaces the spool response so chosen for that actuator, in any scenario.
+    ScenarioError where an actuator's natural frequency is too fast for the plant's sub-steps (the
+    scenario's own rule for valve_bandwidth_hz)."""
+    rig = (*rig_response(sc), 0.0, 0.0)
+    dynamic = rig[0] > 0.0 or rig[1] > 0.0
+    omega_max = PARAMETERS[1].upper_of(sc)
+    rows = []
+    for c in model.cylinders:
+        own = getattr(c, "valve", None)
+        row = rig if own is None else tuple(float(own[p.name]) for p in PARAMETERS)
+        if sc.actuators.get(c.name, {}).get("valve"):  # the scenario's spool response for it, in any scenario
+            row = _own_response(sc, c, row)
+        elif own is not None and not dynamic:  # an ideal valve's scenario: the spool follows at once, its geometry stays
+            row = (0.0, 0.0, *row[2:])
+        if row[1] > omega_max:
+            raise ScenarioError(f"scenario '{sc.name}': actuator '{c.name}': its valve's bandwidth_hz "
+                                f"{row[1] / (2 * np.pi):.6g} Hz must be <= control_rate * substeps / (2 pi) = "
+                                f"{omega_max / (2 * np.pi):.6g} Hz (raise substeps)")
+        rows.append(row)
+    return np.array(rows, float).reshape(len(rows), WIDTH)
+
 
 class Symbolic:
-    """The valve law over SymPy."""
+    """The valve law over SymPy. In the plant (:mod:`hydrogen.symbolic.plant`) it gives the effective
+    spool each actuator's chambers see, ``spool_eff`` (m, one intermediate), from the spool states,
+    the command ``u`` and its input ``valve``, and moves the spool."""
+
+    READS = ("spool", "u", INPUT)
+    WRITES = ("spool_eff",)
+
+    @staticmethod
+    def outputs(c) -> None:
+        # an intermediate: nesting its Piecewise inside the valve law's would make SymPy merge
+        # conditions (slow, and ITE nodes)
+        c.provide("spool_eff", Symbolic.effective(c["spool"], c["u"], c[INPUT],
+                                                  [a.valve_limits for a in c.model.cylinders]), prefix="spool_eff")
+
+    @staticmethod
+    def derivatives(c) -> None:
+        for name, value in Symbolic.rates(c["spool"], c["spool_rate"], c["u"], c[INPUT]).items():
+            c.rate(name, value)
 
     @staticmethod
     def states(model) -> dict:
         from ..symbolic.kinematics import rate_symbols
         m = model.n_cylinders
         return {"spool": rate_symbols("spool", m), "spool_rate": rate_symbols("spool_rate", m)}
+
+    @staticmethod
+    def input(model):
+        """The symbols of the plant's input ``valve`` of ``model``: :meth:`parameters` of its actuators."""
+        return Symbolic.parameters(model.n_cylinders)
 
     @staticmethod
     def parameters(m: int):

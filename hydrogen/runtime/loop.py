@@ -14,7 +14,7 @@ import numpy as np
 __all__ = ["LoopRunner", "LOOP_OK", "LOOP_NONFINITE", "LOOP_FK_FAILED", "LOOP_CTRL_FAILED"]
 
 from .. import references
-from ..layout import PREDICTOR_MODEL, log_widths, loop_context
+from ..layout import log_widths, loop_context
 
 LOOP_OK, LOOP_NONFINITE, LOOP_FK_FAILED, LOOP_CTRL_FAILED = 0, 1, 2, 3
 _D = C.POINTER(C.c_double)
@@ -80,7 +80,8 @@ def _check_values(values, ctx, ctrl, dyn) -> None:
     model = dyn.model
     n, m, n_xc = len(model.neutral_pose), ctx["m"], int(ctrl.xc.size)
     sizes = {"theta": len(model.theta), "gamma1": m, "gamma2": m,
-             "friction": ctx["friction_width"] * m, "quant_l": m, "valve": len(PREDICTOR_MODEL["valve"]) * m, "bias": n, **references.config_sizes(values),
+             **{i["name"]: i["width"] * m for i in ctx["plant_inputs"]},  # each plant input's numbers per actuator
+             "quant_l": m, "bias": n, **references.config_sizes(values),
              "xc_lo": max(n_xc, 1), "xc_hi": max(n_xc, 1), "kf_gain": 2, "slot": len(ctx["slots"]),
              "pred_theta": len(model.theta), "pred_gamma1": m, "pred_gamma2": m,
              "p_low": ctx["n_pressures"], "p_high": ctx["n_pressures"], "numbers": max(len(numbers), 1)}

@@ -15,7 +15,7 @@ import numpy as np
 
 from .. import references
 from ..plant import plant_layout, supply
-from ..layout import FK_MAX_COND, FK_MAX_ITER, FK_TOL, LOOP_CONFIG, delay_split
+from ..layout import FK_MAX_COND, FK_MAX_ITER, FK_TOL, LOOP_CONFIG, PLANT_INPUTS, delay_split
 
 
 def _chambers(model):
@@ -37,9 +37,11 @@ class Run:
     kf_gain: object = None
 
 
-def _valve(run):
-    from .scenarios import valve_parameters
-    return valve_parameters(run.sc, run.dyn.model).ravel()
+def _plant_input(name):
+    """A plant input's numbers for the run, flat: its block's rule (:func:`hydrogen.plant.input_values`)."""
+    from ..plant import BLOCKS, block
+    mod = next(block(b) for b in BLOCKS if getattr(block(b), "INPUT", None) == name)
+    return lambda r: mod.values(r.sc, r.dyn.model).ravel()
 
 
 def _per_actuator(key):
@@ -72,9 +74,8 @@ DERIVED = {
     "theta": lambda r: np.asarray(r.dyn.model.theta, float),
     "gamma1": lambda r: np.asarray(r.dyn.model.gamma[0], float),
     "gamma2": lambda r: np.asarray(r.dyn.model.gamma[1], float),
-    "friction": _per_actuator("friction"),
+    **{name: _plant_input(name) for name in PLANT_INPUTS},  # each block's input of numbers (friction, valve)
     "quantization_l": _per_actuator("quantization_l"),
-    "valve": _valve,
     "use_kalman": lambda r: int(r.kf_gain is not None),
     "kf_gain": lambda r: np.zeros(2) if r.kf_gain is None else np.asarray(r.kf_gain, float),
     # the reference's fields, each kind's (hydrogen.references): its own values, the others' idle ones

@@ -11,7 +11,7 @@ import numpy as np
 from .. import references
 from ..errors import ScenarioError
 from ..layout import MAX_DELAY, delay_split
-from ..plant import integrator
+from ..plant import friction, integrator, valve
 from ..scenario_settings import (_FIELDS, RENAMED, VARIANT_SEPARATOR, ScenarioFields, setting, settings,  # noqa: F401
                                  table_keys)
 from .checks import check_fields
@@ -105,7 +105,7 @@ class Scenario(ScenarioFields):
                                     f"settings given per actuator: {', '.join(PER_ACTUATOR)}, valve")
             table = values.get("friction")
             if isinstance(table, Mapping):  # a seal friction table: its keys and ranges here, the rest per model
-                _refuse_table(self, name, table, complete=False)
+                friction.check_table(self, name, table, complete=False)
                 values = {k: v for k, v in values.items() if k != "friction"}
             if "valve" in values:
                 _check_valve_response(self, name, values["valve"])
@@ -128,9 +128,8 @@ class Scenario(ScenarioFields):
 PER_ACTUATOR = ("friction", "quantization_l", "noise_l")
 
 
-#: The keys of a scenario's ``actuators.<name>.valve``: the spool's response, over the actuator's
-#: datasheet valve's (or the rig's valve settings), key by key; its rating stays the description's.
-VALVE_RESPONSE = ("bandwidth_hz", "damping")
+#: The keys of a scenario's ``actuators.<name>.valve``: :data:`hydrogen.plant.valve.VALVE_RESPONSE`.
+VALVE_RESPONSE = valve.VALVE_RESPONSE
 
 
 def _check_valve_response(sc, name: str, table):
@@ -155,79 +154,10 @@ def _check_valve_response(sc, name: str, table):
                                 f"({q.source}), got {v!r}")
 
 
-def _valve_response(sc, c, row: tuple) -> tuple:
-    """Actuator ``c``'s valve row ``row`` ([lag s, ω rad/s, ζ, overlap m, full opening m]: its datasheet
-    valve's, else the rig's) with the
-    scenario's ``actuators.<name>.valve`` over its spool response: bandwidth_hz sets ω (second order:
-    damping given, or the response it replaces is one) or else the lag 1/(2π f) (first order); damping
-    alone changes a second-order spool's damping (ScenarioError where there is none)."""
-    own = sc.actuators[c.name]["valve"]
-    lag, omega, zeta, *geometry = row
-    if "bandwidth_hz" not in own:
-        if omega <= 0.0:
-            raise ScenarioError(f"scenario '{sc.name}': actuators.{c.name}.valve.damping = {own['damping']!r} needs "
-                                "a second-order spool to apply to (the actuator's valve has none here): give "
-                                "bandwidth_hz too")
-        return (0.0, omega, float(own["damping"]), *geometry)
-    w = 2 * np.pi * float(own["bandwidth_hz"])
-    if "damping" in own or omega > 0.0:  # second order: its damping given, or the response it replaces is one
-        return (0.0, w, float(own.get("damping", zeta)), *geometry)
-    return (1.0 / w, 0.0, zeta, *geometry)  # first order, as a datasheet valve without damping
-
-
-def _refuse_table(sc, name: str, table, complete=True, sources=None):
-    """A :class:`ScenarioError` naming ``actuators.<name>.friction.<key>`` for the first fault of seal friction
-    table ``table`` (:func:`hydrogen.plant.friction.table_problem`); ``sources``: where each key's value came
-    from, for the message (a key from the actuator's description, or the scenario's friction)."""
-    from ..plant.friction import table_problem
-    problem = table_problem(table, complete=complete)
-    if problem is not None:
-        key, what = problem
-        where = f"scenario '{sc.name}': actuators.{name}.friction"
-        text = f"{where}.{key} {what}" if key else f"{where}: {what}"
-        came = (sources or {}).get(key)
-        raise ScenarioError(text + (f" ({key} from {came})" if came else ""))
-
-
 def friction_row(sc, c, seal: bool) -> tuple:
-    """Actuator ``c``'s (a model's cylinder) friction numbers, its plant input's
-    (:func:`hydrogen.plant.friction.parameters_of`: all six for a robot with seal friction, ``seal``), in its own
-    unit: the scenario's ``actuators.<name>.friction`` (the list [F_c, b, v_s] or a seal friction table)
-    over its description's friction table (``Cylinder.friction``) over the scenario's ``friction`` (a
-    cylinder's; none on a joint actuator), key by key. The description's table applies where the
-    scenario has friction on (its ``friction`` not zero, or the actuator's own given): an ideal plant
-    stays frictionless. A :class:`ScenarioError` naming the actuator and
-    the key for a value out of range, or one asking for a seal term its plant is generated without (a
-    breakaway above coulomb, a pressure_coefficient above 0: structure, declared in its description)."""
-    from ..actuators import actuator
-    from ..actuators.declarations import LENGTH
+    """Actuator ``c``'s friction numbers in scenario ``sc``: :func:`hydrogen.plant.friction.actuator_row`."""
     from ..plant import friction
-
-    names = [par.name for par in friction.parameters_of(False)]  # the list's [F_c, b, v_s]
-    # a joint actuator's is none unless given (the smoothing speed only keeps tanh finite)
-    base = sc.friction if actuator(c.kind).TRAVEL == LENGTH else (0.0, 0.0, sc.friction[2])
-    own = sc.actuators.get(c.name, {}).get("friction")
-    given = own is not None
-    own = dict(zip(names, own)) if own is not None and not isinstance(own, Mapping) else dict(own or {})
-    # the description's numbers are the seal's where the scenario has friction on (the rig's); a
-    # scenario with none (an ideal plant) runs the actuator frictionless
-    on = given or any(float(v) != 0.0 for v in sc.friction[:2])
-    desc = dict(c.friction or {}) if on else {}
-    table = {**dict(zip(names, base)), **desc, **own}
-    sources = {k: ("its description" if k in desc else "the scenario's friction") for k in table if k not in own}
-    _refuse_table(sc, c.name, table, sources=sources)
-    built = dict(zip(friction.TERMS, c.seal_terms))
-    for term, asked in zip(friction.TERMS, friction.terms_of(table)):
-        if asked and not built[term]:
-            key = friction.TERMS[term][0]
-            raise ScenarioError(
-                f"scenario '{sc.name}': actuators.{c.name}.friction.{key} = {table[key]!r} asks for the seal "
-                f"friction's {'Stribeck dip' if term == 'stribeck' else 'pressure load'}, which actuator "
-                f"'{c.name}''s plant is generated without: declare it in the actuator's description "
-                f"([[cylinders]] '{c.name}' friction = {{ {', '.join(friction.TERMS[term])} }}), which builds it in")
-    full = friction.row(table["coulomb"], table["viscous"], table["smooth_speed"], table.get("breakaway"),
-                        table.get("stribeck_speed", 1.0), table.get("pressure_coefficient", 0.0))
-    return tuple(float(v) for v in full[:len(friction.parameters_of(seal))])
+    return friction.actuator_row(sc, c, seal)
 
 
 def _tuple(v):
@@ -272,8 +202,9 @@ def actuator_settings(sc: Scenario, model) -> dict:
 
 
 def valve_vector(sc) -> np.ndarray:
-    """The plant's valve input [first-order lag s, natural frequency rad/s, damping] of a scenario."""
-    return np.array([sc.valve_lag, 2 * np.pi * sc.valve_bandwidth_hz, sc.valve_damping], float)
+    """The rig's spool response [first-order lag s, natural frequency rad/s, damping] of a scenario:
+    :func:`hydrogen.plant.valve.rig_response`."""
+    return valve.rig_response(sc)
 
 
 def _reference(model, where, spec, neutral):
@@ -423,29 +354,5 @@ def scenario(name: str, model) -> Scenario:
 
 
 def valve_parameters(sc, model) -> np.ndarray:
-    """The plant's valve input of every actuator of ``model``, (m, 5): [first-order lag s, natural
-    frequency rad/s, damping, overlap m, full opening m] (:data:`hydrogen.plant.valve.PARAMETERS`).
-    An actuator's datasheet valve (``Cylinder.valve``, the description's ``valve`` table) overrides
-    the rig's valve settings for it where the scenario's valve is not ideal (a lag or a natural
-    frequency set; in an ideal valve's scenario only its overlap and saturation stay); without one,
-    the rig's apply as they are (no overlap, no saturation). A scenario's ``actuators.<name>.valve``
-    (bandwidth_hz, damping) replaces the spool response so chosen for that actuator, in any scenario.
-    ScenarioError where an actuator's natural frequency is too fast for the plant's sub-steps (the
-    scenario's own rule for valve_bandwidth_hz)."""
-    from ..plant.valve import PARAMETERS
-    rig = (*valve_vector(sc), 0.0, 0.0)
-    dynamic = rig[0] > 0.0 or rig[1] > 0.0
-    rows = []
-    for c in model.cylinders:
-        own = getattr(c, "valve", None)
-        row = rig if own is None else tuple(float(own[p.name]) for p in PARAMETERS)
-        if sc.actuators.get(c.name, {}).get("valve"):  # the scenario's spool response for it, in any scenario
-            row = _valve_response(sc, c, row)
-        elif own is not None and not dynamic:  # an ideal valve's scenario: the spool follows at once, its geometry stays
-            row = (0.0, 0.0, *row[2:])
-        if row[1] / (sc.control_rate * sc.substeps) > 1.0:
-            raise ScenarioError(f"scenario '{sc.name}': actuator '{c.name}': its valve's bandwidth_hz "
-                                f"{row[1] / (2 * np.pi):.6g} Hz must be <= control_rate * substeps / (2 pi) = "
-                                f"{sc.control_rate * sc.substeps / (2 * np.pi):.6g} Hz (raise substeps)")
-        rows.append(row)
-    return np.array(rows, float).reshape(len(rows), len(PARAMETERS))
+    """The plant's valve input of every actuator of ``model``, (m, 5): :func:`hydrogen.plant.valve.values`."""
+    return valve.values(sc, model)

@@ -17,15 +17,14 @@ from ..errors import KinematicsError, RunEndedError, ScenarioError, SimulationEr
 from ..estimators import kalman
 from ..estimators.kalman import (filter_gain, filter_gains, filter_setting, kalman_gain,  # noqa: F401
                                  length_noise_variance, remember_filter_gains)
-from ..layout import LU_PIVOT_MIN, PREDICTOR_MODEL, SUPPLY_LOG
-from ..plant import describe_entries, friction, integrator, plant_layout, slot, state_vector
+from ..layout import LU_PIVOT_MIN, SUPPLY_LOG
+from ..plant import describe_entries, input_values, integrator, plant_inputs, plant_layout, slot, state_vector
 from ..plant.supply import entries as supply_entries, nominal as supply_nominal, start as supply_start
 from ..summary import SATURATED_AT, SATURATION, estimated_blocks  # saturation: defined with its line
 from .checks import _shown, check_against_model, check_run_size, checked_float, metric_window
 from .control import make_controller
 from .pool import _ENTRY_KEYS, _error, _outcome, check_workers, entry_problem, run_sweep
-from .scenarios import (Scenario, actuator_settings, scenario as named_scenario, scenario_names, valve_parameters,
-                        valve_vector)
+from .scenarios import Scenario, actuator_settings, scenario as named_scenario, scenario_names, valve_vector
 from .seeds import SeedResults
 
 __all__ = ["simulate", "SimulationResult", "SeedResults", "equilibrium_pressures", "Stepper", "prepare_run", "new_logs",
@@ -793,10 +792,6 @@ def _run_c(dyn, sc, ctrl, x0, q0, noise, kf_gain, log, n, h, runner=None):
     return (k + 1 if code == LOOP_NONFINITE else k), _loop_failure(code, runner, h)
 
 
-#: The controller's own model in the predictor (the C loop renders the same definition).
-_PRED_FRICTION, _PRED_VALVE = (np.array(PREDICTOR_MODEL[k], dtype=float) for k in ("friction", "valve"))
-
-
 class _Signals:
     """One period's signals as the stages hand them on (the C loop's ``<model>_loop_signals``)."""
     __slots__ = ("nz", "t", "l_true", "l_meas", "pc_meas", "ps_meas", "q_enc", "ldot", "qdot_meas", "ref", "adapt", "u",
@@ -816,11 +811,12 @@ class PythonStages:
         self.dyn, self.sc, self.ctrl, self.h, self.kf_gain = dyn, sc, ctrl, h, kf_gain
         self._rhs_fn = dyn.functions["plant_rhs"]
         own = actuator_settings(sc, model)  # friction and resolution of each actuator, in its own unit
-        self._fric, self._quant = own["friction"].ravel(), own["quantization_l"]
-        self._valve = valve_parameters(sc, model).ravel()  # each actuator's valve: its datasheet's, else the rig's
-        width = len(friction.parameters_of(model.seal_friction))  # the input friction's numbers per actuator
-        self._pred_fric = np.tile(_PRED_FRICTION[:width], model.n_cylinders)
-        self._pred_valve = np.tile(_PRED_VALVE, model.n_cylinders)
+        self._quant = own["quantization_l"]
+        # each plant input's numbers (hydrogen.plant.plant_inputs: friction, valve), in the plant's order:
+        # the run's (each block's rule), and the controller's own model's in the predictor (the C loop's
+        # PRED_<INPUT>, from the same declaration)
+        self._inputs = tuple(v.ravel() for v in input_values(sc, model).values())
+        self._pred_inputs = tuple(np.tile(np.array(i.ideal, float), model.n_cylinders) for i in plant_inputs(model))
         self.layout = plant_layout(model)
         self._q, self._qdot, self._pc = (slot(self.layout, k).slice for k in ("q", "qdot", "pc"))
         self._ps = next((b.slice for b in self.layout if b.name == SUPPLY_LOG), None)  # a supply state
@@ -950,7 +946,7 @@ class PythonStages:
 
         def hold(x, u, dt):
             n = self.sc.predictor_steps(dt / h)
-            rhs = lambda xx: self._rhs_fn(xx, u, th, g1, g2, self._pred_fric, self._pred_valve)  # noqa: E731
+            rhs = lambda xx: self._rhs_fn(xx, u, th, g1, g2, *self._pred_inputs)  # noqa: E731
             return integrator.bounded_steps(rhs, x, n, dt / n, pc, self._lo, self._hi, self._stages)
 
         if self.delay_frac > 0:
@@ -972,7 +968,7 @@ class PythonStages:
         th, g = self.model.theta, self.model.gamma
 
         def hold(x, u, n, hs):
-            rhs = lambda xx: self._rhs_fn(xx, u, th, g[0], g[1], self._fric, self._valve)  # noqa: E731
+            rhs = lambda xx: self._rhs_fn(xx, u, th, g[0], g[1], *self._inputs)  # noqa: E731
             return integrator.bounded_steps(rhs, x, n, hs, pc, lo, hi, self._stages)
 
         pieces = integrator.period_pieces(substeps, self.delay_frac, self.h)

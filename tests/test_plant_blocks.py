@@ -1,0 +1,209 @@
+"""The plant's blocks (hydrogen/plant/): found by themselves, composed by the names of the signals
+they hand each other (hydrogen/symbolic/plant.py), their inputs of numbers read off their
+declarations by the loop, the Python engine, the FMU and the description. The proof: a rig part
+added as one module (a counterbalance spring along each cylinder, written into a copy of the
+package, nothing else edited) loads, generates, builds and runs on both engines, and its force is
+the one its law says."""
+import json
+import os
+import shutil
+import subprocess
+import sys
+import textwrap
+import types
+from pathlib import Path
+
+import pytest
+
+from hydrogen import plant
+from hydrogen.symbolic.plant import PlantWiringError, _output_order
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def test_the_blocks_are_found_in_their_declared_order():
+    assert plant.BLOCKS == ("mechanics", "chambers", "friction", "valve", "supply")
+    positions = [plant.block(b).POSITION for b in plant.BLOCKS]
+    assert positions == sorted(positions) and len(set(positions)) == len(positions)
+    # the plant's inputs of numbers follow the blocks' order: plant_rhs's arguments after gamma2
+    assert [i.name for i in plant.plant_inputs({"seal_friction": True})] == ["friction", "valve"]
+    assert [i.width for i in plant.plant_inputs({})] == [3, 5]  # [F_c, b, v_s] without seal friction
+
+
+def _fake(name, reads=(), writes=(), adds=()):
+    sym = types.SimpleNamespace(READS=reads, WRITES=writes, ADDS=adds)
+    return types.SimpleNamespace(__name__=f"hydrogen.plant.{name}", Symbolic=sym)
+
+
+def test_the_outputs_run_after_what_they_read():
+    a, b, c = _fake("a", reads=("y",)), _fake("b", reads=("x",), writes=("y",)), _fake("c", writes=("x",))
+    assert [m.__name__[-1] for m in _output_order([a, b, c], set())] == ["c", "b", "a"]
+    # a sum is read once every block adding to it has run
+    s, t, u = _fake("s", reads=("f",)), _fake("t", adds=("f",)), _fake("u", reads=("g",), adds=("f",))
+    v = _fake("v", writes=("g",))
+    assert [m.__name__[-1] for m in _output_order([s, t, u, v], set())] == ["t", "v", "u", "s"]
+
+
+@pytest.mark.parametrize("mods, words", [
+    ([_fake("a", reads=("nowhere",))], "plant block 'a' reads the signal 'nowhere', which no block writes"),
+    ([_fake("a", reads=("y",), writes=("x",)), _fake("b", reads=("x",), writes=("y",))], "in a cycle"),
+])
+def test_an_unwired_or_cyclic_plant_is_refused(mods, words):
+    with pytest.raises(PlantWiringError, match=words.replace("(", r"\(").replace(")", r"\)")):
+        _output_order(mods, set())
+
+
+#: A rig part as a developer adds one: this module alone, dropped into hydrogen/plant/.
+SPRING = '''\
+"""A counterbalance spring along each cylinder (a gas spring beside it, as on cranes and
+excavator booms): force -k (l - l_0) along the cylinder, N, at its length l (m)."""
+from __future__ import annotations
+
+import numpy as np
+
+from ..setting import setting
+from . import PlantParameter
+
+#: After the supply: its state none, its input the last.
+POSITION = 60
+STATES = ()
+INPUT = "spring"
+PARAMETERS = (
+    PlantParameter("rate", lambda t: f"{t.force_unit}/{t.unit}", "spring rate (k)", per_actuator=True),
+    PlantParameter("free_length", lambda t: t.unit, "length where the spring is relaxed (l_0)",
+                   per_actuator=True),
+)
+SCENARIO_SETTINGS = {
+    "spring_rate": setting(0.0, "N/m", "every cylinder's counterbalance spring rate (0: none)", ">=0"),
+    "spring_length": setting(0.0, "m", "its free length", ">=0"),
+}
+
+
+def input_parameters(structure):
+    return PARAMETERS
+
+
+def values(sc, model):
+    return np.array([(sc.spring_rate, sc.spring_length)] * model.n_cylinders, float)
+
+
+class Symbolic:
+    READS = ("l", INPUT)
+    ADDS = ("leg_force",)
+
+    @staticmethod
+    def input(model):
+        import sympy as sp
+        return sp.Matrix([s for i in range(model.n_cylinders)
+                          for s in sp.symbols(f"k_spring_{i} l_spring_{i}", real=True)])
+
+    @staticmethod
+    def outputs(c):
+        k, l = c[INPUT], c["l"]
+        c.add("leg_force", [-k[2 * i] * (l[i] - k[2 * i + 1]) for i in range(c.model.n_cylinders)])
+
+    @staticmethod
+    def derivatives(c):
+        pass
+'''
+
+#: Run in the copy: the block is found, the description takes its settings, the arm builds, both
+#: engines agree with the spring on, the plant's rate moves by the spring's law, the FMU names it.
+SCRIPT = '''\
+import json, sys
+from pathlib import Path
+import numpy as np
+import hydrogen
+from hydrogen.plant import BLOCKS, plant_inputs
+from hydrogen.simulation.simulator import simulate
+
+out = {"blocks": list(BLOCKS)}
+model = hydrogen.load_model(sys.argv[1])
+out["inputs"] = [i.name for i in plant_inputs(model)]
+dyn = hydrogen.build(model, cache=Path(sys.argv[2]))
+f = dyn.functions
+out["plant_rhs"] = list(f["plant_rhs"].in_names)
+runs = {e: simulate(dyn, "spring-sim", "backstepping", engine=e) for e in ("c", "python")}
+off = simulate(dyn, "spring-sim", "backstepping", spring_rate=0.0)
+out["engines"] = float(np.max(np.abs(runs["c"].q - runs["python"].q)))
+out["spring_moves"] = float(np.max(np.abs(runs["c"].pressures - off.pressures)))
+# the plant's rate with the spring against without: dq̈ = D^-1 JL^T (-k (l - l0))
+q = np.array(model.neutral_pose, float) + [0.05, -0.1]
+n, m = model.n, model.n_cylinders  # x: q, qdot, p_A and p_B, spool, spool rate
+x = np.concatenate([q, [0.1, -0.2], np.full(2 * m, 5e6), np.zeros(2 * m)])
+args = (x, np.zeros(m), model.theta, *model.gamma, np.tile([0.0, 0.0, 1.0], m), np.zeros(5 * m))
+k, l0 = 2.0e4, 0.5
+with_spring = np.asarray(f["plant_rhs"](*args, np.tile([k, l0], m)), float).ravel()
+without = np.asarray(f["plant_rhs"](*args, np.zeros(2 * m)), float).ravel()
+D = np.asarray(f["mass_matrix"](q, model.theta), float)
+JL = np.asarray(f["leg_jacobian"](q), float)
+l = np.asarray(f["leg_lengths"](q), float).ravel()
+expected = np.linalg.solve(D, JL.T @ (-k * (l - l0)))
+out["qdd_change"] = (with_spring[n:2 * n] - without[n:2 * n]).tolist()
+out["qdd_expected"] = expected.tolist()
+out["rest_unchanged"] = float(np.max(np.abs(np.delete(with_spring - without, range(n, 2 * n)))))
+from fmpy import read_model_description
+from hydrogen.fmu import export_fmu
+# the closed loop's FMU compiles the loop's configuration with the spring's numbers (params.h)
+export_fmu(Path(sys.argv[2]) / "loop.fmu", "closed-loop", "spring-sim", dyn=dyn, controller="backstepping", duration=0.05)
+path = export_fmu(Path(sys.argv[2]) / "arm.fmu", "plant", "spring-sim", dyn=dyn, controller="backstepping",
+                  duration=0.05)
+var = {v.name: v for v in read_model_description(str(path)).modelVariables}
+rate = var["spring.shoulder_cylinder.rate"]
+out["fmu"] = [rate.unit, float(rate.start), var["spring.elbow_cylinder.free_length"].unit]
+print(json.dumps(out))
+'''
+
+SCENARIO = """
+[scenarios.spring-sim]
+label = "spring-sim: the arm on its counterbalance springs"
+duration = 0.5
+control_rate = 1000.0
+substeps = 2
+t_adapt = 0.5
+spring_rate = 20000.0
+spring_length = 0.5
+reference.sines = [["shoulder", 0.10, 1.0], ["elbow", -0.10, 1.5]]
+"""
+
+
+@pytest.fixture(scope="module")
+def spring_run(tmp_path_factory):
+    """The package copied with the spring's module added (nothing else), and the script's findings."""
+    root = tmp_path_factory.mktemp("spring")
+    ignore = shutil.ignore_patterns("__pycache__", "*.so", "_templates")
+    shutil.copytree(ROOT / "hydrogen", root / "hydrogen", ignore=ignore)
+    shutil.copytree(ROOT / "templates", root / "templates")
+    (root / "hydrogen" / "plant" / "spring.py").write_text(SPRING)
+    text = (ROOT / "tests" / "data" / "four_way_arm.toml").read_text()
+    text = text.replace('name = "four_way_arm"', 'name = "spring_arm"\ncontrollers = ["backstepping"]', 1)
+    (root / "spring_arm.toml").write_text(text + SCENARIO)
+    (root / "run.py").write_text(SCRIPT)
+    env = {**os.environ, "PYTHONPATH": str(root)}
+    proc = subprocess.run([sys.executable, str(root / "run.py"), str(root / "spring_arm.toml"), str(root / "cache")],
+                          cwd=root, env=env, capture_output=True, text=True, timeout=600)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    return json.loads(proc.stdout.strip().splitlines()[-1])
+
+
+def test_a_rig_part_added_as_one_module_is_found_and_wired(spring_run):
+    assert spring_run["blocks"][-1] == "spring"
+    assert spring_run["inputs"] == ["friction", "valve", "spring"]
+    names = spring_run["plant_rhs"]  # the generated plant takes it, after the valve's
+    assert names[:8] == ["x", "u", "theta", "gamma1", "gamma2", "friction", "valve", "spring"]
+
+
+def test_the_added_part_runs_on_both_engines_and_changes_the_run(spring_run):
+    assert spring_run["engines"] < 1e-9
+    assert spring_run["spring_moves"] > 1e3  # Pa: the pressures carry the spring's force
+
+
+def test_the_added_part_adds_its_law_to_the_plant(spring_run):
+    change, expected = spring_run["qdd_change"], spring_run["qdd_expected"]
+    assert max(abs(e) for e in expected) > 1.0  # the spring matters at this pose
+    assert change == pytest.approx(expected, rel=1e-9, abs=1e-9)
+    assert spring_run["rest_unchanged"] == 0.0  # the pressures' and spool's rates do not see it
+
+
+def test_the_fmu_declares_the_added_parts_numbers_with_their_units(spring_run):
+    assert spring_run["fmu"] == ["N/m", 20000.0, "m"]
