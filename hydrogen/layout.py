@@ -15,6 +15,7 @@ from .estimators import kalman  # the Kalman filter's C statements
 from .names import NUMBERS  # the numbers input's name, part of the loop's layout
 from .plant import BLOCKS as PLANT_BLOCKS, block as plant_block, integrator, plant_inputs  # the plant's blocks
 from .plant.supply import PRESSURE as SUPPLY_PRESSURE  # the supply pressure's one name
+from .sensors import NOISE, noise_columns, noise_width  # the sensors' noise row
 
 __all__ = ["NUMBERS", "SUPPLY_LOG", "MAX_DELAY", "PLANT_INPUTS", "predictor_model", "FK_TOL", "FK_MAX_ITER", "FK_MAX_COND", "FK_STATUS", "LU_PIVOT_MIN",
            "delay_split", "LOOP_CONFIG", "LOOP_STATE", "LOOP_SIGNALS", "model_summary", "slots",
@@ -361,12 +362,18 @@ def loop_context(manifest: dict) -> dict:
     x_index = {k: Markup("" if v == "0" else f"{v} + ") for k, v in offsets.items()}
     x_parts = ", ".join(part["name"].replace("_", " ") for part in s["plant"])
     nps = supply_size(s)
+    # the sensors' noise row (hydrogen.sensors.NOISE): each channel's columns
+    channels = {ch.name: ch for ch in NOISE}
+    noise = [{"name": k, "start": start, "count": count, "doc": channels[k].doc, "unit": channels[k].unit}
+             for k, (start, count) in noise_columns(robot_sizes(s), bool(s["joint_encoders"])).items()]
     sizes = {"NQ": n, "NL": m, "NX": nx, "NPC": n_p, "NPS": nps, "MAX_DELAY": MAX_DELAY}
     ctx = {
         "model": name, "p": name, "P": name.upper(), "guard": f"{name.upper()}_LOOP_H",
         "n": n, "m": m, "nx": nx, "max_delay": MAX_DELAY,
         "x_plus": x_plus, "x_index": x_index, "x_parts": x_parts,
-        "n_noise": m + n_p + (n if s["joint_encoders"] else 0) + nps, "n_pressures": n_p, "three_way": n_p == m,
+        "n_noise": noise_width(robot_sizes(s), bool(s["joint_encoders"])), "noise": noise,
+        "noise_comment": ", ".join(f"{ch['doc']} ({ch['unit']})" for ch in noise),
+        "n_pressures": n_p, "three_way": n_p == m,
         "nps": nps,
         "parametric": NUMBERS in manifest,
         "encoders": bool(s["joint_encoders"]), "slots": slots(s), "ports": _port_writes(robot_sizes(s)), "logs": logs,

@@ -17,6 +17,10 @@
 #define NL LOADER_CRANE_NL
 #define NX LOADER_CRANE_NX
 #define NNOISE LOADER_CRANE_NNOISE
+#define NOISE_L 0  /* the noise row's actuator travel: 3 from here */
+#define NOISE_PC 3  /* the noise row's pressure states: 6 from here */
+#define NOISE_Q 9  /* the noise row's joint encoders: 3 from here */
+#define NOISE_PS 12  /* the noise row's supply pressure: 1 from here */
 #define MAX_DELAY LOADER_CRANE_MAX_DELAY
 static const double TWO_PI = 6.283185307179586;
 #define NPC LOADER_CRANE_NPC
@@ -337,7 +341,7 @@ static void set_slot(const loader_crane_loop_config* c, int s, const double* v, 
 void loader_crane_sense_lengths(const loader_crane_loop_config* c, const double* l, const double* nz, double* l_meas) {
     int i;
     for (i = 0; i < NL; ++i) {
-        l_meas[i] = l[i] + (nz ? nz[i] : 0);
+        l_meas[i] = l[i] + (nz ? nz[NOISE_L + i] : 0);
         if (c->quant_l[i] > 0) l_meas[i] = c->quant_l[i] * floor(l_meas[i] / c->quant_l[i] + 0.5);
     }
 }
@@ -353,15 +357,15 @@ int loader_crane_measure(const loader_crane_loop_config* c, const loader_crane_l
     if (c->use_kalman ? leg_lengths(c->numbers, x, s->l_true) : leg_kinematics(c->numbers, x, s->l_true, J)) return LOADER_CRANE_CTRL_FAILED;
     loader_crane_sense_lengths(c, s->l_true, nz, s->l_meas);
     for (i = 0; i < NPC; ++i)
-        s->pc_meas[i] = nz ? clip(x[2 * NQ + i] + nz[NL + i], c->p_low[i], c->p_high[i]) : x[2 * NQ + i];
+        s->pc_meas[i] = nz ? clip(x[2 * NQ + i] + nz[NOISE_PC + i], c->p_low[i], c->p_high[i]) : x[2 * NQ + i];
     if (!c->use_kalman)
         for (i = 0; i < NL; ++i) {
             s->ldot[i] = 0;
             for (j = 0; j < NQ; ++j) s->ldot[i] += J[i + NL * j] * x[NQ + j];
         }
-    for (i = 0; i < NQ; ++i) s->q_enc[i] = x[i] + (nz ? nz[NL + NPC + i] : 0);
-    /* the supply pressure: last in the noise row, held at its lower bound 0 */
-    s->ps_meas[0] = nz ? clip(x[2 * NQ + NPC + 2 * NL + 0] + nz[NNOISE - 1], 0.0, HUGE_VAL) : x[2 * NQ + NPC + 2 * NL + 0];
+    for (i = 0; i < NQ; ++i) s->q_enc[i] = x[i] + (nz ? nz[NOISE_Q + i] : 0);
+    /* the supply pressure, held at its lower bound 0 */
+    s->ps_meas[0] = nz ? clip(x[2 * NQ + NPC + 2 * NL + 0] + nz[NOISE_PS], 0.0, HUGE_VAL) : x[2 * NQ + NPC + 2 * NL + 0];
     return LOADER_CRANE_OK;
 }
 

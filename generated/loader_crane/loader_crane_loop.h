@@ -14,7 +14,7 @@ extern "C" {
 #define LOADER_CRANE_NPC 6  /* pressure states (one block per actuator) */
 #define LOADER_CRANE_MAX_DELAY 8  /* longest computation delay, control periods */
 #define LOADER_CRANE_NPS 1  /* supply pressure states */
-#define LOADER_CRANE_NNOISE 13  /* noise row: cylinder lengths (m), pressures (Pa), joint angles, supply pressure (Pa) */
+#define LOADER_CRANE_NNOISE 13  /* noise row (hydrogen.sensors.NOISE): actuator travel (m or rad), pressure states (Pa), joint encoders (rad or m), supply pressure (Pa) */
 
 typedef int (*loader_crane_casadi_fn)(const double** arg, double** res, long long int* iw, double* w, int mem);
 

@@ -17,6 +17,8 @@
 #define NL UBC_STEWART_NL
 #define NX UBC_STEWART_NX
 #define NNOISE UBC_STEWART_NNOISE
+#define NOISE_L 0  /* the noise row's actuator travel: 6 from here */
+#define NOISE_PC 6  /* the noise row's pressure states: 6 from here */
 #define MAX_DELAY UBC_STEWART_MAX_DELAY
 static const double TWO_PI = 6.283185307179586;
 #define NPC UBC_STEWART_NPC
@@ -334,7 +336,7 @@ static void set_slot(const ubc_stewart_loop_config* c, int s, const double* v, l
 void ubc_stewart_sense_lengths(const ubc_stewart_loop_config* c, const double* l, const double* nz, double* l_meas) {
     int i;
     for (i = 0; i < NL; ++i) {
-        l_meas[i] = l[i] + (nz ? nz[i] : 0);
+        l_meas[i] = l[i] + (nz ? nz[NOISE_L + i] : 0);
         if (c->quant_l[i] > 0) l_meas[i] = c->quant_l[i] * floor(l_meas[i] / c->quant_l[i] + 0.5);
     }
 }
@@ -350,7 +352,7 @@ int ubc_stewart_measure(const ubc_stewart_loop_config* c, const ubc_stewart_loop
     if (c->use_kalman ? leg_lengths(c->numbers, x, s->l_true) : leg_kinematics(c->numbers, x, s->l_true, J)) return UBC_STEWART_CTRL_FAILED;
     ubc_stewart_sense_lengths(c, s->l_true, nz, s->l_meas);
     for (i = 0; i < NPC; ++i)
-        s->pc_meas[i] = nz ? clip(x[2 * NQ + i] + nz[NL + i], c->p_low[i], c->p_high[i]) : x[2 * NQ + i];
+        s->pc_meas[i] = nz ? clip(x[2 * NQ + i] + nz[NOISE_PC + i], c->p_low[i], c->p_high[i]) : x[2 * NQ + i];
     if (!c->use_kalman)
         for (i = 0; i < NL; ++i) {
             s->ldot[i] = 0;

@@ -13,7 +13,7 @@ extern "C" {
 #define UBC_STEWART_NX 30  /* plant state */
 #define UBC_STEWART_NPC 6  /* pressure states (one per cylinder) */
 #define UBC_STEWART_MAX_DELAY 8  /* longest computation delay, control periods */
-#define UBC_STEWART_NNOISE 12  /* noise row: cylinder lengths (m), pressures (Pa) */
+#define UBC_STEWART_NNOISE 12  /* noise row (hydrogen.sensors.NOISE): actuator travel (m or rad), pressure states (Pa) */
 
 typedef int (*ubc_stewart_casadi_fn)(const double** arg, double** res, long long int* iw, double* w, int mem);
 

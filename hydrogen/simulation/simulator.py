@@ -17,9 +17,10 @@ from ..errors import KinematicsError, RunEndedError, ScenarioError, SimulationEr
 from ..estimators import kalman
 from ..estimators.kalman import (filter_gain, filter_gains, filter_setting, kalman_gain,  # noqa: F401
                                  length_noise_variance, remember_filter_gains)
-from ..layout import LU_PIVOT_MIN, SUPPLY_LOG
+from ..layout import LU_PIVOT_MIN, SUPPLY_LOG, robot_sizes
 from ..plant import describe_entries, input_values, integrator, plant_inputs, plant_layout, slot, state_vector
 from ..plant.supply import entries as supply_entries, nominal as supply_nominal, start as supply_start
+from ..sensors import NOISE, noise_columns
 from ..summary import SATURATED_AT, SATURATION, estimated_blocks  # saturation: defined with its line
 from .checks import _shown, check_against_model, check_run_size, checked_float, metric_window
 from .control import make_controller
@@ -627,24 +628,27 @@ class RunPlan:
         return ctrl
 
     def noise(self, seed) -> np.ndarray:
-        """The sensor noise table of a run with noise ``seed``: one row per period, [cylinder length
-        noise (m), pressure noise (the pressure vector's size)], then the joint-encoder noise (n) when
-        the robot has encoders; one table for every engine."""
-        model, sc, n, own = self.dyn.model, self.sc, self.n, self.own
-        nq, m = model.n, model.n_cylinders
+        """The sensor noise table of a run with noise ``seed``: one row per period, the channels of
+        :data:`hydrogen.sensors.NOISE` (actuator travel, pressure states, the joint encoders where
+        fitted, the supply pressure where it is a state), each drawn in that order only where its
+        standard deviation (the actuator's own, else the scenario's) is not 0; one table for every engine."""
+        model, n = self.dyn.model, self.n
         rng = np.random.default_rng(seed)
-        n_p = pressures.n_pressures(model)
-        nps = len(supply_entries(model))  # the measured supply pressure's column, last
-        noise = np.zeros((n, m + n_p + (nq if model.joint_encoders else 0) + nps))
-        if own["noise_l"].any():
-            noise[:, :m] = own["noise_l"] * rng.standard_normal((n, m))
-        if sc.noise_p:
-            noise[:, m:m + n_p] = sc.noise_p * rng.standard_normal((n, n_p))
-        if sc.noise_q and model.joint_encoders:
-            noise[:, m + n_p:m + n_p + nq] = sc.noise_q * rng.standard_normal((n, nq))
-        if sc.noise_ps and nps:  # drawn last: a constant supply's noise is what it was
-            noise[:, -nps:] = sc.noise_ps * rng.standard_normal((n, nps))
+        columns = _noise_columns(self.dyn)
+        noise = np.zeros((n, sum(count for _, count in columns.values())))
+        for ch in NOISE:
+            if ch.name not in columns:
+                continue
+            start, count = columns[ch.name]
+            std = self.own.get(ch.setting, getattr(self.sc, ch.setting))  # per actuator, in its own unit
+            if np.any(std):
+                noise[:, start:start + count] = std * rng.standard_normal((n, count))
         return noise
+
+
+def _noise_columns(dyn) -> dict:
+    """The noise row's columns of ``dyn``'s robot (:func:`hydrogen.sensors.noise_columns`)."""
+    return noise_columns(robot_sizes(dyn.library.manifest["model"]), dyn.model.joint_encoders)
 
 
 def plan_run(dyn, scenario, controller, duration, check_workspace, overrides, *, keep_logs=True) -> RunPlan:
@@ -824,6 +828,8 @@ class PythonStages:
         self._lo, self._hi = np.array(pc.lower), np.array(pc.upper)  # each pressure state's clip (0 and P_s for p_c)
         self._stages = sc.pressure_bounds == "stage"  # the bounds held at every RK4 stage too
         self.nq, self.m, self.n_p = model.n, model.n_cylinders, pc.size
+        # each sensor's columns of the noise row (hydrogen.sensors.NOISE)
+        self._noise = {k: slice(a, a + b) for k, (a, b) in _noise_columns(dyn).items()}
         self._max_delay = MAX_DELAY
         self.u_hist = np.zeros((MAX_DELAY, self.m))  # the C loop's ring: command of period k in slot k % MAX_DELAY
         self.kf = kalman.start(dyn.leg_lengths(q0)) if kf_gain is not None else None
@@ -854,18 +860,17 @@ class PythonStages:
 
     def sensors(self, s: _Signals) -> None:
         """The sensors' readings of the plant state with the period's noise row."""
-        sc, m, n_p, x, nz = self.sc, self.m, self.n_p, self.x, s.nz
+        sc, x, nz, col = self.sc, self.x, s.nz, self._noise
         q, qdot, pc = x[self._q], x[self._qdot], x[self._pc]
         s.l_true = self.dyn.leg_lengths(q)
-        s.l_meas = s.l_true + nz[:m]
+        s.l_meas = s.l_true + nz[col["l"]]
         step = np.where(self._quant > 0, self._quant, 1.0)  # each actuator's resolution (0: none)
         s.l_meas = np.where(self._quant > 0, step * np.floor(s.l_meas / step + 0.5), s.l_meas)
-        s.pc_meas = np.clip(pc + nz[m:m + n_p], self._lo, self._hi) if sc.noise_p else pc
+        s.pc_meas = np.clip(pc + nz[col["pc"]], self._lo, self._hi) if sc.noise_p else pc
         s.ldot = None if self.kf is not None else self.dyn.leg_jacobian(q) @ qdot  # ideal rate sensor
-        s.q_enc = q + nz[m + n_p:m + n_p + self.nq] if self.model.joint_encoders else None
-        if self._ps is not None:  # the supply pressure, last in the noise row, held at its lower bound 0
-            ps = x[self._ps]
-            s.ps_meas = np.maximum(ps + nz[-ps.size:], 0.0)
+        s.q_enc = q + nz[col["q"]] if self.model.joint_encoders else None
+        if self._ps is not None:  # the supply pressure, held at its lower bound 0
+            s.ps_meas = np.maximum(x[self._ps] + nz[col["ps"]], 0.0)
 
     def estimator(self, s: _Signals) -> None:
         """Kalman filter, pose (encoders or forward kinematics, warm-started), velocities through JL.
