@@ -1422,20 +1422,16 @@ def _cylinder_values(r: _Reader, w: str, cy: dict, defaults: dict, kind: str, ke
     return vals
 
 
-#: A datasheet valve's keys (the description's ``valve`` table): (sign, low, high, unit) each, SI.
-VALVE_RANGES = {
-    # m^3/s through one edge: 0.01 L/min (a micro servo-valve) .. 600 m^3/min
-    "rated_flow": Quantity("positive", 1e-7, 10.0, "m^3/s", "hydrogen.model.VALVE_RANGES"),
-    # Pa per metering edge: 0.1 bar .. 1000 bar
-    "rated_drop": Quantity("positive", 1e4, 1e8, "Pa", "hydrogen.model.VALVE_RANGES"),
-    # m of spool travel at full opening: 1 um .. 10 cm
-    "spool_travel": Quantity("positive", 1e-6, 0.1, "m", "hydrogen.model.VALVE_RANGES"),
-    # Hz: a slow proportional valve (0.1 Hz) .. 10 kHz
-    "bandwidth_hz": Quantity("positive", 0.1, 1e4, "Hz", "hydrogen.model.VALVE_RANGES"),
-    "damping": Quantity("positive", 1e-3, 10.0, "", "hydrogen.model.VALVE_RANGES"),
-    # fraction of spool_travel: an edge must open before full opening (< 1); an underlap at most the travel
-    "overlap": Quantity(None, -1.0, 1.0, "", "hydrogen.model.VALVE_RANGES"),
-}
+def _valve_ranges() -> dict:
+    """A datasheet valve's keys with their ranges and units, as the valve block declares them
+    (:data:`hydrogen.plant.valve.DATASHEET`)."""
+    from .plant import valve
+    return {p.name: Quantity(p.range.sign, p.range.low, p.range.high, p.unit, f"declared in {valve.__name__}")
+            for p in valve.DATASHEET}
+
+
+#: A datasheet valve's keys (the description's ``valve`` table): their ranges, from the valve block.
+VALVE_RANGES = _valve_ranges()
 
 
 def _datasheet_valve(r: _Reader, w: str, cy: dict, defaults: dict, kind: str):
@@ -1447,6 +1443,7 @@ def _datasheet_valve(r: _Reader, w: str, cy: dict, defaults: dict, kind: str):
     kind's underlap, which the controllers see as today."""
     from .actuators import actuator
     from .actuators.orifices import orifice_terms_np
+    from .plant import valve
     from .plant.valve import Numeric as ValveLaw
     if "valve" in cy:
         table, wv, level = cy["valve"], f"{w} valve", cy
@@ -1466,7 +1463,7 @@ def _datasheet_valve(r: _Reader, w: str, cy: dict, defaults: dict, kind: str):
                           f"got {_quote(table)}")
     r.known(table, _keys("[[cylinders]] valve"), wv)
     v = {k: r.number(f"{wv}.{k}", table[k], VALVE_RANGES[k]) for k in VALVE_RANGES if k in table}
-    for k in ("rated_flow", "rated_drop", "spool_travel", "bandwidth_hz"):
+    for k in valve.DATASHEET_REQUIRED:
         if k not in v:
             raise r.error(wv, f"missing key '{k}' ({VALVE_RANGES[k].unit})")
     overlap = v.get("overlap", 0.0)

@@ -79,6 +79,15 @@ def _supply_keys() -> tuple:
               for p in supply.PARAMETERS))
 
 
+def _valve_keys() -> tuple:
+    """A datasheet valve's keys, from the valve block's own declarations (hydrogen/plant/valve.py)."""
+    from .plant import valve
+    return tuple(Key("[[cylinders]] valve", p.name, p.unit.replace("^3", "³"), p.doc,
+                     default=p.default if p.default is not None else
+                     (None if p.name in valve.DATASHEET_OPTIONAL else REQUIRED),
+                     default_text=valve.DATASHEET_OPTIONAL.get(p.name, "")) for p in valve.DATASHEET)
+
+
 DESCRIPTION_KEYS = (
     Key("top level", "name", "", "the model's name: ASCII letters, digits and single underscores, "
         "starting with a letter (it names C symbols and files)"),
@@ -161,18 +170,7 @@ DESCRIPTION_KEYS = (
         "every actuator's without its own): its rating sets flow_gain (give one, not both) and its overlap "
         "the underlap; its spool response replaces the rig's valve settings for this actuator",
         default=None, default_text="none: flow_gain, underlap and the rig's valve settings"),
-    Key("[[cylinders]] valve", "rated_flow", "m³/s", "flow through one metering edge at full opening with "
-        "rated_drop across it (a servo-valve's rated flow)"),
-    Key("[[cylinders]] valve", "rated_drop", "Pa", "the pressure drop per metering edge of the rating (e.g. "
-        "3.5e6, 35 bar per edge)"),
-    Key("[[cylinders]] valve", "spool_travel", "m", "spool travel at full opening (the spool command's "
-        "unit); the spool saturates there"),
-    Key("[[cylinders]] valve", "bandwidth_hz", "Hz", "the spool's response: −90° at this frequency (second "
-        "order, natural frequency 2π f) with damping, else −45° (first order, time constant 1/(2π f))"),
-    Key("[[cylinders]] valve", "damping", "", "the spool's second-order damping ratio, > 0", default=None,
-        default_text="none: first order"),
-    Key("[[cylinders]] valve", "overlap", "", "spool overlap, a fraction of spool_travel in (−1, 1): > 0 a dead "
-        "band with no flow, < 0 an underlap", default=0.0),
+    *_valve_keys(),
     Key("[[cylinders]]", "friction", "the actuator's own: N or N m, m/s or rad/s", "the actuator's seal "
         "friction (table below; in [hydraulics]: every actuator's without its own, in each one's own unit): a "
         "breakaway above coulomb puts the Stribeck dip in its generated plant, a "

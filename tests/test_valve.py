@@ -220,13 +220,13 @@ def test_a_scenario_sets_one_actuators_spool_response_over_its_datasheets_or_the
     ({"rated_flow": 1e-3}, r"actuators\.leg2\.valve: unknown key\(s\) \['rated_flow'\]; a scenario sets the spool's "
                            r"response"),
     ({"bandwidth_hz": -40.0}, r"actuators\.leg2\.valve\.bandwidth_hz must be a finite number in \[0\.1, 10000\] Hz "
-                              r"\(hydrogen\.model\.VALVE_RANGES\), got -40\.0"),
+                              r"\(declared in hydrogen\.plant\.valve\), got -40\.0"),
     ({"damping": float("nan")}, r"actuators\.leg2\.valve\.damping must be a finite number in \[0\.001, 10\] \("),
     ({"damping": True}, r"actuators\.leg2\.valve\.damping must be a finite number"),
     ({"bandwidth_hz": 1e5}, r"actuators\.leg2\.valve\.bandwidth_hz must be a finite number in \[0\.1, 10000\] Hz "
-                            r"\(hydrogen\.model\.VALVE_RANGES\), got 100000\.0"),
+                            r"\(declared in hydrogen\.plant\.valve\), got 100000\.0"),
     ({"damping": 20.0}, r"actuators\.leg2\.valve\.damping must be a finite number in \[0\.001, 10\] "
-                        r"\(hydrogen\.model\.VALVE_RANGES\), got 20\.0"),
+                        r"\(declared in hydrogen\.plant\.valve\), got 20\.0"),
     ({}, r"actuators\.leg2\.valve: expected a table \{ bandwidth_hz, damping \}"),
     (40.0, r"actuators\.leg2\.valve: expected a table"),
 ])

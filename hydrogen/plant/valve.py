@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..actuators.declarations import Parameter, Range
 from ..errors import ScenarioError
 from ..setting import setting
 from . import PlantParameter, PlantState
@@ -64,6 +65,36 @@ SCENARIO_SETTINGS = {
 
 #: Numbers per actuator in the input ``valve``.
 WIDTH = len(PARAMETERS)
+
+#: A datasheet valve: the keys of a description's ``valve`` table (an actuator's, or [hydraulics]'),
+#: each with its unit, meaning and plausible range (the loader holds a value to it, naming this
+#: module; the description table lists them from here). A key without a default is required, unless
+#: :data:`DATASHEET_OPTIONAL` says what its absence means.
+DATASHEET = (
+    # through one edge: 0.01 L/min (a micro servo-valve) .. 600 m^3/min
+    Parameter("rated_flow", "m^3/s", None, "flow through one metering edge at full opening with rated_drop "
+              "across it (a servo-valve's rated flow)", range=Range("positive", 1e-7, 10.0)),
+    # per metering edge: 0.1 bar .. 1000 bar
+    Parameter("rated_drop", "Pa", None, "the pressure drop per metering edge of the rating (e.g. 3.5e6, 35 bar "
+              "per edge)", range=Range("positive", 1e4, 1e8)),
+    # at full opening: 1 um .. 10 cm
+    Parameter("spool_travel", "m", None, "spool travel at full opening (the spool command's unit); the spool "
+              "saturates there", range=Range("positive", 1e-6, 0.1)),
+    # a slow proportional valve (0.1 Hz) .. 10 kHz
+    Parameter("bandwidth_hz", "Hz", None, "the spool's response: −90° at this frequency (second order, natural "
+              "frequency 2π f) with damping, else −45° (first order, time constant 1/(2π f))",
+              range=Range("positive", 0.1, 1e4)),
+    Parameter("damping", "", None, "the spool's second-order damping ratio, > 0", range=Range("positive", 1e-3, 10.0)),
+    # a fraction of spool_travel: an edge must open before full opening (< 1); an underlap at most the travel
+    Parameter("overlap", "", 0.0, "spool overlap, a fraction of spool_travel in (−1, 1): > 0 a dead band with no "
+              "flow, < 0 an underlap", range=Range(None, -1.0, 1.0)),
+)
+
+#: The datasheet keys that may be left out though they have no default: what their absence means.
+DATASHEET_OPTIONAL = {"damping": "none: first order"}
+
+#: The datasheet keys a valve table must give.
+DATASHEET_REQUIRED = tuple(p.name for p in DATASHEET if p.default is None and p.name not in DATASHEET_OPTIONAL)
 
 #: The keys of a scenario's ``actuators.<name>.valve``: the spool's response, over the actuator's
 #: datasheet valve's (or the rig's valve settings), key by key; its rating stays the description's.

@@ -135,7 +135,7 @@ VALVE_RESPONSE = valve.VALVE_RESPONSE
 def _check_valve_response(sc, name: str, table):
     """A :class:`ScenarioError` naming ``actuators.<name>.valve[.<key>]`` unless ``table`` is a table of
     :data:`VALVE_RESPONSE` keys, each a finite number within the range a description's valve holds it
-    to (:data:`hydrogen.model.VALVE_RANGES`, all > 0)."""
+    to (:data:`hydrogen.plant.valve.DATASHEET`, all > 0)."""
     from ..model import VALVE_RANGES  # the loader imports this module: read its ranges at call time
     where = f"scenario '{sc.name}': actuators.{name}.valve"
     if not isinstance(table, Mapping) or not table:
