@@ -26,10 +26,11 @@ CFLAGS = ("-O2", "-std=c99", "-Wall", "-Wextra", "-Werror")
 # ---------------------------------------------------------------------------------------------
 # plausible input values, by input name, for any model (SI units)
 # ---------------------------------------------------------------------------------------------
-#: Fixed values of the plant-only inputs (friction: Coulomb N, viscous N s/m, tanh speed m/s).
-#: valve: [first-order lag s, natural frequency rad/s, damping], the ideal valve.
-FIXED = {"friction": np.array([100.0, 300.0, 1e-3]), "valve": np.zeros(3), "adapt": np.array([1.0]),
-         "h": np.array([1e-3])}
+#: Fixed values of inputs that are not state-like.
+FIXED = {"adapt": np.array([1.0]), "h": np.array([1e-3])}
+#: The rig's friction on every actuator (Coulomb N, viscous N s/m, tanh speed m/s; no seal terms);
+#: every other plant input of numbers at its block's ideal values (the ideal valve).
+RIG_FRICTION = (100.0, 300.0, 1e-3)
 
 #: Scale of the small random values of the remaining (state-like) inputs.
 RANDOM_SCALE = {
@@ -57,8 +58,12 @@ class InputValues:
         from hydrogen.controllers import function_name, rates_function_name, step_function_name
         from hydrogen.simulation.control import make_controller
 
+        from hydrogen.plant import friction, plant_inputs
+
         self.dyn, self.model = dyn, dyn.model
         m = self.model
+        self._plant_inputs = {i.name: np.array(i.ideal, float) for i in plant_inputs(m)}
+        self._plant_inputs[friction.INPUT] = np.array(friction.row(*RIG_FRICTION)[:len(friction.input_parameters(m))])
         self.q = np.asarray(m.neutral_pose, float) + pose_offset(m.n)
         self.ctrl = {}
         for kind in m.controllers:  # the controllers the robot lists (those its build holds)
@@ -101,8 +106,8 @@ class InputValues:
             out = self.dyn.numbers
         elif name in ("gamma1", "gamma2"):
             out = m.gamma[0 if name == "gamma1" else 1]
-        elif name == "friction":  # one triple per actuator
-            out = np.tile(FIXED[name], m.n_cylinders)
+        elif name in self._plant_inputs:  # a block's numbers, per actuator (hydrogen.plant.plant_inputs)
+            out = np.tile(self._plant_inputs[name], m.n_cylinders)
         elif name in FIXED:
             out = FIXED[name]
         if out is None or np.size(out) != size:

@@ -432,9 +432,14 @@ def _plant_ranges(model, sc) -> dict:
         "gamma2": [(float(model.gamma2_min), float(model.gamma2_max))] * m,
         # each plant input's parameters as their block declares them (the valve's natural frequency no
         # higher than the RK4 sub-steps resolve)
-        **{i.name: [(POSITIVE if par.strict else par.lower, par.upper_of(sc)) for par in i.parameters] * m
+        **{i.name: [(_above(par.lower) if par.strict else par.lower, par.upper_of(sc)) for par in i.parameters] * m
            for i in plant_inputs(model)},
     }
+
+
+def _above(lower):
+    """FMI's (inclusive) min of a value that must exceed ``lower``: the next double up (None: none)."""
+    return None if lower is None else float(np.nextafter(float(lower), np.inf))
 
 
 def _controller_input_range(name: str, model, i: int):

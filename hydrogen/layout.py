@@ -13,7 +13,8 @@ from . import diagram  # the controller's input slots: the loop's ports
 from . import references  # the reference kinds' part of the configuration and their C
 from .estimators import kalman  # the Kalman filter's C statements
 from .names import NUMBERS  # the numbers input's name, part of the loop's layout
-from .plant import BLOCKS as PLANT_BLOCKS, block as plant_block, integrator, plant_inputs  # the plant's blocks
+from .plant import (BLOCKS as PLANT_BLOCKS, block as plant_block, input_record, integrator,  # the plant's blocks
+                    plant_inputs)
 from .plant.supply import PRESSURE as SUPPLY_PRESSURE  # the supply pressure's one name
 from .sensors import NOISE, noise_columns, noise_width  # the sensors' noise row
 
@@ -220,8 +221,9 @@ def _inputs_comment(summary: dict) -> str:
         a, b = par.unit_of(LENGTH), par.unit_of(ANGLE)
         return a if a == b else f"{a} or {b}"
 
-    return ",\n * ".join(f"{i.name} per actuator [" + ", ".join(f"{par.name} {unit(par)}".rstrip() for par in
-                                                               i.parameters) + "]" for i in plant_inputs(summary))
+    return ",\n * ".join(f"{i.name} per actuator" + (f" ({i.doc})" if i.doc else "") + ": ["
+                          + ", ".join(f"{par.name} {unit(par)}".rstrip() for par in i.parameters) + "]"
+                          for i in plant_inputs(summary))
 
 
 def config_fields(p: str, summary: dict) -> list:
@@ -272,11 +274,13 @@ def model_summary(model) -> dict:
                   for s in plant_layout(model)],
         # recorded only when on: the plant's input friction is wider, a robot without keeps its manifest
         **({"seal_friction": True} if model.seal_friction else {}),
+        # each block's plant input and the parameters it takes (its width, whatever structure decides it)
+        "plant_inputs": input_record(model),
     }
 
 
 #: The loop header's C name of each robot size a plant state's size is given in (hydrogen.plant.SIZES).
-C_SIZES = {"n": "NQ", "m": "NL", "n_pressures": "NPC"}
+C_SIZES = {"n": "NQ", "m": "NL", "n_pressures": "NPC", "supply": "NPS"}
 
 
 def plant_offsets(summary: dict) -> dict:

@@ -9,7 +9,6 @@ import os
 import shutil
 import subprocess
 import sys
-import textwrap
 import types
 from pathlib import Path
 
@@ -21,13 +20,35 @@ from hydrogen.symbolic.plant import PlantWiringError, _output_order
 ROOT = Path(__file__).resolve().parents[1]
 
 
+SHIPPED = ("mechanics", "chambers", "friction", "valve", "supply")
+
+
 def test_the_blocks_are_found_in_their_declared_order():
-    assert plant.BLOCKS == ("mechanics", "chambers", "friction", "valve", "supply")
-    positions = [plant.block(b).POSITION for b in plant.BLOCKS]
-    assert positions == sorted(positions) and len(set(positions)) == len(positions)
+    assert plant.BLOCKS[:len(SHIPPED)] == SHIPPED  # a block added later comes after them
     # the plant's inputs of numbers follow the blocks' order: plant_rhs's arguments after gamma2
-    assert [i.name for i in plant.plant_inputs({"seal_friction": True})] == ["friction", "valve"]
-    assert [i.width for i in plant.plant_inputs({})] == [3, 5]  # [F_c, b, v_s] without seal friction
+    assert [i.name for i in plant.plant_inputs({"seal_friction": True})][:2] == ["friction", "valve"]
+    assert [i.width for i in plant.plant_inputs({})][:2] == [3, 5]  # [F_c, b, v_s] without seal friction
+
+
+def test_a_manifest_records_each_inputs_parameters(robot_model):
+    from hydrogen.layout import model_summary
+    summary = model_summary(robot_model)
+    assert summary["plant_inputs"]["valve"] == ["lag", "omega", "zeta", "overlap", "full_opening"]
+    # the loop's layout takes the widths from the record, whatever structure decided them
+    assert ([i.width for i in plant.plant_inputs(summary)] ==
+            [i.width for i in plant.plant_inputs(robot_model)])
+
+
+def test_a_number_outside_its_declared_range_is_refused_naming_it(plain_stewart):
+    model = plain_stewart  # the rig's valve on every leg (no datasheet valve)
+    from dataclasses import replace
+
+    from hydrogen.errors import ScenarioError
+    from hydrogen.simulation.scenarios import scenario
+    sc = replace(scenario("paper-sim", model), valve_bandwidth_hz=80.0, valve_damping=0.0)  # unchecked
+    name = model.cylinders[0].name
+    with pytest.raises(ScenarioError, match=rf"'paper-sim': valve\.{name}\.zeta = 0\.0 must be finite and > 0\.0"):
+        plant.input_values(sc, model)
 
 
 def _fake(name, reads=(), writes=(), adds=()):
@@ -46,11 +67,44 @@ def test_the_outputs_run_after_what_they_read():
 
 @pytest.mark.parametrize("mods, words", [
     ([_fake("a", reads=("nowhere",))], "plant block 'a' reads the signal 'nowhere', which no block writes"),
-    ([_fake("a", reads=("y",), writes=("x",)), _fake("b", reads=("x",), writes=("y",))], "in a cycle"),
+    ([_fake("a", reads=("y",), writes=("x",)), _fake("b", reads=("x",), writes=("y",))],
+     "in a cycle: 'a' reads 'y'; 'b' reads 'x'"),
 ])
 def test_an_unwired_or_cyclic_plant_is_refused(mods, words):
     with pytest.raises(PlantWiringError, match=words.replace("(", r"\(").replace(")", r"\)")):
         _output_order(mods, set())
+
+
+def _composition():
+    import sympy as sp
+
+    from hydrogen.symbolic.plant import Composition
+    c = Composition(None, {"f": "sum_f"})
+    c.block = "b"
+    return c, sp.symbols("x y")
+
+
+def test_a_sum_is_one_intermediate_of_every_term_added():
+    c, (x, y) = _composition()
+    c.add("f", [x])
+    c.add("f", [-y])
+    (sym,) = c["f"]
+    assert c.intermediates[-1][1][0] == x - y and c.signals["f"][0] == sym
+
+
+@pytest.mark.parametrize("act, words", [
+    (lambda c, x: (c.add("f", [x]), c["f"], c.add("f", [x])), "adds to 'f' after it was read"),
+    (lambda c, x: c.provide("f", [x]), "writes the signal 'f', a sum the blocks add to"),
+    (lambda c, x: (c.provide("s", x), c.provide("s", x)), "writes the signal 's', written already"),
+    (lambda c, x: c.add("g", [x]), "adds to 'g', which no block declares a sum"),
+    (lambda c, x: (c.rate("s", x), c.rate("s", x)), "gives the rate of 's', given already"),
+    (lambda c, x: (c.provide("s", x), setattr(c, "reads", set()), c["s"]), "reads the signal 's' in its outputs, "
+     "which its Symbolic.READS does not declare"),
+])
+def test_a_wiring_mistake_in_a_block_is_refused_naming_it(act, words):
+    c, (x, _) = _composition()
+    with pytest.raises(PlantWiringError, match=f"plant block 'b' {words}"):
+        act(c, x)
 
 
 #: A rig part as a developer adds one: this module alone, dropped into hydrogen/plant/.
@@ -131,10 +185,14 @@ out["spring_moves"] = float(np.max(np.abs(runs["c"].pressures - off.pressures)))
 q = np.array(model.neutral_pose, float) + [0.05, -0.1]
 n, m = model.n, model.n_cylinders  # x: q, qdot, p_A and p_B, spool, spool rate
 x = np.concatenate([q, [0.1, -0.2], np.full(2 * m, 5e6), np.zeros(2 * m)])
-args = (x, np.zeros(m), model.theta, *model.gamma, np.tile([0.0, 0.0, 1.0], m), np.zeros(5 * m))
+# every plant input by name: the blocks' ideal numbers, the spring's own
+given = {"x": x, "u": np.zeros(m), "theta": model.theta, "gamma1": model.gamma[0], "gamma2": model.gamma[1],
+         **{i.name: np.tile(i.ideal, m) for i in plant_inputs(model)}}
+names = [k for k in f["plant_rhs"].in_names if k != "numbers"]
 k, l0 = 2.0e4, 0.5
-with_spring = np.asarray(f["plant_rhs"](*args, np.tile([k, l0], m)), float).ravel()
-without = np.asarray(f["plant_rhs"](*args, np.zeros(2 * m)), float).ravel()
+spring = np.tile([k, l0], m)
+with_spring = np.asarray(f["plant_rhs"](*[spring if a == "spring" else given[a] for a in names]), float).ravel()
+without = np.asarray(f["plant_rhs"](*[given[a] for a in names]), float).ravel()  # the spring's ideal: none
 D = np.asarray(f["mass_matrix"](q, model.theta), float)
 JL = np.asarray(f["leg_jacobian"](q), float)
 l = np.asarray(f["leg_lengths"](q), float).ravel()

@@ -39,8 +39,8 @@ typedef struct {
     long long delay;
     double delay_frac;
     /* plant (SI): true theta (boom.mcx, boom.mcz, boom.Iyy, stick.mcx, stick.mcz, stick.Iyy, bucket.mcx, bucket.mcz, bucket.Iyy), gamma1 = beta and gamma2 = beta c per cylinder,
-     * friction per actuator [coulomb N or N m, viscous N s/m or N m s/rad, smooth_speed m/s or rad/s, breakaway N or N m, stribeck_speed m/s or rad/s, pressure_coefficient],
-     * valve per actuator [lag s, omega rad/s, zeta, overlap m, full_opening m] */
+     * friction per actuator (in the actuator's own unit: its description's seal friction, else the rig's): [coulomb N or N m, viscous N s/m or N m s/rad, smooth_speed m/s or rad/s, breakaway N or N m, stribeck_speed m/s or rad/s, pressure_coefficient],
+     * valve per actuator (its datasheet valve, else the rig's): [lag s, omega rad/s, zeta, overlap m, full_opening m] */
     const double* theta;
     const double* gamma1;
     const double* gamma2;

@@ -34,7 +34,7 @@ import numpy as np
 
 __all__ = ["BLOCKS", "SIZES", "PlantState", "PlantParameter", "PlantInput", "Slot", "block", "plant_layout",
            "state_size", "slot", "entry_names", "describe_entries", "state_vector", "plant_inputs", "input_values",
-           "structure_flag"]
+           "input_record", "structure_flag"]
 
 
 #: The robot sizes a plant state's size is given in: what each entry stands for.
@@ -81,14 +81,15 @@ class PlantParameter:
 
     ``ideal``: its value in the controller's own model (the delay predictor's: the block doing nothing,
     or keeping its law finite). ``lower`` (``strict``: it must exceed it) and ``upper`` (a number, a
-    rule taking the scenario, or None: none): the range a run's value keeps, which the FMU declares."""
+    rule taking the scenario; None: none): the range a run's value keeps (:func:`input_values` refuses
+    one outside it, naming the block's input, the actuator and the parameter), which the FMU declares."""
 
     name: str
     unit: object
     doc: str
     per_actuator: bool = False
     ideal: float = 0.0
-    lower: float = 0.0
+    lower: float | None = None
     strict: bool = False
     upper: object = None
 
@@ -104,12 +105,13 @@ class PlantParameter:
 @dataclass(frozen=True)
 class PlantInput:
     """A plant input a block declares: ``name`` (``plant_rhs``'s argument, the loop configuration's
-    field), ``block`` (its module's name) and the ``parameters`` a robot's plant takes, per actuator,
-    actuator after actuator."""
+    field), ``block`` (its module's name), the ``parameters`` a robot's plant takes, per actuator,
+    actuator after actuator, and ``doc`` (the block's ``INPUT_DOC``: where the numbers come from)."""
 
     name: str
     block: str
     parameters: tuple
+    doc: str = ""
 
     @property
     def width(self) -> int:
@@ -166,21 +168,49 @@ def structure_flag(structure, key: str) -> bool:
 
 def plant_inputs(structure) -> tuple:
     """The plant's inputs the blocks declare (:class:`PlantInput`), in :data:`BLOCKS` order, for a
-    robot's ``structure`` (its model, or its manifest's model summary). They follow ``plant_rhs``'s
-    x, u, theta, gamma1 and gamma2."""
+    robot's ``structure``: its model (each block's ``input_parameters``), or its manifest's model
+    summary (the parameters recorded there at generation, :func:`input_record`; a summary without the
+    record: each block's rule on it). They follow ``plant_rhs``'s x, u, theta, gamma1 and gamma2."""
+    recorded = structure.get("plant_inputs") if isinstance(structure, dict) else None
     out = []
     for name in BLOCKS:
         mod = block(name)
         if getattr(mod, "INPUT", None):
-            out.append(PlantInput(mod.INPUT, name, tuple(mod.input_parameters(structure))))
+            if recorded is not None and mod.INPUT in recorded:
+                by_name = {p.name: p for p in mod.PARAMETERS}
+                pars = tuple(by_name[k] for k in recorded[mod.INPUT])
+            else:
+                pars = tuple(mod.input_parameters(structure))
+            out.append(PlantInput(mod.INPUT, name, pars, getattr(mod, "INPUT_DOC", "")))
     return tuple(out)
+
+
+def input_record(model) -> dict:
+    """``{input: [parameter names]}`` of ``model``'s plant inputs: what a manifest records, so that the
+    loop's layout reads each input's width off the manifest whatever structure decides it."""
+    return {i.name: [p.name for p in i.parameters] for i in plant_inputs(model)}
 
 
 def input_values(scenario, model) -> dict:
     """Each plant input's numbers for a run of ``scenario`` on ``model``: ``{name: (m, width) array}``,
-    each block's own rule (its ``values``), in the actuators' own units."""
-    return {i.name: np.asarray(block(i.block).values(scenario, model), float).reshape(model.n_cylinders, i.width)
-            for i in plant_inputs(model)}
+    each block's own rule (its ``values``), in the actuators' own units. A ScenarioError for a number
+    outside the range its parameter declares, naming the input, the actuator and the parameter."""
+    from ..errors import ScenarioError
+    out = {}
+    for i in plant_inputs(model):
+        values = np.asarray(block(i.block).values(scenario, model), float).reshape(model.n_cylinders, i.width)
+        for a, row in zip(model.cylinders, values):
+            for par, v in zip(i.parameters, row.tolist()):
+                hi = par.upper_of(scenario)
+                low = par.lower is not None and (v <= par.lower if par.strict else v < par.lower)
+                if not np.isfinite(v) or low or (hi is not None and v > hi):
+                    rng = (f"{'>' if par.strict else '>='} {par.lower!r}" if par.lower is not None else "")
+                    rng += (" and " if rng and hi is not None else "") + (f"<= {hi!r}" if hi is not None else "")
+                    unit = par.unit_of(a.travel)
+                    raise ScenarioError(f"scenario '{scenario.name}': {i.name}.{a.name}.{par.name} = {v!r} must be "
+                                        f"finite{' and ' + rng if rng else ''}{f' ({unit})' if unit else ''}")
+        out[i.name] = values
+    return out
 
 
 def _sizes(model) -> dict:
@@ -260,6 +290,12 @@ def _discover() -> tuple:
     for a, b in zip(order, order[1:]):
         if found[a].POSITION == found[b].POSITION:
             raise ImportError(f"plant blocks {a!r} and {b!r} declare the same POSITION {found[a].POSITION}")
+    inputs = {}
+    for name in order:
+        key = getattr(found[name], "INPUT", None)
+        if key and key in inputs:
+            raise ImportError(f"plant blocks {inputs[key]!r} and {name!r} declare the same INPUT {key!r}")
+        inputs[key] = name
     return tuple(order)
 
 

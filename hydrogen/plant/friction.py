@@ -51,23 +51,25 @@ SCENARIO_SETTINGS = {
 
 #: The plant's input these numbers are (``plant_rhs``'s argument, the loop configuration's field).
 INPUT = "friction"
+#: Where the input's numbers come from (the loop header's comment).
+INPUT_DOC = "in the actuator's own unit: its description's seal friction, else the rig's"
 
 #: Per actuator, in order, each in the actuator's own unit (its kind's TRAVEL). The first three are
 #: the rig setting ``friction = [F_c, b, v_s]``, in its order; the rest (:data:`SEAL`) are inputs only
 #: of a robot with seal friction. Their ideal values are the controller's own model's: no friction
 #: (the speeds only keep the arguments of tanh and exp finite).
 PARAMETERS = (
-    PlantParameter("coulomb", lambda t: t.force_unit, "Coulomb friction (F_c)", per_actuator=True),
+    PlantParameter("coulomb", lambda t: t.force_unit, "Coulomb friction (F_c)", per_actuator=True, lower=0.0),
     PlantParameter("viscous", lambda t: f"{t.force_unit} s/{t.unit}", "viscous friction coefficient (b)",
-                   per_actuator=True),
+                   per_actuator=True, lower=0.0),
     PlantParameter("smooth_speed", lambda t: f"{t.unit}/s", "speed of the tanh smoothing of the Coulomb "
-                   "friction (v_s)", per_actuator=True, ideal=1.0, strict=True),
+                   "friction (v_s)", per_actuator=True, ideal=1.0, lower=0.0, strict=True),
     PlantParameter("breakaway", lambda t: t.force_unit, "breakaway (static) friction, >= Coulomb (F_brk)",
-                   per_actuator=True),
+                   per_actuator=True, lower=0.0),
     PlantParameter("stribeck_speed", lambda t: f"{t.unit}/s", "Stribeck speed of the dip from breakaway to "
-                   "Coulomb friction (v_st)", per_actuator=True, ideal=1.0, strict=True),
+                   "Coulomb friction (v_st)", per_actuator=True, ideal=1.0, lower=0.0, strict=True),
     PlantParameter("pressure_coefficient", "", "pressure coefficient of the Coulomb friction on the chamber "
-                   "forces' magnitude sum (k_p, dimensionless)", per_actuator=True),
+                   "forces' magnitude sum (k_p, dimensionless)", per_actuator=True, lower=0.0),
 )
 
 #: The parameters of the seal's structural terms: in the input ``friction`` only of a robot one of
@@ -214,10 +216,13 @@ class Symbolic:
     and, with a pressure load, the chamber forces of the actuator's kind's law."""
 
     READS = ("ldot", "laws", "pressures", "P", INPUT)
+    #: each actuator's friction force (N or N m), for a block whose law needs it (a seal's heating)
+    WRITES = ("friction_force",)
     ADDS = ("leg_force",)
 
     @staticmethod
     def outputs(c) -> None:
+        from ..actuators.declarations import sp
         model = c.model
         names = [par.name for par in parameters_of(model.seal_friction)]
         k, fric, ldot = len(names), c[INPUT], c["ldot"]
@@ -226,16 +231,13 @@ class Symbolic:
         for i, a in enumerate(model.cylinders):
             par = dict(zip(names, fric[k * i:k * i + k]))
             stribeck, pressure = a.seal_terms  # the structural terms its description declares
-            out.append(-Symbolic.force(
+            out.append(Symbolic.force(
                 ldot[i], par["coulomb"], par["viscous"], par["smooth_speed"],
                 (par["breakaway"], par["stribeck_speed"]) if stribeck else None,
                 (par["pressure_coefficient"], Symbolic.seal_load(laws[i].chamber_forces(p[i], P[i])))
                 if pressure else None))
-        c.add("leg_force", out)
-
-    @staticmethod
-    def derivatives(c) -> None:
-        """No state."""
+        c.provide("friction_force", sp.Matrix(out))
+        c.add("leg_force", [-f for f in out])
 
     @staticmethod
     def input(model):

@@ -38,20 +38,23 @@ STATES = (
 
 #: The plant's input these numbers are (``plant_rhs``'s argument, the loop configuration's field).
 INPUT = "valve"
+#: Where the input's numbers come from (the loop header's comment).
+INPUT_DOC = "its datasheet valve, else the rig's"
 
 #: The plant's input ``valve``, per actuator, in order. Their ideal values are the controller's own
 #: model's valve: no lag, no overlap, no saturation (the spool is the command).
 PARAMETERS = (
     PlantParameter("lag", "s", "valve first-order lag (used when the natural frequency is 0; 0: none)",
-                   per_actuator=True),
+                   per_actuator=True, lower=0.0),
     # the sub-steps resolve the spool up to omega h / substeps = 1 (the scenario's check)
     PlantParameter("omega", "rad/s", "second-order servo-valve natural frequency (0: none)", per_actuator=True,
-                   upper=lambda sc: float(sc.control_rate) * int(sc.substeps)),
-    PlantParameter("zeta", "", "second-order servo-valve damping (dimensionless)", per_actuator=True, strict=True),
+                   lower=0.0, upper=lambda sc: float(sc.control_rate) * int(sc.substeps)),
+    PlantParameter("zeta", "", "second-order servo-valve damping (dimensionless)", per_actuator=True,
+                   lower=0.0, strict=True),
     PlantParameter("overlap", "m", "spool overlap: the dead band |spool| <= overlap passes no flow (0: none)",
-                   per_actuator=True),
+                   per_actuator=True, lower=0.0),
     PlantParameter("full_opening", "m", "spool travel at full opening, where the spool saturates (0: none)",
-                   per_actuator=True),
+                   per_actuator=True, lower=0.0),
 )
 
 #: The rig's valve, a scenario's settings (:mod:`hydrogen.scenario_settings`): the spool response of
@@ -143,7 +146,7 @@ def values(sc, model) -> np.ndarray:
     scenario's own rule for valve_bandwidth_hz)."""
     rig = (*rig_response(sc), 0.0, 0.0)
     dynamic = rig[0] > 0.0 or rig[1] > 0.0
-    omega_max = PARAMETERS[1].upper_of(sc)
+    omega_max = next(p for p in PARAMETERS if p.name == "omega").upper_of(sc)
     rows = []
     for c in model.cylinders:
         own = getattr(c, "valve", None)

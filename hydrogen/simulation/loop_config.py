@@ -38,10 +38,10 @@ class Run:
 
 
 def _plant_input(name):
-    """A plant input's numbers for the run, flat: its block's rule (:func:`hydrogen.plant.input_values`)."""
-    from ..plant import BLOCKS, block
-    mod = next(block(b) for b in BLOCKS if getattr(block(b), "INPUT", None) == name)
-    return lambda r: mod.values(r.sc, r.dyn.model).ravel()
+    """A plant input's numbers for the run, flat: its block's rule, held to its declared ranges
+    (:func:`hydrogen.plant.input_values`)."""
+    from ..plant import input_values
+    return lambda r: input_values(r.sc, r.dyn.model)[name].ravel()
 
 
 def _per_actuator(key):

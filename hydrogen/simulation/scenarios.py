@@ -156,7 +156,6 @@ def _check_valve_response(sc, name: str, table):
 
 def friction_row(sc, c, seal: bool) -> tuple:
     """Actuator ``c``'s friction numbers in scenario ``sc``: :func:`hydrogen.plant.friction.actuator_row`."""
-    from ..plant import friction
     return friction.actuator_row(sc, c, seal)
 
 

@@ -17,7 +17,7 @@ from ..errors import KinematicsError, RunEndedError, ScenarioError, SimulationEr
 from ..estimators import kalman
 from ..estimators.kalman import (filter_gain, filter_gains, filter_setting, kalman_gain,  # noqa: F401
                                  length_noise_variance, remember_filter_gains)
-from ..layout import LU_PIVOT_MIN, SUPPLY_LOG, robot_sizes
+from ..layout import LU_PIVOT_MIN, SUPPLY_LOG, model_summary, robot_sizes
 from ..plant import describe_entries, input_values, integrator, plant_inputs, plant_layout, slot, state_vector
 from ..plant.supply import entries as supply_entries, nominal as supply_nominal, start as supply_start
 from ..sensors import NOISE, noise_columns
@@ -648,7 +648,7 @@ class RunPlan:
 
 def _noise_columns(dyn) -> dict:
     """The noise row's columns of ``dyn``'s robot (:func:`hydrogen.sensors.noise_columns`)."""
-    return noise_columns(robot_sizes(dyn.library.manifest["model"]), dyn.model.joint_encoders)
+    return noise_columns(robot_sizes(model_summary(dyn.model)), dyn.model.joint_encoders)
 
 
 def plan_run(dyn, scenario, controller, duration, check_workspace, overrides, *, keep_logs=True) -> RunPlan:
@@ -814,7 +814,7 @@ class PythonStages:
         model = self.model = dyn.model
         self.dyn, self.sc, self.ctrl, self.h, self.kf_gain = dyn, sc, ctrl, h, kf_gain
         self._rhs_fn = dyn.functions["plant_rhs"]
-        own = actuator_settings(sc, model)  # friction and resolution of each actuator, in its own unit
+        own = actuator_settings(sc, model)  # each actuator's resolution, in its own unit
         self._quant = own["quantization_l"]
         # each plant input's numbers (hydrogen.plant.plant_inputs: friction, valve), in the plant's order:
         # the run's (each block's rule), and the controller's own model's in the predictor (the C loop's
@@ -1185,8 +1185,8 @@ class Stepper:
 
     @property
     def x(self) -> np.ndarray:
-        """Plant state x, its parts in :func:`hydrogen.plant.plant_layout`'s order: [q, q̇, pressures,
-        spool, spool rate] (2n + pressures + 2m,)."""
+        """Plant state x, its parts in :func:`hydrogen.plant.plant_layout`'s order (each block's states:
+        q, q̇, the pressures, spool, spool rate, the supply pressure where it is a state, ...)."""
         return self._runner.plant_state
 
     @property

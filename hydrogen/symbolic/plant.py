@@ -10,9 +10,14 @@ then theta, gamma1, gamma2 and each block's input of numbers (:func:`hydrogen.pl
 
 Each block's ``Symbolic`` declares the signals its outputs read (``READS``), write (``WRITES``) and add
 to (``ADDS``: a sum a block declares in ``SUMS``, formed as one intermediate once every block adding
-to it has), and writes its law once: ``outputs(c)`` (the signals it gives the others) and
-``derivatives(c)`` (its states' rates), both over a :class:`Composition` ``c``. The outputs run in an
-order that writes every signal before it is read; then the derivatives, in :data:`BLOCKS` order.
+to it has), and writes its law once: ``states(model)`` (its states' symbols, where it declares
+``STATES``), ``outputs(c)`` (the signals it gives the others; none: it gives nothing) and
+``derivatives(c)`` (its states' rates, one each, where it has states), over a :class:`Composition`
+``c``. The outputs run in an order that writes every signal before it is read, each reading only
+what its ``READS`` declares; then the derivatives, in :data:`BLOCKS` order, which may read any
+signal. A wiring mistake (a signal read that no block writes or that ``READS`` does not declare, one
+written twice, an add to a sum already read, a cycle, a state without a rate) is a
+:class:`PlantWiringError` naming the block and the signal.
 """
 from __future__ import annotations
 
@@ -40,32 +45,42 @@ class Composition:
     def __init__(self, model, sums: dict):
         self.model = model
         self.signals, self.rates, self.intermediates = {}, {}, []
-        self._sums, self._terms = dict(sums), {name: [] for name in sums}
+        self._sums, self._terms, self._formed = dict(sums), {name: [] for name in sums}, set()
         self.block = None  # the block composing now, for messages
+        self.reads = None  # while a block's outputs run: the signals it declares it reads (None: any)
 
     def __getitem__(self, name: str):
+        if self.reads is not None and name not in self.reads:
+            raise PlantWiringError(f"plant block '{self.block}' reads the signal '{name}' in its outputs, which "
+                                   "its Symbolic.READS does not declare (the order of the outputs follows READS)")
         if name not in self.signals and name in self._sums:  # a sum: every block adding to it has run
             terms = self._terms[name]
             value = sp.Matrix([sp.Add(*parts) for parts in zip(*terms)])
-            self.provide(name, value, prefix=self._sums[name])
+            self._formed.add(name)
+            self.signals[name] = self._bind(name, value, self._sums[name])
         if name not in self.signals:
             raise PlantWiringError(f"plant block '{self.block}' reads the signal '{name}', which no block writes")
         return self.signals[name]
 
+    def _bind(self, name, value, prefix):
+        symbols = rate_symbols(prefix, len(value))
+        self.intermediates.append((symbols, value))
+        return symbols
+
     def provide(self, name: str, value, prefix: str | None = None) -> None:
         """Write signal ``name``; with ``prefix``, as an intermediate: symbols ``<prefix>_i`` bound to ``value``."""
-        if name in self.signals:
-            raise PlantWiringError(f"plant block '{self.block}' writes the signal '{name}', written already")
-        if prefix is not None:
-            symbols = rate_symbols(prefix, len(value))
-            self.intermediates.append((symbols, value))
-            value = symbols
-        self.signals[name] = value
+        if name in self.signals or name in self._sums:
+            what = "a sum the blocks add to" if name in self._sums else "written already"
+            raise PlantWiringError(f"plant block '{self.block}' writes the signal '{name}', {what}")
+        self.signals[name] = value if prefix is None else self._bind(name, value, prefix)
 
     def add(self, name: str, terms) -> None:
         """Add ``terms`` (one per entry) to the sum ``name``."""
         if name not in self._sums:
             raise PlantWiringError(f"plant block '{self.block}' adds to '{name}', which no block declares a sum")
+        if name in self._formed:
+            raise PlantWiringError(f"plant block '{self.block}' adds to '{name}' after it was read: declare it "
+                                   "in the block's Symbolic.ADDS (its outputs then run before the sum is read)")
         self._terms[name].append(list(terms))
 
     def stage(self, intermediates) -> None:
@@ -74,6 +89,8 @@ class Composition:
 
     def rate(self, name: str, value) -> None:
         """The rate of state ``name``."""
+        if name in self.rates:
+            raise PlantWiringError(f"plant block '{self.block}' gives the rate of '{name}', given already")
         self.rates[name] = value
 
 
@@ -89,18 +106,20 @@ def _output_order(mods: list, given: set) -> list:
         for name in _declared(mod, "WRITES") + _declared(mod, "ADDS"):
             writers.setdefault(name, []).append(_name(mod))
     pending, done, out = list(mods), set(), []
+
+    def waits_for(mod) -> list:
+        return [r for r in _declared(mod, "READS")
+                if r not in given and not (r in writers and all(w in done for w in writers[r]))]
+
     while pending:
-        for mod in pending:
-            if all(r in given or (r in writers and all(w in done for w in writers[r]))
-                   for r in _declared(mod, "READS")):
-                break
-        else:
-            missing = sorted({(_name(m), r) for m in pending for r in _declared(m, "READS")
-                              if r not in given and r not in writers})
+        mod = next((m for m in pending if not waits_for(m)), None)
+        if mod is None:
+            missing = [(_name(m), r) for m in pending for r in waits_for(m) if r not in writers]
             if missing:
                 raise PlantWiringError("plant block '{}' reads the signal '{}', which no block writes".format(*missing[0]))
-            raise PlantWiringError(f"the plant blocks {', '.join(_name(m) for m in pending)} read each other's "
-                                   "outputs in a cycle")
+            waits = "; ".join(f"'{_name(m)}' reads {', '.join(repr(r) for r in waits_for(m))}" for m in pending)
+            raise PlantWiringError(f"the plant blocks read each other's outputs in a cycle: {waits} (written by "
+                                   "blocks still waiting)")
         pending.remove(mod)
         done.add(_name(mod))
         out.append(mod)
@@ -111,6 +130,10 @@ def _name(mod) -> str:
     return mod.__name__.rsplit(".", 1)[-1]
 
 
+def _no_outputs(c) -> None:
+    """A block that gives the others nothing (a state's own rate only)."""
+
+
 def plant_rhs(model):
     """Symbols and right-hand side of the plant: returns (inputs, xdot, intermediates)."""
     m = model.n_cylinders
@@ -119,20 +142,32 @@ def plant_rhs(model):
     c = Composition(model, sums)
     for mod in mods:
         c.block = _name(mod)
-        for name, symbols in getattr(mod.Symbolic, "states", lambda model: {})(model).items():
+        names = [st.name for st in mod.STATES]
+        states = mod.Symbolic.states(model) if names else {}
+        if sorted(states) != sorted(names):
+            raise PlantWiringError(f"plant block '{c.block}': Symbolic.states gives {sorted(states)}, its STATES "
+                                   f"declare {sorted(names)}")
+        for name, symbols in states.items():
             c.provide(name, symbols)
     x = sp.Matrix([s for mod in mods for st in mod.STATES for s in c.signals[st.name]])
     external = dict(zip(EXTERNAL, (rate_symbols("u", m), theta_symbols(model), rate_symbols("gamma1", m),
                                    rate_symbols("gamma2", m))))
     # each block's input of numbers (plant_inputs), after x, u, theta, gamma1, gamma2
     params = {i.name: block(i.block).Symbolic.input(model) for i in plant_inputs(model)}
+    c.block = "plant"
     for name, value in {**external, **params}.items():
         c.provide(name, value)
     for mod in _output_order(mods, set(c.signals)):
-        c.block = _name(mod)
-        mod.Symbolic.outputs(c)
+        c.block, c.reads = _name(mod), set(_declared(mod, "READS"))
+        getattr(mod.Symbolic, "outputs", _no_outputs)(c)
+    c.reads = None
     for mod in mods:
         c.block = _name(mod)
-        mod.Symbolic.derivatives(c)
+        if mod.STATES:
+            mod.Symbolic.derivatives(c)
+        for st in mod.STATES:
+            if st.name not in c.rates:
+                raise PlantWiringError(f"plant block '{c.block}' gives no rate of its state '{st.name}' (its "
+                                       "Symbolic.derivatives sets it with c.rate)")
     xdot = sp.Matrix([r for mod in mods for st in mod.STATES for r in c.rates[st.name]])
     return [("x", x), *external.items(), *params.items()], xdot, c.intermediates
