@@ -245,6 +245,7 @@ def export_context(dyn, p, scenario_name, controller, prog, sources, headers, ct
         "metric_start": c_double(sc.metric_start), "min_window_samples": MIN_WINDOW_SAMPLES,
         "n": loop["n"], "m": loop["m"], "nx": loop["nx"], "three_way": loop["three_way"],
         "x_plus": loop["x_plus"], "x_index": loop["x_index"], "x_parts": loop["x_parts"],  # the plant state's parts
+        "plant_outputs": loop["plant_outputs"],  # the plant's outputs (hydrogen.plant.PlantState.output)
         "parametric": loop["parametric"], "lu_pivot_min": loop["lu_pivot_min"],  # the FMU's failure words
         "theta_names": ", ".join(model.theta_names),
         "kf_gain_sensor": c_doubles(sensor_gain if sensor_gain is not None else np.zeros(2)),

@@ -42,7 +42,7 @@ from .controllers.common import estimate_layout, theta_units as _theta_units
 from .errors import CompilerError, FmuError, OutputPathError
 from .layout import NUMBERS, SUPPLY_LOG
 from .model import POSITIVE  # FMI's min is inclusive: "> 0" is min = the smallest positive double
-from .plant import input_values, plant_inputs, plant_layout, slot as plant_slot
+from .plant import input_values, outputs as plant_outputs, plant_inputs, plant_layout, slot as plant_slot
 from .plant.supply import PRESSURE as SUPPLY_PRESSURE, ceiling as supply_ceiling
 
 __all__ = ["export_fmu", "PARTS", "fmi_headers_dir", "FMI_HEADERS"]
@@ -205,6 +205,11 @@ def _periods(step, h) -> int:
     return n
 
 
+def _fmi_unit(unit: str):
+    """A plant part's unit as an FMU variable's (None: dimensionless); spaces as FMI's dots."""
+    return unit.replace(" ", ".") or None
+
+
 def _has_supply(layout) -> bool:
     """Whether the plant has a supply state (a pump: its pressure is an output)."""
     return any(b.name == SUPPLY_LOG for b in layout)
@@ -252,6 +257,13 @@ def _variables(part, dyn, p, ctx, fn, encoders, kalman):
             add("ps_start", "p", "fixed", f"initial supply pressure ({model.supply.kind} of [supply]; the "
                 "actuators' supply_pressure)", "inst->ps_start", unit="Pa", start=float(p.x0[ps.slice][0]),
                 lo=float(ps.lower[0]), hi=float(supply_ceiling(model)))
+        others = [b for b in plant_outputs(layout) if b.name != SUPPLY_LOG]  # a rig part's outputs
+        for b in others:
+            for j, e in enumerate(b.entries):
+                lo, hi = b.lower[j], b.upper[j]
+                add(_dotted(f"{b.name}_start", e), "p", "fixed", f"initial {b.doc} of {e}", f"inst->{b.name}_start[{j}]",
+                    unit=_fmi_unit(b.units[j]), start=float(p.x0[b.slice][j]),
+                    lo=float(lo) if np.isfinite(lo) else None, hi=float(hi) if np.isfinite(hi) else None)
         for i, c in enumerate(coords):
             add(_dotted("q", c), "o", "continuous", f"coordinate {c}", f"inst->y_q[{i}]", unit=cunits[i])
         for i, c in enumerate(coords):
@@ -268,6 +280,10 @@ def _variables(part, dyn, p, ctx, fn, encoders, kalman):
                 f"inst->y_pc[{j}]", unit="Pa")
         if _has_supply(layout):
             add(SUPPLY_PRESSURE, "o", "continuous", f"supply pressure ({model.supply.kind} of [supply])", "inst->y_ps", unit="Pa")
+        for b in others:
+            for j, e in enumerate(b.entries):
+                add(_dotted(b.name, e), "o", "continuous", f"{b.doc} of {e}", f"inst->y_{b.name}[{j}]",
+                    unit=_fmi_unit(b.units[j]))
         return out, []
 
     # offsets of the controller's C arguments in ctrl_in (the export's table: the numbers too)

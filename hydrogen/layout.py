@@ -20,7 +20,7 @@ from .sensors import NOISE, noise_columns, noise_width  # the sensors' noise row
 
 __all__ = ["NUMBERS", "SUPPLY_LOG", "MAX_DELAY", "PLANT_INPUTS", "predictor_model", "FK_TOL", "FK_MAX_ITER", "FK_MAX_COND", "FK_STATUS", "LU_PIVOT_MIN",
            "delay_split", "LOOP_CONFIG", "LOOP_STATE", "LOOP_SIGNALS", "model_summary", "slots",
-           "robot_sizes", "supply_size", "loop_context", "log_widths", "loop_functions", "C_SIZES", "plant_offsets",
+           "robot_sizes", "supply_size", "loop_context", "log_widths", "plant_outputs", "loop_functions", "C_SIZES", "plant_offsets",
            "plant_size", "c_double", "config_fields", "struct_fields"]
 
 #: The plant part logged as it is, where the plant has it: the supply pressure (its one name,
@@ -270,8 +270,8 @@ def model_summary(model) -> dict:
         "kinds": [c.kind for c in model.cylinders], "n_pressures": n_pressures(model),
         "joint_encoders": bool(model.joint_encoders),
         # the plant state's parts in order (hydrogen.plant): name, size (a robot size's name), offset, entries
-        "plant": [{"name": s.name, "size": s.size_name, "start": s.start, "entries": s.size}
-                  for s in plant_layout(model)],
+        "plant": [{"name": s.name, "size": s.size_name, "start": s.start, "entries": s.size,
+                   **({"output": True} if s.output else {})} for s in plant_layout(model)],
         # recorded only when on: the plant's input friction is wider, a robot without keeps its manifest
         **({"seal_friction": True} if model.seal_friction else {}),
         # each block's plant input and the parameters it takes (its width, whatever structure decides it)
@@ -327,13 +327,19 @@ def loop_functions(summary: dict) -> tuple:
     return ("leg_lengths", "leg_kinematics", "plant_rhs", "leg_force")
 
 
+def plant_outputs(summary: dict) -> list:
+    """The plant state's parts that are the plant's outputs (hydrogen.plant.PlantState.output: the
+    supply pressure where it is a state, ...), from a manifest's model summary: each part's record."""
+    # a manifest written before parts declared it: the supply pressure, the one output then
+    return [p for p in summary["plant"] if p.get("output", p["name"] == SUPPLY_LOG)]
+
+
 def log_widths(summary: dict) -> dict:
     """Row width of each log of the loop (``xc``'s is the controller's state size)."""
     n, m = summary["n"], summary["m"]
-    # the supply pressure's log only where the plant has it (a constant supply's loop is as it was)
-    supply = {p["name"]: p["entries"] for p in summary["plant"] if p["name"] == SUPPLY_LOG}
+    # each plant output's log only where the plant has it (a constant supply's loop is as it was)
     return {"t": 1, "q": n, "q_d": n, "l": m, "f": m, "pc": n_pressures(summary), "u": m, "u_applied": m, "l_meas": m,
-            **supply}
+            **{p["name"]: p["entries"] for p in plant_outputs(summary)}}
 
 
 def _port_writes(sizes: dict) -> list:
@@ -357,7 +363,8 @@ def loop_context(manifest: dict) -> dict:
             "f": "cylinder forces, N", "pc": pressures, "u": "spool commands computed, m",
             "u_applied": "spool commands the valves held at the end of each period (delay later), m",
             "l_meas": "measured cylinder lengths (noise, quantisation), m", SUPPLY_LOG: "supply pressure, Pa"}
-    logs = [(k, w, what[k]) for k, w in log_widths(s).items()] + [("xc", "n_xc", "controller state")]
+    logs = [(k, w, what.get(k, f"the plant's {k} (hydrogen.plant)")) for k, w in log_widths(s).items()]
+    logs += [("xc", "n_xc", "controller state")]
     nx = plant_size(s)
     # each part of x as the C loop writes it: a pointer offset ("x + NQ") and an index prefix ("x[NQ + i]")
     from markupsafe import Markup  # hydrogen's own C expressions (hydrogen.templating)
@@ -375,6 +382,9 @@ def loop_context(manifest: dict) -> dict:
         "model": name, "p": name, "P": name.upper(), "guard": f"{name.upper()}_LOOP_H",
         "n": n, "m": m, "nx": nx, "max_delay": MAX_DELAY,
         "x_plus": x_plus, "x_index": x_index, "x_parts": x_parts,
+        # the plant's outputs: logged (write_log), and the plant FMU's outputs besides q, qdot, pc, ps
+        "plant_outputs": [{"name": p["name"], "count": p["entries"], "size": C_SIZES[p["size"]]}
+                          for p in plant_outputs(s)],
         "n_noise": noise_width(robot_sizes(s), bool(s["joint_encoders"])), "noise": noise,
         "noise_comment": ", ".join(f"{ch['doc']} ({ch['unit']})" for ch in noise),
         "n_pressures": n_p, "three_way": n_p == m,

@@ -87,9 +87,13 @@ def log_from_result(res, noise_l: float = 0.0, noise_p: float = 0.0, seed: int =
     if ps is not None:  # a pressure sensor like the others, its noise drawn after theirs
         ps = np.asarray(ps, float).reshape(len(pc), -1)
         supply = [(SUPPLY_LOG, ps + noise_p * rng.standard_normal(ps.shape) if noise_p else ps.copy())]
+    # the plant's other outputs (a rig part's states), true values like q
+    others = [(name, np.asarray(v, float).reshape(len(pc), -1)) for name, v in getattr(res, "plant", {}).items()
+              if name != SUPPLY_LOG]
     cols = {}
     for prefix, arr in (("l", l_meas), ("pc", pc_meas), *supply,
-                        ("u", np.asarray(getattr(res, "u_applied", res.u), float)), ("q", np.asarray(res.q, float))):
+                        ("u", np.asarray(getattr(res, "u_applied", res.u), float)), ("q", np.asarray(res.q, float)),
+                        *others):
         for i in range(arr.shape[1]):
             cols[f"{prefix}{i}"] = arr[:, i]
     measured = "l, pc and ps are" if supply else "l and pc are"
@@ -97,7 +101,8 @@ def log_from_result(res, noise_l: float = 0.0, noise_p: float = 0.0, seed: int =
             "noise_l": float(noise_l),
             "noise_p": float(noise_p), "seed": int(seed), "theta_true": np.asarray(res.theta_true).tolist(),
             "gamma_true": np.asarray(res.gamma_true).tolist(),
-            "note": f"{measured} the simulated true values plus the sensor noise above; q is the true pose"}
+            "note": f"{measured} the simulated true values plus the sensor noise above; q is the true pose"
+                    + "".join(f", {name} the true {name}" for name, _ in others)}
     return Log(np.asarray(res.t, float).copy(), cols, meta, source=f"simulation {res.scenario_name}/{res.controller}")
 
 

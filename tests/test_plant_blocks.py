@@ -1,9 +1,9 @@
 """The plant's blocks (hydrogen/plant/): found by themselves, composed by the names of the signals
 they hand each other (hydrogen/symbolic/plant.py), their inputs of numbers read off their
 declarations by the loop, the Python engine, the FMU and the description. The proof: a rig part
-added as one module (a counterbalance spring along each cylinder, written into a copy of the
-package, nothing else edited) loads, generates, builds and runs on both engines, and its force is
-the one its law says."""
+added as one module (a counterbalance spring along each cylinder, and a seal temperature with a
+state, written into a copy of the package, nothing else edited) loads, generates, builds and runs
+on both engines on a robot with a pump, and its force and rate are the ones its law says."""
 import json
 import os
 import shutil
@@ -161,6 +161,59 @@ class Symbolic:
         pass
 '''
 
+#: A rig part with a state: each seal's temperature T (K), heated by its friction's power and cooled to
+#: the ambient, dT/dt = (|F_fric l̇| - h (T - T_amb)) / C_th; it starts at the ambient and is an output.
+SEAL_HEAT = '''\
+"""Each actuator's seal temperature (K): heated by its friction, cooled to the ambient."""
+from __future__ import annotations
+
+import numpy as np
+
+from ..setting import setting
+from . import PlantParameter, PlantState
+
+POSITION = 70
+STATES = (PlantState("seal_temp", "m", "K", "seal temperature", lower=0.0, initial=293.15, output=True),)
+INPUT = "seal_heat"
+PARAMETERS = (
+    PlantParameter("transfer", "W/K", "heat transfer to the ambient (h)", per_actuator=True, lower=0.0),
+    PlantParameter("capacity", "J/K", "heat capacity (C_th)", per_actuator=True, ideal=1.0, lower=0.0, strict=True),
+    PlantParameter("ambient", "K", "ambient temperature", per_actuator=True, ideal=293.15, lower=0.0, strict=True),
+)
+SCENARIO_SETTINGS = {
+    "seal_transfer": setting(1.0, "W/K", "each seal's heat transfer to the ambient", ">=0"),
+    "seal_capacity": setting(50.0, "J/K", "each seal's heat capacity", ">=0"),
+}
+
+
+def input_parameters(structure):
+    return PARAMETERS
+
+
+def values(sc, model):
+    return np.array([(sc.seal_transfer, sc.seal_capacity, 293.15)] * model.n_cylinders, float)
+
+
+class Symbolic:
+    @staticmethod
+    def states(model):
+        import sympy as sp
+        return {"seal_temp": sp.Matrix(sp.symbols(f"seal_temp_0:{model.n_cylinders}", real=True))}
+
+    @staticmethod
+    def input(model):
+        import sympy as sp
+        return sp.Matrix([s for i in range(model.n_cylinders)
+                          for s in sp.symbols(f"h_seal_{i} c_seal_{i} t_amb_{i}", real=True)])
+
+    @staticmethod
+    def derivatives(c):
+        import sympy as sp
+        T, f, v, p = c["seal_temp"], c["friction_force"], c["ldot"], c[INPUT]
+        c.rate("seal_temp", sp.Matrix([(sp.Abs(f[i] * v[i]) - p[3 * i] * (T[i] - p[3 * i + 2])) / p[3 * i + 1]
+                                       for i in range(c.model.n_cylinders)]))
+'''
+
 #: Run in the copy: the block is found, the description takes its settings, the arm builds, both
 #: engines agree with the spring on, the plant's rate moves by the spring's law, the FMU names it.
 SCRIPT = '''\
@@ -168,7 +221,7 @@ import json, sys
 from pathlib import Path
 import numpy as np
 import hydrogen
-from hydrogen.plant import BLOCKS, plant_inputs
+from hydrogen.plant import BLOCKS, initial_state, plant_inputs, plant_layout, slot
 from hydrogen.simulation.simulator import simulate
 
 out = {"blocks": list(BLOCKS)}
@@ -181,10 +234,16 @@ runs = {e: simulate(dyn, "spring-sim", "backstepping", engine=e) for e in ("c", 
 off = simulate(dyn, "spring-sim", "backstepping", spring_rate=0.0)
 out["engines"] = float(np.max(np.abs(runs["c"].q - runs["python"].q)))
 out["spring_moves"] = float(np.max(np.abs(runs["c"].pressures - off.pressures)))
+temps = {e: r.plant["seal_temp"] for e, r in runs.items()}
+out["temps"] = [float(np.max(np.abs(temps["c"] - temps["python"]))), temps["c"][0].tolist(), temps["c"][-1].tolist()]
+runs["c"].save_log(Path(sys.argv[2]) / "run.csv")
+out["csv"] = (Path(sys.argv[2]) / "run.csv").read_text().splitlines()[2].split(",")
 # the plant's rate with the spring against without: dq̈ = D^-1 JL^T (-k (l - l0))
 q = np.array(model.neutral_pose, float) + [0.05, -0.1]
-n, m = model.n, model.n_cylinders  # x: q, qdot, p_A and p_B, spool, spool rate
-x = np.concatenate([q, [0.1, -0.2], np.full(2 * m, 5e6), np.zeros(2 * m)])
+n, m = model.n, model.n_cylinders
+layout = plant_layout(model)  # q, qdot, p_A and p_B, spool, spool rate, ps, seal_temp
+out["layout"] = [part.name for part in layout]
+x = initial_state(layout, q=q, qdot=[0.1, -0.2], pc=np.full(2 * m, 5e6), seal_temp=[310.0, 280.0])
 # every plant input by name: the blocks' ideal numbers, the spring's own
 given = {"x": x, "u": np.zeros(m), "theta": model.theta, "gamma1": model.gamma[0], "gamma2": model.gamma[1],
          **{i.name: np.tile(i.ideal, m) for i in plant_inputs(model)}}
@@ -200,6 +259,13 @@ expected = np.linalg.solve(D, JL.T @ (-k * (l - l0)))
 out["qdd_change"] = (with_spring[n:2 * n] - without[n:2 * n]).tolist()
 out["qdd_expected"] = expected.tolist()
 out["rest_unchanged"] = float(np.max(np.abs(np.delete(with_spring - without, range(n, 2 * n)))))
+# the seal's heating at the blocks' ideal numbers but the friction and heat given here
+fr, heat = np.tile([50.0, 200.0, 1e-3], m), np.tile([1.0, 50.0, 293.15], m)
+rate = np.asarray(f["plant_rhs"](*[fr if a == "friction" else heat if a == "seal_heat" else given[a] for a in names]),
+                  float).ravel()[slot(layout, "seal_temp").slice]
+ldot = JL @ np.array([0.1, -0.2])
+force = 50.0 * np.tanh(ldot / 1e-3) + 200.0 * ldot
+out["heat"] = [rate.tolist(), ((np.abs(force * ldot) - 1.0 * (np.array([310.0, 280.0]) - 293.15)) / 50.0).tolist()]
 from fmpy import read_model_description
 from hydrogen.fmu import export_fmu
 # the closed loop's FMU compiles the loop's configuration with the spring's numbers (params.h)
@@ -209,6 +275,8 @@ path = export_fmu(Path(sys.argv[2]) / "arm.fmu", "plant", "spring-sim", dyn=dyn,
 var = {v.name: v for v in read_model_description(str(path)).modelVariables}
 rate = var["spring.shoulder_cylinder.rate"]
 out["fmu"] = [rate.unit, float(rate.start), var["spring.elbow_cylinder.free_length"].unit]
+temp, start = var["seal_temp.shoulder_cylinder"], var["seal_temp_start.elbow_cylinder"]
+out["fmu_state"] = [temp.causality, temp.unit, start.causality, start.unit, float(start.start)]
 print(json.dumps(out))
 '''
 
@@ -221,6 +289,7 @@ substeps = 2
 t_adapt = 0.5
 spring_rate = 20000.0
 spring_length = 0.5
+friction = [50.0, 200.0, 1e-3]
 reference.sines = [["shoulder", 0.10, 1.0], ["elbow", -0.10, 1.5]]
 """
 
@@ -233,9 +302,11 @@ def spring_run(tmp_path_factory):
     shutil.copytree(ROOT / "hydrogen", root / "hydrogen", ignore=ignore)
     shutil.copytree(ROOT / "templates", root / "templates")
     (root / "hydrogen" / "plant" / "spring.py").write_text(SPRING)
+    (root / "hydrogen" / "plant" / "seal_heat.py").write_text(SEAL_HEAT)
     text = (ROOT / "tests" / "data" / "four_way_arm.toml").read_text()
     text = text.replace('name = "four_way_arm"', 'name = "spring_arm"\ncontrollers = ["backstepping"]', 1)
-    (root / "spring_arm.toml").write_text(text + SCENARIO)
+    from test_supply import PUMP_TABLE  # a pump with an accumulator: the supply pressure is a state
+    (root / "spring_arm.toml").write_text(text + SCENARIO + PUMP_TABLE)
     (root / "run.py").write_text(SCRIPT)
     env = {**os.environ, "PYTHONPATH": str(root)}
     proc = subprocess.run([sys.executable, str(root / "run.py"), str(root / "spring_arm.toml"), str(root / "cache")],
@@ -245,10 +316,10 @@ def spring_run(tmp_path_factory):
 
 
 def test_a_rig_part_added_as_one_module_is_found_and_wired(spring_run):
-    assert spring_run["blocks"][-1] == "spring"
-    assert spring_run["inputs"] == ["friction", "valve", "spring"]
+    assert spring_run["blocks"][-2:] == ["spring", "seal_heat"]
+    assert spring_run["inputs"] == ["friction", "valve", "spring", "seal_heat"]
     names = spring_run["plant_rhs"]  # the generated plant takes it, after the valve's
-    assert names[:8] == ["x", "u", "theta", "gamma1", "gamma2", "friction", "valve", "spring"]
+    assert names[:9] == ["x", "u", "theta", "gamma1", "gamma2", "friction", "valve", "spring", "seal_heat"]
 
 
 def test_the_added_part_runs_on_both_engines_and_changes_the_run(spring_run):
@@ -265,3 +336,21 @@ def test_the_added_part_adds_its_law_to_the_plant(spring_run):
 
 def test_the_fmu_declares_the_added_parts_numbers_with_their_units(spring_run):
     assert spring_run["fmu"] == ["N/m", 20000.0, "m"]
+
+
+def test_a_rig_part_with_a_state_joins_x_after_the_supply_and_starts_as_declared(spring_run):
+    assert spring_run["layout"][-2:] == ["ps", "seal_temp"]
+    c_minus_python, first, last = spring_run["temps"]
+    assert c_minus_python < 1e-9
+    assert first == [293.15, 293.15]  # its declared initial value, logged before the plant moves
+    assert all(t > 293.15 + 1e-3 for t in last)  # the friction's power heats it
+
+
+def test_a_rig_parts_rate_is_its_law_on_the_other_blocks_signals(spring_run):
+    rate, expected = spring_run["heat"]
+    assert rate == pytest.approx(expected, rel=1e-12)
+
+
+def test_a_rig_parts_state_is_an_output_of_the_log_and_the_fmu(spring_run):
+    assert {"seal_temp0", "seal_temp1", "ps0"} <= set(spring_run["csv"])
+    assert spring_run["fmu_state"] == ["output", "K", "parameter", "K", 293.15]

@@ -574,7 +574,7 @@ static int write_log(const loader_crane_loop_state* st, const loader_crane_loop_
     if (log->u) memcpy(log->u + NL * k, s->u, NL * sizeof(double));
     if (log->u_applied) memcpy(log->u_applied + NL * k, s->u_app, NL * sizeof(double));
     if (log->l_meas) memcpy(log->l_meas + NL * k, s->l_meas, NL * sizeof(double));
-    if (log->ps) log->ps[k] = x[2 * NQ + NPC + 2 * NL + 0];
+    if (log->ps) memcpy(log->ps + NPS * k, x + 2 * NQ + NPC + 2 * NL, NPS * sizeof(double));
     if (log->f && leg_force(c->numbers, x + 2 * NQ, x + 2 * NQ + NPC + 2 * NL, log->f + NL * k)) return LOADER_CRANE_CTRL_FAILED;
     if (log->xc && c->n_xc) memcpy(log->xc + c->n_xc * k, st->xc, (size_t)c->n_xc * sizeof(double));
     return LOADER_CRANE_OK;

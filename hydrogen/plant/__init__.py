@@ -33,7 +33,8 @@ from dataclasses import dataclass
 import numpy as np
 
 __all__ = ["BLOCKS", "SIZES", "PlantState", "PlantParameter", "PlantInput", "Slot", "block", "plant_layout",
-           "state_size", "slot", "entry_names", "describe_entries", "state_vector", "plant_inputs", "input_values",
+           "state_size", "slot", "entry_names", "describe_entries", "state_vector", "initial_state", "outputs",
+           "plant_inputs", "input_values",
            "input_record", "structure_flag"]
 
 
@@ -56,8 +57,17 @@ class PlantState:
     doc
         What it is, for messages and comments.
     lower, upper
-        The bounds the plant holds each entry to (±inf: none): a number, or a rule taking the model
-        and giving one per entry.
+        Each entry's range (±inf: none): a number, or a rule taking the model and giving one per
+        entry. The plant's integration holds the pressure states within theirs; every part's are its
+        range in the FMU's variables and the log checks.
+    initial
+        Each entry's value where a run starts (the Python and C loops, the exported programs, the
+        FMU's start parameter), unless the run sets the part itself (the pose, the pressures holding it
+        still): a number, or a rule taking the model and giving one per entry.
+    output
+        The plant's output: logged by both loops under its name, the run's result's ``plant[name]``,
+        columns of its CSV log and, in the plant FMU, outputs ``<name>.<entry>`` with start
+        parameters ``<name>_start.<entry>``.
     """
 
     name: str
@@ -66,6 +76,8 @@ class PlantState:
     doc: str
     lower: object = -math.inf
     upper: object = math.inf
+    initial: object = 0.0
+    output: bool = False
 
     @property
     def label(self) -> str:
@@ -128,7 +140,8 @@ class PlantInput:
 class Slot:
     """A part of x in a model's layout: ``name``, its ``block`` (module name), ``size_name`` (a key of
     :data:`SIZES`), ``start`` and ``size`` (entries), per-entry ``units``, ``lower``, ``upper`` and
-    ``entries`` (what each entry belongs to: a coordinate, an actuator, a pressure state), ``doc``."""
+    ``entries`` (what each entry belongs to: a coordinate, an actuator, a pressure state), ``doc``,
+    per-entry ``initial`` values and ``output`` (:class:`PlantState`)."""
 
     name: str
     block: str
@@ -140,6 +153,8 @@ class Slot:
     upper: tuple
     entries: tuple
     doc: str
+    initial: tuple = ()
+    output: bool = False
 
     @property
     def stop(self) -> int:
@@ -244,8 +259,9 @@ def plant_layout(model, blocks=None) -> tuple:
                 continue
             lower = tuple(float(v) for v in _per_entry(st.lower, model, size))
             upper = tuple(float(v) for v in _per_entry(st.upper, model, size))
+            initial = tuple(float(v) for v in _per_entry(st.initial, model, size))
             out.append(Slot(st.name, mod.__name__.rsplit(".", 1)[-1], st.size, start, size,
-                            _per_entry(st.unit, model, size), lower, upper, entries, st.doc))
+                            _per_entry(st.unit, model, size), lower, upper, entries, st.doc, initial, st.output))
             start += size
     return tuple(out)
 
@@ -280,6 +296,20 @@ def state_vector(layout, **parts) -> np.ndarray:
     for name, values in parts.items():
         x[slot(layout, name).slice] = values
     return x
+
+
+def initial_state(layout, **parts) -> np.ndarray:
+    """x where a run starts: each of ``parts`` (name: values) at its place in ``layout``, every other
+    part at its declared initial values (:attr:`PlantState.initial`)."""
+    x = np.array([v for s in layout for v in s.initial], float)
+    for name, values in parts.items():
+        x[slot(layout, name).slice] = values
+    return x
+
+
+def outputs(layout) -> tuple:
+    """The parts of ``layout`` that are the plant's outputs (:attr:`PlantState.output`), in order."""
+    return tuple(s for s in layout if s.output)
 
 
 def _discover() -> tuple:

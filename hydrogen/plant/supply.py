@@ -74,8 +74,9 @@ PRESSURE = "ps"
 POSITION = 50
 
 STATES = (
+    # it starts at the description's supply pressure (nominal); a plant output (logged, the FMU's)
     PlantState(PRESSURE, "supply", "Pa", "supply pressure (a state only where the supply is not constant), Pa",
-               lower=0.0),
+               lower=0.0, initial=lambda model: [nominal(model)], output=True),
 )
 
 #: m³/s: a pump's flow, 1 mL/s (a micro pump) .. 10 m³/s (above the largest mining machines' pumps)

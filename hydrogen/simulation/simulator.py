@@ -18,8 +18,9 @@ from ..estimators import kalman
 from ..estimators.kalman import (filter_gain, filter_gains, filter_setting, kalman_gain,  # noqa: F401
                                  length_noise_variance, remember_filter_gains)
 from ..layout import LU_PIVOT_MIN, SUPPLY_LOG, model_summary, robot_sizes
-from ..plant import describe_entries, input_values, integrator, plant_inputs, plant_layout, slot, state_vector
-from ..plant.supply import entries as supply_entries, nominal as supply_nominal, start as supply_start
+from ..plant import (describe_entries, initial_state, input_values, integrator, outputs as plant_outputs, plant_inputs,
+                     plant_layout, slot, state_vector)
+from ..plant.supply import nominal as supply_nominal
 from ..sensors import NOISE, noise_columns
 from ..summary import SATURATED_AT, SATURATION, estimated_blocks  # saturation: defined with its line
 from .checks import _shown, check_against_model, check_run_size, checked_float, metric_window
@@ -71,6 +72,9 @@ class SimulationResult:
     #: Every block of the controller's state as it declares it, by name: its rows (k, size) over the run,
     #: in the block's own unit (the estimates above too, where the controller holds them).
     states: dict = field(default_factory=dict)
+    #: The plant's outputs (:attr:`hydrogen.plant.PlantState.output`), by part name: rows (k, size) over
+    #: the run in the part's unit (the supply pressure "ps" where it is a state, a rig part's own).
+    plant: dict = field(default_factory=dict)
     #: The supply pressure p_s (k,), Pa, where the supply is a plant state (a pump); None for a
     #: constant supply (each actuator's supply_pressure).
     supply_pressure: np.ndarray = None
@@ -588,9 +592,9 @@ def log_widths(model, n_xc: int) -> tuple:
     one model and controller state size (a batch works it out once)."""
     nq, m = model.n, model.n_cylinders
     n_p = pressures.n_pressures(model)
-    supply = [(SUPPLY_LOG, b.size) for b in plant_layout(model) if b.name == SUPPLY_LOG]  # a supply state's log
+    plant = [(b.name, b.size) for b in plant_outputs(plant_layout(model))]  # the plant's outputs (a supply state)
     return (("q", nq), ("q_d", nq), ("l", m), ("f", m), ("pc", n_p), ("u", m), ("u_applied", m), ("l_meas", m),
-            ("xc", max(n_xc, 1)), *supply)
+            ("xc", max(n_xc, 1)), *plant)
 
 
 def new_logs(model, n: int, n_xc: int, widths=None) -> dict:
@@ -674,7 +678,7 @@ def plan_run(dyn, scenario, controller, duration, check_workspace, overrides, *,
     table = f"{model.source}: [scenarios.{sc.name}]" if sc.name in scenario_names(model) else f"scenario {sc.name!r}:"
     q0 = sc.reference(0.0)[0] + np.asarray(sc.q0_offset, float)
     pc0 = equilibrium_pressures(dyn, q0, model.theta)
-    x0 = state_vector(plant_layout(model), q=q0, pc=pc0, **supply_start(model))  # at rest, the valves closed
+    x0 = initial_state(plant_layout(model), q=q0, pc=pc0)  # at rest, the valves closed, the rest as declared
     own = actuator_settings(sc, model)  # each actuator's travel noise, resolution, friction in its own unit
     return RunPlan(dyn, controller, sc, n, h, theta0, gamma0, q0, pc0, x0, filter_gain(sc, h), own, pinned,
                    {k: f"{table} gains.{controller}" for k in pinned})
@@ -786,7 +790,7 @@ def _run_c(dyn, sc, ctrl, x0, q0, noise, kf_gain, log, n, h, runner=None):
     from ..runtime.loop import LOOP_NONFINITE, LOOP_OK
     runner = make_runner(dyn, sc, ctrl, x0, q0, kf_gain, h) if runner is None else runner
     xc_log = log["xc"] if ctrl.xc.size else None
-    logs = {k: log[k] for k in ("q", "q_d", "l", "f", "pc", "u", "u_applied", "l_meas", SUPPLY_LOG) if k in log}
+    logs = {k: v for k, v in log.items() if k != "xc"}  # the fixed logs and the plant's outputs
     if xc_log is not None:
         logs["xc"] = xc_log
     code = runner.run(n, noise, logs)
@@ -822,6 +826,7 @@ class PythonStages:
         self._inputs = tuple(v.ravel() for v in input_values(sc, model).values())
         self._pred_inputs = tuple(np.tile(np.array(i.ideal, float), model.n_cylinders) for i in plant_inputs(model))
         self.layout = plant_layout(model)
+        self.outputs = plant_outputs(self.layout)  # the plant's outputs, logged each period
         self._q, self._qdot, self._pc = (slot(self.layout, k).slice for k in ("q", "qdot", "pc"))
         self._ps = next((b.slice for b in self.layout if b.name == SUPPLY_LOG), None)  # a supply state
         pc = slot(self.layout, "pc")
@@ -1002,8 +1007,8 @@ def run_python_loop(dyn, sc, ctrl, x, q0, noise, kf_gain, log, n, h):
         log["u_applied"][k], log["l_meas"][k] = s.u_app, s.l_meas
         ps = x[loop._ps] if loop._ps is not None else None  # a supply state's pressure, else the nominal
         log["f"][k] = pressures.forces(model, pc, None if ps is None else ps[0])
-        if ps is not None:
-            log[SUPPLY_LOG][k] = ps
+        for part in loop.outputs:  # the plant's outputs (the supply pressure where it is a state, ...)
+            log[part.name][k] = x[part.slice]
         if ctrl.xc.size:
             log["xc"][k] = ctrl.xc
 
@@ -1038,6 +1043,7 @@ def _result(sc, controller, ctrl, t, log, k, theta0, gamma0, theta_true, gamma_t
         u_max=float(ctrl.values["u_max"][0]) if "u_max" in ctrl.values else 0.0,
         actuators=tuple(c.name for c in model.cylinders),
         states={b.name: log["xc"][:k, ctrl.slices[b.name]] for b in ctrl.layout},
+        plant={b.name: log[b.name][:k] for b in plant_outputs(plant_layout(model))},
         supply_pressure=log[SUPPLY_LOG][:k, 0] if SUPPLY_LOG in log else None, model_name=model.name)
     if k:
         res.compute_metrics()
