@@ -133,12 +133,23 @@ SCENARIO_SETTINGS = {
 }
 
 
+def check_own(sc, name, value):
+    from ..errors import ScenarioError
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not value >= 0:
+        raise ScenarioError(f"scenario '{sc.name}': actuators.{name}.spring must be a rate >= 0 N/m, got {value!r}")
+
+
+#: A cylinder's own spring rate: actuators.<name>.spring in a scenario.
+ACTUATOR_SETTINGS = {"spring": check_own}
+
+
 def input_parameters(structure):
     return PARAMETERS
 
 
 def values(sc, model):
-    return np.array([(sc.spring_rate, sc.spring_length)] * model.n_cylinders, float)
+    return np.array([(sc.actuators.get(c.name, {}).get("spring", sc.spring_rate), sc.spring_length)
+                     for c in model.cylinders], float)
 
 
 class Symbolic:
@@ -221,6 +232,7 @@ import json, sys
 from pathlib import Path
 import numpy as np
 import hydrogen
+import hydrogen.errors
 from hydrogen.plant import BLOCKS, initial_state, plant_inputs, plant_layout, slot
 from hydrogen.simulation.simulator import simulate
 
@@ -234,6 +246,12 @@ runs = {e: simulate(dyn, "spring-sim", "backstepping", engine=e) for e in ("c", 
 off = simulate(dyn, "spring-sim", "backstepping", spring_rate=0.0)
 out["engines"] = float(np.max(np.abs(runs["c"].q - runs["python"].q)))
 out["spring_moves"] = float(np.max(np.abs(runs["c"].pressures - off.pressures)))
+own = simulate(dyn, "spring-sim", "backstepping", actuators={"elbow_cylinder": {"spring": 0.0}})
+out["own"] = [float(np.max(np.abs(own.pressures - r.pressures))) for r in (runs["c"], off)]
+try:
+    simulate(dyn, "spring-sim", "backstepping", actuators={"elbow_cylinder": {"spring": -1.0}})
+except hydrogen.errors.HydrogenError as exc:
+    out["own_error"] = str(exc)
 temps = {e: r.plant["seal_temp"] for e, r in runs.items()}
 out["temps"] = [float(np.max(np.abs(temps["c"] - temps["python"]))), temps["c"][0].tolist(), temps["c"][-1].tolist()]
 runs["c"].save_log(Path(sys.argv[2]) / "run.csv")
@@ -325,6 +343,11 @@ def test_a_rig_part_added_as_one_module_is_found_and_wired(spring_run):
 def test_the_added_part_runs_on_both_engines_and_changes_the_run(spring_run):
     assert spring_run["engines"] < 1e-9
     assert spring_run["spring_moves"] > 1e3  # Pa: the pressures carry the spring's force
+
+
+def test_the_added_part_takes_its_own_setting_per_actuator_and_checks_it(spring_run):
+    assert all(d > 1e3 for d in spring_run["own"])  # the elbow's own spring: unlike both others
+    assert spring_run["own_error"] == "scenario 'spring-sim': actuators.elbow_cylinder.spring must be a rate >= 0 N/m, got -1.0"
 
 
 def test_the_added_part_adds_its_law_to_the_plant(spring_run):

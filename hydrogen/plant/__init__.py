@@ -35,7 +35,7 @@ import numpy as np
 __all__ = ["BLOCKS", "SIZES", "PlantState", "PlantParameter", "PlantInput", "Slot", "block", "plant_layout",
            "state_size", "slot", "entry_names", "describe_entries", "state_vector", "initial_state", "outputs",
            "plant_inputs", "input_values",
-           "input_record", "structure_flag"]
+           "input_record", "actuator_settings", "structure_flag"]
 
 
 #: The robot sizes a plant state's size is given in: what each entry stands for.
@@ -198,6 +198,17 @@ def plant_inputs(structure) -> tuple:
                 pars = tuple(mod.input_parameters(structure))
             out.append(PlantInput(mod.INPUT, name, pars, getattr(mod, "INPUT_DOC", "")))
     return tuple(out)
+
+
+def actuator_settings() -> dict:
+    """``{key: check}`` of what a scenario may give per actuator for the blocks (``actuators.<name>.<key>``:
+    the valve's spool response, the friction's row or seal table), each block's ``ACTUATOR_SETTINGS``;
+    ``check(scenario, actuator name, value)`` raises a ScenarioError naming it. The block's ``values``
+    reads the value from the scenario's ``actuators`` itself."""
+    out = {}
+    for name in BLOCKS:
+        out.update(getattr(block(name), "ACTUATOR_SETTINGS", {}))
+    return out
 
 
 def input_record(model) -> dict:

@@ -95,6 +95,33 @@ def parameters_of(seal: bool) -> tuple:
     return tuple(p for p in PARAMETERS if seal or p.name not in SEAL)
 
 
+#: The rule of a friction row [F_c, b, v_s] (the rig's ``friction``, or an actuator's as a list).
+ROW_RULE = "must be (Coulomb >= 0 N, viscous >= 0 N s/m, smoothing speed > 0 m/s)"
+
+
+def row_ok(value) -> bool:
+    """Whether ``value`` is a friction row [F_c >= 0, b >= 0, v_s > 0] of finite numbers (:data:`ROW_RULE`)."""
+    try:
+        fr = np.asarray(value, float)
+    except (TypeError, ValueError):
+        return False
+    return fr.shape == (3,) and bool(np.all(np.isfinite(fr))) and fr[0] >= 0 and fr[1] >= 0 and fr[2] > 0
+
+
+def check_actuator_setting(sc, name: str, value) -> None:
+    """A :class:`ScenarioError` for scenario ``sc``'s ``actuators.<name>.friction``: a seal friction table
+    (its keys and ranges here, the rest per model: :func:`check_table`), or a row [F_c, b, v_s]
+    (:data:`ROW_RULE`), in the actuator's own unit."""
+    if isinstance(value, Mapping):
+        check_table(sc, name, value, complete=False)
+    elif not row_ok(value):
+        raise ScenarioError(f"scenario '{sc.name}': actuators.{name}.friction {ROW_RULE} (in the actuator's own unit)")
+
+
+#: What a scenario may give per actuator for this block (``actuators.<name>.friction``), with its check.
+ACTUATOR_SETTINGS = {"friction": check_actuator_setting}
+
+
 def input_parameters(structure) -> tuple:
     """The input ``friction``'s parameters per actuator for a robot's ``structure`` (its model or its
     manifest's model summary): :func:`parameters_of` its seal friction."""

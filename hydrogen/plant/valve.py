@@ -104,6 +104,34 @@ DATASHEET_REQUIRED = tuple(p.name for p in DATASHEET if p.default is None and p.
 VALVE_RESPONSE = ("bandwidth_hz", "damping")
 
 
+def check_response(sc, name: str, table) -> None:
+    """A :class:`ScenarioError` naming ``actuators.<name>.valve[.<key>]`` of scenario ``sc`` unless ``table``
+    is a table of :data:`VALVE_RESPONSE` keys, each a finite number within the range a description's
+    valve holds it to (:data:`DATASHEET`, all > 0)."""
+    from collections.abc import Mapping
+    where = f"scenario '{sc.name}': actuators.{name}.valve"
+    if not isinstance(table, Mapping) or not table:
+        raise ScenarioError(f"{where}: expected a table {{ {', '.join(VALVE_RESPONSE)} }} (the spool's response), "
+                            f"got {table!r}")
+    unknown = sorted(set(table) - set(VALVE_RESPONSE))
+    if unknown:
+        raise ScenarioError(f"{where}: unknown key(s) {unknown}; a scenario sets the spool's response "
+                            f"({', '.join(VALVE_RESPONSE)}): the rating (flow, drop, travel, overlap) is the "
+                            "actuator's description's")
+    declared = {p.name: p for p in DATASHEET}
+    for key, v in table.items():
+        q = declared[key]
+        lo, hi = q.range.low, q.range.high
+        unit = f" {q.unit}" if q.unit else ""
+        if isinstance(v, bool) or not isinstance(v, (int, float)) or not np.isfinite(v) or not lo <= v <= hi:
+            raise ScenarioError(f"{where}.{key} must be a finite number in [{lo:.6g}, {hi:.6g}]{unit} "
+                                f"(declared in {__name__}), got {v!r}")
+
+
+#: What a scenario may give per actuator for this block (``actuators.<name>.valve``), each with its check.
+ACTUATOR_SETTINGS = {"valve": check_response}
+
+
 def input_parameters(structure) -> tuple:
     """The input ``valve``'s parameters per actuator: all of :data:`PARAMETERS`, on every robot."""
     return PARAMETERS

@@ -11,7 +11,7 @@ import numpy as np
 from .. import references
 from ..errors import ScenarioError
 from ..layout import MAX_DELAY, delay_split
-from ..plant import friction, integrator, valve
+from ..plant import actuator_settings as plant_actuator_settings, friction, integrator, valve
 from ..scenario_settings import (_FIELDS, RENAMED, VARIANT_SEPARATOR, ScenarioFields, setting, settings,  # noqa: F401
                                  table_keys)
 from .checks import check_fields
@@ -80,9 +80,7 @@ class Scenario(ScenarioFields):
                                     f"control rate ({0.5 * self.control_rate:g} Hz at control_rate "
                                     f"{self.control_rate:g} Hz): sampled there, the reference aliases")
         need(finite(self.t_adapt), "t_adapt", "must be finite (use a large value to never adapt)")
-        fr = np.asarray(self.friction, float)
-        need(fr.shape == (3,) and finite(fr) and fr[0] >= 0 and fr[1] >= 0 and fr[2] > 0, "friction",
-             "must be (Coulomb >= 0 N, viscous >= 0 N s/m, smoothing speed > 0 m/s)")
+        need(friction.row_ok(self.friction), "friction", friction.ROW_RULE)
         need(finite(self.valve_damping) and self.valve_damping > 0, "valve_damping", "must be > 0")
         need(finite(self.delay) and self.delay >= 0 and sum(self.delay_split()) <= MAX_DELAY, "delay",
              f"must be 0..{MAX_DELAY} control periods, in s (1/control_rate = {1.0 / self.control_rate!r} s)")
@@ -98,19 +96,18 @@ class Scenario(ScenarioFields):
         need(self.pressure_bounds in ("step", "stage"), "pressure_bounds", "must be 'step' or 'stage'")
         need(isinstance(self.actuators, Mapping) and all(isinstance(v, Mapping) for v in self.actuators.values()),
              "actuators", "must be a table {actuator name: {setting: value}}")
+        blocks = plant_actuator_settings()  # the plant blocks' own, each with its check
+        given = [*PER_ACTUATOR, *(k for k in blocks if k not in PER_ACTUATOR)]
         for name, values in self.actuators.items():
-            unknown = sorted(set(values) - set(PER_ACTUATOR) - {"valve"})
+            unknown = sorted(set(values) - set(given))
             if unknown:
                 raise ScenarioError(f"scenario '{self.name}': actuators.{name}: unknown setting(s) {unknown}; "
-                                    f"settings given per actuator: {', '.join(PER_ACTUATOR)}, valve")
-            table = values.get("friction")
-            if isinstance(table, Mapping):  # a seal friction table: its keys and ranges here, the rest per model
-                friction.check_table(self, name, table, complete=False)
-                values = {k: v for k, v in values.items() if k != "friction"}
-            if "valve" in values:
-                _check_valve_response(self, name, values["valve"])
-                values = {k: v for k, v in values.items() if k != "valve"}
-            try:  # each value as the scenario's own field of that name checks it
+                                    f"settings given per actuator: {', '.join(given)}")
+            for key, check in blocks.items():  # each block checks its own (a friction table, a valve response)
+                if key in values:
+                    check(self, name, values[key])
+            values = {k: v for k, v in values.items() if k not in blocks}
+            try:  # each sensor's value as the scenario's own field of that name checks it
                 replace(self, actuators={}, **{k: _tuple(v) for k, v in values.items()}).validated()
             except ScenarioError as exc:
                 text = str(exc).removeprefix(f"scenario '{self.name}': ")
@@ -120,7 +117,8 @@ class Scenario(ScenarioFields):
 
 
 #: The rig settings that act on one actuator's travel, given per actuator in its own unit (the kind's
-#: TRAVEL: m for a cylinder, rad for a rotary vane) under ``actuators.<name>``. The scenario's own
+#: TRAVEL: m for a cylinder, rad for a rotary vane) under ``actuators.<name>``, besides those a plant
+#: block declares (:func:`hydrogen.plant.actuator_settings`: the valve's spool response). The scenario's own
 #: field (in a cylinder's units) is every cylinder's default; a joint actuator's friction defaults
 #: to none, and it must give the others itself where the scenario's are on (never a length in m
 #: applied to an angle). The Kalman filter's gain is one for all, dimensionless and 1/s (kalman_accel
@@ -130,28 +128,6 @@ PER_ACTUATOR = ("friction", "quantization_l", "noise_l")
 
 #: The keys of a scenario's ``actuators.<name>.valve``: :data:`hydrogen.plant.valve.VALVE_RESPONSE`.
 VALVE_RESPONSE = valve.VALVE_RESPONSE
-
-
-def _check_valve_response(sc, name: str, table):
-    """A :class:`ScenarioError` naming ``actuators.<name>.valve[.<key>]`` unless ``table`` is a table of
-    :data:`VALVE_RESPONSE` keys, each a finite number within the range a description's valve holds it
-    to (:data:`hydrogen.plant.valve.DATASHEET`, all > 0)."""
-    from ..model import VALVE_RANGES  # the loader imports this module: read its ranges at call time
-    where = f"scenario '{sc.name}': actuators.{name}.valve"
-    if not isinstance(table, Mapping) or not table:
-        raise ScenarioError(f"{where}: expected a table {{ {', '.join(VALVE_RESPONSE)} }} (the spool's response), "
-                            f"got {table!r}")
-    unknown = sorted(set(table) - set(VALVE_RESPONSE))
-    if unknown:
-        raise ScenarioError(f"{where}: unknown key(s) {unknown}; a scenario sets the spool's response "
-                            f"({', '.join(VALVE_RESPONSE)}): the rating (flow, drop, travel, overlap) is the "
-                            "actuator's description's")
-    for key, v in table.items():
-        q = VALVE_RANGES[key]
-        unit = f" {q.unit}" if q.unit else ""
-        if isinstance(v, bool) or not isinstance(v, (int, float)) or not np.isfinite(v) or not q.low <= v <= q.high:
-            raise ScenarioError(f"{where}.{key} must be a finite number in [{q.low:.6g}, {q.high:.6g}]{unit} "
-                                f"({q.source}), got {v!r}")
 
 
 def friction_row(sc, c, seal: bool) -> tuple:
