@@ -1,7 +1,7 @@
 """Exceptions raised by hydrogen. Each says what went wrong and where."""
 
 __all__ = ["HydrogenError", "ModelError", "UnsupportedExpressionError", "CompilerError", "BuildCacheError",
-           "StaleGeneratedCodeError", "KinematicsError", "ScenarioError", "IdentificationError",
+           "StaleGeneratedCodeError", "KinematicsError", "PlantWiringError", "ScenarioError", "IdentificationError",
            "SimulationError", "RunEndedError", "OutputPathError", "FmuError", "MAX_MESSAGE_CHARS"]
 
 
@@ -50,6 +50,11 @@ class StaleGeneratedCodeError(HydrogenError, RuntimeError):
 
 class KinematicsError(HydrogenError, ValueError):
     """A pose is outside the workspace, JL is singular, or forward kinematics failed."""
+
+
+class PlantWiringError(HydrogenError, RuntimeError):
+    """The plant's blocks (:mod:`hydrogen.plant`) do not fit together or their contract: a signal read
+    that no block writes, one written twice, a cycle, a block's numbers of the wrong size."""
 
 
 class ScenarioError(HydrogenError, ValueError):

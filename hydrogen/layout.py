@@ -270,8 +270,8 @@ def model_summary(model) -> dict:
         "kinds": [c.kind for c in model.cylinders], "n_pressures": n_pressures(model),
         "joint_encoders": bool(model.joint_encoders),
         # the plant state's parts in order (hydrogen.plant): name, size (a robot size's name), offset, entries
-        "plant": [{"name": s.name, "size": s.size_name, "start": s.start, "entries": s.size,
-                   **({"output": True} if s.output else {})} for s in plant_layout(model)],
+        "plant": [{"name": s.name, "size": s.size_name, "start": s.start, "entries": s.size, "output": s.output}
+                  for s in plant_layout(model)],
         # recorded only when on: the plant's input friction is wider, a robot without keeps its manifest
         **({"seal_friction": True} if model.seal_friction else {}),
         # each block's plant input and the parameters it takes (its width, whatever structure decides it)

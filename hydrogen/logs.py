@@ -13,7 +13,8 @@ A log holds, per sample k (one row), at a uniform sample rate:
   constant supply has no such column.
 
 m is the number of cylinders of the model. Other columns are ignored (a simulated log also carries
-the true pose ``q0`` … ``q{n-1}``). Lines starting with ``#`` are comments; a log written by
+the true pose ``q0`` … ``q{n-1}`` and each other plant output a rig part declares, ``<name>0`` …, true
+values in the part's unit). Lines starting with ``#`` are comments; a log written by
 hydrogen starts with ``# hydrogen log`` and a JSON line of metadata (scenario, controller, sensor
 noise added, and for a simulated log the true θ and γ). Values are written with ``repr`` (exact).
 Columns are separated by commas; a file separated by tabs (header and rows alike) is read too.

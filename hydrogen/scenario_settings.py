@@ -22,8 +22,25 @@ from .estimators import kalman
 from .plant import BLOCKS as PLANT_BLOCKS, block as plant_block, integrator
 from .setting import setting
 
-__all__ = ["ScenarioFields", "PARTS", "Part", "setting", "settings", "part_of", "table_keys", "RENAMED",
+__all__ = ["ScenarioFields", "PARTS", "PER_ACTUATOR", "actuator_keys", "Part", "setting", "settings", "part_of", "table_keys", "RENAMED",
            "VARIANT_SEPARATOR"]
+
+#: The rig settings that act on one actuator's travel, given per actuator in its own unit (the kind's
+#: TRAVEL: m for a cylinder, rad for a rotary vane) under ``actuators.<name>``, besides those a plant
+#: block declares (:func:`hydrogen.plant.actuator_settings`: the valve's spool response). The
+#: scenario's own field (in a cylinder's units) is every cylinder's default; a joint actuator's
+#: friction defaults to none, and it must give the others itself where the scenario's are on (never a
+#: length in m applied to an angle). The Kalman filter's gain is one for all, dimensionless and 1/s
+#: (kalman_accel designs it with the scenario's noise_l and quantization_l).
+PER_ACTUATOR = ("friction", "quantization_l", "noise_l")
+
+
+def actuator_keys() -> list:
+    """Every key a scenario may give per actuator (``actuators.<name>.<key>``): :data:`PER_ACTUATOR`, then
+    the plant blocks' own (:func:`hydrogen.plant.actuator_settings`)."""
+    from .plant import actuator_settings
+    return [*PER_ACTUATOR, *(k for k in actuator_settings() if k not in PER_ACTUATOR)]
+
 
 #: Scenario fields that were renamed: the old name and what to write instead (named in the error).
 RENAMED = {"delay_periods": "delay (the computation delay in s; one period is 1/control_rate)"}

@@ -12,6 +12,7 @@ import dataclasses
 from dataclasses import dataclass
 
 from . import references
+from .scenario_settings import actuator_keys
 
 __all__ = ["Key", "REQUIRED", "DESCRIPTION_KEYS", "SCENARIO_TABLE_KEYS", "VARIANT_KEYS", "keys",
            "default", "description_table"]
@@ -240,8 +241,7 @@ SCENARIO_TABLE_KEYS = (
         "distributions leave out (one no gain is chosen for, e.g. a motion that asks more oil than the pump "
         "gives); it runs as any other", default=True),
     Key("[scenarios.<name>], [rig], [variants.<name>]", "actuators",
-        "the actuator's own: N or N m, m or rad", "actuators.<actuator> = { friction, quantization_l, noise_l, "
-        "valve }: "
+        "the actuator's own: N or N m, m or rad", f"actuators.<actuator> = {{ {', '.join(actuator_keys())} }}: "
         "those settings for one actuator, in its own unit (a cylinder's length in m and force in "
         "N, a rotary vane's angle in rad and torque in N m); merged per actuator over [rig]'s. A cylinder "
         "without them takes the scenario's; a rotary actuator's friction is none unless given, and it must give "

@@ -59,8 +59,7 @@ def test_the_layout_matches_each_shipped_manifests_plant_input():
         layout = plant_layout(hydrogen.load_model(name))
         assert dict((i[0], i[1]) for i in fn["inputs"])["x"] == state_size(layout)
         assert manifest["model"]["plant"] == [{"name": s.name, "size": s.size_name, "start": s.start,
-                                               "entries": s.size, **({"output": True} if s.output else {})}
-                                              for s in layout]
+                                               "entries": s.size, "output": s.output} for s in layout]
 
 
 def test_a_new_blocks_states_appear_in_the_layout(model):

@@ -39,6 +39,40 @@ def test_a_manifest_records_each_inputs_parameters(robot_model):
             [i.width for i in plant.plant_inputs(robot_model)])
 
 
+def test_a_manifest_written_before_the_records_renders_the_same_loop(robot_model):
+    """A manifest from before the plant inputs and outputs were recorded (a user's cache): the loop's
+    layout falls back to the blocks' rules on it and renders the same drivers."""
+    import copy
+
+    from hydrogen.layout import loop_context, model_summary
+    from hydrogen.templating import render
+    from hydrogen.codegen.generate import DRIVERS, TEMPLATES
+    now = {"model": model_summary(robot_model)}
+    old = copy.deepcopy(now)
+    del old["model"]["plant_inputs"]
+    for part in old["model"]["plant"]:
+        del part["output"]
+    for template, _ in DRIVERS:
+        assert render(template, loop_context(old), TEMPLATES) == render(template, loop_context(now), TEMPLATES)
+
+
+def test_every_module_the_loops_layout_reads_shapes_the_derivation_hash():
+    """An edit of what the loop drivers are rendered from stales the generated folder: every module of
+    the package the layout imports is hashed (its file, or its folder)."""
+    import ast
+
+    import hydrogen.layout
+    from hydrogen.codegen.generate import DERIVATION_DIRS, DERIVATION_FILES
+    tree = ast.parse(Path(hydrogen.layout.__file__).read_text())
+    imported = {node.module.split(".")[0] for node in ast.walk(tree)
+                if isinstance(node, ast.ImportFrom) and node.level == 1 and node.module}
+    imported |= {alias.name for node in ast.walk(tree) if isinstance(node, ast.ImportFrom) and node.level == 1
+                 and not node.module for alias in node.names}
+    assert imported  # the layout does import the package's modules
+    missing = sorted(m for m in imported if f"{m}.py" not in DERIVATION_FILES and m not in DERIVATION_DIRS)
+    assert not missing, f"not in the derivation hash: {missing}"
+
+
 def test_a_number_outside_its_declared_range_is_refused_naming_it(plain_stewart):
     model = plain_stewart  # the rig's valve on every leg (no datasheet valve)
     from dataclasses import replace
@@ -137,6 +171,7 @@ def check_own(sc, name, value):
     from ..errors import ScenarioError
     if isinstance(value, bool) or not isinstance(value, (int, float)) or not value >= 0:
         raise ScenarioError(f"scenario '{sc.name}': actuators.{name}.spring must be a rate >= 0 N/m, got {value!r}")
+    return False  # checked here
 
 
 #: A cylinder's own spring rate: actuators.<name>.spring in a scenario.

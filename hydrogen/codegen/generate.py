@@ -46,8 +46,10 @@ DRIVERS = (("loop.h.j2", "_loop.h"), ("loop.c.j2", "_loop.c"))
 
 #: Top-level modules of the package that shape generated output besides the layers of
 #: :func:`derivation_hash`: the loop context and its ports, the escape of its values, the pressure blocks, the names
-#: (the numbers input's), the registries' discovery (which blocks are found, in which order).
-DERIVATION_FILES = ("layout.py", "diagram.py", "templating.py", "pressures.py", "names.py", "registry.py")
+#: (the numbers input's), the registries' discovery (which blocks are found, in which order), the sensors'
+#: noise row (its width and the loop's offsets into it).
+DERIVATION_FILES = ("layout.py", "diagram.py", "templating.py", "pressures.py", "names.py", "registry.py",
+                    "sensors.py")
 #: The package's folders of derivation code; in the blocks' folders, a block's own module is hashed
 #: apart (:func:`block_hash`) and shapes only the functions that use it. The reference kinds and the
 #: estimators shape every robot's loop (its configuration, its C reference function, the Kalman

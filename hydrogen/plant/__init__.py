@@ -59,7 +59,7 @@ class PlantState:
     lower, upper
         Each entry's range (±inf: none): a number, or a rule taking the model and giving one per
         entry. The plant's integration holds the pressure states within theirs; every part's are its
-        range in the FMU's variables and the log checks.
+        range in the FMU's variables (and the pressures' the log checks').
     initial
         Each entry's value where a run starts (the Python and C loops, the exported programs, the
         FMU's start parameter), unless the run sets the part itself (the pose, the pressures holding it
@@ -193,6 +193,12 @@ def plant_inputs(structure) -> tuple:
         if getattr(mod, "INPUT", None):
             if recorded is not None and mod.INPUT in recorded:
                 by_name = {p.name: p for p in mod.PARAMETERS}
+                unknown = [k for k in recorded[mod.INPUT] if k not in by_name]
+                if unknown:
+                    from ..errors import PlantWiringError
+                    raise PlantWiringError(f"the manifest records parameter(s) {unknown} of the plant input "
+                                           f"'{mod.INPUT}', which block '{name}' does not declare: generate the "
+                                           "robot's code again")
                 pars = tuple(by_name[k] for k in recorded[mod.INPUT])
             else:
                 pars = tuple(mod.input_parameters(structure))
@@ -203,8 +209,9 @@ def plant_inputs(structure) -> tuple:
 def actuator_settings() -> dict:
     """``{key: check}`` of what a scenario may give per actuator for the blocks (``actuators.<name>.<key>``:
     the valve's spool response, the friction's row or seal table), each block's ``ACTUATOR_SETTINGS``;
-    ``check(scenario, actuator name, value)`` raises a ScenarioError naming it. The block's ``values``
-    reads the value from the scenario's ``actuators`` itself."""
+    ``check(scenario, actuator name, value)`` raises a ScenarioError naming it, or returns True where
+    the value is to be checked as the scenario's own field of that name (a friction row). The block's
+    ``values`` reads the value from the scenario's ``actuators`` itself."""
     out = {}
     for name in BLOCKS:
         out.update(getattr(block(name), "ACTUATOR_SETTINGS", {}))
@@ -221,10 +228,13 @@ def input_values(scenario, model) -> dict:
     """Each plant input's numbers for a run of ``scenario`` on ``model``: ``{name: (m, width) array}``,
     each block's own rule (its ``values``), in the actuators' own units. A ScenarioError for a number
     outside the range its parameter declares, naming the input, the actuator and the parameter."""
-    from ..errors import ScenarioError
+    from ..errors import PlantWiringError, ScenarioError
     out = {}
     for i in plant_inputs(model):
-        values = np.asarray(block(i.block).values(scenario, model), float).reshape(model.n_cylinders, i.width)
+        values = np.asarray(block(i.block).values(scenario, model), float)
+        if values.shape != (model.n_cylinders, i.width):
+            raise PlantWiringError(f"plant block '{i.block}': values() gives numbers of shape {values.shape}, its "
+                                   f"input '{i.name}' takes ({model.n_cylinders}, {i.width}) (actuators, parameters)")
         for a, row in zip(model.cylinders, values):
             for par, v in zip(i.parameters, row.tolist()):
                 hi = par.upper_of(scenario)
@@ -333,11 +343,27 @@ def _discover() -> tuple:
             raise ImportError(f"plant blocks {a!r} and {b!r} declare the same POSITION {found[a].POSITION}")
     inputs = {}
     for name in order:
-        key = getattr(found[name], "INPUT", None)
+        mod = found[name]
+        key = getattr(mod, "INPUT", None)
         if key and key in inputs:
             raise ImportError(f"plant blocks {inputs[key]!r} and {name!r} declare the same INPUT {key!r}")
         inputs[key] = name
+        lacks = [a for a in ("PARAMETERS", "input_parameters", "values") if key and not hasattr(mod, a)]
+        lacks += ["Symbolic.input"] if key and not hasattr(mod.Symbolic, "input") else []
+        lacks += ["Symbolic.states", "Symbolic.derivatives"] if mod.STATES and not (
+            hasattr(mod.Symbolic, "states") and hasattr(mod.Symbolic, "derivatives")) else []
+        if lacks:
+            raise ImportError(f"plant block {name!r} ({mod.__name__}) declares "
+                              f"{'INPUT' if key else 'STATES'} but not {', '.join(lacks)}")
+        taken = [st.name for st in mod.STATES if st.output and st.name in RESERVED_OUTPUTS]
+        if taken:
+            raise ImportError(f"plant block {name!r} declares the output {taken[0]!r}, a name the run's logs "
+                              f"already use ({', '.join(RESERVED_OUTPUTS)})")
     return tuple(order)
+
+
+#: The run's own logs and CSV columns (hydrogen.layout.log_widths): no plant output may take their name.
+RESERVED_OUTPUTS = ("t", "q", "q_d", "l", "f", "pc", "u", "u_applied", "l_meas", "xc")
 
 
 #: The plant's blocks: every module of this package that declares its ``POSITION``, ``STATES`` and

@@ -108,14 +108,14 @@ def row_ok(value) -> bool:
     return fr.shape == (3,) and bool(np.all(np.isfinite(fr))) and fr[0] >= 0 and fr[1] >= 0 and fr[2] > 0
 
 
-def check_actuator_setting(sc, name: str, value) -> None:
-    """A :class:`ScenarioError` for scenario ``sc``'s ``actuators.<name>.friction``: a seal friction table
-    (its keys and ranges here, the rest per model: :func:`check_table`), or a row [F_c, b, v_s]
-    (:data:`ROW_RULE`), in the actuator's own unit."""
+def check_actuator_setting(sc, name: str, value) -> bool:
+    """Scenario ``sc``'s ``actuators.<name>.friction``: a seal friction table is checked here (its keys
+    and ranges, the rest per model: :func:`check_table`; a :class:`ScenarioError` naming the key); a row
+    [F_c, b, v_s] is the scenario's own ``friction`` field, checked as that (True)."""
     if isinstance(value, Mapping):
         check_table(sc, name, value, complete=False)
-    elif not row_ok(value):
-        raise ScenarioError(f"scenario '{sc.name}': actuators.{name}.friction {ROW_RULE} (in the actuator's own unit)")
+        return False
+    return True
 
 
 #: What a scenario may give per actuator for this block (``actuators.<name>.friction``), with its check.

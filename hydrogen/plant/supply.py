@@ -47,7 +47,7 @@ import numpy as np
 from ..actuators.declarations import BULK_MODULUS, SUPPLY_PRESSURE, VOLUME, Parameter, Range, sp
 from . import PlantState
 
-__all__ = ["KINDS", "DEFAULT_KIND", "NEEDS", "PRESSURE", "POSITION", "STATES", "entries", "nominal", "start", "ceiling", "PARAMETERS", "ATMOSPHERE", "RELIEF_OVERRIDE",
+__all__ = ["KINDS", "DEFAULT_KIND", "NEEDS", "PRESSURE", "POSITION", "STATES", "entries", "nominal", "ceiling", "PARAMETERS", "ATMOSPHERE", "RELIEF_OVERRIDE",
            "RELIEF_WIDTH", "COMPENSATOR_DROOP", "Supply", "Laws", "Symbolic", "Numeric"]
 
 #: The supply kinds a description may name; the default: a constant supply pressure.
@@ -146,12 +146,6 @@ def nominal(model) -> float:
     supply state starts and what a controller assuming a constant supply takes (``supply_feedback``
     false)."""
     return float(model.cylinders[0].supply_pressure)
-
-
-def start(model) -> dict:
-    """The supply part of the plant's starting state: ``{"ps": [P_s]}`` where the supply is a state
-    (it starts at :func:`nominal`), else none."""
-    return {STATES[0].name: [nominal(model)]} if entries(model) else {}
 
 
 def ceiling(model) -> float | None:

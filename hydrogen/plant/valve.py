@@ -104,7 +104,7 @@ DATASHEET_REQUIRED = tuple(p.name for p in DATASHEET if p.default is None and p.
 VALVE_RESPONSE = ("bandwidth_hz", "damping")
 
 
-def check_response(sc, name: str, table) -> None:
+def check_response(sc, name: str, table) -> bool:
     """A :class:`ScenarioError` naming ``actuators.<name>.valve[.<key>]`` of scenario ``sc`` unless ``table``
     is a table of :data:`VALVE_RESPONSE` keys, each a finite number within the range a description's
     valve holds it to (:data:`DATASHEET`, all > 0)."""
@@ -126,6 +126,7 @@ def check_response(sc, name: str, table) -> None:
         if isinstance(v, bool) or not isinstance(v, (int, float)) or not np.isfinite(v) or not lo <= v <= hi:
             raise ScenarioError(f"{where}.{key} must be a finite number in [{lo:.6g}, {hi:.6g}]{unit} "
                                 f"(declared in {__name__}), got {v!r}")
+    return False  # checked here
 
 
 #: What a scenario may give per actuator for this block (``actuators.<name>.valve``), each with its check.
@@ -183,7 +184,7 @@ def values(sc, model) -> np.ndarray:
             row = _own_response(sc, c, row)
         elif own is not None and not dynamic:  # an ideal valve's scenario: the spool follows at once, its geometry stays
             row = (0.0, 0.0, *row[2:])
-        if row[1] > omega_max:
+        if row[1] / omega_max > 1.0:  # the scenario's own rule for valve_bandwidth_hz, to the bit
             raise ScenarioError(f"scenario '{sc.name}': actuator '{c.name}': its valve's bandwidth_hz "
                                 f"{row[1] / (2 * np.pi):.6g} Hz must be <= control_rate * substeps / (2 pi) = "
                                 f"{omega_max / (2 * np.pi):.6g} Hz (raise substeps)")

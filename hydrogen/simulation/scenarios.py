@@ -12,8 +12,8 @@ from .. import references
 from ..errors import ScenarioError
 from ..layout import MAX_DELAY, delay_split
 from ..plant import actuator_settings as plant_actuator_settings, friction, integrator, valve
-from ..scenario_settings import (_FIELDS, RENAMED, VARIANT_SEPARATOR, ScenarioFields, setting, settings,  # noqa: F401
-                                 table_keys)
+from ..scenario_settings import (_FIELDS, PER_ACTUATOR, RENAMED, VARIANT_SEPARATOR, ScenarioFields,  # noqa: F401
+                                 actuator_keys, setting, settings, table_keys)
 from .checks import check_fields
 
 __all__ = ["Scenario", "setting", "settings", "PER_ACTUATOR", "actuator_settings", "per_actuator_unit", "scenario", "scenario_names", "variant_names", "variant_name", "split_variant", "current_name", "table_keys", "default_scenario_name", "RENAMED", "valve_vector",
@@ -97,16 +97,16 @@ class Scenario(ScenarioFields):
         need(isinstance(self.actuators, Mapping) and all(isinstance(v, Mapping) for v in self.actuators.values()),
              "actuators", "must be a table {actuator name: {setting: value}}")
         blocks = plant_actuator_settings()  # the plant blocks' own, each with its check
-        given = [*PER_ACTUATOR, *(k for k in blocks if k not in PER_ACTUATOR)]
+        given = actuator_keys()
         for name, values in self.actuators.items():
             unknown = sorted(set(values) - set(given))
             if unknown:
                 raise ScenarioError(f"scenario '{self.name}': actuators.{name}: unknown setting(s) {unknown}; "
                                     f"settings given per actuator: {', '.join(given)}")
-            for key, check in blocks.items():  # each block checks its own (a friction table, a valve response)
-                if key in values:
-                    check(self, name, values[key])
-            values = {k: v for k, v in values.items() if k not in blocks}
+            # each block checks its own (a friction table, a valve response); what it leaves to the scenario's
+            # field of that name (a friction row) is checked with the sensors' below
+            handled = {k for k, check in blocks.items() if k in values and not check(self, name, values[k])}
+            values = {k: v for k, v in values.items() if k not in handled}
             try:  # each sensor's value as the scenario's own field of that name checks it
                 replace(self, actuators={}, **{k: _tuple(v) for k, v in values.items()}).validated()
             except ScenarioError as exc:
@@ -116,14 +116,7 @@ class Scenario(ScenarioFields):
         return self
 
 
-#: The rig settings that act on one actuator's travel, given per actuator in its own unit (the kind's
-#: TRAVEL: m for a cylinder, rad for a rotary vane) under ``actuators.<name>``, besides those a plant
-#: block declares (:func:`hydrogen.plant.actuator_settings`: the valve's spool response). The scenario's own
-#: field (in a cylinder's units) is every cylinder's default; a joint actuator's friction defaults
-#: to none, and it must give the others itself where the scenario's are on (never a length in m
-#: applied to an angle). The Kalman filter's gain is one for all, dimensionless and 1/s (kalman_accel
-#: designs it with the scenario's noise_l and quantization_l).
-PER_ACTUATOR = ("friction", "quantization_l", "noise_l")
+
 
 
 #: The keys of a scenario's ``actuators.<name>.valve``: :data:`hydrogen.plant.valve.VALVE_RESPONSE`.

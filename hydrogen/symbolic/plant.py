@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import sympy as sp
 
+from ..errors import PlantWiringError
 from ..plant import BLOCKS, block, plant_inputs
 from .kinematics import rate_symbols
 from .rigid_body import theta_symbols
@@ -31,10 +32,6 @@ __all__ = ["plant_rhs", "Composition", "PlantWiringError"]
 
 #: The signals the plant takes from outside its blocks (its inputs besides x and each block's numbers).
 EXTERNAL = ("u", "theta", "gamma1", "gamma2")
-
-
-class PlantWiringError(RuntimeError):
-    """The plant's blocks do not compose: a signal read that no block writes, written twice, or a cycle."""
 
 
 class Composition:
@@ -55,6 +52,8 @@ class Composition:
                                    "its Symbolic.READS does not declare (the order of the outputs follows READS)")
         if name not in self.signals and name in self._sums:  # a sum: every block adding to it has run
             terms = self._terms[name]
+            if not terms:
+                raise PlantWiringError(f"plant block '{self.block}' reads the sum '{name}', which no block adds to")
             value = sp.Matrix([sp.Add(*parts) for parts in zip(*terms)])
             self._formed.add(name)
             self.signals[name] = self._bind(name, value, self._sums[name])
