@@ -125,7 +125,8 @@ LOOP_CONFIG = (
      " * the state at t_k + (delay + delay_frac) h predicted from the measured one by the plant's model at\n"
      " * the controller's own parameters (theta, gamma1, gamma2 from xc at pred_theta_at, pred_gamma1_at,\n"
      " * pred_gamma2_at where >= 0, else pred_theta, pred_gamma1, pred_gamma2), ideal valve, no friction,\n"
-     " * over the commands in flight (RK4, pred_substeps steps per period), and the reference at that time",
+     " * over the commands in flight (RK4, pred_substeps steps per period), and the reference at that time;\n"
+     " * pred_x0: the plant state it starts from where it measures nothing (each part's declared initial value)",
      (("predict", "long long", "P_PREDICT", "run.predict"),
       ("pred_substeps", "long long", "P_PRED_SUBSTEPS", "scenario.predictor_substeps"),
       ("pred_theta", "const double*", "P_PRED_THETA", "run.pred_theta"),
@@ -133,7 +134,8 @@ LOOP_CONFIG = (
       ("pred_gamma2", "const double*", "P_PRED_GAMMA2", "run.pred_gamma2"),
       ("pred_theta_at", "long long", "P_PRED_THETA_AT", "run.pred_theta_at"),
       ("pred_gamma1_at", "long long", "P_PRED_GAMMA1_AT", "run.pred_gamma1_at"),
-      ("pred_gamma2_at", "long long", "P_PRED_GAMMA2_AT", "run.pred_gamma2_at"))),
+      ("pred_gamma2_at", "long long", "P_PRED_GAMMA2_AT", "run.pred_gamma2_at"),
+      ("pred_x0", "const double*", "P_PRED_X0", "run.pred_x0"))),
     ("the description's numbers: bounds of each pressure state (Pa), the clip of the measurement and of\n"
      " * the plant; numbers: the input of every generated function of a library generated with the\n"
      " * description's numbers as inputs (the manifest's \"numbers\" names them; else one unused 0)",

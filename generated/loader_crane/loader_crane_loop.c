@@ -320,7 +320,7 @@ static int predict(const loader_crane_loop_config* c, const loader_crane_loop_st
     m.valve = PRED_VALVE;
     m.numbers = c->numbers; m.p_low = c->p_low; m.p_high = c->p_high;
     m.bound_stages = c->bound_stages != 0;
-    memset(x, 0, NX * sizeof(double));  /* spool states: unused by the ideal valve */
+    memcpy(x, c->pred_x0, NX * sizeof(double));  /* what it measures nothing of: the declared initial values */
     memcpy(x, st->q_meas, NQ * sizeof(double));
     memcpy(x + NQ, s->qdot_meas, NQ * sizeof(double));
     memcpy(x + 2 * NQ, s->pc_meas, NPC * sizeof(double));

@@ -88,7 +88,8 @@ typedef struct {
      * the state at t_k + (delay + delay_frac) h predicted from the measured one by the plant's model at
      * the controller's own parameters (theta, gamma1, gamma2 from xc at pred_theta_at, pred_gamma1_at,
      * pred_gamma2_at where >= 0, else pred_theta, pred_gamma1, pred_gamma2), ideal valve, no friction,
-     * over the commands in flight (RK4, pred_substeps steps per period), and the reference at that time */
+     * over the commands in flight (RK4, pred_substeps steps per period), and the reference at that time;
+     * pred_x0: the plant state it starts from where it measures nothing (each part's declared initial value) */
     long long predict;
     long long pred_substeps;
     const double* pred_theta;
@@ -97,6 +98,7 @@ typedef struct {
     long long pred_theta_at;
     long long pred_gamma1_at;
     long long pred_gamma2_at;
+    const double* pred_x0;
     /* the description's numbers: bounds of each pressure state (Pa), the clip of the measurement and of
      * the plant; numbers: the input of every generated function of a library generated with the
      * description's numbers as inputs (the manifest's "numbers" names them; else one unused 0) */

@@ -84,7 +84,8 @@ def _check_values(values, ctx, ctrl, dyn) -> None:
              "quant_l": m, "bias": n, **references.config_sizes(values),
              "xc_lo": max(n_xc, 1), "xc_hi": max(n_xc, 1), "kf_gain": 2, "slot": len(ctx["slots"]),
              "pred_theta": len(model.theta), "pred_gamma1": m, "pred_gamma2": m,
-             "p_low": ctx["n_pressures"], "p_high": ctx["n_pressures"], "numbers": max(len(numbers), 1)}
+             "p_low": ctx["n_pressures"], "p_high": ctx["n_pressures"], "numbers": max(len(numbers), 1),
+             "pred_x0": ctx["nx"]}
     for name, size in sizes.items():
         if np.size(values[name]) != size:
             raise ValueError(f"loop configuration: {name} must hold {size} numbers, got {np.size(values[name])}")

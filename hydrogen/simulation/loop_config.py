@@ -14,7 +14,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .. import references
-from ..plant import plant_layout, supply
+from ..plant import initial_state, plant_layout, supply
 from ..layout import FK_MAX_COND, FK_MAX_ITER, FK_TOL, LOOP_CONFIG, PLANT_INPUTS, delay_split
 
 
@@ -89,6 +89,8 @@ DERIVED = {
     "bound_stages": lambda r: int(r.sc.pressure_bounds == "stage"),
     "predict": lambda r: int(r.sc.predicts()),
     "pred_theta": lambda r: np.asarray(r.ctrl.theta0, float),
+    # the predictor's start where it measures nothing: every part at its declared initial value
+    "pred_x0": lambda r: initial_state(plant_layout(r.dyn.model)),
     "pred_gamma1": lambda r: np.asarray(r.ctrl.gamma0[0], float),
     "pred_gamma2": lambda r: np.asarray(r.ctrl.gamma0[1], float),
     "pred_theta_at": _at("theta_hat"),

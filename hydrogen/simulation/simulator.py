@@ -19,7 +19,7 @@ from ..estimators.kalman import (filter_gain, filter_gains, filter_setting, kalm
                                  length_noise_variance, remember_filter_gains)
 from ..layout import LU_PIVOT_MIN, SUPPLY_LOG, model_summary, robot_sizes
 from ..plant import (describe_entries, initial_state, input_values, integrator, outputs as plant_outputs, plant_inputs,
-                     plant_layout, slot, state_vector)
+                     plant_layout, slot)
 from ..plant.supply import nominal as supply_nominal
 from ..sensors import NOISE, noise_columns
 from ..summary import SATURATED_AT, SATURATION, estimated_blocks  # saturation: defined with its line
@@ -952,7 +952,8 @@ class PythonStages:
         h, pc = self.h, self._pc
         th, g1, g2 = self.ctrl.own_parameters()
         supply = {} if self._ps is None else {SUPPLY_LOG: s.ps_meas}
-        x = state_vector(self.layout, q=self.q_meas, qdot=s.qdot_meas, pc=s.pc_meas, **supply)  # spool: unused
+        # what it measures nothing of (spool: unused by the ideal valve) at its declared initial value
+        x = initial_state(self.layout, q=self.q_meas, qdot=s.qdot_meas, pc=s.pc_meas, **supply)
 
         def hold(x, u, dt):
             n = self.sc.predictor_steps(dt / h)
