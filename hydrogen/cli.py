@@ -466,7 +466,7 @@ def build_parser() -> argparse.ArgumentParser:
     sim.add_argument("--json", help="write the metrics as JSON to this file")
     sim.add_argument("--plot", help="write the tracking-error figure to this file; the extension names the "
                                     "format (.png, .pdf, .svg, ...)")
-    sim.add_argument("--log", help="write the run as a rig log CSV (t, l*, pc*, ps0 with a pump, u*, q*) for "
+    sim.add_argument("--log", help="write the run as a rig log CSV (t, l*, pc*, ps0 with a pump, u*, q*, a rig part's outputs) for "
                      "'hydrogen identify'")
     sim.add_argument("--log-noise-l", type=_number(float, 0, strict=False), default=5e-6,
                      help="std of the white noise added to the logged cylinder lengths, m (default: 5e-6)")

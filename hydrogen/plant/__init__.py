@@ -348,13 +348,15 @@ def _discover() -> tuple:
         if key and key in inputs:
             raise ImportError(f"plant blocks {inputs[key]!r} and {name!r} declare the same INPUT {key!r}")
         inputs[key] = name
-        lacks = [a for a in ("PARAMETERS", "input_parameters", "values") if key and not hasattr(mod, a)]
-        lacks += ["Symbolic.input"] if key and not hasattr(mod.Symbolic, "input") else []
-        lacks += ["Symbolic.states", "Symbolic.derivatives"] if mod.STATES and not (
-            hasattr(mod.Symbolic, "states") and hasattr(mod.Symbolic, "derivatives")) else []
-        if lacks:
-            raise ImportError(f"plant block {name!r} ({mod.__name__}) declares "
-                              f"{'INPUT' if key else 'STATES'} but not {', '.join(lacks)}")
+        for declared, needs in (("INPUT", ("PARAMETERS", "input_parameters", "values", "Symbolic.input")),
+                                ("STATES", ("Symbolic.states", "Symbolic.derivatives"))):
+            if not getattr(mod, declared, None):
+                continue
+            lacks = [a for a in needs if not hasattr(mod.Symbolic if a.startswith("Symbolic.") else mod,
+                                                     a.removeprefix("Symbolic."))]
+            if lacks:
+                raise ImportError(f"plant block {name!r} ({mod.__name__}) declares {declared} but not "
+                                  f"{', '.join(lacks)}")
         taken = [st.name for st in mod.STATES if st.output and st.name in RESERVED_OUTPUTS]
         if taken:
             raise ImportError(f"plant block {name!r} declares the output {taken[0]!r}, a name the run's logs "

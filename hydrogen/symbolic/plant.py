@@ -45,6 +45,7 @@ class Composition:
         self._sums, self._terms, self._formed = dict(sums), {name: [] for name in sums}, set()
         self.block = None  # the block composing now, for messages
         self.reads = None  # while a block's outputs run: the signals it declares it reads (None: any)
+        self.adds = None  # while a block's outputs run: the sums it declares it adds to (None: any)
 
     def __getitem__(self, name: str):
         if self.reads is not None and name not in self.reads:
@@ -77,9 +78,9 @@ class Composition:
         """Add ``terms`` (one per entry) to the sum ``name``."""
         if name not in self._sums:
             raise PlantWiringError(f"plant block '{self.block}' adds to '{name}', which no block declares a sum")
-        if name in self._formed:
-            raise PlantWiringError(f"plant block '{self.block}' adds to '{name}' after it was read: declare it "
-                                   "in the block's Symbolic.ADDS (its outputs then run before the sum is read)")
+        if name in self._formed or (self.adds is not None and name not in self.adds):
+            raise PlantWiringError(f"plant block '{self.block}' adds to '{name}', which its Symbolic.ADDS does not "
+                                   "declare (its outputs must run before the sum is read: declare it there)")
         self._terms[name].append(list(terms))
 
     def stage(self, intermediates) -> None:
@@ -90,6 +91,9 @@ class Composition:
         """The rate of state ``name``."""
         if name in self.rates:
             raise PlantWiringError(f"plant block '{self.block}' gives the rate of '{name}', given already")
+        if name in self.signals and len(value) != len(self.signals[name]):
+            raise PlantWiringError(f"plant block '{self.block}' gives {len(value)} rate(s) of its state '{name}', "
+                                   f"which has {len(self.signals[name])} entries")
         self.rates[name] = value
 
 
@@ -157,9 +161,9 @@ def plant_rhs(model):
     for name, value in {**external, **params}.items():
         c.provide(name, value)
     for mod in _output_order(mods, set(c.signals)):
-        c.block, c.reads = _name(mod), set(_declared(mod, "READS"))
+        c.block, c.reads, c.adds = _name(mod), set(_declared(mod, "READS")), set(_declared(mod, "ADDS"))
         getattr(mod.Symbolic, "outputs", _no_outputs)(c)
-    c.reads = None
+    c.reads = c.adds = None
     for mod in mods:
         c.block = _name(mod)
         if mod.STATES:
@@ -168,5 +172,6 @@ def plant_rhs(model):
             if st.name not in c.rates:
                 raise PlantWiringError(f"plant block '{c.block}' gives no rate of its state '{st.name}' (its "
                                        "Symbolic.derivatives sets it with c.rate)")
+
     xdot = sp.Matrix([r for mod in mods for st in mod.STATES for r in c.rates[st.name]])
     return [("x", x), *external.items(), *params.items()], xdot, c.intermediates
