@@ -307,6 +307,16 @@ x = initial_state(layout, q=q, qdot=[0.1, -0.2], pc=np.full(2 * m, 5e6), seal_te
 given = {"x": x, "u": np.zeros(m), "theta": model.theta, "gamma1": model.gamma[0], "gamma2": model.gamma[1],
          **{i.name: np.tile(i.ideal, m) for i in plant_inputs(model)}}
 names = [k for k in f["plant_rhs"].in_names if k != "numbers"]
+# the run starts at rest: its pressures hold the robot against gravity and the springs
+from hydrogen.plant import input_values
+from hydrogen.simulation.simulator import equilibrium_pressures, plan_run
+plan = plan_run(dyn, "spring-sim", "backstepping", None, False, {})
+run_inputs = {k: v.ravel() for k, v in input_values(plan.sc, model).items()}
+def qdd_at(x0):
+    args = {**given, "x": x0, **run_inputs}
+    return np.asarray(f["plant_rhs"](*[args[a] for a in names]), float).ravel()[n:2 * n]
+gravity_only = initial_state(layout, q=plan.q0, pc=equilibrium_pressures(dyn, plan.q0, model.theta))
+out["rest"] = [float(np.max(np.abs(qdd_at(plan.x0)))), float(np.max(np.abs(qdd_at(gravity_only))))]
 k, l0 = 2.0e4, 0.5
 spring = np.tile([k, l0], m)
 with_spring = np.asarray(f["plant_rhs"](*[spring if a == "spring" else given[a] for a in names]), float).ravel()
@@ -391,6 +401,12 @@ def test_the_added_part_runs_on_both_engines_and_changes_the_run(spring_run):
 def test_the_added_part_takes_its_own_setting_per_actuator_and_checks_it(spring_run):
     assert all(d > 1e3 for d in spring_run["own"])  # the elbow's own spring: unlike both others
     assert spring_run["own_error"] == "scenario 'spring-sim': actuators.elbow_cylinder.spring must be a rate >= 0 N/m, got -1.0"
+
+
+def test_a_run_starts_at_rest_against_the_added_parts_force(spring_run):
+    held, gravity_only = spring_run["rest"]
+    assert gravity_only > 1.0  # rad/s²: the springs would jolt the arm from pressures against gravity alone
+    assert held < 1e-9
 
 
 def test_the_added_part_adds_its_law_to_the_plant(spring_run):

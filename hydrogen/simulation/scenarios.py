@@ -33,7 +33,8 @@ class Scenario(ScenarioFields):
     lengths (constant-velocity model, white acceleration of density ``kalman_accel``, measurement
     variance noise_l² + quantization_l²/12, steady-state gain from the discrete algebraic Riccati
     equation). ``gains`` holds this scenario's tuning per controller, under any gains the caller
-    passes. The robot starts at rest at q_d(0) + q0_offset, its pressures holding it against gravity.
+    passes. The robot starts at rest at q_d(0) + q0_offset, its pressures holding it against gravity
+    (and against what a rig part pushes with at rest).
     """
 
     def noise_free(self) -> dict:

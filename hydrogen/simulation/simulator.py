@@ -257,6 +257,32 @@ def _low_bins(k: int, kept: int):
     return basis, ramp
 
 
+#: The share of the weight's joint force a start state's rest force may leave unbalanced: rounding
+#: leaves ~1e-15; a rig part pushing at rest (a counterbalance) far more, which the start pressures
+#: then take up too.
+REST_TOLERANCE = 1e-9
+
+
+def start_state(dyn, sc, q0) -> tuple:
+    """(pressures, x) where a run of scenario ``sc`` starts: at rest at pose ``q0``, the valves closed,
+    every other part at its declared initial value, the pressures holding the robot still against
+    gravity and against what the plant's other blocks push with at rest (a counterbalance; found from
+    the generated plant's acceleration there, and taken up where it exceeds :data:`REST_TOLERANCE` of
+    the weight's joint force)."""
+    model = dyn.model
+    layout = plant_layout(model)
+    JLt, G = dyn.leg_jacobian(q0).T, dyn.gravity(q0, model.theta)
+    f = np.linalg.solve(JLt, G)
+    x0 = initial_state(layout, q=q0, pc=pressures.equilibrium(model, f))
+    inputs = [v.ravel() for v in input_values(sc, model).values()]
+    xdot = np.asarray(dyn.functions["plant_rhs"](x0, np.zeros(model.n_cylinders), model.theta, *model.gamma,
+                                                 *inputs), float).ravel()
+    push = dyn.mass_matrix(q0, model.theta) @ xdot[slot(layout, "qdot").slice]  # JL^T f_parts at rest
+    if np.max(np.abs(push)) > REST_TOLERANCE * max(float(np.max(np.abs(G))), 1.0):
+        x0 = initial_state(layout, q=q0, pc=pressures.equilibrium(model, f - np.linalg.solve(JLt, push)))
+    return x0[slot(layout, "pc").slice].copy(), x0
+
+
 def equilibrium_pressures(dyn, q, theta) -> np.ndarray:
     """The pressure vector (Pa, :mod:`hydrogen.pressures`) whose forces hold the robot still at q:
     (JL)ᵀ f = G, each actuator's pressures its kind's ``equilibrium_pressures``."""
@@ -677,8 +703,7 @@ def plan_run(dyn, scenario, controller, duration, check_workspace, overrides, *,
     pinned = sc.gains.get(controller, {})  # the scenario's own tuning, named in messages about it
     table = f"{model.source}: [scenarios.{sc.name}]" if sc.name in scenario_names(model) else f"scenario {sc.name!r}:"
     q0 = sc.reference(0.0)[0] + np.asarray(sc.q0_offset, float)
-    pc0 = equilibrium_pressures(dyn, q0, model.theta)
-    x0 = initial_state(plant_layout(model), q=q0, pc=pc0)  # at rest, the valves closed, the rest as declared
+    pc0, x0 = start_state(dyn, sc, q0)  # at rest, the valves closed, the rest as declared
     own = actuator_settings(sc, model)  # each actuator's travel noise, resolution, friction in its own unit
     return RunPlan(dyn, controller, sc, n, h, theta0, gamma0, q0, pc0, x0, filter_gain(sc, h), own, pinned,
                    {k: f"{table} gains.{controller}" for k in pinned})
