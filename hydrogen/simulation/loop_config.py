@@ -9,6 +9,7 @@ or controller state is one row of zeros, as its count says.
 """
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 
 import numpy as np
@@ -36,12 +37,17 @@ class Run:
     h: float
     kf_gain: object = None
 
+    @functools.cached_property
+    def plant_inputs(self) -> dict:
+        """Each plant input's numbers for the run (:func:`hydrogen.plant.input_values`), worked out once."""
+        from ..plant import input_values
+        return input_values(self.sc, self.dyn.model)
+
 
 def _plant_input(name):
     """A plant input's numbers for the run, flat: its block's rule, held to its declared ranges
     (:func:`hydrogen.plant.input_values`)."""
-    from ..plant import input_values
-    return lambda r: input_values(r.sc, r.dyn.model)[name].ravel()
+    return lambda r: r.plant_inputs[name].ravel()
 
 
 def _per_actuator(key):
