@@ -214,7 +214,8 @@ class Symbolic:
 '''
 
 #: A rig part with a state: each seal's temperature T (K), heated by its friction's power and cooled to
-#: the ambient, dT/dt = (|F_fric l̇| - h (T - T_amb)) / C_th; it starts at the ambient and is an output.
+#: the ambient, dT/dt = (|F_fric l̇| - h (T - T_amb)) / C_th; it starts at a scenario's setting and is an
+#: output.
 SEAL_HEAT = '''\
 """Each actuator's seal temperature (K): heated by its friction, cooled to the ambient."""
 from __future__ import annotations
@@ -225,7 +226,7 @@ from ..setting import setting
 from . import PlantParameter, PlantState
 
 POSITION = 9070
-STATES = (PlantState("seal_temp", "m", "K", "seal temperature", lower=0.0, initial=293.15, output=True),)
+STATES = (PlantState("seal_temp", "m", "K", "seal temperature", lower=0.0, initial="seal_start", output=True),)
 INPUT = "seal_heat"
 PARAMETERS = (
     PlantParameter("transfer", "W/K", "heat transfer to the ambient (h)", per_actuator=True, lower=0.0),
@@ -235,6 +236,7 @@ PARAMETERS = (
 SCENARIO_SETTINGS = {
     "seal_transfer": setting(1.0, "W/K", "each seal's heat transfer to the ambient", ">=0"),
     "seal_capacity": setting(50.0, "J/K", "each seal's heat capacity", ">=0"),
+    "seal_start": setting(293.15, "K", "each seal's temperature where a run starts", ">=0"),
 }
 
 
@@ -315,7 +317,7 @@ run_inputs = {k: v.ravel() for k, v in input_values(plan.sc, model).items()}
 def qdd_at(x0):
     args = {**given, "x": x0, **run_inputs}
     return np.asarray(f["plant_rhs"](*[args[a] for a in names]), float).ravel()[n:2 * n]
-gravity_only = initial_state(layout, q=plan.q0, pc=equilibrium_pressures(dyn, plan.q0, model.theta))
+gravity_only = initial_state(layout, plan.sc, q=plan.q0, pc=equilibrium_pressures(dyn, plan.q0, model.theta))
 out["rest"] = [float(np.max(np.abs(qdd_at(plan.x0)))), float(np.max(np.abs(qdd_at(gravity_only))))]
 k, l0 = 2.0e4, 0.5
 spring = np.tile([k, l0], m)
@@ -359,6 +361,7 @@ t_adapt = 0.5
 spring_rate = 20000.0
 spring_length = 0.5
 friction = [50.0, 200.0, 1e-3]
+seal_start = 280.0
 reference.sines = [["shoulder", 0.10, 1.0], ["elbow", -0.10, 1.5]]
 """
 
@@ -425,8 +428,8 @@ def test_a_rig_part_with_a_state_joins_x_after_the_supply_and_starts_as_declared
     assert layout[:6] == ["q", "qdot", "pc", "spool", "spool_rate", "ps"] and "seal_temp" in layout
     c_minus_python, first, last = spring_run["temps"]
     assert c_minus_python < 1e-9
-    assert first == [293.15, 293.15]  # its declared initial value, logged before the plant moves
-    assert all(t > 293.15 + 1e-3 for t in last)  # the friction's power heats it
+    assert first == [280.0, 280.0]  # its declared initial value (a scenario's), logged before the plant moves
+    assert all(t > 280.0 + 1e-3 for t in last)  # the ambient and the friction's power heat it
 
 
 def test_a_rig_parts_rate_is_its_law_on_the_other_blocks_signals(spring_run):
@@ -436,4 +439,4 @@ def test_a_rig_parts_rate_is_its_law_on_the_other_blocks_signals(spring_run):
 
 def test_a_rig_parts_state_is_an_output_of_the_log_and_the_fmu(spring_run):
     assert {"seal_temp0", "seal_temp1", "ps0"} <= set(spring_run["csv"])
-    assert spring_run["fmu_state"] == ["output", "K", "parameter", "K", 293.15]
+    assert spring_run["fmu_state"] == ["output", "K", "parameter", "K", 280.0]

@@ -63,7 +63,8 @@ class PlantState:
     initial
         Each entry's value where a run starts (the Python and C loops, the exported programs, the
         FMU's start parameter), unless the run sets the part itself (the pose, the pressures holding it
-        still): a number, or a rule taking the model and giving one per entry.
+        still): a number, a rule taking the model and giving one per entry, or the name of a scenario
+        setting (a string: the block's own, in its ``SCENARIO_SETTINGS``) whose value it takes.
     output
         The plant's output: logged by both loops under its name, the run's result's ``plant[name]``,
         columns of its CSV log and, in the plant FMU, outputs ``<name>.<entry>`` with start
@@ -141,7 +142,8 @@ class Slot:
     """A part of x in a model's layout: ``name``, its ``block`` (module name), ``size_name`` (a key of
     :data:`SIZES`), ``start`` and ``size`` (entries), per-entry ``units``, ``lower``, ``upper`` and
     ``entries`` (what each entry belongs to: a coordinate, an actuator, a pressure state), ``doc``,
-    per-entry ``initial`` values and ``output`` (:class:`PlantState`)."""
+    per-entry ``initial`` values (NaN where a scenario setting gives them: ``initial_setting``) and
+    ``output`` (:class:`PlantState`)."""
 
     name: str
     block: str
@@ -155,6 +157,7 @@ class Slot:
     doc: str
     initial: tuple = ()
     output: bool = False
+    initial_setting: str | None = None
 
     @property
     def stop(self) -> int:
@@ -280,9 +283,11 @@ def plant_layout(model, blocks=None) -> tuple:
                 continue
             lower = tuple(float(v) for v in _per_entry(st.lower, model, size))
             upper = tuple(float(v) for v in _per_entry(st.upper, model, size))
-            initial = tuple(float(v) for v in _per_entry(st.initial, model, size))
+            setting = st.initial if isinstance(st.initial, str) else None  # a scenario's, per run
+            initial = (math.nan,) * size if setting else tuple(float(v) for v in _per_entry(st.initial, model, size))
             out.append(Slot(st.name, mod.__name__.rsplit(".", 1)[-1], st.size, start, size,
-                            _per_entry(st.unit, model, size), lower, upper, entries, st.doc, initial, st.output))
+                            _per_entry(st.unit, model, size), lower, upper, entries, st.doc, initial, st.output,
+                            setting))
             start += size
     return tuple(out)
 
@@ -319,10 +324,17 @@ def state_vector(layout, **parts) -> np.ndarray:
     return x
 
 
-def initial_state(layout, **parts) -> np.ndarray:
-    """x where a run starts: each of ``parts`` (name: values) at its place in ``layout``, every other
-    part at its declared initial values (:attr:`PlantState.initial`)."""
+def initial_state(layout, scenario=None, **parts) -> np.ndarray:
+    """x where a run of ``scenario`` starts: each of ``parts`` (name: values) at its place in ``layout``,
+    every other part at its declared initial values (:attr:`PlantState.initial`; one a scenario setting
+    gives, from ``scenario``)."""
     x = np.array([v for s in layout for v in s.initial], float)
+    for s in layout:
+        if s.initial_setting and s.name not in parts:
+            if scenario is None:
+                raise ValueError(f"the plant state's part {s.name!r} starts at the scenario's "
+                                 f"{s.initial_setting}: give the scenario")
+            x[s.slice] = np.broadcast_to(np.asarray(getattr(scenario, s.initial_setting), float), (s.size,))
     for name, values in parts.items():
         x[slot(layout, name).slice] = values
     return x
@@ -357,6 +369,11 @@ def _discover() -> tuple:
             if lacks:
                 raise ImportError(f"plant block {name!r} ({mod.__name__}) declares {declared} but not "
                                   f"{', '.join(lacks)}")
+        unknown = [st.initial for st in mod.STATES if isinstance(st.initial, str)
+                   and st.initial not in getattr(mod, "SCENARIO_SETTINGS", {})]
+        if unknown:
+            raise ImportError(f"plant block {name!r} starts a state at the scenario setting {unknown[0]!r}, which "
+                              "its SCENARIO_SETTINGS does not declare")
         taken = [st.name for st in mod.STATES if st.output and st.name in RESERVED_OUTPUTS]
         if taken:
             raise ImportError(f"plant block {name!r} declares the output {taken[0]!r}, a name the run's logs "

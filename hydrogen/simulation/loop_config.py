@@ -96,7 +96,7 @@ DERIVED = {
     "predict": lambda r: int(r.sc.predicts()),
     "pred_theta": lambda r: np.asarray(r.ctrl.theta0, float),
     # the predictor's start where it measures nothing: every part at its declared initial value
-    "pred_x0": lambda r: initial_state(plant_layout(r.dyn.model)),
+    "pred_x0": lambda r: initial_state(plant_layout(r.dyn.model), r.sc),
     "pred_gamma1": lambda r: np.asarray(r.ctrl.gamma0[0], float),
     "pred_gamma2": lambda r: np.asarray(r.ctrl.gamma0[1], float),
     "pred_theta_at": _at("theta_hat"),

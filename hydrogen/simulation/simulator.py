@@ -273,13 +273,13 @@ def start_state(dyn, sc, q0) -> tuple:
     layout = plant_layout(model)
     JLt, G = dyn.leg_jacobian(q0).T, dyn.gravity(q0, model.theta)
     f = np.linalg.solve(JLt, G)
-    x0 = initial_state(layout, q=q0, pc=pressures.equilibrium(model, f))
+    x0 = initial_state(layout, sc, q=q0, pc=pressures.equilibrium(model, f))
     inputs = [v.ravel() for v in input_values(sc, model).values()]
     xdot = np.asarray(dyn.functions["plant_rhs"](x0, np.zeros(model.n_cylinders), model.theta, *model.gamma,
                                                  *inputs), float).ravel()
     push = dyn.mass_matrix(q0, model.theta) @ xdot[slot(layout, "qdot").slice]  # JL^T f_parts at rest
     if np.max(np.abs(push)) > REST_TOLERANCE * max(float(np.max(np.abs(G))), 1.0):
-        x0 = initial_state(layout, q=q0, pc=pressures.equilibrium(model, f - np.linalg.solve(JLt, push)))
+        x0 = initial_state(layout, sc, q=q0, pc=pressures.equilibrium(model, f - np.linalg.solve(JLt, push)))
     return x0[slot(layout, "pc").slice].copy(), x0
 
 
@@ -978,7 +978,7 @@ class PythonStages:
         th, g1, g2 = self.ctrl.own_parameters()
         supply = {} if self._ps is None else {SUPPLY_LOG: s.ps_meas}
         # what it measures nothing of (spool: unused by the ideal valve) at its declared initial value
-        x = initial_state(self.layout, q=self.q_meas, qdot=s.qdot_meas, pc=s.pc_meas, **supply)
+        x = initial_state(self.layout, self.sc, q=self.q_meas, qdot=s.qdot_meas, pc=s.pc_meas, **supply)
 
         def hold(x, u, dt):
             n = self.sc.predictor_steps(dt / h)
