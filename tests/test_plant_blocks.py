@@ -129,15 +129,17 @@ def test_a_sum_is_one_intermediate_of_every_term_added():
 
 
 @pytest.mark.parametrize("act, words", [
-    (lambda c, x: (c.add("f", [x]), c["f"], c.add("f", [x])), "adds to 'f', which its Symbolic.ADDS does not "
-     "declare"),
+    (lambda c, x: (c.add("f", [x]), c["f"], c.add("f", [x])), "adds to 'f' after it was read: add to it in "
+     "Symbolic.outputs"),
     (lambda c, x: (setattr(c, "adds", set()), c.add("f", [x])), "adds to 'f', which its Symbolic.ADDS does not"),
-    (lambda c, x: (c.provide("s", [x, x]), c.rate("s", [x])), "gives 1 rate\\(s\\) of its state 's', which has 2 "
+    (lambda c, x: (c.states.append("s"), c.provide("s", [x, x]), c.rate("s", [x])), "gives 1 rate\\(s\\) of its state 's', which has 2 "
      "entries"),
     (lambda c, x: c.provide("f", [x]), "writes the signal 'f', a sum the blocks add to"),
     (lambda c, x: (c.provide("s", x), c.provide("s", x)), "writes the signal 's', written already"),
     (lambda c, x: c.add("g", [x]), "adds to 'g', which no block declares a sum"),
-    (lambda c, x: (c.rate("s", x), c.rate("s", x)), "gives the rate of 's', given already"),
+    (lambda c, x: (c.states.append("s"), c.provide("s", [x]), c.rate("s", [x]), c.rate("s", [x])),
+     "gives the rate of 's', given already"),
+    (lambda c, x: c.rate("typo", [x]), "gives a rate of 'typo', which is no state of the plant"),
     (lambda c, x: (c.provide("s", x), setattr(c, "reads", set()), c["s"]), "reads the signal 's' in its outputs, "
      "which its Symbolic.READS does not declare"),
 ])

@@ -334,7 +334,13 @@ def initial_state(layout, scenario=None, **parts) -> np.ndarray:
             if scenario is None:
                 raise ValueError(f"the plant state's part {s.name!r} starts at the scenario's "
                                  f"{s.initial_setting}: give the scenario")
-            x[s.slice] = np.broadcast_to(np.asarray(getattr(scenario, s.initial_setting), float), (s.size,))
+            value = getattr(scenario, s.initial_setting)
+            try:
+                x[s.slice] = np.broadcast_to(np.asarray(value, float), (s.size,))
+            except (TypeError, ValueError):
+                from ..errors import ScenarioError
+                raise ScenarioError(f"scenario '{scenario.name}': {s.initial_setting} = {value!r}, the start of the "
+                                    f"plant's {s.name} ({s.block}), must be one number or {s.size}") from None
     for name, values in parts.items():
         x[slot(layout, name).slice] = values
     return x

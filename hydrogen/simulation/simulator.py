@@ -29,7 +29,7 @@ from .pool import _ENTRY_KEYS, _error, _outcome, check_workers, entry_problem, r
 from .scenarios import Scenario, actuator_settings, scenario as named_scenario, scenario_names, valve_vector
 from .seeds import SeedResults
 
-__all__ = ["simulate", "SimulationResult", "SeedResults", "equilibrium_pressures", "Stepper", "prepare_run", "new_logs",
+__all__ = ["simulate", "SimulationResult", "SeedResults", "equilibrium_pressures", "start_state", "Stepper", "prepare_run", "new_logs",
            "make_runner", "run_python_loop", "Batch", "RunPlan", "plan_run", "run_prepared", "PythonStages",
            "kalman_gain",
            "valve_vector", "length_noise_variance", "excitation", "diverged_block", "SATURATED_AT", "SATURATION"]
@@ -268,7 +268,8 @@ def start_state(dyn, sc, q0) -> tuple:
     every other part at its declared initial value, the pressures holding the robot still against
     gravity and against what the plant's other blocks push with at rest (a counterbalance; found from
     the generated plant's acceleration there, and taken up where it exceeds :data:`REST_TOLERANCE` of
-    the weight's joint force)."""
+    the weight's joint force). One linear step: exact where that push does not depend on the pressures
+    and the pressures it takes stay within their bounds."""
     model = dyn.model
     layout = plant_layout(model)
     JLt, G = dyn.leg_jacobian(q0).T, dyn.gravity(q0, model.theta)

@@ -46,6 +46,7 @@ class Composition:
         self.block = None  # the block composing now, for messages
         self.reads = None  # while a block's outputs run: the signals it declares it reads (None: any)
         self.adds = None  # while a block's outputs run: the sums it declares it adds to (None: any)
+        self.states = []  # the plant's states by name, in x's order
 
     def __getitem__(self, name: str):
         if self.reads is not None and name not in self.reads:
@@ -78,9 +79,12 @@ class Composition:
         """Add ``terms`` (one per entry) to the sum ``name``."""
         if name not in self._sums:
             raise PlantWiringError(f"plant block '{self.block}' adds to '{name}', which no block declares a sum")
-        if name in self._formed or (self.adds is not None and name not in self.adds):
+        if self.adds is not None and name not in self.adds:
             raise PlantWiringError(f"plant block '{self.block}' adds to '{name}', which its Symbolic.ADDS does not "
                                    "declare (its outputs must run before the sum is read: declare it there)")
+        if name in self._formed:
+            raise PlantWiringError(f"plant block '{self.block}' adds to '{name}' after it was read: add to it in "
+                                   "Symbolic.outputs (declared in ADDS), which run before any block reads it")
         self._terms[name].append(list(terms))
 
     def stage(self, intermediates) -> None:
@@ -91,7 +95,10 @@ class Composition:
         """The rate of state ``name``."""
         if name in self.rates:
             raise PlantWiringError(f"plant block '{self.block}' gives the rate of '{name}', given already")
-        if name in self.signals and len(value) != len(self.signals[name]):
+        if name not in self.states:
+            raise PlantWiringError(f"plant block '{self.block}' gives a rate of '{name}', which is no state of the "
+                                   f"plant (its states: {', '.join(self.states)})")
+        if len(value) != len(self.signals[name]):
             raise PlantWiringError(f"plant block '{self.block}' gives {len(value)} rate(s) of its state '{name}', "
                                    f"which has {len(self.signals[name])} entries")
         self.rates[name] = value
@@ -152,6 +159,7 @@ def plant_rhs(model):
                                    f"declare {sorted(names)}")
         for name, symbols in states.items():
             c.provide(name, symbols)
+        c.states += names
     x = sp.Matrix([s for mod in mods for st in mod.STATES for s in c.signals[st.name]])
     external = dict(zip(EXTERNAL, (rate_symbols("u", m), theta_symbols(model), rate_symbols("gamma1", m),
                                    rate_symbols("gamma2", m))))
