@@ -12,7 +12,8 @@ from hydrogen.actuators import actuator
 from hydrogen.errors import HydrogenError
 from hydrogen.model import model_from_dict, model_path
 from hydrogen.plant import valve
-from hydrogen.simulation.scenarios import scenario, valve_parameters
+from hydrogen.plant.valve import values as valve_parameters
+from hydrogen.simulation.scenarios import scenario
 
 from conftest import plain_stewart_data
 

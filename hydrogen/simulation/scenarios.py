@@ -11,13 +11,12 @@ import numpy as np
 from .. import references
 from ..errors import ScenarioError
 from ..layout import MAX_DELAY, delay_split
-from ..plant import actuator_settings as plant_actuator_settings, friction, integrator, valve
+from ..plant import actuator_settings as plant_actuator_settings, friction, integrator
 from ..scenario_settings import (_FIELDS, PER_ACTUATOR, RENAMED, VARIANT_SEPARATOR, ScenarioFields,  # noqa: F401
                                  actuator_keys, setting, settings, table_keys)
 from .checks import check_fields
 
-__all__ = ["Scenario", "setting", "settings", "PER_ACTUATOR", "actuator_settings", "per_actuator_unit", "scenario", "scenario_names", "variant_names", "variant_name", "split_variant", "current_name", "table_keys", "default_scenario_name", "RENAMED", "valve_vector",
-           "valve_parameters", "friction_row"]
+__all__ = ["Scenario", "setting", "settings", "PER_ACTUATOR", "actuator_settings", "per_actuator_unit", "scenario", "scenario_names", "variant_names", "variant_name", "split_variant", "current_name", "table_keys", "default_scenario_name", "RENAMED"]
 
 
 @dataclass(frozen=True)
@@ -120,13 +119,6 @@ class Scenario(ScenarioFields):
 
 
 
-#: The keys of a scenario's ``actuators.<name>.valve``: :data:`hydrogen.plant.valve.VALVE_RESPONSE`.
-VALVE_RESPONSE = valve.VALVE_RESPONSE
-
-
-def friction_row(sc, c, seal: bool) -> tuple:
-    """Actuator ``c``'s friction numbers in scenario ``sc``: :func:`hydrogen.plant.friction.actuator_row`."""
-    return friction.actuator_row(sc, c, seal)
 
 
 def _tuple(v):
@@ -141,7 +133,7 @@ def per_actuator_unit(key: str, travel) -> str:
 
 def actuator_settings(sc: Scenario, model) -> dict:
     """Each setting of :data:`PER_ACTUATOR` per actuator of ``model``, in that actuator's own unit:
-    ``{"friction": (m, k) array (:func:`friction_row`), "quantization_l": (m,), "noise_l": (m,)}``.
+    ``{"friction": (m, k) array (:func:`hydrogen.plant.friction.actuator_row`), "quantization_l": (m,), "noise_l": (m,)}``.
     ScenarioError for an actuator the model lacks, or a joint actuator not given a sensor setting
     the scenario switches on (the scenario's is a cylinder's, in m)."""
     from ..actuators import actuator
@@ -157,7 +149,7 @@ def actuator_settings(sc: Scenario, model) -> dict:
         own, travel = sc.actuators.get(c.name, {}), actuator(c.kind).TRAVEL
         for key in PER_ACTUATOR:
             if key == "friction":  # the actuator's description's over the scenario's, key by key
-                out[key].append(friction_row(sc, c, model.seal_friction))
+                out[key].append(friction.actuator_row(sc, c, model.seal_friction))
                 continue
             value = _tuple(own.get(key, getattr(sc, key)))
             if key not in own and travel != LENGTH and getattr(sc, key):
@@ -168,12 +160,6 @@ def actuator_settings(sc: Scenario, model) -> dict:
                     f"{per_actuator_unit(key, travel)}")
             out[key].append(value)
     return {k: np.asarray(v, float) for k, v in out.items()}
-
-
-def valve_vector(sc) -> np.ndarray:
-    """The rig's spool response [first-order lag s, natural frequency rad/s, damping] of a scenario:
-    :func:`hydrogen.plant.valve.rig_response`."""
-    return valve.rig_response(sc)
 
 
 def _reference(model, where, spec, neutral):
@@ -320,8 +306,3 @@ def scenario(name: str, model) -> Scenario:
         return sc.validated()
     except ScenarioError as exc:  # the tables the value came from, for a description's own scenario
         raise ScenarioError(f"{where}: {str(exc).removeprefix(f'scenario {name!r}: ')}") from None
-
-
-def valve_parameters(sc, model) -> np.ndarray:
-    """The plant's valve input of every actuator of ``model``, (m, 5): :func:`hydrogen.plant.valve.values`."""
-    return valve.values(sc, model)

@@ -26,13 +26,13 @@ from ..summary import SATURATED_AT, SATURATION, estimated_blocks  # saturation: 
 from .checks import _shown, check_against_model, check_run_size, checked_float, metric_window
 from .control import make_controller
 from .pool import _ENTRY_KEYS, _error, _outcome, check_workers, entry_problem, run_sweep
-from .scenarios import Scenario, actuator_settings, scenario as named_scenario, scenario_names, valve_vector
+from .scenarios import Scenario, actuator_settings, scenario as named_scenario, scenario_names
 from .seeds import SeedResults
 
 __all__ = ["simulate", "SimulationResult", "SeedResults", "equilibrium_pressures", "start_state", "Stepper", "prepare_run", "new_logs",
            "make_runner", "run_python_loop", "Batch", "RunPlan", "plan_run", "run_prepared", "PythonStages",
            "kalman_gain",
-           "valve_vector", "length_noise_variance", "excitation", "diverged_block", "SATURATED_AT", "SATURATION"]
+           "length_noise_variance", "excitation", "diverged_block", "SATURATED_AT", "SATURATION"]
 
 
 @dataclass
@@ -658,14 +658,19 @@ class RunPlan:
         ctrl.reset(self.q0, np.zeros(self.dyn.model.n), self.pc0)
         return ctrl
 
+    @functools.cached_property
+    def noise_columns(self) -> dict:
+        """The noise row's columns (:func:`hydrogen.sensors.noise_columns`), worked out once per plan."""
+        return _noise_columns(self.dyn)
+
     def noise(self, seed) -> np.ndarray:
         """The sensor noise table of a run with noise ``seed``: one row per period, the channels of
         :data:`hydrogen.sensors.NOISE` (actuator travel, pressure states, the joint encoders where
         fitted, the supply pressure where it is a state), each drawn in that order only where its
         standard deviation (the actuator's own, else the scenario's) is not 0; one table for every engine."""
-        model, n = self.dyn.model, self.n
+        n = self.n
         rng = np.random.default_rng(seed)
-        columns = _noise_columns(self.dyn)
+        columns = self.noise_columns
         noise = np.zeros((n, sum(count for _, count in columns.values())))
         for ch in NOISE:
             if ch.name not in columns:
