@@ -257,6 +257,11 @@ def c_double(x) -> str:
     return repr(float(x))
 
 
+#: The model summary's entries the plant's blocks decide (:func:`model_summary`): the structure
+#: hash leaves them out (the plant's own hash covers the code that decides them).
+PLANT_SUMMARY = ("plant", "plant_inputs")
+
+
 def model_summary(model) -> dict:
     """What the manifest records about the model for the drivers and the runtime: sizes, names and
     kinds, the loop's structure. No number of the description: the loop takes those from its

@@ -176,9 +176,9 @@ def package_copy(tmp_path, monkeypatch):
     pkg = Path(gen.__file__).resolve().parent.parent
     copy = tmp_path / "package"
     copy.mkdir()
-    for name in gen.DERIVATION_FILES:
+    for name in (*gen.DERIVATION_FILES, *gen.DRIVER_FILES):
         shutil.copy(pkg / name, copy / name)
-    for sub in gen.DERIVATION_DIRS:
+    for sub in (*gen.DERIVATION_DIRS, *gen.DRIVER_DIRS):
         shutil.copytree(pkg / sub, copy / sub)
     monkeypatch.setattr(gen, "_PACKAGE", copy)
     return copy

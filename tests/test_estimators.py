@@ -38,12 +38,12 @@ def test_the_gain_corrects_towards_the_measurement():
     assert 0 < K[0] < 1 and K[1] > 0
 
 
-def test_an_edit_of_the_filters_c_is_an_edit_of_the_derivation(package_copy):
-    """The filter's C reaches every loop driver: the derivation hash covers its module, so an edit
-    makes the committed and cached folders stale instead of running the old statements."""
+def test_an_edit_of_the_filters_c_is_an_edit_of_the_loop_drivers(package_copy):
+    """The filter's C reaches every loop driver: the drivers' hash covers its module, so an edit
+    makes the committed and cached folders' drivers stale instead of running the old statements."""
     from hydrogen.codegen import generate as gen
 
-    before = gen.derivation_hash()
+    before = gen.drivers_hash()
     f = package_copy / "estimators" / "kalman.py"
     f.write_text(f.read_text().replace("st->kf[i] = lp + c->kf_gain[0] * r;", "st->kf[i] = lp + c->kf_gain[0] * r * 1.0;"))
-    assert gen.derivation_hash() != before
+    assert gen.drivers_hash() != before

@@ -58,21 +58,22 @@ def test_a_manifest_written_before_the_records_renders_the_same_loop(robot_model
         assert render(template, loop_context(old), TEMPLATES) == render(template, loop_context(now), TEMPLATES)
 
 
-def test_every_module_the_loops_layout_reads_shapes_the_derivation_hash():
+def test_every_module_the_loops_layout_reads_shapes_a_hash():
     """An edit of what the loop drivers are rendered from stales the generated folder: every module of
-    the package the layout imports is hashed (its file, or its folder)."""
+    the package the layout imports is hashed (its file, or its folder) with the drivers or the functions."""
     import ast
 
     import hydrogen.layout
-    from hydrogen.codegen.generate import DERIVATION_DIRS, DERIVATION_FILES
+    from hydrogen.codegen.generate import DERIVATION_DIRS, DERIVATION_FILES, DRIVER_DIRS, DRIVER_FILES
     tree = ast.parse(Path(hydrogen.layout.__file__).read_text())
     imported = {node.module.split(".")[0] for node in ast.walk(tree)
                 if isinstance(node, ast.ImportFrom) and node.level == 1 and node.module}
     imported |= {alias.name for node in ast.walk(tree) if isinstance(node, ast.ImportFrom) and node.level == 1
                  and not node.module for alias in node.names}
     assert imported  # the layout does import the package's modules
-    missing = sorted(m for m in imported if f"{m}.py" not in DERIVATION_FILES and m not in DERIVATION_DIRS)
-    assert not missing, f"not in the derivation hash: {missing}"
+    missing = sorted(m for m in imported if f"{m}.py" not in (*DERIVATION_FILES, *DRIVER_FILES)
+                     and m not in (*DERIVATION_DIRS, *DRIVER_DIRS))
+    assert not missing, f"in no hash: {missing}"
 
 
 def test_a_number_outside_its_declared_range_is_refused_naming_it(plain_stewart):
@@ -284,7 +285,21 @@ from hydrogen.simulation.simulator import simulate
 out = {"blocks": list(BLOCKS)}
 model = hydrogen.load_model(sys.argv[1])
 out["inputs"] = [i.name for i in plant_inputs(model)]
-dyn = hydrogen.build(model, cache=Path(sys.argv[2]))
+import hydrogen.codegen.generate as gen
+from hydrogen.runtime.build import generated_dir_for
+derived, real = [], gen.derive
+def watched(model, numbers, controllers=None, **k):
+    derived.append([list(model.controllers if controllers is None else controllers), k.get("core", True)])
+    return real(model, numbers, controllers, **k)
+gen.derive = watched
+dyn = hydrogen.build(model, cache=Path(sys.argv[2]))  # the folder generated before the parts were added
+gen.derive = real
+out["derived"] = derived
+import tempfile
+with tempfile.TemporaryDirectory() as tmp:  # what a whole generation writes
+    gen.render(model, Path(tmp))
+    folder = generated_dir_for(model, cache=Path(sys.argv[2]))
+    out["whole_differs"] = sorted(p.name for p in Path(tmp).iterdir() if p.read_bytes() != (folder / p.name).read_bytes())
 f = dyn.functions
 out["plant_rhs"] = list(f["plant_rhs"].in_names)
 runs = {e: simulate(dyn, "spring-sim", "backstepping", engine=e) for e in ("c", "python")}
@@ -368,21 +383,39 @@ reference.sines = [["shoulder", 0.10, 1.0], ["elbow", -0.10, 1.5]]
 """
 
 
+#: Run in the copy before the parts are added: the arm's folder generated in the cache.
+BEFORE = """\
+import sys
+from pathlib import Path
+import hydrogen
+from hydrogen.codegen.generate import generate
+from hydrogen.runtime.build import generated_dir_for
+model = hydrogen.load_model(sys.argv[1])
+generate(model, generated_dir_for(model, cache=Path(sys.argv[2])))
+"""
+
+
 @pytest.fixture(scope="module")
 def spring_run(tmp_path_factory):
-    """The package copied with the spring's module added (nothing else), and the script's findings."""
+    """The package copied, the arm generated, then the spring's and the seal's modules added (nothing
+    else), and the script's findings."""
     root = tmp_path_factory.mktemp("spring")
     ignore = shutil.ignore_patterns("__pycache__", "*.so", "_templates")
     shutil.copytree(ROOT / "hydrogen", root / "hydrogen", ignore=ignore)
     shutil.copytree(ROOT / "templates", root / "templates")
-    (root / "hydrogen" / "plant" / "spring.py").write_text(SPRING)
-    (root / "hydrogen" / "plant" / "seal_heat.py").write_text(SEAL_HEAT)
     text = (ROOT / "tests" / "data" / "four_way_arm.toml").read_text()
     text = text.replace('name = "four_way_arm"', 'name = "spring_arm"\ncontrollers = ["backstepping"]', 1)
     from test_supply import PUMP_TABLE  # a pump with an accumulator: the supply pressure is a state
+    (root / "bare_arm.toml").write_text(text + PUMP_TABLE)  # its scenario takes the parts' settings
+    (root / "before.py").write_text(BEFORE)
+    env = {**os.environ, "PYTHONPATH": str(root)}
+    proc = subprocess.run([sys.executable, str(root / "before.py"), str(root / "bare_arm.toml"), str(root / "cache")],
+                          cwd=root, env=env, capture_output=True, text=True, timeout=600)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    (root / "hydrogen" / "plant" / "spring.py").write_text(SPRING)
+    (root / "hydrogen" / "plant" / "seal_heat.py").write_text(SEAL_HEAT)
     (root / "spring_arm.toml").write_text(text + SCENARIO + PUMP_TABLE)
     (root / "run.py").write_text(SCRIPT)
-    env = {**os.environ, "PYTHONPATH": str(root)}
     proc = subprocess.run([sys.executable, str(root / "run.py"), str(root / "spring_arm.toml"), str(root / "cache")],
                           cwd=root, env=env, capture_output=True, text=True, timeout=600)
     assert proc.returncode == 0, proc.stderr[-3000:]
@@ -396,6 +429,13 @@ def test_a_rig_part_added_as_one_module_is_found_and_wired(spring_run):
     names = spring_run["plant_rhs"]  # the generated plant takes it, after the shipped blocks' inputs
     assert names[:7] == ["x", "u", "theta", "gamma1", "gamma2", "friction", "valve"]
     assert names.index("spring") < names.index("seal_heat")
+
+
+def test_adding_a_rig_part_derives_the_plant_alone_and_writes_a_whole_generations_code(spring_run):
+    """The arm's folder generated before the parts were added: its build derives the plant's function
+    alone (no rigid body, no controller again), and the folder reads as a whole generation's."""
+    assert spring_run["derived"] == [[[], ["plant"]]]
+    assert spring_run["whole_differs"] == []
 
 
 def test_the_added_part_runs_on_both_engines_and_changes_the_run(spring_run):

@@ -312,3 +312,25 @@ def test_separate_caches_build_under_their_own_locks(model, tmp_path, monkeypatc
         assert dyn.library.generated_dir == committed
     assert taken and a in taken and b in taken
     assert not [p for p in taken if p.is_relative_to(repo_generated_dir())], taken
+
+
+def test_a_build_after_an_edit_of_a_rig_part_derives_the_plant_alone(tmp_path, monkeypatch, package_copy):
+    """The committed folder is stale for the plant's function alone (a module of hydrogen/plant
+    edited): a build's cache folder starts as a copy of it and derives the plant's function alone."""
+    import hydrogen.runtime.build as build_mod
+    from hydrogen.codegen import generate as gen
+
+    model = hydrogen.load_model("loader_crane")
+    path = package_copy / "plant" / "valve.py"
+    path.write_text(path.read_text() + "\n# an edit\n")
+    committed = build_mod.repo_generated_dir() / model.name
+    assert gen.stale_parts(model, committed) == {"plant": True, "drivers": True}
+    folder = build_mod.generated_dir_for(model, tmp_path / "cache", controllers=())
+    assert folder != committed
+    derived, real = [], gen.derive
+    monkeypatch.setattr(gen, "derive", lambda *a, **k: (derived.append(k.get("core", True)), real(*a, **k))[1])
+    dyn = hydrogen.build(model, cache=tmp_path / "cache", controllers=())
+    assert derived == [("plant",)]
+    assert gen.check(model, folder) == []
+    assert sorted(os.listdir(folder)) == sorted(os.listdir(committed))
+    assert dyn.leg_lengths(model.neutral_pose).shape == (model.n_cylinders,)

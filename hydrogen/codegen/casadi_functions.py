@@ -3,7 +3,7 @@ from __future__ import annotations
 
 import casadi as ca
 
-from ..layout import NUMBERS
+from ..names import NUMBERS
 from .sympy_to_casadi import SympyToCasadi, shape_of, to_casadi_function  # noqa: F401 (also its public path)
 
 __all__ = ["to_casadi_function", "semi_implicit_step", "specialisation", "selection", "casadi_function", "shape_of"]

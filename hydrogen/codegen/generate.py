@@ -7,6 +7,7 @@ concurrent generation never leaves a half-written folder.
 """
 from __future__ import annotations
 
+import functools
 import hashlib
 import json
 import shutil
@@ -25,7 +26,8 @@ from .c_source import tidy
 
 __all__ = [
     "generate", "generate_locked", "extend", "held_controllers", "missing_controllers", "derive", "render",
-    "write_function", "check", "check_output", "derivation_hash", "structure_hash",
+    "write_function", "check", "check_output", "derivation_hash", "structure_hash", "plant_hash", "drivers_hash",
+    "stale_plant", "stale_parts",
     "read_manifest", "expected_manifest_inputs", "numbers_mode", "numbers_hash", "check_numbers_mode", "NUMBERS_MODES",
     "DEFAULT_NUMBERS",
     "MANIFEST", "FORMAT_VERSION",
@@ -44,17 +46,22 @@ TEMPLATES = templates_dir()  # top-level templates/ of a checkout, hydrogen/_tem
 DRIVERS = (("loop.h.j2", "_loop.h"), ("loop.c.j2", "_loop.c"))
 
 
-#: Top-level modules of the package that shape generated output besides the layers of
-#: :func:`derivation_hash`: the loop context and its ports, the escape of its values, the pressure blocks, the names
-#: (the numbers input's), the registries' discovery (which blocks are found, in which order), the sensors'
-#: noise row (its width and the loop's offsets into it).
-DERIVATION_FILES = ("layout.py", "diagram.py", "templating.py", "pressures.py", "names.py", "registry.py",
-                    "sensors.py")
+#: Top-level modules of the package that shape the generated functions besides the layers of
+#: :func:`derivation_hash`: the pressure blocks, the names (the numbers input's), the registries'
+#: discovery (which blocks are found, in which order).
+DERIVATION_FILES = ("names.py", "pressures.py", "registry.py")
 #: The package's folders of derivation code; in the blocks' folders, a block's own module is hashed
-#: apart (:func:`block_hash`) and shapes only the functions that use it. The reference kinds and the
-#: estimators shape every robot's loop (its configuration, its C reference function, the Kalman
-#: filter's statements).
-DERIVATION_DIRS = ("symbolic", "codegen", "controllers", "actuators", "plant", "references", "estimators")
+#: apart (:func:`block_hash`) and shapes only the functions that use it. The plant's folder is the
+#: plant's functions' own (:func:`plant_hash`), but for what the rest of the derivation imports of it.
+DERIVATION_DIRS = ("symbolic", "codegen", "controllers", "actuators")
+#: The plant's blocks' folder: what :func:`plant_hash` covers.
+PLANT_DIR = "plant"
+#: What shapes the loop drivers alone (:func:`drivers_hash`, besides the templates and the plant's
+#: folder): the loop context and its ports, the escape of its values, the sensors' noise row; the
+#: reference kinds (the loop's configuration, its C reference function) and the estimators (the
+#: Kalman filter's statements). An edit of these renders the drivers again and derives nothing.
+DRIVER_FILES = ("layout.py", "diagram.py", "templating.py", "sensors.py")
+DRIVER_DIRS = ("references", "estimators", PLANT_DIR)
 
 
 def _block_files() -> dict:
@@ -79,23 +86,83 @@ def block_hash(role: str, name: str) -> str:
     raise KeyError(f"no {role} {name!r}")
 
 
+def _hash_files(h, paths) -> None:
+    """Feed each of ``paths`` (relative to the package) into ``h``, its name first."""
+    for rel in paths:
+        h.update(f"{rel}\0".encode())
+        h.update((_PACKAGE / rel).read_bytes())
+
+
+def _modules(folder: str) -> list:
+    """The Python modules of one of the package's folders, relative to the package, sorted."""
+    return [f"{folder}/{p.name}" for p in sorted((_PACKAGE / folder).glob("*.py"))]
+
+
+def _plant_imports() -> list:
+    """The plant's modules the derivation code outside the plant's folder imports (statically,
+    function-local imports too; importing a name of the folder's package is importing its
+    ``__init__``), relative to the package, sorted: they shape every function, not the plant's alone."""
+    files = [*DERIVATION_FILES, *(rel for sub in DERIVATION_DIRS for rel in _modules(sub))]
+    found = {p for rel in files for p in _plant_imports_of(rel.count("/"), (_PACKAGE / rel).read_bytes())}
+    return sorted(p for p in found if (_PACKAGE / p).is_file())
+
+
+@functools.lru_cache(maxsize=512)
+def _plant_imports_of(depth: int, source: bytes) -> frozenset:
+    """The plant's modules (relative to the package) a module at ``depth`` below the package's top
+    (0: a top-level module) imports, from its ``source``: parsed once per content."""
+    import ast
+
+    found = set()
+    for node in ast.walk(ast.parse(source)):
+        if not isinstance(node, ast.ImportFrom) or node.level - 1 != depth:
+            continue  # not the package's top (relative imports only: the package imports itself so)
+        parts = node.module.split(".") if node.module else []
+        if not parts:  # "from .. import plant"
+            if PLANT_DIR in {a.name for a in node.names}:
+                found.add(f"{PLANT_DIR}/__init__.py")
+            continue
+        if parts[0] != PLANT_DIR:
+            continue
+        if len(parts) > 1:
+            found.add(f"{PLANT_DIR}/{parts[1]}.py")
+        else:  # "from ..plant import supply" imports a module; a name of __init__ gives no file
+            found |= {f"{PLANT_DIR}/{a.name}.py" for a in node.names}
+        found.add(f"{PLANT_DIR}/__init__.py")  # importing any of it runs the package's __init__
+    return frozenset(found)
+
+
 def derivation_hash(kinds=()) -> str:
-    """SHA-256 of the code that shapes generated output for a robot with actuator ``kinds``: the
-    symbolic and codegen layers, the blocks' shared modules, the loop's templates and each of those
-    kinds' modules. A controller's module is covered by its functions' own hash
-    (:func:`block_hash`, recorded per function): adding or editing a controller or a kind leaves
-    every robot's functions that do not use it current."""
+    """SHA-256 of the code that shapes the generated functions for a robot with actuator ``kinds``:
+    the symbolic and codegen layers, the blocks' shared modules, each of those kinds' modules and
+    the plant's modules the rest imports. A controller's module is covered by its functions' own
+    hash (:func:`block_hash`, recorded per function), the plant's blocks by the plant's functions'
+    (:func:`plant_hash`), the loop drivers by :func:`drivers_hash`: adding or editing a controller,
+    a kind, a rig part or a reference kind leaves every function that does not use it current."""
     h = hashlib.sha256()
     for name in DERIVATION_FILES:
         h.update((_PACKAGE / name).read_bytes())
     blocks = _block_files()
     own = {blocks_key for blocks_key, block in blocks.items() if block in {("kind", k) for k in kinds}}
-    for sub in DERIVATION_DIRS:
-        for path in sorted((_PACKAGE / sub).glob("*.py")):
-            if (sub, path.name) in blocks and (sub, path.name) not in own:
-                continue
-            h.update(f"{sub}/{path.name}\0".encode())
-            h.update(path.read_bytes())
+    _hash_files(h, [rel for sub in DERIVATION_DIRS for rel in _modules(sub)
+                    if tuple(rel.split("/")) not in blocks or tuple(rel.split("/")) in own])
+    _hash_files(h, _plant_imports())
+    return h.hexdigest()
+
+
+def plant_hash() -> str:
+    """SHA-256 of the plant's folder (its blocks, composed into the plant's functions): recorded on
+    each of those functions' manifest entries as their ``block_hash``."""
+    h = hashlib.sha256()
+    _hash_files(h, _modules(PLANT_DIR))
+    return h.hexdigest()
+
+
+def drivers_hash() -> str:
+    """SHA-256 of what the loop drivers are rendered from besides the manifest: the loop's
+    templates, :data:`DRIVER_FILES` and :data:`DRIVER_DIRS`."""
+    h = hashlib.sha256()
+    _hash_files(h, [*DRIVER_FILES, *(rel for sub in DRIVER_DIRS for rel in _modules(sub))])
     for name, _ in DRIVERS:
         path = TEMPLATES / name
         if not path.is_file():
@@ -130,11 +197,13 @@ def render_drivers(manifest: dict, folder: Path) -> list:
 def structure_hash(model) -> str:
     """SHA-256 of what a parametric generation bakes into its C for ``model``: the description's
     structure (:meth:`hydrogen.model.Model.structure`) and the summary the drivers are rendered
-    from (:func:`hydrogen.layout.model_summary`: sizes, names, kinds; no number). Equal for two
-    descriptions one library with the numbers as inputs serves."""
-    from ..layout import model_summary
+    from (:func:`hydrogen.layout.model_summary`: sizes, names, kinds; no number), but for what the
+    plant's blocks decide of it (the plant's hash covers that). Equal for two descriptions one
+    library with the numbers as inputs serves."""
+    from ..layout import PLANT_SUMMARY, model_summary
 
-    text = json.dumps([model.structure(), model_summary(model)], sort_keys=True, separators=(",", ":"))
+    summary = {k: v for k, v in model_summary(model).items() if k not in PLANT_SUMMARY}
+    text = json.dumps([model.structure(), summary], sort_keys=True, separators=(",", ":"))
     return hashlib.sha256(text.encode()).hexdigest()
 
 
@@ -164,7 +233,8 @@ def expected_manifest_inputs(model, numbers: str = DEFAULT_NUMBERS) -> dict:
     """What a manifest must record for its files to be current for ``model``: with the numbers as
     inputs, the model's structure hash (an edit of numbers only keeps the folder current)."""
     key = model.baked_hash() if check_numbers_mode(numbers) == "constants" else structure_hash(model)
-    return {"model_hash": key, "derivation_hash": derivation_hash(model_kinds(model)), "format": FORMAT_VERSION}
+    return {"model_hash": key, "derivation_hash": derivation_hash(model_kinds(model)), "drivers_hash": drivers_hash(),
+            "format": FORMAT_VERSION}
 
 
 def numbers_hash(names: list) -> str:
@@ -188,10 +258,12 @@ def write_function(sf, model_name: str, folder: Path, cache: dict) -> dict:
     fun = casadi_function(sf, c_name=name, cache=cache)
     write_casadi([fun], name, folder)
     owner = _owner(sf.name)
+    # a controller's functions record its module's hash, the plant's the plant's folder's: an edit
+    # of it stales them alone
+    own = plant_hash() if _is_plant(sf.name) else None if owner is None else block_hash("controller", owner)
     return {
         "name": sf.name, "c_name": name, "doc": sf.doc,
-        # a controller's functions record its module's hash: an edit of it stales them alone
-        **({} if owner is None else {"block_hash": block_hash("controller", owner)}),
+        **({} if own is None else {"block_hash": own}),
         "source": f"{name}.c", "header": f"{name}.h",
         "inputs": [[fun.name_in(i), *fun.size_in(i)] for i in range(fun.n_in())],
         "outputs": [[fun.name_out(i), *fun.size_out(i)] for i in range(fun.n_out())],
@@ -237,17 +309,21 @@ def _sha256(path: Path) -> str:
     return hashlib.sha256(path.read_bytes()).hexdigest()
 
 
-def derive(model, numbers: str = DEFAULT_NUMBERS, controllers=None, core: bool = True, seed=None) -> tuple:
+def derive(model, numbers: str = DEFAULT_NUMBERS, controllers=None, core=True, seed=None, tail=(),
+           marks=None) -> tuple:
     """``(functions, names)``: the functions derived for ``numbers`` (:data:`NUMBERS_MODES`), and
     the names of the description's numbers they take as their input ``numbers`` ("inputs"; None
     for "constants", which folds them). ``controllers``: the controllers derived (None: all);
-    ``core``: whether the core's functions are; ``seed``: the numbers' names of functions derived
-    before, which these must share ("inputs"). None for ``controllers``: those the model lists."""
+    ``core``: whether the core's functions are (or the names of some of its parts,
+    :data:`hydrogen.symbolic.functions.CORE_PARTS`); ``seed``: the numbers' names of functions
+    derived before, which these must share ("inputs"); ``tail`` and ``marks``: as
+    :func:`hydrogen.symbolic.functions.derive_parametric` takes them ("inputs"). None for
+    ``controllers``: those the model lists."""
     from ..symbolic.functions import derive_functions, derive_parametric
 
     kinds = tuple(model.controllers if controllers is None else controllers)
     if check_numbers_mode(numbers) == "inputs":
-        functions, names, _ = derive_parametric(model, kinds, core=core, seed=seed)
+        functions, names, _ = derive_parametric(model, kinds, core=core, seed=seed, tail=tail, marks=marks)
         return functions, names
     return derive_functions(model, kinds, core), None
 
@@ -293,6 +369,13 @@ def _with_parts(functions: list) -> set:
     return out
 
 
+def _is_plant(name: str) -> bool:
+    """Whether a generated function is the plant's (composed from the plant's blocks)."""
+    from ..plant import FUNCTION
+
+    return name == FUNCTION
+
+
 def _owner(name: str) -> str | None:
     """The controller a generated function belongs to (by the registry's names), None for the core."""
     from ..controllers import function_owner
@@ -320,6 +403,17 @@ def stale_controllers(manifest: dict) -> tuple:
         if e.get("block_hash") != now[owner]:
             out.append(owner)
     return tuple(k for k in CONTROLLERS if k in out)
+
+
+#: The words of :func:`check`'s reason for the plant's function when the plant's blocks changed.
+STALE_PLANT = "derivation changed for the plant"
+
+
+def stale_plant(manifest: dict) -> bool:
+    """Whether a generated folder's plant function was generated from other blocks than today's
+    (its recorded hash is not the plant folder's; a folder without the function holds no plant)."""
+    entries = [e for e in manifest.get("functions", []) if _is_plant(e["name"])]
+    return bool(entries) and any(e.get("block_hash") != plant_hash() for e in entries)
 
 
 def held_controllers(manifest: dict) -> tuple:
@@ -380,8 +474,9 @@ def render(model, folder: Path, functions=None, progress: bool = False, numbers:
     def write(fs):
         entries.update(_write_functions(fs, model.name, folder, cache, written, first, bar.update))
 
+    marks = {}  # numbers met by the end of each core part (its first derivation, unseeded)
     if functions is None:
-        core, names = derive(model, numbers, controllers=())
+        core, names = derive(model, numbers, controllers=(), marks=marks)
         write(core)
         own, grown = derive(model, numbers, controllers, core=False, seed=names)
         if grown != names:  # a controller met a number the core did not: every function takes the whole vector
@@ -393,17 +488,12 @@ def render(model, folder: Path, functions=None, progress: bool = False, numbers:
     else:
         write(functions)
     bar.close()
-    from ..layout import model_summary
-
-    summary = model_summary(model)
-    drivers = render_drivers({"model": summary, **({} if names is None else {"numbers": names})}, folder)
-    if written is not None:
-        for d in drivers:
-            if d.endswith(".c"):
-                written(None, folder / d)
+    summary, drivers = _drivers(model, names, folder, written)
     manifest = {
         **expected_manifest_inputs(model, numbers),
         **({} if names is None else {"numbers": names, "numbers_hash": numbers_hash(names)}),
+        # where the plant's numbers start and end in them: the plant derived again alone must meet the same
+        **({NUMBERS_MET: _plant_numbers(marks)} if names is not None and marks else {}),
         "model_name": model.name,
         "model": summary,
         "casadi_version": ca.__version__,
@@ -416,6 +506,35 @@ def render(model, folder: Path, functions=None, progress: bool = False, numbers:
     }
     write_file(folder / MANIFEST, json.dumps(manifest, indent=2, sort_keys=True) + "\n")
     return manifest
+
+
+#: The manifest's key of the span of its numbers the plant's function met first, ``[start, stop]``.
+NUMBERS_MET = "plant_numbers"
+
+
+def _plant_numbers(marks: dict) -> list:
+    """``[start, stop]`` of the numbers the plant's part met first, from a derivation's marks (the
+    count met by the end of each core part, :data:`hydrogen.symbolic.functions.CORE_PARTS`' order)."""
+    from ..symbolic.functions import CORE_PARTS, PLANT_PART
+
+    order = [name for name, _ in CORE_PARTS]
+    before = order[order.index(PLANT_PART) - 1] if order.index(PLANT_PART) else None
+    return [marks[before] if before else 0, marks[PLANT_PART]]
+
+
+def _drivers(model, names, folder: Path, written=None) -> tuple:
+    """Render the loop drivers of ``model`` (numbers ``names``, None when folded) into ``folder``:
+    ``(the model summary they are rendered from, the drivers' file names)``; ``written(None, path)``
+    with each C source."""
+    from ..layout import model_summary
+
+    summary = model_summary(model)
+    drivers = render_drivers({"model": summary, **({} if names is None else {"numbers": names})}, folder)
+    if written is not None:
+        for d in drivers:
+            if d.endswith(".c"):
+                written(None, folder / d)
+    return summary, drivers
 
 
 def generate(model, out_dir: Path, force: bool = False, progress: bool = False, numbers: str = DEFAULT_NUMBERS,
@@ -452,14 +571,18 @@ def generate_locked(model, out_dir: Path, force: bool = False, progress: bool = 
     out_dir = Path(out_dir)
     check_identifier(model.name, "model name")  # it becomes C symbols, file names and build-file text
     recover_dir(out_dir)
-    reasons = [] if force else check(model, out_dir, numbers)
+    parts = None if force else stale_parts(model, out_dir, numbers)
     manifest = read_manifest(out_dir) or {}
-    stale = stale_controllers(manifest) if reasons else ()
-    if not force and len(reasons) == len(stale):  # current, but for controllers changed or missing
+    if parts is not None:  # current but for controllers changed or missing, the plant's blocks or the drivers' code
+        stale = parts.get("controllers", ())
+        plant, drivers = parts.get("plant", False), parts.get("drivers", False)
         missing = missing_controllers(manifest, model.controllers if controllers is None else controllers)
         redo = (*stale, *(k for k in missing if k not in stale))
-        if not redo or extend(model, out_dir, redo, progress, replacing=stale, written=written, first=first):
-            return bool(redo)
+        if not (redo or plant or drivers):
+            return False
+        if extend(model, out_dir, redo, progress, replacing=stale, written=written, first=first, plant=plant,
+                  drivers=drivers):
+            return True
         controllers = (*held_controllers(manifest), *(k for k in missing if k not in stale))  # whole again
     check_replaceable_dir(out_dir, MANIFEST, GENERATED_KEYS, "a hydrogen generated folder", probe=False)  # even forced
     _staged(out_dir, lambda staging: render(model, staging, progress=progress, numbers=numbers,
@@ -467,39 +590,73 @@ def generate_locked(model, out_dir: Path, force: bool = False, progress: bool = 
     return True
 
 
+def _plant_again(model, manifest: dict):
+    """The plant's functions derived again alone for a generated folder, or None where only a whole
+    generation gives what one would write: with the numbers as inputs, the plant must meet first
+    exactly the numbers it met first before (the span recorded, :data:`NUMBERS_MET`), else the
+    numbers' order of a whole generation differs; the functions then take the folder's whole vector."""
+    from ..symbolic.functions import PLANT_PART
+
+    mode, seed = numbers_mode(manifest), manifest.get("numbers")
+    if mode == "constants":
+        return derive(model, mode, controllers=(), core=(PLANT_PART,))[0]
+    span = manifest.get(NUMBERS_MET)
+    if not span:
+        return None
+    marks = {}
+    functions, names = derive(model, mode, controllers=(), core=(PLANT_PART,), seed=seed[:span[0]], tail=seed,
+                              marks=marks)
+    return functions if names == seed and marks[PLANT_PART] == span[1] else None
+
+
 def extend(model, folder: Path, controllers, progress: bool = False, replacing=(), written=None,
-           first=None) -> bool:
+           first=None, plant: bool = False, drivers: bool = False) -> bool:
     """Add the functions of ``controllers`` to the current generated ``folder`` (the caller holds its
     lock): they alone are derived and written, the folder swapped in whole with its manifest. The
     result is byte for byte what a whole generation of the same controllers writes. ``replacing``:
     controllers among them the folder holds already (their module changed): their functions' files
-    and entries give way to the new ones. False (nothing written) when they read a description
-    number the folder's functions do not take: then only a whole generation can give every function
-    the same numbers input. ``written`` and ``first``: as :func:`render` takes them."""
+    and entries give way to the new ones. ``plant``: the plant's functions are derived again and
+    replace theirs (its blocks changed); ``drivers``: the loop drivers are rendered again (their
+    code changed), and the manifest's model summary with them. False (nothing written) when they
+    read a description number the folder's functions do not take (or the plant meets its numbers in
+    another order): then only a whole generation can give every function the same numbers input.
+    ``written`` and ``first``: as :func:`render` takes them."""
     from tqdm import tqdm
 
     folder = Path(folder)
     manifest = read_manifest(folder)
     mode = numbers_mode(manifest)
     seed = manifest.get("numbers")
-    with tqdm(total=1, desc="deriving (SymPy)", disable=None if progress else True) as bar:
-        functions, names = derive(model, mode, controllers, core=False, seed=seed)
+    with tqdm(total=1, desc="deriving (SymPy)", disable=None if progress or not (controllers or plant) else True) as bar:
+        functions, names = derive(model, mode, controllers, core=False, seed=seed) if controllers else ([], seed)
+        if names != seed:
+            return False
+        own = _plant_again(model, manifest) if plant else []
+        if own is None or plant and {f.name for f in own} != {e["name"] for e in manifest["functions"]
+                                                              if _is_plant(e["name"])}:
+            return False
         bar.update()
-    if names != seed:
-        return False
 
     kept = [e for e in manifest["functions"] if _owner(e["name"]) not in replacing]
-    dropped = {f for e in manifest["functions"] if e not in kept for f in (e["source"], e["header"])}
+    dropped = {f for e in manifest["functions"] if e not in kept or plant and _is_plant(e["name"])
+               for f in (e["source"], e["header"])}
+    if drivers:
+        dropped |= {f"{model.name}{suffix}" for _, suffix in DRIVERS}
 
     def write(staging):
         for p in folder.iterdir():
             if not p.name.startswith(".") and p.name not in dropped:
                 shutil.copy2(p, staging / p.name)
-        with tqdm(total=len(functions), desc="generating C", unit="fn", disable=None if progress else True) as bar:
-            made = _write_functions(functions, model.name, staging, {}, written, first, bar.update)
+        with tqdm(total=len(own) + len(functions), desc="generating C", unit="fn",
+                  disable=None if progress else True) as bar:
+            made = _write_functions([*own, *functions], model.name, staging, {}, written, first, bar.update)
+        renewed = {f.name: made[f.name] for f in own}
         added = [made[f.name] for f in functions]
-        grown = {**manifest, "functions": _canonical([*kept, *added]),
-                 "files": _file_hashes(staging)}
+        grown = {**manifest, "functions": _canonical([*(renewed.get(e["name"], e) for e in kept), *added])}
+        if drivers:
+            summary, names = _drivers(model, manifest.get("numbers"), staging, written)
+            grown.update(model=summary, drivers=[d for d in names if d.endswith(".c")], drivers_hash=drivers_hash())
+        grown["files"] = _file_hashes(staging)
         write_file(staging / MANIFEST, json.dumps(grown, indent=2, sort_keys=True) + "\n")
 
     _staged(folder, write)
@@ -517,19 +674,20 @@ def read_manifest(folder: Path) -> dict | None:
 def check_output(model, folder: Path, numbers: str | None = None) -> list:
     """Reasons ``folder`` is stale for ``model``, judged by the generated output (``generate --check``).
 
-    When only the derivation code's hash differs (an edit that may not change what is generated,
-    such as a comment), the code is generated again into a temporary folder and compared byte for
-    byte, the manifest without its derivation hash: the files that differ are named, and identical
+    When only the code's hashes differ (the derivation's, the drivers', a controller's or the
+    plant's: an edit that may not change what is generated, such as a comment), the code is
+    generated again into a temporary folder and compared byte for byte, the manifest without them: the files that differ are named, and identical
     output is still stale by its recorded hash alone (a build uses a folder only at the current
     hash), which the one reason then says. ``numbers``: the mode the folder must be in (None: its
     own), as for :func:`check`.
     """
-    reasons = check(model, folder, numbers)
+    found = _reasons(model, folder, numbers)
+    reasons = [text for _, text in found]
     if not reasons:  # current, but a folder grown for some controllers only is not a whole generation
         missing = missing_controllers(read_manifest(folder), model.controllers)
         return [f"{folder}: holds no functions of {', '.join(missing)} (generated for some controllers "
                 "only)"] if missing else []
-    derivation_only = all("derivation_hash changed" in r or STALE_CONTROLLER in r for r in reasons)
+    derivation_only = all(part is not STALES_ALL or "derivation_hash changed" in text for part, text in found)
     if not derivation_only:
         return reasons
     folder = Path(folder)
@@ -545,6 +703,7 @@ def check_output(model, folder: Path, numbers: str | None = None) -> list:
             old, new = (json.loads(b) for b in ((folder / name).read_bytes(), fresh[name]))
             for m in (old, new):  # the hashes of the code; what it generated is compared
                 m.pop("derivation_hash", None)
+                m.pop("drivers_hash", None)
                 for e in m.get("functions", []):
                     e.pop("block_hash", None)
             if old != new:
@@ -561,37 +720,71 @@ def check_output(model, folder: Path, numbers: str | None = None) -> list:
 def check(model, folder: Path, numbers: str | None = None) -> list:
     """Reasons ``folder`` is stale for ``model`` (empty list: current).
 
-    Compares the recorded model and derivation hashes with the current ones,
-    and every file with the hash the manifest recorded for it. ``numbers``: the mode the folder
-    must be in (:data:`NUMBERS_MODES`; None: the manifest's own, whose model hash is then the
-    structure hash for "inputs").
+    Compares the recorded model, derivation and drivers hashes with the current ones, each
+    controller's and the plant's functions' recorded hash with their code's, and every file with
+    the hash the manifest recorded for it. ``numbers``: the mode the folder must be in
+    (:data:`NUMBERS_MODES`; None: the manifest's own, whose model hash is then the structure hash
+    for "inputs").
     """
+    return [text for _, text in _reasons(model, folder, numbers)]
+
+
+#: What a reason of :func:`_reasons` stales: the whole folder, one controller's functions
+#: (``("controller", name)``), the plant's function, or the loop drivers alone.
+STALES_ALL, STALES_PLANT, STALES_DRIVERS = None, "plant", "drivers"
+
+
+def stale_parts(model, folder: Path, numbers: str | None = None) -> dict | None:
+    """What of ``folder`` is stale for ``model``: None when the whole of it (a generation derives
+    everything again), else a dict, empty when current: ``controllers`` (the names of those whose
+    module changed), ``plant`` (True: the plant's blocks changed), ``drivers`` (True: the loop
+    drivers' code changed, or the plant's)."""
+    found = _reasons(model, folder, numbers)
+    if any(part is STALES_ALL for part, _ in found):
+        return None
+    out = {}
+    controllers = tuple(part[1] for part, _ in found if isinstance(part, tuple))
+    if controllers:
+        out["controllers"] = controllers
+    if any(part == STALES_PLANT for part, _ in found):
+        out["plant"] = out["drivers"] = True
+    if any(part == STALES_DRIVERS for part, _ in found):
+        out["drivers"] = True
+    return out
+
+
+def _reasons(model, folder: Path, numbers: str | None = None) -> list:
+    """:func:`check`'s reasons, each as ``(what it stales, text)`` (:data:`STALES_ALL`, :data:`STALES_PLANT`,
+    :data:`STALES_DRIVERS` or ``("controller", name)``)."""
     folder = Path(folder)
     manifest = read_manifest(folder)
     if manifest is None:
-        return [f"{folder}: no readable {MANIFEST}"]
+        return [(STALES_ALL, f"{folder}: no readable {MANIFEST}")]
     reasons = []
     mode = numbers_mode(manifest)
     if numbers is not None and check_numbers_mode(numbers) != mode:
-        reasons.append(f"{folder}: generated with the numbers as {mode}, wanted as {numbers}")
+        reasons.append((STALES_ALL, f"{folder}: generated with the numbers as {mode}, wanted as {numbers}"))
     for key, value in expected_manifest_inputs(model, mode).items():
         if manifest.get(key) != value:
-            reasons.append(f"{folder}: {key} changed (recorded {str(manifest.get(key))[:12]}, "
-                           f"now {str(value)[:12]})")
+            reasons.append((STALES_DRIVERS if key == "drivers_hash" else STALES_ALL,
+                            f"{folder}: {key} changed (recorded {str(manifest.get(key))[:12]}, now {str(value)[:12]})"))
     for k in stale_controllers(manifest):
-        reasons.append(f"{folder}: {STALE_CONTROLLER} '{k}' (its module changed since its functions were generated)")
+        reasons.append((("controller", k),
+                        f"{folder}: {STALE_CONTROLLER} '{k}' (its module changed since its functions were generated)"))
+    if stale_plant(manifest):
+        reasons.append((STALES_PLANT, f"{folder}: {STALE_PLANT} (a module of hydrogen/plant changed since it was generated)"))
     listed = _listed_numbers_hash(manifest.get("numbers"))
     if mode == "inputs" and (listed is None or manifest.get("numbers_hash") != listed):
-        reasons.append(f"{folder / MANIFEST}: its numbers list does not match the numbers_hash recorded "
-                       "at generation (edited since, or from another generation)")
+        reasons.append((STALES_ALL, f"{folder / MANIFEST}: its numbers list does not match the numbers_hash recorded "
+                               "at generation (edited since, or from another generation)"))
     recorded = manifest.get("files", {})
     present = {p.name for p in folder.iterdir() if p.name != MANIFEST and not p.name.startswith(".")}
     for name in sorted(present | set(recorded)):
         path = folder / name
         if name not in recorded:
-            reasons.append(f"{path}: not listed in the manifest")
+            reasons.append((STALES_ALL, f"{path}: not listed in the manifest"))
         elif not path.exists():
-            reasons.append(f"{path}: missing")
+            reasons.append((STALES_ALL, f"{path}: missing"))
         elif _sha256(path) != recorded[name]:
-            reasons.append(f"{path}: edited since generation (hash differs)")
+            reasons.append((STALES_ALL, f"{path}: edited since generation (hash differs)"))
     return reasons

@@ -32,10 +32,16 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["BLOCKS", "SIZES", "PlantState", "PlantParameter", "PlantInput", "Slot", "block", "plant_layout",
+__all__ = ["FUNCTION", "BLOCKS", "SIZES", "PlantState", "PlantParameter", "PlantInput", "Slot", "block", "plant_layout",
            "state_size", "slot", "entry_names", "describe_entries", "state_vector", "initial_state", "outputs",
            "plant_inputs", "input_values",
            "input_record", "actuator_settings", "structure_flag"]
+
+
+#: The generated function the blocks are composed into (:mod:`hydrogen.symbolic.plant`): the plant
+#: state's rate. Its manifest entry records the hash of this folder, so an edit of a block derives
+#: it alone again (:func:`hydrogen.codegen.generate.plant_hash`).
+FUNCTION = "plant_rhs"
 
 
 #: The robot sizes a plant state's size is given in: what each entry stands for.

@@ -53,17 +53,21 @@ def generation_reported(report, model, folder, force: bool = False, controllers=
     ``controllers`` (names; None: those the model lists) or ``force`` regenerates it (a current
     folder is no step: nothing reported). Outside the generator, whose source is part of the
     derivation hash."""
-    from ..codegen.generate import missing_controllers
+    from ..codegen.generate import missing_controllers, stale_parts
     from ..progress import c_size
 
-    stale = force or bool(check(model, Path(folder)))
+    parts = None if force else stale_parts(model, Path(folder))
+    stale = parts is None or bool(parts)
     need = model.controllers if controllers is None else controllers
-    missing = () if stale else missing_controllers(read_manifest(Path(folder)) or {}, need)
+    missing = missing_controllers(read_manifest(Path(folder)) or {}, need) if parts is not None else ()
     clock = report.start()
-    if stale:
+    if parts is None:
         report("generating", "deriving the model (SymPy) and writing C for each function")
-    elif missing:
-        report("generating", f"deriving {', '.join(missing)} (SymPy) and writing C for each function")
+    elif parts.get("controllers") or parts.get("plant") or missing:
+        what = [*dict.fromkeys([*parts.get("controllers", ()), *missing]), *(["the plant"] if parts.get("plant") else [])]
+        report("generating", f"deriving {', '.join(what)} (SymPy) and writing C for each function")
+    elif parts.get("drivers"):
+        report("generating", "rendering the loop drivers (their code changed)")
     stale = stale or bool(missing)
     yield
     if stale:
@@ -292,6 +296,7 @@ def _generate_and_compile(model, folder, root, committed, generated, need, numbe
     with cache_errors(root), folder_lock(build_lock_path(folder, root, committed), current=committed):
         if generated is None and not committed:
             _drop_broken_entry(model, folder)
+            _start_from_committed(model, folder, numbers)
         if committed:  # whole (generate --check): it holds every controller
             _still_current(model, folder, numbers)
         else:
@@ -320,6 +325,33 @@ def _generate_and_compile(model, folder, root, committed, generated, need, numbe
                 extension.join()  # not left to be killed mid-compile at exit
             raise
     return lib, extension
+
+
+def _start_from_committed(model, folder: Path, numbers: str) -> None:
+    """A cache folder not generated yet starts as a copy of the committed folder of the same
+    description where that is current but for what a generation derives alone (a controller's
+    functions, the plant's, the loop drivers: an edit of those blocks' code): the generation then
+    derives only those. The caller holds the folder's lock."""
+    import shutil
+    import tempfile
+
+    from ..codegen.generate import stale_parts
+    from ..fileio import replace_dir
+
+    committed = repo_generated_dir() / model.name
+    if folder.exists() or not committed.is_dir() or stale_parts(model, committed, numbers) is None:
+        return
+    folder.parent.mkdir(parents=True, exist_ok=True)
+    staging = Path(tempfile.mkdtemp(prefix=f".{folder.name}.new-", dir=folder.parent))
+    try:
+        for p in committed.iterdir():
+            if not p.name.startswith("."):
+                shutil.copy2(p, staging / p.name)
+        staging.chmod(0o755)
+        replace_dir(staging, folder)
+    except BaseException:
+        shutil.rmtree(staging, ignore_errors=True)
+        raise
 
 
 def _still_current(model, folder: Path, numbers: str) -> None:

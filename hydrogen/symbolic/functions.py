@@ -14,7 +14,7 @@ import sympy as sp
 
 from ..actuators import actuator, baked_parameters
 from ..names import NUMBERS
-from ..plant import plant_layout
+from ..plant import FUNCTION as PLANT_FUNCTION, plant_layout
 from ..plant.supply import PRESSURE
 from ..pressures import blocks, n_pressures, uniform_three_way
 from .body_functions import SymbolicFunction, rigid_body_functions  # noqa: F401 (also their public path)
@@ -23,6 +23,7 @@ from .kinematics import leg_stages, pose_symbols, rate_symbols
 from .plant import plant_rhs
 
 __all__ = ["SymbolicFunction", "SemiImplicitStep", "Specialisation", "derive_functions", "derive_parametric",
+           "CORE_PARTS", "PLANT_PART",
            "with_numbers_input", "NUMBERS", "PRESSURE_EPS"]
 
 
@@ -117,7 +118,7 @@ def plant_functions(model) -> list:
     inputs, xdot, intermediates = plant_rhs(model)
     size = "2n + 3m" if uniform_three_way(model) else "2n + pressures + 2m"
     parts = ", ".join(s.label for s in plant_layout(model))
-    return [SymbolicFunction("plant_rhs", inputs, [("xdot", xdot)],
+    return [SymbolicFunction(PLANT_FUNCTION, inputs, [("xdot", xdot)],
                              f"Plant state rate: x = [{parts}] ({size}), SI units; valve = [lag s, natural frequency rad/s, damping, overlap m, full opening m] per actuator.", intermediates)]
 
 
@@ -157,12 +158,29 @@ def controller_functions(model, kinds=None) -> list:
     return out
 
 
-def derive_functions(model, controllers=True, core: bool = True) -> list:
-    """Every function generated for ``model``, in a fixed order: the core's (kinematics, rigid
-    body, hydraulics, plant) unless ``core`` is false, then the controllers' (``controllers``: True
-    for those ``model`` lists, False for none, or the names of some)."""
-    funcs = kinematics_functions(model) + rigid_body_functions(model) + hydraulic_functions(model) \
-        + plant_functions(model) if core else []
+#: The core's parts, in the order they are derived and listed: (name, the model's functions of it).
+#: The plant's part is derived from the plant's blocks (hydrogen/plant) and may be derived again alone.
+CORE_PARTS = (("kinematics", kinematics_functions), ("rigid_body", rigid_body_functions),
+              ("hydraulics", hydraulic_functions), ("plant", plant_functions))
+#: The core part derived from the plant's blocks.
+PLANT_PART = "plant"
+
+
+def derive_functions(model, controllers=True, core=True, on_part=None) -> list:
+    """Every function generated for ``model``, in a fixed order: the core's (:data:`CORE_PARTS`:
+    kinematics, rigid body, hydraulics, plant; ``core``: True for all, False for none, or the names
+    of some), then the controllers' (``controllers``: True for those ``model`` lists, False for
+    none, or the names of some). ``on_part(name)`` is called after each core part is derived."""
+    wanted = [name for name, _ in CORE_PARTS] if core is True else [] if core is False else list(core)
+    unknown = sorted(set(wanted) - {name for name, _ in CORE_PARTS})
+    if unknown:
+        raise ValueError(f"derive_functions: no core part {', '.join(unknown)}")
+    funcs = []
+    for name, part in CORE_PARTS:
+        if name in wanted:
+            funcs += part(model)
+            if on_part is not None:
+                on_part(name)
     if controllers is False:
         return funcs
     return funcs + controller_functions(model, None if controllers is True else tuple(controllers))
@@ -176,7 +194,8 @@ def with_numbers_input(f, vector) -> SymbolicFunction:
     return dataclasses.replace(f, inputs=[*f.inputs, (NUMBERS, vector)])
 
 
-def derive_parametric(model, controllers=True, key: str = "name", core: bool = True, seed=None) -> tuple:
+def derive_parametric(model, controllers=True, key: str = "name", core=True, seed=None, tail=(),
+                      marks=None) -> tuple:
     """(functions, names, values): :func:`derive_functions` with the description's numbers left as
     symbols (:func:`~hydrogen.symbolic.constants.numbers_as_symbols`), each :class:`SymbolicFunction`
     taking them as one more input, :data:`NUMBERS` (the same vector for all, the numbers in the order
@@ -185,15 +204,20 @@ def derive_parametric(model, controllers=True, key: str = "name", core: bool = T
     the parametric functions, so they take the input too. ``controllers`` and ``core``: as for
     :func:`derive_functions`. ``seed``: names of numbers to enter first, in order (the vector of
     functions derived before, which functions derived now must share); a number met that is not
-    among them is appended (the caller sees ``names`` grow)."""
+    among them is appended (the caller sees ``names`` grow). ``tail``: names entered after the
+    derivation, those it did not meet (the rest of a vector a function derived again alone must
+    take whole). ``marks``: a dict given is filled with the count of numbers met by the end of each
+    core part derived (:data:`CORE_PARTS`), ``seed`` included."""
     from .constants import numbers_as_symbols
 
     with numbers_as_symbols(key) as table:
-        if seed:
-            values = model.numbers()
-            for name in seed:
-                table.symbol(values[name], name)
-        funcs = derive_functions(model, controllers, core)
+        values = model.numbers() if seed or tail else None
+        for name in seed or ():
+            table.symbol(values[name], name)
+        on_part = None if marks is None else (lambda part: marks.__setitem__(part, len(table.symbols)))
+        funcs = derive_functions(model, controllers, core, on_part)
+        for name in tail:
+            table.symbol(values[name], name)
     vector = sp.Matrix(table.symbols)
     made = {}
 
