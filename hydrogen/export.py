@@ -522,6 +522,7 @@ def export(out_dir, scenario=None, controller="adaptive-robust", model=None, dur
     meta = {
         "format": 1, "hydrogen_version": __version__, "model": mname, "model_hash": dyn.model.baked_hash(),
         "derivation_hash": dyn.library.manifest.get("derivation_hash"),
+        "drivers_hash": dyn.library.manifest.get("drivers_hash"),
         "scenario": sc_name, "controller": controller, "program": prog,
         "n_periods": int(p.n), "control_period_s": float(p.h), "duration_s": float(p.sc.duration),
         "metric_start_s": float(p.sc.metric_start), "overrides": {k: _jsonable(v) for k, v in overrides.items()},

@@ -562,7 +562,7 @@ def _without_code_hashes(folder):
     return manifest
 
 
-def _regenerated(model, folder, monkeypatch, fresh):
+def _regenerated(model, folder, monkeypatch, fresh, numbers="inputs"):
     """Generate ``folder`` again, watching what is derived: ``(the derive calls as (controllers, core),
     the files written again)``; the folder then reads byte for byte as ``fresh``, a whole generation."""
     before = {p.name: p.stat().st_mtime_ns for p in folder.iterdir()}
@@ -573,7 +573,7 @@ def _regenerated(model, folder, monkeypatch, fresh):
         derived.append((tuple(model.controllers if controllers is None else controllers), k.get("core", True)))
         return real(model, numbers, controllers, **k)
     monkeypatch.setattr(gen, "derive", watched)
-    assert gen.generate(model, folder)
+    assert gen.generate(model, folder, numbers=numbers)
     monkeypatch.setattr(gen, "derive", real)
     assert gen.check(model, folder) == []
     assert sorted(os.listdir(folder)) == sorted(os.listdir(fresh))
@@ -585,11 +585,23 @@ def _regenerated(model, folder, monkeypatch, fresh):
     return derived, sorted(name for name, t in before.items() if (folder / name).stat().st_mtime_ns != t)
 
 
-def test_an_edited_plant_block_derives_the_plant_alone(tmp_path, monkeypatch, fresh_render, package_copy):
+@pytest.fixture(scope="session")
+def pump_arm(tmp_path_factory):
+    """The four-way arm with a pump (its plant meets the supply's numbers first) and one controller:
+    a whole generation in about a second."""
+    from test_supply import PUMP_TABLE
+
+    text = (Path(__file__).parent / "data" / "four_way_arm.toml").read_text()
+    path = tmp_path_factory.mktemp("pump-arm") / "pump_arm.toml"
+    path.write_text(text.replace('name = "four_way_arm"', 'name = "pump_arm"\ncontrollers = ["p"]', 1) + PUMP_TABLE)
+    return hydrogen.load_model(path)
+
+
+def test_an_edited_plant_block_derives_the_plant_alone(tmp_path, monkeypatch, fresh_render, package_copy, pump_arm):
     """A folder whose plant's blocks changed is stale for the plant's function and the loop drivers
-    only; generating derives the plant alone (it meets the numbers it met before, the crane's pump's
-    among them) and writes what a whole generation writes."""
-    model = hydrogen.load_model("loader_crane")
+    only; generating derives the plant alone (it meets the numbers it met before, the pump's among
+    them) and writes what a whole generation writes."""
+    model = pump_arm
     folder = tmp_path / "gen"
     assert gen.generate(model, folder)
     span = json.loads((folder / gen.MANIFEST).read_text())[gen.NUMBERS_MET]
@@ -605,10 +617,10 @@ def test_an_edited_plant_block_derives_the_plant_alone(tmp_path, monkeypatch, fr
 
 
 def test_an_edit_of_what_renders_the_loop_drivers_derives_nothing(tmp_path, monkeypatch, fresh_render,
-                                                                  package_copy):
+                                                                  package_copy, pump_arm):
     """An edit of a reference kind (what the drivers alone are rendered from) leaves every function
     current: generating renders the drivers again and derives nothing."""
-    model = hydrogen.load_model("loader_crane")
+    model = pump_arm
     folder = tmp_path / "gen"
     assert gen.generate(model, folder)
     path = package_copy / "references" / "step.py"
@@ -620,27 +632,58 @@ def test_an_edit_of_what_renders_the_loop_drivers_derives_nothing(tmp_path, monk
 
 
 def test_a_plant_meeting_other_numbers_first_is_generated_whole(tmp_path, monkeypatch, fresh_render,
-                                                                package_copy):
+                                                                package_copy, pump_arm):
     """Where the plant derived again alone meets other numbers first than the folder recorded, only a
     whole generation gives the numbers' order one would write: the folder is generated whole."""
-    model = hydrogen.load_model("loader_crane")
+    model = pump_arm
     folder = tmp_path / "gen"
     assert gen.generate(model, folder)
     manifest = json.loads((folder / gen.MANIFEST).read_text())
     manifest[gen.NUMBERS_MET] = [manifest[gen.NUMBERS_MET][0], manifest[gen.NUMBERS_MET][1] - 1]
     (folder / gen.MANIFEST).write_text(json.dumps(manifest, indent=2, sort_keys=True) + "\n")
-    path = package_copy / "plant" / "supply.py"  # the rest of the derivation imports it: every function is stale
-    assert str(path.relative_to(package_copy)) in gen._plant_imports()
     friction = package_copy / "plant" / "friction.py"
     friction.write_text(friction.read_text() + "\n# an edit\n")
     derived, _ = _regenerated(model, folder, monkeypatch, fresh_render(model))
-    assert derived[0] == ((), ("plant",)) and len(derived) == 3  # tried alone, then the core and the controllers
-    assert derived[1:] == [((), True), (tuple(model.controllers), False)]
+    # tried alone, then the core and the controllers
+    assert derived == [((), ("plant",)), ((), True), (tuple(model.controllers), False)]
+
+
+def test_a_folder_of_another_casadi_is_generated_whole(tmp_path, monkeypatch, fresh_render, package_copy,
+                                                       pump_arm):
+    """Functions written now would not join a folder another CasADi wrote (each file carries its
+    version, which the runtime holds to the manifest's): a plant edit there generates it whole."""
+    model = pump_arm
+    folder = tmp_path / "gen"
+    assert gen.generate(model, folder)
+    manifest = json.loads((folder / gen.MANIFEST).read_text())
+    manifest["casadi_version"] = "3.8.0"  # a folder of another patch release: current for check()
+    (folder / gen.MANIFEST).write_text(json.dumps(manifest, indent=2, sort_keys=True) + "\n")
+    assert gen.check(model, folder) == []
+    friction = package_copy / "plant" / "friction.py"
+    friction.write_text(friction.read_text() + "\n# an edit\n")
+    assert gen.stale_parts(model, folder) is None
+    derived, _ = _regenerated(model, folder, monkeypatch, fresh_render(model))
+    assert derived == [((), True), (tuple(model.controllers), False)]
+
+
+def test_a_change_of_what_the_drivers_read_of_the_model_renders_them_again(tmp_path, monkeypatch, pump_arm):
+    """With the numbers folded, the model's hash covers what the functions bake in, not what the
+    drivers read of the model (its sensors): the recorded summary does, and the drivers follow it."""
+    from dataclasses import replace
+
+    folder, whole = tmp_path / "gen", tmp_path / "whole"
+    assert gen.generate(pump_arm, folder, numbers="constants")
+    encoders = replace(pump_arm, joint_encoders=not pump_arm.joint_encoders)
+    assert gen.stale_parts(encoders, folder) == {"drivers": True}
+    assert gen.generate(encoders, whole, numbers="constants")
+    derived, written = _regenerated(encoders, folder, monkeypatch, whole, "constants")
+    assert derived == [] and written == sorted([gen.MANIFEST, *(f"{encoders.name}{s}" for _, s in gen.DRIVERS)])
 
 
 def test_the_plant_modules_the_derivation_imports_shape_every_function(package_copy):
     """The supply's module names the supply pressure the controllers and the hydraulics take: an edit
-    of it changes the functions' derivation hash; an edit of a block only the plant reads does not."""
+    of it, or of a plant module it imports, changes the functions' derivation hash; an edit of a block
+    only the plant reads does not."""
     before = gen.derivation_hash()
     for name, shared in (("friction.py", False), ("supply.py", True)):
         path = package_copy / "plant" / name
@@ -648,6 +691,26 @@ def test_the_plant_modules_the_derivation_imports_shape_every_function(package_c
         path.write_text(text + "\n# an edit\n")
         assert (gen.derivation_hash() != before) == shared, name
         path.write_text(text)
+    supply = package_copy / "plant" / "supply.py"
+    supply.write_text(supply.read_text() + "\n\ndef _helper():\n    from .helper import x\n    return x\n")
+    (package_copy / "plant" / "helper.py").write_text("x = 1\n")
+    assert "plant/helper.py" in gen._plant_imports()
+    before = gen.derivation_hash()
+    (package_copy / "plant" / "helper.py").write_text("x = 2\n")
+    assert gen.derivation_hash() != before
+
+
+def test_the_derivation_code_imports_the_package_relatively():
+    """The plant's modules the derivation imports are found by its relative imports and absolute ones
+    of ``hydrogen``; the package imports itself relatively, so none is missed by another spelling."""
+    import ast
+
+    for rel in [*gen.DERIVATION_FILES, *(r for sub in gen.DERIVATION_DIRS for r in gen._modules(sub))]:
+        for node in ast.walk(ast.parse((gen._PACKAGE / rel).read_bytes())):
+            if isinstance(node, ast.ImportFrom) and not node.level:
+                assert not (node.module or "").startswith("hydrogen"), (rel, node.module)
+            if isinstance(node, ast.Import):
+                assert not any(a.name.startswith("hydrogen") for a in node.names), rel
 
 
 def test_the_functions_needed_first_are_written_first_and_every_byte_is_the_same(tmp_path):

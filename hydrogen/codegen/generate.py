@@ -99,36 +99,64 @@ def _modules(folder: str) -> list:
 
 
 def _plant_imports() -> list:
-    """The plant's modules the derivation code outside the plant's folder imports (statically,
-    function-local imports too; importing a name of the folder's package is importing its
-    ``__init__``), relative to the package, sorted: they shape every function, not the plant's alone."""
+    """The plant's modules the derivation code outside the plant's folder imports, and those these
+    import in turn (statically, function-local imports too; importing a module of the folder runs
+    its package's ``__init__``), relative to the package, sorted: they shape every function, not
+    the plant's alone. (The blocks the ``__init__`` discovers at import are the plant's own: it
+    hands them to the plant's function alone.)"""
     files = [*DERIVATION_FILES, *(rel for sub in DERIVATION_DIRS for rel in _modules(sub))]
-    found = {p for rel in files for p in _plant_imports_of(rel.count("/"), (_PACKAGE / rel).read_bytes())}
-    return sorted(p for p in found if (_PACKAGE / p).is_file())
+    todo = {m for rel in files for m in _imports_of(rel, (_PACKAGE / rel).read_bytes())}
+    found = set()
+    while todo:
+        rel = todo.pop()
+        if rel in found or not rel.startswith(f"{PLANT_DIR}/") or not (_PACKAGE / rel).is_file():
+            continue
+        found.add(rel)
+        todo |= _imports_of(rel, (_PACKAGE / rel).read_bytes())
+    return sorted(found)
 
 
 @functools.lru_cache(maxsize=512)
-def _plant_imports_of(depth: int, source: bytes) -> frozenset:
-    """The plant's modules (relative to the package) a module at ``depth`` below the package's top
-    (0: a top-level module) imports, from its ``source``: parsed once per content."""
+def _imports_of(rel: str, source: bytes) -> frozenset:
+    """The package's modules (files relative to the package: ``plant/supply.py``, a package's
+    ``plant/__init__.py``) that the module at ``rel`` imports, from its ``source``: relative imports
+    and absolute ones of the package, each importing its packages' ``__init__`` too. A name that
+    is no module counts as its package's (parsed once per content)."""
     import ast
 
+    here = rel.split("/")[:-1]  # the module's package, as folders below the package's top
+    top = __name__.split(".")[0]  # the package's own name, for its absolute imports
     found = set()
+
+    def add(parts):  # a module path below the package's top: the module's file and its packages'
+        for k in range(1, len(parts) + 1):
+            found.add("/".join(parts[:k]) + ".py")
+            found.add("/".join(parts[:k] + ["__init__.py"]))
+
     for node in ast.walk(ast.parse(source)):
-        if not isinstance(node, ast.ImportFrom) or node.level - 1 != depth:
-            continue  # not the package's top (relative imports only: the package imports itself so)
-        parts = node.module.split(".") if node.module else []
-        if not parts:  # "from .. import plant"
-            if PLANT_DIR in {a.name for a in node.names}:
-                found.add(f"{PLANT_DIR}/__init__.py")
-            continue
-        if parts[0] != PLANT_DIR:
-            continue
-        if len(parts) > 1:
-            found.add(f"{PLANT_DIR}/{parts[1]}.py")
-        else:  # "from ..plant import supply" imports a module; a name of __init__ gives no file
-            found |= {f"{PLANT_DIR}/{a.name}.py" for a in node.names}
-        found.add(f"{PLANT_DIR}/__init__.py")  # importing any of it runs the package's __init__
+        if isinstance(node, ast.ImportFrom):
+            if node.level:
+                if node.level - 1 > len(here):
+                    continue
+                base = here[:len(here) - (node.level - 1)]
+            elif (node.module or "").split(".")[0] == top:
+                base, node_module = [], node.module.split(".", 1)[1:]
+                add(node_module[0].split(".")) if node_module else None
+                for a in node.names:
+                    add((node_module[0].split(".") if node_module else []) + [a.name])
+                continue
+            else:
+                continue
+            parts = base + (node.module.split(".") if node.module else [])
+            if parts:
+                add(parts)
+            for a in node.names:  # a submodule imported by name, or a name of the module (no file)
+                add(parts + [a.name])
+        elif isinstance(node, ast.Import):
+            for a in node.names:
+                parts = a.name.split(".")
+                if parts[0] == top and len(parts) > 1:
+                    add(parts[1:])
     return frozenset(found)
 
 
@@ -522,6 +550,13 @@ def _plant_numbers(marks: dict) -> list:
     return [marks[before] if before else 0, marks[PLANT_PART]]
 
 
+def _summary(model) -> dict:
+    """The manifest's record of ``model`` (:func:`hydrogen.layout.model_summary`), as JSON reads it."""
+    from ..layout import model_summary
+
+    return json.loads(json.dumps(model_summary(model)))
+
+
 def _drivers(model, names, folder: Path, written=None) -> tuple:
     """Render the loop drivers of ``model`` (numbers ``names``, None when folded) into ``folder``:
     ``(the model summary they are rendered from, the drivers' file names)``; ``written(None, path)``
@@ -580,7 +615,7 @@ def generate_locked(model, out_dir: Path, force: bool = False, progress: bool = 
         redo = (*stale, *(k for k in missing if k not in stale))
         if not (redo or plant or drivers):
             return False
-        if extend(model, out_dir, redo, progress, replacing=stale, written=written, first=first, plant=plant,
+        if (drivers and not (redo or plant) or same_tools(manifest)) and extend(model, out_dir, redo, progress, replacing=stale, written=written, first=first, plant=plant,
                   drivers=drivers):
             return True
         controllers = (*held_controllers(manifest), *(k for k in missing if k not in stale))  # whole again
@@ -627,7 +662,7 @@ def extend(model, folder: Path, controllers, progress: bool = False, replacing=(
     manifest = read_manifest(folder)
     mode = numbers_mode(manifest)
     seed = manifest.get("numbers")
-    with tqdm(total=1, desc="deriving (SymPy)", disable=None if progress or not (controllers or plant) else True) as bar:
+    with tqdm(total=1, desc="deriving (SymPy)", disable=None if progress and (controllers or plant) else True) as bar:
         functions, names = derive(model, mode, controllers, core=False, seed=seed) if controllers else ([], seed)
         if names != seed:
             return False
@@ -734,14 +769,28 @@ def check(model, folder: Path, numbers: str | None = None) -> list:
 STALES_ALL, STALES_PLANT, STALES_DRIVERS = None, "plant", "drivers"
 
 
+def same_tools(manifest: dict) -> bool:
+    """Whether a generated folder was written by the CasADi and SymPy this process runs: only then may
+    functions written now join its others (CasADi stamps its version into each file, which the
+    runtime holds to the manifest's)."""
+    import casadi as ca
+    import sympy as sp
+
+    return (manifest.get("casadi_version"), manifest.get("sympy_version")) == (ca.__version__, sp.__version__)
+
+
 def stale_parts(model, folder: Path, numbers: str | None = None) -> dict | None:
     """What of ``folder`` is stale for ``model``: None when the whole of it (a generation derives
     everything again), else a dict, empty when current: ``controllers`` (the names of those whose
     module changed), ``plant`` (True: the plant's blocks changed), ``drivers`` (True: the loop
-    drivers' code changed, or the plant's)."""
+    drivers' code changed, or the plant's). Where functions would be derived again (a controller's,
+    the plant's) in a folder another CasADi or SymPy wrote, the whole of it."""
     found = _reasons(model, folder, numbers)
     if any(part is STALES_ALL for part, _ in found):
         return None
+    if any(part == STALES_PLANT or isinstance(part, tuple) for part, _ in found) \
+            and not same_tools(read_manifest(folder)):
+        return None  # functions written now would not match the folder's others (CasADi stamps its version)
     out = {}
     controllers = tuple(part[1] for part, _ in found if isinstance(part, tuple))
     if controllers:
@@ -768,6 +817,8 @@ def _reasons(model, folder: Path, numbers: str | None = None) -> list:
         if manifest.get(key) != value:
             reasons.append((STALES_DRIVERS if key == "drivers_hash" else STALES_ALL,
                             f"{folder}: {key} changed (recorded {str(manifest.get(key))[:12]}, now {str(value)[:12]})"))
+    if manifest.get("model") != _summary(model):  # what the drivers and the runtime read of the model
+        reasons.append((STALES_DRIVERS, f"{folder}: the model's summary changed (sizes, names, kinds, sensors)"))
     for k in stale_controllers(manifest):
         reasons.append((("controller", k),
                         f"{folder}: {STALE_CONTROLLER} '{k}' (its module changed since its functions were generated)"))

@@ -40,23 +40,25 @@ def generated_dir_for(model: Model, cache: Path | None = None, numbers: str = DE
     if committed.is_dir() and not check(model, committed, numbers) and not missing_controllers(
             read_manifest(committed), model.controllers if controllers is None else controllers):
         return committed
-    # Keyed by the derivation too: two hydrogen versions sharing one cache never fight over a folder.
+    # Keyed by the functions' derivation code too: two hydrogen versions that derive other functions never
+    # share a folder; two that differ in a controller's module, the plant's blocks or the loop drivers'
+    # code share it, each generating those parts again alone when it finds them another's.
     shape = model.baked_hash() if numbers == "constants" else "s" + structure_hash(model)
     key = f"{model.name}-{shape[:16]}-{derivation_hash(model_kinds(model))[:8]}"
     return Path(cache or cache_root()) / "generated" / key
 
 
 @contextmanager
-def generation_reported(report, model, folder, force: bool = False, controllers=None):
+def generation_reported(report, model, folder, force: bool = False, controllers=None, numbers=None):
     """Around a generation call: "generating" and "generated" (to ``report``, a
     :class:`~hydrogen.progress.Reporter`) when ``folder`` is stale for ``model``, lacks one of
     ``controllers`` (names; None: those the model lists) or ``force`` regenerates it (a current
-    folder is no step: nothing reported). Outside the generator, whose source is part of the
+    folder is no step: nothing reported); ``numbers``: the mode the folder must be in (None: its own). Outside the generator, whose source is part of the
     derivation hash."""
     from ..codegen.generate import missing_controllers, stale_parts
     from ..progress import c_size
 
-    parts = None if force else stale_parts(model, Path(folder))
+    parts = None if force else stale_parts(model, Path(folder), numbers)
     stale = parts is None or bool(parts)
     need = model.controllers if controllers is None else controllers
     missing = missing_controllers(read_manifest(Path(folder)) or {}, need) if parts is not None else ()
@@ -303,7 +305,7 @@ def _generate_and_compile(model, folder, root, committed, generated, need, numbe
             # each source of a library this build compiles starts compiling as soon as it is
             # written, on the cores the derivation leaves (the core while controllers derive)
             early = _Precompile({CORE, *groups}, toolchain, cache)
-            with generation_reported(report, model, folder, controllers=need):
+            with generation_reported(report, model, folder, controllers=need, numbers=numbers):
                 # no-op when current; a build for some controllers derives only theirs
                 generate_locked(model, folder, numbers=numbers, controllers=need, written=early, first=early.wanted)
         manifest = read_manifest(folder)
