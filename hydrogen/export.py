@@ -224,8 +224,14 @@ def _estimator_settings(sc) -> str:
     if name is None:
         return ""
     decl = estimator(name).SCENARIO_SETTINGS
-    return "".join(f"; {k} {getattr(sc, k)!r}{' ' + d.metadata['unit'] if d.metadata['unit'] else ''}"
+    from markupsafe import Markup  # a C comment's text: ASCII, no "*/", written as it is
+
+    def unit(text):  # m²/s³ as m^2/s^3 (another sign: no unit)
+        text = text.replace("²", "^2").replace("³", "^3")
+        return f" {text}" if text and text.isascii() else ""
+    text = "".join(f"; {k} {getattr(sc, k)!r}{unit(d.metadata['unit'])}"
                    for k, d in decl.items() if k != getattr(estimator(name), "SWITCH", None))
+    return Markup(text) if text.isascii() and "*/" not in text else text
 
 
 def export_context(dyn, p, scenario_name, controller, prog, sources, headers, ctrl_header):
