@@ -276,7 +276,7 @@ def test_the_added_estimators_bad_setting_is_refused_naming_it(difference_run):
     assert kind == "ScenarioError" and "difference_cutoff_hz must be finite and > 0" in text, text
     kind, text = errors["two"]  # the rig's kalman = true and the general selector
     assert kind == "ScenarioError" and "kalman = true" in text and 'estimator = "filtered_difference"' in text
-    assert "select two estimators" in text, text
+    assert "select two estimators" in text and "write kalman = false" in text, text
     kind, text = errors["file"]  # the description's own value, at load time, naming the file and the key
     assert kind == "ModelError" and "arm.toml" in text and "difference_cutoff_hz" in text and "> 0" in text, text
 

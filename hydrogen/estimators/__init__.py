@@ -116,8 +116,9 @@ def selected(sc) -> str | None:
             chosen[name] = f"{key} = true"
     if len(chosen) > 1:
         how = " and ".join(f"{why} ({n})" if why != "estimator" else f'estimator = "{n}"' for n, why in chosen.items())
-        raise ScenarioError(f"scenario '{sc.name}': {how} select two estimators; select one (a switch of the rig "
-                            "is turned off in the scenario with <switch> = false)")
+        off = " or ".join(why.replace("= true", "= false") for why in chosen.values() if why != "estimator")
+        raise ScenarioError(f"scenario '{sc.name}': {how} select two estimators; select one (write {off} in the "
+                            "scenario to turn a switch off, a [rig]'s too)")
     return next(iter(chosen), None)
 
 
