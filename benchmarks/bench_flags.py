@@ -63,7 +63,7 @@ def _loop_us(dyn, scenario, repeats):
     p = S.prepare_run(dyn, scenario, CONTROLLER, None, None, False, {})
     times = []
     for _ in range(repeats):
-        runner = S.make_runner(dyn, p.sc, p.ctrl, p.x0, p.q0, p.kf_gain, p.h)
+        runner = S.make_runner(dyn, p.sc, p.ctrl, p.x0, p.q0, p.estimate, p.h)
         t0 = time.perf_counter()
         code = runner.run(p.n, p.noise, None)
         times.append((time.perf_counter() - t0) / p.n * 1e6)

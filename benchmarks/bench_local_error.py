@@ -80,7 +80,7 @@ def replay_errors(dyn, scenario: str, controller: str, counts, reference: int, d
     reference's replay, points of amplitude}, "p_pa": {count: Pa}, "noise_p": Pa, "failed": {count:
     period}} (a count whose replay is not finite). ``overrides``: scenario fields (``pressure_bounds``)."""
     p = prepare_run(dyn, scenario, controller, None, duration, True, overrides, keep_logs=False)
-    loop = PythonStages(dyn, p.sc, p.ctrl, p.x0.copy(), p.q0, p.kf_gain, p.h)
+    loop = PythonStages(dyn, p.sc, p.ctrl, p.x0.copy(), p.q0, p.estimate, p.h)
     start = loop.x.copy()
     commands = []
 
@@ -140,7 +140,7 @@ def predictor_errors(dyn, scenario: str, controller: str, counts, reference: int
     reference's, points of amplitude}, "p_pa": {count: of the predicted pressures, Pa}, "noise_p": Pa,
     "failed": {count: period}} (a count whose prediction is not finite)."""
     p = prepare_run(dyn, scenario, controller, None, duration, True, {}, keep_logs=False)
-    loop = PythonStages(dyn, p.sc, p.ctrl, p.x0.copy(), p.q0, p.kf_gain, p.h)
+    loop = PythonStages(dyn, p.sc, p.ctrl, p.x0.copy(), p.q0, p.estimate, p.h)
     own, sc = loop.predicted, loop.sc
     tried = (*counts, reference)
     preds = {n: [] for n in tried}

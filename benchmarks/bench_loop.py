@@ -141,7 +141,7 @@ def python_loop_per_period(dyn, scenario, n_periods):
     p = S.prepare_run(dyn, scenario, CONTROLLER, None, (n_periods - 1) / rate, False, {})
     log = S.new_logs(dyn.model, p.n, p.ctrl.xc.size)
     t0 = time.perf_counter()
-    k, failure = S.run_python_loop(dyn, p.sc, p.ctrl, p.x0, p.q0, p.noise, p.kf_gain, log, p.n, p.h)
+    k, failure = S.run_python_loop(dyn, p.sc, p.ctrl, p.x0, p.q0, p.noise, p.estimate, log, p.n, p.h)
     wall = time.perf_counter() - t0
     if failure:
         raise RuntimeError(f"{dyn.model.name} {scenario}: the Python loop {failure}")

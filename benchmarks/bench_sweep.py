@@ -128,7 +128,7 @@ def c_loop():
     spent = 0.0
     for r in flat:
         p = S.prepare_run(dyn, r["scenario"], r["controller"], r["gains"], r["duration"], True, {{"seed": r["seed"]}})
-        runner = S.make_runner(dyn, p.sc, p.ctrl, p.x0, p.q0, p.kf_gain, p.h)
+        runner = S.make_runner(dyn, p.sc, p.ctrl, p.x0, p.q0, p.estimate, p.h)
         log = S.new_logs(dyn.model, p.n, p.ctrl.xc.size)
         logs = {{k: log[k] for k in ("q", "q_d", "l", "f", "pc", "u", "u_applied", "l_meas")}}
         t0 = time.process_time()

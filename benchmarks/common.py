@@ -173,7 +173,7 @@ def c_loop_per_period(dyn, scenario: str, controller: str, n_periods: int) -> fl
 
     rate = periods_per_s(dyn, scenario)
     p = S.prepare_run(dyn, scenario, controller, None, n_periods / rate, False, {})
-    runner = S.make_runner(dyn, p.sc, p.ctrl, p.x0, p.q0, p.kf_gain, p.h)
+    runner = S.make_runner(dyn, p.sc, p.ctrl, p.x0, p.q0, p.estimate, p.h)
     t0 = time.perf_counter()
     code = runner.run(p.n, p.noise, None)
     wall = time.perf_counter() - t0

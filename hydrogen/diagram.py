@@ -124,7 +124,8 @@ class Block:
 LOOP_BLOCKS = (
     Block("sensors", "actuator travel (noise, resolution), pressures (noise), the supply pressure where it is a "
           "state, joint encoders where fitted", inputs=(_x,), outputs=(_l, _pc, _ps), c_stage="measure"),
-    Block("estimator", "Kalman filter on the travel, pose by forward kinematics (or encoders), velocities",
+    Block("estimator", "the scenario's estimator of the rates from the travel (or the ideal rate sensor's), pose by "
+          "forward kinematics (or encoders), velocities",
           inputs=(_l,), outputs=(_q, _qdot), c_stage="estimate"),
     Block("reference", "the scenario's reference and its derivatives", outputs=REFERENCE_PORTS, c_stage="reference"),
     Block("schedule", "adaptation on from t_adapt", outputs=(_adapt,), c_stage="control"),

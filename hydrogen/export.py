@@ -5,7 +5,7 @@ loop needs (inverse kinematics, leg Jacobian, plant, the chosen controller and
 the loop driver rendered from ``templates/loop.*.j2``), a ``params.h`` with every
 number of the run (controller gains and bounds in the controller's manifest
 input order, matrices column-major; plant parameters; reference; timing;
-Kalman gain; initial states), a ``main.c`` that runs the whole scenario with
+the estimator's numbers; initial states), a ``main.c`` that runs the whole scenario with
 the same C loop :func:`hydrogen.simulate` drives through ctypes, a
 ``Makefile``, a ``CMakeLists.txt``, a ``README.txt`` and an ``export.json``.
 
@@ -13,10 +13,11 @@ The exported program runs without sensor noise (noise is a simulator
 feature): its tracking errors equal those of
 ``hydrogen.simulate(scenario, controller, noise_l=0, noise_p=0, ...)`` to
 rounding, because both call ``<model>_loop_run`` from the same sources with the
-same numbers. In particular the Kalman gain the program uses is the one the
-simulator designs for the noise-free scenario; ``params.h`` also carries the
-gain designed for the scenario's sensor noise (``P_KF_GAIN_SENSOR``, selected
-by compiling with ``-DHG_SENSOR_KF_GAIN``) for use on the rig.
+same numbers. In particular the estimator's numbers the program uses (the Kalman
+gain) are the ones the simulator designs for the noise-free scenario; ``params.h``
+also carries those designed for the scenario's sensor noise
+(``P_<NUMBERS>_SENSOR``, selected by compiling with ``-DHG_SENSOR_<NUMBERS>``:
+``-DHG_SENSOR_KF_GAIN`` for the Kalman gain) for use on the rig.
 
 The folder is rendered into a hidden sibling and swapped in whole
 (:func:`hydrogen.fileio.replace_dir`), so it is never half-written.
@@ -38,7 +39,7 @@ from .layout import NUMBERS, loop_functions
 from .simulation.checks import MIN_WINDOW_SAMPLES  # the metric window's rule, which the program repeats
 
 __all__ = ["export", "EXPORT_MANIFEST", "TEMPLATE_NAMES", "export_context", "render_template", "read_sources", "resolve_dyn",
-           "sensor_kalman_gain", "c_double", "c_doubles", "prepare_export", "controller_entries",
+           "sensor_estimate", "c_double", "c_doubles", "prepare_export", "controller_entries",
            "check_export_dir", "make_products"]
 
 #: Metadata file written into every export folder (also marks a folder as an export).
@@ -201,7 +202,39 @@ def _xc_blocks(ctrl, model) -> list:
     return out
 
 
-def export_context(dyn, p, scenario_name, controller, prog, sources, headers, ctrl_header, sensor_gain):
+def _sensor_config(p) -> list:
+    """Each estimator's numbers as the rig's sensors would have them (its design for the scenario with its
+    noise, ``p.sensor_estimate``; zeros for an estimator the run does not use): params.h's
+    ``P_<NUMBERS>_SENSOR``, which ``-DHG_SENSOR_<NUMBERS>`` fills the loop with."""
+    from .estimators import ESTIMATORS, estimator
+    est = p.sensor_estimate
+    out = []
+    for name in ESTIMATORS:
+        values = est.config() if est is not None and est.name == name else {}
+        for f in estimator(name).CONFIG:
+            out.append({"name": f.name, "macro": f"{f.macro}_SENSOR", "guard": f"HG_SENSOR_{f.name.upper()}",
+                        "size": f.size, "numbers": c_doubles(values.get(f.name, np.zeros(f.size)))})
+    return out
+
+
+def _estimator_settings(sc) -> str:
+    """The selected estimator's own scenario settings with their values, for params.h's comment."""
+    from .estimators import estimator, selected
+    name = selected(sc)
+    if name is None:
+        return ""
+    decl = estimator(name).SCENARIO_SETTINGS
+    from markupsafe import Markup  # a C comment's text: ASCII, no "*/", written as it is
+
+    def unit(text):  # m²/s³ as m^2/s^3 (another sign: no unit)
+        text = text.replace("²", "^2").replace("³", "^3")
+        return f" {text}" if text and text.isascii() else ""
+    text = "".join(f"; {k} {getattr(sc, k)!r}{unit(d.metadata['unit'])}"
+                   for k, d in decl.items() if k != getattr(estimator(name), "SWITCH", None))
+    return Markup(text) if text.isascii() and "*/" not in text else text
+
+
+def export_context(dyn, p, scenario_name, controller, prog, sources, headers, ctrl_header):
     """Everything the templates need, numbers already formatted as C literals."""
     from .layout import loop_context
     from .simulation.loop_config import Run, config_values
@@ -234,7 +267,7 @@ def export_context(dyn, p, scenario_name, controller, prog, sources, headers, ct
     step_args = [own.get(n) or f"ctrl_arg[{fn.arg_names.index(n)}]" for n, _, _ in step["inputs"]] if step else []
     n_xc = int(ctrl.xc.size)
     ref = sc.reference
-    values = config_values(Run(dyn, sc, ctrl, p.h, p.kf_gain))
+    values = config_values(Run(dyn, sc, ctrl, p.h, p.estimate))
     return {
         "model": model.name, "P": model.name.upper(), "scenario": scenario_name, "controller": controller,
         "prog": prog, "sources": sources, "headers": headers, "ctrl_header": ctrl_header,
@@ -247,11 +280,14 @@ def export_context(dyn, p, scenario_name, controller, prog, sources, headers, ct
         "x_plus": loop["x_plus"], "x_index": loop["x_index"], "x_parts": loop["x_parts"],  # the plant state's parts
         "plant_outputs": loop["plant_outputs"],  # the plant's outputs (hydrogen.plant.PlantState.output)
         "parametric": loop["parametric"], "lu_pivot_min": loop["lu_pivot_min"],  # the FMU's failure words
+        "estimators": loop["estimators"],  # each estimator's state and its start in C
         "theta_names": ", ".join(model.theta_names),
-        "kf_gain_sensor": c_doubles(sensor_gain if sensor_gain is not None else np.zeros(2)),
+        # the rig's design of the estimators' numbers, which -DHG_SENSOR_<NUMBERS> fills the loop with
+        "sensor_config": _sensor_config(p),
+        "estimator_doc": p.estimate.module.DOC if p.estimate is not None else "",
         "noise_l": c_double(sc.noise_l), "noise_p": c_double(sc.noise_p),
         "sensor_noise_l": c_double(p.sensor_noise_l), "sensor_noise_p": c_double(p.sensor_noise_p),
-        "kalman_accel": c_double(sc.kalman_accel),
+        "estimator_settings": _estimator_settings(p.sc),
         "inputs": inputs, "n_in": len(inputs), "in_total": sum(e["size"] for e in inputs),
         "outputs": [{"index": i, "name": nm, "rows": int(s[0]), "cols": int(s[1]), "size": int(s[0]) * int(s[1])}
                     for i, (nm, s) in enumerate(zip(fn.out_names, fn.out_shapes))],
@@ -353,9 +389,9 @@ Files
                   (over the whole run when fewer than {min_window} periods are that late)
   params.h        every number of the run as C99 static const arrays (SI units, matrices
                   column-major): the controller's static inputs in its input order, plant
-                  parameters, reference, timing, Kalman gain, initial states and bounds
+                  parameters, reference, timing, the estimator's numbers, initial states and bounds
   {loop_c}, {loop_h}
-                  the closed-loop driver: sensors, Kalman filter, forward kinematics,
+                  the closed-loop driver: sensors, estimator, forward kinematics,
                   reference, controller (zero-order hold), plant (RK4)
   {ctrl_files}
                   the controller, generated by CasADi: int {ctrl_name}(arg, res, iw, w, mem){rates_note}
@@ -383,7 +419,7 @@ The program runs without sensor noise (every sensor's noise is a simulator featu
 loop gets a NULL noise table). Its errors therefore equal those of
   hydrogen.simulate("{scenario}", "{controller}", model={model_arg}, {quiet}{extra})
 to rounding.
-{kalman_note}
+{estimator_note}
 
 On a real-time target, keep the controller call and its argument tables as main.c sets
 them up, write the measured pose, rates, pressures (or leg lengths) and the reference into
@@ -402,12 +438,13 @@ def prepare_export(model, dyn, scenario, controller, gains, duration, check_work
 
     The names are checked, as they are written into generated files; the run is prepared exactly
     as ``simulate(..., noise_l=0, noise_p=0, noise_q=0)`` prepares it (exported programs run
-    noise-free), and it keeps the scenario's sensor noise for the Kalman gain meant for the rig.
+    noise-free), and it keeps the scenario's sensor noise for the estimator's design meant for the rig.
     """
     from .errors import ScenarioError
     from .names import check_identifier, check_label
     from .simulation.scenarios import default_scenario_name, scenario as named_scenario
-    from .simulation.simulator import filter_gain, prepare_run
+    from .estimators import estimate_for
+    from .simulation.simulator import prepare_run
 
     dyn = resolve_dyn(model, dyn, numbers, controller if isinstance(controller, str) else None)
     if scenario is None:
@@ -422,14 +459,14 @@ def prepare_export(model, dyn, scenario, controller, gains, duration, check_work
     p = prepare_run(dyn, sc, controller, gains, duration, check_workspace,
                     {**overrides, **sensor.noise_free()})
     p.sensor_noise_l, p.sensor_noise_p = float(sensor.noise_l), float(sensor.noise_p)
-    p.sensor_kf_gain = filter_gain(sensor, p.h)
+    p.sensor_estimate = estimate_for(sensor, p.h)  # the estimator designed for the rig's noise
     return dyn, sc, sc_name, p
 
 
-def sensor_kalman_gain(p):
-    """The steady-state Kalman gain [position, rate /s] of the prepared export ``p``'s scenario, or None
-    when it has no Kalman filter."""
-    return p.sensor_kf_gain
+def sensor_estimate(p):
+    """The estimator of the prepared export ``p``'s scenario designed for its sensors' noise
+    (:class:`hydrogen.estimators.Estimate`), or None when it selects none."""
+    return p.sensor_estimate
 
 
 def _model_arg(model) -> str:
@@ -463,7 +500,7 @@ def export(out_dir, scenario=None, controller="adaptive-robust", model=None, dur
         The generated folder ``dyn`` was built from, when it is not the default one.
     overrides
         Scenario fields (e.g. ``metric_start=0.5``). The program always runs without sensor
-        noise: ``noise_l`` and ``noise_p`` only set the sensor-noise Kalman gain kept in params.h.
+        noise: ``noise_l`` and ``noise_p`` only set the estimator's sensor-noise design kept in params.h.
 
     Returns
     -------
@@ -477,7 +514,7 @@ def export(out_dir, scenario=None, controller="adaptive-robust", model=None, dur
     dyn, sc, sc_name, p = prepare_export(model, dyn, scenario, controller, gains, duration, check_workspace,
                                          overrides, numbers)
     overrides = dict(overrides)
-    sensor_gain = sensor_kalman_gain(p)
+    sensor = sensor_estimate(p)
 
     mname = dyn.model.name
     entries = {e["name"]: e for e in dyn.library.manifest["functions"]}
@@ -493,14 +530,17 @@ def export(out_dir, scenario=None, controller="adaptive-robust", model=None, dur
     files = read_sources(dyn, sources + headers, generated)
 
     prog = f"{mname}_{controller.replace('-', '_')}"
-    ctx = export_context(dyn, p, sc_name, controller, prog, sources, headers, ctrl_entry["header"], sensor_gain)
+    ctx = export_context(dyn, p, sc_name, controller, prog, sources, headers, ctrl_entry["header"])
     rendered = {out: render_template(t, ctx) for t, out in TEMPLATE_NAMES.items()}
-    if p.kf_gain is not None:
-        kalman_note = ("The Kalman filter on the leg lengths still runs, with the gain the simulator designs "
-                       "for the noise-free scenario (P_KF_GAIN); compile with -DHG_SENSOR_KF_GAIN to use "
-                       f"P_KF_GAIN_SENSOR, designed for {p.sensor_noise_l:g} m leg-length noise, on the rig.")
+    if p.estimate is not None:
+        fields = [f.name.upper() for f in p.estimate.module.CONFIG]
+        estimator_note = (f"The estimator ({p.estimate.module.DOC}) still runs, with the numbers the simulator "
+                       f"designs for the noise-free scenario ({', '.join('P_' + f for f in fields)}); compile "
+                       f"with {' '.join('-DHG_SENSOR_' + f for f in fields)} to use "
+                       f"{', '.join(f'P_{f}_SENSOR' for f in fields)}, designed for {p.sensor_noise_l:g} m "
+                       "leg-length noise, on the rig.")
     else:
-        kalman_note = "Leg rates come from the plant's exact rates (this scenario has no Kalman filter)."
+        estimator_note = "Leg rates come from the plant's exact rates (this scenario has no estimator)."
     quiet = p.sc.noise_free()  # every noise off, the actuators' own settings merged in
     extra = "".join(f", {k}={v!r}" for k, v in sorted(overrides.items()) if k not in quiet)
     if duration is not None:
@@ -509,26 +549,29 @@ def export(out_dir, scenario=None, controller="adaptive-robust", model=None, dur
         extra += ", gains=..."
     other = "\n                  ".join(f"{e['source']}, {e['header']}" for e in funcs[:len(loop_funcs)])
     ctrl_files = "\n                  ".join(f"{e['source']}, {e['header']}" for e in ctrl_entries)
-    kalman_note = textwrap.fill(kalman_note, width=96)
+    estimator_note = textwrap.fill(estimator_note, width=96)
     rendered["README.txt"] = _README.format(
         model=mname, scenario=sc_name, controller=controller, version=__version__, n=p.n,
         h_ms=f"{1e3 * p.h:.9g}", substeps=sc.substeps, metric_start=f"{p.sc.metric_start:g}",
         loop_c=drivers[0], loop_h=f"{mname}_loop.h", ctrl_files=ctrl_files,
         ctrl_name=ctrl_entry["c_name"], rates_note=_STEP_NOTE.format(step=ctrl_entries[1]["c_name"])
-        if len(ctrl_entries) > 1 else "", other=other, prog=prog, extra=extra, kalman_note=kalman_note,
+        if len(ctrl_entries) > 1 else "", other=other, prog=prog, extra=extra, estimator_note=estimator_note,
         quiet=", ".join(f"{k}={v!r}" for k, v in quiet.items() if v != {}), model_arg=_model_arg(dyn.model),
         min_window=MIN_WINDOW_SAMPLES)
     contents = {**{n: files[n] for n in sources + headers}, **{n: t.encode() for n, t in rendered.items()}}
     meta = {
-        "format": 1, "hydrogen_version": __version__, "model": mname, "model_hash": dyn.model.baked_hash(),
+        # 2: the run's estimator by name with its numbers (format 1 had the Kalman gain alone)
+        "format": 2, "hydrogen_version": __version__, "model": mname, "model_hash": dyn.model.baked_hash(),
         "derivation_hash": dyn.library.manifest.get("derivation_hash"),
         "drivers_hash": dyn.library.manifest.get("drivers_hash"),
         "scenario": sc_name, "controller": controller, "program": prog,
         "n_periods": int(p.n), "control_period_s": float(p.h), "duration_s": float(p.sc.duration),
         "metric_start_s": float(p.sc.metric_start), "overrides": {k: _jsonable(v) for k, v in overrides.items()},
         "gains": {k: _jsonable(v) for k, v in (gains or {}).items()},
-        "kalman_gain": None if p.kf_gain is None else [float(v) for v in p.kf_gain],
-        "kalman_gain_sensor": None if sensor_gain is None else [float(v) for v in sensor_gain],
+        # the run's estimator and its numbers, for the noise-free run and for the rig's sensors
+        "estimator": None if p.estimate is None else p.estimate.name,
+        "estimator_numbers": None if p.estimate is None else {k: v.tolist() for k, v in p.estimate.config().items()},
+        "estimator_numbers_sensor": None if sensor is None else {k: v.tolist() for k, v in sensor.config().items()},
         "files": {n: _sha256(b) for n, b in sorted(contents.items())},
     }
     contents[EXPORT_MANIFEST] = (json.dumps(meta, indent=2, sort_keys=True) + "\n").encode()

@@ -19,6 +19,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
+from .estimators import selected  # noqa: E402 - a scenario with an estimator is a rig run
 from .fileio import atomic_write  # noqa: E402
 
 __all__ = ["plot_tracking_errors", "plot_parameter_errors", "plot_experiment", "plot_step",
@@ -412,7 +413,7 @@ def make_all(dyn, out_dir, quiet=True, *, durations=None, gains=None, nonlinear=
     if base not in listed:
         raise ScenarioError(model.not_listed(base) + " (the figures compare with it)")
     scenarios = [named_scenario(nm, model) for nm in scenario_names(model)]
-    total = sum(1 if sc.friction[0] == 0 and not sc.kalman and not sc.reference.STEP_RESPONSE
+    total = sum(1 if sc.friction[0] == 0 and selected(sc) is None and not sc.reference.STEP_RESPONSE
                 else (2 if sc.reference.STEP_RESPONSE else 2 + len(compared)) for sc in scenarios)
     # A bar on a terminal only (disable=None), never with quiet.
     bar = tqdm(total=total, desc="figures", unit="run", disable=True if quiet else None)
@@ -440,7 +441,7 @@ def make_all(dyn, out_dir, quiet=True, *, durations=None, gains=None, nonlinear=
     paths, rows, chosen = {}, [], []
     # the steps last: their P is the one the tracking scenarios found better (the figures compare alike)
     for sc in sorted(scenarios, key=lambda sc: sc.reference.STEP_RESPONSE):
-        rig = sc.kalman or sc.friction[0] > 0 or sc.noise_l > 0
+        rig = selected(sc) is not None or sc.friction[0] > 0 or sc.noise_l > 0
         if not rig and not sc.reference.STEP_RESPONSE:
             sim = run(sc.name, nonlinear)
             paths[sc.name] = plot_tracking_errors(sim, out / f"{sc.name}_errors.png", t_adapt=sc.t_adapt)

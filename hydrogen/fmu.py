@@ -9,9 +9,9 @@ driver's stages (``<model>_loop.h``) one control period per call:
 * **plant**: the plant stage ``<model>_plant_step`` holding the FMU input ``u``; RK4 sub-steps and
   pressure limits are the loop's own.
 * **controller**: the stages from estimation on, on the measured inputs: ``<model>_estimate``
-  (Kalman filter on the cylinder lengths, forward kinematics or joint encoders, velocities through
-  JL), ``<model>_reference`` (or the q_d inputs), ``<model>_control`` and ``<model>_control_advance``.
-  The lengths pass the length sensor's resolution (``<model>_sense_lengths``). Without a Kalman filter
+  (the scenario's estimator of the rates, such as the Kalman filter on the cylinder lengths, forward
+  kinematics or joint encoders, velocities through JL), ``<model>_reference`` (or the q_d inputs), ``<model>_control`` and ``<model>_control_advance``.
+  The lengths pass the length sensor's resolution (``<model>_sense_lengths``). Without an estimator
   (the ideal cylinder-rate sensor of the simulation scenarios) the measured cylinder rates are an
   input as well.
 * **closed-loop**: the whole loop (``<model>_loop_run``), reproducing
@@ -219,7 +219,7 @@ def _coord_units(model):
     return list(model.coordinate_units)
 
 
-def _variables(part, dyn, p, ctx, fn, encoders, kalman):
+def _variables(part, dyn, p, ctx, fn, encoders, estimated):
     """The FMU's variables, in value-reference order, with their C locations in the instance."""
     model, sc, ctrl = dyn.model, p.sc, p.ctrl
     n, m = model.n, model.n_cylinders
@@ -304,10 +304,10 @@ def _variables(part, dyn, p, ctx, fn, encoders, kalman):
             for i, c in enumerate(coords):
                 add(_dotted("q", c), "i", "continuous", f"joint encoder reading of {c}", f"inst->q_in[{i}]",
                     unit=cunits[i], start=float(p.q0[i]))
-        if not kalman:
+        if not estimated:
             for i, c in enumerate(cyls):
                 add(_dotted("ldot", c), "i", "continuous", f"measured rate of {_what(model.cylinders[i])} {c} (the "
-                    "scenario's ideal rate sensor: no Kalman filter)", f"inst->ldot_in[{i}]",
+                    "scenario's ideal rate sensor: no estimator)", f"inst->ldot_in[{i}]",
                     unit=travels[i].rate_unit(), start=0.0)
         ref0 = sc.reference(0.0)
         for k, (slot, base, suffix, what) in enumerate(_REF_ORDERS):
@@ -622,7 +622,7 @@ _INSIDE = {
              "closed-loop driver's RK4 sub-steps; input the spool commands u (held over each period); outputs the "
              "coordinates and their rates, cylinder lengths and rates, control pressures.",
     "controller": "The controller with the loop's sensor path: inputs the measured cylinder lengths and "
-                  "pressures{extra}; inside, the Kalman filter on lengths (when the scenario has one), {pose}, "
+                  "pressures{extra}; inside, the scenario's estimator of the rates (when it has one), {pose}, "
                   "velocities through JL, the reference (built in, or the q_d inputs), the controller and its "
                   "adaptation. u after a step is the command computed from the inputs sampled at the start of "
                   "that step.",
@@ -661,7 +661,7 @@ def export_fmu(out, part, scenario=None, controller="adaptive-robust", model=Non
     from . import __version__
     from .layout import loop_functions
     from .export import (controller_entries, export_context, prepare_export, read_sources,
-                         sensor_kalman_gain, render_template)
+                         render_template)
     from .names import check_identifier
 
     if part not in PARTS:
@@ -688,13 +688,12 @@ def export_fmu(out, part, scenario=None, controller="adaptive-robust", model=Non
     gen_headers = [e["header"] for e in funcs] + [f"{mname}_loop.h"]
     files = read_sources(dyn, gen_sources + gen_headers, generated)
 
-    ctx = export_context(dyn, p, sc_name, controller, f"{mname}_fmu", gen_sources, gen_headers, ctrl_entry["header"],
-                   sensor_kalman_gain(p))
+    ctx = export_context(dyn, p, sc_name, controller, f"{mname}_fmu", gen_sources, gen_headers, ctrl_entry["header"])
     params_h = render_template("export_params.h.j2", ctx).encode()
 
-    encoders, kalman = bool(model.joint_encoders), p.kf_gain is not None
+    encoders, estimated = bool(model.joint_encoders), p.estimate is not None  # else the rates are inputs
     fn = p.ctrl.fn
-    variables, est_const = _variables(part, dyn, p, ctx, fn, encoders, kalman)
+    variables, est_const = _variables(part, dyn, p, ctx, fn, encoders, estimated)
     names = [v.name for v in variables]
     dup = sorted({x for x in names if names.count(x) > 1})
     if dup:
@@ -717,7 +716,7 @@ def export_fmu(out, part, scenario=None, controller="adaptive-robust", model=Non
     glue = render_template("fmu_glue.c.j2", dict(
         ctx, part=part, guid=guid, variables=variables, plant_arrays=_plant_arrays(dyn, p),
         est_const_size=len(est_const), est_const=", ".join(c_double(v) for v in est_const),
-        encoders=encoders, kalman=kalman, numbers_vr0=_numbers_vr0(variables, ctx),
+        encoders=encoders, estimated=estimated, numbers_vr0=_numbers_vr0(variables, ctx),
         stroke_min=", ".join(_c_limit(v) for v in model.leg_min),
         stroke_max=", ".join(_c_limit(v) for v in model.leg_max),
         travel_units=[c.travel.unit for c in model.cylinders],
@@ -738,7 +737,7 @@ def export_fmu(out, part, scenario=None, controller="adaptive-robust", model=Non
     import fmpy
 
     inside = _INSIDE[part].format(
-        extra=(", the joint encoders" if encoders else "") + ("" if kalman else ", the cylinder rates"),
+        extra=(", the joint encoders" if encoders else "") + ("" if estimated else ", the cylinder rates"),
         pose="the joint encoders' pose" if encoders else "forward kinematics (Newton, warm-started)")
     rows = "\n".join(
         f"<tr><td>{_html(v.name)}</td><td>{v.causality}</td><td>{_html(v.unit or '')}</td>"

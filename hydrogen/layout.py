@@ -11,7 +11,7 @@ import math
 
 from . import diagram  # the controller's input slots: the loop's ports
 from . import references  # the reference kinds' part of the configuration and their C
-from .estimators import kalman  # the Kalman filter's C statements
+from .estimators import ESTIMATORS, estimator, switch_field  # the estimators' state, numbers and C
 from .names import NUMBERS  # the numbers input's name, part of the loop's layout
 from .plant import (BLOCKS as PLANT_BLOCKS, block as plant_block, input_record, integrator,  # the plant's blocks
                     plant_inputs)
@@ -75,8 +75,8 @@ def delay_split(delay: float, h: float) -> tuple:
 #: each group with its comment. The C struct of the loop header, the runtime's ctypes mirror, the
 #: exported programs' params.h and their fill (``p_fill_config``, for main.c and the FMUs) are rendered
 #: from it, and the runtime (:class:`hydrogen.runtime.loop.LoopRunner`) fills the struct from it. C
-#: types: ``double``, ``long long``, ``const double*`` (an array the caller owns), ``double[2]``, ``fn``
-#: (a generated function), ``double**``, ``long long int*``, ``double*`` (its tables and work), ``slots``
+#: types: ``double``, ``long long``, ``const double*`` (an array the caller owns), ``double[<n>]`` (an
+#: array of the struct's own: an estimator's numbers), ``fn`` (a generated function), ``double**``, ``long long int*``, ``double*`` (its tables and work), ``slots``
 #: (``long long[N_SLOTS]``). The exported name is the params.h constant that holds the value; the source
 #: says where the value comes from: ``scenario.<field>`` a field of the run's scenario as it is, ``run.<name>``
 #: a value :mod:`hydrogen.simulation.loop_config` derives for the run (None, with no exported name: the
@@ -84,6 +84,23 @@ def delay_split(delay: float, h: float) -> tuple:
 #: on :class:`hydrogen.simulation.scenarios.Scenario`, a row here and its use in loop.c and
 #: :class:`hydrogen.simulation.simulator.PythonStages`.
 _REFERENCE = references.config_fields()
+
+
+def _estimator_fields() -> tuple:
+    """Each estimator's part of the configuration (hydrogen.estimators): its switch, then its numbers."""
+    out = []
+    for name in ESTIMATORS:
+        mod = estimator(name)
+        out.append((switch_field(name), "long long", f"P_{switch_field(name).upper()}", f"run.{switch_field(name)}"))
+        out += [(f.name, f.ctype, f.macro, f"run.{f.name}") for f in mod.CONFIG]
+    return tuple(out)
+
+
+#: The sensors' group's comment: the length sensor's, then each estimator's (its CONFIG_DOC), a line each
+#: after the first.
+_SENSORS_DOC = ("sensors: each actuator's travel resolution quant_l (m or rad, its own unit; 0: none; rounded to its "
+                "grid\n * after the noise)"
+                + "".join(("; " if i == 0 else ";\n * ") + estimator(name).CONFIG_DOC for i, name in enumerate(ESTIMATORS)))
 
 LOOP_CONFIG = (
     ("timing: control period h (s), plant RK4 sub-steps per control period (bound_stages != 0: the pressures\n"
@@ -101,11 +118,9 @@ LOOP_CONFIG = (
       ("gamma2", "const double*", "P_GAMMA2", "run.gamma2"),
       # each block's input of numbers (hydrogen.plant.plant_inputs), from the run's scenario and model
       *((name, "const double*", f"P_{name.upper()}", f"run.{name}") for name in PLANT_INPUTS))),
-    ("sensors: each actuator's travel resolution quant_l (m or rad, its own unit; 0: none; rounded to its grid\n"
-     " * after the noise); fixed-gain Kalman filter on the actuators' travel (use_kalman != 0), gain [K_l, K_ldot]",
+    (_SENSORS_DOC,
      (("quant_l", "const double*", "P_QUANTIZATION_L", "run.quantization_l"),
-      ("use_kalman", "long long", "P_USE_KALMAN", "run.use_kalman"),
-      ("kf_gain", "double[2]", "P_KF_GAIN", "run.kf_gain"))),
+      *_estimator_fields())),  # each estimator's switch and numbers (hydrogen.estimators)
     # the reference kinds' fields (hydrogen.references), each read from the run
     (_REFERENCE[0], tuple((name, ctype, macro, f"run.{name}") for name, ctype, macro in _REFERENCE[1])),
     ("controller: generated function, its argument/result tables, work vectors",
@@ -162,7 +177,9 @@ LOOP_STATE = (
     ("k", "long long", None, "control periods done"),
     ("x", "double", ("NX",), "plant: {x_parts}"),
     ("q_meas", "double", ("NQ",), "last measured pose (Newton's warm start)"),
-    ("kf", "double", (2, "NL"), "Kalman state: cylinder lengths, cylinder rates"),
+    # each estimator's state (hydrogen.estimators)
+    *((estimator(name).STATE.name, "double", estimator(name).STATE.size, estimator(name).STATE.doc)
+      for name in ESTIMATORS),
     ("u_hist", "double", ("MAX_DELAY", "NL"), "commands of past periods: ring, slot k % MAX_DELAY (0 at reset)"),
     ("u_app", "double", ("NL",), "commands the valves held over the last period, m (0 at reset): the\n"
      " * controller's u_applied input in its state update"),
@@ -237,8 +254,8 @@ def config_fields(p: str, summary: dict) -> list:
             return f"{p}_casadi_fn {name}"
         if ctype == "slots":
             return f"long long {name}[{p.upper()}_N_SLOTS]"
-        if ctype == "double[2]":
-            return f"double {name}[2]"
+        if ctype.startswith("double["):  # an array of its own: double name[size]
+            return f"double {name}{ctype.removeprefix('double')}"
         return f"{ctype} {name}"
 
     from markupsafe import Markup  # hydrogen's own comment text: written as it is (hydrogen.templating)
@@ -248,7 +265,7 @@ def config_fields(p: str, summary: dict) -> list:
     return [{"comment": [Markup(part.replace("{plant_inputs}", inputs).replace("\n * ", "\n     * "))
                          for part in comment.split("{p_theta}")],
              "fields": [{"name": n, "type": t, "decl": Markup(decl(n, t)), "value": v, "source": src,
-                         "array": t in ("double[2]", "slots")}
+                         "array": t.startswith("double[") or t == "slots"}
         for n, t, v, src in fields]} for comment, fields in LOOP_CONFIG]
 
 
@@ -360,6 +377,23 @@ def _port_writes(sizes: dict) -> list:
             for p in diagram.ports(sizes)]
 
 
+def _estimator_context() -> list:
+    """Each estimator's C for the loop templates: its switch, comment, update and start statements."""
+    from markupsafe import Markup  # hydrogen's own C (hydrogen.templating)
+    return [{"name": name, "switch": switch_field(name), "comment": Markup(estimator(name).C_COMMENT),
+             "c_update": Markup(estimator(name).C_UPDATE), "c_start": Markup(estimator(name).C_START),
+             "state": estimator(name).STATE.name, "doc": estimator(name).DOC,
+             "label": getattr(estimator(name), "LABEL", f"the {name} estimator"),
+             "config": [{"name": f.name, "macro": f.macro, "size": f.size} for f in estimator(name).CONFIG]}
+            for name in ESTIMATORS]
+
+
+def _any_estimator() -> str:
+    """The C condition, on the configuration ``c``, that an estimator gives the rates ("0": none is there)."""
+    terms = [f"c->{switch_field(name)}" for name in ESTIMATORS]
+    return terms[0] if len(terms) == 1 else f"({' || '.join(terms)})" if terms else "0"
+
+
 def loop_context(manifest: dict) -> dict:
     """Everything the loop templates and the ctypes structures need, from a manifest."""
     s = manifest["model"]
@@ -407,7 +441,10 @@ def loop_context(manifest: dict) -> dict:
         "fk_status": FK_STATUS, "lu_pivot_min": c_double(LU_PIVOT_MIN),
         # each reference kind's statements of the loop's reference function (hydrogen's own C)
         "reference_bodies": [Markup(body) for body in references.c_bodies()],
-        "kalman_update": Markup(kalman.C_UPDATE),  # the Kalman filter's statements (hydrogen's own C)
+        # each estimator's statements of the estimate stage behind its switch (hydrogen's own C), and
+        # the C expression of "an estimator gives the rates" (else the measure stage's ideal rate sensor)
+        "estimators": _estimator_context(),
+        "estimated": Markup(_any_estimator()),
         # the plant's integration (hydrogen's own C): RK4 holding each command, the pressures held within
         # their bounds, the sub-steps shared out around a command switch, the predictor's step count
         "integrator_functions": Markup(integrator.c_functions(x_index["pc"])),

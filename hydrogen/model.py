@@ -1705,14 +1705,14 @@ def _check_tables(r: _Reader, m: Model):
 
 def _check_setting_values(r: _Reader, table: dict, where: str) -> None:
     """Each scenario setting of ``table`` that declares a check (hydrogen.setting: ``"number"``, a
-    finite number; ``">=0"``, one not negative) holds it, at load time; the checks across settings
+    finite number; ``">=0"``, one not negative; ``">0"``, one above 0) holds it, at load time; the checks across settings
     (a valve's bandwidth against the sub-steps, a reference below Nyquist) wait for the scenario."""
     from .scenario_settings import settings
-    from .setting import failed_check
+    from .setting import WORDS, failed_check
     for f in settings():
         failed = failed_check(f, table[f.name]) if f.name in table else None
         if failed:
-            what = "a finite number" if failed == "number" else ">= 0"
+            what = WORDS[failed]
             raise r.error(f"{where} {f.name}", f"must be {what} ({f.metadata['unit'] or 'no unit'}), "
                                                f"got {_quote(table[f.name])}")
 

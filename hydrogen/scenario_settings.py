@@ -6,7 +6,8 @@ of ``<scenario>.<variant>``.
 A part that is a module of its own declares its settings there (``SCENARIO_SETTINGS``: the plant's
 integration :mod:`hydrogen.plant.integrator`, each block of the plant that has any (its friction
 :mod:`hydrogen.plant.friction` and valve :mod:`hydrogen.plant.valve`, found by
-:data:`hydrogen.plant.BLOCKS`), the Kalman filter :mod:`hydrogen.estimators.kalman`); the loop's other
+:data:`hydrogen.plant.BLOCKS`), each estimator (:data:`hydrogen.estimators.ESTIMATORS`: the Kalman filter
+:mod:`hydrogen.estimators.kalman`), with the general selector ``estimator``); the loop's other
 parts (the run, the sensors, the computation delay, the delay predictor, the adaptation's schedule, the
 controller's start) declare theirs below. :data:`PARTS` gathers them in the description table's order.
 
@@ -18,7 +19,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field, fields, make_dataclass
 
-from .estimators import kalman
+from .estimators import ESTIMATORS, estimator as estimator_module, selector_setting
 from .plant import BLOCKS as PLANT_BLOCKS, block as plant_block, integrator
 from .setting import setting
 
@@ -30,8 +31,8 @@ __all__ = ["ScenarioFields", "PARTS", "PER_ACTUATOR", "actuator_keys", "Part", "
 #: block declares (:func:`hydrogen.plant.actuator_settings`: the valve's spool response). The
 #: scenario's own field (in a cylinder's units) is every cylinder's default; a joint actuator's
 #: friction defaults to none, and it must give the others itself where the scenario's are on (never a
-#: length in m applied to an angle). The Kalman filter's gain is one for all, dimensionless and 1/s
-#: (kalman_accel designs it with the scenario's noise_l and quantization_l).
+#: length in m applied to an angle). An estimator's numbers are one for all (the Kalman filter's gain,
+#: dimensionless and 1/s, which kalman_accel designs with the scenario's noise_l and quantization_l).
 PER_ACTUATOR = ("friction", "quantization_l", "noise_l")
 
 
@@ -105,7 +106,9 @@ PARTS = (
     *(Part(name, plant_block(name).SCENARIO_SETTINGS) for name in PLANT_BLOCKS
       if getattr(plant_block(name), "SCENARIO_SETTINGS", None)),
     Part("sensors", _SENSORS),
-    Part("estimator", kalman.SCENARIO_SETTINGS),
+    # the general selector, then each estimator's own (hydrogen.estimators.ESTIMATORS), under its name
+    Part("estimator", {"estimator": selector_setting()}),
+    *(Part(f"{name} estimator", estimator_module(name).SCENARIO_SETTINGS) for name in ESTIMATORS),
     Part("computation delay", _HOLD),
     Part("delay predictor", _PREDICTOR),
     Part("adaptation schedule", _SCHEDULE),

@@ -1,6 +1,6 @@
 """A scenario setting's declaration (plain data): a number or switch that a description's
 ``[scenarios.<name>]``, ``[rig]`` or ``[variants.<name>]`` table may set, declared once by the part of
-the loop that reads it (a plant block such as :mod:`hydrogen.plant.valve`, the Kalman filter, or the
+the loop that reads it (a plant block such as :mod:`hydrogen.plant.valve`, an estimator, or the
 loop's own parts in :mod:`hydrogen.scenario_settings`), which assembles them into the scenario's
 fields.
 """
@@ -10,13 +10,13 @@ import math
 import numbers
 from dataclasses import field
 
-__all__ = ["setting", "failed_check"]
+__all__ = ["setting", "failed_check", "WORDS"]
 
 
 def setting(default, unit: str, meaning: str, check: str | None = None, default_text: str | None = None):
     """A scenario setting: its default (None: required), unit and meaning (the description table's row,
     rendered by :func:`hydrogen.schema.description_table`) and its check: ``"number"`` a finite number,
-    ``">=0"`` also not negative (None: checked by
+    ``">=0"`` also not negative, ``">0"`` also above 0 (None: checked by
     :meth:`hydrogen.simulation.scenarios.Scenario.validated` itself). A :class:`dataclasses.Field` of the
     scenario's fields (mutable defaults as given: the settings hold numbers, strings and tuples)."""
     meta = {"unit": unit, "meaning": meaning, "check": check, "default_text": default_text}
@@ -25,12 +25,19 @@ def setting(default, unit: str, meaning: str, check: str | None = None, default_
 
 def failed_check(decl, value) -> str | None:
     """The declared check of setting ``decl`` (a field made by :func:`setting`) that ``value`` fails:
-    ``"number"`` (not a finite real number; a bool is not one), ``">=0"`` (a finite number below 0), or
-    None (it passes, or the setting declares no check). Each caller words the failure its own way."""
+    ``"number"`` (not a finite real number; a bool is not one), ``">=0"`` (a finite number below 0),
+    ``">0"`` (a finite number not above 0), or None (it passes, or the setting declares no check). Each
+    caller words the failure its own way (:data:`WORDS`)."""
     check = decl.metadata.get("check")
     if check is None:
         return None
     # numpy's bools are not numbers.Real; Python's are, and are refused by name
     if isinstance(value, bool) or not isinstance(value, numbers.Real) or not math.isfinite(value):
         return "number"
-    return ">=0" if check == ">=0" and value < 0 else None
+    if check == ">=0" and value < 0:
+        return ">=0"
+    return ">0" if check == ">0" and value <= 0 else None
+
+
+#: Each failed check in words: what the value must be.
+WORDS = {"number": "a finite number", ">=0": ">= 0", ">0": "> 0"}

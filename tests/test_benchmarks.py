@@ -885,7 +885,7 @@ def test_the_python_stages_integrate_one_period_without_touching_the_state():
 
     dyn = hydrogen.build(hydrogen.load_model("excavator_arm"), controllers=("backstepping",))
     p = prepare_run(dyn, "arm-dig", "backstepping", None, 0.05, True, {}, keep_logs=False)
-    loop = PythonStages(dyn, p.sc, p.ctrl, p.x0.copy(), p.q0, p.kf_gain, p.h)
+    loop = PythonStages(dyn, p.sc, p.ctrl, p.x0.copy(), p.q0, p.estimate, p.h)
     seen = {}
     for k in range(5):
         loop.k = k

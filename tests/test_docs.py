@@ -217,7 +217,7 @@ def test_each_scenario_setting_is_declared_once_by_the_part_that_reads_it():
     from hydrogen.estimators import kalman
     from hydrogen.plant import friction, integrator, valve
 
-    owners = {"plant integration": integrator, "valve": valve, "friction": friction, "estimator": kalman}
+    owners = {"plant integration": integrator, "valve": valve, "friction": friction, "kalman estimator": kalman}
     parts = {part.name: part for part in scenarios.PARTS}
     for name, module in owners.items():
         assert parts[name].settings is module.SCENARIO_SETTINGS

@@ -61,7 +61,7 @@ def _params_stub(ctx):
     names = jinja2.meta.find_undeclared_variables(env.parse(source))
     stub = {n: "0" for n in names}
     stub.update(model=ctx["model"], inputs=[], outputs=[], slots=[], terms=[], n_terms=0, numbers=[], number_order=[],
-                xc_blocks=[])
+                xc_blocks=[], sensor_config=[])
     return stub
 
 
@@ -74,7 +74,7 @@ def test_the_runtime_and_the_exported_params_fill_the_same_configuration(dyn, tm
     scenario, controller = "z-1hz", "adaptive-robust"
     folder = export(tmp_path / "out", scenario, controller, duration=0.05, dyn=dyn)
     _, _, _, p = prepare_export(None, dyn, scenario, controller, None, 0.05, True, {})
-    runner = make_runner(dyn, p.sc, p.ctrl, p.x0, p.q0, p.kf_gain, p.h)
+    runner = make_runner(dyn, p.sc, p.ctrl, p.x0, p.q0, p.estimate, p.h)
     cfg, model = runner.cfg, dyn.model.name
     fields = [f for g in loop_context(dyn.library.manifest)["config"] for f in g["fields"] if f["value"]]
     expected, prints = {}, []

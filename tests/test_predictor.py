@@ -27,7 +27,7 @@ def test_prediction_is_the_plant_state_where_the_command_lands(dyn, periods):
     sc = _ideal(model, delay=periods * h, predictor=True, predictor_substeps=scenario("paper-sim", model).substeps,
                 duration=0.2)
     p = prepare_run(dyn, sc, "backstepping", None, None, True, {})
-    loop = PythonStages(dyn, p.sc, p.ctrl, p.x0, p.q0, p.kf_gain, p.h)
+    loop = PythonStages(dyn, p.sc, p.ctrl, p.x0, p.q0, p.estimate, p.h)
     predicted, checked = {}, 0
     for k in range(p.n):
         loop.k = k

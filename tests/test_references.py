@@ -94,7 +94,7 @@ def test_the_c_reference_function_equals_its_numpy_twin(dyn, name):
     from hydrogen.simulation.simulator import make_runner, prepare_run
 
     p = prepare_run(dyn, name, "p", None, 0.1, True, {})
-    runner = make_runner(dyn, p.sc, p.ctrl, p.x0, p.q0, p.kf_gain, p.h)
+    runner = make_runner(dyn, p.sc, p.ctrl, p.x0, p.q0, p.estimate, p.h)
     stages = runner.stages()
     n = dyn.model.n
     for t in (0.0, 0.3, 0.999, 1.0, 1.7):
@@ -176,7 +176,7 @@ def test_the_c_reference_function_runs_a_move_as_its_numpy_twin(dyn, model):
     ref = references.kind("moves").Reference(np.asarray(scenario("z-1hz", model).reference.bias),
                                              ((2, 0.02, 0.2, 1.0), (5, 0.05, 0.4, 0.6)))
     p = prepare_run(dyn, "z-1hz", "p", None, 0.1, True, {"reference": ref})
-    runner = make_runner(dyn, p.sc, p.ctrl, p.x0, p.q0, p.kf_gain, p.h)
+    runner = make_runner(dyn, p.sc, p.ctrl, p.x0, p.q0, p.estimate, p.h)
     stages = runner.stages()
     for t in (0.0, 0.2, 0.35, 0.7, 0.95, 1.2, 2.0):
         stages.signals.t = t

@@ -156,7 +156,7 @@ def _c_run_with_noise_scaled(dyn, name, kind, factor):
     from hydrogen.simulation.simulator import make_runner, new_logs, prepare_run
     p = prepare_run(dyn, name, kind, None, None, True, {})
     log = new_logs(dyn.model, p.n, p.ctrl.xc.size)
-    runner = make_runner(dyn, p.sc, p.ctrl, p.x0, p.q0, p.kf_gain, p.h)
+    runner = make_runner(dyn, p.sc, p.ctrl, p.x0, p.q0, p.estimate, p.h)
     logs = {k: log[k] for k in ("q", "q_d", "l", "f", "pc", "u", "u_applied", "l_meas")}
     if p.ctrl.xc.size:
         logs["xc"] = log["xc"]

@@ -592,7 +592,7 @@ def test_c_loop_divergence_keeps_only_finite_rows(plain_stewart_dyn):
 def test_loop_runner_checks_its_arrays(dyn):
     from hydrogen.simulation import simulator as S
     p = S.prepare_run(dyn, "z-1hz", "p", None, 0.1, False, {})
-    runner = S.make_runner(dyn, p.sc, p.ctrl, p.x0, p.q0, p.kf_gain, p.h)
+    runner = S.make_runner(dyn, p.sc, p.ctrl, p.x0, p.q0, p.estimate, p.h)
     small = {"q": np.zeros((10, 6))}
     assert runner.run(10, p.noise, small) == 0
     with pytest.raises(ValueError, match="log 'q'"):
@@ -624,7 +624,7 @@ def test_forward_kinematics_bad_arguments(dyn, model):
 def _stewart_runner(dyn, scenario_name="z-1hz", n=20):
     from hydrogen.simulation import simulator as S
     p = S.prepare_run(dyn, scenario_name, "adaptive-robust", None, n / 512, False, {"seed": 1})
-    return S.make_runner(dyn, p.sc, p.ctrl, p.x0, p.q0, p.kf_gain, p.h), p
+    return S.make_runner(dyn, p.sc, p.ctrl, p.x0, p.q0, p.estimate, p.h), p
 
 
 def test_the_c_loop_estimates_the_pose_with_dynamics_forward_kinematics(dyn):
@@ -672,13 +672,13 @@ def test_a_singular_jl_at_the_encoders_pose_is_worded_as_the_velocity_estimate(c
     p = S.prepare_run(arm, "arm-sim", "p", None, 20 / 512, False, {"seed": 1})
     x0 = p.x0.copy()
     x0[S.slot(S.plant_layout(arm.model), "q").slice] = q
-    runner = S.make_runner(arm, p.sc, p.ctrl, x0, q, p.kf_gain, p.h)
+    runner = S.make_runner(arm, p.sc, p.ctrl, x0, q, p.estimate, p.h)
     st = runner.stages()
     assert st.measure(None) == 0 and st.estimate() == LOOP_FK_FAILED
     said = S._loop_failure(LOOP_FK_FAILED, runner, p.h)
     assert said.startswith("stopped at t = 0.0000 s: velocity estimate: JL is singular at the measured pose q = [")
     assert "forward kinematics" not in said
-    loop = S.PythonStages(arm, p.sc, p.ctrl, x0, q, p.kf_gain, p.h)
+    loop = S.PythonStages(arm, p.sc, p.ctrl, x0, q, p.estimate, p.h)
     s = loop.signals(np.zeros_like(p.noise[0]))
     loop.sensors(s)
     with pytest.raises(hydrogen.KinematicsError) as err:
@@ -824,8 +824,8 @@ def test_a_sweeps_workers_take_the_kalman_gains_its_parent_solved(dyn, monkeypat
     runs = [dict(scenario="z-1hz", controller="p", duration=0.2, seed=s, gains={"Kleg": 0.05}) for s in (0, 1)]
     runs.append({"bogus": 1})
     runs.append(dict(scenario="z-1hz", controller="p", duration=0.2, noise_l=1e-5))  # another filter
-    filters = W._filter_gains(dyn.model, runs)
-    assert len(filters) == 2
+    filters = W._estimator_designs(dyn.model, runs)
+    assert list(filters) == ["kalman"] and len(filters["kalman"]) == 2
     alone = W._run_one((dyn.model, runs[3], False, None))
     S._kalman_gain.cache_clear()
     monkeypatch.setattr(S, "_KNOWN_GAINS", {})
@@ -890,7 +890,7 @@ def test_the_loop_is_its_stages_composed(robot_dyn, kind):
     name, n = names[0], 200
     duration = n / scenario(name, model).control_rate
     runs = [S.prepare_run(robot_dyn, name, "adaptive-robust", None, duration, False, {"seed": 3}) for _ in range(2)]
-    whole, staged = (S.make_runner(robot_dyn, p.sc, p.ctrl, p.x0, p.q0, p.kf_gain, p.h) for p in runs)
+    whole, staged = (S.make_runner(robot_dyn, p.sc, p.ctrl, p.x0, p.q0, p.estimate, p.h) for p in runs)
     noise = runs[0].noise
     assert noise.shape[0] >= n
     log = {"u": np.zeros((n, model.n_cylinders))}

@@ -8,9 +8,10 @@ actuator): a constant-velocity model per actuator, the state [l, l̇], run once 
 - **Update** (:func:`update`, numpy; :data:`C_UPDATE`, the loop driver's C): predict with
   [1 h; 0 1], then correct with the gain against the measured l. The two are the same operations in
   the same order, so the Python engine and the C loop agree to the bit.
-- **Start** (:func:`start`): at the first pose's lengths, at rest.
+- **Start** (:func:`start`, :data:`C_START`): at the first pose's lengths, at rest.
 
-Plain numpy at import; SciPy only where a gain is solved.
+An estimator of :mod:`hydrogen.estimators` (its declarations: ``NAME``, ``STATE``, ``CONFIG``, ...),
+selected by ``kalman = true`` or ``estimator = "kalman"``. Plain numpy at import; SciPy only where a gain is solved.
 """
 from __future__ import annotations
 
@@ -19,25 +20,81 @@ import functools
 import numpy as np
 
 from ..setting import setting
+from . import ConfigNumbers, LoopState
 
-__all__ = ["SCENARIO_SETTINGS", "length_noise_variance", "filter_gain", "filter_setting", "filter_gains", "remember_filter_gains",
+__all__ = ["NAME", "POSITION", "DOC", "SWITCH", "STATE", "CONFIG", "CONFIG_DOC", "design", "config", "rate",
+           "design_key", "designs", "remember", "C_START", "C_COMMENT", "SCENARIO_SETTINGS", "length_noise_variance", "filter_gain", "filter_setting", "filter_gains", "remember_filter_gains",
            "kalman_gain", "start", "update", "C_UPDATE"]
+
+#: Its name (the scenario's ``estimator = "kalman"``) and place among the estimators.
+NAME = "kalman"
+POSITION = 1
+DOC = "fixed-gain Kalman filter on the actuators' travel"
+LABEL = "the Kalman filter"  # as the loop header's comments name it
+#: The scenario's own switch that selects it (``kalman = true``), besides ``estimator = "kalman"``.
+SWITCH = "kalman"
+
+#: Its part of the loop's state: [l (NL), l̇ (NL)], m and m/s (rad, rad/s for a rotary actuator).
+STATE = LoopState("kf", (2, "NL"), "Kalman state: cylinder lengths, cylinder rates")
+#: Its numbers in the loop's configuration: the gain [K_l, K_l̇] (dimensionless, 1/s).
+CONFIG = (ConfigNumbers("kf_gain", 2),)
+CONFIG_DOC = "fixed-gain Kalman filter on the actuators' travel (use_kalman != 0), gain [K_l, K_ldot]"
 
 #: Whether a scenario filters the travel, and the filter's model (:mod:`hydrogen.scenario_settings`).
 SCENARIO_SETTINGS = {
-    "kalman": setting(False, "", "cylinder rates from fixed-gain Kalman filters (else exact)"),
+    "kalman": setting(False, "", 'cylinder rates from fixed-gain Kalman filters (as estimator = "kalman"; else '
+                      "the ideal rate sensor unless the estimator setting selects another)"),
     "kalman_accel": setting(50.0, "m²/s³", "the filter's white-acceleration density", ">=0"),
 }
 
 #: The loop driver's statements of :func:`update` for actuator ``i`` (``st->kf``: [l (NL), l̇ (NL)];
 #: ``c->kf_gain``, ``c->h``: the configuration's gain and period; ``s->l_meas``: the measured lengths),
 #: which also set the cylinder rate the velocities are solved from (``s->ldot``).
+C_COMMENT = "predict with [1 h; 0 1], correct with the fixed gain"
 C_UPDATE = """\
             double lp = st->kf[i] + c->h * st->kf[NL + i], vp = st->kf[NL + i], r = s->l_meas[i] - lp;
             st->kf[i] = lp + c->kf_gain[0] * r;
             st->kf[NL + i] = vp + c->kf_gain[1] * r;
             s->ldot[i] = st->kf[NL + i];
 """
+
+
+#: :func:`start` in C for actuator ``i`` at the lengths ``l0`` (a ``const double*`` of NL, m).
+C_START = """\
+            st->kf[i] = l0[i];
+            st->kf[NL + i] = 0.0;
+"""
+
+
+def design(sc, h):
+    """The run's gain [K_l, K_l̇] (dimensionless, 1/s) for scenario ``sc`` at period ``h`` (s):
+    :func:`kalman_gain` at :func:`filter_setting`."""
+    return kalman_gain(*filter_setting(sc, h))
+
+
+def config(gain) -> dict:
+    """The loop configuration's numbers of ``gain``: ``kf_gain``."""
+    return {"kf_gain": np.asarray(gain, float)}
+
+
+def rate(kf) -> np.ndarray:
+    """The actuators' rates (m/s, rad/s) of the filter's state ``kf``: its second row."""
+    return kf[1].copy()
+
+
+def design_key(sc, h) -> tuple:
+    """What a design depends on (:func:`filter_setting`), for a sweep's workers (:func:`designs`)."""
+    return filter_setting(sc, h)
+
+
+def designs(keys) -> dict:
+    """The gains of ``keys`` (:func:`design_key`), solved here (:func:`filter_gains`)."""
+    return filter_gains(keys)
+
+
+def remember(gains: dict) -> None:
+    """Take the gains :func:`designs` solved in another process (:func:`remember_filter_gains`)."""
+    remember_filter_gains(gains)
 
 
 def length_noise_variance(noise_l, quantization_l) -> float:

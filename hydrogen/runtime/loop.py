@@ -14,6 +14,7 @@ import numpy as np
 __all__ = ["LoopRunner", "LOOP_OK", "LOOP_NONFINITE", "LOOP_FK_FAILED", "LOOP_CTRL_FAILED"]
 
 from .. import references
+from ..estimators import ESTIMATORS, estimator  # each estimator's state, started at the lengths
 from ..layout import log_widths, loop_context
 
 LOOP_OK, LOOP_NONFINITE, LOOP_FK_FAILED, LOOP_CTRL_FAILED = 0, 1, 2, 3
@@ -41,12 +42,15 @@ def _structs(ctx: dict):
     if key in _STRUCTS:
         return _STRUCTS[key]
 
-    ctypes_of = {"double": C.c_double, "long long": _LL, "const double*": _D, "double[2]": C.c_double * 2,
+    ctypes_of = {"double": C.c_double, "long long": _LL, "const double*": _D,
                  "fn": C.c_void_p, "double**": C.c_void_p, "long long int*": C.c_void_p, "double*": C.c_void_p,
                  "slots": _LL * len(ctx["slots"])}
 
+    def config_type(ctype):  # double[<n>]: an array of the struct's own (an estimator's numbers)
+        return C.c_double * _array_size(ctype) if ctype.startswith("double[") else ctypes_of[ctype]
+
     class Config(C.Structure):  # the loop header's struct, from the one description (hydrogen.layout.LOOP_CONFIG)
-        _fields_ = [(f["name"], ctypes_of[f["type"]]) for g in ctx["config"] for f in g["fields"]]
+        _fields_ = [(f["name"], config_type(f["type"])) for g in ctx["config"] for f in g["fields"]]
 
     def mirror(fields):  # a struct of the loop header rendered from a description (hydrogen.layout)
         scalar = {"double": C.c_double, "long long": _LL, "double*": _D}
@@ -66,6 +70,11 @@ def _structs(ctx: dict):
     return _STRUCTS[key]
 
 
+def _array_size(ctype: str) -> int:
+    """Entries of a configuration field of C type ``double[<n>]``."""
+    return int(ctype.removeprefix("double[").removesuffix("]"))
+
+
 def _ptr(a: np.ndarray):
     return a.ctypes.data_as(_D)
 
@@ -82,7 +91,10 @@ def _check_values(values, ctx, ctrl, dyn) -> None:
     sizes = {"theta": len(model.theta), "gamma1": m, "gamma2": m,
              **{i["name"]: i["width"] * m for i in ctx["plant_inputs"]},  # each plant input's numbers per actuator
              "quant_l": m, "bias": n, **references.config_sizes(values),
-             "xc_lo": max(n_xc, 1), "xc_hi": max(n_xc, 1), "kf_gain": 2, "slot": len(ctx["slots"]),
+             "xc_lo": max(n_xc, 1), "xc_hi": max(n_xc, 1), "slot": len(ctx["slots"]),
+             # the arrays of the struct's own (each estimator's numbers), of their declared sizes
+             **{f["name"]: _array_size(f["type"]) for g in ctx["config"] for f in g["fields"]
+                if f["type"].startswith("double[")},
              "pred_theta": len(model.theta), "pred_gamma1": m, "pred_gamma2": m,
              "p_low": ctx["n_pressures"], "p_high": ctx["n_pressures"], "numbers": max(len(numbers), 1),
              "pred_x0": ctx["nx"]}
@@ -169,8 +181,8 @@ class LoopRunner:
                     arrays[name] = a = np.ascontiguousarray(v, dtype=float).copy()
                     self._keep.append(a)
                     setattr(cfg, name, _ptr(a))
-                else:  # fixed-size arrays of the struct itself (double[2], slots)
-                    getattr(cfg, name)[:] = [float(x) if ctype == "double[2]" else int(x) for x in v]
+                else:  # fixed-size arrays of the struct itself (double[<n>], slots)
+                    getattr(cfg, name)[:] = [float(x) if ctype != "slots" else int(x) for x in np.ravel(v)]
         return arrays
 
     def _step_tables(self, cfg, ctrl, tables, extra):
@@ -196,12 +208,15 @@ class LoopRunner:
         cfg.step_iw, cfg.step_w = st["iw"], st["w"]
 
     def reset(self, x0, q_meas0, l0, xc0):
-        """Initial plant state (2n + 2m), measured pose, Kalman cylinder lengths and controller state."""
+        """Initial plant state, measured pose, each estimator's state at the lengths ``l0`` (m; its
+        ``start``) and controller state."""
         st = self.state
         st.t, st.k = 0.0, 0
         st.x[:] = list(np.asarray(x0, float))
         st.q_meas[:] = list(np.asarray(q_meas0, float))
-        st.kf[:] = list(np.concatenate([l0, np.zeros(len(l0))]))
+        for name in ESTIMATORS:  # each one's state, row after row as the C struct holds it
+            mod = estimator(name)
+            getattr(st, mod.STATE.name)[:] = list(np.ravel(mod.start(np.asarray(l0, float))))
         C.memset(st.u_hist, 0, C.sizeof(st.u_hist))
         C.memset(st.u_app, 0, C.sizeof(st.u_app))
         self.xc[: xc0.size] = xc0

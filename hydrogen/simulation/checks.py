@@ -100,19 +100,21 @@ def check_fields(sc) -> None:
     if not isinstance(name, str) or not name:
         raise ScenarioError(f"scenario name must be a non-empty string, got {_shown(name)}")
     from ..scenario_settings import settings
-    from ..setting import failed_check
+    from ..setting import WORDS, failed_check
     for f in settings():  # each number's check as its field declares it
         v = getattr(sc, f.name)
         failed = failed_check(f, v)
         if failed:
-            _fail(name, f.name, "must be a finite number" if failed == "number" else "must be finite and >= 0", v)
+            _fail(name, f.name, "must be a finite number" if failed == "number" else f"must be finite and {WORDS[failed]}",
+                  v)
     if sc.metric_start < 0:
         _fail(name, "metric_start", "must be >= 0 s", sc.metric_start)
     for f in ("substeps", "predictor_substeps"):
         v = getattr(sc, f)
         if isinstance(v, (bool, np.bool_)) or not isinstance(v, numbers.Integral):
             _fail(name, f, "must be an integer >= 1", v)
-    for f in ("kalman", "predictor", "supply_feedback"):
+    from ..estimators import switches
+    for f in (*switches(), "predictor", "supply_feedback"):  # the estimators' own switches (kalman) too
         if not isinstance(getattr(sc, f), (bool, np.bool_)):
             _fail(name, f, "must be True or False", getattr(sc, f))
     if not seed_ok(sc.seed):

@@ -2,7 +2,7 @@
 
 Each row names its source: ``scenario.<field>`` is the scenario's field as it is; ``run.<name>`` is
 one of the values :data:`DERIVED` computes here from the run (model, scenario, controller, control
-period, Kalman gain). The runtime's loop (:class:`hydrogen.runtime.loop.LoopRunner`) and the exported
+period, the estimator's design). The runtime's loop (:class:`hydrogen.runtime.loop.LoopRunner`) and the exported
 params.h (:func:`hydrogen.export.export_context`) both take :func:`config_values`, so a value is
 computed once for both. Arrays are never empty (C has no zero-length arrays): an absent reference term
 or controller state is one row of zeros, as its count says.
@@ -15,6 +15,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .. import references
+from ..estimators import ESTIMATORS, estimator, switch_field
 from ..plant import initial_state, plant_layout, supply
 from ..layout import FK_MAX_COND, FK_MAX_ITER, FK_TOL, LOOP_CONFIG, PLANT_INPUTS, delay_split
 
@@ -29,13 +30,13 @@ __all__ = ["Run", "DERIVED", "config_values", "FK_TOL", "FK_MAX_ITER"]
 @dataclass(frozen=True)
 class Run:
     """What a run's configuration is derived from: the compiled dynamics ``dyn`` (its model), the
-    scenario ``sc``, the controller runtime ``ctrl``, the control period ``h`` (s) and the Kalman gain
-    ``kf_gain`` ([K_l, K_ldot], or None: ideal rate sensors)."""
+    scenario ``sc``, the controller runtime ``ctrl``, the control period ``h`` (s) and the estimator
+    ``estimate`` (:class:`hydrogen.estimators.Estimate`: its name and design, or None: ideal rate sensors)."""
     dyn: object
     sc: object
     ctrl: object
     h: float
-    kf_gain: object = None
+    estimate: object = None
 
     @functools.cached_property
     def plant_inputs(self) -> dict:
@@ -54,6 +55,18 @@ def _per_actuator(key):
     """A per-actuator rig setting, flat: :func:`hydrogen.simulation.scenarios.actuator_settings`."""
     from .scenarios import actuator_settings
     return lambda r: actuator_settings(r.sc, r.dyn.model)[key].ravel()
+
+
+def _estimator_values() -> dict:
+    """Each estimator's switch (1 where the run uses it) and numbers (its design's; zeros where the run
+    does not use it: the C loop does not read them)."""
+    out = {}
+    for name in ESTIMATORS:
+        mine = lambda r, n=name: r.estimate is not None and r.estimate.name == n  # noqa: E731
+        out[switch_field(name)] = lambda r, mine=mine: int(mine(r))
+        for f in estimator(name).CONFIG:
+            out[f.name] = (lambda r, mine=mine, f=f: r.estimate.config()[f.name] if mine(r) else np.zeros(f.size))
+    return out
 
 
 def _bounds(run, i):
@@ -82,8 +95,7 @@ DERIVED = {
     "gamma2": lambda r: np.asarray(r.dyn.model.gamma[1], float),
     **{name: _plant_input(name) for name in PLANT_INPUTS},  # each block's input of numbers (friction, valve)
     "quantization_l": _per_actuator("quantization_l"),
-    "use_kalman": lambda r: int(r.kf_gain is not None),
-    "kf_gain": lambda r: np.zeros(2) if r.kf_gain is None else np.asarray(r.kf_gain, float),
+    **_estimator_values(),  # each estimator's switch and numbers (hydrogen.estimators)
     # the reference's fields, each kind's (hydrogen.references): its own values, the others' idle ones
     **{name: (lambda r, k=name: references.config_values(r.sc.reference)[k])
        for name, _, _ in references.config_fields()[1]},
@@ -128,5 +140,5 @@ def _value(source: str, run: Run):
 
 def config_values(run: Run) -> dict:
     """Every configuration field that has a source, by field name: numbers (``double``, ``long long``)
-    or float arrays (``const double*``, ``double[2]``) or a list of ints (``slots``)."""
+    or float arrays (``const double*``, ``double[<n>]``) or a list of ints (``slots``)."""
     return {name: _value(src, run) for _, fields in LOOP_CONFIG for name, _, _, src in fields if src}

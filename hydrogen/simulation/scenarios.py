@@ -8,7 +8,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from .. import references
+from .. import estimators, references
 from ..errors import ScenarioError
 from ..layout import MAX_DELAY, delay_split
 from ..plant import actuator_settings as plant_actuator_settings, friction, integrator
@@ -28,10 +28,11 @@ class Scenario(ScenarioFields):
     :class:`~hydrogen.scenario_settings.ScenarioFields`; the description table in the documentation
     lists them). Two behaviours need more words than a table cell: the command computed from the measurement at t_k is applied from
     t_k + ``delay`` (a fraction of a period switches the valves' command inside the plant's
-    sub-steps); with ``kalman`` the leg rates come from fixed-gain Kalman filters on the measured leg
-    lengths (constant-velocity model, white acceleration of density ``kalman_accel``, measurement
-    variance noise_l² + quantization_l²/12, steady-state gain from the discrete algebraic Riccati
-    equation). ``gains`` holds this scenario's tuning per controller, under any gains the caller
+    sub-steps); the actuators' rates come from the ideal rate sensor unless an estimator is selected
+    (``estimator = "<name>"``, or an estimator's own switch: with ``kalman`` fixed-gain Kalman filters on
+    the measured leg lengths, constant-velocity model, white acceleration of density ``kalman_accel``,
+    measurement variance noise_l² + quantization_l²/12, steady-state gain from the discrete algebraic
+    Riccati equation; :mod:`hydrogen.estimators`). ``gains`` holds this scenario's tuning per controller, under any gains the caller
     passes. The robot starts at rest at q_d(0) + q0_offset, its pressures holding it against gravity
     (and against what a rig part pushes with at rest).
     """
@@ -94,6 +95,7 @@ class Scenario(ScenarioFields):
         need(self.estimator_update in ("semi-implicit", "euler"), "estimator_update",
              "must be 'semi-implicit' or 'euler'")
         need(self.pressure_bounds in ("step", "stage"), "pressure_bounds", "must be 'step' or 'stage'")
+        estimators.selected(self)  # one estimator at most, a known one (a ScenarioError naming the setting)
         need(isinstance(self.actuators, Mapping) and all(isinstance(v, Mapping) for v in self.actuators.values()),
              "actuators", "must be a table {actuator name: {setting: value}}")
         blocks = plant_actuator_settings()  # the plant blocks' own, each with its check

@@ -14,9 +14,8 @@ from ..actuators import actuator
 from ..controllers import spec as controller_spec
 from ..dynamics import VELOCITY_SINGULAR, fk_failure
 from ..errors import KinematicsError, RunEndedError, ScenarioError, SimulationError
-from ..estimators import kalman
-from ..estimators.kalman import (filter_gain, filter_gains, filter_setting, kalman_gain,  # noqa: F401
-                                 length_noise_variance, remember_filter_gains)
+from ..estimators import designs_for, estimate_for, remember as remember_designs
+from ..estimators.kalman import kalman_gain, length_noise_variance  # noqa: F401 - the simulator's API
 from ..layout import LU_PIVOT_MIN, SUPPLY_LOG, model_summary, robot_sizes
 from ..plant import (describe_entries, initial_state, input_values, integrator, outputs as plant_outputs, plant_inputs,
                      plant_layout, slot)
@@ -336,9 +335,9 @@ def run_prepared(dyn, p, controller: str, engine: str = "c", call_start=None, ru
     t_log = np.arange(n) * h
     start = time.perf_counter()
     if engine == "c":
-        k_done, failure = _run_c(dyn, sc, ctrl, p.x0, p.q0, p.noise, p.kf_gain, log, n, h, runner)
+        k_done, failure = _run_c(dyn, sc, ctrl, p.x0, p.q0, p.noise, p.estimate, log, n, h, runner)
     else:
-        k_done, failure = run_python_loop(dyn, sc, ctrl, p.x0, p.q0, p.noise, p.kf_gain, log, n, h)
+        k_done, failure = run_python_loop(dyn, sc, ctrl, p.x0, p.q0, p.noise, p.estimate, log, n, h)
     wall = time.perf_counter() - start
     theta_true, gamma_true = (dyn.model.theta, dyn.model.gamma) if p.truth is None else (a.copy() for a in p.truth)
     res = _result(sc, controller, ctrl, t_log, log, k_done, p.theta0, p.gamma0, theta_true, gamma_true, wall)
@@ -389,7 +388,7 @@ def _simulate_seeds(dyn, scenario, controller, seeds, executor, max_workers, arg
                 {**overrides, "seed": seeds[0]})
     runs = [dict(scenario=scenario, controller=controller, **args, **overrides, seed=s) for s in seeds]
     from ..codegen.generate import numbers_mode
-    out = run_sweep(runs, _run_chunk, _filter_gains, executor=executor, max_workers=max_workers, model=dyn.model,
+    out = run_sweep(runs, _run_chunk, _estimator_designs, executor=executor, max_workers=max_workers, model=dyn.model,
                     results=True, numbers=numbers_mode(dyn.library.manifest))  # the workers build as dyn was built
     results = [r if isinstance(r, SimulationResult) else None for r in out]
     failures = {s: r["error"] for s, r in zip(seeds, out) if not isinstance(r, SimulationResult)}
@@ -424,8 +423,8 @@ _PER_RUN = ("gains", "seed")
 
 
 def _run_chunk(job):
-    """Worker: the runs of a chunk of entries (``job``: model, entries, keep, numbers, the Kalman gains
-    the parent solved for their scenarios: :func:`_filter_gains`), in order, each
+    """Worker: the runs of a chunk of entries (``job``: model, entries, keep, numbers, the estimators'
+    designs the parent solved for their scenarios: :func:`_estimator_designs`), in order, each
     as :func:`_run_one` would give it. Entries that differ only in gains and seed share one
     :class:`~hydrogen.simulation.simulator.Batch` (the scenario resolved and checked once, a controller
     per gain set). Whatever fails before a run's loop starts is run again alone, so that its message is
@@ -434,8 +433,8 @@ def _run_chunk(job):
 
     from ..runtime.build import default_dynamics
 
-    model, runs, keep, numbers, filters = job
-    remember_filter_gains(filters)
+    model, runs, keep, numbers, designs = job
+    remember_designs(designs)
     batches, out = {}, []
     for run in runs:
         alone = (model, run, keep, numbers)
@@ -475,10 +474,11 @@ def _run_chunk(job):
     return out
 
 
-def _filter_gains(model, runs) -> dict:
-    """The Kalman gains of the runs' scenarios, solved once here for the whole sweep: each worker
-    would otherwise import SciPy and solve the same Riccati equation (a third of a second of CPU per
-    worker process). An entry whose scenario does not resolve is left to its run to report."""
+def _estimator_designs(model, runs) -> dict:
+    """The estimators' designs of the runs' scenarios (:func:`hydrogen.estimators.designs_for`: the
+    Kalman gains), solved once here for the whole sweep: each worker would otherwise import SciPy and
+    solve the same Riccati equation (a third of a second of CPU per worker process). An entry whose
+    scenario does not resolve is left to its run to report."""
     import pickle
 
     from .scenarios import Scenario, scenario as named_scenario
@@ -498,11 +498,10 @@ def _filter_gains(model, runs) -> dict:
             seen.add(key)
             sc = named_scenario(name, model) if isinstance(name, str) else name
             sc = sc.with_overrides(**fields) if fields else sc
-            if sc.kalman:
-                settings.append(filter_setting(sc, 1.0 / sc.control_rate))
+            settings.append((sc, 1.0 / sc.control_rate))
         except Exception:  # noqa: BLE001 - the run reports it with its own message
             continue
-    return filter_gains(settings)
+    return designs_for(settings)
 
 
 class _ScenarioSeed:
@@ -557,12 +556,12 @@ class Batch:
         if key != self._gains_key:
             self._gains_key, self._runner = None, None
             self._ctrl = plan.controller_runtime(gains)
-            self._runner = make_runner(self.dyn, plan.sc, self._ctrl, plan.x0, plan.q0, plan.kf_gain, plan.h)
+            self._runner = make_runner(self.dyn, plan.sc, self._ctrl, plan.x0, plan.q0, plan.estimate, plan.h)
             self._widths = log_widths(self.dyn.model, self._ctrl.xc.size)
             self._gains_key = key
         else:  # every buffer the loop reads but does not write each period is static: only its state restarts
             self._runner.reset(plan.x0, plan.q0, self._l0, self._ctrl.xc)
-        p = _Prepared(sc, self._ctrl, plan.n, plan.h, plan.x0, plan.q0, plan.noise(sc.seed), plan.kf_gain,
+        p = _Prepared(sc, self._ctrl, plan.n, plan.h, plan.x0, plan.q0, plan.noise(sc.seed), plan.estimate,
                       plan.theta0, plan.gamma0, self._truth, self._widths)
         return p, self._runner
 
@@ -607,7 +606,7 @@ class _Prepared:
     x0: np.ndarray
     q0: np.ndarray
     noise: np.ndarray
-    kf_gain: object
+    estimate: object  # the run's estimator (hydrogen.estimators.Estimate), or None: ideal rate sensors
     theta0: np.ndarray
     gamma0: np.ndarray
     truth: tuple = None  # (θ, γ) of the model, computed once for a batch (None: read from the model)
@@ -634,7 +633,7 @@ def new_logs(model, n: int, n_xc: int, widths=None) -> dict:
 class RunPlan:
     """What every run of one scenario and controller shares, whatever its gains and noise seed: the
     scenario checked against the model, the period ``h`` (s) and the ``n`` periods, the initial
-    estimates, the start state, the Kalman gain, each actuator's rig settings (:func:`plan_run`)."""
+    estimates, the start state, the estimator and its design, each actuator's rig settings (:func:`plan_run`)."""
     dyn: object
     controller: str
     sc: Scenario
@@ -645,7 +644,7 @@ class RunPlan:
     q0: np.ndarray
     pc0: np.ndarray
     x0: np.ndarray
-    kf_gain: object
+    estimate: object  # the run's estimator (hydrogen.estimators.Estimate), or None: ideal rate sensors
     own: dict          # actuator_settings(sc, model)
     pinned: dict       # the scenario's own gains for the controller
     sources: dict      # where each pinned gain comes from (named in messages about it)
@@ -711,7 +710,7 @@ def plan_run(dyn, scenario, controller, duration, check_workspace, overrides, *,
     q0 = sc.reference(0.0)[0] + np.asarray(sc.q0_offset, float)
     pc0, x0 = start_state(dyn, sc, q0)  # at rest, the valves closed, the rest as declared
     own = actuator_settings(sc, model)  # each actuator's travel noise, resolution, friction in its own unit
-    return RunPlan(dyn, controller, sc, n, h, theta0, gamma0, q0, pc0, x0, filter_gain(sc, h), own, pinned,
+    return RunPlan(dyn, controller, sc, n, h, theta0, gamma0, q0, pc0, x0, estimate_for(sc, h), own, pinned,
                    {k: f"{table} gains.{controller}" for k in pinned})
 
 
@@ -722,7 +721,7 @@ def prepare_run(dyn, scenario, controller, gains, duration, check_workspace, ove
     check_call(scenario, controller, gains, duration, check_workspace)
     plan = plan_run(dyn, scenario, controller, duration, check_workspace, overrides, keep_logs=keep_logs)
     ctrl = plan.controller_runtime(gains)
-    return _Prepared(plan.sc, ctrl, plan.n, plan.h, plan.x0, plan.q0, plan.noise(plan.sc.seed), plan.kf_gain,
+    return _Prepared(plan.sc, ctrl, plan.n, plan.h, plan.x0, plan.q0, plan.noise(plan.sc.seed), plan.estimate,
                      plan.theta0, plan.gamma0)
 
 
@@ -789,13 +788,13 @@ def diverged_block(ctrl, xc, t):
             f"lower {block.lower}")
 
 
-def make_runner(dyn, sc, ctrl, x0, q0, kf_gain, h):
+def make_runner(dyn, sc, ctrl, x0, q0, estimate, h):
     """A C-loop runner for scenario ``sc`` and controller runtime ``ctrl``, reset to the plant state
-    ``x0`` at pose ``q0`` (generalized coordinates), with Kalman gain ``kf_gain`` (or None) and control
-    period ``h`` (s)."""
+    ``x0`` at pose ``q0`` (generalized coordinates), with the estimator ``estimate``
+    (:class:`hydrogen.estimators.Estimate`, or None: ideal rate sensors) and control period ``h`` (s)."""
     from ..runtime.loop import LoopRunner
     from .loop_config import Run, config_values
-    runner = LoopRunner(dyn, ctrl, config_values(Run(dyn, sc, ctrl, h, kf_gain)))
+    runner = LoopRunner(dyn, ctrl, config_values(Run(dyn, sc, ctrl, h, estimate)))
     runner.reset(x0, q0, dyn.leg_lengths(q0), ctrl.xc)
     return runner
 
@@ -817,9 +816,9 @@ def _loop_failure(code, runner, h):
     return f"stopped at t = {k * h:.4f} s: a generated function returned an error"
 
 
-def _run_c(dyn, sc, ctrl, x0, q0, noise, kf_gain, log, n, h, runner=None):
+def _run_c(dyn, sc, ctrl, x0, q0, noise, estimate, log, n, h, runner=None):
     from ..runtime.loop import LOOP_NONFINITE, LOOP_OK
-    runner = make_runner(dyn, sc, ctrl, x0, q0, kf_gain, h) if runner is None else runner
+    runner = make_runner(dyn, sc, ctrl, x0, q0, estimate, h) if runner is None else runner
     xc_log = log["xc"] if ctrl.xc.size else None
     logs = {k: v for k, v in log.items() if k != "xc"}  # the fixed logs and the plant's outputs
     if xc_log is not None:
@@ -842,12 +841,14 @@ class PythonStages:
     (:data:`hydrogen.diagram.LOOP_BLOCKS`), one method per block, named as the block, run in the
     diagram's order by :meth:`run_period` (the discrete blocks, the period's log, the continuous plant,
     then :meth:`after_period`); the same numbers as the C loop's stages (``templates/loop.c.j2``) to
-    rounding. ``x`` is the plant state, ``q_meas`` the last measured pose."""
+    rounding. ``x`` is the plant state, ``q_meas`` the last measured pose, ``estimate`` the run's
+    estimator (:class:`hydrogen.estimators.Estimate`, or None: the ideal rate sensor) and
+    ``est_state`` its state (its module's ``start`` and ``update``)."""
 
-    def __init__(self, dyn, sc, ctrl, x, q0, kf_gain, h):
+    def __init__(self, dyn, sc, ctrl, x, q0, estimate, h):
         from ..layout import MAX_DELAY
         model = self.model = dyn.model
-        self.dyn, self.sc, self.ctrl, self.h, self.kf_gain = dyn, sc, ctrl, h, kf_gain
+        self.dyn, self.sc, self.ctrl, self.h, self.estimate = dyn, sc, ctrl, h, estimate
         self._rhs_fn = dyn.functions["plant_rhs"]
         own = actuator_settings(sc, model)  # each actuator's resolution, in its own unit
         self._quant = own["quantization_l"]
@@ -868,7 +869,8 @@ class PythonStages:
         self._noise = {k: slice(a, a + b) for k, (a, b) in _noise_columns(dyn).items()}
         self._max_delay = MAX_DELAY
         self.u_hist = np.zeros((MAX_DELAY, self.m))  # the C loop's ring: command of period k in slot k % MAX_DELAY
-        self.kf = kalman.start(dyn.leg_lengths(q0)) if kf_gain is not None else None
+        self._est = None if estimate is None else estimate.module
+        self.est_state = None if estimate is None else self._est.start(dyn.leg_lengths(q0))
         self.x, self.q_meas, self.k = x, q0.copy(), 0
         self.delay, self.delay_frac = sc.delay_split()
         self.u_app = np.zeros(self.m)  # the command the valves held at the end of the last period
@@ -903,17 +905,17 @@ class PythonStages:
         step = np.where(self._quant > 0, self._quant, 1.0)  # each actuator's resolution (0: none)
         s.l_meas = np.where(self._quant > 0, step * np.floor(s.l_meas / step + 0.5), s.l_meas)
         s.pc_meas = np.clip(pc + nz[col["pc"]], self._lo, self._hi) if sc.noise_p else pc
-        s.ldot = None if self.kf is not None else self.dyn.leg_jacobian(q) @ qdot  # ideal rate sensor
+        s.ldot = None if self._est is not None else self.dyn.leg_jacobian(q) @ qdot  # ideal rate sensor
         s.q_enc = q + nz[col["q"]] if self.model.joint_encoders else None
         if self._ps is not None:  # the supply pressure, held at its lower bound 0
             s.ps_meas = np.maximum(x[self._ps] + nz[col["ps"]], 0.0)
 
     def estimator(self, s: _Signals) -> None:
-        """Kalman filter, pose (encoders or forward kinematics, warm-started), velocities through JL.
-        Raises :class:`KinematicsError` when forward kinematics fails."""
-        if self.kf is not None:
-            self.kf = kalman.update(self.kf, s.l_meas, self.kf_gain, self.h)
-            s.ldot = self.kf[1].copy()
+        """The run's estimator (the actuators' rates), pose (encoders or forward kinematics, warm-started),
+        velocities through JL. Raises :class:`KinematicsError` when forward kinematics fails."""
+        if self._est is not None:
+            self.est_state = self._est.update(self.est_state, s.l_meas, self.estimate.design, self.h)
+            s.ldot = self._est.rate(self.est_state)
         if s.q_enc is not None:
             self.q_meas = s.q_enc
         else:
@@ -1025,12 +1027,12 @@ class PythonStages:
             self.ctrl.advance(self.h)
 
 
-def run_python_loop(dyn, sc, ctrl, x, q0, noise, kf_gain, log, n, h):
+def run_python_loop(dyn, sc, ctrl, x, q0, noise, estimate, log, n, h):
     """The reference closed loop in Python: ``n`` control periods of ``h`` s from plant state ``x`` with
     the sensor ``noise`` table, writing each period into ``log`` (:func:`new_logs`); the diagram's blocks
     interpreted by :class:`PythonStages`, the same numbers as the C loop to rounding."""
     model = dyn.model
-    loop = PythonStages(dyn, sc, ctrl, x, q0, kf_gain, h)
+    loop = PythonStages(dyn, sc, ctrl, x, q0, estimate, h)
 
     def write(s):
         x, k = loop.x, loop.k
@@ -1198,7 +1200,7 @@ class Stepper:
         p = prepare_run(dyn, scenario, controller, gains, duration, check_workspace, overrides, keep_logs=False)
         self.scenario, self.controller, self.h, self.n_max = p.sc, p.ctrl, p.h, p.n
         self._noise = p.noise
-        self._runner = make_runner(dyn, p.sc, p.ctrl, p.x0, p.q0, p.kf_gain, p.h)
+        self._runner = make_runner(dyn, p.sc, p.ctrl, p.x0, p.q0, p.estimate, p.h)
         self._step = self._runner.stepper(self._noise)
         self._state = self._runner.state
 

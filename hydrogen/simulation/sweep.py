@@ -5,7 +5,7 @@ from concurrent.futures import Executor
 
 # the pool's limits and chunks keep their public path here; the workers are the simulator's
 from .pool import CHUNKS_PER_WORKER, MAX_CHUNK, MAX_WORKERS_PER_CORE, check_workers, chunks, run_sweep  # noqa: F401
-from .simulator import _filter_gains, _run_chunk, _run_one  # noqa: F401
+from .simulator import _estimator_designs, _run_chunk, _run_one  # noqa: F401
 
 __all__ = ["sweep", "check_workers", "MAX_WORKERS_PER_CORE"]
 
@@ -36,9 +36,9 @@ def sweep(runs, *, executor: Executor | None = None, max_workers: int | None = N
     Each task of the executor is a chunk of consecutive runs (:func:`chunks`); in it the runs that
     differ only in gains and seed share one :class:`~hydrogen.simulation.simulator.Batch` (the scenario
     resolved and checked once, a controller per gain set), and the parent solves each scenario's
-    Kalman gain once for all the workers. Every run's metrics are those of the run alone, to the bit.
+    estimator design (the Kalman gain) once for all the workers. Every run's metrics are those of the run alone, to the bit.
     The compiled loop releases the GIL, so a ``ThreadPoolExecutor`` runs the chunks side by side in
     this process, with no worker start-up.
     """
-    return run_sweep(runs, _run_chunk, _filter_gains, executor=executor, max_workers=max_workers, model=model,
+    return run_sweep(runs, _run_chunk, _estimator_designs, executor=executor, max_workers=max_workers, model=model,
                      progress=progress, seeds=seeds, results=results, numbers=numbers)
