@@ -52,17 +52,6 @@ events = []
 dyn = hydrogen.build(model, cache={cache!r}, progress=events.append, controllers=({controller!r},),
                      gains={{{controller!r}: named_scenario(sc, model).gains.get({controller!r})}})
 hydrogen.simulate(sc, {controller!r}, dyn=dyn, duration={duration!r})
-t1 = time.perf_counter()
-stages = {{}}
-for e in events:
-    if e.stage in ("generated", "compiled"):
-        stages.setdefault(e.stage, e.elapsed_s)
-own, kids = resource.getrusage(resource.RUSAGE_SELF), resource.getrusage(resource.RUSAGE_CHILDREN)
-print("wall_in_s", t1 - t0)
-print("generate_s", stages.get("generated", 0.0))
-print("compile_s", stages.get("compiled", 0.0))
-print("generated", int("generated" in stages))
-print("cpu_s", own.ru_utime + own.ru_stime + kids.ru_utime + kids.ru_stime)
 """
 
 _URDF_KEY = re.compile(r'^urdf\s*=\s*"([^"]+)"', re.MULTILINE)
@@ -149,7 +138,8 @@ def run(quick: bool = False) -> dict:
                         cache = root / f"cache-{len(rows)}-{i}"
                         shutil.copytree(warm, cache)
                         stdout, wall = common.run_python(_RUN.format(toml=str(toml), cache=str(cache),
-                                                                     controller=c, duration=DURATION))
+                                                                     controller=c, duration=DURATION)
+                                                         + common.BUILD_REPORT)
                         shutil.rmtree(cache, ignore_errors=True)
                         return {**common.parse_keyed(stdout), "process_wall_s": wall}
 

@@ -246,6 +246,25 @@ def python_env() -> dict:
     return env
 
 
+#: The end of a benchmark subprocess's script that started its clock as ``t0`` (``time`` and ``resource``
+#: imported) and built with ``progress=events.append``: its wall seconds inside, the build's generation
+#: and compile seconds (0 where it only loaded), whether it generated, and its CPU seconds with its
+#: compilers', as ``KEY value`` lines (:func:`parse_keyed`). Not a format string: append it as it is.
+BUILD_REPORT = """
+t1 = time.perf_counter()
+stages = {}
+for e in events:
+    if e.stage in ("generated", "compiled"):
+        stages.setdefault(e.stage, e.elapsed_s)
+own, kids = resource.getrusage(resource.RUSAGE_SELF), resource.getrusage(resource.RUSAGE_CHILDREN)
+print("wall_in_s", t1 - t0)
+print("generate_s", stages.get("generated", 0.0))
+print("compile_s", stages.get("compiled", 0.0))
+print("generated", int("generated" in stages))
+print("cpu_s", own.ru_utime + own.ru_stime + kids.ru_utime + kids.ru_stime)
+"""
+
+
 def run_python(code: str, timeout: float = 600.0, env: dict | None = None,
                cwd: Path | None = None) -> tuple[str, float]:
     """Run ``code`` with this interpreter in a fresh process, in ``cwd`` (default: the repository,

@@ -37,6 +37,8 @@ SUITE = (
                    "a URDF-born leg by both routes"),
     ("bench_structural", "a structural edit of each shipped robot (a fixed link added, a joint axis reversed) to "
                          "its first run, on a cache holding the shipped build"),
+    ("bench_code_edit", "an edit of hydrogen's code (a rig part added, the loop template edited) to each shipped "
+                        "robot's first run: the part that uses it generated alone, against a whole generation"),
     ("bench_recursive", "the rigid body against Featherstone's ABA, RNEA and CRBA on SX: instructions, n = 2 ... 16, folded and numbers as inputs"),
     ("bench_period", "per-period cost of every scenario's C loop and per-call cost from Python against an earlier commit"),
     ("bench_shared_step", "the semi-implicit step with the controller inlined against calling it: per call, "

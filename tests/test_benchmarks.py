@@ -329,6 +329,20 @@ def test_the_cold_benchmark_edits_the_structure(name, tmp_path):
     assert edited.gravity == 0.0 and structure_hash(edited) != structure_hash(model)
 
 
+def test_the_code_edit_benchmarks_rig_part_stales_the_plant_and_drivers_alone(package_copy):
+    """bench_code_edit's premise: its damper, added to the package as one module, leaves every
+    committed robot current but for the plant's function and the loop drivers."""
+    import bench_code_edit
+
+    from hydrogen.codegen import generate as gen
+    from hydrogen.runtime.build import repo_generated_dir
+
+    (package_copy / "plant" / "damper.py").write_text(bench_code_edit.DAMPER)  # what add_damper writes
+    for name in hydrogen.models():
+        assert gen.stale_parts(hydrogen.load_model(name), repo_generated_dir() / name) == \
+            {"plant": True, "drivers": True}, name
+
+
 @pytest.mark.parametrize("name", list(hydrogen.models()))
 def test_the_structural_benchmark_adds_a_fixed_link_and_reverses_an_axis(name, tmp_path):
     """bench_structural's edits load, keep the coordinates, and change the structure (so the first
