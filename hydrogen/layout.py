@@ -189,6 +189,23 @@ LOOP_STATE = (
     ("fk_l", "double", ("NL",), "the cylinder lengths (m) forward kinematics failed for (q_meas: its last iterate)"),
 )
 
+def _check_unique() -> None:
+    """Every field of the loop's configuration and state, and every ``params.h`` macro, named once: a
+    block's declared name (an estimator's state or numbers, a plant block's input) that clashes with
+    the loop's own or another's would give the C struct two members of one name."""
+    config = [f for _, fields in LOOP_CONFIG for f in fields]
+    for what, names in (("configuration field", [f[0] for f in config]),
+                        ("params.h macro", [f[2] for f in config if f[2]]),
+                        ("state field", [f[0] for f in LOOP_STATE])):
+        twice = sorted({n for n in names if names.count(n) > 1})
+        if twice:
+            raise ImportError(f"the loop's {what} {', '.join(map(repr, twice))} is declared twice: an estimator "
+                              "(hydrogen.estimators) or a plant block (hydrogen.plant) takes a name the loop or "
+                              "another block has")
+
+
+_check_unique()
+
 #: One control period's signals as the loop's stages hand them on (measure → estimate → reference →
 #: control → plant step), described once like :data:`LOOP_STATE`. A program that has its own sensors
 #: (the controller FMU) fills the measured fields and calls the stages from estimate on.
@@ -199,7 +216,7 @@ LOOP_SIGNALS = (
     ("pc_meas", "double", ("NPC",), "measured pressures, Pa"),
     ("ps_meas", "double", ("NPS",), "measured supply pressure, Pa (a [supply] state's only)"),
     ("q_enc", "double", ("NQ",), "joint encoders' reading, rad or m (joint encoders only)"),
-    ("ldot", "double", ("NL",), "cylinder rates: the Kalman filter's, or the ideal rate sensor's, m/s"),
+    ("ldot", "double", ("NL",), "cylinder rates: the selected estimator's, or the ideal rate sensor's, m/s"),
     ("qdot_meas", "double", ("NQ",), "measured velocities, JL^-1 ldot at the measured pose"),
     ("qd", "double", (4, "NQ"), "reference and its first three time derivatives"),
     ("u", "double", ("NL",), "spool commands computed this period, m"),

@@ -218,6 +218,18 @@ quiet = dict(ov, noise_l=0.0, noise_p=0.0, noise_q=0.0)
 ref = simulate(dyn, "arm-dig", "backstepping", duration=0.05, **quiet)
 q = np.column_stack([fmu[f"q.{c}"] for c in coords])
 out["fmu"] = [int(len(fmu)), int(len(ref.t)), float(np.max(np.abs(q - ref.q)))]
+# the exported program: its params.h, main.c and build files carry the estimator's numbers and start
+import subprocess
+from hydrogen.export import export
+folder = export(Path(sys.argv[1]) / "prog", "arm-dig", "backstepping", duration=0.05, dyn=dyn, **ov)
+made = subprocess.run(["make"], cwd=folder, capture_output=True, text=True)
+ran = subprocess.run([str(folder / json.loads((folder / "export.json").read_text())["program"])],
+                     capture_output=True, text=True) if made.returncode == 0 else None
+cmake = subprocess.run(["cmake", "-S", ".", "-B", "build"], cwd=folder, capture_output=True, text=True) \
+    if shutil.which("cmake") else None
+out["export"] = {"make": [made.returncode, made.stderr[-800:]], "run": None if ran is None else [ran.returncode, ran.stdout[-300:]],
+                 "cmake": None if cmake is None else [cmake.returncode, cmake.stderr[-800:]],
+                 "params": (folder / "params.h").read_text()}
 print(json.dumps(out))
 '''
 
@@ -284,3 +296,14 @@ def test_the_added_estimators_bad_setting_is_refused_naming_it(difference_run):
 def test_the_added_estimator_runs_in_the_fmu(difference_run):
     rows, expected, err = difference_run["fmu"]
     assert rows == expected > 10 and err < 1e-9
+
+
+def test_the_added_estimator_runs_in_the_exported_program(difference_run):
+    """The exported C program builds with its Makefile (warnings as errors), runs, and its CMake project
+    configures; params.h carries the estimator's switch and numbers."""
+    got = difference_run["export"]
+    assert got["make"][0] == 0, got["make"][1]
+    assert got["run"][0] == 0 and "status 0" in got["run"][1], got["run"]
+    if got["cmake"] is not None:
+        assert got["cmake"][0] == 0, got["cmake"][1]
+    assert "P_USE_FILTERED_DIFFERENCE" in got["params"] and "P_USE_KALMAN" in got["params"]

@@ -47,3 +47,27 @@ def test_an_edit_of_the_filters_c_is_an_edit_of_the_loop_drivers(package_copy):
     f = package_copy / "estimators" / "kalman.py"
     f.write_text(f.read_text().replace("st->kf[i] = lp + c->kf_gain[0] * r;", "st->kf[i] = lp + c->kf_gain[0] * r * 1.0;"))
     assert gen.drivers_hash() != before
+
+
+def test_a_sweeps_designs_leave_out_a_scenario_that_cannot_be_designed_for():
+    """A sweep's parent solves the designs of every entry it can; an entry whose scenario cannot be
+    designed for (a setting of the wrong type) is left to its own run to report, not the sweep's."""
+    import dataclasses
+
+    import hydrogen
+    from hydrogen.estimators import designs_for
+    from hydrogen.simulation.scenarios import scenario
+
+    model = hydrogen.load_model("excavator_arm")
+    good = scenario("arm-dig", model)
+    bad = dataclasses.replace(good, kalman_accel="x")
+    got = designs_for([(bad, 1 / 512), (good, 1 / 512)])
+    assert list(got) == ["kalman"] and len(got["kalman"]) == 1
+
+
+def test_an_unknown_estimator_is_named_with_the_known_ones():
+    from hydrogen.estimators import ESTIMATORS, estimator
+
+    with pytest.raises(KeyError, match="no estimator 'nope'; the estimators are kalman"):
+        estimator("nope")
+    assert estimator("kalman") is kalman and "kalman" in ESTIMATORS

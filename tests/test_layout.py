@@ -6,6 +6,8 @@ import subprocess
 
 import ctypes as C
 
+import pytest
+
 from hydrogen import references
 from hydrogen.layout import LOOP_CONFIG, loop_context, plant_offsets
 from hydrogen.pressures import n_pressures
@@ -140,3 +142,17 @@ def test_the_c_loop_follows_a_new_plant_part_in_the_layout(dyn):
     assert "memcpy(x + 2 * NQ + NL, s->pc_meas" in new and "pc = xp + 2 * NQ + NL;" in new
     assert loop_context(manifest)["nx"] == loop_context(dyn.library.manifest)["nx"] + s["m"]
     assert "plant state x = [q, qdot, extra, pc, spool, spool rate]" in render("loop.h.j2", loop_context(manifest))
+
+
+def test_a_field_declared_twice_in_the_loop_is_refused(monkeypatch):
+    """A block's declared name that clashes with the loop's own (an estimator's number called "delay")
+    would give the C struct two members of one name: the layout refuses it at import, naming it."""
+    from hydrogen import layout
+
+    config = (*layout.LOOP_CONFIG, ("an estimator's numbers", (("delay", "double[1]", "P_DELAY", "run.delay"),)))
+    monkeypatch.setattr(layout, "LOOP_CONFIG", config)
+    with pytest.raises(ImportError, match="configuration field 'delay' is declared twice"):
+        layout._check_unique()
+    monkeypatch.setattr(layout, "LOOP_STATE", (*layout.LOOP_STATE, ("k", "double", None, "a clash")))
+    with pytest.raises(ImportError, match="declared twice"):
+        layout._check_unique()

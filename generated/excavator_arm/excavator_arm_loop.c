@@ -1,7 +1,7 @@
 /* Closed-loop driver for model excavator_arm (see excavator_arm_loop.h).
  * Rendered by hydrogen from templates/loop.c.j2; plain C99, no dependency but libm.
  * One control period is the stages declared in the header, in this order: measure (noise,
- * quantisation), estimate (Kalman filter, joint encoders, velocities), reference, control
+ * quantisation), estimate (the rates' estimator where one is selected, joint encoders, velocities), reference, control
  * (controller state update and command, the command of delay periods ago), the logs, plant step (RK4
  * sub-steps, zero-order hold), control advance (forward-Euler state update). */
 #include <math.h>

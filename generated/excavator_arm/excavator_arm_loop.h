@@ -153,7 +153,7 @@ typedef struct {
     double pc_meas[EXCAVATOR_ARM_NPC];  /* measured pressures, Pa */
     double ps_meas[EXCAVATOR_ARM_NPS];  /* measured supply pressure, Pa (a [supply] state's only) */
     double q_enc[EXCAVATOR_ARM_NQ];  /* joint encoders' reading, rad or m (joint encoders only) */
-    double ldot[EXCAVATOR_ARM_NL];  /* cylinder rates: the Kalman filter's, or the ideal rate sensor's, m/s */
+    double ldot[EXCAVATOR_ARM_NL];  /* cylinder rates: the selected estimator's, or the ideal rate sensor's, m/s */
     double qdot_meas[EXCAVATOR_ARM_NQ];  /* measured velocities, JL^-1 ldot at the measured pose */
     double qd[4 * EXCAVATOR_ARM_NQ];  /* reference and its first three time derivatives */
     double u[EXCAVATOR_ARM_NL];  /* spool commands computed this period, m */

@@ -153,7 +153,7 @@ typedef struct {
     double pc_meas[LOADER_CRANE_NPC];  /* measured pressures, Pa */
     double ps_meas[LOADER_CRANE_NPS];  /* measured supply pressure, Pa (a [supply] state's only) */
     double q_enc[LOADER_CRANE_NQ];  /* joint encoders' reading, rad or m (joint encoders only) */
-    double ldot[LOADER_CRANE_NL];  /* cylinder rates: the Kalman filter's, or the ideal rate sensor's, m/s */
+    double ldot[LOADER_CRANE_NL];  /* cylinder rates: the selected estimator's, or the ideal rate sensor's, m/s */
     double qdot_meas[LOADER_CRANE_NQ];  /* measured velocities, JL^-1 ldot at the measured pose */
     double qd[4 * LOADER_CRANE_NQ];  /* reference and its first three time derivatives */
     double u[LOADER_CRANE_NL];  /* spool commands computed this period, m */

@@ -1,7 +1,7 @@
 /* Closed-loop driver for model ubc_stewart (see ubc_stewart_loop.h).
  * Rendered by hydrogen from templates/loop.c.j2; plain C99, no dependency but libm.
  * One control period is the stages declared in the header, in this order: measure (noise,
- * quantisation), estimate (Kalman filter, forward kinematics, velocities), reference, control
+ * quantisation), estimate (the rates' estimator where one is selected, forward kinematics, velocities), reference, control
  * (controller state update and command, the command of delay periods ago), the logs, plant step (RK4
  * sub-steps, zero-order hold), control advance (forward-Euler state update). */
 #include <math.h>

@@ -37,7 +37,6 @@ rates. Plain data at import: no SciPy, no SymPy.
 """
 from __future__ import annotations
 
-import importlib
 from dataclasses import dataclass
 
 import numpy as np
@@ -78,8 +77,11 @@ class ConfigNumbers:
 
 
 def estimator(name: str):
-    """The module of estimator ``name``."""
-    return importlib.import_module(f"{__name__}.{name}")
+    """The module of estimator ``name`` (its ``NAME``, whatever its file is called)."""
+    try:
+        return _MODULES[name]
+    except KeyError:
+        raise KeyError(f"no estimator {name!r}; the estimators are {', '.join(ESTIMATORS) or 'none'}") from None
 
 
 def switch_field(name: str) -> str:
@@ -158,9 +160,12 @@ def designs_for(scenarios) -> dict:
     s), by each estimator that declares ``designs``: a sweep's parent hands them to its workers."""
     keys = {}
     for sc, h in scenarios:
-        name = selected(sc)
-        if name is not None and hasattr(estimator(name), "designs"):
-            keys.setdefault(name, []).append(estimator(name).design_key(sc, h))
+        try:
+            name = selected(sc)
+            if name is not None and hasattr(estimator(name), "designs"):
+                keys.setdefault(name, []).append(estimator(name).design_key(sc, h))
+        except Exception:  # noqa: BLE001 - a scenario that cannot be designed for: its run reports it
+            continue
     return {name: estimator(name).designs(k) for name, k in keys.items()}
 
 
@@ -195,6 +200,9 @@ def _discover() -> tuple:
         if hasattr(mod, "designs") and not all(hasattr(mod, a) for a in ("design_key", "remember")):
             raise ImportError(f"estimator {name!r} ({mod.__name__}) declares designs but not design_key and "
                               "remember")
+    for name, mod in found.items():
+        if any(not (isinstance(f.size, int) and f.size >= 1) for f in mod.CONFIG):
+            raise ImportError(f"estimator {name!r} ({mod.__name__}): each of CONFIG's numbers needs a size of at least 1")
     order = sorted(found, key=lambda n: found[n].POSITION)
     for a, b in zip(order, order[1:]):
         if found[a].POSITION == found[b].POSITION:
@@ -207,9 +215,12 @@ def _discover() -> tuple:
                 raise ImportError(f"estimator {name!r} ({mod.__name__}) declares {field!r}, which "
                                   f"{owner[field]} already names")
             owner[field] = f"estimator {name!r}"
+    _MODULES.update(found)
     return tuple(order)
 
 
+#: Each estimator's module by its NAME (:func:`estimator`).
+_MODULES = {}
 #: The estimators: every module of this package that declares its ``NAME``, in ``POSITION`` order. A new
 #: estimator is a module here; nothing lists it.
 ESTIMATORS = _discover()

@@ -106,8 +106,11 @@ def length_noise_variance(noise_l, quantization_l) -> float:
 def filter_gain(sc, h):
     """The loop's one Kalman gain [K, K̇] (dimensionless, 1/s: the same on a length as on an angle) for
     ``sc`` at period ``h``, designed for the scenario's (a cylinder's) noise_l, quantization_l and
-    kalman_accel; None without ``kalman``."""
-    return kalman_gain(*filter_setting(sc, h)) if sc.kalman else None
+    kalman_accel; None where the scenario does not select the filter (``kalman = true`` or
+    ``estimator = "kalman"``)."""
+    from . import selected
+
+    return design(sc, h) if selected(sc) == NAME else None
 
 
 def filter_setting(sc, h) -> tuple:
