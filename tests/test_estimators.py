@@ -71,3 +71,19 @@ def test_an_unknown_estimator_is_named_with_the_known_ones():
     with pytest.raises(KeyError, match="no estimator 'nope'; the estimators are kalman"):
         estimator("nope")
     assert estimator("kalman") is kalman and "kalman" in ESTIMATORS
+
+
+def test_an_explicit_ideal_sensor_beside_an_estimators_switch_is_refused():
+    """By default the switch decides (a rig's kalman = true: the filter); "ideal" written beside a switch
+    that is on asks for two things, and is refused naming both, never silently the switch's."""
+    import hydrogen
+    from hydrogen.errors import ScenarioError
+    from hydrogen.estimators import AUTO, selected
+    from hydrogen.simulation.scenarios import scenario
+
+    rig = scenario("arm-dig", hydrogen.load_model("excavator_arm"))
+    assert rig.estimator == AUTO and rig.kalman and selected(rig) == "kalman"
+    with pytest.raises(ScenarioError, match=r'estimator = "ideal" and kalman = true .* the ideal rate sensor and an '
+                                            r"estimator; .*write kalman = false"):
+        rig.with_overrides(estimator="ideal")
+    assert selected(rig.with_overrides(estimator="ideal", kalman=False)) is None

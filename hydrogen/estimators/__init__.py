@@ -41,11 +41,14 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["ESTIMATORS", "IDEAL", "LoopState", "ConfigNumbers", "Estimate", "estimator", "selected", "estimate_for",
+__all__ = ["ESTIMATORS", "IDEAL", "AUTO", "LoopState", "ConfigNumbers", "Estimate", "estimator", "selected", "estimate_for",
            "switches", "switch_field", "selector_setting", "designs_for", "remember"]
 
-#: The general selector's value for no estimator: the ideal rate sensor (the scenario's default).
+#: The general selector's value for no estimator: the ideal rate sensor.
 IDEAL = "ideal"
+#: The general selector's default: the estimator an estimator's own switch selects, else the ideal rate
+#: sensor (an explicit "ideal" beside a switch that is on is a conflict, not silently the switch's).
+AUTO = "auto"
 
 
 @dataclass(frozen=True)
@@ -99,29 +102,32 @@ def selector_setting():
     naming the estimators found."""
     from ..setting import setting
     names = ", ".join(f'"{n}" ({estimator(n).DOC})' for n in ESTIMATORS)
-    return setting(IDEAL, "", f'the estimator of the actuators\' rates: "{IDEAL}" (the ideal rate sensor, '
-                   f"unless a switch of an estimator selects one){', ' if names else ''}{names}")
+    return setting(AUTO, "", f'the estimator of the actuators\' rates: "{AUTO}" (the one a switch of an estimator '
+                   f'selects, else the ideal rate sensor), "{IDEAL}" (the ideal rate sensor)'
+                   f"{', ' if names else ''}{names}")
 
 
 def selected(sc) -> str | None:
     """The estimator scenario ``sc`` selects (its name), or None: the ideal rate sensor. A ScenarioError
     naming the setting for an unknown name or two estimators selected at once."""
     from ..errors import ScenarioError
-    general = getattr(sc, "estimator", IDEAL)
-    if not isinstance(general, str) or (general != IDEAL and general not in ESTIMATORS):
-        known = ", ".join(f'"{n}"' for n in (IDEAL, *ESTIMATORS))
+    general = getattr(sc, "estimator", AUTO)
+    if not isinstance(general, str) or (general not in (AUTO, IDEAL) and general not in ESTIMATORS):
+        known = ", ".join(f'"{n}"' for n in (AUTO, IDEAL, *ESTIMATORS))
         raise ScenarioError(f"scenario '{sc.name}': estimator = {general!r} is not an estimator; choose one of "
                             f"{known}")
-    chosen = {general: "estimator"} if general != IDEAL else {}
+    chosen = {general: "estimator"} if general != AUTO else {}
     for key, name in switches().items():
         if getattr(sc, key) and name not in chosen:
             chosen[name] = f"{key} = true"
     if len(chosen) > 1:
         how = " and ".join(f"{why} ({n})" if why != "estimator" else f'estimator = "{n}"' for n, why in chosen.items())
         off = " or ".join(why.replace("= true", "= false") for why in chosen.values() if why != "estimator")
-        raise ScenarioError(f"scenario '{sc.name}': {how} select two estimators; select one (write {off} in the "
+        what = "the ideal rate sensor and an estimator" if IDEAL in chosen else "two estimators"
+        raise ScenarioError(f"scenario '{sc.name}': {how} select {what}; select one (write {off} in the "
                             "scenario to turn a switch off, a [rig]'s too)")
-    return next(iter(chosen), None)
+    name = next(iter(chosen), None)
+    return None if name == IDEAL else name
 
 
 @dataclass(frozen=True)
@@ -190,9 +196,9 @@ def _discover() -> tuple:
         lacks = [a for a in REQUIRED if not hasattr(mod, a)]
         if lacks:
             raise ImportError(f"estimator {name!r} ({mod.__name__}) does not declare {', '.join(lacks)}")
-        if name == IDEAL or not name.isidentifier():
+        if name in (IDEAL, AUTO) or not name.isidentifier():
             raise ImportError(f"estimator {name!r} ({mod.__name__}): NAME must be an identifier other than "
-                              f"{IDEAL!r}")
+                              f"{IDEAL!r} and {AUTO!r}")
         switch = getattr(mod, "SWITCH", None)
         if switch and switch not in mod.SCENARIO_SETTINGS:
             raise ImportError(f"estimator {name!r} ({mod.__name__}) is selected by SWITCH {switch!r}, which its "
