@@ -8,6 +8,7 @@ import pytest
 import hydrogen
 from hydrogen import pressures
 from hydrogen.actuators import actuator
+from hydrogen.plant import plant_inputs
 from hydrogen.tree import link_poses
 
 from conftest import random_theta, workspace_poses
@@ -114,7 +115,11 @@ def test_the_plant_state_and_its_pressure_rates(arm, arm_dyn, rng):
     q, qd = arm.neutral_pose, rng.normal(size=n) * 0.1
     p, u = rng.uniform(2e6, 8e6, 4), rng.uniform(-1e-3, 1e-3, m)
     x = np.concatenate([q, qd, p, np.zeros(2 * m)])
-    xdot = arm_dyn.functions["plant_rhs"](x, u, arm.theta, arm.gamma[0], arm.gamma[1], np.zeros(3 * arm.n_cylinders), np.zeros(5 * arm.n_cylinders))
+    # every plant input by name, each block's numbers 0 (no friction; the spool rows are not read here)
+    f = arm_dyn.functions["plant_rhs"]
+    given = {"x": x, "u": u, "theta": arm.theta, "gamma1": arm.gamma[0], "gamma2": arm.gamma[1],
+             **{i.name: np.zeros(i.width * m) for i in plant_inputs(arm)}}
+    xdot = f(*[given[k] for k in f.in_names if k != "numbers"])
     assert xdot.size == 2 * n + 4 + 2 * m
     ldot = arm_dyn.leg_jacobian(q) @ qd
     np.testing.assert_allclose(xdot[2 * n:2 * n + 4],
