@@ -258,7 +258,8 @@ def difference_run(tmp_path_factory):
 
 
 def test_an_estimator_added_as_one_module_is_found_and_selectable(difference_run):
-    assert difference_run["estimators"] == ["kalman", "filtered_difference"]
+    found = difference_run["estimators"]  # the shipped filter first; a developer's own may sit between
+    assert found[0] == "kalman" and "filtered_difference" in found
     rows = "\n".join(difference_run["table"])  # the description table follows the declarations
     assert '"filtered_difference" (first-order filtered backward difference' in rows
     assert "| `difference_cutoff_hz` | Hz | 40.0 | *filtered_difference estimator*:" in rows

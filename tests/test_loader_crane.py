@@ -213,3 +213,18 @@ def test_a_reference_past_the_vanes_angle_range_is_named_in_its_angle(crane):
     msg = str(err.value)
     assert "actuator 'slew_motor' would be at angle 1.8" in msg and "rad, outside its angle range [-1.8, 1.8] rad" in msg
     assert "stroke" not in msg and not re.search(r"\d m\b", msg)
+
+
+def test_a_runs_actuator_override_merges_into_the_scenarios_table():
+    """A run's override of one actuator's setting keeps its others (the rotary slew motor's own
+    quantization in rad), as the description's tables merge: replacing the table would drop them and
+    leave the cylinder's quantization in m on an angle."""
+    from hydrogen.simulation.scenarios import scenario
+
+    sc = scenario("crane-load", hydrogen.load_model("loader_crane"))
+    own = dict(sc.actuators["slew_motor"])
+    assert "quantization_l" in own
+    merged = sc.with_overrides(actuators={"slew_motor": {"noise_l": 1e-6}})
+    assert merged.actuators["slew_motor"] == {**own, "noise_l": 1e-6}
+    assert {k: v for k, v in merged.actuators.items() if k != "slew_motor"} == \
+        {k: v for k, v in sc.actuators.items() if k != "slew_motor"}

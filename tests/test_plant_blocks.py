@@ -150,6 +150,20 @@ def test_a_wiring_mistake_in_a_block_is_refused_naming_it(act, words):
         act(c, x)
 
 
+def test_two_blocks_naming_one_symbol_are_refused_naming_both(monkeypatch):
+    """SymPy takes two symbols of one name for one: a block whose input reuses another's symbol names
+    would silently feed both from one input. The composition refuses it, naming both blocks."""
+    import hydrogen
+    from hydrogen.symbolic.plant import plant_rhs
+
+    model = hydrogen.load_model("excavator_arm")
+    friction = plant.block("friction").Symbolic.input
+    monkeypatch.setattr(plant.block("valve").Symbolic, "input", staticmethod(lambda m: friction(m)))
+    with pytest.raises(PlantWiringError, match=r"plant block 'valve' \(its input 'valve'\) names a symbol '.+' that "
+                                               r"plant block 'friction' \(its input 'friction'\) names too"):
+        plant_rhs(model)
+
+
 #: A rig part as a developer adds one: this module alone, dropped into hydrogen/plant/.
 SPRING = '''\
 """A counterbalance spring along each cylinder (a gas spring beside it, as on cranes and

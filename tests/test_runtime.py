@@ -334,3 +334,20 @@ def test_a_build_after_an_edit_of_a_rig_part_derives_the_plant_alone(tmp_path, m
     assert gen.check(model, folder) == []
     assert sorted(os.listdir(folder)) == sorted(os.listdir(committed))
     assert dyn.leg_lengths(model.neutral_pose).shape == (model.n_cylinders,)
+
+
+def test_a_part_generated_alone_is_reported_as_such(tmp_path, monkeypatch, package_copy):
+    """The build's progress says what it derives and what it wrote: the plant's function alone and
+    the loop drivers, not every function."""
+    from hydrogen.codegen import generate as gen
+
+    model = hydrogen.load_model("loader_crane")
+    path = package_copy / "plant" / "valve.py"
+    path.write_text(path.read_text() + "\n# an edit\n")
+    events = []
+    hydrogen.build(model, cache=tmp_path / "cache", controllers=(), progress=events.append)
+    said = {e.stage: e.detail for e in events}
+    assert said["generating"].startswith("deriving the plant (SymPy)")
+    n = len(gen.read_manifest(build_dir := next((tmp_path / "cache" / "generated").iterdir()))["functions"])
+    assert said["generated"].startswith(f"1 of {n} functions again") and "loop drivers rendered again" in said["generated"]
+    assert build_dir.is_dir()

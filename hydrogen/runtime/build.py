@@ -71,11 +71,19 @@ def generation_reported(report, model, folder, force: bool = False, controllers=
     elif parts.get("drivers"):
         report("generating", "rendering the loop drivers (their code changed)")
     stale = stale or bool(missing)
+    before = {e["name"]: e for e in (read_manifest(Path(folder)) or {}).get("functions", ())} if parts else {}
     yield
     if stale:
         manifest = read_manifest(Path(folder)) or {}
-        n = len(manifest.get("functions", ()))
-        report("generated", f"{n} functions, {c_size(Path(folder).glob('*.c'))} of C", clock())
+        functions = manifest.get("functions", ())
+        again = [e for e in functions if before.get(e["name"]) != e]  # all of them after a whole generation
+        if before and len(again) < len(functions):  # a part generated alone: say which
+            sources = [Path(folder) / e["source"] for e in again]
+            done = [f"{len(again)} of {len(functions)} functions again, {c_size(sources)} of C"] if again else []
+            done += ["the loop drivers rendered again"] if parts.get("drivers") else []
+            report("generated", "; ".join(done) or "nothing written", clock())
+        else:
+            report("generated", f"{len(functions)} functions, {c_size(Path(folder).glob('*.c'))} of C", clock())
 
 
 def _drop_broken_entry(model: Model, folder: Path) -> None:

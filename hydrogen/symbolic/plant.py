@@ -144,6 +144,22 @@ def _no_outputs(c) -> None:
     """A block that gives the others nothing (a state's own rate only)."""
 
 
+def _check_distinct(owned) -> None:
+    """Every symbol of the plant's inputs is its owner's alone (``owned``: pairs of an owner's words and
+    its symbols): two blocks' symbols of one name are one symbol to SymPy, which would silently give
+    one input's numbers to both. A PlantWiringError naming both owners and the symbol."""
+    seen = {}
+    for owner, symbols in owned:
+        for sym in sp.Matrix(symbols):
+            name = str(sym)
+            if name in seen and seen[name] != owner:
+                raise PlantWiringError(f"{owner} names a symbol '{name}' that {seen[name]} names too: each block's "
+                                       "symbols need names of their own (SymPy would take the two for one)")
+            if name in seen:
+                raise PlantWiringError(f"{owner} names the symbol '{name}' twice: each entry needs a name of its own")
+            seen[name] = owner
+
+
 def plant_rhs(model):
     """Symbols and right-hand side of the plant: returns (inputs, xdot, intermediates)."""
     m = model.n_cylinders
@@ -165,6 +181,10 @@ def plant_rhs(model):
                                    rate_symbols("gamma2", m))))
     # each block's input of numbers (plant_inputs), after x, u, theta, gamma1, gamma2
     params = {i.name: block(i.block).Symbolic.input(model) for i in plant_inputs(model)}
+    _check_distinct([*((f"plant block '{_name(mod)}' (its state '{st.name}')", c.signals[st.name])
+                       for mod in mods for st in mod.STATES),
+                     *((f"the plant's input '{k}'", v) for k, v in external.items()),
+                     *((f"plant block '{i.block}' (its input '{i.name}')", params[i.name]) for i in plant_inputs(model))])
     c.block = "plant"
     for name, value in {**external, **params}.items():
         c.provide(name, value)
