@@ -194,14 +194,28 @@ def _check_unique() -> None:
     block's declared name (an estimator's state or numbers, a plant block's input) that clashes with
     the loop's own or another's would give the C struct two members of one name."""
     config = [f for _, fields in LOOP_CONFIG for f in fields]
-    for what, names in (("configuration field", [f[0] for f in config]),
-                        ("params.h macro", [f[2] for f in config if f[2]]),
+    macros = [f[2] for f in config if f[2]]
+    # the exported params.h's own names (its start state, timing, tables) and each estimator number's
+    # design for the rig's sensors beside it
+    macros += [*_params_h_names(), *(f"{f.macro}_SENSOR" for n in ESTIMATORS for f in estimator(n).CONFIG)]
+    for what, names in (("configuration field", [f[0] for f in config]), ("params.h name", macros),
                         ("state field", [f[0] for f in LOOP_STATE])):
         twice = sorted({n for n in names if names.count(n) > 1})
         if twice:
             raise ImportError(f"the loop's {what} {', '.join(map(repr, twice))} is declared twice: an estimator "
                               "(hydrogen.estimators) or a plant block (hydrogen.plant) takes a name the loop or "
                               "another block has")
+
+
+def _params_h_names() -> list:
+    """The names the exported ``params.h`` template defines itself (``P_L0``, ``P_DURATION``, ...),
+    read off ``templates/export_params.h.j2`` (none where the templates are not installed)."""
+    import re
+
+    from .resources import templates_dir
+    path = templates_dir() / "export_params.h.j2"
+    text = path.read_text() if path.is_file() else ""
+    return sorted(set(re.findall(r"(?:#define|static const [\w ]+?\*?(?: const)?) (P_[A-Z0-9_]+)\b", text)))
 
 
 _check_unique()

@@ -149,10 +149,16 @@ def test_a_field_declared_twice_in_the_loop_is_refused(monkeypatch):
     would give the C struct two members of one name: the layout refuses it at import, naming it."""
     from hydrogen import layout
 
-    config = (*layout.LOOP_CONFIG, ("an estimator's numbers", (("delay", "double[1]", "P_DELAY", "run.delay"),)))
+    original = layout.LOOP_CONFIG
+    config = (*original, ("an estimator's numbers", (("delay", "double[1]", "P_DELAY", "run.delay"),)))
     monkeypatch.setattr(layout, "LOOP_CONFIG", config)
     with pytest.raises(ImportError, match="configuration field 'delay' is declared twice"):
         layout._check_unique()
+    # a number named as the exported params.h's own start lengths (P_L0, which the estimators' start reads)
+    monkeypatch.setattr(layout, "LOOP_CONFIG", (*original, ("numbers", (("l0", "double[1]", "P_L0", "run.l0"),))))
+    with pytest.raises(ImportError, match="params.h name 'P_L0' is declared twice"):
+        layout._check_unique()
+    monkeypatch.setattr(layout, "LOOP_CONFIG", original)
     monkeypatch.setattr(layout, "LOOP_STATE", (*layout.LOOP_STATE, ("k", "double", None, "a clash")))
     with pytest.raises(ImportError, match="declared twice"):
         layout._check_unique()

@@ -219,6 +219,8 @@ def test_a_build_for_one_controller_derives_it_alone_and_grows_on_demand(tmp_pat
                            progress=events.append)
     assert held_controllers(grown.library.manifest) == ("backstepping", "p")
     assert events[0].stage == "generating" and events[0].detail.startswith("deriving backstepping (SymPy)")
+    n, own = len(grown.library.manifest["functions"]), len(dyn.library.manifest["functions"])
+    assert events[1].stage == "generated" and events[1].detail.startswith(f"{n - own} of {n} functions again")
     assert grown.library.manifest["files"] | dyn.library.manifest["files"] == grown.library.manifest["files"]
     r = hydrogen.simulate("arm-sim", "backstepping", dyn=grown, duration=0.01)
     assert np.isfinite(r.q).all()

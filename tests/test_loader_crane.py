@@ -215,16 +215,14 @@ def test_a_reference_past_the_vanes_angle_range_is_named_in_its_angle(crane):
     assert "stroke" not in msg and not re.search(r"\d m\b", msg)
 
 
-def test_a_runs_actuator_override_merges_into_the_scenarios_table():
-    """A run's override of one actuator's setting keeps its others (the rotary slew motor's own
-    quantization in rad), as the description's tables merge: replacing the table would drop them and
-    leave the cylinder's quantization in m on an angle."""
+def test_a_runs_actuator_override_replaces_the_scenarios_table():
+    """A run's actuators= is the whole table (``{}`` clears the rig's slew settings, which a run
+    that turns every sensor off relies on); changing one setting is the table with it changed."""
     from hydrogen.simulation.scenarios import scenario
 
     sc = scenario("crane-load", hydrogen.load_model("loader_crane"))
     own = dict(sc.actuators["slew_motor"])
     assert "quantization_l" in own
-    merged = sc.with_overrides(actuators={"slew_motor": {"noise_l": 1e-6}})
-    assert merged.actuators["slew_motor"] == {**own, "noise_l": 1e-6}
-    assert {k: v for k, v in merged.actuators.items() if k != "slew_motor"} == \
-        {k: v for k, v in sc.actuators.items() if k != "slew_motor"}
+    assert sc.with_overrides(noise_l=0.0, quantization_l=0.0, actuators={}).actuators == {}
+    one = sc.with_overrides(actuators={**sc.actuators, "slew_motor": {**own, "noise_l": 1e-6}})
+    assert one.actuators["slew_motor"] == {**own, "noise_l": 1e-6}

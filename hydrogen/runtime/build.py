@@ -55,13 +55,16 @@ def generation_reported(report, model, folder, force: bool = False, controllers=
     ``controllers`` (names; None: those the model lists) or ``force`` regenerates it (a current
     folder is no step: nothing reported); ``numbers``: the mode the folder must be in (None: its own). Outside the generator, whose source is part of the
     derivation hash."""
-    from ..codegen.generate import missing_controllers, stale_parts
+    from ..codegen.generate import missing_controllers, same_tools, stale_parts
     from ..progress import c_size
 
     parts = None if force else stale_parts(model, Path(folder), numbers)
     stale = parts is None or bool(parts)
     need = model.controllers if controllers is None else controllers
-    missing = missing_controllers(read_manifest(Path(folder)) or {}, need) if parts is not None else ()
+    manifest = read_manifest(Path(folder)) or {}
+    missing = missing_controllers(manifest, need) if parts is not None else ()
+    if parts is not None and (missing or parts.get("controllers") or parts.get("plant")) and not same_tools(manifest):
+        parts = None  # functions written now would not join the others: the folder is generated whole
     clock = report.start()
     if parts is None:
         report("generating", "deriving the model (SymPy) and writing C for each function")
@@ -71,7 +74,8 @@ def generation_reported(report, model, folder, force: bool = False, controllers=
     elif parts.get("drivers"):
         report("generating", "rendering the loop drivers (their code changed)")
     stale = stale or bool(missing)
-    before = {e["name"]: e for e in (read_manifest(Path(folder)) or {}).get("functions", ())} if parts else {}
+    before = {e["name"]: e for e in (read_manifest(Path(folder)) or {}).get("functions", ())} \
+        if parts is not None else {}
     yield
     if stale:
         manifest = read_manifest(Path(folder)) or {}

@@ -57,18 +57,14 @@ class Scenario(ScenarioFields):
 
     def with_overrides(self, **kw):
         """A copy with the given fields replaced and validated; an unknown field raises ScenarioError.
-        ``actuators`` merges into the scenario's own, actuator by actuator and key by key, as the
-        description's tables do (a run's override of one actuator's setting keeps its others)."""
+        ``actuators`` replaces the scenario's whole table (``{}`` clears it): to change one actuator's
+        setting, give the table with it changed (``{**sc.actuators, name: {**sc.actuators[name], ...}}``)."""
         unknown = set(kw) - set(self.__dataclass_fields__)
         for old in sorted(unknown & set(RENAMED)):
             raise ScenarioError(f"scenario '{self.name}': {old} is now {RENAMED[old]}")
         if unknown:
             raise ScenarioError(f"scenario '{self.name}' has no field(s) {sorted(unknown)}; "
                                 f"fields: {sorted(self.__dataclass_fields__)}")
-        if isinstance(kw.get("actuators"), Mapping) and isinstance(self.actuators, Mapping):
-            kw["actuators"] = {**self.actuators, **{
-                a: {**self.actuators[a], **v} if isinstance(v, Mapping) and isinstance(self.actuators.get(a), Mapping)
-                else v for a, v in kw["actuators"].items()}}
         return replace(self, **kw).validated()
 
     def validated(self) -> "Scenario":
