@@ -700,6 +700,29 @@ def test_the_plant_modules_the_derivation_imports_shape_every_function(package_c
     assert gen.derivation_hash() != before
 
 
+def test_the_import_scan_finds_every_import_the_parser_finds():
+    """The hashes' import scan (a regular expression, fast enough for every build's check) finds every
+    module of the package each of its modules imports by a relative import, as Python's own parser
+    reads them: function-local, parenthesised over lines, with comments between."""
+    import ast
+
+    def parsed(rel, source):
+        here, found = rel.split("/")[:-1], set()
+        for node in ast.walk(ast.parse(source)):
+            if isinstance(node, ast.ImportFrom) and node.level and node.level - 1 <= len(here):
+                parts = here[:len(here) - (node.level - 1)] + (node.module.split(".") if node.module else [])
+                found |= {"/".join(parts) + ".py"} if parts else set()
+                found |= {"/".join(parts + [a.name]) + ".py" for a in node.names}
+        return found
+
+    modules = [str(p.relative_to(gen._PACKAGE)) for p in gen._PACKAGE.rglob("*.py")]
+    assert len(modules) > 50
+    for rel in modules:
+        source = (gen._PACKAGE / rel).read_bytes()
+        missing = parsed(rel, source) - gen._imports_of(rel, source)
+        assert not missing, (rel, sorted(missing))
+
+
 def test_the_derivation_code_imports_the_package_relatively():
     """The plant's modules the derivation imports are found by its relative imports and absolute ones
     of ``hydrogen``; the package imports itself relatively, so none is missed by another spelling."""

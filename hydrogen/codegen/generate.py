@@ -10,6 +10,7 @@ from __future__ import annotations
 import functools
 import hashlib
 import json
+import re
 import shutil
 import tempfile
 from pathlib import Path
@@ -57,10 +58,10 @@ DERIVATION_DIRS = ("symbolic", "codegen", "controllers", "actuators")
 #: The plant's blocks' folder: what :func:`plant_hash` covers.
 PLANT_DIR = "plant"
 #: What shapes the loop drivers alone (:func:`drivers_hash`, besides the templates and the plant's
-#: folder): the loop context and its ports, the escape of its values, the sensors' noise row; the
-#: reference kinds (the loop's configuration, its C reference function) and the estimators (the
-#: Kalman filter's statements). An edit of these renders the drivers again and derives nothing.
-DRIVER_FILES = ("layout.py", "diagram.py", "templating.py", "sensors.py")
+#: folder): the loop context and its ports, the escape of its values, the sensors' noise row, where the
+#: templates are found; the reference kinds (the loop's configuration, its C reference function) and
+#: the estimators (their statements). An edit of these renders the drivers again and derives nothing.
+DRIVER_FILES = ("layout.py", "diagram.py", "templating.py", "sensors.py", "resources.py")
 DRIVER_DIRS = ("references", "estimators", PLANT_DIR)
 
 
@@ -105,7 +106,9 @@ def _plant_imports() -> list:
     the plant's alone. (The blocks the ``__init__`` discovers at import are the plant's own: it
     hands them to the plant's function alone.)"""
     files = [*DERIVATION_FILES, *(rel for sub in DERIVATION_DIRS for rel in _modules(sub))]
-    todo = {m for rel in files for m in _imports_of(rel, (_PACKAGE / rel).read_bytes())}
+    sources = ((rel, (_PACKAGE / rel).read_bytes()) for rel in files)
+    # a module that never spells the folder's name imports none of it: parsed only where it does
+    todo = {m for rel, source in sources if PLANT_DIR.encode() in source for m in _imports_of(rel, source)}
     found = set()
     while todo:
         rel = todo.pop()
@@ -116,14 +119,19 @@ def _plant_imports() -> list:
     return sorted(found)
 
 
+#: An import statement at the start of a line: ``from <dots><module> import <names>`` (the names
+#: maybe parenthesised over lines) or ``import <modules>``. A docstring's line that reads like one
+#: only adds a file to a hash: the scan errs on the side of staleness.
+_IMPORT = re.compile(r"^[ \t]*(?:from[ \t]+(\.*)([\w.]*)[ \t]+import[ \t]+(\([^)]*\)|[^\n#]*)|import[ \t]+([^\n#]+))",
+                     re.MULTILINE)
+
+
 @functools.lru_cache(maxsize=512)
 def _imports_of(rel: str, source: bytes) -> frozenset:
     """The package's modules (files relative to the package: ``plant/supply.py``, a package's
     ``plant/__init__.py``) that the module at ``rel`` imports, from its ``source``: relative imports
-    and absolute ones of the package, each importing its packages' ``__init__`` too. A name that
-    is no module counts as its package's (parsed once per content)."""
-    import ast
-
+    and absolute ones of the package (function-local ones too), each importing its packages'
+    ``__init__`` too. A name that is no module counts as its package's (scanned once per content)."""
     here = rel.split("/")[:-1]  # the module's package, as folders below the package's top
     top = __name__.split(".")[0]  # the package's own name, for its absolute imports
     found = set()
@@ -133,30 +141,30 @@ def _imports_of(rel: str, source: bytes) -> frozenset:
             found.add("/".join(parts[:k]) + ".py")
             found.add("/".join(parts[:k] + ["__init__.py"]))
 
-    for node in ast.walk(ast.parse(source)):
-        if isinstance(node, ast.ImportFrom):
-            if node.level:
-                if node.level - 1 > len(here):
-                    continue
-                base = here[:len(here) - (node.level - 1)]
-            elif (node.module or "").split(".")[0] == top:
-                base, node_module = [], node.module.split(".", 1)[1:]
-                add(node_module[0].split(".")) if node_module else None
-                for a in node.names:
-                    add((node_module[0].split(".") if node_module else []) + [a.name])
-                continue
-            else:
-                continue
-            parts = base + (node.module.split(".") if node.module else [])
-            if parts:
-                add(parts)
-            for a in node.names:  # a submodule imported by name, or a name of the module (no file)
-                add(parts + [a.name])
-        elif isinstance(node, ast.Import):
-            for a in node.names:
-                parts = a.name.split(".")
+    def names(text):  # "a, b as c" or "(a,  # a comment\n b)": a, b
+        text = re.sub(r"#[^\n]*", "", text).strip("() \t\n").replace("\n", " ")
+        return [n.split()[0] for n in text.split(",") if n.strip()]
+
+    for dots, module, imported, plain in _IMPORT.findall(source.decode("utf-8", "replace")):
+        if plain:
+            for name in names(plain):
+                parts = name.split(".")
                 if parts[0] == top and len(parts) > 1:
                     add(parts[1:])
+            continue
+        level, parts = len(dots), module.split(".") if module else []
+        if level:
+            if level - 1 > len(here):
+                continue
+            parts = here[:len(here) - (level - 1)] + parts
+        elif parts and parts[0] == top:
+            parts = parts[1:]
+        else:
+            continue
+        if parts:
+            add(parts)
+        for name in names(imported):  # a submodule imported by name, or a name of the module (no file)
+            add(parts + [name])
     return frozenset(found)
 
 
