@@ -43,8 +43,9 @@ def _cmd_generate(args) -> int:
         return 0
     from .progress import Reporter, print_event
     from .runtime.build import generation_reported
-    with generation_reported(Reporter(None if args.quiet else print_event, model.name), model, out, args.force):
-        changed = generate(model, out, force=args.force, progress=not args.quiet,
+    with generation_reported(Reporter(None if args.quiet else print_event, model.name), model, out, args.force,
+                             numbers=args.numbers) as whole:
+        changed = generate(model, out, force=args.force, progress=not args.quiet, whole=whole,
                            **({} if args.numbers is None else {"numbers": args.numbers}))
     print(f"{out}: {'generated' if changed else 'up to date, nothing regenerated'}")
     return 0

@@ -562,7 +562,7 @@ def _without_code_hashes(folder):
     return manifest
 
 
-def _regenerated(model, folder, monkeypatch, fresh, numbers="inputs"):
+def _regenerated(model, folder, monkeypatch, fresh, numbers="inputs", whole=None):
     """Generate ``folder`` again, watching what is derived: ``(the derive calls as (controllers, core),
     the files written again)``; the folder then reads byte for byte as ``fresh``, a whole generation."""
     before = {p.name: p.stat().st_mtime_ns for p in folder.iterdir()}
@@ -573,7 +573,7 @@ def _regenerated(model, folder, monkeypatch, fresh, numbers="inputs"):
         derived.append((tuple(model.controllers if controllers is None else controllers), k.get("core", True)))
         return real(model, numbers, controllers, **k)
     monkeypatch.setattr(gen, "derive", watched)
-    assert gen.generate(model, folder, numbers=numbers)
+    assert gen.generate(model, folder, numbers=numbers, whole=whole)
     monkeypatch.setattr(gen, "derive", real)
     assert gen.check(model, folder) == []
     assert sorted(os.listdir(folder)) == sorted(os.listdir(fresh))
@@ -643,9 +643,10 @@ def test_a_plant_meeting_other_numbers_first_is_generated_whole(tmp_path, monkey
     (folder / gen.MANIFEST).write_text(json.dumps(manifest, indent=2, sort_keys=True) + "\n")
     friction = package_copy / "plant" / "friction.py"
     friction.write_text(friction.read_text() + "\n# an edit\n")
-    derived, _ = _regenerated(model, folder, monkeypatch, fresh_render(model))
-    # tried alone, then the core and the controllers
-    assert derived == [((), ("plant",)), ((), True), (tuple(model.controllers), False)]
+    told = []
+    derived, _ = _regenerated(model, folder, monkeypatch, fresh_render(model), whole=lambda: told.append(1))
+    # tried alone, then the core and the controllers; the caller told (a build's progress says so)
+    assert derived == [((), ("plant",)), ((), True), (tuple(model.controllers), False)] and told == [1]
 
 
 def test_a_folder_of_another_casadi_is_generated_whole(tmp_path, monkeypatch, fresh_render, package_copy,

@@ -581,18 +581,20 @@ def _drivers(model, names, folder: Path, written=None) -> tuple:
 
 
 def generate(model, out_dir: Path, force: bool = False, progress: bool = False, numbers: str = DEFAULT_NUMBERS,
-             controllers=None, written=None, first=None) -> bool:
+             controllers=None, written=None, first=None, whole=None) -> bool:
     """Generate C for ``model`` into ``out_dir`` unless it is already current.
 
     ``controllers``: the controllers the folder must hold (None: all); a current folder that lacks
     some gets theirs added (:func:`extend`), nothing else derived again. Returns True when files
     were (re)written. The folder is swapped in whole under a lock; concurrent callers wait, then
-    find it current. ``written`` and ``first``: as :func:`render` takes them.
+    find it current. ``written`` and ``first``: as :func:`render` takes them; ``whole()`` is called
+    when a part that would have been derived alone (:func:`stale_parts`) is derived with all the
+    rest after all (the plant met other numbers first, a controller a number the folder lacks).
     """
     out_dir = Path(out_dir)
     check_replaceable_dir(out_dir, MANIFEST, GENERATED_KEYS, "a hydrogen generated folder")  # before the lock file
     with locked(out_dir):
-        return generate_locked(model, out_dir, force, progress, numbers, controllers, written, first)
+        return generate_locked(model, out_dir, force, progress, numbers, controllers, written, first, whole)
 
 
 def _staged(out_dir: Path, write) -> None:
@@ -609,7 +611,7 @@ def _staged(out_dir: Path, write) -> None:
 
 
 def generate_locked(model, out_dir: Path, force: bool = False, progress: bool = False,
-                    numbers: str = DEFAULT_NUMBERS, controllers=None, written=None, first=None) -> bool:
+                    numbers: str = DEFAULT_NUMBERS, controllers=None, written=None, first=None, whole=None) -> bool:
     """:func:`generate` for a caller that already holds ``locked(out_dir)``."""
     out_dir = Path(out_dir)
     check_identifier(model.name, "model name")  # it becomes C symbols, file names and build-file text
@@ -627,6 +629,8 @@ def generate_locked(model, out_dir: Path, force: bool = False, progress: bool = 
                   drivers=drivers):
             return True
         controllers = (*held_controllers(manifest), *(k for k in missing if k not in stale))  # whole again
+        if whole is not None:
+            whole()
     check_replaceable_dir(out_dir, MANIFEST, GENERATED_KEYS, "a hydrogen generated folder", probe=False)  # even forced
     _staged(out_dir, lambda staging: render(model, staging, progress=progress, numbers=numbers,
                                             controllers=controllers, written=written, first=first))

@@ -53,8 +53,10 @@ def generation_reported(report, model, folder, force: bool = False, controllers=
     """Around a generation call: "generating" and "generated" (to ``report``, a
     :class:`~hydrogen.progress.Reporter`) when ``folder`` is stale for ``model``, lacks one of
     ``controllers`` (names; None: those the model lists) or ``force`` regenerates it (a current
-    folder is no step: nothing reported); ``numbers``: the mode the folder must be in (None: its own). Outside the generator, whose source is part of the
-    derivation hash."""
+    folder is no step: nothing reported); ``numbers``: the mode the folder must be in (None: its own).
+    Yields the callable a generation calls when what it meant to derive alone is derived whole after
+    all (``generate(whole=...)``): a "generating" line then says so. Outside the generator, whose
+    source is part of the derivation hash."""
     from ..codegen.generate import missing_controllers, same_tools, stale_parts
     from ..progress import c_size
 
@@ -76,7 +78,11 @@ def generation_reported(report, model, folder, force: bool = False, controllers=
     stale = stale or bool(missing)
     before = {e["name"]: e for e in (read_manifest(Path(folder)) or {}).get("functions", ())} \
         if parts is not None else {}
-    yield
+
+    def whole():
+        report("generating", "deriving the model (SymPy) and writing C for each function: the part derived "
+                             "alone met other description numbers than the folder's")
+    yield whole
     if stale:
         manifest = read_manifest(Path(folder)) or {}
         functions = manifest.get("functions", ())
@@ -317,9 +323,10 @@ def _generate_and_compile(model, folder, root, committed, generated, need, numbe
             # each source of a library this build compiles starts compiling as soon as it is
             # written, on the cores the derivation leaves (the core while controllers derive)
             early = _Precompile({CORE, *groups}, toolchain, cache)
-            with generation_reported(report, model, folder, controllers=need, numbers=numbers):
+            with generation_reported(report, model, folder, controllers=need, numbers=numbers) as whole:
                 # no-op when current; a build for some controllers derives only theirs
-                generate_locked(model, folder, numbers=numbers, controllers=need, written=early, first=early.wanted)
+                generate_locked(model, folder, numbers=numbers, controllers=need, written=early, first=early.wanted,
+                                whole=whole)
         manifest = read_manifest(folder)
         if manifest is None:
             raise BuildCacheError(f"{folder}: generated folder has no readable manifest after generation")
