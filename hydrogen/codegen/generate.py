@@ -616,16 +616,16 @@ def generate_locked(model, out_dir: Path, force: bool = False, progress: bool = 
     out_dir = Path(out_dir)
     check_identifier(model.name, "model name")  # it becomes C symbols, file names and build-file text
     recover_dir(out_dir)
-    parts = None if force else stale_parts(model, out_dir, numbers)
+    need = model.controllers if controllers is None else controllers
+    parts = None if force else stale_parts(model, out_dir, numbers, need)
     manifest = read_manifest(out_dir) or {}
     if parts is not None:  # current but for controllers changed or missing, the plant's blocks or the drivers' code
-        stale = parts.get("controllers", ())
+        stale, missing = parts.get("controllers", ()), parts.get("missing", ())
         plant, drivers = parts.get("plant", False), parts.get("drivers", False)
-        missing = missing_controllers(manifest, model.controllers if controllers is None else controllers)
         redo = (*stale, *(k for k in missing if k not in stale))
         if not (redo or plant or drivers):
             return False
-        if (drivers and not (redo or plant) or same_tools(manifest)) and extend(model, out_dir, redo, progress, replacing=stale, written=written, first=first, plant=plant,
+        if extend(model, out_dir, redo, progress, replacing=stale, written=written, first=first, plant=plant,
                   drivers=drivers):
             return True
         controllers = (*held_controllers(manifest), *(k for k in missing if k not in stale))  # whole again
@@ -791,22 +791,27 @@ def same_tools(manifest: dict) -> bool:
     return (manifest.get("casadi_version"), manifest.get("sympy_version")) == (ca.__version__, sp.__version__)
 
 
-def stale_parts(model, folder: Path, numbers: str | None = None) -> dict | None:
+def stale_parts(model, folder: Path, numbers: str | None = None, controllers=None) -> dict | None:
     """What of ``folder`` is stale for ``model``: None when the whole of it (a generation derives
     everything again), else a dict, empty when current: ``controllers`` (the names of those whose
-    module changed), ``plant`` (True: the plant's blocks changed), ``drivers`` (True: the loop
+    module changed), ``missing`` (of ``controllers``, the names a folder that must hold them lacks;
+    None: not asked), ``plant`` (True: the plant's blocks changed), ``drivers`` (True: the loop
     drivers' code changed, or the plant's). Where functions would be derived again (a controller's,
-    the plant's) in a folder another CasADi or SymPy wrote, the whole of it."""
+    the plant's, a missing controller's) in a folder another CasADi or SymPy wrote, the whole of it."""
     found = _reasons(model, folder, numbers)
     if any(part is STALES_ALL for part, _ in found):
         return None
-    if any(part == STALES_PLANT or isinstance(part, tuple) for part, _ in found) \
-            and not same_tools(read_manifest(folder)):
+    manifest = read_manifest(folder)
+    missing = () if controllers is None else missing_controllers(manifest, controllers)
+    if (missing or any(part == STALES_PLANT or isinstance(part, tuple) for part, _ in found)) \
+            and not same_tools(manifest):
         return None  # functions written now would not match the folder's others (CasADi stamps its version)
     out = {}
-    controllers = tuple(part[1] for part, _ in found if isinstance(part, tuple))
-    if controllers:
-        out["controllers"] = controllers
+    stale = tuple(part[1] for part, _ in found if isinstance(part, tuple))
+    if stale:
+        out["controllers"] = stale
+    if missing:
+        out["missing"] = missing
     if any(part == STALES_PLANT for part, _ in found):
         out["plant"] = out["drivers"] = True
     if any(part == STALES_DRIVERS for part, _ in found):

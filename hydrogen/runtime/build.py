@@ -57,16 +57,13 @@ def generation_reported(report, model, folder, force: bool = False, controllers=
     Yields the callable a generation calls when what it meant to derive alone is derived whole after
     all (``generate(whole=...)``): a "generating" line then says so. Outside the generator, whose
     source is part of the derivation hash."""
-    from ..codegen.generate import missing_controllers, same_tools, stale_parts
+    from ..codegen.generate import stale_parts
     from ..progress import c_size
 
-    parts = None if force else stale_parts(model, Path(folder), numbers)
-    stale = parts is None or bool(parts)
     need = model.controllers if controllers is None else controllers
-    manifest = read_manifest(Path(folder)) or {}
-    missing = missing_controllers(manifest, need) if parts is not None else ()
-    if parts is not None and (missing or parts.get("controllers") or parts.get("plant")) and not same_tools(manifest):
-        parts = None  # functions written now would not join the others: the folder is generated whole
+    parts = None if force else stale_parts(model, Path(folder), numbers, need)
+    stale = parts is None or bool(parts)
+    missing = parts.get("missing", ()) if parts else ()
     clock = report.start()
     if parts is None:
         report("generating", "deriving the model (SymPy) and writing C for each function")
@@ -75,7 +72,6 @@ def generation_reported(report, model, folder, force: bool = False, controllers=
         report("generating", f"deriving {', '.join(what)} (SymPy) and writing C for each function")
     elif parts.get("drivers"):
         report("generating", "rendering the loop drivers (their code changed)")
-    stale = stale or bool(missing)
     before = {e["name"]: e for e in (read_manifest(Path(folder)) or {}).get("functions", ())} \
         if parts is not None else {}
 
