@@ -12,6 +12,7 @@ import math
 from . import diagram  # the controller's input slots: the loop's ports
 from . import references  # the reference kinds' part of the configuration and their C
 from .estimators import ESTIMATORS, estimator, switch_field  # the estimators' state, numbers and C
+from .loop_logs import FORCES, LOGS, PLANT, SIGNAL  # the run's logs
 from .names import NUMBERS  # the numbers input's name, part of the loop's layout
 from .plant import (BLOCKS as PLANT_BLOCKS, block as plant_block, input_record, integrator,  # the plant's blocks
                     plant_inputs)
@@ -20,7 +21,7 @@ from .sensors import NOISE, noise_columns, noise_width  # the sensors' noise row
 
 __all__ = ["NUMBERS", "SUPPLY_LOG", "MAX_DELAY", "PLANT_INPUTS", "predictor_model", "FK_TOL", "FK_MAX_ITER", "FK_MAX_COND", "FK_STATUS", "LU_PIVOT_MIN",
            "delay_split", "LOOP_CONFIG", "LOOP_STATE", "LOOP_SIGNALS", "model_summary", "slots",
-           "robot_sizes", "supply_size", "loop_context", "log_widths", "plant_outputs", "loop_functions", "C_SIZES", "plant_offsets",
+           "robot_sizes", "supply_size", "loop_context", "log_rows", "log_widths", "plant_outputs", "loop_functions", "C_SIZES", "plant_offsets",
            "plant_size", "c_double", "config_fields", "struct_fields"]
 
 #: The plant part logged as it is, where the plant has it: the supply pressure (its one name,
@@ -389,12 +390,43 @@ def plant_outputs(summary: dict) -> list:
     return [p for p in summary["plant"] if p.get("output", p["name"] == SUPPLY_LOG)]
 
 
+def log_rows(summary: dict) -> list:
+    """Each log of the loop (:data:`hydrogen.loop_logs.LOGS`, then the plant's outputs) for a model (a
+    manifest's model summary), in the log struct's order: ``{"name", "width", "doc", "kind", "field",
+    "c_pointer", "c_count", "c_row"}``: ``width`` the columns (the controller state's: None, its size is
+    the controller's); ``kind`` and ``field`` its source (:class:`hydrogen.loop_logs.LogRow`);
+    ``c_pointer`` the C loop's source of a row in ``write_log`` (none for the forces), ``c_count`` its
+    entries in C, ``c_row`` row k's offset. A log of a size the robot lacks is left out."""
+    from markupsafe import Markup  # hydrogen's own C expressions (hydrogen.templating)
+    sizes = robot_sizes(summary)
+    offsets = plant_offsets(summary)
+    scalar = {name for name, _, size, _ in LOOP_SIGNALS if size is None}
+    rows = [(r.name, r.size, f"{r.doc}, {r.unit}", r.source) for r in LOGS]
+    docs = {st.name: st.doc for b in PLANT_BLOCKS for st in getattr(plant_block(b), "STATES", ())}
+    rows += [(p["name"], (C_SIZES[p["size"]],), docs.get(p["name"], f"the plant's {p['name']}"), (PLANT, p["name"]))
+             for p in plant_outputs(summary)]
+    out = []
+    for name, size, doc, (kind, field) in rows:
+        if "NXC" in size:
+            width, count = None, "c->n_xc"
+        else:
+            width = math.prod(t if isinstance(t, int) else sizes[t] for t in size)
+            count = " * ".join(map(str, size))
+            if not width:
+                continue
+        pointer = {SIGNAL: f"{'&' if field in scalar else ''}s->{field}", FORCES: "",
+                   PLANT: "x" + ("" if field not in offsets or offsets[field] == "0" else f" + {offsets.get(field)}")
+                   }.get(kind, f"st->{field}")
+        # hydrogen's own text: written as it is in the header's comment, never closing it
+        out.append({"name": name, "width": width, "doc": Markup(doc.replace("*/", "* /")), "kind": kind, "field": field,
+                    "c_pointer": Markup(pointer), "c_count": Markup(count),
+                    "c_row": Markup("k" if count == "1" else f"{count} * k")})
+    return out
+
+
 def log_widths(summary: dict) -> dict:
-    """Row width of each log of the loop (``xc``'s is the controller's state size)."""
-    n, m = summary["n"], summary["m"]
-    # each plant output's log only where the plant has it (a constant supply's loop is as it was)
-    return {"t": 1, "q": n, "q_d": n, "l": m, "f": m, "pc": n_pressures(summary), "u": m, "u_applied": m, "l_meas": m,
-            **{p["name"]: p["entries"] for p in plant_outputs(summary)}}
+    """Row width of each log of the loop but the controller state's (``xc``: its size is the controller's)."""
+    return {r["name"]: r["width"] for r in log_rows(summary) if r["width"] is not None}
 
 
 def _port_writes(sizes: dict) -> list:
@@ -430,13 +462,7 @@ def loop_context(manifest: dict) -> dict:
     s = manifest["model"]
     n, m, name = s["n"], s["m"], s["name"]
     n_p = n_pressures(s)
-    pressures = "chamber pressures (one block per actuator), Pa" if n_p != m else "control pressures, Pa"
-    what = {"t": "time, s", "q": "true pose", "q_d": "reference", "l": "true cylinder lengths, m",
-            "f": "cylinder forces, N", "pc": pressures, "u": "spool commands computed, m",
-            "u_applied": "spool commands the valves held at the end of each period (delay later), m",
-            "l_meas": "measured cylinder lengths (noise, quantisation), m", SUPPLY_LOG: "supply pressure, Pa"}
-    logs = [(k, w, what.get(k, f"the plant's {k} (hydrogen.plant)")) for k, w in log_widths(s).items()]
-    logs += [("xc", "n_xc", "controller state")]
+    log_list = log_rows(s)
     nx = plant_size(s)
     # each part of x as the C loop writes it: a pointer offset ("x + NQ") and an index prefix ("x[NQ + i]")
     from markupsafe import Markup  # hydrogen's own C expressions (hydrogen.templating)
@@ -462,7 +488,10 @@ def loop_context(manifest: dict) -> dict:
         "n_pressures": n_p, "three_way": n_p == m,
         "nps": nps,
         "parametric": NUMBERS in manifest,
-        "encoders": bool(s["joint_encoders"]), "slots": slots(s), "ports": _port_writes(robot_sizes(s)), "logs": logs,
+        "encoders": bool(s["joint_encoders"]), "slots": slots(s), "ports": _port_writes(robot_sizes(s)),
+        # the run's logs (hydrogen.loop_logs): the log struct's fields and write_log's rows
+        "logs": [(r["name"], "n_xc" if r["width"] is None else r["width"], r["doc"]) for r in log_list],
+        "log_rows": log_list,
         "config": config_fields(name, s),
         "state": struct_fields(LOOP_STATE, name, sizes, x_parts), "signals": struct_fields(LOOP_SIGNALS, name, sizes),
         "p_theta": ", ".join(s["theta_names"]),

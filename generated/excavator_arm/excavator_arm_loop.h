@@ -132,17 +132,19 @@ typedef struct {
 } excavator_arm_loop_state;
 
 typedef struct {                 /* each may be NULL; rows per control period (widths below) */
-    double* t;  /* 1: time, s */
-    double* q;  /* 3: true pose */
-    double* q_d;  /* 3: reference */
-    double* l;  /* 3: true cylinder lengths, m */
-    double* f;  /* 3: cylinder forces, N */
-    double* pc;  /* 6: chamber pressures (one block per actuator), Pa */
+    double* t;  /* 1: time of the period's start, s */
+    double* q;  /* 3: true pose, m or rad */
+    double* q_d;  /* 3: reference, m or rad */
+    double* l;  /* 3: true actuator travel (cylinder lengths), m or rad */
+    double* f;  /* 3: actuator forces of the chamber pressures, N or N m */
+    double* pc;  /* 6: pressure states (a three-way cylinder's control pressure, the others' chambers), Pa */
     double* u;  /* 3: spool commands computed, m */
     double* u_applied;  /* 3: spool commands the valves held at the end of each period (delay later), m */
-    double* l_meas;  /* 3: measured cylinder lengths (noise, quantisation), m */
-    double* ps;  /* 1: supply pressure, Pa */
-    double* xc;  /* n_xc: controller state */
+    double* l_meas;  /* 3: measured actuator travel (noise, resolution), m or rad */
+    double* ldot;  /* 3: actuator rates the velocities came from (the estimator's, or the ideal rate sensor's), m/s or rad/s */
+    double* qdot_meas;  /* 3: measured velocities (JL^-1 ldot at the measured pose), m/s or rad/s */
+    double* xc;  /* n_xc: controller state, per block */
+    double* ps;  /* 1: supply pressure (a state only where the supply is not constant), Pa */
 } excavator_arm_loop_log;
 
 /* One control period's signals, as the stages below hand them on (SI units). */

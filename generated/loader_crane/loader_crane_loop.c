@@ -561,22 +561,24 @@ int loader_crane_plant_step(const loader_crane_loop_config* c, loader_crane_loop
     return LOADER_CRANE_OK;
 }
 
-/* Row st->k of each log that is not NULL, before the plant step. */
+/* Row st->k of each log that is not NULL, before the plant step (hydrogen.loop_logs: each log's source). */
 static int write_log(const loader_crane_loop_state* st, const loader_crane_loop_config* c, const loader_crane_loop_signals* s,
                      loader_crane_loop_log* log) {
     const double* x = st->x;
     const long long k = st->k;
-    if (log->t) log->t[k] = s->t;
+    if (log->t) memcpy(log->t + k, &s->t, 1 * sizeof(double));
     if (log->q) memcpy(log->q + NQ * k, x, NQ * sizeof(double));
     if (log->q_d) memcpy(log->q_d + NQ * k, s->qd, NQ * sizeof(double));
     if (log->l) memcpy(log->l + NL * k, s->l_true, NL * sizeof(double));
+    if (log->f && leg_force(c->numbers, x + 2 * NQ, x + 2 * NQ + NPC + 2 * NL, log->f + NL * k)) return LOADER_CRANE_CTRL_FAILED;
     if (log->pc) memcpy(log->pc + NPC * k, x + 2 * NQ, NPC * sizeof(double));
     if (log->u) memcpy(log->u + NL * k, s->u, NL * sizeof(double));
     if (log->u_applied) memcpy(log->u_applied + NL * k, s->u_app, NL * sizeof(double));
     if (log->l_meas) memcpy(log->l_meas + NL * k, s->l_meas, NL * sizeof(double));
-    if (log->ps) memcpy(log->ps + NPS * k, x + 2 * NQ + NPC + 2 * NL, NPS * sizeof(double));
-    if (log->f && leg_force(c->numbers, x + 2 * NQ, x + 2 * NQ + NPC + 2 * NL, log->f + NL * k)) return LOADER_CRANE_CTRL_FAILED;
+    if (log->ldot) memcpy(log->ldot + NL * k, s->ldot, NL * sizeof(double));
+    if (log->qdot_meas) memcpy(log->qdot_meas + NQ * k, s->qdot_meas, NQ * sizeof(double));
     if (log->xc && c->n_xc) memcpy(log->xc + c->n_xc * k, st->xc, (size_t)c->n_xc * sizeof(double));
+    if (log->ps) memcpy(log->ps + NPS * k, x + 2 * NQ + NPC + 2 * NL, NPS * sizeof(double));
     return LOADER_CRANE_OK;
 }
 

@@ -131,16 +131,18 @@ typedef struct {
 } ubc_stewart_loop_state;
 
 typedef struct {                 /* each may be NULL; rows per control period (widths below) */
-    double* t;  /* 1: time, s */
-    double* q;  /* 6: true pose */
-    double* q_d;  /* 6: reference */
-    double* l;  /* 6: true cylinder lengths, m */
-    double* f;  /* 6: cylinder forces, N */
-    double* pc;  /* 6: control pressures, Pa */
+    double* t;  /* 1: time of the period's start, s */
+    double* q;  /* 6: true pose, m or rad */
+    double* q_d;  /* 6: reference, m or rad */
+    double* l;  /* 6: true actuator travel (cylinder lengths), m or rad */
+    double* f;  /* 6: actuator forces of the chamber pressures, N or N m */
+    double* pc;  /* 6: pressure states (a three-way cylinder's control pressure, the others' chambers), Pa */
     double* u;  /* 6: spool commands computed, m */
     double* u_applied;  /* 6: spool commands the valves held at the end of each period (delay later), m */
-    double* l_meas;  /* 6: measured cylinder lengths (noise, quantisation), m */
-    double* xc;  /* n_xc: controller state */
+    double* l_meas;  /* 6: measured actuator travel (noise, resolution), m or rad */
+    double* ldot;  /* 6: actuator rates the velocities came from (the estimator's, or the ideal rate sensor's), m/s or rad/s */
+    double* qdot_meas;  /* 6: measured velocities (JL^-1 ldot at the measured pose), m/s or rad/s */
+    double* xc;  /* n_xc: controller state, per block */
 } ubc_stewart_loop_log;
 
 /* One control period's signals, as the stages below hand them on (SI units). */

@@ -61,7 +61,7 @@ PLANT_DIR = "plant"
 #: folder): the loop context and its ports, the escape of its values, the sensors' noise row, where the
 #: templates are found; the reference kinds (the loop's configuration, its C reference function) and
 #: the estimators (their statements). An edit of these renders the drivers again and derives nothing.
-DRIVER_FILES = ("layout.py", "diagram.py", "templating.py", "sensors.py", "resources.py")
+DRIVER_FILES = ("layout.py", "diagram.py", "templating.py", "sensors.py", "loop_logs.py", "resources.py")
 DRIVER_DIRS = ("references", "estimators", PLANT_DIR)
 
 

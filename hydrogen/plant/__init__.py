@@ -32,6 +32,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..loop_logs import RESERVED as LOG_NAMES  # the run's own logs: no plant output takes their names
+
 __all__ = ["FUNCTION", "BLOCKS", "SIZES", "PlantState", "PlantParameter", "PlantInput", "Slot", "block", "plant_layout",
            "state_size", "slot", "entry_names", "describe_entries", "state_vector", "initial_state", "outputs",
            "plant_inputs", "input_values",
@@ -393,8 +395,8 @@ def _discover() -> tuple:
     return tuple(order)
 
 
-#: The run's own logs and CSV columns (hydrogen.layout.log_widths): no plant output may take their name.
-RESERVED_OUTPUTS = ("t", "q", "q_d", "l", "f", "pc", "u", "u_applied", "l_meas", "xc")
+#: The run's own logs and CSV columns (hydrogen.loop_logs): no plant output may take their name.
+RESERVED_OUTPUTS = LOG_NAMES
 
 
 #: The plant's blocks: every module of this package that declares its ``POSITION``, ``STATES`` and

@@ -15,7 +15,7 @@ __all__ = ["LoopRunner", "LOOP_OK", "LOOP_NONFINITE", "LOOP_FK_FAILED", "LOOP_CT
 
 from .. import references
 from ..estimators import ESTIMATORS, estimator  # each estimator's state, started at the lengths
-from ..layout import log_widths, loop_context
+from ..layout import log_rows, loop_context
 
 LOOP_OK, LOOP_NONFINITE, LOOP_FK_FAILED, LOOP_CTRL_FAILED = 0, 1, 2, 3
 _D = C.POINTER(C.c_double)
@@ -134,7 +134,8 @@ class LoopRunner:
     def __init__(self, dyn, ctrl, values: dict):
         manifest = dyn.library.manifest
         self.context = ctx = _context(dyn.library)
-        self._log_width = log_widths(manifest["model"])
+        # each log's columns (None: the controller state's, its size)
+        self._log_width = {r["name"]: r["width"] for r in log_rows(manifest["model"])}
         self.n_noise = ctx["n_noise"]
         Config, State, self._Log, self._Signals = _structs(ctx)
         name = ctx["model"]
@@ -240,9 +241,9 @@ class LoopRunner:
             log = self._Log()
             end = self.state.k + n
             for k, v in logs.items():
-                width = self.xc.size if k == "xc" else self._log_width.get(k)
-                if width is None:
-                    raise KeyError(f"unknown log '{k}'; logs are {sorted(self._log_width)} and 'xc'")
+                if k not in self._log_width:
+                    raise KeyError(f"unknown log '{k}'; logs are {', '.join(self._log_width)}")
+                width = self._log_width[k] or self.xc.size
                 if (v.dtype != np.float64 or not v.flags.c_contiguous or v.size < end * width
                         or (v.ndim == 2 and v.shape[1] != width)):
                     raise ValueError(f"log '{k}' must be a C-contiguous float64 array with >= {end} rows "

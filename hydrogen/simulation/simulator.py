@@ -16,7 +16,8 @@ from ..dynamics import VELOCITY_SINGULAR, fk_failure
 from ..errors import KinematicsError, RunEndedError, ScenarioError, SimulationError
 from ..estimators import designs_for, estimate_for, remember as remember_designs
 from ..estimators.kalman import kalman_gain, length_noise_variance  # noqa: F401 - the simulator's API
-from ..layout import LU_PIVOT_MIN, SUPPLY_LOG, model_summary, robot_sizes
+from ..layout import LU_PIVOT_MIN, SUPPLY_LOG, log_rows, model_summary, robot_sizes
+from ..loop_logs import FORCES, LOGS, PLANT, SIGNAL, STATE
 from ..plant import (describe_entries, initial_state, input_values, integrator, outputs as plant_outputs, plant_inputs,
                      plant_layout, slot)
 from ..plant.supply import nominal as supply_nominal
@@ -79,6 +80,10 @@ class SimulationResult:
     supply_pressure: np.ndarray = None
     #: The name of the robot's model the run simulated ("" where not known).
     model_name: str = ""
+    #: The loop's other logs (:data:`hydrogen.loop_logs.LOGS` without a field above), by name: rows
+    #: (k, size) over the run (``ldot``: the actuator rates the velocities came from, ``qdot_meas``: the
+    #: measured velocities).
+    signals: dict = field(default_factory=dict)
 
     @property
     def scenario_name(self) -> str:
@@ -332,7 +337,6 @@ def run_prepared(dyn, p, controller: str, engine: str = "c", call_start=None, ru
     call_start = time.perf_counter() if call_start is None else call_start
     sc, ctrl, n, h = p.sc, p.ctrl, p.n, p.h
     log = new_logs(dyn.model, n, ctrl.xc.size, p.log_widths)
-    t_log = np.arange(n) * h
     start = time.perf_counter()
     if engine == "c":
         k_done, failure = _run_c(dyn, sc, ctrl, p.x0, p.q0, p.noise, p.estimate, log, n, h, runner)
@@ -340,7 +344,7 @@ def run_prepared(dyn, p, controller: str, engine: str = "c", call_start=None, ru
         k_done, failure = run_python_loop(dyn, sc, ctrl, p.x0, p.q0, p.noise, p.estimate, log, n, h)
     wall = time.perf_counter() - start
     theta_true, gamma_true = (dyn.model.theta, dyn.model.gamma) if p.truth is None else (a.copy() for a in p.truth)
-    res = _result(sc, controller, ctrl, t_log, log, k_done, p.theta0, p.gamma0, theta_true, gamma_true, wall)
+    res = _result(sc, controller, ctrl, log, k_done, p.theta0, p.gamma0, theta_true, gamma_true, wall)
     # how well the run excites what the controller estimates (none: no metric); not of a run that
     # diverged, whose last row may hold the non-finite state it stopped at
     if res.metrics and res.estimated and not failure:
@@ -349,7 +353,7 @@ def run_prepared(dyn, p, controller: str, engine: str = "c", call_start=None, ru
     if res.metrics:
         res.metrics["wall_time_s"] = res.wall_time_s
     if failure:
-        cause = diverged_block(ctrl, log["xc"][:k_done], t_log[:k_done]) if ctrl.xc.size else None
+        cause = diverged_block(ctrl, log["xc"][:k_done], log["t"][:k_done, 0]) if ctrl.xc.size else None
         lead = f": {cause}; then it" if cause else ""  # the cause first, then the state at the stop
         raise SimulationError(f"simulation '{sc.name}' with '{controller}'{lead} {failure}", result=res)
     return res
@@ -614,13 +618,11 @@ class _Prepared:
 
 
 def log_widths(model, n_xc: int) -> tuple:
-    """((log name, columns), ...) of a run's logs: :func:`new_logs`'s layout, the same for every run of
-    one model and controller state size (a batch works it out once)."""
-    nq, m = model.n, model.n_cylinders
-    n_p = pressures.n_pressures(model)
-    plant = [(b.name, b.size) for b in plant_outputs(plant_layout(model))]  # the plant's outputs (a supply state)
-    return (("q", nq), ("q_d", nq), ("l", m), ("f", m), ("pc", n_p), ("u", m), ("u_applied", m), ("l_meas", m),
-            ("xc", max(n_xc, 1)), *plant)
+    """((log name, columns), ...) of a run's logs (:data:`hydrogen.loop_logs.LOGS`, then the plant's
+    outputs: :func:`hydrogen.layout.log_rows`, as the C loop has them): :func:`new_logs`'s layout, the
+    same for every run of one model and controller state size (a batch works it out once)."""
+    return tuple((r["name"], max(n_xc, 1) if r["width"] is None else r["width"])
+                 for r in log_rows(model_summary(model)))
 
 
 def new_logs(model, n: int, n_xc: int, widths=None) -> dict:
@@ -832,7 +834,7 @@ def _run_c(dyn, sc, ctrl, x0, q0, noise, estimate, log, n, h, runner=None):
 
 class _Signals:
     """One period's signals as the stages hand them on (the C loop's ``<model>_loop_signals``)."""
-    __slots__ = ("nz", "t", "l_true", "l_meas", "pc_meas", "ps_meas", "q_enc", "ldot", "qdot_meas", "ref", "adapt", "u",
+    __slots__ = ("nz", "t", "l_true", "l_meas", "pc_meas", "ps_meas", "q_enc", "ldot", "qdot_meas", "qd", "adapt", "u",
                  "u_held", "u_app")
 
 
@@ -934,7 +936,7 @@ class PythonStages:
 
     def reference(self, s: _Signals) -> None:
         """The scenario's reference and its derivatives at the period's start."""
-        s.ref = self.sc.reference(s.t)
+        s.qd = self.sc.reference(s.t)
 
     def schedule(self, s: _Signals) -> None:
         """Adaptation on from the scenario's ``t_adapt``."""
@@ -951,7 +953,7 @@ class PythonStages:
                                     sc.reference(s.t + (delay + self.delay_frac) * self.h), s.adapt,
                                     ps=self._ps_input(x[self._ps] if self._ps is not None else None))
         else:
-            ports = diagram.signals(self.q_meas, s.qdot_meas, s.pc_meas, s.l_meas, s.ref, s.adapt,
+            ports = diagram.signals(self.q_meas, s.qdot_meas, s.pc_meas, s.l_meas, s.qd, s.adapt,
                                     ps=self._ps_input(s.ps_meas if self._ps is not None else None))
         if self.k and sc.estimator_update != "euler":  # semi-implicit: state from this measurement, then command
             ctrl.update_for(self.h, ports)
@@ -1021,6 +1023,29 @@ class PythonStages:
             x = hold(x, u, n, hs)
         return x
 
+    @property
+    def xc(self) -> np.ndarray:
+        """The controller's state (the C loop's ``st->xc``)."""
+        return self.ctrl.xc
+
+    def log_sources(self) -> list:
+        """``[(log name, source), ...]``: each log of the run (:func:`hydrogen.layout.log_rows`, as the C
+        loop's ``write_log`` reads them) and the function giving its row from a period's signals: a
+        signal, a part of the plant state, a field of the loop's state, the actuators' forces (an empty
+        controller state is no log row)."""
+        def plant(part):
+            sl = slot(self.layout, part).slice
+            return lambda s: self.x[sl]
+
+        def forces(s):
+            ps = None if self._ps is None else self.x[self._ps][0]  # a supply state's pressure, else the nominal
+            return pressures.forces(self.model, self.x[self._pc], ps)
+
+        kinds = {SIGNAL: lambda field: (lambda s: getattr(s, field)), PLANT: plant,
+                 FORCES: lambda field: forces}
+        return [(r["name"], kinds.get(r["kind"], lambda field: (lambda s: getattr(self, field)))(r["field"]))
+                for r in log_rows(model_summary(self.model)) if r["width"] is not None or self.ctrl.xc.size]
+
     def after_period(self) -> None:
         """The controller state's forward-Euler update after the period (``estimator_update="euler"``)."""
         if self.sc.estimator_update == "euler":
@@ -1031,20 +1056,14 @@ def run_python_loop(dyn, sc, ctrl, x, q0, noise, estimate, log, n, h):
     """The reference closed loop in Python: ``n`` control periods of ``h`` s from plant state ``x`` with
     the sensor ``noise`` table, writing each period into ``log`` (:func:`new_logs`); the diagram's blocks
     interpreted by :class:`PythonStages`, the same numbers as the C loop to rounding."""
-    model = dyn.model
     loop = PythonStages(dyn, sc, ctrl, x, q0, estimate, h)
+    rows = [(log[name], source) for name, source in loop.log_sources() if name in log]
 
     def write(s):
-        x, k = loop.x, loop.k
-        pc = x[loop._pc]
-        log["q"][k], log["q_d"][k], log["l"][k], log["pc"][k], log["u"][k] = x[loop._q], s.ref[0], s.l_true, pc, s.u
-        log["u_applied"][k], log["l_meas"][k] = s.u_app, s.l_meas
-        ps = x[loop._ps] if loop._ps is not None else None  # a supply state's pressure, else the nominal
-        log["f"][k] = pressures.forces(model, pc, None if ps is None else ps[0])
-        for part in loop.outputs:  # the plant's outputs (the supply pressure where it is a state, ...)
-            log[part.name][k] = x[part.slice]
-        if ctrl.xc.size:
-            log["xc"][k] = ctrl.xc
+        k = loop.k
+        for out, source in rows:
+            v = np.ravel(source(s))
+            out[k] = v[:out.shape[1]] if v.size > out.shape[1] else v
 
     for k in range(n):
         loop.k = k
@@ -1057,18 +1076,23 @@ def run_python_loop(dyn, sc, ctrl, x, q0, noise, estimate, log, n, h):
     return n, None
 
 
-def _result(sc, controller, ctrl, t, log, k, theta0, gamma0, theta_true, gamma_true, wall):
+def _result(sc, controller, ctrl, log, k, theta0, gamma0, theta_true, gamma_true, wall):
     def est(name, default):
         s = ctrl.slices.get(name)
         default = np.atleast_1d(np.array(default, float))  # a copy: the view below must not share the model's
         # a value the controller does not estimate is constant: a read-only view of it, not k copies
         return log["xc"][:k, s] if s is not None else np.broadcast_to(default, (k, default.size))
 
+    def rows(r):  # a log of one column is a vector over the run
+        return log[r.name][:k, 0] if r.size == (1,) else log[r.name][:k]
+
     model = ctrl.model
+    # the loop's logs (hydrogen.loop_logs): each its result's field, or by name in ``signals``; the
+    # controller's state is its blocks' (``states``, the estimates)
+    named = {r.result: rows(r) for r in LOGS if r.result}
     res = SimulationResult(
-        scenario=sc, controller=controller, t=t[:k], q=log["q"][:k], q_d=log["q_d"][:k],
-        leg_lengths=log["l"][:k], leg_forces=log["f"][:k], pressures=log["pc"][:k], u=log["u"][:k],
-        u_applied=log["u_applied"][:k], leg_lengths_measured=log["l_meas"][:k],
+        scenario=sc, controller=controller, **named,
+        signals={r.name: rows(r) for r in LOGS if not r.result and r.source[0] != STATE},
         theta_hat=est("theta_hat", theta0), gamma1_hat=est("gamma1_hat", gamma0[0]),
         gamma2_hat=est("gamma2_hat", gamma0[1]),
         theta_true=theta_true, gamma_true=gamma_true, amplitude=sc.reference.amplitude(),
