@@ -21,7 +21,7 @@ from .sensors import NOISE, noise_columns, noise_width  # the sensors' noise row
 
 __all__ = ["NUMBERS", "SUPPLY_LOG", "MAX_DELAY", "PLANT_INPUTS", "predictor_model", "FK_TOL", "FK_MAX_ITER", "FK_MAX_COND", "FK_STATUS", "LU_PIVOT_MIN",
            "delay_split", "LOOP_CONFIG", "LOOP_STATE", "LOOP_SIGNALS", "model_summary", "slots",
-           "robot_sizes", "supply_size", "loop_context", "log_rows", "log_widths", "plant_outputs", "loop_functions", "C_SIZES", "plant_offsets",
+           "robot_sizes", "supply_size", "loop_context", "log_rows", "plant_outputs", "loop_functions", "C_SIZES", "plant_offsets",
            "plant_size", "c_double", "config_fields", "struct_fields"]
 
 #: The plant part logged as it is, where the plant has it: the supply pressure (its one name,
@@ -230,7 +230,7 @@ LOOP_SIGNALS = (
     ("l_meas", "double", ("NL",), "measured cylinder lengths (noise, resolution), m"),
     ("pc_meas", "double", ("NPC",), "measured pressures, Pa"),
     ("ps_meas", "double", ("NPS",), "measured supply pressure, Pa (a [supply] state's only)"),
-    ("q_enc", "double", ("NQ",), "joint encoders' reading, rad or m (joint encoders only)"),
+    ("q_enc", "double", ("NQE",), "joint encoders' reading, rad or m (joint encoders only)"),
     ("ldot", "double", ("NL",), "cylinder rates: the selected estimator's, or the ideal rate sensor's, m/s"),
     ("qdot_meas", "double", ("NQ",), "measured velocities, JL^-1 ldot at the measured pose"),
     ("qd", "double", (4, "NQ"), "reference and its first three time derivatives"),
@@ -356,9 +356,11 @@ def plant_size(summary: dict) -> int:
 
 
 def robot_sizes(summary: dict) -> dict:
-    """The robot's sizes by the loop header's names (``NQ``, ``NL``, ``NPC``, ``NPS``), from a manifest's
-    model summary: what a port's size (:mod:`hydrogen.diagram`) is counted in."""
-    return {"NQ": summary["n"], "NL": summary["m"], "NPC": summary["n_pressures"], "NPS": supply_size(summary)}
+    """The robot's sizes by the loop header's names (``NQ``, ``NL``, ``NPC``, ``NPS``; ``NQE`` the joint
+    encoders, NQ where fitted, else 0), from a manifest's model summary: what a port's size
+    (:mod:`hydrogen.diagram`), a signal's and a log's are counted in."""
+    return {"NQ": summary["n"], "NL": summary["m"], "NPC": summary["n_pressures"], "NPS": supply_size(summary),
+            "NQE": summary["n"] if summary["joint_encoders"] else 0}
 
 
 def slots(summary: dict) -> tuple:
@@ -400,33 +402,36 @@ def log_rows(summary: dict) -> list:
     from markupsafe import Markup  # hydrogen's own C expressions (hydrogen.templating)
     sizes = robot_sizes(summary)
     offsets = plant_offsets(summary)
-    scalar = {name for name, _, size, _ in LOOP_SIGNALS if size is None}
+    signals = {name: size for name, _, size, _ in LOOP_SIGNALS}
+
+    def entries(size):
+        return math.prod(t if isinstance(t, int) else sizes[t] for t in size)
+
     rows = [(r.name, r.size, f"{r.doc}, {r.unit}", r.source) for r in LOGS]
     docs = {st.name: st.doc for b in PLANT_BLOCKS for st in getattr(plant_block(b), "STATES", ())}
     rows += [(p["name"], (C_SIZES[p["size"]],), docs.get(p["name"], f"the plant's {p['name']}"), (PLANT, p["name"]))
              for p in plant_outputs(summary)]
     out = []
     for name, size, doc, (kind, field) in rows:
+        if kind == SIGNAL and field not in signals or kind == PLANT and field not in offsets:
+            raise ImportError(f"the log {name!r} (hydrogen.loop_logs) reads the {kind} {field!r}, which the loop "
+                              f"has not got (its {kind}s: {', '.join(signals if kind == SIGNAL else offsets)})")
         if "NXC" in size:
             width, count = None, "c->n_xc"
         else:
-            width = math.prod(t if isinstance(t, int) else sizes[t] for t in size)
-            count = " * ".join(map(str, size))
-            if not width:
+            width, count = entries(size), " * ".join(map(str, size))
+            # a log of a size the robot lacks, or of a signal it lacks (the encoders' reading without encoders)
+            if not width or kind == SIGNAL and signals[field] is not None and not entries(signals[field]):
                 continue
-        pointer = {SIGNAL: f"{'&' if field in scalar else ''}s->{field}", FORCES: "",
-                   PLANT: "x" + ("" if field not in offsets or offsets[field] == "0" else f" + {offsets.get(field)}")
+        scalar = kind == SIGNAL and signals[field] is None
+        pointer = {SIGNAL: f"{'&' if scalar else ''}s->{field}", FORCES: "",
+                   PLANT: "x" + ("" if offsets.get(field) == "0" else f" + {offsets.get(field)}")
                    }.get(kind, f"st->{field}")
         # hydrogen's own text: written as it is in the header's comment, never closing it
         out.append({"name": name, "width": width, "doc": Markup(doc.replace("*/", "* /")), "kind": kind, "field": field,
                     "c_pointer": Markup(pointer), "c_count": Markup(count),
                     "c_row": Markup("k" if count == "1" else f"{count} * k")})
     return out
-
-
-def log_widths(summary: dict) -> dict:
-    """Row width of each log of the loop but the controller state's (``xc``: its size is the controller's)."""
-    return {r["name"]: r["width"] for r in log_rows(summary) if r["width"] is not None}
 
 
 def _port_writes(sizes: dict) -> list:
@@ -475,7 +480,7 @@ def loop_context(manifest: dict) -> dict:
     channels = {ch.name: ch for ch in NOISE}
     noise = [{"name": k, "start": start, "count": count, "doc": channels[k].doc, "unit": channels[k].unit}
              for k, (start, count) in noise_columns(robot_sizes(s), bool(s["joint_encoders"])).items()]
-    sizes = {"NQ": n, "NL": m, "NX": nx, "NPC": n_p, "NPS": nps, "MAX_DELAY": MAX_DELAY}
+    sizes = {**robot_sizes(s), "NX": nx, "MAX_DELAY": MAX_DELAY}
     ctx = {
         "model": name, "p": name, "P": name.upper(), "guard": f"{name.upper()}_LOOP_H",
         "n": n, "m": m, "nx": nx, "max_delay": MAX_DELAY,

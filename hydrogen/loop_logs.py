@@ -71,5 +71,5 @@ LOGS = (
     LogRow("xc", ("NXC",), "per block", "controller state", (STATE, "xc")),
 )
 
-#: Names no plant output may take: the loop's own logs and the CSV log's column prefixes.
+#: Names no plant output may take: the loop's own logs.
 RESERVED = tuple(row.name for row in LOGS)

@@ -137,3 +137,36 @@ def test_a_log_added_as_one_row_is_written_by_both_engines(cache, tmp_path):
     assert 0.5 * out["noise_p"] < out["noise"] < 1.5 * out["noise_p"]
     progress = " ".join(out["progress"])
     assert "rendering the loop drivers" in progress and "deriving" not in progress, progress
+
+
+def test_a_log_of_a_signal_the_robot_lacks_is_no_log(monkeypatch):
+    """A row of a signal some robots lack (the supply pressure's reading without a pump, the encoders'
+    without encoders) is a log only where the robot has it; a row of a signal or plant part the loop
+    has not got is refused when the layout is read."""
+    from hydrogen import layout
+    from hydrogen.loop_logs import LogRow, PLANT
+    extra = (LogRow("ps_meas", ("NPS",), "Pa", "measured supply pressure", (SIGNAL, "ps_meas")),
+             LogRow("q_enc", ("NQ",), "rad", "the encoders' reading", (SIGNAL, "q_enc")))
+    monkeypatch.setattr(layout, "LOGS", LOGS + extra)
+    for name, has in (("ubc_stewart", False), ("excavator_arm", True)):
+        names = [r["name"] for r in log_rows(model_summary(hydrogen.load_model(name)))]
+        assert ("ps_meas" in names, "q_enc" in names) == (has, has), name
+    monkeypatch.setattr(layout, "LOGS", LOGS + (LogRow("qq", ("NQ",), "m", "a typo", (PLANT, "qdott")),))
+    with pytest.raises(ImportError, match="'qq'.*plant 'qdott'"):
+        log_rows(model_summary(hydrogen.load_model("ubc_stewart")))
+
+
+@pytest.mark.parametrize("controller", ["p", "adaptive-robust"])
+def test_the_run_size_check_counts_the_logs_a_run_allocates(controller):
+    """The memory check's doubles per period are the noise row, the workspace check and every log."""
+    from hydrogen.simulation.checks import run_doubles_per_period
+    from hydrogen.controllers import controller as controller_module
+    from hydrogen.simulation.simulator import log_widths
+    from hydrogen.sensors import noise_width
+    from hydrogen.layout import robot_sizes
+    for name in ("ubc_stewart", "excavator_arm"):
+        model = hydrogen.load_model(name)
+        n_xc = sum(size for _, size in controller_module(controller).state_layout(model))
+        widths = sum(w for _, w in log_widths(model, n_xc))
+        noise = noise_width(robot_sizes(model_summary(model)), model.joint_encoders)
+        assert run_doubles_per_period(model, controller, True) == noise + model.n + model.n_cylinders + widths

@@ -14,6 +14,7 @@ extern "C" {
 #define EXCAVATOR_ARM_NPC 6  /* pressure states (one block per actuator) */
 #define EXCAVATOR_ARM_MAX_DELAY 8  /* longest computation delay, control periods */
 #define EXCAVATOR_ARM_NPS 1  /* supply pressure states */
+#define EXCAVATOR_ARM_NQE 3  /* joint encoders */
 #define EXCAVATOR_ARM_NNOISE 13  /* noise row (hydrogen.sensors.NOISE): actuator travel (m or rad), pressure states (Pa), joint encoders (rad or m), supply pressure (Pa) */
 
 typedef int (*excavator_arm_casadi_fn)(const double** arg, double** res, long long int* iw, double* w, int mem);
@@ -154,7 +155,7 @@ typedef struct {
     double l_meas[EXCAVATOR_ARM_NL];  /* measured cylinder lengths (noise, resolution), m */
     double pc_meas[EXCAVATOR_ARM_NPC];  /* measured pressures, Pa */
     double ps_meas[EXCAVATOR_ARM_NPS];  /* measured supply pressure, Pa (a [supply] state's only) */
-    double q_enc[EXCAVATOR_ARM_NQ];  /* joint encoders' reading, rad or m (joint encoders only) */
+    double q_enc[EXCAVATOR_ARM_NQE];  /* joint encoders' reading, rad or m (joint encoders only) */
     double ldot[EXCAVATOR_ARM_NL];  /* cylinder rates: the selected estimator's, or the ideal rate sensor's, m/s */
     double qdot_meas[EXCAVATOR_ARM_NQ];  /* measured velocities, JL^-1 ldot at the measured pose */
     double qd[4 * EXCAVATOR_ARM_NQ];  /* reference and its first three time derivatives */

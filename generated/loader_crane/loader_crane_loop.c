@@ -570,7 +570,6 @@ static int write_log(const loader_crane_loop_state* st, const loader_crane_loop_
     if (log->q) memcpy(log->q + NQ * k, x, NQ * sizeof(double));
     if (log->q_d) memcpy(log->q_d + NQ * k, s->qd, NQ * sizeof(double));
     if (log->l) memcpy(log->l + NL * k, s->l_true, NL * sizeof(double));
-    if (log->f && leg_force(c->numbers, x + 2 * NQ, x + 2 * NQ + NPC + 2 * NL, log->f + NL * k)) return LOADER_CRANE_CTRL_FAILED;
     if (log->pc) memcpy(log->pc + NPC * k, x + 2 * NQ, NPC * sizeof(double));
     if (log->u) memcpy(log->u + NL * k, s->u, NL * sizeof(double));
     if (log->u_applied) memcpy(log->u_applied + NL * k, s->u_app, NL * sizeof(double));
@@ -579,6 +578,8 @@ static int write_log(const loader_crane_loop_state* st, const loader_crane_loop_
     if (log->qdot_meas) memcpy(log->qdot_meas + NQ * k, s->qdot_meas, NQ * sizeof(double));
     if (log->xc && c->n_xc) memcpy(log->xc + c->n_xc * k, st->xc, (size_t)c->n_xc * sizeof(double));
     if (log->ps) memcpy(log->ps + NPS * k, x + 2 * NQ + NPC + 2 * NL, NPS * sizeof(double));
+    /* the forces last: a failed call leaves the row's other logs written */
+    if (log->f && leg_force(c->numbers, x + 2 * NQ, x + 2 * NQ + NPC + 2 * NL, log->f + NL * k)) return LOADER_CRANE_CTRL_FAILED;
     return LOADER_CRANE_OK;
 }
 

@@ -14,6 +14,7 @@ extern "C" {
 #define LOADER_CRANE_NPC 6  /* pressure states (one block per actuator) */
 #define LOADER_CRANE_MAX_DELAY 8  /* longest computation delay, control periods */
 #define LOADER_CRANE_NPS 1  /* supply pressure states */
+#define LOADER_CRANE_NQE 3  /* joint encoders */
 #define LOADER_CRANE_NNOISE 13  /* noise row (hydrogen.sensors.NOISE): actuator travel (m or rad), pressure states (Pa), joint encoders (rad or m), supply pressure (Pa) */
 
 typedef int (*loader_crane_casadi_fn)(const double** arg, double** res, long long int* iw, double* w, int mem);
@@ -154,7 +155,7 @@ typedef struct {
     double l_meas[LOADER_CRANE_NL];  /* measured cylinder lengths (noise, resolution), m */
     double pc_meas[LOADER_CRANE_NPC];  /* measured pressures, Pa */
     double ps_meas[LOADER_CRANE_NPS];  /* measured supply pressure, Pa (a [supply] state's only) */
-    double q_enc[LOADER_CRANE_NQ];  /* joint encoders' reading, rad or m (joint encoders only) */
+    double q_enc[LOADER_CRANE_NQE];  /* joint encoders' reading, rad or m (joint encoders only) */
     double ldot[LOADER_CRANE_NL];  /* cylinder rates: the selected estimator's, or the ideal rate sensor's, m/s */
     double qdot_meas[LOADER_CRANE_NQ];  /* measured velocities, JL^-1 ldot at the measured pose */
     double qd[4 * LOADER_CRANE_NQ];  /* reference and its first three time derivatives */

@@ -151,7 +151,6 @@ typedef struct {
     double l_true[UBC_STEWART_NL];  /* true cylinder lengths, m */
     double l_meas[UBC_STEWART_NL];  /* measured cylinder lengths (noise, resolution), m */
     double pc_meas[UBC_STEWART_NPC];  /* measured pressures, Pa */
-    double q_enc[UBC_STEWART_NQ];  /* joint encoders' reading, rad or m (joint encoders only) */
     double ldot[UBC_STEWART_NL];  /* cylinder rates: the selected estimator's, or the ideal rate sensor's, m/s */
     double qdot_meas[UBC_STEWART_NQ];  /* measured velocities, JL^-1 ldot at the measured pose */
     double qd[4 * UBC_STEWART_NQ];  /* reference and its first three time derivatives */

@@ -220,18 +220,15 @@ def max_run_bytes() -> int:
 
 def run_doubles_per_period(model, controller, keep_logs: bool) -> int:
     """Doubles one control period costs: the noise table and the workspace check, plus the logs."""
-    from ..layout import model_summary, robot_sizes
-    from ..plant import outputs, plant_layout
-    from ..pressures import n_pressures
+    from ..layout import log_rows, model_summary, robot_sizes
     from ..sensors import noise_width
-    n, legs, n_p = model.n, model.n_cylinders, n_pressures(model)
-    noise, workspace = noise_width(robot_sizes(model_summary(model)), model.joint_encoders), n + legs
+    summary = model_summary(model)
+    noise, workspace = noise_width(robot_sizes(summary), model.joint_encoders), model.n + model.n_cylinders
     if not keep_logs:
         return noise + workspace
     n_xc = sum(size for _, size in _layout(controller, model))
-    plant = sum(part.size for part in outputs(plant_layout(model)))  # the plant's outputs' logs (ps, ...)
-    # t, q, q_d, l, f, pc, u, u_applied, l_meas, xc and the plant's outputs
-    return noise + workspace + 1 + 2 * n + 5 * legs + n_p + max(n_xc, 1) + plant
+    # the run's logs as both engines allocate them (hydrogen.loop_logs; the controller state's at least 1)
+    return noise + workspace + sum(max(n_xc, 1) if r["width"] is None else r["width"] for r in log_rows(summary))
 
 
 def check_run_size(sc, model, controller, keep_logs: bool = True) -> int:

@@ -1057,13 +1057,15 @@ def run_python_loop(dyn, sc, ctrl, x, q0, noise, estimate, log, n, h):
     the sensor ``noise`` table, writing each period into ``log`` (:func:`new_logs`); the diagram's blocks
     interpreted by :class:`PythonStages`, the same numbers as the C loop to rounding."""
     loop = PythonStages(dyn, sc, ctrl, x, q0, estimate, h)
-    rows = [(log[name], source) for name, source in loop.log_sources() if name in log]
+    rows = [(name, log[name], source) for name, source in loop.log_sources() if name in log]
 
     def write(s):
         k = loop.k
-        for out, source in rows:
+        for name, out, source in rows:
             v = np.ravel(source(s))
-            out[k] = v[:out.shape[1]] if v.size > out.shape[1] else v
+            if v.size < out.shape[1]:  # never broadcast: a source without its entries is a bug here
+                raise ValueError(f"the log {name!r} has {out.shape[1]} columns, its source gave {v.size}")
+            out[k] = v[:out.shape[1]]  # a source's first entries (q_d: of the reference's 4 rows)
 
     for k in range(n):
         loop.k = k
@@ -1092,7 +1094,7 @@ def _result(sc, controller, ctrl, log, k, theta0, gamma0, theta_true, gamma_true
     named = {r.result: rows(r) for r in LOGS if r.result}
     res = SimulationResult(
         scenario=sc, controller=controller, **named,
-        signals={r.name: rows(r) for r in LOGS if not r.result and r.source[0] != STATE},
+        signals={r.name: rows(r) for r in LOGS if not r.result and r.source[0] != STATE and r.name in log},
         theta_hat=est("theta_hat", theta0), gamma1_hat=est("gamma1_hat", gamma0[0]),
         gamma2_hat=est("gamma2_hat", gamma0[1]),
         theta_true=theta_true, gamma_true=gamma_true, amplitude=sc.reference.amplitude(),
