@@ -939,3 +939,18 @@ def test_a_scenario_setting_of_the_wrong_type_or_sign_stops_the_load(tmp_path, t
     with pytest.raises(hydrogen.ModelError) as err:
         hydrogen.load_model(path)
     assert str(err.value) == f"{path}: {words}"
+
+
+def test_a_scenario_without_a_required_setting_names_it(tmp_path):
+    """A description's scenario that leaves out a setting without a default is refused naming the
+    setting, its meaning and unit (not a Python argument error)."""
+    from hydrogen.errors import ScenarioError
+    text = FOUR_WAY_ARM.read_text() + ('\n[scenarios.bare]\nduration = 0.1\ncontrol_rate = 1000.0\nsubsteps = 2\n'
+                                       'reference.sines = [["shoulder", 0.1, 1.0]]\n')
+    path = tmp_path / "bare.toml"
+    path.write_text(text)
+    model = hydrogen.load_model(path)
+    with pytest.raises(ScenarioError) as err:
+        hydrogen.simulate("bare", "p", model=model)
+    assert str(err.value).endswith("[scenarios.bare]: missing field(s) t_adapt (adaptation switched on from this "
+                                   "time, s)")

@@ -4,7 +4,7 @@ they are section V's simulation and section VI's experiments, in simulation."""
 from __future__ import annotations
 
 from collections.abc import Mapping
-from dataclasses import dataclass, replace
+from dataclasses import MISSING, dataclass, replace
 
 import numpy as np
 
@@ -301,6 +301,11 @@ def scenario(name: str, model) -> Scenario:
     fields.setdefault("theta0_factor", (1.0,) * model.n_theta)
     fields.setdefault("q0_offset", (0.0,) * n)
     neutral = np.asarray(model.neutral_pose, float)
+    # the settings without a default: named with their meaning and unit, not as a TypeError's argument
+    missing = [f for f in settings() if f.name not in fields and f.default is MISSING and f.default_factory is MISSING]
+    if missing:
+        raise ScenarioError(f"{where}: missing field(s) " + "; ".join(
+            f"{f.name} ({f.metadata['meaning']}, {f.metadata['unit']})" for f in missing))
     try:
         sc = Scenario(name=name, reference=_reference(model, where, ref, neutral), gains=gains,
                       label=str(label), paper=dict(paper), actuators=actuators, **fields)
