@@ -87,14 +87,16 @@ def _exists(port: Port, sizes: dict) -> bool:
     return all(isinstance(t, int) or t == "NXC" or int(sizes[t]) > 0 for t in port.size)
 
 
-def ports(sizes: dict) -> tuple:
-    """The controller ports a robot of ``sizes`` has, in slot order."""
-    return tuple(p for p in CONTROLLER_PORTS if _exists(p, sizes))
+def ports(sizes: dict, plant=()) -> tuple:
+    """The controller ports a robot of ``sizes`` has, in slot order: the loop's, then ``plant``, the
+    ports of its plant's outputs (:func:`hydrogen.layout.plant_ports`: a rig part's state a controller
+    may read)."""
+    return tuple(p for p in CONTROLLER_PORTS if _exists(p, sizes)) + tuple(plant)
 
 
-def slots(sizes: dict) -> tuple:
+def slots(sizes: dict, plant=()) -> tuple:
     """The names of the input slots a robot of ``sizes`` has, in order (the loop header's enum)."""
-    return tuple(p.name for p in ports(sizes))
+    return tuple(p.name for p in ports(sizes, plant))
 
 _u = Port("u", ("NL",), "m", "spool commands computed this period")
 _x = Port("x", ("NX",), "per part", "the plant state (hydrogen.plant.plant_layout)")
@@ -150,24 +152,24 @@ def signals(q, qdot, pc, l, ref, adapt: bool, ps=None) -> dict:
     return out
 
 
-def wire(owner: str, inputs, constants, sizes: dict) -> list:
+def wire(owner: str, inputs, constants, sizes: dict, plant=()) -> list:
     """The slot of each of the robot's :func:`slots` in the argument table ``inputs`` of a controller's
     generated function (-1: it does not read that signal), after checking every input is wired.
 
     ``inputs``: ``[(name, length), ...]`` in the function's argument order; ``constants``: the names of
     its inputs given once per run (gains, static inputs, the description's numbers); ``sizes``: the
-    robot's sizes. Raises :class:`~hydrogen.errors.ScenarioError` naming ``owner`` and the input when an
+    robot's sizes; ``plant``: the ports of its plant's outputs (:func:`ports`). Raises :class:`~hydrogen.errors.ScenarioError` naming ``owner`` and the input when an
     input is neither a loop signal nor a constant (unwired), or a loop signal of another size.
     """
     names = [name for name, _ in inputs]
-    present = slots(sizes)
+    present = slots(sizes, plant)
     unwired = [name for name in names if name not in present and name not in constants]
     if unwired:
         raise ScenarioError(
             f"{owner}: no value for its input(s) {', '.join(unwired)}: wired to no loop signal (the loop's "
             f"signals: {', '.join(present)}) and given no value (the description's gains, or the controller's "
             "default_gains/static_inputs)")
-    by_name = {p.name: p for p in ports(sizes)}
+    by_name = {p.name: p for p in ports(sizes, plant)}
     for name, length in inputs:
         if name in by_name and name != "xc":  # xc is the controller's own: its size is its layout's
             want = port_length(by_name[name], sizes)

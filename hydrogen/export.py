@@ -35,6 +35,7 @@ from pathlib import Path
 import numpy as np
 
 from .errors import HydrogenError
+from .diagram import SLOTS  # the loop's own ports: a plant output among them is measured
 from .layout import NUMBERS, loop_functions
 from .simulation.checks import MIN_WINDOW_SAMPLES  # the metric window's rule, which the program repeats
 
@@ -279,6 +280,10 @@ def export_context(dyn, p, scenario_name, controller, prog, sources, headers, ct
         "n": loop["n"], "m": loop["m"], "nx": loop["nx"], "three_way": loop["three_way"],
         "x_plus": loop["x_plus"], "x_index": loop["x_index"], "x_parts": loop["x_parts"],  # the plant state's parts
         "plant_outputs": loop["plant_outputs"],  # the plant's outputs (hydrogen.plant.PlantState.output)
+        # the plant's outputs the controller reads by name (hydrogen.layout.plant_ports): the controller
+        # FMU's inputs of them
+        "read_outputs": [o for o in loop["plant_outputs"]
+                         if o["name"] in fn.in_names and o["name"] not in SLOTS],
         "parametric": loop["parametric"], "lu_pivot_min": loop["lu_pivot_min"],  # the FMU's failure words
         "estimators": loop["estimators"],  # each estimator's state and its start in C
         "theta_names": ", ".join(model.theta_names),

@@ -309,6 +309,12 @@ def _variables(part, dyn, p, ctx, fn, encoders, estimated):
                 add(_dotted("ldot", c), "i", "continuous", f"measured rate of {_what(model.cylinders[i])} {c} (the "
                     "scenario's ideal rate sensor: no estimator)", f"inst->ldot_in[{i}]",
                     unit=travels[i].rate_unit(), start=0.0)
+        read = {o["name"] for o in ctx["read_outputs"]}  # a rig part's state the controller reads: an input
+        for b in plant_outputs(layout):
+            if b.name in read:
+                for j, e in enumerate(b.entries):
+                    add(_dotted(b.name, e), "i", "continuous", f"{b.doc} of {e} (the controller reads it)",
+                        f"inst->{b.name}_in[{j}]", unit=_fmi_unit(b.units[j]), start=float(p.x0[b.slice][j]))
         ref0 = sc.reference(0.0)
         for k, (slot, base, suffix, what) in enumerate(_REF_ORDERS):
             if slot not in fn.in_names:

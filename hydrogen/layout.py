@@ -21,7 +21,7 @@ from .sensors import NOISE, noise_columns, noise_width  # the sensors' noise row
 
 __all__ = ["NUMBERS", "SUPPLY_LOG", "MAX_DELAY", "PLANT_INPUTS", "predictor_model", "FK_TOL", "FK_MAX_ITER", "FK_MAX_COND", "FK_STATUS", "LU_PIVOT_MIN",
            "delay_split", "LOOP_CONFIG", "LOOP_STATE", "LOOP_SIGNALS", "model_summary", "slots",
-           "robot_sizes", "supply_size", "loop_context", "log_rows", "plant_outputs", "loop_functions", "C_SIZES", "plant_offsets",
+           "robot_sizes", "plant_ports", "supply_size", "loop_context", "log_rows", "plant_outputs", "loop_functions", "C_SIZES", "plant_offsets",
            "plant_size", "c_double", "config_fields", "struct_fields"]
 
 #: The plant part logged as it is, where the plant has it: the supply pressure (its one name,
@@ -363,10 +363,33 @@ def robot_sizes(summary: dict) -> dict:
             "NQE": summary["n"] if summary["joint_encoders"] else 0}
 
 
+def plant_ports(summary: dict) -> tuple:
+    """Each of the plant's outputs that is not one of the loop's own ports (the supply pressure is:
+    measured, with its noise) as a port a controller may read, from a manifest's model summary: its
+    true value at the period's start (an ideal sensor), or the predicted one with a delay predictor;
+    named as the output, sized in the robot's sizes, its C value in the control stage (``xs``: the
+    plant state it sees)."""
+    taken = {p.name for p in diagram.CONTROLLER_PORTS}
+    offsets = plant_offsets(summary)
+    states = {st.name: st for b in PLANT_BLOCKS for st in getattr(plant_block(b), "STATES", ())}
+    out = []
+    for part in plant_outputs(summary):
+        name = part["name"]
+        if name in taken:
+            continue
+        st = states.get(name)
+        unit = st.unit if st is not None and isinstance(st.unit, str) else "per entry"
+        doc = f"the plant's {st.doc if st is not None else name} (its true value, an ideal sensor)"
+        out.append(diagram.Port(name, (C_SIZES[part["size"]],), unit, doc,
+                                "xs" if offsets[name] == "0" else f"xs + {offsets[name]}"))
+    return tuple(out)
+
+
 def slots(summary: dict) -> tuple:
     """The loop's input slots of a model (a manifest's model summary): the controller ports it has
-    (:func:`hydrogen.diagram.slots`; the measured supply pressure where its plant has a supply state)."""
-    return diagram.slots(robot_sizes(summary))
+    (:func:`hydrogen.diagram.slots`; the measured supply pressure where its plant has a supply state;
+    the plant's other outputs, :func:`plant_ports`)."""
+    return diagram.slots(robot_sizes(summary), plant_ports(summary))
 
 
 def supply_size(summary: dict) -> int:
@@ -434,15 +457,16 @@ def log_rows(summary: dict) -> list:
     return out
 
 
-def _port_writes(sizes: dict) -> list:
-    """The control stage's writes of the controller's inputs a robot of ``sizes`` has: each port's slot,
-    C value and count (the loop driver's size names; the controller state's, its configured size)."""
+def _port_writes(summary: dict) -> list:
+    """The control stage's writes of the controller's inputs a model has (a manifest's model summary):
+    each port's slot, C value and count (the loop driver's size names; the controller state's, its
+    configured size)."""
     from markupsafe import Markup  # hydrogen's own C expressions (hydrogen.templating)
 
     def count(port):
         return " * ".join("c->n_xc" if t == "NXC" else str(t) for t in port.size)
     return [{"slot": p.name.upper(), "value": Markup(p.c_value), "count": Markup(count(p))}
-            for p in diagram.ports(sizes)]
+            for p in diagram.ports(robot_sizes(summary), plant_ports(summary))]
 
 
 def _estimator_context() -> list:
@@ -493,7 +517,9 @@ def loop_context(manifest: dict) -> dict:
         "n_pressures": n_p, "three_way": n_p == m,
         "nps": nps,
         "parametric": NUMBERS in manifest,
-        "encoders": bool(s["joint_encoders"]), "slots": slots(s), "ports": _port_writes(robot_sizes(s)),
+        "encoders": bool(s["joint_encoders"]), "slots": slots(s), "ports": _port_writes(s),
+        # a plant output a controller may read (plant_ports): the control stage's plant state xs
+        "plant_ports": [{"name": pp.name, "count": Markup(" * ".join(map(str, pp.size)))} for pp in plant_ports(s)],
         # the run's logs (hydrogen.loop_logs): the log struct's fields and write_log's rows
         "logs": [(r["name"], "n_xc" if r["width"] is None else r["width"], r["doc"]) for r in log_list],
         "log_rows": log_list,

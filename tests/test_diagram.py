@@ -108,3 +108,128 @@ def test_the_supply_pressure_has_one_name_for_state_port_log_and_inputs():
     manifest = json.loads((ROOT / "generated" / "excavator_arm" / "manifest.json").read_text())  # on a pump
     ctrl = {f["name"]: f for f in manifest["functions"]}["ctrl_backstepping"]
     assert supply.PRESSURE in [name for name, _, _ in ctrl["inputs"]]
+
+
+#: A controller that reads a rig part's state: the P law plus kT (T - 293.15 K) per actuator.
+P_SEAL = '''\
+"""P on the cylinder lengths plus a term of each seal's temperature (a rig part's state, read by name)."""
+from __future__ import annotations
+
+import numpy as np
+
+from .spec import ControllerSpec
+
+SPEC = ControllerSpec(name="p-seal", doc="P with a seal-temperature term (a test's).", main_gain="Kleg",
+                      grid_low=0.005, main_gain_shared=True, secondary_search=False)
+NAME, DOC = SPEC.name, SPEC.doc
+
+
+def state_layout(model):
+    return []
+
+
+def default_gains(model, scale):
+    return {"Kleg": 0.03 * np.ones(model.n_cylinders), "kT": np.array([1e-5]), "u_max": np.array([3.0e-3])}
+
+
+def static_inputs(dyn, theta0, gamma0):
+    return {}
+
+
+def derive(model):
+    import sympy as sp
+
+    from ..symbolic.calculus import clip
+    from ..symbolic.control_laws import ControllerParts, scalar, vector
+    from ..symbolic.kinematics import leg_stages
+
+    m = model.n_cylinders
+    l, qd0, k, temp = vector("l", m), vector("qd0", model.n), vector("Kleg", m), vector("seal_temp", m)
+    kT, u_max = scalar("kT"), scalar("u_max")
+    ld, _, stages = leg_stages(model, qd0)
+    u = sp.Matrix([clip(k[i] * (ld[i] - l[i]) + kT * (temp[i] - 293.15), -u_max, u_max) for i in range(m)])
+    return ControllerParts(inputs=[("l", l), ("qd0", qd0), ("seal_temp", temp), ("Kleg", k),
+                                   ("kT", sp.Matrix([kT])), ("u_max", sp.Matrix([u_max]))],
+                           outputs=[("u", u)], intermediates=stages[:-1])
+'''
+
+SEAL_SCENARIO = """
+[scenarios.seal-sim]
+label = "seal-sim: a controller reading the seal temperature"
+duration = 0.2
+t_adapt = 0.5
+control_rate = 1000.0
+substeps = 2
+friction = [50.0, 200.0, 1e-3]
+seal_start = 280.0
+reference.sines = [["shoulder", 0.10, 1.0], ["elbow", -0.10, 1.5]]
+"""
+
+SEAL_SCRIPT = '''\
+import json, sys
+from pathlib import Path
+import numpy as np
+import hydrogen
+from hydrogen.fmu import export_fmu
+dyn = hydrogen.build(hydrogen.load_model(sys.argv[1]), cache=Path(sys.argv[2]))
+out = {}
+for predictor in (False, True):
+    extra = {"predictor": True, "delay": 2.0e-3} if predictor else {}
+    runs = [hydrogen.simulate("seal-sim", "p-seal", dyn=dyn, engine=e, **extra) for e in ("c", "python")]
+    res = runs[0]
+    kleg, kT = 0.03, 1e-5
+    ld = np.array([dyn.leg_lengths(q) for q in res.q_d])
+    law = np.clip(kleg * (ld - res.leg_lengths_measured) + kT * (res.plant["seal_temp"] - 293.15), -3e-3, 3e-3)
+    out[str(predictor)] = {"engines": float(np.max(np.abs(runs[0].u - runs[1].u))),
+                           "law": float(np.max(np.abs(res.u - law))),
+                           "term": float(np.max(np.abs(kT * (res.plant["seal_temp"] - 293.15))))}
+# the plant FMU's seal_temp outputs into the controller FMU's inputs of that name (delay 0: the master's
+# step order is the timing), against the same run without noise
+quiet = {"delay": 0.0, "noise_l": 0.0, "noise_p": 0.0, "noise_q": 0.0}
+folder = Path(sys.argv[2])
+fmus = [export_fmu(folder / f"{part}.fmu", part, "seal-sim", "p-seal", dyn=dyn, **quiet) for part in ("plant", "controller")]
+from fmpy import read_model_description
+seal = [v for v in read_model_description(str(fmus[1])).modelVariables if v.name.startswith("seal_temp.")]
+out["fmu_inputs"] = [[v.name, v.causality, v.unit] for v in seal]
+from test_fmu import _cosimulate
+res = hydrogen.simulate("seal-sim", "p-seal", dyn=dyn, **quiet)
+out["cosimulated"] = float(np.max(np.abs(_cosimulate(*fmus, len(res.t)) - res.q)))
+print(json.dumps(out))
+'''
+
+
+def test_a_controller_reads_a_rig_parts_state_by_name(cache, tmp_path):
+    """A rig part's output (a seal temperature, one module of the plant) is a port a controller reads by
+    its name: in a copy of the package with the part and a controller reading it (two modules, nothing
+    else edited), the command follows the controller's law on the part's logged state on both engines
+    (its true value at the period's start: an ideal sensor); with a delay predictor the engines agree;
+    the controller FMU takes it as inputs of its name, which the plant FMU's outputs wire to."""
+    import os
+    import shutil
+    import subprocess
+    import sys
+
+    from conftest import warm_copy
+    from test_plant_blocks import SEAL_HEAT
+    root = tmp_path / "copy"
+    ignore = shutil.ignore_patterns("__pycache__", "*.so", "_templates")
+    for part in ("hydrogen", "templates"):
+        shutil.copytree(ROOT / part, root / part, ignore=ignore)
+    (root / "hydrogen" / "plant" / "seal_heat.py").write_text(SEAL_HEAT)
+    (root / "hydrogen" / "controllers" / "p_seal.py").write_text(P_SEAL)
+    text = (ROOT / "tests" / "data" / "four_way_arm.toml").read_text()
+    text = text.replace('name = "four_way_arm"', 'name = "seal_arm"\ncontrollers = ["p-seal"]', 1)
+    (root / "seal_arm.toml").write_text(text + SEAL_SCENARIO)
+    (root / "run.py").write_text(SEAL_SCRIPT)
+    own = warm_copy(cache, root / "cache")
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(root), str(ROOT / "tests")]), "HYDROGEN_CACHE_DIR": str(own)}
+    proc = subprocess.run([sys.executable, str(root / "run.py"), str(root / "seal_arm.toml"), str(own)], cwd=root,
+                          env=env, capture_output=True, text=True, timeout=900)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    out = json.loads(proc.stdout.strip().splitlines()[-1])
+    plain, predicted = out["False"], out["True"]
+    assert plain["term"] > 1e-4  # m: the seal term moves the spools (280 K against 293.15 K)
+    assert plain["law"] < 1e-12 and plain["engines"] < 1e-12
+    assert predicted["engines"] < 1e-9
+    assert out["fmu_inputs"] == [[f"seal_temp.{c}", "input", "K"] for c in ("shoulder_cylinder", "elbow_cylinder")]
+    assert out["cosimulated"] < 1e-9  # rad: the two FMUs wired by name are the closed loop

@@ -21,7 +21,7 @@ from ..controllers.spec import Start
 from .. import diagram, pressures
 from ..plant import supply
 from ..errors import ScenarioError
-from ..layout import model_summary, robot_sizes
+from ..layout import model_summary, plant_ports, robot_sizes
 from ..names import NUMBERS
 from .checks import check_gain_values
 
@@ -132,9 +132,10 @@ class _Controller:
         # value given once (a gain no table gives would otherwise be a KeyError in the Python loop and a
         # silent 0 in the C loop). The slots index the C argument table (the description's numbers too).
         shapes = dict(zip(self.fn.in_names, self.fn.in_shapes))
+        summary = model_summary(m)
         self.slots = diagram.wire(f"controller '{kind}'", [(k, int(np.prod(shapes[k])) if k in shapes else 0)
                                                            for k in self.fn.arg_names],
-                                  set(self.values) | {NUMBERS}, robot_sizes(model_summary(m)))
+                                  set(self.values) | {NUMBERS}, robot_sizes(summary), plant_ports(summary))
         self.tau_d = np.zeros(m.n)
         self.tau_d_dot = np.zeros(m.n)
         self.f_d = np.zeros(m.n_cylinders)

@@ -16,7 +16,7 @@ from ..dynamics import VELOCITY_SINGULAR, fk_failure
 from ..errors import KinematicsError, RunEndedError, ScenarioError, SimulationError
 from ..estimators import designs_for, estimate_for, remember as remember_designs
 from ..estimators.kalman import kalman_gain, length_noise_variance  # noqa: F401 - the simulator's API
-from ..layout import LU_PIVOT_MIN, SUPPLY_LOG, log_rows, model_summary, robot_sizes
+from ..layout import LU_PIVOT_MIN, SUPPLY_LOG, log_rows, model_summary, plant_ports, robot_sizes
 from ..loop_logs import FORCES, LOGS, PLANT, SIGNAL, STATE
 from ..plant import (describe_entries, initial_state, input_values, integrator, outputs as plant_outputs, plant_inputs,
                      plant_layout, slot)
@@ -863,6 +863,8 @@ class PythonStages:
         self.outputs = plant_outputs(self.layout)  # the plant's outputs, logged each period
         self._q, self._qdot, self._pc = (slot(self.layout, k).slice for k in ("q", "qdot", "pc"))
         self._ps = next((b.slice for b in self.layout if b.name == SUPPLY_LOG), None)  # a supply state
+        # the plant's outputs a controller may read (hydrogen.layout.plant_ports): their parts of x
+        self._plant_ports = [(p.name, slot(self.layout, p.name).slice) for p in plant_ports(model_summary(model))]
         pc = slot(self.layout, "pc")
         self._lo, self._hi = np.array(pc.lower), np.array(pc.upper)  # each pressure state's clip (0 and P_s for p_c)
         self._stages = sc.pressure_bounds == "stage"  # the bounds held at every RK4 stage too
@@ -953,8 +955,10 @@ class PythonStages:
                                     sc.reference(s.t + (delay + self.delay_frac) * self.h), s.adapt,
                                     ps=self._ps_input(x[self._ps] if self._ps is not None else None))
         else:
+            x = self.x
             ports = diagram.signals(self.q_meas, s.qdot_meas, s.pc_meas, s.l_meas, s.qd, s.adapt,
                                     ps=self._ps_input(s.ps_meas if self._ps is not None else None))
+        ports.update((name, x[part]) for name, part in self._plant_ports)  # a rig part's state: ideal sensors
         if self.k and sc.estimator_update != "euler":  # semi-implicit: state from this measurement, then command
             ctrl.update_for(self.h, ports)
         s.u = ctrl.command_for(ports)
@@ -987,6 +991,7 @@ class PythonStages:
         h, pc = self.h, self._pc
         th, g1, g2 = self.ctrl.own_parameters()
         supply = {} if self._ps is None else {SUPPLY_LOG: s.ps_meas}
+        supply.update((name, self.x[part]) for name, part in self._plant_ports)  # measured by their ideal sensors
         # what it measures nothing of (spool: unused by the ideal valve) at its declared initial value
         x = initial_state(self.layout, self.sc, q=self.q_meas, qdot=s.qdot_meas, pc=s.pc_meas, **supply)
 
