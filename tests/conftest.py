@@ -182,3 +182,28 @@ def package_copy(tmp_path, monkeypatch):
         shutil.copytree(pkg / sub, copy / sub)
     monkeypatch.setattr(gen, "_PACKAGE", copy)
     return copy
+
+
+def run_in_a_copy(cache, root, files: dict, script: str, args=(), parts=("hydrogen", "templates")) -> dict:
+    """hydrogen's ``parts`` copied under ``root`` with ``files`` written into the copy (path relative to
+    ``root``: text), then ``script`` run there in a fresh process (the copy's package first on the path,
+    then tests/; a private cache warm with the session's builds: :func:`warm_copy`) with ``args`` (a
+    "{cache}" in them: that cache's path); returns the JSON its last line prints."""
+    import json
+    import shutil
+    import subprocess
+    import sys
+
+    repo = Path(__file__).resolve().parents[1]
+    ignore = shutil.ignore_patterns("__pycache__", "*.so", "_templates")
+    for part in parts:
+        shutil.copytree(repo / part, root / part, ignore=ignore)
+    for rel, text in files.items():
+        (root / rel).write_text(text)
+    (root / "run.py").write_text(script)
+    own = warm_copy(cache, root / "cache")
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(root), str(repo / "tests")]), "HYDROGEN_CACHE_DIR": str(own)}
+    proc = subprocess.run([sys.executable, str(root / "run.py"), *(a.format(cache=own) for a in args)], cwd=root,
+                          env=env, capture_output=True, text=True, timeout=900)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    return json.loads(proc.stdout.strip().splitlines()[-1])

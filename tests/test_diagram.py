@@ -204,29 +204,13 @@ def test_a_controller_reads_a_rig_parts_state_by_name(cache, tmp_path):
     else edited), the command follows the controller's law on the part's logged state on both engines
     (its true value at the period's start: an ideal sensor); with a delay predictor the engines agree;
     the controller FMU takes it as inputs of its name, which the plant FMU's outputs wire to."""
-    import os
-    import shutil
-    import subprocess
-    import sys
-
-    from conftest import warm_copy
+    from conftest import run_in_a_copy
     from test_plant_blocks import SEAL_HEAT
-    root = tmp_path / "copy"
-    ignore = shutil.ignore_patterns("__pycache__", "*.so", "_templates")
-    for part in ("hydrogen", "templates"):
-        shutil.copytree(ROOT / part, root / part, ignore=ignore)
-    (root / "hydrogen" / "plant" / "seal_heat.py").write_text(SEAL_HEAT)
-    (root / "hydrogen" / "controllers" / "p_seal.py").write_text(P_SEAL)
     text = (ROOT / "tests" / "data" / "four_way_arm.toml").read_text()
     text = text.replace('name = "four_way_arm"', 'name = "seal_arm"\ncontrollers = ["p-seal"]', 1)
-    (root / "seal_arm.toml").write_text(text + SEAL_SCENARIO)
-    (root / "run.py").write_text(SEAL_SCRIPT)
-    own = warm_copy(cache, root / "cache")
-    env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(root), str(ROOT / "tests")]), "HYDROGEN_CACHE_DIR": str(own)}
-    proc = subprocess.run([sys.executable, str(root / "run.py"), str(root / "seal_arm.toml"), str(own)], cwd=root,
-                          env=env, capture_output=True, text=True, timeout=900)
-    assert proc.returncode == 0, proc.stderr[-3000:]
-    out = json.loads(proc.stdout.strip().splitlines()[-1])
+    files = {"hydrogen/plant/seal_heat.py": SEAL_HEAT, "hydrogen/controllers/p_seal.py": P_SEAL,
+             "seal_arm.toml": text + SEAL_SCENARIO}
+    out = run_in_a_copy(cache, tmp_path, files, SEAL_SCRIPT, ["seal_arm.toml", "{cache}"])
     plain, predicted = out["False"], out["True"]
     assert plain["term"] > 1e-4  # m: the seal term moves the spools (280 K against 293.15 K)
     assert plain["law"] < 1e-12 and plain["engines"] < 1e-12

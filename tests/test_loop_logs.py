@@ -2,11 +2,6 @@
 Python engine's writer, the widths and the result are read off the table; what a log holds is what
 its source is (checked against the kinematics); and a log added as one row of the table (in a copy of
 the package, nothing else edited) is written by both engines and reaches the result."""
-import json
-import os
-import shutil
-import subprocess
-import sys
 from pathlib import Path
 
 import numpy as np
@@ -16,7 +11,7 @@ import hydrogen
 from hydrogen.layout import loop_context, log_rows, model_summary
 from hydrogen.loop_logs import LOGS, RESERVED, SIGNAL, STATE
 
-from conftest import warm_copy
+from conftest import run_in_a_copy
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -119,19 +114,9 @@ def test_a_log_added_as_one_row_is_written_by_both_engines(cache, tmp_path):
     """In a copy of the package beside its committed code, one row appended to the table (nothing else
     edited): the build renders the loop drivers alone, both engines log the signal equally, and the
     result carries it (the measured pressures: the true ones plus the scenario's noise)."""
-    root = tmp_path / "copy"
-    ignore = shutil.ignore_patterns("__pycache__", "*.so", "_templates")
-    for part in ("hydrogen", "templates", "generated"):
-        shutil.copytree(ROOT / part, root / part, ignore=ignore)
-    table = root / "hydrogen" / "loop_logs.py"
-    table.write_text(table.read_text() + ROW)
-    (root / "run.py").write_text(SCRIPT)
-    own = warm_copy(cache, root / "cache")
-    env = {**os.environ, "PYTHONPATH": str(root), "HYDROGEN_CACHE_DIR": str(own)}
-    proc = subprocess.run([sys.executable, str(root / "run.py"), str(own)], cwd=root, env=env,
-                          capture_output=True, text=True, timeout=600)
-    assert proc.returncode == 0, proc.stderr[-3000:]
-    out = json.loads(proc.stdout.strip().splitlines()[-1])
+    table = (ROOT / "hydrogen" / "loop_logs.py").read_text()
+    out = run_in_a_copy(cache, tmp_path, {"hydrogen/loop_logs.py": table + ROW}, SCRIPT, ["{cache}"],
+                        parts=("hydrogen", "templates", "generated"))
     assert "pc_meas" in out["signals"] and out["shape"] == [out["rows"], 6]
     assert out["engines"] < 1e-6  # Pa, of pressures of 1e7
     assert 0.5 * out["noise_p"] < out["noise"] < 1.5 * out["noise_p"]
