@@ -313,8 +313,10 @@ def _variables(part, dyn, p, ctx, fn, encoders, estimated):
         for b in plant_outputs(layout):
             if b.name in read:
                 for j, e in enumerate(b.entries):
+                    lo, hi = b.lower[j], b.upper[j]
                     add(_dotted(b.name, e), "i", "continuous", f"{b.doc} of {e} (the controller reads it)",
-                        f"inst->{b.name}_in[{j}]", unit=_fmi_unit(b.units[j]), start=float(p.x0[b.slice][j]))
+                        f"inst->{b.name}_in[{j}]", unit=_fmi_unit(b.units[j]), start=float(p.x0[b.slice][j]),
+                        lo=float(lo) if np.isfinite(lo) else None, hi=float(hi) if np.isfinite(hi) else None)
         ref0 = sc.reference(0.0)
         for k, (slot, base, suffix, what) in enumerate(_REF_ORDERS):
             if slot not in fn.in_names:

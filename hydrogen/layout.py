@@ -376,6 +376,9 @@ def plant_ports(summary: dict) -> tuple:
     for part in plant_outputs(summary):
         name = part["name"]
         if name in taken:
+            if name != SUPPLY_PRESSURE:  # the supply pressure's port is its measurement; no other may hide
+                raise ImportError(f"the plant's output {name!r} takes the name of one of the loop's ports "
+                                  f"({', '.join(sorted(taken))}): a controller could not read it")
             continue
         st = states.get(name)
         unit = st.unit if st is not None and isinstance(st.unit, str) else "per entry"

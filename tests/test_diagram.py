@@ -170,19 +170,34 @@ import json, sys
 from pathlib import Path
 import numpy as np
 import hydrogen
+from hydrogen.errors import HydrogenError
 from hydrogen.fmu import export_fmu
 dyn = hydrogen.build(hydrogen.load_model(sys.argv[1]), cache=Path(sys.argv[2]))
 out = {}
 for predictor in (False, True):
-    extra = {"predictor": True, "delay": 2.0e-3} if predictor else {}
+    # with the predictor, the seal term alone (Kleg 0): the temperature it sees is the predicted one
+    extra = {"predictor": True, "delay": 2.0e-3, "gains": {"Kleg": 0.0}} if predictor else {}
     runs = [hydrogen.simulate("seal-sim", "p-seal", dyn=dyn, engine=e, **extra) for e in ("c", "python")]
     res = runs[0]
-    kleg, kT = 0.03, 1e-5
+    kleg, kT = (0.0 if predictor else 0.03), 1e-5
     ld = np.array([dyn.leg_lengths(q) for q in res.q_d])
-    law = np.clip(kleg * (ld - res.leg_lengths_measured) + kT * (res.plant["seal_temp"] - 293.15), -3e-3, 3e-3)
+    law = np.clip(kleg * (ld - res.leg_lengths_measured) + kT * (res.plant["seal_temp"] - 293.15), -res.u_max, res.u_max)
     out[str(predictor)] = {"engines": float(np.max(np.abs(runs[0].u - runs[1].u))),
                            "law": float(np.max(np.abs(res.u - law))),
                            "term": float(np.max(np.abs(kT * (res.plant["seal_temp"] - 293.15))))}
+# the runtime's own call: the part's state must be given, never an earlier call's left over
+from hydrogen.simulation.simulator import prepare_run
+ctrl = prepare_run(dyn, "seal-sim", "p-seal", None, None, True, {}).ctrl
+args = (res.q[0], np.zeros(dyn.model.n), res.pressures[0], res.leg_lengths[0], np.zeros((4, dyn.model.n)), False)
+given = ctrl.command(*args, plant={"seal_temp": np.full(2, 400.0)})
+v = ctrl.values  # the run's gains (the description's u_max)
+expected = np.clip(v["Kleg"] * (dyn.leg_lengths(np.zeros(dyn.model.n)) - args[3]) + v["kT"][0] * (400.0 - 293.15),
+                   -v["u_max"][0], v["u_max"][0])
+out["given"] = float(np.max(np.abs(given - expected)))
+try:
+    ctrl.command(*args)
+except HydrogenError as exc:
+    out["not_given"] = str(exc)
 # the plant FMU's seal_temp outputs into the controller FMU's inputs of that name (delay 0: the master's
 # step order is the timing), against the same run without noise
 quiet = {"delay": 0.0, "noise_l": 0.0, "noise_p": 0.0, "noise_q": 0.0}
@@ -206,6 +221,10 @@ def test_a_controller_reads_a_rig_parts_state_by_name(cache, tmp_path):
     the controller FMU takes it as inputs of its name, which the plant FMU's outputs wire to."""
     from conftest import run_in_a_copy
     from test_plant_blocks import SEAL_HEAT
+    # the controller's own model of the part transfers heat: a predicted temperature differs from the reading
+    ideal = '"heat transfer to the ambient (h)", per_actuator=True, ideal=20.0, lower=0.0)'
+    SEAL_HEAT = SEAL_HEAT.replace('"heat transfer to the ambient (h)", per_actuator=True, lower=0.0)', ideal)
+    assert ideal in SEAL_HEAT
     text = (ROOT / "tests" / "data" / "four_way_arm.toml").read_text()
     text = text.replace('name = "four_way_arm"', 'name = "seal_arm"\ncontrollers = ["p-seal"]', 1)
     files = {"hydrogen/plant/seal_heat.py": SEAL_HEAT, "hydrogen/controllers/p_seal.py": P_SEAL,
@@ -214,6 +233,11 @@ def test_a_controller_reads_a_rig_parts_state_by_name(cache, tmp_path):
     plain, predicted = out["False"], out["True"]
     assert plain["term"] > 1e-4  # m: the seal term moves the spools (280 K against 293.15 K)
     assert plain["law"] < 1e-12 and plain["engines"] < 1e-12
-    assert predicted["engines"] < 1e-9
+    # predicted: the controller's model (the part's ideal transfer, 20 W/K on 1 J/K) warms the seal
+    # over the delay; the engines agree on it
+    assert predicted["engines"] < 1e-12 and predicted["law"] > 1e-6
+    assert out["given"] < 1e-15  # the law at the temperature given
+    assert out["not_given"] == ("controller 'p-seal' reads the plant's seal_temp: give it with the signals "
+                                "(plant={name: value})")
     assert out["fmu_inputs"] == [[f"seal_temp.{c}", "input", "K"] for c in ("shoulder_cylinder", "elbow_cylinder")]
     assert out["cosimulated"] < 1e-9  # rad: the two FMUs wired by name are the closed loop

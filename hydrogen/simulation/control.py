@@ -136,6 +136,9 @@ class _Controller:
         self.slots = diagram.wire(f"controller '{kind}'", [(k, int(np.prod(shapes[k])) if k in shapes else 0)
                                                            for k in self.fn.arg_names],
                                   set(self.values) | {NUMBERS}, robot_sizes(summary), plant_ports(summary))
+        #: the plant's outputs it reads by name (a rig part's state: hydrogen.layout.plant_ports), which
+        #: every call's signals must give (never a value left from an earlier call)
+        self.plant_reads = tuple(pp.name for pp in plant_ports(summary) if pp.name in self.fn.in_names)
         self.tau_d = np.zeros(m.n)
         self.tau_d_dot = np.zeros(m.n)
         self.f_d = np.zeros(m.n_cylinders)
@@ -173,6 +176,10 @@ class _Controller:
 
     def _signals(self, signals: dict):
         """Write the loop's ``signals`` (by port name, :func:`hydrogen.diagram.signals`) into the inputs."""
+        missing = [name for name in self.plant_reads if name not in signals]
+        if missing:
+            raise ScenarioError(f"controller '{self.kind}' reads the plant's {', '.join(missing)}: give "
+                                f"{'it' if len(missing) == 1 else 'them'} with the signals (plant={{name: value}})")
         v = self.values
         v.update(signals)
         # a copy of u_applied: the spool held over the period ending at this measurement, also for the
@@ -193,11 +200,12 @@ class _Controller:
             return ps
         return np.array([supply.nominal(self.model)], float)
 
-    def command(self, q, qdot, pc, l, ref, adapt, ps=None):
+    def command(self, q, qdot, pc, l, ref, adapt, ps=None, plant=None):
         """The spool commands (m) for the measured pose ``q``, velocities ``qdot``, pressures ``pc``, travel
-        ``l``, reference ``ref`` (4 rows), the adaptation switch and the supply pressure ``ps`` (Pa; default
-        the description's nominal one): :meth:`command_for` their ports."""
-        return self.command_for(diagram.signals(q, qdot, pc, l, ref, adapt, self._supply(ps)))
+        ``l``, reference ``ref`` (4 rows), the adaptation switch, the supply pressure ``ps`` (Pa; default
+        the description's nominal one) and ``plant``, the rig parts' states it reads by name
+        (:attr:`plant_reads`): :meth:`command_for` their ports."""
+        return self.command_for({**diagram.signals(q, qdot, pc, l, ref, adapt, self._supply(ps)), **(plant or {})})
 
     def command_for(self, signals: dict):
         """The spool commands (m) for the loop's signals by port name (:data:`hydrogen.diagram.SLOTS`)."""
@@ -215,9 +223,9 @@ class _Controller:
         """Record the spool commands (m) the valves get this period: the next state update's u_applied."""
         self.u_applied[:] = u_app
 
-    def update(self, h, q, qdot, pc, l, ref, adapt, ps=None):
+    def update(self, h, q, qdot, pc, l, ref, adapt, ps=None, plant=None):
         """:meth:`update_for` the signals of a measured pose, velocities, … (as :meth:`command`)."""
-        self.update_for(h, diagram.signals(q, qdot, pc, l, ref, adapt, self._supply(ps)))
+        self.update_for(h, {**diagram.signals(q, qdot, pc, l, ref, adapt, self._supply(ps)), **(plant or {})})
 
     def update_for(self, h, signals: dict):
         """Semi-implicit step: xc ← clip(xc + h F(measurement, xc, u_applied)) with the rates-only

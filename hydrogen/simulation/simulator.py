@@ -991,7 +991,8 @@ class PythonStages:
         h, pc = self.h, self._pc
         th, g1, g2 = self.ctrl.own_parameters()
         supply = {} if self._ps is None else {SUPPLY_LOG: s.ps_meas}
-        supply.update((name, self.x[part]) for name, part in self._plant_ports)  # measured by their ideal sensors
+        # the rig parts' states the controller reads: from their ideal sensors' reading
+        supply.update((name, self.x[part]) for name, part in self._plant_ports if name in self.ctrl.plant_reads)
         # what it measures nothing of (spool: unused by the ideal valve) at its declared initial value
         x = initial_state(self.layout, self.sc, q=self.q_meas, qdot=s.qdot_meas, pc=s.pc_meas, **supply)
 
