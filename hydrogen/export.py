@@ -282,8 +282,8 @@ def export_context(dyn, p, scenario_name, controller, prog, sources, headers, ct
         "plant_outputs": loop["plant_outputs"],  # the plant's outputs (hydrogen.plant.PlantState.output)
         # the plant's outputs the controller reads by name (hydrogen.layout.plant_ports): the controller
         # FMU's inputs of them
-        "read_outputs": [o for o in loop["plant_outputs"]
-                         if o["name"] in fn.in_names and o["name"] not in SLOTS],
+        "read_outputs": [{**o, "sensed": o["name"] in {ch["name"] for ch in loop["plant_sensors"]}}
+                         for o in loop["plant_outputs"] if o["name"] in fn.in_names and o["name"] not in SLOTS],
         "parametric": loop["parametric"], "lu_pivot_min": loop["lu_pivot_min"],  # the FMU's failure words
         "estimators": loop["estimators"],  # each estimator's state and its start in C
         "theta_names": ", ".join(model.theta_names),

@@ -17,11 +17,11 @@ from .names import NUMBERS  # the numbers input's name, part of the loop's layou
 from .plant import (BLOCKS as PLANT_BLOCKS, block as plant_block, input_record, integrator,  # the plant's blocks
                     plant_inputs)
 from .plant.supply import PRESSURE as SUPPLY_PRESSURE  # the supply pressure's one name
-from .sensors import NOISE, noise_columns, noise_width  # the sensors' noise row
+from .sensors import NOISE, NoiseChannel, noise_columns, noise_width  # the sensors' noise row
 
 __all__ = ["NUMBERS", "SUPPLY_LOG", "MAX_DELAY", "PLANT_INPUTS", "predictor_model", "FK_TOL", "FK_MAX_ITER", "FK_MAX_COND", "FK_STATUS", "LU_PIVOT_MIN",
            "delay_split", "LOOP_CONFIG", "LOOP_STATE", "LOOP_SIGNALS", "model_summary", "slots",
-           "robot_sizes", "plant_ports", "supply_size", "loop_context", "log_rows", "plant_outputs", "loop_functions", "C_SIZES", "plant_offsets",
+           "robot_sizes", "plant_ports", "plant_sensors", "supply_size", "loop_context", "log_rows", "plant_outputs", "loop_functions", "C_SIZES", "plant_offsets",
            "plant_size", "c_double", "config_fields", "struct_fields"]
 
 #: The plant part logged as it is, where the plant has it: the supply pressure (its one name,
@@ -326,8 +326,9 @@ def model_summary(model) -> dict:
         "kinds": [c.kind for c in model.cylinders], "n_pressures": n_pressures(model),
         "joint_encoders": bool(model.joint_encoders),
         # the plant state's parts in order (hydrogen.plant): name, size (a robot size's name), offset, entries
-        "plant": [{"name": s.name, "size": s.size_name, "start": s.start, "entries": s.size, "output": s.output}
-                  for s in plant_layout(model)],
+        # (and, only where it has one, an output's sensor noise setting: a shipped manifest stays as it was)
+        "plant": [{"name": s.name, "size": s.size_name, "start": s.start, "entries": s.size, "output": s.output,
+                   **({"noise": s.noise} if s.noise else {})} for s in plant_layout(model)],
         # recorded only when on: the plant's input friction is wider, a robot without keeps its manifest
         **({"seal_friction": True} if model.seal_friction else {}),
         # each block's plant input and the parameters it takes (its width, whatever structure decides it)
@@ -363,6 +364,21 @@ def robot_sizes(summary: dict) -> dict:
             "NQE": summary["n"] if summary["joint_encoders"] else 0}
 
 
+def plant_sensors(summary: dict) -> tuple:
+    """The sensors of the plant's outputs that declare a noise (:attr:`hydrogen.plant.PlantState.noise`),
+    from a manifest's model summary: each a :class:`hydrogen.sensors.NoiseChannel` named as the output
+    (its channel of the noise row after the loop's own; the signals' ``<name>_meas``, its reading)."""
+    states = {st.name: st for b in PLANT_BLOCKS for st in getattr(plant_block(b), "STATES", ())}
+    out = []
+    for part in plant_outputs(summary):
+        if part.get("noise"):
+            st = states.get(part["name"])
+            unit = st.unit if st is not None and isinstance(st.unit, str) else "per entry"
+            out.append(NoiseChannel(part["name"], C_SIZES[part["size"]], part["noise"], unit,
+                                    st.doc if st is not None else part["name"]))
+    return tuple(out)
+
+
 def plant_ports(summary: dict) -> tuple:
     """Each of the plant's outputs that is not one of the loop's own ports (the supply pressure is:
     measured, with its noise) as a port a controller may read, from a manifest's model summary: its
@@ -383,8 +399,11 @@ def plant_ports(summary: dict) -> tuple:
         st = states.get(name)
         unit = st.unit if st is not None and isinstance(st.unit, str) else "per entry"
         doc = f"the plant's {st.doc if st is not None else name} (its true value, an ideal sensor)"
-        out.append(diagram.Port(name, (C_SIZES[part["size"]],), unit, doc,
-                                "xs" if offsets[name] == "0" else f"xs + {offsets[name]}"))
+        at = "xs" if offsets[name] == "0" else f"xs + {offsets[name]}"
+        if part.get("noise"):  # its sensor's reading, or the prediction from it
+            at, doc = f"c->predict ? {at} : s->{name}_meas", doc.replace("its true value, an ideal sensor",
+                                                                           f"its sensor's reading, noise {part['noise']}")
+        out.append(diagram.Port(name, (C_SIZES[part["size"]],), unit, doc, at))
     return tuple(out)
 
 
@@ -504,9 +523,10 @@ def loop_context(manifest: dict) -> dict:
     x_parts = ", ".join(part["name"].replace("_", " ") for part in s["plant"])
     nps = supply_size(s)
     # the sensors' noise row (hydrogen.sensors.NOISE): each channel's columns
-    channels = {ch.name: ch for ch in NOISE}
+    sensed = plant_sensors(s)  # and a rig part's output's sensor, after them
+    channels = {ch.name: ch for ch in (*NOISE, *sensed)}
     noise = [{"name": k, "start": start, "count": count, "doc": channels[k].doc, "unit": channels[k].unit}
-             for k, (start, count) in noise_columns(robot_sizes(s), bool(s["joint_encoders"])).items()]
+             for k, (start, count) in noise_columns(robot_sizes(s), bool(s["joint_encoders"]), sensed).items()]
     sizes = {**robot_sizes(s), "NX": nx, "MAX_DELAY": MAX_DELAY}
     ctx = {
         "model": name, "p": name, "P": name.upper(), "guard": f"{name.upper()}_LOOP_H",
@@ -515,19 +535,25 @@ def loop_context(manifest: dict) -> dict:
         # the plant's outputs: logged (write_log), and the plant FMU's outputs besides q, qdot, pc, ps
         "plant_outputs": [{"name": p["name"], "count": p["entries"], "size": C_SIZES[p["size"]]}
                           for p in plant_outputs(s)],
-        "n_noise": noise_width(robot_sizes(s), bool(s["joint_encoders"])), "noise": noise,
+        "n_noise": noise_width(robot_sizes(s), bool(s["joint_encoders"]), sensed), "noise": noise,
+        # each sensed output: its part of x, its count (the measure stage's reading)
+        "plant_sensors": [{"name": ch.name, "count": Markup(ch.size)} for ch in sensed],
         "noise_comment": ", ".join(f"{ch['doc']} ({ch['unit']})" for ch in noise),
         "n_pressures": n_p, "three_way": n_p == m,
         "nps": nps,
         "parametric": NUMBERS in manifest,
         "encoders": bool(s["joint_encoders"]), "slots": slots(s), "ports": _port_writes(s),
         # a plant output a controller may read (plant_ports): the control stage's plant state xs
-        "plant_ports": [{"name": pp.name, "count": Markup(" * ".join(map(str, pp.size)))} for pp in plant_ports(s)],
+        "plant_ports": [{"name": pp.name, "count": Markup(" * ".join(map(str, pp.size))),
+                         "source": Markup(f"s->{pp.name}_meas" if pp.name in {ch.name for ch in sensed}
+                                          else f"st->x{x_plus[pp.name]}")} for pp in plant_ports(s)],
         # the run's logs (hydrogen.loop_logs): the log struct's fields and write_log's rows
         "logs": [(r["name"], "n_xc" if r["width"] is None else r["width"], r["doc"]) for r in log_list],
         "log_rows": log_list,
         "config": config_fields(name, s),
-        "state": struct_fields(LOOP_STATE, name, sizes, x_parts), "signals": struct_fields(LOOP_SIGNALS, name, sizes),
+        "state": struct_fields(LOOP_STATE, name, sizes, x_parts), "signals": struct_fields(LOOP_SIGNALS + tuple(
+            (f"{ch.name}_meas", "double", (ch.size,), f"measured {ch.doc} (its sensor: noise {ch.setting}), {ch.unit}")
+            for ch in sensed), name, sizes),
         "p_theta": ", ".join(s["theta_names"]),
         # each plant input (hydrogen.plant.plant_inputs): its numbers per actuator and the predictor's
         "plant_inputs": [{"name": i.name, "width": i.width, "pred": ", ".join(map(c_double, i.ideal * m))}

@@ -7,7 +7,8 @@ actuator gives it). The columns, the C loop's offsets into the row (``templates/
 Python engine's (:class:`hydrogen.simulation.simulator.PythonStages`), the draw of the table
 (:meth:`hydrogen.simulation.simulator.RunPlan.noise`: channel after channel, only those switched on,
 so a channel off leaves the others' numbers as they were) and the loop header's comment are read off
-:data:`NOISE`. A new sensor's noise is one row there and its use in the sensors' stage.
+:data:`NOISE`. A new sensor's noise is one row there and its use in the sensors' stage; a rig part's output
+declares its own sensor's noise (:attr:`hydrogen.plant.PlantState.noise`), a channel after these.
 """
 from __future__ import annotations
 
@@ -41,12 +42,13 @@ NOISE = (
 )
 
 
-def noise_columns(sizes: dict, encoders: bool) -> dict:
+def noise_columns(sizes: dict, encoders: bool, plant=()) -> dict:
     """``{channel name: (first column, count)}`` of the noise row of a robot of ``sizes`` (the loop
     header's: ``{"NL": m, "NPC": ..., "NQ": n, "NPS": ...}``) with or without joint ``encoders``, in
-    :data:`NOISE` order; the channels it lacks are left out."""
+    :data:`NOISE` order, then ``plant``'s (the sensors of its plant's outputs that declare a noise:
+    :func:`hydrogen.layout.plant_sensors`); the channels it lacks are left out."""
     out, start = {}, 0
-    for ch in NOISE:
+    for ch in (*NOISE, *plant):
         count = int(sizes[ch.size]) if encoders or not ch.encoders else 0
         if count:
             out[ch.name] = (start, count)
@@ -54,6 +56,6 @@ def noise_columns(sizes: dict, encoders: bool) -> dict:
     return out
 
 
-def noise_width(sizes: dict, encoders: bool) -> int:
-    """Numbers in a noise row."""
-    return sum(count for _, count in noise_columns(sizes, encoders).values())
+def noise_width(sizes: dict, encoders: bool, plant=()) -> int:
+    """Numbers in a noise row (``plant``: as :func:`noise_columns`)."""
+    return sum(count for _, count in noise_columns(sizes, encoders, plant).values())

@@ -185,6 +185,15 @@ for predictor in (False, True):
     out[str(predictor)] = {"engines": float(np.max(np.abs(runs[0].u - runs[1].u))),
                            "law": float(np.max(np.abs(res.u - law))),
                            "term": float(np.max(np.abs(kT * (res.plant["seal_temp"] - 293.15))))}
+# a noisy sensor of the part's state (0.5 K), the loop's own sensors quiet: the command carries its noise
+noisy = [hydrogen.simulate("seal-sim", "p-seal", dyn=dyn, engine=e, seal_noise=0.5, noise_l=0.0, noise_p=0.0,
+                           noise_q=0.0) for e in ("c", "python")]
+res = noisy[0]
+ld = np.array([dyn.leg_lengths(q) for q in res.q_d])
+free = 0.03 * (ld - res.leg_lengths_measured) + 1e-5 * (res.plant["seal_temp"] - 293.15)
+inside = np.all(np.abs(res.u) < 0.999 * res.u_max, axis=1)
+out["noisy"] = {"engines": float(np.max(np.abs(noisy[0].u - noisy[1].u))),
+                "std": float(np.std((res.u - free)[inside] / 1e-5)), "rows": int(inside.sum())}
 # the runtime's own call: the part's state must be given, never an earlier call's left over
 from hydrogen.simulation.simulator import prepare_run
 ctrl = prepare_run(dyn, "seal-sim", "p-seal", None, None, True, {}).ctrl
@@ -218,13 +227,19 @@ def test_a_controller_reads_a_rig_parts_state_by_name(cache, tmp_path):
     its name: in a copy of the package with the part and a controller reading it (two modules, nothing
     else edited), the command follows the controller's law on the part's logged state on both engines
     (its true value at the period's start: an ideal sensor); with a delay predictor the engines agree;
-    the controller FMU takes it as inputs of its name, which the plant FMU's outputs wire to."""
+    the controller FMU takes it as inputs of its name, which the plant FMU's outputs wire to; a sensor's
+    noise the part declares is in the reading the command follows."""
     from conftest import run_in_a_copy
     from test_plant_blocks import SEAL_HEAT
     # the controller's own model of the part transfers heat: a predicted temperature differs from the reading
     ideal = '"heat transfer to the ambient (h)", per_actuator=True, ideal=20.0, lower=0.0)'
     SEAL_HEAT = SEAL_HEAT.replace('"heat transfer to the ambient (h)", per_actuator=True, lower=0.0)', ideal)
     assert ideal in SEAL_HEAT
+    # and a sensor of its own, its noise a setting of the part's
+    SEAL_HEAT = SEAL_HEAT.replace('output=True)', 'output=True, noise="seal_noise")', 1).replace(
+        '    "seal_start":', '    "seal_noise": setting(0.0, "K", "each seal temperature sensor\'s noise", ">=0"),\n'
+                            '    "seal_start":', 1)
+    assert 'noise="seal_noise"' in SEAL_HEAT and '"seal_noise": setting' in SEAL_HEAT
     text = (ROOT / "tests" / "data" / "four_way_arm.toml").read_text()
     text = text.replace('name = "four_way_arm"', 'name = "seal_arm"\ncontrollers = ["p-seal"]', 1)
     files = {"hydrogen/plant/seal_heat.py": SEAL_HEAT, "hydrogen/controllers/p_seal.py": P_SEAL,
@@ -237,6 +252,8 @@ def test_a_controller_reads_a_rig_parts_state_by_name(cache, tmp_path):
     # over the delay; the engines agree on it
     assert predicted["engines"] < 1e-12 and predicted["law"] > 1e-6
     assert out["given"] < 1e-15  # the law at the temperature given
+    noisy = out["noisy"]  # the reading's noise (0.5 K) in the command, the same draw on both engines
+    assert noisy["engines"] < 1e-12 and noisy["rows"] > 100 and 0.4 < noisy["std"] < 0.6
     assert out["not_given"] == ("controller 'p-seal' reads the plant's seal_temp: give it with the signals "
                                 "(plant={name: value})")
     assert out["fmu_inputs"] == [[f"seal_temp.{c}", "input", "K"] for c in ("shoulder_cylinder", "elbow_cylinder")]

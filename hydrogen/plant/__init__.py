@@ -76,7 +76,12 @@ class PlantState:
     output
         The plant's output: logged by both loops under its name, the run's result's ``plant[name]``,
         columns of its CSV log and, in the plant FMU, outputs ``<name>.<entry>`` with start
-        parameters ``<name>_start.<entry>``.
+        parameters ``<name>_start.<entry>``; a port a controller may read by its name.
+    noise
+        For an output: the name of the block's scenario setting (in its ``SCENARIO_SETTINGS``) that is
+        the standard deviation of its sensor, in its unit: a channel of the noise row after the
+        loop's own (:mod:`hydrogen.sensors`), which the controller's reading carries; empty: an ideal
+        sensor (its true value).
     """
 
     name: str
@@ -87,6 +92,7 @@ class PlantState:
     upper: object = math.inf
     initial: object = 0.0
     output: bool = False
+    noise: str = ""
 
     @property
     def label(self) -> str:
@@ -150,8 +156,8 @@ class Slot:
     """A part of x in a model's layout: ``name``, its ``block`` (module name), ``size_name`` (a key of
     :data:`SIZES`), ``start`` and ``size`` (entries), per-entry ``units``, ``lower``, ``upper`` and
     ``entries`` (what each entry belongs to: a coordinate, an actuator, a pressure state), ``doc``,
-    per-entry ``initial`` values (NaN where a scenario setting gives them: ``initial_setting``) and
-    ``output`` (:class:`PlantState`)."""
+    per-entry ``initial`` values (NaN where a scenario setting gives them: ``initial_setting``),
+    ``output`` and ``noise`` (:class:`PlantState`)."""
 
     name: str
     block: str
@@ -166,6 +172,7 @@ class Slot:
     initial: tuple = ()
     output: bool = False
     initial_setting: str | None = None
+    noise: str = ""
 
     @property
     def stop(self) -> int:
@@ -295,7 +302,7 @@ def plant_layout(model, blocks=None) -> tuple:
             initial = (math.nan,) * size if setting else tuple(float(v) for v in _per_entry(st.initial, model, size))
             out.append(Slot(st.name, mod.__name__.rsplit(".", 1)[-1], st.size, start, size,
                             _per_entry(st.unit, model, size), lower, upper, entries, st.doc, initial, st.output,
-                            setting))
+                            setting, st.noise))
             start += size
     return tuple(out)
 
@@ -388,6 +395,10 @@ def _discover() -> tuple:
         if unknown:
             raise ImportError(f"plant block {name!r} starts a state at the scenario setting {unknown[0]!r}, which "
                               "its SCENARIO_SETTINGS does not declare")
+        noisy = [st for st in mod.STATES if st.noise and not (st.output and st.noise in getattr(mod, "SCENARIO_SETTINGS", {}))]
+        if noisy:
+            raise ImportError(f"plant block {name!r} gives the state {noisy[0].name!r} a sensor's noise "
+                              f"{noisy[0].noise!r}: only an output's, and one of its SCENARIO_SETTINGS")
         taken = [st.name for st in mod.STATES if st.output and st.name in RESERVED_OUTPUTS]
         if taken:
             raise ImportError(f"plant block {name!r} declares the output {taken[0]!r}, a name the run's logs "

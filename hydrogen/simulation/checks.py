@@ -220,10 +220,11 @@ def max_run_bytes() -> int:
 
 def run_doubles_per_period(model, controller, keep_logs: bool) -> int:
     """Doubles one control period costs: the noise table and the workspace check, plus the logs."""
-    from ..layout import log_rows, model_summary, robot_sizes
+    from ..layout import log_rows, model_summary, plant_sensors, robot_sizes
     from ..sensors import noise_width
     summary = model_summary(model)
-    noise, workspace = noise_width(robot_sizes(summary), model.joint_encoders), model.n + model.n_cylinders
+    noise = noise_width(robot_sizes(summary), model.joint_encoders, plant_sensors(summary))
+    workspace = model.n + model.n_cylinders
     if not keep_logs:
         return noise + workspace
     n_xc = sum(size for _, size in _layout(controller, model))

@@ -16,7 +16,7 @@ from ..dynamics import VELOCITY_SINGULAR, fk_failure
 from ..errors import KinematicsError, RunEndedError, ScenarioError, SimulationError
 from ..estimators import designs_for, estimate_for, remember as remember_designs
 from ..estimators.kalman import kalman_gain, length_noise_variance  # noqa: F401 - the simulator's API
-from ..layout import LU_PIVOT_MIN, SUPPLY_LOG, log_rows, model_summary, plant_ports, robot_sizes
+from ..layout import LU_PIVOT_MIN, SUPPLY_LOG, log_rows, model_summary, plant_ports, plant_sensors, robot_sizes
 from ..loop_logs import FORCES, LOGS, PLANT, SIGNAL, STATE
 from ..plant import (describe_entries, initial_state, input_values, integrator, outputs as plant_outputs, plant_inputs,
                      plant_layout, slot)
@@ -673,7 +673,7 @@ class RunPlan:
         rng = np.random.default_rng(seed)
         columns = self.noise_columns
         noise = np.zeros((n, sum(count for _, count in columns.values())))
-        for ch in NOISE:
+        for ch in (*NOISE, *plant_sensors(model_summary(self.dyn.model))):  # the plant's sensors' last
             if ch.name not in columns:
                 continue
             start, count = columns[ch.name]
@@ -684,8 +684,10 @@ class RunPlan:
 
 
 def _noise_columns(dyn) -> dict:
-    """The noise row's columns of ``dyn``'s robot (:func:`hydrogen.sensors.noise_columns`)."""
-    return noise_columns(robot_sizes(model_summary(dyn.model)), dyn.model.joint_encoders)
+    """The noise row's columns of ``dyn``'s robot (:func:`hydrogen.sensors.noise_columns`; its plant's
+    sensors' after the loop's own)."""
+    summary = model_summary(dyn.model)
+    return noise_columns(robot_sizes(summary), dyn.model.joint_encoders, plant_sensors(summary))
 
 
 def plan_run(dyn, scenario, controller, duration, check_workspace, overrides, *, keep_logs=True) -> RunPlan:
@@ -834,7 +836,8 @@ def _run_c(dyn, sc, ctrl, x0, q0, noise, estimate, log, n, h, runner=None):
 
 class _Signals:
     """One period's signals as the stages hand them on (the C loop's ``<model>_loop_signals``)."""
-    __slots__ = ("nz", "t", "l_true", "l_meas", "pc_meas", "ps_meas", "q_enc", "ldot", "qdot_meas", "qd", "adapt", "u",
+    __slots__ = ("nz", "t", "l_true", "l_meas", "pc_meas", "ps_meas", "q_enc", "plant_meas", "ldot", "qdot_meas", "qd",
+                 "adapt", "u",
                  "u_held", "u_app")
 
 
@@ -913,6 +916,8 @@ class PythonStages:
         s.q_enc = q + nz[col["q"]] if self.model.joint_encoders else None
         if self._ps is not None:  # the supply pressure, held at its lower bound 0
             s.ps_meas = np.maximum(x[self._ps] + nz[col["ps"]], 0.0)
+        # the plant's outputs the controller may read: their sensors' readings (true where ideal)
+        s.plant_meas = {name: x[part] + nz[col[name]] if name in col else x[part] for name, part in self._plant_ports}
 
     def estimator(self, s: _Signals) -> None:
         """The run's estimator (the actuators' rates), pose (encoders or forward kinematics, warm-started),
@@ -955,10 +960,12 @@ class PythonStages:
                                     sc.reference(s.t + (delay + self.delay_frac) * self.h), s.adapt,
                                     ps=self._ps_input(x[self._ps] if self._ps is not None else None))
         else:
-            x = self.x
             ports = diagram.signals(self.q_meas, s.qdot_meas, s.pc_meas, s.l_meas, s.qd, s.adapt,
                                     ps=self._ps_input(s.ps_meas if self._ps is not None else None))
-        ports.update((name, x[part]) for name, part in self._plant_ports)  # a rig part's state: ideal sensors
+        if self.predict:  # a rig part's state the controller reads: predicted, or its sensor's reading
+            ports.update((name, x[part]) for name, part in self._plant_ports)
+        else:
+            ports.update(s.plant_meas)
         if self.k and sc.estimator_update != "euler":  # semi-implicit: state from this measurement, then command
             ctrl.update_for(self.h, ports)
         s.u = ctrl.command_for(ports)
@@ -992,7 +999,7 @@ class PythonStages:
         th, g1, g2 = self.ctrl.own_parameters()
         supply = {} if self._ps is None else {SUPPLY_LOG: s.ps_meas}
         # the rig parts' states the controller reads: from their ideal sensors' reading
-        supply.update((name, self.x[part]) for name, part in self._plant_ports if name in self.ctrl.plant_reads)
+        supply.update((name, s.plant_meas[name]) for name, _ in self._plant_ports if name in self.ctrl.plant_reads)
         # what it measures nothing of (spool: unused by the ideal valve) at its declared initial value
         x = initial_state(self.layout, self.sc, q=self.q_meas, qdot=s.qdot_meas, pc=s.pc_meas, **supply)
 
