@@ -11,7 +11,7 @@ the same C loop :func:`hydrogen.simulate` drives through ctypes, a
 
 The exported program runs without sensor noise (noise is a simulator
 feature): its tracking errors equal those of
-``hydrogen.simulate(scenario, controller, noise_l=0, noise_p=0, ...)`` to
+``hydrogen.simulate(scenario, controller, **scenario.noise_free())`` to
 rounding, because both call ``<model>_loop_run`` from the same sources with the
 same numbers. In particular the estimator's numbers the program uses (the Kalman
 gain) are the ones the simulator designs for the noise-free scenario; ``params.h``
@@ -442,7 +442,7 @@ def prepare_export(model, dyn, scenario, controller, gains, duration, check_work
     """What an exported program (C folder or FMU) runs: ``(dyn, scenario, its name, the prepared run)``.
 
     The names are checked, as they are written into generated files; the run is prepared exactly
-    as ``simulate(..., noise_l=0, noise_p=0, noise_q=0)`` prepares it (exported programs run
+    as ``simulate(..., **scenario.noise_free())`` prepares it (exported programs run
     noise-free), and it keeps the scenario's sensor noise for the estimator's design meant for the rig.
     """
     from .errors import ScenarioError

@@ -15,7 +15,7 @@ driver's stages (``<model>_loop.h``) one control period per call:
   (the ideal cylinder-rate sensor of the simulation scenarios) the measured cylinder rates are an
   input as well.
 * **closed-loop**: the whole loop (``<model>_loop_run``), reproducing
-  ``hydrogen.simulate(..., noise_l=0, noise_p=0)``.
+  ``hydrogen.simulate(..., **scenario.noise_free())`` (every sensor's noise off).
 
 So plant FMU + controller FMU (controller stepped first, then the plant, each over the same
 period) is the closed loop, to rounding. The FMI headers come from fmpy's installed copy
@@ -635,7 +635,8 @@ _INSIDE = {
                   "adaptation. u after a step is the command computed from the inputs sampled at the start of "
                   "that step.",
     "closed-loop": "The whole closed loop of the scenario (sensors, controller, plant), noise-free: it "
-                   "reproduces hydrogen.simulate(..., noise_l=0, noise_p=0). Outputs at t = k h are the "
+                   "reproduces hydrogen.simulate(..., noise_l=0, noise_p=0) with every other sensor's noise off "
+                   "too (Scenario.noise_free()). Outputs at t = k h are the "
                    "simulator's log row k.",
 }
 

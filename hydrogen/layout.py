@@ -21,7 +21,7 @@ from .sensors import NOISE, NoiseChannel, noise_columns, noise_width  # the sens
 
 __all__ = ["NUMBERS", "SUPPLY_LOG", "MAX_DELAY", "PLANT_INPUTS", "predictor_model", "FK_TOL", "FK_MAX_ITER", "FK_MAX_COND", "FK_STATUS", "LU_PIVOT_MIN",
            "delay_split", "LOOP_CONFIG", "LOOP_STATE", "LOOP_SIGNALS", "model_summary", "slots",
-           "robot_sizes", "plant_ports", "plant_sensors", "supply_size", "loop_context", "log_rows", "plant_outputs", "loop_functions", "C_SIZES", "plant_offsets",
+           "robot_sizes", "plant_ports", "plant_sensors", "signal_fields", "supply_size", "loop_context", "log_rows", "plant_outputs", "loop_functions", "C_SIZES", "plant_offsets",
            "plant_size", "c_double", "config_fields", "struct_fields"]
 
 #: The plant part logged as it is, where the plant has it: the supply pressure (its one name,
@@ -364,6 +364,14 @@ def robot_sizes(summary: dict) -> dict:
             "NQE": summary["n"] if summary["joint_encoders"] else 0}
 
 
+def signal_fields(summary: dict) -> tuple:
+    """One period's signals of a model (a manifest's model summary): :data:`LOOP_SIGNALS`, then each
+    rig part's sensor's reading ``<output>_meas`` (:func:`plant_sensors`); the loop header's struct,
+    its ctypes mirror and the logs' sources read it."""
+    return LOOP_SIGNALS + tuple((f"{ch.name}_meas", "double", (ch.size,), f"measured {ch.doc} (its sensor: noise "
+                                 f"{ch.setting}), {ch.unit}") for ch in plant_sensors(summary))
+
+
 def plant_sensors(summary: dict) -> tuple:
     """The sensors of the plant's outputs that declare a noise (:attr:`hydrogen.plant.PlantState.noise`),
     from a manifest's model summary: each a :class:`hydrogen.sensors.NoiseChannel` named as the output
@@ -447,7 +455,7 @@ def log_rows(summary: dict) -> list:
     from markupsafe import Markup  # hydrogen's own C expressions (hydrogen.templating)
     sizes = robot_sizes(summary)
     offsets = plant_offsets(summary)
-    signals = {name: size for name, _, size, _ in LOOP_SIGNALS}
+    signals = {name: size for name, _, size, _ in signal_fields(summary)}
 
     def entries(size):
         return math.prod(t if isinstance(t, int) else sizes[t] for t in size)
@@ -456,6 +464,9 @@ def log_rows(summary: dict) -> list:
     docs = {st.name: st.doc for b in PLANT_BLOCKS for st in getattr(plant_block(b), "STATES", ())}
     rows += [(p["name"], (C_SIZES[p["size"]],), docs.get(p["name"], f"the plant's {p['name']}"), (PLANT, p["name"]))
              for p in plant_outputs(summary)]
+    # each rig part's sensor's reading (hydrogen.plant.PlantState.noise): the signal the controller reads
+    rows += [(f"{ch.name}_meas", (ch.size,), f"measured {ch.doc}, {ch.unit}", (SIGNAL, f"{ch.name}_meas"))
+             for ch in plant_sensors(summary)]
     out = []
     for name, size, doc, (kind, field) in rows:
         if kind == SIGNAL and field not in signals or kind == PLANT and field not in offsets:
@@ -551,9 +562,7 @@ def loop_context(manifest: dict) -> dict:
         "logs": [(r["name"], "n_xc" if r["width"] is None else r["width"], r["doc"]) for r in log_list],
         "log_rows": log_list,
         "config": config_fields(name, s),
-        "state": struct_fields(LOOP_STATE, name, sizes, x_parts), "signals": struct_fields(LOOP_SIGNALS + tuple(
-            (f"{ch.name}_meas", "double", (ch.size,), f"measured {ch.doc} (its sensor: noise {ch.setting}), {ch.unit}")
-            for ch in sensed), name, sizes),
+        "state": struct_fields(LOOP_STATE, name, sizes, x_parts), "signals": struct_fields(signal_fields(s), name, sizes),
         "p_theta": ", ".join(s["theta_names"]),
         # each plant input (hydrogen.plant.plant_inputs): its numbers per actuator and the predictor's
         "plant_inputs": [{"name": i.name, "width": i.width, "pred": ", ".join(map(c_double, i.ideal * m))}

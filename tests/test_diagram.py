@@ -192,8 +192,16 @@ res = noisy[0]
 ld = np.array([dyn.leg_lengths(q) for q in res.q_d])
 free = 0.03 * (ld - res.leg_lengths_measured) + 1e-5 * (res.plant["seal_temp"] - 293.15)
 inside = np.all(np.abs(res.u) < 0.999 * res.u_max, axis=1)
+reading = res.signals["seal_temp_meas"]  # the sensor's reading, logged
+law = np.clip(0.03 * (ld - res.leg_lengths_measured) + 1e-5 * (reading - 293.15), -res.u_max, res.u_max)
 out["noisy"] = {"engines": float(np.max(np.abs(noisy[0].u - noisy[1].u))),
-                "std": float(np.std((res.u - free)[inside] / 1e-5)), "rows": int(inside.sum())}
+                "readings": float(np.max(np.abs(reading - noisy[1].signals["seal_temp_meas"]))),
+                "std": float(np.std((res.u - free)[inside] / 1e-5)), "rows": int(inside.sum()),
+                "law": float(np.max(np.abs(res.u - law))),
+                "reading_std": float(np.std(reading - res.plant["seal_temp"]))}
+# every sensor's noise off, the part's too: the exported program's and the FMUs' noise-free run
+from hydrogen.simulation.scenarios import scenario
+out["quiet"] = scenario("seal-sim", dyn.model).noise_free()
 # the runtime's own call: the part's state must be given, never an earlier call's left over
 from hydrogen.simulation.simulator import prepare_run
 ctrl = prepare_run(dyn, "seal-sim", "p-seal", None, None, True, {}).ctrl
@@ -252,8 +260,12 @@ def test_a_controller_reads_a_rig_parts_state_by_name(cache, tmp_path):
     # over the delay; the engines agree on it
     assert predicted["engines"] < 1e-12 and predicted["law"] > 1e-6
     assert out["given"] < 1e-15  # the law at the temperature given
+    assert {k: v for k, v in out["quiet"].items() if k != "actuators"} == {
+        "noise_l": 0.0, "noise_p": 0.0, "noise_q": 0.0, "noise_ps": 0.0, "seal_noise": 0.0}
     noisy = out["noisy"]  # the reading's noise (0.5 K) in the command, the same draw on both engines
     assert noisy["engines"] < 1e-12 and noisy["rows"] > 100 and 0.4 < noisy["std"] < 0.6
+    # the reading is a log of the run (both engines): the command is the law at it
+    assert noisy["readings"] < 1e-12 and noisy["law"] < 1e-12 and 0.4 < noisy["reading_std"] < 0.6
     assert out["not_given"] == ("controller 'p-seal' reads the plant's seal_temp: give it with the signals "
                                 "(plant={name: value})")
     assert out["fmu_inputs"] == [[f"seal_temp.{c}", "input", "K"] for c in ("shoulder_cylinder", "elbow_cylinder")]

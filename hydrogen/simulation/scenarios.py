@@ -11,7 +11,9 @@ import numpy as np
 from .. import estimators, references
 from ..errors import ScenarioError
 from ..layout import MAX_DELAY, delay_split
-from ..plant import actuator_settings as plant_actuator_settings, friction, integrator
+from ..plant import (BLOCKS as plant_blocks, actuator_settings as plant_actuator_settings, block as plant_block,
+                     friction, integrator)
+from ..sensors import NOISE  # the loop's own sensors' noise settings
 from ..scenario_settings import (_FIELDS, PER_ACTUATOR, RENAMED, VARIANT_SEPARATOR, ScenarioFields,  # noqa: F401
                                  actuator_keys, setting, settings, table_keys)
 from .checks import check_fields
@@ -38,9 +40,11 @@ class Scenario(ScenarioFields):
     """
 
     def noise_free(self) -> dict:
-        """The overrides that switch every sensor noise off, the per-actuator ones included."""
+        """The overrides that switch every sensor noise off: the loop's own sensors' (the per-actuator
+        ones included) and every rig part's output's sensor (:attr:`hydrogen.plant.PlantState.noise`)."""
         quiet = {a: {**v, "noise_l": 0.0} for a, v in self.actuators.items() if isinstance(v, Mapping)}
-        return {"noise_l": 0.0, "noise_p": 0.0, "noise_q": 0.0, "noise_ps": 0.0, "actuators": quiet}
+        parts = {st.noise: 0.0 for b in plant_blocks for st in plant_block(b).STATES if st.noise}
+        return {**{ch.setting: 0.0 for ch in NOISE}, **parts, "actuators": quiet}
 
     def delay_split(self) -> tuple:
         """The delay as (whole control periods, fraction of a period): :func:`hydrogen.layout.delay_split`."""

@@ -82,7 +82,7 @@ class SimulationResult:
     model_name: str = ""
     #: The loop's other logs (:data:`hydrogen.loop_logs.LOGS` without a field above), by name: rows
     #: (k, size) over the run (``ldot``: the actuator rates the velocities came from, ``qdot_meas``: the
-    #: measured velocities).
+    #: measured velocities; ``<output>_meas``: a rig part's sensor's reading, where it declares one).
     signals: dict = field(default_factory=dict)
 
     @property
@@ -837,8 +837,16 @@ def _run_c(dyn, sc, ctrl, x0, q0, noise, estimate, log, n, h, runner=None):
 class _Signals:
     """One period's signals as the stages hand them on (the C loop's ``<model>_loop_signals``)."""
     __slots__ = ("nz", "t", "l_true", "l_meas", "pc_meas", "ps_meas", "q_enc", "plant_meas", "ldot", "qdot_meas", "qd",
-                 "adapt", "u",
-                 "u_held", "u_app")
+                 "adapt", "u", "u_held", "u_app")
+
+    def __getattr__(self, name):
+        """A rig part's sensor's reading by the C loop's field name, ``<output>_meas`` (``plant_meas``)."""
+        if name.endswith("_meas") and name != "plant_meas":
+            try:
+                return self.plant_meas[name.removesuffix("_meas")]
+            except (AttributeError, KeyError):
+                pass
+        raise AttributeError(name)
 
 
 class PythonStages:
@@ -1105,9 +1113,11 @@ def _result(sc, controller, ctrl, log, k, theta0, gamma0, theta_true, gamma_true
     # the loop's logs (hydrogen.loop_logs): each its result's field, or by name in ``signals``; the
     # controller's state is its blocks' (``states``, the estimates)
     named = {r.result: rows(r) for r in LOGS if r.result}
+    # the others by name: the table's rows without a field of their own, a rig part's sensor's reading
+    own = {r.name for r in LOGS if r.result or r.source[0] == STATE} | {b.name for b in plant_outputs(plant_layout(model))}
     res = SimulationResult(
         scenario=sc, controller=controller, **named,
-        signals={r.name: rows(r) for r in LOGS if not r.result and r.source[0] != STATE and r.name in log},
+        signals={name: v[:k] for name, v in log.items() if name not in own},
         theta_hat=est("theta_hat", theta0), gamma1_hat=est("gamma1_hat", gamma0[0]),
         gamma2_hat=est("gamma2_hat", gamma0[1]),
         theta_true=theta_true, gamma_true=gamma_true, amplitude=sc.reference.amplitude(),
