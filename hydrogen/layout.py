@@ -12,7 +12,7 @@ import math
 from . import diagram  # the controller's input slots: the loop's ports
 from . import references  # the reference kinds' part of the configuration and their C
 from .estimators import ESTIMATORS, estimator, switch_field  # the estimators' state, numbers and C
-from .loop_logs import FORCES, LOGS, PLANT, SIGNAL  # the run's logs
+from .loop_logs import FORCES, LOGS, PLANT, SIGNAL, STATE  # the run's logs
 from .names import NUMBERS  # the numbers input's name, part of the loop's layout
 from .plant import (BLOCKS as PLANT_BLOCKS, block as plant_block, input_record, integrator,  # the plant's blocks
                     plant_inputs)
@@ -401,8 +401,9 @@ def plant_ports(summary: dict) -> tuple:
         name = part["name"]
         if name in taken:
             if name != SUPPLY_PRESSURE:  # the supply pressure's port is its measurement; no other may hide
-                raise ImportError(f"the plant's output {name!r} takes the name of one of the loop's ports "
-                                  f"({', '.join(sorted(taken))}): a controller could not read it")
+                owner = next((b for b in PLANT_BLOCKS if any(st.name == name for st in plant_block(b).STATES)), "?")
+                raise ImportError(f"plant block {owner!r} declares the output {name!r}, the name of one of the "
+                                  f"loop's ports ({', '.join(sorted(taken))}): a controller could not read it")
             continue
         st = states.get(name)
         unit = st.unit if st is not None and isinstance(st.unit, str) else "per entry"
@@ -470,8 +471,12 @@ def log_rows(summary: dict) -> list:
     out = []
     for name, size, doc, (kind, field) in rows:
         if kind == SIGNAL and field not in signals or kind == PLANT and field not in offsets:
-            raise ImportError(f"the log {name!r} (hydrogen.loop_logs) reads the {kind} {field!r}, which the loop "
-                              f"has not got (its {kind}s: {', '.join(signals if kind == SIGNAL else offsets)})")
+            what, have = ("signal", signals) if kind == SIGNAL else ("plant part", offsets)
+            raise ImportError(f"the log {name!r} (hydrogen.loop_logs) reads the {what} {field!r}, which the loop "
+                              f"has not got (its {what}s: {', '.join(have)})")
+        if kind == STATE and field not in {f[0] for f in LOOP_STATE}:
+            raise ImportError(f"the log {name!r} (hydrogen.loop_logs) reads the loop state's field {field!r}, which "
+                              f"it has not got (its fields: {', '.join(f[0] for f in LOOP_STATE)})")
         if "NXC" in size:
             width, count = None, "c->n_xc"
         else:

@@ -71,5 +71,10 @@ LOGS = (
     LogRow("xc", ("NXC",), "per block", "controller state", (STATE, "xc")),
 )
 
+_unknown = [row.name for row in LOGS if row.source[0] not in (SIGNAL, PLANT, STATE, FORCES)]
+if _unknown:
+    raise ImportError(f"the log {_unknown[0]!r} (hydrogen.loop_logs) names no source kind of {SIGNAL!r}, {PLANT!r}, "
+                      f"{STATE!r}, {FORCES!r}")
+
 #: Names no plant output may take: the loop's own logs.
 RESERVED = tuple(row.name for row in LOGS)

@@ -202,6 +202,15 @@ out["noisy"] = {"engines": float(np.max(np.abs(noisy[0].u - noisy[1].u))),
 # every sensor's noise off, the part's too: the exported program's and the FMUs' noise-free run
 from hydrogen.simulation.scenarios import scenario
 out["quiet"] = scenario("seal-sim", dyn.model).noise_free()
+# the exported program (the part's sensor noisy in the scenario): its errors are noise_free()'s run's
+import re, subprocess
+from hydrogen.export import export
+folder = export(Path(sys.argv[2]) / "program", "seal-sim", "p-seal", dyn=dyn, seal_noise=0.5)
+run = subprocess.run(["make", "-s", "run"], cwd=folder, capture_output=True, text=True, timeout=600)
+printed = [float(v) for v in re.findall(r"max_error \\S+ (\\S+) ", run.stdout)]  # in the coordinate's unit
+quiet = hydrogen.simulate("seal-sim", "p-seal", dyn=dyn, **{"seal_noise": 0.5, **out["quiet"]})
+pct = quiet.metrics["max_error_pct"]
+out["program"] = [printed, [pct[c] / 100 * a for c, a in zip(quiet.coordinates, quiet.amplitude) if pct.get(c) is not None]]
 # the runtime's own call: the part's state must be given, never an earlier call's left over
 from hydrogen.simulation.simulator import prepare_run
 ctrl = prepare_run(dyn, "seal-sim", "p-seal", None, None, True, {}).ctrl
@@ -262,11 +271,13 @@ def test_a_controller_reads_a_rig_parts_state_by_name(cache, tmp_path):
     assert out["given"] < 1e-15  # the law at the temperature given
     assert {k: v for k, v in out["quiet"].items() if k != "actuators"} == {
         "noise_l": 0.0, "noise_p": 0.0, "noise_q": 0.0, "noise_ps": 0.0, "seal_noise": 0.0}
+    printed, simulated = out["program"]
+    assert len(printed) == len(simulated) > 0 and max(abs(a / b - 1) for a, b in zip(printed, simulated)) < 1e-9
     noisy = out["noisy"]  # the reading's noise (0.5 K) in the command, the same draw on both engines
     assert noisy["engines"] < 1e-12 and noisy["rows"] > 100 and 0.4 < noisy["std"] < 0.6
     # the reading is a log of the run (both engines): the command is the law at it
     assert noisy["readings"] < 1e-12 and noisy["law"] < 1e-12 and 0.4 < noisy["reading_std"] < 0.6
     assert out["not_given"] == ("controller 'p-seal' reads the plant's seal_temp: give it with the signals "
-                                "(plant={name: value})")
+                                "(command(..., plant={name: value}), or by name in command_for's signals)")
     assert out["fmu_inputs"] == [[f"seal_temp.{c}", "input", "K"] for c in ("shoulder_cylinder", "elbow_cylinder")]
     assert out["cosimulated"] < 1e-9  # rad: the two FMUs wired by name are the closed loop

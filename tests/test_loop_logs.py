@@ -137,7 +137,7 @@ def test_a_log_of_a_signal_the_robot_lacks_is_no_log(monkeypatch):
         names = [r["name"] for r in log_rows(model_summary(hydrogen.load_model(name)))]
         assert ("ps_meas" in names, "q_enc" in names) == (has, has), name
     monkeypatch.setattr(layout, "LOGS", LOGS + (LogRow("qq", ("NQ",), "m", "a typo", (PLANT, "qdott")),))
-    with pytest.raises(ImportError, match="'qq'.*plant 'qdott'"):
+    with pytest.raises(ImportError, match="'qq'.*the plant part 'qdott', which the loop has not got"):
         log_rows(model_summary(hydrogen.load_model("ubc_stewart")))
 
 
@@ -155,3 +155,17 @@ def test_the_run_size_check_counts_the_logs_a_run_allocates(controller):
         widths = sum(w for _, w in log_widths(model, n_xc))
         noise = noise_width(robot_sizes(model_summary(model)), model.joint_encoders)
         assert run_doubles_per_period(model, controller, True) == noise + model.n + model.n_cylinders + widths
+
+
+def test_a_log_of_the_loops_state_reaches_the_result(dyn, monkeypatch):
+    """A row reading a field of the loop's state (the last measured pose) without a result field of its
+    own is in ``signals`` (the Python engine: the C loop's write_log is rendered from the same table)."""
+    from hydrogen import layout
+    from hydrogen.loop_logs import LogRow
+    from hydrogen.simulation import simulator
+    row = LogRow("pose_measured", ("NQ",), "m or rad", "the last measured pose", (STATE, "q_meas"))
+    monkeypatch.setattr(layout, "LOGS", LOGS + (row,))
+    monkeypatch.setattr(simulator, "LOGS", LOGS + (row,))
+    res = hydrogen.simulate("paper-sim", "backstepping", dyn=dyn, duration=0.02, engine="python")
+    pose = res.signals["pose_measured"]
+    assert pose.shape == res.q.shape and np.max(np.abs(pose - res.q)) < 1e-3  # m, rad: noise and quantisation

@@ -496,3 +496,33 @@ def test_a_rig_parts_rate_is_its_law_on_the_other_blocks_signals(spring_run):
 def test_a_rig_parts_state_is_an_output_of_the_log_and_the_fmu(spring_run):
     assert {"seal_temp0", "seal_temp1", "ps0"} <= set(spring_run["csv"])
     assert spring_run["fmu_state"] == ["output", "K", "parameter", "K", 280.0]
+
+
+def test_a_sensor_is_declared_on_an_output_with_a_setting_of_its_block():
+    """A state's sensor noise (PlantState.noise) is refused on a state that is no output, and naming a
+    setting its block does not declare, each with its own words."""
+    import types
+
+    from hydrogen.plant import PlantState, _check_sensors
+    from hydrogen.setting import setting
+    own = {"temp_noise": setting(0.0, "K", "the sensor's noise", ">=0")}
+    inner = types.SimpleNamespace(STATES=(PlantState("temp", "m", "K", "t", noise="temp_noise"),), SCENARIO_SETTINGS=own)
+    with pytest.raises(ImportError, match="plant block 'heat' gives its state 'temp' a sensor's noise 'temp_noise', "
+                                          "but the state is no output"):
+        _check_sensors("heat", inner)
+    unknown = types.SimpleNamespace(STATES=(PlantState("temp", "m", "K", "t", output=True, noise="typo"),),
+                                    SCENARIO_SETTINGS=own)
+    with pytest.raises(ImportError, match="the sensor's noise setting 'typo', which its SCENARIO_SETTINGS does not"):
+        _check_sensors("heat", unknown)
+    _check_sensors("heat", types.SimpleNamespace(STATES=(PlantState("temp", "m", "K", "t", output=True,
+                                                                    noise="temp_noise"),), SCENARIO_SETTINGS=own))
+
+
+def test_an_output_may_not_take_a_loop_ports_name(robot_model):
+    """A plant output named as one of the loop's ports (other than the supply pressure, which is its
+    measurement) could not be read by a controller: refused naming it."""
+    from hydrogen.layout import model_summary, plant_ports
+    summary = model_summary(robot_model)
+    summary["plant"] = [*summary["plant"], {"name": "adapt", "size": "m", "start": 0, "entries": 1, "output": True}]
+    with pytest.raises(ImportError, match="declares the output 'adapt', the name of one of the loop's ports"):
+        plant_ports(summary)

@@ -352,3 +352,17 @@ def test_a_part_generated_alone_is_reported_as_such(tmp_path, monkeypatch, packa
     folder = build_mod.generated_dir_for(model, tmp_path / "cache", controllers=())
     n = len(gen.read_manifest(folder)["functions"])
     assert said["generated"].startswith(f"1 of {n} functions again") and "loop drivers rendered again" in said["generated"]
+
+
+def test_the_loop_structs_mirror_each_robots_own_layout():
+    """Two robots alike but for their joint encoders have signals structs of their own (the encoders'
+    reading is a field only where fitted): the ctypes mirrors are never shared between them."""
+    import ctypes
+
+    from hydrogen.layout import loop_context, model_summary
+    from hydrogen.runtime.loop import _structs
+    summary = model_summary(hydrogen.load_model("excavator_arm"))
+    bare = {**summary, "joint_encoders": False}
+    with_enc, without = (_structs(loop_context({"model": s}))[3] for s in (summary, bare))
+    assert "q_enc" in dict(with_enc._fields_) and "q_enc" not in dict(without._fields_)
+    assert ctypes.sizeof(with_enc) == ctypes.sizeof(without) + 8 * summary["n"]

@@ -366,6 +366,18 @@ def outputs(layout) -> tuple:
     return tuple(s for s in layout if s.output)
 
 
+def _check_sensors(name: str, mod) -> None:
+    """A block's declared sensors (:attr:`PlantState.noise`): each of an output, its noise one of the
+    block's ``SCENARIO_SETTINGS``; else an ImportError naming the block, the state and what is wrong."""
+    for st in mod.STATES:
+        if st.noise and not st.output:
+            raise ImportError(f"plant block {name!r} gives its state {st.name!r} a sensor's noise {st.noise!r}, "
+                              "but the state is no output (output=True): a sensor reads an output")
+        if st.noise and st.noise not in getattr(mod, "SCENARIO_SETTINGS", {}):
+            raise ImportError(f"plant block {name!r} gives its state {st.name!r} the sensor's noise setting "
+                              f"{st.noise!r}, which its SCENARIO_SETTINGS does not declare")
+
+
 def _discover() -> tuple:
     from ..registry import discover
     found = discover(__name__, __path__, ("POSITION", "STATES", "Symbolic"), lambda mod: mod.__name__.rsplit(".", 1)[-1],
@@ -395,10 +407,7 @@ def _discover() -> tuple:
         if unknown:
             raise ImportError(f"plant block {name!r} starts a state at the scenario setting {unknown[0]!r}, which "
                               "its SCENARIO_SETTINGS does not declare")
-        noisy = [st for st in mod.STATES if st.noise and not (st.output and st.noise in getattr(mod, "SCENARIO_SETTINGS", {}))]
-        if noisy:
-            raise ImportError(f"plant block {name!r} gives the state {noisy[0].name!r} a sensor's noise "
-                              f"{noisy[0].noise!r}: only an output's, and one of its SCENARIO_SETTINGS")
+        _check_sensors(name, mod)
         taken = [st.name for st in mod.STATES if st.output and st.name in RESERVED_OUTPUTS]
         if taken:
             raise ImportError(f"plant block {name!r} declares the output {taken[0]!r}, a name the run's logs "

@@ -38,7 +38,11 @@ def _context(library) -> dict:
 def _structs(ctx: dict):
     """ctypes mirrors of the loop's config, state and log structs, sized from the template context
     (the same context the C was rendered from)."""
-    key = (ctx["n"], ctx["m"], ctx["nx"], ctx["max_delay"], len(ctx["slots"]), tuple(n for n, _, _ in ctx["logs"]))
+    # every field of every struct mirrored, with its type and length: two robots share the mirrors only
+    # where their structs are the same (a robot's encoders, sensors or inputs change its structs' layout)
+    key = (tuple((f["name"], f["type"]) for g in ctx["config"] for f in g["fields"]), len(ctx["slots"]),
+           *(tuple((f["name"], f["type"], f["length"]) for f in ctx[part]) for part in ("state", "signals")),
+           tuple(n for n, _, _ in ctx["logs"]))
     if key in _STRUCTS:
         return _STRUCTS[key]
 

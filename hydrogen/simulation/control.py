@@ -179,7 +179,8 @@ class _Controller:
         missing = [name for name in self.plant_reads if name not in signals]
         if missing:
             raise ScenarioError(f"controller '{self.kind}' reads the plant's {', '.join(missing)}: give "
-                                f"{'it' if len(missing) == 1 else 'them'} with the signals (plant={{name: value}})")
+                                f"{'it' if len(missing) == 1 else 'them'} with the signals (command(..., "
+                                "plant={name: value}), or by name in command_for's signals)")
         v = self.values
         v.update(signals)
         # a copy of u_applied: the spool held over the period ending at this measurement, also for the

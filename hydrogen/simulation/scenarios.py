@@ -309,7 +309,7 @@ def scenario(name: str, model) -> Scenario:
     missing = [f for f in settings() if f.name not in fields and f.default is MISSING and f.default_factory is MISSING]
     if missing:
         raise ScenarioError(f"{where}: missing field(s) " + "; ".join(
-            f"{f.name} ({f.metadata['meaning']}, {f.metadata['unit']})" for f in missing))
+            f"{f.name} ({', '.join(filter(None, (f.metadata['meaning'], f.metadata['unit'])))})" for f in missing))
     try:
         sc = Scenario(name=name, reference=_reference(model, where, ref, neutral), gains=gains,
                       label=str(label), paper=dict(paper), actuators=actuators, **fields)

@@ -17,7 +17,7 @@ from ..errors import KinematicsError, RunEndedError, ScenarioError, SimulationEr
 from ..estimators import designs_for, estimate_for, remember as remember_designs
 from ..estimators.kalman import kalman_gain, length_noise_variance  # noqa: F401 - the simulator's API
 from ..layout import LU_PIVOT_MIN, SUPPLY_LOG, log_rows, model_summary, plant_ports, plant_sensors, robot_sizes
-from ..loop_logs import FORCES, LOGS, PLANT, SIGNAL, STATE
+from ..loop_logs import FORCES, LOGS, PLANT, SIGNAL
 from ..plant import (describe_entries, initial_state, input_values, integrator, outputs as plant_outputs, plant_inputs,
                      plant_layout, slot)
 from ..plant.supply import nominal as supply_nominal
@@ -667,7 +667,8 @@ class RunPlan:
     def noise(self, seed) -> np.ndarray:
         """The sensor noise table of a run with noise ``seed``: one row per period, the channels of
         :data:`hydrogen.sensors.NOISE` (actuator travel, pressure states, the joint encoders where
-        fitted, the supply pressure where it is a state), each drawn in that order only where its
+        fitted, the supply pressure where it is a state), then each rig part's output's sensor
+        (:func:`hydrogen.layout.plant_sensors`), each drawn in that order only where its
         standard deviation (the actuator's own, else the scenario's) is not 0; one table for every engine."""
         n = self.n
         rng = np.random.default_rng(seed)
@@ -1114,10 +1115,10 @@ def _result(sc, controller, ctrl, log, k, theta0, gamma0, theta_true, gamma_true
     # controller's state is its blocks' (``states``, the estimates)
     named = {r.result: rows(r) for r in LOGS if r.result}
     # the others by name: the table's rows without a field of their own, a rig part's sensor's reading
-    own = {r.name for r in LOGS if r.result or r.source[0] == STATE} | {b.name for b in plant_outputs(plant_layout(model))}
+    own = {r.name for r in LOGS if r.result or "NXC" in r.size} | {b.name for b in plant_outputs(plant_layout(model))}
     res = SimulationResult(
         scenario=sc, controller=controller, **named,
-        signals={name: v[:k] for name, v in log.items() if name not in own},
+        signals={name: v[:k] for name, v in log.items() if name not in own},  # the controller's state: states
         theta_hat=est("theta_hat", theta0), gamma1_hat=est("gamma1_hat", gamma0[0]),
         gamma2_hat=est("gamma2_hat", gamma0[1]),
         theta_true=theta_true, gamma_true=gamma_true, amplitude=sc.reference.amplitude(),
