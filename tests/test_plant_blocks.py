@@ -526,3 +526,22 @@ def test_an_output_may_not_take_a_loop_ports_name(robot_model):
     summary["plant"] = [*summary["plant"], {"name": "adapt", "size": "m", "start": 0, "entries": 1, "output": True}]
     with pytest.raises(ImportError, match="declares the output 'adapt', the name of one of the loop's ports"):
         plant_ports(summary)
+
+
+def test_a_blocks_law_that_fails_on_a_robot_is_refused_naming_it(monkeypatch):
+    """A block's own law that fails on a robot (it reads a parameter that robot's actuator kind lacks) is
+    a PlantWiringError naming the block, the robot and the error (a clear line from the CLI)."""
+    import hydrogen
+    from hydrogen.symbolic.plant import plant_rhs
+
+    model = hydrogen.load_model("ubc_stewart")
+    real = plant.block("friction").Symbolic.outputs
+
+    def reads_a_tank(c):
+        real(c)
+        c["laws"]["tank_pressure"]  # a mistake of its own code on this robot (laws: one per actuator)
+
+    monkeypatch.setattr(plant.block("friction").Symbolic, "outputs", staticmethod(reads_a_tank))
+    with pytest.raises(PlantWiringError, match=r"plant block 'friction': its Symbolic.outputs failed on robot "
+                                               r"'ubc_stewart': (KeyError|TypeError|IndexError)"):
+        plant_rhs(model)

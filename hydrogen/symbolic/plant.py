@@ -160,6 +160,20 @@ def _check_distinct(owned) -> None:
             seen[name] = owner
 
 
+def _run(c: Composition, what: str, law) -> None:
+    """A block's ``Symbolic.<what>`` on the composition: a mistake of its own code on this robot (a
+    parameter another actuator kind lacks, a wrong index) is a PlantWiringError naming the block, the
+    robot and the error, not a bare traceback from deep in the derivation."""
+    try:
+        law(c)
+    except PlantWiringError:
+        raise
+    except Exception as exc:  # noqa: BLE001 - any error of a block's own law, reworded once
+        raise PlantWiringError(f"plant block '{c.block}': its Symbolic.{what} failed on robot '{c.model.name}': "
+                               f"{type(exc).__name__}: {exc} (a block's law joins every robot's plant: it may read "
+                               "only what every actuator kind gives)") from exc
+
+
 def plant_rhs(model):
     """Symbols and right-hand side of the plant: returns (inputs, xdot, intermediates)."""
     m = model.n_cylinders
@@ -190,12 +204,12 @@ def plant_rhs(model):
         c.provide(name, value)
     for mod in _output_order(mods, set(c.signals)):
         c.block, c.reads, c.adds = _name(mod), set(_declared(mod, "READS")), set(_declared(mod, "ADDS"))
-        getattr(mod.Symbolic, "outputs", _no_outputs)(c)
+        _run(c, "outputs", getattr(mod.Symbolic, "outputs", _no_outputs))
     c.reads = c.adds = None
     for mod in mods:
         c.block = _name(mod)
         if mod.STATES:
-            mod.Symbolic.derivatives(c)
+            _run(c, "derivatives", mod.Symbolic.derivatives)
         for st in mod.STATES:
             if st.name not in c.rates:
                 raise PlantWiringError(f"plant block '{c.block}' gives no rate of its state '{st.name}' (its "
