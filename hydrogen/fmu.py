@@ -219,6 +219,13 @@ def _coord_units(model):
     return list(model.coordinate_units)
 
 
+def _part_range(part, j: int) -> dict:
+    """The ``lo``/``hi`` of entry ``j`` of a plant part (a :class:`hydrogen.plant.Slot`): its declared
+    range, None where unbounded."""
+    lo, hi = part.lower[j], part.upper[j]
+    return {"lo": float(lo) if np.isfinite(lo) else None, "hi": float(hi) if np.isfinite(hi) else None}
+
+
 def _variables(part, dyn, p, ctx, fn, encoders, estimated):
     """The FMU's variables, in value-reference order, with their C locations in the instance."""
     model, sc, ctrl = dyn.model, p.sc, p.ctrl
@@ -260,10 +267,8 @@ def _variables(part, dyn, p, ctx, fn, encoders, estimated):
         others = [b for b in plant_outputs(layout) if b.name != SUPPLY_LOG]  # a rig part's outputs
         for b in others:
             for j, e in enumerate(b.entries):
-                lo, hi = b.lower[j], b.upper[j]
                 add(_dotted(f"{b.name}_start", e), "p", "fixed", f"initial {b.doc} of {e}", f"inst->{b.name}_start[{j}]",
-                    unit=_fmi_unit(b.units[j]), start=float(p.x0[b.slice][j]),
-                    lo=float(lo) if np.isfinite(lo) else None, hi=float(hi) if np.isfinite(hi) else None)
+                    unit=_fmi_unit(b.units[j]), start=float(p.x0[b.slice][j]), **_part_range(b, j))
         for i, c in enumerate(coords):
             add(_dotted("q", c), "o", "continuous", f"coordinate {c}", f"inst->y_q[{i}]", unit=cunits[i])
         for i, c in enumerate(coords):
@@ -313,10 +318,9 @@ def _variables(part, dyn, p, ctx, fn, encoders, estimated):
         for b in plant_outputs(layout):
             if b.name in read:
                 for j, e in enumerate(b.entries):
-                    lo, hi = b.lower[j], b.upper[j]
                     add(_dotted(b.name, e), "i", "continuous", f"{b.doc} of {e} (the controller reads it)",
                         f"inst->{b.name}_in[{j}]", unit=_fmi_unit(b.units[j]), start=float(p.x0[b.slice][j]),
-                        lo=float(lo) if np.isfinite(lo) else None, hi=float(hi) if np.isfinite(hi) else None)
+                        **_part_range(b, j))
         ref0 = sc.reference(0.0)
         for k, (slot, base, suffix, what) in enumerate(_REF_ORDERS):
             if slot not in fn.in_names:

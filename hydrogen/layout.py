@@ -372,47 +372,51 @@ def signal_fields(summary: dict) -> tuple:
                                  f"{ch.setting}), {ch.unit}") for ch in plant_sensors(summary))
 
 
+def _output_text(name: str) -> tuple:
+    """(block, unit, doc) of the plant's output ``name`` as its block declares it (its unit "per entry"
+    where a rule gives each entry its own; ``name`` itself as the doc of a state no block declares)."""
+    for b in PLANT_BLOCKS:
+        for st in getattr(plant_block(b), "STATES", ()):
+            if st.name == name:
+                return b, st.unit if isinstance(st.unit, str) else "per entry", st.doc
+    return "?", "per entry", name
+
+
 def plant_sensors(summary: dict) -> tuple:
     """The sensors of the plant's outputs that declare a noise (:attr:`hydrogen.plant.PlantState.noise`),
     from a manifest's model summary: each a :class:`hydrogen.sensors.NoiseChannel` named as the output
     (its channel of the noise row after the loop's own; the signals' ``<name>_meas``, its reading)."""
-    states = {st.name: st for b in PLANT_BLOCKS for st in getattr(plant_block(b), "STATES", ())}
     out = []
     for part in plant_outputs(summary):
         if part.get("noise"):
-            st = states.get(part["name"])
-            unit = st.unit if st is not None and isinstance(st.unit, str) else "per entry"
-            out.append(NoiseChannel(part["name"], C_SIZES[part["size"]], part["noise"], unit,
-                                    st.doc if st is not None else part["name"]))
+            _, unit, doc = _output_text(part["name"])
+            out.append(NoiseChannel(part["name"], C_SIZES[part["size"]], part["noise"], unit, doc))
     return tuple(out)
 
 
 def plant_ports(summary: dict) -> tuple:
     """Each of the plant's outputs that is not one of the loop's own ports (the supply pressure is:
     measured, with its noise) as a port a controller may read, from a manifest's model summary: its
-    true value at the period's start (an ideal sensor), or the predicted one with a delay predictor;
-    named as the output, sized in the robot's sizes, its C value in the control stage (``xs``: the
-    plant state it sees)."""
+    sensor's reading at the period's start (its true value unless it declares a noise), or the
+    predicted one with a delay predictor; named as the output, sized in the robot's sizes, its C value
+    in the control stage (``xs``: the plant state it sees)."""
     taken = {p.name for p in diagram.CONTROLLER_PORTS}
     offsets = plant_offsets(summary)
-    states = {st.name: st for b in PLANT_BLOCKS for st in getattr(plant_block(b), "STATES", ())}
     out = []
     for part in plant_outputs(summary):
         name = part["name"]
+        owner, unit, what = _output_text(name)
         if name in taken:
             if name != SUPPLY_PRESSURE:  # the supply pressure's port is its measurement; no other may hide
-                owner = next((b for b in PLANT_BLOCKS if any(st.name == name for st in plant_block(b).STATES)), "?")
                 raise ImportError(f"plant block {owner!r} declares the output {name!r}, the name of one of the "
                                   f"loop's ports ({', '.join(sorted(taken))}): a controller could not read it")
             continue
-        st = states.get(name)
-        unit = st.unit if st is not None and isinstance(st.unit, str) else "per entry"
-        doc = f"the plant's {st.doc if st is not None else name} (its true value, an ideal sensor)"
         at = "xs" if offsets[name] == "0" else f"xs + {offsets[name]}"
         if part.get("noise"):  # its sensor's reading, or the prediction from it
-            at, doc = f"c->predict ? {at} : s->{name}_meas", doc.replace("its true value, an ideal sensor",
-                                                                           f"its sensor's reading, noise {part['noise']}")
-        out.append(diagram.Port(name, (C_SIZES[part["size"]],), unit, doc, at))
+            at, sensor = f"c->predict ? {at} : s->{name}_meas", f"its sensor's reading, noise {part['noise']}"
+        else:
+            sensor = "its true value, an ideal sensor"
+        out.append(diagram.Port(name, (C_SIZES[part["size"]],), unit, f"the plant's {what} ({sensor})", at))
     return tuple(out)
 
 
@@ -462,8 +466,7 @@ def log_rows(summary: dict) -> list:
         return math.prod(t if isinstance(t, int) else sizes[t] for t in size)
 
     rows = [(r.name, r.size, f"{r.doc}, {r.unit}", r.source) for r in LOGS]
-    docs = {st.name: st.doc for b in PLANT_BLOCKS for st in getattr(plant_block(b), "STATES", ())}
-    rows += [(p["name"], (C_SIZES[p["size"]],), docs.get(p["name"], f"the plant's {p['name']}"), (PLANT, p["name"]))
+    rows += [(p["name"], (C_SIZES[p["size"]],), _output_text(p["name"])[2], (PLANT, p["name"]))
              for p in plant_outputs(summary)]
     # each rig part's sensor's reading (hydrogen.plant.PlantState.noise): the signal the controller reads
     rows += [(f"{ch.name}_meas", (ch.size,), f"measured {ch.doc}, {ch.unit}", (SIGNAL, f"{ch.name}_meas"))

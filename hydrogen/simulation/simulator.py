@@ -660,6 +660,11 @@ class RunPlan:
         return ctrl
 
     @functools.cached_property
+    def noise_channels(self) -> tuple:
+        """The noise row's channels in order: the loop's own, then the plant's sensors', once per plan."""
+        return (*NOISE, *plant_sensors(model_summary(self.dyn.model)))
+
+    @functools.cached_property
     def noise_columns(self) -> dict:
         """The noise row's columns (:func:`hydrogen.sensors.noise_columns`), worked out once per plan."""
         return _noise_columns(self.dyn)
@@ -674,7 +679,7 @@ class RunPlan:
         rng = np.random.default_rng(seed)
         columns = self.noise_columns
         noise = np.zeros((n, sum(count for _, count in columns.values())))
-        for ch in (*NOISE, *plant_sensors(model_summary(self.dyn.model))):  # the plant's sensors' last
+        for ch in self.noise_channels:
             if ch.name not in columns:
                 continue
             start, count = columns[ch.name]
@@ -872,7 +877,6 @@ class PythonStages:
         self._inputs = tuple(v.ravel() for v in input_values(sc, model).values())
         self._pred_inputs = tuple(np.tile(np.array(i.ideal, float), model.n_cylinders) for i in plant_inputs(model))
         self.layout = plant_layout(model)
-        self.outputs = plant_outputs(self.layout)  # the plant's outputs, logged each period
         self._q, self._qdot, self._pc = (slot(self.layout, k).slice for k in ("q", "qdot", "pc"))
         self._ps = next((b.slice for b in self.layout if b.name == SUPPLY_LOG), None)  # a supply state
         # the plant's outputs a controller may read (hydrogen.layout.plant_ports): their parts of x
@@ -1007,7 +1011,7 @@ class PythonStages:
         h, pc = self.h, self._pc
         th, g1, g2 = self.ctrl.own_parameters()
         supply = {} if self._ps is None else {SUPPLY_LOG: s.ps_meas}
-        # the rig parts' states the controller reads: from their ideal sensors' reading
+        # the rig parts' states the controller reads: from their sensors' reading
         supply.update((name, s.plant_meas[name]) for name, _ in self._plant_ports if name in self.ctrl.plant_reads)
         # what it measures nothing of (spool: unused by the ideal valve) at its declared initial value
         x = initial_state(self.layout, self.sc, q=self.q_meas, qdot=s.qdot_meas, pc=s.pc_meas, **supply)
@@ -1115,7 +1119,8 @@ def _result(sc, controller, ctrl, log, k, theta0, gamma0, theta_true, gamma_true
     # controller's state is its blocks' (``states``, the estimates)
     named = {r.result: rows(r) for r in LOGS if r.result}
     # the others by name: the table's rows without a field of their own, a rig part's sensor's reading
-    own = {r.name for r in LOGS if r.result or "NXC" in r.size} | {b.name for b in plant_outputs(plant_layout(model))}
+    outputs = [b.name for b in plant_outputs(plant_layout(model))]  # the plant's: in ``plant``
+    own = {r.name for r in LOGS if r.result or "NXC" in r.size} | set(outputs)
     res = SimulationResult(
         scenario=sc, controller=controller, **named,
         signals={name: v[:k] for name, v in log.items() if name not in own},  # the controller's state: states
@@ -1127,7 +1132,7 @@ def _result(sc, controller, ctrl, log, k, theta0, gamma0, theta_true, gamma_true
         u_max=float(ctrl.values["u_max"][0]) if "u_max" in ctrl.values else 0.0,
         actuators=tuple(c.name for c in model.cylinders),
         states={b.name: log["xc"][:k, ctrl.slices[b.name]] for b in ctrl.layout},
-        plant={b.name: log[b.name][:k] for b in plant_outputs(plant_layout(model))},
+        plant={name: log[name][:k] for name in outputs},
         supply_pressure=log[SUPPLY_LOG][:k, 0] if SUPPLY_LOG in log else None, model_name=model.name)
     if k:
         res.compute_metrics()
