@@ -96,7 +96,7 @@ DESCRIPTION_KEYS = (
     Key("top level", "rigid_body_form", "", "the rigid body's code: \"closed\" (expanded link Jacobians, C "
         "from ∂D/∂q), \"staged\" (link poses as intermediate symbols, spatial algebra; revolute, prismatic and "
         "fixed joints only) or \"auto\", the one of fewer CasADi instructions, staged without counting for a "
-        "tree with a rotated joint origin or a tilted axis (Code generation page); all give the same D, C, G, Y", default="auto"),
+        "tree with a rotated joint origin or a tilted axis above a moving joint (Code generation page); all give the same D, C, G, Y", default="auto"),
     Key("top level", "controllers", "", "the controllers generated for this robot (names of "
         "hydrogen.controllers.CONTROLLERS); a run, export or FMU of another is refused naming this key",
         default=None, default_text="all of hydrogen's controllers"),

@@ -112,6 +112,19 @@ def test_oblique_joints_are_rotated_origins_and_tilted_axes(leg):
         assert oblique_joints(dataclasses.replace(leg, joints=(leg.joints[0], changed, *leg.joints[2:]))) == [j.name]
     flipped = dataclasses.replace(j, axis=np.array([0.0, -1.0, 0.0]))  # a flipped axis is still a coordinate axis
     assert oblique_joints(dataclasses.replace(leg, joints=(leg.joints[0], flipped, *leg.joints[2:]))) == []
+    # a payload fixed at an angle below the last link is merged into it, no rotation of the chain;
+    # the same mount with a moving joint below it turns the chain
+    from hydrogen.model import Joint, Link
+
+    payload = Link("payload", 5.0, np.array([0.1, 0.0, 0.0]), np.eye(3))
+    mount = Joint("mount", "fixed", "shank", "payload", np.array([0.0, 0.0, -0.4]), np.array([0.0, 0.3, 0.0]),
+                  np.array([1.0, 0.0, 0.0]))
+    with_payload = dataclasses.replace(leg, links=(*leg.links, payload), joints=(*leg.joints, mount))
+    assert oblique_joints(with_payload) == []
+    wrist = Joint("wrist", "revolute", "payload", "tool", np.zeros(3), np.zeros(3), np.array([0.0, 1.0, 0.0]))
+    tool = Link("tool", 1.0, np.zeros(3), np.eye(3))
+    assert oblique_joints(dataclasses.replace(with_payload, links=(*with_payload.links, tool),
+                                              joints=(*with_payload.joints, wrist))) == ["mount"]
 
 
 @pytest.mark.parametrize("form", FORMS)

@@ -205,6 +205,34 @@ def _branching_tree(rng):
     return m, np.array([m.link(x.split(".")[0]).parameters()[x.split(".")[1]] for x in names])
 
 
+def test_the_closed_form_merges_a_fixed_link_into_its_body(rng):
+    """The closed form has one body per moving link, each fixed link below merged in (its
+    parameters in the body's frame): D and G equal the staged form's, which keeps the fixed link a
+    body of its own, at random θ that include the merged link's mass, first moment and a product of
+    inertia (so the merge is linear in them, as Y needs)."""
+    from dataclasses import replace
+
+    model, _ = _branching_tree(rng)
+    names = ("d.mass", "d.mcy", "d.Ixz", "c.mcx", "e.Iyy")
+    model = replace(model, theta_names=names)
+    theta = np.array([model.link(x.split(".")[0]).parameters()[x.split(".")[1]] for x in names])
+    n = len(model.coordinate_names)
+    q, th = K.rate_symbols("q", n), RB.theta_symbols(model)
+    v = K.rate_symbols("v", n)
+    tree = SymbolicTree(model, q, th)
+    assert set(tree.bodies()) == {"base"} | {j.child for j in model.joints if j.type != "fixed"}
+    inputs = [("q", q), ("v", v), ("th", th)]
+    closed = to_casadi_function(SymbolicFunction("c", inputs, [("D", tree.mass_matrix()),
+                                                               ("G", tree.gravity(model.gravity))], ""))
+    staged = to_casadi_function(SymbolicFunction("s", inputs, [("D", tree.staged_mass_matrix()),
+                                                               ("G", tree.staged_gravity(model.gravity))],
+                                                 "", tree.pose_stages()))
+    for scale in (1.0, *rng.uniform(0.3, 3.0, size=(3, len(names)))):
+        q0, v0 = rng.normal(size=n), rng.normal(size=n)
+        for x, y in zip(closed(q0, v0, theta * scale), staged(q0, v0, theta * scale)):
+            _close(x, y)
+
+
 def _christoffel(dg, q_at: int = 0, v_at: int = 1):
     """``dg`` (its inputs) -> (D, G) as (D, C, G): C(q, v) of the Christoffel form by CasADi's own
     differentiation of D, q and v its inputs ``q_at`` and ``v_at`` (SymPy's of the closed-form D of a

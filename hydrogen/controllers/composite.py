@@ -323,12 +323,12 @@ class RigidBodyComposite:
         return Yp, p0, Yb, b0
 
     def _closed_form_signals(self):
-        from ..symbolic.forms import oblique_joints
+        from ..symbolic.forms import turned_joints
         from ..symbolic.rigid_body import gravity, mass_matrix
 
         c, n, p = self.c, self.c.n, self.c.p
         q, qd = c.q, c.qdot
-        if oblique_joints(c.model):
+        if turned_joints(c.model):
             # Full rotations (of symbols, with the numbers as inputs): expanding D once per θ entry
             # does not end in minutes; D(θ) q̇ and G(θ) are linear in θ, so their Jacobians in θ are
             # the same columns without expanding anything.

@@ -74,17 +74,35 @@ def rigid_body_form(model) -> str:
 def oblique_joints(model) -> list:
     """Names of the joints whose frame is turned off the parent's axes: a moving joint with an origin
     rotation (rpy) that is not zero or an axis that is not a coordinate axis (entries other than 0
-    and ±1), and a fixed joint with an origin rotation (a payload or a sensor mounted at an angle).
-    A URDF exported from CAD is made of them. In the closed form each is a full 3×3 of sines and
-    cosines (of symbols, with the numbers as inputs) multiplied along the chain and differentiated
+    and ±1), and a fixed joint with an origin rotation that a moving joint hangs below (a mount at an
+    angle). A URDF exported from CAD is made of them. In the closed form each is a full 3×3 of sines
+    and cosines (of symbols, with the numbers as inputs) multiplied along the chain and differentiated
     for C: a 3-DOF leg of such joints derived its closed form's composite law for more than 5 minutes
-    against 6 s staged (benchmarks/bench_cold.py); a payload fixed at an angle to the loader crane's
-    last link took its adaptive controller from 1 s to 14 s (benchmarks/bench_structural.py)."""
+    against 6 s staged (benchmarks/bench_cold.py). A fixed joint with nothing moving below it (a
+    payload, a sensor housing) is not one: the closed form merges its links into the body above
+    (:meth:`~hydrogen.symbolic.tree.SymbolicTree.bodies`), where its rotation is a constant."""
+    children = {}
+    for j in model.joints:
+        children.setdefault(j.parent, []).append(j)
+
+    def moves_below(link):
+        return any(c.type != "fixed" or moves_below(c.child) for c in children.get(link, ()))
+
     def oblique(j):
         axis = np.asarray(j.axis, dtype=float)
         turned = bool(np.any(np.asarray(j.origin_rpy, dtype=float) != 0.0))
-        return turned if j.type == "fixed" else turned or bool(np.any((axis != 0.0) & (np.abs(axis) != 1.0)))
+        if j.type == "fixed":
+            return turned and moves_below(j.child)
+        return turned or bool(np.any((axis != 0.0) & (np.abs(axis) != 1.0)))
     return [j.name for j in model.joints if j.type in ("revolute", "prismatic", "fixed") and oblique(j)]
+
+
+def turned_joints(model) -> list:
+    """Names of the joints whose frame is turned off the parent's axes (:func:`oblique_joints`), a
+    fixed one with nothing moving below it included: where a payload is merged into its body at an
+    angle, that body's parameters hold the mount's sines and cosines."""
+    return [j.name for j in model.joints
+            if j.name in oblique_joints(model) or (j.type == "fixed" and np.any(np.asarray(j.origin_rpy, float) != 0.0))]
 
 
 def _cheaper(model) -> str:

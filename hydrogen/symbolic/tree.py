@@ -197,12 +197,47 @@ class SymbolicTree:
             self._closed_dD = [D.diff(self.q[k]) for k in range(self.n)]
         return [d.copy() for d in self._closed_dD]
 
+    def bodies(self) -> dict:
+        """The rigid bodies of the closed form: ``{link: (m, h, I_o)}``, Pinocchio's parameters of each
+        link (kg, kg m, kg m²; its frame, I_o about its origin) with every link fixed to it below
+        (through fixed joints, a payload, a bracket, a sensor housing) merged in, as Pinocchio's URDF
+        reader does; those links are no body of their own. A link fixed to the root stays as it is
+        (it never moves). One body of the merged parameters has the same D and G as its parts, and
+        expressions the size of one link's: the payload's own Jacobians are never formed."""
+        if getattr(self, "_bodies", None) is not None:
+            return self._bodies
+        root, by_child = self.model.root, self.parent_joint
+
+        def carrier(link):  # the link whose frame ``link`` is fixed in, and its pose there
+            R, r = sp.eye(3), sp.zeros(3, 1)
+            while link in by_child and by_child[link].type == "fixed" and by_child[link].parent != root:
+                j = by_child[link]
+                R_o, xyz = _rot_xyz(j.origin_rpy, f"{j.name}.origin_rpy"), _vec(j.origin_xyz, f"{j.name}.origin_xyz")
+                R, r = _mm(R_o, R), xyz + _mm(R_o, r)
+                link = j.parent
+            return link, R, r
+
+        placed = {lk.name: carrier(lk.name) for lk in self.model.links}
+        out = {name: list(self._inertia(name)) for name, (body, _, _) in placed.items() if body == name}
+        for name, (body, R, r) in placed.items():
+            if body == name:
+                continue
+            # the child's parameters in the body's frame: m; h + m r + R h_c; about the body's origin
+            # I_o = R I_c Rᵀ − S(r) S(R h_c) − S(R h_c) S(r) − m_c S(r)²
+            m_c, h_c, I_c = self._inertia(name)
+            m, h, I = out[body]
+            h_r = _mm(R, h_c)
+            Sr, Sh = skew(r), skew(h_r)
+            out[body] = [m + m_c, h + m_c * r + h_r,
+                         I + _mm(R, I_c, R.T) - matmul(Sr, Sh) - matmul(Sh, Sr) - m_c * matmul(Sr, Sr)]
+        self._bodies = {k: (sp.sympify(m), sp.Matrix(h), sp.Matrix(I)) for k, (m, h, I) in out.items()}
+        return self._bodies
+
     def _mass_matrix(self) -> sp.Matrix:
         cf = self.closed_form()
         D = sp.zeros(self.n, self.n)
-        for lk in self.model.links:
-            R, _, Jv, Jw, _ = cf[lk.name]
-            m, h, I = self._inertia(lk.name)
+        for link, (m, h, I) in self.bodies().items():
+            R, _, Jv, Jw, _ = cf[link]
             D += m * matmul(Jv.T, Jv) + matmul(Jw.T, I, Jw)
             if any(x != 0 for x in h):
                 X = matmul(Jv.T, R, skew(h), Jw)
@@ -213,9 +248,8 @@ class SymbolicTree:
         """V(q) = g Σ (m p_z + (R h)_z): potential energy with gravity ``g`` along −z, J."""
         cf = self.closed_form()
         V = sp.S.Zero
-        for lk in self.model.links:
-            R, p, _, _, _ = cf[lk.name]
-            m, h, _ = self._inertia(lk.name)
+        for link, (m, h, _) in self.bodies().items():
+            R, p, _, _, _ = cf[link]
             V += m * p[2] + (R[2, :] * h)[0, 0]
         return g * V
 
