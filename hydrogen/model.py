@@ -1708,11 +1708,11 @@ def _check_setting_values(r: _Reader, table: dict, where: str) -> None:
     finite number; ``">=0"``, one not negative; ``">0"``, one above 0) holds it, at load time; the checks across settings
     (a valve's bandwidth against the sub-steps, a reference below Nyquist) wait for the scenario."""
     from .scenario_settings import settings
-    from .setting import WORDS, failed_check
+    from .setting import failed_check, words
     for f in settings():
         failed = failed_check(f, table[f.name]) if f.name in table else None
         if failed:
-            what = WORDS[failed]
+            what = words(f, failed)
             raise r.error(f"{where} {f.name}", f"must be {what} ({f.metadata['unit'] or 'no unit'}), "
                                                f"got {_quote(table[f.name])}")
 

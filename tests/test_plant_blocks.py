@@ -253,7 +253,7 @@ PARAMETERS = (
 SCENARIO_SETTINGS = {
     "seal_transfer": setting(1.0, "W/K", "each seal's heat transfer to the ambient", ">=0"),
     "seal_capacity": setting(50.0, "J/K", "each seal's heat capacity", ">=0"),
-    "seal_start": setting(293.15, "K", "each seal's temperature where a run starts", ">=0"),
+    "seal_start": setting(293.15, "K", "each seal's temperature where a run starts", ">=0", entries=True),
 }
 
 
@@ -379,6 +379,18 @@ rate = var["spring.shoulder_cylinder.rate"]
 out["fmu"] = [rate.unit, float(rate.start), var["spring.elbow_cylinder.free_length"].unit]
 temp, start = var["seal_temp.shoulder_cylinder"], var["seal_temp_start.elbow_cylinder"]
 out["fmu_state"] = [temp.causality, temp.unit, start.causality, start.unit, float(start.start)]
+# a start per actuator: each entry checked at load time, their count when the run starts
+text = Path(sys.argv[1]).read_text()
+refused = {}
+for label, value in (("negative", "[280.0, -1.0]"), ("count", "[280.0, 285.0, 290.0]")):
+    bad = Path(sys.argv[2]) / f"{label}.toml"
+    bad.write_text(text.replace("seal_start = [280.0, 285.0]", f"seal_start = {value}"))
+    try:
+        simulate(hydrogen.build(hydrogen.load_model(bad), cache=Path(sys.argv[2])), "spring-sim", "backstepping",
+                 duration=0.01)
+    except hydrogen.errors.HydrogenError as exc:
+        refused[label] = str(exc)
+out["refused"] = refused
 print(json.dumps(out))
 '''
 
@@ -392,7 +404,7 @@ t_adapt = 0.5
 spring_rate = 20000.0
 spring_length = 0.5
 friction = [50.0, 200.0, 1e-3]
-seal_start = 280.0
+seal_start = [280.0, 285.0]
 reference.sines = [["shoulder", 0.10, 1.0], ["elbow", -0.10, 1.5]]
 """
 
@@ -484,7 +496,7 @@ def test_a_rig_part_with_a_state_joins_x_after_the_supply_and_starts_as_declared
     assert layout[:6] == ["q", "qdot", "pc", "spool", "spool_rate", "ps"] and "seal_temp" in layout
     c_minus_python, first, last = spring_run["temps"]
     assert c_minus_python < 1e-9
-    assert first == [280.0, 280.0]  # its declared initial value (a scenario's), logged before the plant moves
+    assert first == [280.0, 285.0]  # its declared initial value (a scenario's, per actuator), logged before the plant moves
     assert all(t > 280.0 + 1e-3 for t in last)  # the ambient and the friction's power heat it
 
 
@@ -495,7 +507,13 @@ def test_a_rig_parts_rate_is_its_law_on_the_other_blocks_signals(spring_run):
 
 def test_a_rig_parts_state_is_an_output_of_the_log_and_the_fmu(spring_run):
     assert {"seal_temp0", "seal_temp1", "ps0"} <= set(spring_run["csv"])
-    assert spring_run["fmu_state"] == ["output", "K", "parameter", "K", 280.0]
+    assert spring_run["fmu_state"] == ["output", "K", "parameter", "K", 285.0]  # the elbow's start
+
+
+def test_a_start_per_actuator_is_checked_entry_by_entry_and_counted(spring_run):
+    refused = spring_run["refused"]
+    assert "seal_start" in refused["negative"] and ">= 0, or a list of such, one per entry (K), got [280.0, -1.0]" in refused["negative"]
+    assert "seal_start" in refused["count"] and "must be one number or 2" in refused["count"]
 
 
 def test_a_sensor_is_declared_on_an_output_with_a_setting_of_its_block():

@@ -100,13 +100,13 @@ def check_fields(sc) -> None:
     if not isinstance(name, str) or not name:
         raise ScenarioError(f"scenario name must be a non-empty string, got {_shown(name)}")
     from ..scenario_settings import settings
-    from ..setting import WORDS, failed_check
+    from ..setting import failed_check, words
     for f in settings():  # each number's check as its field declares it
         v = getattr(sc, f.name)
         failed = failed_check(f, v)
         if failed:
-            _fail(name, f.name, "must be a finite number" if failed == "number" else f"must be finite and {WORDS[failed]}",
-                  v)
+            _fail(name, f.name, f"must be {words(f, 'number')}" if failed == "number"
+                  else f"must be finite and {words(f, failed)}", v)
     if sc.metric_start < 0:
         _fail(name, "metric_start", "must be >= 0 s", sc.metric_start)
     for f in ("substeps", "predictor_substeps"):
