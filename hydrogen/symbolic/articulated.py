@@ -5,7 +5,8 @@ q̈ = D(q)⁻¹ (τ − C(q, q̇) q̇ − G(q)) without forming D by the articul
 articulated inertias and bias forces leaves to root, accelerations root to leaves); τ = D q̈ + C q̇ + G
 by recursive Newton-Euler (Table 5.1) and D by composite rigid bodies (Table 6.2). All in local link
 frames (each link's own axes and origin; motion vectors [ω; v], forces [n; f], Plücker
-coordinates), on trees of revolute, prismatic and fixed joints.
+coordinates), on trees of revolute, prismatic and fixed joints; a link on a fixed joint is merged into
+the body it is fixed to (:meth:`~hydrogen.symbolic.tree.SymbolicTree.link_inertia`), as Pinocchio does.
 
 Every link's quantities are bound to intermediate symbols as they are computed (:func:`_bind`), so
 each expression refers to its parent's or children's symbols, never to their expansions: the stages
@@ -51,7 +52,7 @@ def newton_euler_stages(tree, qdot, qddot, g, prefix: str = "rnea"):
             v = v + vJ
             a = a + S[lk] * qddot[i] + _cross_motion(v, vJ)
         vel[lk], acc[lk] = _bind(f"{prefix}_v{k}", v, stages), _bind(f"{prefix}_a{k}", a, stages)
-        inertia = tree._inertia(lk)
+        inertia = tree.link_inertia(lk)
         force[lk] = _apply_inertia(inertia, acc[lk]) + _cross_force(vel[lk], _apply_inertia(inertia, vel[lk]))
     tau = sp.zeros(tree.n, 1)
     for k in reversed(range(len(joints))):
@@ -74,7 +75,7 @@ def composite_body_stages(tree, prefix: str = "crba"):
     X = {j.child: _joint_transform(tree, j) for j in joints}
     S = {j.child: _motion_axis(j) for j in joints}
     parent = {j.child: j for j in joints}
-    Ic = {j.child: _inertia6(*tree._inertia(j.child)) for j in joints}
+    Ic = {j.child: _inertia6(*tree.link_inertia(j.child)) for j in joints}
     D = sp.zeros(tree.n, tree.n)
     for k in reversed(range(len(joints))):
         j = joints[k]
@@ -127,7 +128,7 @@ class _Articulated:
             else:
                 v, bias[lk] = self.bind(f"v{k}", v), sp.zeros(6, 1)
             vel[lk] = v
-            IA[lk] = _inertia6(*self.tree._inertia(lk))
+            IA[lk] = _inertia6(*self.tree.link_inertia(lk))
             pA[lk] = _cross_force(v, _apply6(IA[lk], v))  # bound in pass 2, with the children's share
         return bias, IA, pA
 

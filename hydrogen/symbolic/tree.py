@@ -197,6 +197,26 @@ class SymbolicTree:
             self._closed_dD = [D.diff(self.q[k]) for k in range(self.n)]
         return [d.copy() for d in self._closed_dD]
 
+    def carriers(self) -> dict:
+        """Per link, ``(body, R, r)``: the link whose frame it is fixed in through fixed joints (itself
+        when its own joint moves, or when it is fixed to the root: it never moves), and its pose
+        there, rotation R and origin r (m, the body's frame)."""
+        if getattr(self, "_carriers", None) is not None:
+            return self._carriers
+        root, by_child = self.model.root, self.parent_joint
+
+        def carrier(link):
+            R, r = sp.eye(3), sp.zeros(3, 1)
+            while link in by_child and by_child[link].type == "fixed" and by_child[link].parent != root:
+                j = by_child[link]
+                R_o, xyz = _rot_xyz(j.origin_rpy, f"{j.name}.origin_rpy"), _vec(j.origin_xyz, f"{j.name}.origin_xyz")
+                R, r = _mm(R_o, R), xyz + _mm(R_o, r)
+                link = j.parent
+            return link, R, r
+
+        self._carriers = {lk.name: carrier(lk.name) for lk in self.model.links}
+        return self._carriers
+
     def bodies(self) -> dict:
         """The rigid bodies of the closed form: ``{link: (m, h, I_o)}``, Pinocchio's parameters of each
         link (kg, kg m, kg m²; its frame, I_o about its origin) with every link fixed to it below
@@ -206,18 +226,7 @@ class SymbolicTree:
         expressions the size of one link's: the payload's own Jacobians are never formed."""
         if getattr(self, "_bodies", None) is not None:
             return self._bodies
-        root, by_child = self.model.root, self.parent_joint
-
-        def carrier(link):  # the link whose frame ``link`` is fixed in, and its pose there
-            R, r = sp.eye(3), sp.zeros(3, 1)
-            while link in by_child and by_child[link].type == "fixed" and by_child[link].parent != root:
-                j = by_child[link]
-                R_o, xyz = _rot_xyz(j.origin_rpy, f"{j.name}.origin_rpy"), _vec(j.origin_xyz, f"{j.name}.origin_xyz")
-                R, r = _mm(R_o, R), xyz + _mm(R_o, r)
-                link = j.parent
-            return link, R, r
-
-        placed = {lk.name: carrier(lk.name) for lk in self.model.links}
+        placed = self.carriers()
         out = {name: list(self._inertia(name)) for name, (body, _, _) in placed.items() if body == name}
         for name, (body, R, r) in placed.items():
             if body == name:
@@ -232,6 +241,13 @@ class SymbolicTree:
                          I + _mm(R, I_c, R.T) - matmul(Sr, Sh) - matmul(Sh, Sr) - m_c * matmul(Sr, Sr)]
         self._bodies = {k: (sp.sympify(m), sp.Matrix(h), sp.Matrix(I)) for k, (m, h, I) in out.items()}
         return self._bodies
+
+    def link_inertia(self, link: str):
+        """``(m, h, I_o)`` of ``link`` in its own frame for the recursive algorithms: a body's with the
+        links fixed to it merged in (:meth:`bodies`), zero for a link merged into another (its motion
+        is its body's; its inertia is counted there)."""
+        bodies = self.bodies()
+        return bodies[link] if link in bodies else (sp.S.Zero, sp.zeros(3, 1), sp.zeros(3, 3))
 
     def _mass_matrix(self) -> sp.Matrix:
         cf = self.closed_form()
@@ -473,6 +489,24 @@ class SymbolicTree:
         cache[key] = (m, sp.Matrix([_scale(m, x) for x in p]) + Rh, Ibar)
         return cache[key]
 
+    def _is_body(self, link: str) -> bool:
+        """Whether ``link`` carries the forces of the links fixed to it (:meth:`carriers`)."""
+        return self.carriers()[link][0] == link
+
+    def body_inertia(self, link: str):
+        """The spatial inertia (:meth:`spatial_inertia`) of body ``link`` and every link fixed to it
+        (:meth:`carriers`), summed in the base frame: they share its motion, so one force of the sum
+        is theirs (the Newton-Euler pass forms one force per body, as Pinocchio's merged bodies)."""
+        cache = self.__dict__.setdefault("_body_spatial", {})
+        if link not in cache:
+            members = [lk for lk, (body, _, _) in self.carriers().items() if body == link]
+            m, c, I = self.spatial_inertia(members[0])
+            for lk in members[1:]:
+                mk, ck, Ik = self.spatial_inertia(lk)
+                m, c, I = m + mk, c + ck, I + Ik
+            cache[link] = (m, c, I)
+        return cache[link]
+
     def staged_mass_matrix(self) -> sp.Matrix:
         """D(q) by composite rigid bodies: D_ij = S_iᵀ I^c_k S_j, k the deeper of joints i and j on one
         path, I^c_k the inertia of the subtree below joint k (base frame)."""
@@ -510,8 +544,8 @@ class SymbolicTree:
                 continue
             s, c = S[j.name], self.columns[j.name]
             dS = _cross_motion(vel[j.child], s)  # Ṡ_j at rate v
-            f = {lk: _apply_inertia(self.spatial_inertia(lk), dS) + _b_term(self.spatial_inertia(lk), vel[lk], s)
-                 for lk in below[j.child]}
+            f = {lk: _apply_inertia(self.body_inertia(lk), dS) + _b_term(self.body_inertia(lk), vel[lk], s)
+                 for lk in below[j.child] if self._is_body(lk)}
             # rows: the joints above j (and j) see every link below j; joints below j their own subtree
             total = _sum6(f.values())
             for i in self.path(j.child):
@@ -519,7 +553,7 @@ class SymbolicTree:
                     C[self.columns[i.name], c] = _dot(S[i.name], total)
             for i in self.model.joints:
                 if i.dof and i.child in below[j.child] and i.child != j.child:
-                    C[self.columns[i.name], c] = _dot(S[i.name], _sum6(f[lk] for lk in below[i.child]))
+                    C[self.columns[i.name], c] = _dot(S[i.name], _sum6(f[lk] for lk in below[i.child] if lk in f))
         return C
 
     def staged_inverse_dynamics(self, v, w, a, g) -> sp.Matrix:
@@ -535,11 +569,11 @@ class SymbolicTree:
         the right C(q, q̇) q̇, the Christoffel one (Echeandia & Wensing 2021 give this factorisation).
         İ − 2B(v) = −(I v) ×̄* is skew, so Ḋ − 2C is skew."""
         motion = self._link_motion(v, w, a, g)
-        force = {lk: _apply_inertia(self.spatial_inertia(lk), acc) + _b_term(self.spatial_inertia(lk), vv, ww)
-                 for lk, (acc, vv, ww) in motion.items()}
+        force = {lk: _apply_inertia(self.body_inertia(lk), acc) + _b_term(self.body_inertia(lk), vv, ww)
+                 for lk, (acc, vv, ww) in motion.items() if self._is_body(lk)}
         S, root = self.motion_axes(), self.model.root
         tau = sp.zeros(self.n, 1)
-        total = dict(force)
+        total = {lk: force[lk] if lk in force else _zero6() for lk in motion}
         for j in reversed(self.model.joints):
             if j.parent != root:
                 total[j.parent] = total[j.parent] + total[j.child]
