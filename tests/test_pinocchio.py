@@ -91,3 +91,35 @@ def test_generated_forward_dynamics_equals_aba(robot, rng):
     for q, v, _ in _states(model, rng):
         tau = rng.normal(size=model.n) * 1e3
         _close(dyn.forward_dynamics(q, v, tau, model.theta), pin.aba(pm, data, q, v, tau))
+
+
+@pytest.mark.parametrize("name", [m for m in MODELS if hydrogen.load_model(m).urdf is not None])
+def test_a_payload_fixed_at_an_angle_is_merged_as_pinocchio_merges_it(name, tmp_path, rng):
+    """A 20 kg payload (full inertia, on a fixed joint at an angle) added to the URDF of a shipped robot:
+    hydrogen merges it into the link it is fixed to (the closed form's bodies) and Pinocchio, reading
+    the same URDF, into that joint's body. D, C, G and Y (the adapted links' own columns) from the
+    derivation, as CasADi Functions, equal Pinocchio's."""
+    import sys
+
+    from hydrogen.codegen.casadi_functions import to_casadi_function
+    from hydrogen.symbolic.functions import rigid_body_functions
+
+    sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "benchmarks"))
+    from bench_structural import with_fixed_link
+
+    model = hydrogen.load_model(with_fixed_link(name, tmp_path))
+    assert any(j.type == "fixed" for j in model.joints) and model.rigid_body_form_chosen() == "closed"
+    f = {sf.name: to_casadi_function(sf) for sf in rigid_body_functions(model)}
+    pm = pin.buildModelFromUrdf(str(model.urdf))
+    data = pm.createData()
+    child = {j.name: j.child for j in model.joints}
+    cols = {f"{child[pm.names[jid]]}.{p}": 10 * (jid - 1) + k
+            for jid in range(1, pm.njoints) for k, p in enumerate(INERTIAL_PARAMETERS)}
+    th = model.theta
+    for q, v, a in _states(model, rng, n=5):
+        M = pin.crba(pm, data, q)
+        _close(np.asarray(f["mass_matrix"](q, th)), np.triu(M) + np.triu(M, 1).T)
+        _close(np.asarray(f["gravity"](q, th)).ravel(), pin.computeGeneralizedGravity(pm, data, q))
+        _close(np.asarray(f["coriolis"](q, v, th)), pin.computeCoriolisMatrix(pm, data, q, v))
+        R = pin.computeJointTorqueRegressor(pm, data, q, v, a)
+        _close(np.asarray(f["regressor"](q, v, v, a)), R[:, [cols[n] for n in model.theta_names]])
