@@ -8,6 +8,8 @@ from __future__ import annotations
 
 import math
 import numbers
+
+import numpy as np
 from dataclasses import field
 
 __all__ = ["setting", "failed_check", "failed_check_one", "words", "WORDS"]
@@ -36,7 +38,8 @@ def failed_check(decl, value) -> str | None:
     check = decl.metadata.get("check")
     if check is None:
         return None
-    if decl.metadata.get("entries") and isinstance(value, (list, tuple)):
+    if decl.metadata.get("entries") and isinstance(value, (list, tuple, np.ndarray)):
+        value = list(np.ravel(value)) if isinstance(value, np.ndarray) else value
         if not value:
             return "number"
         return next((f for f in (failed_check_one(check, v) for v in value) if f), None)

@@ -382,7 +382,7 @@ out["fmu_state"] = [temp.causality, temp.unit, start.causality, start.unit, floa
 # a start per actuator: each entry checked at load time, their count when the run starts
 text = Path(sys.argv[1]).read_text()
 refused = {}
-for label, value in (("negative", "[280.0, -1.0]"), ("count", "[280.0, 285.0, 290.0]")):
+for label, value in (("negative", "[280.0, -1.0]"), ("count", "[280.0, 285.0, 290.0]"), ("one", "[280.0]")):
     bad = Path(sys.argv[2]) / f"{label}.toml"
     bad.write_text(text.replace("seal_start = [280.0, 285.0]", f"seal_start = {value}"))
     try:
@@ -513,7 +513,8 @@ def test_a_rig_parts_state_is_an_output_of_the_log_and_the_fmu(spring_run):
 def test_a_start_per_actuator_is_checked_entry_by_entry_and_counted(spring_run):
     refused = spring_run["refused"]
     assert "seal_start" in refused["negative"] and ">= 0, or a list of such, one per entry (K), got [280.0, -1.0]" in refused["negative"]
-    assert "seal_start" in refused["count"] and "must be one number or 2" in refused["count"]
+    for label in ("count", "one"):  # a list gives every entry: never broadcast
+        assert "seal_start" in refused[label] and "must be one number or 2" in refused[label]
 
 
 def test_a_sensor_is_declared_on_an_output_with_a_setting_of_its_block():

@@ -351,7 +351,10 @@ def initial_state(layout, scenario=None, **parts) -> np.ndarray:
                                  f"{s.initial_setting}: give the scenario")
             value = getattr(scenario, s.initial_setting)
             try:
-                x[s.slice] = np.broadcast_to(np.asarray(value, float), (s.size,))
+                given = np.asarray(value, float)
+                if given.ndim and given.shape != (s.size,):  # a list is one value per entry, no fewer
+                    raise ValueError(given.shape)
+                x[s.slice] = np.broadcast_to(given, (s.size,))
             except (TypeError, ValueError):
                 from ..errors import ScenarioError
                 raise ScenarioError(f"scenario '{scenario.name}': {s.initial_setting} = {value!r}, the start of the "

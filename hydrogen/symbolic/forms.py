@@ -22,7 +22,8 @@ import numpy as np
 
 from .constants import folded
 
-__all__ = ["FORMS", "COUNTED", "DECIDING", "STAGED_DEPTH", "rigid_body_form", "form_costs", "with_form", "oblique_joints"]
+__all__ = ["FORMS", "COUNTED", "DECIDING", "STAGED_DEPTH", "rigid_body_form", "form_costs", "with_form", "oblique_joints",
+           "turned_joints"]
 
 #: The forms, in the order that breaks a tie of instruction counts.
 FORMS = ("closed", "staged")
