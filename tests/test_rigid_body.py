@@ -74,3 +74,33 @@ def test_inverse_dynamics_matches_newton_euler(dyn, model, rng):
     batch = dyn.inverse_dynamics(Q, V, A, model.theta)
     assert batch.shape == (4, 6)
     np.testing.assert_allclose(batch[2], dyn.inverse_dynamics(Q[2], V[2], A[2], model.theta), rtol=1e-14)
+
+
+def test_a_floating_body_with_frames_fixed_to_it_keeps_its_closed_form_inverse(model, rng):
+    """The Stewart platform with a massless sensor frame and a payload fixed to it (a link at an angle,
+    the payload below it): the frame merges into the platform, which stays at its centre of mass, so
+    D⁻¹ keeps its closed form, D⁻¹ D = 1 at random poses (D from the merged bodies); with the payload
+    off the centre the inverse is left to a solve."""
+    from dataclasses import replace
+
+    from hydrogen.model import Joint, Link
+    from hydrogen.symbolic.tree import SymbolicTree
+
+    frame = Link("imu", 0.0, np.zeros(3), np.zeros((3, 3)))
+    mount = Joint("imu_mount", "fixed", "platform", "imu", np.array([0.1, 0.0, 0.2]), np.array([0.3, 0.0, 0.0]),
+                  np.array([1.0, 0.0, 0.0]))
+    sensed = replace(model, links=(*model.links, frame), joints=(*model.joints, mount))
+    payload = Link("payload", 20.0, np.array([1.0, 0.0, 0.4]), np.diag([0.4, 0.5, 0.3]))
+    carried = replace(sensed, links=(*sensed.links, payload),
+                      joints=(*sensed.joints, replace(mount, name="payload_mount", parent="imu", child="payload")))
+    q = K.pose_symbols(model)
+    for m, closed in ((sensed, True), (carried, False)):
+        tree = SymbolicTree(m, q, RB.theta_symbols(m))
+        assert tree.single_floating_body() is closed
+        Dinv = tree.mass_matrix_inverse()
+        assert (Dinv is not None) is closed
+        if closed:
+            f = sp.lambdify(list(q) + list(RB.theta_symbols(m)), [tree.mass_matrix(), Dinv], "numpy")
+            for pose in workspace_poses(m, 4, rng):
+                D, Di = (np.asarray(x, float) for x in f(*pose, *m.theta))
+                np.testing.assert_allclose(Di @ D, np.eye(m.n), atol=1e-12)

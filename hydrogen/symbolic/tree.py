@@ -121,13 +121,15 @@ class SymbolicTree:
 
     def single_floating_body(self) -> bool:
         """True for one floating body on the root with its frame at its centre of mass, whose mass
-        matrix has a closed-form inverse (the Stewart platform's structure)."""
-        joints = self.model.joints
-        if len(joints) != 1 or joints[0].type != "floating" or joints[0].parent != self.model.root:
+        matrix has a closed-form inverse (the Stewart platform's structure): the only moving joint,
+        every other link fixed to that body (merged into it, :meth:`bodies`: a massless sensor frame
+        leaves it at its centre of mass) or to the root (it never moves)."""
+        moving = [j for j in self.model.joints if j.type != "fixed"]
+        if len(moving) != 1 or moving[0].type != "floating" or moving[0].parent != self.model.root:
             return False
-        p = self.params[joints[0].child]
-        return all(p[k] is sp.S.Zero for k in ("mcx", "mcy", "mcz", "Ixy", "Ixz", "Iyz")) \
-            and all(float(v) == 0.0 for v in (*joints[0].origin_rpy,))
+        _, h, I = self.bodies()[moving[0].child]
+        return all(x is sp.S.Zero for x in (*h, I[0, 1], I[0, 2], I[1, 2])) \
+            and all(float(v) == 0.0 for v in (*moving[0].origin_rpy,))
 
     # --- closed form ----------------------------------------------------------------------
     def closed_form(self) -> dict:
@@ -278,9 +280,9 @@ class SymbolicTree:
         m⁻¹ I and T_b⁻¹ I_o⁻¹ T_b⁻ᵀ, det T_b = cos θ), else None (solve numerically)."""
         if not self.single_floating_body():
             return None
-        j = self.model.joints[0]
+        j = next(j for j in self.model.joints if j.type != "fixed")
         i = self.columns[j.name]
-        m, _, I = self._inertia(j.child)
+        m, _, I = self.bodies()[j.child]
         psi, th = self.q[i + 3], self.q[i + 4]
         c, s, ct, tt = sp.cos(psi), sp.sin(psi), sp.cos(th), sp.tan(th)
         Tb_inv = sp.Matrix([[1, s * tt, c * tt], [0, c, -s], [0, s / ct, c / ct]])
