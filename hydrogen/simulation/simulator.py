@@ -869,6 +869,8 @@ class PythonStages:
         model = self.model = dyn.model
         self.dyn, self.sc, self.ctrl, self.h, self.estimate = dyn, sc, ctrl, h, estimate
         self._rhs_fn = dyn.functions["plant_rhs"]
+        # the plant's true θ and γ, read once: model.theta computes θ from the links (a tenth of a period's time)
+        self._theta, self._gamma = model.theta, model.gamma
         own = actuator_settings(sc, model)  # each actuator's resolution, in its own unit
         self._quant = own["quantization_l"]
         # each plant input's numbers (hydrogen.plant.plant_inputs: friction, valve), in the plant's order:
@@ -1037,7 +1039,7 @@ class PythonStages:
         loop does: :func:`hydrogen.plant.integrator.period_pieces`), each pressure held within its bounds
         (:func:`hydrogen.plant.integrator.bounded_steps`); ``x`` itself is not changed."""
         pc, lo, hi = self._pc, self._lo, self._hi
-        th, g = self.model.theta, self.model.gamma
+        th, g = self._theta, self._gamma
 
         def hold(x, u, n, hs):
             rhs = lambda xx: self._rhs_fn(xx, u, th, g[0], g[1], *self._inputs)  # noqa: E731
@@ -1063,9 +1065,17 @@ class PythonStages:
             sl = slot(self.layout, part).slice
             return lambda s: self.x[sl]
 
+        # pressures.forces' laws with each actuator's parameters read once, not every period (a tenth
+        # of the loop's time); in the simulator, not in pressures.py, whose hash is the derivation's
+        laws = [(a, b, actuator(c.kind).Numeric.force, actuator(c.kind).parameters(c.table))
+                for (a, b), c in zip(pressures.blocks(self.model), self.model.cylinders)]
+
         def forces(s):
+            p = self.x[self._pc]
             ps = None if self._ps is None else self.x[self._ps][0]  # a supply state's pressure, else the nominal
-            return pressures.forces(self.model, self.x[self._pc], ps)
+            supply = {} if ps is None else {"supply_pressure": np.asarray(ps, float)}
+            return np.stack([force(tuple(p[..., j] for j in range(a, b)), {**par, **supply})
+                             for a, b, force, par in laws], axis=-1)
 
         kinds = {SIGNAL: lambda field: (lambda s: getattr(s, field)), PLANT: plant,
                  FORCES: lambda field: forces}
