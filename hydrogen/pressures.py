@@ -60,10 +60,21 @@ def forces(model, p, ps=None) -> np.ndarray:
     """Actuator forces (..., m), N (N·m), from pressure vector(s) ``p`` (the numeric laws), at the
     supply pressure ``ps`` (Pa, one per row of ``p``: a supply state's) or, when None, each actuator's
     own ``supply_pressure`` (a three-way cylinder's rod side is at the supply pressure)."""
-    parts = split(model, p)
-    supply = {} if ps is None else {"supply_pressure": np.asarray(ps, float)}
-    return np.stack([actuator(c.kind).Numeric.force(parts[i], {**actuator(c.kind).parameters(c.table), **supply})
-                     for i, c in enumerate(model.cylinders)], axis=-1)
+    return force_law(model)(p, ps)
+
+
+def force_law(model):
+    """:func:`forces` of ``model`` as a function of ``(p, ps=None)``, each actuator's law and parameters
+    looked up once (a loop calls it every period)."""
+    laws = [(a, b, actuator(c.kind).Numeric.force, actuator(c.kind).parameters(c.table))
+            for (a, b), c in zip(blocks(model), model.cylinders)]
+
+    def law(p, ps=None):
+        p = np.asarray(p, float)
+        supply = {} if ps is None else {"supply_pressure": np.asarray(ps, float)}
+        return np.stack([force(tuple(p[..., j] for j in range(a, b)), {**par, **supply}) for a, b, force, par in laws],
+                        axis=-1)
+    return law
 
 
 def equilibrium(model, f) -> np.ndarray:

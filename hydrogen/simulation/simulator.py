@@ -1065,17 +1065,11 @@ class PythonStages:
             sl = slot(self.layout, part).slice
             return lambda s: self.x[sl]
 
-        # pressures.forces' laws with each actuator's parameters read once, not every period (a tenth
-        # of the loop's time); in the simulator, not in pressures.py, whose hash is the derivation's
-        laws = [(a, b, actuator(c.kind).Numeric.force, actuator(c.kind).parameters(c.table))
-                for (a, b), c in zip(pressures.blocks(self.model), self.model.cylinders)]
+        law = pressures.force_law(self.model)  # each actuator's parameters read once, not every period
 
         def forces(s):
-            p = self.x[self._pc]
             ps = None if self._ps is None else self.x[self._ps][0]  # a supply state's pressure, else the nominal
-            supply = {} if ps is None else {"supply_pressure": np.asarray(ps, float)}
-            return np.stack([force(tuple(p[..., j] for j in range(a, b)), {**par, **supply})
-                             for a, b, force, par in laws], axis=-1)
+            return law(self.x[self._pc], ps)
 
         kinds = {SIGNAL: lambda field: (lambda s: getattr(s, field)), PLANT: plant,
                  FORCES: lambda field: forces}
