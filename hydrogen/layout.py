@@ -100,7 +100,8 @@ def _estimator_fields() -> tuple:
 #: The sensors' group's comment: the length sensor's, then each estimator's (its CONFIG_DOC), a line each
 #: after the first.
 _SENSORS_DOC = ("sensors: each actuator's travel resolution quant_l (m or rad, its own unit; 0: none; rounded to its "
-                "grid\n * after the noise)"
+                "grid\n * after the noise); sensor_res: each rig part's sensor's resolution (its unit, 0: none), the\n"
+                " * sensed outputs' entries in order"
                 + "".join(("; " if i == 0 else ";\n * ") + estimator(name).CONFIG_DOC for i, name in enumerate(ESTIMATORS)))
 
 LOOP_CONFIG = (
@@ -121,6 +122,7 @@ LOOP_CONFIG = (
       *((name, "const double*", f"P_{name.upper()}", f"run.{name}") for name in PLANT_INPUTS))),
     (_SENSORS_DOC,
      (("quant_l", "const double*", "P_QUANTIZATION_L", "run.quantization_l"),
+      ("sensor_res", "const double*", "P_SENSOR_RESOLUTION", "run.sensor_resolution"),
       *_estimator_fields())),  # each estimator's switch and numbers (hydrogen.estimators)
     # the reference kinds' fields (hydrogen.references), each read from the run
     (_REFERENCE[0], tuple((name, ctype, macro, f"run.{name}") for name, ctype, macro in _REFERENCE[1])),
@@ -328,7 +330,8 @@ def model_summary(model) -> dict:
         # the plant state's parts in order (hydrogen.plant): name, size (a robot size's name), offset, entries
         # (and, only where it has one, an output's sensor noise setting: a shipped manifest stays as it was)
         "plant": [{"name": s.name, "size": s.size_name, "start": s.start, "entries": s.size, "output": s.output,
-                   **({"noise": s.noise} if s.noise else {})} for s in plant_layout(model)],
+                   **({"noise": s.noise} if s.noise else {}),
+                   **({"resolution": s.resolution} if s.resolution else {})} for s in plant_layout(model)],
         # recorded only when on: the plant's input friction is wider, a robot without keeps its manifest
         **({"seal_friction": True} if model.seal_friction else {}),
         # each block's plant input and the parameters it takes (its width, whatever structure decides it)
@@ -392,6 +395,16 @@ def plant_sensors(summary: dict) -> tuple:
             _, unit, doc = _output_text(part["name"])
             out.append(NoiseChannel(part["name"], C_SIZES[part["size"]], part["noise"], unit, doc))
     return tuple(out)
+
+
+def _resolution_starts(sensed) -> list:
+    """Where each sensed output's resolution starts in the configuration's ``sensor_res``: a C
+    expression of the loop header's sizes ("0", "NL", "NL + NL")."""
+    out, at = [], []
+    for ch in sensed:
+        out.append(" + ".join(at) or "0")
+        at.append(ch.size)
+    return out
 
 
 def plant_ports(summary: dict) -> tuple:
@@ -555,8 +568,11 @@ def loop_context(manifest: dict) -> dict:
         "plant_outputs": [{"name": p["name"], "count": p["entries"], "size": C_SIZES[p["size"]]}
                           for p in plant_outputs(s)],
         "n_noise": noise_width(robot_sizes(s), bool(s["joint_encoders"]), sensed), "noise": noise,
-        # each sensed output: its part of x, its count (the measure stage's reading)
-        "plant_sensors": [{"name": ch.name, "count": Markup(ch.size)} for ch in sensed],
+        "n_sensed": sum(int(robot_sizes(s)[ch.size]) for ch in sensed),  # the entries of sensor_res
+        # each sensed output: its part of x, its count, where its resolution starts in sensor_res (the
+        # measure stage's reading)
+        "plant_sensors": [{"name": ch.name, "count": Markup(ch.size), "res_start": Markup(start)}
+                          for ch, start in zip(sensed, _resolution_starts(sensed))],
         "noise_comment": ", ".join(f"{ch['doc']} ({ch['unit']})" for ch in noise),
         "n_pressures": n_p, "three_way": n_p == m,
         "nps": nps,

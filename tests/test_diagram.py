@@ -199,16 +199,22 @@ out["noisy"] = {"engines": float(np.max(np.abs(noisy[0].u - noisy[1].u))),
                 "std": float(np.std((res.u - free)[inside] / 1e-5)), "rows": int(inside.sum()),
                 "law": float(np.max(np.abs(res.u - law))),
                 "reading_std": float(np.std(reading - res.plant["seal_temp"]))}
+# the sensor's resolution (0.25 K, no noise): the reading is the true temperature on its grid, both engines
+rounded = [hydrogen.simulate("seal-sim", "p-seal", dyn=dyn, engine=e, seal_res=0.25) for e in ("c", "python")]
+reading, true = rounded[0].signals["seal_temp_meas"], rounded[0].plant["seal_temp"]
+out["rounded"] = {"engines": float(np.max(np.abs(reading - rounded[1].signals["seal_temp_meas"]))),
+                  "grid": float(np.max(np.abs(reading - 0.25 * np.floor(true / 0.25 + 0.5)))),
+                  "moved": float(np.max(np.abs(reading - true)))}
 # every sensor's noise off, the part's too: the exported program's and the FMUs' noise-free run
 from hydrogen.simulation.scenarios import scenario
 out["quiet"] = scenario("seal-sim", dyn.model).noise_free()
 # the exported program (the part's sensor noisy in the scenario): its errors are noise_free()'s run's
 import re, subprocess
 from hydrogen.export import export
-folder = export(Path(sys.argv[2]) / "program", "seal-sim", "p-seal", dyn=dyn, seal_noise=0.5)
+folder = export(Path(sys.argv[2]) / "program", "seal-sim", "p-seal", dyn=dyn, seal_noise=0.5, seal_res=0.25)
 run = subprocess.run(["make", "-s", "run"], cwd=folder, capture_output=True, text=True, timeout=600)
 printed = [float(v) for v in re.findall(r"max_error \\S+ (\\S+) ", run.stdout)]  # in the coordinate's unit
-quiet = hydrogen.simulate("seal-sim", "p-seal", dyn=dyn, **{"seal_noise": 0.5, **out["quiet"]})
+quiet = hydrogen.simulate("seal-sim", "p-seal", dyn=dyn, **{"seal_noise": 0.5, "seal_res": 0.25, **out["quiet"]})
 pct = quiet.metrics["max_error_pct"]
 out["program"] = [printed, [pct[c] / 100 * a for c, a in zip(quiet.coordinates, quiet.amplitude) if pct.get(c) is not None]]
 # the runtime's own call: the part's state must be given, never an earlier call's left over
@@ -253,10 +259,11 @@ def test_a_controller_reads_a_rig_parts_state_by_name(cache, tmp_path):
     SEAL_HEAT = SEAL_HEAT.replace('"heat transfer to the ambient (h)", per_actuator=True, lower=0.0)', ideal)
     assert ideal in SEAL_HEAT
     # and a sensor of its own, its noise a setting of the part's
-    SEAL_HEAT = SEAL_HEAT.replace('output=True)', 'output=True, noise="seal_noise")', 1).replace(
+    SEAL_HEAT = SEAL_HEAT.replace('output=True)', 'output=True, noise="seal_noise", resolution="seal_res")', 1).replace(
         '    "seal_start":', '    "seal_noise": setting(0.0, "K", "each seal temperature sensor\'s noise", ">=0"),\n'
+                            '    "seal_res": setting(0.0, "K", "each seal temperature sensor\'s resolution", ">=0"),\n'
                             '    "seal_start":', 1)
-    assert 'noise="seal_noise"' in SEAL_HEAT and '"seal_noise": setting' in SEAL_HEAT
+    assert 'noise="seal_noise"' in SEAL_HEAT and '"seal_noise": setting' in SEAL_HEAT and '"seal_res": setting' in SEAL_HEAT
     text = (ROOT / "tests" / "data" / "four_way_arm.toml").read_text()
     text = text.replace('name = "four_way_arm"', 'name = "seal_arm"\ncontrollers = ["p-seal"]', 1)
     files = {"hydrogen/plant/seal_heat.py": SEAL_HEAT, "hydrogen/controllers/p_seal.py": P_SEAL,
@@ -281,3 +288,6 @@ def test_a_controller_reads_a_rig_parts_state_by_name(cache, tmp_path):
                                 "(command(..., plant={name: value}), or by name in command_for's signals)")
     assert out["fmu_inputs"] == [[f"seal_temp.{c}", "input", "K"] for c in ("shoulder_cylinder", "elbow_cylinder")]
     assert out["cosimulated"] < 1e-9  # rad: the two FMUs wired by name are the closed loop
+    # a resolution the part declares rounds its sensor's reading (the exported program's above too)
+    rounded = out["rounded"]
+    assert rounded["engines"] < 1e-12 and rounded["grid"] < 1e-9 and 1e-3 < rounded["moved"] <= 0.125 + 1e-9

@@ -519,7 +519,8 @@ def test_a_start_per_actuator_is_checked_entry_by_entry_and_counted(spring_run):
 
 def test_a_sensor_is_declared_on_an_output_with_a_setting_of_its_block():
     """A state's sensor noise (PlantState.noise) is refused on a state that is no output, and naming a
-    setting its block does not declare, each with its own words."""
+    setting its block does not declare, each with its own words; so is a resolution without a sensor or
+    of a setting the block does not declare."""
     import types
 
     from hydrogen.plant import PlantState, _check_sensors
@@ -535,6 +536,18 @@ def test_a_sensor_is_declared_on_an_output_with_a_setting_of_its_block():
         _check_sensors("heat", unknown)
     _check_sensors("heat", types.SimpleNamespace(STATES=(PlantState("temp", "m", "K", "t", output=True,
                                                                     noise="temp_noise"),), SCENARIO_SETTINGS=own))
+    # a resolution rounds a sensor's reading: it needs the sensor, and a setting of the block's
+    own = {**own, "temp_res": setting(0.0, "K", "the sensor's resolution", ">=0")}
+    bare = types.SimpleNamespace(STATES=(PlantState("temp", "m", "K", "t", output=True, resolution="temp_res"),),
+                                 SCENARIO_SETTINGS=own)
+    with pytest.raises(ImportError, match="a sensor's resolution 'temp_res', but no sensor"):
+        _check_sensors("heat", bare)
+    typo = types.SimpleNamespace(STATES=(PlantState("temp", "m", "K", "t", output=True, noise="temp_noise",
+                                                    resolution="typo"),), SCENARIO_SETTINGS=own)
+    with pytest.raises(ImportError, match="the sensor's resolution setting 'typo', which its SCENARIO_SETTINGS"):
+        _check_sensors("heat", typo)
+    _check_sensors("heat", types.SimpleNamespace(STATES=(PlantState("temp", "m", "K", "t", output=True, noise="temp_noise",
+                                                                    resolution="temp_res"),), SCENARIO_SETTINGS=own))
 
 
 def test_an_output_may_not_take_a_loop_ports_name(robot_model):

@@ -186,7 +186,8 @@ REQUIRED = ("POSITION", "DOC", "SCENARIO_SETTINGS", "STATE", "CONFIG", "CONFIG_D
             "C_START", "update", "rate", "C_UPDATE", "C_COMMENT")
 
 #: The loop's own state fields and configuration (hydrogen.layout): no estimator may take their names.
-RESERVED = ("t", "k", "x", "q_meas", "u_hist", "u_app", "xc", "fk_info", "fk_l", "h", "quant_l", "numbers")
+RESERVED = ("t", "k", "x", "q_meas", "u_hist", "u_app", "xc", "fk_info", "fk_l", "h", "quant_l", "sensor_res",
+            "numbers")
 
 
 def _discover() -> tuple:

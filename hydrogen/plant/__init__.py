@@ -36,7 +36,7 @@ from ..loop_logs import RESERVED as LOG_NAMES  # the run's own logs: no plant ou
 
 __all__ = ["FUNCTION", "BLOCKS", "SIZES", "PlantState", "PlantParameter", "PlantInput", "Slot", "block", "plant_layout",
            "state_size", "slot", "entry_names", "describe_entries", "state_vector", "initial_state", "outputs",
-           "plant_inputs", "input_values",
+           "sensor_resolution", "plant_inputs", "input_values",
            "input_record", "actuator_settings", "structure_flag"]
 
 
@@ -82,6 +82,11 @@ class PlantState:
         the standard deviation of its sensor, in its unit: a channel of the noise row after the
         loop's own (:mod:`hydrogen.sensors`), which the controller's reading carries; empty: an ideal
         sensor (its true value).
+    resolution
+        For an output with a sensor (``noise``): the name of the block's scenario setting that is the
+        sensor's resolution, in its unit (0: none; one number, or one per entry where the setting
+        takes ``entries``): the reading, noise included, is rounded to its grid as the actuators'
+        travel sensors round theirs (``quantization_l``); empty: no rounding.
     """
 
     name: str
@@ -93,6 +98,7 @@ class PlantState:
     initial: object = 0.0
     output: bool = False
     noise: str = ""
+    resolution: str = ""
 
     @property
     def label(self) -> str:
@@ -157,7 +163,7 @@ class Slot:
     :data:`SIZES`), ``start`` and ``size`` (entries), per-entry ``units``, ``lower``, ``upper`` and
     ``entries`` (what each entry belongs to: a coordinate, an actuator, a pressure state), ``doc``,
     per-entry ``initial`` values (NaN where a scenario setting gives them: ``initial_setting``),
-    ``output`` and ``noise`` (:class:`PlantState`)."""
+    ``output``, ``noise`` and ``resolution`` (:class:`PlantState`)."""
 
     name: str
     block: str
@@ -173,6 +179,7 @@ class Slot:
     output: bool = False
     initial_setting: str | None = None
     noise: str = ""
+    resolution: str = ""
 
     @property
     def stop(self) -> int:
@@ -302,7 +309,7 @@ def plant_layout(model, blocks=None) -> tuple:
             initial = (math.nan,) * size if setting else tuple(float(v) for v in _per_entry(st.initial, model, size))
             out.append(Slot(st.name, mod.__name__.rsplit(".", 1)[-1], st.size, start, size,
                             _per_entry(st.unit, model, size), lower, upper, entries, st.doc, initial, st.output,
-                            setting, st.noise))
+                            setting, st.noise, st.resolution))
             start += size
     return tuple(out)
 
@@ -364,6 +371,24 @@ def initial_state(layout, scenario=None, **parts) -> np.ndarray:
     return x
 
 
+def sensor_resolution(layout, scenario) -> dict:
+    """``{output: resolution per entry}`` (in the output's unit, 0: none) of each plant output with a
+    sensor (:attr:`PlantState.noise`), in ``layout`` order, from ``scenario``'s settings
+    (:attr:`PlantState.resolution`; zeros where the output declares none)."""
+    out = {}
+    for s in layout:
+        if not s.noise:
+            continue
+        value = 0.0 if not s.resolution else getattr(scenario, s.resolution)
+        given = np.asarray(value, float)
+        if given.ndim and given.shape != (s.size,):
+            from ..errors import ScenarioError
+            raise ScenarioError(f"scenario '{scenario.name}': {s.resolution} = {value!r}, the resolution of the "
+                                f"plant's {s.name} sensor ({s.block}), must be one number or {s.size}")
+        out[s.name] = np.broadcast_to(given, (s.size,)).astype(float)
+    return out
+
+
 def outputs(layout) -> tuple:
     """The parts of ``layout`` that are the plant's outputs (:attr:`PlantState.output`), in order."""
     return tuple(s for s in layout if s.output)
@@ -379,6 +404,12 @@ def _check_sensors(name: str, mod) -> None:
         if st.noise and st.noise not in getattr(mod, "SCENARIO_SETTINGS", {}):
             raise ImportError(f"plant block {name!r} gives its state {st.name!r} the sensor's noise setting "
                               f"{st.noise!r}, which its SCENARIO_SETTINGS does not declare")
+        if st.resolution and not st.noise:
+            raise ImportError(f"plant block {name!r} gives its state {st.name!r} a sensor's resolution "
+                              f"{st.resolution!r}, but no sensor (noise=...: its noise setting, 0 for none)")
+        if st.resolution and st.resolution not in getattr(mod, "SCENARIO_SETTINGS", {}):
+            raise ImportError(f"plant block {name!r} gives its state {st.name!r} the sensor's resolution setting "
+                              f"{st.resolution!r}, which its SCENARIO_SETTINGS does not declare")
 
 
 def _discover() -> tuple:

@@ -16,7 +16,7 @@ import numpy as np
 
 from .. import references
 from ..estimators import ESTIMATORS, estimator, switch_field
-from ..plant import initial_state, plant_layout, supply
+from ..plant import initial_state, plant_layout, sensor_resolution, supply
 from ..layout import FK_MAX_COND, FK_MAX_ITER, FK_TOL, LOOP_CONFIG, PLANT_INPUTS, delay_split
 
 
@@ -69,6 +69,13 @@ def _estimator_values() -> dict:
     return out
 
 
+def _sensor_resolution(run) -> np.ndarray:
+    """Each rig part's sensor's resolution (:func:`hydrogen.plant.sensor_resolution`), the sensed
+    outputs' entries in order, flat (one unread 0 where no output is sensed)."""
+    values = list(sensor_resolution(plant_layout(run.dyn.model), run.sc).values())
+    return np.concatenate(values) if values else np.zeros(1)
+
+
 def _bounds(run, i):
     b = np.asarray(run.ctrl.bounds[i], float)
     b = np.where(np.isfinite(b), b, -1e300 if i == 0 else 1e300)  # the C loop's "unbounded"
@@ -95,6 +102,7 @@ DERIVED = {
     "gamma2": lambda r: np.asarray(r.dyn.model.gamma[1], float),
     **{name: _plant_input(name) for name in PLANT_INPUTS},  # each block's input of numbers (friction, valve)
     "quantization_l": _per_actuator("quantization_l"),
+    "sensor_resolution": _sensor_resolution,
     **_estimator_values(),  # each estimator's switch and numbers (hydrogen.estimators)
     # the reference's fields, each kind's (hydrogen.references): its own values, the others' idle ones
     **{name: (lambda r, k=name: references.config_values(r.sc.reference)[k])
