@@ -190,11 +190,12 @@ def _cmd_identify(args) -> int:
     from .fileio import atomic_write
     from .outputs import check_distinct, check_output_file
 
+    model = hydrogen.load_model(args.model) if args.model else None  # read once: its notes shown once
     if args.json:
         check_output_file(args.json, "--json")
-        inputs = [("log", args.log)] + (_model_files(hydrogen.load_model(args.model)) if args.model else [])
+        inputs = [("log", args.log)] + (_model_files(model) if model is not None else [])
         check_distinct([("--json", args.json)], inputs)
-    res = hydrogen.identify(Path(args.log), model=args.model, cutoff_hz=args.cutoff,
+    res = hydrogen.identify(Path(args.log), model=model, cutoff_hz=args.cutoff,
                             zoh_correction=args.zoh_correction, friction=args.friction,
                             friction_speed=args.friction_speed, **_build_options(args))
     print(res.summary())

@@ -799,8 +799,9 @@ def _tree_from_urdf(path: Path, data: bytes, select):
             # a placeholder on the fixed base, or a massless frame link (Pinocchio accepts both): mass 0
             links.append(massless)
             if joint is not None:
-                _note(f"{path}: {w} has no mass: it moves as a frame only (its parent joint must move a link "
-                      "with mass below it)")
+                _note(f"{path}: {w} has no mass: it moves as a frame only" + (
+                    f" (joint '{joint}' it moves with must move a link with mass)" if by_child[lk.name].type == "fixed"
+                    else " (its parent joint must move a link with mass below it)"))
             continue
         T = np.asarray(lk.inertial.origin if lk.inertial.origin is not None else np.eye(4), float)
         mass = numbers["link", lk.name]["inertial/mass", "value"]
@@ -1610,10 +1611,18 @@ def model_from_dict(data: dict, source: str = "<memory>", base_dir: Path | None 
     if not isinstance(params, list) or not params or not all(isinstance(p, str) for p in params) \
             or len(set(params)) != len(params):
         raise r.error("[adaptation] parameters", f"expected distinct names 'link.parameter', got {_quote(params)}")
+    static = {root}  # the base and the links fixed to it: their inertia never enters the dynamics
+    for j in joints:  # parents before children (the tree's order)
+        if j.type == "fixed" and j.parent in static:
+            static.add(j.child)
     for p in params:
         lk, _, key = p.partition(".")
         if lk not in {x.name for x in links} or key not in INERTIAL_PARAMETERS:
             raise r.error("[adaptation] parameters", f"'{p}' is not '<moving link>.<{'|'.join(INERTIAL_PARAMETERS)}>'")
+        if lk in static:
+            raise r.error("[adaptation] parameters", f"'{p}' is not '<moving link>.<{'|'.join(INERTIAL_PARAMETERS)}>': "
+                                                     f"link '{lk}' is fixed to the base, its inertia never enters the "
+                                                     "dynamics (nothing to adapt)")
     p_count = len(params)
     tmin = r.vector("[adaptation] theta_min", r.require(ad, "theta_min", "[adaptation]"), p_count)
     tmax = r.vector("[adaptation] theta_max", r.require(ad, "theta_max", "[adaptation]"), p_count)

@@ -954,3 +954,18 @@ def test_a_scenario_without_a_required_setting_names_it(tmp_path):
         hydrogen.simulate("bare", "p", model=model)
     assert str(err.value).endswith("[scenarios.bare]: missing field(s) t_adapt (adaptation switched on from this "
                                    "time, s)")
+
+
+def test_a_link_fixed_to_the_base_has_no_parameter_to_adapt(tmp_path):
+    """A link on a fixed joint from the base (a pedestal) never moves: its parameters are no column of Y;
+    adapting one is refused naming it, as the base's are (a link fixed to a moving one is adaptable)."""
+    pedestal = ('[[links]]\nname = "pedestal"\nmass = 100.0\ncom = [0.0, 0.0, 0.1]\ninertia = [2.0, 2.0, 3.0]\n\n'
+                '[[joints]]\nname = "pedestal_mount"\ntype = "fixed"\nparent = "base"\nchild = "pedestal"\n\n')
+    text = default_model_path().read_text().replace("[[links]]\n", pedestal + "[[links]]\n", 1)
+    source = tmp_path / "with_pedestal.toml"
+    source.write_text(text)
+    assert "pedestal" in {lk.name for lk in hydrogen.load_model(source).links}
+    path = _write_variant(tmp_path, 'parameters = ["platform.mass",', 'parameters = ["pedestal.mass",', source=source)
+    with pytest.raises(ModelError, match=r"\[adaptation\] parameters: 'pedestal.mass' is not '<moving link>.*link "
+                                         r"'pedestal' is fixed to the base, its inertia never enters the dynamics"):
+        hydrogen.load_model(path)
