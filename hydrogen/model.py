@@ -691,7 +691,16 @@ def _tree_from_toml(r: _Reader, data: dict):
         name = r.name(f"{w} name", r.require(lk, "name", w))
         w = f"[[links]] '{name}'"
         r.known(lk, _keys("[[links]]"), w)
-        mass = r.number(f"{w} mass", r.require(lk, "mass", w), "mass")
+        raw = r.require(lk, "mass", w)
+        if isinstance(raw, (int, float)) and not isinstance(raw, bool) and raw == 0:
+            # a frame (a sensor, a tool point), as a URDF link without an inertial: no com, no inertia
+            given = [k for k in ("com", "inertia") if k in lk and not _all_zero(lk[k])]
+            if given:
+                raise r.error(f"{w} mass", f"must be > 0, or 0 for a massless frame with no {' and no '.join(given)} "
+                                           f"(got {given[0]} = {_quote(lk[given[0]])})")
+            links.append(Link(name, 0.0, np.zeros(3), np.zeros((3, 3))))
+            continue
+        mass = r.number(f"{w} mass", raw, "mass")
         com = r.vector(f"{w} com", lk.get("com", _default("[[links]]", "com")), 3, "position")
         inertia = _inertia_matrix(r, f"{w} inertia", r.require(lk, "inertia", w))
         links.append(Link(name, mass, com, inertia))
@@ -717,6 +726,12 @@ def _tree_from_toml(r: _Reader, data: dict):
                             _axis(r, f"{w} axis", jt.get("axis", _default("[[joints]]", "axis"))),
                             _limit(r, f"{w} limit", {k: v for k, v in limit.items()})))
     return links, joints
+
+
+def _all_zero(value) -> bool:
+    """Whether a description's list is all zeros (a massless frame's com or inertia written out)."""
+    return isinstance(value, list) and all(isinstance(v, (int, float)) and not isinstance(v, bool) and v == 0
+                                           for v in value)
 
 
 #: The keys of a joint limit (URDF ``<limit>`` attributes, TOML ``limit`` table), joint units.

@@ -124,10 +124,11 @@ DESCRIPTION_KEYS = (
     Key("top level", "variants", "", "[variants.<name>] tables: scenario fields set over any scenario run as "
         "<scenario>.<name> (the rig's timing, say)", default=None, default_text="none"),
     Key("[[links]]", "name", "", "the link's name (letters, digits, single underscores)"),
-    Key("[[links]]", "mass", "kg", "mass, > 0"),
+    Key("[[links]]", "mass", "kg", "mass, > 0; 0 for a massless frame (a sensor, a tool point: no com, no inertia), "
+        "as a URDF link without an inertial"),
     Key("[[links]]", "com", "m", "centre of mass in the link frame", default=[0.0, 0.0, 0.0]),
     Key("[[links]]", "inertia", "kg m²", "about the centre of mass, link axes: [Ixx, Iyy, Izz] or "
-        "[Ixx, Iyy, Izz, Ixy, Ixz, Iyz]; positive definite, triangle inequality"),
+        "[Ixx, Iyy, Izz, Ixy, Ixz, Iyz]; positive definite, triangle inequality (none for a massless frame)"),
     Key("[[joints]]", "name", "", "the joint's name"),
     Key("[[joints]]", "type", "", "revolute, continuous (read as revolute), prismatic, fixed or floating "
         "(six coordinates [x, y, z, ψ, θ, φ], R = Rz(φ) Ry(θ) Rx(ψ))"),

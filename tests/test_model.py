@@ -969,3 +969,25 @@ def test_a_link_fixed_to_the_base_has_no_parameter_to_adapt(tmp_path):
     with pytest.raises(ModelError, match=r"\[adaptation\] parameters: 'pedestal.mass' is not '<moving link>.*link "
                                          r"'pedestal' is fixed to the base, its inertia never enters the dynamics"):
         hydrogen.load_model(path)
+
+
+def test_a_toml_link_of_mass_0_is_a_frame(tmp_path):
+    """As a URDF link without an inertial: a [[links]] table of mass 0 (no com, no inertia, or zeros) is
+    a massless frame (a sensor fixed to the platform adds nothing to the dynamics); with an inertia it is
+    refused naming the key, and a joint that then moves no mass is refused as before."""
+    frame = ('[[links]]\nname = "imu"\nmass = 0.0\n\n[[joints]]\nname = "imu_mount"\ntype = "fixed"\n'
+             'parent = "platform"\nchild = "imu"\norigin_xyz = [0.1, 0.0, 0.2]\n\n')
+    path = tmp_path / "with_imu.toml"
+    path.write_text(default_model_path().read_text().replace("[[joints]]\n", frame + "[[joints]]\n", 1))
+    model, plain = hydrogen.load_model(path), hydrogen.load_model()
+    assert model.link("imu").mass == 0.0 and np.array_equal(model.theta, plain.theta)
+    bad = _write_variant(tmp_path, 'name = "imu"\nmass = 0.0\n', 'name = "imu"\nmass = 0.0\ninertia = [1.0, 1.0, 1.0]\n',
+                         source=path)
+    with pytest.raises(ModelError, match=r"\[\[links\]\] 'imu' mass: must be > 0, or 0 for a massless frame with no "
+                                         r"inertia \(got inertia = \[1.0, 1.0, 1.0\]\)"):
+        hydrogen.load_model(bad)
+    empty = _write_variant(tmp_path, "mass = 250.0", "mass = 0", source=path)
+    empty.write_text(empty.read_text().replace("inertia = [45.0, 45.0, 43.0]", "", 1).replace(
+        "com = [0.0, 0.0, 0.0]", "", 1))
+    with pytest.raises(ModelError, match="moves no mass"):
+        hydrogen.load_model(empty)
