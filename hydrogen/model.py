@@ -694,7 +694,7 @@ def _tree_from_toml(r: _Reader, data: dict):
         raw = r.require(lk, "mass", w)
         if isinstance(raw, (int, float)) and not isinstance(raw, bool) and raw == 0:
             # a frame (a sensor, a tool point), as a URDF link without an inertial: no com, no inertia
-            given = [k for k in ("com", "inertia") if k in lk and not _all_zero(lk[k])]
+            given = [k for k, sizes in (("com", (3,)), ("inertia", (3, 6))) if k in lk and not _all_zero(lk[k], sizes)]
             if given:
                 raise r.error(f"{w} mass", f"must be > 0, or 0 for a massless frame with no {' and no '.join(given)} "
                                            f"(got {given[0]} = {_quote(lk[given[0]])})")
@@ -728,10 +728,11 @@ def _tree_from_toml(r: _Reader, data: dict):
     return links, joints
 
 
-def _all_zero(value) -> bool:
-    """Whether a description's list is all zeros (a massless frame's com or inertia written out)."""
-    return isinstance(value, list) and all(isinstance(v, (int, float)) and not isinstance(v, bool) and v == 0
-                                           for v in value)
+def _all_zero(value, sizes) -> bool:
+    """Whether a description's list is ``sizes`` (one of them) zeros: a massless frame's com or inertia
+    written out."""
+    return isinstance(value, list) and len(value) in sizes and all(
+        isinstance(v, (int, float)) and not isinstance(v, bool) and v == 0 for v in value)
 
 
 #: The keys of a joint limit (URDF ``<limit>`` attributes, TOML ``limit`` table), joint units.

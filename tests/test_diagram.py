@@ -232,7 +232,9 @@ except HydrogenError as exc:
     out["not_given"] = str(exc)
 # the plant FMU's seal_temp outputs into the controller FMU's inputs of that name (delay 0: the master's
 # step order is the timing), against the same run without noise
-quiet = {"delay": 0.0, "noise_l": 0.0, "noise_p": 0.0, "noise_q": 0.0}
+# and the part's sensor at a coarse resolution (2 K, the seals starting either side of a grid line): the
+# controller FMU rounds the reading it is given as the loop's measure stage does
+quiet = {"delay": 0.0, "noise_l": 0.0, "noise_p": 0.0, "noise_q": 0.0, "seal_res": 2.0, "seal_start": [280.9, 281.1]}
 folder = Path(sys.argv[2])
 fmus = [export_fmu(folder / f"{part}.fmu", part, "seal-sim", "p-seal", dyn=dyn, **quiet) for part in ("plant", "controller")]
 from fmpy import read_model_description
@@ -241,6 +243,8 @@ out["fmu_inputs"] = [[v.name, v.causality, v.unit] for v in seal]
 from test_fmu import _cosimulate
 res = hydrogen.simulate("seal-sim", "p-seal", dyn=dyn, **quiet)
 out["cosimulated"] = float(np.max(np.abs(_cosimulate(*fmus, len(res.t)) - res.q)))
+unrounded = hydrogen.simulate("seal-sim", "p-seal", dyn=dyn, **{**quiet, "seal_res": 0.0})
+out["resolution_moves"] = float(np.max(np.abs(unrounded.q - res.q)))
 print(json.dumps(out))
 '''
 
@@ -288,6 +292,7 @@ def test_a_controller_reads_a_rig_parts_state_by_name(cache, tmp_path):
                                 "(command(..., plant={name: value}), or by name in command_for's signals)")
     assert out["fmu_inputs"] == [[f"seal_temp.{c}", "input", "K"] for c in ("shoulder_cylinder", "elbow_cylinder")]
     assert out["cosimulated"] < 1e-9  # rad: the two FMUs wired by name are the closed loop
+    assert out["resolution_moves"] > 1e-6  # rad: with the part's sensor's resolution, which changes the run
     # a resolution the part declares rounds its sensor's reading (the exported program's above too)
     rounded = out["rounded"]
     assert rounded["engines"] < 1e-12 and rounded["grid"] < 1e-9 and 1e-3 < rounded["moved"] <= 0.125 + 1e-9

@@ -986,6 +986,12 @@ def test_a_toml_link_of_mass_0_is_a_frame(tmp_path):
     with pytest.raises(ModelError, match=r"\[\[links\]\] 'imu' mass: must be > 0, or 0 for a massless frame with no "
                                          r"inertia \(got inertia = \[1.0, 1.0, 1.0\]\)"):
         hydrogen.load_model(bad)
+    zeros = _write_variant(tmp_path, 'name = "imu"\nmass = 0.0\n', 'name = "imu"\nmass = 0.0\ncom = [0.0, 0.0, 0.0]\n'
+                           'inertia = [0.0, 0.0, 0.0, 0.0, 0.0, 0.0]\n', source=path)
+    assert hydrogen.load_model(zeros).link("imu").mass == 0.0  # zeros written out: the same frame
+    short = _write_variant(tmp_path, 'name = "imu"\nmass = 0.0\n', 'name = "imu"\nmass = 0.0\ncom = [0.0]\n', source=path)
+    with pytest.raises(ModelError, match=r"'imu' mass: must be > 0, or 0 for a massless frame with no com"):
+        hydrogen.load_model(short)
     empty = _write_variant(tmp_path, "mass = 250.0", "mass = 0", source=path)
     empty.write_text(empty.read_text().replace("inertia = [45.0, 45.0, 43.0]", "", 1).replace(
         "com = [0.0, 0.0, 0.0]", "", 1))
