@@ -37,13 +37,14 @@ def test_every_function_is_in_exactly_one_library(robot_dyn):
     groups = function_groups(manifest)
     names = [n for g in groups.values() for n in g]
     assert sorted(names) == sorted(e["name"] for e in manifest["functions"]) and len(set(names)) == len(names)
-    # per controller its full variant, then its lean one where it has one (the adaptive ones)
+    # per controller its full variant, then its lean one where it has one (the adaptive ones), each
+    # followed by its rates' library (a controller with a state)
     listed = robot_dyn.model.controllers  # the controllers the robot's description lists, in registry order
-    want = [CORE] + [g for c in listed for g in (c, f"{c}-{LEAN}") if g in groups]
+    want = [CORE] + [g for c in listed for v in (c, f"{c}-{LEAN}") for g in (v, f"{v}-rates") if g in groups]
     assert list(groups) == want and set(listed) <= set(groups)
     assert groups["adaptive-robust-lean"] == [function_name("adaptive-robust", LEAN),
-                                              rates_function_name("adaptive-robust", LEAN),
                                               step_function_name("adaptive-robust", LEAN)]
+    assert groups["adaptive-robust-lean-rates"] == [rates_function_name("adaptive-robust", LEAN)]
     assert not any(n.startswith("ctrl_") for n in groups[CORE])
     assert groups["p"] == ["ctrl_p"] and groups["p-task"] == ["ctrl_p_task"]  # ctrl_p does not claim ctrl_p_task
     assert f"{manifest['model_name']}_loop.c" in group_sources(manifest, CORE)
@@ -109,6 +110,21 @@ def test_a_run_compiles_only_the_variant_it_runs(model, tmp_path):
     full = hydrogen.build(plain, cache=cache, cflags=FAST, backend="ctypes", controllers=("adaptive-observer",),
                           gains={"adaptive-observer": {"rate_ls_theta": 5.0}})
     assert full.library.loaded_groups() == (CORE, "adaptive-observer")
+
+
+def test_the_rates_library_is_compiled_by_the_python_engine_alone(model, tmp_path):
+    """A controller's rates (the state's rates alone) are called by the Python engine's semi-implicit
+    update only: a run of the C loop compiles the core and the controller's variant, not the rates; a
+    run of the Python engine then compiles them, and the two runs agree."""
+    cache = tmp_path / "cache"
+    dyn = hydrogen.build(model, cache=cache, cflags=FAST, backend="ctypes", controllers=("adaptive-robust",))
+    c = hydrogen.simulate("z-1hz", "adaptive-robust", dyn=dyn, duration=0.02)
+    assert dyn.library.loaded_groups() == (CORE, "adaptive-robust")
+    assert "adaptive-robust-rates" in dyn.library.groups()  # there, not compiled
+    py = hydrogen.simulate("z-1hz", "adaptive-robust", dyn=dyn, duration=0.02, engine="python")
+    assert dyn.library.loaded_groups() == (CORE, "adaptive-robust", "adaptive-robust-rates")
+    assert sorted(cached_builds(cache).values()) == sorted(sources_of(dyn, g) for g in dyn.library.loaded_groups())
+    np.testing.assert_allclose(py.q, c.q, rtol=0, atol=1e-12)
 
 
 def _library_of(dyn, group) -> Path:

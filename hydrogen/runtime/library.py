@@ -20,7 +20,7 @@ from ..errors import BuildCacheError
 from ..layout import NUMBERS
 
 __all__ = ["GeneratedLibrary", "CompiledFunction", "LazyFunctions", "load_failure", "function_groups", "group_sources",
-           "group_name", "group_of", "CORE"]
+           "group_name", "group_of", "CORE", "RATES"]
 
 _c_int = ctypes.c_longlong  # casadi_int, fixed by the code generator options
 _DOUBLE_P = ctypes.POINTER(ctypes.c_double)
@@ -305,21 +305,28 @@ def group_name(kind: str, variant: str | None = None) -> str:
     return kind if variant is None else f"{kind}-{variant}"
 
 
+#: The suffix of a controller variant's library of its state's rates alone (``kind[-variant]-rates``):
+#: only the Python engine's semi-implicit update calls them, so the C loop's runs never compile them.
+RATES = "rates"
+
+
 def group_of(fname: str) -> str:
     """The library that holds generated function ``fname`` (:func:`function_groups`): :data:`CORE`,
-    or its controller's variant's."""
-    from ..controllers import function_owner
+    its controller's variant's, or that variant's rates library (:data:`RATES`)."""
+    from ..controllers import function_owner, rates_function_name
 
     owner = function_owner(fname)
-    return CORE if owner is None else group_name(*owner)
+    if owner is None:
+        return CORE
+    return f"{group_name(*owner)}-{RATES}" if fname == rates_function_name(*owner) else group_name(*owner)
 
 
 def function_groups(manifest: dict) -> dict:
     """The manifest's function names by the library that holds them: :data:`CORE` first, then per
     controller (in the order the controllers are registered) one group per variant that a run calls
-    on its own, the full one (:func:`group_name` ``kind``: the controller, its rates and its
-    semi-implicit step) and the lean one (``kind-lean``, run when every composite rate is 0), so a
-    run compiles only the variant it runs."""
+    on its own, the full one (:func:`group_name` ``kind``: the controller and its semi-implicit step)
+    and the lean one (``kind-lean``, run when every composite rate is 0), each followed by its rates
+    library (``kind[-lean]-rates``: the Python engine's), so a run compiles only what it calls."""
     from ..controllers import CONTROLLERS, LEAN
 
     names = [e["name"] for e in manifest["functions"]]
@@ -327,9 +334,10 @@ def function_groups(manifest: dict) -> dict:
     groups = {CORE: [n for n in names if owner[n] == CORE]}
     for kind in CONTROLLERS:
         for variant in (None, LEAN):
-            mine = [n for n in names if owner[n] == group_name(kind, variant)]
-            if mine:
-                groups[group_name(kind, variant)] = mine
+            for group in (group_name(kind, variant), f"{group_name(kind, variant)}-{RATES}"):
+                mine = [n for n in names if owner[n] == group]
+                if mine:
+                    groups[group] = mine
     return groups
 
 

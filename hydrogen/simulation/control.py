@@ -105,8 +105,10 @@ class _Controller:
         self.theta0, self.gamma0 = np.asarray(theta0, float), np.asarray(gamma0, float)
         self.xc = np.zeros(sum(n for _, n in self.layout))
         self.xc_dot = np.zeros_like(self.xc)
-        # the state's rates alone (same inputs as fn): the semi-implicit update calls it, not fn
-        self.rates_fn = dyn.functions[rates_function_name(kind, self.variant)].clone() if self.xc.size else None
+        # the state's rates alone (same inputs as fn): the semi-implicit update calls it, not fn; looked
+        # up on first use (rates_fn), so a run of the C loop never compiles its library
+        self._functions = dyn.functions
+        self._rates_fn = None
         # the C loop's semi-implicit period in one call (rates, clip, command): for the loop runner
         # (composed at generation: dynamics made of derived functions alone, e.g. the benchmarks'
         # lambdify and CasADi routes of the Python loop, have none; the C loop runner requires it)
@@ -187,6 +189,14 @@ class _Controller:
         # forward Euler update after this period's command is applied (as the C loop's input slot)
         v.update(adapt=np.array([float(signals["adapt"])]), xc=self.xc, u_applied=self.u_applied.copy())
         return v
+
+    @property
+    def rates_fn(self):
+        """The generated function of the state's rates alone (None without a state), loaded (and, the first
+        time, compiled) on first use."""
+        if self._rates_fn is None and self.xc.size:
+            self._rates_fn = self._functions[rates_function_name(self.kind, self.variant)].clone()
+        return self._rates_fn
 
     def _rates(self):
         """F(measurement, xc, u_applied) at the signals last written into ``values``."""
