@@ -100,8 +100,8 @@ def _estimator_fields() -> tuple:
 #: The sensors' group's comment: the length sensor's, then each estimator's (its CONFIG_DOC), a line each
 #: after the first.
 _SENSORS_DOC = ("sensors: each actuator's travel resolution quant_l (m or rad, its own unit; 0: none; rounded to its "
-                "grid\n * after the noise); sensor_res: each rig part's sensor's resolution (its unit, 0: none), the\n"
-                " * sensed outputs' entries in order"
+                "grid\n * after the noise); sensor_res, sensor_bias: each rig part's sensor's resolution (its unit, 0:\n"
+                " * none) and constant offset, the sensed outputs' entries in order"
                 + "".join(("; " if i == 0 else ";\n * ") + estimator(name).CONFIG_DOC for i, name in enumerate(ESTIMATORS)))
 
 LOOP_CONFIG = (
@@ -123,6 +123,7 @@ LOOP_CONFIG = (
     (_SENSORS_DOC,
      (("quant_l", "const double*", "P_QUANTIZATION_L", "run.quantization_l"),
       ("sensor_res", "const double*", "P_SENSOR_RESOLUTION", "run.sensor_resolution"),
+      ("sensor_bias", "const double*", "P_SENSOR_BIAS", "run.sensor_bias"),
       *_estimator_fields())),  # each estimator's switch and numbers (hydrogen.estimators)
     # the reference kinds' fields (hydrogen.references), each read from the run
     (_REFERENCE[0], tuple((name, ctype, macro, f"run.{name}") for name, ctype, macro in _REFERENCE[1])),
@@ -331,7 +332,8 @@ def model_summary(model) -> dict:
         # (and, only where it has one, an output's sensor noise setting: a shipped manifest stays as it was)
         "plant": [{"name": s.name, "size": s.size_name, "start": s.start, "entries": s.size, "output": s.output,
                    **({"noise": s.noise} if s.noise else {}),
-                   **({"resolution": s.resolution} if s.resolution else {})} for s in plant_layout(model)],
+                   **({"resolution": s.resolution} if s.resolution else {}),
+                   **({"bias": s.bias} if s.bias else {})} for s in plant_layout(model)],
         # recorded only when on: the plant's input friction is wider, a robot without keeps its manifest
         **({"seal_friction": True} if model.seal_friction else {}),
         # each block's plant input and the parameters it takes (its width, whatever structure decides it)
@@ -398,7 +400,7 @@ def plant_sensors(summary: dict) -> tuple:
 
 
 def _resolution_starts(sensed) -> list:
-    """Where each sensed output's resolution starts in the configuration's ``sensor_res``: a C
+    """Where each sensed output's numbers start in the configuration's ``sensor_res`` and ``sensor_bias``: a C
     expression of the loop header's sizes ("0", "NL", "NL + NL")."""
     out, at = [], []
     for ch in sensed:

@@ -199,22 +199,26 @@ out["noisy"] = {"engines": float(np.max(np.abs(noisy[0].u - noisy[1].u))),
                 "std": float(np.std((res.u - free)[inside] / 1e-5)), "rows": int(inside.sum()),
                 "law": float(np.max(np.abs(res.u - law))),
                 "reading_std": float(np.std(reading - res.plant["seal_temp"]))}
-# the sensor's resolution (0.25 K, no noise): the reading is the true temperature on its grid, both engines
-rounded = [hydrogen.simulate("seal-sim", "p-seal", dyn=dyn, engine=e, seal_res=0.25) for e in ("c", "python")]
+# the sensor's resolution (0.25 K) and bias (1.3 K), no noise: the reading is the true temperature plus the
+# bias on the resolution's grid, both engines
+rounded = [hydrogen.simulate("seal-sim", "p-seal", dyn=dyn, engine=e, seal_res=0.25, seal_bias=1.3)
+           for e in ("c", "python")]
 reading, true = rounded[0].signals["seal_temp_meas"], rounded[0].plant["seal_temp"]
 out["rounded"] = {"engines": float(np.max(np.abs(reading - rounded[1].signals["seal_temp_meas"]))),
-                  "grid": float(np.max(np.abs(reading - 0.25 * np.floor(true / 0.25 + 0.5)))),
-                  "moved": float(np.max(np.abs(reading - true)))}
+                  "grid": float(np.max(np.abs(reading - 0.25 * np.floor((true + 1.3) / 0.25 + 0.5)))),
+                  "moved": float(np.max(np.abs(reading - 1.3 - true)))}
 # every sensor's noise off, the part's too: the exported program's and the FMUs' noise-free run
 from hydrogen.simulation.scenarios import scenario
 out["quiet"] = scenario("seal-sim", dyn.model).noise_free()
 # the exported program (the part's sensor noisy in the scenario): its errors are noise_free()'s run's
 import re, subprocess
 from hydrogen.export import export
-folder = export(Path(sys.argv[2]) / "program", "seal-sim", "p-seal", dyn=dyn, seal_noise=0.5, seal_res=0.25)
+folder = export(Path(sys.argv[2]) / "program", "seal-sim", "p-seal", dyn=dyn, seal_noise=0.5, seal_res=0.25,
+                seal_bias=1.3)
 run = subprocess.run(["make", "-s", "run"], cwd=folder, capture_output=True, text=True, timeout=600)
 printed = [float(v) for v in re.findall(r"max_error \\S+ (\\S+) ", run.stdout)]  # in the coordinate's unit
-quiet = hydrogen.simulate("seal-sim", "p-seal", dyn=dyn, **{"seal_noise": 0.5, "seal_res": 0.25, **out["quiet"]})
+quiet = hydrogen.simulate("seal-sim", "p-seal", dyn=dyn, **{"seal_noise": 0.5, "seal_res": 0.25, "seal_bias": 1.3,
+                                                          **out["quiet"]})
 pct = quiet.metrics["max_error_pct"]
 out["program"] = [printed, [pct[c] / 100 * a for c, a in zip(quiet.coordinates, quiet.amplitude) if pct.get(c) is not None]]
 # the runtime's own call: the part's state must be given, never an earlier call's left over
@@ -234,7 +238,8 @@ except HydrogenError as exc:
 # step order is the timing), against the same run without noise
 # and the part's sensor at a coarse resolution (2 K, the seals starting either side of a grid line): the
 # controller FMU rounds the reading it is given as the loop's measure stage does
-quiet = {"delay": 0.0, "noise_l": 0.0, "noise_p": 0.0, "noise_q": 0.0, "seal_res": 2.0, "seal_start": [280.9, 281.1]}
+quiet = {"delay": 0.0, "noise_l": 0.0, "noise_p": 0.0, "noise_q": 0.0, "seal_res": 2.0, "seal_bias": -0.5,
+         "seal_start": [281.4, 281.6]}
 folder = Path(sys.argv[2])
 fmus = [export_fmu(folder / f"{part}.fmu", part, "seal-sim", "p-seal", dyn=dyn, **quiet) for part in ("plant", "controller")]
 from fmpy import read_model_description
@@ -243,7 +248,7 @@ out["fmu_inputs"] = [[v.name, v.causality, v.unit] for v in seal]
 from test_fmu import _cosimulate
 res = hydrogen.simulate("seal-sim", "p-seal", dyn=dyn, **quiet)
 out["cosimulated"] = float(np.max(np.abs(_cosimulate(*fmus, len(res.t)) - res.q)))
-unrounded = hydrogen.simulate("seal-sim", "p-seal", dyn=dyn, **{**quiet, "seal_res": 0.0})
+unrounded = hydrogen.simulate("seal-sim", "p-seal", dyn=dyn, **{**quiet, "seal_res": 0.0, "seal_bias": 0.0})
 out["resolution_moves"] = float(np.max(np.abs(unrounded.q - res.q)))
 print(json.dumps(out))
 '''
@@ -263,9 +268,11 @@ def test_a_controller_reads_a_rig_parts_state_by_name(cache, tmp_path):
     SEAL_HEAT = SEAL_HEAT.replace('"heat transfer to the ambient (h)", per_actuator=True, lower=0.0)', ideal)
     assert ideal in SEAL_HEAT
     # and a sensor of its own, its noise a setting of the part's
-    SEAL_HEAT = SEAL_HEAT.replace('output=True)', 'output=True, noise="seal_noise", resolution="seal_res")', 1).replace(
+    SEAL_HEAT = SEAL_HEAT.replace('output=True)', 'output=True, noise="seal_noise", resolution="seal_res", '
+                                  'bias="seal_bias")', 1).replace(
         '    "seal_start":', '    "seal_noise": setting(0.0, "K", "each seal temperature sensor\'s noise", ">=0"),\n'
                             '    "seal_res": setting(0.0, "K", "each seal temperature sensor\'s resolution", ">=0"),\n'
+                            '    "seal_bias": setting(0.0, "K", "each seal temperature sensor\'s offset", "number"),\n'
                             '    "seal_start":', 1)
     assert 'noise="seal_noise"' in SEAL_HEAT and '"seal_noise": setting' in SEAL_HEAT and '"seal_res": setting' in SEAL_HEAT
     text = (ROOT / "tests" / "data" / "four_way_arm.toml").read_text()
@@ -292,7 +299,8 @@ def test_a_controller_reads_a_rig_parts_state_by_name(cache, tmp_path):
                                 "(command(..., plant={name: value}), or by name in command_for's signals)")
     assert out["fmu_inputs"] == [[f"seal_temp.{c}", "input", "K"] for c in ("shoulder_cylinder", "elbow_cylinder")]
     assert out["cosimulated"] < 1e-9  # rad: the two FMUs wired by name are the closed loop
-    assert out["resolution_moves"] > 1e-6  # rad: with the part's sensor's resolution, which changes the run
-    # a resolution the part declares rounds its sensor's reading (the exported program's above too)
+    assert out["resolution_moves"] > 1e-6  # rad: with the part's sensor's bias and resolution, which change the run
+    # a bias and a resolution the part declares offset and round its sensor's reading (the exported program's
+    # and the FMUs' above too)
     rounded = out["rounded"]
     assert rounded["engines"] < 1e-12 and rounded["grid"] < 1e-9 and 1e-3 < rounded["moved"] <= 0.125 + 1e-9

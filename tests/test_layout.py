@@ -93,7 +93,8 @@ def test_the_runtime_and_the_exported_params_fill_the_same_configuration(dyn, tm
                     "xc_lo": max(cfg.n_xc, 1), "xc_hi": max(cfg.n_xc, 1), "friction": 3 * dyn.model.n_cylinders, "valve": 5 * dyn.model.n_cylinders,
                     "p_low": n_pressures(dyn.model), "p_high": n_pressures(dyn.model),
                     "numbers": 1 if dyn.numbers is None else len(dyn.numbers),
-                    "sensor_res": max(loop_context(dyn.library.manifest)["n_sensed"], 1)}.get(name, dyn.model.n_cylinders)
+                    "sensor_res": max(loop_context(dyn.library.manifest)["n_sensed"], 1),
+                    "sensor_bias": max(loop_context(dyn.library.manifest)["n_sensed"], 1)}.get(name, dyn.model.n_cylinders)
             values = [v[i] for i in range(size)]
         else:
             values = list(v)

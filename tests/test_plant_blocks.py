@@ -546,6 +546,10 @@ def test_a_sensor_is_declared_on_an_output_with_a_setting_of_its_block():
                                                     resolution="typo"),), SCENARIO_SETTINGS=own)
     with pytest.raises(ImportError, match="the sensor's resolution setting 'typo', which its SCENARIO_SETTINGS"):
         _check_sensors("heat", typo)
+    offset = types.SimpleNamespace(STATES=(PlantState("temp", "m", "K", "t", output=True, bias="temp_res"),),
+                                   SCENARIO_SETTINGS=own)
+    with pytest.raises(ImportError, match="a sensor's bias 'temp_res', but no sensor"):
+        _check_sensors("heat", offset)
     _check_sensors("heat", types.SimpleNamespace(STATES=(PlantState("temp", "m", "K", "t", output=True, noise="temp_noise",
                                                                     resolution="temp_res"),), SCENARIO_SETTINGS=own))
 

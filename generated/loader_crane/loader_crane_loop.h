@@ -48,10 +48,11 @@ typedef struct {
     const double* friction;
     const double* valve;
     /* sensors: each actuator's travel resolution quant_l (m or rad, its own unit; 0: none; rounded to its grid
-     * after the noise); sensor_res: each rig part's sensor's resolution (its unit, 0: none), the
-     * sensed outputs' entries in order; fixed-gain Kalman filter on the actuators' travel (use_kalman != 0), gain [K_l, K_ldot] */
+     * after the noise); sensor_res, sensor_bias: each rig part's sensor's resolution (its unit, 0:
+     * none) and constant offset, the sensed outputs' entries in order; fixed-gain Kalman filter on the actuators' travel (use_kalman != 0), gain [K_l, K_ldot] */
     const double* quant_l;
     const double* sensor_res;
+    const double* sensor_bias;
     long long use_kalman;
     double kf_gain[2];
     /* reference: bias + minimum-jerk moves over moves (coordinate, distance, start, duration > 0),

@@ -187,7 +187,7 @@ REQUIRED = ("POSITION", "DOC", "SCENARIO_SETTINGS", "STATE", "CONFIG", "CONFIG_D
 
 #: The loop's own state fields and configuration (hydrogen.layout): no estimator may take their names.
 RESERVED = ("t", "k", "x", "q_meas", "u_hist", "u_app", "xc", "fk_info", "fk_l", "h", "quant_l", "sensor_res",
-            "numbers")
+            "sensor_bias", "numbers")
 
 
 def _discover() -> tuple:

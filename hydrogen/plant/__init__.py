@@ -36,7 +36,7 @@ from ..loop_logs import RESERVED as LOG_NAMES  # the run's own logs: no plant ou
 
 __all__ = ["FUNCTION", "BLOCKS", "SIZES", "PlantState", "PlantParameter", "PlantInput", "Slot", "block", "plant_layout",
            "state_size", "slot", "entry_names", "describe_entries", "state_vector", "initial_state", "outputs",
-           "sensor_resolution", "plant_inputs", "input_values",
+           "sensor_numbers", "sensor_resolution", "sensor_bias", "plant_inputs", "input_values",
            "input_record", "actuator_settings", "structure_flag"]
 
 
@@ -87,6 +87,10 @@ class PlantState:
         sensor's resolution, in its unit (0: none; one number, or one per entry where the setting
         takes ``entries``): the reading, noise included, is rounded to its grid as the actuators'
         travel sensors round theirs (``quantization_l``); empty: no rounding.
+    bias
+        For an output with a sensor: the name of the block's scenario setting that is the sensor's
+        constant offset, in its unit (one number, or one per entry): the reading is the true value
+        plus the bias plus the noise, then rounded; empty: none.
     """
 
     name: str
@@ -99,6 +103,7 @@ class PlantState:
     output: bool = False
     noise: str = ""
     resolution: str = ""
+    bias: str = ""
 
     @property
     def label(self) -> str:
@@ -163,7 +168,7 @@ class Slot:
     :data:`SIZES`), ``start`` and ``size`` (entries), per-entry ``units``, ``lower``, ``upper`` and
     ``entries`` (what each entry belongs to: a coordinate, an actuator, a pressure state), ``doc``,
     per-entry ``initial`` values (NaN where a scenario setting gives them: ``initial_setting``),
-    ``output``, ``noise`` and ``resolution`` (:class:`PlantState`)."""
+    ``output``, ``noise``, ``resolution`` and ``bias`` (:class:`PlantState`)."""
 
     name: str
     block: str
@@ -180,6 +185,7 @@ class Slot:
     initial_setting: str | None = None
     noise: str = ""
     resolution: str = ""
+    bias: str = ""
 
     @property
     def stop(self) -> int:
@@ -309,7 +315,7 @@ def plant_layout(model, blocks=None) -> tuple:
             initial = (math.nan,) * size if setting else tuple(float(v) for v in _per_entry(st.initial, model, size))
             out.append(Slot(st.name, mod.__name__.rsplit(".", 1)[-1], st.size, start, size,
                             _per_entry(st.unit, model, size), lower, upper, entries, st.doc, initial, st.output,
-                            setting, st.noise, st.resolution))
+                            setting, st.noise, st.resolution, st.bias))
             start += size
     return tuple(out)
 
@@ -371,22 +377,34 @@ def initial_state(layout, scenario=None, **parts) -> np.ndarray:
     return x
 
 
-def sensor_resolution(layout, scenario) -> dict:
-    """``{output: resolution per entry}`` (in the output's unit, 0: none) of each plant output with a
-    sensor (:attr:`PlantState.noise`), in ``layout`` order, from ``scenario``'s settings
-    (:attr:`PlantState.resolution`; zeros where the output declares none)."""
+def sensor_numbers(layout, scenario, kind: str) -> dict:
+    """``{output: values per entry}`` of each plant output with a sensor (:attr:`PlantState.noise`), in
+    ``layout`` order: its ``kind`` ("resolution" or "bias", in the output's unit) from ``scenario``'s
+    setting of that name (:attr:`PlantState.resolution`, :attr:`PlantState.bias`; zeros where the output
+    declares none)."""
     out = {}
     for s in layout:
         if not s.noise:
             continue
-        value = 0.0 if not s.resolution else getattr(scenario, s.resolution)
+        setting = getattr(s, kind)
+        value = 0.0 if not setting else getattr(scenario, setting)
         given = np.asarray(value, float)
         if given.ndim and given.shape != (s.size,):
             from ..errors import ScenarioError
-            raise ScenarioError(f"scenario '{scenario.name}': {s.resolution} = {value!r}, the resolution of the "
+            raise ScenarioError(f"scenario '{scenario.name}': {setting} = {value!r}, the {kind} of the "
                                 f"plant's {s.name} sensor ({s.block}), must be one number or {s.size}")
         out[s.name] = np.broadcast_to(given, (s.size,)).astype(float)
     return out
+
+
+def sensor_resolution(layout, scenario) -> dict:
+    """:func:`sensor_numbers` of the sensors' resolutions (0: none)."""
+    return sensor_numbers(layout, scenario, "resolution")
+
+
+def sensor_bias(layout, scenario) -> dict:
+    """:func:`sensor_numbers` of the sensors' biases (0: none)."""
+    return sensor_numbers(layout, scenario, "bias")
 
 
 def outputs(layout) -> tuple:
@@ -404,12 +422,14 @@ def _check_sensors(name: str, mod) -> None:
         if st.noise and st.noise not in getattr(mod, "SCENARIO_SETTINGS", {}):
             raise ImportError(f"plant block {name!r} gives its state {st.name!r} the sensor's noise setting "
                               f"{st.noise!r}, which its SCENARIO_SETTINGS does not declare")
-        if st.resolution and not st.noise:
-            raise ImportError(f"plant block {name!r} gives its state {st.name!r} a sensor's resolution "
-                              f"{st.resolution!r}, but no sensor (noise=...: its noise setting, 0 for none)")
-        if st.resolution and st.resolution not in getattr(mod, "SCENARIO_SETTINGS", {}):
-            raise ImportError(f"plant block {name!r} gives its state {st.name!r} the sensor's resolution setting "
-                              f"{st.resolution!r}, which its SCENARIO_SETTINGS does not declare")
+        for kind in ("resolution", "bias"):
+            setting = getattr(st, kind)
+            if setting and not st.noise:
+                raise ImportError(f"plant block {name!r} gives its state {st.name!r} a sensor's {kind} {setting!r}, "
+                                  "but no sensor (noise=...: its noise setting, 0 for none)")
+            if setting and setting not in getattr(mod, "SCENARIO_SETTINGS", {}):
+                raise ImportError(f"plant block {name!r} gives its state {st.name!r} the sensor's {kind} setting "
+                                  f"{setting!r}, which its SCENARIO_SETTINGS does not declare")
 
 
 def _discover() -> tuple:

@@ -94,7 +94,8 @@ def _check_values(values, ctx, ctrl, dyn) -> None:
     n, m, n_xc = len(model.neutral_pose), ctx["m"], int(ctrl.xc.size)
     sizes = {"theta": len(model.theta), "gamma1": m, "gamma2": m,
              **{i["name"]: i["width"] * m for i in ctx["plant_inputs"]},  # each plant input's numbers per actuator
-             "quant_l": m, "sensor_res": max(ctx["n_sensed"], 1), "bias": n, **references.config_sizes(values),
+             "quant_l": m, "sensor_res": max(ctx["n_sensed"], 1), "sensor_bias": max(ctx["n_sensed"], 1), "bias": n,
+             **references.config_sizes(values),
              "xc_lo": max(n_xc, 1), "xc_hi": max(n_xc, 1), "slot": len(ctx["slots"]),
              # the arrays of the struct's own (each estimator's numbers), of their declared sizes
              **{f["name"]: _array_size(f["type"]) for g in ctx["config"] for f in g["fields"]

@@ -16,7 +16,7 @@ import numpy as np
 
 from .. import references
 from ..estimators import ESTIMATORS, estimator, switch_field
-from ..plant import initial_state, plant_layout, sensor_resolution, supply
+from ..plant import initial_state, plant_layout, sensor_numbers, supply
 from ..layout import FK_MAX_COND, FK_MAX_ITER, FK_TOL, LOOP_CONFIG, PLANT_INPUTS, delay_split
 
 
@@ -69,11 +69,13 @@ def _estimator_values() -> dict:
     return out
 
 
-def _sensor_resolution(run) -> np.ndarray:
-    """Each rig part's sensor's resolution (:func:`hydrogen.plant.sensor_resolution`), the sensed
-    outputs' entries in order, flat (one unread 0 where no output is sensed)."""
-    values = list(sensor_resolution(plant_layout(run.dyn.model), run.sc).values())
-    return np.concatenate(values) if values else np.zeros(1)
+def _sensor_numbers(kind: str):
+    """Each rig part's sensor's ``kind`` ("resolution", "bias": :func:`hydrogen.plant.sensor_numbers`),
+    the sensed outputs' entries in order, flat (one unread 0 where no output is sensed)."""
+    def value(run) -> np.ndarray:
+        values = list(sensor_numbers(plant_layout(run.dyn.model), run.sc, kind).values())
+        return np.concatenate(values) if values else np.zeros(1)
+    return value
 
 
 def _bounds(run, i):
@@ -102,7 +104,8 @@ DERIVED = {
     "gamma2": lambda r: np.asarray(r.dyn.model.gamma[1], float),
     **{name: _plant_input(name) for name in PLANT_INPUTS},  # each block's input of numbers (friction, valve)
     "quantization_l": _per_actuator("quantization_l"),
-    "sensor_resolution": _sensor_resolution,
+    "sensor_resolution": _sensor_numbers("resolution"),
+    "sensor_bias": _sensor_numbers("bias"),
     **_estimator_values(),  # each estimator's switch and numbers (hydrogen.estimators)
     # the reference's fields, each kind's (hydrogen.references): its own values, the others' idle ones
     **{name: (lambda r, k=name: references.config_values(r.sc.reference)[k])

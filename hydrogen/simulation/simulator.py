@@ -19,7 +19,7 @@ from ..estimators.kalman import kalman_gain, length_noise_variance  # noqa: F401
 from ..layout import LU_PIVOT_MIN, SUPPLY_LOG, log_rows, model_summary, plant_ports, plant_sensors, robot_sizes
 from ..loop_logs import FORCES, LOGS, PLANT, SIGNAL
 from ..plant import (describe_entries, initial_state, input_values, integrator, outputs as plant_outputs, plant_inputs,
-                     plant_layout, sensor_resolution, slot)
+                     plant_layout, sensor_bias, sensor_resolution, slot)
 from ..plant.supply import nominal as supply_nominal
 from ..sensors import NOISE, noise_columns
 from ..summary import SATURATED_AT, SATURATION, estimated_blocks  # saturation: defined with its line
@@ -890,6 +890,7 @@ class PythonStages:
         # each sensor's columns of the noise row (hydrogen.sensors.NOISE)
         self._noise = {k: slice(a, a + b) for k, (a, b) in _noise_columns(dyn).items()}
         self._resolution = sensor_resolution(self.layout, sc)  # each sensed output's (0: none)
+        self._bias = sensor_bias(self.layout, sc)
         self._max_delay = MAX_DELAY
         self.u_hist = np.zeros((MAX_DELAY, self.m))  # the C loop's ring: command of period k in slot k % MAX_DELAY
         self._est = None if estimate is None else estimate.module
@@ -933,7 +934,7 @@ class PythonStages:
         if self._ps is not None:  # the supply pressure, held at its lower bound 0
             s.ps_meas = np.maximum(x[self._ps] + nz[col["ps"]], 0.0)
         # the plant's outputs the controller may read: their sensors' readings (true where ideal)
-        s.plant_meas = {name: self._rounded(name, x[part] + nz[col[name]]) if name in col else x[part]
+        s.plant_meas = {name: self._rounded(name, x[part] + self._bias[name] + nz[col[name]]) if name in col else x[part]
                         for name, part in self._plant_ports}
 
     def _rounded(self, name: str, reading: np.ndarray) -> np.ndarray:
