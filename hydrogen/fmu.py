@@ -318,7 +318,9 @@ def _variables(part, dyn, p, ctx, fn, encoders, estimated):
         for b in plant_outputs(layout):
             if b.name in read:
                 for j, e in enumerate(b.entries):
-                    add(_dotted(b.name, e), "i", "continuous", f"{b.doc} of {e} (the controller reads it)",
+                    read_how = " through its sensor's bias and resolution, applied here" if b.noise else ""
+                    add(_dotted(b.name, e), "i", "continuous",
+                        f"{b.doc} of {e}, true (the controller reads it{read_how})",
                         f"inst->{b.name}_in[{j}]", unit=_fmi_unit(b.units[j]), start=float(p.x0[b.slice][j]),
                         **_part_range(b, j))
         ref0 = sc.reference(0.0)

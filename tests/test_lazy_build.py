@@ -112,7 +112,7 @@ def test_a_run_compiles_only_the_variant_it_runs(model, tmp_path):
     assert full.library.loaded_groups() == (CORE, "adaptive-observer")
 
 
-def test_the_rates_library_is_compiled_by_the_python_engine_alone(model, tmp_path):
+def test_the_rates_library_is_compiled_by_the_python_engine_alone(model, tmp_path, monkeypatch):
     """A controller's rates (the state's rates alone) are called by the Python engine's semi-implicit
     update only: a run of the C loop compiles the core and the controller's variant, not the rates; a
     run of the Python engine then compiles them, and the two runs agree."""
@@ -121,7 +121,14 @@ def test_the_rates_library_is_compiled_by_the_python_engine_alone(model, tmp_pat
     c = hydrogen.simulate("z-1hz", "adaptive-robust", dyn=dyn, duration=0.02)
     assert dyn.library.loaded_groups() == (CORE, "adaptive-robust")
     assert "adaptive-robust-rates" in dyn.library.groups()  # there, not compiled
+    import hydrogen.simulation.simulator as simulator
+
+    loaded_at_start = []  # the rates' library is loaded before the Python loop starts (and is timed)
+    real = simulator.run_python_loop
+    monkeypatch.setattr(simulator, "run_python_loop",
+                        lambda *a: loaded_at_start.append(dyn.library.loaded_groups()) or real(*a))
     py = hydrogen.simulate("z-1hz", "adaptive-robust", dyn=dyn, duration=0.02, engine="python")
+    assert loaded_at_start == [(CORE, "adaptive-robust", "adaptive-robust-rates")]
     assert dyn.library.loaded_groups() == (CORE, "adaptive-robust", "adaptive-robust-rates")
     assert sorted(cached_builds(cache).values()) == sorted(sources_of(dyn, g) for g in dyn.library.loaded_groups())
     np.testing.assert_allclose(py.q, c.q, rtol=0, atol=1e-12)

@@ -581,3 +581,22 @@ def test_a_blocks_law_that_fails_on_a_robot_is_refused_naming_it(monkeypatch):
     with pytest.raises(PlantWiringError, match=r"plant block 'friction': its Symbolic.outputs failed on robot "
                                                r"'ubc_stewart': (KeyError|TypeError|IndexError)"):
         plant_rhs(model)
+
+
+@pytest.mark.parametrize("value", ["abc", float("nan"), float("inf"), True, [1.0, float("nan")], [1.0, 2.0, 3.0]])
+def test_a_sensors_numbers_are_finite_reals_of_its_size(value):
+    """A sensor's bias or resolution (hydrogen.plant.sensor_numbers) from a setting declared without a
+    check reaches the loop as given: anything but one finite number or one per entry is refused naming
+    the setting and the sensor, never a NaN reading."""
+    import types
+
+    from hydrogen.errors import ScenarioError
+    from hydrogen.plant import Slot, sensor_numbers
+
+    part = Slot("temp", "heat", "m", 0, 2, ("K", "K"), (0.0, 0.0), (1e9, 1e9), ("a", "b"), "t", (0.0, 0.0), True,
+                None, "temp_noise", "", "temp_bias")
+    ok = sensor_numbers([part], types.SimpleNamespace(name="s", temp_bias=[1.0, -2.0]), "bias")
+    assert ok["temp"].tolist() == [1.0, -2.0]
+    with pytest.raises(ScenarioError, match=r"temp_bias = .*the bias of the plant's temp sensor \(heat\), must be "
+                                            r"one finite number or 2"):
+        sensor_numbers([part], types.SimpleNamespace(name="s", temp_bias=value), "bias")

@@ -28,6 +28,7 @@ from __future__ import annotations
 
 import importlib
 import math
+import numbers
 from dataclasses import dataclass
 
 import numpy as np
@@ -388,11 +389,15 @@ def sensor_numbers(layout, scenario, kind: str) -> dict:
             continue
         setting = getattr(s, kind)
         value = 0.0 if not setting else getattr(scenario, setting)
-        given = np.asarray(value, float)
-        if given.ndim and given.shape != (s.size,):
+        entries = list(value) if isinstance(value, (list, tuple, np.ndarray)) else [value]
+        # a setting declared without a check reaches here as given: finite reals only (no NaN reading)
+        real = all(isinstance(v, numbers.Real) and not isinstance(v, (bool, np.bool_)) and math.isfinite(v)
+                   for v in entries)
+        given = np.asarray(value, float) if real else None
+        if given is None or (given.ndim and given.shape != (s.size,)):
             from ..errors import ScenarioError
             raise ScenarioError(f"scenario '{scenario.name}': {setting} = {value!r}, the {kind} of the "
-                                f"plant's {s.name} sensor ({s.block}), must be one number or {s.size}")
+                                f"plant's {s.name} sensor ({s.block}), must be one finite number or {s.size}")
         out[s.name] = np.broadcast_to(given, (s.size,)).astype(float)
     return out
 

@@ -208,7 +208,8 @@ def build(model: Model | str | Path | None = None, *, cc: str | None = None,
 
     The compiled code is one core library (kinematics, rigid body, hydraulics, plant, the C loop)
     and per controller one library for each variant a run calls on its own (the full controller
-    with its rates and step; the lean one: :func:`~hydrogen.runtime.library.function_groups`). A
+    with its step; the lean one; each variant's rates in a library of their own, which only the Python
+    engine calls: :func:`~hydrogen.runtime.library.function_groups`). A
     build compiles the core and, of each of ``controllers``, the variant the description's gains run;
     any other library (the other variant, another controller) is compiled (or found in the cache)
     the first time one of its functions is used, e.g. by a run with other gains.

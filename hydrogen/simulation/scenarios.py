@@ -41,7 +41,9 @@ class Scenario(ScenarioFields):
 
     def noise_free(self) -> dict:
         """The overrides that switch every sensor noise off: the loop's own sensors' (the per-actuator
-        ones included) and every rig part's output's sensor (:attr:`hydrogen.plant.PlantState.noise`)."""
+        ones included) and every rig part's output's sensor (:attr:`hydrogen.plant.PlantState.noise`). A
+        sensor's resolution and bias stay: they are the sensor's, not noise (an exported program, which
+        draws no noise, applies them too)."""
         quiet = {a: {**v, "noise_l": 0.0} for a, v in self.actuators.items() if isinstance(v, Mapping)}
         parts = {st.noise: 0.0 for b in plant_blocks for st in plant_block(b).STATES if st.noise}
         return {**{ch.setting: 0.0 for ch in NOISE}, **parts, "actuators": quiet}
