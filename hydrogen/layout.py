@@ -399,7 +399,7 @@ def plant_sensors(summary: dict) -> tuple:
     return tuple(out)
 
 
-def _resolution_starts(sensed) -> list:
+def _sensor_starts(sensed) -> list:
     """Where each sensed output's numbers start in the configuration's ``sensor_res`` and ``sensor_bias``: a C
     expression of the loop header's sizes ("0", "NL", "NL + NL")."""
     out, at = [], []
@@ -571,10 +571,10 @@ def loop_context(manifest: dict) -> dict:
                           for p in plant_outputs(s)],
         "n_noise": noise_width(robot_sizes(s), bool(s["joint_encoders"]), sensed), "noise": noise,
         "n_sensed": sum(int(robot_sizes(s)[ch.size]) for ch in sensed),  # the entries of sensor_res
-        # each sensed output: its part of x, its count, where its resolution starts in sensor_res (the
-        # measure stage's reading)
-        "plant_sensors": [{"name": ch.name, "count": Markup(ch.size), "res_start": Markup(start)}
-                          for ch, start in zip(sensed, _resolution_starts(sensed))],
+        # each sensed output: its part of x, its count, where its numbers start in sensor_res and
+        # sensor_bias (the measure stage's reading)
+        "plant_sensors": [{"name": ch.name, "count": Markup(ch.size), "start": Markup(start)}
+                          for ch, start in zip(sensed, _sensor_starts(sensed))],
         "noise_comment": ", ".join(f"{ch['doc']} ({ch['unit']})" for ch in noise),
         "n_pressures": n_p, "three_way": n_p == m,
         "nps": nps,

@@ -8,11 +8,11 @@ from __future__ import annotations
 
 import math
 import numbers
-
-import numpy as np
 from dataclasses import field
 
-__all__ = ["setting", "failed_check", "failed_check_one", "words", "WORDS"]
+import numpy as np
+
+__all__ = ["setting", "failed_check", "words", "WORDS"]
 
 
 def setting(default, unit: str, meaning: str, check: str | None = None, default_text: str | None = None,
@@ -42,11 +42,11 @@ def failed_check(decl, value) -> str | None:
         value = list(np.ravel(value)) if isinstance(value, np.ndarray) else value
         if not value:
             return "number"
-        return next((f for f in (failed_check_one(check, v) for v in value) if f), None)
-    return failed_check_one(check, value)
+        return next((f for f in (_failed_one(check, v) for v in value) if f), None)
+    return _failed_one(check, value)
 
 
-def failed_check_one(check: str, value) -> str | None:
+def _failed_one(check: str, value) -> str | None:
     """:func:`failed_check` of one value against ``check``."""
     # numpy's bools are not numbers.Real; Python's are, and are refused by name
     if isinstance(value, bool) or not isinstance(value, numbers.Real) or not math.isfinite(value):

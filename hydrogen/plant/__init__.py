@@ -37,7 +37,7 @@ from ..loop_logs import RESERVED as LOG_NAMES  # the run's own logs: no plant ou
 
 __all__ = ["FUNCTION", "BLOCKS", "SIZES", "PlantState", "PlantParameter", "PlantInput", "Slot", "block", "plant_layout",
            "state_size", "slot", "entry_names", "describe_entries", "state_vector", "initial_state", "outputs",
-           "sensor_numbers", "sensor_resolution", "sensor_bias", "plant_inputs", "input_values",
+           "sensor_numbers", "plant_inputs", "input_values",
            "input_record", "actuator_settings", "structure_flag"]
 
 
@@ -400,16 +400,6 @@ def sensor_numbers(layout, scenario, kind: str) -> dict:
                                 f"plant's {s.name} sensor ({s.block}), must be one finite number or {s.size}")
         out[s.name] = np.broadcast_to(given, (s.size,)).astype(float)
     return out
-
-
-def sensor_resolution(layout, scenario) -> dict:
-    """:func:`sensor_numbers` of the sensors' resolutions (0: none)."""
-    return sensor_numbers(layout, scenario, "resolution")
-
-
-def sensor_bias(layout, scenario) -> dict:
-    """:func:`sensor_numbers` of the sensors' biases (0: none)."""
-    return sensor_numbers(layout, scenario, "bias")
 
 
 def outputs(layout) -> tuple:

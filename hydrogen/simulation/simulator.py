@@ -19,7 +19,7 @@ from ..estimators.kalman import kalman_gain, length_noise_variance  # noqa: F401
 from ..layout import LU_PIVOT_MIN, SUPPLY_LOG, log_rows, model_summary, plant_ports, plant_sensors, robot_sizes
 from ..loop_logs import FORCES, LOGS, PLANT, SIGNAL
 from ..plant import (describe_entries, initial_state, input_values, integrator, outputs as plant_outputs, plant_inputs,
-                     plant_layout, sensor_bias, sensor_resolution, slot)
+                     plant_layout, sensor_numbers, slot)
 from ..plant.supply import nominal as supply_nominal
 from ..sensors import NOISE, noise_columns
 from ..summary import SATURATED_AT, SATURATION, estimated_blocks  # saturation: defined with its line
@@ -857,6 +857,13 @@ class _Signals:
         raise AttributeError(name)
 
 
+def _on_grid(reading: np.ndarray, resolution: np.ndarray) -> np.ndarray:
+    """A sensor's ``reading`` rounded to each entry's ``resolution`` (0: none), as the C loop's sensors
+    round: ``res * floor(reading / res + 0.5)``."""
+    step = np.where(resolution > 0, resolution, 1.0)
+    return np.where(resolution > 0, step * np.floor(reading / step + 0.5), reading)
+
+
 class PythonStages:
     """The reference closed loop in Python: an interpreter of the loop's diagram
     (:data:`hydrogen.diagram.LOOP_BLOCKS`), one method per block, named as the block, run in the
@@ -891,8 +898,8 @@ class PythonStages:
         self.nq, self.m, self.n_p = model.n, model.n_cylinders, pc.size
         # each sensor's columns of the noise row (hydrogen.sensors.NOISE)
         self._noise = {k: slice(a, a + b) for k, (a, b) in _noise_columns(dyn).items()}
-        self._resolution = sensor_resolution(self.layout, sc)  # each sensed output's (0: none)
-        self._bias = sensor_bias(self.layout, sc)
+        # each sensed output's resolution (0: none) and bias
+        self._resolution, self._bias = (sensor_numbers(self.layout, sc, k) for k in ("resolution", "bias"))
         self._max_delay = MAX_DELAY
         self.u_hist = np.zeros((MAX_DELAY, self.m))  # the C loop's ring: command of period k in slot k % MAX_DELAY
         self._est = None if estimate is None else estimate.module
@@ -928,22 +935,15 @@ class PythonStages:
         q, qdot, pc = x[self._q], x[self._qdot], x[self._pc]
         s.l_true = self.dyn.leg_lengths(q)
         s.l_meas = s.l_true + nz[col["l"]]
-        step = np.where(self._quant > 0, self._quant, 1.0)  # each actuator's resolution (0: none)
-        s.l_meas = np.where(self._quant > 0, step * np.floor(s.l_meas / step + 0.5), s.l_meas)
+        s.l_meas = _on_grid(s.l_meas, self._quant)  # each actuator's resolution (0: none)
         s.pc_meas = np.clip(pc + nz[col["pc"]], self._lo, self._hi) if sc.noise_p else pc
         s.ldot = None if self._est is not None else self.dyn.leg_jacobian(q) @ qdot  # ideal rate sensor
         s.q_enc = q + nz[col["q"]] if self.model.joint_encoders else None
         if self._ps is not None:  # the supply pressure, held at its lower bound 0
             s.ps_meas = np.maximum(x[self._ps] + nz[col["ps"]], 0.0)
         # the plant's outputs the controller may read: their sensors' readings (true where ideal)
-        s.plant_meas = {name: self._rounded(name, x[part] + self._bias[name] + nz[col[name]]) if name in col else x[part]
-                        for name, part in self._plant_ports}
-
-    def _rounded(self, name: str, reading: np.ndarray) -> np.ndarray:
-        """A rig part's sensor's ``reading`` rounded to its resolution, as the C loop's measure stage."""
-        res = self._resolution[name]
-        step = np.where(res > 0, res, 1.0)
-        return np.where(res > 0, step * np.floor(reading / step + 0.5), reading)
+        s.plant_meas = {name: _on_grid(x[part] + self._bias[name] + nz[col[name]], self._resolution[name])
+                        if name in col else x[part] for name, part in self._plant_ports}
 
     def estimator(self, s: _Signals) -> None:
         """The run's estimator (the actuators' rates), pose (encoders or forward kinematics, warm-started),

@@ -102,8 +102,9 @@ def turned_joints(model) -> list:
     """Names of the joints whose frame is turned off the parent's axes (:func:`oblique_joints`), a
     fixed one with nothing moving below it included: where a payload is merged into its body at an
     angle, that body's parameters hold the mount's sines and cosines."""
+    oblique = set(oblique_joints(model))
     return [j.name for j in model.joints
-            if j.name in oblique_joints(model) or (j.type == "fixed" and np.any(np.asarray(j.origin_rpy, float) != 0.0))]
+            if j.name in oblique or (j.type == "fixed" and np.any(np.asarray(j.origin_rpy, float) != 0.0))]
 
 
 def _cheaper(model) -> str:
