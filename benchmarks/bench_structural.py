@@ -17,6 +17,14 @@ scenario runs). Reported: process wall and CPU seconds (the process and its comp
 generation and the compile (from the build's progress events; 0 when the build only loaded), and
 whether the build generated at all. Median of ``RUNS`` runs (1 with ``--quick``).
 
+Each edit is run both ways a build can take: optimized (``hydrogen.build``'s default: the run waits
+for the optimized compile) and quick (``quick=True``, as ``hydrogen simulate`` builds for one run:
+what is not compiled yet compiles at -O0 for this run, and the optimized compiles finish in the
+background after the process has ended). For the quick build also: the seconds after the process
+ended until the background compiles were done (the object store holds no compile's private copy),
+and the wall of a second run then (a new process: it links the optimized objects). The quick
+process's CPU seconds do not count the compiles it left in the background.
+
 Run: ``python benchmarks/bench_structural.py [--quick] [--json FILE]`` (about 2-3 minutes).
 """
 from __future__ import annotations
@@ -49,10 +57,24 @@ from hydrogen.simulation.scenarios import scenario as named_scenario, scenario_n
 model = hydrogen.load_model({toml!r})
 sc = scenario_names(model)[0]
 events = []
-dyn = hydrogen.build(model, cache={cache!r}, progress=events.append, controllers=({controller!r},),
+dyn = hydrogen.build(model, cache={cache!r}, progress=events.append, controllers=({controller!r},), quick={quick!r},
                      gains={{{controller!r}: named_scenario(sc, model).gains.get({controller!r})}})
 hydrogen.simulate(sc, {controller!r}, dyn=dyn, duration={duration!r})
 """
+#: Seconds a quick run's background compiles may take before the benchmark gives up on them.
+BACKGROUND_LIMIT_S = 120.0
+
+
+def _background_done(cache: Path) -> float:
+    """Seconds until the compiles a quick build left in the background are done: none of their
+    private copies (``.tmp-*``) is left in the object store."""
+    t0 = time.perf_counter()
+    store = cache / "objects"
+    while any(store.glob(".tmp-*")):
+        if time.perf_counter() - t0 > BACKGROUND_LIMIT_S:
+            raise RuntimeError(f"{store}: background compiles still running after {BACKGROUND_LIMIT_S:g} s")
+        time.sleep(0.05)
+    return time.perf_counter() - t0
 
 _URDF_KEY = re.compile(r'^urdf\s*=\s*"([^"]+)"', re.MULTILINE)
 
@@ -134,18 +156,31 @@ def run(quick: bool = False) -> dict:
                 if toml is None:
                     continue
                 for c in CONTROLLERS:
+                    def process(cache, quick):
+                        stdout, wall = common.run_python(_RUN.format(toml=str(toml), cache=str(cache), controller=c,
+                                                                     duration=DURATION, quick=quick)
+                                                         + common.BUILD_REPORT)
+                        return {**common.parse_keyed(stdout), "process_wall_s": wall}
+
                     def one(i):
                         cache = root / f"cache-{len(rows)}-{i}"
                         shutil.copytree(warm, cache)
-                        stdout, wall = common.run_python(_RUN.format(toml=str(toml), cache=str(cache),
-                                                                     controller=c, duration=DURATION)
-                                                         + common.BUILD_REPORT)
+                        out = process(cache, False)
                         shutil.rmtree(cache, ignore_errors=True)
-                        return {**common.parse_keyed(stdout), "process_wall_s": wall}
+                        shutil.copytree(warm, cache)
+                        first = process(cache, True)
+                        out.update({f"quick_{k}": v for k, v in first.items()})
+                        out["background_s"] = _background_done(cache)
+                        out["next_run_s"] = process(cache, True)["process_wall_s"]
+                        shutil.rmtree(cache, ignore_errors=True)
+                        return out
 
-                    row, rs = common.median_of_runs(runs, one, ("process_wall_s", "cpu_s", "generate_s", "compile_s"))
+                    row, rs = common.median_of_runs(runs, one, (
+                        "process_wall_s", "cpu_s", "generate_s", "compile_s", "quick_process_wall_s", "quick_cpu_s",
+                        "quick_generate_s", "quick_compile_s", "background_s", "next_run_s"))
                     row.update(robot=name, edit=label, controller=c, generated=bool(rs[0]["generated"]), runs=rs,
-                               target_s=TARGET_S, within_target=row["process_wall_s"] < TARGET_S)
+                               target_s=TARGET_S, within_target=row["quick_process_wall_s"] < TARGET_S,
+                               optimized_within_target=row["process_wall_s"] < TARGET_S)
                     rows.append(row)
     return {"rows": rows, "duration_s": DURATION, "runs": runs, "quick": quick, "payload_kg": PAYLOAD_KG,
             "wall_s": time.perf_counter() - t0, "machine": common.machine_info()}
@@ -155,10 +190,15 @@ def print_table(res: dict, checks: bool = False) -> None:
     """The table; with ``checks`` (the project's release checks) the target and whether it holds."""
     f = common.seconds
     common.print_rows(
-        f"A structural edit of a shipped robot to its first run, warm cache; seconds (median of {res['runs']}):",
+        f"A structural edit of a shipped robot to its first run, warm cache; seconds (median of {res['runs']}). "
+        "wall/CPU/generate/compile: the optimized build; quick: the quick build's process (q.CPU without the "
+        "compiles it left running), q.compile its compile; bg.after: the background compiles' end after the "
+        "process's; next: a second run then:",
         [("robot", -14, lambda r: r["robot"]), ("edit", -22, lambda r: r["edit"]),
          ("controller", -16, lambda r: r["controller"]), ("wall", 6, f("process_wall_s")), ("CPU", 6, f("cpu_s")),
          ("generate", 9, f("generate_s")), ("compile", 8, f("compile_s")),
+         ("quick", 6, f("quick_process_wall_s")), ("q.CPU", 6, f("quick_cpu_s")),
+         ("q.compile", 10, f("quick_compile_s")), ("bg.after", 9, f("background_s")), ("next", 5, f("next_run_s")),
          ("generated", 10, lambda r: "yes" if r["generated"] else "no")],
         res["rows"], res["wall_s"], checks)
 

@@ -86,9 +86,10 @@ def _cmd_simulate(args) -> int:
                             "alone (the scenario's seed) to log it")
     # Built apart from the run, so the summary tells the two times apart (stages on stderr).
     events = []
+    # one run after a structural edit: what is not compiled yet compiles quickly (-O0) for it
     dyn = hydrogen.build(model, progress=lambda e: (events.append(e), print_event(e)),
                          controllers=(args.controller,), gains={args.controller: sc.gains.get(args.controller)},
-                         **_build_options(args))
+                         quick=args.seeds is None and not args.optimized, **_build_options(args))
     if args.seeds is not None:
         return _simulate_seeds(args, model, dyn, events)
     try:
@@ -480,6 +481,10 @@ def build_parser() -> argparse.ArgumentParser:
                           "seeds 0..N-1, or a list such as 0,3,7 (default: one run, the scenario's seed)")
     sim.add_argument("--workers", type=_number(int, 1, strict=False),
                      help="with --seeds: processes (default: the core count)")
+    sim.add_argument("--optimized", action="store_true",
+                     help="compile what is not built yet optimized before the run (as --seeds always does); "
+                          "without it one run compiles it at -O0 (same numbers, quicker to compile, each call "
+                          "slower) and the optimized compile finishes in the background for the next run")
     _add_build_options(sim)
     sim.set_defaults(func=_cmd_simulate)
     ident = sub.add_parser("identify", help="estimate theta (and gamma) by least squares from a rig log CSV",

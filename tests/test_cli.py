@@ -82,3 +82,22 @@ def test_generate_writes_your_own_description_beside_it_not_into_the_package(tmp
     assert f"generated code in {tmp_path / 'generated' / 'ubc_stewart'} is stale" in capsys.readouterr().err
     assert main(["generate", "--model", "ubc_stewart", "--check"]) == 0
     assert f"{repo_generated_dir() / 'ubc_stewart'}: up to date" in capsys.readouterr().out
+
+
+@pytest.mark.parametrize("extra, quick", [((), True), (("--optimized",), False), (("--seeds", "2"), False)])
+def test_simulate_builds_quick_for_one_run_only(monkeypatch, extra, quick):
+    """One run builds quick (what is not compiled yet at -O0, the optimized compile in the background);
+    --optimized and --seeds (many runs) wait for the optimized build."""
+    seen = {}
+
+    class Built(Exception):
+        pass
+
+    def build(model, **kwargs):
+        seen.update(kwargs)
+        raise Built
+
+    monkeypatch.setattr(hydrogen, "build", build)
+    with pytest.raises(Built):
+        cli(["simulate", "--duration", "0.1", *extra])
+    assert seen["quick"] is quick

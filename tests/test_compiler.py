@@ -1,6 +1,9 @@
 """hydrogen/runtime/compiler.py: the translation units compiled in parallel, then one link."""
 import ctypes
+import os
 import shutil
+import subprocess
+import sys
 import textwrap
 
 import pytest
@@ -265,3 +268,43 @@ def test_the_default_flags_add_gccs_own_only_for_gcc(tmp_path):
     import json
     assert set(GCC_CFLAGS) <= set(json.loads((lib.parent / "build.json").read_text())["argv"])
     assert build_key([src], Toolchain(cc=gcc)) != build_key([src], Toolchain(cc=gcc, cflags=DEFAULT_CFLAGS[:-1]))
+
+
+def test_unoptimized_turns_every_optimisation_flag_to_O0_and_keeps_the_rest():
+    tc = Toolchain(cflags=("-O3", "-fPIC", "-march=native", "-Os"), warnings=("-Wall",))
+    quick = tc.unoptimized()
+    assert quick.flags() == ("-O0", "-fPIC", "-march=native") and quick.warnings == ("-Wall",)
+    default = Toolchain().unoptimized().flags()
+    assert default[0] == "-O0" and "-O2" not in default and "-ffp-contract=off" in default
+
+
+@pytest.mark.skipif(os.name != "posix", reason="hand-off runs under a POSIX shell")
+def test_compiles_handed_off_finish_after_the_process_that_started_them_ended(tmp_path):
+    """A process starts three compiles into the store, hands them off and ends at once: the objects
+    arrive whole afterwards (the running one and the two queued), with no private copy left."""
+    import time
+
+    from hydrogen.runtime.compiler import objects_stored
+    sources = []
+    for i in range(3):
+        src = tmp_path / f"f{i}.c"
+        src.write_text("".join(f"double g{i}_{k}(double x) {{ return x * {k}.5 + {i}; }}\n" for k in range(400)))
+        sources.append(src)
+    cache = tmp_path / "cache"
+    code = ("import sys; from hydrogen.runtime.compiler import precompile, hand_off_precompiles, Toolchain\n"
+            f"precompile({[str(s) for s in sources]!r}, Toolchain(cflags=('-O1', '-fPIC')), {str(cache)!r})\n"
+            "hand_off_precompiles()\n")
+    t0 = time.monotonic()
+    subprocess.run([sys.executable, "-c", code], check=True, timeout=120)
+    assert time.monotonic() - t0 < 60
+    tc = Toolchain(cflags=("-O1", "-fPIC"))
+    while not objects_stored(sources, tc, cache):
+        assert time.monotonic() - t0 < 300, "the handed-off compiles never stored their objects"
+        time.sleep(0.1)
+    while any((cache / "objects").glob(".tmp-*")):
+        assert time.monotonic() - t0 < 300, "a handed-off compile left its private copy"
+        time.sleep(0.1)
+    lib = compile_library(sources, "handed", tc, cache=cache)
+    f = ctypes.CDLL(str(lib)).g2_7
+    f.restype, f.argtypes = ctypes.c_double, [ctypes.c_double]
+    assert f(2.0) == 2.0 * 7.5 + 2

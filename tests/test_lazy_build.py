@@ -348,3 +348,57 @@ def test_a_new_structure_compiles_its_core_while_the_controller_derives(tmp_path
     objects = list((tmp_path / "cache" / "objects").glob("*.o"))
     assert len(objects) == len(group_sources(manifest, CORE)) + len(group_sources(manifest, lean))
     assert np.isfinite(hydrogen.simulate("arm-sim", "adaptive-robust", dyn=dyn, duration=0.01).q).all()
+
+
+def _wait_for(predicate, limit_s: float = 300.0) -> bool:
+    """Poll ``predicate`` until true or ``limit_s`` passed (the background compiles of a busy machine)."""
+    import time
+    t0 = time.monotonic()
+    while not predicate():
+        if time.monotonic() - t0 > limit_s:
+            return False
+        time.sleep(0.1)
+    return True
+
+
+def test_a_quick_build_runs_unoptimized_alike_and_the_next_build_links_the_optimized_objects(tmp_path, dyn):
+    """quick=True on an empty cache: the libraries it must compile are compiled at -O0 and loaded, the run
+    equals the optimized build's bit for bit, the optimized objects arrive in the store in the
+    background, and the next build links them (no -O0 library loaded then)."""
+    from hydrogen.runtime.compiler import Toolchain, objects_stored
+
+    cache = tmp_path / "cache"
+    events = []
+    quick = hydrogen.build("ubc_stewart", cache=cache, controllers=("adaptive-robust",), quick=True,
+                           progress=events.append)
+    groups = quick.library.loaded_groups()
+    assert set(quick.library.unoptimized()) == set(groups) and CORE in groups
+    for g in groups:
+        argv = json.loads((Path(quick.library.paths[g]).parent / "build.json").read_text())["argv"]
+        assert "-O0" in argv and "-O2" not in argv
+    assert any("unoptimized (-O0)" in e.detail for e in events if e.stage == "compiling")
+    a = hydrogen.simulate("paper-sim", "adaptive-robust", dyn=quick, duration=0.2)
+    b = hydrogen.simulate("paper-sim", "adaptive-robust", dyn=dyn, duration=0.2)
+    for name in ("q", "u", "pressures", "leg_forces", "theta_hat", "leg_lengths_measured"):
+        np.testing.assert_array_equal(getattr(a, name), getattr(b, name), err_msg=name)
+    folder = quick.library.generated_dir
+    sources = [folder / s for g in groups for s in group_sources(quick.library.manifest, g)]
+    assert _wait_for(lambda: objects_stored(sources, Toolchain(), cache)), "the optimized objects never arrived"
+    events.clear()
+    again = hydrogen.build("ubc_stewart", cache=cache, controllers=("adaptive-robust",), quick=True,
+                           progress=events.append)
+    assert again.library.unoptimized() == ()
+    argv = json.loads((Path(again.library.path).parent / "build.json").read_text())["argv"]
+    assert "-O2" in argv and "-O0" not in argv
+    assert not any("unoptimized" in e.detail for e in events)
+
+
+def test_an_optimized_build_after_a_quick_one_compiles_nothing_unoptimized(tmp_path):
+    """quick=False (the default) never loads an -O0 library, even where a quick build left one."""
+    cache, flags = tmp_path / "cache", ("-O1", "-fPIC", "-std=c99")
+    quick = hydrogen.build("ubc_stewart", cache=cache, controllers=(), quick=True, cflags=flags)
+    assert quick.library.unoptimized() == (CORE,)
+    plain = hydrogen.build("ubc_stewart", cache=cache, controllers=(), cflags=flags)
+    assert plain.library.unoptimized() == ()
+    argv = json.loads((Path(plain.library.path).parent / "build.json").read_text())["argv"]
+    assert "-O1" in argv and "-O0" not in argv

@@ -11,7 +11,8 @@ from ..codegen.generate import (DEFAULT_NUMBERS, check, check_numbers_mode, deri
 from ..errors import BuildCacheError
 from ..model import Model, load_model
 from .cachedir import build_lock_path, cache_errors, check_cache_root, folder_lock, warm_library
-from .compiler import Toolchain, build_key_of, cache_root, cached_library, cancel_precompiles, compile_libraries, precompile
+from .compiler import (Toolchain, build_key_of, cache_root, cached_library, cancel_precompiles, compile_libraries,
+                       hand_off_precompiles, objects_stored, precompile)
 from .extension import attach_extension, build_extension, unavailable_reason
 from .library import CORE, GeneratedLibrary, group_name, group_of, group_sources
 
@@ -124,11 +125,13 @@ class _Loader:
     is never compiled into it.
     """
 
-    def __init__(self, model, folder, manifest, toolchain, root, cache, committed, report):
+    def __init__(self, model, folder, manifest, toolchain, root, cache, committed, report, quick=False):
         self.model, self.folder, self.manifest = model, Path(folder), manifest
         self.toolchain, self.root, self.cache, self.committed, self.report = \
             toolchain, Path(root), cache, committed, report
         self.lock = build_lock_path(self.folder, self.root, committed)
+        self.quick = quick
+        self.unoptimized = {}  # group -> the unoptimized library this process compiled for it (quick)
 
     def _contents(self, group: str) -> list:
         """``[(path, bytes)]`` of the group's sources, each read once and checked against the manifest."""
@@ -156,25 +159,45 @@ class _Loader:
                 lib = self.cached(group)
             if lib is not None:
                 return lib
+            if group in self.unoptimized:
+                return self.unoptimized[group]
         with cache_errors(self.root), folder_lock(self.lock, current=self.committed):
             return self.compile([group], force)[0]
 
     def compile(self, groups: list, force: bool = False) -> list:
         """The libraries of ``groups``, compiled in one pool where not cached (the caller holds the
-        folder's lock); "compiling" and "compiled" reported around a compile."""
+        folder's lock); "compiling" and "compiled" reported around a compile. With ``quick``, a library
+        whose optimized objects are not all in the store yet compiles unoptimized
+        (:meth:`~hydrogen.runtime.compiler.Toolchain.unoptimized`), after the optimized compiles this
+        process started are handed off to finish on their own for the next build."""
         from ..progress import c_size
 
         sources = {g: self.sources(g) for g in groups}
         new = [g for g in groups if force or self.cached(g) is None]
+        slow = [g for g in new if self.quick and not force
+                and not objects_stored(sources[g], self.toolchain, self.cache)]
         clock = self.report.start()
         if new:
             files = [s for g in new for s in sources[g]]
             what = "" if new == [CORE] else f"{', '.join(new)}: "
-            self.report("compiling", f"{what}{len(files)} files, {c_size(files)} of C")
-        paths = compile_libraries([(sources[g], library_name(self.model.name, g)) for g in groups],
-                                  self.toolchain, cache=self.cache, force=force)
+            self.report("compiling", f"{what}{len(files)} files, {c_size(files)} of C"
+                        + (f"; unoptimized (-O0): {', '.join(slow)}" if slow else ""))
+        if slow:  # the optimized objects: those not started yet start now, and all finish without this process
+            precompile([s for g in slow for s in sources[g]], self.toolchain, self.cache)
+            hand_off_precompiles()
+        tiers = [[g for g in groups if g not in slow], slow]
+        made = {}
+        for tier, toolchain, prefer in ((tiers[0], self.toolchain, None),
+                                        (tiers[1], self.toolchain.unoptimized(), self.toolchain)):
+            if tier:  # an unoptimized library links the optimized objects already in the store
+                made.update(zip(tier, compile_libraries([(sources[g], library_name(self.model.name, g)) for g in tier],
+                                                        toolchain, cache=self.cache, force=force, prefer=prefer)))
+        self.unoptimized.update({g: made[g] for g in slow})
+        paths = [made[g] for g in groups]
         if new:
-            self.report("compiled", ", ".join(p.name for g, p in zip(groups, paths) if g in new), clock())
+            self.report("compiled", ", ".join(p.name for g, p in zip(groups, paths) if g in new)
+                        + ("; the optimized build goes on in the background for the next build" if slow else ""),
+                        clock())
         return paths
 
 
@@ -203,7 +226,7 @@ def _check_controllers(controllers, model: Model) -> tuple:
 def build(model: Model | str | Path | None = None, *, cc: str | None = None,
           cflags: tuple | None = None, cache: Path | None = None, generated: Path | None = None,
           backend: str = "auto", progress=None, controllers=None, numbers: str = DEFAULT_NUMBERS,
-          gains=None):
+          gains=None, quick: bool = False):
     """Generate if stale, compile if needed, load, and return a :class:`~hydrogen.dynamics.Dynamics`.
 
     The compiled code is one core library (kinematics, rigid body, hydraulics, plant, the C loop)
@@ -253,6 +276,13 @@ def build(model: Model | str | Path | None = None, *, cc: str | None = None,
         compiled libraries, with no generation and no compile; the C loop, the export and the
         FMU take the numbers as parameters. "constants" folds them into the C (a library per
         set of numbers).
+    quick : bool
+        For a first run right after a structural edit: a library this build must compile whose
+        optimized objects are not ready is compiled unoptimized (-O0: a controller's long step compiles
+        several times faster; the same numbers bit for bit with the default flags; each call slower),
+        and the optimized compiles go on in the background, outliving this process, so that the next
+        build links them. The returned dynamics keep the unoptimized libraries
+        (``dyn.library.unoptimized()`` names them): for many runs, build again once the optimized objects are in.
     """
     from ..dynamics import Dynamics
     from ..progress import Reporter
@@ -273,7 +303,7 @@ def build(model: Model | str | Path | None = None, *, cc: str | None = None,
     made = []  # the loader the warm library was given (this build compiles through it)
 
     def loader(manifest):
-        made.append(_Loader(model, folder, manifest, toolchain, root, cache, committed, report))
+        made.append(_Loader(model, folder, manifest, toolchain, root, cache, committed, report, quick))
         return made[-1]
 
     groups = _own_variants(model, controllers, gains)

@@ -19,24 +19,26 @@ import hashlib
 import json
 import os
 import re
+import queue
 import secrets
 import shlex
 import shutil
+import signal
 import subprocess
 import sys
 import tempfile
 import threading
 import time
-from concurrent.futures import ThreadPoolExecutor, as_completed
+from concurrent.futures import Future, ThreadPoolExecutor, as_completed
 from contextlib import ExitStack
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 from ..errors import CompilerError
 from ..fileio import atomic_write, locked, write_file
 
 __all__ = ["Toolchain", "cache_root", "compile_library", "compile_libraries", "compile_extension", "run_compiler",
-           "precompile", "cancel_precompiles", "link_shared", "object_store", "DEFAULT_CFLAGS", "GCC_CFLAGS",
+           "precompile", "cancel_precompiles", "hand_off_precompiles", "objects_stored", "link_shared", "object_store", "DEFAULT_CFLAGS", "GCC_CFLAGS",
            "WARNING_FLAGS", "OBJECTS"]
 
 #: Chosen by benchmarks/bench_flags.py (docs/benchmarks.md "Compiler flags"). -fno-semantic-interposition lets gcc
@@ -175,6 +177,17 @@ class Toolchain:
     def argv(self) -> list:
         return [self.executable(), *shlex.split(self.cc)[1:], *self.flags(), *self.warnings]
 
+    def unoptimized(self) -> "Toolchain":
+        """This toolchain at ``-O0`` (its optimisation flags replaced): a long generated function
+        compiles several times faster and each call costs more. With the default flags the numbers
+        are the same bit for bit (IEEE operations in the source's order either way: no fast math, no
+        contraction); a build's quick tier (``build(..., quick=True)``) uses it."""
+        return replace(self, cflags=("-O0", *(f for f in self.flags() if not _OPTIMISE.fullmatch(f))))
+
+
+#: A flag that sets the optimisation level.
+_OPTIMISE = re.compile(r"-O(\d*|s|z|g|fast)")
+
 
 def build_key(sources: list, toolchain: Toolchain) -> str:
     """SHA-256 over the sources' names and bytes, the compiler identity and the flags."""
@@ -234,7 +247,7 @@ def usable_cores() -> int:
 
 
 def compile_objects(sources: list, out_dir: Path, argv: list, timeout: float, jobs: int | None = None,
-                    store: Path | None = None, force: bool = False, identity: str = "") -> list:
+                    store: Path | None = None, force: bool = False, identity: str = "", prefer: list | None = None) -> list:
     """Compile each source to an object file, ``jobs`` compilers at a time; the objects.
 
     ``jobs`` defaults to :func:`usable_cores`. The largest sources start first, so that one long
@@ -245,7 +258,8 @@ def compile_objects(sources: list, out_dir: Path, argv: list, timeout: float, jo
 
     Objects go to ``out_dir``, or with ``store`` (an object store, :data:`OBJECTS`) to the store
     under their content key: an object found there (or being compiled there by :func:`precompile`
-    in this process) is used as it is, unless ``force``.
+    in this process) is used as it is, unless ``force``. ``prefer``: other compiler flags (a full
+    argv) whose object of a source, where the store holds it now, is used instead (no waiting).
     """
     if jobs is None:
         jobs = usable_cores()
@@ -257,7 +271,8 @@ def compile_objects(sources: list, out_dir: Path, argv: list, timeout: float, jo
     inputs = [None] * len(sources)  # what a stored object is compiled from: the bytes its key covers
     if store is not None:
         for i, s in enumerate(sources):
-            entry = _store_entry(store, s, argv, identity)
+            better = _store_entry(store, s, prefer, identity) if prefer else None
+            entry = better if better is not None and better[1].is_file() else _store_entry(store, s, argv, identity)
             if entry is not None:
                 inputs[i], objects[i] = entry
     order = sorted(range(len(sources)), key=lambda i: -sources[i].stat().st_size)
@@ -298,6 +313,55 @@ def _compile_to(source: Path, obj: Path, argv: list, timeout: float) -> None:
         os.replace(tmp, obj)
     finally:
         tmp.unlink(missing_ok=True)
+
+
+def _store_script(source: Path, obj: Path, argv: list) -> str:
+    """A shell command that compiles ``source`` into the store's ``obj`` and renames it into place
+    itself: the object lands whole even where the process that started it has ended."""
+    tmp = obj.with_name(f".{obj.stem}-{secrets.token_hex(4)}.o")
+    return (f"{shlex.join([*argv, '-c', str(source), '-o', str(tmp)])} && mv -f {shlex.quote(str(tmp))} "
+            f"{shlex.quote(str(obj))}; rm -f {shlex.quote(str(tmp))}")
+
+
+def _private_copy(files: list, store: Path) -> Path:
+    """The bytes ``files`` (source first, then its headers) written to a new private folder of the
+    store (``.tmp-*``: :func:`_sweep` removes one left behind); the source's path there."""
+    folder = Path(tempfile.mkdtemp(dir=store, prefix=".tmp-"))
+    for name, data in files:
+        Path(folder, name).parent.mkdir(parents=True, exist_ok=True)
+        Path(folder, name).write_bytes(data)
+    return folder / files[0][0]
+
+
+def _store_in_background(files: list, obj: Path, argv: list, timeout: float) -> None:
+    """:func:`precompile`'s job: compile ``files`` into the store's ``obj`` in a process group of its
+    own that renames the object into place itself (see :func:`hand_off_precompiles`). Where there is
+    no POSIX shell, a plain compile (:func:`_compile_copy`)."""
+    sh = shutil.which("sh") if os.name == "posix" else None
+    if sh is None:
+        return _compile_copy(files, obj, argv, timeout)
+    obj.parent.mkdir(parents=True, exist_ok=True)
+    source = _private_copy(files, obj.parent)
+    script = f"{_store_script(source, obj, argv)}; rm -rf {shlex.quote(str(source.parent))}"
+    proc = subprocess.Popen([sh, "-c", script], stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL,
+                            stderr=subprocess.DEVNULL, start_new_session=True)
+    with _STARTED_LOCK:
+        _GROUPS[obj] = proc.pid
+    try:
+        proc.wait(timeout=timeout)
+    except subprocess.TimeoutExpired:
+        _kill_group(proc.pid)
+        proc.wait()
+    finally:
+        with _STARTED_LOCK:
+            _GROUPS.pop(obj, None)
+
+
+def _kill_group(pgid: int) -> None:
+    try:
+        os.killpg(pgid, signal.SIGKILL)
+    except OSError:
+        pass
 
 
 def _compile_copy(files: list, obj: Path, argv: list, timeout: float, shown: Path | None = None) -> None:
@@ -375,11 +439,40 @@ def _object_key(files: list, argv: list, identity: str) -> str:
     return h.hexdigest()
 
 
-# Compiles started by precompile() in this process, by object path; and the one worker pool they run in.
+# Compiles started by precompile() in this process, by object path: their futures, what each compiles
+# ((files, argv)), the process group of each one running; and the one worker pool they run in.
 _STARTED: dict = {}
+_JOBS: dict = {}
+_GROUPS: dict = {}
 _STARTED_LOCK = threading.Lock()
 _BACKGROUND: list = []
 _POOL_LOCK = threading.Lock()
+
+
+class _DaemonPool:
+    """Worker threads that never hold the process at its exit (a ThreadPoolExecutor's are joined
+    then): a compile of the store still running when the process ends finishes on its own, in its
+    process group (:func:`_store_in_background`); one not started is lost unless handed off."""
+
+    def __init__(self, workers: int, prefix: str):
+        self._queue = queue.SimpleQueue()
+        for i in range(workers):
+            threading.Thread(target=self._work, name=f"{prefix}-{i}", daemon=True).start()
+
+    def submit(self, fn, *args) -> Future:
+        future = Future()
+        self._queue.put((future, fn, args))
+        return future
+
+    def _work(self) -> None:
+        while True:
+            future, fn, args = self._queue.get()
+            if not future.set_running_or_notify_cancel():
+                continue
+            try:
+                future.set_result(fn(*args))
+            except BaseException as exc:  # noqa: BLE001 - handed to whoever waits on the future
+                future.set_exception(exc)
 
 
 def _forget_after_fork() -> None:
@@ -387,6 +480,8 @@ def _forget_after_fork() -> None:
     ends, a lock held by a thread that is gone), so it starts with none."""
     global _STARTED_LOCK, _POOL_LOCK
     _STARTED.clear()
+    _JOBS.clear()
+    _GROUPS.clear()
     _BACKGROUND.clear()
     _STARTED_LOCK, _POOL_LOCK = threading.Lock(), threading.Lock()
 
@@ -431,8 +526,7 @@ def _in_background(fn, *args):
     at least one: the derivation keeps a core); its future."""
     with _POOL_LOCK:
         if not _BACKGROUND:
-            _BACKGROUND.append(ThreadPoolExecutor(max_workers=max(1, usable_cores() - 1),
-                                                  thread_name_prefix="hydrogen-cc"))
+            _BACKGROUND.append(_DaemonPool(max(1, usable_cores() - 1), "hydrogen-cc"))
         return _BACKGROUND[0].submit(fn, *args)
 
 
@@ -468,7 +562,8 @@ def precompile(sources: list, toolchain: Toolchain | None = None, cache: Path | 
         files, obj = entry
         with _STARTED_LOCK:
             if obj not in _STARTED and not obj.is_file():
-                _STARTED[obj] = _in_background(_compile_copy, files, obj, argv, toolchain.timeout)
+                _JOBS[obj] = (files, argv)
+                _STARTED[obj] = _in_background(_store_in_background, files, obj, argv, toolchain.timeout)
 
 
 def cancel_precompiles() -> None:
@@ -478,6 +573,54 @@ def cancel_precompiles() -> None:
         for obj, started in list(_STARTED.items()):
             if started.cancel() or started.done():
                 del _STARTED[obj]
+                _JOBS.pop(obj, None)
+
+
+def hand_off_precompiles() -> None:
+    """Leave this process's background compiles to finish without it, at a lower priority: those
+    running go on in their process groups, those not started yet run one after another in one
+    process of their own; each renames its object into the store itself. A quick build
+    (``build(..., quick=True)``) calls it before compiling its unoptimized libraries: the optimized
+    objects are then in the store for the next build, whether or not this process is still there."""
+    with _STARTED_LOCK:
+        queued = [(obj, _JOBS.pop(obj)) for obj, started in list(_STARTED.items()) if started.cancel()]
+        for obj, _ in queued:
+            del _STARTED[obj]
+        running = list(_GROUPS.values())
+    for pgid in running:
+        try:
+            os.setpriority(os.PRIO_PGRP, pgid, 10)
+        except (OSError, AttributeError):
+            pass
+    sh = shutil.which("sh") if os.name == "posix" else None
+    if not queued or sh is None:
+        return
+    steps = []
+    for obj, (files, argv) in queued:
+        if obj.is_file():
+            continue
+        source = _private_copy(files, obj.parent)
+        steps.append(f"{_store_script(source, obj, argv)}; rm -rf {shlex.quote(str(source.parent))}")
+    if steps:
+        nice = shutil.which("nice")
+        argv = [nice, "-n", "10", sh, "-c", "\n".join(steps)] if nice else [sh, "-c", "\n".join(steps)]
+        subprocess.Popen(argv, stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+                         start_new_session=True)
+
+
+def objects_stored(sources: list, toolchain: Toolchain | None = None, cache: Path | None = None) -> bool:
+    """Whether every one of ``sources`` has its object in the store of ``cache`` now (no waiting for
+    a compile of it still running): a library of them is then a link away."""
+    toolchain = toolchain or Toolchain()
+    store = object_store(cache)
+    argv, identity = toolchain.argv(), toolchain.identity()
+    if store is None:
+        return False
+    for source in map(Path, sources):
+        entry = _store_entry(store, source, argv, identity)
+        if entry is None or not entry[1].is_file():
+            return False
+    return True
 
 
 def compile_library(sources: list, name: str, toolchain: Toolchain | None = None,
@@ -493,12 +636,14 @@ def compile_library(sources: list, name: str, toolchain: Toolchain | None = None
 
 
 def compile_libraries(libraries: list, toolchain: Toolchain | None = None, cache: Path | None = None,
-                      jobs: int | None = None, force: bool = False) -> list:
+                      jobs: int | None = None, force: bool = False, prefer: Toolchain | None = None) -> list:
     """Compile several cached shared libraries, ``[(sources, name)]``, and return their paths in order.
 
     Each is cached as :func:`compile_library` caches one (its own key, folder and lock); those not
     in the cache have all their sources compiled in one pool of ``jobs`` compilers (the largest
-    first, whichever library it belongs to), then each is linked.
+    first, whichever library it belongs to), then each is linked. ``prefer``: a toolchain whose
+    objects the store holds already are linked in place of compiling those sources (a quick build's
+    unoptimized library takes the optimized objects that are ready).
     """
     toolchain = toolchain or Toolchain()
     root = Path(cache or cache_root())
@@ -534,7 +679,8 @@ def compile_libraries(libraries: list, toolchain: Toolchain | None = None, cache
             _sweep(store, older_than=max(toolchain.timeout, 3600.0))
         with tempfile.TemporaryDirectory(dir=missing[0][3]) as tmp:
             every = [s for m in missing for s in m[0]]
-            objects = compile_objects(every, Path(tmp), argv, toolchain.timeout, jobs, store, force, identity)
+            objects = compile_objects(every, Path(tmp), argv, toolchain.timeout, jobs, store, force, identity,
+                                      None if prefer is None else prefer.argv())
             start = 0
             for sources, name, key, build_dir in missing:
                 mine, start = objects[start:start + len(sources)], start + len(sources)

@@ -467,6 +467,12 @@ class GeneratedLibrary:
         """The libraries loaded so far, in the order they were loaded."""
         return tuple(self.paths)
 
+    def unoptimized(self) -> tuple:
+        """The loaded libraries a quick build compiled unoptimized (``hydrogen.build(..., quick=True)``):
+        the same numbers, each call slower; a build after the optimized objects are in loads those."""
+        made = set(getattr(self._loader, "unoptimized", {}).values())
+        return tuple(g for g, p in self.paths.items() if p in made)
+
     def groups(self) -> tuple:
         """Every library of this build: :data:`CORE`, then the controllers'."""
         return tuple(self._groups)
