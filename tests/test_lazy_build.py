@@ -377,6 +377,9 @@ def test_a_quick_build_runs_unoptimized_alike_and_the_next_build_links_the_optim
         argv = json.loads((Path(quick.library.paths[g]).parent / "build.json").read_text())["argv"]
         assert "-O0" in argv and "-O2" not in argv
     assert any("unoptimized (-O0)" in e.detail for e in events if e.stage == "compiling")
+    assert quick.library.backend == "extension"  # compiled unoptimized too: no optimized one cached
+    ext = json.loads((Path(quick.library.extension_path).parent / "build.json").read_text())["argv"]
+    assert "-O0" in ext and "-O2" not in ext
     a = hydrogen.simulate("paper-sim", "adaptive-robust", dyn=quick, duration=0.2)
     b = hydrogen.simulate("paper-sim", "adaptive-robust", dyn=dyn, duration=0.2)
     for name in ("q", "u", "pressures", "leg_forces", "theta_hat", "leg_lengths_measured"):
@@ -402,3 +405,11 @@ def test_an_optimized_build_after_a_quick_one_compiles_nothing_unoptimized(tmp_p
     assert plain.library.unoptimized() == ()
     argv = json.loads((Path(plain.library.path).parent / "build.json").read_text())["argv"]
     assert "-O1" in argv and "-O0" not in argv
+
+
+def test_a_quick_build_of_a_built_robot_loads_the_optimized_libraries_and_extension(dyn, cache):
+    """Nothing to compile: quick=True loads what the optimized build made, the extension included."""
+    quick = hydrogen.build("ubc_stewart", cache=cache, quick=True)
+    assert quick.library.unoptimized() == ()
+    assert quick.library.path == dyn.library.path
+    assert quick.library.extension_path == dyn.library.extension_path

@@ -319,12 +319,13 @@ def build(model: Model | str | Path | None = None, *, cc: str | None = None,
     else:
         try:
             lib, extension = _generate_and_compile(model, folder, root, committed, generated, need, numbers, groups,
-                                                   toolchain, cache, backend, report, loader)
+                                                   toolchain, cache, backend, report, loader, quick)
         finally:
             cancel_precompiles()  # whatever this build started and did not use (it failed): not run at exit
     if extension is not None:
         extension.join()  # built (or failed: attach_extension meets the failure again and reports it)
-    attach_extension(lib, toolchain, cache=cache, backend=backend)
+    ext_toolchain, prefer = _extension_toolchains(toolchain, quick)
+    attach_extension(lib, ext_toolchain, cache=cache, backend=backend, prefer=prefer)
     for g in groups:
         lib.load(g)
     steps = [s for s, done in (("generated", "generated"), ("compiled", "compiled")) if done in report.stages]
@@ -334,7 +335,7 @@ def build(model: Model | str | Path | None = None, *, cc: str | None = None,
 
 
 def _generate_and_compile(model, folder, root, committed, generated, need, numbers, groups, toolchain, cache, backend,
-                          report, loader):
+                          report, loader, quick=False):
     """:func:`build`'s generation and compile where no warm library serves: ``(library, the extension's
     compile thread or None)``."""
     # One lock from generation through compilation: the manifest read and the sources compiled
@@ -358,7 +359,7 @@ def _generate_and_compile(model, folder, root, committed, generated, need, numbe
         if manifest is None:
             raise BuildCacheError(f"{folder}: generated folder has no readable manifest after generation")
         load = loader(manifest)
-        extension = _extension_started(manifest, toolchain, cache, backend)
+        extension = _extension_started(manifest, *_extension_toolchains(toolchain, quick), cache, backend)
         try:
             # Progress around the compile call, not inside it: a build another process finished is no step.
             core = load.compile([CORE, *groups])[0]
@@ -447,7 +448,13 @@ class _Precompile:
                 self.on = False
 
 
-def _extension_started(manifest, toolchain, cache, backend):
+def _extension_toolchains(toolchain, quick: bool) -> tuple:
+    """``(toolchain, prefer)`` of the Python extension: a quick build takes the optimized one where it
+    is cached, else compiles it unoptimized (a small source; the C loop does not call it)."""
+    return (toolchain.unoptimized(), toolchain) if quick else (toolchain, None)
+
+
+def _extension_started(manifest, toolchain, prefer, cache, backend):
     """The Python extension's compile started on a thread of its own (it needs no library), or None
     where it will not be built; its failure is left to attach_extension, which reports it."""
     if backend == "ctypes" or unavailable_reason() is not None:
@@ -455,7 +462,7 @@ def _extension_started(manifest, toolchain, cache, backend):
 
     def build():
         try:
-            build_extension(manifest, toolchain, cache)
+            build_extension(manifest, toolchain, cache, prefer=prefer)
         except Exception:  # noqa: BLE001 - see the docstring
             pass
 

@@ -588,10 +588,7 @@ def hand_off_precompiles() -> None:
             del _STARTED[obj]
         running = list(_GROUPS.values())
     for pgid in running:
-        try:
-            os.setpriority(os.PRIO_PGRP, pgid, 10)
-        except (OSError, AttributeError):
-            pass
+        _lower_priority(pgid)
     sh = shutil.which("sh") if os.name == "posix" else None
     if not queued or sh is None:
         return
@@ -602,10 +599,23 @@ def hand_off_precompiles() -> None:
         source = _private_copy(files, obj.parent)
         steps.append(f"{_store_script(source, obj, argv)}; rm -rf {shlex.quote(str(source.parent))}")
     if steps:
-        nice = shutil.which("nice")
-        argv = [nice, "-n", "10", sh, "-c", "\n".join(steps)] if nice else [sh, "-c", "\n".join(steps)]
-        subprocess.Popen(argv, stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
-                         start_new_session=True)
+        proc = subprocess.Popen([sh, "-c", "\n".join(steps)], stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL,
+                                stderr=subprocess.DEVNULL, start_new_session=True)
+        _lower_priority(proc.pid)
+
+
+def _lower_priority(pgid: int) -> None:
+    """Let the compiles of process group (and session) ``pgid`` yield the cores to the foreground: its
+    nice value, and on Linux its scheduling autogroup's (a session of its own is weighed as a whole
+    against the foreground's, whatever its processes' nice values). Best effort."""
+    try:
+        os.setpriority(os.PRIO_PGRP, pgid, 10)
+    except (OSError, AttributeError):
+        pass
+    try:
+        Path(f"/proc/{pgid}/autogroup").write_text("10")
+    except OSError:
+        pass
 
 
 def objects_stored(sources: list, toolchain: Toolchain | None = None, cache: Path | None = None) -> bool:
@@ -724,7 +734,8 @@ def object_store(root: Path | None = None) -> Path | None:
 
 
 def compile_extension(render, key_material: str, module: str, toolchain: Toolchain | None = None,
-                      cache: Path | None = None, include_dirs: tuple = (), force: bool = False) -> Path:
+                      cache: Path | None = None, include_dirs: tuple = (), force: bool = False,
+                      prefer: Toolchain | None = None) -> Path:
     """Compile a CPython extension module into the build cache and return its path.
 
     ``render()`` returns the module's C source; it is called only when no intact cached build
@@ -734,15 +745,22 @@ def compile_extension(render, key_material: str, module: str, toolchain: Toolcha
     it makes the cache key. Cached in ``<cache>/extension/<key>/``, laid out as
     :func:`compile_library`'s folders (``build.json``, a new file name per build). The toolchain's flags are used without ``-Werror`` (headers of other
     Python or numpy versions must not turn a warning into the ctypes fallback), and the header
-    folders are ``-isystem``.
+    folders are ``-isystem``. ``prefer``: a toolchain whose build of the module, where cached, is
+    returned instead (a quick build takes the optimized extension when there is one).
     """
     toolchain = toolchain or Toolchain()
-    h = hashlib.sha256(b"extension\0" + key_material.encode())
-    h.update(toolchain.identity().encode())
-    h.update(json.dumps([toolchain.cc, list(toolchain.flags()), list(toolchain.warnings),
-                         [str(d) for d in include_dirs]]).encode())
-    key = h.hexdigest()
-    build_dir = Path(cache or cache_root()) / "extension" / key
+
+    def folder(tc):
+        h = hashlib.sha256(b"extension\0" + key_material.encode())
+        h.update(tc.identity().encode())
+        h.update(json.dumps([tc.cc, list(tc.flags()), list(tc.warnings), [str(d) for d in include_dirs]]).encode())
+        return Path(cache or cache_root()) / "extension" / h.hexdigest()
+
+    build_dir = folder(toolchain)
+    if prefer is not None and not force:
+        lib = cached_library(folder(prefer))
+        if lib is not None:
+            return lib
     if not force:  # a warm cache serves without a lock (a read-only cache works once warm)
         lib = cached_library(build_dir)
         if lib is not None:
@@ -764,7 +782,7 @@ def compile_extension(render, key_material: str, module: str, toolchain: Toolcha
             src, obj = Path(tmp) / f"{module}.c", Path(tmp) / f"{module}.o"
             write_file(src, render())
             run_compiler([*argv, "-c", str(src), "-o", str(obj)], src.name, toolchain.timeout)
-            lib_name = f"{module}_{key[:16]}_{secrets.token_hex(4)}.so"
+            lib_name = f"{module}_{build_dir.name[:16]}_{secrets.token_hex(4)}.so"
             run_compiler([*argv, "-shared", str(obj), *link, "-o", str(Path(tmp) / lib_name)],
                          f"linking {lib_name}", toolchain.timeout)
             os.replace(Path(tmp) / lib_name, build_dir / lib_name)

@@ -104,14 +104,15 @@ def render(context: dict) -> str:
 
 
 def build_extension(manifest: dict, toolchain: Toolchain | None = None, cache: Path | None = None,
-                    force: bool = False) -> Path:
-    """Render and compile the extension for ``manifest`` (or find it in the cache); its path."""
+                    force: bool = False, prefer: Toolchain | None = None) -> Path:
+    """Render and compile the extension for ``manifest`` (or find it in the cache); its path.
+    ``prefer``: a toolchain whose cached build is taken first (:func:`compile_extension`)."""
     context = render_context(manifest)
     template = (_templates() / TEMPLATE).read_bytes()
     key = json.dumps({"template": hashlib.sha256(template).hexdigest(), "context": context, "abi": abi_key()},
                      sort_keys=True)
     return compile_extension(lambda: render(context), key, context["module"], toolchain, cache,
-                             include_dirs=(python_include_dir(), numpy_include_dir()), force=force)
+                             include_dirs=(python_include_dir(), numpy_include_dir()), force=force, prefer=prefer)
 
 
 def load_extension(path: Path, name: str):
@@ -164,12 +165,12 @@ def bind_functions(module, library):
 
 
 def attach_extension(library, toolchain: Toolchain | None = None, cache: Path | None = None,
-                     backend: str = "auto") -> str:
+                     backend: str = "auto", prefer: Toolchain | None = None) -> str:
     """Give ``library`` its extension functions (``library.extension_functions``) if it can.
 
     ``backend``: "auto" (the extension, else ctypes with a one-line warning), "extension" (an
     error if it cannot be built) or "ctypes". Returns the backend in use, also set as
-    ``library.backend``.
+    ``library.backend``. ``prefer``: as :func:`build_extension` takes it.
     """
     if backend not in BACKENDS:
         raise ValueError(f"backend must be one of {BACKENDS}, got {backend!r}")
@@ -181,7 +182,7 @@ def attach_extension(library, toolchain: Toolchain | None = None, cache: Path | 
     reason = unavailable_reason()
     if reason is None:
         try:
-            path = build_extension(library.manifest, toolchain, cache)
+            path = build_extension(library.manifest, toolchain, cache, prefer=prefer)
             try:
                 module = load_extension(path, module_name(library.manifest))
             except ImportError:  # a cached file that does not load here: rebuild once
