@@ -36,6 +36,7 @@ from .actuators.declarations import PIN_LENGTH as _PIN_LENGTH, TURNS as _TURNS
 from .errors import ModelError
 from .plant.supply import Supply
 from .schema import default as _default, keys as _keys
+from .tree import fixed_path
 
 __all__ = ["Model", "Link", "Joint", "Cylinder", "load_model", "is_shipped", "default_model_path", "models",
            "model_path", "INERTIAL_PARAMETERS", "JOINT_TYPES"]
@@ -796,13 +797,9 @@ def _tree_from_urdf(path: Path, data: bytes, select):
     by_child = {j.child: j for j in robot.joints if j.parent in kept and j.child in kept}
 
     def moved_by(name):  # the moving joint the link hangs from (through fixed joints), None if static
-        seen = set()
-        while name in by_child and name not in seen:
-            seen.add(name)
-            if by_child[name].type != "fixed":
-                return by_child[name].name
-            name = by_child[name].parent
-        return None  # the root (or the selected base), or fixed to it: its inertia never enters the dynamics
+        path = fixed_path(by_child, name)
+        top = path[-1].parent if path else name
+        return by_child[top].name if top in by_child else None  # None: the root or fixed to it
 
     links = []
     for lk in robot.links:
@@ -1627,10 +1624,9 @@ def model_from_dict(data: dict, source: str = "<memory>", base_dir: Path | None 
     if not isinstance(params, list) or not params or not all(isinstance(p, str) for p in params) \
             or len(set(params)) != len(params):
         raise r.error("[adaptation] parameters", f"expected distinct names 'link.parameter', got {_quote(params)}")
-    static = {root}  # the base and the links fixed to it: their inertia never enters the dynamics
-    for j in joints:  # parents before children (the tree's order)
-        if j.type == "fixed" and j.parent in static:
-            static.add(j.child)
+    by_child = {j.child: j for j in joints}
+    # the base and the links fixed to it: their inertia never enters the dynamics
+    static = {root} | {lk.name for lk in links if (path := fixed_path(by_child, lk.name)) and path[-1].parent == root}
     for p in params:
         lk, _, key = p.partition(".")
         if lk not in {x.name for x in links} or key not in INERTIAL_PARAMETERS:

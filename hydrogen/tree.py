@@ -10,7 +10,24 @@ from __future__ import annotations
 import numpy as np
 
 __all__ = ["rpy_matrix", "axis_rotation", "euler_zyx", "link_poses", "cylinder_lengths",
-           "cylinder_jacobian"]
+           "cylinder_jacobian", "fixed_path"]
+
+
+def fixed_path(parent_joint: dict, link: str) -> list:
+    """The fixed joints from ``link`` up to the link it moves with, child first: empty where its own
+    joint moves or it has none (the root). ``parent_joint``: by child link name, the joint from its
+    parent (anything with ``type``, ``parent``, ``child``: a description's joints or a URDF's).
+
+    The link it moves with is the last joint's parent (``link`` itself where the path is empty);
+    where that is the root, ``link`` is fixed to the base and never moves. The one walk of the tree
+    through fixed joints, for the description's checks, the URDF reader and the derivation's merged
+    bodies. A cycle (a tree not checked yet) ends the walk."""
+    out, seen = [], set()
+    while link in parent_joint and parent_joint[link].type == "fixed" and link not in seen:
+        seen.add(link)
+        out.append(parent_joint[link])
+        link = parent_joint[link].parent
+    return out
 
 
 def _rx(a):

@@ -27,6 +27,7 @@ from __future__ import annotations
 
 import sympy as sp
 
+from ..tree import fixed_path
 from .calculus import matmul
 from .constants import baked
 from .coordinates import angular_velocity_map, body_angular_velocity_map, matrix_symbols, rotation
@@ -205,12 +206,12 @@ class SymbolicTree:
         there, rotation R and origin r (m, the body's frame)."""
         if getattr(self, "_carriers", None) is not None:
             return self._carriers
-        root, by_child = self.model.root, self.parent_joint
+        root = self.model.root
 
         def carrier(link):
             R, r = sp.eye(3), sp.zeros(3, 1)
-            while link in by_child and by_child[link].type == "fixed" and by_child[link].parent != root:
-                j = by_child[link]
+            path = fixed_path(self.parent_joint, link)
+            for j in path[:-1] if path and path[-1].parent == root else path:  # a link fixed to the root stays
                 R_o, xyz = _rot_xyz(j.origin_rpy, f"{j.name}.origin_rpy"), _vec(j.origin_xyz, f"{j.name}.origin_xyz")
                 R, r = _mm(R_o, R), xyz + _mm(R_o, r)
                 link = j.parent
