@@ -102,6 +102,11 @@ def _cmd_simulate(args) -> int:
     last = events[-1] if events else None
     if last is not None and last.stage == "built":
         print(f"built in {last.elapsed_s:.1f} s ({last.detail})")
+    slow = dyn.library.unoptimized()
+    if slow:
+        print(f"note: this run's {', '.join(slow)} librar{'ies' if len(slow) > 1 else 'y'} compiled unoptimized "
+              "(-O0: the same numbers, slower per period); the optimized build finishes in the background for "
+              "the next run (--optimized waits for it)")
     print(f"scenario {res.scenario_name}, controller {res.controller}: {m['sim_time_s']:.2f} s simulated "
           f"in {m['wall_time_s'] * 1e3:.1f} ms ({m['sim_time_s'] / max(m['wall_time_s'], 1e-9):.0f}x real time; "
           f"the C loop {m['loop_wall_s'] * 1e3:.1f} ms, the rest setup)")
@@ -611,6 +616,9 @@ def main(argv=None) -> int:
     except OSError as exc:  # a file or folder the system refused: one message naming it
         print(f"hydrogen {args.command}: error: {exc}", file=sys.stderr)
         return 2
+    except KeyboardInterrupt:  # Ctrl-C: one line, the shell's status for SIGINT; files are written whole or not
+        print(f"hydrogen {args.command}: interrupted", file=sys.stderr)
+        return 130
 
 
 if __name__ == "__main__":  # pragma: no cover

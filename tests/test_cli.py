@@ -101,3 +101,14 @@ def test_simulate_builds_quick_for_one_run_only(monkeypatch, extra, quick):
     with pytest.raises(Built):
         cli(["simulate", "--duration", "0.1", *extra])
     assert seen["quick"] is quick
+
+
+def test_an_interrupt_is_one_line_and_status_130(monkeypatch, capsys):
+    """Ctrl-C during a build (here: the build raises KeyboardInterrupt) ends with one line, no traceback."""
+    def build(model, **kwargs):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(hydrogen, "build", build)
+    assert cli(["simulate", "--duration", "0.1"]) == 130
+    err = capsys.readouterr().err
+    assert err.strip() == "hydrogen simulate: interrupted"

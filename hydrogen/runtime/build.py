@@ -176,19 +176,23 @@ class _Loader:
         new = [g for g in groups if force or self.cached(g) is None]
         slow = [g for g in new if self.quick and not force
                 and not objects_stored(sources[g], self.toolchain, self.cache)]
+        quick = self.toolchain.unoptimized()
+        # what is compiled now: not an unoptimized library an earlier quick build left (loaded as it is)
+        new = [g for g in new if g not in slow or cached_library(
+            self.root / "build" / build_key_of(self._contents(g), quick)) is None]
         clock = self.report.start()
         if new:
             files = [s for g in new for s in sources[g]]
             what = "" if new == [CORE] else f"{', '.join(new)}: "
+            now = [g for g in slow if g in new]
             self.report("compiling", f"{what}{len(files)} files, {c_size(files)} of C"
-                        + (f"; unoptimized (-O0): {', '.join(slow)}" if slow else ""))
+                        + (f"; unoptimized (-O0): {', '.join(now)}" if now else ""))
         if slow:  # the optimized objects: those not started yet start now, and all finish without this process
             precompile([s for g in slow for s in sources[g]], self.toolchain, self.cache)
             hand_off_precompiles()
         tiers = [[g for g in groups if g not in slow], slow]
         made = {}
-        for tier, toolchain, prefer in ((tiers[0], self.toolchain, None),
-                                        (tiers[1], self.toolchain.unoptimized(), self.toolchain)):
+        for tier, toolchain, prefer in ((tiers[0], self.toolchain, None), (tiers[1], quick, self.toolchain)):
             if tier:  # an unoptimized library links the optimized objects already in the store
                 made.update(zip(tier, compile_libraries([(sources[g], library_name(self.model.name, g)) for g in tier],
                                                         toolchain, cache=self.cache, force=force, prefer=prefer)))
@@ -196,7 +200,8 @@ class _Loader:
         paths = [made[g] for g in groups]
         if new:
             self.report("compiled", ", ".join(p.name for g, p in zip(groups, paths) if g in new)
-                        + ("; the optimized build goes on in the background for the next build" if slow else ""),
+                        + ("; the optimized build goes on in the background for the next build"
+                           if any(g in new for g in slow) else ""),
                         clock())
         return paths
 

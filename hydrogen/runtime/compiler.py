@@ -284,7 +284,7 @@ def compile_objects(sources: list, out_dir: Path, argv: list, timeout: float, jo
         try:
             if inputs[i] is None:
                 _compile_to(sources[i], objects[i], argv, timeout)
-            elif force or not _ready(objects[i]):
+            elif force or not _ready(objects[i], timeout):
                 _compile_copy(inputs[i], objects[i], argv, timeout, shown=sources[i].parent)
         except BaseException:
             failed.set()
@@ -323,10 +323,11 @@ def _store_script(source: Path, obj: Path, argv: list) -> str:
             f"{shlex.quote(str(obj))}; rm -f {shlex.quote(str(tmp))}")
 
 
-def _private_copy(files: list, store: Path) -> Path:
+def _private_copy(files: list, obj: Path) -> Path:
     """The bytes ``files`` (source first, then its headers) written to a new private folder of the
-    store (``.tmp-*``: :func:`_sweep` removes one left behind); the source's path there."""
-    folder = Path(tempfile.mkdtemp(dir=store, prefix=".tmp-"))
+    store beside ``obj`` (``.tmp-<object>-*``, named for the object it compiles: see
+    :func:`_compiling_elsewhere`; :func:`_sweep` removes one left behind); the source's path there."""
+    folder = Path(tempfile.mkdtemp(dir=obj.parent, prefix=f"{_PENDING}{obj.stem[:32]}-"))
     for name, data in files:
         Path(folder, name).parent.mkdir(parents=True, exist_ok=True)
         Path(folder, name).write_bytes(data)
@@ -341,10 +342,11 @@ def _store_in_background(files: list, obj: Path, argv: list, timeout: float) -> 
     if sh is None:
         return _compile_copy(files, obj, argv, timeout)
     obj.parent.mkdir(parents=True, exist_ok=True)
-    source = _private_copy(files, obj.parent)
+    source = _private_copy(files, obj)
     script = f"{_store_script(source, obj, argv)}; rm -rf {shlex.quote(str(source.parent))}"
     proc = subprocess.Popen([sh, "-c", script], stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL,
                             stderr=subprocess.DEVNULL, start_new_session=True)
+    _mark(source.parent, proc.pid)
     with _STARTED_LOCK:
         _GROUPS[obj] = proc.pid
     try:
@@ -530,10 +532,11 @@ def _in_background(fn, *args):
         return _BACKGROUND[0].submit(fn, *args)
 
 
-def _ready(obj: Path) -> bool:
-    """Whether ``obj`` is in the store, after waiting for a background compile of it if one runs
-    (a failed one leaves it absent: the caller compiles it and reports the error itself). One still
-    queued is taken back: the caller's own pool compiles it now."""
+def _ready(obj: Path, timeout: float) -> bool:
+    """Whether ``obj`` is in the store, after waiting for a background compile of it if one runs, in
+    this process or in a process of its own (a failed one leaves it absent: the caller compiles it
+    and reports the error itself; at most ``timeout`` s for another process's). One still queued in
+    this process is taken back: the caller's own pool compiles it now."""
     with _STARTED_LOCK:
         started = _STARTED.get(obj)
     if started is not None and not started.cancel():
@@ -541,6 +544,7 @@ def _ready(obj: Path) -> bool:
             started.result()
         except Exception:  # noqa: BLE001 - compiled again in the foreground, which names the error
             pass
+    _wait_elsewhere(obj, timeout)
     return obj.is_file()
 
 
@@ -561,7 +565,7 @@ def precompile(sources: list, toolchain: Toolchain | None = None, cache: Path | 
             continue  # a header the key cannot follow: left to the library's compile
         files, obj = entry
         with _STARTED_LOCK:
-            if obj not in _STARTED and not obj.is_file():
+            if obj not in _STARTED and not obj.is_file() and not _compiling_elsewhere(obj):
                 _JOBS[obj] = (files, argv)
                 _STARTED[obj] = _in_background(_store_in_background, files, obj, argv, toolchain.timeout)
 
@@ -581,27 +585,74 @@ def hand_off_precompiles() -> None:
     running go on in their process groups, those not started yet run one after another in one
     process of their own; each renames its object into the store itself. A quick build
     (``build(..., quick=True)``) calls it before compiling its unoptimized libraries: the optimized
-    objects are then in the store for the next build, whether or not this process is still there."""
+    objects are then in the store for the next build, whether or not this process is still there.
+    Without a POSIX shell nothing is handed off (the next build compiles what this one did not)."""
+    sh = shutil.which("sh") if os.name == "posix" else None
+    if sh is None:
+        return
     with _STARTED_LOCK:
         queued = [(obj, _JOBS.pop(obj)) for obj, started in list(_STARTED.items()) if started.cancel()]
         for obj, _ in queued:
             del _STARTED[obj]
+    # a compile that has just started: its process and the mark other processes see are there
+    # before this returns (so that a process ending now leaves no compile without either)
+    deadline = time.monotonic() + 10.0
+    while time.monotonic() < deadline:
+        with _STARTED_LOCK:
+            if all(f.done() or obj in _GROUPS for obj, f in _STARTED.items()):
+                break
+        time.sleep(0.005)
+    with _STARTED_LOCK:
         running = list(_GROUPS.values())
     for pgid in running:
         _lower_priority(pgid)
-    sh = shutil.which("sh") if os.name == "posix" else None
-    if not queued or sh is None:
-        return
-    steps = []
+    steps, folders = [], []
     for obj, (files, argv) in queued:
-        if obj.is_file():
+        if obj.is_file() or _compiling_elsewhere(obj):
             continue
-        source = _private_copy(files, obj.parent)
+        source = _private_copy(files, obj)
+        folders.append(source.parent)
         steps.append(f"{_store_script(source, obj, argv)}; rm -rf {shlex.quote(str(source.parent))}")
     if steps:
         proc = subprocess.Popen([sh, "-c", "\n".join(steps)], stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL,
                                 stderr=subprocess.DEVNULL, start_new_session=True)
         _lower_priority(proc.pid)
+        for folder in folders:
+            _mark(folder, proc.pid)
+
+
+#: The prefix of a compile's private folder in the object store, named for the object it makes.
+_PENDING = ".tmp-"
+
+
+def _mark(folder: Path, pid: int) -> None:
+    """Record in a compile's private ``folder`` the process that compiles from it (a folder already
+    removed: that compile has ended)."""
+    try:
+        atomic_write(folder / "pid", str(pid))
+    except OSError:
+        pass
+
+
+def _compiling_elsewhere(obj: Path) -> bool:
+    """Whether a compile of ``obj`` is running in a process of its own (this process's handed-off
+    compiles, another process's background ones): its private folder is there, and the process it
+    records is alive."""
+    for folder in obj.parent.glob(f"{_PENDING}{obj.stem[:32]}-*"):
+        try:
+            os.kill(int((folder / "pid").read_text()), 0)
+            return True
+        except (OSError, ValueError):
+            continue
+    return False
+
+
+def _wait_elsewhere(obj: Path, timeout: float) -> None:
+    """Wait (at most ``timeout`` s) while another process compiles ``obj``: the object it stores is
+    used, not compiled a second time beside it."""
+    t0 = time.monotonic()
+    while not obj.is_file() and _compiling_elsewhere(obj) and time.monotonic() - t0 < timeout:
+        time.sleep(0.05)
 
 
 def _lower_priority(pgid: int) -> None:
