@@ -643,3 +643,17 @@ def test_tune_builds_every_variant_its_runs_use_first_and_says_so(short_model, m
     own = {**{r: 0.0 for r in ("rate_ls_gamma", "rate_ls_theta")}, **res["gains_used"]}
     assert [runs_lean(c["gains"]["adaptive-robust"]) for c in calls if c.get("gains")] == [runs_lean(own)]
     assert all(c["progress"] is None for c in calls)
+
+
+@pytest.mark.parametrize("robot", hydrogen.models())
+def test_a_workers_first_build_compiles_the_variant_its_scenario_runs(robot):
+    """Workers of a run over seeds build the variant the parent built for the scenario (its gains), not
+    the description's own: a scenario whose gains set a composite rate runs the full controller."""
+    from hydrogen.runtime.build import _own_variants
+    from hydrogen.simulation.scenarios import scenario as named_scenario, scenario_names
+    from hydrogen.simulation.simulator import _own_gains
+
+    model, c = hydrogen.load_model(robot), "adaptive-robust"
+    for name in scenario_names(model):
+        parent = _own_variants(model, (c,), {c: named_scenario(name, model).gains.get(c)})
+        assert _own_variants(model, (c,), _own_gains(model, name, c)) == parent, name

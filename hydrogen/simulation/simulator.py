@@ -402,6 +402,19 @@ def _simulate_seeds(dyn, scenario, controller, seeds, executor, max_workers, arg
     return SeedResults(seeds, results, failures, summarize(seeds, per_seed))
 
 
+def _own_gains(model, scenario, controller: str, gains=None):
+    """By controller, the gains a worker's first build compiles the variant for: the entry's own over
+    its scenario's (as the run's library is chosen); None where the scenario cannot be read here (the
+    run itself then names the problem)."""
+    from ..runtime.build import as_model
+
+    try:
+        sc = scenario if isinstance(scenario, Scenario) else named_scenario(scenario, as_model(model))
+    except Exception:  # noqa: BLE001 - the run gives the message
+        return None
+    return {controller: {**(sc.gains.get(controller) or {}), **(gains if isinstance(gains, Mapping) else {})}}
+
+
 def _run_one(job):
     """Worker: build (once per process) and run one simulation alone, as :func:`hydrogen.simulate`
     does; return its metrics (its SimulationResult when ``keep``, the metrics completed the same way)
@@ -416,7 +429,8 @@ def _run_one(job):
     scenario = run.pop("scenario", "paper-sim")
     controller = run.pop("controller", "adaptive-robust")
     try:
-        dyn = default_dynamics(model, controller=controller, numbers=numbers)
+        dyn = default_dynamics(model, controller=controller, numbers=numbers,
+                               gains=_own_gains(model, scenario, controller, run.get("gains")))
         res = simulate(dyn, scenario, controller, **run)
     except Exception as exc:  # noqa: BLE001 - one bad entry must not cost the others their results
         return _error(exc)
@@ -458,7 +472,8 @@ def _run_chunk(job):
             rest.pop("engine", None)
             scenario, controller = rest.pop("scenario", "paper-sim"), rest.pop("controller", "adaptive-robust")
             try:
-                dyn = default_dynamics(model, controller=controller, numbers=numbers)
+                dyn = default_dynamics(model, controller=controller, numbers=numbers,
+                                       gains=_own_gains(model, scenario, controller, run.get("gains")))
                 batches[key] = Batch(dyn, scenario, controller, **rest)
             except Exception:  # noqa: BLE001 - each of its runs alone gives its own message
                 batches[key] = None
