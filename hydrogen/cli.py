@@ -488,8 +488,9 @@ def build_parser() -> argparse.ArgumentParser:
                      help="with --seeds: processes (default: the core count)")
     sim.add_argument("--optimized", action="store_true",
                      help="compile what is not built yet optimized before the run (as --seeds always does); "
-                          "without it one run compiles it at -O0 (same numbers, quicker to compile, each call "
-                          "slower) and the optimized compile finishes in the background for the next run")
+                          "without it one run compiles it at -O0 (with the default compiler flags: the same "
+                          "numbers, quicker to compile, each call slower) and the optimized compile finishes in the "
+                          "background for the next run")
     _add_build_options(sim)
     sim.set_defaults(func=_cmd_simulate)
     ident = sub.add_parser("identify", help="estimate theta (and gamma) by least squares from a rig log CSV",

@@ -308,3 +308,37 @@ def test_compiles_handed_off_finish_after_their_process_and_are_not_compiled_aga
     while any((cache / "objects").glob(".tmp-*")):
         assert time.monotonic() - t0 < 60, "a handed-off compile left its private copy"
         time.sleep(0.05)
+
+
+@pytest.mark.skipif(os.name != "posix", reason="background compiles run under a POSIX shell")
+def test_a_background_compile_not_handed_off_ends_with_the_build_that_started_it(tmp_path):
+    """A build that fails or is interrupted (cancel_precompiles, also at exit) stops the compiles it
+    started and did not hand off: none of them outlives it or stores its object later."""
+    import time
+
+    from hydrogen.runtime.compiler import cancel_precompiles, objects_stored, precompile
+    pid_file = tmp_path / "pid"
+    slow = tmp_path / "slowcc"
+    slow.write_text(f'#!/bin/sh\ncase "$*" in *--version*) exec cc "$@";; esac\necho $$ > {pid_file}\n'
+                    'sleep 30\nexec cc "$@"\n')
+    slow.chmod(0o755)
+    src = tmp_path / "f.c"
+    src.write_text("double f(double x) { return 2 * x; }\n")
+    tc, cache = Toolchain(cc=str(slow), cflags=("-O1", "-fPIC")), tmp_path / "cache"
+    precompile([src], tc, cache)
+    t0 = time.monotonic()
+    while not pid_file.is_file() or not pid_file.read_text().strip():
+        assert time.monotonic() - t0 < 30, "the background compile never started"
+        time.sleep(0.02)
+    pid = int(pid_file.read_text())
+    cancel_precompiles()
+
+    def alive():
+        try:
+            return "\nState:\tZ" not in open(f"/proc/{pid}/status").read()
+        except OSError:
+            return False
+    while alive():
+        assert time.monotonic() - t0 < 30, "the compile outlived the build that started it"
+        time.sleep(0.02)
+    assert objects_stored([src], tc, cache) is False

@@ -2,6 +2,7 @@
 import dataclasses
 import json
 import os
+import shutil
 import subprocess
 import sys
 import threading
@@ -396,16 +397,45 @@ def test_a_quick_build_runs_unoptimized_alike_and_the_next_build_links_the_optim
     assert not any("unoptimized" in e.detail for e in events)
 
 
-def test_an_optimized_build_after_a_quick_one_compiles_nothing_unoptimized(tmp_path):
+def test_an_optimized_build_after_a_quick_one_loads_no_unoptimized_library(tmp_path):
     """quick=False (the default) never loads an -O0 library, even where a quick build left one."""
-    cache, flags = tmp_path / "cache", ("-O1", "-fPIC", "-std=c99")
-    quick = hydrogen.build("ubc_stewart", cache=cache, controllers=(), quick=True, cflags=flags)
+    cache = tmp_path / "cache"
+    quick = hydrogen.build("ubc_stewart", cache=cache, controllers=(), quick=True)
     assert quick.library.unoptimized() == (CORE,)
-    plain = hydrogen.build("ubc_stewart", cache=cache, controllers=(), cflags=flags)
+    plain = hydrogen.build("ubc_stewart", cache=cache, controllers=())
     assert plain.library.unoptimized() == ()
     argv = json.loads((Path(plain.library.path).parent / "build.json").read_text())["argv"]
+    assert "-O2" in argv and "-O0" not in argv
+
+
+def test_a_quick_build_with_flags_of_the_users_own_is_optimized(tmp_path):
+    """Other flags may round otherwise at -O0 (e.g. -march with fused multiply-adds): built as given."""
+    flags = ("-O1", "-fPIC", "-std=c99")
+    dyn = hydrogen.build("ubc_stewart", cache=tmp_path / "cache", controllers=(), quick=True, cflags=flags)
+    assert dyn.library.unoptimized() == ()
+    argv = json.loads((Path(dyn.library.path).parent / "build.json").read_text())["argv"]
     assert "-O1" in argv and "-O0" not in argv
 
+
+def test_a_quick_build_links_the_optimized_objects_already_stored(tmp_path, monkeypatch):
+    """Of a library whose optimized objects are stored but two, only those two compile at -O0."""
+    import hydrogen.runtime.compiler as compiler
+
+    cache = tmp_path / "cache"
+    hydrogen.build("ubc_stewart", cache=cache, controllers=())
+    for folder in (cache / "build").iterdir():  # the library gone, its objects kept ...
+        if folder.is_dir():
+            shutil.rmtree(folder)
+    objects = sorted((cache / "objects").glob("*.o"), key=lambda o: o.stat().st_size)
+    for o in objects[-2:]:  # ... but for the two largest
+        o.unlink()
+    calls = []
+    real = compiler.run_compiler
+    monkeypatch.setattr(compiler, "run_compiler", lambda argv, *a, **k: (calls.append(argv), real(argv, *a, **k))[1])
+    quick = hydrogen.build("ubc_stewart", cache=cache, controllers=(), quick=True)
+    assert quick.library.unoptimized() == (CORE,)
+    sources = [Path(c[c.index("-c") + 1]).name for c in calls if "-c" in c and "-O0" in c]
+    assert len([s for s in sources if not s.startswith("_hydrogen")]) == 2, sources  # the extension apart
 
 def test_a_quick_build_of_a_built_robot_loads_the_optimized_libraries_and_extension(dyn, cache):
     """Nothing to compile: quick=True loads what the optimized build made, the extension included."""

@@ -174,8 +174,10 @@ class _Loader:
 
         sources = {g: self.sources(g) for g in groups}
         new = [g for g in groups if force or self.cached(g) is None]
-        slow = [g for g in new if self.quick and not force
-                and not objects_stored(sources[g], self.toolchain, self.cache)]
+        # unoptimized: with hydrogen's own flags (others may round otherwise at -O0), where the store
+        # can hold the optimized objects and lacks some (they are compiled in the background)
+        slow = [g for g in new if self.quick and not force and self.toolchain.default_flags()
+                and objects_stored(sources[g], self.toolchain, self.cache) is False]
         quick = self.toolchain.unoptimized()
         # what is compiled now: not an unoptimized library an earlier quick build left (loaded as it is)
         new = [g for g in new if g not in slow or cached_library(
@@ -284,10 +286,12 @@ def build(model: Model | str | Path | None = None, *, cc: str | None = None,
     quick : bool
         For a first run right after a structural edit: a library this build must compile whose
         optimized objects are not ready is compiled unoptimized (-O0: a controller's long step compiles
-        several times faster; the same numbers bit for bit with the default flags; each call slower),
-        and the optimized compiles go on in the background, outliving this process, so that the next
-        build links them. The returned dynamics keep the unoptimized libraries
-        (``dyn.library.unoptimized()`` names them): for many runs, build again once the optimized objects are in.
+        several times faster; the same numbers bit for bit; each call slower), and the optimized
+        compiles go on in the background, outliving this process, so that the next build links them.
+        Only with hydrogen's own compiler flags (``cflags`` None: other flags may round otherwise at
+        -O0) and where the cache's object store can hold the objects; else the build is optimized.
+        The returned dynamics keep the unoptimized libraries (``dyn.library.unoptimized()`` names
+        them): for many runs, build again once the optimized objects are in.
     """
     from ..dynamics import Dynamics
     from ..progress import Reporter
@@ -456,7 +460,7 @@ class _Precompile:
 def _extension_toolchains(toolchain, quick: bool) -> tuple:
     """``(toolchain, prefer)`` of the Python extension: a quick build takes the optimized one where it
     is cached, else compiles it unoptimized (a small source; the C loop does not call it)."""
-    return (toolchain.unoptimized(), toolchain) if quick else (toolchain, None)
+    return (toolchain.unoptimized(), toolchain) if quick and toolchain.default_flags() else (toolchain, None)
 
 
 def _extension_started(manifest, toolchain, prefer, cache, backend):

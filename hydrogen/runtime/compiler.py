@@ -15,11 +15,13 @@ written (a build compiles the core while the controllers are still being derived
 """
 from __future__ import annotations
 
+import atexit
 import hashlib
 import json
+import math
 import os
-import re
 import queue
+import re
 import secrets
 import shlex
 import shutil
@@ -177,6 +179,11 @@ class Toolchain:
     def argv(self) -> list:
         return [self.executable(), *shlex.split(self.cc)[1:], *self.flags(), *self.warnings]
 
+    def default_flags(self) -> bool:
+        """Whether the code compiles with hydrogen's own flags (no ``cflags``, no flags in ``cc``):
+        the flags whose numbers an unoptimized build is known to give alike."""
+        return self.cflags is None and len(shlex.split(self.cc)) == 1
+
     def unoptimized(self) -> "Toolchain":
         """This toolchain at ``-O0`` (its optimisation flags replaced): a long generated function
         compiles several times faster and each call costs more. With the default flags the numbers
@@ -315,12 +322,18 @@ def _compile_to(source: Path, obj: Path, argv: list, timeout: float) -> None:
         tmp.unlink(missing_ok=True)
 
 
-def _store_script(source: Path, obj: Path, argv: list) -> str:
-    """A shell command that compiles ``source`` into the store's ``obj`` and renames it into place
-    itself: the object lands whole even where the process that started it has ended."""
+def _store_step(source: Path, obj: Path, argv: list, timeout: float) -> tuple:
+    """``(shell command, its temporary object)``: compile ``source`` (in its private folder) into the
+    store's ``obj``, renamed into place by the shell itself, so that the object lands whole even where
+    the process that started it has ended; each of its processes stopped after ``timeout`` s of CPU
+    (``ulimit -t``: the bound that holds once nobody waits for it; ``timeout(1)`` would leave the
+    process group the build stops); the private folder touched first (``_sweep`` goes by its age)
+    and removed after."""
     tmp = obj.with_name(f".{obj.stem}-{secrets.token_hex(4)}.o")
-    return (f"{shlex.join([*argv, '-c', str(source), '-o', str(tmp)])} && mv -f {shlex.quote(str(tmp))} "
-            f"{shlex.quote(str(obj))}; rm -f {shlex.quote(str(tmp))}")
+    folder, q = source.parent, shlex.quote
+    compile_ = shlex.join([*argv, "-c", str(source), "-o", str(tmp)])
+    return (f"touch {q(str(folder))}; (ulimit -t {max(1, math.ceil(timeout))} 2>/dev/null; exec {compile_}) && "
+            f"mv -f {q(str(tmp))} {q(str(obj))}; rm -f {q(str(tmp))}; rm -rf {q(str(folder))}"), tmp
 
 
 def _private_copy(files: list, obj: Path) -> Path:
@@ -343,7 +356,7 @@ def _store_in_background(files: list, obj: Path, argv: list, timeout: float) -> 
         return _compile_copy(files, obj, argv, timeout)
     obj.parent.mkdir(parents=True, exist_ok=True)
     source = _private_copy(files, obj)
-    script = f"{_store_script(source, obj, argv)}; rm -rf {shlex.quote(str(source.parent))}"
+    script, tmp = _store_step(source, obj, argv, timeout)
     proc = subprocess.Popen([sh, "-c", script], stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL,
                             stderr=subprocess.DEVNULL, start_new_session=True)
     _mark(source.parent, proc.pid)
@@ -354,6 +367,8 @@ def _store_in_background(files: list, obj: Path, argv: list, timeout: float) -> 
     except subprocess.TimeoutExpired:
         _kill_group(proc.pid)
         proc.wait()
+        tmp.unlink(missing_ok=True)
+        shutil.rmtree(source.parent, ignore_errors=True)
     finally:
         with _STARTED_LOCK:
             _GROUPS.pop(obj, None)
@@ -446,6 +461,8 @@ def _object_key(files: list, argv: list, identity: str) -> str:
 _STARTED: dict = {}
 _JOBS: dict = {}
 _GROUPS: dict = {}
+_HANDED: set = set()  # process groups handed off: left to finish after this process
+_CHAINS: list = []  # the handed-off chains' processes, reaped when they have ended
 _STARTED_LOCK = threading.Lock()
 _BACKGROUND: list = []
 _POOL_LOCK = threading.Lock()
@@ -453,8 +470,8 @@ _POOL_LOCK = threading.Lock()
 
 class _DaemonPool:
     """Worker threads that never hold the process at its exit (a ThreadPoolExecutor's are joined
-    then): a compile of the store still running when the process ends finishes on its own, in its
-    process group (:func:`_store_in_background`); one not started is lost unless handed off."""
+    then): a compile handed off (:func:`hand_off_precompiles`) finishes on its own in its process
+    group; the others are stopped at exit (:func:`cancel_precompiles`)."""
 
     def __init__(self, workers: int, prefix: str):
         self._queue = queue.SimpleQueue()
@@ -484,6 +501,8 @@ def _forget_after_fork() -> None:
     _STARTED.clear()
     _JOBS.clear()
     _GROUPS.clear()
+    _HANDED.clear()
+    _CHAINS.clear()
     _BACKGROUND.clear()
     _STARTED_LOCK, _POOL_LOCK = threading.Lock(), threading.Lock()
 
@@ -566,18 +585,40 @@ def precompile(sources: list, toolchain: Toolchain | None = None, cache: Path | 
         files, obj = entry
         with _STARTED_LOCK:
             if obj not in _STARTED and not obj.is_file() and not _compiling_elsewhere(obj):
-                _JOBS[obj] = (files, argv)
+                _JOBS[obj] = (files, argv, toolchain.timeout)
                 _STARTED[obj] = _in_background(_store_in_background, files, obj, argv, toolchain.timeout)
+
+
+def _settle(limit_s: float = 10.0) -> None:
+    """Wait until every compile that has just started has its process group and the mark other
+    processes see (a worker between taking a job and starting its process): the callers then
+    stop or hand off every running compile, none left behind unnoticed."""
+    deadline = time.monotonic() + limit_s
+    while time.monotonic() < deadline:
+        with _STARTED_LOCK:
+            if all(f.done() or obj in _GROUPS for obj, f in _STARTED.items()):
+                return
+        time.sleep(0.005)
 
 
 def cancel_precompiles() -> None:
     """Take back the background compiles not started yet (a build that failed, or whose library
-    compiled them itself) and forget the finished ones."""
+    compiled them itself), stop those running that were not handed off (a build interrupted or
+    failed: nothing it started outlives it unasked) and forget the finished ones."""
     with _STARTED_LOCK:
         for obj, started in list(_STARTED.items()):
             if started.cancel() or started.done():
                 del _STARTED[obj]
                 _JOBS.pop(obj, None)
+    _settle()
+    with _STARTED_LOCK:
+        running = [pgid for pgid in _GROUPS.values() if pgid not in _HANDED]
+    for pgid in running:
+        _kill_group(pgid)
+    _CHAINS[:] = [p for p in _CHAINS if p.poll() is None]  # the ended ones reaped
+
+
+atexit.register(cancel_precompiles)
 
 
 def hand_off_precompiles() -> None:
@@ -594,28 +635,24 @@ def hand_off_precompiles() -> None:
         queued = [(obj, _JOBS.pop(obj)) for obj, started in list(_STARTED.items()) if started.cancel()]
         for obj, _ in queued:
             del _STARTED[obj]
-    # a compile that has just started: its process and the mark other processes see are there
-    # before this returns (so that a process ending now leaves no compile without either)
-    deadline = time.monotonic() + 10.0
-    while time.monotonic() < deadline:
-        with _STARTED_LOCK:
-            if all(f.done() or obj in _GROUPS for obj, f in _STARTED.items()):
-                break
-        time.sleep(0.005)
+    _settle()
     with _STARTED_LOCK:
         running = list(_GROUPS.values())
+        _HANDED.update(running)
     for pgid in running:
         _lower_priority(pgid)
     steps, folders = [], []
-    for obj, (files, argv) in queued:
+    for obj, (files, argv, timeout) in queued:
         if obj.is_file() or _compiling_elsewhere(obj):
             continue
         source = _private_copy(files, obj)
         folders.append(source.parent)
-        steps.append(f"{_store_script(source, obj, argv)}; rm -rf {shlex.quote(str(source.parent))}")
+        steps.append(_store_step(source, obj, argv, timeout)[0])
+    _CHAINS[:] = [p for p in _CHAINS if p.poll() is None]  # the ended ones reaped
     if steps:
         proc = subprocess.Popen([sh, "-c", "\n".join(steps)], stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL,
                                 stderr=subprocess.DEVNULL, start_new_session=True)
+        _CHAINS.append(proc)  # kept: polled (reaped) by the next hand-off, never waited for
         _lower_priority(proc.pid)
         for folder in folders:
             _mark(folder, proc.pid)
@@ -669,19 +706,19 @@ def _lower_priority(pgid: int) -> None:
         pass
 
 
-def objects_stored(sources: list, toolchain: Toolchain | None = None, cache: Path | None = None) -> bool:
+def objects_stored(sources: list, toolchain: Toolchain | None = None, cache: Path | None = None) -> bool | None:
     """Whether every one of ``sources`` has its object in the store of ``cache`` now (no waiting for
-    a compile of it still running): a library of them is then a link away."""
+    a compile of it still running): a library of them is then a link away. None where the store
+    cannot hold them (no store, flags that search for headers, a header the key cannot follow)."""
     toolchain = toolchain or Toolchain()
     store = object_store(cache)
     argv, identity = toolchain.argv(), toolchain.identity()
-    if store is None:
-        return False
-    for source in map(Path, sources):
-        entry = _store_entry(store, source, argv, identity)
-        if entry is None or not entry[1].is_file():
-            return False
-    return True
+    if store is None or not _storable_flags(argv):
+        return None
+    entries = [_store_entry(store, source, argv, identity) for source in map(Path, sources)]
+    if any(e is None for e in entries):
+        return None
+    return all(e[1].is_file() for e in entries)
 
 
 def compile_library(sources: list, name: str, toolchain: Toolchain | None = None,
