@@ -342,3 +342,29 @@ def test_a_background_compile_not_handed_off_ends_with_the_build_that_started_it
         assert time.monotonic() - t0 < 30, "the compile outlived the build that started it"
         time.sleep(0.02)
     assert objects_stored([src], tc, cache) is False
+
+
+@pytest.mark.skipif(os.name != "posix", reason="hand-off runs under a POSIX shell")
+def test_a_hand_off_keeps_the_compiles_of_the_toolchain_it_is_told_to(tmp_path):
+    """hand_off_precompiles(keep=A): A's compiles stay the process's (a quick build waits for its
+    unoptimized ones) and end with it; the others finish on their own."""
+    import time
+
+    from hydrogen.runtime.compiler import objects_stored
+    sources = []
+    for i in range(3):
+        src = tmp_path / f"k{i}.c"
+        src.write_text("".join(f"double k{i}_{k}(double x) {{ return x * {k}.25 - {i}; }}\n" for k in range(1500)))
+        sources.append(src)
+    cache, a, b = tmp_path / "cache", ("-O1", "-fPIC"), ("-O2", "-fPIC")
+    code = ("from hydrogen.runtime.compiler import precompile, hand_off_precompiles, Toolchain\n"
+            f"a, b = Toolchain(cflags={a!r}), Toolchain(cflags={b!r})\n"
+            f"precompile({[str(s) for s in sources]!r}, a, {str(cache)!r}, first=True)\n"
+            f"precompile({[str(s) for s in sources]!r}, b, {str(cache)!r})\n"
+            "hand_off_precompiles(keep=a)\n")
+    subprocess.run([sys.executable, "-c", code], check=True, timeout=120)
+    t0 = time.monotonic()
+    while not objects_stored(sources, Toolchain(cflags=b), cache):
+        assert time.monotonic() - t0 < 120, "the handed-off compiles never stored their objects"
+        time.sleep(0.05)
+    assert objects_stored(sources[-1:], Toolchain(cflags=a), cache) is False  # never started, not handed off

@@ -191,7 +191,7 @@ class _Loader:
                         + (f"; unoptimized (-O0): {', '.join(now)}" if now else ""))
         if slow:  # the optimized objects: those not started yet start now, and all finish without this process
             precompile([s for g in slow for s in sources[g]], self.toolchain, self.cache)
-            hand_off_precompiles()
+            hand_off_precompiles(keep=quick)  # the unoptimized ones started early are this build's own
         tiers = [[g for g in groups if g not in slow], slow]
         made = {}
         for tier, toolchain, prefer in ((tiers[0], self.toolchain, None), (tiers[1], quick, self.toolchain)):
@@ -359,7 +359,7 @@ def _generate_and_compile(model, folder, root, committed, generated, need, numbe
         else:
             # each source of a library this build compiles starts compiling as soon as it is
             # written, on the cores the derivation leaves (the core while controllers derive)
-            early = _Precompile({CORE, *groups}, toolchain, cache)
+            early = _Precompile({CORE, *groups}, toolchain, cache, quick)
             with generation_reported(report, model, folder, controllers=need, numbers=numbers) as whole:
                 # no-op when current; a build for some controllers derives only theirs
                 generate_locked(model, folder, numbers=numbers, controllers=need, written=early, first=early.wanted,
@@ -442,8 +442,11 @@ class _Precompile:
     (:func:`~hydrogen.runtime.compiler.precompile`). An optimisation only: a failure to start
     (no compiler) stops it quietly, and the library's compile meets the failure and reports it."""
 
-    def __init__(self, groups, toolchain, cache):
+    def __init__(self, groups, toolchain, cache, quick=False):
         self.groups, self.toolchain, self.cache, self.on = set(groups), toolchain, cache, True
+        # a quick build: a controller's sources also unoptimized, before any other compile waiting (its
+        # library is compiled so when the derivation ends; the core's optimized objects are ready by then)
+        self.quick = toolchain.unoptimized() if quick and toolchain.default_flags() else None
 
     def wanted(self, name) -> bool:
         """Whether function ``name`` (None: a loop driver) is in one of the libraries compiled."""
@@ -452,6 +455,8 @@ class _Precompile:
     def __call__(self, name, path) -> None:
         if self.on and self.wanted(name):
             try:
+                if self.quick is not None and name is not None and group_of(name) != CORE:
+                    precompile([path], self.quick, self.cache, first=True)
                 precompile([path], self.toolchain, self.cache)
             except Exception:  # noqa: BLE001 - see the class docstring
                 self.on = False

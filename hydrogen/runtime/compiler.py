@@ -474,18 +474,20 @@ class _DaemonPool:
     group; the others are stopped at exit (:func:`cancel_precompiles`)."""
 
     def __init__(self, workers: int, prefix: str):
-        self._queue = queue.SimpleQueue()
+        self._queue, self._count = queue.PriorityQueue(), iter(range(1 << 62))
         for i in range(workers):
             threading.Thread(target=self._work, name=f"{prefix}-{i}", daemon=True).start()
 
-    def submit(self, fn, *args) -> Future:
+    def submit(self, fn, *args, first: bool = False) -> Future:
+        """Queue ``fn(*args)``: after those queued before it, or (``first``) before every one not
+        queued ``first``."""
         future = Future()
-        self._queue.put((future, fn, args))
+        self._queue.put((0 if first else 1, next(self._count), (future, fn, args)))
         return future
 
     def _work(self) -> None:
         while True:
-            future, fn, args = self._queue.get()
+            future, fn, args = self._queue.get()[2]
             if not future.set_running_or_notify_cancel():
                 continue
             try:
@@ -542,13 +544,13 @@ def _sweep(store: Path, older_than: float) -> None:
             pass
 
 
-def _in_background(fn, *args):
+def _in_background(fn, *args, first: bool = False):
     """Run ``fn(*args)`` on this process's background pool (as many workers as usable cores less one,
-    at least one: the derivation keeps a core); its future."""
+    at least one: the derivation keeps a core), ``first``: before the others waiting; its future."""
     with _POOL_LOCK:
         if not _BACKGROUND:
             _BACKGROUND.append(_DaemonPool(max(1, usable_cores() - 1), "hydrogen-cc"))
-        return _BACKGROUND[0].submit(fn, *args)
+        return _BACKGROUND[0].submit(fn, *args, first=first)
 
 
 def _ready(obj: Path, timeout: float) -> bool:
@@ -567,7 +569,8 @@ def _ready(obj: Path, timeout: float) -> bool:
     return obj.is_file()
 
 
-def precompile(sources: list, toolchain: Toolchain | None = None, cache: Path | None = None) -> None:
+def precompile(sources: list, toolchain: Toolchain | None = None, cache: Path | None = None,
+               first: bool = False) -> None:
     """Start compiling ``sources`` into the object store of ``cache`` in the background and return at
     once; a later :func:`compile_libraries` of the same bytes uses the objects (waiting for those still
     compiling). The bytes are read now and compiled from a copy, so the source's folder may be renamed
@@ -586,7 +589,7 @@ def precompile(sources: list, toolchain: Toolchain | None = None, cache: Path | 
         with _STARTED_LOCK:
             if obj not in _STARTED and not obj.is_file() and not _compiling_elsewhere(obj):
                 _JOBS[obj] = (files, argv, toolchain.timeout)
-                _STARTED[obj] = _in_background(_store_in_background, files, obj, argv, toolchain.timeout)
+                _STARTED[obj] = _in_background(_store_in_background, files, obj, argv, toolchain.timeout, first=first)
 
 
 def _settle(limit_s: float = 10.0) -> None:
@@ -621,23 +624,26 @@ def cancel_precompiles() -> None:
 atexit.register(cancel_precompiles)
 
 
-def hand_off_precompiles() -> None:
+def hand_off_precompiles(keep: Toolchain | None = None) -> None:
     """Leave this process's background compiles to finish without it, at a lower priority: those
     running go on in their process groups, those not started yet run one after another in one
     process of their own; each renames its object into the store itself. A quick build
     (``build(..., quick=True)``) calls it before compiling its unoptimized libraries: the optimized
     objects are then in the store for the next build, whether or not this process is still there.
-    Without a POSIX shell nothing is handed off (the next build compiles what this one did not)."""
+    Without a POSIX shell nothing is handed off (the next build compiles what this one did not).
+    ``keep``: a toolchain whose compiles stay this process's (those a quick build waits for)."""
     sh = shutil.which("sh") if os.name == "posix" else None
     if sh is None:
         return
+    kept = None if keep is None else keep.argv()
     with _STARTED_LOCK:
-        queued = [(obj, _JOBS.pop(obj)) for obj, started in list(_STARTED.items()) if started.cancel()]
+        queued = [(obj, _JOBS.pop(obj)) for obj, started in list(_STARTED.items())
+                  if _JOBS[obj][1] != kept and started.cancel()]
         for obj, _ in queued:
             del _STARTED[obj]
     _settle()
     with _STARTED_LOCK:
-        running = list(_GROUPS.values())
+        running = [pgid for obj, pgid in _GROUPS.items() if _JOBS.get(obj, (None, None))[1] != kept]
         _HANDED.update(running)
     for pgid in running:
         _lower_priority(pgid)
