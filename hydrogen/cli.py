@@ -227,6 +227,7 @@ def _cmd_figures(args) -> int:
 def _cmd_export(args) -> int:
     import hydrogen
     from .export import export
+    from .progress import print_event
     from .simulation.scenarios import default_scenario_name
 
     if args.format == "fmu":
@@ -236,7 +237,7 @@ def _cmd_export(args) -> int:
     model = hydrogen.load_model(args.model)
     args.scenario = args.scenario or default_scenario_name(model)
     out = export(Path(args.out), args.scenario, args.controller, model=model, duration=args.duration,
-                 **_build_options(args))
+                 progress=print_event, **_build_options(args))
     print(f"{out}: {args.controller} on {args.scenario}; build and run with 'make -C {out} run'")
     return 0
 
@@ -245,6 +246,7 @@ def _cmd_export_fmu(args) -> int:
     import hydrogen
     from .errors import FmuError
     from .fmu import PARTS, export_fmu
+    from .progress import print_event
     from .simulation.scenarios import default_scenario_name
 
     if args.part is None:
@@ -252,7 +254,7 @@ def _cmd_export_fmu(args) -> int:
     model = hydrogen.load_model(args.model)
     args.scenario = args.scenario or default_scenario_name(model)
     out = export_fmu(Path(args.out), args.part, args.scenario, args.controller, model=model, duration=args.duration,
-                     step=args.step, **_build_options(args))
+                     step=args.step, progress=print_event, **_build_options(args))
     what = "plant" if args.part == "plant" else f"{args.part} ({args.controller})"
     print(f"{out}: FMI 2.0 co-simulation FMU of the {what} on {args.scenario}; check it with "
           f"'python -m fmpy validate {out}'")

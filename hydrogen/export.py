@@ -93,14 +93,15 @@ def _sha256(data: bytes) -> str:
     return hashlib.sha256(data).hexdigest()
 
 
-def resolve_dyn(model, dyn, numbers=None, controller=None):
+def resolve_dyn(model, dyn, numbers=None, controller=None, progress=None):
     """The compiled dynamics to export: ``dyn``, or those of ``model`` (default robot when both are
     None) built with ``numbers`` (:func:`hydrogen.build`'s) for ``controller`` (a new structure
-    derives that one alone); a ``model`` that differs from ``dyn``'s raises ValueError."""
+    derives that one alone), reporting to ``progress``; a ``model`` that differs from ``dyn``'s raises
+    ValueError."""
     import hydrogen
 
     if dyn is None:
-        return hydrogen.default_dynamics(model, numbers=numbers, controller=controller)
+        return hydrogen.default_dynamics(model, numbers=numbers, controller=controller, progress=progress)
     if model is not None:
         m = model if isinstance(model, hydrogen.Model) else hydrogen.load_model(model)
         if m.baked_hash() != dyn.model.baked_hash():
@@ -438,7 +439,8 @@ _STEP_NOTE = """
                   the command at the updated state)"""
 
 
-def prepare_export(model, dyn, scenario, controller, gains, duration, check_workspace, overrides, numbers=None):
+def prepare_export(model, dyn, scenario, controller, gains, duration, check_workspace, overrides, numbers=None,
+                   progress=None):
     """What an exported program (C folder or FMU) runs: ``(dyn, scenario, its name, the prepared run)``.
 
     The names are checked, as they are written into generated files; the run is prepared exactly
@@ -451,7 +453,7 @@ def prepare_export(model, dyn, scenario, controller, gains, duration, check_work
     from .estimators import estimate_for
     from .simulation.simulator import prepare_run
 
-    dyn = resolve_dyn(model, dyn, numbers, controller if isinstance(controller, str) else None)
+    dyn = resolve_dyn(model, dyn, numbers, controller if isinstance(controller, str) else None, progress)
     if scenario is None:
         scenario = default_scenario_name(dyn.model)
     sc = named_scenario(scenario, dyn.model) if isinstance(scenario, str) else scenario
@@ -481,7 +483,8 @@ def _model_arg(model) -> str:
 
 
 def export(out_dir, scenario=None, controller="adaptive-robust", model=None, duration=None, *,
-           dyn=None, gains=None, generated=None, check_workspace=True, numbers=None, **overrides) -> Path:
+           dyn=None, gains=None, generated=None, check_workspace=True, numbers=None, progress=None,
+           **overrides) -> Path:
     """Write a self-contained C99 program of ``controller`` on ``scenario`` into ``out_dir``.
 
     Parameters
@@ -499,6 +502,8 @@ def export(out_dir, scenario=None, controller="adaptive-robust", model=None, dur
         Compiled dynamics to export from (default ``hydrogen.build(model, numbers=numbers)``).
     numbers : "inputs", "constants" or None
         How ``model`` is built when ``dyn`` is not given (:func:`hydrogen.build`; None: its default).
+    progress : callable, optional
+        The build's progress callback (:func:`hydrogen.build`'s), where this call builds or compiles.
     gains : dict, optional
         Controller gain overrides, as for :func:`hydrogen.simulate`.
     generated : path, optional
@@ -517,7 +522,7 @@ def export(out_dir, scenario=None, controller="adaptive-robust", model=None, dur
     # Refused before anything is built or run: the folder must be new, empty or an earlier export.
     check_export_dir(Path(out_dir).absolute())
     dyn, sc, sc_name, p = prepare_export(model, dyn, scenario, controller, gains, duration, check_workspace,
-                                         overrides, numbers)
+                                         overrides, numbers, progress)
     overrides = dict(overrides)
     sensor = sensor_estimate(p)
 

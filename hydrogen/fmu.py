@@ -649,7 +649,7 @@ _INSIDE = {
 
 def export_fmu(out, part, scenario=None, controller="adaptive-robust", model=None, duration=None, *,
                step=None, dyn=None, gains=None, generated=None, check_workspace=True, toolchain=None,
-               numbers=None, **overrides) -> Path:
+               numbers=None, progress=None, **overrides) -> Path:
     """Write an FMI 2.0 co-simulation FMU of ``part`` (``"plant"``, ``"controller"`` or ``"closed-loop"``).
 
     Parameters
@@ -658,7 +658,7 @@ def export_fmu(out, part, scenario=None, controller="adaptive-robust", model=Non
         The ``.fmu`` file to write; it must not exist.
     part : str
         One of :data:`PARTS`.
-    scenario, controller, model, duration, gains, numbers, overrides
+    scenario, controller, model, duration, gains, numbers, progress, overrides
         As for :func:`hydrogen.export.export`: the scenario gives the control period, sub-steps, start
         values, reference and plant settings (noise is off: the FMU is noise-free). ``duration`` sets the
         DefaultExperiment stop time. The plant part ignores the controller.
@@ -685,7 +685,7 @@ def export_fmu(out, part, scenario=None, controller="adaptive-robust", model=Non
     _check_platform()
     headers_dir = fmi_headers_dir()
     dyn, sc, sc_name, p = prepare_export(model, dyn, scenario, controller, gains, duration, check_workspace,
-                                         overrides, numbers)
+                                         overrides, numbers, progress)
     overrides = dict(overrides)
     h = p.h
     n_step = _periods(h if step is None else step, h)

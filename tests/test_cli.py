@@ -112,3 +112,22 @@ def test_an_interrupt_is_one_line_and_status_130(monkeypatch, capsys):
     assert cli(["simulate", "--duration", "0.1"]) == 130
     err = capsys.readouterr().err
     assert err.strip() == "hydrogen simulate: interrupted"
+
+
+@pytest.mark.parametrize("extra", [(), ("--format", "fmu", "--part", "plant")])
+def test_export_reports_its_build(monkeypatch, tmp_path, extra):
+    """hydrogen export builds (or waits for a compile) with its stages on stderr, never in silence."""
+    from hydrogen.progress import print_event
+    seen = {}
+
+    class Built(Exception):
+        pass
+
+    def default_dynamics(model=None, **kwargs):
+        seen.update(kwargs)
+        raise Built
+
+    monkeypatch.setattr(hydrogen, "default_dynamics", default_dynamics)
+    with pytest.raises(Built):
+        cli(["export", "--out", str(tmp_path / "out.fmu" if extra else tmp_path / "out"), *extra])
+    assert seen["progress"] is print_event
