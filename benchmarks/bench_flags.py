@@ -45,15 +45,22 @@ GCC_DEFAULT = "-O2 nsi no-fre (default with gcc)"
 OTHER_DEFAULT = "-O2 nsi no-contract (default)"
 
 
+#: The flags of a quick build's unoptimized libraries (``Toolchain.unoptimized()``: the defaults at -O0):
+#: what a first run after a structural edit gains in compile and pays per period.
+QUICK = "-O0 (a quick build)"
+
+
 def flag_sets(toolchain=None) -> dict:
-    """The flag sets compared: :data:`FLAG_SETS`, and after -O2 nsi the compiler's default flags
-    (:meth:`Toolchain.flags`: with GCC, :data:`GCC_DEFAULT`; else :data:`OTHER_DEFAULT`)."""
+    """The flag sets compared: :data:`QUICK`, :data:`FLAG_SETS`, and after -O2 nsi the compiler's
+    default flags (:meth:`Toolchain.flags`: with GCC, :data:`GCC_DEFAULT`; else :data:`OTHER_DEFAULT`)."""
     sets = dict(FLAG_SETS)
-    gcc = (toolchain or Toolchain()).is_gcc()
+    toolchain = toolchain or Toolchain()
+    gcc = toolchain.is_gcc()
     items = list(sets.items())
     at = list(sets).index("-O2 nsi") + 1
     row = (GCC_DEFAULT, (*DEFAULT_CFLAGS, *GCC_CFLAGS)) if gcc else (OTHER_DEFAULT, DEFAULT_CFLAGS)
-    return dict([*items[:at], row, *items[at:]])
+    quick = (QUICK, Toolchain(cc=toolchain.cc).unoptimized().flags())
+    return dict([quick, *items[:at], row, *items[at:]])
 #: The planar chain (bench_scaling.chain_description) whose largest source is compiled with each flag
 #: set: its adaptive-robust controller's lean semi-implicit step, what its first adaptive run waits for.
 CHAIN_N, CHAIN_N_QUICK = 12, 7

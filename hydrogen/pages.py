@@ -256,7 +256,8 @@ def _flags(b) -> list:
               "one compiler alone" if chain else "") + ":", ""]
     out += _table(["flags"] + [f"{r['model']} µs (compile s)" for r in robots.values()]
                   + ([f"chain n = {chain['n']}, s"] if chain else []),
-                  [[f"`{' '.join(first[fl]['cflags'])}`" + (" (default)" if "default" in fl else "")]
+                  [[f"`{' '.join(first[fl]['cflags'])}`"
+                    + (" (default)" if "default" in fl else " (a quick build's)" if "quick build" in fl else "")]
                    + [f"{_f(r['flags'].get(fl, {}).get('loop_us_per_period'))} "
                       f"({_f(r['flags'].get(fl, {}).get('compile_s'))})" for r in robots.values()]
                    + ([_f(chain["compile_s"].get(fl))] if chain else []) for fl in flags])

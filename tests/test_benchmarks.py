@@ -1067,6 +1067,8 @@ def test_the_flags_benchmark_compiles_the_chains_largest_source_with_every_flag_
     assert "planar chain, n = 2" in capsys.readouterr().out
     page = benchmarks_page({"bench_flags": {"robots": robots, "chain": chain}})
     assert "chain n = 2, s" in page and "| `-O2 -fPIC -std=c99 -fno-semantic-interposition` | 2.50 (1.50) |" in page
+    assert "-O0" in sets[bench_flags.QUICK] and "-O2" not in sets[bench_flags.QUICK]  # a quick build's flags
+    assert f"| `{' '.join(sets[bench_flags.QUICK])}` (a quick build's) | 2.50 (1.50) |" in page
     if bench_flags.GCC_DEFAULT in sets:
         assert f"| `{' '.join(sets[bench_flags.GCC_DEFAULT])}` (default) | 2.50 (1.50) |" in page
         assert "-ffp-contract=off -fno-tree-fre` (default)" in page
