@@ -66,13 +66,14 @@ BACKGROUND_LIMIT_S = 120.0
 
 
 def _background_done(cache: Path) -> float:
-    """Seconds until the compiles a quick build left in the background are done: none of their
-    private copies (``.tmp-*``) is left in the object store."""
+    """Seconds until the compiles a quick build left in the background are done (none pending in the
+    cache's object store)."""
+    from hydrogen.runtime.compiler import pending_compiles
+
     t0 = time.perf_counter()
-    store = cache / "objects"
-    while any(store.glob(".tmp-*")):
+    while pending_compiles(cache):
         if time.perf_counter() - t0 > BACKGROUND_LIMIT_S:
-            raise RuntimeError(f"{store}: background compiles still running after {BACKGROUND_LIMIT_S:g} s")
+            raise RuntimeError(f"{cache}: background compiles still running after {BACKGROUND_LIMIT_S:g} s")
         time.sleep(0.05)
     return time.perf_counter() - t0
 

@@ -9,7 +9,8 @@ import textwrap
 import pytest
 
 from hydrogen.errors import CompilerError
-from hydrogen.runtime.compiler import Toolchain, cached_library, compile_library, compile_objects, usable_cores
+from hydrogen.runtime.compiler import (Toolchain, cached_library, compile_library, compile_objects, pending_compiles,
+                                       usable_cores)
 
 
 def _logging_cc(tmp_path, pause: float = 0.0):
@@ -296,6 +297,7 @@ def test_compiles_handed_off_finish_after_their_process_and_are_not_compiled_aga
             f"precompile({[str(s) for s in sources]!r}, Toolchain(cflags={flags!r}), {str(cache)!r})\n"
             "hand_off_precompiles()\n")
     subprocess.run([sys.executable, "-c", code], check=True, timeout=120)
+    assert pending_compiles(cache) > 0  # going on without the process (three of about 0.5 s, one after another)
     calls = []
     real = compiler.run_compiler
     monkeypatch.setattr(compiler, "run_compiler", lambda argv, *a, **k: (calls.append(argv), real(argv, *a, **k))[1])
@@ -305,7 +307,7 @@ def test_compiles_handed_off_finish_after_their_process_and_are_not_compiled_aga
     f.restype, f.argtypes = ctypes.c_double, [ctypes.c_double]
     assert f(2.0) == 2.0 * 7.5 + 2
     t0 = time.monotonic()
-    while any((cache / "objects").glob(".tmp-*")):
+    while pending_compiles(cache):
         assert time.monotonic() - t0 < 60, "a handed-off compile left its private copy"
         time.sleep(0.05)
 

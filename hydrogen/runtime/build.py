@@ -172,16 +172,20 @@ class _Loader:
         process started are handed off to finish on their own for the next build."""
         from ..progress import c_size
 
-        sources = {g: self.sources(g) for g in groups}
-        new = [g for g in groups if force or self.cached(g) is None]
-        # unoptimized: with hydrogen's own flags (others may round otherwise at -O0), where the store
-        # can hold the optimized objects and lacks some (they are compiled in the background)
-        slow = [g for g in new if self.quick and not force and self.toolchain.default_flags()
+        contents = {g: self._contents(g) for g in groups}  # each source read and checked once
+        sources = {g: [path for path, _ in contents[g]] for g in groups}
+
+        def cached(g, toolchain):
+            return cached_library(self.root / "build" / build_key_of(contents[g], toolchain))
+
+        new = [g for g in groups if force or cached(g, self.toolchain) is None]
+        # unoptimized where the store can hold the optimized objects and lacks some (they are
+        # compiled in the background)
+        slow = [g for g in new if self.quick and not force
                 and objects_stored(sources[g], self.toolchain, self.cache) is False]
         quick = self.toolchain.unoptimized()
         # what is compiled now: not an unoptimized library an earlier quick build left (loaded as it is)
-        new = [g for g in new if g not in slow or cached_library(
-            self.root / "build" / build_key_of(self._contents(g), quick)) is None]
+        new = [g for g in new if g not in slow or cached(g, quick) is None]
         clock = self.report.start()
         if new:
             files = [s for g in new for s in sources[g]]
@@ -307,6 +311,7 @@ def build(model: Model | str | Path | None = None, *, cc: str | None = None,
     root = check_cache_root(Path(cache or cache_root()))
     folder = Path(generated) if generated else generated_dir_for(model, cache, numbers, need)
     toolchain = Toolchain(**{k: v for k, v in (("cc", cc), ("cflags", cflags)) if v is not None})
+    quick = quick and toolchain.default_flags()  # other flags may round otherwise at -O0: built as given
     committed = generated is None and folder == repo_generated_dir() / model.name
 
     made = []  # the loader the warm library was given (this build compiles through it)
@@ -446,7 +451,7 @@ class _Precompile:
         self.groups, self.toolchain, self.cache, self.on = set(groups), toolchain, cache, True
         # a quick build: a controller's sources also unoptimized, before any other compile waiting (its
         # library is compiled so when the derivation ends; the core's optimized objects are ready by then)
-        self.quick = toolchain.unoptimized() if quick and toolchain.default_flags() else None
+        self.quick = toolchain.unoptimized() if quick else None
 
     def wanted(self, name) -> bool:
         """Whether function ``name`` (None: a loop driver) is in one of the libraries compiled."""
@@ -465,7 +470,7 @@ class _Precompile:
 def _extension_toolchains(toolchain, quick: bool) -> tuple:
     """``(toolchain, prefer)`` of the Python extension: a quick build takes the optimized one where it
     is cached, else compiles it unoptimized (a small source; the C loop does not call it)."""
-    return (toolchain.unoptimized(), toolchain) if quick and toolchain.default_flags() else (toolchain, None)
+    return (toolchain.unoptimized(), toolchain) if quick else (toolchain, None)
 
 
 def _extension_started(manifest, toolchain, prefer, cache, backend):

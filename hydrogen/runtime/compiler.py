@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import atexit
 import hashlib
+import itertools
 import json
 import math
 import os
@@ -40,7 +41,8 @@ from ..errors import CompilerError
 from ..fileio import atomic_write, locked, write_file
 
 __all__ = ["Toolchain", "cache_root", "compile_library", "compile_libraries", "compile_extension", "run_compiler",
-           "precompile", "cancel_precompiles", "hand_off_precompiles", "objects_stored", "link_shared", "object_store", "DEFAULT_CFLAGS", "GCC_CFLAGS",
+           "precompile", "cancel_precompiles", "hand_off_precompiles", "objects_stored", "pending_compiles",
+           "link_shared", "object_store", "DEFAULT_CFLAGS", "GCC_CFLAGS",
            "WARNING_FLAGS", "OBJECTS"]
 
 #: Chosen by benchmarks/bench_flags.py (docs/benchmarks.md "Compiler flags"). -fno-semantic-interposition lets gcc
@@ -347,11 +349,17 @@ def _private_copy(files: list, obj: Path) -> Path:
     return folder / files[0][0]
 
 
+def _shell() -> str | None:
+    """The POSIX shell the background compiles run under (they rename their objects themselves and
+    outlive a process that hands them off), or None: then they are plain compiles of this process."""
+    return shutil.which("sh") if os.name == "posix" else None
+
+
 def _store_in_background(files: list, obj: Path, argv: list, timeout: float) -> None:
     """:func:`precompile`'s job: compile ``files`` into the store's ``obj`` in a process group of its
     own that renames the object into place itself (see :func:`hand_off_precompiles`). Where there is
     no POSIX shell, a plain compile (:func:`_compile_copy`)."""
-    sh = shutil.which("sh") if os.name == "posix" else None
+    sh = _shell()
     if sh is None:
         return _compile_copy(files, obj, argv, timeout)
     obj.parent.mkdir(parents=True, exist_ok=True)
@@ -387,16 +395,15 @@ def _compile_copy(files: list, obj: Path, argv: list, timeout: float, shown: Pat
     covers, even if the source is rewritten meanwhile. A compiler's message names ``shown`` (the
     source's own folder) where the copy was."""
     obj.parent.mkdir(parents=True, exist_ok=True)
-    with tempfile.TemporaryDirectory(dir=obj.parent, prefix=".tmp-") as tmp:
-        for name, data in files:
-            Path(tmp, name).parent.mkdir(parents=True, exist_ok=True)
-            Path(tmp, name).write_bytes(data)
-        try:
-            _compile_to(Path(tmp, files[0][0]), obj, argv, timeout)
-        except CompilerError as exc:
-            if shown is None:
-                raise
-            raise CompilerError(str(exc).replace(tmp, str(shown))) from None
+    source = _private_copy(files, obj)
+    try:
+        _compile_to(source, obj, argv, timeout)
+    except CompilerError as exc:
+        if shown is None:
+            raise
+        raise CompilerError(str(exc).replace(str(source.parent), str(shown))) from None
+    finally:
+        shutil.rmtree(source.parent, ignore_errors=True)
 
 
 #: Flags that let the compiler find a header elsewhere than beside the file that includes it: with
@@ -457,7 +464,7 @@ def _object_key(files: list, argv: list, identity: str) -> str:
 
 
 # Compiles started by precompile() in this process, by object path: their futures, what each compiles
-# ((files, argv)), the process group of each one running; and the one worker pool they run in.
+# ((files, argv, timeout)), the process group of each one running; and the one worker pool they run in.
 _STARTED: dict = {}
 _JOBS: dict = {}
 _GROUPS: dict = {}
@@ -474,7 +481,7 @@ class _DaemonPool:
     group; the others are stopped at exit (:func:`cancel_precompiles`)."""
 
     def __init__(self, workers: int, prefix: str):
-        self._queue, self._count = queue.PriorityQueue(), iter(range(1 << 62))
+        self._queue, self._count = queue.PriorityQueue(), itertools.count()
         for i in range(workers):
             threading.Thread(target=self._work, name=f"{prefix}-{i}", daemon=True).start()
 
@@ -596,6 +603,8 @@ def _settle(limit_s: float = 10.0) -> None:
     """Wait until every compile that has just started has its process group and the mark other
     processes see (a worker between taking a job and starting its process): the callers then
     stop or hand off every running compile, none left behind unnoticed."""
+    if _shell() is None:
+        return  # plain compiles: no process group to wait for
     deadline = time.monotonic() + limit_s
     while time.monotonic() < deadline:
         with _STARTED_LOCK:
@@ -632,7 +641,7 @@ def hand_off_precompiles(keep: Toolchain | None = None) -> None:
     objects are then in the store for the next build, whether or not this process is still there.
     Without a POSIX shell nothing is handed off (the next build compiles what this one did not).
     ``keep``: a toolchain whose compiles stay this process's (those a quick build waits for)."""
-    sh = shutil.which("sh") if os.name == "posix" else None
+    sh = _shell()
     if sh is None:
         return
     kept = None if keep is None else keep.argv()
@@ -666,6 +675,14 @@ def hand_off_precompiles(keep: Toolchain | None = None) -> None:
 
 #: The prefix of a compile's private folder in the object store, named for the object it makes.
 _PENDING = ".tmp-"
+
+
+def pending_compiles(cache: Path | None = None) -> int:
+    """How many compiles into the object store of ``cache`` are under way now (their private copies:
+    in any process, handed-off ones included; a copy a killed compile left counts until the store is
+    swept)."""
+    store = object_store(cache)
+    return 0 if store is None else sum(1 for _ in store.glob(f"{_PENDING}*"))
 
 
 def _mark(folder: Path, pid: int) -> None:
