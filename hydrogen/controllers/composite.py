@@ -323,6 +323,7 @@ class RigidBodyComposite:
         return Yp, p0, Yb, b0
 
     def _closed_form_signals(self):
+        from ..symbolic.calculus import diff, jacobian
         from ..symbolic.forms import turned_joints
         from ..symbolic.rigid_body import gravity, mass_matrix
 
@@ -335,8 +336,8 @@ class RigidBodyComposite:
             th = sp.Matrix(sp.symbols(f"composite_theta0:{p}", real=True))
             at_zero = {s: sp.S.Zero for s in th}
             mom, G = mass_matrix(c.model, q, th) * qd, gravity(c.model, q, th)
-            p0, G0 = mom.subs(at_zero), G.subs(at_zero)
-            Yp, YG = mom.jacobian(th), G.jacobian(th)
+            p0, G0 = mom.xreplace(at_zero), G.xreplace(at_zero)  # subs would also match patterns, slowly
+            Yp, YG = jacobian(mom, th), jacobian(G, th)
         else:
             zero = [sp.S.Zero] * p
             D0, G0 = mass_matrix(c.model, q, zero), gravity(c.model, q, zero)
@@ -348,9 +349,11 @@ class RigidBodyComposite:
             Yp = sp.Matrix.hstack(*Yp_cols)
             YG = sp.Matrix.hstack(*YG_cols)
 
+        memos = [{} for _ in range(n)]  # ∂/∂q_i of the nodes the columns share, made once
+
         def half_dT(mom):  # (Cᵀ q̇)_i = ∂/∂q_i of ½ q̇ᵀ (D q̇)
             T = sp.Rational(1, 2) * (qd.T * mom)[0, 0]
-            return sp.Matrix([T.diff(q[i]) for i in range(n)])
+            return sp.Matrix([diff(T, q[i], memos[i]) for i in range(n)])
         Yb = sp.Matrix.hstack(*[YG[:, k] - half_dT(Yp[:, k]) for k in range(p)])
         b0 = G0 - half_dT(p0)
         return Yp, p0, Yb, b0

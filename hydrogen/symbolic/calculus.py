@@ -6,7 +6,7 @@ import sympy as sp
 
 from ..errors import UnsupportedExpressionError
 
-__all__ = ["time_derivative", "projection", "clip", "matmul"]
+__all__ = ["time_derivative", "projection", "clip", "matmul", "diff", "jacobian"]
 
 
 def time_derivative(expr, rates: list) -> sp.Matrix:
@@ -54,6 +54,94 @@ def _matmul(a, b, *more):
     cols = [{k: x for k in range(b.rows) if (x := b[k, j])} for j in range(b.cols)]
     out = sp.Matrix(a.rows, b.cols, lambda i, j: sp.Add(*[x * cols[j][k] for k, x in rows[i] if k in cols[j]]))
     return _matmul(out, *more) if more else out
+
+
+def diff(expr, s, memo=None):
+    """∂expr/∂s for a symbol ``s``: the same expression as SymPy's ``expr.diff(s)``, node by node
+    by SymPy's own rules (sums, products, powers, functions of one argument) from the operands'
+    derivatives, each made once (``memo``: a dict shared by the calls on one ``s``, keyed by node).
+
+    Why: SymPy's ``diff`` makes every node's derivative through ``Derivative``, which walks the
+    node's whole subtree twice more (its free symbols, a search for unevaluated derivatives) and
+    asks whether the result is zero (an assumption query): quadratic in the depth of the
+    expressions D, C and the composite laws differentiate, most of the derivation's time. A node
+    whose type these rules do not cover is left to SymPy (``node.diff(s)``); a test compares the
+    two on the shipped robots' expressions."""
+    memo = {} if memo is None else memo
+    expr = sp.sympify(expr)
+    stack = [(expr, False)]
+    while stack:
+        n, ready = stack.pop()
+        if n in memo:
+            continue
+        if not ready and type(n) in _DIFF_RULES and n.args:
+            stack.append((n, True))
+            stack.extend((a, False) for a in n.args if a not in memo)
+            continue
+        memo[n] = _diff_rule(n, s, memo)
+    return memo[expr]
+
+
+def jacobian(f, x) -> sp.Matrix:
+    """∂f/∂x (rows: the entries of the column ``f``, columns: the symbols of ``x``): SymPy's
+    ``f.jacobian(x)`` by :func:`diff`."""
+    f, x = sp.Matrix(f), list(sp.Matrix(x))
+    memos = [{} for _ in x]
+    return sp.Matrix(len(f), len(x), lambda i, j: diff(f[i], x[j], memos[j]))
+
+
+def diff_matrix(m, s) -> sp.Matrix:
+    """Each entry of the matrix ``m`` differentiated by the symbol ``s`` (SymPy's ``m.diff(s)``)."""
+    memo = {}
+    return sp.Matrix(m.rows, m.cols, lambda i, j: diff(m[i, j], s, memo))
+
+
+def _diff_mul(n, s, memo):
+    # Mul._eval_derivative_n_times's Leibniz rule at order 1: one term per factor, the others kept
+    terms = []
+    for kvals, c in _multinomial(len(n.args)):
+        terms.append(c * sp.Mul(*[memo[a] if k else a for k, a in zip(kvals, n.args)]))
+    return sp.Add(*terms)
+
+
+def _multinomial(m):
+    from sympy.ntheory.multinomial import multinomial_coefficients_iterator
+
+    return multinomial_coefficients_iterator(m, 1)
+
+
+def _diff_pow(n, s, memo):
+    # Pow._eval_derivative: self (d(exp) log(base) + d(base) exp / base)
+    base, exp = n.args
+    dexp = memo[exp]
+    log_term = _ZERO if dexp is _ZERO else dexp * sp.log(base)  # 0 log(b) is 0 for every base a Pow keeps
+    return n * (log_term + memo[base] * exp / base)
+
+
+def _diff_function(n, s, memo):
+    # Function._eval_derivative: the chain rule over the arguments whose derivative is not zero
+    out = []
+    for i, a in enumerate(n.args, 1):
+        da = memo[a]
+        if da is _ZERO or da.is_zero:
+            continue
+        out.append(n.fdiff(i) * da)
+    return sp.Add(*out)
+
+
+_DIFF_RULES = {sp.Add: lambda n, s, memo: sp.Add(*[memo[a] for a in n.args]), sp.Mul: _diff_mul,
+               sp.Pow: _diff_pow, sp.sin: _diff_function, sp.cos: _diff_function}
+
+
+def _diff_rule(n, s, memo):
+    if n.is_Atom:
+        return sp.S.One if n == s else _ZERO
+    rule = _DIFF_RULES.get(type(n))
+    if rule is None:
+        return n.diff(s)  # SymPy's own (it finds a node without s zero first)
+    if not any(memo[a] is not _ZERO for a in n.args):
+        return _ZERO  # s is not in it: Derivative's own shortcut
+    return rule(n, s, memo)
 
 
 def _add(*terms):

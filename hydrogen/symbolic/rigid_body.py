@@ -19,7 +19,7 @@ from __future__ import annotations
 
 import sympy as sp
 
-from .calculus import matmul
+from .calculus import diff_matrix, matmul
 from .constants import baked, mode_key
 from .coordinates import angular_velocity_map, rate_symbols, rotation
 from .tree import SymbolicTree
@@ -77,7 +77,7 @@ def coriolis(D: sp.Matrix, q, qdot, partials=None) -> sp.Matrix:
     """Christoffel-form C(q, q̇) of an explicit D(q): C_ij = Σ_k ½(∂D_ij/∂q_k + ∂D_ik/∂q_j − ∂D_jk/∂q_i) q̇_k.
     ``partials``: ∂D/∂q_k for each k when made already (:meth:`SymbolicTree.mass_matrix_partials`)."""
     n = D.shape[0]
-    dD = [D.diff(q[k]) for k in range(n)] if partials is None else partials  # dD[k][i, j] = ∂D_ij/∂q_k
+    dD = [diff_matrix(D, q[k]) for k in range(n)] if partials is None else partials  # dD[k][i, j] = ∂D_ij/∂q_k
     C = sp.zeros(n, n)
     for i in range(n):
         for j in range(n):
@@ -208,7 +208,7 @@ def coriolis_paper(q, qdot, theta) -> sp.Matrix:
     eta_dot = sp.Matrix(qdot[3:])
     w = T * eta_dot
     S = sp.Matrix([[0, -w[2], w[1]], [w[2], 0, -w[0]], [-w[1], w[0], 0]])
-    Tdot = sum((T.diff(q[k]) * qdot[k] for k in range(3, 6)), sp.zeros(3, 3))
+    Tdot = sum((diff_matrix(T, q[k]) * qdot[k] for k in range(3, 6)), sp.zeros(3, 3))
     C = sp.zeros(6, 6)
     C[3:, 3:] = T.T * S * Ib * T + T.T * Ib * Tdot
     return C

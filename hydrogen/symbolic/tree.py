@@ -28,7 +28,7 @@ from __future__ import annotations
 import sympy as sp
 
 from ..tree import fixed_path
-from .calculus import matmul
+from .calculus import diff_matrix, jacobian, matmul
 from .constants import baked
 from .coordinates import angular_velocity_map, body_angular_velocity_map, matrix_symbols, rotation
 
@@ -197,7 +197,7 @@ class SymbolicTree:
         velocities (C(q, q̇), C(q, v) for v ≠ q̇) differentiates the same D."""
         if getattr(self, "_closed_dD", None) is None:
             D = self.mass_matrix()
-            self._closed_dD = [D.diff(self.q[k]) for k in range(self.n)]
+            self._closed_dD = [diff_matrix(D, self.q[k]) for k in range(self.n)]
         return [d.copy() for d in self._closed_dD]
 
     def carriers(self) -> dict:
@@ -274,7 +274,7 @@ class SymbolicTree:
 
     def gravity(self, g) -> sp.Matrix:
         """G(q) = ∂V/∂q (n), N or N m."""
-        return sp.Matrix([self.potential(g)]).jacobian(self.q).T
+        return jacobian([self.potential(g)], self.q).T
 
     def mass_matrix_inverse(self):
         """D⁻¹ in closed form for a single floating body at its centre of mass (block structure:
