@@ -26,6 +26,14 @@ def _default_generated(model, shipped: Path) -> Path:
     return Path(model.source).resolve().parent / "generated" / model.name
 
 
+def _in_installed_package(folder: Path) -> bool:
+    """Whether ``folder`` lies inside the installed package (a wheel's ``hydrogen/_generated``), not a
+    source checkout's ``generated/``."""
+    from .resources import package_dir
+
+    return Path(folder).resolve().is_relative_to(package_dir())
+
+
 def _cmd_generate(args) -> int:
     from .codegen.generate import check_output, generate
     from .model import load_model
@@ -33,6 +41,12 @@ def _cmd_generate(args) -> int:
 
     model = load_model(args.model)
     out = Path(args.out) if args.out else _default_generated(model, repo_generated_dir())
+    if not args.check and not args.out and _in_installed_package(out) and (
+            args.force or check_output(model, out, args.numbers)):
+        from .errors import OutputPathError
+        raise OutputPathError(f"--out: {out} is the installed package's own generated code for {model.name}, "
+                              "which generate never rewrites: write a copy elsewhere with --out DIR (a build "
+                              "generates into its cache by itself)")
     if args.check:
         reasons = check_output(model, out, args.numbers)
         if reasons:
@@ -482,7 +496,7 @@ def build_parser() -> argparse.ArgumentParser:
                      help="std of the white noise added to the logged cylinder lengths, m (default: 5e-6)")
     sim.add_argument("--log-noise-p", type=_number(float, 0, strict=False), default=2e4,
                      help="std of the white noise added to the logged pressures, Pa (default: 2e4)")
-    sim.add_argument("--log-seed", type=int, default=0, help="seed of that noise (default 0)")
+    sim.add_argument("--log-seed", type=_number(int, 0, strict=False), default=0, help="seed of that noise (>= 0; default 0)")
     sim.add_argument("--seeds", type=parse_seeds, metavar="N|LIST",
                      help="run once per sensor-noise seed and print the median and range per coordinate: N for "
                           "seeds 0..N-1, or a list such as 0,3,7 (default: one run, the scenario's seed)")

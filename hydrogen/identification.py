@@ -454,10 +454,13 @@ def identify(log, model=None, *, dyn=None, cutoff_hz: float | None = None, order
     model = dyn.model if dyn is not None else as_model(model)
     written = log.meta.get("model") if from_file and isinstance(log.meta, dict) else None
     if written and written != model.name:  # before any build: a log of another robot is a wrong --model
+        from .model import models
+        which = (f"--model {written}, or its description file" if written in models() else
+                 f"its description file: --model path/to/the.toml naming '{written}'")
         raise IdentificationError(
             f"{log.source}: the log's header says it is a log of model '{written}', not of '{model.name}': pass "
-            f"that model (--model {written}, or its description file); a log of another description of the "
-            f"same robot: remove the header's \"model\" entry")
+            f"that model ({which}); a log of another description of the same robot: remove the header's "
+            f"\"model\" entry")
     if dyn is None:  # the core alone: identification calls no controller
         dyn = build(model, controllers=(), **({} if numbers is None else {"numbers": numbers}))
     model = dyn.model

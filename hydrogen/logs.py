@@ -78,6 +78,8 @@ def log_from_result(res, noise_l: float = 0.0, noise_p: float = 0.0, seed: int =
     for name, v in (("noise_l", noise_l), ("noise_p", noise_p)):
         if not (np.isfinite(v) and v >= 0):
             raise IdentificationError(f"{name} must be a finite number >= 0, got {v!r}")
+    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
+        raise IdentificationError(f"seed must be an integer >= 0 (the noise's generator), got {seed!r}")
     rng = np.random.default_rng(seed)
     l = np.asarray(res.leg_lengths, float)
     pc = np.asarray(res.pressures, float)

@@ -135,11 +135,14 @@ def excitation_lines(res) -> list:
     if "theta_hat" in res.estimated and len(res.theta_hat):
         bad, away = _unmoved(res.theta_hat[0], res.theta_hat[-1], res.theta_true, res.theta_names)
         if bad:
-            why = (f"the run barely excites theta (lambda_min/lambda_max {ex['theta']:.2g} < {POOR_EXCITATION:g}; "
+            measured = ex.get("theta", np.nan)  # none: fewer than 3 samples
+            why = ("the run is too short to tell how well it excites theta (no information matrix): run longer"
+                   if not np.isfinite(measured) else
+                   f"the run barely excites theta (lambda_min/lambda_max {ex['theta']:.2g} < {POOR_EXCITATION:g}; "
                    f"least excited: {', '.join(ex.get('theta_least_excited') or {})}): use a reference that moves "
                    "every coordinate at several frequencies, or a longer run"
-                   if ex.get("theta", 1.0) < POOR_EXCITATION else _DRIFT + " (rate_ls_theta)" if away else
-                   f"the run excites theta (lambda_min/lambda_max {ex.get('theta', float('nan')):.2g}), so the "
+                   if measured < POOR_EXCITATION else _DRIFT + " (rate_ls_theta)" if away else
+                   f"the run excites theta (lambda_min/lambda_max {measured:.2g}), so the "
                    "adaptation is slow: raise rate_theta by octaves, or use the composite law (rate_ls_theta)")
             lines.append(f"note: theta estimates did not converge ({'; '.join(bad[:4])}"
                          f"{'; ...' if len(bad) > 4 else ''}): {why}")

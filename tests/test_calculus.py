@@ -113,6 +113,12 @@ def test_diff_is_sympys_diff_node_for_node():
     for e in exprs:
         for s in (x, y, z, sp.Symbol("w", real=True)):
             assert _same(diff(e, s), e.diff(s)), (e, s)
+    f = sp.Function("f")(x)  # not a symbol: SymPy's own rules
+    assert _same(diff(x * f ** 2, f), (x * f ** 2).diff(f))
+    with pytest.raises(ValueError, match="wrt"):
+        diff(x * sp.sin(y), sp.sin(y))  # as SymPy refuses it
+    with pytest.raises(TypeError, match="vectors"):
+        jacobian(sp.Matrix([[x, y], [y, x]]), [x, y])
 
 
 def test_diff_of_the_shipped_robots_mass_matrix_and_gravity():
@@ -135,13 +141,17 @@ def test_diff_of_the_shipped_robots_mass_matrix_and_gravity():
 
 
 def test_diff_skips_sympys_per_node_checks():
-    """Each node is differentiated once, without SymPy's Derivative (which asks every node whether
-    its result is zero): a symbol that refuses that question is differentiated all the same."""
-    class Wary(sp.Symbol):
+    """Each node is differentiated once, without SymPy's Derivative (which asks of every node's
+    result whether it is zero): a sum of products of a symbol that refuses that question is
+    differentiated all the same."""
+    from sympy.core.cache import clear_cache
+
+    class WaryOfZero(sp.Symbol):
         def _eval_is_zero(self):
             raise AssertionError("asked whether it is zero")
 
-    w, x = Wary("w"), sp.Symbol("x", real=True)
+    clear_cache()  # SymPy's cache would answer for another test's symbol of the same name
+    w, x = WaryOfZero("w_wary_of_zero"), sp.Symbol("x", real=True)
     e = (w * x + x ** 2) * (w + x)
     with pytest.raises(AssertionError, match="zero"):
         e.diff(x)

@@ -131,3 +131,18 @@ def test_export_reports_its_build(monkeypatch, tmp_path, extra):
     with pytest.raises(Built):
         cli(["export", "--out", str(tmp_path / "out.fmu" if extra else tmp_path / "out"), *extra])
     assert seen["progress"] is print_event
+
+
+def test_generate_never_rewrites_the_installed_packages_own_code(monkeypatch, capsys):
+    """Installed from a wheel, a shipped robot's generated code is the package's (hydrogen/_generated):
+    ``generate --force`` there is refused (status 2, naming --out), never a rewrite of the package."""
+    import hydrogen.runtime.build as build
+    from hydrogen.resources import package_dir
+
+    installed = package_dir() / "_generated"  # where a wheel keeps it; a checkout has none
+    assert not installed.exists()
+    monkeypatch.setattr(build, "repo_generated_dir", lambda: installed)
+    assert cli(["generate", "--model", "excavator_arm", "--force"]) == 2
+    err = capsys.readouterr().err
+    assert "installed package's own generated code" in err and "--out DIR" in err and "Traceback" not in err
+    assert not installed.exists()

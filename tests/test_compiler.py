@@ -165,9 +165,25 @@ def test_an_included_header_is_part_of_an_objects_key(tmp_path):
     (src / "k.c").write_text('#include "k.h"\nint k(void) { return K; }\n')
     compile_library([src / "k.c"], "one", Toolchain(cc=cc), cache=tmp_path / "cache")
     (src / "k.h").write_text("#define K 2\n")
-    more = _sources(tmp_path / "more", [("m", 5)])  # a new library (its key covers its sources alone)
+    more = _sources(tmp_path / "more", [("m", 5)])  # a new library: only k.c compiles again
     lib = compile_library([src / "k.c", *more], "two", Toolchain(cc=cc), cache=tmp_path / "cache")
     assert sorted(_compiled(log)) == ["k.c", "k.c", "m.c"] and ctypes.CDLL(str(lib)).k() == 2
+
+
+def test_a_header_changed_alone_is_another_library(tmp_path):
+    """The same source bytes with a header of theirs changed (a generated loop header that gained a
+    field while its source stayed as it was) make another library: never the one compiled against
+    the old header (its struct layout), which a later version of hydrogen would load and crash in."""
+    src = tmp_path / "src"
+    src.mkdir()
+    (src / "layout.h").write_text("typedef struct { double a; } cfg;\n#define K 1\n")
+    (src / "k.h").write_text('#include "layout.h"\n')
+    (src / "k.c").write_text('#include "k.h"\nint k(void) { return K + (int)sizeof(cfg); }\n')
+    first = compile_library([src / "k.c"], "k", Toolchain(), cache=tmp_path / "cache")
+    assert ctypes.CDLL(str(first)).k() == 1 + 8
+    (src / "layout.h").write_text("typedef struct { double a, b; } cfg;\n#define K 1\n")  # two headers deep
+    second = compile_library([src / "k.c"], "k", Toolchain(), cache=tmp_path / "cache")
+    assert second.parent != first.parent and ctypes.CDLL(str(second)).k() == 1 + 16
 
 
 @pytest.mark.skipif(not hasattr(__import__("os"), "fork"), reason="no fork here")

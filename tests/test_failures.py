@@ -569,6 +569,8 @@ _BAD = [
     ["simulate", "--duration", "-1"],
     ["simulate", "--duration", "1e7"],
     ["simulate", "--duration", "nan"],
+    ["simulate", "--duration", "1e-9"],  # shorter than a control period: was a run reporting 0 %
+    ["simulate", "--log", "{tmp}/l.csv", "--log-seed", "-3"],  # was a traceback after the run
     ["simulate", "--plot", "{tmp}/p.xyz"],
     ["simulate", "--json", "{file}/m.json"],
     ["simulate", "--json", "/proc/hydrogen-test.json"],

@@ -544,3 +544,23 @@ def test_a_log_of_another_robot_names_the_model_its_header_records(excavator, dy
         assert "header says it is a log of model 'excavator_arm', not of '" in text and "--model excavator_arm" in text
     with pytest.raises(IdentificationError, match=r"needs l0..l5: the travel of the model's 6 actuators"):
         hydrogen.identify(log_from_result(res), dyn=dyn)
+
+
+@pytest.mark.parametrize("seed", [-1, 2.5, True, "0"])
+def test_a_logs_noise_seed_must_be_a_non_negative_integer(seed):
+    """Refused before anything is drawn (numpy's own ValueError came after the run, with a traceback)."""
+    with pytest.raises(IdentificationError, match=rf"seed must be an integer >= 0 .*got {seed!r}"):
+        log_from_result(None, 1e-6, 1e3, seed=seed)
+
+
+@pytest.mark.parametrize("written,advice", [("excavator_arm", "--model excavator_arm, or its description file"),
+                                            ("my_arm", "its description file: --model path/to/the.toml naming "
+                                                       "'my_arm'")])
+def test_a_log_of_another_robot_names_how_to_pass_it(tmp_path, written, advice):
+    """A shipped robot is passed by name; a user's own description only by its file (a name alone
+    would not be found)."""
+    t = np.arange(10) * 1e-3
+    path = write_log(Log(t, {"l0": t}, {"model": written}), tmp_path / "log.csv")
+    with pytest.raises(IdentificationError, match="the log's header says it is a log of model") as err:
+        hydrogen.identify(path)
+    assert advice in str(err.value)

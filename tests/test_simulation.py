@@ -609,6 +609,32 @@ def test_bad_scenario_settings_are_named(dyn, override, field):
         simulate(dyn, "z-1hz", "p", **override)
 
 
+def test_a_run_shorter_than_one_control_period_is_refused_and_one_period_runs(dyn):
+    """Nothing is sampled after the start of a run shorter than a period: no error to report (it would
+    read 0 %), so it is refused, naming the period; a run of one period gives its two samples."""
+    from hydrogen.simulation.scenarios import scenario
+
+    rate = scenario("z-1hz", dyn.model).control_rate
+    for short in (1e-9, 0.5 / rate):
+        with pytest.raises(hydrogen.ScenarioError, match=r"duration must be at least one control period "
+                                                         rf"\(1/control_rate = {1.0 / rate!r} s\)"):
+            simulate(dyn, "z-1hz", "p", duration=short)
+    assert len(simulate(dyn, "z-1hz", "p", duration=1.0 / rate).t) == 2
+
+
+def test_a_run_too_short_for_its_information_matrix_says_so(dyn):
+    """An adaptive run of one period estimates nothing yet: the note says the run is too short, not
+    that it excites θ (there is no information matrix to judge by)."""
+    from hydrogen.simulation.scenarios import scenario
+    from hydrogen.summary import excitation_lines
+
+    period = 1.0 / scenario("paper-sim", dyn.model).control_rate
+    res = hydrogen.simulate("paper-sim", "adaptive-robust", dyn=dyn, duration=period)
+    assert "theta" not in res.metrics.get("excitation", {})
+    (line,) = [x for x in excitation_lines(res) if x.startswith("note: theta")]
+    assert "too short to tell how well it excites theta" in line and "lambda" not in line
+
+
 def test_forward_kinematics_bad_arguments(dyn, model):
     l = dyn.leg_lengths(model.neutral_pose)
     with pytest.raises(hydrogen.KinematicsError, match="not finite"):

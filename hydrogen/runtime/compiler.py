@@ -199,16 +199,21 @@ _OPTIMISE = re.compile(r"-O(\d*|s|z|g|fast)")
 
 
 def build_key(sources: list, toolchain: Toolchain) -> str:
-    """SHA-256 over the sources' names and bytes, the compiler identity and the flags."""
+    """SHA-256 over the sources' names and bytes, the headers they include (``"..."``, beside them),
+    the compiler identity and the flags."""
     return build_key_of([(Path(s), Path(s).read_bytes()) for s in sources], toolchain)
 
 
 def build_key_of(contents: list, toolchain: Toolchain) -> str:
     """:func:`build_key` of sources already read: ``[(path, bytes)]`` (one read serves a check of the
-    bytes and the key, so the two cannot see different files)."""
+    bytes and the key, so the two cannot see different files). The headers each includes are read
+    now: a header that changed alone (a field added to a struct the source uses) is another library,
+    never one compiled against the old layout."""
     h = hashlib.sha256()
     for src, data in sorted(((Path(s), d) for s, d in contents), key=lambda t: t[0]):
         h.update(src.name.encode() + b"\0" + data + b"\0")
+        for name, header in (_with_includes(src, data) or [])[1:]:
+            h.update(b"header\0" + name.encode() + b"\0" + header + b"\0")
     h.update(toolchain.identity().encode())
     h.update(json.dumps([toolchain.cc, list(toolchain.flags()), list(toolchain.warnings)]).encode())
     return h.hexdigest()

@@ -82,6 +82,9 @@ class Scenario(ScenarioFields):
         finite = lambda v: bool(np.all(np.isfinite(np.asarray(v, float))))  # noqa: E731
         need(finite(self.duration) and self.duration > 0, "duration", "must be a finite number > 0 s")
         need(finite(self.control_rate) and self.control_rate > 0, "control_rate", "must be > 0 Hz")
+        # a shorter run samples nothing after its start: no error to report, no metric but of one sample
+        need(self.duration * self.control_rate >= 1.0 - 1e-9, "duration",
+             f"must be at least one control period (1/control_rate = {1.0 / self.control_rate!r} s)")
         need(isinstance(self.substeps, int) and self.substeps >= 1, "substeps", "must be an integer >= 1")
         for f in self.reference.frequencies():  # a periodic reference the loop samples: below Nyquist
             if f >= 0.5 * self.control_rate:

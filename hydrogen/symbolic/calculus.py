@@ -6,7 +6,7 @@ import sympy as sp
 
 from ..errors import UnsupportedExpressionError
 
-__all__ = ["time_derivative", "projection", "clip", "matmul", "diff", "jacobian"]
+__all__ = ["time_derivative", "projection", "clip", "matmul", "diff", "jacobian", "diff_matrix"]
 
 
 def time_derivative(expr, rates: list) -> sp.Matrix:
@@ -58,8 +58,10 @@ def _matmul(a, b, *more):
 
 def diff(expr, s, memo=None):
     """∂expr/∂s for a symbol ``s``: the same expression as SymPy's ``expr.diff(s)``, node by node
-    by SymPy's own rules (sums, products, powers, functions of one argument) from the operands'
-    derivatives, each made once (``memo``: a dict shared by the calls on one ``s``, keyed by node).
+    by SymPy's own rules (sums, products, powers, sine and cosine) from the operands' derivatives,
+    each made once (``memo``: a dict shared by the calls on one ``s``, keyed by node). For the finite
+    expressions a derivation makes, without unevaluated derivatives: where a factor is infinite
+    (``zoo``, a symbol declared infinite) SymPy's nan is not reproduced.
 
     Why: SymPy's ``diff`` makes every node's derivative through ``Derivative``, which walks the
     node's whole subtree twice more (its free symbols, a search for unevaluated derivatives) and
@@ -67,8 +69,10 @@ def diff(expr, s, memo=None):
     expressions D, C and the composite laws differentiate, most of the derivation's time. A node
     whose type these rules do not cover is left to SymPy (``node.diff(s)``); a test compares the
     two on the shipped robots' expressions."""
-    memo = {} if memo is None else memo
     expr = sp.sympify(expr)
+    if not isinstance(s, sp.Symbol):
+        return expr.diff(s)  # SymPy's own checks and rules for anything else
+    memo = {} if memo is None else memo
     stack = [(expr, False)]
     while stack:
         n, ready = stack.pop()
@@ -85,7 +89,11 @@ def diff(expr, s, memo=None):
 def jacobian(f, x) -> sp.Matrix:
     """∂f/∂x (rows: the entries of the column ``f``, columns: the symbols of ``x``): SymPy's
     ``f.jacobian(x)`` by :func:`diff`."""
-    f, x = sp.Matrix(f), list(sp.Matrix(x))
+    f, x = sp.Matrix(f), sp.Matrix(x)
+    if 1 not in f.shape or 1 not in x.shape:
+        raise TypeError(f"jacobian: f and x must be vectors, got {f.shape[0]}x{f.shape[1]} and "
+                        f"{x.shape[0]}x{x.shape[1]}")
+    x = list(x)
     memos = [{} for _ in x]
     return sp.Matrix(len(f), len(x), lambda i, j: diff(f[i], x[j], memos[j]))
 
@@ -114,7 +122,7 @@ def _diff_pow(n, s, memo):
     # Pow._eval_derivative: self (d(exp) log(base) + d(base) exp / base)
     base, exp = n.args
     dexp = memo[exp]
-    log_term = _ZERO if dexp is _ZERO else dexp * sp.log(base)  # 0 log(b) is 0 for every base a Pow keeps
+    log_term = _ZERO if dexp is _ZERO else dexp * sp.log(base)  # 0 log(b): 0 for a finite log(b)
     return n * (log_term + memo[base] * exp / base)
 
 
@@ -140,7 +148,7 @@ def _diff_rule(n, s, memo):
     if rule is None:
         return n.diff(s)  # SymPy's own (it finds a node without s zero first)
     if not any(memo[a] is not _ZERO for a in n.args):
-        return _ZERO  # s is not in it: Derivative's own shortcut
+        return _ZERO  # what every rule gives when no operand's derivative is other than 0
     return rule(n, s, memo)
 
 
