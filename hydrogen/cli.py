@@ -597,7 +597,7 @@ def build_parser() -> argparse.ArgumentParser:
                                     "closed loop, printing the tracking error; or (--format fmu) an FMI 2.0 "
                                     "co-simulation FMU of the plant, a controller or the closed loop.")
     ex.add_argument("--out", required=True, help="output folder (replaced if it holds an earlier export); with "
-                                                 "--format fmu, a new .fmu file")
+                                                 "--format fmu, a .fmu file (replaced if it is an earlier FMU hydrogen wrote)")
     ex.add_argument("--format", choices=("c", "fmu"), default="c",
                     help="c: a C99 folder with main.c and a Makefile (default); fmu: an FMI 2.0 co-simulation FMU")
     ex.add_argument("--part", help="with --format fmu: plant, controller or closed-loop")

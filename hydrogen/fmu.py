@@ -27,6 +27,7 @@ import hashlib
 import json
 import os
 import platform
+import re
 import shutil
 import sys
 import tempfile
@@ -184,12 +185,25 @@ def _check_platform():
         raise FmuError(f"the FMU export builds binaries/{PLATFORM} only; this is {sys.platform} {platform.machine()}")
 
 
+def _written_by_hydrogen(path: Path) -> bool:
+    """Whether ``path`` is a regular file, an FMU whose model description names hydrogen as its
+    generation tool (an earlier export, which a new one may replace)."""
+    if path.is_symlink() or not path.is_file():
+        return False
+    try:
+        with zipfile.ZipFile(path) as zf:
+            head = zf.read("modelDescription.xml")[:4096].decode("utf-8", "replace")
+    except (OSError, KeyError, zipfile.BadZipFile, RuntimeError):
+        return False
+    return re.search(r'generationTool="hydrogen[ "]', head) is not None
+
+
 def _check_out(out: Path) -> Path:
     from .outputs import check_output_file
 
-    if out.exists() or out.is_symlink():
-        raise OutputPathError(f"export --out {out}: already exists; nothing was written. Remove it or give a "
-                              "new file name")
+    if (out.exists() or out.is_symlink()) and not _written_by_hydrogen(out):
+        raise OutputPathError(f"export --out {out}: already exists and is no FMU hydrogen wrote; nothing was "
+                              "written. Remove it or give a new file name")
     if out.suffix.lower() != ".fmu":
         raise OutputPathError(f"export --out {out}: an FMU file name ends with .fmu")
     return check_output_file(out, "export --out")
@@ -794,8 +808,11 @@ def _write_zip(out: Path, entries: dict) -> Path:
                 info.create_system = 3
                 zf.writestr(info, entries[name])
         os.chmod(tmp, 0o644)
+        if _written_by_hydrogen(out):  # an earlier export of hydrogen's: replaced whole, at once
+            os.replace(tmp, out)
+            return out
         try:
-            os.link(tmp, out)  # fails if out appeared meanwhile: never overwrite
+            os.link(tmp, out)  # fails if out appeared meanwhile: never overwrite anything else
         except FileExistsError:
             raise OutputPathError(f"export --out {out}: already exists; nothing was written") from None
         except OSError:

@@ -297,8 +297,11 @@ def test_export_is_deterministic(dyn, tmp_path, shared_fmu):
     """Two exports with the same arguments are byte-identical (the first is the run's shared one,
     possibly written by another worker process)."""
     a = shared_fmu(dyn, "plant", "z-1hz", "p", duration=DURATION)
-    b = export_fmu(tmp_path / "b.fmu", "plant", "z-1hz", "p", dyn=dyn, duration=DURATION)
-    assert a != b and a.read_bytes() == b.read_bytes()
+    earlier = tmp_path / "b.fmu"  # an earlier export of hydrogen's at the path: replaced whole, as a new file
+    shutil.copyfile(a, earlier)
+    inode = earlier.stat().st_ino
+    b = export_fmu(earlier, "plant", "z-1hz", "p", dyn=dyn, duration=DURATION)
+    assert a != b and a.read_bytes() == b.read_bytes() and b.stat().st_ino != inode
 
 
 def test_a_second_export_compiles_only_its_own_glue(dyn, tmp_path, monkeypatch):
@@ -354,6 +357,13 @@ def test_bad_input_is_refused_before_any_work(dyn, tmp_path):
     with pytest.raises(OutputPathError, match="already exists"):
         export_fmu(existing, "plant", "z-1hz", dyn=dyn)
     assert existing.read_bytes() == b"keep me"
+    other = tmp_path / "other.fmu"  # another tool's FMU is never replaced
+    with zipfile.ZipFile(other, "w") as zf:
+        zf.writestr("modelDescription.xml", '<fmiModelDescription fmiVersion="2.0" generationTool="OtherTool 1.0"/>')
+    kept = other.read_bytes()
+    with pytest.raises(OutputPathError, match="already exists and is no FMU hydrogen wrote"):
+        export_fmu(other, "plant", "z-1hz", dyn=dyn)
+    assert other.read_bytes() == kept
     with pytest.raises(FmuError, match="not a whole number of control periods"):
         export_fmu(tmp_path / "y.fmu", "plant", "z-1hz", dyn=dyn, step=0.0015)
     assert not (tmp_path / "x.fmu").exists() and not (tmp_path / "y.fmu").exists()
