@@ -41,12 +41,14 @@ def _cmd_generate(args) -> int:
 
     model = load_model(args.model)
     out = Path(args.out) if args.out else _default_generated(model, repo_generated_dir())
-    if not args.check and not args.out and _in_installed_package(out) and (
-            args.force or check_output(model, out, args.numbers)):
-        from .errors import OutputPathError
-        raise OutputPathError(f"--out: {out} is the installed package's own generated code for {model.name}, "
-                              "which generate never rewrites: write a copy elsewhere with --out DIR (a build "
-                              "generates into its cache by itself)")
+    if not args.check and _in_installed_package(out):  # never written to, not even its lock file
+        if args.force or check_output(model, out, args.numbers):
+            from .errors import OutputPathError
+            raise OutputPathError(f"{out} is the installed package's own generated code for {model.name}, which "
+                                  "generate never rewrites: write a copy elsewhere with --out DIR (a build "
+                                  "generates into its cache by itself)")
+        print(f"{out}: up to date")
+        return 0
     if args.check:
         reasons = check_output(model, out, args.numbers)
         if reasons:

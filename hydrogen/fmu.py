@@ -186,14 +186,15 @@ def _check_platform():
 
 
 def _written_by_hydrogen(path: Path) -> bool:
-    """Whether ``path`` is a regular file, an FMU whose model description names hydrogen as its
-    generation tool (an earlier export, which a new one may replace)."""
+    """Whether ``path`` is a regular file (not a link), an FMU whose model description names hydrogen
+    as its generation tool: an earlier export, which a new one may replace. Only the description's
+    first 4 kB are inflated; anything unreadable is not hydrogen's."""
     if path.is_symlink() or not path.is_file():
         return False
     try:
-        with zipfile.ZipFile(path) as zf:
-            head = zf.read("modelDescription.xml")[:4096].decode("utf-8", "replace")
-    except (OSError, KeyError, zipfile.BadZipFile, RuntimeError):
+        with zipfile.ZipFile(path) as zf, zf.open("modelDescription.xml") as f:
+            head = f.read(4096).decode("utf-8", "replace")
+    except Exception:  # a damaged or foreign archive (zlib, EOF, format errors alike): never replaced
         return False
     return re.search(r'generationTool="hydrogen[ "]', head) is not None
 
@@ -201,12 +202,13 @@ def _written_by_hydrogen(path: Path) -> bool:
 def _check_out(out: Path) -> Path:
     from .outputs import check_output_file
 
-    if (out.exists() or out.is_symlink()) and not _written_by_hydrogen(out):
-        raise OutputPathError(f"export --out {out}: already exists and is no FMU hydrogen wrote; nothing was "
-                              "written. Remove it or give a new file name")
     if out.suffix.lower() != ".fmu":
         raise OutputPathError(f"export --out {out}: an FMU file name ends with .fmu")
-    return check_output_file(out, "export --out")
+    out = check_output_file(out, "export --out")  # a folder or a non-file there is named as such
+    if out.is_symlink() or (out.exists() and not _written_by_hydrogen(out)):
+        raise OutputPathError(f"export --out {out}: already exists and is no FMU hydrogen wrote (a link is never "
+                              "followed); nothing was written. Remove it or give a new file name")
+    return out
 
 
 def _periods(step, h) -> int:
@@ -669,7 +671,8 @@ def export_fmu(out, part, scenario=None, controller="adaptive-robust", model=Non
     Parameters
     ----------
     out : path
-        The ``.fmu`` file to write; it must not exist.
+        The ``.fmu`` file to write: a new file, or an FMU an earlier export of hydrogen's wrote
+        (replaced whole; any other file there is refused and kept).
     part : str
         One of :data:`PARTS`.
     scenario, controller, model, duration, gains, numbers, progress, overrides
@@ -792,7 +795,8 @@ def _html(s: str) -> str:
 
 
 def _write_zip(out: Path, entries: dict) -> Path:
-    """The zip, written beside ``out`` and linked into place only if ``out`` still does not exist."""
+    """The zip, written beside ``out`` and moved into place: over an FMU hydrogen wrote (checked again
+    just before), else only where ``out`` still does not exist."""
     from .fileio import writing
 
     out.parent.mkdir(parents=True, exist_ok=True)
@@ -808,11 +812,11 @@ def _write_zip(out: Path, entries: dict) -> Path:
                 info.create_system = 3
                 zf.writestr(info, entries[name])
         os.chmod(tmp, 0o644)
-        if _written_by_hydrogen(out):  # an earlier export of hydrogen's: replaced whole, at once
+        if _written_by_hydrogen(out):  # an earlier export of hydrogen's (checked again now): replaced whole
             os.replace(tmp, out)
             return out
         try:
-            os.link(tmp, out)  # fails if out appeared meanwhile: never overwrite anything else
+            os.link(tmp, out)  # fails if out appeared meanwhile: no other file is overwritten
         except FileExistsError:
             raise OutputPathError(f"export --out {out}: already exists; nothing was written") from None
         except OSError:

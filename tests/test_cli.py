@@ -133,16 +133,27 @@ def test_export_reports_its_build(monkeypatch, tmp_path, extra):
     assert seen["progress"] is print_event
 
 
-def test_generate_never_rewrites_the_installed_packages_own_code(monkeypatch, capsys):
+def test_generate_never_rewrites_the_installed_packages_own_code(monkeypatch, tmp_path, capsys):
     """Installed from a wheel, a shipped robot's generated code is the package's (hydrogen/_generated):
-    ``generate --force`` there is refused (status 2, naming --out), never a rewrite of the package."""
-    import hydrogen.runtime.build as build
-    from hydrogen.resources import package_dir
+    ``generate --force`` there is refused (status 2, naming --out), and without it a current folder is
+    reported up to date with nothing written (no lock file either)."""
+    import shutil
 
-    installed = package_dir() / "_generated"  # where a wheel keeps it; a checkout has none
-    assert not installed.exists()
+    import hydrogen.cli as cli_module
+    import hydrogen.runtime.build as build
+    import hydrogen.resources as resources
+
+    package = tmp_path / "site-packages" / "hydrogen"  # an installed copy: its generated code inside it
+    installed = package / "_generated"
+    shutil.copytree(build.repo_generated_dir() / "excavator_arm", installed / "excavator_arm")
+    before = {p: p.read_bytes() for p in installed.rglob("*") if p.is_file()}
+    monkeypatch.setattr(resources, "package_dir", lambda: package)
     monkeypatch.setattr(build, "repo_generated_dir", lambda: installed)
-    assert cli(["generate", "--model", "excavator_arm", "--force"]) == 2
-    err = capsys.readouterr().err
-    assert "installed package's own generated code" in err and "--out DIR" in err and "Traceback" not in err
-    assert not installed.exists()
+    assert cli_module._in_installed_package(installed / "excavator_arm")
+    for args in (["--force"], ["--out", str(installed / "excavator_arm"), "--force"]):
+        assert cli(["generate", "--model", "excavator_arm", *args]) == 2
+        err = capsys.readouterr().err
+        assert "installed package's own generated code" in err and "--out DIR" in err and "Traceback" not in err
+    assert cli(["generate", "--model", "excavator_arm"]) == 0
+    assert "up to date" in capsys.readouterr().out
+    assert {p: p.read_bytes() for p in installed.rglob("*") if p.is_file()} == before

@@ -364,6 +364,26 @@ def test_bad_input_is_refused_before_any_work(dyn, tmp_path):
     with pytest.raises(OutputPathError, match="already exists and is no FMU hydrogen wrote"):
         export_fmu(other, "plant", "z-1hz", dyn=dyn)
     assert other.read_bytes() == kept
+    # a damaged archive (its compressed data overwritten) is no FMU hydrogen wrote, never a zlib traceback
+    damaged = tmp_path / "damaged.fmu"
+    with zipfile.ZipFile(damaged, "w", zipfile.ZIP_DEFLATED) as zf:
+        zf.writestr("modelDescription.xml", '<fmiModelDescription generationTool="hydrogen 0"/>' + "x" * 20000)
+    data = bytearray(damaged.read_bytes())
+    data[60:90] = b"\xff" * 30
+    damaged.write_bytes(bytes(data))
+    with pytest.raises(OutputPathError, match="is no FMU hydrogen wrote"):
+        export_fmu(damaged, "plant", "z-1hz", dyn=dyn)
+    # a link is never followed, even to an FMU of hydrogen's; a folder is named as one
+    ours = tmp_path / "ours.fmu"
+    with zipfile.ZipFile(ours, "w") as zf:
+        zf.writestr("modelDescription.xml", '<fmiModelDescription generationTool="hydrogen 0"/>')
+    (tmp_path / "link.fmu").symlink_to(ours)
+    with pytest.raises(OutputPathError, match="a link is never followed"):
+        export_fmu(tmp_path / "link.fmu", "plant", "z-1hz", dyn=dyn)
+    (tmp_path / "folder.fmu").mkdir()
+    with pytest.raises(OutputPathError, match="is a folder"):
+        export_fmu(tmp_path / "folder.fmu", "plant", "z-1hz", dyn=dyn)
+    assert ours.read_bytes() and (tmp_path / "folder.fmu").is_dir()
     with pytest.raises(FmuError, match="not a whole number of control periods"):
         export_fmu(tmp_path / "y.fmu", "plant", "z-1hz", dyn=dyn, step=0.0015)
     assert not (tmp_path / "x.fmu").exists() and not (tmp_path / "y.fmu").exists()

@@ -223,6 +223,24 @@ def test_a_controller_first_used_after_its_sources_changed_is_refused(model, tmp
     assert dyn.library.loaded_groups() == (CORE,) and len(cached_builds(tmp_path / "cache")) == 1
 
 
+def test_a_library_compiled_after_a_header_it_includes_changed_is_refused(model, tmp_path):
+    """The headers a library's sources include are checked against the manifest as the sources are
+    (the library's key covers them): the loop header edited after the build is refused by name
+    when the core compiles again, not compiled in."""
+    import shutil
+
+    from hydrogen.runtime.build import repo_generated_dir
+
+    folder = tmp_path / "generated"
+    shutil.copytree(repo_generated_dir() / model.name, folder)
+    dyn = hydrogen.build(model, cache=tmp_path / "cache", cflags=FAST, backend="ctypes", generated=folder)
+    header = folder / f"{model.name}_loop.h"
+    with open(header, "a") as f:
+        f.write("/* edited */\n")
+    with pytest.raises(hydrogen.BuildCacheError, match=f"{header}: differs from the generated folder"):
+        dyn.library._loader(CORE, True)  # what a rebuild of a library that failed to load calls
+
+
 def test_a_build_for_one_controller_derives_it_alone_and_grows_on_demand(tmp_path):
     """A new structure built for one controller derives that one only (what ``hydrogen simulate``
     does); another is an error naming what the build holds; building for it derives it alone."""

@@ -12,7 +12,7 @@ from ..errors import BuildCacheError
 from ..model import Model, load_model
 from .cachedir import build_lock_path, cache_errors, check_cache_root, folder_lock, warm_library
 from .compiler import (Toolchain, build_key_of, cache_root, cached_library, cancel_precompiles, compile_libraries,
-                       hand_off_precompiles, objects_stored, precompile)
+                       hand_off_precompiles, included_headers, objects_stored, precompile)
 from .extension import attach_extension, build_extension, unavailable_reason
 from .library import CORE, GeneratedLibrary, group_name, group_of, group_sources
 
@@ -134,17 +134,25 @@ class _Loader:
         self.unoptimized = {}  # group -> the unoptimized library this process compiled for it (quick)
 
     def _contents(self, group: str) -> list:
-        """``[(path, bytes)]`` of the group's sources, each read once and checked against the manifest."""
+        """``[(path, bytes)]`` of the group's sources, each read once and checked against the manifest,
+        and so are the headers of the folder they include (which the library's key covers)."""
         recorded = self.manifest.get("files", {})
         out = []
         for name in group_sources(self.manifest, group):
             path = self.folder / name
             data = path.read_bytes() if path.is_file() else None
-            if data is None or hashlib.sha256(data).hexdigest() != recorded.get(name):
-                raise BuildCacheError(f"{path}: differs from the generated folder this build loaded (generated "
-                                      "again or edited since); build again (hydrogen.build) to use the new code")
+            self._check(path, data, recorded.get(name))
+            for header, text in (included_headers(path, data) or [])[1:]:
+                if header in recorded:
+                    self._check(self.folder / header, text, recorded[header])
             out.append((path, data))
         return out
+
+    @staticmethod
+    def _check(path: Path, data, sha: str | None) -> None:
+        if data is None or hashlib.sha256(data).hexdigest() != sha:
+            raise BuildCacheError(f"{path}: differs from the generated folder this build loaded (generated "
+                                  "again or edited since); build again (hydrogen.build) to use the new code")
 
     def sources(self, group: str) -> list:
         return [p for p, _ in self._contents(group)]

@@ -42,7 +42,7 @@ from ..fileio import atomic_write, locked, write_file
 
 __all__ = ["Toolchain", "cache_root", "compile_library", "compile_libraries", "compile_extension", "run_compiler",
            "precompile", "cancel_precompiles", "hand_off_precompiles", "objects_stored", "pending_compiles",
-           "link_shared", "object_store", "DEFAULT_CFLAGS", "GCC_CFLAGS",
+           "link_shared", "object_store", "included_headers", "DEFAULT_CFLAGS", "GCC_CFLAGS",
            "WARNING_FLAGS", "OBJECTS"]
 
 #: Chosen by benchmarks/bench_flags.py (docs/benchmarks.md "Compiler flags"). -fno-semantic-interposition lets gcc
@@ -207,12 +207,14 @@ def build_key(sources: list, toolchain: Toolchain) -> str:
 def build_key_of(contents: list, toolchain: Toolchain) -> str:
     """:func:`build_key` of sources already read: ``[(path, bytes)]`` (one read serves a check of the
     bytes and the key, so the two cannot see different files). The headers each includes are read
-    now: a header that changed alone (a field added to a struct the source uses) is another library,
-    never one compiled against the old layout."""
+    now (:func:`included_headers`): a header that changed alone (a field added to a struct the source
+    uses) is another library, never one compiled against the old layout. A source one of whose
+    ``"..."`` headers is not beside it (found through a search path, or absent) is keyed by its own
+    bytes alone: generated sources include only the headers of their own folder."""
     h = hashlib.sha256()
     for src, data in sorted(((Path(s), d) for s, d in contents), key=lambda t: t[0]):
         h.update(src.name.encode() + b"\0" + data + b"\0")
-        for name, header in (_with_includes(src, data) or [])[1:]:
+        for name, header in (included_headers(src, data) or [])[1:]:
             h.update(b"header\0" + name.encode() + b"\0" + header + b"\0")
     h.update(toolchain.identity().encode())
     h.update(json.dumps([toolchain.cc, list(toolchain.flags()), list(toolchain.warnings)]).encode())
@@ -423,7 +425,7 @@ def _storable_flags(argv: list) -> bool:
 _LOCAL_INCLUDE = re.compile(rb'^[ \t]*#[ \t]*include[ \t]*"([^"]+)"', re.MULTILINE)
 
 
-def _with_includes(source: Path, data: bytes) -> list | None:
+def included_headers(source: Path, data: bytes) -> list | None:
     """``[(name, bytes)]``: the source, then the headers it includes (and they include) with ``"..."``,
     each found beside the file that includes it, named relative to the source's folder, read now.
     None when one is not there, or lies outside that folder: the compiler finds it by its own search,
@@ -453,7 +455,7 @@ def _with_includes(source: Path, data: bytes) -> list | None:
 def _store_entry(store: Path, source: Path, argv: list, identity: str):
     """``(files, object path)`` of ``source`` in the object ``store``: the bytes its key covers (read
     now) and where its object is kept; None where the key cannot cover every header it includes."""
-    files = _with_includes(source, source.read_bytes()) if _storable_flags(argv) else None
+    files = included_headers(source, source.read_bytes()) if _storable_flags(argv) else None
     if files is None:
         return None
     return files, Path(store) / f"{_object_key(files, argv, identity)}.o"

@@ -1249,7 +1249,8 @@ def _check_reference(dyn, sc, n, h):
         c, travel = m.cylinders[i], m.cylinders[i].travel
         raise KinematicsError(
             f"reference of scenario '{sc.name}' leaves the workspace at t = {k * h:.3f} s: actuator "
-            f"'{c.name}' would be at {travel.value(legs[k, i])}, outside its {travel.span(m.leg_min[i], m.leg_max[i])}")
+            f"'{c.name}' would be at {travel.value(legs[k, i])}, outside its {travel.span(m.leg_min[i], m.leg_max[i])}"
+            f" ({m.source})")
     lim = m.coordinate_limits()
     units = m.coordinate_units
     for what, values, lo, hi in (("position", q_ref, lim["lower"], lim["upper"]),
