@@ -1,5 +1,5 @@
 """hydrogen: symbolic model of a hydraulic robot → compiled C → controller and simulator loop."""
-from .errors import (BuildCacheError, CompilerError, HydrogenError, IdentificationError,
+from .errors import (BuildCacheError, CompilerError, HydrogenError, IdentificationError, InputError,
                      KinematicsError,
                      ModelError, ScenarioError, SimulationError, StaleGeneratedCodeError,
                      OutputPathError, UnsupportedExpressionError, WorkerError)
@@ -7,7 +7,7 @@ from .model import Model, load_model, models
 
 __all__ = [
     "load_model", "models", "Model", "build", "simulate", "stepper", "sweep", "identify",
-    "HydrogenError", "ModelError", "UnsupportedExpressionError", "CompilerError",
+    "HydrogenError", "ModelError", "InputError", "UnsupportedExpressionError", "CompilerError",
     "BuildCacheError", "StaleGeneratedCodeError", "KinematicsError", "SimulationError", "ScenarioError",
     "OutputPathError", "IdentificationError", "WorkerError",
 ]
@@ -36,8 +36,10 @@ def simulate(scenario="paper-sim", controller="adaptive-robust", *, model=None, 
     ``build(model)``, built once per process and model; ``progress`` is passed to that build (see
     :func:`hydrogen.runtime.build.build`).
     """
+    from .runtime.build import dynamics_for
     from .simulation.simulator import simulate as _simulate
-    return _simulate(dyn or default_dynamics(model, progress, controller), scenario, controller, **overrides)
+    return _simulate(dynamics_for("simulate", model, dyn, progress=progress, controller=controller), scenario,
+                     controller, **overrides)
 
 
 def default_dynamics(model=None, progress=None, controller=None, numbers=None):
@@ -51,8 +53,10 @@ def stepper(scenario="paper-sim", controller="adaptive-robust", *, model=None, d
             **overrides):
     """A :class:`~hydrogen.simulation.simulator.Stepper`: the closed loop one control period per call
     (``progress``: as for :func:`simulate`)."""
+    from .runtime.build import dynamics_for
     from .simulation.simulator import Stepper
-    return Stepper(dyn or default_dynamics(model, progress, controller), scenario, controller, **overrides)
+    return Stepper(dynamics_for("stepper", model, dyn, progress=progress, controller=controller), scenario,
+                   controller, **overrides)
 
 
 def sweep(runs, *, executor=None, max_workers=None, model=None, progress=False, seeds=None, results=False):

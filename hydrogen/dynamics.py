@@ -10,7 +10,7 @@ import ctypes
 
 import numpy as np
 
-from .errors import KinematicsError, ScenarioError
+from .errors import InputError, KinematicsError, ScenarioError
 from .layout import FK_MAX_COND, FK_MAX_ITER, FK_STATUS, FK_TOL, LU_PIVOT_MIN
 from .plant.supply import PRESSURE as SUPPLY_PRESSURE
 
@@ -88,7 +88,11 @@ class Dynamics:
         n, m = self.model.n, self.model.n_cylinders
         qs = np.ascontiguousarray(qs, dtype=float)
         if qs.ndim != 2 or qs.shape[1] != n:
-            raise ValueError(f"leg_lengths_many: poses must have shape (k, {n}), got {qs.shape}")
+            raise InputError(f"leg_lengths_many: poses must have shape (k, {n}), got {qs.shape}")
+        bad = np.nonzero(~np.isfinite(qs).all(axis=1))[0]
+        if bad.size:  # as leg_lengths refuses a NaN pose, naming the rows
+            rows = ", ".join(map(str, bad[:10].tolist())) + (" ..." if bad.size > 10 else "")
+            raise InputError(f"leg_lengths_many: poses not finite in {bad.size} of {len(qs)} rows: [{rows}]")
         if self._many is None:
             return np.array([self._leg_lengths(q) for q in qs]).reshape(-1, m)
         out = np.empty((qs.shape[0], m))
@@ -248,10 +252,17 @@ class Dynamics:
 
     def pressure_rate(self, l, ldot, pc, u, gamma, out=None) -> np.ndarray:
         """ṗ (Pa/s) of the pressure vector (ṗ_c of (56)-(57) per three-way cylinder) with γ = [β, βc] per
-        cylinder, shape (2, m) (or (2,) for all)."""
-        g = np.broadcast_to(np.asarray(gamma, float).reshape(2, -1), (2, self.model.n_cylinders))
+        cylinder, shape (2, m) (or (2,) for all; stacked as (k, 2, m) with the other inputs)."""
+        m = self.model.n_cylinders
+        g = np.asarray(gamma, float)
+        if g.shape == (2,):
+            g = np.broadcast_to(g[:, None], (2, m))
+        elif g.ndim < 2 or g.shape[-2:] != (2, m):
+            raise InputError(f"pressure_rate: gamma must be [beta, beta*c] of shape (2,), (2, {m}) or (k, 2, {m}) "
+                             f"(rows beta and beta*c, a column per actuator), got shape {g.shape}")
         f = self.functions["pressure_rate"]
-        return f(l, ldot, pc, u, g[0], g[1]) if out is None else f(l, ldot, pc, u, g[0], g[1], out=out)
+        g1, g2 = g[..., 0, :], g[..., 1, :]
+        return f(l, ldot, pc, u, g1, g2) if out is None else f(l, ldot, pc, u, g1, g2, out=out)
 
     def leg_force(self, pc, ps=None, out=None) -> np.ndarray:
         """(m,) cylinder forces from the pressure vector (f = p_c A − p_s a for a three-way cylinder), N;

@@ -1,6 +1,6 @@
 """Exceptions raised by hydrogen. Each says what went wrong and where."""
 
-__all__ = ["HydrogenError", "ModelError", "UnsupportedExpressionError", "CompilerError", "BuildCacheError",
+__all__ = ["HydrogenError", "ModelError", "InputError", "UnsupportedExpressionError", "CompilerError", "BuildCacheError",
            "StaleGeneratedCodeError", "KinematicsError", "PlantWiringError", "ScenarioError", "IdentificationError",
            "SimulationError", "RunEndedError", "OutputPathError", "FmuError", "MAX_MESSAGE_CHARS"]
 
@@ -28,6 +28,11 @@ class HydrogenError(Exception):
 
 class ModelError(HydrogenError, ValueError):
     """A model file is malformed, incomplete or physically impossible."""
+
+
+class InputError(HydrogenError, ValueError):
+    """An argument of a call does not fit it: the shape, type or values of an array handed to a compiled
+    function, an option out of its choices (a ValueError too, as numpy's own would be)."""
 
 
 class UnsupportedExpressionError(HydrogenError, TypeError):

@@ -97,16 +97,10 @@ def resolve_dyn(model, dyn, numbers=None, controller=None, progress=None):
     """The compiled dynamics to export: ``dyn``, or those of ``model`` (default robot when both are
     None) built with ``numbers`` (:func:`hydrogen.build`'s) for ``controller`` (a new structure
     derives that one alone), reporting to ``progress``; a ``model`` that differs from ``dyn``'s raises
-    ValueError."""
-    import hydrogen
+    a ModelError (a ValueError)."""
+    from .runtime.build import dynamics_for
 
-    if dyn is None:
-        return hydrogen.default_dynamics(model, numbers=numbers, controller=controller, progress=progress)
-    if model is not None:
-        m = model if isinstance(model, hydrogen.Model) else hydrogen.load_model(model)
-        if m.baked_hash() != dyn.model.baked_hash():
-            raise ValueError("export: 'model' and 'dyn' describe different models; pass one of them")
-    return dyn
+    return dynamics_for("export", model, dyn, numbers=numbers, controller=controller, progress=progress)
 
 
 def _candidate_folders(dyn, generated):

@@ -446,20 +446,24 @@ def identify(log, model=None, *, dyn=None, cutoff_hz: float | None = None, order
     """
     from scipy.signal import butter
 
+    _check_options(order=order, max_cond=max_cond, edge_cycles=edge_cycles, gamma=gamma,
+                   zoh_correction=zoh_correction, friction=friction)
     t_start = time.perf_counter()
     timings = {}
     from_file = isinstance(log, (str, Path))  # a CSV, whose header hydrogen wrote, or a rig's (none)
     log = as_log(log)
-    from .runtime.build import as_model, build
-    model = dyn.model if dyn is not None else as_model(model)
-    written = log.meta.get("model") if from_file and isinstance(log.meta, dict) else None
-    if written and written != model.name:  # before any build: a log of another robot is a wrong --model
+    from .runtime.build import as_model, build, dynamics_for
+    model = dynamics_for("identify", model, dyn).model if dyn is not None else as_model(model)
+    # a CSV's header, or the record of the run a SimulationResult or Log comes from
+    written = log.meta.get("model") if isinstance(log.meta, dict) else None
+    if written and written != model.name:  # before any build: a log of another robot is a wrong model
         from .model import models
-        which = (f"--model {written}, or its description file" if written in models() else
-                 f"its description file: --model path/to/the.toml naming '{written}'")
+        which = (f"model='{written}' (--model {written}), or its description file" if written in models() else
+                 f"its description file: model= or --model path/to/the.toml naming '{written}'")
+        where = "header" if from_file else "record (meta)"
         raise IdentificationError(
-            f"{log.source}: the log's header says it is a log of model '{written}', not of '{model.name}': pass "
-            f"that model ({which}); a log of another description of the same robot: remove the header's "
+            f"{log.source}: the log's {where} says it is a log of model '{written}', not of '{model.name}': pass "
+            f"that model ({which}); a log of another description of the same robot: remove the {where}'s "
             f"\"model\" entry")
     if dyn is None:  # the core alone: identification calls no controller
         dyn = build(model, controllers=(), **({} if numbers is None else {"numbers": numbers}))
@@ -574,6 +578,25 @@ def identify(log, model=None, *, dyn=None, cutoff_hz: float | None = None, order
     return Identification(theta, gamma_fit, per_leg, fs, fc, edge, step, len(t), len(idx), log.source, note,
                           fc_g, timings, fric, tuple(c.name for c in model.cylinders) if per_leg is not None else (),
                           per_leg_explained if per_leg is not None else None)
+
+
+def _check_options(**given) -> None:
+    """identify's options that have a range or are switches: an IdentificationError naming the first
+    that is not (a string "no" switched a feature on; order 0 gave a wrong fit)."""
+    import numbers
+
+    for name, v in given.items():
+        if name in ("gamma", "zoh_correction", "friction"):
+            ok, rule = isinstance(v, (bool, np.bool_)), "True or False"
+        elif name == "order":
+            ok, rule = isinstance(v, numbers.Integral) and not isinstance(v, (bool, np.bool_)) and v >= 1, \
+                "an integer >= 1 (the low-pass filter's order)"
+        else:
+            real = isinstance(v, numbers.Real) and not isinstance(v, (bool, np.bool_)) and math.isfinite(v)
+            ok, rule = (real and v > 1, "a finite number > 1 (a condition number)") if name == "max_cond" else \
+                (real and v >= 0, "a finite number >= 0 (periods of the cutoff)")
+        if not ok:
+            raise IdentificationError(f"identify: {name} must be {rule}, got {v!r}")
 
 
 def _fit_with_friction(dyn, log, Y, rhs, JL, L, h, sos, idx, v_s, max_cond) -> tuple:

@@ -27,12 +27,14 @@ seeded), i.e. what a rig's sensors would have measured; the noise added is recor
 from __future__ import annotations
 
 import json
+import numbers
+import os
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
-from .errors import IdentificationError
+from .errors import IdentificationError, OutputPathError
 from .fileio import atomic_write
 from .layout import SUPPLY_LOG
 
@@ -76,7 +78,8 @@ def log_from_result(res, noise_l: float = 0.0, noise_p: float = 0.0, seed: int =
     deviation ``noise_l`` (m) and ``noise_p`` (Pa) from a generator seeded with ``seed``, and its
     spool commands. The true pose and parameters are kept as extra columns and metadata."""
     for name, v in (("noise_l", noise_l), ("noise_p", noise_p)):
-        if not (np.isfinite(v) and v >= 0):
+        real = isinstance(v, numbers.Real) and not isinstance(v, (bool, np.bool_))
+        if not (real and np.isfinite(v) and v >= 0):
             raise IdentificationError(f"{name} must be a finite number >= 0, got {v!r}")
     if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
         raise IdentificationError(f"seed must be an integer >= 0 (the noise's generator), got {seed!r}")
@@ -111,8 +114,12 @@ def log_from_result(res, noise_l: float = 0.0, noise_p: float = 0.0, seed: int =
 
 def write_log(log, path) -> Path:
     """Write a :class:`Log` (or a SimulationResult, without noise) as CSV; returns the path."""
+    from .outputs import check_output_file
+
     log = log if isinstance(log, Log) else log_from_result(log)
-    path = Path(path)
+    if not isinstance(path, (str, os.PathLike)):
+        raise OutputPathError(f"log file: a path (str or pathlib.Path) is needed, got {type(path).__name__} {path!r}")
+    path = check_output_file(path, "log file")  # a folder, a path under a file: named, before writing
     names = ["t", *log.columns]
     data = np.column_stack([log.t, *log.columns.values()]) if len(log.t) else np.zeros((0, len(names)))
     lines = [_MAGIC, "# " + json.dumps(log.meta, sort_keys=True), ",".join(names)]
@@ -200,11 +207,38 @@ def _is_float(s) -> bool:
         return False
 
 
+def _checked_log(log: Log) -> Log:
+    """A :class:`Log` made by hand, checked as the other routes check theirs: ``t`` one column of
+    numbers, ``columns`` a mapping of names to columns of numbers as long as ``t``, ``meta`` a dict."""
+    where = getattr(log, "source", "<memory>")
+    try:
+        t = np.asarray(log.t, dtype=float)
+    except (TypeError, ValueError):
+        t = None
+    if t is None or t.ndim != 1:
+        raise IdentificationError(f"{where}: the log's t must be one column of times (s), got {type(log.t).__name__}")
+    if not hasattr(log.columns, "items"):
+        raise IdentificationError(f"{where}: the log's columns must map names to columns, got "
+                                  f"{type(log.columns).__name__}")
+    if not isinstance(log.meta, dict):
+        raise IdentificationError(f"{where}: the log's meta must be a dict, got {type(log.meta).__name__}")
+    for name, col in log.columns.items():
+        try:
+            c = np.asarray(col, dtype=float)
+        except (TypeError, ValueError):
+            raise IdentificationError(f"{where}: column {name} must be numbers") from None
+        if c.shape != t.shape:
+            held = c.shape[0] if c.ndim == 1 else f"shape {c.shape} of"
+            raise IdentificationError(f"{where}: column {name} holds {held} values, t holds {len(t)}: every "
+                                      "column has one value per time")
+    return log
+
+
 def as_log(obj) -> Log:
     """A :class:`Log` from a Log, a SimulationResult (true values, no noise added), a CSV path, or a
     mapping of column names to arrays (a dict or a pandas DataFrame)."""
     if isinstance(obj, Log):
-        return obj
+        return _checked_log(obj)
     if isinstance(obj, (str, Path)):
         return read_log(obj)
     if hasattr(obj, "leg_lengths") and hasattr(obj, "pressures") and hasattr(obj, "t"):

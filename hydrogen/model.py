@@ -571,7 +571,8 @@ def _baked_cylinder(c: Cylinder) -> list:
 
 
 def _is_number(v) -> bool:
-    return isinstance(v, (int, float)) and not isinstance(v, bool)
+    # numpy's integers too (a dict made in Python: np.float64 is a float already)
+    return isinstance(v, (int, float, np.integer)) and not isinstance(v, (bool, np.bool_))
 
 
 class _Reader:
@@ -1559,6 +1560,9 @@ def _controllers(r, listed) -> tuple:
 def model_from_dict(data: dict, source: str = "<memory>", base_dir: Path | None = None) -> Model:
     """Validate parsed TOML data and build a :class:`Model`; errors name the source and the key."""
     r = _Reader(source)
+    if not isinstance(data, dict):
+        raise r.error("top level", f"a description is a table of keys (a dict), got {type(data).__name__} "
+                                   f"{_quote(data)}")
     r.known(data, _keys("top level"), "top level")
     name = check_model_name(source, r.require(data, "name", "top level"))
     gravity = r.number("gravity", r.require(data, "gravity", "top level"), "gravity")

@@ -127,7 +127,8 @@ def test_export_reports_its_build(monkeypatch, tmp_path, extra):
         seen.update(kwargs)
         raise Built
 
-    monkeypatch.setattr(hydrogen, "default_dynamics", default_dynamics)
+    import hydrogen.runtime.build as build
+    monkeypatch.setattr(build, "default_dynamics", default_dynamics)
     with pytest.raises(Built):
         cli(["export", "--out", str(tmp_path / "out.fmu" if extra else tmp_path / "out"), *extra])
     assert seen["progress"] is print_event

@@ -154,6 +154,9 @@ def test_a_gain_list_of_the_wrong_length_is_named_never_broadcast(dyn, tmp_path)
         hydrogen.simulate("paper-sim", "adaptive-robust", dyn=dyn, duration=0.01, gains={"Gtheta_inv": [1.0, 2.0]})
     with pytest.raises(ScenarioError, match=r"gain 'u_max' needs 1 value \(or one scalar"):
         hydrogen.simulate("paper-sim", "p", dyn=dyn, duration=0.01, gains={"u_max": [1.0, 1.0]})
+    for switch in (True, [True] * 6):  # a switch where a number belongs ran as a gain of 1
+        with pytest.raises(ScenarioError, match=r"gain 'Kleg' needs 6 values .*got \[?True"):
+            hydrogen.simulate("paper-sim", "p", dyn=dyn, duration=0.01, gains={"Kleg": switch})
     path.write_text(text.replace("[gains.backstepping]\n", "[gains.backstepping]\nGtau_inv = 900.0\n", 1))
     g = default_gains(Dynamics(hydrogen.load_model(path), dyn.library), "backstepping")
     np.testing.assert_array_equal(g["Gtau_inv"], np.full(6, 900.0))

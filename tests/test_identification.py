@@ -531,8 +531,9 @@ def test_gamma_from_a_log_its_model_does_not_describe_is_refused_as_such(dyn):
 def test_a_log_of_another_robot_names_the_model_its_header_records(excavator, dyn, tmp_path):
     """The excavator's log file read for the Stewart platform (identify's default model), or for the crane
     (as many travel and pressure columns): refused before anything is built, naming the model its
-    header records. In memory (a result, a Log) the caller chose the model: no header check; a log
-    without that entry (a rig's) says what missing columns stand for."""
+    header records; in memory (a result, a Log) alike, from the run's record (a result identified with
+    the default robot ran on the Stewart platform's model before); a log without that entry (a rig's)
+    says what missing columns stand for."""
     _, res = excavator
     path = tmp_path / "arm.csv"
     write_log(log_from_result(res), path)
@@ -542,8 +543,13 @@ def test_a_log_of_another_robot_names_the_model_its_header_records(excavator, dy
             hydrogen.identify(path, model=model)
         text = str(err.value)
         assert "header says it is a log of model 'excavator_arm', not of '" in text and "--model excavator_arm" in text
+    with pytest.raises(IdentificationError, match=r"record \(meta\) says it is a log of model 'excavator_arm', "
+                                                  r"not of 'ubc_stewart': pass that model \(model='excavator_arm'"):
+        hydrogen.identify(res, dyn=dyn)
+    log = log_from_result(res)
+    log.meta.pop("model")
     with pytest.raises(IdentificationError, match=r"needs l0..l5: the travel of the model's 6 actuators"):
-        hydrogen.identify(log_from_result(res), dyn=dyn)
+        hydrogen.identify(log, dyn=dyn)
 
 
 @pytest.mark.parametrize("seed", [-1, 2.5, True, "0"])
@@ -553,9 +559,10 @@ def test_a_logs_noise_seed_must_be_a_non_negative_integer(seed):
         log_from_result(None, 1e-6, 1e3, seed=seed)
 
 
-@pytest.mark.parametrize("written,advice", [("excavator_arm", "--model excavator_arm, or its description file"),
-                                            ("my_arm", "its description file: --model path/to/the.toml naming "
-                                                       "'my_arm'")])
+@pytest.mark.parametrize("written,advice", [("excavator_arm", "model='excavator_arm' (--model excavator_arm), or its "
+                                                              "description file"),
+                                            ("my_arm", "its description file: model= or --model path/to/the.toml "
+                                                       "naming 'my_arm'")])
 def test_a_log_of_another_robot_names_how_to_pass_it(tmp_path, written, advice):
     """A shipped robot is passed by name; a user's own description only by its file (a name alone
     would not be found)."""
@@ -564,3 +571,38 @@ def test_a_log_of_another_robot_names_how_to_pass_it(tmp_path, written, advice):
     with pytest.raises(IdentificationError, match="the log's header says it is a log of model") as err:
         hydrogen.identify(path)
     assert advice in str(err.value)
+
+
+@pytest.mark.parametrize("option,value", [("order", 0), ("order", -2), ("order", 2.5), ("max_cond", -1.0),
+                                          ("max_cond", float("nan")), ("max_cond", "x"), ("edge_cycles", -1.0),
+                                          ("edge_cycles", float("nan")), ("zoh_correction", "no"),
+                                          ("friction", "yes"), ("gamma", 1)])
+def test_identify_refuses_an_option_out_of_its_range_before_any_work(option, value):
+    """order 0 fitted a wrong mass, a string switched a feature on, a negative edge raised an IndexError."""
+    with pytest.raises(IdentificationError, match=rf"identify: {option} must be .*got {value!r}"):
+        hydrogen.identify({"t": [0.0, 1.0]}, **{option: value})
+
+
+def test_a_log_made_by_hand_is_checked_like_a_csv():
+    """A Log whose columns are longer or shorter than t (it was cut after its columns), or whose parts are
+    of the wrong kind, is refused naming what is wrong (it was identified on its first rows, or a raw
+    IndexError)."""
+    t = np.arange(100) * 1e-3
+    for log, message in ((Log(t[:50], {"l0": t}), r"column l0 holds 100 values, t holds 50"),
+                         (Log(t, {"l0": t[:3]}), r"column l0 holds 3 values, t holds 100"),
+                         (Log(t, None), "columns must map names to columns"),
+                         (Log(None, {}), "t must be one column of times"),
+                         (Log(t, {"l0": t}, "x"), "meta must be a dict")):
+        with pytest.raises(IdentificationError, match=message):
+            hydrogen.identify(log)
+
+
+def test_save_log_names_a_path_it_cannot_write_and_a_noise_that_is_no_number(paper_sim, tmp_path):
+    from hydrogen.errors import OutputPathError
+
+    for path, message in ((tmp_path, "is a folder"), (".", "needs a file name"), (5, "a path .* is needed, got int 5")):
+        with pytest.raises(OutputPathError, match=message):
+            paper_sim.save_log(path)
+    with pytest.raises(IdentificationError, match=r"noise_l must be a finite number >= 0, got '5e-6'"):
+        paper_sim.save_log(tmp_path / "log.csv", noise_l="5e-6")
+    assert list(tmp_path.iterdir()) == []

@@ -46,6 +46,9 @@ def test_leg_lengths_many_is_leg_lengths_row_by_row(dyn, model, rng):
     assert dyn.leg_lengths_many(np.zeros((0, 6))).shape == (0, 6)
     with pytest.raises(ValueError, match=r"\(k, 6\)"):
         dyn.leg_lengths_many(qs[:, :5])
+    qs[3, 2], qs[7, 0] = np.nan, np.inf  # refused as leg_lengths refuses NaN, never NaN lengths back
+    with pytest.raises(hydrogen.InputError, match=r"poses not finite in 2 of 50 rows: \[3, 7\]"):
+        dyn.leg_lengths_many(qs)
 
 
 def test_neutral_pose_is_mid_stroke(dyn, model):

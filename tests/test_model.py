@@ -997,3 +997,24 @@ def test_a_toml_link_of_mass_0_is_a_frame(tmp_path):
         "com = [0.0, 0.0, 0.0]", "", 1))
     with pytest.raises(ModelError, match="moves no mass"):
         hydrogen.load_model(empty)
+
+
+def test_a_description_made_in_python_takes_numpy_numbers_and_must_be_a_table():
+    """numpy's integers load as numbers (its floats did already); anything but a dict at the top is
+    refused naming what it got (a TypeError, or "unknown key 'u'" for a string, before)."""
+    import tomllib
+
+    import numpy as np
+
+    from hydrogen.model import model_from_dict, model_path
+
+    data = tomllib.loads(model_path("ubc_stewart").read_text())
+    data["links"][0]["mass"] = np.int64(250)
+    assert model_from_dict(data).links[0].mass == 250.0
+    data["links"][0]["mass"] = np.bool_(True)
+    with pytest.raises(hydrogen.ModelError, match="mass: expected a number"):
+        model_from_dict(data)
+    for bad, shown in ((None, "NoneType None"), ("ubc_stewart", "str 'ubc_stewart'")):
+        with pytest.raises(hydrogen.ModelError, match=rf"top level: a description is a table of keys \(a dict\), "
+                                                      rf"got {shown}"):
+            model_from_dict(bad)

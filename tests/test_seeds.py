@@ -657,3 +657,28 @@ def test_a_workers_first_build_compiles_the_variant_its_scenario_runs(robot):
     for name in scenario_names(model):
         parent = _own_variants(model, (c,), {c: named_scenario(name, model).gains.get(c)})
         assert _own_variants(model, (c,), _own_gains(model, name, c)) == parent, name
+
+
+@pytest.mark.parametrize("kw, text", [
+    (dict(controller="nope"), r"tune: no controller 'nope'; controllers: "),
+    (dict(grid=[]), r"tune: grid must be a non-empty list of finite gains > 0, got \[\]"),
+    (dict(grid=[-1.0, 0.1]), r"tune: grid must be .*got \[-1.0, 0.1\]"),
+    (dict(grid=[float("nan")]), r"tune: grid must be .*got \[nan\]"),
+    (dict(scenarios=[1, 2]), r"tune: scenarios must be names of the model's scenarios"),
+    (dict(scenarios={"z-1hz": ("zz",)}), r"tune: scenario 'z-1hz' is judged on coordinates \('zz',\)"),
+    (dict(controller="backstepping", secondary={"Bogus": [1.0]}), r"tune: secondary names no gain of 'backstepping': "
+                                                                  r"Bogus; its gains: .*Kd_scale"),
+    (dict(controller="backstepping", secondary={"Kd_scale": []}), r"tune: secondary Kd_scale must be a non-empty"),
+    (dict(controller="adaptive-robust", adaptation={"rate_thetaa": [1.0]}), r"tune: adaptation names no gain of "
+                                                                            r"'adaptive-robust': rate_thetaa"),
+    (dict(controller="adaptive-robust", adaptation={"rate_ls_gamma": [-1.0]}), r"adaptation rate_ls_gamma must be "
+                                                                              r"a non-empty list of gains >= 0"),
+])
+def test_tune_refuses_a_search_it_cannot_run_before_running_it(kw, text, short_model):
+    """A misspelt gain ran the whole first stage and reported every point diverged (or a KeyError after
+    it); an empty grid, a negative gain or scenarios given as a list were raw errors or runs."""
+    kw = {"controller": "p", **kw}
+    with FailingSeed(seed=None) as ex:
+        with pytest.raises(hydrogen.ScenarioError, match=text):
+            tune(kw.pop("controller"), model=short_model, seeds=1, executor=ex, **kw)
+    assert ex.seen == []  # refused before any run

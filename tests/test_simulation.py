@@ -963,3 +963,19 @@ def test_a_diverged_plant_state_names_each_bad_entry_by_its_part(model):
     msg = _describe(x, 0.5, types.SimpleNamespace(model=model, slices={}))
     assert (f"the plant state is non-finite at entries {bad} (pc[{model.cylinders[1].name}.pc], "
             f"spool[{model.cylinders[0].name}])") in msg
+
+
+def test_a_model_and_dynamics_of_two_robots_are_refused_not_one_ignored(dyn, model):
+    """``model=`` with ``dyn=`` of another description ran on ``dyn`` silently; now a ModelError names
+    the call (as export's did); the same description given both ways runs; a dyn that is not compiled
+    dynamics is named."""
+    for call in (lambda **kw: hydrogen.simulate("z-1hz", "p", duration=0.01, **kw),
+                 lambda **kw: hydrogen.stepper("z-1hz", "p", **kw),
+                 lambda **kw: hydrogen.identify({"t": [0.0, 1.0]}, **kw)):
+        with pytest.raises(hydrogen.ModelError, match=r"'model' and 'dyn' describe different models "
+                                                      r"\(excavator_arm and ubc_stewart"):
+            call(model="excavator_arm", dyn=dyn)
+        with pytest.raises(hydrogen.ModelError, match=r"dyn must be the compiled dynamics hydrogen.build\(\) "
+                                                      r"returns, got str 'x'"):
+            call(dyn="x")
+    assert len(hydrogen.simulate("z-1hz", "p", model=model, dyn=dyn, duration=0.01).t) > 1

@@ -16,7 +16,7 @@ from .compiler import (Toolchain, build_key_of, cache_root, cached_library, canc
 from .extension import attach_extension, build_extension, unavailable_reason
 from .library import CORE, GeneratedLibrary, group_name, group_of, group_sources
 
-__all__ = ["build", "default_dynamics", "DEFAULT_DYNAMICS", "as_model", "repo_generated_dir", "generated_dir_for", "library_name",
+__all__ = ["build", "default_dynamics", "dynamics_for", "DEFAULT_DYNAMICS", "as_model", "repo_generated_dir", "generated_dir_for", "library_name",
            "generation_reported"]
 
 
@@ -546,3 +546,20 @@ def default_dynamics(model=None, progress=None, controller=None, numbers=None, g
                                       controllers=(*held, *wanted) if wanted else None).library
     from ..dynamics import Dynamics
     return Dynamics(m, DEFAULT_DYNAMICS[key])
+
+
+def dynamics_for(what: str, model=None, dyn=None, **build_options):
+    """The compiled dynamics a call ``what`` ("simulate", "identify", "export") runs on: ``dyn`` when
+    given (a ``model`` given too must be the same description, else a ModelError: the call would
+    silently run on one of the two), else :func:`default_dynamics` of ``model`` with ``build_options``."""
+    from ..errors import ModelError
+
+    if dyn is None:
+        return default_dynamics(model, **build_options)
+    if not hasattr(dyn, "model") or not hasattr(dyn, "library"):
+        raise ModelError(f"{what}: dyn must be the compiled dynamics hydrogen.build() returns, got "
+                         f"{type(dyn).__name__} {dyn!r}"[:300])
+    if model is not None and as_model(model).baked_hash() != dyn.model.baked_hash():
+        raise ModelError(f"{what}: 'model' and 'dyn' describe different models ({as_model(model).name} and "
+                         f"{dyn.model.name}, or two versions of one); pass one of them")
+    return dyn

@@ -20,7 +20,7 @@ import sysconfig
 import warnings
 from pathlib import Path
 
-from ..errors import BuildCacheError
+from ..errors import BuildCacheError, InputError
 from ..layout import NUMBERS
 from .compiler import Toolchain, compile_extension
 
@@ -173,7 +173,7 @@ def attach_extension(library, toolchain: Toolchain | None = None, cache: Path | 
     ``library.backend``. ``prefer``: as :func:`build_extension` takes it.
     """
     if backend not in BACKENDS:
-        raise ValueError(f"backend must be one of {BACKENDS}, got {backend!r}")
+        raise InputError(f"backend must be one of {BACKENDS}, got {backend!r}")
     library.extension_functions, library.extension_path, library.backend = None, None, "ctypes"
     if hasattr(library, "detach"):
         library.detach()

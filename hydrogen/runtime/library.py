@@ -16,7 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import BuildCacheError
+from ..errors import BuildCacheError, InputError
 from ..layout import NUMBERS
 
 __all__ = ["GeneratedLibrary", "CompiledFunction", "LazyFunctions", "load_failure", "function_groups", "group_sources",
@@ -181,10 +181,10 @@ class CompiledFunction:
                 if n is None:
                     n, first = a.shape[0], name
                 elif a.shape[0] != n:
-                    raise ValueError(f"{self.name}: input '{name}' holds {a.shape[0]} states (its first "
+                    raise InputError(f"{self.name}: input '{name}' holds {a.shape[0]} states (its first "
                                      f"dimension) but input '{first}' holds {n}: stacked inputs need the same n")
             else:
-                raise ValueError(f"{self.name}: input '{name}' needs shape {_shape_text(user)}, or "
+                raise InputError(f"{self.name}: input '{name}' needs shape {_shape_text(user)}, or "
                                  f"{_shape_text(user, True)} for a batch of n states, got {a.shape}")
             arrays.append(a)
         outs = self._outputs(out, n, arrays)
@@ -217,14 +217,18 @@ class CompiledFunction:
             if fault == "shape":
                 got = o.shape if isinstance(o, np.ndarray) else repr(type(o))
                 with_n = f" with n = {n}" if n is not None else ""
-                raise ValueError(f"{self.name}: out for output '{name}' needs a writeable C-contiguous float64 "
+                raise InputError(f"{self.name}: out for output '{name}' needs a writeable C-contiguous float64 "
                                  f"array of shape {_shape_text(view.shape, n is not None)}{with_n}, got {got}"
                                  f"{'' if isinstance(o, np.ndarray) else ' (not a numpy array)'}")
             if fault:
-                raise ValueError(f"{self.name}: out for output '{name}' {fault}")
+                raise InputError(f"{self.name}: out for output '{name}' {fault}")
             for a, iname in zip(inputs, self.in_names):
                 if o.size and a.size and np.may_share_memory(o, a):
-                    raise ValueError(f"{self.name}: out for output '{name}' shares memory with input '{iname}'")
+                    raise InputError(f"{self.name}: out for output '{name}' shares memory with input '{iname}'")
+        for i, (o, name) in enumerate(zip(outs, self.out_names)):  # one output written over another's
+            for other, oname in zip(outs[i + 1:], self.out_names[i + 1:]):
+                if o.size and other.size and np.may_share_memory(o, other):
+                    raise InputError(f"{self.name}: out for output '{name}' shares memory with output '{oname}'")
         return outs
 
     def set_inputs(self, values: dict) -> None:
@@ -236,7 +240,7 @@ class CompiledFunction:
             try:
                 view[...] = np.reshape(np.asarray(value, float), view.shape)
             except ValueError:
-                raise ValueError(f"{self.name}: input '{name}' needs shape {view.shape}, "
+                raise InputError(f"{self.name}: input '{name}' needs shape {view.shape}, "
                                  f"got {np.shape(value)}") from None
 
     def c_tables(self) -> dict:
@@ -280,7 +284,7 @@ def _check_nan_rows(fn, arrays, batched, n):
                 msgs.append(f"input '{name}' has NaN in {len(rows)} of {n} rows: {listed}"
                             f"{' ...' if len(rows) > _MAX_LISTED else ''}")
     if msgs:
-        raise ValueError(f"{fn.name}: NaN states in a batch: {'; '.join(msgs)}")
+        raise InputError(f"{fn.name}: NaN states in a batch: {'; '.join(msgs)}")
 
 
 def load_failure(path: Path, exc: Exception) -> str:

@@ -14,6 +14,7 @@ import numpy as np
 __all__ = ["LoopRunner", "LOOP_OK", "LOOP_NONFINITE", "LOOP_FK_FAILED", "LOOP_CTRL_FAILED"]
 
 from .. import references
+from ..errors import InputError
 from ..estimators import ESTIMATORS, estimator  # each estimator's state, started at the lengths
 from ..layout import log_rows, loop_context
 
@@ -89,7 +90,7 @@ def _check_values(values, ctx, ctrl, dyn) -> None:
     numbers = () if dyn.numbers is None else dyn.numbers
     missing = [f["name"] for g in ctx["config"] for f in g["fields"] if f["source"] and f["name"] not in values]
     if missing:
-        raise ValueError(f"loop configuration: no value for {missing} (hydrogen.layout.LOOP_CONFIG)")
+        raise InputError(f"loop configuration: no value for {missing} (hydrogen.layout.LOOP_CONFIG)")
     model = dyn.model
     n, m, n_xc = len(model.neutral_pose), ctx["m"], int(ctrl.xc.size)
     sizes = {"theta": len(model.theta), "gamma1": m, "gamma2": m,
@@ -105,19 +106,19 @@ def _check_values(values, ctx, ctrl, dyn) -> None:
              "pred_x0": ctx["nx"]}
     for name, size in sizes.items():
         if np.size(values[name]) != size:
-            raise ValueError(f"loop configuration: {name} must hold {size} numbers, got {np.size(values[name])}")
+            raise InputError(f"loop configuration: {name} must hold {size} numbers, got {np.size(values[name])}")
     for name, size in (("pred_theta_at", len(model.theta)), ("pred_gamma1_at", m), ("pred_gamma2_at", m)):
         at = int(values[name])
         if at != -1 and not 0 <= at <= n_xc - size:
-            raise ValueError(f"loop configuration: {name} = {at} is outside the controller's state ({n_xc})")
+            raise InputError(f"loop configuration: {name} = {at} is outside the controller's state ({n_xc})")
     if int(values["n_xc"]) != n_xc:
-        raise ValueError(f"loop configuration: n_xc is {values['n_xc']}, the controller's state holds {n_xc}")
+        raise InputError(f"loop configuration: n_xc is {values['n_xc']}, the controller's state holds {n_xc}")
     for a in references.config_axes(values):
         if not float(a).is_integer() or not 0 <= int(a) < n:
-            raise ValueError(f"reference axis {a!r} is outside 0..{n - 1}; the C loop would index out of range")
+            raise InputError(f"reference axis {a!r} is outside 0..{n - 1}; the C loop would index out of range")
     delay, frac = values["delay"], values["delay_frac"]
     if not (np.isfinite(frac) and 0 <= frac < 1 and 0 <= delay and delay + frac <= ctx["max_delay"]):
-        raise ValueError(f"delay must be 0..{ctx['max_delay']} control periods, got {delay} + {frac!r} periods")
+        raise InputError(f"delay must be 0..{ctx['max_delay']} control periods, got {delay} + {frac!r} periods")
 
 
 class LoopRunner:
@@ -195,12 +196,12 @@ class LoopRunner:
         """The semi-implicit step's tables: its arguments are the controller's (the same buffers, which
         the loop writes) then h, xc_lo, xc_hi; its command result is the controller's u buffer."""
         if ctrl.step_fn is None:
-            raise ValueError(f"{ctrl.fn.name} has no generated semi-implicit step (dynamics of derived "
+            raise InputError(f"{ctrl.fn.name} has no generated semi-implicit step (dynamics of derived "
                              "functions alone); the C loop needs the compiled library's")
         step, fn = ctrl.step_fn.clone(), ctrl.fn  # a clone: its result table is redirected below
         n_in = len(fn.in_names)
         if step.in_names[:n_in] != fn.in_names or step.in_names[n_in:] != ["h", "xc_lo", "xc_hi"]:
-            raise ValueError(f"{step.name} does not take {fn.name}'s inputs then h, xc_lo, xc_hi; regenerate")
+            raise InputError(f"{step.name} does not take {fn.name}'s inputs then h, xc_lo, xc_hi; regenerate")
         # by the C tables' names: the controller's buffers (the description's numbers too), then h, xc_lo, xc_hi
         ctrl_arg = C.cast(tables["arg"], C.POINTER(C.c_void_p))
         own = dict(zip(("h", "xc_lo", "xc_hi"), (a.ctypes.data for a in extra)))
@@ -235,11 +236,11 @@ class LoopRunner:
         """
         n = int(n)
         if n < 0:
-            raise ValueError(f"n must be >= 0, got {n}")
+            raise InputError(f"n must be >= 0, got {n}")
         if noise is not None:
             if (noise.dtype != np.float64 or not noise.flags.c_contiguous or noise.ndim != 2
                     or noise.shape[1] != self.n_noise or noise.shape[0] < n):
-                raise ValueError(f"noise must be a C-contiguous float64 array of shape (>= {n}, {self.n_noise}), "
+                raise InputError(f"noise must be a C-contiguous float64 array of shape (>= {n}, {self.n_noise}), "
                                  f"got {noise.dtype} {noise.shape}")
         log = None
         if logs:
@@ -251,7 +252,7 @@ class LoopRunner:
                 width = self._log_width[k] or self.xc.size
                 if (v.dtype != np.float64 or not v.flags.c_contiguous or v.size < end * width
                         or (v.ndim == 2 and v.shape[1] != width)):
-                    raise ValueError(f"log '{k}' must be a C-contiguous float64 array with >= {end} rows "
+                    raise InputError(f"log '{k}' must be a C-contiguous float64 array with >= {end} rows "
                                      f"of {width}, got {v.dtype} {v.shape}")
                 setattr(log, k, _ptr(v))
         nz = None if noise is None else noise.ctypes.data_as(C.c_void_p)
@@ -262,7 +263,7 @@ class LoopRunner:
         here; its rows must outlive the stepper): the cheapest call per period from Python."""
         if (noise.dtype != np.float64 or not noise.flags.c_contiguous or noise.ndim != 2
                 or noise.shape[1] != self.n_noise):
-            raise ValueError(f"noise must be a C-contiguous float64 array of shape (k, {self.n_noise})")
+            raise InputError(f"noise must be a C-contiguous float64 array of shape (k, {self.n_noise})")
         run, cfg, st, addr, row, rows = self._run, self._cfg_ref, self._st_ref, noise.ctypes.data, \
             noise.strides[0], noise.shape[0]
         self._keep.append(noise)
@@ -298,7 +299,7 @@ class LoopRunner:
                 return None
             row = np.ascontiguousarray(nz, dtype=float)
             if row.shape != (self.n_noise,):
-                raise ValueError(f"a noise row holds {self.n_noise} numbers, got shape {row.shape}")
+                raise InputError(f"a noise row holds {self.n_noise} numbers, got shape {row.shape}")
             Stages.row = row  # alive while the call reads it (only the current row is kept)
             return row.ctypes.data_as(vp)
 

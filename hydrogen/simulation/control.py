@@ -70,6 +70,8 @@ def _checked(kind, g, k, v, where, model):
         raise ScenarioError(f"{where}: controller '{kind}' has no gain '{k}'; it has {sorted(g)}")
     shape = np.shape(g[k])
     try:
+        if np.asarray(v).dtype == bool:  # True is no gain of 1 (a switch given where a number belongs)
+            raise ValueError
         value = np.asarray(v, float)
         if value.ndim and value.shape != shape:
             raise ValueError

@@ -312,6 +312,74 @@ def _check_margin(margin) -> None:
         raise HydrogenError(f"the required gain margin must be a finite number >= 1, not {margin!r}")
 
 
+def _check_controller(controller) -> None:
+    from ..controllers import CONTROLLERS
+
+    if controller not in CONTROLLERS:
+        raise ScenarioError(f"tune: no controller {controller!r}; controllers: {', '.join(CONTROLLERS)}")
+
+
+def _gain_values(what: str, values, adaptation: bool = False) -> np.ndarray:
+    """``values`` of a searched gain: a non-empty list of finite numbers > 0 (an adaptation gain's: >= 0,
+    0 the paper's law, or NaN where the controller derives the gain, as its spec's search has them),
+    else a ScenarioError."""
+    try:
+        if np.asarray(values).dtype == bool:
+            raise ValueError
+        out = np.asarray(values, float).reshape(-1)
+    except (TypeError, ValueError):
+        out = None
+    ok = None if out is None else (np.isnan(out) | (out >= 0)) if adaptation else np.isfinite(out) & (out > 0)
+    if out is None or not out.size or not np.all(ok) or np.any(np.isinf(out)):
+        rule = "gains >= 0 (or NaN: derived)" if adaptation else "finite gains > 0"
+        raise ScenarioError(f"tune: {what} must be a non-empty list of {rule}, got {values!r}"[:300])
+    return out
+
+
+def _gain_grid(what: str, grid, dyn, controller) -> dict:
+    """A ``secondary`` or ``adaptation`` search, {gain: values}: each gain one of the controller's (or
+    ``Kd_scale`` for the secondary search), its values as :func:`_gain_values` takes them."""
+    if not hasattr(grid, "items"):
+        raise ScenarioError(f"tune: {what} must map gain names to lists of values, got {grid!r}"[:300])
+    known = set(_base_gains(dyn, controller, robot=True)) | ({"Kd_scale"} if what == "secondary" else set())
+    unknown = sorted(str(k) for k in grid if k not in known)
+    if unknown:
+        raise ScenarioError(f"tune: {what} names no gain of '{controller}': {', '.join(unknown)}; its gains: "
+                            f"{', '.join(sorted(known))}")
+    return {k: _gain_values(f"{what} {k}", v, what == "adaptation") for k, v in grid.items()}
+
+
+def _scenarios(scenarios, model) -> dict:
+    """``scenarios`` as :func:`rig_scenarios` gives them, {name: (coordinates judged)}: given so, or as
+    names of ``model``'s scenarios (each judged on the coordinates its reference moves)."""
+    from .scenarios import scenario
+
+    def bad():
+        return ScenarioError(f"tune: scenarios must be names of the model's scenarios or {{name: (coordinates "
+                             f"judged)}}, got {scenarios!r}"[:300])
+    if isinstance(scenarios, (str, bytes)) or not hasattr(scenarios, "__iter__"):
+        raise bad()
+    if hasattr(scenarios, "items"):
+        out = {}
+        for name, coords in scenarios.items():
+            coords = (coords,) if isinstance(coords, str) else tuple(coords) if hasattr(coords, "__iter__") else ()
+            unknown = [c for c in coords if c not in model.coordinate_names]
+            if not coords or unknown:
+                raise ScenarioError(f"tune: scenario {name!r} is judged on coordinates {coords!r}; the model's "
+                                    f"coordinates: {', '.join(model.coordinate_names)}")
+            out[name] = coords
+        return out
+    if not all(isinstance(name, str) for name in scenarios):
+        raise bad()
+    out = {}
+    for name in scenarios:
+        amp = scenario(name, model).reference.amplitude()
+        out[name] = tuple(c for c, a in zip(model.coordinate_names, amp) if a > 0)
+        if not out[name]:
+            raise ScenarioError(f"tune: scenario {name!r}'s reference moves no coordinate: nothing to judge")
+    return out
+
+
 def tune(controller, grid=None, *, model=None, scenarios=None, secondary=None, adaptation=None,
          executor=None, max_workers=None, progress: bool = False, seeds=None,
          variant: str | None = None, numbers: str | None = None, margin: float = MARGIN) -> dict:
@@ -341,17 +409,19 @@ def tune(controller, grid=None, *, model=None, scenarios=None, secondary=None, a
     from ..runtime.build import build
     from .sweep import check_workers, sweep
 
-    grid = np.sort(np.asarray(default_grid(controller) if grid is None else grid, float))
+    _check_controller(controller)
+    grid = np.sort(_gain_values("grid", default_grid(controller) if grid is None else grid))
     _check_margin(margin)
     model = _load(model)
     if executor is None:
         check_workers(max_workers)
-    scen = dict(scenarios) if scenarios else require_rig_scenarios(model, f"tune --controller {controller}", variant)
+    scen = _scenarios(scenarios, model) if scenarios else \
+        require_rig_scenarios(model, f"tune --controller {controller}", variant)
     seeds = seed_list(DEFAULT_SEEDS if seeds is None else seeds)
     report = _build_report(progress)
     options = {} if numbers is None else {"numbers": numbers}
     dyn = build(model, controllers=(controller,), progress=report, **options)
-    sec = secondary_grid(dyn, controller) if secondary is None else dict(secondary)
+    sec = secondary_grid(dyn, controller) if secondary is None else _gain_grid("secondary", secondary, dyn, controller)
     sec_points = [dict(zip(sec, v)) for v in itertools.product(*sec.values())] or [{}]
     setters = [k for k in sec if main_gain(controller) in _secondary(dyn, controller, {k: sec[k][0]})]
     if setters:  # every secondary point would overwrite the main gain: each grid column the same run
@@ -363,7 +433,7 @@ def tune(controller, grid=None, *, model=None, scenarios=None, secondary=None, a
             + ", ".join(setters))
     own = _own_gains(dyn, controller, next(iter(scen)), model)
     stages = adaptation_grid(dyn, controller, own) if adaptation is None else \
-        [(k, [float(v) for v in vs]) for k, vs in dict(adaptation).items()]
+        [(k, vs.tolist()) for k, vs in _gain_grid("adaptation", adaptation, dyn, controller).items()]
     # every variant the runs will use (lean or full), compiled here with its progress shown, not by
     # one worker on its first run while the others wait on the build lock, saying nothing
     for g in _variant_gains(own, sec_points, stages):
