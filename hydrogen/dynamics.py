@@ -245,7 +245,7 @@ class Dynamics:
         m or rad), every branch in closed form; for a three-way cylinder (57) inverted at
         q_l / c = g0 (l − L)."""
         if l is None:
-            raise ValueError(f"model '{self.model.name}': valve_inverse(g0, pc, l=...) needs the actuator "
+            raise InputError(f"model '{self.model.name}': valve_inverse(g0, pc, l=...) needs the actuator "
                              "coordinates l (g0 depends on them)")
         f = self.functions["valve_inverse"]
         return f(g0, l, pc) if out is None else f(g0, l, pc, out=out)

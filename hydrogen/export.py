@@ -26,6 +26,7 @@ from __future__ import annotations
 
 import hashlib
 import json
+import os
 import re
 import shutil
 import tempfile
@@ -34,7 +35,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .errors import HydrogenError
+from .errors import HydrogenError, OutputPathError
 from .diagram import SLOTS  # the loop's own ports: a plant output among them is measured
 from .layout import NUMBERS, loop_functions
 from .simulation.checks import MIN_WINDOW_SAMPLES  # the metric window's rule, which the program repeats
@@ -514,6 +515,9 @@ def export(out_dir, scenario=None, controller="adaptive-robust", model=None, dur
     from .fileio import locked, replace_dir, write_file
 
     # Refused before anything is built or run: the folder must be new, empty or an earlier export.
+    if not isinstance(out_dir, (str, os.PathLike)):
+        raise OutputPathError(f"export: out_dir must be a folder's path (str or pathlib.Path), got "
+                              f"{type(out_dir).__name__} {out_dir!r}"[:300])
     check_export_dir(Path(out_dir).absolute())
     dyn, sc, sc_name, p = prepare_export(model, dyn, scenario, controller, gains, duration, check_workspace,
                                          overrides, numbers, progress)

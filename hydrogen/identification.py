@@ -653,7 +653,10 @@ def _true(meta, key, size):
     v = np.asarray(v, float)
     if key == "gamma_true" and v.ndim == 2:  # (2, m): one [β, βc] per cylinder; the pooled fit is their mean
         v = v.mean(axis=1)
-    return None if v.shape != (size,) else v
+    if v.shape != (size,):  # a record of another robot, or written by hand: no comparison to make
+        raise IdentificationError(f"the log's meta {key} holds {v.size} values, the model has {size} (a record of "
+                                  "another model or description); remove it to identify without the comparison")
+    return v
 
 
 def _spring_rates(model, l) -> np.ndarray:

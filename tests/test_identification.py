@@ -606,3 +606,11 @@ def test_save_log_names_a_path_it_cannot_write_and_a_noise_that_is_no_number(pap
     with pytest.raises(IdentificationError, match=r"noise_l must be a finite number >= 0, got '5e-6'"):
         paper_sim.save_log(tmp_path / "log.csv", noise_l="5e-6")
     assert list(tmp_path.iterdir()) == []
+
+
+def test_a_logs_record_of_the_true_parameters_of_another_size_is_named(paper_sim_log, dyn):
+    """theta_true of another length in a log's meta (a record of another description) made the
+    comparison None in silence."""
+    log = Log(paper_sim_log.t, paper_sim_log.columns, {**paper_sim_log.meta, "theta_true": [1.0, 2.0]})
+    with pytest.raises(IdentificationError, match=r"meta theta_true holds 2 values, the model has 4"):
+        hydrogen.identify(log, dyn=dyn, gamma=False)

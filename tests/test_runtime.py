@@ -366,3 +366,18 @@ def test_the_loop_structs_mirror_each_robots_own_layout():
     with_enc, without = (_structs(loop_context({"model": s}))[3] for s in (summary, bare))
     assert "q_enc" in dict(with_enc._fields_) and "q_enc" not in dict(without._fields_)
     assert ctypes.sizeof(with_enc) == ctypes.sizeof(without) + 8 * summary["n"]
+
+
+def test_a_folder_argument_that_is_no_path_and_an_unknown_function_are_named(dyn, tmp_path):
+    """build(cache=5) and export(5) raised the os module's TypeError; a function the build lacks was a
+    bare KeyError of its name."""
+    from hydrogen.export import export
+
+    for kw in ({"cache": 5}, {"generated": 3.0}):
+        with pytest.raises(hydrogen.InputError, match=rf"build: {list(kw)[0]} must be a folder's path"):
+            hydrogen.build(dyn.model, **kw)
+    with pytest.raises(hydrogen.OutputPathError, match="export: out_dir must be a folder's path .* got int 5"):
+        export(5, dyn=dyn)
+    with pytest.raises(KeyError, match=r"no generated function 'ctrl_nonexistent' in this build; its functions: "
+                                       r".*leg_lengths"):
+        dyn.functions["ctrl_nonexistent"]

@@ -308,6 +308,14 @@ def build(model: Model | str | Path | None = None, *, cc: str | None = None,
     from ..dynamics import Dynamics
     from ..progress import Reporter
 
+    import os
+
+    from ..errors import InputError
+
+    for name, folder_arg in (("cache", cache), ("generated", generated)):
+        if folder_arg is not None and not isinstance(folder_arg, (str, os.PathLike)):
+            raise InputError(f"build: {name} must be a folder's path (str or pathlib.Path) or None, got "
+                             f"{type(folder_arg).__name__} {folder_arg!r}"[:300])
     if not isinstance(model, Model):
         model = load_model(model)
     report = Reporter(progress, model.name)

@@ -364,7 +364,10 @@ class LazyFunctions(Mapping):
         self._library, self._table = library, table
 
     def __getitem__(self, name):
-        group = self._library.group_of[name]  # KeyError for a name the manifest does not list
+        if name not in self._library.group_of:  # a KeyError still, naming what there is
+            raise KeyError(f"no generated function {name!r} in this build; its functions: "
+                           f"{', '.join(sorted(self._library.group_of))}")
+        group = self._library.group_of[name]
         if name not in self._table:
             self._library.load(group)
         return self._table[name]
