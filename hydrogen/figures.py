@@ -69,8 +69,14 @@ def _seeded(result) -> bool:
 
 
 def _run(result):
-    """The run to draw: ``result`` itself, or the median run of runs over seeds."""
-    return result.median_run if _seeded(result) else result
+    """The run to draw: ``result`` itself, or the median run of runs over seeds; anything else (a
+    scenario's name where the run belongs) is a ScenarioError naming what was given."""
+    run = result.median_run if _seeded(result) else result
+    if not all(hasattr(run, k) for k in ("t", "error", "coordinates")):
+        from .errors import ScenarioError
+        raise ScenarioError(f"a figure draws a run (hydrogen.simulate's result), got {type(result).__name__} "
+                            f"{result!r}"[:300])
+    return run
 
 
 def _max_pct(result, coord: str):

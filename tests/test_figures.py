@@ -157,3 +157,10 @@ def test_step_metrics_give_the_rise_time_and_overshoot_of_a_known_response():
     assert m["rise_s"] == pytest.approx(first90) and 0.05 < m["rise_s"] < 0.15
     res.q[:, 2] = res.q_d[0, 2]  # never moves
     assert figures.step_metrics(res, 2) == {"rise_s": None, "overshoot_pct": 0.0}
+
+
+def test_a_figure_of_something_that_is_no_run_is_named(tmp_path):
+    """plot_tracking_errors('z-1hz', ...) raised an AttributeError from inside matplotlib's setup."""
+    with pytest.raises(hydrogen.ScenarioError, match=r"a figure draws a run .*got str 'z-1hz'"):
+        figures.plot_tracking_errors("z-1hz", tmp_path / "a.png")
+    assert not (tmp_path / "a.png").exists()
