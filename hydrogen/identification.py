@@ -77,6 +77,7 @@ from .layout import FK_TOL, SUPPLY_LOG
 from .logcheck import fmt_number, check_log, noise_std
 from .logs import as_log
 from .plant.supply import entries as supply_entries
+from .setting import is_number
 
 __all__ = ["identify", "Identification", "ParameterFit", "auto_cutoff", "hydraulic_mode_hz"]
 
@@ -592,7 +593,7 @@ def _check_options(**given) -> None:
             ok, rule = isinstance(v, numbers.Integral) and not isinstance(v, (bool, np.bool_)) and v >= 1, \
                 "an integer >= 1 (the low-pass filter's order)"
         else:
-            real = isinstance(v, numbers.Real) and not isinstance(v, (bool, np.bool_)) and math.isfinite(v)
+            real = is_number(v) and math.isfinite(v)
             ok, rule = (real and v > 1, "a finite number > 1 (a condition number)") if name == "max_cond" else \
                 (real and v >= 0, "a finite number >= 0 (periods of the cutoff)")
         if not ok:

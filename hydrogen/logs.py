@@ -27,7 +27,6 @@ seeded), i.e. what a rig's sensors would have measured; the noise added is recor
 from __future__ import annotations
 
 import json
-import numbers
 import os
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -37,6 +36,7 @@ import numpy as np
 from .errors import IdentificationError, OutputPathError
 from .fileio import atomic_write
 from .layout import SUPPLY_LOG
+from .setting import is_number
 
 __all__ = ["Log", "log_from_result", "write_log", "read_log", "as_log"]
 
@@ -78,8 +78,7 @@ def log_from_result(res, noise_l: float = 0.0, noise_p: float = 0.0, seed: int =
     deviation ``noise_l`` (m) and ``noise_p`` (Pa) from a generator seeded with ``seed``, and its
     spool commands. The true pose and parameters are kept as extra columns and metadata."""
     for name, v in (("noise_l", noise_l), ("noise_p", noise_p)):
-        real = isinstance(v, numbers.Real) and not isinstance(v, (bool, np.bool_))
-        if not (real and np.isfinite(v) and v >= 0):
+        if not (is_number(v) and np.isfinite(v) and v >= 0):
             raise IdentificationError(f"{name} must be a finite number >= 0, got {v!r}")
     if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
         raise IdentificationError(f"seed must be an integer >= 0 (the noise's generator), got {seed!r}")

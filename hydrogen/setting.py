@@ -12,7 +12,13 @@ from dataclasses import field
 
 import numpy as np
 
-__all__ = ["setting", "failed_check", "words", "WORDS"]
+__all__ = ["setting", "failed_check", "words", "WORDS", "is_number"]
+
+
+def is_number(value) -> bool:
+    """Whether ``value`` is a real number (Python's or numpy's), not a bool: what a number given in
+    Python (a setting, a gain, an option) may be before its range is checked."""
+    return isinstance(value, numbers.Real) and not isinstance(value, (bool, np.bool_))
 
 
 def setting(default, unit: str, meaning: str, check: str | None = None, default_text: str | None = None,

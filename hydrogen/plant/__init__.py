@@ -28,12 +28,12 @@ from __future__ import annotations
 
 import importlib
 import math
-import numbers
 from dataclasses import dataclass
 
 import numpy as np
 
 from ..loop_logs import RESERVED as LOG_NAMES  # the run's own logs: no plant output takes their names
+from ..setting import is_number
 
 __all__ = ["FUNCTION", "BLOCKS", "SIZES", "PlantState", "PlantParameter", "PlantInput", "Slot", "block", "plant_layout",
            "state_size", "slot", "entry_names", "describe_entries", "state_vector", "initial_state", "outputs",
@@ -391,7 +391,7 @@ def sensor_numbers(layout, scenario, kind: str) -> dict:
         value = 0.0 if not setting else getattr(scenario, setting)
         entries = list(value) if isinstance(value, (list, tuple, np.ndarray)) else [value]
         # a setting declared without a check reaches here as given: finite reals only (no NaN reading)
-        real = all(isinstance(v, numbers.Real) and not isinstance(v, (bool, np.bool_)) and math.isfinite(v)
+        real = all(is_number(v) and math.isfinite(v)
                    for v in entries)
         given = np.asarray(value, float) if real else None
         if given is None or (given.ndim and given.shape != (s.size,)):

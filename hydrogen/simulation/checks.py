@@ -16,6 +16,7 @@ from collections.abc import Mapping
 import numpy as np
 
 from ..errors import ScenarioError
+from ..setting import is_number
 from .seeds import MAX_SEED
 
 __all__ = ["check_fields", "check_reference", "check_against_model", "check_gain_values",
@@ -38,13 +39,9 @@ def _fail(name, field, what, value):
     raise ScenarioError(f"scenario '{name}': {field} {what}, got {_shown(value)}")
 
 
-def _is_real(v) -> bool:
-    return isinstance(v, numbers.Real) and not isinstance(v, (bool, np.bool_))
-
-
 def checked_float(value, field: str, name: str = "(run)") -> float:
     """``value`` as a float if it is a real number (not a bool, not a string), else ScenarioError."""
-    if not _is_real(value):
+    if not is_number(value):
         _fail(name, field, "must be a number", value)
     return float(value)
 
@@ -81,7 +78,7 @@ def check_reference(ref, name: str, n: int | None = None) -> None:
         _fail(name, "reference.bias", f"must hold {n} numbers (one per coordinate of the model)", ref.bias)
 
     def finite(field, v):
-        if not _is_real(v) or not np.isfinite(v):
+        if not is_number(v) or not np.isfinite(v):
             _fail(name, field, "must be a finite number", v)
 
     ref.check(lambda field, what, v: _fail(name, field, what, v),

@@ -26,6 +26,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..setting import is_number
+
 __all__ = ["DEFAULT_SEEDS", "MAX_SEED_COUNT", "MAX_SEED", "check_seed", "seed_list", "parse_seeds", "summarize", "median_seed", "SeedResults"]
 
 #: Noise seeds (0 .. DEFAULT_SEEDS - 1) the documented search (tune) and the margins judge over.
@@ -108,10 +110,6 @@ def parse_seeds(text: str):
     return value
 
 
-def _number(v) -> bool:
-    return isinstance(v, numbers.Real) and not isinstance(v, (bool, np.bool_))
-
-
 def _stats(values):
     """(median, min, max) of a list of numbers; None when one of them is None (no amplitude)."""
     if any(v is None for v in values):
@@ -152,11 +150,11 @@ def summarize(seeds, per_seed) -> dict:
     for key, v in done[0].items():
         if not all(key in m for m in done):
             continue
-        if _number(v):
-            if all(_number(m[key]) for m in done):
+        if is_number(v):
+            if all(is_number(m[key]) for m in done):
                 for name, x in zip(("median", "min", "max"), _stats([m[key] for m in done])):
                     out[name][key] = x
-        elif isinstance(v, Mapping) and v and all(x is None or _number(x) for x in v.values()):
+        elif isinstance(v, Mapping) and v and all(x is None or is_number(x) for x in v.values()):
             if not all(isinstance(m[key], Mapping) and m[key].keys() == v.keys() for m in done):
                 continue
             cols = {c: _stats([m[key][c] for m in done]) for c in v}
